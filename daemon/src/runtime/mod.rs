@@ -1,0 +1,2 @@
+//! Everything around the kernel that touches clocks, threads, sockets and files.
+pub mod storage;

@@ -1,0 +1,160 @@
+//! Canonical blocks: the interpreter's output and the compensator's input and output.
+//!
+//! A canonical block is self-contained: absolute start and end positions of every axis in
+//! millimetres, the resolved feed, and the modal state that later stages need. Later stages
+//! never look back at program text.
+
+use crate::units::AxesMm;
+
+/// Working plane (SPEC §2: G17 default = plane of axes 1 and 2).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Plane {
+    /// G17: axes 1 and 2 (XY on a mill, XZ on a lathe whose second axis is Z).
+    #[default]
+    G17,
+    /// G18: axes 3 and 1 (ZX).
+    G18,
+    /// G19: axes 2 and 3 (YZ).
+    G19,
+}
+
+impl Plane {
+    /// Axis indices (first, second) of the plane, ordered so that G2 is clockwise looking
+    /// against the plane normal (right-handed: G17 X→Y, G18 Z→X, G19 Y→Z).
+    pub fn axes(self) -> (usize, usize) {
+        match self {
+            Plane::G17 => (0, 1),
+            Plane::G18 => (2, 0),
+            Plane::G19 => (1, 2),
+        }
+    }
+}
+
+/// Direction of circular interpolation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ArcDir {
+    /// G2, clockwise.
+    Cw,
+    /// G3, counter-clockwise.
+    Ccw,
+}
+
+/// The path of a motion block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Path {
+    /// G0: positioning at rapid speed, straight line in axis space.
+    Rapid,
+    /// G1: straight line.
+    Line,
+    /// G2/G3: circular arc in `plane` about `center` (absolute; only the two plane components are
+    /// meaningful); axes outside the plane move linearly (helix).
+    Arc {
+        dir: ArcDir,
+        center: AxesMm,
+        plane: Plane,
+    },
+}
+
+/// Feed as programmed, already converted to one unit per mode (SPEC §5).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Feed {
+    /// G94/G96: mm/min.
+    MmPerMin(f64),
+    /// G95/G97: mm per spindle revolution.
+    MmPerRev(f64),
+}
+
+impl Default for Feed {
+    fn default() -> Self {
+        Feed::MmPerMin(0.0)
+    }
+}
+
+/// Radius compensation command in force for a block (SPEC §4).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Comp {
+    /// G40.
+    #[default]
+    Off,
+    /// G41: tool centre left of the path; radius from the offset table entry `d`.
+    Left { d: u8, radius_mm: f64 },
+    /// G42: tool centre right of the path.
+    Right { d: u8, radius_mm: f64 },
+}
+
+/// Block continuity mode (SPEC §7.1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Continuity {
+    /// G98: ramp to rest at every block end (power-on default).
+    #[default]
+    G98,
+    /// G24: ramp to rest, then wait for the following error to settle.
+    G24,
+    /// G23: continuous path.
+    G23,
+}
+
+/// Spindle state (M3/M4/M5 and S).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum SpindleDir {
+    Cw,
+    Ccw,
+    #[default]
+    Stopped,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Spindle {
+    pub dir: SpindleDir,
+    /// Programmed S word (rpm under G94/G95; cutting speed under G96/G97, see SPEC §6).
+    pub s: f64,
+}
+
+/// What a block does.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum BlockKind {
+    /// Motion from `start` to `end` along `path`.
+    Motion {
+        start: AxesMm,
+        end: AxesMm,
+        path: Path,
+    },
+    /// Dwell (no motion) for the given time.
+    Dwell { seconds: f64 },
+    /// A block with no motion: technology functions (M, S, D, G92 ...), modal changes only.
+    Technology,
+}
+
+/// Up to four M functions per block, in the order written.
+pub type MCodes = [Option<u16>; 4];
+
+/// A canonical block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Block {
+    /// Index of the block in the program (0-based), unique and increasing; traces every later
+    /// stage (compensated pieces, planned segments) back to its source.
+    pub seq: u32,
+    /// Programmed `N` number, if any.
+    pub n: Option<u32>,
+    /// 1-based source line.
+    pub line: u32,
+    pub kind: BlockKind,
+    pub feed: Feed,
+    pub plane: Plane,
+    pub comp: Comp,
+    pub continuity: Continuity,
+    /// Dynamic parameter set 1..4 (SPEC §7.4, `G23 I1..I4`).
+    pub dyn_set: u8,
+    pub spindle: Spindle,
+    pub m: MCodes,
+}
+
+impl Block {
+    /// Start and end points if this is a motion block.
+    pub fn motion(&self) -> Option<(AxesMm, AxesMm, Path)> {
+        match self.kind {
+            BlockKind::Motion { start, end, path } => Some((start, end, path)),
+            _ => None,
+        }
+    }
+}
