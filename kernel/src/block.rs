@@ -106,8 +106,14 @@ pub enum SpindleDir {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Spindle {
     pub dir: SpindleDir,
-    /// Programmed S word (rpm under G94/G95; cutting speed under G96/G97, see SPEC §6).
+    /// Programmed S word as written (rpm under G94/G95; cutting speed under G96/G97, SPEC §6).
     pub s: f64,
+    /// Constant cutting speed (KŘR, G96/G97, SPEC §6) is in force.
+    pub css: bool,
+    /// G76 spindle speed limit, rpm (0 = none programmed).
+    pub limit_rpm: f64,
+    /// Gear range selected by an M code (0 = none selected), SPEC §6.
+    pub gear: u8,
 }
 
 /// What a block does.
