@@ -1,0 +1,272 @@
+//! Daemon configuration: one TOML file. Every key has a default, so an empty file (or none)
+//! gives the built-in simulated 3-axis mill.
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+
+use super::buses::BusConfig;
+
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    /// Machine axes in machine order (R0..R5).
+    #[serde(default = "default_axes")]
+    pub axes: Vec<AxisConfig>,
+    #[serde(default)]
+    pub bus: BusConfig,
+    #[serde(default)]
+    pub api: ApiConfig,
+    #[serde(default)]
+    pub rt: RtConfig,
+    #[serde(default)]
+    pub sim: SimConfig,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config {
+            axes: default_axes(),
+            bus: BusConfig::default(),
+            api: ApiConfig::default(),
+            rt: RtConfig::default(),
+            sim: SimConfig::default(),
+        }
+    }
+}
+
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct AxisConfig {
+    /// Axis letter used in programs (`X`, `Y`, `Z`, `U`...).
+    pub name: char,
+    /// Maximum axis speed, also the rapid speed, mm/min.
+    #[serde(default = "default_v_max")]
+    pub max_velocity_mm_min: f64,
+    /// Maximum axis acceleration, mm/s².
+    #[serde(default = "default_a_max")]
+    pub max_accel_mm_s2: f64,
+    /// Drive increments per mm (or per degree) for bus backends that talk increments.
+    #[serde(default = "default_increments")]
+    pub increments_per_mm: f64,
+    /// Bus node id of the axis drive (CANopen node id, serial address).
+    #[serde(default)]
+    pub node_id: Option<u8>,
+    /// Position at power-on of the simulated machine, mm.
+    #[serde(default)]
+    pub home_mm: f64,
+}
+
+fn default_v_max() -> f64 {
+    12_000.0
+}
+fn default_a_max() -> f64 {
+    800.0
+}
+fn default_increments() -> f64 {
+    10_000.0
+}
+
+impl AxisConfig {
+    pub fn new(name: char) -> Self {
+        AxisConfig {
+            name,
+            max_velocity_mm_min: default_v_max(),
+            max_accel_mm_s2: default_a_max(),
+            increments_per_mm: default_increments(),
+            node_id: None,
+            home_mm: 0.0,
+        }
+    }
+}
+
+fn default_axes() -> Vec<AxisConfig> {
+    ['X', 'Y', 'Z']
+        .into_iter()
+        .enumerate()
+        .map(|(i, n)| AxisConfig {
+            node_id: Some(i as u8 + 1),
+            ..AxisConfig::new(n)
+        })
+        .collect()
+}
+
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct ApiConfig {
+    /// gRPC listen address. Default loopback port 50051.
+    #[serde(default = "default_listen")]
+    pub listen: SocketAddr,
+}
+
+fn default_listen() -> SocketAddr {
+    SocketAddr::from(([127, 0, 0, 1], 50051))
+}
+
+impl Default for ApiConfig {
+    fn default() -> Self {
+        ApiConfig {
+            listen: default_listen(),
+        }
+    }
+}
+
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct RtConfig {
+    /// SCHED_FIFO priority of the real-time thread (1..99).
+    #[serde(default = "default_priority")]
+    pub priority: i32,
+    /// Lock all memory (mlockall) so the RT thread never page-faults.
+    #[serde(default = "default_true")]
+    pub lock_memory: bool,
+}
+
+fn default_priority() -> i32 {
+    80
+}
+fn default_true() -> bool {
+    true
+}
+
+impl Default for RtConfig {
+    fn default() -> Self {
+        RtConfig {
+            priority: default_priority(),
+            lock_memory: true,
+        }
+    }
+}
+
+/// Parameters of the simulated drives (bus kind `sim`).
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SimConfig {
+    /// Position-loop gain of the simulated drives, 1/s.
+    #[serde(default = "default_kv")]
+    pub kv_per_s: f64,
+    /// Following-error window, mm.
+    #[serde(default = "default_window")]
+    pub following_window_mm: f64,
+}
+
+fn default_kv() -> f64 {
+    30.0
+}
+fn default_window() -> f64 {
+    50.0
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        SimConfig {
+            kv_per_s: default_kv(),
+            following_window_mm: default_window(),
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot read {path}: {source}")]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: {message}")]
+    Parse { path: PathBuf, message: String },
+    #[error("{path}: {message}")]
+    Invalid { path: PathBuf, message: String },
+}
+
+impl Config {
+    pub fn load(path: &Path) -> Result<Config, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.to_owned(),
+            source,
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses and validates a configuration text; `path` is used in messages.
+    pub fn parse(text: &str, path: &Path) -> Result<Config, ConfigError> {
+        let cfg: Config = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            path: path.to_owned(),
+            message: e.to_string(),
+        })?;
+        cfg.validate().map_err(|message| ConfigError::Invalid {
+            path: path.to_owned(),
+            message,
+        })?;
+        Ok(cfg)
+    }
+
+    /// Checks what serde cannot: counts, ranges, duplicates. The message names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.axes.is_empty() || self.axes.len() > kernel::MAX_AXES {
+            return Err(format!(
+                "axes: {} axes configured, between 1 and {} are supported",
+                self.axes.len(),
+                kernel::MAX_AXES
+            ));
+        }
+        for (i, a) in self.axes.iter().enumerate() {
+            if !a.name.is_ascii_uppercase() {
+                return Err(format!(
+                    "axes[{i}].name: '{}' is not an axis letter A..Z",
+                    a.name
+                ));
+            }
+            if self.axes[..i].iter().any(|b| b.name == a.name) {
+                return Err(format!("axes[{i}].name: axis {} appears twice", a.name));
+            }
+            for (key, v) in [
+                ("max_velocity_mm_min", a.max_velocity_mm_min),
+                ("max_accel_mm_s2", a.max_accel_mm_s2),
+                ("increments_per_mm", a.increments_per_mm),
+            ] {
+                if !(v.is_finite() && v > 0.0) {
+                    return Err(format!("axes[{i}].{key}: {v} must be a positive number"));
+                }
+            }
+        }
+        if !(1..=99).contains(&self.rt.priority) {
+            return Err(format!(
+                "rt.priority: {} is outside 1..99",
+                self.rt.priority
+            ));
+        }
+        self.bus.validate(&self.axes)
+    }
+
+    pub fn axis_names(&self) -> Vec<char> {
+        self.axes.iter().map(|a| a.name).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn empty_file_is_the_simulated_mill() {
+        let c = Config::parse("", Path::new("x.toml")).unwrap();
+        assert_eq!(c.axis_names(), ['X', 'Y', 'Z']);
+        assert_eq!(c.api.listen.port(), 50051);
+    }
+
+    #[test]
+    fn mistakes_name_the_key() {
+        let e = Config::parse(
+            "[[axes]]\nname = 'X'\nmax_accel_mm_s2 = -1\n",
+            Path::new("m.toml"),
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("axes[0].max_accel_mm_s2"), "{e}");
+        let e = Config::parse("[api]\nlisten = 5\n", Path::new("m.toml")).unwrap_err();
+        assert!(e.to_string().contains("listen"), "{e}");
+        let e = Config::parse("[rt]\nprio = 5\n", Path::new("m.toml")).unwrap_err();
+        assert!(e.to_string().contains("prio"), "{e}");
+    }
+}
