@@ -1,0 +1,253 @@
+//! KŘR configuration: R67, R329 d3, R580 (SPEC §6) and the gear table (daemon's TOML config).
+
+use super::s_word::SWordMode;
+use crate::constants::Constants;
+use crate::plc::OUTPUT_MAX;
+
+/// Version of constant cutting speed, R580 decades 1..2 (SPEC §6).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum KrVersion {
+    /// `00`: old KŘR: computed in motion blocks only, no PLC control, no G76 limit.
+    Old,
+    /// `01`: version 2: always computed, PLC control, G76 limit, offsets act at once.
+    V2,
+}
+
+/// How the controlling axis's position relates to the cutting radius (SPEC §6 **decide**).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RadiusInput {
+    /// The axis is programmed and commanded as a diameter (usual on lathes: `X300` = Ø300):
+    /// radius = |x| / 2.
+    Diameter,
+    /// The axis position is the radius: radius = |x|.
+    Radius,
+}
+
+/// One gear range of the spindle (SPEC §6).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Gear {
+    /// P: spindle speed at full output of this range, rpm.
+    pub max_rpm: f64,
+    /// U: output value at speed P, 1..=7FFFh (AKRR_ACT_U).
+    pub output_range: u16,
+    /// M code selecting this range (e.g. 44), if the machine selects it by program.
+    pub m_code: Option<u16>,
+}
+
+/// Why a KŘR configuration was refused.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum KrConfigError {
+    #[error(
+        "R67 = {0}: the controlling axis of constant cutting speed must be an axis number \
+         1..{1} (R67 may not be 0 even when KŘR is not used)"
+    )]
+    R67(f64, usize),
+    #[error("R329 decade 3 = {0}: allowed are 0 standard, 1 swap G96/G97, 2 S in m/min, 3 both")]
+    R329Decade3(u8),
+    #[error(
+        "R580 = {0}: unknown KŘR version; use 0 for the old KŘR or 0.001 (decades 1..2 = 01) \
+         for version 2"
+    )]
+    R580(f64),
+    #[error("the spindle gear table is empty: configure at least one gear range")]
+    NoGears,
+    #[error("gear range {gear}: maximum speed P = {max_rpm} rpm must be above 0")]
+    GearMaxRpm { gear: usize, max_rpm: f64 },
+    #[error("gear range {gear}: output range U = {output_range} must be 1..32767 (7FFFh)")]
+    GearOutputRange { gear: usize, output_range: u16 },
+    #[error("gear ranges {first} and {second} are both selected by M{m_code}")]
+    GearMCode {
+        first: usize,
+        second: usize,
+        m_code: u16,
+    },
+    #[error("more than 255 gear ranges configured")]
+    TooManyGears,
+}
+
+/// Everything KŘR needs to know about the machine.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KrConfig {
+    /// Controlling axis (R67), 0-based machine axis index.
+    pub controlling_axis: usize,
+    pub radius_input: RadiusInput,
+    pub version: KrVersion,
+    pub s_word: SWordMode,
+    /// Gear ranges; gear number `g` (1-based, as in [`crate::block::Spindle::gear`]) is
+    /// `gears[g - 1]`.
+    pub gears: Vec<Gear>,
+}
+
+impl KrConfig {
+    /// Builds the configuration from the machine constants, the number of axes in use, how the
+    /// controlling axis is programmed, and the gear table.
+    pub fn from_constants(
+        c: &Constants,
+        axes: usize,
+        radius_input: RadiusInput,
+        gears: Vec<Gear>,
+    ) -> Result<Self, KrConfigError> {
+        // R67 = n names axis n in machine order (R0..R5 define axes 1..6).
+        let r67 = c.get(67);
+        if r67.fract() != 0.0 || r67 < 1.0 || r67 > axes as f64 {
+            return Err(KrConfigError::R67(r67, axes));
+        }
+        let s_word = SWordMode::from_constants(c)?;
+        let version = version_of(c)?;
+        let cfg = KrConfig {
+            controlling_axis: r67 as usize - 1,
+            radius_input,
+            version,
+            s_word,
+            gears,
+        };
+        cfg.check_gears()?;
+        Ok(cfg)
+    }
+
+    fn check_gears(&self) -> Result<(), KrConfigError> {
+        if self.gears.is_empty() {
+            return Err(KrConfigError::NoGears);
+        }
+        if self.gears.len() > 255 {
+            return Err(KrConfigError::TooManyGears);
+        }
+        for (i, g) in self.gears.iter().enumerate() {
+            let gear = i + 1;
+            if !(g.max_rpm.is_finite() && g.max_rpm > 0.0) {
+                return Err(KrConfigError::GearMaxRpm {
+                    gear,
+                    max_rpm: g.max_rpm,
+                });
+            }
+            if g.output_range == 0 || i32::from(g.output_range) > OUTPUT_MAX {
+                return Err(KrConfigError::GearOutputRange {
+                    gear,
+                    output_range: g.output_range,
+                });
+            }
+            if let Some(m) = g.m_code
+                && let Some(j) = self.gears[..i].iter().position(|o| o.m_code == Some(m))
+            {
+                return Err(KrConfigError::GearMCode {
+                    first: j + 1,
+                    second: gear,
+                    m_code: m,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// Gear range `number` (1-based); 0 (no gear selected yet) means gear 1, the power-on gear.
+    pub fn gear(&self, number: u8) -> Option<&Gear> {
+        self.gears.get(usize::from(number.max(1)) - 1)
+    }
+
+    /// Gear number (1-based) that M code `m` selects, for the program interpreter.
+    pub fn gear_for_m(&self, m: u16) -> Option<u8> {
+        self.gears
+            .iter()
+            .position(|g| g.m_code == Some(m))
+            .map(|i| (i + 1) as u8)
+    }
+}
+
+/// R580 decades 1..2 (SPEC §6): `00` old, `01` version 2. The manual also says "set the value 1
+/// into R580", so `R580 = 1` is accepted for version 2 as well; anything else is refused.
+fn version_of(c: &Constants) -> Result<KrVersion, KrConfigError> {
+    let v = c.get(580);
+    if v == 1.0 {
+        return Ok(KrVersion::V2);
+    }
+    match (
+        c.is_negative(580),
+        c.field_digits(580, 3, 8),
+        c.field_digits(580, 1, 2),
+    ) {
+        (false, 0, 0) => Ok(KrVersion::Old),
+        (false, 0, 1) => Ok(KrVersion::V2),
+        _ => Err(KrConfigError::R580(v)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn gears() -> Vec<Gear> {
+        vec![
+            Gear {
+                max_rpm: 500.0,
+                output_range: 0x7FFF,
+                m_code: Some(41),
+            },
+            Gear {
+                max_rpm: 2000.0,
+                output_range: 0x6000,
+                m_code: Some(44),
+            },
+        ]
+    }
+
+    fn consts(r67: f64, r329: f64, r580: f64) -> Constants {
+        let mut c = Constants::new();
+        c.set(67, r67);
+        c.set(329, r329);
+        c.set(580, r580);
+        c
+    }
+
+    #[test]
+    fn reads_constants() {
+        let cfg =
+            KrConfig::from_constants(&consts(1.0, 0.3, 0.001), 2, RadiusInput::Diameter, gears())
+                .unwrap();
+        assert_eq!(cfg.controlling_axis, 0);
+        assert_eq!(cfg.version, KrVersion::V2);
+        assert!(cfg.s_word.swap_g96_g97 && cfg.s_word.s_in_m_min);
+        assert_eq!(cfg.gear_for_m(44), Some(2));
+        assert_eq!(cfg.gear(0).unwrap().max_rpm, 500.0);
+        assert!(cfg.gear(3).is_none());
+    }
+
+    #[test]
+    fn r580_versions() {
+        let v = |r580| version_of(&consts(1.0, 0.0, r580));
+        assert_eq!(v(0.0), Ok(KrVersion::Old));
+        assert_eq!(v(0.001), Ok(KrVersion::V2));
+        assert_eq!(v(1.0), Ok(KrVersion::V2));
+        assert_eq!(v(0.002), Err(KrConfigError::R580(0.002)));
+        assert_eq!(v(10.0), Err(KrConfigError::R580(10.0)));
+    }
+
+    #[test]
+    fn refuses_bad_r67_and_gears() {
+        let bad =
+            |r67| KrConfig::from_constants(&consts(r67, 0.0, 0.0), 2, RadiusInput::Radius, gears());
+        assert_eq!(bad(0.0), Err(KrConfigError::R67(0.0, 2)));
+        assert_eq!(bad(3.0), Err(KrConfigError::R67(3.0, 2)));
+        assert_eq!(bad(1.5), Err(KrConfigError::R67(1.5, 2)));
+        let c = consts(2.0, 0.0, 0.0);
+        let mut g = gears();
+        g[1].m_code = Some(41);
+        assert_eq!(
+            KrConfig::from_constants(&c, 2, RadiusInput::Radius, g),
+            Err(KrConfigError::GearMCode {
+                first: 1,
+                second: 2,
+                m_code: 41
+            })
+        );
+        let mut g = gears();
+        g[0].output_range = 0x8000;
+        assert!(matches!(
+            KrConfig::from_constants(&c, 2, RadiusInput::Radius, g),
+            Err(KrConfigError::GearOutputRange { gear: 1, .. })
+        ));
+        assert_eq!(
+            KrConfig::from_constants(&c, 2, RadiusInput::Radius, vec![]),
+            Err(KrConfigError::NoGears)
+        );
+    }
+}

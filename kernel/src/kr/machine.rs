@@ -1,0 +1,355 @@
+//! The KŘR state machine, stepped once per 4 ms tick by the RT thread (SPEC §6).
+//!
+//! Per tick: n = v / (2π·r), clamped to min(P, limit); output Ux = n/P·U (0..7FFFh); the
+//! AKRR_ACT_* cells written into the [`PlcArea`]. No allocation, no IO, no panics.
+
+use super::config::{Gear, KrConfig, KrVersion, RadiusInput};
+use crate::block::{Block, SpindleDir};
+use crate::plc::{CellId, PlcArea, cntr};
+
+/// 1/8 µm per mm (units of AKRR_DIST and AKRR_ACT_R).
+const EIGHTH_UM_PER_MM: f64 = 8000.0;
+/// 1/1000 rpm per rpm (units of AKRR_*SMAX, AKRR_ACT_P, AKRR_ACT_S).
+const MILLI_RPM_PER_RPM: f64 = 1000.0;
+
+/// The program's spindle state in force this tick (from the block being executed).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ProgramSpindle {
+    /// M3/M4/M5.
+    pub dir: SpindleDir,
+    /// G96/G97 in force (G94/G95 cancel it).
+    pub css: bool,
+    /// The modal S word as written: rpm without KŘR, cutting speed with it (unit per R329 d3).
+    pub s_word: f64,
+    /// The block being executed programs an S word itself (needed for "the last reached speed
+    /// becomes S when KŘR ends and the next block has no S", SPEC §6).
+    pub s_programmed: bool,
+    /// G76 limit in rpm, 0 = none.
+    pub limit_rpm: f64,
+    /// Gear range, 1-based; 0 = none selected yet (gear 1 is used).
+    pub gear: u8,
+    /// Index of the block being executed ([`Block::seq`]).
+    pub block_seq: u32,
+}
+
+impl ProgramSpindle {
+    /// The spindle state of `block`; `s_programmed` says whether the block writes S itself.
+    pub fn from_block(block: &Block, s_programmed: bool) -> Self {
+        ProgramSpindle {
+            dir: block.spindle.dir,
+            css: block.spindle.css,
+            s_word: block.spindle.s,
+            s_programmed,
+            limit_rpm: block.spindle.limit_rpm,
+            gear: block.spindle.gear,
+            block_seq: block.seq,
+        }
+    }
+}
+
+/// What moves in this tick (old KŘR is computed in motion blocks only).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Motion {
+    /// No motion: a technology block, a dwell, idle.
+    #[default]
+    Stationary,
+    /// G0. The speed follows the diameter in rapids too, unless G94 cancelled G96 (SPEC §6).
+    Rapid,
+    /// G1/G2/G3, jogging or PLC-driven motion.
+    Feed,
+}
+
+/// Commanded position of the controlling axis (R67) and the corrections in force for it, all in
+/// the axis's own units (a diameter when the axis is programmed as a diameter).
+///
+/// The tool tip, in program coordinates, is `carriage_mm − origin_shift_mm − length_offset_mm`;
+/// KŘR computes there (SPEC §6), or at the carriage when EXT_AKRR_SUPORT is set.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ControllingAxis {
+    /// Commanded machine position of the axis (carriage).
+    pub carriage_mm: f64,
+    /// Tool length offset of the axis in force.
+    pub length_offset_mm: f64,
+    /// Origin shift of the axis in force.
+    pub origin_shift_mm: f64,
+}
+
+impl ControllingAxis {
+    /// Axis at a program position `tip_mm` with no offsets or shifts.
+    pub fn at(tip_mm: f64) -> Self {
+        ControllingAxis {
+            carriage_mm: tip_mm,
+            ..Self::default()
+        }
+    }
+}
+
+/// Everything one tick needs.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct KrInput {
+    pub program: ProgramSpindle,
+    pub motion: Motion,
+    pub axis: ControllingAxis,
+}
+
+/// Why a tick could not compute a speed. The machine must be stopped by the caller.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum KrFault {
+    #[error(
+        "gear range {0} is not configured: the spindle speed cannot be computed, output set to 0"
+    )]
+    UnknownGear(u8),
+    #[error("the controlling axis position is not a number: the last spindle speed is kept")]
+    BadPosition,
+}
+
+/// What one tick produced.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct KrOutput {
+    /// Spindle velocity setpoint for the drive, rpm: positive M3, negative M4, 0 when stopped
+    /// (goes to `hal::CycleCommand::spindle_rpm`).
+    pub spindle_rpm: f64,
+    /// Computed speed n, rpm (AKRR_ACT_S), regardless of M3/M4/M5.
+    pub speed_rpm: f64,
+    /// Spindle output value Ux = n/P·U, 0..7FFFh (AKRR_ACT_OUT).
+    pub output: u16,
+    /// KŘR is in force this tick.
+    pub active: bool,
+    pub fault: Option<KrFault>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Held {
+    /// Block in which KŘR ended.
+    seq: u32,
+    rpm: f64,
+}
+
+/// Constant cutting speed control (KŘR).
+#[derive(Clone, Debug)]
+pub struct Kr {
+    cfg: KrConfig,
+    active: bool,
+    /// Last computed speed, rpm (the "last reached speed", SPEC §6).
+    speed_rpm: f64,
+    /// Speed kept as S after KŘR ended in a block without S.
+    held: Option<Held>,
+    /// Last cutting speed programmed with G96/G97, mm/min.
+    program_v_mm_min: f64,
+}
+
+impl Kr {
+    pub fn new(cfg: KrConfig) -> Self {
+        Kr {
+            cfg,
+            active: false,
+            speed_rpm: 0.0,
+            held: None,
+            program_v_mm_min: 0.0,
+        }
+    }
+
+    pub fn config(&self) -> &KrConfig {
+        &self.cfg
+    }
+
+    /// Forgets the program's state (program reset): KŘR off, no held speed, speed 0.
+    pub fn reset(&mut self) {
+        self.active = false;
+        self.speed_rpm = 0.0;
+        self.held = None;
+        self.program_v_mm_min = 0.0;
+    }
+
+    /// Last computed speed, rpm.
+    pub fn speed_rpm(&self) -> f64 {
+        self.speed_rpm
+    }
+
+    pub fn is_active(&self) -> bool {
+        self.active
+    }
+
+    /// One tick. Call [`PlcArea::begin_tick`] before it so the PLC's writes are in force.
+    pub fn tick(&mut self, input: &KrInput, plc: &mut PlcArea) -> KrOutput {
+        let v2 = self.cfg.version == KrVersion::V2;
+        // Old KŘR has no PLC control (SPEC §6, R580 = 00).
+        let bits = if v2 { plc.cntr() } else { 0 };
+        let on = |bit: u32| bits & bit != 0;
+        let p = input.program;
+
+        if p.css {
+            self.program_v_mm_min = self.cfg.s_word.cutting_speed_mm_min(p.s_word);
+        }
+        let active = on(cntr::EXT_AKRR_REQ) || p.css;
+        // SPEC §6: when KŘR ends and the block has no S, the last reached speed becomes S.
+        if self.active && !active && !p.s_programmed {
+            self.held = Some(Held {
+                seq: p.block_seq,
+                rpm: self.speed_rpm,
+            });
+        }
+        if let Some(h) = self.held
+            && (active || (p.s_programmed && p.block_seq != h.seq))
+        {
+            self.held = None;
+        }
+        self.active = active;
+
+        let Some(gear) = self.cfg.gear(p.gear).copied() else {
+            return self.fault(KrFault::UnknownGear(p.gear), p.dir, plc);
+        };
+
+        // Limit: G76 or AKRR_SMAX (version 2 only), 0 = none; never above the gear maximum P.
+        let limit_rpm = if !v2 {
+            0.0
+        } else if on(cntr::EXT_AKRR_SMAX) {
+            f64::from(plc.input(CellId::AkrrSmax)) / MILLI_RPM_PER_RPM
+        } else {
+            p.limit_rpm.max(0.0)
+        };
+        let cap_rpm = if limit_rpm > 0.0 {
+            gear.max_rpm.min(limit_rpm)
+        } else {
+            gear.max_rpm
+        };
+
+        let dist_raw = if on(cntr::EXT_AKRR_DIST) {
+            plc.input(CellId::AkrrDist)
+        } else {
+            0
+        };
+        let vcorr_mm_min = if on(cntr::EXT_AKRR_VCORR) {
+            plc.input(CellId::AkrrVcorr)
+        } else {
+            0
+        };
+        let v_mm_min = if on(cntr::EXT_AKRR_V) {
+            f64::from(plc.input(CellId::AkrrV))
+        } else {
+            self.program_v_mm_min
+        };
+
+        let a = input.axis;
+        let x_mm = if on(cntr::EXT_AKRR_SUPORT) {
+            a.carriage_mm
+        } else {
+            a.carriage_mm - a.origin_shift_mm - a.length_offset_mm
+        };
+        if !x_mm.is_finite() {
+            return self.fault(KrFault::BadPosition, p.dir, plc);
+        }
+        let radius_mm = (self.radius_of(x_mm) + f64::from(dist_raw) / EIGHTH_UM_PER_MM).max(0.0);
+
+        let speed_rpm = if active {
+            if v2 || input.motion != Motion::Stationary {
+                speed_for(v_mm_min + f64::from(vcorr_mm_min), radius_mm, cap_rpm)
+            } else {
+                // Old KŘR outside motion blocks: the speed stays.
+                self.speed_rpm.min(gear.max_rpm)
+            }
+        } else if let Some(h) = self.held {
+            h.rpm.min(gear.max_rpm)
+        } else {
+            p.s_word.max(0.0).min(gear.max_rpm)
+        };
+        self.speed_rpm = speed_rpm;
+        let output = output_value(speed_rpm, &gear);
+
+        plc.set_act(
+            CellId::AkrrActV,
+            if active { round_i32(v_mm_min) } else { 0 },
+        );
+        plc.set_act(
+            CellId::AkrrActSmax,
+            round_i32(limit_rpm * MILLI_RPM_PER_RPM),
+        );
+        plc.set_act(CellId::AkrrActDist, dist_raw);
+        plc.set_act(CellId::AkrrActVcorr, vcorr_mm_min);
+        plc.set_act(CellId::AkrrActR, round_i32(radius_mm * EIGHTH_UM_PER_MM));
+        plc.set_act(
+            CellId::AkrrActP,
+            round_i32(gear.max_rpm * MILLI_RPM_PER_RPM),
+        );
+        plc.set_act(CellId::AkrrActU, i32::from(gear.output_range));
+        plc.set_act(CellId::AkrrActS, round_i32(speed_rpm * MILLI_RPM_PER_RPM));
+        plc.set_act(CellId::AkrrActOut, i32::from(output));
+
+        KrOutput {
+            spindle_rpm: signed(p.dir, speed_rpm),
+            speed_rpm,
+            output,
+            active,
+            fault: None,
+        }
+    }
+
+    /// Cutting radius from the controlling axis position (SPEC §6 **decide**, `docs/kr.md`):
+    /// the program zero is on the spindle axis, so the distance from it is |x|, halved when the
+    /// axis is programmed as a diameter.
+    fn radius_of(&self, x_mm: f64) -> f64 {
+        match self.cfg.radius_input {
+            RadiusInput::Diameter => x_mm.abs() / 2.0,
+            RadiusInput::Radius => x_mm.abs(),
+        }
+    }
+
+    fn fault(&mut self, fault: KrFault, dir: SpindleDir, plc: &mut PlcArea) -> KrOutput {
+        if fault == KrFault::BadPosition {
+            // Keep the last speed and the cells as they are.
+            let output = i32::clamp(plc.input(CellId::AkrrActOut), 0, 0x7FFF) as u16;
+            return KrOutput {
+                spindle_rpm: signed(dir, self.speed_rpm),
+                speed_rpm: self.speed_rpm,
+                output,
+                active: self.active,
+                fault: Some(fault),
+            };
+        }
+        self.speed_rpm = 0.0;
+        for c in [
+            CellId::AkrrActP,
+            CellId::AkrrActU,
+            CellId::AkrrActS,
+            CellId::AkrrActOut,
+        ] {
+            plc.set_act(c, 0);
+        }
+        KrOutput {
+            active: self.active,
+            fault: Some(fault),
+            ..KrOutput::default()
+        }
+    }
+}
+
+/// n = v / (2π·r), clamped to `cap_rpm` (SPEC §6). On the spindle axis (r = 0) the cap applies;
+/// no cutting speed gives 0.
+pub fn speed_for(cutting_speed_mm_min: f64, radius_mm: f64, cap_rpm: f64) -> f64 {
+    if cutting_speed_mm_min <= 0.0 {
+        return 0.0;
+    }
+    if radius_mm <= 0.0 {
+        return cap_rpm;
+    }
+    (cutting_speed_mm_min / (std::f64::consts::TAU * radius_mm)).min(cap_rpm)
+}
+
+/// Spindle output Ux = n/P·U, 0..U (SPEC §6).
+pub fn output_value(speed_rpm: f64, gear: &Gear) -> u16 {
+    let u = f64::from(gear.output_range);
+    (speed_rpm / gear.max_rpm * u).round().clamp(0.0, u) as u16
+}
+
+fn signed(dir: SpindleDir, rpm: f64) -> f64 {
+    match dir {
+        SpindleDir::Cw => rpm,
+        SpindleDir::Ccw => -rpm,
+        SpindleDir::Stopped => 0.0,
+    }
+}
+
+fn round_i32(v: f64) -> i32 {
+    // `as` saturates at the i32 range and maps NaN to 0.
+    v.round() as i32
+}
