@@ -136,6 +136,8 @@ pub struct Kr {
     held: Option<Held>,
     /// Last cutting speed programmed with G96/G97, mm/min.
     program_v_mm_min: f64,
+    /// Block of the last tick with KŘR in force.
+    last_active_seq: u32,
 }
 
 impl Kr {
@@ -146,6 +148,7 @@ impl Kr {
             speed_rpm: 0.0,
             held: None,
             program_v_mm_min: 0.0,
+            last_active_seq: 0,
         }
     }
 
@@ -159,6 +162,7 @@ impl Kr {
         self.speed_rpm = 0.0;
         self.held = None;
         self.program_v_mm_min = 0.0;
+        self.last_active_seq = 0;
     }
 
     /// Last computed speed, rpm.
@@ -182,8 +186,11 @@ impl Kr {
             self.program_v_mm_min = self.cfg.s_word.cutting_speed_mm_min(p.s_word);
         }
         let active = on(cntr::EXT_AKRR_REQ) || p.css;
-        // SPEC §6: when KŘR ends and the block has no S, the last reached speed becomes S.
-        if self.active && !active && !p.s_programmed {
+        // SPEC §6: when KŘR ends and the next block has no S, the last reached speed becomes S.
+        // An S counts only if its block began after KŘR was last in force (the PLC may end KŘR
+        // in the middle of the block whose S started it).
+        let new_s = p.s_programmed && p.block_seq != self.last_active_seq;
+        if self.active && !active && !new_s {
             self.held = Some(Held {
                 seq: p.block_seq,
                 rpm: self.speed_rpm,
@@ -195,6 +202,9 @@ impl Kr {
             self.held = None;
         }
         self.active = active;
+        if active {
+            self.last_active_seq = p.block_seq;
+        }
 
         let Some(gear) = self.cfg.gear(p.gear).copied() else {
             return self.fault(KrFault::UnknownGear(p.gear), p.dir, plc);
