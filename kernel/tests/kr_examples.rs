@@ -349,13 +349,13 @@ fn plc_activates_kr() {
         .unwrap();
     let o = r.tick(p, Motion::Stationary, 100.0);
     assert!(o.active);
-    assert!(close(o.speed_rpm, 190.98593171027440));
+    assert!(close(o.speed_rpm, 190.9859317102744));
     assert_eq!(r.act(CellId::AkrrActV), 60_000);
     // The PLC drops the request: KŘR ends, the last reached speed stays.
     r.plc.write_by_name("AKRR_CNTR", 0).unwrap();
     let o = r.tick(p, Motion::Stationary, 100.0);
     assert!(!o.active);
-    assert!(close(o.speed_rpm, 190.98593171027440));
+    assert!(close(o.speed_rpm, 190.9859317102744));
 }
 
 #[test]

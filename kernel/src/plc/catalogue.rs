@@ -129,8 +129,7 @@ const fn cell(
     address: u32,
     unit: CellUnit,
     access: Access,
-    min: i32,
-    max: i32,
+    (min, max): (i32, i32),
     description: &'static str,
 ) -> CellInfo {
     CellInfo {
@@ -156,8 +155,7 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         0xA178,
         MmPerMin,
         ReadOnly,
-        0,
-        i32::MAX,
+        (0, i32::MAX),
         "actual cutting speed (from G96/G97 or the PLC), before AKRR_VCORR; 0 when KŘR is off",
     ),
     cell(
@@ -166,8 +164,7 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         0xA17C,
         MilliRpm,
         ReadOnly,
-        0,
-        i32::MAX,
+        (0, i32::MAX),
         "actual spindle speed limit (G76 or the PLC); 0 = none",
     ),
     cell(
@@ -176,8 +173,7 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         0xA180,
         EighthMicron,
         ReadOnly,
-        i32::MIN,
-        i32::MAX,
+        (i32::MIN, i32::MAX),
         "actual radius correction (PLC only); 0 unless EXT_AKRR_DIST",
     ),
     cell(
@@ -186,8 +182,7 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         0xA184,
         MmPerMin,
         ReadOnly,
-        i32::MIN,
-        i32::MAX,
+        (i32::MIN, i32::MAX),
         "actual cutting speed correction (PLC only); 0 unless EXT_AKRR_VCORR",
     ),
     cell(
@@ -196,8 +191,7 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         0xA188,
         EighthMicron,
         ReadOnly,
-        0,
-        i32::MAX,
+        (0, i32::MAX),
         "actual radius the speed is computed for (after AKRR_DIST)",
     ),
     cell(
@@ -206,8 +200,7 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         0xA18C,
         MilliRpm,
         ReadOnly,
-        0,
-        i32::MAX,
+        (0, i32::MAX),
         "maximum speed P of the gear range in use",
     ),
     cell(
@@ -216,8 +209,7 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         0xA190,
         OutputValue,
         ReadOnly,
-        0,
-        OUTPUT_MAX,
+        (0, OUTPUT_MAX),
         "output range U of the gear range in use",
     ),
     cell(
@@ -226,8 +218,7 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         0xA194,
         MilliRpm,
         ReadOnly,
-        0,
-        i32::MAX,
+        (0, i32::MAX),
         "actual computed spindle speed (KŘR or S), independent of M3/M4/M5",
     ),
     cell(
@@ -236,8 +227,7 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         0xA198,
         OutputValue,
         ReadOnly,
-        0,
-        OUTPUT_MAX,
+        (0, OUTPUT_MAX),
         "actual computed spindle output Ux = n/P·U",
     ),
     cell(
@@ -246,8 +236,7 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         0xA19C,
         MmPerMin,
         ReadWrite,
-        0,
-        PLC_V_MAX_MM_MIN,
+        (0, PLC_V_MAX_MM_MIN),
         "cutting speed set by the PLC (used when EXT_AKRR_V)",
     ),
     cell(
@@ -256,8 +245,7 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         0xA1A0,
         MilliRpm,
         ReadWrite,
-        0,
-        PLC_SMAX_MAX_MILLI_RPM,
+        (0, PLC_SMAX_MAX_MILLI_RPM),
         "spindle speed limit set by the PLC (used when EXT_AKRR_SMAX; 0 = none)",
     ),
     cell(
@@ -266,8 +254,7 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         0xA1A4,
         EighthMicron,
         ReadWrite,
-        -PLC_DIST_MAX_EIGHTH_UM,
-        PLC_DIST_MAX_EIGHTH_UM,
+        (-PLC_DIST_MAX_EIGHTH_UM, PLC_DIST_MAX_EIGHTH_UM),
         "radius correction set by the PLC, added to the radius (used when EXT_AKRR_DIST)",
     ),
     cell(
@@ -276,8 +263,7 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         0xA1A8,
         MmPerMin,
         ReadWrite,
-        -PLC_V_MAX_MM_MIN,
-        PLC_V_MAX_MM_MIN,
+        (-PLC_V_MAX_MM_MIN, PLC_V_MAX_MM_MIN),
         "cutting speed correction set by the PLC, added to the cutting speed (used when \
          EXT_AKRR_VCORR)",
     ),
@@ -287,8 +273,7 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         0xA1AC,
         Bits,
         ReadWrite,
-        0,
-        cntr::ALL as i32,
+        (0, cntr::ALL as i32),
         "KŘR control bits: 0 EXT_AKRR_V, 1 EXT_AKRR_SMAX, 2 EXT_AKRR_DIST, 3 EXT_AKRR_VCORR, \
          4 EXT_AKRR_REQ, 5 EXT_AKRR_SUPORT",
     ),
@@ -298,8 +283,7 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         0xA1B0,
         Index,
         ReadWrite,
-        0,
-        3,
+        (0, 3),
         "dynamic parameter set selected by the PLC: 0..3 = set 1..4 (SPEC §7.4)",
     ),
 ];
