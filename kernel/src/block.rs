@@ -127,8 +127,13 @@ pub enum BlockKind {
     },
     /// Dwell (no motion) for the given time.
     Dwell { seconds: f64 },
-    /// A block with no motion: technology functions (M, S, D, G92 ...), modal changes only.
+    /// A block with no motion: technology functions (M, S, D ...), modal changes only.
     Technology,
+    /// `G92 D<entry> R0=.. R4=..` (SPEC §3 (c)): write the values present (R0 radius, R1..R4
+    /// lengths of axes 1..4) into entry 1..99 of the **memory** offset table when the block
+    /// executes; the file TAB0.KOR is not touched. The interpreter has already applied it to its
+    /// own copy of the table, so later blocks' `D`/`&` lookups see the new values.
+    TableWrite { entry: u8, values: [Option<f64>; 5] },
 }
 
 /// Up to four M functions per block, in the order written.

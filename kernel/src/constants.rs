@@ -6,6 +6,8 @@
 
 use std::collections::BTreeMap;
 
+use crate::diag::Diagnostic;
+
 /// Highest constant number.
 pub const MAX_R: u16 = 999;
 
@@ -17,14 +19,53 @@ pub struct Constants {
 }
 
 /// Default value of a constant, in thousandths. Constants SPEC does not name default to zero.
+///
+/// Every constant SPEC names has a deliberate default here; the reasoning is in the comment.
 pub fn default_of(r: u16) -> i64 {
     match r {
-        // R52: acceleration without continuity, mm/s² (SPEC §7); a sensible default for a mill.
-        52 => 500_000,
+        // R0..R5: axis codes in machine order (see [`AXIS_CODES`]): a 3-axis mill X, Y, Z.
+        0 => 1_000,
+        1 => 2_000,
+        2 => 3_000,
+        // R6, R7: following error that counts as "arrived" for G24, mm (SPEC §7.1).
+        6 | 7 => 10,
         // R39: angle limit of automatic continuity, degrees (SPEC §7.1 recommends 60).
         39 => 60_000,
+        // R52: acceleration without continuity, mm/s² (SPEC §7); a sensible default for a mill.
+        52 => 500_000,
+        // R55: tolerance of the arc end point on the circle, mm (SPEC §2, seed 000 §7.2.5).
+        55 => 10,
+        // R67: controlling axis of constant cutting speed; may not be 0 (seed 002): axis 1 = X.
+        67 => 1_000,
+        // R95: 8.R95 = 1, radius compensation on equidistants (the only kind we implement).
+        95 => 10_000_000,
+        // R97: 1.R97 = 1, manual continuity with G23/G24 (0 is "do not use" in the manual).
+        97 => 1,
+        // R234: continuity test limit, degrees; the manual recommends about 0.005.
+        234 => 5,
+        // R237: rapid acceleration, mm/s².
+        237 => 500_000,
+        // R382, R383: negative = off (no continuity break / no merging of short blocks).
+        382 | 383 => -1_000,
+        // R580: version 2 of constant cutting speed (G76 limit, non-motion blocks).
+        580 => 1_000,
         _ => 0,
     }
+}
+
+/// Axis code of constants R0..R5 and R67 (SPEC §1 leaves the encoding open; **decided**):
+/// 0 = no axis, 1..9 = the letters below.
+pub const AXIS_CODES: [char; 9] = ['X', 'Y', 'Z', 'U', 'V', 'W', 'A', 'B', 'C'];
+
+/// Circle refinement by the preprocessor (R325, SPEC §4.6).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Refinement {
+    /// 8.R325 = 0.
+    Off,
+    /// 8.R325 = 1: refine I or J by at most `limit_mm`.
+    Limited { limit_mm: f64 },
+    /// 8.R325 = 2: refine without the limit test.
+    Unlimited,
 }
 
 impl Constants {
@@ -74,6 +115,312 @@ impl Constants {
     /// Constants explicitly set, in number order.
     pub fn iter(&self) -> impl Iterator<Item = (u16, f64)> + '_ {
         self.milli.iter().map(|(&r, &m)| (r, m as f64 / 1000.0))
+    }
+
+    /// Value of constant `r` in thousandths, exactly as stored (or its default).
+    pub fn milli(&self, r: u16) -> i64 {
+        self.milli_of(r)
+    }
+
+    // ---- accessors named for what they mean -------------------------------------------------
+
+    /// Axis letters in machine order from R0..R5 (codes of [`AXIS_CODES`]); stops at the first
+    /// constant that is 0. Errors are reported by [`Constants::validate`].
+    pub fn axis_names(&self) -> Vec<char> {
+        (0..6)
+            .map(|r| self.milli_of(r))
+            .take_while(|&m| m != 0)
+            .filter_map(|m| axis_letter(m))
+            .collect()
+    }
+
+    /// R55: largest distance of an arc's end point from its circle, mm (SPEC §2).
+    pub fn arc_tolerance_mm(&self) -> f64 {
+        self.get(55).abs()
+    }
+
+    /// 7.R397 = 1: an arc whose end point is not on the circle is replaced by a line (SPEC §4.5).
+    pub fn bad_arc_becomes_line(&self) -> bool {
+        self.decade(397, 7) == 1
+    }
+
+    /// 6.R397 = 1: G41 ↔ G42 may change directly (SPEC §4.2).
+    pub fn comp_side_switch_allowed(&self) -> bool {
+        self.decade(397, 6) == 1
+    }
+
+    /// 7.R339 = 1: G40 may stand in a block without motion in the plane (SPEC §4.2).
+    pub fn g40_without_motion_allowed(&self) -> bool {
+        self.decade(339, 7) == 1
+    }
+
+    /// R325: circle refinement setting (SPEC §4.6). Decades 1..7 are the limit in mm.
+    pub fn refinement(&self) -> Refinement {
+        match self.decade(325, 8) {
+            1 => Refinement::Limited {
+                limit_mm: self.field_value(325, 1, 7),
+            },
+            2 => Refinement::Unlimited,
+            _ => Refinement::Off,
+        }
+    }
+
+    /// 3.R329 bit 0: G96 and G97 swap meaning (G96 = feed per revolution), SPEC §6.
+    pub fn css_g96_g97_swapped(&self) -> bool {
+        self.decade(329, 3) & 1 == 1
+    }
+
+    /// 3.R329 bit 1: the cutting speed S is written in m/min instead of 0.1 m/min (SPEC §6).
+    pub fn css_s_in_m_min(&self) -> bool {
+        self.decade(329, 3) & 2 == 2
+    }
+
+    // ---- validation ---------------------------------------------------------------------------
+
+    /// Checks the constants whose values have a restricted meaning. Messages name the constant;
+    /// `line` is 0 (use [`Constants::parse`] to get file lines).
+    pub fn validate(&self) -> Vec<Diagnostic> {
+        let mut out = Vec::new();
+        let mut bad = |r: u16, msg: String| {
+            out.push(Diagnostic::error(None, 0, 0, format!("R{r}: {msg}")));
+        };
+        // R0..R5: axis codes, no gaps, no repeats.
+        let mut seen = Vec::new();
+        let mut ended = false;
+        for r in 0..6u16 {
+            let m = self.milli_of(r);
+            if m == 0 {
+                ended = true;
+                continue;
+            }
+            match axis_letter(m) {
+                None => bad(
+                    r,
+                    format!(
+                        "axis code {} is not 0..9 (0 = none, 1 = X ... 9 = C)",
+                        fmt_milli(m)
+                    ),
+                ),
+                Some(_) if ended => bad(r, "an axis follows an unused axis slot".into()),
+                Some(c) if seen.contains(&c) => bad(r, format!("axis {c} is configured twice")),
+                Some(c) => seen.push(c),
+            }
+        }
+        if seen.is_empty() {
+            bad(0, "no axis configured (R0 = 0)".into());
+        }
+        // R67: must name a configured axis (seed 002: 0 is not allowed).
+        match axis_letter(self.milli_of(67)) {
+            Some(c) if seen.contains(&c) => {}
+            _ => bad(
+                67,
+                format!(
+                    "controlling axis of constant cutting speed must be the code of a configured axis, not {}",
+                    fmt_milli(self.milli_of(67))
+                ),
+            ),
+        }
+        if self.milli_of(55) < 0 {
+            bad(55, "arc tolerance cannot be negative".into());
+        }
+        if self.milli_of(52) <= 0 {
+            bad(52, "acceleration must be positive".into());
+        }
+        if self.decade(97, 1) > 2 {
+            bad(
+                97,
+                format!("decade 1 must be 0, 1 or 2, not {}", self.decade(97, 1)),
+            );
+        }
+        let d8 = self.decade(325, 8);
+        if d8 > 2 {
+            bad(325, format!("decade 8 must be 0, 1 or 2, not {d8}"));
+        }
+        if d8 == 1 && self.field_value(325, 1, 7) > 3.0 {
+            bad(
+                325,
+                format!(
+                    "largest circle refinement is {:.3} mm; at most 3.000 mm is allowed",
+                    self.field_value(325, 1, 7)
+                ),
+            );
+        }
+        if self.is_negative(325) {
+            bad(325, "cannot be negative".into());
+        }
+        if !matches!(self.decade(339, 8), 0 | 1 | 2 | 4) {
+            bad(
+                339,
+                format!("decade 8 must be 0, 1, 2 or 4, not {}", self.decade(339, 8)),
+            );
+        }
+        if self.decade(329, 3) > 3 {
+            bad(
+                329,
+                format!("decade 3 must be 0..3, not {}", self.decade(329, 3)),
+            );
+        }
+        if self.decade(338, 2) > 2 {
+            bad(
+                338,
+                format!("decade 2 must be 0, 1 or 2, not {}", self.decade(338, 2)),
+            );
+        }
+        if self.field_digits(580, 1, 2) > 1 {
+            bad(580, "must be 00 (old) or 01 (version 2)".into());
+        }
+        out
+    }
+
+    // ---- the constants file -------------------------------------------------------------------
+
+    /// Parses a constants file (format **decided**, see `docs/files.md`): one `Rnnn=value` per
+    /// line, value `±xxxxx.xxx` (up to 5 integer and 3 decimal digits), `;` starts a comment,
+    /// blank lines are ignored, a constant may appear once. On any error nothing is returned.
+    pub fn parse(text: &str) -> Result<Constants, Vec<Diagnostic>> {
+        let mut c = Constants::new();
+        let mut errors = Vec::new();
+        for (i, raw) in text.lines().enumerate() {
+            let line_no = i as u32 + 1;
+            let code = raw.split(';').next().unwrap_or("");
+            let trimmed = code.trim();
+            if trimmed.is_empty() {
+                continue;
+            }
+            let col = (code.len() - code.trim_start().len()) as u32 + 1;
+            match parse_line(trimmed) {
+                Ok((r, m)) => {
+                    if c.milli.insert(r, m).is_some() {
+                        errors.push(Diagnostic::error(
+                            None,
+                            line_no,
+                            col,
+                            format!("R{r} is set twice; keep one line"),
+                        ));
+                    }
+                }
+                Err((off, msg)) => {
+                    errors.push(Diagnostic::error(None, line_no, col + off as u32, msg))
+                }
+            }
+        }
+        if errors.is_empty() {
+            Ok(c)
+        } else {
+            Err(errors)
+        }
+    }
+
+    /// Writes the constants that were set, one canonical `Rnnn=±xxxxx.xxx` line each, after a
+    /// comment line. [`Constants::parse`] reads it back to the same store.
+    pub fn to_text(&self) -> String {
+        let mut out = String::from("; machine constants (Rnnn=xxxxx.xxx), see docs/files.md\n");
+        for (&r, &m) in &self.milli {
+            out.push_str(&format!("R{r:03}={}\n", fmt_milli(m)));
+        }
+        out
+    }
+}
+
+/// `±xxxxx.xxx` with five integer digits (sign only when negative): `-21140.000`, `01011.110`.
+pub fn fmt_milli(m: i64) -> String {
+    let sign = if m < 0 { "-" } else { "" };
+    let a = m.unsigned_abs();
+    format!("{sign}{:05}.{:03}", a / 1000, a % 1000)
+}
+
+fn axis_letter(m: i64) -> Option<char> {
+    if m % 1000 != 0 || !(1..=9).contains(&(m / 1000)) {
+        return None;
+    }
+    Some(AXIS_CODES[(m / 1000 - 1) as usize])
+}
+
+/// One `Rnnn=value` line (already trimmed). Errors carry a byte offset into the line.
+fn parse_line(t: &str) -> Result<(u16, i64), (usize, String)> {
+    let b = t.as_bytes();
+    if !matches!(b[0], b'R' | b'r') {
+        return Err((0, format!("expected Rnnn=value, found '{}'", first_char(t))));
+    }
+    let mut i = 1;
+    while i < b.len() && b[i].is_ascii_digit() {
+        i += 1;
+    }
+    if i == 1 || i > 4 {
+        return Err((1, "constant number must be 0..999".into()));
+    }
+    let r: u16 = t[1..i]
+        .parse()
+        .map_err(|_| (1, "bad constant number".to_string()))?;
+    if r > MAX_R {
+        return Err((1, format!("R{r} does not exist (R0..R{MAX_R})")));
+    }
+    let rest = &t[i..];
+    let eq = rest.trim_start();
+    if !eq.starts_with('=') {
+        return Err((i, format!("R{r}: expected '=' after the constant number")));
+    }
+    let v = eq[1..].trim();
+    let voff = t.len() - eq[1..].trim_start().len();
+    parse_fixed_milli(v)
+        .map(|m| (r, m))
+        .map_err(|msg| (voff, format!("R{r}: {msg}")))
+}
+
+fn first_char(t: &str) -> char {
+    t.chars().next().unwrap_or(' ')
+}
+
+/// Parses `±xxxxx.xxx` exactly into thousandths (no floating point on the way).
+pub fn parse_fixed_milli(v: &str) -> Result<i64, String> {
+    let (neg, body) = match v.as_bytes().first() {
+        Some(b'-') => (true, &v[1..]),
+        Some(b'+') => (false, &v[1..]),
+        _ => (false, v),
+    };
+    let (int, frac) = match body.split_once('.') {
+        Some((a, b)) => (a, b),
+        None => (body, ""),
+    };
+    let digits_ok = |s: &str| s.bytes().all(|c| c.is_ascii_digit());
+    if int.is_empty() && frac.is_empty() || !digits_ok(int) || !digits_ok(frac) {
+        return Err(format!("'{v}' is not a number of the form ±xxxxx.xxx"));
+    }
+    if int.len() > 5 && int.trim_start_matches('0').len() > 5 {
+        return Err(format!(
+            "'{v}' has more than 5 digits before the decimal point"
+        ));
+    }
+    if frac.len() > 3 {
+        return Err(format!(
+            "'{v}' has more than 3 decimals (constants are ±xxxxx.xxx)"
+        ));
+    }
+    let int_v: i64 = if int.is_empty() {
+        0
+    } else {
+        int.trim_start_matches('0').parse().unwrap_or(0)
+    };
+    let mut frac_v: i64 = if frac.is_empty() {
+        0
+    } else {
+        frac.parse().unwrap_or(0)
+    };
+    for _ in frac.len()..3 {
+        frac_v *= 10;
+    }
+    let m = int_v * 1000 + frac_v;
+    Ok(if neg { -m } else { m })
+}
+
+/// Fuzzing entry: parse arbitrary bytes as a constants file; whatever parses must write and
+/// read back to the same store, and validation must not panic. Used by `fuzz/` and a proptest.
+pub fn fuzz_entry(data: &[u8]) {
+    let text = String::from_utf8_lossy(data);
+    if let Ok(c) = Constants::parse(&text) {
+        let _ = c.validate();
+        let back = Constants::parse(&c.to_text()).expect("written constants must parse");
+        assert_eq!(back, c, "constants must round-trip");
     }
 }
 

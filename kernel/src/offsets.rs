@@ -1,1 +1,415 @@
-//! Offset table TAB0.KOR (SPEC §3). Issue #3.
+//! Offset table TAB0.KOR (SPEC §3): the table of 99 tool offsets, its file format, and edits.
+//!
+//! The controller works on a copy of the table in memory. This module holds the pure parts:
+//! [`OffsetTable`] (the memory copy), [`parse`] / [`write`] for the file, and [`TableEdit`]
+//! (one entry's values, as written by an operator edit or by `G92 D<n> R0..R4`). Which copy an
+//! edit reaches (file, memory or both) is decided by the daemon's storage (SPEC §3 (a)-(c)).
+
+use crate::diag::Diagnostic;
+
+/// Entries 1..=99 (SPEC §3).
+pub const ENTRIES: u8 = 99;
+
+/// Largest absolute offset value we accept, mm (the controller's `±xxxxx.xxx` field width).
+pub const MAX_VALUE_MM: f64 = 99_999.999;
+
+/// Most decimals a value may have in the file (0.001 µm); more would not round-trip.
+pub const MAX_DECIMALS: usize = 6;
+
+/// Axis names usable in the file for ordinals 1..4, when the machine's axes are in this order
+/// (SPEC §3).
+const STANDARD_NAMES: [char; 4] = ['X', 'Y', 'Z', 'U'];
+
+/// One entry: radius and lengths for axes 1..4 (no lengths for axes 5 and 6, SPEC §3).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct OffsetEntry {
+    pub radius_mm: f64,
+    pub length_mm: [f64; 4],
+}
+
+impl OffsetEntry {
+    /// The five values in table order: R0 radius, R1..R4 lengths.
+    pub fn values(&self) -> [f64; 5] {
+        let l = self.length_mm;
+        [self.radius_mm, l[0], l[1], l[2], l[3]]
+    }
+
+    fn set(&mut self, k: usize, v: f64) {
+        if k == 0 {
+            self.radius_mm = v;
+        } else {
+            self.length_mm[k - 1] = v;
+        }
+    }
+
+    pub fn is_zero(&self) -> bool {
+        self.values().iter().all(|v| *v == 0.0)
+    }
+}
+
+/// A write to one entry: only the values present change (G92 and operator edits, SPEC §3).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TableEdit {
+    /// Entry 1..=99.
+    pub entry: u8,
+    /// R0 radius, R1..R4 lengths for axes 1..4; `None` keeps the old value.
+    pub values: [Option<f64>; 5],
+}
+
+/// The table of 99 entries (the memory copy). Missing entries are zero.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OffsetTable {
+    entries: [OffsetEntry; ENTRIES as usize],
+}
+
+impl Default for OffsetTable {
+    fn default() -> Self {
+        OffsetTable {
+            entries: [OffsetEntry::default(); ENTRIES as usize],
+        }
+    }
+}
+
+impl OffsetTable {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Entry `n` (1..=99), or `None` for a number outside the table.
+    pub fn entry(&self, n: u8) -> Option<&OffsetEntry> {
+        (1..=ENTRIES)
+            .contains(&n)
+            .then(|| &self.entries[n as usize - 1])
+    }
+
+    /// Replaces the whole entry `n`.
+    pub fn set_entry(&mut self, n: u8, e: OffsetEntry) -> Result<(), String> {
+        check_entry(n)?;
+        for v in e.values() {
+            check_value(v)?;
+        }
+        self.entries[n as usize - 1] = e;
+        Ok(())
+    }
+
+    /// Applies an edit: the values present overwrite, the others stay. All-or-nothing: a bad
+    /// entry number or value leaves the table unchanged.
+    pub fn apply(&mut self, edit: &TableEdit) -> Result<(), String> {
+        check_entry(edit.entry)?;
+        for v in edit.values.iter().flatten() {
+            check_value(*v)?;
+        }
+        let e = &mut self.entries[edit.entry as usize - 1];
+        for (k, v) in edit.values.iter().enumerate() {
+            if let Some(v) = v {
+                e.set(k, *v);
+            }
+        }
+        Ok(())
+    }
+
+    /// Non-zero entries with their numbers, in order.
+    pub fn iter_nonzero(&self) -> impl Iterator<Item = (u8, &OffsetEntry)> {
+        self.entries
+            .iter()
+            .enumerate()
+            .filter(|(_, e)| !e.is_zero())
+            .map(|(i, e)| (i as u8 + 1, e))
+    }
+}
+
+fn check_entry(n: u8) -> Result<(), String> {
+    if (1..=ENTRIES).contains(&n) {
+        Ok(())
+    } else {
+        Err(format!(
+            "offset entry {n} does not exist: entries are 01..99"
+        ))
+    }
+}
+
+fn check_value(v: f64) -> Result<(), String> {
+    if v.is_finite() && v.abs() <= MAX_VALUE_MM {
+        Ok(())
+    } else {
+        Err(format!("offset value {v} is outside ±{MAX_VALUE_MM} mm"))
+    }
+}
+
+/// A TAB0.KOR file: the free comment before `$KOR` and the table.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct KorFile {
+    /// Everything before the `$KOR` line, verbatim (kept when the file is rewritten).
+    pub comment: String,
+    pub table: OffsetTable,
+}
+
+/// Parses a TAB0.KOR file for a machine with the given axis letters (R0..R5 order), SPEC §3.
+///
+/// Every problem is reported (line, column, message); on any error no table is returned, so a
+/// bad file never half-replaces a good table.
+pub fn parse(text: &str, axis_names: &[char]) -> Result<KorFile, Vec<Diagnostic>> {
+    let mut errors = Vec::new();
+    let mut file = KorFile::default();
+    let mut seen = [false; ENTRIES as usize];
+    let mut offset = 0;
+    let mut in_table = false;
+    for (i, raw) in text.split_inclusive('\n').enumerate() {
+        let line_no = i as u32 + 1;
+        let line = raw.trim_end_matches(['\n', '\r']);
+        let start = offset;
+        offset += raw.len();
+        if !in_table {
+            if line.trim_start().starts_with("$KOR") {
+                let rest = line.trim_start()["$KOR".len()..].trim();
+                if !rest.is_empty() && !rest.starts_with(';') {
+                    errors.push(Diagnostic::error(
+                        None,
+                        line_no,
+                        col_of(line, line.len() - line.trim_start().len() + 4),
+                        format!("unexpected '{rest}' after $KOR: entries start on the next line"),
+                    ));
+                }
+                file.comment = text[..start].to_string();
+                in_table = true;
+            }
+            continue;
+        }
+        let code = line.split(';').next().unwrap_or("");
+        if code.trim().is_empty() {
+            continue;
+        }
+        if code.trim_start().starts_with("$KOR") {
+            errors.push(Diagnostic::error(
+                None,
+                line_no,
+                col_of(line, line.len() - line.trim_start().len()),
+                "a second $KOR: a file holds one table",
+            ));
+            continue;
+        }
+        match parse_entry_line(code, axis_names) {
+            Ok(edit) => {
+                let k = edit.entry as usize - 1;
+                if seen[k] {
+                    errors.push(Diagnostic::error(
+                        None,
+                        line_no,
+                        col_of(line, line.len() - line.trim_start().len()),
+                        format!("entry {:02} is listed twice", edit.entry),
+                    ));
+                    continue;
+                }
+                seen[k] = true;
+                // Values not listed are zero (SPEC §3): the entry starts from zero.
+                let mut e = OffsetEntry::default();
+                for (k, v) in edit.values.iter().enumerate() {
+                    e.set(k, v.unwrap_or(0.0));
+                }
+                file.table.entries[k] = e;
+            }
+            Err((byte, msg)) => {
+                errors.push(Diagnostic::error(None, line_no, col_of(line, byte), msg))
+            }
+        }
+    }
+    if !in_table {
+        errors.push(Diagnostic::error(
+            None,
+            text.lines().count().max(1) as u32,
+            1,
+            "keyword $KOR not found: the table must start with a line $KOR",
+        ));
+    }
+    if errors.is_empty() {
+        Ok(file)
+    } else {
+        Err(errors)
+    }
+}
+
+/// Parses one operator edit written like a file line, e.g. `12: R=5.0 Z=-3` (only the values
+/// written change, see [`OffsetTable::apply`]).
+pub fn parse_edit(line: &str, axis_names: &[char]) -> Result<TableEdit, Diagnostic> {
+    let code = line.split(';').next().unwrap_or("");
+    parse_entry_line(code, axis_names)
+        .map_err(|(b, m)| Diagnostic::error(None, 1, col_of(line, b), m))
+}
+
+/// Writes the file: the comment, `$KOR`, then one line per non-zero entry with all five values,
+/// labelled by axis name where SPEC §3 allows it and by ordinal otherwise.
+pub fn write(file: &KorFile, axis_names: &[char]) -> String {
+    let mut out = String::with_capacity(file.comment.len() + 64 * 16);
+    out.push_str(&file.comment);
+    if !file.comment.is_empty() && !file.comment.ends_with('\n') {
+        out.push('\n');
+    }
+    out.push_str("$KOR\n");
+    for (n, e) in file.table.iter_nonzero() {
+        out.push_str(&format!("{n:02}: R={}", fmt_value(e.radius_mm)));
+        for (k, v) in e.length_mm.iter().enumerate() {
+            out.push_str(&format!(" {}={}", label(k + 1, axis_names), fmt_value(*v)));
+        }
+        out.push('\n');
+    }
+    out
+}
+
+/// Label of axis ordinal `k` (1..4): its name if the machine's axis k has the standard name
+/// for that position, else the digit (SPEC §3 lathe rule).
+pub fn label(k: usize, axis_names: &[char]) -> String {
+    let std = STANDARD_NAMES[k - 1];
+    if axis_names.get(k - 1) == Some(&std) {
+        std.to_string()
+    } else {
+        k.to_string()
+    }
+}
+
+fn fmt_value(v: f64) -> String {
+    let mut s = format!("{v:.prec$}", prec = MAX_DECIMALS);
+    while s.ends_with('0') && !s.ends_with(".0") {
+        s.pop();
+    }
+    if s == "-0.0" { "0.0".into() } else { s }
+}
+
+/// 1-based character column of byte offset `byte` in `line`.
+fn col_of(line: &str, byte: usize) -> u32 {
+    let b = byte.min(line.len());
+    let b = (0..=b)
+        .rev()
+        .find(|&i| line.is_char_boundary(i))
+        .unwrap_or(0);
+    line[..b].chars().count() as u32 + 1
+}
+
+/// `NN: KEY=value ...`; errors carry the byte offset of the offending text.
+fn parse_entry_line(code: &str, axis_names: &[char]) -> Result<TableEdit, (usize, String)> {
+    let lead = code.len() - code.trim_start().len();
+    let t = code.trim_start();
+    let Some(colon) = t.find(':') else {
+        return Err((
+            lead,
+            format!(
+                "expected an entry line 'NN: R=.. X=..', found '{}'",
+                t.trim_end()
+            ),
+        ));
+    };
+    let num = t[..colon].trim_end();
+    if num.is_empty() || !num.bytes().all(|c| c.is_ascii_digit()) {
+        return Err((lead, format!("'{num}' is not an entry number (01..99)")));
+    }
+    if num.len() != 2 {
+        let n: u64 = num.parse().unwrap_or(u64::MAX);
+        return Err((
+            lead,
+            if (1..=99).contains(&n) {
+                format!("entry number '{num}' must have two digits (write {n:02})")
+            } else {
+                format!("entry {num} does not exist: entries are 01..99")
+            },
+        ));
+    }
+    let entry: u8 = num
+        .parse()
+        .map_err(|_| (lead, "bad entry number".to_string()))?;
+    if entry == 0 {
+        return Err((lead, "entry 00 does not exist: entries are 01..99".into()));
+    }
+    let mut values = [None; 5];
+    let body = &t[colon + 1..];
+    let mut pos = lead + colon + 1;
+    for tok in body.split_inclusive(char::is_whitespace) {
+        let at = pos;
+        pos += tok.len();
+        let tok = tok.trim_end();
+        if tok.is_empty() {
+            continue;
+        }
+        let Some((key, val)) = tok.split_once('=') else {
+            return Err((
+                at,
+                format!("'{tok}' is not KEY=value (e.g. R=10.0 or X=20.0)"),
+            ));
+        };
+        let k = key_slot(key, axis_names).map_err(|m| (at, m))?;
+        if values[k].is_some() {
+            return Err((at, format!("{key}= appears twice in entry {entry:02}")));
+        }
+        let v = parse_value(val).map_err(|m| (at + key.len() + 1, format!("{key}={val}: {m}")))?;
+        values[k] = Some(v);
+    }
+    Ok(TableEdit { entry, values })
+}
+
+/// Slot of a key: `R` → 0, ordinal `1`..`4` or a standard axis name → 1..4.
+fn key_slot(key: &str, axis_names: &[char]) -> Result<usize, String> {
+    let mut cs = key.chars();
+    let (Some(c), None) = (cs.next(), cs.next()) else {
+        return Err(format!(
+            "'{key}' is not R, an axis name or an axis number 1..4"
+        ));
+    };
+    let c = c.to_ascii_uppercase();
+    match c {
+        'R' => Ok(0),
+        '1'..='4' => Ok(c as usize - '0' as usize),
+        _ => {
+            let Some(k) = STANDARD_NAMES.iter().position(|&s| s == c) else {
+                return Err(format!(
+                    "'{key}' is not R, an axis name (X Y Z U) or an axis number 1..4"
+                ));
+            };
+            if axis_names.get(k) == Some(&c) {
+                return Ok(k + 1);
+            }
+            match axis_names.iter().position(|&a| a == c) {
+                Some(p) => Err(format!(
+                    "axis {c} is axis {} on this machine: write its length as {}= (names X Y Z U \
+                     are only for axes 1..4 in that order)",
+                    p + 1,
+                    p + 1
+                )),
+                None => Err(format!("this machine has no axis {c}")),
+            }
+        }
+    }
+}
+
+/// A decimal number: optional sign, digits, optional point and up to 6 decimals. No exponent.
+fn parse_value(v: &str) -> Result<f64, String> {
+    let body = v.strip_prefix(['+', '-']).unwrap_or(v);
+    let (int, frac) = body.split_once('.').unwrap_or((body, ""));
+    let digits = |s: &str| s.bytes().all(|c| c.is_ascii_digit());
+    if v.is_empty() || (int.is_empty() && frac.is_empty()) || !digits(int) || !digits(frac) {
+        return Err(if v.is_empty() {
+            "no value after '='".into()
+        } else {
+            "not a number".into()
+        });
+    }
+    if frac.len() > MAX_DECIMALS {
+        return Err(format!("more than {MAX_DECIMALS} decimals"));
+    }
+    if int.trim_start_matches('0').len() > 5 {
+        return Err(format!("beyond ±{MAX_VALUE_MM} mm"));
+    }
+    let x: f64 = v.parse().map_err(|_| "not a number".to_string())?;
+    check_value(x)?;
+    Ok(x)
+}
+
+/// Fuzzing entry: arbitrary bytes as a TAB0.KOR for a mill and a lathe; whatever parses must
+/// write and parse back to the same table. Used by `fuzz/` and by a proptest in kernel/tests.
+pub fn fuzz_entry(data: &[u8]) {
+    let text = String::from_utf8_lossy(data);
+    for axes in [&['X', 'Y', 'Z', 'U'][..], &['X', 'Z'][..]] {
+        if let Ok(f) = parse(&text, axes) {
+            let back = parse(&write(&f, axes), axes).expect("a written table must parse");
+            assert_eq!(back.table, f.table, "table must round-trip");
+        }
+        let _ = parse_edit(&text, axes);
+    }
+}

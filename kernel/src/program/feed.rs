@@ -1,0 +1,108 @@
+//! Feed word F and the feed group G94/G95/G96/G97 (SPEC §5, §6).
+
+use super::words::Num;
+use crate::block::Feed;
+
+/// Feed limit under G94/G96 (SPEC §5).
+pub const MAX_FEED_MM_MIN: f64 = 90_000.0;
+
+/// Feed limit under G95/G97 (SPEC §5: F99999 or F99.999).
+pub const MAX_FEED_MM_REV: f64 = 99.999;
+
+/// The feed group ("G6" in the manual): one of G94, G95, G96, G97 is always in force.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FeedMode {
+    /// G94: feed per minute, spindle speed in rpm (power-on default).
+    #[default]
+    G94,
+    /// G95: feed per revolution, spindle speed in rpm.
+    G95,
+    /// G96: constant cutting speed, feed per minute (per revolution when 3.R329 swaps).
+    G96,
+    /// G97: constant cutting speed, feed per revolution (per minute when 3.R329 swaps).
+    G97,
+}
+
+impl FeedMode {
+    /// Whether F is per revolution, after the optional G96/G97 swap of 3.R329 (SPEC §6).
+    pub fn per_rev(self, swapped: bool) -> bool {
+        match self {
+            FeedMode::G94 => false,
+            FeedMode::G95 => true,
+            FeedMode::G96 => swapped,
+            FeedMode::G97 => !swapped,
+        }
+    }
+
+    /// Constant cutting speed (KŘR) is in force.
+    pub fn css(self) -> bool {
+        matches!(self, FeedMode::G96 | FeedMode::G97)
+    }
+}
+
+/// Converts an F word to a feed (SPEC §5). Per minute: no point = mm/min, point = m/min.
+/// Per revolution: no point = µm/rev, point = mm/rev. Limits 90000 mm/min and 99.999 mm/rev.
+pub fn convert(f: Num, per_rev: bool) -> Result<Feed, String> {
+    if f.value < 0.0 {
+        return Err("feed F cannot be negative".into());
+    }
+    if per_rev {
+        let mm_rev = if f.point { f.value } else { f.value / 1000.0 };
+        // Compare in µm/rev so that F99.999 and F99999 are both exactly at the limit.
+        if (mm_rev * 1000.0).round() > MAX_FEED_MM_REV * 1000.0 || mm_rev > MAX_FEED_MM_REV + 1e-9 {
+            return Err(format!(
+                "feed {mm_rev} mm/rev is above the limit {MAX_FEED_MM_REV} mm/rev \
+                 (G95: F without a decimal point is µm/rev, with a point mm/rev)"
+            ));
+        }
+        Ok(Feed::MmPerRev(mm_rev))
+    } else {
+        let mm_min = if f.point { f.value * 1000.0 } else { f.value };
+        if mm_min > MAX_FEED_MM_MIN {
+            return Err(format!(
+                "feed {mm_min} mm/min is above the limit {MAX_FEED_MM_MIN} mm/min \
+                 (G94: F without a decimal point is mm/min, with a point m/min)"
+            ));
+        }
+        Ok(Feed::MmPerMin(mm_min))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn n(value: f64, point: bool) -> Num {
+        Num { value, point }
+    }
+
+    // SPEC §5 examples.
+    #[test]
+    fn units_follow_the_decimal_point() {
+        assert_eq!(convert(n(1000.0, false), false), Ok(Feed::MmPerMin(1000.0)));
+        assert_eq!(convert(n(0.5, true), false), Ok(Feed::MmPerMin(500.0)));
+        assert_eq!(convert(n(1.2, true), false), Ok(Feed::MmPerMin(1200.0)));
+        assert_eq!(convert(n(1000.0, false), true), Ok(Feed::MmPerRev(1.0)));
+        assert_eq!(convert(n(0.2, true), true), Ok(Feed::MmPerRev(0.2)));
+    }
+
+    #[test]
+    fn limits() {
+        assert!(convert(n(90000.0, false), false).is_ok());
+        assert!(convert(n(90001.0, false), false).is_err());
+        assert!(convert(n(90.001, true), false).is_err());
+        assert!(convert(n(99999.0, false), true).is_ok());
+        assert!(convert(n(99.999, true), true).is_ok());
+        assert!(convert(n(100000.0, false), true).is_err());
+        assert!(convert(n(100.0, true), true).is_err());
+        assert!(convert(n(-1.0, false), false).is_err());
+    }
+
+    #[test]
+    fn css_swap() {
+        assert!(!FeedMode::G96.per_rev(false));
+        assert!(FeedMode::G96.per_rev(true));
+        assert!(FeedMode::G97.per_rev(false));
+        assert!(!FeedMode::G97.per_rev(true));
+    }
+}

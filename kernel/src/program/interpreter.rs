@@ -1,0 +1,911 @@
+//! The interpreter: words of one block + modal state → one canonical block (SPEC §2, §3, §5).
+//!
+//! Each block is handled in two steps: the words are collected and checked, then the new modal
+//! state is computed into a copy. Only when nothing is wrong is the copy committed, so a bad
+//! block never changes state half-way.
+
+use super::arc::{self, ERefinement};
+use super::feed::{self, FeedMode};
+use super::words::{LexError, Lexer, MAX_PARAM, Num, Token, Value};
+use super::{IjMode, Setup};
+use crate::block::{
+    ArcDir, Block, BlockKind, Comp, Continuity, Feed, MCodes, Path, Plane, Spindle, SpindleDir,
+};
+use crate::constants::Refinement;
+use crate::diag::Diagnostic;
+use crate::offsets::{self, OffsetTable, TableEdit};
+use crate::units::{AxesMm, MAX_AXES};
+
+/// Letters the language uses for other things; an axis may not be named by one of them.
+pub const RESERVED_LETTERS: &str = "NGIJEFSMDR";
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Motion {
+    Rapid,
+    Line,
+    Cw,
+    Ccw,
+}
+
+impl Motion {
+    fn is_arc(self) -> bool {
+        matches!(self, Motion::Cw | Motion::Ccw)
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum CompMode {
+    Off,
+    Left,
+    Right,
+}
+
+/// Rules taken from the machine constants once, when the interpreter is made.
+#[derive(Clone, Copy, Debug)]
+struct Rules {
+    arc_tolerance_mm: f64,
+    bad_arc_becomes_line: bool,
+    side_switch_allowed: bool,
+    g40_without_motion: bool,
+    refinement: Refinement,
+    css_swapped: bool,
+    ij: IjMode,
+}
+
+/// Modal state: small and `Copy`, so a block works on a copy and commits it whole.
+#[derive(Clone, Copy, Debug)]
+struct State {
+    /// Programmed position (program coordinates, without length offset).
+    prog: AxesMm,
+    /// Where the last motion ended, in machine coordinates (programmed + length offset).
+    machine: AxesMm,
+    motion: Motion,
+    plane: Plane,
+    absolute: bool,
+    feed_mode: FeedMode,
+    /// Programmed feed (before M37 scaling); `None` until F is written, or after the feed
+    /// changed between per minute and per revolution.
+    feed: Option<Feed>,
+    /// M37: actual feed = programmed / 100 (SPEC §5).
+    m37: bool,
+    continuity: Continuity,
+    dyn_set: u8,
+    comp: CompMode,
+    /// Offset entry selected by D (0 = none).
+    d: u8,
+    /// Length offset entry selected by & (0 = none).
+    amp: u8,
+    spindle: Spindle,
+    /// The spindle speed is known at run time although S is 0: after constant cutting speed
+    /// ends, the last reached speed becomes S (SPEC §6).
+    speed_from_css: bool,
+}
+
+/// The words of one block, collected before anything is interpreted.
+#[derive(Default)]
+struct Words {
+    n: Option<u32>,
+    motion: Option<(Motion, usize)>,
+    plane: Option<(Plane, usize)>,
+    continuity: Option<(Continuity, usize)>,
+    comp: Option<(CompMode, usize)>,
+    absolute: Option<(bool, usize)>,
+    feed_mode: Option<(FeedMode, usize)>,
+    g76: Option<usize>,
+    g92: Option<usize>,
+    axes: [Option<(f64, usize)>; MAX_AXES],
+    i: Option<(Num, usize)>,
+    j: Option<(Num, usize)>,
+    e: Option<(Num, usize)>,
+    f: Option<(Num, usize)>,
+    s: Option<(Num, usize)>,
+    d: Option<(u8, usize)>,
+    amp: Option<(u8, usize)>,
+    m: [Option<(u16, usize)>; 4],
+    assigns: [Option<(u8, Num)>; 16],
+    first: usize,
+    any: bool,
+}
+
+/// An error inside a block: byte offset in the line and message.
+struct Fail {
+    at: usize,
+    message: String,
+}
+
+fn fail<T>(at: usize, message: impl Into<String>) -> Result<T, Fail> {
+    Err(Fail {
+        at,
+        message: message.into(),
+    })
+}
+
+impl From<LexError> for Fail {
+    fn from(e: LexError) -> Self {
+        Fail {
+            at: e.at,
+            message: e.message,
+        }
+    }
+}
+
+/// Modal state and position, advanced block by block.
+pub struct Interpreter {
+    axis_letters: [u8; MAX_AXES],
+    n_axes: usize,
+    rules: Rules,
+    table: OffsetTable,
+    state: State,
+    params: [Option<Num>; MAX_PARAM as usize + 1],
+    seq: u32,
+    notes: Vec<Diagnostic>,
+    setup_error: Option<String>,
+}
+
+impl Interpreter {
+    pub fn new(setup: &Setup) -> Self {
+        let c = &setup.constants;
+        let mut axis_letters = [0u8; MAX_AXES];
+        let mut setup_error = None;
+        if setup.axis_names.is_empty() || setup.axis_names.len() > MAX_AXES {
+            setup_error = Some(format!(
+                "the machine must have 1..{MAX_AXES} axes, not {}",
+                setup.axis_names.len()
+            ));
+        }
+        for (k, &a) in setup.axis_names.iter().take(MAX_AXES).enumerate() {
+            let up = a.to_ascii_uppercase();
+            if !up.is_ascii_alphabetic() || RESERVED_LETTERS.contains(up) {
+                setup_error = Some(format!(
+                    "axis name '{a}' cannot be used: axes are letters other than {RESERVED_LETTERS}"
+                ));
+            } else if setup.axis_names[..k]
+                .iter()
+                .any(|b| b.to_ascii_uppercase() == up)
+            {
+                setup_error = Some(format!("axis name '{a}' is configured twice"));
+            }
+            axis_letters[k] = up as u8;
+        }
+        let start = setup.start;
+        Interpreter {
+            axis_letters,
+            n_axes: setup.axis_names.len().min(MAX_AXES),
+            rules: Rules {
+                arc_tolerance_mm: c.arc_tolerance_mm(),
+                bad_arc_becomes_line: c.bad_arc_becomes_line(),
+                side_switch_allowed: c.comp_side_switch_allowed(),
+                g40_without_motion: c.g40_without_motion_allowed(),
+                refinement: if setup.preprocessor {
+                    c.refinement()
+                } else {
+                    Refinement::Off
+                },
+                css_swapped: c.css_g96_g97_swapped(),
+                ij: setup.ij,
+            },
+            table: setup.offsets.clone(),
+            state: State {
+                prog: start,
+                machine: start,
+                motion: Motion::Rapid,
+                plane: Plane::G17,
+                absolute: true,
+                feed_mode: FeedMode::G94,
+                feed: None,
+                m37: false,
+                continuity: Continuity::G98,
+                dyn_set: 1,
+                comp: CompMode::Off,
+                d: 0,
+                amp: 0,
+                spindle: Spindle::default(),
+                speed_from_css: false,
+            },
+            params: [None; MAX_PARAM as usize + 1],
+            seq: 0,
+            notes: Vec::new(),
+            setup_error,
+        }
+    }
+
+    /// A problem with the setup itself (axis names); reported once, before any block.
+    pub fn setup_error(&self) -> Option<Diagnostic> {
+        self.setup_error
+            .as_ref()
+            .map(|m| Diagnostic::error(None, 0, 0, m.clone()))
+    }
+
+    /// Warnings and information produced since the last call (arc replaced by a line, ...).
+    pub fn take_notes(&mut self) -> Vec<Diagnostic> {
+        std::mem::take(&mut self.notes)
+    }
+
+    /// Whether notes are waiting (cheap check for the streaming loop).
+    pub fn has_notes(&self) -> bool {
+        !self.notes.is_empty()
+    }
+
+    /// The interpreter's copy of the offset table (including `G92` writes so far).
+    pub fn table(&self) -> &OffsetTable {
+        &self.table
+    }
+
+    /// Value of program parameter `R<index>` as assigned so far.
+    pub fn param(&self, index: u8) -> Option<f64> {
+        self.params
+            .get(index as usize)
+            .copied()
+            .flatten()
+            .map(|n| n.value)
+    }
+
+    /// Interprets one source line. Returns the canonical block it makes, if any (empty and
+    /// remark-only lines make none). On error the modal state is unchanged.
+    pub fn line(&mut self, line_no: u32, text: &str) -> Result<Option<Block>, Diagnostic> {
+        let mut w = Words::default();
+        let located =
+            |n: Option<u32>, f: Fail| Diagnostic::error(n, line_no, column(text, f.at), f.message);
+        if let Err(f) = self.collect(text, &mut w) {
+            return Err(located(w.n, f));
+        }
+        if !w.any {
+            return Ok(None);
+        }
+        match self.interpret(&w, line_no, text) {
+            Ok(b) => Ok(Some(b)),
+            Err(f) => Err(located(w.n, f)),
+        }
+    }
+
+    /// Looks up a parameter: assignments earlier in this block first, then the committed table.
+    fn param_value(&self, w: &Words, index: u8, negate: bool, at: usize) -> Result<Num, Fail> {
+        let pending = w
+            .assigns
+            .iter()
+            .rev()
+            .flatten()
+            .find(|(i, _)| *i == index)
+            .map(|(_, n)| *n);
+        match pending.or(self.params[index as usize]) {
+            Some(n) => Ok(Num {
+                value: if negate { -n.value } else { n.value },
+                point: n.point,
+            }),
+            None => fail(
+                at,
+                format!("parameter R{index} is used before it was assigned"),
+            ),
+        }
+    }
+
+    /// Lexes the line into `w`, checking each word on its own.
+    fn collect(&self, text: &str, w: &mut Words) -> Result<(), Fail> {
+        for (k, lexed) in Lexer::new(text).enumerate() {
+            let lexed = lexed?;
+            let at = lexed.at;
+            if k == 0 {
+                w.first = at;
+            }
+            w.any = true;
+            match lexed.token {
+                Token::Assign { index, value } => {
+                    let num = self.resolve(w, value, at)?;
+                    let Some(slot) = w.assigns.iter_mut().find(|s| s.is_none()) else {
+                        return fail(at, "more than 16 parameter assignments in one block");
+                    };
+                    *slot = Some((index, num));
+                }
+                Token::Word { letter, value } => {
+                    let num = self.resolve(w, value, at)?;
+                    self.word(w, letter, num, at, k == 0)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn resolve(&self, w: &Words, value: Value, at: usize) -> Result<Num, Fail> {
+        match value {
+            Value::Num(n) => Ok(n),
+            Value::Param { index, negate } => self.param_value(w, index, negate, at),
+        }
+    }
+
+    fn word(
+        &self,
+        w: &mut Words,
+        letter: u8,
+        num: Num,
+        at: usize,
+        first: bool,
+    ) -> Result<(), Fail> {
+        fn once<T>(slot: &mut Option<(T, usize)>, v: T, at: usize, what: &str) -> Result<(), Fail> {
+            if slot.is_some() {
+                return fail(at, format!("{what} is written twice in this block"));
+            }
+            *slot = Some((v, at));
+            Ok(())
+        }
+        if let Some(ax) = self.axis_letters[..self.n_axes]
+            .iter()
+            .position(|&a| a == letter)
+        {
+            return once(
+                &mut w.axes[ax],
+                num.value,
+                at,
+                &format!("axis {}", letter as char),
+            );
+        }
+        match letter {
+            b'N' => {
+                if !first {
+                    return fail(at, "the block number N must be the first word of the block");
+                }
+                w.n = Some(int(num, "N", 0, 999_999).map_err(|m| Fail { at, message: m })?);
+            }
+            b'G' => self.g_word(w, num, at)?,
+            b'I' => once(&mut w.i, num, at, "I")?,
+            b'J' => once(&mut w.j, num, at, "J")?,
+            b'E' => once(&mut w.e, num, at, "E")?,
+            b'F' => once(&mut w.f, num, at, "F")?,
+            b'S' => once(&mut w.s, num, at, "S")?,
+            b'D' => {
+                let d = int(num, "D", 0, 99).map_err(|m| Fail { at, message: m })?;
+                once(&mut w.d, d as u8, at, "D")?
+            }
+            b'&' => {
+                let d = int(num, "&", 0, 99).map_err(|m| Fail { at, message: m })?;
+                once(&mut w.amp, d as u8, at, "&")?
+            }
+            b'M' => {
+                let m = int(num, "M", 0, 999).map_err(|m| Fail { at, message: m })? as u16;
+                let Some(slot) = w.m.iter_mut().find(|s| s.is_none()) else {
+                    return fail(at, "more than 4 M functions in one block");
+                };
+                *slot = Some((m, at));
+            }
+            _ => {
+                return fail(at, format!("unknown address {}", letter as char));
+            }
+        }
+        Ok(())
+    }
+
+    fn g_word(&self, w: &mut Words, num: Num, at: usize) -> Result<(), Fail> {
+        fn group<T>(
+            slot: &mut Option<(T, usize)>,
+            v: T,
+            at: usize,
+            what: &str,
+        ) -> Result<(), Fail> {
+            if slot.is_some() {
+                return fail(
+                    at,
+                    format!("two G functions of the {what} group in one block"),
+                );
+            }
+            *slot = Some((v, at));
+            Ok(())
+        }
+        let g = int(num, "G", 0, 999).map_err(|m| Fail { at, message: m })?;
+        match g {
+            0 => group(&mut w.motion, Motion::Rapid, at, "motion (G0..G3)"),
+            1 => group(&mut w.motion, Motion::Line, at, "motion (G0..G3)"),
+            2 => group(&mut w.motion, Motion::Cw, at, "motion (G0..G3)"),
+            3 => group(&mut w.motion, Motion::Ccw, at, "motion (G0..G3)"),
+            17 | 18 | 19 => {
+                let p = [Plane::G17, Plane::G18, Plane::G19][g as usize - 17];
+                let (a, b) = p.axes();
+                if a >= self.n_axes || b >= self.n_axes {
+                    return fail(
+                        at,
+                        format!("G{g} needs a third axis; this machine has {}", self.n_axes),
+                    );
+                }
+                group(&mut w.plane, p, at, "plane (G17..G19)")
+            }
+            23 => group(
+                &mut w.continuity,
+                Continuity::G23,
+                at,
+                "continuity (G23/G24/G98)",
+            ),
+            24 => group(
+                &mut w.continuity,
+                Continuity::G24,
+                at,
+                "continuity (G23/G24/G98)",
+            ),
+            98 => group(
+                &mut w.continuity,
+                Continuity::G98,
+                at,
+                "continuity (G23/G24/G98)",
+            ),
+            40 => group(
+                &mut w.comp,
+                CompMode::Off,
+                at,
+                "radius compensation (G40..G42)",
+            ),
+            41 => group(
+                &mut w.comp,
+                CompMode::Left,
+                at,
+                "radius compensation (G40..G42)",
+            ),
+            42 => group(
+                &mut w.comp,
+                CompMode::Right,
+                at,
+                "radius compensation (G40..G42)",
+            ),
+            90 => group(&mut w.absolute, true, at, "G90/G91"),
+            91 => group(&mut w.absolute, false, at, "G90/G91"),
+            94 => group(&mut w.feed_mode, FeedMode::G94, at, "feed (G94..G97)"),
+            95 => group(&mut w.feed_mode, FeedMode::G95, at, "feed (G94..G97)"),
+            96 => group(&mut w.feed_mode, FeedMode::G96, at, "feed (G94..G97)"),
+            97 => group(&mut w.feed_mode, FeedMode::G97, at, "feed (G94..G97)"),
+            76 => {
+                if w.g76.is_some() {
+                    return fail(at, "G76 is written twice in this block");
+                }
+                w.g76 = Some(at);
+                Ok(())
+            }
+            92 => {
+                if w.g92.is_some() {
+                    return fail(at, "G92 is written twice in this block");
+                }
+                w.g92 = Some(at);
+                Ok(())
+            }
+            4 => fail(
+                at,
+                "G4 (dwell) is not a function of this controller's dialect",
+            ),
+            _ => fail(at, format!("G{g} is not a function of this controller")),
+        }
+    }
+
+    /// Length offsets of entry `amp` for axes 1..4 (0 = none).
+    fn length_offset(&self, amp: u8, edit: Option<&TableEdit>) -> AxesMm {
+        let mut off = AxesMm::ZERO;
+        if let Some(e) = self.table.entry(amp) {
+            for k in 0..4.min(self.n_axes) {
+                off[k] = e.length_mm[k];
+            }
+            if let Some(ed) = edit.filter(|ed| ed.entry == amp) {
+                for k in 0..4.min(self.n_axes) {
+                    if let Some(v) = ed.values[k + 1] {
+                        off[k] = v;
+                    }
+                }
+            }
+        }
+        off
+    }
+
+    /// Radius of entry `d`, seeing a `G92` write of the same block.
+    fn radius_of(&self, d: u8, edit: Option<&TableEdit>) -> Option<f64> {
+        let e = self.table.entry(d)?;
+        Some(
+            edit.filter(|ed| ed.entry == d)
+                .and_then(|ed| ed.values[0])
+                .unwrap_or(e.radius_mm),
+        )
+    }
+
+    fn interpret(&mut self, w: &Words, line_no: u32, text: &str) -> Result<Block, Fail> {
+        let old = self.state;
+        let mut st = old;
+        let rules = self.rules;
+        if let Some((m, _)) = w.motion {
+            st.motion = m;
+        }
+        if let Some((a, _)) = w.absolute {
+            st.absolute = a;
+        }
+        if let Some((c, _)) = w.continuity {
+            st.continuity = c;
+        }
+        let motion_words = w.axes[..self.n_axes].iter().any(Option::is_some);
+        let arc_block = st.motion.is_arc() && w.g92.is_none();
+
+        // G23/G24/G98 I1..I4: I selects the dynamic set unless the block is an arc (SPEC §7.4).
+        let mut i_is_centre = true;
+        if let (Some(_), Some((i, at))) = (w.continuity, w.i)
+            && !arc_block
+        {
+            let set = int(i, "I (dynamic set)", 1, 4).map_err(|m| Fail { at, message: m })?;
+            st.dyn_set = set as u8;
+            i_is_centre = false;
+        }
+
+        // Plane (SPEC §4.1: no change under compensation).
+        if let Some((p, at)) = w.plane {
+            if old.comp != CompMode::Off && p != old.plane {
+                return fail(
+                    at,
+                    "the plane cannot change while radius compensation G41/G42 is active: program G40 first",
+                );
+            }
+            st.plane = p;
+        }
+
+        // M functions: spindle, feed scale, gear.
+        let mut m_codes: MCodes = [None; 4];
+        let (mut dir_at, mut scale_at, mut gear_at) = (None, None, None);
+        for (k, (m, at)) in w.m.iter().flatten().enumerate() {
+            m_codes[k] = Some(*m);
+            let (slot, what) = match m {
+                3 | 4 | 5 => (&mut dir_at, "spindle direction (M3/M4/M5)"),
+                36 | 37 => (&mut scale_at, "feed scale (M36/M37)"),
+                41..=44 => (&mut gear_at, "gear (M41..M44)"),
+                _ => continue,
+            };
+            if slot.is_some() {
+                return fail(*at, format!("two M functions for the {what} in one block"));
+            }
+            *slot = Some(*m);
+            match m {
+                3 => st.spindle.dir = SpindleDir::Cw,
+                4 => st.spindle.dir = SpindleDir::Ccw,
+                5 => st.spindle.dir = SpindleDir::Stopped,
+                36 => st.m37 = false,
+                37 => st.m37 = true,
+                _ => st.spindle.gear = (*m - 40) as u8,
+            }
+        }
+
+        // Feed group and constant cutting speed (SPEC §5, §6).
+        if let Some((fm, _)) = w.feed_mode {
+            st.feed_mode = fm;
+        }
+        let per_rev = st.feed_mode.per_rev(rules.css_swapped);
+        if per_rev != old.feed_mode.per_rev(rules.css_swapped) {
+            // F is not carried over between per minute and per revolution (seed 002 §6.1).
+            st.feed = None;
+        }
+        if let Some((f, at)) = w.f {
+            st.feed = Some(feed::convert(f, per_rev).map_err(|m| Fail { at, message: m })?);
+        }
+        st.spindle.css = st.feed_mode.css();
+        if let Some(at) = w.g76 {
+            let Some((s, s_at)) = w.s else {
+                return fail(
+                    at,
+                    "G76 needs S: the spindle speed limit in rpm (G76 S2000)",
+                );
+            };
+            if s.value < 0.0 {
+                return fail(s_at, "the spindle speed limit cannot be negative");
+            }
+            st.spindle.limit_rpm = s.value;
+        } else if let Some((s, at)) = w.s {
+            if s.value < 0.0 {
+                return fail(at, "S cannot be negative");
+            }
+            st.spindle.s = s.value;
+            st.speed_from_css = false;
+        } else if old.spindle.css && !st.spindle.css {
+            // KŘR ends without S: the last reached speed becomes S, known only at run time.
+            st.spindle.s = 0.0;
+            st.speed_from_css = true;
+        }
+
+        // G92 D<n> R0..R4: table write (SPEC §3 (c)).
+        let mut edit = None;
+        if let Some(at) = w.g92 {
+            if let Some(ax) = w.axes.iter().flatten().next() {
+                return fail(
+                    ax.1,
+                    "G92 fills the offset table; it cannot be in a block with axis motion",
+                );
+            }
+            let Some((entry, d_at)) = w.d else {
+                return fail(at, "G92 needs D<entry> (01..99): the offset entry to fill");
+            };
+            if entry == 0 {
+                return fail(d_at, "G92 D0: offset entries are 01..99");
+            }
+            let mut values = [None; 5];
+            for (index, num) in w.assigns.iter().flatten() {
+                if (*index as usize) < 5 {
+                    if !num.value.is_finite() || num.value.abs() > offsets::MAX_VALUE_MM {
+                        return fail(
+                            at,
+                            format!(
+                                "R{index}={} is outside ±{} mm",
+                                num.value,
+                                offsets::MAX_VALUE_MM
+                            ),
+                        );
+                    }
+                    values[*index as usize] = Some(num.value);
+                }
+            }
+            if values.iter().all(Option::is_none) {
+                self.notes.push(Diagnostic::warning(
+                    w.n,
+                    line_no,
+                    column(text, at),
+                    format!("G92 D{entry} writes nothing: program R0 (radius) .. R4 (lengths) in the block"),
+                ));
+            }
+            edit = Some(TableEdit { entry, values });
+        } else if let Some((d, _)) = w.d {
+            st.d = d;
+        }
+        if let Some((a, _)) = w.amp {
+            st.amp = a;
+        }
+
+        // Radius compensation (SPEC §4.1, §4.2).
+        if let Some((c, _)) = w.comp {
+            st.comp = c;
+        }
+        let comp_at = w.comp.map(|c| c.1).unwrap_or(w.first);
+        let comp = match st.comp {
+            CompMode::Off => Comp::Off,
+            side => {
+                let Some(radius_mm) = self.radius_of(st.d, edit.as_ref()) else {
+                    return fail(
+                        comp_at,
+                        "radius compensation needs a tool: select an offset entry with D before G41/G42",
+                    );
+                };
+                if side == CompMode::Left {
+                    Comp::Left { d: st.d, radius_mm }
+                } else {
+                    Comp::Right { d: st.d, radius_mm }
+                }
+            }
+        };
+        if st.comp != old.comp {
+            if arc_block && motion_words {
+                return fail(
+                    comp_at,
+                    "radius compensation can be started or cancelled only in a linear block, not on an arc",
+                );
+            }
+            if old.comp != CompMode::Off && st.comp != CompMode::Off && !rules.side_switch_allowed {
+                return fail(
+                    comp_at,
+                    "G41 and G42 cannot follow each other directly: program G40 between them (or set 6.R397 = 1)",
+                );
+            }
+            let (a, b) = st.plane.axes();
+            if st.comp == CompMode::Off
+                && !rules.g40_without_motion
+                && w.axes[a].is_none()
+                && w.axes[b].is_none()
+            {
+                return fail(
+                    comp_at,
+                    "G40 must be in a block that moves in the compensation plane (or set 7.R339 = 1)",
+                );
+            }
+        }
+
+        // Positions.
+        let offset = self.length_offset(st.amp, edit.as_ref());
+        for (k, v) in w.axes[..self.n_axes].iter().enumerate() {
+            if let Some((v, _)) = v {
+                st.prog[k] = if st.absolute { *v } else { old.prog[k] + v };
+            }
+        }
+        let start = old.machine;
+        let end = st.prog + offset;
+
+        // I, J, E belong to arcs.
+        let ij_present = (w.i.is_some() && i_is_centre) || w.j.is_some();
+        if !arc_block {
+            if let Some((_, at)) = w.i.filter(|_| i_is_centre).or(w.j) {
+                return fail(at, "I and J are arc centre words: they need G2 or G3");
+            }
+            if let Some((_, at)) = w.e {
+                return fail(at, "E refines an arc centre: it needs G2 or G3");
+            }
+        }
+        let moves = motion_words || (arc_block && ij_present);
+        let mut kind = BlockKind::Technology;
+        let mut warn: Option<(usize, String)> = None;
+        if let Some(ed) = edit {
+            kind = BlockKind::TableWrite {
+                entry: ed.entry,
+                values: ed.values,
+            };
+        } else if moves {
+            let path = if arc_block {
+                match self.arc(w, &st, old, start, end, offset)? {
+                    Ok(p) => p,
+                    Err(msg) => {
+                        warn = Some((w.first, msg));
+                        Path::Line
+                    }
+                }
+            } else if st.motion == Motion::Rapid {
+                Path::Rapid
+            } else {
+                Path::Line
+            };
+            if path != Path::Rapid {
+                match st.feed {
+                    Some(f) if feed_value(f) > 0.0 => {}
+                    Some(_) => {
+                        return fail(
+                            w.f.map_or(w.first, |f| f.1),
+                            "feed F is zero: a feed move needs F > 0",
+                        );
+                    }
+                    None if old.feed.is_some() => {
+                        return fail(
+                            w.first,
+                            "the feed changed between per minute and per revolution: program F again",
+                        );
+                    }
+                    None => {
+                        return fail(
+                            w.first,
+                            "no feed: program F before the first feed move (G1/G2/G3)",
+                        );
+                    }
+                }
+                if per_rev
+                    && (st.spindle.dir == SpindleDir::Stopped
+                        || (st.spindle.s <= 0.0 && !st.speed_from_css))
+                {
+                    return fail(
+                        w.first,
+                        "feed per revolution needs a turning spindle: program S and M3 or M4 first",
+                    );
+                }
+            }
+            kind = BlockKind::Motion { start, end, path };
+        }
+
+        // Everything checked: commit.
+        let mut feed_out = st.feed.unwrap_or_default();
+        if st.m37 {
+            feed_out = match feed_out {
+                Feed::MmPerMin(f) => Feed::MmPerMin(f / 100.0),
+                Feed::MmPerRev(f) => Feed::MmPerRev(f / 100.0),
+            };
+        }
+        if let Some(ed) = &edit {
+            self.table
+                .apply(ed)
+                .expect("G92 values were checked before the commit");
+        }
+        for (index, num) in w.assigns.iter().flatten() {
+            self.params[*index as usize] = Some(*num);
+        }
+        if let Some((at, msg)) = warn {
+            self.notes
+                .push(Diagnostic::warning(w.n, line_no, column(text, at), msg));
+        }
+        if matches!(kind, BlockKind::Motion { .. }) {
+            st.machine = end;
+        }
+        self.state = st;
+        let block = Block {
+            seq: self.seq,
+            n: w.n,
+            line: line_no,
+            kind,
+            feed: feed_out,
+            plane: st.plane,
+            comp,
+            continuity: st.continuity,
+            dyn_set: st.dyn_set,
+            spindle: st.spindle,
+            m: m_codes,
+        };
+        self.seq += 1;
+        Ok(block)
+    }
+
+    /// Builds and checks an arc. `Ok(Err(msg))`: the end point misses the circle and 7.R397
+    /// turns the arc into a line (the message becomes a warning).
+    fn arc(
+        &self,
+        w: &Words,
+        st: &State,
+        old: State,
+        start: AxesMm,
+        end: AxesMm,
+        offset: AxesMm,
+    ) -> Result<Result<Path, String>, Fail> {
+        let rules = self.rules;
+        let (a, b) = st.plane.axes();
+        let (Some((i, _)), Some((j, _))) = (w.i, w.j) else {
+            return fail(
+                w.i.or(w.j).map_or(w.first, |x| x.1),
+                "an arc needs both centre words I and J",
+            );
+        };
+        let old_offset = old.machine - old.prog;
+        if (0..MAX_AXES).any(|k| (offset[k] - old_offset[k]).abs() > 1e-12) {
+            return fail(
+                w.amp.map_or(w.first, |x| x.1),
+                "the length offset changed (& or G92) since the last motion: move in a line first, an arc cannot take it up",
+            );
+        }
+        let mut ij = (i.value, j.value);
+        if let Some((e, at)) = w.e {
+            let r = ERefinement::decode(e.value).map_err(|m| Fail { at, message: m })?;
+            ij = r.apply(ij);
+        }
+        let (s2, e2) = ((start[a], start[b]), (end[a], end[b]));
+        let centre_of = |ij: (f64, f64)| match rules.ij {
+            IjMode::RelativeToStart => (start[a] + ij.0, start[b] + ij.1),
+            IjMode::Absolute => (ij.0 + offset[a], ij.1 + offset[b]),
+        };
+        let mut c2 = centre_of(ij);
+        if let Some(r) = arc::refine(s2, e2, c2, rules.refinement) {
+            ij = r.apply(ij);
+            c2 = centre_of(ij);
+        }
+        let (rs, re) = arc::radii(s2, e2, c2);
+        if rs < 1e-9 {
+            return fail(
+                w.first,
+                "the arc radius is zero: the centre I J is at the start point",
+            );
+        }
+        let miss = (rs - re).abs();
+        if miss > rules.arc_tolerance_mm {
+            let msg = format!(
+                "the arc end point is not on the circle: start radius {rs:.4} mm, end radius {re:.4} mm, \
+                 difference {miss:.4} mm is more than the tolerance R55 = {:.3} mm",
+                rules.arc_tolerance_mm
+            );
+            if rules.bad_arc_becomes_line {
+                return Ok(Err(format!("{msg}; replaced by a line (7.R397 = 1)")));
+            }
+            return fail(w.first, msg);
+        }
+        let mut center = start;
+        center[a] = c2.0;
+        center[b] = c2.1;
+        Ok(Ok(Path::Arc {
+            dir: if st.motion == Motion::Cw {
+                ArcDir::Cw
+            } else {
+                ArcDir::Ccw
+            },
+            center,
+            plane: st.plane,
+        }))
+    }
+}
+
+fn feed_value(f: Feed) -> f64 {
+    match f {
+        Feed::MmPerMin(v) | Feed::MmPerRev(v) => v,
+    }
+}
+
+/// An integer word without a decimal point in `lo..=hi`.
+fn int(n: Num, what: &str, lo: u32, hi: u32) -> Result<u32, String> {
+    if n.point || n.value.fract() != 0.0 {
+        return Err(format!("{what} takes a whole number, not {}", n.value));
+    }
+    if n.value < lo as f64 || n.value > hi as f64 {
+        return Err(format!("{what}{} is outside {lo}..{hi}", n.value));
+    }
+    Ok(n.value as u32)
+}
+
+/// 1-based character column of byte offset `at` in `text`.
+pub(crate) fn column(text: &str, at: usize) -> u32 {
+    let at = at.min(text.len());
+    let at = (0..=at)
+        .rev()
+        .find(|&i| text.is_char_boundary(i))
+        .unwrap_or(0);
+    text[..at].chars().count() as u32 + 1
+}

@@ -1,0 +1,272 @@
+//! Part-program parser and interpreter (SPEC §2, §3, §4.6, §5): program text → canonical
+//! [`Block`]s. The language is described for machinists in `docs/language.md`.
+//!
+//! Three ways in, one interpreter underneath:
+//! - [`compile`]: whole program, all blocks and all messages (tests, preview, small programs);
+//! - [`validate`]: whole program, messages only, no blocks kept (the daemon's check before a
+//!   program may run; memory does not grow with the program);
+//! - [`stream`]: an iterator of blocks for execution, one at a time (a 1,000,000-block program
+//!   is never held as blocks).
+//!
+//! Submodules: [`words`] (lexing: addresses, numbers with their decimal point, remarks),
+//! [`feed`] (F units and limits), [`arc`] (E address, R325 refinement, R55 check) and
+//! [`interpreter`] (modal state, one block at a time).
+
+pub mod arc;
+pub mod feed;
+pub mod interpreter;
+pub mod words;
+
+pub use feed::{FeedMode, MAX_FEED_MM_MIN, MAX_FEED_MM_REV};
+pub use interpreter::Interpreter;
+
+use crate::block::Block;
+use crate::constants::Constants;
+use crate::diag::Diagnostic;
+use crate::offsets::OffsetTable;
+use crate::units::AxesMm;
+
+/// Most messages collected for one program; beyond it one last error says so (a binary file
+/// would otherwise produce a message per line).
+pub const MAX_DIAGNOSTICS: usize = 1000;
+
+/// How the arc centre words I and J are read (SPEC §2: **decided**, a setting; default relative).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum IjMode {
+    /// I, J are the centre minus the arc's start point (the common convention).
+    #[default]
+    RelativeToStart,
+    /// I, J are the centre in program coordinates (like the axis words under G90).
+    Absolute,
+}
+
+/// What the interpreter needs to know about the machine.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Setup {
+    /// Axis letters in machine order (R0..R5), e.g. `['X', 'Y', 'Z']`.
+    pub axis_names: Vec<char>,
+    /// Position of the axes when the program starts (machine coordinates).
+    pub start: AxesMm,
+    /// Machine constants (R55 arc tolerance, R325 refinement, R397, R339, R329 ...).
+    pub constants: Constants,
+    /// The memory offset table at program start (D and & look-ups; G92 writes on a copy).
+    pub offsets: OffsetTable,
+    /// How I and J are read.
+    pub ij: IjMode,
+    /// `$63` of CNC836.KNF: the preprocessor is on (default), needed for R325 refinement.
+    pub preprocessor: bool,
+}
+
+impl Setup {
+    pub fn new(axis_names: &[char]) -> Self {
+        Setup {
+            axis_names: axis_names.to_vec(),
+            start: AxesMm::ZERO,
+            constants: Constants::new(),
+            offsets: OffsetTable::new(),
+            ij: IjMode::default(),
+            preprocessor: true,
+        }
+    }
+}
+
+/// A validated program: its canonical blocks and every message about it.
+#[derive(Clone, Debug, Default)]
+pub struct Compiled {
+    pub blocks: Vec<Block>,
+    pub diagnostics: Vec<Diagnostic>,
+}
+
+impl Compiled {
+    pub fn has_errors(&self) -> bool {
+        self.diagnostics.iter().any(Diagnostic::is_error)
+    }
+}
+
+/// Parses and interprets a whole program. Blocks are kept only if there is no error.
+pub fn compile(text: &str, setup: &Setup) -> Compiled {
+    let mut out = Compiled::default();
+    run(text, setup, |b| out.blocks.push(b), &mut out.diagnostics);
+    if out.has_errors() {
+        out.blocks.clear();
+    }
+    out
+}
+
+/// Checks a whole program without keeping its blocks: every error, warning and information,
+/// in source order (capped at [`MAX_DIAGNOSTICS`]). The program may run iff none is an error.
+pub fn validate(text: &str, setup: &Setup) -> Vec<Diagnostic> {
+    let mut diags = Vec::new();
+    run(text, setup, |_| {}, &mut diags);
+    diags
+}
+
+fn run(text: &str, setup: &Setup, mut sink: impl FnMut(Block), diags: &mut Vec<Diagnostic>) {
+    let mut s = stream(text, setup);
+    while let Some(item) = s.next() {
+        if s.interp.has_notes() {
+            diags.extend(s.interp.take_notes());
+        }
+        match item {
+            Ok(b) => sink(b),
+            Err(d) => diags.push(d),
+        }
+        if diags.len() >= MAX_DIAGNOSTICS {
+            diags.push(Diagnostic::error(
+                None,
+                s.line_no,
+                0,
+                format!("more than {MAX_DIAGNOSTICS} messages: checking stopped here"),
+            ));
+            return;
+        }
+    }
+    diags.extend(s.interp.take_notes());
+}
+
+/// Streams the blocks of a program for execution: `Ok(block)` in order, `Err(error)` for a
+/// block that is wrong (its state change is dropped and streaming continues, so a validating
+/// caller sees every error; an executing caller stops at the first). Warnings and information
+/// are not errors: collect them with [`Stream::take_notes`]. Memory stays constant.
+pub fn stream<'a>(text: &'a str, setup: &Setup) -> Stream<'a> {
+    let interp = Interpreter::new(setup);
+    Stream {
+        pending_setup_error: interp.setup_error(),
+        interp,
+        rest: text,
+        line_no: 0,
+        done: false,
+    }
+}
+
+/// Iterator of a program's blocks, see [`stream`].
+pub struct Stream<'a> {
+    interp: Interpreter,
+    rest: &'a str,
+    line_no: u32,
+    pending_setup_error: Option<Diagnostic>,
+    done: bool,
+}
+
+impl Stream<'_> {
+    /// Warnings and information produced so far and not yet taken.
+    pub fn take_notes(&mut self) -> Vec<Diagnostic> {
+        self.interp.take_notes()
+    }
+
+    /// The interpreter (its offset table, parameters) as of the last block returned.
+    pub fn interpreter(&self) -> &Interpreter {
+        &self.interp
+    }
+}
+
+impl Iterator for Stream<'_> {
+    type Item = Result<Block, Diagnostic>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if let Some(e) = self.pending_setup_error.take() {
+            self.done = true;
+            return Some(Err(e));
+        }
+        while !self.done {
+            let (line, rest) = match self.rest.find('\n') {
+                Some(k) => (&self.rest[..k], &self.rest[k + 1..]),
+                None => {
+                    self.done = true;
+                    (self.rest, "")
+                }
+            };
+            self.rest = rest;
+            self.line_no += 1;
+            match self.interp.line(self.line_no, line) {
+                Ok(Some(b)) => return Some(Ok(b)),
+                Ok(None) => {}
+                Err(d) => return Some(Err(d)),
+            }
+        }
+        None
+    }
+}
+
+/// Fuzzing entry: arbitrary bytes as a program, for a mill and a lathe, with refinement and
+/// 7.R397 on and off. Must never panic; `compile` and `validate` must agree. Used by `fuzz/`
+/// and by a proptest in kernel/tests.
+pub fn fuzz_entry(data: &[u8]) {
+    let text = String::from_utf8_lossy(data);
+    let mut mill = Setup::new(&['X', 'Y', 'Z', 'U']);
+    mill.offsets
+        .set_entry(
+            1,
+            crate::offsets::OffsetEntry {
+                radius_mm: 5.0,
+                length_mm: [0.0, 0.0, 10.0, 0.0],
+            },
+        )
+        .expect("valid entry");
+    let mut lathe = Setup::new(&['X', 'Z']);
+    lathe.constants.set(325, 20003.0);
+    lathe.constants.set(397, 1000000.0);
+    lathe.ij = IjMode::Absolute;
+    for setup in [&mill, &lathe] {
+        let c = compile(&text, setup);
+        let v = validate(&text, setup);
+        assert_eq!(
+            c.diagnostics, v,
+            "compile and validate must report the same"
+        );
+        if !c.has_errors() {
+            for (k, b) in c.blocks.iter().enumerate() {
+                assert_eq!(b.seq as usize, k, "seq numbers are dense");
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::block::{Feed, Path};
+
+    fn setup() -> Setup {
+        Setup::new(&['X', 'Y', 'Z'])
+    }
+
+    #[test]
+    fn lines_and_rapids() {
+        let c = compile(
+            "N10 G0 X10 Y5\nN20 G1 X20 F600 ; cut\nN30 G91 Y-5\n",
+            &setup(),
+        );
+        assert!(!c.has_errors(), "{:?}", c.diagnostics);
+        assert_eq!(c.blocks.len(), 3);
+        let (_, end, path) = c.blocks[2].motion().unwrap();
+        assert_eq!(path, Path::Line);
+        assert_eq!(&end.0[..3], &[20.0, 0.0, 0.0]);
+        assert_eq!(c.blocks[1].feed, Feed::MmPerMin(600.0));
+    }
+
+    #[test]
+    fn feed_with_decimal_point_is_m_per_min() {
+        let c = compile("G1 X1 F1.2", &setup());
+        assert_eq!(c.blocks[0].feed, Feed::MmPerMin(1200.0));
+    }
+
+    #[test]
+    fn unknown_word_and_missing_value_are_located() {
+        let c = compile("N10 G1 X1 F100\nN20 Q5\nN30 X\n", &setup());
+        assert!(c.blocks.is_empty());
+        assert_eq!(c.diagnostics.len(), 2);
+        assert_eq!(c.diagnostics[0].block, Some(20));
+        assert_eq!((c.diagnostics[0].line, c.diagnostics[0].column), (2, 5));
+        assert!(c.diagnostics[0].message.contains("unknown address Q"));
+        assert_eq!(c.diagnostics[1].block, Some(30));
+        assert!(c.diagnostics[1].message.contains("no value"));
+    }
+
+    #[test]
+    fn g1_without_feed_is_an_error() {
+        let c = compile("N5 G1 X1", &setup());
+        assert!(c.has_errors());
+        assert_eq!(c.diagnostics[0].block, Some(5));
+    }
+}
