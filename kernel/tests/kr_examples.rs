@@ -72,15 +72,15 @@ impl Run {
     }
 }
 
-fn block(seq: u32, css: bool, s_word: f64, s_programmed: bool) -> ProgramSpindle {
+/// Spindle state of a block in gear M44, M3. `s_word` as the interpreter leaves it: the modal
+/// S, or 0 after KŘR ended in a block without S.
+fn block(css: bool, s_word: f64) -> ProgramSpindle {
     ProgramSpindle {
         dir: SpindleDir::Cw,
         css,
         s_word,
-        s_programmed,
         limit_rpm: 0.0,
         gear: 2,
-        block_seq: seq,
     }
 }
 
@@ -95,7 +95,7 @@ fn close(a: f64, b: f64) -> bool {
 fn lathe_example(r329: f64, s_word_n20: f64) {
     let mut r = Run::new(lathe(r329, 0.001));
     // N10: rapid to Ø300 at 100 rpm (no KŘR: S is rpm).
-    let n10 = block(0, false, 100.0, true);
+    let n10 = block(false, 100.0);
     for x in [400.0, 350.0, 300.0] {
         let o = r.tick(n10, Motion::Rapid, x);
         assert_eq!(o.speed_rpm, 100.0);
@@ -103,12 +103,12 @@ fn lathe_example(r329: f64, s_word_n20: f64) {
     }
     // N15 Z-1: no new S, still 100 rpm.
     assert_eq!(
-        r.tick(block(1, false, 100.0, false), Motion::Rapid, 300.0)
+        r.tick(block(false, 100.0), Motion::Rapid, 300.0)
             .spindle_rpm,
         100.0
     );
     // N20: KŘR from Ø300 to Ø50.
-    let n20 = block(2, true, s_word_n20, true);
+    let n20 = block(true, s_word_n20);
     let o = r.tick(n20, Motion::Feed, 300.0);
     assert!(o.active);
     assert!(close(o.speed_rpm, 95.4929658551372), "{}", o.speed_rpm);
@@ -134,7 +134,7 @@ fn lathe_example_in_standard_setting() {
 #[test]
 fn act_cells_hand_computed() {
     let mut r = Run::new(lathe(0.0, 0.001));
-    let mut p = block(0, true, 900.0, true);
+    let mut p = block(true, 900.0);
     p.limit_rpm = 2000.0;
     let o = r.tick(p, Motion::Feed, 100.0);
     assert_eq!(o.output, 3520);
@@ -183,11 +183,11 @@ fn act_cells_hand_computed() {
 #[test]
 fn g96_in_a_block_without_motion_acts_at_once_in_version_2() {
     let mut r = Run::new(lathe(0.0, 0.001));
-    r.tick(block(0, false, 100.0, true), Motion::Stationary, 100.0);
-    let o = r.tick(block(1, true, 500.0, true), Motion::Stationary, 100.0);
+    r.tick(block(false, 100.0), Motion::Stationary, 100.0);
+    let o = r.tick(block(true, 500.0), Motion::Stationary, 100.0);
     assert!(close(o.speed_rpm, 159.15494309189535));
     // `N200 S600` changes the cutting speed: 60 m/min → 190.9859317 rpm.
-    let o = r.tick(block(2, true, 600.0, true), Motion::Stationary, 100.0);
+    let o = r.tick(block(true, 600.0), Motion::Stationary, 100.0);
     assert!(close(
         o.speed_rpm,
         60_000.0 / (std::f64::consts::TAU * 50.0)
@@ -198,11 +198,11 @@ fn g96_in_a_block_without_motion_acts_at_once_in_version_2() {
 #[test]
 fn old_kr_waits_for_a_motion_block() {
     let mut r = Run::new(lathe(0.0, 0.0));
-    r.tick(block(0, false, 100.0, true), Motion::Stationary, 100.0);
-    let o = r.tick(block(1, true, 500.0, true), Motion::Stationary, 100.0);
+    r.tick(block(false, 100.0), Motion::Stationary, 100.0);
+    let o = r.tick(block(true, 500.0), Motion::Stationary, 100.0);
     assert!(o.active);
     assert_eq!(o.speed_rpm, 100.0, "old KŘR does not act outside motion");
-    let o = r.tick(block(2, true, 500.0, false), Motion::Feed, 100.0);
+    let o = r.tick(block(true, 500.0), Motion::Feed, 100.0);
     assert!(close(o.speed_rpm, 159.15494309189535));
 }
 
@@ -211,7 +211,7 @@ fn old_kr_waits_for_a_motion_block() {
 #[test]
 fn g76_limits_to_min_of_gear_and_limit() {
     let mut r = Run::new(lathe(0.0, 0.001));
-    let mut p = block(0, true, 500.0, true);
+    let mut p = block(true, 500.0);
     p.limit_rpm = 1500.0;
     assert_eq!(r.tick(p, Motion::Feed, 4.0).speed_rpm, 1500.0);
     assert_eq!(r.act(CellId::AkrrActSmax), 1_500_000);
@@ -230,7 +230,7 @@ fn g76_limits_to_min_of_gear_and_limit() {
 #[test]
 fn old_kr_ignores_g76_and_the_plc() {
     let mut r = Run::new(lathe(0.0, 0.0));
-    let mut p = block(0, true, 500.0, true);
+    let mut p = block(true, 500.0);
     p.limit_rpm = 1500.0;
     assert_eq!(r.tick(p, Motion::Feed, 4.0).speed_rpm, 2000.0);
     r.plc.write_by_name("AKRR_V", 1000).unwrap();
@@ -246,16 +246,16 @@ fn old_kr_ignores_g76_and_the_plc() {
 #[test]
 fn last_reached_speed_becomes_s_and_rapids_follow_the_diameter() {
     let mut r = Run::new(lathe(0.0, 0.001));
-    let g96 = block(0, true, 900.0, true);
+    let g96 = block(true, 900.0);
     r.tick(g96, Motion::Feed, 50.0);
     // G0 back out under G96: speed follows Ø.
-    let rapid = block(1, true, 900.0, false);
+    let rapid = block(true, 900.0);
     let o = r.tick(rapid, Motion::Rapid, 100.0);
     assert!(close(o.speed_rpm, 286.4788975654116));
     let o = r.tick(rapid, Motion::Rapid, 200.0);
     assert!(close(o.speed_rpm, 143.2394487827058));
-    // G94 without S: KŘR ends, 143.24 rpm becomes S (not "S900" read as rpm).
-    let g94 = block(2, false, 900.0, false);
+    // G94 without S (the interpreter leaves S = 0): KŘR ends, 143.24 rpm becomes S.
+    let g94 = block(false, 0.0);
     for x in [200.0, 300.0, 10.0] {
         let o = r.tick(g94, Motion::Rapid, x);
         assert!(!o.active);
@@ -263,13 +263,11 @@ fn last_reached_speed_becomes_s_and_rapids_follow_the_diameter() {
     }
     // A later block without S keeps it; one with S1200 takes the new speed.
     assert!(close(
-        r.tick(block(3, false, 900.0, false), Motion::Feed, 10.0)
-            .speed_rpm,
+        r.tick(block(false, 0.0), Motion::Feed, 10.0).speed_rpm,
         143.2394487827058
     ));
     assert_eq!(
-        r.tick(block(4, false, 1200.0, true), Motion::Feed, 10.0)
-            .speed_rpm,
+        r.tick(block(false, 1200.0), Motion::Feed, 10.0).speed_rpm,
         1200.0
     );
 }
@@ -278,8 +276,8 @@ fn last_reached_speed_becomes_s_and_rapids_follow_the_diameter() {
 #[test]
 fn kr_ending_in_a_block_with_s_takes_that_s() {
     let mut r = Run::new(lathe(0.0, 0.001));
-    r.tick(block(0, true, 900.0, true), Motion::Feed, 50.0);
-    let o = r.tick(block(1, false, 800.0, true), Motion::Feed, 50.0);
+    r.tick(block(true, 900.0), Motion::Feed, 50.0);
+    let o = r.tick(block(false, 800.0), Motion::Feed, 50.0);
     assert_eq!(o.speed_rpm, 800.0);
     assert_eq!(r.act(CellId::AkrrActV), 0);
 }
@@ -289,7 +287,7 @@ fn kr_ending_in_a_block_with_s_takes_that_s() {
 #[test]
 fn offsets_act_at_once_and_suport_uses_the_carriage() {
     let mut r = Run::new(lathe(0.0, 0.001));
-    let p = block(0, true, 900.0, true);
+    let p = block(true, 900.0);
     let carriage = |shift, offset| ControllingAxis {
         carriage_mm: 120.0,
         length_offset_mm: offset,
@@ -321,7 +319,7 @@ fn offsets_act_at_once_and_suport_uses_the_carriage() {
 #[test]
 fn old_kr_applies_offset_changes_with_motion() {
     let mut r = Run::new(lathe(0.0, 0.0));
-    let p = block(0, true, 900.0, true);
+    let p = block(true, 900.0);
     let axis = |offset| ControllingAxis {
         carriage_mm: 100.0,
         length_offset_mm: offset,
@@ -341,7 +339,7 @@ fn old_kr_applies_offset_changes_with_motion() {
 #[test]
 fn plc_activates_kr() {
     let mut r = Run::new(lathe(0.0, 0.001));
-    let p = block(0, false, 300.0, true);
+    let p = block(false, 300.0);
     assert_eq!(r.tick(p, Motion::Stationary, 100.0).speed_rpm, 300.0);
     r.plc.write_by_name("AKRR_V", 60_000).unwrap();
     r.plc
@@ -351,17 +349,25 @@ fn plc_activates_kr() {
     assert!(o.active);
     assert!(close(o.speed_rpm, 190.9859317102744));
     assert_eq!(r.act(CellId::AkrrActV), 60_000);
-    // The PLC drops the request: KŘR ends, the last reached speed stays.
+    // The PLC drops the request: KŘR ends, the program's S300 is in force again.
     r.plc.write_by_name("AKRR_CNTR", 0).unwrap();
     let o = r.tick(p, Motion::Stationary, 100.0);
     assert!(!o.active);
+    assert_eq!(o.speed_rpm, 300.0);
+    // Had the program no S (S = 0 after a G96 ended), the last reached speed would stay.
+    r.plc
+        .write_by_name("AKRR_CNTR", (cntr::EXT_AKRR_REQ | cntr::EXT_AKRR_V) as i64)
+        .unwrap();
+    r.tick(block(false, 0.0), Motion::Stationary, 100.0);
+    r.plc.write_by_name("AKRR_CNTR", 0).unwrap();
+    let o = r.tick(block(false, 0.0), Motion::Stationary, 100.0);
     assert!(close(o.speed_rpm, 190.9859317102744));
 }
 
 #[test]
 fn direction_and_faults() {
     let mut r = Run::new(lathe(0.0, 0.001));
-    let mut p = block(0, false, 300.0, true);
+    let mut p = block(false, 300.0);
     p.dir = SpindleDir::Ccw;
     assert_eq!(r.tick(p, Motion::Feed, 100.0).spindle_rpm, -300.0);
     p.dir = SpindleDir::Stopped;

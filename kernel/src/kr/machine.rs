@@ -20,29 +20,24 @@ pub struct ProgramSpindle {
     /// G96/G97 in force (G94/G95 cancel it).
     pub css: bool,
     /// The modal S word as written: rpm without KŘR, cutting speed with it (unit per R329 d3).
+    /// The interpreter sets it to 0 when KŘR ends in a block without S: the speed is then the
+    /// last reached one, which only this state machine knows (SPEC §6).
     pub s_word: f64,
-    /// The block being executed programs an S word itself (needed for "the last reached speed
-    /// becomes S when KŘR ends and the next block has no S", SPEC §6).
-    pub s_programmed: bool,
     /// G76 limit in rpm, 0 = none.
     pub limit_rpm: f64,
     /// Gear range, 1-based; 0 = none selected yet (gear 1 is used).
     pub gear: u8,
-    /// Index of the block being executed ([`Block::seq`]).
-    pub block_seq: u32,
 }
 
 impl ProgramSpindle {
-    /// The spindle state of `block`; `s_programmed` says whether the block writes S itself.
-    pub fn from_block(block: &Block, s_programmed: bool) -> Self {
+    /// The spindle state of the block being executed.
+    pub fn from_block(block: &Block) -> Self {
         ProgramSpindle {
             dir: block.spindle.dir,
             css: block.spindle.css,
             s_word: block.spindle.s,
-            s_programmed,
             limit_rpm: block.spindle.limit_rpm,
             gear: block.spindle.gear,
-            block_seq: block.seq,
         }
     }
 }
@@ -118,13 +113,6 @@ pub struct KrOutput {
     pub fault: Option<KrFault>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Held {
-    /// Block in which KŘR ended.
-    seq: u32,
-    rpm: f64,
-}
-
 /// Constant cutting speed control (KŘR).
 #[derive(Clone, Debug)]
 pub struct Kr {
@@ -132,12 +120,10 @@ pub struct Kr {
     active: bool,
     /// Last computed speed, rpm (the "last reached speed", SPEC §6).
     speed_rpm: f64,
-    /// Speed kept as S after KŘR ended in a block without S.
-    held: Option<Held>,
+    /// Last reached speed, kept as S after KŘR ended, rpm.
+    held_rpm: Option<f64>,
     /// Last cutting speed programmed with G96/G97, mm/min.
     program_v_mm_min: f64,
-    /// Block of the last tick with KŘR in force.
-    last_active_seq: u32,
 }
 
 impl Kr {
@@ -146,9 +132,8 @@ impl Kr {
             cfg,
             active: false,
             speed_rpm: 0.0,
-            held: None,
+            held_rpm: None,
             program_v_mm_min: 0.0,
-            last_active_seq: 0,
         }
     }
 
@@ -160,9 +145,8 @@ impl Kr {
     pub fn reset(&mut self) {
         self.active = false;
         self.speed_rpm = 0.0;
-        self.held = None;
+        self.held_rpm = None;
         self.program_v_mm_min = 0.0;
-        self.last_active_seq = 0;
     }
 
     /// Last computed speed, rpm.
@@ -186,25 +170,15 @@ impl Kr {
             self.program_v_mm_min = self.cfg.s_word.cutting_speed_mm_min(p.s_word);
         }
         let active = on(cntr::EXT_AKRR_REQ) || p.css;
-        // SPEC §6: when KŘR ends and the next block has no S, the last reached speed becomes S.
-        // An S counts only if its block began after KŘR was last in force (the PLC may end KŘR
-        // in the middle of the block whose S started it).
-        let new_s = p.s_programmed && p.block_seq != self.last_active_seq;
-        if self.active && !active && !new_s {
-            self.held = Some(Held {
-                seq: p.block_seq,
-                rpm: self.speed_rpm,
-            });
+        // SPEC §6: when KŘR ends, the last reached speed is kept; it becomes S while the
+        // program has no new S (the interpreter writes S = 0 when KŘR ends without S).
+        if self.active && !active {
+            self.held_rpm = Some(self.speed_rpm);
         }
-        if let Some(h) = self.held
-            && (active || (p.s_programmed && p.block_seq != h.seq))
-        {
-            self.held = None;
+        if active || p.s_word > 0.0 {
+            self.held_rpm = None;
         }
         self.active = active;
-        if active {
-            self.last_active_seq = p.block_seq;
-        }
 
         let Some(gear) = self.cfg.gear(p.gear).copied() else {
             return self.fault(KrFault::UnknownGear(p.gear), p.dir, plc);
@@ -258,8 +232,8 @@ impl Kr {
                 // Old KŘR outside motion blocks: the speed stays.
                 self.speed_rpm.min(gear.max_rpm)
             }
-        } else if let Some(h) = self.held {
-            h.rpm.min(gear.max_rpm)
+        } else if let Some(held_rpm) = self.held_rpm {
+            held_rpm.min(gear.max_rpm)
         } else {
             p.s_word.max(0.0).min(gear.max_rpm)
         };
