@@ -3,9 +3,14 @@
 //! Once per tick the real-time thread calls [`DriveBus::cycle`]: it hands over one position
 //! setpoint per axis and gets back the drives' feedback. Implementations must not allocate or
 //! block beyond the bus transfer itself. Backends: the in-process simulated bus (`sim` crate),
-//! CANopen CiA 402 over SocketCAN and a serial link (issue #6).
+//! CANopen CiA 402 over SocketCAN ([`canopen`]) and a serial link ([`serial`]).
 
 use std::fmt;
+
+pub mod candump;
+pub mod canopen;
+pub mod cia402;
+pub mod serial;
 
 /// Most axes a bus serves.
 pub const MAX_AXES: usize = 6;
@@ -43,18 +48,101 @@ pub enum FaultReason {
     Timeout,
     /// The drive's heartbeat stopped.
     HeartbeatLost,
-    /// The bus itself failed (bus-off, error frames, port gone).
+    /// The bus itself failed (send or receive error on the interface).
     BusError,
+    /// The CAN controller went bus-off.
+    BusOff,
+    /// Too many CAN error frames in a short time.
+    ErrorFrames,
+    /// Start-up configuration of the drive failed (SDO abort, or no answer when
+    /// `abort_code` is 0).
+    Configuration {
+        index: u16,
+        subindex: u8,
+        abort_code: u32,
+    },
+    /// The drive did not report boot-up after an NMT reset.
+    NoBootUp,
+    /// The drive did not reach Operation Enabled in time.
+    EnableTimeout { statusword: u16 },
+    /// The drive switched its power stage off by itself (no fault bit): safe torque off,
+    /// quick stop or a local operator.
+    DriveDisabled { statusword: u16 },
+    /// The drive left the NMT operational state (restarted or stopped by someone else).
+    NmtStateChanged { state: u8 },
+    /// The serial port is closed or unplugged.
+    LinkDown,
+    /// Replies arrived but were corrupt (CRC or framing errors).
+    CorruptFrames,
 }
 
 impl fmt::Display for FaultReason {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            FaultReason::DriveFault { code } => write!(f, "drive fault (code {code:04X}h)"),
-            FaultReason::FollowingError => write!(f, "following error too large"),
-            FaultReason::Timeout => write!(f, "no feedback from the drive in time"),
-            FaultReason::HeartbeatLost => write!(f, "drive heartbeat lost"),
-            FaultReason::BusError => write!(f, "bus error"),
+            FaultReason::DriveFault { code } => match canopen::emcy::describe(*code) {
+                Some(text) => write!(f, "drive fault: {text} (code {code:04X}h)"),
+                None => write!(f, "drive fault (code {code:04X}h, see the drive manual)"),
+            },
+            FaultReason::FollowingError => write!(
+                f,
+                "following error too large (axis blocked, too fast, or drive too weak)"
+            ),
+            FaultReason::Timeout => write!(
+                f,
+                "no feedback from the drive in time (drive off, cable, or drive not answering)"
+            ),
+            FaultReason::HeartbeatLost => write!(
+                f,
+                "drive heartbeat lost (drive switched off, reset, or cable disconnected)"
+            ),
+            FaultReason::BusError => write!(f, "bus error (interface down or not writable)"),
+            FaultReason::BusOff => write!(
+                f,
+                "CAN bus-off (check the wiring, termination and baud rate)"
+            ),
+            FaultReason::ErrorFrames => write!(
+                f,
+                "too many CAN error frames (check the wiring, termination and baud rate)"
+            ),
+            FaultReason::Configuration {
+                index,
+                subindex,
+                abort_code: 0,
+            } => write!(
+                f,
+                "drive did not answer its configuration (object {index:04X}h:{subindex})"
+            ),
+            FaultReason::Configuration {
+                index,
+                subindex,
+                abort_code,
+            } => write!(
+                f,
+                "drive refused its configuration (object {index:04X}h:{subindex}: {})",
+                canopen::sdo::abort_text(*abort_code)
+            ),
+            FaultReason::NoBootUp => write!(
+                f,
+                "drive did not start after reset (powered? node id set right?)"
+            ),
+            FaultReason::EnableTimeout { statusword } => write!(
+                f,
+                "drive did not switch on (statusword {statusword:04X}h; safe torque off or no power?)"
+            ),
+            FaultReason::DriveDisabled { statusword } => write!(
+                f,
+                "drive switched itself off (statusword {statusword:04X}h; safe torque off or quick stop?)"
+            ),
+            FaultReason::NmtStateChanged { state } => write!(
+                f,
+                "drive left operation ({}; it was restarted or stopped)",
+                canopen::nmt::state_name(*state)
+            ),
+            FaultReason::LinkDown => write!(f, "serial link lost (port closed or unplugged)"),
+            FaultReason::CorruptFrames => write!(
+                f,
+                "serial replies corrupt (check the cable, shielding and baud rate)"
+            ),
         }
     }
 }
@@ -62,7 +150,7 @@ impl fmt::Display for FaultReason {
 /// A fault with the axis and node it concerns, where known. `Copy` so the real-time thread can
 /// pass it on without allocating.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("{reason} (axis {axis:?}, node {node:?})")]
+#[error("{reason}{}{}", axis.map(|a| format!(", axis index {a}")).unwrap_or_default(), node.map(|n| format!(", node {n}")).unwrap_or_default())]
 pub struct BusFault {
     /// Axis index, if the fault concerns one axis.
     pub axis: Option<u8>,

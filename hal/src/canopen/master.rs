@@ -1,0 +1,1047 @@
+//! The cyclic CANopen master for CiA 402 drives in Cyclic Synchronous Position mode.
+//!
+//! Everything happens inside [`DriveBus::cycle`], once per tick, without blocking or
+//! allocating:
+//! 1. drain the received frames (TPDOs answering the last SYNC, heartbeats, EMCY, SDO
+//!    answers, error frames);
+//! 2. advance each node: NMT reset → boot-up → SDO configuration → NMT start → CiA 402
+//!    enable sequence → operational; watch TPDOs, heartbeats, statusword;
+//! 3. send SYNC, then one RPDO (controlword, target position) per started node.
+//!
+//! Drives latch the RPDO at the next SYNC and answer each SYNC with their TPDO, so feedback is
+//! one tick old. Timeouts are counted in ticks, so a late tick never causes a false alarm.
+
+use crate::{
+    AxisFeedback, BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason,
+    MAX_AXES,
+};
+
+use super::emcy::{self, Emcy};
+use super::pdo::{self, Rpdo, Tpdo};
+use super::sdo::{self, Response};
+use super::{CanPort, Frame, PortError, RxEvent, cob, err_class, nmt};
+use crate::cia402::{self, PowerState, cw, sw};
+
+/// One drive on the bus (one axis).
+#[derive(Clone, Debug, PartialEq)]
+pub struct NodeConfig {
+    /// CANopen node id, 1..=127.
+    pub node_id: u8,
+    /// Drive position units (0x607A, 0x6064) per mm or degree.
+    pub increments_per_mm: f64,
+    /// Following-error window written to 0x6065 at start-up, increments; `None` keeps the
+    /// drive's own setting.
+    pub following_window_increments: Option<u32>,
+}
+
+/// Bus-wide settings. Times are converted to ticks of `cycle_us`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CanOpenConfig {
+    pub nodes: Vec<NodeConfig>,
+    /// The master's own node id: it produces a heartbeat the drives consume (0x1016).
+    pub master_node_id: u8,
+    /// Tick period, µs (0x1006 and 0x60C2 of the drives).
+    pub cycle_us: u32,
+    /// Consecutive ticks without a TPDO before a drive counts as silent.
+    pub tpdo_missing_ticks: u32,
+    /// Heartbeat period the drives produce (0x1017), ms.
+    pub drive_heartbeat_ms: u16,
+    /// Master side: a drive heartbeat older than this is lost, ms.
+    pub heartbeat_timeout_ms: u32,
+    /// Period of the master's heartbeat, ms (0: none, and the drives do not watch it).
+    pub master_heartbeat_ms: u16,
+    /// Drive side: the master heartbeat older than this is lost (0x1016), ms.
+    pub drive_consumer_timeout_ms: u16,
+    /// Answer time allowed for each SDO request, ms (one retry follows).
+    pub sdo_timeout_ms: u32,
+    /// Time allowed from NMT reset to boot-up, and from NMT start to the first TPDO, ms.
+    pub boot_timeout_ms: u32,
+    /// Time allowed for the enable sequence, ms.
+    pub enable_timeout_ms: u32,
+    /// Master-side following-error check (setpoint minus actual), mm; `None`: only the
+    /// drive's own check (statusword bit 13, EMCY 8611h).
+    pub following_error_limit_mm: Option<f64>,
+    /// Error frames (decaying by one every 10 ticks) tolerated before a fault.
+    pub error_frame_limit: u32,
+}
+
+impl CanOpenConfig {
+    /// Defaults with margins for a loaded Linux machine (see docs/buses.md).
+    pub fn new(nodes: Vec<NodeConfig>) -> CanOpenConfig {
+        CanOpenConfig {
+            nodes,
+            master_node_id: 127,
+            cycle_us: 4000,
+            tpdo_missing_ticks: 25,
+            drive_heartbeat_ms: 100,
+            heartbeat_timeout_ms: 500,
+            master_heartbeat_ms: 100,
+            drive_consumer_timeout_ms: 500,
+            sdo_timeout_ms: 200,
+            boot_timeout_ms: 3000,
+            enable_timeout_ms: 2000,
+            following_error_limit_mm: None,
+            error_frame_limit: 20,
+        }
+    }
+}
+
+/// One start-up configuration step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Step {
+    Write {
+        index: u16,
+        subindex: u8,
+        value: u32,
+        size: u8,
+    },
+    /// Reads 0x6064 so the target can start at the actual position.
+    ReadPosition,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Phase {
+    /// Before `enable()`.
+    Idle,
+    /// NMT reset goes out next tick.
+    ResetPending,
+    Booting {
+        since: u64,
+    },
+    Configuring {
+        step: usize,
+        sent_at: u64,
+        retried: bool,
+    },
+    /// NMT start sent; waiting for the first TPDO.
+    Starting {
+        since: u64,
+    },
+    Enabling {
+        since: u64,
+    },
+    Operational,
+    Faulted(FaultReason),
+}
+
+struct Node {
+    cfg: NodeConfig,
+    steps: Vec<Step>,
+    phase: Phase,
+    statusword: u16,
+    position_increments: i32,
+    tpdo_seen: bool,
+    tpdo_missing: u32,
+    last_heartbeat: u64,
+    booted: bool,
+    controlword: u16,
+    target_increments: i32,
+    emcy_code: Option<u16>,
+}
+
+/// Drives configured and started by this master over a [`CanPort`].
+pub struct CanOpenMaster<P: CanPort> {
+    port: P,
+    name: String,
+    cfg: CanOpenConfig,
+    nodes: Vec<Node>,
+    tick: u64,
+    enabled: bool,
+    bus_fault: Option<FaultReason>,
+    error_score: u32,
+    tx_blocked_ticks: u32,
+}
+
+fn ticks(ms: u32, cycle_us: u32) -> u64 {
+    (u64::from(ms) * 1000).div_ceil(u64::from(cycle_us.max(1)))
+}
+
+fn startup_steps(c: &CanOpenConfig, n: &NodeConfig) -> Vec<Step> {
+    let w = |index, subindex, value, size| Step::Write {
+        index,
+        subindex,
+        value,
+        size,
+    };
+    let mut steps: Vec<Step> = pdo::mapping_writes(n.node_id)
+        .iter()
+        .map(|&(i, s, v, z)| w(i, s, v, z))
+        .collect();
+    steps.push(w(0x6060, 0, 8, 1)); // modes of operation: cyclic synchronous position
+    steps.push(w(0x60C2, 1, (c.cycle_us / 1000).max(1), 1)); // interpolation period...
+    steps.push(w(0x60C2, 2, (-3i8) as u8 as u32, 1)); // ...in 10^-3 s
+    steps.push(w(0x1006, 0, c.cycle_us, 4)); // communication cycle period, µs
+    steps.push(w(0x1017, 0, u32::from(c.drive_heartbeat_ms), 2));
+    let consumer_ms = if c.master_heartbeat_ms == 0 {
+        0
+    } else {
+        c.drive_consumer_timeout_ms
+    };
+    steps.push(w(
+        0x1016,
+        1,
+        (u32::from(c.master_node_id) << 16) | u32::from(consumer_ms),
+        4,
+    ));
+    if let Some(window) = n.following_window_increments {
+        steps.push(w(0x6065, 0, window, 4));
+    }
+    steps.push(Step::ReadPosition);
+    steps
+}
+
+fn step_object(s: Step) -> (u16, u8) {
+    match s {
+        Step::Write {
+            index, subindex, ..
+        } => (index, subindex),
+        Step::ReadPosition => (0x6064, 0),
+    }
+}
+
+/// Faults a reset can clear at the drive (fault reset over the PDO) instead of a restart.
+fn is_drive_level(r: FaultReason) -> bool {
+    matches!(
+        r,
+        FaultReason::DriveFault { .. }
+            | FaultReason::FollowingError
+            | FaultReason::DriveDisabled { .. }
+            | FaultReason::EnableTimeout { .. }
+    )
+}
+
+impl<P: CanPort> CanOpenMaster<P> {
+    /// A master for `cfg.nodes` (one per axis, in axis order) on `port`; `name` is the
+    /// interface name for logs. Nothing is sent before [`DriveBus::enable`].
+    pub fn new(port: P, name: &str, cfg: CanOpenConfig) -> Result<Self, String> {
+        if cfg.nodes.is_empty() || cfg.nodes.len() > MAX_AXES {
+            return Err(format!(
+                "{} drives configured, 1..={MAX_AXES} are supported",
+                cfg.nodes.len()
+            ));
+        }
+        for (i, n) in cfg.nodes.iter().enumerate() {
+            if !(1..=127).contains(&n.node_id) || n.node_id == cfg.master_node_id {
+                return Err(format!(
+                    "node id {} of axis {i} is outside 1..127 or equals the master's",
+                    n.node_id
+                ));
+            }
+            if cfg.nodes[..i].iter().any(|m| m.node_id == n.node_id) {
+                return Err(format!("node id {} is used twice", n.node_id));
+            }
+            if !(n.increments_per_mm.is_finite() && n.increments_per_mm > 0.0) {
+                return Err(format!("increments per mm of axis {i} must be positive"));
+            }
+        }
+        let nodes = cfg
+            .nodes
+            .iter()
+            .map(|n| Node {
+                cfg: n.clone(),
+                steps: startup_steps(&cfg, n),
+                phase: Phase::Idle,
+                statusword: 0,
+                position_increments: 0,
+                tpdo_seen: false,
+                tpdo_missing: 0,
+                last_heartbeat: 0,
+                booted: false,
+                controlword: 0,
+                target_increments: 0,
+                emcy_code: None,
+            })
+            .collect();
+        Ok(CanOpenMaster {
+            port,
+            name: name.to_owned(),
+            cfg,
+            nodes,
+            tick: 0,
+            enabled: false,
+            bus_fault: None,
+            error_score: 0,
+            tx_blocked_ticks: 0,
+        })
+    }
+
+    /// The port, e.g. for a test to inspect what was sent.
+    pub fn port_mut(&mut self) -> &mut P {
+        &mut self.port
+    }
+
+    fn send(&mut self, f: &Frame) {
+        match self.port.send(f) {
+            Ok(()) => {}
+            Err(PortError::WouldBlock) => self.tx_blocked_ticks += 1,
+            Err(PortError::Down) => {
+                self.bus_fault.get_or_insert(FaultReason::BusError);
+            }
+        }
+    }
+
+    fn node_index(&self, node_id: u8) -> Option<usize> {
+        self.nodes.iter().position(|n| n.cfg.node_id == node_id)
+    }
+
+    fn fault(&mut self, i: usize, reason: FaultReason) {
+        let n = &mut self.nodes[i];
+        if !matches!(n.phase, Phase::Faulted(_) | Phase::Idle) {
+            n.phase = Phase::Faulted(reason);
+        }
+    }
+
+    fn send_step(&mut self, i: usize, step: usize) {
+        let id = self.nodes[i].cfg.node_id;
+        let f = match self.nodes[i].steps[step] {
+            Step::Write {
+                index,
+                subindex,
+                value,
+                size,
+            } => sdo::download(id, index, subindex, value, size),
+            Step::ReadPosition => sdo::upload(id, 0x6064, 0),
+        };
+        self.send(&f);
+    }
+
+    fn on_frame(&mut self, f: &Frame) {
+        let (code, node_id) = cob::split(f.id);
+        let Some(i) = self.node_index(node_id) else {
+            return;
+        };
+        match code {
+            cob::TPDO1 => {
+                // A wrong-length TPDO counts as missing: the tick-based timeout catches it.
+                if let Some(t) = Tpdo::decode(f.payload()) {
+                    let n = &mut self.nodes[i];
+                    n.statusword = t.statusword;
+                    n.position_increments = t.position_increments;
+                    n.tpdo_seen = true;
+                }
+            }
+            cob::EMCY => {
+                let Some(e) = Emcy::decode(f.payload()) else {
+                    return;
+                };
+                if e.code == 0 || self.nodes[i].phase == Phase::Idle {
+                    return;
+                }
+                self.nodes[i].emcy_code = Some(e.code);
+                let reason = if e.code == emcy::FOLLOWING_ERROR {
+                    FaultReason::FollowingError
+                } else {
+                    FaultReason::DriveFault { code: e.code }
+                };
+                self.fault(i, reason);
+            }
+            cob::HEARTBEAT => {
+                let Some(&state) = f.payload().first() else {
+                    return;
+                };
+                let tick = self.tick;
+                let n = &mut self.nodes[i];
+                n.last_heartbeat = tick;
+                let started = matches!(
+                    n.phase,
+                    Phase::Starting { .. } | Phase::Enabling { .. } | Phase::Operational
+                );
+                if state == nmt::state::BOOT_UP {
+                    n.booted = true;
+                    if started {
+                        self.fault(i, FaultReason::NmtStateChanged { state });
+                    }
+                } else if state != nmt::state::OPERATIONAL
+                    && matches!(n.phase, Phase::Enabling { .. } | Phase::Operational)
+                {
+                    self.fault(i, FaultReason::NmtStateChanged { state });
+                }
+            }
+            cob::SDO_TX => {
+                let Phase::Configuring { step, .. } = self.nodes[i].phase else {
+                    return;
+                };
+                let Some(r) = sdo::parse_response(f.payload()) else {
+                    return;
+                };
+                let expected = self.nodes[i].steps[step];
+                if r.object() != step_object(expected) {
+                    return; // a late answer to an earlier, retried request
+                }
+                match r {
+                    Response::Abort { code, .. } => {
+                        let (index, subindex) = r.object();
+                        self.fault(
+                            i,
+                            FaultReason::Configuration {
+                                index,
+                                subindex,
+                                abort_code: code,
+                            },
+                        );
+                    }
+                    Response::UploadOk { value, .. } => {
+                        self.nodes[i].position_increments = value as i32;
+                        self.next_step(i, step);
+                    }
+                    Response::DownloadOk { .. } => self.next_step(i, step),
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn next_step(&mut self, i: usize, step: usize) {
+        let tick = self.tick;
+        if step + 1 < self.nodes[i].steps.len() {
+            self.nodes[i].phase = Phase::Configuring {
+                step: step + 1,
+                sent_at: tick,
+                retried: false,
+            };
+            self.send_step(i, step + 1);
+        } else {
+            let n = &mut self.nodes[i];
+            n.phase = Phase::Starting { since: tick };
+            n.tpdo_seen = false;
+            n.last_heartbeat = tick;
+            n.target_increments = n.position_increments;
+            n.controlword = cw::DISABLE_VOLTAGE;
+            let id = n.cfg.node_id;
+            self.send(&nmt::command(nmt::Command::Start, id));
+        }
+    }
+
+    fn on_error_frame(&mut self, class: u32) {
+        if class & err_class::BUS_OFF != 0 {
+            self.bus_fault.get_or_insert(FaultReason::BusOff);
+        } else if class
+            & (err_class::CONTROLLER
+                | err_class::PROTOCOL
+                | err_class::BUS_ERROR
+                | err_class::NO_ACK)
+            != 0
+        {
+            self.error_score += 1;
+            if self.error_score > self.cfg.error_frame_limit {
+                self.bus_fault.get_or_insert(FaultReason::ErrorFrames);
+            }
+        }
+    }
+
+    /// Advances node `i` by one tick; `target` is this tick's setpoint in increments.
+    fn update_node(&mut self, i: usize, target: i32) {
+        let tick = self.tick;
+        let c = &self.cfg;
+        let boot_ticks = ticks(c.boot_timeout_ms, c.cycle_us);
+        let sdo_ticks = ticks(c.sdo_timeout_ms, c.cycle_us);
+        let enable_ticks = ticks(c.enable_timeout_ms, c.cycle_us);
+        let hb_ticks = ticks(c.heartbeat_timeout_ms, c.cycle_us);
+        let missing_limit = c.tpdo_missing_ticks;
+        let fe_limit = c
+            .following_error_limit_mm
+            .map(|mm| mm * self.nodes[i].cfg.increments_per_mm);
+
+        // Watchdogs of a started node: TPDO every SYNC, heartbeat.
+        let n = &mut self.nodes[i];
+        if matches!(n.phase, Phase::Enabling { .. } | Phase::Operational) {
+            if n.tpdo_seen {
+                n.tpdo_missing = 0;
+            } else {
+                n.tpdo_missing += 1;
+            }
+            if n.tpdo_missing > missing_limit {
+                self.fault(i, FaultReason::Timeout);
+            } else if tick - n.last_heartbeat > hb_ticks {
+                self.fault(i, FaultReason::HeartbeatLost);
+            }
+        }
+
+        let n = &mut self.nodes[i];
+        match n.phase {
+            Phase::Idle => {}
+            Phase::ResetPending => {
+                n.booted = false;
+                n.emcy_code = None;
+                n.phase = Phase::Booting { since: tick };
+                let id = n.cfg.node_id;
+                self.send(&nmt::command(nmt::Command::ResetNode, id));
+            }
+            Phase::Booting { since } => {
+                if n.booted {
+                    n.phase = Phase::Configuring {
+                        step: 0,
+                        sent_at: tick,
+                        retried: false,
+                    };
+                    self.send_step(i, 0);
+                } else if tick - since > boot_ticks {
+                    self.fault(i, FaultReason::NoBootUp);
+                }
+            }
+            Phase::Configuring {
+                step,
+                sent_at,
+                retried,
+            } => {
+                if tick - sent_at > sdo_ticks {
+                    if retried {
+                        let (index, subindex) = step_object(n.steps[step]);
+                        self.fault(
+                            i,
+                            FaultReason::Configuration {
+                                index,
+                                subindex,
+                                abort_code: 0,
+                            },
+                        );
+                    } else {
+                        n.phase = Phase::Configuring {
+                            step,
+                            sent_at: tick,
+                            retried: true,
+                        };
+                        self.send_step(i, step);
+                    }
+                }
+            }
+            Phase::Starting { since } => {
+                n.target_increments = n.position_increments;
+                if n.tpdo_seen {
+                    n.tpdo_missing = 0;
+                    n.phase = Phase::Enabling { since: tick };
+                    let state = PowerState::from_statusword(n.statusword);
+                    n.controlword = cia402::controlword_toward_enabled(state, n.controlword);
+                } else if tick - since > boot_ticks {
+                    self.fault(i, FaultReason::Timeout);
+                }
+            }
+            Phase::Enabling { since } => {
+                // Target follows the actual position until enabled, so nothing jumps.
+                n.target_increments = n.position_increments;
+                let state = PowerState::from_statusword(n.statusword);
+                if state == PowerState::OperationEnabled {
+                    n.phase = Phase::Operational;
+                    n.controlword = cw::ENABLE_OPERATION_CMD;
+                } else if tick - since > enable_ticks {
+                    let statusword = n.statusword;
+                    self.fault(i, FaultReason::EnableTimeout { statusword });
+                } else {
+                    n.controlword = cia402::controlword_toward_enabled(state, n.controlword);
+                }
+            }
+            Phase::Operational => {
+                let s = n.statusword;
+                let state = PowerState::from_statusword(s);
+                let lag = f64::from(n.target_increments) - f64::from(n.position_increments);
+                if s & sw::FOLLOWING_ERROR != 0 {
+                    self.fault(i, FaultReason::FollowingError);
+                } else if matches!(state, PowerState::Fault | PowerState::FaultReactionActive) {
+                    let code = n.emcy_code.unwrap_or(0);
+                    self.fault(i, FaultReason::DriveFault { code });
+                } else if state != PowerState::OperationEnabled {
+                    self.fault(i, FaultReason::DriveDisabled { statusword: s });
+                } else if fe_limit.is_some_and(|l| lag.abs() > l) {
+                    self.fault(i, FaultReason::FollowingError);
+                } else {
+                    n.target_increments = target;
+                }
+            }
+            Phase::Faulted(_) => {
+                // Power stage off; the target stays where the drive is.
+                n.controlword = cw::DISABLE_VOLTAGE;
+                n.target_increments = n.position_increments;
+            }
+        }
+        // A node that just faulted gets its power stage switched off in this tick's RPDO.
+        let n = &mut self.nodes[i];
+        if matches!(n.phase, Phase::Faulted(_)) {
+            n.controlword = cw::DISABLE_VOLTAGE;
+            n.target_increments = n.position_increments;
+        }
+        n.tpdo_seen = false;
+    }
+
+    fn state_of(phase: Phase) -> DriveState {
+        match phase {
+            Phase::Idle => DriveState::Disabled,
+            Phase::Operational => DriveState::Operational,
+            Phase::Faulted(_) => DriveState::Fault,
+            _ => DriveState::Enabling,
+        }
+    }
+}
+
+/// Largest number of received frames handled per tick, so a babbling node cannot stall the
+/// tick (the rest waits in the socket buffer for the next tick).
+const MAX_RX_PER_TICK: usize = 256;
+
+impl<P: CanPort> DriveBus for CanOpenMaster<P> {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn axes(&self) -> usize {
+        self.nodes.len()
+    }
+
+    fn cycle(&mut self, cmd: &CycleCommand, feedback: &mut CycleFeedback) -> Result<(), BusFault> {
+        self.tick += 1;
+        for _ in 0..MAX_RX_PER_TICK {
+            match self.port.try_recv() {
+                Ok(Some(RxEvent::Frame(f))) => self.on_frame(&f),
+                Ok(Some(RxEvent::Error { class, .. })) => self.on_error_frame(class),
+                Ok(None) | Err(PortError::WouldBlock) => break,
+                Err(PortError::Down) => {
+                    self.bus_fault.get_or_insert(FaultReason::BusError);
+                    break;
+                }
+            }
+        }
+        if self.tick.is_multiple_of(10) {
+            self.error_score = self.error_score.saturating_sub(1);
+        }
+
+        let blocked_before = self.tx_blocked_ticks;
+        for i in 0..self.nodes.len() {
+            let mm = cmd.positions_mm[i] * self.nodes[i].cfg.increments_per_mm;
+            let target = mm.round().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32;
+            self.update_node(i, target);
+        }
+
+        if self.enabled {
+            self.send(&pdo::sync());
+            for i in 0..self.nodes.len() {
+                let n = &self.nodes[i];
+                if matches!(
+                    n.phase,
+                    Phase::Starting { .. }
+                        | Phase::Enabling { .. }
+                        | Phase::Operational
+                        | Phase::Faulted(_)
+                ) {
+                    let f = Rpdo {
+                        controlword: n.controlword,
+                        target_increments: n.target_increments,
+                    }
+                    .encode(n.cfg.node_id);
+                    self.send(&f);
+                }
+            }
+            let hb = ticks(u32::from(self.cfg.master_heartbeat_ms), self.cfg.cycle_us);
+            if hb > 0 && self.tick.is_multiple_of(hb) {
+                let id = self.cfg.master_node_id;
+                self.send(&nmt::heartbeat(id, nmt::state::OPERATIONAL));
+            }
+        }
+        // A transmit queue that stays full (nobody acknowledges, bus jammed) is a bus fault.
+        if self.tx_blocked_ticks == blocked_before {
+            self.tx_blocked_ticks = 0;
+        } else if self.tx_blocked_ticks > self.cfg.tpdo_missing_ticks {
+            self.bus_fault.get_or_insert(FaultReason::BusError);
+        }
+
+        for (fb, n) in feedback.axes.iter_mut().zip(&self.nodes) {
+            *fb = AxisFeedback {
+                position_mm: f64::from(n.position_increments) / n.cfg.increments_per_mm,
+                state: Self::state_of(n.phase),
+            };
+        }
+        if let Some(reason) = self.bus_fault {
+            return Err(BusFault {
+                axis: None,
+                node: None,
+                reason,
+            });
+        }
+        for (i, n) in self.nodes.iter().enumerate() {
+            if let Phase::Faulted(reason) = n.phase {
+                return Err(BusFault {
+                    axis: Some(i as u8),
+                    node: Some(n.cfg.node_id),
+                    reason,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    fn enable(&mut self) {
+        self.enabled = true;
+        for n in &mut self.nodes {
+            if matches!(n.phase, Phase::Idle) {
+                n.phase = Phase::ResetPending;
+            }
+        }
+    }
+
+    fn reset(&mut self) {
+        self.enabled = true;
+        let whole_bus = self.bus_fault.take().is_some();
+        self.error_score = 0;
+        self.tx_blocked_ticks = 0;
+        let tick = self.tick;
+        for n in &mut self.nodes {
+            match n.phase {
+                Phase::Faulted(r) if is_drive_level(r) && !whole_bus => {
+                    // The drive still talks: a fault reset over the RPDO is enough.
+                    n.emcy_code = None;
+                    n.tpdo_missing = 0;
+                    n.last_heartbeat = tick;
+                    n.phase = Phase::Enabling { since: tick };
+                }
+                Phase::Faulted(_) | Phase::Idle => n.phase = Phase::ResetPending,
+                _ if whole_bus => n.phase = Phase::ResetPending,
+                _ => {}
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::VecDeque;
+
+    use super::*;
+
+    /// A port fed by the test: `rx` is what the master will receive, `tx` what it sent.
+    #[derive(Default)]
+    struct FakePort {
+        rx: VecDeque<RxEvent>,
+        tx: Vec<Frame>,
+    }
+
+    impl CanPort for FakePort {
+        fn send(&mut self, frame: &Frame) -> Result<(), PortError> {
+            self.tx.push(*frame);
+            Ok(())
+        }
+        fn try_recv(&mut self) -> Result<Option<RxEvent>, PortError> {
+            Ok(self.rx.pop_front())
+        }
+    }
+
+    fn master(nodes: &[u8]) -> CanOpenMaster<FakePort> {
+        let cfg = CanOpenConfig::new(
+            nodes
+                .iter()
+                .map(|&node_id| NodeConfig {
+                    node_id,
+                    increments_per_mm: 1000.0,
+                    following_window_increments: Some(5000),
+                })
+                .collect(),
+        );
+        CanOpenMaster::new(FakePort::default(), "fake", cfg).unwrap()
+    }
+
+    fn step(m: &mut CanOpenMaster<FakePort>) -> (Vec<Frame>, Result<(), BusFault>) {
+        let mut fb = CycleFeedback::default();
+        let cmd = CycleCommand::default();
+        let r = m.cycle(&cmd, &mut fb);
+        (std::mem::take(&mut m.port.tx), r)
+    }
+
+    fn rx(m: &mut CanOpenMaster<FakePort>, f: Frame) {
+        m.port.rx.push_back(RxEvent::Frame(f));
+    }
+
+    /// Answers every SDO request of the last tick as a cooperative drive would.
+    fn answer_sdos(m: &mut CanOpenMaster<FakePort>, sent: &[Frame]) -> usize {
+        let mut n = 0;
+        for f in sent.iter().filter(|f| f.id & 0x780 == cob::SDO_RX) {
+            let node = (f.id & 0x7F) as u8;
+            let answer = match sdo::parse_request(f.payload()).unwrap() {
+                sdo::Request::Download {
+                    index, subindex, ..
+                } => sdo::download_ok(node, index, subindex),
+                sdo::Request::Upload { index, subindex } => {
+                    sdo::upload_ok(node, index, subindex, 2500, 4)
+                }
+            };
+            rx(m, answer);
+            n += 1;
+        }
+        n
+    }
+
+    /// Drives node 3 through boot-up and configuration; returns the SDO writes seen.
+    fn bring_up(m: &mut CanOpenMaster<FakePort>) -> Vec<(u16, u8, u32)> {
+        m.enable();
+        let (sent, r) = step(m);
+        assert!(r.is_ok());
+        assert!(sent.contains(&nmt::command(nmt::Command::ResetNode, 3)));
+        rx(m, nmt::heartbeat(3, nmt::state::BOOT_UP));
+        let mut writes = Vec::new();
+        for _ in 0..100 {
+            let (sent, r) = step(m);
+            assert!(r.is_ok(), "{r:?}");
+            for f in &sent {
+                if let Ok(sdo::Request::Download {
+                    index,
+                    subindex,
+                    value,
+                    ..
+                }) = sdo::parse_request(f.payload())
+                    && f.id == 0x603
+                {
+                    writes.push((index, subindex, value));
+                }
+            }
+            if sent.contains(&nmt::command(nmt::Command::Start, 3)) {
+                return writes;
+            }
+            answer_sdos(m, &sent);
+        }
+        panic!("no NMT start");
+    }
+
+    fn tpdo(m: &mut CanOpenMaster<FakePort>, state: PowerState, extra: u16, pos: i32) {
+        rx(
+            m,
+            Tpdo {
+                statusword: state.statusword_bits() | extra,
+                position_increments: pos,
+            }
+            .encode(3),
+        );
+        rx(m, nmt::heartbeat(3, nmt::state::OPERATIONAL));
+    }
+
+    fn rpdo_of(sent: &[Frame]) -> Rpdo {
+        let f = sent.iter().find(|f| f.id == 0x203).expect("an RPDO");
+        Rpdo::decode(f.payload()).unwrap()
+    }
+
+    #[test]
+    fn configures_the_drive_for_csp() {
+        let mut m = master(&[3]);
+        let writes = bring_up(&mut m);
+        for w in [
+            (0x6060, 0, 8),
+            (0x60C2, 1, 4),
+            (0x60C2, 2, 0xFD),
+            (0x1006, 0, 4000),
+            (0x1017, 0, 100),
+            (0x1016, 1, (127 << 16) | 500),
+            (0x6065, 0, 5000),
+            (0x1600, 1, 0x6040_0010),
+            (0x1A00, 2, 0x6064_0020),
+            (0x1800, 1, 0x183),
+        ] {
+            assert!(writes.contains(&w), "missing write {w:X?}");
+        }
+        // The 0x6064 upload (2500 increments) is the first target: nothing jumps.
+        let (sent, _) = step(&mut m);
+        assert_eq!(sent[0], pdo::sync());
+        assert_eq!(
+            rpdo_of(&sent),
+            Rpdo {
+                controlword: 0,
+                target_increments: 2500
+            }
+        );
+    }
+
+    #[test]
+    fn enables_through_the_state_machine_and_follows_setpoints() {
+        let mut m = master(&[3]);
+        bring_up(&mut m);
+        let mut state = PowerState::SwitchOnDisabled;
+        let mut last_cw = 0;
+        let mut cws = Vec::new();
+        for _ in 0..10 {
+            tpdo(&mut m, state, 0, 2500);
+            let (sent, r) = step(&mut m);
+            assert!(r.is_ok());
+            let c = rpdo_of(&sent).controlword;
+            cws.push(c);
+            state = cia402::apply_controlword(state, last_cw, c);
+            last_cw = c;
+        }
+        assert_eq!(state, PowerState::OperationEnabled, "controlwords {cws:X?}");
+        assert!(cws.starts_with(&[0x06, 0x07, 0x0F]), "{cws:X?}");
+        // Operational: setpoints in mm become increments.
+        let mut fb = CycleFeedback::default();
+        let mut cmd = CycleCommand::default();
+        cmd.positions_mm[0] = 2.75;
+        tpdo(&mut m, state, 0, 2600);
+        m.cycle(&cmd, &mut fb).unwrap();
+        assert_eq!(fb.axes[0].state, DriveState::Operational);
+        assert!((fb.axes[0].position_mm - 2.6).abs() < 1e-9);
+        assert_eq!(rpdo_of(&m.port.tx).target_increments, 2750);
+    }
+
+    fn operational(m: &mut CanOpenMaster<FakePort>) {
+        bring_up(m);
+        for _ in 0..3 {
+            tpdo(m, PowerState::OperationEnabled, 0, 2500);
+            let (_, r) = step(m);
+            assert!(r.is_ok());
+        }
+        assert_eq!(m.nodes[0].phase, Phase::Operational);
+    }
+
+    #[test]
+    fn missing_tpdo_faults_after_the_configured_ticks_only() {
+        let mut m = master(&[3]);
+        operational(&mut m);
+        for _ in 0..25 {
+            rx(&mut m, nmt::heartbeat(3, nmt::state::OPERATIONAL));
+            assert!(step(&mut m).1.is_ok());
+        }
+        let e = step(&mut m).1.unwrap_err();
+        assert_eq!(
+            e,
+            BusFault {
+                axis: Some(0),
+                node: Some(3),
+                reason: FaultReason::Timeout
+            }
+        );
+        // Faulted drive gets its power stage switched off; the fault persists until reset.
+        let (sent, r) = step(&mut m);
+        assert!(r.is_err());
+        assert_eq!(rpdo_of(&sent).controlword, 0);
+    }
+
+    #[test]
+    fn lost_heartbeat_faults() {
+        let mut m = master(&[3]);
+        operational(&mut m);
+        let mut fault = None;
+        for i in 0..200 {
+            rx(
+                &mut m,
+                Tpdo {
+                    statusword: 0x0237,
+                    position_increments: 2500,
+                }
+                .encode(3),
+            );
+            if let Err(e) = step(&mut m).1 {
+                fault = Some((i, e.reason));
+                break;
+            }
+        }
+        let (i, reason) = fault.expect("heartbeat loss must fault");
+        assert_eq!(reason, FaultReason::HeartbeatLost);
+        assert!((120..=130).contains(&i), "after {i} ticks");
+    }
+
+    #[test]
+    fn emcy_and_statusword_faults_then_reset_resumes() {
+        let mut m = master(&[3]);
+        operational(&mut m);
+        rx(
+            &mut m,
+            Emcy {
+                code: 0x2310,
+                register: 1,
+                vendor: [0; 5],
+            }
+            .encode(3),
+        );
+        tpdo(&mut m, PowerState::Fault, 0, 2500);
+        let e = step(&mut m).1.unwrap_err();
+        assert_eq!(e.reason, FaultReason::DriveFault { code: 0x2310 });
+        assert!(e.to_string().contains("overcurrent"), "{e}");
+        // Reset: fault reset edge over the RPDO, no NMT restart.
+        m.reset();
+        tpdo(&mut m, PowerState::Fault, 0, 2500);
+        let (sent, r) = step(&mut m);
+        assert!(r.is_ok());
+        assert_eq!(rpdo_of(&sent).controlword, cw::FAULT_RESET);
+        assert!(!sent.iter().any(|f| f.id == cob::NMT));
+        tpdo(&mut m, PowerState::SwitchOnDisabled, 0, 2500);
+        tpdo(&mut m, PowerState::ReadyToSwitchOn, 0, 2500);
+        step(&mut m).1.unwrap();
+        step(&mut m).1.unwrap();
+        tpdo(&mut m, PowerState::OperationEnabled, 0, 2500);
+        step(&mut m).1.unwrap();
+        assert_eq!(m.nodes[0].phase, Phase::Operational);
+
+        // Following error bit 13 names the following error.
+        tpdo(&mut m, PowerState::Fault, sw::FOLLOWING_ERROR, 2500);
+        assert_eq!(
+            step(&mut m).1.unwrap_err().reason,
+            FaultReason::FollowingError
+        );
+    }
+
+    #[test]
+    fn bus_off_and_bad_frames() {
+        let mut m = master(&[3]);
+        operational(&mut m);
+        // Garbage must not panic: short PDO, short EMCY, empty heartbeat, unknown nodes.
+        for f in [
+            Frame::new(0x183, &[1]),
+            Frame::new(0x83, &[1, 2]),
+            Frame::new(0x703, &[]),
+            Frame::new(0x583, &[0xFF; 8]),
+            Frame::new(0x185, &[0; 6]),
+        ] {
+            rx(&mut m, f);
+        }
+        tpdo(&mut m, PowerState::OperationEnabled, 0, 2500);
+        assert!(step(&mut m).1.is_ok());
+        m.port.rx.push_back(RxEvent::Error {
+            class: err_class::BUS_OFF,
+            data: [0; 8],
+        });
+        let e = step(&mut m).1.unwrap_err();
+        assert_eq!(
+            e,
+            BusFault {
+                axis: None,
+                node: None,
+                reason: FaultReason::BusOff
+            }
+        );
+        // Reset after bus-off restarts every node.
+        m.reset();
+        let (sent, _) = step(&mut m);
+        assert!(sent.contains(&nmt::command(nmt::Command::ResetNode, 3)));
+    }
+
+    #[test]
+    fn sdo_abort_and_silence_are_reported_with_the_object() {
+        let mut m = master(&[3]);
+        m.enable();
+        let _ = step(&mut m);
+        rx(&mut m, nmt::heartbeat(3, 0));
+        let (sent, _) = step(&mut m);
+        let first = sent.iter().find(|f| f.id == 0x603).unwrap();
+        let sdo::Request::Download {
+            index, subindex, ..
+        } = sdo::parse_request(first.payload()).unwrap()
+        else {
+            panic!()
+        };
+        rx(
+            &mut m,
+            sdo::abort(3, index, subindex, sdo::abort::CANNOT_MAP),
+        );
+        let e = step(&mut m).1.unwrap_err();
+        assert_eq!(
+            e.reason,
+            FaultReason::Configuration {
+                index,
+                subindex,
+                abort_code: sdo::abort::CANNOT_MAP
+            }
+        );
+        assert!(e.to_string().contains("cannot be mapped"), "{e}");
+
+        let mut m = master(&[3]);
+        m.enable();
+        let mut r = Ok(());
+        for _ in 0..1000 {
+            r = step(&mut m).1;
+            if r.is_err() {
+                break;
+            }
+        }
+        assert_eq!(r.unwrap_err().reason, FaultReason::NoBootUp);
+    }
+}

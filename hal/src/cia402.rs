@@ -1,0 +1,226 @@
+//! CiA 402 drive profile: the power state machine driven by the controlword (0x6040) and
+//! reported by the statusword (0x6041). Both sides live here, so the master and the simulated
+//! drive share one reading of the standard.
+
+/// Controlword bits (0x6040).
+pub mod cw {
+    pub const SWITCH_ON: u16 = 1 << 0;
+    pub const ENABLE_VOLTAGE: u16 = 1 << 1;
+    /// Active low: 0 requests a quick stop.
+    pub const QUICK_STOP: u16 = 1 << 2;
+    pub const ENABLE_OPERATION: u16 = 1 << 3;
+    /// Rising edge resets a fault.
+    pub const FAULT_RESET: u16 = 1 << 7;
+
+    pub const DISABLE_VOLTAGE: u16 = 0x0000;
+    pub const SHUTDOWN: u16 = ENABLE_VOLTAGE | QUICK_STOP;
+    pub const SWITCH_ON_CMD: u16 = SHUTDOWN | SWITCH_ON;
+    pub const ENABLE_OPERATION_CMD: u16 = SWITCH_ON_CMD | ENABLE_OPERATION;
+}
+
+/// Statusword bits (0x6041).
+pub mod sw {
+    pub const READY_TO_SWITCH_ON: u16 = 1 << 0;
+    pub const SWITCHED_ON: u16 = 1 << 1;
+    pub const OPERATION_ENABLED: u16 = 1 << 2;
+    pub const FAULT: u16 = 1 << 3;
+    pub const VOLTAGE_ENABLED: u16 = 1 << 4;
+    /// Active low: 0 means a quick stop is active.
+    pub const QUICK_STOP: u16 = 1 << 5;
+    pub const SWITCH_ON_DISABLED: u16 = 1 << 6;
+    pub const WARNING: u16 = 1 << 7;
+    pub const REMOTE: u16 = 1 << 9;
+    /// In CSP mode: the drive follows the target position.
+    pub const TARGET_FOLLOWED: u16 = 1 << 12;
+    /// In CSP mode: following error beyond 0x6065.
+    pub const FOLLOWING_ERROR: u16 = 1 << 13;
+}
+
+/// The CiA 402 power states.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PowerState {
+    NotReadyToSwitchOn,
+    SwitchOnDisabled,
+    ReadyToSwitchOn,
+    SwitchedOn,
+    OperationEnabled,
+    QuickStopActive,
+    FaultReactionActive,
+    Fault,
+}
+
+impl PowerState {
+    /// Decodes the state bits of a statusword (masks from CiA 402 table 30).
+    pub fn from_statusword(s: u16) -> PowerState {
+        match (s & 0x004F, s & 0x006F) {
+            (0x0000, _) => PowerState::NotReadyToSwitchOn,
+            (0x0040, _) => PowerState::SwitchOnDisabled,
+            (_, 0x0021) => PowerState::ReadyToSwitchOn,
+            (_, 0x0023) => PowerState::SwitchedOn,
+            (_, 0x0027) => PowerState::OperationEnabled,
+            (_, 0x0007) => PowerState::QuickStopActive,
+            (0x000F, _) => PowerState::FaultReactionActive,
+            (0x0008, _) => PowerState::Fault,
+            // Undefined bit patterns: treat as not ready, the master then waits.
+            _ => PowerState::NotReadyToSwitchOn,
+        }
+    }
+
+    /// The state bits a drive reports in this state (bits 0..6, voltage bit set when powered).
+    pub fn statusword_bits(self) -> u16 {
+        match self {
+            PowerState::NotReadyToSwitchOn => 0x0000,
+            PowerState::SwitchOnDisabled => 0x0040,
+            PowerState::ReadyToSwitchOn => 0x0031,
+            PowerState::SwitchedOn => 0x0033,
+            PowerState::OperationEnabled => 0x0037,
+            PowerState::QuickStopActive => 0x0017,
+            PowerState::FaultReactionActive => 0x001F,
+            PowerState::Fault => 0x0018,
+        }
+    }
+}
+
+/// Master side: the controlword that moves a drive in `state` one step toward Operation
+/// Enabled. `previous` is the controlword sent last tick: a fault reset needs a rising edge of
+/// bit 7, so in Fault the reset bit alternates.
+pub fn controlword_toward_enabled(state: PowerState, previous: u16) -> u16 {
+    match state {
+        PowerState::Fault => {
+            if previous & cw::FAULT_RESET != 0 {
+                cw::DISABLE_VOLTAGE
+            } else {
+                cw::FAULT_RESET
+            }
+        }
+        PowerState::FaultReactionActive | PowerState::NotReadyToSwitchOn => cw::DISABLE_VOLTAGE,
+        PowerState::SwitchOnDisabled | PowerState::QuickStopActive => cw::SHUTDOWN,
+        PowerState::ReadyToSwitchOn => cw::SWITCH_ON_CMD,
+        PowerState::SwitchedOn | PowerState::OperationEnabled => cw::ENABLE_OPERATION_CMD,
+    }
+}
+
+/// Drive side: the state after receiving controlword `c` in `state` (CiA 402 transitions 2..16;
+/// `previous` is the last controlword, for the fault-reset edge). Fault entry is the drive's
+/// own decision and not handled here.
+pub fn apply_controlword(state: PowerState, previous: u16, c: u16) -> PowerState {
+    use PowerState::*;
+    let disable_voltage = c & cw::ENABLE_VOLTAGE == 0;
+    let quick_stop = c & (cw::ENABLE_VOLTAGE | cw::QUICK_STOP) == cw::ENABLE_VOLTAGE;
+    let shutdown = c & 0x0007 == cw::SHUTDOWN;
+    let switch_on = c & 0x000F == cw::SWITCH_ON_CMD;
+    let enable = c & 0x000F == cw::ENABLE_OPERATION_CMD;
+    match state {
+        NotReadyToSwitchOn => SwitchOnDisabled,
+        Fault => {
+            if c & cw::FAULT_RESET != 0 && previous & cw::FAULT_RESET == 0 {
+                SwitchOnDisabled
+            } else {
+                Fault
+            }
+        }
+        FaultReactionActive => Fault,
+        _ if disable_voltage => SwitchOnDisabled,
+        SwitchOnDisabled => {
+            if shutdown {
+                ReadyToSwitchOn
+            } else {
+                SwitchOnDisabled
+            }
+        }
+        ReadyToSwitchOn => {
+            if quick_stop {
+                SwitchOnDisabled
+            } else if switch_on || enable {
+                // Transition 3 (and 3+4 at once, which many drives accept).
+                if enable { OperationEnabled } else { SwitchedOn }
+            } else {
+                ReadyToSwitchOn
+            }
+        }
+        SwitchedOn => {
+            if quick_stop {
+                SwitchOnDisabled
+            } else if shutdown {
+                ReadyToSwitchOn
+            } else if enable {
+                OperationEnabled
+            } else {
+                SwitchedOn
+            }
+        }
+        OperationEnabled => {
+            if quick_stop {
+                QuickStopActive
+            } else if shutdown {
+                ReadyToSwitchOn
+            } else if switch_on {
+                SwitchedOn
+            } else {
+                OperationEnabled
+            }
+        }
+        QuickStopActive => {
+            if enable && c & cw::QUICK_STOP != 0 {
+                OperationEnabled
+            } else {
+                QuickStopActive
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The master's controlwords bring a drive from power-on to Operation Enabled, and from
+    /// Fault back to it, through the drive-side transitions.
+    #[test]
+    fn master_and_drive_agree() {
+        for start in [PowerState::NotReadyToSwitchOn, PowerState::Fault] {
+            let mut state = start;
+            let mut last_cw = 0u16;
+            let mut seen = vec![state];
+            for _ in 0..10 {
+                let c = controlword_toward_enabled(state, last_cw);
+                state = apply_controlword(state, last_cw, c);
+                last_cw = c;
+                seen.push(state);
+                // Every state round-trips through its statusword bits.
+                assert_eq!(PowerState::from_statusword(state.statusword_bits()), state);
+                if state == PowerState::OperationEnabled {
+                    break;
+                }
+            }
+            assert_eq!(state, PowerState::OperationEnabled, "{seen:?}");
+            assert!(seen.contains(&PowerState::ReadyToSwitchOn), "{seen:?}");
+        }
+    }
+
+    #[test]
+    fn fault_reset_needs_a_rising_edge() {
+        assert_eq!(
+            apply_controlword(PowerState::Fault, cw::FAULT_RESET, cw::FAULT_RESET),
+            PowerState::Fault
+        );
+        assert_eq!(
+            apply_controlword(PowerState::Fault, 0, cw::FAULT_RESET),
+            PowerState::SwitchOnDisabled
+        );
+    }
+
+    #[test]
+    fn statusword_decoding_ignores_other_bits() {
+        let s = PowerState::OperationEnabled.statusword_bits() | sw::REMOTE | sw::TARGET_FOLLOWED;
+        assert_eq!(PowerState::from_statusword(s), PowerState::OperationEnabled);
+        assert_eq!(
+            PowerState::from_statusword(0x0008 | sw::FOLLOWING_ERROR),
+            PowerState::Fault
+        );
+        assert_eq!(
+            PowerState::from_statusword(0x0040),
+            PowerState::SwitchOnDisabled
+        );
+    }
+}
