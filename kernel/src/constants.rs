@@ -346,15 +346,14 @@ fn parse_line(t: &str) -> Result<(u16, i64), (usize, String)> {
     while i < b.len() && b[i].is_ascii_digit() {
         i += 1;
     }
-    if i == 1 || i > 4 {
-        return Err((1, "constant number must be 0..999".into()));
+    if i == 1 {
+        return Err((1, "expected a constant number 0..999 after R".into()));
     }
-    let r: u16 = t[1..i]
-        .parse()
-        .map_err(|_| (1, "bad constant number".to_string()))?;
-    if r > MAX_R {
-        return Err((1, format!("R{r} does not exist (R0..R{MAX_R})")));
+    let r: u32 = t[1..i].parse().unwrap_or(u32::MAX);
+    if r > u32::from(MAX_R) {
+        return Err((1, format!("R{} does not exist (R0..R{MAX_R})", &t[1..i])));
     }
+    let r = r as u16;
     let rest = &t[i..];
     let eq = rest.trim_start();
     if !eq.starts_with('=') {

@@ -205,7 +205,7 @@ pub fn fuzz_entry(data: &[u8]) {
         .expect("valid entry");
     let mut lathe = Setup::new(&['X', 'Z']);
     lathe.constants.set(325, 20003.0);
-    lathe.constants.set(397, 1000000.0);
+    lathe.constants.set(397, 1000.0); // 7.R397 = 1
     lathe.ij = IjMode::Absolute;
     for setup in [&mill, &lathe] {
         let c = compile(&text, setup);
