@@ -27,10 +27,13 @@ fn gears() -> Vec<Gear> {
 /// A lathe: X (axis 1, diameter) controls KŘR, Z is axis 2.
 fn lathe(r329: f64, r580: f64) -> Kr {
     let mut c = Constants::new();
-    c.set(67, 1.0);
+    c.set(0, 1.0); // R0: X
+    c.set(1, 3.0); // R1: Z
+    c.set(2, 0.0); // no third axis
+    c.set(67, 1.0); // X controls KŘR
     c.set(329, r329);
     c.set(580, r580);
-    Kr::new(KrConfig::from_constants(&c, 2, RadiusInput::Diameter, gears()).unwrap())
+    Kr::new(KrConfig::from_constants(&c, RadiusInput::Diameter, gears()).unwrap())
 }
 
 struct Run {

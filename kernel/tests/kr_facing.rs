@@ -16,6 +16,9 @@ use kernel::units::AxesMm;
 /// Gear 1: P 1000 rpm, U 7FFFh. Gear 2: P 450 rpm, U 6000h.
 fn kr() -> Kr {
     let mut c = Constants::new();
+    c.set(0, 1.0); // R0: X
+    c.set(1, 3.0); // R1: Z
+    c.set(2, 0.0); // no third axis
     c.set(67, 1.0); // X controls KŘR
     c.set(580, 0.001); // version 2
     let gears = vec![
@@ -30,7 +33,7 @@ fn kr() -> Kr {
             m_code: Some(42),
         },
     ];
-    Kr::new(KrConfig::from_constants(&c, 2, RadiusInput::Diameter, gears).unwrap())
+    Kr::new(KrConfig::from_constants(&c, RadiusInput::Diameter, gears).unwrap())
 }
 
 /// `N20 G96 G1 F2000 S900 X50` from X300 Z-1 (standard R329: G96 feed in mm/min, S900 =

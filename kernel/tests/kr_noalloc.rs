@@ -39,7 +39,7 @@ fn tick_does_not_allocate() {
         output_range: 0x7FFF,
         m_code: None,
     }];
-    let mut kr = Kr::new(KrConfig::from_constants(&c, 2, RadiusInput::Diameter, gears).unwrap());
+    let mut kr = Kr::new(KrConfig::from_constants(&c, RadiusInput::Diameter, gears).unwrap());
     let mut plc = PlcArea::new();
     let writes = [
         PlcWrite::by_name("AKRR_V", 80_000).unwrap(),

@@ -1,7 +1,7 @@
 //! KŘR configuration: R67, R329 d3, R580 (SPEC §6) and the gear table (daemon's TOML config).
 
 use super::s_word::SWordMode;
-use crate::constants::Constants;
+use crate::constants::{AXIS_CODES, Constants};
 use crate::plc::OUTPUT_MAX;
 
 /// Version of constant cutting speed, R580 decades 1..2 (SPEC §6).
@@ -38,10 +38,11 @@ pub struct Gear {
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum KrConfigError {
     #[error(
-        "R67 = {0}: the controlling axis of constant cutting speed must be an axis number \
-         1..{1} (R67 may not be 0 even when KŘR is not used)"
+        "R67 = {0}: the controlling axis of constant cutting speed must be the code of an axis \
+         configured in R0..R5 (1 = X, 2 = Y, 3 = Z, 4 = U, 5 = V, 6 = W, 7 = A, 8 = B, 9 = C); \
+         R67 may not be 0 even when KŘR is not used"
     )]
-    R67(f64, usize),
+    R67(f64),
     #[error("R329 decade 3 = {0}: allowed are 0 standard, 1 swap G96/G97, 2 S in m/min, 3 both")]
     R329Decade3(u8),
     #[error(
@@ -79,23 +80,18 @@ pub struct KrConfig {
 }
 
 impl KrConfig {
-    /// Builds the configuration from the machine constants, the number of axes in use, how the
-    /// controlling axis is programmed, and the gear table.
+    /// Builds the configuration from the machine constants, how the controlling axis is
+    /// programmed, and the gear table.
     pub fn from_constants(
         c: &Constants,
-        axes: usize,
         radius_input: RadiusInput,
         gears: Vec<Gear>,
     ) -> Result<Self, KrConfigError> {
-        // R67 = n names axis n in machine order (R0..R5 define axes 1..6).
-        let r67 = c.get(67);
-        if r67.fract() != 0.0 || r67 < 1.0 || r67 > axes as f64 {
-            return Err(KrConfigError::R67(r67, axes));
-        }
+        let controlling_axis = controlling_axis(c)?;
         let s_word = SWordMode::from_constants(c)?;
         let version = version_of(c)?;
         let cfg = KrConfig {
-            controlling_axis: r67 as usize - 1,
+            controlling_axis,
             radius_input,
             version,
             s_word,
@@ -153,6 +149,21 @@ impl KrConfig {
     }
 }
 
+/// R67 holds the axis code (as R0..R5 do, [`AXIS_CODES`]: 1 = X ... 9 = C) of the controlling
+/// axis; its machine index is where R0..R5 name that axis (SPEC §6).
+fn controlling_axis(c: &Constants) -> Result<usize, KrConfigError> {
+    let m = c.milli(67);
+    let bad = || KrConfigError::R67(c.get(67));
+    if m % 1000 != 0 || !(1..=AXIS_CODES.len() as i64).contains(&(m / 1000)) {
+        return Err(bad());
+    }
+    let letter = AXIS_CODES[(m / 1000 - 1) as usize];
+    c.axis_names()
+        .iter()
+        .position(|&a| a == letter)
+        .ok_or_else(bad)
+}
+
 /// R580 decades 1..2 (SPEC §6): `00` old, `01` version 2. The manual also says "set the value 1
 /// into R580", so `R580 = 1` is accepted for version 2 as well; anything else is refused.
 fn version_of(c: &Constants) -> Result<KrVersion, KrConfigError> {
@@ -190,25 +201,38 @@ mod tests {
         ]
     }
 
+    /// A lathe: R0 = 1 (X), R1 = 3 (Z), R2 = 0 (no third axis).
     fn consts(r67: f64, r329: f64, r580: f64) -> Constants {
         let mut c = Constants::new();
+        c.set(0, 1.0);
+        c.set(1, 3.0);
+        c.set(2, 0.0);
         c.set(67, r67);
         c.set(329, r329);
         c.set(580, r580);
         c
     }
 
+    fn cfg(c: &Constants, gears: Vec<Gear>) -> Result<KrConfig, KrConfigError> {
+        KrConfig::from_constants(c, RadiusInput::Diameter, gears)
+    }
+
     #[test]
     fn reads_constants() {
-        let cfg =
-            KrConfig::from_constants(&consts(1.0, 0.3, 0.001), 2, RadiusInput::Diameter, gears())
-                .unwrap();
-        assert_eq!(cfg.controlling_axis, 0);
-        assert_eq!(cfg.version, KrVersion::V2);
-        assert!(cfg.s_word.swap_g96_g97 && cfg.s_word.s_in_m_min);
-        assert_eq!(cfg.gear_for_m(44), Some(2));
-        assert_eq!(cfg.gear(0).unwrap().max_rpm, 500.0);
-        assert!(cfg.gear(3).is_none());
+        let k = cfg(&consts(1.0, 0.3, 0.001), gears()).unwrap();
+        assert_eq!(k.controlling_axis, 0);
+        assert_eq!(k.version, KrVersion::V2);
+        assert!(k.s_word.swap_g96_g97 && k.s_word.s_in_m_min);
+        assert_eq!(k.gear_for_m(44), Some(2));
+        assert_eq!(k.gear(0).unwrap().max_rpm, 500.0);
+        assert!(k.gear(3).is_none());
+        // Z (code 3) is the second axis of this lathe.
+        assert_eq!(
+            cfg(&consts(3.0, 0.0, 0.0), gears())
+                .unwrap()
+                .controlling_axis,
+            1
+        );
     }
 
     #[test]
@@ -222,17 +246,22 @@ mod tests {
     }
 
     #[test]
-    fn refuses_bad_r67_and_gears() {
-        let bad =
-            |r67| KrConfig::from_constants(&consts(r67, 0.0, 0.0), 2, RadiusInput::Radius, gears());
-        assert_eq!(bad(0.0), Err(KrConfigError::R67(0.0, 2)));
-        assert_eq!(bad(3.0), Err(KrConfigError::R67(3.0, 2)));
-        assert_eq!(bad(1.5), Err(KrConfigError::R67(1.5, 2)));
-        let c = consts(2.0, 0.0, 0.0);
+    fn refuses_bad_r67() {
+        let bad = |r67| cfg(&consts(r67, 0.0, 0.0), gears());
+        assert_eq!(bad(0.0), Err(KrConfigError::R67(0.0)));
+        // Y (code 2) is not an axis of this lathe.
+        assert_eq!(bad(2.0), Err(KrConfigError::R67(2.0)));
+        assert_eq!(bad(1.5), Err(KrConfigError::R67(1.5)));
+        assert_eq!(bad(10.0), Err(KrConfigError::R67(10.0)));
+    }
+
+    #[test]
+    fn refuses_bad_gears() {
+        let c = consts(3.0, 0.0, 0.0);
         let mut g = gears();
         g[1].m_code = Some(41);
         assert_eq!(
-            KrConfig::from_constants(&c, 2, RadiusInput::Radius, g),
+            cfg(&c, g),
             Err(KrConfigError::GearMCode {
                 first: 1,
                 second: 2,
@@ -242,12 +271,15 @@ mod tests {
         let mut g = gears();
         g[0].output_range = 0x8000;
         assert!(matches!(
-            KrConfig::from_constants(&c, 2, RadiusInput::Radius, g),
+            cfg(&c, g),
             Err(KrConfigError::GearOutputRange { gear: 1, .. })
         ));
-        assert_eq!(
-            KrConfig::from_constants(&c, 2, RadiusInput::Radius, vec![]),
-            Err(KrConfigError::NoGears)
-        );
+        let mut g = gears();
+        g[1].max_rpm = 0.0;
+        assert!(matches!(
+            cfg(&c, g),
+            Err(KrConfigError::GearMaxRpm { gear: 2, .. })
+        ));
+        assert_eq!(cfg(&c, vec![]), Err(KrConfigError::NoGears));
     }
 }

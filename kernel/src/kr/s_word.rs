@@ -34,9 +34,9 @@ impl SWordMode {
     /// Reads decade 3 of R329 (0..3; other digits are refused).
     pub fn from_constants(c: &Constants) -> Result<Self, KrConfigError> {
         match c.decade(329, 3) {
-            d @ 0..=3 => Ok(SWordMode {
-                swap_g96_g97: d & 1 != 0,
-                s_in_m_min: d & 2 != 0,
+            0..=3 => Ok(SWordMode {
+                swap_g96_g97: c.css_g96_g97_swapped(),
+                s_in_m_min: c.css_s_in_m_min(),
             }),
             d => Err(KrConfigError::R329Decade3(d)),
         }
