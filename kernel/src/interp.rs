@@ -1,23 +1,42 @@
 //! The 4 ms interpolator: planned segments in, one setpoint per axis per tick out.
 //!
-//! Runs on the real-time thread, so it never allocates after [`Interpolator::new`]. Each tick it
-//! chooses the path speed online from the limits the planner attached to each [`Segment`]:
-//! - hard limits (geometry and axis ceilings, the planner's safe end speeds, and a stop at the
-//!   end of what has been received) are braked for and never exceeded;
-//! - soft limits (programmed feed × override) are approached within the acceleration limit, so an
-//!   override change never makes a speed step.
+//! Runs on the real-time thread, so it never allocates after [`Interpolator::new`] and does
+//! bounded work per tick. It works in two stages:
 //!
-//! Speeds are per-tick averages: the position advances by `v·Ts` along the path each tick, across
-//! as many segments as that distance covers. A late tick of the real-time thread therefore never
-//! makes a setpoint jump: one call is one Ts of trajectory, however late it comes.
+//! 1. **Raw path speed**, chosen online each tick from the limits the planner attached to each
+//!    [`Segment`] (acceleration-limited):
+//!    - hard limits (geometry and axis ceilings, the planner's safe end speeds, and a stop at
+//!      the end of what has been received) are braked for and never exceeded;
+//!    - soft limits (programmed feed × override) are approached within the acceleration
+//!      limit, so an override change never makes a speed step.
+//!
+//!    Speeds are per-tick averages: the raw arc length advances by `v·Ts` each tick, across
+//!    as many segments as that distance covers (several short blocks per tick).
+//! 2. **Jerk filter** (parabolic profile, SPEC §7.3): the commanded arc length is the moving
+//!    average of the last `m` raw arc lengths. The average of an acceleration-limited motion
+//!    over `m` ticks has acceleration ≤ a and jerk ≤ 2a/(m·Ts), so `m = ⌈2a/(J·Ts)⌉` gives a
+//!    jerk-limited (S-shaped) speed. Filtering the *arc length* (not the axes) keeps every
+//!    setpoint exactly on the programmed path, and because arc length never decreases the
+//!    filtered position never passes the raw one: stop points are reached exactly, at rest.
+//!    The filtered speed is an average of raw speeds of the last `m` ticks, so the raw speed
+//!    respects every speed cap `m+1` ticks early (caps are met `c·(m+1)·Ts` before the
+//!    junction) and late (the caps of the last `m+1` ticks still hold). With `m = 1` (linear
+//!    profile) both stages coincide.
+//!
+//! A late tick of the real-time thread never makes a setpoint jump: one call is one Ts of
+//! trajectory, however late it comes.
 
 use crate::plan::Segment;
 use crate::units::{AxesMm, TS_S};
 
-/// How many segments the interpolator holds (its own look-ahead for braking).
-pub const BUFFER_SEGMENTS: usize = 1024;
+/// How many segments the interpolator holds (its own look-ahead for braking, plus the
+/// segments the filtered position has not yet left).
+pub const BUFFER_SEGMENTS: usize = 4096;
 
-/// Remaining distance under which a stop point is reached exactly in the next tick.
+/// Longest jerk filter, ticks (1.024 s: a/J up to 0.5 s).
+pub const FILTER_MAX_TICKS: usize = 256;
+
+/// Remaining distance under which a point counts as reached.
 const ARRIVE_EPS_MM: f64 = 1e-9;
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -54,14 +73,36 @@ pub struct TickOut {
 pub struct Interpolator {
     axes: usize,
     buf: Box<[Segment]>,
+    /// Arc length (from the first buffered segment after the last reset) at each segment start.
+    s0: Box<[f64]>,
+    /// Oldest buffered segment: the one the commanded (filtered) position lies on.
     head: usize,
     len: usize,
-    /// Distance already travelled on the head segment, mm.
-    s_mm: f64,
+    /// Arc length at the end of the newest buffered segment.
+    s_end_mm: f64,
+    // Raw stage.
+    /// Raw segment, as an offset from `head`.
+    rk: usize,
+    /// Distance travelled on the raw segment, mm.
+    rs_mm: f64,
     v_mm_s: f64,
+    /// The raw position rests at the end of segment `rk`, a stop point.
+    raw_at_stop: bool,
+    dwell_ticks: u32,
+    // Filter stage.
+    m: usize,
+    hist_s: Box<[f64]>,
+    hist_cap: Box<[f64]>,
+    hist_feed: Box<[f64]>,
+    hist_pos: usize,
+    /// Consecutive ticks without raw motion.
+    still: usize,
+    f_s_mm: f64,
+    f_v_mm_s: f64,
     position: AxesMm,
     state: InterpState,
     override_factor: f64,
+    in_position: bool,
     last_seq: u32,
     last_n: Option<u32>,
     last_line: u32,
@@ -72,13 +113,27 @@ impl Interpolator {
         Interpolator {
             axes,
             buf: vec![Segment::default(); BUFFER_SEGMENTS].into_boxed_slice(),
+            s0: vec![0.0; BUFFER_SEGMENTS].into_boxed_slice(),
             head: 0,
             len: 0,
-            s_mm: 0.0,
+            s_end_mm: 0.0,
+            rk: 0,
+            rs_mm: 0.0,
             v_mm_s: 0.0,
+            raw_at_stop: false,
+            dwell_ticks: 0,
+            m: 1,
+            hist_s: vec![0.0; FILTER_MAX_TICKS].into_boxed_slice(),
+            hist_cap: vec![f64::INFINITY; FILTER_MAX_TICKS].into_boxed_slice(),
+            hist_feed: vec![f64::INFINITY; FILTER_MAX_TICKS].into_boxed_slice(),
+            hist_pos: 0,
+            still: FILTER_MAX_TICKS,
+            f_s_mm: 0.0,
+            f_v_mm_s: 0.0,
             position,
             state: InterpState::Idle,
             override_factor: 1.0,
+            in_position: true,
             last_seq: 0,
             last_n: None,
             last_line: 0,
@@ -105,13 +160,20 @@ impl Interpolator {
         self.len
     }
 
+    /// Length of the jerk filter in ticks now in use (1 = no filter).
+    pub fn filter_ticks(&self) -> usize {
+        self.m
+    }
+
     /// Appends a segment. Gives it back when the buffer is full or while stopping.
     pub fn push(&mut self, seg: Segment) -> Result<(), Segment> {
-        if !self.has_room() || self.state == InterpState::Stopping {
+        if !self.has_room() || self.state == InterpState::Stopping || !(seg.length_mm > 0.0) {
             return Err(seg);
         }
         let i = (self.head + self.len) % self.buf.len();
         self.buf[i] = seg;
+        self.s0[i] = self.s_end_mm;
+        self.s_end_mm += seg.length_mm;
         self.len += 1;
         if self.state == InterpState::Idle {
             self.state = InterpState::Running;
@@ -121,7 +183,14 @@ impl Interpolator {
 
     /// Feed override in percent, clamped to 0..=150.
     pub fn set_override(&mut self, percent: f64) {
-        self.override_factor = percent.clamp(0.0, 150.0) / 100.0;
+        let p = if percent.is_finite() { percent } else { 0.0 };
+        self.override_factor = p.clamp(0.0, 150.0) / 100.0;
+    }
+
+    /// Whether the following error is below the G24 limit R06-R07 (SPEC §7.1). The daemon
+    /// calls this every tick; a G24 stop point is left only while it is true.
+    pub fn set_in_position(&mut self, in_position: bool) {
+        self.in_position = in_position;
     }
 
     pub fn hold(&mut self) {
@@ -151,17 +220,67 @@ impl Interpolator {
 
     fn clear(&mut self) {
         self.len = 0;
-        self.s_mm = 0.0;
-        self.v_mm_s = 0.0;
+        self.reset_arc_length();
         self.state = InterpState::Idle;
     }
 
+    /// Restarts arc lengths at zero (only when nothing is buffered and the filter is at rest).
+    fn reset_arc_length(&mut self) {
+        self.s_end_mm = 0.0;
+        self.rk = 0;
+        self.rs_mm = 0.0;
+        self.v_mm_s = 0.0;
+        self.raw_at_stop = false;
+        self.dwell_ticks = 0;
+        self.hist_s.fill(0.0);
+        self.hist_cap.fill(f64::INFINITY);
+        self.hist_feed.fill(f64::INFINITY);
+        self.still = FILTER_MAX_TICKS;
+        self.f_s_mm = 0.0;
+        self.f_v_mm_s = 0.0;
+    }
+
+    fn idx(&self, k: usize) -> usize {
+        (self.head + k) % self.buf.len()
+    }
+
     fn seg(&self, k: usize) -> &Segment {
-        &self.buf[(self.head + k) % self.buf.len()]
+        &self.buf[self.idx(k)]
     }
 
     fn ceiling(&self, seg: &Segment) -> f64 {
         (seg.feed_mm_s * self.override_factor).min(seg.v_max_mm_s)
+    }
+
+    fn settled(&self) -> bool {
+        self.still + 1 >= self.m
+    }
+
+    fn raw_s(&self) -> f64 {
+        if self.len == 0 {
+            return self.s_end_mm;
+        }
+        self.s0[self.idx(self.rk)] + self.rs_mm
+    }
+
+    /// Filter length a segment needs: the raw acceleration steps by at most 2a, so the jerk
+    /// of the average is ≤ 2a/(m·Ts) ≤ J.
+    fn filter_for(seg: &Segment) -> usize {
+        let a = seg.accel_mm_s2.max(seg.stop_accel_mm_s2);
+        if !seg.jerk_mm_s3.is_finite() || seg.jerk_mm_s3 <= 0.0 {
+            return 1;
+        }
+        ((2.0 * a / (seg.jerk_mm_s3 * TS_S)).ceil() as usize).clamp(1, FILTER_MAX_TICKS - 1)
+    }
+
+    /// Acceleration the raw stage may use with the current filter (jerk ≤ J needs a ≤ J·m·Ts/2).
+    fn raw_accel(&self, a: f64, seg: &Segment) -> f64 {
+        let a = if seg.jerk_mm_s3.is_finite() {
+            a.min(seg.jerk_mm_s3 * self.m as f64 * TS_S / 2.0)
+        } else {
+            a
+        };
+        a.max(1e-6)
     }
 
     /// Highest per-tick speed that still lets us brake from the end of this tick to `v_cap` over
@@ -175,12 +294,21 @@ impl Interpolator {
     /// Advances one tick.
     pub fn tick(&mut self) -> TickOut {
         let mut program_end = false;
-        if self.len > 0 && !matches!(self.state, InterpState::Held | InterpState::Idle) {
-            program_end = self.advance();
+        if self.len > 0 {
+            let (cap, feed) = if matches!(self.state, InterpState::Held | InterpState::Idle) {
+                (f64::INFINITY, f64::INFINITY)
+            } else {
+                self.raw_step()
+            };
+            self.record(cap, feed);
+            program_end = self.follow();
+            self.update_state();
+        } else {
+            self.f_v_mm_s = 0.0;
         }
         TickOut {
             position: self.position,
-            path_v_mm_s: self.v_mm_s,
+            path_v_mm_s: self.f_v_mm_s,
             seq: self.last_seq,
             n: self.last_n,
             line: self.last_line,
@@ -189,36 +317,127 @@ impl Interpolator {
         }
     }
 
-    fn advance(&mut self) -> bool {
-        let head = *self.seg(0);
+    fn update_state(&mut self) {
+        let rest = self.v_mm_s == 0.0 && self.settled();
+        match self.state {
+            InterpState::Holding if rest => self.state = InterpState::Held,
+            InterpState::Stopping if rest => self.clear(),
+            _ => {}
+        }
+        if self.len == 0 && self.state != InterpState::Held {
+            self.state = InterpState::Idle;
+            self.reset_arc_length();
+        }
+    }
+
+    /// Pushes this tick's raw arc length and local caps into the filter history.
+    fn record(&mut self, cap: f64, feed: f64) {
+        let s = self.raw_s();
+        let prev = self.hist_s[self.hist_pos];
+        self.hist_pos = (self.hist_pos + 1) % FILTER_MAX_TICKS;
+        self.hist_s[self.hist_pos] = s;
+        self.hist_cap[self.hist_pos] = cap;
+        self.hist_feed[self.hist_pos] = feed;
+        if s == prev {
+            self.still = (self.still + 1).min(FILTER_MAX_TICKS);
+        } else {
+            self.still = 0;
+        }
+    }
+
+    /// Smallest cap (hard, feed) recorded over the last `m + 1` ticks.
+    fn behind_caps(&self) -> (f64, f64) {
+        if self.m <= 1 {
+            return (f64::INFINITY, f64::INFINITY);
+        }
+        let mut cap = f64::INFINITY;
+        let mut feed = f64::INFINITY;
+        for j in 0..=self.m {
+            let i = (self.hist_pos + FILTER_MAX_TICKS - j) % FILTER_MAX_TICKS;
+            cap = cap.min(self.hist_cap[i]);
+            feed = feed.min(self.hist_feed[i]);
+        }
+        (cap, feed)
+    }
+
+    /// Raw stage of one tick. Returns the caps (hard, feed) met during this tick.
+    fn raw_step(&mut self) -> (f64, f64) {
+        let idle = (f64::INFINITY, f64::INFINITY);
+        if self.raw_at_stop {
+            let here = *self.seg(self.rk);
+            if self.rk + 1 >= self.len || self.state != InterpState::Running {
+                self.v_mm_s = 0.0;
+                return idle;
+            }
+            if !self.settled() {
+                return idle;
+            }
+            if self.dwell_ticks > 0 {
+                self.dwell_ticks -= 1;
+                return idle;
+            }
+            if here.wait_in_position && !self.in_position {
+                return idle;
+            }
+            self.raw_at_stop = false;
+            self.rk += 1;
+            self.rs_mm = 0.0;
+        }
+        if self.v_mm_s == 0.0 && self.settled() {
+            // At rest: the filter may be re-sized for the dynamics of what comes next.
+            self.m = Self::filter_for(self.seg(self.rk));
+        }
+        let head = *self.seg(self.rk);
         let braking = matches!(self.state, InterpState::Holding | InterpState::Stopping);
         let a = if braking {
-            head.stop_accel_mm_s2
+            self.raw_accel(head.stop_accel_mm_s2, &head)
         } else {
-            head.accel_mm_s2
+            self.raw_accel(head.accel_mm_s2, &head)
+        };
+        let lag = if self.m > 1 {
+            (self.m + 1) as f64 * TS_S
+        } else {
+            0.0
         };
         let v = self.v_mm_s;
+        let (behind_cap, behind_feed) = self.behind_caps();
         // Soft limits: feed × override of this and later segments, approached at `a`.
-        let mut soft = if braking { 0.0 } else { self.ceiling(&head) };
+        let mut soft = if braking {
+            0.0
+        } else {
+            self.ceiling(&head).min(behind_feed * self.override_factor)
+        };
         // Hard limits: geometric ceilings, planned end speeds, end of the buffer.
-        let mut hard = head.v_max_mm_s;
-        let reach = (v + a * TS_S) * (v + a * TS_S) / (2.0 * a) + 2.0 * (v + a * TS_S) * TS_S;
-        let mut d = head.length_mm - self.s_mm;
+        let mut hard = head.v_max_mm_s.min(behind_cap);
+        let v_up = v + a * TS_S;
+        let reach = v_up * v_up / (2.0 * a) + 2.0 * v_up * TS_S + v_up * lag;
+        let mut d = head.length_mm - self.rs_mm;
         let mut stop_dist = f64::INFINITY;
-        for k in 0..self.len {
+        let mut a_walk = a;
+        for k in self.rk..self.len {
             let seg = *self.seg(k);
-            let next = (k + 1 < self.len).then(|| *self.seg(k + 1));
-            let hard_cap = match next {
-                Some(n) => seg.v_end_mm_s.min(n.v_max_mm_s),
-                None => 0.0,
-            };
-            let soft_cap = next.map_or(0.0, |n| self.ceiling(&n));
-            hard = hard.min(Self::v_brake(d, hard_cap, a));
-            soft = soft.min(Self::v_brake(d, soft_cap, a));
-            if hard_cap == 0.0 && stop_dist.is_infinite() {
-                stop_dist = d;
+            if k > self.rk {
+                let ak = if braking {
+                    seg.stop_accel_mm_s2
+                } else {
+                    seg.accel_mm_s2
+                };
+                a_walk = a_walk.min(self.raw_accel(ak, &seg));
             }
-            if d > reach || next.is_none() {
+            let next = (k + 1 < self.len).then(|| *self.seg(k + 1));
+            let (hard_cap, soft_cap, lead) = match next {
+                Some(n) if seg.v_end_mm_s > 0.0 => {
+                    (seg.v_end_mm_s.min(n.v_max_mm_s), self.ceiling(&n), lag)
+                }
+                _ => (0.0, 0.0, 0.0),
+            };
+            hard = hard.min(Self::v_brake(d - hard_cap * lead, hard_cap, a_walk));
+            soft = soft.min(Self::v_brake(d - soft_cap * lead, soft_cap, a_walk));
+            if hard_cap == 0.0 {
+                stop_dist = d;
+                break;
+            }
+            if d > reach {
                 break;
             }
             d += next.map_or(0.0, |n| n.length_mm);
@@ -230,54 +449,91 @@ impl Interpolator {
             .max(0.0);
         // Arrive exactly at a stop point once the last step fits inside the deceleration limit.
         let mut ds = v_next * TS_S;
-        if stop_dist.is_finite() && stop_dist <= (a * TS_S * TS_S).max(ARRIVE_EPS_MM) {
+        if stop_dist <= (a * TS_S * TS_S).max(ARRIVE_EPS_MM) && stop_dist <= ds.max(ARRIVE_EPS_MM) {
             ds = stop_dist;
             v_next = ds / TS_S;
         }
-        if braking && v_next <= 0.0 {
+        if v_next <= 0.0 && stop_dist > ARRIVE_EPS_MM {
             self.v_mm_s = 0.0;
-            if self.state == InterpState::Stopping {
-                self.clear();
-            } else {
-                self.state = InterpState::Held;
-            }
-            return false;
+            return (head.v_max_mm_s, head.feed_mm_s);
         }
         self.v_mm_s = v_next;
-        self.move_along(ds)
+        self.move_raw(ds)
     }
 
-    /// Moves `ds` along the buffered path, dropping completed segments. Returns whether the
-    /// program's last segment was completed.
-    fn move_along(&mut self, mut ds: f64) -> bool {
+    /// Moves the raw position `ds` along the buffered path. Returns the smallest hard cap and
+    /// feed met on the way (segment ceilings and junction speeds).
+    fn move_raw(&mut self, mut ds: f64) -> (f64, f64) {
+        let first = *self.seg(self.rk);
+        let mut cap = first.v_max_mm_s;
+        let mut feed = first.feed_mm_s;
+        loop {
+            let seg = *self.seg(self.rk);
+            let rest = seg.length_mm - self.rs_mm;
+            if ds < rest - ARRIVE_EPS_MM {
+                self.rs_mm += ds;
+                return (cap, feed);
+            }
+            ds -= rest;
+            self.rs_mm = seg.length_mm;
+            if seg.v_end_mm_s == 0.0 || self.rk + 1 >= self.len {
+                // A stop point: never carry distance past it.
+                self.raw_at_stop = true;
+                self.v_mm_s = 0.0;
+                self.dwell_ticks = (seg.dwell_s / TS_S).round().max(0.0) as u32;
+                return (cap, feed);
+            }
+            let next = *self.seg(self.rk + 1);
+            cap = cap.min(seg.v_end_mm_s).min(next.v_max_mm_s);
+            feed = feed.min(next.feed_mm_s);
+            self.rk += 1;
+            self.rs_mm = 0.0;
+        }
+    }
+
+    /// Filter stage: the commanded arc length is the mean of the last `m` raw arc lengths.
+    /// Returns whether the program's last segment was completed.
+    fn follow(&mut self) -> bool {
+        let s_raw = self.hist_s[self.hist_pos];
+        let mut lag_sum = 0.0;
+        for j in 0..self.m {
+            let i = (self.hist_pos + FILTER_MAX_TICKS - j) % FILTER_MAX_TICKS;
+            lag_sum += s_raw - self.hist_s[i];
+        }
+        let s_f = (s_raw - lag_sum / self.m as f64).max(self.f_s_mm);
+        self.f_v_mm_s = (s_f - self.f_s_mm) / TS_S;
+        self.f_s_mm = s_f;
         let mut program_end = false;
+        // Drop segments the commanded position has left (never the raw one).
         while self.len > 0 {
-            let seg = *self.seg(0);
-            let rest = seg.length_mm - self.s_mm;
+            let i = self.idx(0);
+            let seg = self.buf[i];
+            let end = self.s0[i] + seg.length_mm;
+            let raw_done = self.rk > 0 || (self.raw_at_stop && self.len == 1 && self.settled());
+            if s_f >= end - ARRIVE_EPS_MM && raw_done {
+                self.position = seg.path.end();
+                self.last_seq = seg.seq;
+                self.last_n = seg.n;
+                self.last_line = seg.line;
+                program_end |= seg.last;
+                self.head = (self.head + 1) % self.buf.len();
+                self.len -= 1;
+                self.rk = self.rk.saturating_sub(1);
+                if self.len == 0 {
+                    self.rs_mm = 0.0;
+                }
+                continue;
+            }
+            let local = s_f - self.s0[i];
+            self.position = if local >= seg.length_mm - ARRIVE_EPS_MM {
+                seg.path.end()
+            } else {
+                seg.path.point_at((local / seg.length_mm).max(0.0))
+            };
             self.last_seq = seg.seq;
             self.last_n = seg.n;
             self.last_line = seg.line;
-            if ds < rest - ARRIVE_EPS_MM {
-                self.s_mm += ds;
-                self.position = seg.path.point_at(self.s_mm / seg.length_mm);
-                return false;
-            }
-            ds -= rest;
-            self.position = seg.path.end();
-            self.head = (self.head + 1) % self.buf.len();
-            self.len -= 1;
-            self.s_mm = 0.0;
-            program_end |= seg.last;
-            if seg.v_end_mm_s == 0.0 || self.len == 0 {
-                // A stop point: never carry distance past it.
-                break;
-            }
-        }
-        if self.len == 0 {
-            self.v_mm_s = 0.0;
-            if self.state != InterpState::Held {
-                self.state = InterpState::Idle;
-            }
+            break;
         }
         program_end
     }
@@ -394,5 +650,45 @@ mod tests {
         check_limits(&trace, 50.0, 500.0);
         assert_eq!(ip.state(), InterpState::Idle);
         assert!(ip.position()[0] < 100.0);
+    }
+
+    #[test]
+    fn jerk_filter_limits_jerk_and_arrives_exactly() {
+        let mut ip = Interpolator::new(3, AxesMm::ZERO);
+        let mut seg = line(0, [0.0; 3], [30.0, 0.0, 0.0], 80.0, 0.0);
+        seg.jerk_mm_s3 = 20_000.0;
+        ip.push(seg).unwrap();
+        let mut trace = vec![TickOut::default()];
+        trace.extend(run(&mut ip, 10_000));
+        assert!(ip.filter_ticks() > 1);
+        assert_eq!(trace.last().unwrap().position[0], 30.0);
+        let v: Vec<f64> = trace
+            .windows(2)
+            .map(|w| (w[1].position - w[0].position).norm(3) / TS_S)
+            .collect();
+        let a: Vec<f64> = v.windows(2).map(|w| (w[1] - w[0]) / TS_S).collect();
+        for w in a.windows(2) {
+            let j = (w[1] - w[0]).abs() / TS_S;
+            assert!(j <= 20_000.0 * 1.001 + 1e-3, "jerk {j}");
+        }
+        assert!(a.iter().all(|x| x.abs() <= 500.0 * 1.001));
+    }
+
+    #[test]
+    fn g24_waits_for_in_position() {
+        let mut ip = Interpolator::new(3, AxesMm::ZERO);
+        let mut a = line(0, [0.0; 3], [1.0, 0.0, 0.0], 50.0, 0.0);
+        a.wait_in_position = true;
+        ip.push(a).unwrap();
+        ip.push(line(1, [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], 50.0, 0.0))
+            .unwrap();
+        ip.set_in_position(false);
+        for _ in 0..500 {
+            ip.tick();
+        }
+        assert_eq!(ip.position()[0], 1.0);
+        ip.set_in_position(true);
+        run(&mut ip, 1000);
+        assert_eq!(ip.position()[0], 2.0);
     }
 }

@@ -1,9 +1,11 @@
 //! Look-ahead planner: compensated blocks in, planned [`Segment`]s out (SPEC §7).
 //!
-//! Walking-skeleton planner: every block ramps to rest (G98 behaviour, SPEC §7.1) with a
-//! trapezoidal profile limited by the per-axis velocity and acceleration. The envelope-velocity
-//! look-ahead (500 blocks, linear and jerk-limited) is issue #5 and replaces the body of
-//! [`Planner`] behind the same `push`/`poll` seam.
+//! Envelope velocity over a window of up to 500 blocks (SPEC §7.2, §7.3). For every junction
+//! the planner decides whether it is smooth (G98/G24/G23 and the manual or automatic rule,
+//! §7.1) and, if so, the highest speed the criteria allow there (dynamic, accuracy, local
+//! curvature); segment ceilings come from axis limits, arcs, the minimum block duration and
+//! R395. A backward pass turns these caps into safe end speeds. The full design and every
+//! decision on a SPEC **decide** point are in `docs/planner.md`.
 //!
 //! ## The seam between planner and interpolator
 //! A [`Segment`] carries the geometry and the *limits* the interpolator must respect, not a
@@ -13,158 +15,54 @@
 //! point, all later committed segments can be followed and braked for. The interpolator in
 //! addition treats the end of what it has received as a stop point, so a starved queue slows
 //! the machine down instead of overrunning.
+//!
+//! ## Streaming and memory
+//! `push` appends to the window; a segment is committed (returned by `poll`) as soon as its end
+//! speed can no longer rise (it reached its junction cap), or when the window holds
+//! `lookahead_blocks` blocks (then with the speed that is safe for the window). `wants_input`
+//! is false while the window is full, so memory is bounded by the look-ahead, and execution of
+//! a long program starts after the first junctions are final, not after the whole program.
+
+mod config;
+pub mod criteria;
+mod path;
 
 use std::collections::VecDeque;
 
-use crate::block::{ArcDir, Block, BlockKind, Feed, Path, Plane};
+pub use config::{ContinuityRule, DynamicSet, Envelope, PlannerConfig, Profile, jerk_from_p_mm_s3};
+pub use path::SegPath;
+
+use crate::block::{Block, BlockKind, Continuity, Feed, Path};
 use crate::diag::Diagnostic;
-use crate::units::{AxesMm, MAX_AXES, mm_min_to_mm_s};
+use crate::units::{AxesMm, TS_S, mm_min_to_mm_s};
 
-/// Geometry of a planned segment, evaluated by arc length.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum SegPath {
-    Line {
-        start: AxesMm,
-        end: AxesMm,
-    },
-    /// Circular arc in `plane` (helix when other axes move).
-    Arc {
-        start: AxesMm,
-        end: AxesMm,
-        center: AxesMm,
-        plane: Plane,
-        radius_mm: f64,
-        /// Angle of `start` about `center`, radians.
-        start_angle_rad: f64,
-        /// Signed sweep, radians (positive counter-clockwise).
-        sweep_rad: f64,
-    },
+/// Share of the isotropic axis acceleration given to acceleration normal to the path
+/// (corners, curvature); the rest is left to the tangential acceleration on curved segments,
+/// so their sum never exceeds an axis limit (**decided**, see `docs/planner.md`).
+pub const NORMAL_SHARE: f64 = 0.5;
+
+/// Emitted blocks kept as history for the curvature window of later junctions.
+const HISTORY_BLOCKS: usize = 32;
+
+/// Feed override ceiling (SPEC: 0-150 %): no speed can exceed 1.5 × feed.
+const OVERRIDE_MAX: f64 = 1.5;
+
+/// How the path continues at the end of a segment (SPEC §7.5: yellow / red dots).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Junction {
+    /// Not a smooth junction: the machine stops here (G98, G24, rapid, angle above R39 ...).
+    #[default]
+    Stop,
+    /// Smooth junction, the speed stays at or above the R384 d5..6 percentage of the feed.
+    Smooth,
+    /// Smooth junction, but the planned speed drops below the R384 d5..6 percentage.
+    SpeedDrop,
 }
 
-impl Default for SegPath {
-    fn default() -> Self {
-        SegPath::Line {
-            start: AxesMm::ZERO,
-            end: AxesMm::ZERO,
-        }
-    }
-}
-
-impl SegPath {
-    /// Builds an arc from start, end and centre. The sweep is taken in `dir`; a full circle
-    /// when start and end coincide.
-    pub fn arc(start: AxesMm, end: AxesMm, center: AxesMm, plane: Plane, dir: ArcDir) -> SegPath {
-        let (a, b) = plane.axes();
-        let a0 = (start[b] - center[b]).atan2(start[a] - center[a]);
-        let a1 = (end[b] - center[b]).atan2(end[a] - center[a]);
-        let radius_mm = (start[a] - center[a]).hypot(start[b] - center[b]);
-        let tau = std::f64::consts::TAU;
-        let mut sweep = a1 - a0;
-        match dir {
-            ArcDir::Ccw => {
-                while sweep <= 1e-12 {
-                    sweep += tau;
-                }
-            }
-            ArcDir::Cw => {
-                while sweep >= -1e-12 {
-                    sweep -= tau;
-                }
-            }
-        }
-        SegPath::Arc {
-            start,
-            end,
-            center,
-            plane,
-            radius_mm,
-            start_angle_rad: a0,
-            sweep_rad: sweep,
-        }
-    }
-
-    pub fn start(&self) -> AxesMm {
-        match *self {
-            SegPath::Line { start, .. } | SegPath::Arc { start, .. } => start,
-        }
-    }
-
-    pub fn end(&self) -> AxesMm {
-        match *self {
-            SegPath::Line { end, .. } | SegPath::Arc { end, .. } => end,
-        }
-    }
-
-    /// Path length over the first `axes` axes.
-    pub fn length(&self, axes: usize) -> f64 {
-        match *self {
-            SegPath::Line { start, end } => (end - start).norm(axes),
-            SegPath::Arc {
-                start,
-                end,
-                plane,
-                radius_mm,
-                sweep_rad,
-                ..
-            } => {
-                let (a, b) = plane.axes();
-                let mut off = end - start;
-                off[a] = 0.0;
-                off[b] = 0.0;
-                (radius_mm * sweep_rad).hypot(off.norm(axes))
-            }
-        }
-    }
-
-    /// Point at fraction `t` in 0..=1 of the path. `t = 1` gives the end point exactly.
-    pub fn point_at(&self, t: f64) -> AxesMm {
-        if t >= 1.0 {
-            return self.end();
-        }
-        match *self {
-            SegPath::Line { start, end } => start.lerp(&end, t),
-            SegPath::Arc {
-                start,
-                end,
-                center,
-                plane,
-                radius_mm,
-                start_angle_rad,
-                sweep_rad,
-            } => {
-                let (a, b) = plane.axes();
-                let mut p = start.lerp(&end, t);
-                let ang = start_angle_rad + sweep_rad * t;
-                p[a] = center[a] + radius_mm * ang.cos();
-                p[b] = center[b] + radius_mm * ang.sin();
-                p
-            }
-        }
-    }
-
-    /// Unit tangent (per axis) at fraction `t`, over the first `axes` axes.
-    pub fn tangent_at(&self, t: f64, axes: usize) -> AxesMm {
-        let d = match *self {
-            SegPath::Line { start, end } => end - start,
-            SegPath::Arc {
-                start,
-                end,
-                plane,
-                radius_mm,
-                start_angle_rad,
-                sweep_rad,
-                ..
-            } => {
-                let (a, b) = plane.axes();
-                let mut d = end - start;
-                let ang = start_angle_rad + sweep_rad * t;
-                d[a] = -radius_mm * sweep_rad * ang.sin();
-                d[b] = radius_mm * sweep_rad * ang.cos();
-                d
-            }
-        };
-        let n = d.norm(axes);
-        if n > 0.0 { d * (1.0 / n) } else { d }
+impl Junction {
+    /// Drawn as a red dot in the preview (a stop or a drop), SPEC §7.5.
+    pub fn is_red(self) -> bool {
+        self != Junction::Smooth
     }
 }
 
@@ -198,51 +96,67 @@ pub struct Segment {
     pub rapid: bool,
     /// Last segment of the program.
     pub last: bool,
+    /// Continuity at the end of this segment (for the preview and the API, SPEC §7.5).
+    pub junction: Junction,
+    /// G24: after stopping at the end, wait until the following error is small (SPEC §7.1).
+    pub wait_in_position: bool,
+    /// Dwell after stopping at the end of this segment, s.
+    pub dwell_s: f64,
+    /// Dynamic set 1..4 in force (SPEC §7.4).
+    pub dyn_set: u8,
 }
 
-/// Machine limits the planner needs.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PlannerConfig {
-    /// Number of axes in use.
-    pub axes: usize,
-    /// Per-axis maximum velocity (also the rapid speed), mm/s.
-    pub axis_v_max_mm_s: [f64; MAX_AXES],
-    /// Per-axis maximum acceleration, mm/s².
-    pub axis_a_max_mm_s2: [f64; MAX_AXES],
+/// A block in the look-ahead window.
+#[derive(Clone, Debug)]
+struct Pending {
+    seg: Segment,
+    continuity: Continuity,
+    /// Unit tangents at start and end.
+    t_start: AxesMm,
+    t_end: AxesMm,
+    /// Dynamic set index 0..3.
+    set: usize,
+    /// Path acceleration along the block from the axis limits.
+    a_axes: f64,
+    /// A technology block or dwell after this block forces a stop.
+    stop_after: bool,
+    /// Junction to the next block is smooth (known once the next block is in the window).
+    smooth: bool,
+    /// Turn angle at the end junction, rad.
+    turn: f64,
+    /// Speed allowed by the criteria at the end junction as if it were smooth (for R395).
+    crit: f64,
+    /// Hard cap at the end junction (0 when not smooth).
+    cap: f64,
 }
 
-impl PlannerConfig {
-    /// Limits with the same velocity and acceleration on the first `axes` axes.
-    pub fn uniform(axes: usize, v_max_mm_s: f64, a_max_mm_s2: f64) -> Self {
-        PlannerConfig {
-            axes,
-            axis_v_max_mm_s: [v_max_mm_s; MAX_AXES],
-            axis_a_max_mm_s2: [a_max_mm_s2; MAX_AXES],
-        }
-    }
-
-    /// Largest path speed and acceleration along `dir` (unit vector) that keep every axis
-    /// within its own limit.
-    pub fn path_limits(&self, dir: &AxesMm) -> (f64, f64) {
-        let mut v = f64::INFINITY;
-        let mut a = f64::INFINITY;
-        for i in 0..self.axes {
-            let c = dir[i].abs();
-            if c > 1e-12 {
-                v = v.min(self.axis_v_max_mm_s[i] / c);
-                a = a.min(self.axis_a_max_mm_s2[i] / c);
-            }
-        }
-        (v, a)
-    }
+/// A short line held back for merging into the next block (R383).
+#[derive(Clone, Copy, Debug)]
+struct Carry {
+    start: AxesMm,
+    end: AxesMm,
+    feed_mm_min: f64,
+    block: Block,
+    set: usize,
 }
 
 /// Streaming planner: push blocks, poll committed segments.
 pub struct Planner {
     cfg: PlannerConfig,
     job: u32,
-    out: VecDeque<Segment>,
+    win: VecDeque<Pending>,
+    /// Leading entries of `win` already returned by `poll` (kept as history).
+    emitted: usize,
+    /// Leading entries of `win` whose end junction is final.
+    finalized: usize,
     finished: bool,
+    carry: Option<Carry>,
+    /// Dynamic set chosen by the PLC cell DYNAM_SET, until the program selects one again.
+    plc_set: Option<usize>,
+    last_plc_cell: Option<u8>,
+    last_block_set: u8,
+    /// A technology block or dwell arrived before any motion block.
+    leading_dwell_s: f64,
 }
 
 impl Planner {
@@ -250,86 +164,582 @@ impl Planner {
         Planner {
             cfg,
             job,
-            out: VecDeque::new(),
+            win: VecDeque::new(),
+            emitted: 0,
+            finalized: 0,
             finished: false,
+            carry: None,
+            plc_set: None,
+            last_plc_cell: None,
+            last_block_set: 1,
+            leading_dwell_s: 0.0,
         }
+    }
+
+    pub fn config(&self) -> &PlannerConfig {
+        &self.cfg
     }
 
     /// Whether the planner can take another block now (its window is not full).
     pub fn wants_input(&self) -> bool {
-        !self.finished && self.out.len() < 16
+        !self.finished && self.win.len() - self.emitted < self.cfg.lookahead_blocks.max(2)
     }
 
-    /// Takes the next block.
+    /// The PLC cell DYNAM_SET (0..3 selects set 1..4, SPEC §7.4). Call it with the current
+    /// cell value before pushing blocks; a change takes over the dynamic set for the blocks
+    /// pushed from then on, until the program selects a set with `G23 I1..I4` again.
+    /// (Blocks already planned keep their set: the change acts after the look-ahead.)
+    pub fn set_dynam_set_cell(&mut self, cell: u8) {
+        if self.last_plc_cell != Some(cell) {
+            if self.last_plc_cell.is_some() || cell != 0 {
+                self.plc_set = Some(usize::from(cell.min(3)));
+            }
+            self.last_plc_cell = Some(cell);
+        }
+    }
+
+    /// Takes the next block. On error nothing is changed.
     pub fn push(&mut self, block: &Block) -> Result<(), Diagnostic> {
-        let BlockKind::Motion { start, end, path } = block.kind else {
-            return Ok(());
+        if self.finished {
+            return Err(Diagnostic::error(
+                block.n,
+                block.line,
+                0,
+                "internal: block after the end of the program",
+            ));
+        }
+        let (start, end, path) = match block.kind {
+            BlockKind::Motion { start, end, path } => (start, end, path),
+            BlockKind::Dwell { seconds } => {
+                self.flush_carry();
+                self.force_stop(seconds.max(0.0));
+                self.advance();
+                return Ok(());
+            }
+            _ => {
+                // Technology functions (M codes) run at standstill: stop before them.
+                if block.m.iter().any(Option::is_some) {
+                    self.flush_carry();
+                    self.force_stop(0.0);
+                    self.advance();
+                }
+                return Ok(());
+            }
         };
+        let axes = self.cfg.axes;
+        if (0..axes).any(|i| !start[i].is_finite() || !end[i].is_finite()) {
+            return Err(Diagnostic::error(
+                block.n,
+                block.line,
+                0,
+                "motion block with an invalid coordinate",
+            ));
+        }
+        let rapid = path == Path::Rapid;
+        let feed_mm_min = match block.feed {
+            _ if rapid => 0.0,
+            Feed::MmPerMin(f) if f.is_finite() && f > 0.0 => f,
+            Feed::MmPerMin(_) => {
+                return Err(Diagnostic::error(
+                    block.n,
+                    block.line,
+                    0,
+                    "no feed programmed for a cutting move (F missing or zero)",
+                ));
+            }
+            Feed::MmPerRev(_) => {
+                return Err(Diagnostic::error(
+                    block.n,
+                    block.line,
+                    0,
+                    "feed per revolution is not supported by the planner yet",
+                ));
+            }
+        };
+        // R383: a short line with nothing else in it merges into the next block (SPEC §7.2).
+        let mut start = start;
+        let is_line = path == Path::Line;
+        if let Some(c) = self.carry {
+            if is_line && c.feed_mm_min == feed_mm_min && block.continuity == Continuity::G23 {
+                start = c.start;
+                self.carry = None;
+            } else {
+                self.flush_carry();
+            }
+        }
         let seg_path = match path {
             Path::Rapid | Path::Line => SegPath::Line { start, end },
             Path::Arc { dir, center, plane } => SegPath::arc(start, end, center, plane, dir),
         };
-        let length_mm = seg_path.length(self.cfg.axes);
-        if length_mm <= 0.0 {
+        let length_mm = seg_path.length(axes);
+        if !(length_mm > 1e-9) {
             return Ok(());
         }
-        let dir = seg_path.tangent_at(0.0, self.cfg.axes);
-        let (v_axes, a_axes) = self.cfg.path_limits(&dir);
-        let rapid = path == Path::Rapid;
-        let feed_mm_s = if rapid {
-            v_axes
-        } else {
-            match block.feed {
-                Feed::MmPerMin(f) => mm_min_to_mm_s(f),
-                Feed::MmPerRev(_) => {
-                    return Err(Diagnostic::error(
-                        block.n,
-                        block.line,
-                        0,
-                        "feed per revolution is not supported yet",
-                    ));
-                }
-            }
-        };
-        self.out.push_back(Segment {
-            job: self.job,
-            seq: block.seq,
-            n: block.n,
-            line: block.line,
-            path: seg_path,
-            length_mm,
-            feed_mm_s,
-            v_max_mm_s: v_axes,
-            v_end_mm_s: 0.0,
-            accel_mm_s2: a_axes,
-            jerk_mm_s3: f64::INFINITY,
-            stop_accel_mm_s2: a_axes,
-            rapid,
-            last: false,
-        });
+        if let Some(m) = self.cfg.envelope.merge_len_mm
+            && is_line
+            && length_mm < m
+            && block.continuity == Continuity::G23
+            && block.m.iter().all(Option::is_none)
+        {
+            let set = self.dyn_set_of(block);
+            self.carry = Some(Carry {
+                start,
+                end,
+                feed_mm_min,
+                block: *block,
+                set,
+            });
+            return Ok(());
+        }
+        let set = self.dyn_set_of(block);
+        self.append(block, seg_path, length_mm, rapid, feed_mm_min, set);
+        self.advance();
         Ok(())
     }
 
     /// No more blocks will come.
     pub fn finish(&mut self) {
-        self.finished = true;
-        if let Some(last) = self.out.back_mut() {
-            last.last = true;
+        if self.finished {
+            return;
         }
+        self.flush_carry();
+        self.finished = true;
+        if let Some(last) = self.win.back_mut() {
+            last.seg.last = true;
+        }
+        self.advance();
     }
 
     /// Next committed segment, if any.
     pub fn poll(&mut self) -> Option<Segment> {
-        // The last queued segment stays until `finish` so it can be marked `last`.
-        if self.finished || self.out.len() > 1 {
-            self.out.pop_front()
-        } else {
-            None
+        if self.emitted >= self.win.len() {
+            return None;
         }
+        let full = self.win.len() - self.emitted >= self.cfg.lookahead_blocks.max(2);
+        let i = self.emitted;
+        if i >= self.finalized {
+            return None;
+        }
+        let p = &self.win[i];
+        let settled = p.seg.v_end_mm_s >= p.cap * (1.0 - 1e-12);
+        if !(settled || full || self.finished) {
+            return None;
+        }
+        let seg = self.win[i].seg;
+        self.emitted += 1;
+        while self.emitted > HISTORY_BLOCKS {
+            self.win.pop_front();
+            self.emitted -= 1;
+            self.finalized -= 1;
+        }
+        Some(seg)
     }
 
     /// True when everything pushed has been polled and `finish` was called.
     pub fn is_done(&self) -> bool {
-        self.finished && self.out.is_empty()
+        self.finished && self.emitted == self.win.len()
     }
+
+    fn dyn_set_of(&mut self, block: &Block) -> usize {
+        let prog = block.dyn_set.clamp(1, 4);
+        if prog != self.last_block_set {
+            // The program selected a set: it takes over from the PLC cell.
+            self.plc_set = None;
+            self.last_block_set = prog;
+        }
+        self.plc_set.unwrap_or(usize::from(prog - 1))
+    }
+
+    fn force_stop(&mut self, dwell_s: f64) {
+        let open = self.finalized < self.win.len();
+        match self.win.back_mut() {
+            Some(p) if open => {
+                p.stop_after = true;
+                p.seg.dwell_s += dwell_s;
+            }
+            _ => self.leading_dwell_s += dwell_s,
+        }
+    }
+
+    /// Emits a held-back short line as a block of its own (the next block cannot absorb it).
+    fn flush_carry(&mut self) {
+        let Some(c) = self.carry.take() else { return };
+        let path = SegPath::Line {
+            start: c.start,
+            end: c.end,
+        };
+        let length_mm = path.length(self.cfg.axes);
+        if length_mm > 1e-9 {
+            self.append(&c.block, path, length_mm, false, c.feed_mm_min, c.set);
+        }
+    }
+
+    fn append(
+        &mut self,
+        block: &Block,
+        path: SegPath,
+        length_mm: f64,
+        rapid: bool,
+        feed_mm_min: f64,
+        set: usize,
+    ) {
+        let axes = self.cfg.axes;
+        let env = &self.cfg.envelope;
+        let t_start = path.tangent_at(0.0, axes);
+        let t_end = path.tangent_at(1.0, axes);
+        // Direction for axis limits: for arcs both plane axes may move at full path speed.
+        let mut dir = t_start;
+        let mut v_max = f64::INFINITY;
+        if let SegPath::Arc {
+            plane,
+            radius_mm,
+            sweep_rad,
+            ..
+        } = path
+        {
+            let (a, b) = plane.axes();
+            let plane_share = (radius_mm * sweep_rad.abs()) / length_mm;
+            dir[a] = plane_share;
+            dir[b] = plane_share;
+            let set_ = &env.sets[set];
+            let a_iso = self.cfg.iso_accel(&dir, &dir) * NORMAL_SHARE;
+            let a_c = set_.centripetal_mm_s2.min(a_iso);
+            v_max = v_max
+                .min(criteria::curvature_mm_s(a_c, 1.0 / radius_mm))
+                .min(criteria::arc_chord_mm_s(radius_mm, env.arc_chord_um));
+            if env.profile == Profile::Parabolic {
+                let j = set_.jerk_mm_s3.min(self.cfg.path_jerk(&dir));
+                v_max = v_max.min(criteria::arc_jerk_mm_s(j, radius_mm));
+            }
+        }
+        let (v_axes, a_axes) = self.cfg.path_limits(&dir);
+        v_max = v_max.min(v_axes);
+        if !rapid {
+            v_max = v_max.min(criteria::min_duration_mm_s(
+                length_mm,
+                self.cfg.min_block_time_s,
+            ));
+        }
+        let feed_mm_s = if rapid {
+            v_axes
+        } else {
+            mm_min_to_mm_s(feed_mm_min)
+        };
+        let jerk = match env.profile {
+            Profile::Linear => f64::INFINITY,
+            Profile::Parabolic => {
+                let j = if rapid {
+                    env.rapid_jerk_mm_s3
+                } else {
+                    env.sets[set].jerk_mm_s3
+                };
+                j.min(self.cfg.path_jerk(&dir))
+            }
+        };
+        // Conservative acceleration until the junctions are known (final in `finalize`).
+        let a_plan = a_axes
+            .min(env.accel_stop_mm_s2)
+            .min(env.sets[set].accel_mm_s2)
+            * NORMAL_SHARE.min(1.0 - NORMAL_SHARE);
+        let seg = Segment {
+            job: self.job,
+            seq: block.seq,
+            n: block.n,
+            line: block.line,
+            path,
+            length_mm,
+            feed_mm_s,
+            v_max_mm_s: v_max,
+            v_end_mm_s: 0.0,
+            accel_mm_s2: a_plan,
+            jerk_mm_s3: jerk,
+            stop_accel_mm_s2: a_plan,
+            rapid,
+            last: false,
+            junction: Junction::Stop,
+            wait_in_position: false,
+            dwell_s: 0.0,
+            dyn_set: set as u8 + 1,
+        };
+        let mut p = Pending {
+            seg,
+            continuity: block.continuity,
+            t_start,
+            t_end,
+            set,
+            a_axes,
+            stop_after: false,
+            smooth: false,
+            turn: 0.0,
+            crit: 0.0,
+            cap: 0.0,
+        };
+        if self.win.is_empty() && self.leading_dwell_s > 0.0 {
+            // A dwell before the first motion: nothing to wait after; kept for the report.
+            self.leading_dwell_s = 0.0;
+        }
+        if let Some(prev) = self.win.back_mut() {
+            let turn = angle_between(&prev.t_end, &p.t_start);
+            prev.turn = turn;
+            prev.smooth = Self::is_smooth(&self.cfg, prev, &p, turn);
+            if !prev.smooth
+                && (prev.continuity == Continuity::G24 || p.continuity == Continuity::G24)
+            {
+                prev.seg.wait_in_position = true;
+            }
+        }
+        p.seg.wait_in_position = false;
+        self.win.push_back(p);
+    }
+
+    /// Junction rule of SPEC §7.1 between `prev` and `next`.
+    fn is_smooth(cfg: &PlannerConfig, prev: &Pending, next: &Pending, turn: f64) -> bool {
+        let env = &cfg.envelope;
+        if prev.stop_after || prev.seg.rapid || next.seg.rapid {
+            // G0 is never smooth (its own dynamic set; **decided** also for the manual rule).
+            return false;
+        }
+        if next.continuity != Continuity::G23 {
+            return false;
+        }
+        if let Some(b) = env.break_len_mm
+            && (prev.seg.length_mm < b || next.seg.length_mm < b)
+        {
+            return false;
+        }
+        match env.rule {
+            ContinuityRule::Manual => true,
+            ContinuityRule::Automatic => {
+                let t_min = cfg.min_block_time_s;
+                turn.to_degrees() < env.smooth_angle_deg
+                    && prev.seg.length_mm / prev.seg.feed_mm_s >= t_min
+                    && next.seg.length_mm / next.seg.feed_mm_s >= t_min
+            }
+        }
+    }
+
+    /// Finalizes every junction that has enough look-ahead, then runs the backward pass.
+    fn advance(&mut self) {
+        let full = self.win.len() - self.emitted >= self.cfg.lookahead_blocks.max(2);
+        while self.finalized < self.win.len() {
+            let i = self.finalized;
+            let last = i + 1 == self.win.len();
+            if last && !self.finished {
+                break;
+            }
+            if !last && self.win[i].smooth && !self.finished && !full && !self.ahead_known(i) {
+                break;
+            }
+            self.finalize(i, last);
+            self.finalized += 1;
+            self.backward(i);
+        }
+    }
+
+    /// Speeds at which the curvature window around junction `i` can matter.
+    fn window_len_mm(&self, i: usize) -> f64 {
+        let (a, b) = (&self.win[i].seg, &self.win[i + 1].seg);
+        let v = a
+            .v_max_mm_s
+            .max(b.v_max_mm_s)
+            .min(OVERRIDE_MAX * a.feed_mm_s.max(b.feed_mm_s));
+        v * TS_S
+    }
+
+    /// Whether the blocks after junction `i` cover half the curvature window (or end in a stop).
+    fn ahead_known(&self, i: usize) -> bool {
+        let need = self.window_len_mm(i) / 2.0;
+        let mut have = 0.0;
+        for k in i + 1..self.win.len() {
+            have += self.win[k].seg.length_mm;
+            if have >= need {
+                return true;
+            }
+            if k + 1 < self.win.len() && !self.win[k].smooth {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Unit tangent at distance `d` before (negative) or after the end of block `i`, not
+    /// crossing a stop and not leaving the window.
+    fn tangent_near(&self, i: usize, d: f64) -> AxesMm {
+        let axes = self.cfg.axes;
+        if d <= 0.0 {
+            let mut rest = -d;
+            let mut k = i;
+            loop {
+                let p = &self.win[k];
+                if rest <= p.seg.length_mm {
+                    return p.seg.path.tangent_at(1.0 - rest / p.seg.length_mm, axes);
+                }
+                rest -= p.seg.length_mm;
+                if k == 0 || !self.win[k - 1].smooth {
+                    return p.t_start;
+                }
+                k -= 1;
+            }
+        } else {
+            let mut rest = d;
+            let mut k = i + 1;
+            loop {
+                let p = &self.win[k];
+                if rest <= p.seg.length_mm {
+                    return p.seg.path.tangent_at(rest / p.seg.length_mm, axes);
+                }
+                rest -= p.seg.length_mm;
+                if k + 1 >= self.win.len() || !p.smooth {
+                    return p.t_end;
+                }
+                k += 1;
+            }
+        }
+    }
+
+    /// Computes the junction at the end of block `i` (all criteria of SPEC §7.2) and the final
+    /// limits of block `i` itself.
+    fn finalize(&mut self, i: usize, last: bool) {
+        let env = &self.cfg.envelope;
+        let (crit, cap) = if last {
+            (0.0, 0.0)
+        } else {
+            let (p, n) = (&self.win[i], &self.win[i + 1]);
+            let set = &env.sets[n.set];
+            let a_iso = self.cfg.iso_accel(&p.t_end, &n.t_start) * NORMAL_SHARE;
+            let am = set.overload_mm_s2.min(a_iso);
+            let len = 0.5 * (p.seg.length_mm + n.seg.length_mm);
+            let turn = p.turn;
+            // Dynamic criterion (R385, with the 8.R385 length correction) and accuracy (R384).
+            let mut v = criteria::dynamic_mm_s(am, turn, set.overload_ref_len_mm, len)
+                .min(criteria::accuracy_mm_s(set.accuracy_um, turn))
+                .min(p.seg.v_max_mm_s)
+                .min(n.seg.v_max_mm_s)
+                .min(OVERRIDE_MAX * p.seg.feed_mm_s.max(n.seg.feed_mm_s));
+            if p.smooth {
+                // Several junctions can fall within one tick: apply both criteria to the turn
+                // over the path one tick covers (centred on the junction). This is the local
+                // curvature cap v ≤ √(a/κ) in the form of the dynamic criterion.
+                for _ in 0..3 {
+                    let half = v * TS_S / 2.0;
+                    if half <= 0.0 {
+                        break;
+                    }
+                    let t0 = self.tangent_near(i, -half);
+                    let t1 = self.tangent_near(i, half);
+                    let theta = angle_between(&t0, &t1);
+                    let vw = (a_iso * TS_S / (2.0 * (theta / 2.0).sin()).max(1e-300))
+                        .min(criteria::accuracy_mm_s(set.accuracy_um, theta));
+                    if vw >= v {
+                        break;
+                    }
+                    v = vw;
+                }
+            }
+            (v, if p.smooth { v } else { 0.0 })
+        };
+        let prev_crit = if i > 0 { self.win[i - 1].crit } else { 0.0 };
+        let prev_smooth = i > 0 && self.win[i - 1].smooth;
+        let prev_turn = if prev_smooth {
+            self.win[i - 1].turn
+        } else {
+            0.0
+        };
+        let rise_limit = env.rise_time_s;
+        let accel_stop = env.accel_stop_mm_s2;
+        let accel_rapid = env.accel_rapid_mm_s2;
+        let rapid_a = env.rapid_accel_mm_s2;
+        let p = &mut self.win[i];
+        p.crit = crit;
+        p.cap = cap;
+        // Acceleration: R52 without continuity, R236 (or the set's A) during continuity, R237
+        // for rapids; halved on curved blocks (NORMAL_SHARE).
+        let continuous = prev_smooth || p.smooth;
+        let set_a = self.cfg.envelope.sets[p.set].accel_mm_s2;
+        let base = if p.seg.rapid {
+            accel_rapid.min(rapid_a)
+        } else if continuous {
+            set_a
+        } else {
+            accel_stop.min(set_a)
+        };
+        let curved = matches!(p.seg.path, SegPath::Arc { .. })
+            || (prev_smooth && prev_turn > 1e-9)
+            || (p.smooth && p.turn > 1e-9);
+        let k = if curved { 1.0 - NORMAL_SHARE } else { 1.0 };
+        p.seg.accel_mm_s2 = base.min(p.a_axes) * k;
+        p.seg.stop_accel_mm_s2 = rapid_a.min(p.a_axes) * k;
+        if p.seg.stop_accel_mm_s2 <= 0.0 || !p.seg.stop_accel_mm_s2.is_finite() {
+            p.seg.stop_accel_mm_s2 = p.seg.accel_mm_s2;
+        }
+        // R395: keep the junction speeds through a short block unless rising pays off.
+        if !p.seg.rapid {
+            let v_flat = prev_crit.max(crit).min(p.seg.v_max_mm_s);
+            let v_top = p.seg.v_max_mm_s.min(p.seg.feed_mm_s);
+            if !criteria::rise_pays_off(
+                p.seg.length_mm,
+                v_flat,
+                v_top,
+                p.seg.accel_mm_s2,
+                rise_limit,
+            ) {
+                p.seg.v_max_mm_s = p.seg.v_max_mm_s.min(v_flat.max(1e-9).max(cap));
+            }
+        }
+        let drop = self.cfg.envelope.sets[p.set].drop_percent / 100.0;
+        p.seg.junction = if !p.smooth || last {
+            Junction::Stop
+        } else if cap < drop * p.seg.feed_mm_s {
+            Junction::SpeedDrop
+        } else {
+            Junction::Smooth
+        };
+    }
+
+    /// Backward pass from the newly finalized junction `i`: end speeds that allow braking for
+    /// everything up to the end of the window (treated as a stop).
+    fn backward(&mut self, i: usize) {
+        let mut v_next_end = if i + 1 < self.finalized {
+            self.win[i + 1].seg.v_end_mm_s
+        } else {
+            0.0
+        };
+        let mut k = i;
+        loop {
+            let v = if k + 1 < self.win.len() {
+                let n = &self.win[k + 1].seg;
+                (v_next_end * v_next_end + 2.0 * n.accel_mm_s2 * n.length_mm)
+                    .sqrt()
+                    .min(n.v_max_mm_s)
+            } else {
+                0.0
+            };
+            let p = &mut self.win[k];
+            let v = v.min(p.cap);
+            if k != i && v <= p.seg.v_end_mm_s {
+                break;
+            }
+            p.seg.v_end_mm_s = v;
+            // Reclassify a drop that came from braking (never below what the junction allows).
+            if p.seg.junction != Junction::Stop {
+                let drop = self.cfg.envelope.sets[p.set].drop_percent / 100.0;
+                p.seg.junction = if v < drop * p.seg.feed_mm_s {
+                    Junction::SpeedDrop
+                } else {
+                    Junction::Smooth
+                };
+            }
+            if k == self.emitted {
+                break;
+            }
+            k -= 1;
+            v_next_end = v;
+        }
+    }
+}
+
+/// Angle between two unit vectors, rad.
+fn angle_between(a: &AxesMm, b: &AxesMm) -> f64 {
+    let dot: f64 = a.0.iter().zip(b.0.iter()).map(|(x, y)| x * y).sum();
+    dot.clamp(-1.0, 1.0).acos()
 }

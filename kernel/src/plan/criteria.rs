@@ -1,0 +1,130 @@
+//! Speed criteria of the envelope velocity (SPEC §7.2), as pure functions.
+//!
+//! Angles are the turn between tangents (0 = straight on, π = reversal), radians.
+
+use crate::units::TS_S;
+
+/// Dynamic criterion (R385): vm = am·Ts / (2·sin(α/2)): the velocity step at the junction,
+/// taken within one tick, is an acceleration of at most `am`.
+///
+/// Block-length correction 8.R385 (**decided**): with reference length `ref_len_mm` > 0 and
+/// mean adjacent block length L below it, vm is scaled by √(L/ref). Reason: am was tuned on a
+/// test polyline of blocks of length ref; on a polyline of the same turn per block but
+/// shorter blocks the curvature is α/L, and the same centripetal acceleration v²·α/L allows
+/// √(L/ref) of the speed. Longer blocks are not corrected upwards.
+pub fn dynamic_mm_s(am_mm_s2: f64, turn_rad: f64, ref_len_mm: f64, len_mm: f64) -> f64 {
+    let s = (turn_rad / 2.0).sin();
+    if s <= 1e-12 {
+        return f64::INFINITY;
+    }
+    let vm = am_mm_s2 * TS_S / (2.0 * s);
+    if ref_len_mm > 0.0 && len_mm < ref_len_mm {
+        vm * (len_mm / ref_len_mm).sqrt()
+    } else {
+        vm
+    }
+}
+
+/// Accuracy criterion (R384 d1..4): vm = Lm / (Ts·tan(α/2)). `lm_um` = 0 turns it off.
+/// For α ≥ 180° the junction is a reversal and the speed must be zero.
+pub fn accuracy_mm_s(lm_um: f64, turn_rad: f64) -> f64 {
+    if lm_um <= 0.0 {
+        return f64::INFINITY;
+    }
+    let t = (turn_rad / 2.0).tan();
+    if t <= 1e-12 {
+        return f64::INFINITY;
+    }
+    if !t.is_finite() || t > 1e12 {
+        return 0.0;
+    }
+    lm_um * 1e-3 / (TS_S * t)
+}
+
+/// Curvature cap v ≤ √(a/κ) (SPEC §7.2 physics note), κ in 1/mm.
+pub fn curvature_mm_s(a_mm_s2: f64, curvature_per_mm: f64) -> f64 {
+    if curvature_per_mm <= 1e-15 {
+        f64::INFINITY
+    } else {
+        (a_mm_s2 / curvature_per_mm).sqrt()
+    }
+}
+
+/// Geometric criterion on arcs (R232 d1..4): the chord of one tick deviates from the circle by
+/// (v·Ts)²/(8R) ≤ e, so v ≤ √(8·R·e)/Ts.
+pub fn arc_chord_mm_s(radius_mm: f64, chord_um: f64) -> f64 {
+    if chord_um <= 0.0 {
+        f64::INFINITY
+    } else {
+        (8.0 * radius_mm * chord_um * 1e-3).sqrt() / TS_S
+    }
+}
+
+/// Jerk cap on a circle: the axis jerk of uniform circular motion is v³/R², so v ≤ ∛(J·R²).
+pub fn arc_jerk_mm_s(jerk_mm_s3: f64, radius_mm: f64) -> f64 {
+    if jerk_mm_s3.is_finite() {
+        (jerk_mm_s3 * radius_mm * radius_mm).cbrt()
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// Minimum block duration: v ≤ L / t_min (0 = off).
+pub fn min_duration_mm_s(len_mm: f64, t_min_s: f64) -> f64 {
+    if t_min_s > 0.0 {
+        len_mm / t_min_s
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// R395 time criterion: whether rising inside a block of length `len_mm` from and back to
+/// `v_flat` towards `v_top` (acceleration `a`) saves more than `limit_s` over keeping
+/// `v_flat` through the block. A flat speed of zero is never kept.
+pub fn rise_pays_off(len_mm: f64, v_flat: f64, v_top: f64, a: f64, limit_s: f64) -> bool {
+    if v_flat <= 1e-9 || v_top <= v_flat {
+        return v_flat <= 1e-9;
+    }
+    let t_flat = len_mm / v_flat;
+    // Triangle or trapezoid from v_flat up to the peak and back.
+    let v_peak = v_top.min((v_flat * v_flat + a * len_mm).sqrt());
+    let ramp_len = (v_peak * v_peak - v_flat * v_flat) / a;
+    let t_rise = 2.0 * (v_peak - v_flat) / a + (len_mm - ramp_len).max(0.0) / v_peak;
+    t_flat - t_rise > limit_s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::f64::consts::PI;
+
+    #[test]
+    fn dynamic_criterion_matches_formula() {
+        // am = 1000 mm/s², α = 90°: vm = 1000·0.004/(2·sin 45°) = 2.828 mm/s.
+        let v = dynamic_mm_s(1000.0, PI / 2.0, 0.0, 1.0);
+        assert!((v - 4.0 / (2.0 * (PI / 4.0).sin())).abs() < 1e-12);
+        assert_eq!(dynamic_mm_s(1000.0, 0.0, 0.0, 1.0), f64::INFINITY);
+        // Correction: a quarter of the reference length halves the speed.
+        let c = dynamic_mm_s(1000.0, PI / 2.0, 0.2, 0.05);
+        assert!((c / v - 0.5).abs() < 1e-12);
+        assert_eq!(dynamic_mm_s(1000.0, PI / 2.0, 0.2, 1.0), v);
+    }
+
+    #[test]
+    fn accuracy_criterion_matches_formula() {
+        // Lm = 8 µm, α = 10°: 0.008/(0.004·tan 5°) = 22.86 mm/s.
+        let v = accuracy_mm_s(8.0, 10f64.to_radians());
+        assert!((v - 0.008 / (0.004 * 5f64.to_radians().tan())).abs() < 1e-9);
+        assert_eq!(accuracy_mm_s(0.0, 1.0), f64::INFINITY);
+        assert!(accuracy_mm_s(8.0, PI) < 1e-9);
+    }
+
+    #[test]
+    fn rise_criterion() {
+        // 0.1 mm at 10 mm/s takes 10 ms; rising cannot save 500 ms.
+        assert!(!rise_pays_off(0.1, 10.0, 100.0, 1000.0, 0.5));
+        // 100 mm at 1 mm/s takes 100 s; rising saves almost all of it.
+        assert!(rise_pays_off(100.0, 1.0, 100.0, 1000.0, 0.5));
+        assert!(rise_pays_off(100.0, 0.0, 100.0, 1000.0, 0.5));
+    }
+}
