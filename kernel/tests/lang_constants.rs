@@ -31,7 +31,12 @@ fn fixed_format_is_enforced() {
     ];
     for (text, line, col, msg) in cases {
         let e = Constants::parse(text).unwrap_err();
-        assert_eq!((e[0].line, e[0].column), (line, col), "{text}: {}", e[0].message);
+        assert_eq!(
+            (e[0].line, e[0].column),
+            (line, col),
+            "{text}: {}",
+            e[0].message
+        );
         assert!(e[0].message.contains(msg), "{text}: {}", e[0].message);
     }
 }
@@ -43,7 +48,8 @@ fn validation_refuses_out_of_range_settings() {
         c.set(r, v);
         let errs = c.validate();
         assert!(
-            errs.iter().any(|d| d.message.starts_with(&format!("R{r}:")) && d.message.contains(what)),
+            errs.iter()
+                .any(|d| d.message.starts_with(&format!("R{r}:")) && d.message.contains(what)),
             "R{r}={v}: {errs:?}"
         );
     };
@@ -77,9 +83,18 @@ fn defaults_for_named_constants() {
 #[test]
 fn css_decades_of_r329() {
     let mut c = Constants::new();
-    for (v, swap, m) in [(0.0, false, false), (0.1, true, false), (0.2, false, true), (0.3, true, true)] {
+    for (v, swap, m) in [
+        (0.0, false, false),
+        (0.1, true, false),
+        (0.2, false, true),
+        (0.3, true, true),
+    ] {
         c.set(329, v);
-        assert_eq!((c.css_g96_g97_swapped(), c.css_s_in_m_min()), (swap, m), "{v}");
+        assert_eq!(
+            (c.css_g96_g97_swapped(), c.css_s_in_m_min()),
+            (swap, m),
+            "{v}"
+        );
     }
     assert_eq!(fmt_milli(-21_140_000), "-21140.000");
     assert_eq!(fmt_milli(1_011_110), "01011.110");

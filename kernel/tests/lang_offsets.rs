@@ -39,7 +39,11 @@ fn lathe_rule_axis_two_must_be_written_2() {
     assert_eq!(t.entry(2), Some(&e(0.8, [1.0, 2.0, 0.0, 0.0])));
     let errs = parse("$KOR\n02: R=0.8 X=1.0 Z=2.0\n", &LATHE).unwrap_err();
     assert_eq!((errs[0].line, errs[0].column), (2, 17));
-    assert!(errs[0].message.contains("write its length as 2="), "{}", errs[0].message);
+    assert!(
+        errs[0].message.contains("write its length as 2="),
+        "{}",
+        errs[0].message
+    );
     // The manual's mixed example is a mill file: on a lathe its Y and Z names are refused.
     let errs = parse(MANUAL, &LATHE).unwrap_err();
     let lines: Vec<u32> = errs.iter().map(|d| d.line).collect();
@@ -78,7 +82,11 @@ fn rejected_files_name_line_and_column() {
     for (text, line, col, msg) in cases {
         let errs = parse(text, &MILL).unwrap_err();
         assert_eq!((errs[0].line, errs[0].column), (line, col), "{text:?}");
-        assert!(errs[0].message.contains(msg), "{text:?}: {}", errs[0].message);
+        assert!(
+            errs[0].message.contains(msg),
+            "{text:?}: {}",
+            errs[0].message
+        );
     }
 }
 
@@ -96,7 +104,14 @@ fn edits_change_only_the_values_present_and_bad_edits_nothing() {
     );
     t.apply(&ed).unwrap();
     assert_eq!(t.entry(1), Some(&e(5.0, [20.0, 30.0, -3.0, 0.0])));
-    for bad in ["00: R=1", "100: R=1", "01: R=x", "01 R=1", "01: Q=1", "01: R=1e3"] {
+    for bad in [
+        "00: R=1",
+        "100: R=1",
+        "01: R=x",
+        "01 R=1",
+        "01: Q=1",
+        "01: R=1e3",
+    ] {
         assert!(parse_edit(bad, &MILL).is_err(), "{bad}");
     }
     let mut t2 = before.clone();

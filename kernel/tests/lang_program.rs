@@ -1,8 +1,6 @@
 //! Interpreter behaviour against SPEC §2, §3, §4.6, §5 (issue #3).
 
-use kernel::block::{
-    ArcDir, Block, BlockKind, Comp, Continuity, Feed, Path, Plane, SpindleDir,
-};
+use kernel::block::{ArcDir, Block, BlockKind, Comp, Continuity, Feed, Path, Plane, SpindleDir};
 use kernel::offsets::{OffsetEntry, OffsetTable};
 use kernel::program::{IjMode, Setup, compile, stream, validate};
 use kernel::{Diagnostic, Severity};
@@ -123,15 +121,30 @@ fn r397_d7_turns_a_bad_arc_into_a_line_with_a_warning() {
     assert!(!c.has_errors(), "{:?}", c.diagnostics);
     assert_eq!(c.blocks[1].motion().unwrap().2, Path::Line);
     let w = &c.diagnostics[0];
-    assert_eq!((w.severity, w.block, w.line), (Severity::Warning, Some(8), 2));
+    assert_eq!(
+        (w.severity, w.block, w.line),
+        (Severity::Warning, Some(8), 2)
+    );
     assert!(w.message.contains("replaced by a line"), "{}", w.message);
 }
 
 #[test]
 fn arcs_need_both_centre_words_and_a_radius() {
-    assert!(first_error("G2 X10 Y0 I5 F100", &mill()).message.contains("both"));
-    assert!(first_error("G2 X10 Y0 I0 J0 F100", &mill()).message.contains("radius is zero"));
-    assert!(first_error("G1 X10 I5 J0 F100", &mill()).message.contains("G2 or G3"));
+    assert!(
+        first_error("G2 X10 Y0 I5 F100", &mill())
+            .message
+            .contains("both")
+    );
+    assert!(
+        first_error("G2 X10 Y0 I0 J0 F100", &mill())
+            .message
+            .contains("radius is zero")
+    );
+    assert!(
+        first_error("G1 X10 I5 J0 F100", &mill())
+            .message
+            .contains("G2 or G3")
+    );
 }
 
 #[test]
@@ -228,10 +241,26 @@ fn g92_writes_only_the_parameters_present_manual_example() {
 
 #[test]
 fn g92_needs_an_entry_and_no_motion() {
-    assert!(first_error("G92 R0=1", &mill()).message.contains("D<entry>"));
-    assert!(first_error("G92 D0 R0=1", &mill()).message.contains("01..99"));
-    assert!(first_error("G92 D100 R0=1", &mill()).message.contains("0..99"));
-    assert!(first_error("G92 D1 X5 R0=1", &mill()).message.contains("axis motion"));
+    assert!(
+        first_error("G92 R0=1", &mill())
+            .message
+            .contains("D<entry>")
+    );
+    assert!(
+        first_error("G92 D0 R0=1", &mill())
+            .message
+            .contains("01..99")
+    );
+    assert!(
+        first_error("G92 D100 R0=1", &mill())
+            .message
+            .contains("0..99")
+    );
+    assert!(
+        first_error("G92 D1 X5 R0=1", &mill())
+            .message
+            .contains("axis motion")
+    );
     let c = compile("G92 D3", &mill());
     assert!(!c.has_errors());
     assert_eq!(c.diagnostics[0].severity, Severity::Warning);
@@ -251,7 +280,11 @@ fn g92_in_the_length_offset_entry_moves_later_blocks() {
 fn g41_without_a_tool_is_an_error() {
     let e = first_error("N5 G41 G1 X10 F100", &mill());
     assert_eq!((e.block, e.line, e.column), (Some(5), 1, 4));
-    assert!(e.message.contains("select an offset entry with D"), "{}", e.message);
+    assert!(
+        e.message.contains("select an offset entry with D"),
+        "{}",
+        e.message
+    );
     assert!(compile("D0 G41 G1 X10 F100", &mill()).has_errors());
 }
 
@@ -260,8 +293,20 @@ fn compensation_carries_the_radius_of_the_selected_entry() {
     let s = with_entry_12();
     let b = ok("D12\nG42 G1 X10 F100\nX20\nG40 X30", &s);
     assert_eq!(b[0].comp, Comp::Off);
-    assert_eq!(b[1].comp, Comp::Right { d: 12, radius_mm: 1.0 });
-    assert_eq!(b[2].comp, Comp::Right { d: 12, radius_mm: 1.0 });
+    assert_eq!(
+        b[1].comp,
+        Comp::Right {
+            d: 12,
+            radius_mm: 1.0
+        }
+    );
+    assert_eq!(
+        b[2].comp,
+        Comp::Right {
+            d: 12,
+            radius_mm: 1.0
+        }
+    );
     assert_eq!(b[3].comp, Comp::Off);
 }
 
@@ -300,8 +345,16 @@ fn feed_units_and_limits() {
     assert_eq!(f[5], Feed::MmPerRev(0.2));
     assert_eq!(f[6], Feed::MmPerRev(99.999));
     assert_eq!(f[7], Feed::MmPerRev(99.999));
-    assert!(first_error("G1 X1 F90001", &mill()).message.contains("90000"));
-    assert!(first_error("G1 X1 F90.1", &mill()).message.contains("90000"));
+    assert!(
+        first_error("G1 X1 F90001", &mill())
+            .message
+            .contains("90000")
+    );
+    assert!(
+        first_error("G1 X1 F90.1", &mill())
+            .message
+            .contains("90000")
+    );
     let e = first_error("S100 M3 G95 G1 X1 F100000", &mill());
     assert!(e.message.contains("99.999"), "{}", e.message);
 }
@@ -339,7 +392,10 @@ fn lathe_example_with_r329_swap() {
         &s,
     );
     let sp = b[0].spindle;
-    assert_eq!((sp.dir, sp.s, sp.gear, sp.css), (SpindleDir::Cw, 100.0, 4, false));
+    assert_eq!(
+        (sp.dir, sp.s, sp.gear, sp.css),
+        (SpindleDir::Cw, 100.0, 4, false)
+    );
     assert_eq!(b[2].feed, Feed::MmPerRev(0.2));
     assert!(b[2].spindle.css);
     assert_eq!(b[2].spindle.s, 90.0);
@@ -370,9 +426,21 @@ fn leaving_css_without_s_keeps_the_reached_speed_for_g95() {
 
 #[test]
 fn spindle_m_conflicts() {
-    assert!(first_error("M3 M4", &mill()).message.contains("spindle direction"));
-    assert!(first_error("M36 M37", &mill()).message.contains("feed scale"));
-    assert!(first_error("M1 M2 M3 M5 M8", &mill()).message.contains("more than 4"));
+    assert!(
+        first_error("M3 M4", &mill())
+            .message
+            .contains("spindle direction")
+    );
+    assert!(
+        first_error("M36 M37", &mill())
+            .message
+            .contains("feed scale")
+    );
+    assert!(
+        first_error("M1 M2 M3 M5 M8", &mill())
+            .message
+            .contains("more than 4")
+    );
 }
 
 // ---- Continuity and dynamic sets (SPEC §7.1, §7.4) ---------------------------------------
@@ -402,7 +470,10 @@ fn continuity_modes_and_dynamic_sets() {
 
 #[test]
 fn parameters_are_assigned_and_used_with_their_decimal_point() {
-    let b = ok("R1=1000 R2=1.5 R3=-2\nG1 XR3 FR1\nX-R3 FR2\nR4=R2 YR4", &mill());
+    let b = ok(
+        "R1=1000 R2=1.5 R3=-2\nG1 XR3 FR1\nX-R3 FR2\nR4=R2 YR4",
+        &mill(),
+    );
     assert_eq!(b[1].motion().unwrap().1[0], -2.0);
     assert_eq!(b[1].feed, Feed::MmPerMin(1000.0));
     assert_eq!(b[2].motion().unwrap().1[0], 2.0);
@@ -455,8 +526,11 @@ fn a_bad_block_changes_no_state() {
 fn every_error_is_located_and_all_are_reported() {
     let text = "N1 G1 X1 F100\nN2 G1 X2 Q4\nN3 G7\n\nN5 X1.2.3\nN6 G1 G2 X1\n";
     let c = compile(text, &mill());
-    let got: Vec<(Option<u32>, u32, u32)> =
-        c.diagnostics.iter().map(|d| (d.block, d.line, d.column)).collect();
+    let got: Vec<(Option<u32>, u32, u32)> = c
+        .diagnostics
+        .iter()
+        .map(|d| (d.block, d.line, d.column))
+        .collect();
     assert_eq!(
         got,
         [
@@ -506,7 +580,13 @@ fn setup_with_a_reserved_axis_letter_is_refused() {
 fn stream_and_validate_agree_with_compile() {
     let mut text = String::new();
     for k in 0..2000 {
-        text.push_str(&format!("N{k} G1 X{}.{} Y{} F{}\n", k % 97, k % 10, k % 13, 100 + k));
+        text.push_str(&format!(
+            "N{k} G1 X{}.{} Y{} F{}\n",
+            k % 97,
+            k % 10,
+            k % 13,
+            100 + k
+        ));
         if k % 500 == 0 {
             text.push_str("G2 X-1 Y0 I1 J1\n"); // wrong circle → error every 500 blocks
         }
