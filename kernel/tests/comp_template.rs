@@ -1,0 +1,102 @@
+//! The MIKROPROG template example (SPEC §4, seed 002 "MIKROPROG" guide): 10 mm cutter, start
+//! X-30 Y0, G41 round the outside of the template. `programs/mikroprog_template.nc` goes
+//! through the real parser and the compensator; the tool-centre path is checked point by
+//! point (mode R339 = 1: the guide says arcs are always inserted) and by the independent
+//! path checker (mode R339 = 0, intersections).
+
+#[path = "comp_helpers.rs"]
+mod helpers;
+
+use helpers::*;
+use kernel::block::{Block, Plane};
+use kernel::comp::geom::V2;
+use kernel::comp::{CompConfig, CornerMode, Role, compensate_all_traced};
+use kernel::constants::Constants;
+use kernel::program::{Setup, compile};
+use kernel::Severity;
+
+fn template_blocks() -> Vec<Block> {
+    let text = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../programs/mikroprog_template.nc"
+    ))
+    .expect("template program");
+    let mut setup = Setup::new(&['X', 'Y', 'Z']);
+    setup.start[0] = -30.0;
+    let c = compile(&text, &setup);
+    assert!(!c.has_errors(), "{:?}", c.diagnostics);
+    c.blocks
+}
+
+fn p(x: f64, y: f64) -> V2 {
+    V2::new(x, y)
+}
+
+#[test]
+fn template_with_inserted_arcs_follows_the_expected_tool_centre_path() {
+    let blocks = template_blocks();
+    let cfg = CompConfig {
+        corner_mode: CornerMode::ArcAboveLimit,
+        arc_insertion_limit_deg: 0.0,
+        ..CompConfig::default()
+    };
+    let (out, diags) = compensate_all_traced(&blocks, &cfg);
+    assert!(errors(&diags).is_empty(), "{diags:?}");
+    let (pieces, arcs) = check_path(&blocks, &out, Plane::G17, 1e-9).unwrap();
+    assert_eq!((pieces, arcs), (7, 3));
+    let mv = motions(&out);
+    // Direction of N100 and its left normal, for the corner points at (55,10) and (80,0).
+    let d = (p(80.0, 0.0) - p(55.0, 10.0)).unit();
+    let n = d.left() * 5.0;
+    let expected: Vec<(Option<u32>, Role, V2, V2)> = vec![
+        (Some(40), Role::StartMove, p(-30.0, 0.0), p(-5.0, 0.0)),
+        (Some(50), Role::Equidistant, p(-5.0, 0.0), p(-5.0, 20.0)),
+        (Some(60), Role::Equidistant, p(-5.0, 20.0), p(20.0, 45.0)),
+        (Some(70), Role::Equidistant, p(20.0, 45.0), p(40.0, 45.0)),
+        (Some(80), Role::CornerArc, p(40.0, 45.0), p(45.0, 40.0)),
+        (Some(80), Role::Equidistant, p(45.0, 40.0), p(45.0, 25.0)),
+        (Some(90), Role::Equidistant, p(45.0, 25.0), p(55.0, 15.0)),
+        (Some(100), Role::CornerArc, p(55.0, 15.0), p(55.0, 10.0) + n),
+        (Some(100), Role::Equidistant, p(55.0, 10.0) + n, p(80.0, 0.0) + n),
+        (Some(110), Role::CornerArc, p(80.0, 0.0) + n, p(80.0, -5.0)),
+        (Some(110), Role::Equidistant, p(80.0, -5.0), p(0.0, -5.0)),
+        (Some(120), Role::Passthrough, p(0.0, -5.0), p(-10.0, 0.0)),
+        (Some(130), Role::Passthrough, p(-10.0, 0.0), p(-30.0, 0.0)),
+    ];
+    assert_eq!(mv.len(), expected.len(), "{mv:#?}");
+    for (got, (n, role, s, e)) in mv.iter().zip(expected) {
+        assert_eq!((got.block.n, got.role), (n, role));
+        let (gs, ge) = ends(&got.block, Plane::G17);
+        assert_close(gs, s, 1e-9);
+        assert_close(ge, e, 1e-9);
+    }
+    // Every block of the program is still there, in order (technology blocks included).
+    let seqs: Vec<u32> = out.iter().map(|c| c.block.seq).collect();
+    assert!(seqs.windows(2).all(|w| w[0] <= w[1]));
+    assert_eq!(seqs.first(), Some(&0));
+    assert_eq!(seqs.last(), Some(&(blocks.len() as u32 - 1)));
+}
+
+#[test]
+fn template_with_intersections_and_machine_constants() {
+    let blocks = template_blocks();
+    let mut c = Constants::new();
+    c.set(95, 10000.0);
+    c.set(765, 11000.0); // R765: report and optimise beyond 300 %
+    let cfg = CompConfig::from_constants(&c);
+    let (out, diags) = compensate_all_traced(&blocks, &cfg);
+    assert!(errors(&diags).is_empty(), "{diags:?}");
+    check_path(&blocks, &out, Plane::G17, 1e-9).unwrap();
+    let mv = motions(&out);
+    // N70 → N80: outside 90° corner, intersection of the equidistants at (45, 45).
+    let n70 = mv.iter().find(|c| c.block.n == Some(70)).unwrap();
+    assert_close(ends(&n70.block, Plane::G17).1, p(45.0, 45.0), 1e-9);
+    // N100 → N110 turns by 158°: the intersection lies 26 mm from the corner, beyond 300 %
+    // of the radius, so R765 reports it and inserts an arc instead.
+    let warn = with_severity(&diags, Severity::Warning);
+    assert!(
+        warn.iter().any(|d| d.block == Some(110) && d.message.contains("R765")),
+        "{diags:?}"
+    );
+    assert!(mv.iter().any(|c| c.role == Role::CornerArc && c.block.n == Some(110)));
+}
