@@ -28,6 +28,17 @@ impl Default for SimDriveParams {
 /// Internal integration steps per cycle (the drive's own loop runs faster than 4 ms).
 const SUBSTEPS: u32 = 8;
 
+/// The position loop: where a drive at `position_mm` is after `dt_s` chasing `setpoint_mm`.
+pub fn follow(params: &SimDriveParams, position_mm: f64, setpoint_mm: f64, dt_s: f64) -> f64 {
+    let h = dt_s / SUBSTEPS as f64;
+    let mut p = position_mm;
+    for _ in 0..SUBSTEPS {
+        let v = (params.kv_per_s * (setpoint_mm - p)).clamp(-params.v_max_mm_s, params.v_max_mm_s);
+        p += v * h;
+    }
+    p
+}
+
 #[derive(Clone, Debug)]
 pub struct SimDrive {
     pub params: SimDriveParams,
@@ -86,12 +97,7 @@ impl SimDrive {
             DriveState::Operational => {}
             _ => return,
         }
-        let h = dt_s / SUBSTEPS as f64;
-        for _ in 0..SUBSTEPS {
-            let v = (self.params.kv_per_s * (setpoint_mm - self.position_mm))
-                .clamp(-self.params.v_max_mm_s, self.params.v_max_mm_s);
-            self.position_mm += v * h;
-        }
+        self.position_mm = follow(&self.params, self.position_mm, setpoint_mm, dt_s);
         if (setpoint_mm - self.position_mm).abs() > self.params.following_window_mm {
             self.state = DriveState::Fault;
         }

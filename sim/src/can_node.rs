@@ -1,0 +1,361 @@
+//! A simulated CANopen CiA 402 drive node: NMT slave, expedited SDO server for the objects a
+//! CSP master configures, synchronous PDOs, EMCY, heartbeat producer and consumer, and fault
+//! injection. No I/O: the caller feeds frames and the time, and sends what comes out (the
+//! `sim-can` binary does that on a SocketCAN interface; tests do it in memory).
+
+use hal::canopen::emcy::Emcy;
+use hal::canopen::pdo::{RPDO1_MAPPING, Rpdo, TPDO1_MAPPING, Tpdo};
+use hal::canopen::sdo::{self, Request, abort};
+use hal::canopen::{Frame, cob, nmt};
+
+use crate::cia402_drive::{COMMUNICATION_LOST, Cia402Drive, Event};
+
+/// Fault-injection switches.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Injection {
+    /// Stop producing heartbeats (everything else continues).
+    pub drop_heartbeat: bool,
+    /// Stop answering anything: a hung drive.
+    pub silent: bool,
+    /// Send TPDOs with a wrong length (a corrupt frame as the master sees it).
+    pub corrupt_pdo: bool,
+}
+
+/// Communication objects (reset to these by NMT reset).
+#[derive(Clone, Copy, Debug)]
+struct CommObjects {
+    rpdo_cob: u32,
+    rpdo_type: u8,
+    rpdo_map: [u32; 2],
+    rpdo_count: u8,
+    tpdo_cob: u32,
+    tpdo_type: u8,
+    tpdo_map: [u32; 2],
+    tpdo_count: u8,
+    comm_cycle_us: u32,
+    heartbeat_ms: u16,
+    consumer: u32,
+    mode: u8,
+    interp_period: (u8, i8),
+}
+
+const DISABLED: u32 = 0x8000_0000;
+
+impl CommObjects {
+    /// Power-on values: PDOs unmapped and disabled, so an unconfigured drive stays quiet.
+    fn defaults(id: u8) -> CommObjects {
+        let n = u32::from(id);
+        CommObjects {
+            rpdo_cob: DISABLED | (0x200 + n),
+            rpdo_type: 255,
+            rpdo_map: [0; 2],
+            rpdo_count: 0,
+            tpdo_cob: DISABLED | (0x180 + n),
+            tpdo_type: 255,
+            tpdo_map: [0; 2],
+            tpdo_count: 0,
+            comm_cycle_us: 0,
+            heartbeat_ms: 0,
+            consumer: 0,
+            mode: 0,
+            interp_period: (4, -3),
+        }
+    }
+
+    fn rpdo_active(&self, id: u8) -> bool {
+        self.rpdo_cob == 0x200 + u32::from(id) && self.rpdo_count == 2 && self.rpdo_type <= 240
+    }
+
+    fn tpdo_active(&self, id: u8) -> bool {
+        self.tpdo_cob == 0x180 + u32::from(id) && self.tpdo_count == 2 && self.tpdo_type <= 240
+    }
+
+    fn cycle_s(&self) -> f64 {
+        let (v, e) = self.interp_period;
+        f64::from(v) * 10f64.powi(i32::from(e))
+    }
+}
+
+pub struct CanNode {
+    pub id: u8,
+    pub drive: Cia402Drive,
+    pub inject: Injection,
+    nmt: u8,
+    od: CommObjects,
+    latched: Option<Rpdo>,
+    held: Rpdo,
+    next_heartbeat_ms: u64,
+    master_heartbeat_ms: Option<u64>,
+    booted: bool,
+}
+
+impl CanNode {
+    pub fn new(id: u8, drive: Cia402Drive) -> CanNode {
+        CanNode {
+            id,
+            drive,
+            inject: Injection::default(),
+            nmt: nmt::state::PRE_OPERATIONAL,
+            od: CommObjects::defaults(id),
+            latched: None,
+            held: Rpdo {
+                controlword: 0,
+                target_increments: 0,
+            },
+            next_heartbeat_ms: 0,
+            master_heartbeat_ms: None,
+            booted: false,
+        }
+    }
+
+    pub fn nmt_state(&self) -> u8 {
+        self.nmt
+    }
+
+    fn boot(&mut self, now_ms: u64, out: &mut Vec<Frame>) {
+        self.od = CommObjects::defaults(self.id);
+        self.nmt = nmt::state::PRE_OPERATIONAL;
+        self.latched = None;
+        self.master_heartbeat_ms = None;
+        self.next_heartbeat_ms = now_ms;
+        out.push(nmt::heartbeat(self.id, nmt::state::BOOT_UP));
+    }
+
+    fn announce(&self, e: Option<Event>, out: &mut Vec<Frame>) {
+        let emcy = match e {
+            Some(Event::Fault { code }) => Emcy {
+                code,
+                register: 0x01,
+                vendor: [0; 5],
+            },
+            Some(Event::FaultCleared) => Emcy {
+                code: 0,
+                register: 0,
+                vendor: [0; 5],
+            },
+            None => return,
+        };
+        out.push(emcy.encode(self.id));
+    }
+
+    /// A drive fault from outside the drive model (fault injection).
+    pub fn force_fault(&mut self, code: u16, out: &mut Vec<Frame>) {
+        let e = self.drive.fault(code);
+        self.announce(e, out);
+    }
+
+    /// Handles one received frame.
+    pub fn handle(&mut self, f: &Frame, now_ms: u64, out: &mut Vec<Frame>) {
+        let start = out.len();
+        self.handle_inner(f, now_ms, out);
+        if self.inject.silent {
+            out.truncate(start);
+        }
+    }
+
+    fn handle_inner(&mut self, f: &Frame, now_ms: u64, out: &mut Vec<Frame>) {
+        let p = f.payload();
+        if f.id == cob::NMT {
+            if p.len() == 2 && (p[1] == 0 || p[1] == self.id) {
+                self.on_nmt(p[0], now_ms, out);
+            }
+            return;
+        }
+        if self.inject.silent {
+            return;
+        }
+        if f.id == cob::SYNC {
+            self.on_sync(out);
+            return;
+        }
+        let (code, node) = cob::split(f.id);
+        let consumer_id = ((self.od.consumer >> 16) & 0x7F) as u8;
+        match code {
+            cob::HEARTBEAT if node == consumer_id && consumer_id != 0 => {
+                self.master_heartbeat_ms = Some(now_ms);
+            }
+            cob::RPDO1 if node == self.id => {
+                if self.nmt == nmt::state::OPERATIONAL && self.od.rpdo_active(self.id) {
+                    self.latched = Rpdo::decode(p);
+                }
+            }
+            cob::SDO_RX if node == self.id && self.nmt != nmt::state::STOPPED => {
+                let answer = match sdo::parse_request(p) {
+                    Ok(Request::Download {
+                        index,
+                        subindex,
+                        value,
+                        ..
+                    }) => match self.write(index, subindex, value) {
+                        Ok(()) => sdo::download_ok(self.id, index, subindex),
+                        Err(code) => sdo::abort(self.id, index, subindex, code),
+                    },
+                    Ok(Request::Upload { index, subindex }) => match self.read(index, subindex) {
+                        Ok((value, size)) => sdo::upload_ok(self.id, index, subindex, value, size),
+                        Err(code) => sdo::abort(self.id, index, subindex, code),
+                    },
+                    Err(code) => sdo::abort(self.id, 0, 0, code),
+                };
+                out.push(answer);
+            }
+            _ => {}
+        }
+    }
+
+    fn on_nmt(&mut self, cmd: u8, now_ms: u64, out: &mut Vec<Frame>) {
+        match nmt::Command::from_byte(cmd) {
+            Some(nmt::Command::Start) => self.nmt = nmt::state::OPERATIONAL,
+            Some(nmt::Command::Stop) => self.nmt = nmt::state::STOPPED,
+            Some(nmt::Command::EnterPreOperational) => self.nmt = nmt::state::PRE_OPERATIONAL,
+            Some(nmt::Command::ResetNode) => {
+                self.drive.restart();
+                self.boot(now_ms, out);
+            }
+            Some(nmt::Command::ResetCommunication) => self.boot(now_ms, out),
+            None => {}
+        }
+        if self.nmt != nmt::state::OPERATIONAL
+            && self.drive.state() != hal::cia402::PowerState::Fault
+        {
+            // Leaving NMT operational switches the power stage off.
+            self.drive.restart();
+        }
+    }
+
+    fn on_sync(&mut self, out: &mut Vec<Frame>) {
+        if self.nmt != nmt::state::OPERATIONAL {
+            return;
+        }
+        if self.od.rpdo_active(self.id) {
+            if let Some(r) = self.latched.take() {
+                self.held = r;
+            }
+            let e = self.drive.cycle(
+                self.held.controlword,
+                self.held.target_increments,
+                self.od.cycle_s(),
+            );
+            self.announce(e, out);
+        }
+        if self.od.tpdo_active(self.id) {
+            let mut f = Tpdo {
+                statusword: self.drive.statusword(),
+                position_increments: self.drive.position_increments(),
+            }
+            .encode(self.id);
+            if self.inject.corrupt_pdo {
+                f.len = 3;
+            }
+            out.push(f);
+        }
+    }
+
+    /// Time passes: heartbeat production and the consumer watch on the master.
+    pub fn poll(&mut self, now_ms: u64, out: &mut Vec<Frame>) {
+        if !self.booted {
+            self.booted = true;
+            self.boot(now_ms, out);
+        }
+        if self.inject.silent {
+            return;
+        }
+        let hb = u64::from(self.od.heartbeat_ms);
+        if hb > 0 && now_ms >= self.next_heartbeat_ms {
+            self.next_heartbeat_ms = now_ms + hb;
+            if !self.inject.drop_heartbeat {
+                out.push(nmt::heartbeat(self.id, self.nmt));
+            }
+        }
+        let consumer_ms = u64::from(self.od.consumer & 0xFFFF);
+        if let Some(last) = self.master_heartbeat_ms
+            && consumer_ms > 0
+            && now_ms.saturating_sub(last) > consumer_ms
+        {
+            self.master_heartbeat_ms = None;
+            if self.nmt == nmt::state::OPERATIONAL {
+                let e = self.drive.fault(COMMUNICATION_LOST);
+                self.announce(e, out);
+            }
+        }
+    }
+
+    fn write(&mut self, index: u16, sub: u8, v: u32) -> Result<(), u32> {
+        let od = &mut self.od;
+        match (index, sub) {
+            (0x1400, 1) => od.rpdo_cob = v,
+            (0x1400, 2) if v <= 255 => od.rpdo_type = v as u8,
+            (0x1800, 1) => od.tpdo_cob = v,
+            (0x1800, 2) if v <= 255 => od.tpdo_type = v as u8,
+            (0x1600 | 0x1A00, 0) => {
+                let (cob_id, map, count, want) = if index == 0x1600 {
+                    (od.rpdo_cob, od.rpdo_map, &mut od.rpdo_count, RPDO1_MAPPING)
+                } else {
+                    (od.tpdo_cob, od.tpdo_map, &mut od.tpdo_count, TPDO1_MAPPING)
+                };
+                if cob_id & DISABLED == 0 {
+                    return Err(abort::DEVICE_STATE);
+                }
+                match v {
+                    0 => *count = 0,
+                    2 if map == want => *count = 2,
+                    2 => return Err(abort::CANNOT_MAP),
+                    _ => return Err(abort::VALUE_RANGE),
+                }
+            }
+            (0x1600 | 0x1A00, 1 | 2) => {
+                let i = usize::from(sub - 1);
+                let (count, map, want) = if index == 0x1600 {
+                    (od.rpdo_count, &mut od.rpdo_map, RPDO1_MAPPING)
+                } else {
+                    (od.tpdo_count, &mut od.tpdo_map, TPDO1_MAPPING)
+                };
+                if count != 0 {
+                    return Err(abort::DEVICE_STATE);
+                }
+                // This drive supports only the one CSP layout; say so instead of misbehaving.
+                if v != want[i] {
+                    return Err(abort::CANNOT_MAP);
+                }
+                map[i] = v;
+            }
+            (0x6060, 0) if v == 8 => od.mode = 8,
+            (0x6060, 0) => return Err(abort::VALUE_RANGE),
+            (0x60C2, 1) if v <= 255 => od.interp_period.0 = v as u8,
+            (0x60C2, 2) if v <= 255 => od.interp_period.1 = v as u8 as i8,
+            (0x1006, 0) => od.comm_cycle_us = v,
+            (0x1017, 0) if v <= 0xFFFF => od.heartbeat_ms = v as u16,
+            (0x1016, 1) => od.consumer = v,
+            (0x6065, 0) => self.drive.set_window_increments(v),
+            (0x1000 | 0x6041 | 0x6064 | 0x6061 | 0x603F, 0) => return Err(abort::READ_ONLY),
+            (
+                0x1400 | 0x1800 | 0x1600 | 0x1A00 | 0x60C2 | 0x1017 | 0x1016 | 0x6060 | 0x1006
+                | 0x6065,
+                _,
+            ) => {
+                return Err(abort::NO_SUBINDEX);
+            }
+            _ => return Err(abort::NO_OBJECT),
+        }
+        Ok(())
+    }
+
+    fn read(&self, index: u16, sub: u8) -> Result<(u32, u8), u32> {
+        let od = &self.od;
+        Ok(match (index, sub) {
+            (0x1000, 0) => (0x0002_0192, 4), // CiA 402 device, servo
+            (0x1006, 0) => (od.comm_cycle_us, 4),
+            (0x1017, 0) => (u32::from(od.heartbeat_ms), 2),
+            (0x1016, 1) => (od.consumer, 4),
+            (0x1400, 1) => (od.rpdo_cob, 4),
+            (0x1800, 1) => (od.tpdo_cob, 4),
+            (0x1600, 0) => (u32::from(od.rpdo_count), 1),
+            (0x1A00, 0) => (u32::from(od.tpdo_count), 1),
+            (0x6060 | 0x6061, 0) => (u32::from(od.mode), 1),
+            (0x6041, 0) => (u32::from(self.drive.statusword()), 2),
+            (0x6064, 0) => (self.drive.position_increments() as u32, 4),
+            (0x6065, 0) => (self.drive.window_increments(), 4),
+            (0x603F, 0) => (u32::from(self.drive.error_code()), 2),
+            _ => return Err(abort::NO_OBJECT),
+        })
+    }
+}

@@ -1,0 +1,169 @@
+//! A CiA 402 servo drive in cyclic synchronous position mode, as the bus simulators expose
+//! it: power state machine, position loop with lag ([`crate::drive::follow`]), following-error
+//! window (0x6065), error code (0x603F). Positions on the wire are increments.
+
+use hal::cia402::{self, PowerState, sw};
+
+use crate::drive::{SimDriveParams, follow};
+
+/// What a cycle changed that the bus must announce (CANopen: an EMCY message).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Event {
+    Fault { code: u16 },
+    FaultCleared,
+}
+
+/// Error code of a following error (CiA 402).
+pub const FOLLOWING_ERROR: u16 = 0x8611;
+/// Error code when the controller's heartbeat or setpoints stop (CiA 301 "life guard").
+pub const COMMUNICATION_LOST: u16 = 0x8130;
+
+#[derive(Clone, Debug)]
+pub struct Cia402Drive {
+    pub params: SimDriveParams,
+    pub increments_per_mm: f64,
+    state: PowerState,
+    last_controlword: u16,
+    position_mm: f64,
+    following_error: bool,
+    error_code: u16,
+}
+
+impl Cia402Drive {
+    pub fn new(params: SimDriveParams, increments_per_mm: f64, start_mm: f64) -> Self {
+        Cia402Drive {
+            params,
+            increments_per_mm,
+            state: PowerState::SwitchOnDisabled,
+            last_controlword: 0,
+            position_mm: start_mm,
+            following_error: false,
+            error_code: 0,
+        }
+    }
+
+    pub fn state(&self) -> PowerState {
+        self.state
+    }
+
+    pub fn error_code(&self) -> u16 {
+        self.error_code
+    }
+
+    pub fn position_mm(&self) -> f64 {
+        self.position_mm
+    }
+
+    pub fn position_increments(&self) -> i32 {
+        (self.position_mm * self.increments_per_mm).round() as i32
+    }
+
+    /// Following-error window, increments (0x6065).
+    pub fn window_increments(&self) -> u32 {
+        (self.params.following_window_mm * self.increments_per_mm).round() as u32
+    }
+
+    pub fn set_window_increments(&mut self, inc: u32) {
+        self.params.following_window_mm = f64::from(inc) / self.increments_per_mm;
+    }
+
+    pub fn statusword(&self) -> u16 {
+        let mut s = self.state.statusword_bits() | sw::REMOTE;
+        if self.state == PowerState::OperationEnabled {
+            s |= sw::TARGET_FOLLOWED;
+        }
+        if self.following_error {
+            s |= sw::FOLLOWING_ERROR;
+        }
+        s
+    }
+
+    /// A software reset (NMT reset node): power stage off, faults cleared, position kept.
+    pub fn restart(&mut self) {
+        self.state = PowerState::SwitchOnDisabled;
+        self.last_controlword = 0;
+        self.following_error = false;
+        self.error_code = 0;
+    }
+
+    /// The drive's own fault (over-current, lost communication...).
+    pub fn fault(&mut self, code: u16) -> Option<Event> {
+        if self.state == PowerState::Fault {
+            return None;
+        }
+        self.state = PowerState::Fault;
+        self.error_code = code;
+        Some(Event::Fault { code })
+    }
+
+    /// One cycle: apply the controlword, then follow `target_increments` for `dt_s` when
+    /// enabled (the target is ignored otherwise: the drive holds where it is).
+    pub fn cycle(&mut self, controlword: u16, target_increments: i32, dt_s: f64) -> Option<Event> {
+        let before = self.state;
+        self.state = cia402::apply_controlword(self.state, self.last_controlword, controlword);
+        self.last_controlword = controlword;
+        let mut event = None;
+        if before == PowerState::Fault && self.state != PowerState::Fault {
+            self.following_error = false;
+            self.error_code = 0;
+            event = Some(Event::FaultCleared);
+        }
+        if self.state == PowerState::OperationEnabled {
+            let target_mm = f64::from(target_increments) / self.increments_per_mm;
+            self.position_mm = follow(&self.params, self.position_mm, target_mm, dt_s);
+            if (target_mm - self.position_mm).abs() > self.params.following_window_mm {
+                self.following_error = true;
+                event = self.fault(FOLLOWING_ERROR);
+            }
+        }
+        event
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hal::cia402::cw;
+
+    fn enabled() -> Cia402Drive {
+        let mut d = Cia402Drive::new(SimDriveParams::default(), 1000.0, 1.0);
+        for c in [cw::SHUTDOWN, cw::SWITCH_ON_CMD, cw::ENABLE_OPERATION_CMD] {
+            assert_eq!(d.cycle(c, 1000, 0.004), None);
+        }
+        assert_eq!(d.state(), PowerState::OperationEnabled);
+        d
+    }
+
+    #[test]
+    fn follows_with_lag_and_faults_beyond_the_window() {
+        let mut d = enabled();
+        assert_eq!(
+            d.position_increments(),
+            1000,
+            "disabled drive holds its position"
+        );
+        for _ in 0..500 {
+            d.cycle(cw::ENABLE_OPERATION_CMD, 5000, 0.004);
+        }
+        assert_eq!(d.position_increments(), 5000);
+        let e = d.cycle(cw::ENABLE_OPERATION_CMD, 5000 + 60_000, 0.004);
+        assert_eq!(
+            e,
+            Some(Event::Fault {
+                code: FOLLOWING_ERROR
+            })
+        );
+        assert_ne!(d.statusword() & sw::FOLLOWING_ERROR, 0);
+        assert_eq!(
+            PowerState::from_statusword(d.statusword()),
+            PowerState::Fault
+        );
+        // Fault reset edge clears it.
+        d.cycle(0, 0, 0.004);
+        assert_eq!(
+            d.cycle(cw::FAULT_RESET, 0, 0.004),
+            Some(Event::FaultCleared)
+        );
+        assert_eq!(d.statusword() & sw::FOLLOWING_ERROR, 0);
+    }
+}

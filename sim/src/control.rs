@@ -1,0 +1,186 @@
+//! Command line and fault-injection commands shared by the simulator binaries.
+//!
+//! Fault injection is driven by lines on the simulator's standard input, so a test (or a
+//! person at a terminal) can switch faults on and off while it runs:
+//!
+//! | line | effect |
+//! |---|---|
+//! | `heartbeat off [NODE]` / `heartbeat on [NODE]` | stop / resume heartbeats (CAN) |
+//! | `silent on [NODE]` / `silent off [NODE]` | stop answering anything / resume |
+//! | `corrupt on [NODE]` / `corrupt off [NODE]` | send corrupt frames (CAN: short TPDO; serial: bit flip) |
+//! | `fault CODE [NODE]` | force a drive fault with error code CODE (hex, e.g. `2310`) |
+//! | `unplug` / `plug` | close the serial line / open a new one at the same link path (serial) |
+//! | `quit` | exit |
+//!
+//! NODE is a CAN node id, or a 1-based axis number for the serial unit; without it the
+//! command applies to all.
+
+use std::io::BufRead;
+use std::sync::mpsc;
+
+use crate::SimDriveParams;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Command {
+    Heartbeat(bool, Option<u8>),
+    Silent(bool, Option<u8>),
+    Corrupt(bool, Option<u8>),
+    Fault(u16, Option<u8>),
+    Unplug,
+    Plug,
+    Quit,
+}
+
+fn on_off(w: Option<&str>) -> Result<bool, String> {
+    match w {
+        Some("on") => Ok(true),
+        Some("off") => Ok(false),
+        _ => Err("expected on or off".into()),
+    }
+}
+
+fn node(w: Option<&str>) -> Result<Option<u8>, String> {
+    w.map(|s| s.parse().map_err(|_| format!("bad node '{s}'")))
+        .transpose()
+}
+
+pub fn parse(line: &str) -> Result<Command, String> {
+    let mut w = line.split_whitespace();
+    let cmd = w.next().unwrap_or("");
+    let a = w.next();
+    let b = w.next();
+    Ok(match cmd {
+        "heartbeat" => Command::Heartbeat(on_off(a)?, node(b)?),
+        "silent" => Command::Silent(on_off(a)?, node(b)?),
+        "corrupt" => Command::Corrupt(on_off(a)?, node(b)?),
+        "fault" => {
+            let code = a
+                .and_then(|s| u16::from_str_radix(s.trim_end_matches('h'), 16).ok())
+                .ok_or("expected a hex error code")?;
+            Command::Fault(code, node(b)?)
+        }
+        "unplug" => Command::Unplug,
+        "plug" => Command::Plug,
+        "quit" => Command::Quit,
+        _ => return Err(format!("unknown command '{cmd}'")),
+    })
+}
+
+/// Reads commands from stdin on a thread. End of input is not a command: the simulator keeps
+/// running until killed or told `quit`.
+pub fn stdin_commands() -> mpsc::Receiver<Command> {
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in std::io::stdin().lock().lines() {
+            let Ok(line) = line else { return };
+            if line.trim().is_empty() {
+                continue;
+            }
+            match parse(&line) {
+                Ok(c) => {
+                    if tx.send(c).is_err() {
+                        return;
+                    }
+                }
+                Err(e) => eprintln!("sim: {e}"),
+            }
+        }
+    });
+    rx
+}
+
+/// Options common to the simulators.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SimArgs {
+    /// CAN interface (`sim-can`).
+    pub iface: String,
+    /// Node ids (`sim-can`), one drive each.
+    pub nodes: Vec<u8>,
+    /// Link path (`sim-serial`): a symlink to the pty the controller opens.
+    pub link: String,
+    /// Axes of the serial unit.
+    pub axes: usize,
+    pub increments_per_mm: f64,
+    pub start_mm: f64,
+    pub params: SimDriveParams,
+}
+
+pub const USAGE: &str = "options: --iface IF --node N (repeatable) | --link PATH --axes N; \
+    --increments-per-mm F --start-mm F --kv F --v-max-mm-s F --window-mm F";
+
+impl SimArgs {
+    pub fn parse(args: impl Iterator<Item = String>) -> Result<SimArgs, String> {
+        let mut a = SimArgs {
+            iface: "vcan0".into(),
+            nodes: Vec::new(),
+            link: String::new(),
+            axes: 1,
+            increments_per_mm: 10_000.0,
+            start_mm: 0.0,
+            params: SimDriveParams::default(),
+        };
+        let mut it = args;
+        while let Some(k) = it.next() {
+            let mut v = || it.next().ok_or(format!("{k} needs a value"));
+            let num = |s: String| s.parse::<f64>().map_err(|_| format!("bad number '{s}'"));
+            match k.as_str() {
+                "--iface" => a.iface = v()?,
+                "--node" => {
+                    let s = v()?;
+                    let n: u8 = s.parse().map_err(|_| format!("bad node id '{s}'"))?;
+                    if !(1..=127).contains(&n) {
+                        return Err(format!("node id {n} outside 1..127"));
+                    }
+                    a.nodes.push(n);
+                }
+                "--link" => a.link = v()?,
+                "--axes" => {
+                    let s = v()?;
+                    a.axes = s
+                        .parse()
+                        .ok()
+                        .filter(|n| (1..=hal::MAX_AXES).contains(n))
+                        .ok_or(format!("bad axis count '{s}'"))?;
+                }
+                "--increments-per-mm" => a.increments_per_mm = num(v()?)?,
+                "--start-mm" => a.start_mm = num(v()?)?,
+                "--kv" => a.params.kv_per_s = num(v()?)?,
+                "--v-max-mm-s" => a.params.v_max_mm_s = num(v()?)?,
+                "--window-mm" => a.params.following_window_mm = num(v()?)?,
+                "-h" | "--help" => return Err(USAGE.into()),
+                _ => return Err(format!("unknown option '{k}'; {USAGE}")),
+            }
+        }
+        Ok(a)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn commands() {
+        assert_eq!(
+            parse("heartbeat off 2"),
+            Ok(Command::Heartbeat(false, Some(2)))
+        );
+        assert_eq!(parse("fault 2310"), Ok(Command::Fault(0x2310, None)));
+        assert_eq!(parse(" silent on "), Ok(Command::Silent(true, None)));
+        assert!(parse("fault xyz").is_err());
+        assert!(parse("jump").is_err());
+    }
+
+    #[test]
+    fn args() {
+        let a = SimArgs::parse(
+            ["--node", "1", "--node", "2", "--window-mm", "5"]
+                .into_iter()
+                .map(String::from),
+        )
+        .unwrap();
+        assert_eq!(a.nodes, [1, 2]);
+        assert_eq!(a.params.following_window_mm, 5.0);
+        assert!(SimArgs::parse(["--node", "200"].into_iter().map(String::from)).is_err());
+    }
+}
