@@ -174,10 +174,12 @@ impl CanNode {
             cob::HEARTBEAT if node == consumer_id && consumer_id != 0 => {
                 self.master_heartbeat_ms = Some(now_ms);
             }
-            cob::RPDO1 if node == self.id => {
-                if self.nmt == nmt::state::OPERATIONAL && self.od.rpdo_active(self.id) {
-                    self.latched = Rpdo::decode(p);
-                }
+            cob::RPDO1
+                if node == self.id
+                    && self.nmt == nmt::state::OPERATIONAL
+                    && self.od.rpdo_active(self.id) =>
+            {
+                self.latched = Rpdo::decode(p);
             }
             cob::SDO_RX if node == self.id && self.nmt != nmt::state::STOPPED => {
                 let answer = match sdo::parse_request(p) {
