@@ -1,1 +1,81 @@
-//! Integration tests live in `tests/`.
+//! Helpers shared by the integration tests in `tests/tests/`.
+//!
+//! [`RecordingBus`] wraps the simulated bus and records every setpoint the real-time thread
+//! sends, so tests can check the whole setpoint stream, tick by tick.
+
+use std::sync::{Arc, Mutex};
+
+use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus};
+
+/// Every setpoint sent, one entry per tick (test code: a mutex on the RT thread is fine here).
+pub type Recording = Arc<Mutex<Vec<[f64; hal::MAX_AXES]>>>;
+
+pub struct RecordingBus<B: DriveBus> {
+    inner: B,
+    pub record: Recording,
+}
+
+impl<B: DriveBus> RecordingBus<B> {
+    pub fn new(inner: B) -> (Self, Recording) {
+        let record: Recording = Arc::default();
+        (
+            RecordingBus {
+                inner,
+                record: record.clone(),
+            },
+            record,
+        )
+    }
+}
+
+impl<B: DriveBus> DriveBus for RecordingBus<B> {
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+    fn axes(&self) -> usize {
+        self.inner.axes()
+    }
+    fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
+        self.record.lock().unwrap().push(cmd.positions_mm);
+        self.inner.cycle(cmd, fb)
+    }
+    fn enable(&mut self) {
+        self.inner.enable()
+    }
+    fn reset(&mut self) {
+        self.inner.reset()
+    }
+}
+
+/// Per-axis finite differences of a setpoint stream: (max |v| mm/s, max |a| mm/s²) per axis.
+pub fn max_rates(points: &[[f64; hal::MAX_AXES]], axes: usize, ts_s: f64) -> Vec<(f64, f64)> {
+    (0..axes)
+        .map(|i| {
+            let v: Vec<f64> = points
+                .windows(2)
+                .map(|w| (w[1][i] - w[0][i]) / ts_s)
+                .collect();
+            let vmax = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+            let amax = v
+                .windows(2)
+                .fold(0.0f64, |m, w| m.max(((w[1] - w[0]) / ts_s).abs()));
+            (vmax, amax)
+        })
+        .collect()
+}
+
+/// Index of the largest per-axis acceleration (for diagnosing a failed limit check).
+pub fn worst_accel_at(points: &[[f64; hal::MAX_AXES]], axis: usize, ts_s: f64) -> usize {
+    let v: Vec<f64> = points
+        .windows(2)
+        .map(|w| (w[1][axis] - w[0][axis]) / ts_s)
+        .collect();
+    let mut best = (0, 0.0f64);
+    for (i, w) in v.windows(2).enumerate() {
+        let a = ((w[1] - w[0]) / ts_s).abs();
+        if a > best.1 {
+            best = (i, a);
+        }
+    }
+    best.0
+}

@@ -1,4 +1,11 @@
 //! Everything around the kernel that touches clocks, threads, sockets and files.
+pub mod api;
 pub mod buses;
+pub mod clock;
 pub mod config;
+pub mod controller;
+pub mod job;
+pub mod rt;
+pub mod server;
+pub mod stats;
 pub mod storage;

@@ -1,0 +1,374 @@
+//! The controller: owns the RT thread, the loaded program and the planner threads, and offers
+//! the operations the API calls. Everything here runs outside the RT thread.
+
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use kernel::Diagnostic;
+use kernel::block::Block;
+use kernel::plan::PlannerConfig;
+use kernel::program::{self, Setup};
+use kernel::units::{AxesMm, MAX_AXES};
+use tokio::sync::watch;
+
+use super::buses::open_bus;
+use super::clock::{Clock, MonotonicClock, VirtualClock};
+use super::config::Config;
+use super::job::{self, JobLink, JobSpec};
+use super::rt::{self, MachineState, RtCommand, RtParts, Snapshot};
+
+/// Segment ring capacity (planner → RT).
+const SEGMENT_RING: usize = 4096;
+/// Command ring capacity (API → RT).
+const COMMAND_RING: usize = 64;
+
+/// Which clock drives the tick loop.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ClockKind {
+    Monotonic,
+    Virtual,
+}
+
+/// A program that passed validation.
+pub struct LoadedProgram {
+    pub name: String,
+    pub text: String,
+    pub blocks: Arc<Vec<Block>>,
+    pub warnings: Vec<Diagnostic>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ControlError {
+    #[error("the program has errors")]
+    InvalidProgram(Vec<Diagnostic>),
+    #[error("{0}")]
+    WrongState(String),
+    #[error("the real-time thread is not running")]
+    RtGone,
+}
+
+pub struct Controller {
+    config: Config,
+    commands: Mutex<rtrb::Producer<RtCommand>>,
+    link: Arc<JobLink>,
+    status: watch::Receiver<Snapshot>,
+    program: Mutex<Option<Arc<LoadedProgram>>>,
+    next_job: AtomicU32,
+    run: Mutex<Option<Run>>,
+    rt_thread: Mutex<Option<JoinHandle<()>>>,
+    pump_stop: Arc<AtomicBool>,
+    /// Last alarm raised outside the RT thread (e.g. a planning failure), for status.
+    alarm: Arc<Mutex<Option<String>>>,
+}
+
+struct Run {
+    cancel: Arc<AtomicBool>,
+    thread: JoinHandle<()>,
+}
+
+impl Controller {
+    /// Opens the bus, starts the RT thread and the status pump.
+    pub fn start(config: Config, clock: ClockKind) -> Result<Arc<Controller>, String> {
+        let bus = open_bus(&config.bus, &config.axes, &config.sim)?;
+        Self::start_with_bus(config, clock, bus)
+    }
+
+    /// As [`Controller::start`], on a bus the caller built (tests wrap the simulated bus to
+    /// record every setpoint).
+    pub fn start_with_bus(
+        config: Config,
+        clock: ClockKind,
+        bus: Box<dyn hal::DriveBus>,
+    ) -> Result<Arc<Controller>, String> {
+        let axes = config.axes.len();
+        let mut start = AxesMm::ZERO;
+        for (i, a) in config.axes.iter().enumerate() {
+            start[i] = a.home_mm;
+        }
+        let (cmd_tx, cmd_rx) = rtrb::RingBuffer::new(COMMAND_RING);
+        let (seg_tx, seg_rx) = rtrb::RingBuffer::new(SEGMENT_RING);
+        let initial = Snapshot {
+            axes,
+            commanded: start,
+            actual: start,
+            override_pct: 100.0,
+            ..Snapshot::default()
+        };
+        let (snap_in, mut snap_out) = triple_buffer::triple_buffer(&initial);
+        let planned_job = Arc::new(AtomicU32::new(0));
+        let clock: Box<dyn Clock> = match clock {
+            ClockKind::Monotonic => Box::new(MonotonicClock),
+            ClockKind::Virtual => Box::new(VirtualClock::default()),
+        };
+        let parts = RtParts {
+            bus,
+            clock,
+            commands: cmd_rx,
+            segments: seg_rx,
+            status: snap_in,
+            planned_job: planned_job.clone(),
+            axes,
+            start,
+        };
+        let rt_cfg = config.rt.clone();
+        let rt_thread = std::thread::Builder::new()
+            .name("cnc-rt".into())
+            .spawn(move || {
+                prepare_rt_thread(rt_cfg.priority, rt_cfg.lock_memory);
+                rt::run(parts);
+            })
+            .map_err(|e| format!("cannot start the real-time thread: {e}"))?;
+
+        let (status_tx, status_rx) = watch::channel(initial);
+        let pump_stop = Arc::new(AtomicBool::new(false));
+        let stop = pump_stop.clone();
+        let names = config.axis_names();
+        std::thread::Builder::new()
+            .name("cnc-status".into())
+            .spawn(move || status_pump(&mut snap_out, &status_tx, &stop, &names))
+            .map_err(|e| format!("cannot start the status thread: {e}"))?;
+
+        Ok(Arc::new(Controller {
+            config,
+            commands: Mutex::new(cmd_tx),
+            link: Arc::new(JobLink {
+                segments: Mutex::new(seg_tx),
+                planned_job,
+            }),
+            status: status_rx,
+            program: Mutex::new(None),
+            next_job: AtomicU32::new(1),
+            run: Mutex::new(None),
+            rt_thread: Mutex::new(Some(rt_thread)),
+            pump_stop,
+            alarm: Arc::new(Mutex::new(None)),
+        }))
+    }
+
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    /// Latest snapshot.
+    pub fn snapshot(&self) -> Snapshot {
+        *self.status.borrow()
+    }
+
+    /// A receiver that sees every snapshot the pump publishes.
+    pub fn subscribe(&self) -> watch::Receiver<Snapshot> {
+        self.status.clone()
+    }
+
+    pub fn program(&self) -> Option<Arc<LoadedProgram>> {
+        self.program.lock().unwrap().clone()
+    }
+
+    pub fn alarm(&self) -> Option<String> {
+        self.alarm.lock().unwrap().clone()
+    }
+
+    /// Validates `text` and makes it the selected program. Nothing moves; on error the
+    /// previously selected program stays selected.
+    pub fn load_program(&self, name: &str, text: &str) -> Result<Arc<LoadedProgram>, ControlError> {
+        let mut setup = Setup::new(&self.config.axis_names());
+        // Programs start where the axes are commanded now.
+        setup.start = self.snapshot().commanded;
+        let compiled = program::compile(text, &setup);
+        if compiled.has_errors() {
+            return Err(ControlError::InvalidProgram(compiled.diagnostics));
+        }
+        let loaded = Arc::new(LoadedProgram {
+            name: name.to_owned(),
+            text: text.to_owned(),
+            blocks: Arc::new(compiled.blocks),
+            warnings: compiled.diagnostics,
+        });
+        let running = matches!(
+            self.snapshot().state,
+            MachineState::Running | MachineState::Hold | MachineState::Stopping
+        );
+        if running {
+            return Err(ControlError::WrongState(
+                "a program is running: stop it before loading another".into(),
+            ));
+        }
+        *self.program.lock().unwrap() = Some(loaded.clone());
+        Ok(loaded)
+    }
+
+    fn send(&self, cmd: RtCommand) -> Result<(), ControlError> {
+        self.commands
+            .lock()
+            .unwrap()
+            .push(cmd)
+            .map_err(|_| ControlError::RtGone)
+    }
+
+    /// Starts the selected program. Returns the job id.
+    pub fn start_program(&self) -> Result<u32, ControlError> {
+        let program = self
+            .program()
+            .ok_or_else(|| ControlError::WrongState("no program is loaded".into()))?;
+        let mut run = self.run.lock().unwrap();
+        let snap = self.snapshot();
+        if snap.state != MachineState::Idle {
+            return Err(ControlError::WrongState(format!(
+                "the machine is {:?}, it must be idle to start",
+                snap.state
+            )));
+        }
+        // Interpret again from where the axes are now (they may have moved since loading).
+        let mut setup = Setup::new(&self.config.axis_names());
+        setup.start = snap.commanded;
+        let compiled = program::compile(&program.text, &setup);
+        if compiled.has_errors() {
+            return Err(ControlError::InvalidProgram(compiled.diagnostics));
+        }
+        let job = self.next_job.fetch_add(1, Ordering::Relaxed);
+        *self.alarm.lock().unwrap() = None;
+        self.send(RtCommand::Start { job })?;
+        let cancel = Arc::new(AtomicBool::new(false));
+        let spec = JobSpec {
+            job,
+            blocks: Arc::new(compiled.blocks),
+            planner: self.planner_config(),
+        };
+        let link = self.link.clone();
+        let c = cancel.clone();
+        let alarm_slot = self.alarm.clone();
+        let thread = std::thread::Builder::new()
+            .name(format!("cnc-plan-{job}"))
+            .spawn(move || {
+                if let Err(d) = job::run(spec, &link, &c) {
+                    tracing::error!(job, block = ?d.block, line = d.line, "planning failed: {}", d.message);
+                    *alarm_slot.lock().unwrap() = Some(d.to_string());
+                }
+            })
+            .map_err(|e| ControlError::WrongState(format!("cannot start the planner: {e}")))?;
+        tracing::info!(job, program = %program.name, blocks = program.blocks.len(), "program started");
+        *run = Some(Run { cancel, thread });
+        Ok(job)
+    }
+
+    fn planner_config(&self) -> PlannerConfig {
+        let mut cfg = PlannerConfig::uniform(self.config.axes.len(), 0.0, 0.0);
+        for (i, a) in self.config.axes.iter().enumerate().take(MAX_AXES) {
+            cfg.axis_v_max_mm_s[i] = a.max_velocity_mm_min / 60.0;
+            cfg.axis_a_max_mm_s2[i] = a.max_accel_mm_s2;
+        }
+        cfg
+    }
+
+    /// Stops motion: brake on the path, drop the rest of the program.
+    pub fn stop(&self) -> Result<(), ControlError> {
+        if let Some(r) = self.run.lock().unwrap().as_ref() {
+            r.cancel.store(true, Ordering::Relaxed);
+        }
+        self.send(RtCommand::Stop)
+    }
+
+    pub fn hold(&self) -> Result<(), ControlError> {
+        self.send(RtCommand::Hold)
+    }
+
+    pub fn resume(&self) -> Result<(), ControlError> {
+        self.send(RtCommand::Resume)
+    }
+
+    pub fn set_override(&self, percent: f64) -> Result<(), ControlError> {
+        if !(0.0..=150.0).contains(&percent) {
+            return Err(ControlError::WrongState(format!(
+                "feed override {percent} % is outside 0..150 %"
+            )));
+        }
+        self.send(RtCommand::Override(percent))
+    }
+
+    /// Clears a fault and re-enables the drives.
+    pub fn reset(&self) -> Result<(), ControlError> {
+        if self.snapshot().state != MachineState::Fault {
+            return Err(ControlError::WrongState(
+                "there is no fault to reset".into(),
+            ));
+        }
+        self.send(RtCommand::Reset)
+    }
+
+    /// Brings the axes to rest and ends the RT thread (SIGTERM/SIGINT path). Blocking.
+    pub fn shutdown(&self) {
+        if let Some(r) = self.run.lock().unwrap().as_ref() {
+            r.cancel.store(true, Ordering::Relaxed);
+        }
+        let _ = self.send(RtCommand::Shutdown);
+        if let Some(t) = self.rt_thread.lock().unwrap().take() {
+            let _ = t.join();
+        }
+        if let Some(r) = self.run.lock().unwrap().take() {
+            let _ = r.thread.join();
+        }
+        // Let the pump publish the final snapshot before it ends.
+        std::thread::sleep(Duration::from_millis(10));
+        self.pump_stop.store(true, Ordering::Relaxed);
+    }
+}
+
+impl Drop for Controller {
+    fn drop(&mut self) {
+        self.pump_stop.store(true, Ordering::Relaxed);
+    }
+}
+
+/// Start-up of the RT thread: real-time priority and locked memory where permitted.
+fn prepare_rt_thread(priority: i32, lock: bool) {
+    match rt::set_realtime_priority(priority) {
+        Ok(()) => tracing::info!(priority, "real-time thread runs SCHED_FIFO"),
+        Err(e) => tracing::warn!(
+            "real-time thread runs without SCHED_FIFO priority {priority} ({e}): expect timing \
+             jitter; run as root or grant CAP_SYS_NICE / LimitRTPRIO"
+        ),
+    }
+    if lock {
+        match rt::lock_memory() {
+            Ok(()) => tracing::info!("memory locked (mlockall)"),
+            Err(e) => tracing::warn!(
+                "memory not locked ({e}): page faults may delay ticks; grant CAP_IPC_LOCK / \
+                 LimitMEMLOCK"
+            ),
+        }
+    }
+}
+
+/// Copies RT snapshots into the watch channel and logs state changes and alarms (formatting
+/// happens here, never on the RT thread).
+fn status_pump(
+    out: &mut triple_buffer::Output<Snapshot>,
+    tx: &watch::Sender<Snapshot>,
+    stop: &AtomicBool,
+    axis_names: &[char],
+) {
+    let mut last = *out.read();
+    while !stop.load(Ordering::Relaxed) {
+        std::thread::sleep(Duration::from_millis(1));
+        if !out.update() {
+            continue;
+        }
+        let s = *out.output_buffer();
+        if s.fault != last.fault
+            && let Some(f) = s.fault
+        {
+            let axis = f
+                .axis
+                .and_then(|a| axis_names.get(a as usize))
+                .map(|c| c.to_string())
+                .unwrap_or_else(|| "-".into());
+            tracing::error!(axis, node = ?f.node, block = ?s.block_n, line = s.line, "alarm: {}", f.reason);
+        }
+        if s.state != last.state {
+            tracing::info!(state = ?s.state, job = s.job, block = ?s.block_n, line = s.line, "machine state");
+        }
+        last = s;
+        tx.send_replace(s);
+    }
+}

@@ -1,0 +1,355 @@
+//! The real-time thread: one tick every 4 ms on an absolute deadline grid.
+//!
+//! Each tick: drain the command ring, pull planned segments from the segment ring, interpolate one
+//! setpoint per axis, exchange setpoints and feedback with the drive bus, publish a snapshot.
+//! After start-up this thread never allocates, never takes a lock shared with non-RT code and
+//! never formats a log line: it talks to the rest of the daemon only through two bounded
+//! lock-free SPSC rings (in) and a triple buffer (out).
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU32, Ordering};
+
+use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState};
+use kernel::interp::{InterpState, Interpolator};
+use kernel::plan::Segment;
+use kernel::units::{AxesMm, TS_NS};
+
+use super::clock::Clock;
+use super::stats::{TickStats, TickSummary};
+
+/// Commands from the non-RT side.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RtCommand {
+    /// Run the segments of `job` (arriving on the segment ring).
+    Start { job: u32 },
+    /// Brake to rest on the path, drop the rest of the job.
+    Stop,
+    /// Feed hold.
+    Hold,
+    /// Continue after a feed hold.
+    Resume,
+    /// Feed override in percent (0..150).
+    Override(f64),
+    /// Clear a fault and re-enable the drives.
+    Reset,
+    /// Bring the axes to rest and end the thread.
+    Shutdown,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MachineState {
+    /// Drives are being enabled.
+    #[default]
+    Enabling,
+    Idle,
+    Running,
+    Stopping,
+    Hold,
+    Fault,
+    /// Shutting down: braking, then the thread ends.
+    Shutdown,
+}
+
+/// What the RT thread publishes every tick. `Copy`, fixed size: written without allocation.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Snapshot {
+    /// Increases by one per tick.
+    pub sequence: u64,
+    /// Clock time of the tick, ns.
+    pub time_ns: u64,
+    pub state: MachineState,
+    pub axes: usize,
+    pub commanded: AxesMm,
+    pub actual: AxesMm,
+    pub path_v_mm_s: f64,
+    /// Job running, or the last one started.
+    pub job: u32,
+    /// Last job that ran to its end.
+    pub finished_job: u32,
+    /// Last job that was stopped or ended by a fault.
+    pub aborted_job: u32,
+    /// Block being executed: index in the program, `N`, source line.
+    pub block_seq: u32,
+    pub block_n: Option<u32>,
+    pub line: u32,
+    pub ticks: TickSummary,
+    pub fault: Option<BusFault>,
+    pub override_pct: f64,
+    pub spindle_rpm: f64,
+}
+
+/// Everything the RT thread owns.
+pub struct RtParts {
+    pub bus: Box<dyn DriveBus>,
+    pub clock: Box<dyn Clock>,
+    pub commands: rtrb::Consumer<RtCommand>,
+    pub segments: rtrb::Consumer<Segment>,
+    pub status: triple_buffer::Input<Snapshot>,
+    /// Id of the last job whose planning is complete (all its segments are on the ring).
+    pub planned_job: Arc<AtomicU32>,
+    pub axes: usize,
+    pub start: AxesMm,
+}
+
+/// Ticks the drives get to become operational before it is a fault.
+const ENABLE_TIMEOUT_TICKS: u32 = 2_500;
+/// After shutdown braking: ticks to let the drives settle before the thread ends.
+const SETTLE_TICKS: u32 = 250;
+/// Following error under which an axis counts as settled, mm.
+const SETTLED_MM: f64 = 0.001;
+/// Refresh the lateness percentiles every this many ticks (a histogram walk).
+const STATS_REFRESH_TICKS: u64 = 50;
+
+struct Rt {
+    p: RtParts,
+    interp: Interpolator,
+    stats: TickStats,
+    snap: Snapshot,
+    cmd: CycleCommand,
+    fb: CycleFeedback,
+    /// Job whose segments are accepted (0: none).
+    active_job: u32,
+    enable_ticks: u32,
+    shutting_down: bool,
+    settle_ticks: u32,
+}
+
+/// Runs the loop until a `Shutdown` command has brought the axes to rest.
+pub fn run(parts: RtParts) {
+    let interp = Interpolator::new(parts.axes, parts.start);
+    let mut cmd = CycleCommand::default();
+    cmd.positions_mm[..parts.axes].copy_from_slice(&parts.start.0[..parts.axes]);
+    let mut rt = Rt {
+        snap: Snapshot {
+            axes: parts.axes,
+            commanded: parts.start,
+            actual: parts.start,
+            override_pct: 100.0,
+            ..Snapshot::default()
+        },
+        p: parts,
+        interp,
+        stats: TickStats::new(),
+        cmd,
+        fb: CycleFeedback::default(),
+        active_job: 0,
+        enable_ticks: 0,
+        shutting_down: false,
+        settle_ticks: 0,
+    };
+    rt.p.bus.enable();
+    let mut deadline = rt.p.clock.now_ns() + TS_NS;
+    loop {
+        rt.p.clock.sleep_until_ns(deadline);
+        let now = rt.p.clock.now_ns();
+        let lateness = now.saturating_sub(deadline);
+        // Stay on the grid: a tick that woke after the next deadline skips the missed ones.
+        // The trajectory advances one Ts per executed tick, so no setpoint jumps.
+        let missed = lateness / TS_NS;
+        deadline += (missed + 1) * TS_NS;
+        rt.stats.record(lateness, missed);
+        if rt.snap.sequence.is_multiple_of(STATS_REFRESH_TICKS) {
+            rt.stats.refresh();
+        }
+        if !rt.tick(now) {
+            break;
+        }
+        if rt.p.clock.is_virtual() {
+            rt.pace_virtual();
+        }
+    }
+}
+
+impl Rt {
+    /// One tick. Returns false when the thread should end.
+    fn tick(&mut self, now_ns: u64) -> bool {
+        self.commands();
+        self.feed_segments();
+        let out = self.interp.tick();
+        let axes = self.p.axes;
+        self.cmd.positions_mm[..axes].copy_from_slice(&out.position.0[..axes]);
+        let result = self.p.bus.cycle(&self.cmd, &mut self.fb);
+        for i in 0..axes {
+            self.snap.actual[i] = self.fb.axes[i].position_mm;
+        }
+        if let Err(fault) = result {
+            self.fault(fault);
+        }
+        self.update_state();
+
+        let s = &mut self.snap;
+        s.sequence += 1;
+        s.time_ns = now_ns;
+        s.commanded = out.position;
+        s.path_v_mm_s = out.path_v_mm_s;
+        s.block_seq = out.seq;
+        s.block_n = out.n;
+        s.line = out.line;
+        s.ticks = self.stats.summary();
+        s.spindle_rpm = self.fb.spindle_rpm;
+        self.p.status.write(*s);
+        !(self.shutting_down && self.settle_ticks >= SETTLE_TICKS)
+    }
+
+    fn commands(&mut self) {
+        while let Ok(c) = self.p.commands.pop() {
+            match c {
+                RtCommand::Start { job } => {
+                    if self.snap.state == MachineState::Idle && !self.shutting_down {
+                        self.active_job = job;
+                        self.snap.job = job;
+                        self.snap.state = MachineState::Running;
+                    }
+                }
+                RtCommand::Stop => self.abort(),
+                RtCommand::Hold => self.interp.hold(),
+                RtCommand::Resume => self.interp.resume(),
+                RtCommand::Override(pct) => {
+                    self.interp.set_override(pct);
+                    self.snap.override_pct = pct.clamp(0.0, 150.0);
+                }
+                RtCommand::Reset => {
+                    if self.snap.state == MachineState::Fault
+                        && self.interp.state() == InterpState::Idle
+                    {
+                        self.snap.fault = None;
+                        self.p.bus.reset();
+                        self.enable_ticks = 0;
+                        self.snap.state = MachineState::Enabling;
+                    }
+                }
+                RtCommand::Shutdown => {
+                    self.shutting_down = true;
+                    self.abort();
+                }
+            }
+        }
+    }
+
+    /// Ends the active job: brake on the path and drop what remains.
+    fn abort(&mut self) {
+        if self.active_job != 0 {
+            self.snap.aborted_job = self.active_job;
+            self.active_job = 0;
+        }
+        self.interp.stop();
+    }
+
+    fn fault(&mut self, fault: BusFault) {
+        if self.snap.fault.is_none() {
+            self.snap.fault = Some(fault);
+            self.abort();
+        }
+    }
+
+    fn feed_segments(&mut self) {
+        while self.interp.has_room() {
+            match self.p.segments.pop() {
+                Ok(seg) if seg.job == self.active_job && self.active_job != 0 => {
+                    // Cannot fail: room was checked and we are not stopping this job.
+                    let _ = self.interp.push(seg);
+                }
+                Ok(_) => {} // a stopped job's leftovers
+                Err(_) => break,
+            }
+        }
+    }
+
+    fn update_state(&mut self) {
+        let is = self.interp.state();
+        let s = &mut self.snap;
+        if self.shutting_down {
+            s.state = MachineState::Shutdown;
+            if is == InterpState::Idle {
+                let settled =
+                    (0..self.p.axes).all(|i| (s.commanded[i] - s.actual[i]).abs() < SETTLED_MM);
+                self.settle_ticks = if settled {
+                    SETTLE_TICKS
+                } else {
+                    self.settle_ticks + 1
+                };
+            }
+            return;
+        }
+        if s.fault.is_some() {
+            s.state = MachineState::Fault;
+            return;
+        }
+        match s.state {
+            MachineState::Enabling => {
+                let ready = self.fb.axes[..self.p.axes]
+                    .iter()
+                    .all(|a| a.state == DriveState::Operational);
+                self.enable_ticks += 1;
+                if ready {
+                    s.state = MachineState::Idle;
+                } else if self.enable_ticks > ENABLE_TIMEOUT_TICKS {
+                    s.fault = Some(BusFault {
+                        axis: None,
+                        node: None,
+                        reason: hal::FaultReason::Timeout,
+                    });
+                    s.state = MachineState::Fault;
+                }
+            }
+            MachineState::Running | MachineState::Hold | MachineState::Stopping => {
+                let job_done = self.active_job != 0
+                    && self.p.planned_job.load(Ordering::Acquire) == self.active_job
+                    && self.p.segments.is_empty()
+                    && is == InterpState::Idle;
+                if job_done {
+                    s.finished_job = self.active_job;
+                    self.active_job = 0;
+                }
+                s.state = match is {
+                    _ if self.active_job == 0 && is == InterpState::Idle => MachineState::Idle,
+                    InterpState::Stopping => MachineState::Stopping,
+                    InterpState::Holding | InterpState::Held => MachineState::Hold,
+                    _ => MachineState::Running,
+                };
+            }
+            MachineState::Idle | MachineState::Fault | MachineState::Shutdown => {}
+        }
+    }
+
+    /// Virtual time only: wait (in real time) for the planner instead of starving, so a virtual
+    /// run is deterministic whatever the host load; and don't spin when there is nothing to do.
+    fn pace_virtual(&mut self) {
+        if self.active_job != 0 {
+            while self.interp.has_room()
+                && self.p.segments.is_empty()
+                && self.p.planned_job.load(Ordering::Acquire) != self.active_job
+                && self.p.commands.is_empty()
+            {
+                std::thread::yield_now();
+            }
+        } else if self.p.commands.is_empty() && self.snap.state != MachineState::Enabling {
+            std::thread::sleep(std::time::Duration::from_micros(200));
+        }
+    }
+}
+
+/// Asks for `SCHED_FIFO` at `priority` for the calling thread.
+pub fn set_realtime_priority(priority: i32) -> std::io::Result<()> {
+    let param = libc::sched_param {
+        sched_priority: priority,
+    };
+    // SAFETY: plain syscall on the calling thread with a valid parameter struct.
+    let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+    if rc == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
+}
+
+/// Locks current and future memory so the RT thread never takes a page fault.
+pub fn lock_memory() -> std::io::Result<()> {
+    // SAFETY: plain syscall.
+    let rc = unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) };
+    if rc == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
+}

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Runs every test of the project on a fresh machine: installs what the suites need, then the
+# Rust workspace tests, then the suites that need more than cargo (vcan in a VM, foreign
+# clients). Exits non-zero if anything failed.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+echo "== cargo test --workspace"
+cargo test --workspace --locked
+
+if [ -x tests/vcan/run.sh ]; then
+  echo "== vcan suite (CANopen on a real Linux CAN stack)"
+  tests/vcan/run.sh
+fi
+
+if [ -x tests/python/run.sh ]; then
+  echo "== Python gRPC client"
+  tests/python/run.sh
+fi
+echo "== all test suites passed"

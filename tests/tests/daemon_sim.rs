@@ -1,0 +1,301 @@
+//! The walking skeleton end to end: daemon in-process on the simulated machine, gRPC client,
+//! program in, ticks, drives move, status out.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use daemon::runtime::config::Config;
+use daemon::runtime::controller::{ClockKind, Controller};
+use daemon::runtime::rt::MachineState;
+use daemon::runtime::server;
+use prost::Message;
+use proto::v1 as pb;
+use proto::v1::machine_client::MachineClient;
+use tests::{Recording, RecordingBus, max_rates};
+use tonic::transport::Channel;
+
+const TS_S: f64 = 0.004;
+
+fn sim_bus(cfg: &Config) -> sim::SimBus {
+    sim::SimBus::new(sim::SimDriveParams::default(), &vec![0.0; cfg.axes.len()])
+}
+
+/// A daemon on an ephemeral loopback port; returns the client and the controller.
+async fn daemon(
+    cfg: Config,
+    clock: ClockKind,
+) -> (MachineClient<Channel>, Arc<Controller>, Recording) {
+    let (bus, record) = RecordingBus::new(sim_bus(&cfg));
+    let ctl = Controller::start_with_bus(cfg, clock, Box::new(bus)).unwrap();
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));
+    let client = MachineClient::connect(format!("http://{addr}"))
+        .await
+        .unwrap();
+    wait_state(&ctl, MachineState::Idle, Duration::from_secs(5)).await;
+    (client, ctl, record)
+}
+
+async fn wait_state(ctl: &Controller, state: MachineState, timeout: Duration) {
+    let t0 = Instant::now();
+    while ctl.snapshot().state != state {
+        assert!(
+            t0.elapsed() < timeout,
+            "state {:?} not reached: {:?}",
+            state,
+            ctl.snapshot()
+        );
+        tokio::time::sleep(Duration::from_millis(2)).await;
+    }
+}
+
+async fn wait_job_finished(ctl: &Controller, job: u32, timeout: Duration) {
+    let t0 = Instant::now();
+    loop {
+        let s = ctl.snapshot();
+        if s.finished_job == job {
+            return;
+        }
+        assert_ne!(s.aborted_job, job, "job aborted: {s:?}");
+        assert!(t0.elapsed() < timeout, "job {job} did not finish: {s:?}");
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+}
+
+const PROGRAM: &str = "\
+; walking-skeleton test part
+N10 G0 X10 Y5
+N20 G1 X30 F1500
+N30 Y20 Z-2
+N40 G91 X-5 Y-5
+N50 G90 G0 X40.5 Y12.25 Z1
+N60 G1 X41 F.6
+";
+const END: [f64; 3] = [41.0, 12.25, 1.0];
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn program_runs_through_grpc_within_limits_and_ends_exactly() {
+    let cfg = Config::default();
+    let limits: Vec<(f64, f64)> = cfg
+        .axes
+        .iter()
+        .map(|a| (a.max_velocity_mm_min / 60.0, a.max_accel_mm_s2))
+        .collect();
+    let (mut client, ctl, record) = daemon(cfg, ClockKind::Monotonic).await;
+
+    let loaded = client
+        .load_program(pb::LoadProgramRequest {
+            name: "skeleton.nc".into(),
+            text: PROGRAM.into(),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!(loaded.blocks, 6);
+
+    // Status stream at 50 Hz while the program runs.
+    let mut stream = client
+        .stream_status(pb::StatusRequest { rate_hz: 50 })
+        .await
+        .unwrap()
+        .into_inner();
+    record.lock().unwrap().clear();
+    let job = client
+        .start(pb::StartRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .job;
+    let t0 = Instant::now();
+    let mut count = 0u32;
+    let mut saw_running = false;
+    let mut last = None;
+    while t0.elapsed() < Duration::from_secs(2) {
+        let s = stream.message().await.unwrap().unwrap();
+        saw_running |= s.state == pb::MachineState::Running as i32 && s.job == job;
+        count += 1;
+        last = Some(s);
+    }
+    let rate = count as f64 / t0.elapsed().as_secs_f64();
+    assert!(
+        (40.0..=60.0).contains(&rate),
+        "status rate {rate} Hz, asked 50"
+    );
+    assert!(saw_running);
+    assert_eq!(last.unwrap().axes.len(), 3);
+    drop(stream);
+
+    wait_job_finished(&ctl, job, Duration::from_secs(30)).await;
+    let s = ctl.snapshot();
+    for (i, e) in END.iter().enumerate() {
+        assert!(
+            (s.commanded[i] - e).abs() < 1e-6,
+            "axis {i}: {:?}",
+            s.commanded
+        );
+    }
+    // The drives follow with a lag; they settle on the end point.
+    let t0 = Instant::now();
+    loop {
+        let s = ctl.snapshot();
+        if (0..3).all(|i| (s.actual[i] - END[i]).abs() < 1e-3) {
+            break;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(3),
+            "drives did not settle: {s:?}"
+        );
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+
+    // The whole commanded setpoint stream stays within the configured limits. Speeds are
+    // per-tick averages, so finite differences match the limits up to rounding (1e-6).
+    let points = record.lock().unwrap().clone();
+    assert!(points.len() > 100);
+    let rates = max_rates(&points, 3, TS_S);
+    for (i, ((vmax, amax), (vlim, alim))) in rates.iter().zip(&limits).enumerate() {
+        if *amax > alim * (1.0 + 1e-6) + 1e-6 {
+            let k = tests::worst_accel_at(&points, i, TS_S);
+            let lo = k.saturating_sub(4);
+            eprintln!(
+                "axis {i} around tick {k}: {:?}",
+                &points[lo..(k + 6).min(points.len())]
+            );
+        }
+        assert!(
+            *vmax <= vlim * (1.0 + 1e-6),
+            "axis {i}: speed {vmax} > {vlim}"
+        );
+        assert!(
+            *amax <= alim * (1.0 + 1e-6) + 1e-6,
+            "axis {i}: accel {amax} > {alim}"
+        );
+    }
+    // Every programmed point was reached exactly (G98: the path stops at each block end).
+    for target in [
+        [10.0, 5.0, 0.0],
+        [30.0, 5.0, 0.0],
+        [30.0, 20.0, -2.0],
+        [25.0, 15.0, -2.0],
+    ] {
+        assert!(
+            points.iter().any(|p| p[..3] == target),
+            "block end {target:?} never commanded exactly"
+        );
+    }
+    ctl.shutdown();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_program_is_rejected_with_block_number_and_nothing_moves() {
+    let (mut client, ctl, record) = daemon(Config::default(), ClockKind::Monotonic).await;
+    let before = ctl.snapshot().commanded;
+    for (text, block, needle) in [
+        ("N10 G1 X5 F100\nN20 Q7\n", 20, "Q"),
+        ("N10 G1 X5 F100\nN20 X\n", 20, "X"),
+    ] {
+        let err = client
+            .load_program(pb::LoadProgramRequest {
+                name: "bad.nc".into(),
+                text: text.into(),
+            })
+            .await
+            .unwrap_err();
+        assert_eq!(err.code(), tonic::Code::InvalidArgument);
+        assert!(
+            err.message().contains(&format!("N{block}")),
+            "{}",
+            err.message()
+        );
+        let details = pb::Diagnostics::decode(err.details()).unwrap();
+        let first = &details.items[0];
+        assert_eq!(first.block, Some(block));
+        assert_eq!(first.line, 2);
+        assert!(first.message.contains(needle), "{}", first.message);
+    }
+    // No program is selected, so start is refused; nothing moved; the daemon still serves.
+    let err = client.start(pb::StartRequest {}).await.unwrap_err();
+    assert_eq!(err.code(), tonic::Code::FailedPrecondition);
+    tokio::time::sleep(Duration::from_millis(50)).await;
+    assert_eq!(ctl.snapshot().commanded, before);
+    let moved = record
+        .lock()
+        .unwrap()
+        .iter()
+        .any(|p| p[..3] != before.0[..3]);
+    assert!(!moved);
+    let ok = client
+        .load_program(pb::LoadProgramRequest {
+            name: "good.nc".into(),
+            text: "G1 X1 F600".into(),
+        })
+        .await
+        .unwrap();
+    assert_eq!(ok.into_inner().blocks, 1);
+    ctl.shutdown();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn long_program_in_virtual_time() {
+    // About 3 hours of machining: 2,000 zig-zag passes of 300 mm at 200 mm/min.
+    let mut text = String::from("G0 X0 Y0\nG1 F200\n");
+    for i in 0..2000 {
+        let x = if i % 2 == 0 { 300 } else { 0 };
+        text.push_str(&format!("N{} X{x} Y{}\n", i + 1, i as f64 * 0.01));
+    }
+    let cfg = Config::default();
+    let (bus, record) = RecordingBus::new(sim_bus(&cfg));
+    let ctl = Controller::start_with_bus(cfg, ClockKind::Virtual, Box::new(bus)).unwrap();
+    wait_state(&ctl, MachineState::Idle, Duration::from_secs(5)).await;
+    ctl.load_program("zigzag.nc", &text).unwrap();
+    record.lock().unwrap().clear();
+    let t_real = Instant::now();
+    let t_virtual0 = ctl.snapshot().time_ns;
+    let job = ctl.start_program().unwrap();
+    wait_job_finished(&ctl, job, Duration::from_secs(300)).await;
+    let s = ctl.snapshot();
+    let machining_s = (s.time_ns - t_virtual0) as f64 * 1e-9;
+    let real_s = t_real.elapsed().as_secs_f64();
+    assert!(
+        machining_s > 3.0 * 3600.0 * 0.95,
+        "machined {machining_s} s"
+    );
+    assert!(s.commanded[0].abs() < 1e-9 && (s.commanded[1] - 19.99).abs() < 1e-9);
+    // Every tick was exactly on time and every setpoint was produced.
+    assert_eq!(s.ticks.overruns, 0);
+    let n = record.lock().unwrap().len() as f64;
+    assert!(
+        n >= machining_s / TS_S * 0.99,
+        "{n} setpoints for {machining_s} s"
+    );
+    println!("virtual time: {machining_s:.0} s of machining in {real_s:.1} s");
+    ctl.shutdown();
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn shutdown_ramps_axes_down_before_exit() {
+    let cfg = Config::default();
+    let a_lim = cfg.axes[0].max_accel_mm_s2;
+    let (bus, record) = RecordingBus::new(sim_bus(&cfg));
+    let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
+    wait_state(&ctl, MachineState::Idle, Duration::from_secs(5)).await;
+    ctl.load_program("long.nc", "G1 X500 F6000").unwrap();
+    ctl.start_program().unwrap();
+    tokio::time::sleep(Duration::from_millis(600)).await;
+    assert!(ctl.snapshot().path_v_mm_s > 50.0, "{:?}", ctl.snapshot());
+    let c = ctl.clone();
+    tokio::task::spawn_blocking(move || c.shutdown())
+        .await
+        .unwrap();
+    let s = ctl.snapshot();
+    assert_eq!(s.state, MachineState::Shutdown);
+    assert!(s.commanded[0] < 500.0);
+    let points = record.lock().unwrap().clone();
+    let (_, amax) = max_rates(&points, 1, TS_S)[0];
+    assert!(amax <= a_lim * (1.0 + 1e-6), "braking at {amax} mm/s²");
+    // The last setpoints are at rest and the drive settled on them.
+    let tail = &points[points.len() - 3..];
+    assert!(tail.iter().all(|p| p[0] == tail[0][0]));
+    assert!((s.actual[0] - s.commanded[0]).abs() < 1e-3);
+}
