@@ -134,7 +134,10 @@ pub fn ends(b: &Block, plane: Plane) -> (V2, V2) {
 
 /// Output motions only (no technology blocks), with roles.
 pub fn motions(out: &[CompBlock]) -> Vec<CompBlock> {
-    out.iter().filter(|c| c.block.motion().is_some()).copied().collect()
+    out.iter()
+        .filter(|c| c.block.motion().is_some())
+        .copied()
+        .collect()
 }
 
 pub fn close(a: V2, b: V2, tol: f64) -> bool {
@@ -224,7 +227,10 @@ pub fn check_path(
                             continue;
                         };
                         if odir != dir || !close(V2::of(&oc, plane), cc, 1e-9) {
-                            return Err(format!("arc piece of seq {} changed centre/direction", b.seq));
+                            return Err(format!(
+                                "arc piece of seq {} changed centre/direction",
+                                b.seq
+                            ));
                         }
                     }
                     _ => {
@@ -252,7 +258,10 @@ pub fn check_path(
                     return Err("corner arc is not an arc".into());
                 };
                 if !close(V2::of(&center, plane), corner, 1e-9) {
-                    return Err(format!("corner arc of seq {} not centred on the corner", b.seq));
+                    return Err(format!(
+                        "corner arc of seq {} not centred on the corner",
+                        b.seq
+                    ));
                 }
                 for q in [ps, pe] {
                     if (q.dist(corner) - r.abs()).abs() > tol {

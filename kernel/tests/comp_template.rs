@@ -8,12 +8,12 @@
 mod helpers;
 
 use helpers::*;
+use kernel::Severity;
 use kernel::block::{Block, Plane};
 use kernel::comp::geom::V2;
 use kernel::comp::{CompConfig, CornerMode, Role, compensate_all_traced};
 use kernel::constants::Constants;
 use kernel::program::{Setup, compile};
-use kernel::Severity;
 
 fn template_blocks() -> Vec<Block> {
     let text = std::fs::read_to_string(concat!(
@@ -57,7 +57,12 @@ fn template_with_inserted_arcs_follows_the_expected_tool_centre_path() {
         (Some(80), Role::Equidistant, p(45.0, 40.0), p(45.0, 25.0)),
         (Some(90), Role::Equidistant, p(45.0, 25.0), p(55.0, 15.0)),
         (Some(100), Role::CornerArc, p(55.0, 15.0), p(55.0, 10.0) + n),
-        (Some(100), Role::Equidistant, p(55.0, 10.0) + n, p(80.0, 0.0) + n),
+        (
+            Some(100),
+            Role::Equidistant,
+            p(55.0, 10.0) + n,
+            p(80.0, 0.0) + n,
+        ),
         (Some(110), Role::CornerArc, p(80.0, 0.0) + n, p(80.0, -5.0)),
         (Some(110), Role::Equidistant, p(80.0, -5.0), p(0.0, -5.0)),
         (Some(120), Role::Passthrough, p(0.0, -5.0), p(-10.0, 0.0)),
@@ -95,8 +100,12 @@ fn template_with_intersections_and_machine_constants() {
     // of the radius, so R765 reports it and inserts an arc instead.
     let warn = with_severity(&diags, Severity::Warning);
     assert!(
-        warn.iter().any(|d| d.block == Some(110) && d.message.contains("R765")),
+        warn.iter()
+            .any(|d| d.block == Some(110) && d.message.contains("R765")),
         "{diags:?}"
     );
-    assert!(mv.iter().any(|c| c.role == Role::CornerArc && c.block.n == Some(110)));
+    assert!(
+        mv.iter()
+            .any(|c| c.role == Role::CornerArc && c.block.n == Some(110))
+    );
 }
