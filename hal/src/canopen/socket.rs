@@ -2,6 +2,7 @@
 //! frames enabled so bus-off and bus errors reach the master.
 
 use std::io;
+use std::time::Duration;
 
 use socketcan::{
     CanDataFrame, CanFrame, CanSocket, EmbeddedFrame, Frame as _, Socket, SocketOptions, StandardId,
@@ -44,6 +45,43 @@ fn port_error(e: &io::Error) -> PortError {
     }
 }
 
+impl SocketCanPort {
+    /// Waits up to `timeout` for a frame (for simulators and tools; the master never waits).
+    pub fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<RxEvent>, PortError> {
+        match self.socket.read_frame_timeout(timeout) {
+            Ok(f) => Ok(self.convert(f)),
+            Err(e) if matches!(e.kind(), io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock) => {
+                Ok(None)
+            }
+            Err(e) => Err(port_error(&e)),
+        }
+    }
+
+    /// Our view of a received frame; `None` for frames CANopen does not use (extended ids,
+    /// remote frames).
+    fn convert(&mut self, f: CanFrame) -> Option<RxEvent> {
+        match f {
+            CanFrame::Data(d) if !d.is_extended() => {
+                let frame = Frame::new(d.raw_id() as u16, d.data());
+                if let Some(tap) = &mut self.tap {
+                    tap.record(&frame);
+                }
+                Some(RxEvent::Frame(frame))
+            }
+            CanFrame::Error(e) => {
+                let mut data = [0u8; 8];
+                let n = e.data().len().min(8);
+                data[..n].copy_from_slice(&e.data()[..n]);
+                Some(RxEvent::Error {
+                    class: e.error_bits(),
+                    data,
+                })
+            }
+            _ => None,
+        }
+    }
+}
+
 impl CanPort for SocketCanPort {
     fn send(&mut self, frame: &Frame) -> Result<(), PortError> {
         let id = StandardId::new(frame.id).ok_or(PortError::Down)?;
@@ -63,26 +101,10 @@ impl CanPort for SocketCanPort {
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
                 Err(e) => return Err(port_error(&e)),
             };
-            return Ok(Some(match f {
-                CanFrame::Data(d) if !d.is_extended() => {
-                    let frame = Frame::new(d.raw_id() as u16, d.data());
-                    if let Some(tap) = &mut self.tap {
-                        tap.record(&frame);
-                    }
-                    RxEvent::Frame(frame)
-                }
-                CanFrame::Error(e) => {
-                    let mut data = [0u8; 8];
-                    let n = e.data().len().min(8);
-                    data[..n].copy_from_slice(&e.data()[..n]);
-                    RxEvent::Error {
-                        class: e.error_bits(),
-                        data,
-                    }
-                }
-                // Extended ids and remote frames are not CANopen traffic we use.
-                _ => continue,
-            }));
+            match self.convert(f) {
+                Some(ev) => return Ok(Some(ev)),
+                None => continue,
+            }
         }
     }
 }
