@@ -9,7 +9,9 @@ use kernel::offsets;
 use kernel::program::{IjMode, Setup, compile};
 
 fn corpus(dir: &str, ext: &str) -> Vec<PathBuf> {
-    let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/corpus").join(dir);
+    let d = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/corpus")
+        .join(dir);
     let mut files: Vec<PathBuf> = fs::read_dir(d)
         .unwrap()
         .map(|e| e.unwrap().path())
@@ -23,7 +25,11 @@ fn corpus(dir: &str, ext: &str) -> Vec<PathBuf> {
 fn expectation(rest: &str) -> (u32, u32, String) {
     let (pos, msg) = rest.split_once(' ').expect("EXPECT line:col message");
     let (l, c) = pos.split_once(':').expect("line:col");
-    (l.parse().unwrap(), c.parse().unwrap(), msg.trim().to_string())
+    (
+        l.parse().unwrap(),
+        c.parse().unwrap(),
+        msg.trim().to_string(),
+    )
 }
 
 /// Directives in `; ` comment lines of a program: SETUP lathe, CONST Rn=v, IJ absolute,
@@ -61,7 +67,10 @@ fn program_setup(text: &str) -> (Setup, Vec<(u32, u32, String)>) {
 
 fn check(file: &Path, errors: &[Diagnostic], expect: &[(u32, u32, String)]) {
     if let Err(e) = std::panic::catch_unwind(|| check_inner(file, errors, expect)) {
-        FAILS.with(|f| f.borrow_mut().push(e.downcast_ref::<String>().cloned().unwrap_or_default()));
+        FAILS.with(|f| {
+            f.borrow_mut()
+                .push(e.downcast_ref::<String>().cloned().unwrap_or_default())
+        });
     }
 }
 
@@ -69,7 +78,12 @@ thread_local!(static FAILS: std::cell::RefCell<Vec<String>> = const { std::cell:
 
 fn fails() {
     let f = FAILS.with(|f| f.take());
-    assert!(f.is_empty(), "{} corpus files failed:\n{}", f.len(), f.join("\n"));
+    assert!(
+        f.is_empty(),
+        "{} corpus files failed:\n{}",
+        f.len(),
+        f.join("\n")
+    );
 }
 
 fn check_inner(file: &Path, errors: &[Diagnostic], expect: &[(u32, u32, String)]) {

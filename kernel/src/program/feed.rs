@@ -57,7 +57,13 @@ pub fn convert(f: Num, per_rev: bool) -> Result<Feed, String> {
         }
         Ok(Feed::MmPerRev(mm_rev))
     } else {
-        let mm_min = if f.point { f.value * 1000.0 } else { f.value };
+        // ×1000 is not exact in binary (4.036 × 1000 = 4035.9999…): round to 10⁻⁶ mm/min, far
+        // below any written decimal, so F4.036 and F4036 give the same feed.
+        let mm_min = if f.point {
+            (f.value * 1e9).round() / 1e6
+        } else {
+            f.value
+        };
         if mm_min > MAX_FEED_MM_MIN {
             return Err(format!(
                 "feed {mm_min} mm/min is above the limit {MAX_FEED_MM_MIN} mm/min \
@@ -84,6 +90,18 @@ mod tests {
         assert_eq!(convert(n(1.2, true), false), Ok(Feed::MmPerMin(1200.0)));
         assert_eq!(convert(n(1000.0, false), true), Ok(Feed::MmPerRev(1.0)));
         assert_eq!(convert(n(0.2, true), true), Ok(Feed::MmPerRev(0.2)));
+    }
+
+    #[test]
+    fn point_and_no_point_agree_exactly() {
+        for k in 1..=90_000u32 {
+            let with_point: f64 = format!("{}.{:03}", k / 1000, k % 1000).parse().unwrap();
+            assert_eq!(
+                convert(n(with_point, true), false),
+                convert(n(f64::from(k), false), false),
+                "F{with_point}"
+            );
+        }
     }
 
     #[test]
