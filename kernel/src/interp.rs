@@ -369,7 +369,9 @@ impl Interpolator {
                 self.v_mm_s = 0.0;
                 return idle;
             }
-            if !self.settled() {
+            // One tick at rest (and the filter settled) before leaving: the direction may
+            // reverse here, and the arrival step must not add to the departure step.
+            if !self.settled() || self.still == 0 {
                 return idle;
             }
             if self.dwell_ticks > 0 {
@@ -384,8 +386,17 @@ impl Interpolator {
             self.rs_mm = 0.0;
         }
         if self.v_mm_s == 0.0 && self.settled() {
-            // At rest: the filter may be re-sized for the dynamics of what comes next.
-            self.m = Self::filter_for(self.seg(self.rk));
+            // At rest (the commanded position equals the raw one): the filter may be re-sized
+            // for the dynamics of what comes next; its history is all this one point.
+            let m = Self::filter_for(self.seg(self.rk));
+            if m != self.m {
+                let s = self.raw_s();
+                self.hist_s.fill(s);
+                self.hist_cap.fill(f64::INFINITY);
+                self.hist_feed.fill(f64::INFINITY);
+                self.still = FILTER_MAX_TICKS;
+                self.m = m;
+            }
         }
         let head = *self.seg(self.rk);
         let braking = matches!(self.state, InterpState::Holding | InterpState::Stopping);
@@ -431,8 +442,10 @@ impl Interpolator {
                 }
                 _ => (0.0, 0.0, 0.0),
             };
-            hard = hard.min(Self::v_brake(d - hard_cap * lead, hard_cap, a_walk));
-            soft = soft.min(Self::v_brake(d - soft_cap * lead, soft_cap, a_walk));
+            // Any speed up to the cap itself is safe for that cap; above it, we must still be
+            // able to brake to it (later caps are checked on their own).
+            hard = hard.min(hard_cap.max(Self::v_brake(d - hard_cap * lead, hard_cap, a_walk)));
+            soft = soft.min(soft_cap.max(Self::v_brake(d - soft_cap * lead, soft_cap, a_walk)));
             if hard_cap == 0.0 {
                 stop_dist = d;
                 break;

@@ -620,26 +620,38 @@ impl Planner {
                 // Several junctions can fall within one tick: apply both criteria to the turn
                 // over the path one tick covers (centred on the junction). This is the local
                 // curvature cap v ≤ √(a/κ) in the form of the dynamic criterion.
-                for _ in 0..3 {
+                // The window grows with the speed, so the bound falls as the speed rises:
+                // bisect for the largest speed within the bound of its own window.
+                let bound = |v: f64| {
                     let half = v * TS_S / 2.0;
-                    if half <= 0.0 {
-                        break;
-                    }
                     let t0 = self.tangent_near(i, -half);
                     let t1 = self.tangent_near(i, half);
                     let theta = angle_between(&t0, &t1);
-                    let vw = (a_iso * TS_S / (2.0 * (theta / 2.0).sin()).max(1e-300))
-                        .min(criteria::accuracy_mm_s(set.accuracy_um, theta));
-                    if vw >= v {
-                        break;
+                    (a_iso * TS_S / (2.0 * (theta / 2.0).sin()).max(1e-300))
+                        .min(criteria::accuracy_mm_s(set.accuracy_um, theta))
+                };
+                if bound(v) < v {
+                    let (mut lo, mut hi) = (0.0, v);
+                    for _ in 0..12 {
+                        let mid = 0.5 * (lo + hi);
+                        if bound(mid) >= mid {
+                            lo = mid;
+                        } else {
+                            hi = mid;
+                        }
                     }
-                    v = vw;
+                    v = lo;
                 }
             }
             (v, if p.smooth { v } else { 0.0 })
         };
         let prev_crit = if i > 0 { self.win[i - 1].crit } else { 0.0 };
         let prev_smooth = i > 0 && self.win[i - 1].smooth;
+        // A smooth neighbour that is an arc brings its centripetal acceleration into the ticks
+        // that cross the junction.
+        let is_arc = |p: &Pending| matches!(p.seg.path, SegPath::Arc { .. });
+        let arc_next = !last && self.win[i].smooth && is_arc(&self.win[i + 1]);
+        let arc_prev = prev_smooth && is_arc(&self.win[i - 1]);
         let prev_turn = if prev_smooth {
             self.win[i - 1].turn
         } else {
@@ -664,6 +676,8 @@ impl Planner {
             accel_stop.min(set_a)
         };
         let curved = matches!(p.seg.path, SegPath::Arc { .. })
+            || arc_next
+            || arc_prev
             || (prev_smooth && prev_turn > 1e-9)
             || (p.smooth && p.turn > 1e-9);
         let k = if curved { 1.0 - NORMAL_SHARE } else { 1.0 };

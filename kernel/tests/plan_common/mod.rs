@@ -1,0 +1,454 @@
+//! Shared toolpaths, machine settings and a virtual-time runner for the planner tests and the
+//! planner bench. Blocks are built as `kernel::block::Block` values directly.
+#![allow(dead_code)]
+
+use std::f64::consts::TAU;
+
+use kernel::block::{ArcDir, Block, BlockKind, Comp, Continuity, Feed, Path, Plane, Spindle};
+use kernel::constants::Constants;
+use kernel::interp::{InterpState, Interpolator, TickOut};
+use kernel::plan::{PlannerConfig, Segment};
+use kernel::units::{AxesMm, TS_S};
+
+pub fn p3(x: f64, y: f64, z: f64) -> AxesMm {
+    AxesMm([x, y, z, 0.0, 0.0, 0.0])
+}
+
+/// Builds program blocks with a running position and sequence number.
+pub struct Prog {
+    pub blocks: Vec<Block>,
+    pub pos: AxesMm,
+    pub feed_mm_min: f64,
+    pub continuity: Continuity,
+    pub dyn_set: u8,
+}
+
+impl Prog {
+    pub fn new(start: AxesMm, feed_mm_min: f64, continuity: Continuity) -> Self {
+        Prog {
+            blocks: vec![],
+            pos: start,
+            feed_mm_min,
+            continuity,
+            dyn_set: 1,
+        }
+    }
+
+    fn block(&self, kind: BlockKind) -> Block {
+        let seq = self.blocks.len() as u32;
+        Block {
+            seq,
+            n: Some(seq * 10),
+            line: seq + 1,
+            kind,
+            feed: Feed::MmPerMin(self.feed_mm_min),
+            plane: Plane::G17,
+            comp: Comp::Off,
+            continuity: self.continuity,
+            dyn_set: self.dyn_set,
+            spindle: Spindle::default(),
+            m: [None; 4],
+        }
+    }
+
+    pub fn motion(&mut self, end: AxesMm, path: Path) -> &mut Self {
+        let b = self.block(BlockKind::Motion {
+            start: self.pos,
+            end,
+            path,
+        });
+        self.blocks.push(b);
+        self.pos = end;
+        self
+    }
+
+    pub fn g1(&mut self, end: AxesMm) -> &mut Self {
+        self.motion(end, Path::Line)
+    }
+
+    pub fn g0(&mut self, end: AxesMm) -> &mut Self {
+        self.motion(end, Path::Rapid)
+    }
+
+    /// Arc in G17 about an absolute centre.
+    pub fn arc(&mut self, end: AxesMm, center: AxesMm, dir: ArcDir) -> &mut Self {
+        self.motion(
+            end,
+            Path::Arc {
+                dir,
+                center,
+                plane: Plane::G17,
+            },
+        )
+    }
+}
+
+/// The documented toolpath suite (see `docs/planner.md`).
+pub fn suite() -> Vec<(&'static str, Vec<Block>)> {
+    vec![
+        ("dense circle 0.05 mm", dense_circle(10.0, 0.05, 6000.0)),
+        ("zig-zag surface", zigzag(12, 40.0, 1.0, 3000.0)),
+        ("pocket sharp corners", pocket(30.0, 20.0, 2.0, 2000.0)),
+        ("long lines + rapids", long_lines()),
+        ("mixed arcs", mixed_arcs()),
+    ]
+}
+
+/// A circle of radius `r` as a polyline of chords `chord` long, G23, at `feed` mm/min.
+pub fn dense_circle(r: f64, chord: f64, feed: f64) -> Vec<Block> {
+    let mut p = Prog::new(p3(r, 0.0, 0.0), feed, Continuity::G23);
+    let n = (TAU * r / chord).round() as usize;
+    for i in 1..=n {
+        let a = TAU * i as f64 / n as f64;
+        p.g1(p3(r * a.cos(), r * a.sin(), 0.0));
+    }
+    p.blocks
+}
+
+/// Parallel passes along X joined by short step-overs in Y (90° corners).
+pub fn zigzag(passes: usize, width: f64, step: f64, feed: f64) -> Vec<Block> {
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), feed, Continuity::G23);
+    for i in 0..passes {
+        let x = if i % 2 == 0 { width } else { 0.0 };
+        p.g1(p3(x, i as f64 * step, 0.0));
+        p.g1(p3(x, (i + 1) as f64 * step, 0.0));
+    }
+    p.blocks
+}
+
+/// Rectangular pocket cleared by concentric rectangles with sharp corners, plunges in Z.
+pub fn pocket(w: f64, h: f64, step: f64, feed: f64) -> Vec<Block> {
+    let mut p = Prog::new(p3(0.0, 0.0, 5.0), feed, Continuity::G23);
+    p.g0(p3(w / 2.0, h / 2.0, 5.0));
+    p.g1(p3(w / 2.0, h / 2.0, -2.0));
+    let mut k = step;
+    while k < h / 2.0 {
+        let (x0, x1) = (w / 2.0 - k * w / h, w / 2.0 + k * w / h);
+        let (y0, y1) = (h / 2.0 - k, h / 2.0 + k);
+        p.g1(p3(x0, y0, -2.0));
+        p.g1(p3(x1, y0, -2.0));
+        p.g1(p3(x1, y1, -2.0));
+        p.g1(p3(x0, y1, -2.0));
+        p.g1(p3(x0, y0, -2.0));
+        k += step;
+    }
+    p.g0(p3(p.pos[0], p.pos[1], 5.0));
+    p.blocks
+}
+
+/// Long 3D lines with rapid repositioning.
+pub fn long_lines() -> Vec<Block> {
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 9000.0, Continuity::G23);
+    p.g1(p3(200.0, 50.0, -5.0));
+    p.g1(p3(400.0, 60.0, -5.0));
+    p.g0(p3(0.0, 100.0, 10.0));
+    p.feed_mm_min = 4000.0;
+    p.g1(p3(300.0, 100.0, 0.0));
+    p.g1(p3(300.0, 300.0, -10.0));
+    p.g0(p3(0.0, 0.0, 0.0));
+    p.blocks
+}
+
+/// Arcs of several radii joined tangentially and at corners, with lines between.
+pub fn mixed_arcs() -> Vec<Block> {
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 4000.0, Continuity::G23);
+    p.g1(p3(20.0, 0.0, 0.0));
+    // Tangent quarter arc R10 CCW to (30, 10).
+    p.arc(p3(30.0, 10.0, 0.0), p3(20.0, 10.0, 0.0), ArcDir::Ccw);
+    p.g1(p3(30.0, 30.0, 0.0));
+    // Semicircle R5 CW (tangent), then a corner into a small arc R2.
+    p.arc(p3(40.0, 30.0, 0.0), p3(35.0, 30.0, 0.0), ArcDir::Cw);
+    p.arc(p3(44.0, 30.0, 0.0), p3(42.0, 30.0, 0.0), ArcDir::Ccw);
+    p.feed_mm_min = 1500.0;
+    p.g1(p3(44.0, 0.0, 0.0));
+    // Full circle R15 with a helix drop in Z.
+    p.arc(p3(44.0, 0.0, -3.0), p3(29.0, 0.0, 0.0), ArcDir::Ccw);
+    p.g1(p3(0.0, 0.0, -3.0));
+    p.blocks
+}
+
+/// A 3-axis mill with different axis dynamics.
+pub fn machine() -> PlannerConfig {
+    let mut cfg = PlannerConfig::uniform(3, 200.0, 1500.0);
+    cfg.axis_v_max_mm_s[1] = 180.0;
+    cfg.axis_v_max_mm_s[2] = 100.0;
+    cfg.axis_a_max_mm_s2[1] = 1200.0;
+    cfg.axis_a_max_mm_s2[2] = 800.0;
+    cfg.axis_j_max_mm_s3 = [40_000.0; kernel::MAX_AXES];
+    cfg
+}
+
+/// Envelope constants used by the suite: Lm 8 µm, drop 20 %, am 3000 mm/s², R395 = 1 ms,
+/// automatic continuity with R39 = 60°, and the given profile (1 linear, 2 parabolic).
+pub fn constants(profile: u8) -> Constants {
+    let mut c = Constants::new();
+    c.set(338, profile as f64 * 0.010);
+    c.set(97, 0.002);
+    c.set(384, 200.008);
+    c.set(385, 3.000);
+    c.set(395, 0.001);
+    c.set(52, 1500.0);
+    c.set(236, 1200.0);
+    c.set(237, 1500.0);
+    c.set(406, 0.001);
+    c.set(407, 300.000); // P = 300000 → J ≈ 9150 mm/s³
+    c.set(408, 1.200); // A = 1200 mm/s²
+    c.set(409, 200.008);
+    c.set(410, 3.000);
+    c
+}
+
+pub fn config(profile: u8) -> PlannerConfig {
+    machine().with_constants(&constants(profile))
+}
+
+/// Result of a virtual-time run.
+pub struct Run {
+    /// Tick outputs, with the start position first.
+    pub ticks: Vec<TickOut>,
+    /// Committed segments in order.
+    pub segments: Vec<Segment>,
+    /// Largest number of blocks the planner held.
+    pub max_window: usize,
+    /// Blocks pushed before the first tick moved the machine.
+    pub pushed_before_motion: usize,
+}
+
+impl Run {
+    pub fn time_s(&self) -> f64 {
+        (self.ticks.len() - 1) as f64 * TS_S
+    }
+}
+
+/// Streams `blocks` through planner and interpolator the way the daemon does; `each_tick` may
+/// act on the interpolator before every tick (override, hold ...).
+pub fn run_with(
+    cfg: PlannerConfig,
+    blocks: &[Block],
+    max_ticks: usize,
+    each_tick: impl FnMut(usize, &mut Interpolator),
+) -> Run {
+    run_stream(cfg, blocks.iter().copied(), max_ticks, each_tick)
+}
+
+/// As [`run_with`], with blocks generated on the fly (for very long programs).
+pub fn run_stream(
+    cfg: PlannerConfig,
+    blocks: impl Iterator<Item = Block>,
+    max_ticks: usize,
+    mut each_tick: impl FnMut(usize, &mut Interpolator),
+) -> Run {
+    let mut blocks = blocks.peekable();
+    let start = match blocks.peek().and_then(Block::motion) {
+        Some((s, _, _)) => s,
+        None => AxesMm::ZERO,
+    };
+    let mut exhausted = false;
+    let axes = cfg.axes;
+    let mut planner = kernel::plan::Planner::new(cfg, 1);
+    let mut ip = Interpolator::new(axes, start);
+    let mut next = 0usize;
+    let mut held: Option<Segment> = None;
+    let mut segments = vec![];
+    let mut ticks = vec![TickOut {
+        position: start,
+        ..TickOut::default()
+    }];
+    let mut max_window = 0;
+    let mut pushed_before_motion = 0;
+    for t in 0..max_ticks {
+        loop {
+            while planner.wants_input() && !exhausted {
+                match blocks.next() {
+                    Some(b) => {
+                        planner.push(&b).expect("valid block");
+                        next += 1;
+                    }
+                    None => exhausted = true,
+                }
+            }
+            if exhausted {
+                planner.finish();
+            }
+            let mut progressed = false;
+            loop {
+                let seg = match held.take() {
+                    Some(s) => s,
+                    None => match planner.poll() {
+                        Some(s) => {
+                            segments.push(s);
+                            s
+                        }
+                        None => break,
+                    },
+                };
+                if let Err(s) = ip.push(seg) {
+                    held = Some(s);
+                    break;
+                }
+                progressed = true;
+            }
+            max_window = max_window.max(next.saturating_sub(segments.len()));
+            if ip.buffered() > 0 || planner.is_done() || held.is_some() {
+                break;
+            }
+            // Nothing committed yet: the planner needs more input (or the program is over).
+            if !progressed && (!planner.wants_input() || exhausted) {
+                break;
+            }
+        }
+        each_tick(t, &mut ip);
+        let out = ip.tick();
+        if pushed_before_motion == 0 && out.path_v_mm_s > 0.0 {
+            pushed_before_motion = next;
+        }
+        ticks.push(out);
+        if planner.is_done() && held.is_none() && ip.state() == InterpState::Idle {
+            break;
+        }
+    }
+    Run {
+        ticks,
+        segments,
+        max_window,
+        pushed_before_motion,
+    }
+}
+
+pub fn run(cfg: PlannerConfig, blocks: &[Block]) -> Run {
+    run_with(cfg, blocks, 2_000_000, |_, _| {})
+}
+
+/// Worst ratios of the setpoint stream to its limits (1.0 = at the limit).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Worst {
+    pub axis_v: f64,
+    pub axis_a: f64,
+    pub axis_j: f64,
+    pub path_v: f64,
+    pub path_a: f64,
+    pub path_j: f64,
+    /// Largest distance of a smooth corner from the tick chord over it, relative to Lm.
+    pub corner_dev: f64,
+    /// Largest distance of a setpoint from its segment, mm.
+    pub off_path_mm: f64,
+    /// Stop points (and the program end) not hit exactly.
+    pub missed_stops: usize,
+}
+
+fn dist_to_chord(c: &AxesMm, a: &AxesMm, b: &AxesMm, axes: usize) -> f64 {
+    let ab = *b - *a;
+    let l2 = ab.norm(axes).powi(2);
+    let t = if l2 > 0.0 {
+        ((0..axes).map(|i| (c[i] - a[i]) * ab[i]).sum::<f64>() / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (*a + ab * t - *c).norm(axes)
+}
+
+fn dist_to_path(p: &AxesMm, seg: &Segment, axes: usize) -> f64 {
+    match seg.path {
+        kernel::plan::SegPath::Line { start, end } => dist_to_chord(p, &start, &end, axes),
+        kernel::plan::SegPath::Arc {
+            center,
+            plane,
+            radius_mm,
+            ..
+        } => {
+            let (a, b) = plane.axes();
+            ((p[a] - center[a]).hypot(p[b] - center[b]) - radius_mm).abs()
+        }
+    }
+}
+
+/// Measures a run against the limits (finite differences of the setpoints).
+pub fn measure(cfg: &PlannerConfig, r: &Run, lm_um: f64) -> Worst {
+    let axes = cfg.axes;
+    let by_seq: std::collections::HashMap<u32, Segment> =
+        r.segments.iter().map(|s| (s.seq, *s)).collect();
+    let mut w = Worst::default();
+    let a_path = r
+        .segments
+        .iter()
+        .fold(0.0f64, |m, s| m.max(s.accel_mm_s2).max(s.stop_accel_mm_s2));
+    let j_path = r.segments.iter().fold(0.0f64, |m, s| m.max(s.jerk_mm_s3));
+    let t = &r.ticks;
+    let v = |k: usize, i: usize| (t[k].position[i] - t[k - 1].position[i]) / TS_S;
+    for k in 1..t.len() {
+        for i in 0..axes {
+            w.axis_v = w.axis_v.max(v(k, i).abs() / cfg.axis_v_max_mm_s[i]);
+            if k >= 2 {
+                let a = (v(k, i) - v(k - 1, i)) / TS_S;
+                w.axis_a = w.axis_a.max(a.abs() / cfg.axis_a_max_mm_s2[i]);
+                if k >= 3 {
+                    let a0 = (v(k - 1, i) - v(k - 2, i)) / TS_S;
+                    w.axis_j = w
+                        .axis_j
+                        .max(((a - a0) / TS_S).abs() / cfg.axis_j_max_mm_s3[i]);
+                }
+            }
+        }
+        let ceil = |seq: u32| {
+            by_seq
+                .get(&seq)
+                .map_or(f64::INFINITY, |s| s.feed_mm_s.min(s.v_max_mm_s))
+        };
+        let lim = if k == 1 {
+            ceil(t[k].seq)
+        } else {
+            ceil(t[k - 1].seq).max(ceil(t[k].seq))
+        };
+        w.path_v = w.path_v.max(t[k].path_v_mm_s / lim);
+        if k >= 2 {
+            let a = (t[k].path_v_mm_s - t[k - 1].path_v_mm_s) / TS_S;
+            w.path_a = w.path_a.max(a.abs() / a_path);
+            if k >= 3 && j_path.is_finite() {
+                let a0 = (t[k - 1].path_v_mm_s - t[k - 2].path_v_mm_s) / TS_S;
+                w.path_j = w.path_j.max(((a - a0) / TS_S).abs() / j_path);
+            }
+        }
+        if let Some(s) = by_seq.get(&t[k].seq) {
+            w.off_path_mm = w.off_path_mm.max(dist_to_path(&t[k].position, s, axes));
+        }
+    }
+    // Stop points and the end are hit exactly.
+    for s in &r.segments {
+        if s.junction == kernel::plan::Junction::Stop || s.last {
+            let end = s.path.end();
+            if !t.iter().any(|o| o.position.0[..axes] == end.0[..axes]) {
+                w.missed_stops += 1;
+            }
+        }
+    }
+    // Smooth corners: distance of the corner from the chord of the tick that crosses it.
+    if lm_um > 0.0 {
+        let mut k = 1;
+        for (idx, s) in r.segments.iter().enumerate() {
+            if s.junction == kernel::plan::Junction::Stop || idx + 1 >= r.segments.len() {
+                continue;
+            }
+            let nx = &r.segments[idx + 1];
+            let turn = s
+                .path
+                .tangent_at(1.0, axes)
+                .0
+                .iter()
+                .zip(nx.path.tangent_at(0.0, axes).0.iter())
+                .map(|(a, b)| a * b)
+                .sum::<f64>();
+            if turn > 1.0 - 1e-12 {
+                continue;
+            }
+            while k < t.len() && t[k].seq <= s.seq {
+                k += 1;
+            }
+            if k >= t.len() {
+                break;
+            }
+            let d = dist_to_chord(&s.path.end(), &t[k - 1].position, &t[k].position, axes);
+            w.corner_dev = w.corner_dev.max(d / (lm_um * 1e-3));
+        }
+    }
+    w
+}

@@ -1,0 +1,334 @@
+//! Envelope-velocity planner + interpolator on the documented toolpath suite and on random
+//! programs, in virtual time (SPEC §7).
+//!
+//! Tolerances (finite differences of the 4 ms setpoints): velocity 1e-9 relative, acceleration
+//! and jerk 1e-6 relative (rounding of positions of up to 1e3 mm differenced three times),
+//! setpoints on the programmed path within 1e-9 mm, stop points and the program end reached
+//! bit-exactly, smooth corners within the accuracy criterion Lm of the tick chord.
+
+mod plan_common;
+
+use kernel::block::{Block, Continuity};
+use kernel::plan::{Junction, PlannerConfig};
+use plan_common::*;
+use proptest::prelude::*;
+
+const V_TOL: f64 = 1.0 + 1e-9;
+const A_TOL: f64 = 1.0 + 1e-6;
+const LM_UM: f64 = 8.0;
+
+fn assert_within(name: &str, cfg: &PlannerConfig, blocks: &[Block]) -> Run {
+    let r = run(cfg.clone(), blocks);
+    let w = measure(cfg, &r, LM_UM);
+    let ctx = format!("{name}: {w:?}");
+    assert!(w.axis_v <= V_TOL, "axis speed {ctx}");
+    assert!(w.path_v <= V_TOL, "path speed {ctx}");
+    assert!(w.axis_a <= A_TOL, "axis acceleration {ctx}");
+    assert!(w.path_a <= A_TOL, "path acceleration {ctx}");
+    assert!(w.path_j <= A_TOL, "path jerk {ctx}");
+    assert!(w.corner_dev <= 1.0, "corner deviation {ctx}");
+    assert!(w.off_path_mm <= 1e-9, "off path {ctx}");
+    assert_eq!(w.missed_stops, 0, "stop points {ctx}");
+    let end = blocks.iter().rev().find_map(Block::motion).unwrap().1;
+    let last = r.ticks.last().unwrap();
+    assert_eq!(last.position.0[..3], end.0[..3], "program end {name}");
+    assert!(last.program_end, "program end flag {name}");
+    r
+}
+
+fn cfg(profile: u8) -> PlannerConfig {
+    let mut c = config(profile);
+    c.min_block_time_s = 0.0;
+    c
+}
+
+#[test]
+fn suite_linear_within_limits() {
+    for (name, blocks) in suite() {
+        assert_within(name, &cfg(1), &blocks);
+    }
+}
+
+#[test]
+fn suite_parabolic_within_limits() {
+    for (name, blocks) in suite() {
+        let r = assert_within(name, &cfg(2), &blocks);
+        assert!(r.segments.iter().all(|s| s.jerk_mm_s3.is_finite()));
+    }
+}
+
+#[test]
+fn parabolic_axis_jerk_on_lines_with_stops() {
+    // Per-axis jerk is limited wherever the path direction is continuous; the zig-zag only has
+    // stop corners (90° > R39).
+    let c = cfg(2);
+    let r = run(c.clone(), &zigzag(6, 30.0, 2.0, 3000.0));
+    let w = measure(&c, &r, LM_UM);
+    assert!(w.axis_j <= A_TOL, "{w:?}");
+    assert!(r.segments.iter().all(|s| s.junction == Junction::Stop));
+}
+
+#[test]
+fn parabolic_is_smoother_than_linear() {
+    let blocks = zigzag(4, 30.0, 2.0, 3000.0);
+    let (l, p) = (cfg(1), cfg(2));
+    let wl = measure(&l, &run(l.clone(), &blocks), LM_UM);
+    let wp = measure(&p, &run(p.clone(), &blocks), LM_UM);
+    // The linear profile steps the acceleration (unbounded jerk), the parabolic does not.
+    assert!(wl.axis_j > 2.0 && wp.axis_j <= A_TOL, "{wl:?} {wp:?}");
+}
+
+#[test]
+fn dense_polyline_runs_near_feed_without_minimum_duration() {
+    // 0.05 mm collinear CAD segments at F6000: with the minimum block duration at 0 the machine
+    // reaches the programmed 100 mm/s; with the manual's 4 ms it is held to 0.05/0.004 mm/s.
+    // Manual continuity rule: the automatic one would also stop at every junction of blocks
+    // shorter than the minimum duration (SPEC §7.1).
+    let mut c = cfg(1);
+    c.envelope.rule = kernel::plan::ContinuityRule::Manual;
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 6000.0, Continuity::G23);
+    for i in 1..=2000 {
+        p.g1(p3(i as f64 * 0.05, 0.0, 0.0));
+    }
+    let fast = run(c.clone(), &p.blocks);
+    let v_fast = fast.ticks.iter().map(|t| t.path_v_mm_s).fold(0.0, f64::max);
+    assert!((v_fast - 100.0).abs() < 1e-9, "{v_fast}");
+    let mut slow_cfg = c;
+    slow_cfg.min_block_time_s = 0.004;
+    let slow = run(slow_cfg, &p.blocks);
+    let v_slow = slow.ticks.iter().map(|t| t.path_v_mm_s).fold(0.0, f64::max);
+    assert!(v_slow <= 12.5 + 1e-9 && v_slow > 12.0, "{v_slow}");
+    assert!(slow.time_s() > 5.0 * fast.time_s());
+}
+
+#[test]
+fn dense_circle_respects_curvature() {
+    // 0.2 mm chords on R 6.75 at F6000: per-junction caps alone would allow v²·α/L far above the
+    // axis limits; the curvature window keeps every axis within its acceleration.
+    let c = cfg(1);
+    let blocks = dense_circle(6.75, 0.2, 6000.0);
+    let r = assert_within("circle 6.75", &c, &blocks);
+    let v_top = r.ticks.iter().map(|t| t.path_v_mm_s).fold(0.0, f64::max);
+    // √(a·R) with half of the 1200 mm/s² Y axis: 63.6 mm/s; the planner gets close to it.
+    assert!(v_top > 0.8 * (600.0f64 * 6.75).sqrt(), "{v_top}");
+}
+
+#[test]
+fn junction_classification_for_the_preview() {
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 3000.0, Continuity::G23);
+    p.g1(p3(10.0, 0.0, 0.0)); // collinear with the next: smooth
+    p.g1(p3(20.0, 0.0, 0.0)); // 30° turn: smooth but a speed drop (automatic rule, R39 = 60°)
+    p.g1(p3(30.0, 5.773_502_691_896_258, 0.0)); // 90° turn: stop
+    p.g1(p3(30.0, 20.0, 0.0));
+    let r = run(cfg(1), &p.blocks);
+    let j: Vec<Junction> = r.segments.iter().map(|s| s.junction).collect();
+    assert_eq!(
+        j,
+        [
+            Junction::Smooth,
+            Junction::SpeedDrop,
+            Junction::Stop,
+            Junction::Stop
+        ]
+    );
+    assert!(j[1].is_red() && !j[0].is_red());
+    // The drop is real: the tick speed near the 30° corner is below 20 % of F.
+    let near = r
+        .ticks
+        .iter()
+        .filter(|t| (t.position[0] - 20.0).abs() < 0.05 && t.position[1].abs() < 0.05)
+        .map(|t| t.path_v_mm_s)
+        .fold(f64::INFINITY, f64::min);
+    assert!(near < 0.2 * 50.0, "{near}");
+}
+
+#[test]
+fn g0_and_g98_never_smooth_manual_rule_follows_next_block() {
+    let mut c = cfg(1);
+    c.envelope.rule = kernel::plan::ContinuityRule::Manual;
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 3000.0, Continuity::G23);
+    p.g1(p3(10.0, 0.0, 0.0));
+    p.g0(p3(20.0, 0.0, 0.0)); // into a rapid: stop
+    p.g1(p3(30.0, 0.0, 0.0)); // out of a rapid: stop
+    p.continuity = Continuity::G24;
+    p.g1(p3(40.0, 0.0, 0.0)); // next block G24: stop + wait in position
+    p.continuity = Continuity::G23;
+    p.g1(p3(50.0, 0.0, 0.0)); // G24 then G23: smooth (manual table)
+    p.continuity = Continuity::G98;
+    p.g1(p3(60.0, 0.0, 0.0)); // next block G98: stop
+    p.g1(p3(70.0, 0.0, 0.0));
+    let r = run(c, &p.blocks);
+    let j: Vec<Junction> = r.segments.iter().map(|s| s.junction).collect();
+    use Junction::*;
+    assert_eq!(j, [Stop, Stop, Stop, Smooth, Stop, Stop, Stop]);
+    assert!(r.segments[2].wait_in_position && !r.segments[0].wait_in_position);
+}
+
+#[test]
+fn g24_waits_for_following_error() {
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 3000.0, Continuity::G24);
+    p.g1(p3(5.0, 0.0, 0.0));
+    p.g1(p3(10.0, 0.0, 0.0));
+    // The drive reports "in position" only from tick 400 on.
+    let r = run_with(cfg(1), &p.blocks, 100_000, |t, ip| {
+        ip.set_in_position(t >= 400)
+    });
+    let first_move_after_stop = r.ticks.iter().position(|t| t.position[0] > 5.0).unwrap();
+    assert!(first_move_after_stop > 400);
+    assert_eq!(r.ticks.last().unwrap().position[0], 10.0);
+}
+
+#[test]
+fn dynamic_set_from_program_and_plc() {
+    let mut c = cfg(1);
+    c.envelope.sets[1].accel_mm_s2 = 100.0;
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 3000.0, Continuity::G23);
+    p.g1(p3(10.0, 0.0, 0.0));
+    p.dyn_set = 2; // G23 I2
+    p.g1(p3(20.0, 0.0, 0.0));
+    let r = run(c.clone(), &p.blocks);
+    assert_eq!(r.segments[1].dyn_set, 2);
+    assert_eq!(r.segments[1].accel_mm_s2, 100.0);
+    assert!(r.segments[0].accel_mm_s2 > 100.0);
+    // The PLC cell DYNAM_SET = 1 selects set 2 for blocks planned after it changes.
+    let mut pl = kernel::plan::Planner::new(c, 1);
+    pl.set_dynam_set_cell(0);
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 3000.0, Continuity::G23);
+    p.g1(p3(10.0, 0.0, 0.0)).g1(p3(20.0, 0.0, 0.0));
+    pl.push(&p.blocks[0]).unwrap();
+    pl.set_dynam_set_cell(1);
+    pl.push(&p.blocks[1]).unwrap();
+    pl.finish();
+    let segs: Vec<_> = std::iter::from_fn(|| pl.poll()).collect();
+    assert_eq!((segs[0].dyn_set, segs[1].dyn_set), (1, 2));
+}
+
+#[test]
+fn short_blocks_merge_and_break_continuity() {
+    let mut c = cfg(1);
+    c.envelope.merge_len_mm = Some(0.005);
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 3000.0, Continuity::G23);
+    p.g1(p3(10.0, 0.0, 0.0));
+    p.g1(p3(10.003, 0.0, 0.0)); // 3 µm: merged into the next block
+    p.g1(p3(20.0, 1.0, 0.0));
+    let r = run(c.clone(), &p.blocks);
+    assert_eq!(r.segments.len(), 2);
+    assert_eq!(r.segments[1].path.start().0[..2], [10.0, 0.0]);
+    assert_eq!(r.ticks.last().unwrap().position.0[..2], [20.0, 1.0]);
+    // R382: a block shorter than 1 mm breaks continuity.
+    c.envelope.merge_len_mm = None;
+    c.envelope.break_len_mm = Some(1.0);
+    let r = run(c, &p.blocks);
+    assert!(r.segments.iter().all(|s| s.junction == Junction::Stop));
+}
+
+#[test]
+fn override_and_hold_within_limits() {
+    for profile in [1u8, 2] {
+        let c = cfg(profile);
+        let blocks = mixed_arcs();
+        let r = run_with(c.clone(), &blocks, 1_000_000, |t, ip| match t {
+            100 => ip.set_override(150.0),
+            400 => ip.set_override(30.0),
+            700 => ip.hold(),
+            1200 => ip.resume(),
+            1500 => ip.set_override(100.0),
+            _ => {}
+        });
+        let w = measure(&c, &r, LM_UM);
+        assert!(
+            w.axis_v <= V_TOL && w.axis_a <= A_TOL && w.path_a <= A_TOL,
+            "{w:?}"
+        );
+        // Override 150 %: the path speed may reach 1.5 × F, never more.
+        assert!(w.path_v <= 1.5 * V_TOL && w.path_v > 1.05, "{w:?}");
+        assert!(w.path_j <= A_TOL, "{w:?}");
+        assert!(w.off_path_mm <= 1e-9);
+        let held = &r.ticks[1100];
+        assert_eq!(held.state, kernel::interp::InterpState::Held);
+        assert_eq!(held.path_v_mm_s, 0.0);
+        let end = blocks.iter().rev().find_map(Block::motion).unwrap().1;
+        assert_eq!(r.ticks.last().unwrap().position.0[..3], end.0[..3]);
+    }
+}
+
+#[test]
+fn million_block_program_streams_with_bounded_window() {
+    // A 1,000,000-block zig-zag of 0.1 mm steps; only the first 2000 ticks are run.
+    let blocks = (0..1_000_000u32).map(|i| {
+        let mut p = Prog::new(
+            p3(i as f64 * 0.1, (i % 2) as f64 * 0.02, 0.0),
+            6000.0,
+            Continuity::G23,
+        );
+        p.g1(p3((i + 1) as f64 * 0.1, ((i + 1) % 2) as f64 * 0.02, 0.0));
+        let mut b = p.blocks[0];
+        b.seq = i;
+        b
+    });
+    let r = run_stream(cfg(1), blocks, 2000, |_, _| {});
+    assert!(r.pushed_before_motion <= 600, "{}", r.pushed_before_motion);
+    assert!(r.max_window <= 500 + 32 + 1, "{}", r.max_window);
+    assert!(r.ticks.last().unwrap().position[0] > 10.0);
+}
+
+fn random_program(steps: &[(u8, f64, f64, f64, u8, u8)]) -> Vec<Block> {
+    use kernel::block::ArcDir;
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 3000.0, Continuity::G23);
+    for &(kind, a, b, len, feed, cont) in steps {
+        p.feed_mm_min = 300.0 + feed as f64 * 40.0;
+        p.continuity = match cont % 5 {
+            0 => Continuity::G98,
+            1 => Continuity::G24,
+            _ => Continuity::G23,
+        };
+        let dir = p3(a.cos() * b.cos(), a.sin() * b.cos(), b.sin() * 0.3);
+        let n = dir.norm(3);
+        let end = p.pos + dir * (len / n);
+        match kind % 6 {
+            0 => {
+                p.g0(end);
+            }
+            1 | 2 => {
+                // Arc through `end` with the centre on the perpendicular bisector.
+                let mid = p.pos.lerp(&end, 0.5);
+                let d = end - p.pos;
+                let off = 0.5 + (a * 3.0).sin().abs() * 2.0;
+                let mut c = mid;
+                c[0] += -d[1] * off;
+                c[1] += d[0] * off;
+                let mut e2 = end;
+                e2[2] = p.pos[2];
+                if (e2 - p.pos).norm(2) > 1e-3 {
+                    let dirn = if kind % 6 == 1 {
+                        ArcDir::Ccw
+                    } else {
+                        ArcDir::Cw
+                    };
+                    p.arc(e2, c, dirn);
+                }
+            }
+            _ => {
+                p.g1(end);
+            }
+        }
+    }
+    p.blocks
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+
+    #[test]
+    fn random_programs_stay_within_limits(
+        steps in prop::collection::vec(
+            (0u8..6, -3.2f64..3.2, -1.5f64..1.5, prop_oneof![0.01f64..0.2, 0.2f64..20.0], 0u8..200, 0u8..5),
+            1..60,
+        ),
+        profile in 1u8..=2,
+    ) {
+        let blocks = random_program(&steps);
+        prop_assume!(blocks.iter().any(|b| b.motion().is_some()));
+        assert_within("random", &cfg(profile), &blocks);
+    }
+}
