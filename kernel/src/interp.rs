@@ -421,7 +421,8 @@ impl Interpolator {
         // Hard limits: geometric ceilings, planned end speeds, end of the buffer.
         let mut hard = head.v_max_mm_s.min(behind_cap);
         let v_up = v + a * TS_S;
-        let reach = v_up * v_up / (2.0 * a) + 2.0 * v_up * TS_S + v_up * lag;
+        // Caps farther than this cannot constrain this tick (braking distance at `a_walk`).
+        let reach = |a_walk: f64| v_up * v_up / (2.0 * a_walk) + 2.0 * v_up * TS_S + v_up * lag;
         let mut d = head.length_mm - self.rs_mm;
         let mut stop_dist = f64::INFINITY;
         let mut a_walk = a;
@@ -450,7 +451,15 @@ impl Interpolator {
                 stop_dist = d;
                 break;
             }
-            if d > reach {
+            let a_next = next.map_or(a_walk, |n| {
+                let an = if braking {
+                    n.stop_accel_mm_s2
+                } else {
+                    n.accel_mm_s2
+                };
+                a_walk.min(self.raw_accel(an, &n))
+            });
+            if d > reach(a_next) {
                 break;
             }
             d += next.map_or(0.0, |n| n.length_mm);

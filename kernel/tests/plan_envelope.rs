@@ -272,52 +272,8 @@ fn million_block_program_streams_with_bounded_window() {
     assert!(r.ticks.last().unwrap().position[0] > 10.0);
 }
 
-fn random_program(steps: &[(u8, f64, f64, f64, u8, u8)]) -> Vec<Block> {
-    use kernel::block::ArcDir;
-    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 3000.0, Continuity::G23);
-    for &(kind, a, b, len, feed, cont) in steps {
-        p.feed_mm_min = 300.0 + feed as f64 * 40.0;
-        p.continuity = match cont % 5 {
-            0 => Continuity::G98,
-            1 => Continuity::G24,
-            _ => Continuity::G23,
-        };
-        let dir = p3(a.cos() * b.cos(), a.sin() * b.cos(), b.sin() * 0.3);
-        let n = dir.norm(3);
-        let end = p.pos + dir * (len / n);
-        match kind % 6 {
-            0 => {
-                p.g0(end);
-            }
-            1 | 2 => {
-                // Arc through `end` with the centre on the perpendicular bisector.
-                let mid = p.pos.lerp(&end, 0.5);
-                let d = end - p.pos;
-                let off = 0.5 + (a * 3.0).sin().abs() * 2.0;
-                let mut c = mid;
-                c[0] += -d[1] * off;
-                c[1] += d[0] * off;
-                let mut e2 = end;
-                e2[2] = p.pos[2];
-                if (e2 - p.pos).norm(2) > 1e-3 {
-                    let dirn = if kind % 6 == 1 {
-                        ArcDir::Ccw
-                    } else {
-                        ArcDir::Cw
-                    };
-                    p.arc(e2, c, dirn);
-                }
-            }
-            _ => {
-                p.g1(end);
-            }
-        }
-    }
-    p.blocks
-}
-
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
 
     #[test]
     fn random_programs_stay_within_limits(
