@@ -242,7 +242,7 @@ async fn long_program_in_virtual_time() {
     let mut text = String::from("G0 X0 Y0\nG1 F200\n");
     for i in 0..2000 {
         let x = if i % 2 == 0 { 300 } else { 0 };
-        text.push_str(&format!("N{} X{x} Y{}\n", i + 1, i as f64 * 0.01));
+        text.push_str(&format!("N{} X{x} Y{:.2}\n", i + 1, i as f64 * 0.01));
     }
     let cfg = Config::default();
     let (bus, record) = RecordingBus::new(sim_bus(&cfg));

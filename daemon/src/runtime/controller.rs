@@ -8,6 +8,7 @@ use std::time::Duration;
 
 use kernel::Diagnostic;
 use kernel::block::Block;
+use kernel::comp::CompConfig;
 use kernel::plan::PlannerConfig;
 use kernel::program::{self, Setup};
 use kernel::units::{AxesMm, MAX_AXES};
@@ -234,6 +235,7 @@ impl Controller {
             job,
             blocks: Arc::new(compiled.blocks),
             planner: self.planner_config(),
+            comp: CompConfig::default(),
         };
         let link = self.link.clone();
         let c = cancel.clone();
@@ -253,10 +255,21 @@ impl Controller {
     }
 
     fn planner_config(&self) -> PlannerConfig {
-        let mut cfg = PlannerConfig::uniform(self.config.axes.len(), 0.0, 0.0);
-        for (i, a) in self.config.axes.iter().enumerate().take(MAX_AXES) {
+        let axes = &self.config.axes;
+        // Path-level defaults from the slowest axis; per-axis limits then from each axis.
+        let v_min = axes
+            .iter()
+            .map(|a| a.max_velocity_mm_min / 60.0)
+            .fold(f64::INFINITY, f64::min);
+        let a_min = axes
+            .iter()
+            .map(|a| a.max_accel_mm_s2)
+            .fold(f64::INFINITY, f64::min);
+        let mut cfg = PlannerConfig::uniform(axes.len(), v_min, a_min);
+        for (i, a) in axes.iter().enumerate().take(MAX_AXES) {
             cfg.axis_v_max_mm_s[i] = a.max_velocity_mm_min / 60.0;
             cfg.axis_a_max_mm_s2[i] = a.max_accel_mm_s2;
+            cfg.axis_j_max_mm_s3[i] = 50.0 * a.max_accel_mm_s2;
         }
         cfg
     }

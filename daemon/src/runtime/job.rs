@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use kernel::Diagnostic;
 use kernel::block::Block;
-use kernel::comp::Compensator;
+use kernel::comp::{CompConfig, Compensator};
 use kernel::plan::{Planner, PlannerConfig, Segment};
 
 /// What a run needs.
@@ -16,6 +16,7 @@ pub struct JobSpec {
     pub job: u32,
     pub blocks: Arc<Vec<Block>>,
     pub planner: PlannerConfig,
+    pub comp: CompConfig,
 }
 
 /// Shared between the controller and the planner threads.
@@ -41,7 +42,7 @@ fn plan_all(
     ring: &mut rtrb::Producer<Segment>,
     cancel: &AtomicBool,
 ) -> Result<(), Diagnostic> {
-    let mut comp = Compensator::new();
+    let mut comp = Compensator::new(spec.comp.clone());
     let mut planner = Planner::new(spec.planner.clone(), spec.job);
     for block in spec.blocks.iter() {
         if cancel.load(Ordering::Relaxed) {
