@@ -130,7 +130,7 @@ impl Constants {
         (0..6)
             .map(|r| self.milli_of(r))
             .take_while(|&m| m != 0)
-            .filter_map(|m| axis_letter(m))
+            .filter_map(axis_letter)
             .collect()
     }
 
@@ -266,8 +266,16 @@ impl Constants {
                 format!("decade 2 must be 0, 1 or 2, not {}", self.decade(338, 2)),
             );
         }
-        if self.field_digits(580, 1, 2) > 1 {
-            bad(580, "must be 00 (old) or 01 (version 2)".into());
+        // R580: decades 1..2 = 00 old, 01 version 2; the manual also says "set 1" (= 1.000).
+        let m580 = self.milli_of(580);
+        if !matches!(m580, 0 | 1 | 1000) {
+            bad(
+                580,
+                format!(
+                    "KŘR version must be 00000.000 (old), 00000.001 or 00001.000 (version 2), not {}",
+                    fmt_milli(m580)
+                ),
+            );
         }
         out
     }

@@ -60,6 +60,8 @@ fn validation_refuses_out_of_range_settings() {
     check(67, 0.0, "controlling axis");
     check(1, 1.0, "configured twice");
     check(55, -0.01, "cannot be negative");
+    check(580, 5.0, "KŘR version");
+    check(580, 0.002, "KŘR version");
     let mut c = Constants::new();
     c.set(325, 10003.0);
     assert!(c.validate().is_empty());

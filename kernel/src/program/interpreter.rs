@@ -395,7 +395,7 @@ impl Interpreter {
             1 => group(&mut w.motion, Motion::Line, at, "motion (G0..G3)"),
             2 => group(&mut w.motion, Motion::Cw, at, "motion (G0..G3)"),
             3 => group(&mut w.motion, Motion::Ccw, at, "motion (G0..G3)"),
-            17 | 18 | 19 => {
+            17..=19 => {
                 let p = [Plane::G17, Plane::G18, Plane::G19][g as usize - 17];
                 let (a, b) = p.axes();
                 if a >= self.n_axes || b >= self.n_axes {
@@ -541,7 +541,7 @@ impl Interpreter {
         for (k, (m, at)) in w.m.iter().flatten().enumerate() {
             m_codes[k] = Some(*m);
             let (slot, what) = match m {
-                3 | 4 | 5 => (&mut dir_at, "spindle direction (M3/M4/M5)"),
+                3..=5 => (&mut dir_at, "spindle direction (M3/M4/M5)"),
                 36 | 37 => (&mut scale_at, "feed scale (M36/M37)"),
                 41..=44 => (&mut gear_at, "gear (M41..M44)"),
                 _ => continue,
