@@ -42,7 +42,7 @@ fn plan_all(
     ring: &mut rtrb::Producer<Segment>,
     cancel: &AtomicBool,
 ) -> Result<(), Diagnostic> {
-    let mut comp = Compensator::new(spec.comp.clone());
+    let mut comp = Compensator::new(spec.comp);
     let mut planner = Planner::new(spec.planner.clone(), spec.job);
     for block in spec.blocks.iter() {
         if cancel.load(Ordering::Relaxed) {
