@@ -615,3 +615,15 @@ fn offsets_table_default_is_zero() {
     assert_eq!(OffsetTable::new().entry(1).unwrap().radius_mm, 0.0);
     assert!(OffsetTable::new().entry(0).is_none());
 }
+
+#[test]
+fn setup_from_machine_constants_and_bom() {
+    let mut c = kernel::constants::Constants::new();
+    c.set(0, 1.0);
+    c.set(1, 3.0); // lathe: X, Z
+    c.set(2, 0.0);
+    let s = Setup::from_machine(c, OffsetTable::new());
+    assert_eq!(s.axis_names, ['X', 'Z']);
+    let b = ok("\u{FEFF}N1 G0 X10 Z5", &s);
+    assert_eq!(&b[0].motion().unwrap().1.0[..2], &[10.0, 5.0]);
+}

@@ -68,6 +68,17 @@ impl Setup {
             preprocessor: true,
         }
     }
+
+    /// A setup whose axes come from R0..R5 of `constants` and whose table is the daemon's
+    /// memory offset table at program start.
+    pub fn from_machine(constants: Constants, offsets: OffsetTable) -> Self {
+        Setup {
+            axis_names: constants.axis_names(),
+            constants,
+            offsets,
+            ..Setup::new(&[])
+        }
+    }
 }
 
 /// A validated program: its canonical blocks and every message about it.
@@ -133,7 +144,8 @@ pub fn stream<'a>(text: &'a str, setup: &Setup) -> Stream<'a> {
     Stream {
         pending_setup_error: interp.setup_error(),
         interp,
-        rest: text,
+        // A UTF-8 byte order mark (some PC editors write one) is not part of the program.
+        rest: text.strip_prefix('\u{FEFF}').unwrap_or(text),
         line_no: 0,
         done: false,
     }
