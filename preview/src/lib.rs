@@ -1,0 +1,1 @@
+//! Program preview and continuity diagnostics as pictures (SPEC §7.5). Issue #10.
