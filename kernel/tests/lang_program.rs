@@ -464,6 +464,9 @@ fn continuity_modes_and_dynamic_sets() {
         ]
     );
     assert!(first_error("G23 I5", &mill()).message.contains("1..4"));
+    // After an arc (G2 still modal) G23 I3 alone selects the set; it is not a circle.
+    let b = ok("G2 X10 Y0 I5 J0 F100\nG23 I3", &mill());
+    assert_eq!((b[1].kind, b[1].dyn_set), (BlockKind::Technology, 3));
 }
 
 // ---- Parameters, length offsets, modal state ---------------------------------------------

@@ -514,10 +514,11 @@ impl Interpreter {
         let motion_words = w.axes[..self.n_axes].iter().any(Option::is_some);
         let arc_block = st.motion.is_arc() && w.g92.is_none();
 
-        // G23/G24/G98 I1..I4: I selects the dynamic set unless the block is an arc (SPEC §7.4).
+        // G23/G24/G98 I1..I4: I selects the dynamic set (SPEC §7.4) unless the block is an arc
+        // that moves (G2/G3 mode with an axis word or J), where I is the centre.
         let mut i_is_centre = true;
         if let (Some(_), Some((i, at))) = (w.continuity, w.i)
-            && !arc_block
+            && (!arc_block || (w.j.is_none() && !motion_words))
         {
             let set = int(i, "I (dynamic set)", 1, 4).map_err(|m| Fail { at, message: m })?;
             st.dyn_set = set as u8;
