@@ -559,17 +559,15 @@ impl Compensator {
         if let Some(r) = geo.offset_radius(s)
             && r < -EPS_MM
         {
-            {
-                return Err(err(
-                    b,
-                    format!(
-                        "block {}: tool radius {:.3} mm is larger than the inside arc radius {:.3} mm",
-                        name(b),
-                        s.abs(),
-                        r + s.abs()
-                    ),
-                ));
-            }
+            return Err(err(
+                b,
+                format!(
+                    "block {}: tool radius {:.3} mm is larger than the inside arc radius {:.3} mm",
+                    name(b),
+                    s.abs(),
+                    r + s.abs()
+                ),
+            ));
         }
         let elem = Elem {
             src: *b,
@@ -652,23 +650,21 @@ impl Compensator {
         if let Some(d) = res.far_mm
             && self.cfg.position.report
         {
-            {
-                let what = if res.position_optimised {
-                    "an arc was inserted instead (R765)"
-                } else {
-                    "check the corner (R765)"
-                };
-                let pct = self.cfg.position.percent;
-                self.diags.push(Diagnostic::warning(
-                    b.n,
-                    b.line,
-                    0,
-                    format!(
-                        "block {}: the equidistant lies {d:.3} mm from the programmed corner, more than {pct:.0} % of the tool radius; {what}",
-                        name(b)
-                    ),
-                ));
-            }
+            let what = if res.position_optimised {
+                "an arc was inserted instead (R765)"
+            } else {
+                "check the corner (R765)"
+            };
+            let pct = self.cfg.position.percent;
+            self.diags.push(Diagnostic::warning(
+                b.n,
+                b.line,
+                0,
+                format!(
+                    "block {}: the equidistant lies {d:.3} mm from the programmed corner, more than {pct:.0} % of the tool radius; {what}",
+                    name(b)
+                ),
+            ));
         }
         if self.cfg.report_inserted_arcs && e.corner.is_some() {
             self.diags.push(Diagnostic::info(
