@@ -765,3 +765,58 @@ fn output_is_traceable_and_streams_with_bounded_look_ahead() {
         assert_eq!((o.block.n, o.block.line), (src.n, src.line));
     }
 }
+
+/// A short concave G3 arc (radius 8.5748, 12.3°, tool 5 on its inside) between two inside
+/// corners: its equidistant runs backwards (found by a search, see docs/compensation.md).
+fn short_concave_arc() -> Prog {
+    let (rho, sweep, turn1, turn2) = (8.5748, 0.214675, 1.18565, -0.93455);
+    let mut pr = Prog::new(-40.0, 0.0);
+    pr.g41(1, 5.0).line(-20.0, 0.0).line(0.0, 0.0);
+    let c = V2::from_angle(turn1).left() * rho;
+    let e = c + V2::from_angle((-c).angle() + sweep) * rho;
+    pr.arc(false, e.x, e.y, c.x, c.y);
+    let f = e + V2::from_angle(turn1 + sweep + turn2) * 30.0;
+    pr.line(f.x, f.y).g40().line(f.x + 1.0, f.y + 1.0);
+    pr
+}
+
+// §4.5 d5: without it the backward arc is cut as a short arc in the reverse direction (never
+// the complementary, almost full circle); with d5 it is replaced by its chord.
+#[test]
+fn d5_replaces_a_backward_arc_by_its_chord() {
+    let pr = short_concave_arc();
+    let (out, d) = pr.run(&cfg());
+    assert!(
+        d.iter()
+            .any(|d| d.block == Some(30) && d.message.contains("Chyba"))
+    );
+    let arc = out.iter().find(|c| c.block.n == Some(30)).unwrap();
+    let (s, e, path) = arc.block.motion().unwrap();
+    let Path::Arc { dir, center, .. } = path else {
+        panic!("{arc:?}")
+    };
+    assert_eq!(
+        dir,
+        kernel::block::ArcDir::Cw,
+        "reversed, not the complementary arc"
+    );
+    let c = V2::of(&center, Plane::G17);
+    let span = kernel::comp::geom::wrap_pi(
+        (V2::of(&e, Plane::G17) - c).angle() - (V2::of(&s, Plane::G17) - c).angle(),
+    );
+    assert!(span < 0.0 && span > -1.0, "{span}");
+    let mut c5 = cfg();
+    c5.check.complementary_arc_to_line = true;
+    let (out, d) = pr.run(&c5);
+    assert!(
+        d.iter()
+            .any(|d| d.block == Some(30) && d.message.contains("d5")),
+        "{d:?}"
+    );
+    let b = out.iter().find(|c| c.block.n == Some(30)).unwrap();
+    assert_eq!(
+        (b.role, b.block.motion().unwrap().2),
+        (Role::EquidistantChord, Path::Line)
+    );
+    check_path(&pr.blocks, &out, Plane::G17, 1e-9).unwrap();
+}
