@@ -268,11 +268,19 @@ pub fn check_path(
                         return Err(format!("corner arc of seq {} radius != |r|", b.seq));
                     }
                 }
-                if i == 0 || i + 1 >= mv.len() {
-                    return Err("corner arc without neighbours".into());
-                }
-                let t_in = tangent(&mv[i - 1].block, plane, true);
-                let t_out = tangent(&mv[i + 1].block, plane, false);
+                // Neighbours moving in the plane (bridged Z moves stand between).
+                let moves = |c: &CompBlock| {
+                    let (a, b) = ends(&c.block, plane);
+                    a.dist(b) > 1e-9
+                };
+                let Some(before) = mv[..i].iter().rev().find(|c| moves(c)) else {
+                    return Err("corner arc without a motion before it".into());
+                };
+                let Some(after) = mv[i + 1..].iter().find(|c| moves(c)) else {
+                    return Err("corner arc without a motion after it".into());
+                };
+                let t_in = tangent(&before.block, plane, true);
+                let t_out = tangent(&after.block, plane, false);
                 if tangent(&c.block, plane, false).dot(t_in) < 1.0 - 1e-9
                     || tangent(&c.block, plane, true).dot(t_out) < 1.0 - 1e-9
                 {
@@ -283,4 +291,23 @@ pub fn check_path(
         }
     }
     Ok((pieces, arcs))
+}
+
+/// Continuity and finiteness only (for contours where loops are allowed).
+pub fn check_continuous(out: &[CompBlock]) -> Result<(), String> {
+    let mv = motions(out);
+    for c in &mv {
+        let (s, e, _) = c.block.motion().unwrap();
+        if s.0.iter().chain(e.0.iter()).any(|v| !v.is_finite()) {
+            return Err(format!("non-finite output {c:?}"));
+        }
+    }
+    for w in mv.windows(2) {
+        let (_, e0, _) = w[0].block.motion().unwrap();
+        let (s1, _, _) = w[1].block.motion().unwrap();
+        if (e0 - s1).max_abs(6) > 1e-9 {
+            return Err(format!("gap between {:?} and {:?}", w[0], w[1]));
+        }
+    }
+    Ok(())
 }

@@ -61,9 +61,10 @@ fn corner_cfg() -> impl Strategy<Value = CompConfig> {
     })
 }
 
-/// Builds the open contour: lead-in line, the steps, lead-out line.
-fn open_contour(steps: &[Step], r: f64, left: bool) -> Prog {
-    let mut p = Prog::new(0.0, -30.0);
+/// Builds the open contour in `plane`: lead-in line, the steps (with a Z move after those
+/// whose length has an odd first decimal when `bridge`), lead-out line.
+fn open_contour(steps: &[Step], r: f64, left: bool, plane: Plane, bridge: bool) -> Prog {
+    let mut p = Prog::in_plane(plane, 0.0, -30.0);
     p.line(0.0, 0.0); // positioning, uncompensated
     if left {
         p.g41(1, r);
@@ -98,6 +99,13 @@ fn open_contour(steps: &[Step], r: f64, left: bool) -> Prog {
                 p.arc(!ccw, at.x, at.y, c.x, c.y);
             }
         }
+        if bridge && (s.len * 10.0) as i64 % 2 == 1 {
+            if plane == Plane::G17 {
+                p.z(-s.len);
+            } else {
+                p.tech();
+            }
+        }
     }
     p.g40();
     let t = V2::from_angle(heading);
@@ -107,6 +115,15 @@ fn open_contour(steps: &[Step], r: f64, left: bool) -> Prog {
 }
 
 fn check(p: &Prog, cfg: &CompConfig, expect_pieces: usize) -> Result<(), TestCaseError> {
+    check_in(p, cfg, expect_pieces, Plane::G17)
+}
+
+fn check_in(
+    p: &Prog,
+    cfg: &CompConfig,
+    expect_pieces: usize,
+    plane: Plane,
+) -> Result<(), TestCaseError> {
     let (out, diags) = p.run(cfg);
     prop_assert!(errors(&diags).is_empty(), "{:?}", diags);
     prop_assert!(
@@ -115,7 +132,7 @@ fn check(p: &Prog, cfg: &CompConfig, expect_pieces: usize) -> Result<(), TestCas
         diags
     );
     let (pieces, arcs) =
-        check_path(&p.blocks, &out, Plane::G17, 1e-6).map_err(TestCaseError::fail)?;
+        check_path(&p.blocks, &out, plane, 1e-6).map_err(TestCaseError::fail)?;
     // Every programmed element appears (an arc over 180° as two halves).
     prop_assert!(pieces >= expect_pieces, "{pieces} < {expect_pieces}");
     let infos = with_severity(&diags, Severity::Info).len();
@@ -137,9 +154,32 @@ proptest! {
         r in 0.2f64..2.0,
         left in any::<bool>(),
         cfg in corner_cfg(),
+        plane in prop_oneof![Just(Plane::G17), Just(Plane::G18), Just(Plane::G19)],
+        bridge in any::<bool>(),
     ) {
-        let p = open_contour(&steps, r, left);
-        check(&p, &cfg, steps.len())?;
+        let p = open_contour(&steps, r, left, plane, bridge);
+        check_in(&p, &cfg, steps.len(), plane)?;
+    }
+
+    // Tools far too large for the details (loops, missing intersections) with any settings:
+    // never a panic; either an error with a block number, or a continuous, finite path.
+    #[test]
+    fn tight_contours_stay_continuous_with_any_settings(
+        steps in prop::collection::vec(step(), 1..14),
+        r in 2.0f64..30.0,
+        left in any::<bool>(),
+        cfg in any_cfg(),
+    ) {
+        let p = open_contour(&steps, r, left, Plane::G17, true);
+        let (out, diags) = p.run(&cfg);
+        let errs = errors(&diags);
+        if errs.is_empty() {
+            check_continuous(&out).map_err(TestCaseError::fail)?;
+        } else {
+            for e in errs {
+                prop_assert!(e.block.is_some());
+            }
+        }
     }
 
     #[test]
