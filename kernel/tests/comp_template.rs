@@ -109,3 +109,43 @@ fn template_with_intersections_and_machine_constants() {
             .any(|c| c.role == Role::CornerArc && c.block.n == Some(110))
     );
 }
+
+// SPEC §4.1 + §4.2 through the parser: the radius comes from the offset table entry selected
+// by D; a negative radius swaps the side; G0 cancels and the last rapid restarts.
+#[test]
+fn parsed_program_with_table_radius_and_rapid_restart() {
+    use kernel::offsets::OffsetEntry;
+    let text = "N10 G17 D7\nN20 G42\nN30 G1 X0 Y0 F500\nN40 X20\nN50 Y20\n\
+                N60 G0 X40\nN70 G0 Y0\nN80 G1 X60\nN90 G40 G1 X70\n";
+    let mut setup = Setup::new(&['X', 'Y', 'Z']);
+    setup.start[0] = -10.0;
+    setup.start[1] = -10.0;
+    setup
+        .offsets
+        .set_entry(
+            7,
+            OffsetEntry {
+                radius_mm: -2.0,
+                length_mm: [0.0; 4],
+            },
+        )
+        .unwrap();
+    let c = compile(text, &setup);
+    assert!(!c.has_errors(), "{:?}", c.diagnostics);
+    let (out, diags) = compensate_all_traced(&c.blocks, &CompConfig::default());
+    assert!(errors(&diags).is_empty(), "{diags:?}");
+    check_path(&c.blocks, &out, Plane::G17, 1e-9).unwrap();
+    let mv = motions(&out);
+    let find = |n: u32| mv.iter().find(|c| c.block.n == Some(n)).unwrap();
+    // G42 with radius -2 = left by 2: N40 (+X) runs at y = +2, the inside corner at (18, 2).
+    assert_eq!(find(40).offset_mm, 2.0);
+    assert_close(ends(&find(40).block, Plane::G17).1, p(18.0, 2.0), 1e-12);
+    // N50 ends on its perpendicular before the rapid; N60 goes to its programmed point.
+    assert_close(ends(&find(50).block, Plane::G17).1, p(18.0, 20.0), 1e-12);
+    assert_eq!(find(60).role, Role::Passthrough);
+    assert_close(ends(&find(60).block, Plane::G17).1, p(40.0, 20.0), 0.0);
+    // N70, the last rapid, restarts: perpendicular of N80 (+X, left) at (40, 0).
+    assert_eq!(find(70).role, Role::StartMove);
+    assert_close(ends(&find(70).block, Plane::G17).1, p(40.0, 2.0), 1e-12);
+    assert_close(ends(&find(80).block, Plane::G17).1, p(60.0, 2.0), 1e-12);
+}

@@ -914,13 +914,13 @@ impl Compensator {
         match e.kind {
             ElemKind::Transition { rapid } => {
                 let path = if rapid { Path::Rapid } else { Path::Line };
-                self.put_motion(
-                    &src,
-                    with_plane(pend, e.end, plane),
-                    path,
-                    Role::StartMove,
-                    s,
-                );
+                // A rapid not followed by a cut stays uncompensated (SPEC §4.2).
+                let (role, s) = if rapid && e.end == e.geo.end() {
+                    (Role::Passthrough, 0.0)
+                } else {
+                    (Role::StartMove, s)
+                };
+                self.put_motion(&src, with_plane(pend, e.end, plane), path, role, s);
             }
             ElemKind::Regular => {
                 if let Some(c) = e.corner {
