@@ -79,3 +79,19 @@ pub fn worst_accel_at(points: &[[f64; hal::MAX_AXES]], axis: usize, ts_s: f64) -
     }
     best.0
 }
+
+/// The default (simulated mill) configuration with its data files in a fresh temporary
+/// directory, so tests never touch the working tree or each other.
+pub fn test_config() -> daemon::runtime::config::Config {
+    use std::sync::atomic::{AtomicU32, Ordering};
+    static N: AtomicU32 = AtomicU32::new(0);
+    let dir = std::env::temp_dir().join(format!(
+        "cnc-test-{}-{}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut cfg = daemon::runtime::config::Config::default();
+    cfg.storage.dir = dir;
+    cfg
+}

@@ -76,7 +76,7 @@ const END: [f64; 3] = [41.0, 12.25, 1.0];
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn program_runs_through_grpc_within_limits_and_ends_exactly() {
-    let cfg = Config::default();
+    let cfg = tests::test_config();
     let limits: Vec<(f64, f64)> = cfg
         .axes
         .iter()
@@ -189,7 +189,7 @@ async fn program_runs_through_grpc_within_limits_and_ends_exactly() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_program_is_rejected_with_block_number_and_nothing_moves() {
-    let (mut client, ctl, record) = daemon(Config::default(), ClockKind::Monotonic).await;
+    let (mut client, ctl, record) = daemon(tests::test_config(), ClockKind::Monotonic).await;
     let before = ctl.snapshot().commanded;
     for (text, block, needle) in [
         ("N10 G1 X5 F100\nN20 Q7\n", 20, "Q"),
@@ -244,7 +244,7 @@ async fn long_program_in_virtual_time() {
         let x = if i % 2 == 0 { 300 } else { 0 };
         text.push_str(&format!("N{} X{x} Y{:.2}\n", i + 1, i as f64 * 0.01));
     }
-    let cfg = Config::default();
+    let cfg = tests::test_config();
     let (bus, record) = RecordingBus::new(sim_bus(&cfg));
     let ctl = Controller::start_with_bus(cfg, ClockKind::Virtual, Box::new(bus)).unwrap();
     wait_state(&ctl, MachineState::Idle, Duration::from_secs(5)).await;
@@ -275,7 +275,7 @@ async fn long_program_in_virtual_time() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn shutdown_ramps_axes_down_before_exit() {
-    let cfg = Config::default();
+    let cfg = tests::test_config();
     let a_lim = cfg.axes[0].max_accel_mm_s2;
     let (bus, record) = RecordingBus::new(sim_bus(&cfg));
     let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();

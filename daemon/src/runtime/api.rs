@@ -68,6 +68,12 @@ fn status_of(e: ControlError) -> Status {
         }
         ControlError::WrongState(m) => Status::failed_precondition(m),
         ControlError::RtGone => Status::unavailable("the real-time thread has stopped"),
+        ControlError::Storage(e) => match e {
+            super::storage::StorageError::Invalid { .. } => Status::invalid_argument(e.to_string()),
+            _ => Status::internal(e.to_string()),
+        },
+        ControlError::Plc(e) => Status::invalid_argument(e.to_string()),
+        ControlError::Invalid(m) => Status::invalid_argument(m),
     }
 }
 

@@ -22,6 +22,10 @@ pub struct Config {
     pub rt: RtConfig,
     #[serde(default)]
     pub sim: SimConfig,
+    #[serde(default)]
+    pub storage: StorageConfig,
+    #[serde(default)]
+    pub kr: KrSection,
 }
 
 impl Default for Config {
@@ -32,8 +36,113 @@ impl Default for Config {
             api: ApiConfig::default(),
             rt: RtConfig::default(),
             sim: SimConfig::default(),
+            storage: StorageConfig::default(),
+            kr: KrSection::default(),
         }
     }
+}
+
+/// Where the controller keeps its data files.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct StorageConfig {
+    /// Directory of the data files (systemd: the unit's StateDirectory, `/var/lib/cncd`).
+    /// Relative paths are taken from the daemon's working directory.
+    #[serde(default = "default_storage_dir")]
+    pub dir: PathBuf,
+    /// Offset table file (SPEC §3; `$21` of CNC836.KNF), relative to `dir`.
+    #[serde(default = "default_offsets_file")]
+    pub offsets_file: PathBuf,
+    /// Machine constants file (`Rnnn=value` lines, see docs/files.md), relative to `dir`. A
+    /// missing file means every constant at its default.
+    #[serde(default = "default_constants_file")]
+    pub constants_file: PathBuf,
+}
+
+fn default_storage_dir() -> PathBuf {
+    PathBuf::from("cncd-data")
+}
+fn default_offsets_file() -> PathBuf {
+    PathBuf::from("TAB0.KOR")
+}
+fn default_constants_file() -> PathBuf {
+    PathBuf::from("TAB0.REK")
+}
+
+impl Default for StorageConfig {
+    fn default() -> Self {
+        StorageConfig {
+            dir: default_storage_dir(),
+            offsets_file: default_offsets_file(),
+            constants_file: default_constants_file(),
+        }
+    }
+}
+
+impl StorageConfig {
+    pub fn offsets_path(&self) -> PathBuf {
+        self.dir.join(&self.offsets_file)
+    }
+    pub fn constants_path(&self) -> PathBuf {
+        self.dir.join(&self.constants_file)
+    }
+}
+
+/// How the controlling axis of constant cutting speed (R67) is read (SPEC §6).
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum RadiusInputConfig {
+    /// The axis is programmed as a diameter (lathes): radius = |x| / 2.
+    #[default]
+    Diameter,
+    /// The axis position is the radius.
+    Radius,
+}
+
+/// `[kr]`: constant cutting speed and the spindle gear ranges.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct KrSection {
+    #[serde(default)]
+    pub radius_input: RadiusInputConfig,
+    /// Gear ranges in order (gear 1 first).
+    #[serde(default = "default_gears")]
+    pub gears: Vec<GearConfig>,
+}
+
+impl Default for KrSection {
+    fn default() -> Self {
+        KrSection {
+            radius_input: RadiusInputConfig::default(),
+            gears: default_gears(),
+        }
+    }
+}
+
+/// One spindle gear range.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct GearConfig {
+    /// P: spindle speed at full output, rpm.
+    pub max_rpm: f64,
+    /// U: output value at speed P, 1..32767 (7FFFh).
+    #[serde(default = "default_output_range")]
+    pub output_range: u16,
+    /// M code selecting this range (M41..M44 by convention).
+    #[serde(default)]
+    pub m_code: Option<u16>,
+}
+
+fn default_output_range() -> u16 {
+    0x7FFF
+}
+
+fn default_gears() -> Vec<GearConfig> {
+    vec![GearConfig {
+        max_rpm: 6000.0,
+        output_range: 0x7FFF,
+        m_code: Some(41),
+    }]
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -230,6 +339,23 @@ impl Config {
                     return Err(format!("axes[{i}].{key}: {v} must be a positive number"));
                 }
             }
+        }
+        for (i, g) in self.kr.gears.iter().enumerate() {
+            if !(g.max_rpm.is_finite() && g.max_rpm > 0.0) {
+                return Err(format!(
+                    "kr.gears[{i}].max_rpm: {} must be a positive speed",
+                    g.max_rpm
+                ));
+            }
+            if !(1..=0x7FFF).contains(&g.output_range) {
+                return Err(format!(
+                    "kr.gears[{i}].output_range: {} is outside 1..32767",
+                    g.output_range
+                ));
+            }
+        }
+        if self.storage.dir.as_os_str().is_empty() {
+            return Err("storage.dir: must name a directory".into());
         }
         if !(1..=99).contains(&self.rt.priority) {
             return Err(format!(

@@ -14,11 +14,16 @@ use kernel::program::{self, Setup};
 use kernel::units::{AxesMm, MAX_AXES};
 use tokio::sync::watch;
 
+use kernel::constants::Constants;
+use kernel::offsets::{OffsetTable, TableEdit};
+use kernel::plc::{PlcError, PlcWrite};
+
 use super::buses::open_bus;
 use super::clock::{Clock, MonotonicClock, VirtualClock};
 use super::config::Config;
 use super::job::{self, JobLink, JobSpec};
 use super::rt::{self, MachineState, RtCommand, RtParts, Snapshot};
+use super::storage::{self, OffsetStore, StorageError};
 
 /// Segment ring capacity (planner → RT).
 const SEGMENT_RING: usize = 4096;
@@ -48,6 +53,12 @@ pub enum ControlError {
     WrongState(String),
     #[error("the real-time thread is not running")]
     RtGone,
+    #[error("{0}")]
+    Storage(#[from] StorageError),
+    #[error("{0}")]
+    Plc(#[from] PlcError),
+    #[error("{0}")]
+    Invalid(String),
 }
 
 pub struct Controller {
@@ -62,6 +73,10 @@ pub struct Controller {
     pump_stop: Arc<AtomicBool>,
     /// Last alarm raised outside the RT thread (e.g. a planning failure), for status.
     alarm: Arc<Mutex<Option<String>>>,
+    /// Machine constants in force (SPEC §1) and whether they came from a file.
+    constants: Mutex<(Constants, bool)>,
+    /// TAB0.KOR: file and memory table (SPEC §3).
+    offsets: Arc<Mutex<OffsetStore>>,
 }
 
 struct Run {
@@ -84,6 +99,7 @@ impl Controller {
         bus: Box<dyn hal::DriveBus>,
     ) -> Result<Arc<Controller>, String> {
         let axes = config.axes.len();
+        let (constants, offsets) = load_storage(&config)?;
         let mut start = AxesMm::ZERO;
         for (i, a) in config.axes.iter().enumerate() {
             start[i] = a.home_mm;
@@ -145,6 +161,8 @@ impl Controller {
             rt_thread: Mutex::new(Some(rt_thread)),
             pump_stop,
             alarm: Arc::new(Mutex::new(None)),
+            constants: Mutex::new(constants),
+            offsets: Arc::new(Mutex::new(offsets)),
         }))
     }
 
@@ -172,10 +190,18 @@ impl Controller {
 
     /// Validates `text` and makes it the selected program. Nothing moves; on error the
     /// previously selected program stays selected.
-    pub fn load_program(&self, name: &str, text: &str) -> Result<Arc<LoadedProgram>, ControlError> {
+    /// What the interpreter needs: axes, where they are, constants and the memory offset table.
+    fn setup(&self) -> Setup {
         let mut setup = Setup::new(&self.config.axis_names());
         // Programs start where the axes are commanded now.
         setup.start = self.snapshot().commanded;
+        setup.constants = self.constants.lock().unwrap().0.clone();
+        setup.offsets = self.offsets.lock().unwrap().memory().clone();
+        setup
+    }
+
+    pub fn load_program(&self, name: &str, text: &str) -> Result<Arc<LoadedProgram>, ControlError> {
+        let setup = self.setup();
         let compiled = program::compile(text, &setup);
         if compiled.has_errors() {
             return Err(ControlError::InvalidProgram(compiled.diagnostics));
@@ -220,9 +246,9 @@ impl Controller {
                 snap.state
             )));
         }
-        // Interpret again from where the axes are now (they may have moved since loading).
-        let mut setup = Setup::new(&self.config.axis_names());
-        setup.start = snap.commanded;
+        // Interpret again from where the axes are now (they may have moved since loading) and
+        // with the offsets in force now.
+        let setup = self.setup();
         let compiled = program::compile(&program.text, &setup);
         if compiled.has_errors() {
             return Err(ControlError::InvalidProgram(compiled.diagnostics));
@@ -235,7 +261,8 @@ impl Controller {
             job,
             blocks: Arc::new(compiled.blocks),
             planner: self.planner_config(),
-            comp: CompConfig::default(),
+            comp: CompConfig::from_constants(&self.constants.lock().unwrap().0),
+            offsets: self.offsets.clone(),
         };
         let link = self.link.clone();
         let c = cancel.clone();
@@ -270,6 +297,12 @@ impl Controller {
             cfg.axis_v_max_mm_s[i] = a.max_velocity_mm_min / 60.0;
             cfg.axis_a_max_mm_s2[i] = a.max_accel_mm_s2;
             cfg.axis_j_max_mm_s3[i] = 50.0 * a.max_accel_mm_s2;
+        }
+        // The envelope settings (continuity, criteria, dynamic sets) come from the constants
+        // when the machine has a constants file; otherwise the axis limits alone apply.
+        let (constants, from_file) = &*self.constants.lock().unwrap();
+        if *from_file {
+            cfg = cfg.with_constants(constants);
         }
         cfg
     }
@@ -309,6 +342,74 @@ impl Controller {
         self.send(RtCommand::Reset)
     }
 
+    fn idle_or_refuse(&self, what: &str) -> Result<(), ControlError> {
+        match self.snapshot().state {
+            MachineState::Idle | MachineState::Fault | MachineState::Enabling => Ok(()),
+            s => Err(ControlError::WrongState(format!(
+                "{what} needs an idle machine; it is {s:?}"
+            ))),
+        }
+    }
+
+    /// The memory offset table (what programs use).
+    pub fn offsets_memory(&self) -> OffsetTable {
+        self.offsets.lock().unwrap().memory().clone()
+    }
+
+    /// The offset table file as text.
+    pub fn offsets_file_text(&self) -> String {
+        self.offsets.lock().unwrap().file_text()
+    }
+
+    /// Operator edit of one entry: file and memory (SPEC §3 b).
+    pub fn edit_offset(&self, edit: &TableEdit) -> Result<(), ControlError> {
+        Ok(self.offsets.lock().unwrap().operator_edit(edit)?)
+    }
+
+    /// Replaces the whole file; memory becomes the file's table (SPEC §3 a). A rejected text
+    /// changes nothing.
+    pub fn replace_offsets_file(&self, text: &str) -> Result<(), ControlError> {
+        Ok(self.offsets.lock().unwrap().save_file_text(text)?)
+    }
+
+    /// Reloads the table from its file (power-on semantics).
+    pub fn reload_offsets(&self) -> Result<(), ControlError> {
+        self.idle_or_refuse("reloading the offset table")?;
+        let path = self.config.storage.offsets_path();
+        let fresh = OffsetStore::load_or_empty(path, &self.config.axis_names())?;
+        *self.offsets.lock().unwrap() = fresh;
+        Ok(())
+    }
+
+    pub fn constants(&self) -> Constants {
+        self.constants.lock().unwrap().0.clone()
+    }
+
+    /// Sets machine constants and saves the constants file. Only on an idle machine: the
+    /// planner and compensation read them when a program starts.
+    pub fn set_constants(&self, values: &[(u16, f64)]) -> Result<(), ControlError> {
+        self.idle_or_refuse("changing machine constants")?;
+        let mut guard = self.constants.lock().unwrap();
+        let mut next = guard.0.clone();
+        for &(r, v) in values {
+            if r > kernel::constants::MAX_R {
+                return Err(ControlError::Invalid(format!(
+                    "R{r} does not exist: constants are R0..R{}",
+                    kernel::constants::MAX_R
+                )));
+            }
+            next.set(r, v);
+        }
+        storage::save_constants(&self.config.storage.constants_path(), &next)?;
+        *guard = (next, true);
+        Ok(())
+    }
+
+    /// Writes a PLC input cell; in force from the next tick. Refusals change nothing.
+    pub fn plc_write(&self, write: PlcWrite) -> Result<(), ControlError> {
+        self.send(RtCommand::Plc(write))
+    }
+
     /// Brings the axes to rest and ends the RT thread (SIGTERM/SIGINT path). Blocking.
     pub fn shutdown(&self) {
         if let Some(r) = self.run.lock().unwrap().as_ref() {
@@ -331,6 +432,32 @@ impl Drop for Controller {
     fn drop(&mut self) {
         self.pump_stop.store(true, Ordering::Relaxed);
     }
+}
+
+/// Creates the data directory and loads the constants and the offset table. A file that exists
+/// but does not parse stops the start-up: running with wrong offsets scraps parts.
+fn load_storage(config: &Config) -> Result<((Constants, bool), OffsetStore), String> {
+    let st = &config.storage;
+    std::fs::create_dir_all(&st.dir)
+        .map_err(|e| format!("storage.dir: cannot create {}: {e}", st.dir.display()))?;
+    let cpath = st.constants_path();
+    let constants = if cpath.exists() {
+        (
+            storage::load_constants(&cpath).map_err(|e| e.to_string())?,
+            true,
+        )
+    } else {
+        (Constants::new(), false)
+    };
+    let offsets = OffsetStore::load_or_empty(st.offsets_path(), &config.axis_names())
+        .map_err(|e| e.to_string())?;
+    tracing::info!(
+        constants = %cpath.display(),
+        from_file = constants.1,
+        offsets = %st.offsets_path().display(),
+        "data files loaded"
+    );
+    Ok((constants, offsets))
 }
 
 /// Start-up of the RT thread: real-time priority and locked memory where permitted.

@@ -7,7 +7,10 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use kernel::Diagnostic;
-use kernel::block::Block;
+use kernel::block::{Block, BlockKind};
+use kernel::offsets::TableEdit;
+
+use super::storage::OffsetStore;
 use kernel::comp::{CompConfig, Compensator};
 use kernel::plan::{Planner, PlannerConfig, Segment};
 
@@ -17,6 +20,8 @@ pub struct JobSpec {
     pub blocks: Arc<Vec<Block>>,
     pub planner: PlannerConfig,
     pub comp: CompConfig,
+    /// The offset table: `G92 D..` blocks write its memory copy (SPEC §3 c).
+    pub offsets: Arc<Mutex<OffsetStore>>,
 }
 
 /// Shared between the controller and the planner threads.
@@ -47,6 +52,14 @@ fn plan_all(
     for block in spec.blocks.iter() {
         if cancel.load(Ordering::Relaxed) {
             return Ok(());
+        }
+        if let BlockKind::TableWrite { entry, values } = block.kind {
+            // Applied when the block is planned (at most the look-ahead before it executes);
+            // the interpreter already applied it to the program's own copy.
+            let edit = TableEdit { entry, values };
+            if let Err(m) = spec.offsets.lock().unwrap().program_write(&edit) {
+                return Err(Diagnostic::error(block.n, block.line, 0, m));
+            }
         }
         comp.push(block)?;
         while let Some(b) = comp.poll() {

@@ -12,6 +12,7 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState};
 use kernel::interp::{InterpState, Interpolator};
 use kernel::plan::Segment;
+use kernel::plc::{PlcArea, PlcWrite};
 use kernel::units::{AxesMm, TS_NS};
 
 use super::clock::Clock;
@@ -34,6 +35,8 @@ pub enum RtCommand {
     Reset,
     /// Bring the axes to rest and end the thread.
     Shutdown,
+    /// A validated write of the PLC side, in force from the next tick (SPEC §6).
+    Plc(PlcWrite),
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -76,6 +79,8 @@ pub struct Snapshot {
     pub fault: Option<BusFault>,
     pub override_pct: f64,
     pub spindle_rpm: f64,
+    /// PLC memory area 1 as in force this tick.
+    pub plc: PlcArea,
 }
 
 /// Everything the RT thread owns.
@@ -112,6 +117,7 @@ struct Rt {
     enable_ticks: u32,
     shutting_down: bool,
     settle_ticks: u32,
+    plc: PlcArea,
 }
 
 /// Runs the loop until a `Shutdown` command has brought the axes to rest.
@@ -136,6 +142,7 @@ pub fn run(parts: RtParts) {
         enable_ticks: 0,
         shutting_down: false,
         settle_ticks: 0,
+        plc: PlcArea::new(),
     };
     rt.p.bus.enable();
     let mut deadline = rt.p.clock.now_ns() + TS_NS;
@@ -164,6 +171,8 @@ impl Rt {
     /// One tick. Returns false when the thread should end.
     fn tick(&mut self, now_ns: u64) -> bool {
         self.commands();
+        // PLC writes staged since the last tick take effect now.
+        self.plc.begin_tick();
         self.feed_segments();
         let out = self.interp.tick();
         let axes = self.p.axes;
@@ -187,6 +196,7 @@ impl Rt {
         s.line = out.line;
         s.ticks = self.stats.summary();
         s.spindle_rpm = self.fb.spindle_rpm;
+        s.plc = self.plc;
         self.p.status.write(*s);
         !(self.shutting_down && self.settle_ticks >= SETTLE_TICKS)
     }
@@ -218,6 +228,7 @@ impl Rt {
                         self.snap.state = MachineState::Enabling;
                     }
                 }
+                RtCommand::Plc(w) => self.plc.stage(w),
                 RtCommand::Shutdown => {
                     self.shutting_down = true;
                     self.abort();
