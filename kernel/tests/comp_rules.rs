@@ -437,8 +437,9 @@ fn d8_replaces_the_arc_without_intersection_by_a_line() {
 
 // ---- §4.4 R234 ------------------------------------------------------------------------------
 
-/// Two arcs of radius 10,000 mm meeting at `angle_deg` (an S-bend: centres on both sides).
-fn huge_arcs(angle_deg: f64) -> Prog {
+/// Two arcs of radius 10,000 mm meeting at `angle_deg`: an S-bend (centres on both sides)
+/// or both clockwise (centres close together).
+fn huge_arcs(angle_deg: f64, s_bend: bool) -> Prog {
     let r = 10_000.0;
     let mut pr = Prog::new(-10.0, 0.0);
     pr.g41(1, 5.0).line(0.0, 0.0);
@@ -449,10 +450,14 @@ fn huge_arcs(angle_deg: f64) -> Prog {
     // Tangent at e1 (clockwise), turned by the angle, then a G3 arc of the same radius.
     let t = (e1 - c1).unit().left() * -1.0;
     let t2 = V2::from_angle(t.angle() + angle_deg.to_radians());
-    let c2 = e1 + t2.left() * r;
-    let e2 = c2 + V2::from_angle((e1 - c2).angle() + 0.1) * r;
-    pr.arc(false, e2.x, e2.y, c2.x, c2.y).g40();
-    let end = e2 + V2::from_angle(t2.angle() + 0.1) * 10.0;
+    let (c2, turn) = if s_bend {
+        (e1 + t2.left() * r, 0.1)
+    } else {
+        (e1 - t2.left() * r, -0.1)
+    };
+    let e2 = c2 + V2::from_angle((e1 - c2).angle() + turn) * r;
+    pr.arc(!s_bend, e2.x, e2.y, c2.x, c2.y).g40();
+    let end = e2 + V2::from_angle(t2.angle() + turn) * 10.0;
     pr.line(end.x, end.y);
     pr
 }
@@ -462,8 +467,8 @@ const PI_2: f64 = std::f64::consts::FRAC_PI_2;
 // without R234.
 #[test]
 fn near_tangent_huge_arcs_are_sane() {
-    for r234 in [0.0, 0.8] {
-        let pr = huge_arcs(0.001);
+    for (r234, s_bend) in [(0.0, true), (0.8, true), (0.0, false), (0.8, false)] {
+        let pr = huge_arcs(0.001, s_bend);
         let c = CompConfig {
             continuity_limit_deg: r234,
             ..cfg()
@@ -819,4 +824,38 @@ fn d5_replaces_a_backward_arc_by_its_chord() {
         (Role::EquidistantChord, Path::Line)
     );
     check_path(&pr.blocks, &out, Plane::G17, 1e-9).unwrap();
+}
+
+// §4.3 (equidistant of an arc is the concentric circle ρ ∓ r): a slot end whose radius equals
+// the tool radius collapses to its centre; a smaller inside radius is an error.
+#[test]
+fn inside_arc_equal_to_or_smaller_than_the_tool() {
+    let slot = |r: f64| {
+        let mut pr = Prog::new(-10.0, -5.0);
+        pr.g41(1, r)
+            .line(0.0, -5.0)
+            .line(10.0, -5.0)
+            .arc(false, 10.0, 5.0, 10.0, 0.0)
+            .line(0.0, 5.0)
+            .g40()
+            .line(-10.0, 5.0);
+        pr
+    };
+    let pr = slot(5.0);
+    let (out, d) = pr.run(&cfg());
+    assert!(errors(&d).is_empty(), "{d:?}");
+    check_path(&pr.blocks, &out, Plane::G17, 1e-9).unwrap();
+    assert_close(piece(&out, 20, Role::Equidistant).1, p(10.0, 0.0), 1e-12);
+    assert!(
+        out.iter()
+            .any(|c| c.block.n == Some(30) && c.role == Role::Collapsed)
+    );
+    assert_close(piece(&out, 40, Role::Equidistant).0, p(10.0, 0.0), 1e-12);
+    let (_, d) = slot(5.5).run(&cfg());
+    let e = errors(&d);
+    assert_eq!(e[0].block, Some(30));
+    assert!(
+        e[0].message
+            .contains("larger than the inside arc radius 5.000")
+    );
 }
