@@ -14,7 +14,7 @@ use helpers::*;
 use kernel::Severity;
 use kernel::block::{ArcDir, Block, BlockKind, Comp, Continuity, Feed, Path, Plane, Spindle};
 use kernel::comp::geom::V2;
-use kernel::comp::{CompConfig, Compensator, CornerMode};
+use kernel::comp::{CompConfig, Compensator, CornerMode, compensate_all};
 use kernel::units::AxesMm;
 use proptest::prelude::*;
 
@@ -131,8 +131,7 @@ fn check_in(
         "{:?}",
         diags
     );
-    let (pieces, arcs) =
-        check_path(&p.blocks, &out, plane, 1e-6).map_err(TestCaseError::fail)?;
+    let (pieces, arcs) = check_path(&p.blocks, &out, plane, 1e-6).map_err(TestCaseError::fail)?;
     // Every programmed element appears (an arc over 180° as two halves).
     prop_assert!(pieces >= expect_pieces, "{pieces} < {expect_pieces}");
     let infos = with_severity(&diags, Severity::Info).len();
@@ -400,11 +399,14 @@ proptest! {
     ) {
         let blocks = fuzz_blocks(&ops);
         let mut c = Compensator::new(cfg);
+        let mut accepted = Vec::new();
         for b in &blocks {
             let held = c.held_blocks();
             if c.push(b).is_err() {
                 // A refused block changes nothing.
                 prop_assert_eq!(c.held_blocks(), held);
+            } else {
+                accepted.push(*b);
             }
             while let Some(o) = c.poll() {
                 prop_assert!(finite_block(&o), "{:?}", o);
@@ -419,5 +421,14 @@ proptest! {
         for d in c.take_diagnostics() {
             prop_assert!(!d.message.is_empty());
         }
+        // Atomic errors: the accepted blocks alone give exactly the same result.
+        let (a, da) = compensate_all(&blocks, &cfg);
+        let (b, db) = compensate_all(&accepted, &cfg);
+        prop_assert!(errors(&db).is_empty(), "{:?}", db);
+        let warn = |d: &[kernel::Diagnostic]| -> Vec<kernel::Diagnostic> {
+            d.iter().filter(|d| !d.is_error()).cloned().collect()
+        };
+        prop_assert_eq!(warn(&da), warn(&db));
+        prop_assert_eq!(format!("{a:?}"), format!("{b:?}"));
     }
 }

@@ -642,7 +642,8 @@ impl Compensator {
         Ok(())
     }
 
-    /// Messages of a resolved junction in front of element `i` (R339 sign, R765).
+    /// Messages of a resolved junction in front of element `i` (R765; R339 `-` is reported
+    /// when the arc is emitted, so arcs from every path are counted once).
     fn note_junction(&mut self, i: usize, res: &Resolved) {
         let run = self.run.as_ref().expect("running");
         let e = &run.elems[i];
@@ -662,17 +663,6 @@ impl Compensator {
                 0,
                 format!(
                     "block {}: the equidistant lies {d:.3} mm from the programmed corner, more than {pct:.0} % of the tool radius; {what}",
-                    name(b)
-                ),
-            ));
-        }
-        if self.cfg.report_inserted_arcs && e.corner.is_some() {
-            self.diags.push(Diagnostic::info(
-                b.n,
-                b.line,
-                0,
-                format!(
-                    "block {}: arc of tool radius inserted at the corner (R339)",
                     name(b)
                 ),
             ));
@@ -943,6 +933,18 @@ impl Compensator {
                             Role::CornerArc,
                             s,
                         );
+                        // SPEC §4.3: R339 sign `-`, an information message per inserted arc.
+                        if self.cfg.report_inserted_arcs {
+                            self.diags.push(Diagnostic::info(
+                                src.n,
+                                src.line,
+                                0,
+                                format!(
+                                    "block {}: arc of tool radius inserted at the corner (R339)",
+                                    name(&src)
+                                ),
+                            ));
+                        }
                     }
                 }
                 let role = if e.chord {
