@@ -165,9 +165,12 @@ impl Interpolator {
         self.m
     }
 
-    /// Appends a segment. Gives it back when the buffer is full or while stopping.
+    /// Appends a segment. Gives it back when the buffer is full or while stopping (the caller
+    /// keeps it for the next tick, so the error carries the whole segment by design).
+    #[allow(clippy::result_large_err)]
     pub fn push(&mut self, seg: Segment) -> Result<(), Segment> {
-        if !self.has_room() || self.state == InterpState::Stopping || !(seg.length_mm > 0.0) {
+        let empty = seg.length_mm.is_nan() || seg.length_mm <= 0.0;
+        if !self.has_room() || self.state == InterpState::Stopping || empty {
             return Err(seg);
         }
         let i = (self.head + self.len) % self.buf.len();

@@ -288,3 +288,68 @@ proptest! {
         assert_within("random", &cfg(profile), &blocks);
     }
 }
+
+/// One 20° corner on a machine whose axes are far stronger than the criteria.
+fn corner_end_speed(overload: f64, lm_um: f64, ref_len: f64, len: f64) -> f64 {
+    let mut c = PlannerConfig::uniform(3, 1000.0, 1e7);
+    c.min_block_time_s = 0.0;
+    for s in c.envelope.sets.iter_mut() {
+        s.overload_mm_s2 = overload;
+        s.accuracy_um = lm_um;
+        s.overload_ref_len_mm = ref_len;
+    }
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 30000.0, Continuity::G23);
+    let a = 20f64.to_radians();
+    p.g1(p3(len, 0.0, 0.0));
+    p.g1(p3(len + len * a.cos(), len * a.sin(), 0.0));
+    let r = run(c, &p.blocks);
+    assert_eq!(r.segments[0].junction, Junction::SpeedDrop);
+    r.segments[0].v_end_mm_s
+}
+
+#[test]
+fn dynamic_and_accuracy_criteria_set_the_corner_speed() {
+    let half = 10f64.to_radians();
+    // Dynamic criterion: vm = am·Ts/(2·sin(α/2)).
+    let v = corner_end_speed(1000.0, 0.0, 0.0, 50.0);
+    assert!(
+        (v - 1000.0 * 0.004 / (2.0 * half.sin())).abs() < 1e-9,
+        "{v}"
+    );
+    // Accuracy criterion: vm = Lm/(Ts·tan(α/2)), Lm = 8 µm.
+    let v = corner_end_speed(1e6, 8.0, 0.0, 50.0);
+    assert!((v - 0.008 / (0.004 * half.tan())).abs() < 1e-9, "{v}");
+    // 8.R385 correction: blocks of a quarter of the reference length halve the speed.
+    let v_ref = corner_end_speed(1000.0, 0.0, 0.4, 0.4);
+    let v_short = corner_end_speed(1000.0, 0.0, 0.4, 0.1);
+    assert!((v_short / v_ref - 0.5).abs() < 1e-9, "{v_ref} {v_short}");
+}
+
+#[test]
+fn rise_time_criterion_keeps_junction_speeds_in_short_blocks() {
+    // A polyline of 1 mm blocks turning 10° each: with R395 = 500 ms no block rises above
+    // its junction speeds; with a tiny R395 the long enough blocks may rise towards F.
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 6000.0, Continuity::G23);
+    let mut ang: f64 = 0.0;
+    for i in 0..30 {
+        ang += if i % 2 == 0 { 0.17 } else { -0.17 };
+        let q = p.pos + p3(ang.cos(), ang.sin(), 0.0) * 1.0;
+        p.g1(q);
+    }
+    let mut keep = cfg(1);
+    keep.envelope.rule = kernel::plan::ContinuityRule::Manual;
+    keep.envelope.rise_time_s = 0.5;
+    let mut rise = keep.clone();
+    rise.envelope.rise_time_s = 0.0;
+    let rk = run(keep, &p.blocks);
+    let rr = run(rise, &p.blocks);
+    let mid = 15;
+    let (sk, sr) = (&rk.segments[mid], &rr.segments[mid]);
+    let prev_end = rk.segments[mid - 1].v_end_mm_s;
+    assert!(
+        sk.v_max_mm_s <= prev_end.max(sk.v_end_mm_s) + 1e-9,
+        "{sk:?}"
+    );
+    assert!(sr.v_max_mm_s > sk.v_max_mm_s, "{sr:?}");
+    assert!(rr.time_s() < rk.time_s());
+}

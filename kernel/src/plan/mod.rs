@@ -281,7 +281,7 @@ impl Planner {
             Path::Arc { dir, center, plane } => SegPath::arc(start, end, center, plane, dir),
         };
         let length_mm = seg_path.length(axes);
-        if !(length_mm > 1e-9) {
+        if length_mm.is_nan() || length_mm <= 1e-9 {
             return Ok(());
         }
         if let Some(m) = self.cfg.envelope.merge_len_mm
@@ -725,8 +725,10 @@ impl Planner {
         if p.seg.stop_accel_mm_s2 <= 0.0 || !p.seg.stop_accel_mm_s2.is_finite() {
             p.seg.stop_accel_mm_s2 = p.seg.accel_mm_s2;
         }
-        // R395: keep the junction speeds through a short block unless rising pays off.
-        if !p.seg.rapid {
+        // R395: keep the junction speeds through a short block unless rising pays off. Only
+        // between two smooth junctions (**decided**): at a stop there is no criterion speed
+        // to keep, and a block between stops is a plain point-to-point move.
+        if !p.seg.rapid && prev_smooth && p.smooth {
             let v_flat = prev_crit.max(crit).min(p.seg.v_max_mm_s);
             let v_top = p.seg.v_max_mm_s.min(p.seg.feed_mm_s);
             if !criteria::rise_pays_off(
