@@ -273,7 +273,11 @@ fn million_block_program_streams_with_bounded_window() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig {
+        // 64 by default; PROPTEST_CASES=n runs more.
+        cases: std::env::var("PROPTEST_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(64),
+        ..ProptestConfig::default()
+    })]
 
     #[test]
     fn random_programs_stay_within_limits(
@@ -352,4 +356,34 @@ fn rise_time_criterion_keeps_junction_speeds_in_short_blocks() {
     );
     assert!(sr.v_max_mm_s > sk.v_max_mm_s, "{sr:?}");
     assert!(rr.time_s() < rk.time_s());
+}
+
+/// Dense CAD-like polylines with small random turns (smooth junctions at high feed): the case
+/// where several junctions fall into one tick.
+fn dense_path(turns: &[(f64, f64, f64)], feed_mm_min: f64) -> Vec<Block> {
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), feed_mm_min, Continuity::G23);
+    let (mut a, mut b) = (0.0f64, 0.0f64);
+    for &(da, db, len) in turns {
+        a += da;
+        b = (b + db).clamp(-0.5, 0.5);
+        let q = p.pos + p3(a.cos() * b.cos(), a.sin() * b.cos(), b.sin()) * len;
+        p.g1(q);
+    }
+    p.blocks
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        cases: std::env::var("PROPTEST_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(32),
+        ..ProptestConfig::default()
+    })]
+
+    #[test]
+    fn random_dense_paths_stay_within_limits(
+        turns in prop::collection::vec((-0.4f64..0.4, -0.1f64..0.1, 0.01f64..0.6), 2..400),
+        feed in 600.0f64..12000.0,
+        profile in 1u8..=2,
+    ) {
+        assert_within("dense", &cfg(profile), &dense_path(&turns, feed));
+    }
 }
