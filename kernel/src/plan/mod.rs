@@ -655,8 +655,14 @@ impl Planner {
                     // Neighbouring junctions of a dense path have similar limits: bracket
                     // around the previous result first.
                     let g = self.window_guess_mm_s;
-                    if g > 0.0 && g < v {
-                        let (gl, gh) = (0.97 * g, (1.03 * g).min(v));
+                    for w in [0.001, 0.03] {
+                        if !(g > 0.0 && g < v) || hi - lo <= 0.002 * hi {
+                            break;
+                        }
+                        let (gl, gh) = ((1.0 - w) * g, ((1.0 + w) * g).min(v));
+                        if gl <= lo || gh >= hi {
+                            continue;
+                        }
                         if bound(gl) >= gl {
                             lo = gl;
                             if bound(gh) < gh {
