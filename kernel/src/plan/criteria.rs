@@ -41,6 +41,41 @@ pub fn accuracy_mm_s(lm_um: f64, turn_rad: f64) -> f64 {
     lm_um * 1e-3 / (TS_S * t)
 }
 
+/// The turn between two unit tangents, kept as |t1 − t0| = 2·sin(α/2) and |t1 + t0| =
+/// 2·cos(α/2): exact for tiny angles and free of trigonometric calls.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Turn {
+    pub chord: f64,
+    pub sum: f64,
+}
+
+impl Turn {
+    pub fn between(t0: &crate::units::AxesMm, t1: &crate::units::AxesMm, axes: usize) -> Turn {
+        Turn {
+            chord: (*t1 - *t0).norm(axes),
+            sum: (*t1 + *t0).norm(axes),
+        }
+    }
+
+    /// Dynamic criterion vm = am·Ts / (2·sin(α/2)) without the length correction.
+    pub fn dynamic_mm_s(&self, am_mm_s2: f64) -> f64 {
+        if self.chord <= 1e-12 {
+            f64::INFINITY
+        } else {
+            am_mm_s2 * TS_S / self.chord
+        }
+    }
+
+    /// Accuracy criterion vm = Lm / (Ts·tan(α/2)); `lm_um` = 0 turns it off.
+    pub fn accuracy_mm_s(&self, lm_um: f64) -> f64 {
+        if lm_um <= 0.0 || self.chord <= 1e-12 {
+            f64::INFINITY
+        } else {
+            lm_um * 1e-3 * self.sum / (TS_S * self.chord)
+        }
+    }
+}
+
 /// Curvature cap v ≤ √(a/κ) (SPEC §7.2 physics note), κ in 1/mm.
 pub fn curvature_mm_s(a_mm_s2: f64, curvature_per_mm: f64) -> f64 {
     if curvature_per_mm <= 1e-15 {
@@ -117,6 +152,21 @@ mod tests {
         assert!((v - 0.008 / (0.004 * 5f64.to_radians().tan())).abs() < 1e-9);
         assert_eq!(accuracy_mm_s(0.0, 1.0), f64::INFINITY);
         assert!(accuracy_mm_s(8.0, PI) < 1e-9);
+    }
+
+    #[test]
+    fn turn_forms_agree_with_the_angle_forms() {
+        use crate::units::AxesMm;
+        for deg in [0.01f64, 1.0, 10.0, 90.0, 170.0] {
+            let a = deg.to_radians();
+            let t0 = AxesMm([1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+            let t1 = AxesMm([a.cos(), a.sin(), 0.0, 0.0, 0.0, 0.0]);
+            let t = Turn::between(&t0, &t1, 3);
+            let d = dynamic_mm_s(1000.0, a, 0.0, 1.0);
+            let l = accuracy_mm_s(8.0, a);
+            assert!((t.dynamic_mm_s(1000.0) / d - 1.0).abs() < 1e-9, "{deg}");
+            assert!((t.accuracy_mm_s(8.0) / l - 1.0).abs() < 1e-9, "{deg}");
+        }
     }
 
     #[test]

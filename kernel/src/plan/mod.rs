@@ -642,15 +642,16 @@ impl Planner {
                 // curvature cap v ≤ √(a/κ) in the form of the dynamic criterion.
                 // The window grows with the speed, so the bound falls as the speed rises:
                 // bisect for the largest speed within the bound of its own window.
+                let axes = self.cfg.axes;
                 let bound = |v: f64| {
                     let half = v * TS_S / 2.0;
                     let t0 = self.tangent_near(i, -half);
                     let t1 = self.tangent_near(i, half);
-                    let theta = angle_between(&t0, &t1);
-                    (a_iso * TS_S / (2.0 * (theta / 2.0).sin()).max(1e-300))
-                        .min(criteria::accuracy_mm_s(set.accuracy_um, theta))
+                    let turn = criteria::Turn::between(&t0, &t1, axes);
+                    turn.dynamic_mm_s(a_iso)
+                        .min(turn.accuracy_mm_s(set.accuracy_um))
                 };
-                if bound(v) < v {
+                if bound(v) < v * (1.0 - 1e-12) {
                     let (mut lo, mut hi) = (0.0, v);
                     // Neighbouring junctions of a dense path have similar limits: bracket
                     // around the previous result first.
