@@ -45,7 +45,7 @@ pub const NORMAL_SHARE: f64 = 0.5;
 const HISTORY_BLOCKS: usize = 32;
 
 /// Junctions finalized between two backward passes.
-const BACKWARD_BATCH: usize = 16;
+const BACKWARD_BATCH: usize = 64;
 
 /// Feed override ceiling (SPEC: 0-150 %): no speed can exceed 1.5 × feed.
 const OVERRIDE_MAX: f64 = 1.5;
