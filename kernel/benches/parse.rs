@@ -187,6 +187,10 @@ fn main() {
         "size_of::<Block>() = {} bytes; one core, best of 3 for the streaming passes",
         std::mem::size_of::<kernel::block::Block>()
     );
+    // Figures on a shared machine depend on its load: print it next to them.
+    if let Ok(l) = std::fs::read_to_string("/proc/loadavg") {
+        println!("load average while measuring: {}", l.trim());
+    }
 }
 
 fn row(name: &str, secs: f64, blocks: usize, peak: usize, text: usize) {
