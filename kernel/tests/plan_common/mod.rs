@@ -91,7 +91,26 @@ pub fn suite() -> Vec<(&'static str, Vec<Block>)> {
         ("pocket sharp corners", pocket(30.0, 20.0, 2.0, 2000.0)),
         ("long lines + rapids", long_lines()),
         ("mixed arcs", mixed_arcs()),
+        ("3D surface 0.1 mm raster", surface(8, 30.0, 1.0, 0.1, 4000.0)),
     ]
+}
+
+/// Finishing raster over the surface z = 2·sin(x/5)·cos(y/7) in CAD-sized steps along X,
+/// passes joined by step-overs in Y.
+pub fn surface(passes: usize, width: f64, step: f64, seg: f64, feed: f64) -> Vec<Block> {
+    let z = |x: f64, y: f64| 2.0 * (x / 5.0).sin() * (y / 7.0).cos();
+    let mut p = Prog::new(p3(0.0, 0.0, z(0.0, 0.0)), feed, Continuity::G23);
+    let n = (width / seg).round() as usize;
+    for k in 0..passes {
+        let y = k as f64 * step;
+        for i in 1..=n {
+            let x = if k % 2 == 0 { i as f64 * seg } else { width - i as f64 * seg };
+            p.g1(p3(x, y, z(x, y)));
+        }
+        let (x, y1) = (p.pos[0], y + step);
+        p.g1(p3(x, y1, z(x, y1)));
+    }
+    p.blocks
 }
 
 /// A circle of radius `r` as a polyline of chords `chord` long, G23, at `feed` mm/min.
