@@ -1,0 +1,190 @@
+//! What the program preview gathers from the stages for one page (SPEC §7.5): programmed path,
+//! compensated path, and the planner's classification of every junction.
+
+use kernel::block::Block;
+use kernel::comp::{CompBlock, Role};
+use kernel::plan::{Junction, SegPath, Segment};
+
+use crate::decimate::{DotSet, JunctionDot, Track};
+use crate::paging::Page;
+use crate::pipeline::Sink;
+use crate::plane::{Projection, block_path};
+use crate::{RedJunction, RedKind};
+
+/// Points kept per track and dots kept before merging (bounded memory, see [`crate::decimate`]).
+const TRACK_BUDGET: usize = 1 << 17;
+const DOT_BUDGET: usize = 1 << 16;
+
+/// Bounding box in plane coordinates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    pub min: [f64; 2],
+    pub max: [f64; 2],
+}
+
+impl Bounds {
+    pub const EMPTY: Bounds = Bounds {
+        min: [f64::INFINITY; 2],
+        max: [f64::NEG_INFINITY; 2],
+    };
+
+    pub fn add(&mut self, p: [f64; 2]) {
+        for (i, v) in p.into_iter().enumerate() {
+            self.min[i] = self.min[i].min(v);
+            self.max[i] = self.max[i].max(v);
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.min[0] > self.max[0]
+    }
+}
+
+/// The preview's sink.
+pub struct Collector {
+    proj: Projection,
+    page: Page,
+    max_listed: usize,
+    pub feed: Track,
+    pub rapid: Track,
+    pub comp: Track,
+    pub dots: DotSet,
+    pub bounds: Bounds,
+    pub smooth: u64,
+    pub red: u64,
+    pub red_list: Vec<RedJunction>,
+    /// A tool-centre block on this page differs from the programmed path (G41/G42 in force).
+    pub compensated: bool,
+    /// Last tool-centre block was compensated (the next pass-through one is the leave move).
+    prev_comp: bool,
+    done: bool,
+    scratch: Vec<[f64; 2]>,
+}
+
+impl Collector {
+    pub fn new(proj: Projection, page: Page, max_listed: usize) -> Self {
+        Collector {
+            proj,
+            page,
+            max_listed,
+            feed: Track::new(TRACK_BUDGET),
+            rapid: Track::new(TRACK_BUDGET),
+            comp: Track::new(TRACK_BUDGET),
+            dots: DotSet::new(DOT_BUDGET),
+            bounds: Bounds::EMPTY,
+            smooth: 0,
+            red: 0,
+            red_list: Vec::new(),
+            compensated: false,
+            prev_comp: false,
+            done: false,
+            scratch: Vec::new(),
+        }
+    }
+
+    fn draw(&mut self, path: &SegPath, which: Which) {
+        let track = match which {
+            Which::Feed => &mut self.feed,
+            Which::Rapid => &mut self.rapid,
+            Which::Comp => &mut self.comp,
+        };
+        // Flatten arcs to half the track's current cell: finer is lost on decimation anyway.
+        self.proj
+            .flatten(path, track.cell() / 2.0, &mut self.scratch);
+        let from = self.proj.point(&path.start());
+        self.bounds.add(from);
+        for p in &self.scratch {
+            self.bounds.add(*p);
+        }
+        track.segment(from, &self.scratch);
+    }
+}
+
+#[derive(Clone, Copy)]
+enum Which {
+    Feed,
+    Rapid,
+    Comp,
+}
+
+impl Sink for Collector {
+    fn programmed(&mut self, b: &Block) {
+        if !self.page.contains(b.seq) {
+            return;
+        }
+        if let Some((path, rapid)) = block_path(b) {
+            self.draw(&path, if rapid { Which::Rapid } else { Which::Feed });
+        }
+    }
+
+    fn compensated(&mut self, c: &CompBlock) {
+        let is_comp = c.role != Role::Passthrough;
+        // The first pass-through block after compensation starts from the tool centre (the
+        // cancel move, SPEC §4.2): part of the tool-centre path too.
+        let leave = c.role == Role::Passthrough && self.prev_comp;
+        self.prev_comp = is_comp;
+        if !(is_comp || leave) || !self.page.contains(c.block.seq) {
+            if !is_comp {
+                self.comp.pen_up();
+            }
+            return;
+        }
+        if let Some((path, _)) = block_path(&c.block) {
+            self.compensated = true;
+            self.draw(&path, Which::Comp);
+        }
+    }
+
+    fn segment(&mut self, s: &Segment) {
+        if s.seq >= self.page.end {
+            self.done = true;
+            return;
+        }
+        // The end of the program is not a junction.
+        if s.seq < self.page.first || s.last {
+            return;
+        }
+        let at = self.proj.point(&s.path.end());
+        let red = s.junction.is_red();
+        self.bounds.add(at);
+        let label = red.then(|| block_label(s.n, s.line));
+        if red {
+            self.red += 1;
+            if self.red_list.len() < self.max_listed {
+                self.red_list.push(RedJunction {
+                    seq: s.seq,
+                    n: s.n,
+                    line: s.line,
+                    at,
+                    kind: if s.junction == Junction::Stop {
+                        RedKind::Stop
+                    } else {
+                        RedKind::SpeedDrop
+                    },
+                    v_mm_s: s.v_end_mm_s,
+                    feed_mm_s: s.feed_mm_s,
+                });
+            }
+        } else {
+            self.smooth += 1;
+        }
+        self.dots.add(JunctionDot {
+            at,
+            red,
+            count: 1,
+            label,
+        });
+    }
+
+    fn done(&self) -> bool {
+        self.done
+    }
+}
+
+/// `N40`, or `line 12` for a block without a number.
+pub fn block_label(n: Option<u32>, line: u32) -> String {
+    match n {
+        Some(n) => format!("N{n}"),
+        None => format!("line {line}"),
+    }
+}
