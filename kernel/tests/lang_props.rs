@@ -120,6 +120,44 @@ proptest! {
 }
 
 proptest! {
+    /// Generated arcs written to 4 decimals pass the R55 check and keep their centre and
+    /// direction; moved 0.1 mm off the circle they are refused.
+    #[test]
+    fn program_arcs_round_trip(
+        c in proptest::array::uniform2(-500.0f64..500.0),
+        r in 0.5f64..300.0,
+        a0 in 0.0f64..std::f64::consts::TAU,
+        sweep in 0.1f64..6.0,
+        cw in any::<bool>(),
+    ) {
+        let a1 = if cw { a0 - sweep } else { a0 + sweep };
+        let p = |a: f64| (c[0] + r * a.cos(), c[1] + r * a.sin());
+        let f4 = |v: f64| format!("{v:.4}");
+        let (s, e) = (p(a0), p(a1));
+        let (sx, sy) = (f4(s.0).parse::<f64>().unwrap(), f4(s.1).parse::<f64>().unwrap());
+        let text = format!(
+            "G0 X{} Y{}\n{} X{} Y{} I{} J{} F100\n",
+            f4(sx), f4(sy), if cw { "G2" } else { "G3" }, f4(e.0), f4(e.1),
+            f4(c[0] - sx), f4(c[1] - sy)
+        );
+        let setup = Setup::new(&['X', 'Y', 'Z']);
+        let out = compile(&text, &setup);
+        prop_assert!(!out.has_errors(), "{text}: {:?}", out.diagnostics);
+        let Some((_, _, kernel::block::Path::Arc { dir, center, .. })) = out.blocks[1].motion() else {
+            panic!("not an arc");
+        };
+        prop_assert_eq!(dir == kernel::block::ArcDir::Cw, cw);
+        let ci: f64 = f4(c[0] - sx).parse().unwrap();
+        let cj: f64 = f4(c[1] - sy).parse().unwrap();
+        prop_assert!((center[0] - (sx + ci)).abs() < 1e-9 && (center[1] - (sy + cj)).abs() < 1e-9);
+        // Same arc with the end point pushed 0.1 mm outwards: beyond R55 = 0.01 mm.
+        let e_out = (c[0] + (r + 0.1) * a1.cos(), c[1] + (r + 0.1) * a1.sin());
+        let bad = text.replace(&format!("X{} Y{} I", f4(e.0), f4(e.1)), &format!("X{} Y{} I", f4(e_out.0), f4(e_out.1)));
+        prop_assert!(compile(&bad, &setup).has_errors(), "{bad}");
+    }
+}
+
+proptest! {
     #![proptest_config(ProptestConfig::with_cases(2000))]
 
     /// The fuzz targets' entry points on NC-like token soup (reaches deep into the interpreter).
