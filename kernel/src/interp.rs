@@ -174,6 +174,10 @@ impl Interpolator {
             return Err(seg);
         }
         let i = (self.head + self.len) % self.buf.len();
+        if self.len == 0 {
+            // The raw position starts at this segment: wait its leading dwell there.
+            self.dwell_ticks = (seg.dwell_before_s / TS_S).round().max(0.0) as u32;
+        }
         self.buf[i] = seg;
         self.s0[i] = self.s_end_mm;
         self.s_end_mm += seg.length_mm;
@@ -387,6 +391,11 @@ impl Interpolator {
             self.raw_at_stop = false;
             self.rk += 1;
             self.rs_mm = 0.0;
+        }
+        if self.dwell_ticks > 0 && self.v_mm_s == 0.0 && self.settled() {
+            // Leading dwell (before the first motion).
+            self.dwell_ticks -= 1;
+            return idle;
         }
         if self.v_mm_s == 0.0 && self.settled() {
             // At rest (the commanded position equals the raw one): the filter may be re-sized

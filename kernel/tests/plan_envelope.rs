@@ -387,3 +387,23 @@ proptest! {
         assert_within("dense", &cfg(profile), &dense_path(&turns, feed));
     }
 }
+
+#[test]
+fn dwells_wait_at_rest() {
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 3000.0, Continuity::G23);
+    p.dwell(0.2); // before the first motion: 50 ticks
+    p.g1(p3(10.0, 0.0, 0.0));
+    p.dwell(0.1); // between two moves: a stop and 25 ticks
+    p.g1(p3(20.0, 0.0, 0.0));
+    for profile in [1u8, 2] {
+        let r = run(cfg(profile), &p.blocks);
+        let first = r.ticks.iter().position(|t| t.path_v_mm_s > 0.0).unwrap();
+        assert!(first > 50, "{first}");
+        let at_mid: Vec<usize> = (0..r.ticks.len())
+            .filter(|&k| r.ticks[k].position[0] == 10.0)
+            .collect();
+        assert!(at_mid.len() >= 25, "{}", at_mid.len());
+        assert_eq!(r.segments[0].junction, Junction::Stop);
+        assert_eq!(r.ticks.last().unwrap().position[0], 20.0);
+    }
+}

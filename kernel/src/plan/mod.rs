@@ -105,6 +105,8 @@ pub struct Segment {
     pub wait_in_position: bool,
     /// Dwell after stopping at the end of this segment, s.
     pub dwell_s: f64,
+    /// Dwell before this segment starts (a dwell programmed before the first motion), s.
+    pub dwell_before_s: f64,
     /// Dynamic set 1..4 in force (SPEC §7.4).
     pub dyn_set: u8,
 }
@@ -468,6 +470,7 @@ impl Planner {
             junction: Junction::Stop,
             wait_in_position: false,
             dwell_s: 0.0,
+            dwell_before_s: 0.0,
             dyn_set: set as u8 + 1,
         };
         let mut p = Pending {
@@ -484,7 +487,8 @@ impl Planner {
             cap: 0.0,
         };
         if self.win.is_empty() && self.leading_dwell_s > 0.0 {
-            // A dwell before the first motion: nothing to wait after; kept for the report.
+            // A dwell before the first motion: waited for at the start of this segment.
+            p.seg.dwell_before_s = self.leading_dwell_s;
             self.leading_dwell_s = 0.0;
         }
         if let Some(prev) = self.win.back_mut() {

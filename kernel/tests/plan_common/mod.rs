@@ -62,6 +62,13 @@ impl Prog {
         self
     }
 
+    /// Dwell (G4-like block without motion).
+    pub fn dwell(&mut self, seconds: f64) -> &mut Self {
+        let b = self.block(BlockKind::Dwell { seconds });
+        self.blocks.push(b);
+        self
+    }
+
     pub fn g1(&mut self, end: AxesMm) -> &mut Self {
         self.motion(end, Path::Line)
     }
@@ -91,7 +98,10 @@ pub fn suite() -> Vec<(&'static str, Vec<Block>)> {
         ("pocket sharp corners", pocket(30.0, 20.0, 2.0, 2000.0)),
         ("long lines + rapids", long_lines()),
         ("mixed arcs", mixed_arcs()),
-        ("3D surface 0.1 mm raster", surface(8, 30.0, 1.0, 0.1, 4000.0)),
+        (
+            "3D surface 0.1 mm raster",
+            surface(8, 30.0, 1.0, 0.1, 4000.0),
+        ),
     ]
 }
 
@@ -104,7 +114,11 @@ pub fn surface(passes: usize, width: f64, step: f64, seg: f64, feed: f64) -> Vec
     for k in 0..passes {
         let y = k as f64 * step;
         for i in 1..=n {
-            let x = if k % 2 == 0 { i as f64 * seg } else { width - i as f64 * seg };
+            let x = if k % 2 == 0 {
+                i as f64 * seg
+            } else {
+                width - i as f64 * seg
+            };
             p.g1(p3(x, y, z(x, y)));
         }
         let (x, y1) = (p.pos[0], y + step);
