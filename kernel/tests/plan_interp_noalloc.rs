@@ -1,0 +1,73 @@
+//! The interpolator runs on the RT thread: after `Interpolator::new` it must not allocate
+//! (ARCHITECTURE.md, threads). Counted with a global allocator; this file holds one test so no
+//! other test thread allocates meanwhile.
+
+mod plan_common;
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use kernel::interp::{InterpState, Interpolator};
+use kernel::plan::Planner;
+use plan_common::*;
+
+struct Counting;
+
+static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+#[test]
+fn push_and_tick_do_not_allocate() {
+    for profile in [1u8, 2] {
+        // Plan outside the counted region (the planner thread may allocate).
+        let mut cfg = config(profile);
+        cfg.min_block_time_s = 0.0;
+        let mut pl = Planner::new(cfg, 1);
+        let mut blocks = mixed_arcs();
+        blocks.extend(dense_circle(10.0, 0.05, 6000.0).into_iter().skip(1));
+        let mut segs = vec![];
+        for b in &blocks {
+            pl.push(b).unwrap();
+            segs.extend(std::iter::from_fn(|| pl.poll()));
+        }
+        pl.finish();
+        segs.extend(std::iter::from_fn(|| pl.poll()));
+        let mut ip = Interpolator::new(3, segs[0].path.start());
+        let before = ALLOCATIONS.load(Ordering::SeqCst);
+        let mut next = 0;
+        let mut ticks = 0usize;
+        loop {
+            while next < segs.len() && ip.has_room() {
+                ip.push(segs[next]).unwrap();
+                next += 1;
+            }
+            match ticks {
+                200 => ip.set_override(150.0),
+                400 => ip.hold(),
+                700 => ip.resume(),
+                _ => {}
+            }
+            ip.set_in_position(true);
+            let out = ip.tick();
+            ticks += 1;
+            if out.state == InterpState::Idle && next == segs.len() {
+                break;
+            }
+        }
+        let after = ALLOCATIONS.load(Ordering::SeqCst);
+        assert_eq!(after - before, 0, "profile {profile}: {ticks} ticks");
+        assert!(ticks > 1000);
+    }
+}
