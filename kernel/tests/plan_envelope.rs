@@ -407,3 +407,25 @@ fn dwells_wait_at_rest() {
         assert_eq!(r.ticks.last().unwrap().position[0], 20.0);
     }
 }
+
+#[test]
+fn feed_per_revolution_uses_the_programmed_spindle_speed() {
+    use kernel::block::{Feed, SpindleDir};
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 3000.0, Continuity::G98);
+    p.g1(p3(10.0, 0.0, 0.0));
+    let mut b = p.blocks[0];
+    b.feed = Feed::MmPerRev(0.2);
+    b.spindle.s = 1000.0;
+    b.spindle.dir = SpindleDir::Cw;
+    let r = run(cfg(1), &[b]);
+    // 0.2 mm/rev × 1000 rpm = 200 mm/min.
+    assert!((r.segments[0].feed_mm_s - 200.0 / 60.0).abs() < 1e-12);
+    // Spindle stopped: an error with the block number, nothing planned.
+    b.spindle.dir = SpindleDir::Stopped;
+    let mut pl = kernel::plan::Planner::new(cfg(1), 1);
+    let e = pl.push(&b).unwrap_err();
+    assert_eq!(e.block, Some(0));
+    assert!(e.message.contains("spindle"));
+    pl.finish();
+    assert!(pl.poll().is_none() && pl.is_done());
+}

@@ -32,7 +32,7 @@ use std::collections::VecDeque;
 pub use config::{ContinuityRule, DynamicSet, Envelope, PlannerConfig, Profile, jerk_from_p_mm_s3};
 pub use path::SegPath;
 
-use crate::block::{Block, BlockKind, Continuity, Feed, Path};
+use crate::block::{Block, BlockKind, Continuity, Feed, Path, SpindleDir};
 use crate::diag::Diagnostic;
 use crate::units::{AxesMm, TS_S, mm_min_to_mm_s};
 
@@ -258,12 +258,33 @@ impl Planner {
                     "no feed programmed for a cutting move (F missing or zero)",
                 ));
             }
+            // G95 (SPEC §5): V = S·β with the programmed spindle speed; the daemon scales the
+            // feed by actual/programmed speed (override) if the spindle deviates.
+            Feed::MmPerRev(f)
+                if f.is_finite()
+                    && f > 0.0
+                    && !block.spindle.css
+                    && block.spindle.s > 0.0
+                    && block.spindle.dir != SpindleDir::Stopped =>
+            {
+                f * block.spindle.s
+            }
+            Feed::MmPerRev(_) if block.spindle.css => {
+                return Err(Diagnostic::error(
+                    block.n,
+                    block.line,
+                    0,
+                    "feed per revolution with constant cutting speed (G97) is not supported \
+                     by the planner yet",
+                ));
+            }
             Feed::MmPerRev(_) => {
                 return Err(Diagnostic::error(
                     block.n,
                     block.line,
                     0,
-                    "feed per revolution is not supported by the planner yet",
+                    "feed per revolution needs a running spindle with a programmed speed S \
+                     and a feed F above zero",
                 ));
             }
         };
