@@ -227,15 +227,12 @@ fn classify(b: &Block, plane: Plane) -> Result<Class, Diagnostic> {
                 }
                 return Err(err(
                     b,
-                    format!(
-                        "block {}: arc in another plane than the radius compensation plane",
-                        name(b)
-                    ),
+                    "arc in another plane than the radius compensation plane",
                 ));
             }
             let c = V2::of(&center, plane);
             if a.dist(c) <= EPS_MM {
-                return Err(err(b, format!("block {}: arc with zero radius", name(b))));
+                return Err(err(b, "arc with zero radius"));
             }
             Ok(Class::InPlane {
                 geo: Geo::arc(a, e, c, dir == ArcDir::Ccw),
@@ -336,32 +333,20 @@ impl Compensator {
     /// Takes one programmed block. On `Err` nothing has changed and the block is not taken.
     pub fn push(&mut self, b: &Block) -> Result<(), Diagnostic> {
         if !all_finite(b) {
-            return Err(err(
-                b,
-                format!(
-                    "block {}: coordinate or radius is not a finite number",
-                    name(b)
-                ),
-            ));
+            return Err(err(b, "coordinate or radius is not a finite number"));
         }
         if let Some((_, d, _)) = side_of(b.comp) {
             // SPEC §4: only with 8.R95 = 1; §4.1: the tool must be selected.
             if !self.cfg.enabled {
                 return Err(err(
                     b,
-                    format!(
-                        "block {}: radius compensation G41/G42 is not enabled (machine constant 8.R95 = 0)",
-                        name(b)
-                    ),
+                    "radius compensation G41/G42 is not enabled (machine constant 8.R95 = 0)",
                 ));
             }
             if d == 0 {
                 return Err(err(
                     b,
-                    format!(
-                        "block {}: G41/G42 without a tool: select the offset table entry with D first",
-                        name(b)
-                    ),
+                    "G41/G42 without a tool: select the offset table entry with D first",
                 ));
             }
         }
@@ -380,10 +365,7 @@ impl Compensator {
                 if geo.is_arc() {
                     return Err(err(
                         b,
-                        format!(
-                            "block {}: radius compensation can only start in a linear block (G0/G1), not on an arc",
-                            name(b)
-                        ),
+                        "radius compensation can only start in a linear block (G0/G1), not on an arc",
                     ));
                 }
                 self.start_run(b, geo, rapid);
@@ -391,10 +373,7 @@ impl Compensator {
             }
             Class::InPlane { geo, .. } if geo.is_arc() && reconcile => Err(err(
                 b,
-                format!(
-                    "block {}: after G40 without motion the first motion in the plane must be linear",
-                    name(b)
-                ),
+                "after G40 without motion the first motion in the plane must be linear",
             )),
             _ => {
                 self.pass(b, Role::Passthrough, 0.0);
@@ -415,10 +394,7 @@ impl Compensator {
         if b.comp != Comp::Off && b.plane != plane {
             return Err(err(
                 b,
-                format!(
-                    "block {}: the plane (G17/G18/G19) must not change while radius compensation is active",
-                    name(b)
-                ),
+                "the plane (G17/G18/G19) must not change while radius compensation is active",
             ));
         }
         let class = classify(b, plane)?;
@@ -429,10 +405,7 @@ impl Compensator {
                     if !self.cfg.g40_without_motion {
                         return Err(err(
                             b,
-                            format!(
-                                "block {}: G40 must be programmed in a block with motion in the compensation plane (or set 7.R339 = 1)",
-                                name(b)
-                            ),
+                            "G40 must be programmed in a block with motion in the compensation plane (or set 7.R339 = 1)",
                         ));
                     }
                     self.end_run(RunEnd::Cancel);
@@ -446,8 +419,7 @@ impl Compensator {
                     return Err(err(
                         b,
                         format!(
-                            "block {}: more than {MAX_BRIDGED} blocks without motion in the compensation plane",
-                            name(b)
+                            "more than {MAX_BRIDGED} blocks without motion in the compensation plane"
                         ),
                     ));
                 }
@@ -469,10 +441,7 @@ impl Compensator {
                     if geo.is_arc() {
                         return Err(err(
                             b,
-                            format!(
-                                "block {}: G40 can only be programmed in a linear block, not on an arc",
-                                name(b)
-                            ),
+                            "G40 can only be programmed in a linear block, not on an arc",
                         ));
                     }
                     self.end_run(RunEnd::Cancel);
@@ -484,19 +453,13 @@ impl Compensator {
                     if side_changed && !self.cfg.check.allow_side_change {
                         return Err(err(
                             b,
-                            format!(
-                                "block {}: direct change between G41 and G42 is not allowed (program G40 first, or set 6.R397 = 1)",
-                                name(b)
-                            ),
+                            "direct change between G41 and G42 is not allowed (program G40 first, or set 6.R397 = 1)",
                         ));
                     }
                     if geo.is_arc() {
                         return Err(err(
                             b,
-                            format!(
-                                "block {}: radius compensation can only change in a linear block, not on an arc",
-                                name(b)
-                            ),
+                            "radius compensation can only change in a linear block, not on an arc",
                         ));
                     }
                     self.end_run(RunEnd::Cancel);
@@ -549,10 +512,7 @@ impl Compensator {
                     b.n,
                     b.line,
                     0,
-                    format!(
-                        "block {}: arc end point is not on the circle; replaced by a line (R397 d7)",
-                        name(b)
-                    ),
+                    "arc end point is not on the circle; replaced by a line (R397 d7)",
                 ));
             }
         }
@@ -562,8 +522,7 @@ impl Compensator {
             return Err(err(
                 b,
                 format!(
-                    "block {}: tool radius {:.3} mm is larger than the inside arc radius {:.3} mm",
-                    name(b),
+                    "tool radius {:.3} mm is larger than the inside arc radius {:.3} mm",
                     s.abs(),
                     r + s.abs()
                 ),
@@ -623,10 +582,7 @@ impl Compensator {
                             e.src.n,
                             e.src.line,
                             0,
-                            format!(
-                                "block {}: no intersection of equidistants; arc replaced by a line (R397 d8)",
-                                name(&e.src)
-                            ),
+                            "no intersection of equidistants; arc replaced by a line (R397 d8)",
                         ));
                     }
                 }
@@ -662,8 +618,7 @@ impl Compensator {
                 b.line,
                 0,
                 format!(
-                    "block {}: the equidistant lies {d:.3} mm from the programmed corner, more than {pct:.0} % of the tool radius; {what}",
-                    name(b)
+                    "the equidistant lies {d:.3} mm from the programmed corner, more than {pct:.0} % of the tool radius; {what}"
                 ),
             ));
         }
@@ -699,10 +654,7 @@ impl Compensator {
                     src.n,
                     src.line,
                     0,
-                    format!(
-                        "block {}: the equidistant of the arc runs backwards; arc replaced by a line (R397 d5)",
-                        name(&src)
-                    ),
+                    "the equidistant of the arc runs backwards; arc replaced by a line (R397 d5)",
                 ));
                 return;
             }
@@ -749,10 +701,7 @@ impl Compensator {
                 src.n,
                 src.line,
                 0,
-                format!(
-                    "block {}: equidistant loop removed by the 3-block optimisation (R397 d3)",
-                    name(&src)
-                ),
+                "equidistant loop removed by the 3-block optimisation (R397 d3)",
             ));
             return;
         }
@@ -815,10 +764,7 @@ impl Compensator {
                     b.n,
                     b.line,
                     0,
-                    format!(
-                        "block {}: exit from the contour optimised, the backward move is left out (R764)",
-                        name(&b)
-                    ),
+                    "exit from the contour optimised, the backward move is left out (R764)",
                 ));
             }
         } else {
@@ -826,10 +772,7 @@ impl Compensator {
                 b.n,
                 b.line,
                 0,
-                format!(
-                    "block {}: on the exit from the contour the tool centre moves backwards (R764)",
-                    name(&b)
-                ),
+                "on the exit from the contour the tool centre moves backwards (R764)",
             ));
         }
     }
@@ -939,10 +882,7 @@ impl Compensator {
                                 src.n,
                                 src.line,
                                 0,
-                                format!(
-                                    "block {}: arc of tool radius inserted at the corner (R339)",
-                                    name(&src)
-                                ),
+                                "arc of tool radius inserted at the corner (R339)",
                             ));
                         }
                     }
