@@ -477,6 +477,11 @@ impl<P: CanPort> CanOpenMaster<P> {
                     self.send_step(i, 0);
                 } else if tick - since > boot_ticks {
                     self.fault(i, FaultReason::NoBootUp);
+                } else if (tick - since).is_multiple_of(boot_ticks / 3 + 1) {
+                    // The reset may have been lost (a drive busy or not yet listening): ask
+                    // again, twice, before giving up.
+                    let id = n.cfg.node_id;
+                    self.send(&nmt::command(nmt::Command::ResetNode, id));
                 }
             }
             Phase::Configuring {
@@ -1036,12 +1041,19 @@ mod tests {
         let mut m = master(&[3]);
         m.enable();
         let mut r = Ok(());
+        let mut resets = 0;
         for _ in 0..1000 {
-            r = step(&mut m).1;
+            let (sent, res) = step(&mut m);
+            resets += sent
+                .iter()
+                .filter(|f| **f == nmt::command(nmt::Command::ResetNode, 3))
+                .count();
+            r = res;
             if r.is_err() {
                 break;
             }
         }
         assert_eq!(r.unwrap_err().reason, FaultReason::NoBootUp);
+        assert_eq!(resets, 3, "the reset is sent three times before giving up");
     }
 }

@@ -376,10 +376,10 @@ impl DriveBus for SerialBus {
         self.missing = 0;
         self.corrupt_since_reply = 0;
         let tick = self.tick;
+        // Every axis goes through the enable sequence again: a drive that lost its link has
+        // switched itself off, one that did not is confirmed enabled on the first reply.
         for a in &mut self.axes {
-            if a.phase != Phase::Operational {
-                a.phase = Phase::Enabling { since: tick };
-            }
+            a.phase = Phase::Enabling { since: tick };
         }
     }
 }

@@ -1,0 +1,183 @@
+//! The serial drive link (`hal::serial::SerialBus`) against the `sim-serial` process on a
+//! pseudo-terminal: motion, unplug and replug, silent and corrupt replies, drive faults.
+
+mod vcan_support;
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use hal::serial::{SerialAxis, SerialBus, SerialConfig};
+use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason};
+use vcan_support::{Proc, Ticker, temp_dir};
+
+const INC_PER_MM: f64 = 10_000.0;
+
+fn sim_serial(link: &Path, axes: usize) -> Proc {
+    let axes = axes.to_string();
+    let mut p = Proc::spawn(
+        "sim-serial",
+        &["--link", link.to_str().unwrap(), "--axes", &axes],
+    );
+    p.expect_line(" -> /dev/pts", Duration::from_secs(10));
+    p
+}
+
+struct Rig {
+    bus: SerialBus,
+    cmd: CycleCommand,
+    fb: CycleFeedback,
+    ticker: Ticker,
+}
+
+impl Rig {
+    fn new(link: &Path, axes: usize) -> Rig {
+        let mut cfg = SerialConfig::new(
+            link.to_str().unwrap(),
+            (1..=axes as u8)
+                .map(|node_id| SerialAxis {
+                    node_id,
+                    increments_per_mm: INC_PER_MM,
+                })
+                .collect(),
+        );
+        cfg.reply_timeout_ticks = 50;
+        let mut bus = SerialBus::open(cfg).unwrap();
+        bus.enable();
+        Rig {
+            bus,
+            cmd: CycleCommand::default(),
+            fb: CycleFeedback::default(),
+            ticker: Ticker::default(),
+        }
+    }
+
+    fn tick(&mut self) -> Result<(), BusFault> {
+        self.ticker.wait();
+        self.bus.cycle(&self.cmd, &mut self.fb)
+    }
+
+    fn until_operational(&mut self) {
+        let t0 = Instant::now();
+        while t0.elapsed() < Duration::from_secs(10) {
+            self.tick().expect("no fault while enabling");
+            let n = self.bus.axes();
+            if self.fb.axes[..n]
+                .iter()
+                .all(|a| a.state == DriveState::Operational)
+            {
+                return;
+            }
+        }
+        panic!("not operational after 10 s: {:?}", self.fb.axes);
+    }
+
+    fn until_fault(&mut self, within: Duration) -> BusFault {
+        let t0 = Instant::now();
+        while t0.elapsed() < within {
+            if let Err(e) = self.tick() {
+                return e;
+            }
+        }
+        panic!("no fault within {within:?}");
+    }
+
+    fn move_to(&mut self, axis: usize, to_mm: f64, v_mm_s: f64) {
+        let step = v_mm_s * 0.004;
+        while (self.cmd.positions_mm[axis] - to_mm).abs() > 1e-9 {
+            let d = (to_mm - self.cmd.positions_mm[axis]).clamp(-step, step);
+            self.cmd.positions_mm[axis] += d;
+            self.tick().expect("no fault while moving");
+        }
+        let t0 = Instant::now();
+        while (self.fb.axes[axis].position_mm - to_mm).abs() > 0.001 {
+            assert!(t0.elapsed() < Duration::from_secs(5), "{:?}", self.fb.axes);
+            self.tick().expect("no fault while settling");
+        }
+    }
+}
+
+fn link(test: &str) -> PathBuf {
+    temp_dir(test).join("drive.tty")
+}
+
+#[test]
+fn drive_unit_follows_setpoints_over_a_pty() {
+    let link = link("serial-motion");
+    let _sim = sim_serial(&link, 3);
+    let mut rig = Rig::new(&link, 3);
+    rig.until_operational();
+    rig.move_to(0, 12.5, 100.0);
+    rig.move_to(1, -3.0, 50.0);
+    let p: Vec<f64> = rig.fb.axes[..3].iter().map(|a| a.position_mm).collect();
+    assert!((p[0] - 12.5).abs() <= 0.001 && (p[1] + 3.0).abs() <= 0.001 && p[2].abs() <= 0.001);
+}
+
+#[test]
+fn unplug_is_link_down_and_replug_with_reset_resumes() {
+    let link = link("serial-unplug");
+    let mut sim = sim_serial(&link, 2);
+    let mut rig = Rig::new(&link, 2);
+    rig.until_operational();
+    rig.move_to(0, 5.0, 100.0);
+
+    sim.send("unplug");
+    let e = rig.until_fault(Duration::from_secs(2));
+    assert_eq!(
+        e,
+        BusFault {
+            axis: None,
+            node: None,
+            reason: FaultReason::LinkDown
+        }
+    );
+    assert!(e.to_string().contains("serial link lost"), "{e}");
+    // Reset while the port is still gone: the fault stays.
+    rig.bus.reset();
+    for _ in 0..10 {
+        assert_eq!(rig.tick().unwrap_err().reason, FaultReason::LinkDown);
+    }
+    sim.send("plug");
+    sim.expect_line(" -> /dev/pts", Duration::from_secs(5));
+    // The drive faulted itself on the lost link (8130h); reset reopens and fault-resets it.
+    rig.bus.reset();
+    rig.until_operational();
+    assert!((rig.fb.axes[0].position_mm - 5.0).abs() <= 0.001);
+    rig.move_to(0, 6.0, 100.0);
+}
+
+#[test]
+fn silent_corrupt_and_faulted_drives_are_named() {
+    let link = link("serial-faults");
+    let mut sim = sim_serial(&link, 2);
+    let mut rig = Rig::new(&link, 2);
+    rig.until_operational();
+    for (on, off, reason) in [
+        ("silent on", "silent off", FaultReason::Timeout),
+        ("corrupt on", "corrupt off", FaultReason::CorruptFrames),
+    ] {
+        sim.send(on);
+        let e = rig.until_fault(Duration::from_secs(2));
+        assert_eq!(e.reason, reason, "{on}");
+        sim.send(off);
+        rig.bus.reset();
+        rig.until_operational();
+    }
+    sim.send("fault 2310 2");
+    let e = rig.until_fault(Duration::from_secs(2));
+    assert_eq!(
+        e,
+        BusFault {
+            axis: Some(1),
+            node: Some(2),
+            reason: FaultReason::DriveFault { code: 0x2310 }
+        }
+    );
+    assert!(e.to_string().contains("overcurrent"), "{e}");
+    rig.bus.reset();
+    rig.until_operational();
+
+    // Following error beyond the drive's 50 mm window.
+    rig.cmd.positions_mm[0] = 80.0;
+    let e = rig.until_fault(Duration::from_secs(2));
+    assert_eq!((e.axis, e.reason), (Some(0), FaultReason::FollowingError));
+}
