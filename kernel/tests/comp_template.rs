@@ -149,3 +149,55 @@ fn parsed_program_with_table_radius_and_rapid_restart() {
     assert_close(ends(&find(70).block, Plane::G17).1, p(40.0, 2.0), 1e-12);
     assert_close(ends(&find(80).block, Plane::G17).1, p(60.0, 2.0), 1e-12);
 }
+
+// The template end to end in the kernel: parser → compensator → planner. Every tool-centre
+// block is accepted by the planner, the planned path is continuous, follows the tool-centre
+// path (point check at mid-segment for arcs) and ends back at X-30 Y0.
+#[test]
+fn template_runs_through_the_planner() {
+    use kernel::plan::{Planner, PlannerConfig};
+    let blocks = template_blocks();
+    let cfg = CompConfig {
+        corner_mode: CornerMode::ArcAboveLimit,
+        ..CompConfig::default()
+    };
+    let mut comp = kernel::comp::Compensator::new(cfg);
+    let mut planner = Planner::new(PlannerConfig::uniform(3, 100.0, 1000.0), 1);
+    let mut segs = Vec::new();
+    let mut tool_blocks = Vec::new();
+    let mut feed = |b: Block, planner: &mut Planner, segs: &mut Vec<_>| {
+        planner.push(&b).unwrap();
+        while let Some(s) = planner.poll() {
+            segs.push(s);
+        }
+    };
+    for b in &blocks {
+        comp.push(b).unwrap();
+        while let Some(o) = comp.poll() {
+            tool_blocks.push(o);
+            feed(o, &mut planner, &mut segs);
+        }
+    }
+    comp.finish();
+    while let Some(o) = comp.poll() {
+        tool_blocks.push(o);
+        feed(o, &mut planner, &mut segs);
+    }
+    planner.finish();
+    while let Some(s) = planner.poll() {
+        segs.push(s);
+    }
+    assert!(comp.take_diagnostics().is_empty());
+    assert!(!segs.is_empty());
+    for w in segs.windows(2) {
+        assert!((w[0].path.end() - w[1].path.start()).max_abs(3) < 1e-9);
+    }
+    let last = segs.last().unwrap().path.end();
+    assert_close(V2::of(&last, Plane::G17), p(-30.0, 0.0), 1e-9);
+    // Arc segments keep the compensated radii: N60 radius 25 about (20,20), N90 10 about (55,25).
+    for (n, c, r) in [(60, p(20.0, 20.0), 25.0), (90, p(55.0, 25.0), 10.0)] {
+        let s = segs.iter().find(|s| s.n == Some(n)).unwrap();
+        let mid = V2::of(&s.path.point_at(0.5), Plane::G17);
+        assert!((mid.dist(c) - r).abs() < 1e-9, "N{n}: {}", mid.dist(c));
+    }
+}
