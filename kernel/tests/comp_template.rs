@@ -165,7 +165,7 @@ fn template_runs_through_the_planner() {
     let mut planner = Planner::new(PlannerConfig::uniform(3, 100.0, 1000.0), 1);
     let mut segs = Vec::new();
     let mut tool_blocks = Vec::new();
-    let mut feed = |b: Block, planner: &mut Planner, segs: &mut Vec<_>| {
+    let feed = |b: Block, planner: &mut Planner, segs: &mut Vec<_>| {
         planner.push(&b).unwrap();
         while let Some(s) = planner.poll() {
             segs.push(s);
