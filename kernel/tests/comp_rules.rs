@@ -859,3 +859,47 @@ fn inside_arc_equal_to_or_smaller_than_the_tool() {
             .contains("larger than the inside arc radius 5.000")
     );
 }
+
+// §4.3: a full circle (start = end) is compensated as a full circle, written as two halves;
+// a helix keeps its linear motion of the third axis.
+#[test]
+fn full_circle_and_helix() {
+    let mut pr = Prog::new(-20.0, 0.0);
+    pr.g42(1, 2.0).line(-10.0, 0.0).line(0.0, 0.0);
+    // Full G3 circle about (0,10), tangent to the line; the third axis goes down by 4 mm.
+    let start = pr.pos;
+    let mut end = start;
+    end[2] = -4.0;
+    let mut center = start;
+    center[1] = 10.0;
+    pr.pos = end;
+    let last = pr.blocks.last().copied().unwrap();
+    pr.blocks.push(kernel::block::Block {
+        seq: last.seq + 1,
+        n: Some(30),
+        line: last.line + 1,
+        kind: BlockKind::Motion {
+            start,
+            end,
+            path: Path::Arc {
+                dir: kernel::block::ArcDir::Ccw,
+                center,
+                plane: Plane::G17,
+            },
+        },
+        ..last
+    });
+    pr.line(10.0, 0.0).g40().line(20.0, 0.0);
+    let (out, d) = pr.run(&cfg());
+    assert!(errors(&d).is_empty(), "{d:?}");
+    check_path(&pr.blocks, &out, Plane::G17, 1e-9).unwrap();
+    let halves: Vec<_> = out.iter().filter(|c| c.block.n == Some(30)).collect();
+    assert_eq!(halves.len(), 2);
+    let (s0, e0, _) = halves[0].block.motion().unwrap();
+    let (s1, e1, _) = halves[1].block.motion().unwrap();
+    // Tool right of a G3 circle: outside, radius 12, through (0,-2) and (0,22).
+    assert_close(V2::of(&s0, Plane::G17), p(0.0, -2.0), 1e-12);
+    assert_close(V2::of(&e0, Plane::G17), p(0.0, 22.0), 1e-9);
+    assert_close(V2::of(&e1, Plane::G17), p(0.0, -2.0), 1e-9);
+    assert_eq!((s0[2], e0[2], s1[2], e1[2]), (0.0, -2.0, -2.0, -4.0));
+}
