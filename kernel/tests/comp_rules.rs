@@ -903,3 +903,46 @@ fn full_circle_and_helix() {
     assert_close(V2::of(&e1, Plane::G17), p(0.0, -2.0), 1e-9);
     assert_eq!((s0[2], e0[2], s1[2], e1[2]), (0.0, -2.0, -2.0, -4.0));
 }
+
+// Messages wait for `take_diagnostics`, at most MAX_PENDING_DIAGNOSTICS of them; the rest is
+// counted so memory stays bounded when nobody collects them.
+#[test]
+fn pending_messages_are_bounded() {
+    use kernel::comp::MAX_PENDING_DIAGNOSTICS;
+    let mut pr = Prog::new(-10.0, 0.0);
+    pr.g42(1, 1.0).line(0.0, 0.0);
+    let n = 2 * MAX_PENDING_DIAGNOSTICS + 600; // half the corners are outside
+    for k in 0..n {
+        let y = if k % 2 == 0 { 10.0 } else { 0.0 };
+        pr.line(10.0 * (k + 1) as f64, y);
+    }
+    let c = CompConfig {
+        corner_mode: CornerMode::ArcAboveLimit,
+        report_inserted_arcs: true,
+        ..cfg()
+    };
+    let mut comp = Compensator::new(c);
+    let mut arcs = 0;
+    for b in &pr.blocks {
+        comp.push(b).unwrap();
+        while let Some(o) = comp.poll_traced() {
+            arcs += usize::from(o.role == Role::CornerArc);
+        }
+    }
+    comp.finish();
+    while let Some(o) = comp.poll_traced() {
+        arcs += usize::from(o.role == Role::CornerArc);
+    }
+    let d = comp.take_diagnostics();
+    assert_eq!(d.len(), MAX_PENDING_DIAGNOSTICS + 1);
+    let more = arcs - MAX_PENDING_DIAGNOSTICS;
+    assert!(
+        d.last()
+            .unwrap()
+            .message
+            .starts_with(&format!("{more} more"))
+    );
+    // compensate_all collects as it goes and loses nothing.
+    let (_, all) = pr.run(&c);
+    assert_eq!(all.len(), arcs);
+}

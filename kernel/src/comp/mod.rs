@@ -34,6 +34,11 @@ use geom::{EPS_MM, Geo, V2, intersect, wrap_pi};
 /// motions (SPEC §4.1); one more is an error.
 pub const MAX_BRIDGED: usize = 200;
 
+/// Warnings and information messages kept until [`Compensator::take_diagnostics`]; beyond
+/// this they are counted, not stored, so a caller that never collects them (or a program with
+/// a message per block) cannot grow memory without bound.
+pub const MAX_PENDING_DIAGNOSTICS: usize = 1000;
+
 /// In-plane elements held back while compensation runs: the 4-block optimisation (R397 d4)
 /// may move the end of the element three places back.
 pub const WINDOW: usize = 4;
@@ -126,7 +131,7 @@ pub struct Compensator {
     cfg: CompConfig,
     run: Option<Run>,
     out: VecDeque<CompBlock>,
-    diags: Vec<Diagnostic>,
+    notes: Notes,
     /// Where the tool (centre) is: end of the last output motion.
     tool: Option<AxesMm>,
     /// Plane of the last compensation, for reconciling after G40 without motion (7.R339).
@@ -136,6 +141,37 @@ pub struct Compensator {
 impl Default for Compensator {
     fn default() -> Self {
         Self::new(CompConfig::default())
+    }
+}
+
+/// Pending warnings and information messages, bounded by [`MAX_PENDING_DIAGNOSTICS`].
+#[derive(Default)]
+struct Notes {
+    list: Vec<Diagnostic>,
+    /// Messages counted but not kept.
+    dropped: usize,
+}
+
+impl Notes {
+    fn push(&mut self, d: Diagnostic) {
+        if self.list.len() < MAX_PENDING_DIAGNOSTICS {
+            self.list.push(d);
+        } else {
+            self.dropped += 1;
+        }
+    }
+
+    fn take(&mut self) -> Vec<Diagnostic> {
+        if self.dropped > 0 {
+            let n = std::mem::take(&mut self.dropped);
+            self.list.push(Diagnostic::info(
+                None,
+                0,
+                0,
+                format!("{n} more radius compensation messages were not kept"),
+            ));
+        }
+        std::mem::take(&mut self.list)
     }
 }
 
@@ -287,7 +323,7 @@ impl Compensator {
             cfg,
             run: None,
             out: VecDeque::new(),
-            diags: Vec::new(),
+            notes: Notes::default(),
             tool: None,
             last_plane: Plane::G17,
         }
@@ -311,7 +347,7 @@ impl Compensator {
 
     /// Warnings and information messages produced so far (errors are returned by `push`).
     pub fn take_diagnostics(&mut self) -> Vec<Diagnostic> {
-        std::mem::take(&mut self.diags)
+        self.notes.take()
     }
 
     /// Next tool-centre block.
@@ -589,7 +625,9 @@ impl Compensator {
                 self.run.as_mut().expect("running").elems = elems;
             }
         }
-        self.diags.extend(notes);
+        for d in notes {
+            self.notes.push(d);
+        }
         let n = self.run.as_ref().expect("running").elems.len();
         if n >= 2 {
             self.check_middle(n - 2);
@@ -613,7 +651,7 @@ impl Compensator {
                 "check the corner (R765)"
             };
             let pct = self.cfg.position.percent;
-            self.diags.push(Diagnostic::warning(
+            self.notes.push(Diagnostic::warning(
                 b.n,
                 b.line,
                 0,
@@ -650,7 +688,7 @@ impl Compensator {
             let mut trial = elems.clone();
             if try_chord(&mut trial, m, s, &cfg) && !runs_backwards(&trial[m], s) {
                 *elems = trial;
-                self.diags.push(Diagnostic::warning(
+                self.notes.push(Diagnostic::warning(
                     src.n,
                     src.line,
                     0,
@@ -663,7 +701,7 @@ impl Compensator {
             return;
         }
         if cfg.check.warn {
-            self.diags.push(Diagnostic::warning(
+            self.notes.push(Diagnostic::warning(
                 src.n,
                 src.line,
                 0,
@@ -683,7 +721,7 @@ impl Compensator {
             && elems[m - 1].corner.is_none()
             && bypass(elems, m - 2, m + 1, s)
         {
-            self.diags.push(Diagnostic::info(
+            self.notes.push(Diagnostic::info(
                 src.n,
                 src.line,
                 0,
@@ -697,7 +735,7 @@ impl Compensator {
         }
         if cfg.check.optimise_3_blocks && !elems[m - 1].collapsed && bypass(elems, m - 1, m + 1, s)
         {
-            self.diags.push(Diagnostic::info(
+            self.notes.push(Diagnostic::info(
                 src.n,
                 src.line,
                 0,
@@ -760,7 +798,7 @@ impl Compensator {
             e.end = e.start;
             e.collapsed = true;
             if rule.report {
-                self.diags.push(Diagnostic::info(
+                self.notes.push(Diagnostic::info(
                     b.n,
                     b.line,
                     0,
@@ -768,7 +806,7 @@ impl Compensator {
                 ));
             }
         } else {
-            self.diags.push(Diagnostic::warning(
+            self.notes.push(Diagnostic::warning(
                 b.n,
                 b.line,
                 0,
@@ -878,7 +916,7 @@ impl Compensator {
                         );
                         // SPEC §4.3: R339 sign `-`, an information message per inserted arc.
                         if self.cfg.report_inserted_arcs {
-                            self.diags.push(Diagnostic::info(
+                            self.notes.push(Diagnostic::info(
                                 src.n,
                                 src.line,
                                 0,
@@ -1042,8 +1080,9 @@ pub fn compensate_all_traced(
     let mut out = Vec::with_capacity(blocks.len() + blocks.len() / 4);
     let mut diags = Vec::new();
     for b in blocks {
-        if let Err(d) = c.push(b) {
-            diags.extend(c.take_diagnostics());
+        let res = c.push(b);
+        diags.extend(c.take_diagnostics());
+        if let Err(d) = res {
             diags.push(d);
         }
         while let Some(o) = c.poll_traced() {
