@@ -5,3 +5,7 @@ pub mod cnc {
     }
 }
 pub use cnc::v1;
+
+/// Encoded `FileDescriptorSet` of `cnc.v1`, for gRPC server reflection.
+pub const FILE_DESCRIPTOR_SET: &[u8] =
+    include_bytes!(concat!(env!("OUT_DIR"), "/cnc_descriptor.bin"));
