@@ -1021,6 +1021,10 @@ fn try_chord(elems: &mut VecDeque<Elem>, i: usize, s: f64, cfg: &CompConfig) -> 
     if i >= elems.len() || !elems[i].geo.is_arc() || !elems[i].is_regular() {
         return false;
     }
+    // A full circle has no chord.
+    if elems[i].geo.start().dist(elems[i].geo.end()) <= EPS_MM {
+        return false;
+    }
     elems[i].geo = elems[i].geo.chord();
     elems[i].chord = true;
     for j in [i, i + 1] {
