@@ -105,6 +105,12 @@ struct Elem {
     closed: bool,
     /// Arc inserted before this element.
     corner: Option<CornerArc>,
+    /// R765: the junction in front lies this far from the programmed corner (beyond the
+    /// limit); reported when the element is emitted, so a junction replaced later by an
+    /// optimisation is not reported.
+    far_mm: Option<f64>,
+    /// R765 d8 inserted the arc in front instead of a far intersection.
+    position_arc: bool,
     /// Equidistant removed by an optimisation.
     collapsed: bool,
     /// Its equidistant runs backwards and the 3-block optimisation could not fix it.
@@ -523,6 +529,8 @@ impl Compensator {
                 end: geo.end(),
                 closed: false,
                 corner: None,
+                far_mm: None,
+                position_arc: false,
                 collapsed: false,
                 backward_unfixed: false,
                 trailer: Vec::new(),
@@ -573,6 +581,8 @@ impl Compensator {
             end: geo.end(),
             closed: false,
             corner: None,
+            far_mm: None,
+            position_arc: false,
             collapsed: false,
             backward_unfixed: false,
             trailer: Vec::new(),
@@ -584,7 +594,6 @@ impl Compensator {
                 run.elems.push_back(elem);
                 let n = run.elems.len();
                 apply_join(&mut run.elems, n - 1, res);
-                self.note_junction(n - 1, &res);
             }
             Err(NoIntersection) => {
                 // R397 d8: replace an arc (the new one first, then the previous) by its chord.
@@ -634,32 +643,6 @@ impl Compensator {
         }
         self.emit_ready();
         Ok(())
-    }
-
-    /// Messages of a resolved junction in front of element `i` (R765; R339 `-` is reported
-    /// when the arc is emitted, so arcs from every path are counted once).
-    fn note_junction(&mut self, i: usize, res: &Resolved) {
-        let run = self.run.as_ref().expect("running");
-        let e = &run.elems[i];
-        let b = &e.src;
-        if let Some(d) = res.far_mm
-            && self.cfg.position.report
-        {
-            let what = if res.position_optimised {
-                "an arc was inserted instead (R765)"
-            } else {
-                "check the corner (R765)"
-            };
-            let pct = self.cfg.position.percent;
-            self.notes.push(Diagnostic::warning(
-                b.n,
-                b.line,
-                0,
-                format!(
-                    "the equidistant lies {d:.3} mm from the programmed corner, more than {pct:.0} % of the tool radius; {what}"
-                ),
-            ));
-        }
     }
 
     /// R397 check of the middle of three consecutive compensated elements, and the
@@ -894,6 +877,24 @@ impl Compensator {
                 self.put_motion(&src, with_plane(pend, e.end, plane), path, role, s);
             }
             ElemKind::Regular => {
+                if let Some(d) = e.far_mm
+                    && self.cfg.position.report
+                {
+                    let what = if e.position_arc {
+                        "an arc was inserted instead (R765)"
+                    } else {
+                        "check the corner (R765)"
+                    };
+                    let pct = self.cfg.position.percent;
+                    self.notes.push(Diagnostic::warning(
+                        src.n,
+                        src.line,
+                        0,
+                        format!(
+                            "the equidistant lies {d:.3} mm from the programmed corner, more than {pct:.0} % of the tool radius; {what}"
+                        ),
+                    ));
+                }
                 if let Some(c) = e.corner {
                     let here = self.tool_or(pstart);
                     if c.sweep_rad.abs() * s.abs() > EPS_MM {
@@ -1013,6 +1014,8 @@ fn apply_join(elems: &mut VecDeque<Elem>, i: usize, res: Resolved) {
     let next = &mut elems[i];
     next.start = to;
     next.corner = corner;
+    next.far_mm = res.far_mm;
+    next.position_arc = res.position_optimised;
 }
 
 /// Replaces the arc at `i` by its chord and resolves its junctions again (R397 d5, d8).
@@ -1065,6 +1068,7 @@ fn bypass(elems: &mut VecDeque<Elem>, first: usize, last: usize, s: f64) -> bool
         e.backward_unfixed = false;
     }
     elems[last].start = x;
+    elems[last].far_mm = None;
     true
 }
 
