@@ -614,6 +614,19 @@ fn a_flood_of_errors_is_capped() {
 }
 
 #[test]
+fn many_warnings_do_not_stop_a_valid_program() {
+    // 3000 warnings (G92 writing nothing), then an error at the very end that must be found.
+    let text = format!("{}G1 X1\n", "G92 D1\n".repeat(3000));
+    let d = validate(&text, &mill());
+    let errors: Vec<_> = d.iter().filter(|d| d.is_error()).collect();
+    assert_eq!(errors.len(), 1, "{:?}", errors);
+    assert_eq!(errors[0].line, 3001);
+    assert!(d.last().unwrap().message.contains("more warnings"));
+    let ok_text = "G92 D1\n".repeat(3000);
+    assert!(!validate(&ok_text, &mill()).iter().any(Diagnostic::is_error));
+}
+
+#[test]
 fn offsets_table_default_is_zero() {
     assert_eq!(OffsetTable::new().entry(1).unwrap().radius_mm, 0.0);
     assert!(OffsetTable::new().entry(0).is_none());

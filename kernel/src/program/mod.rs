@@ -26,8 +26,9 @@ use crate::diag::Diagnostic;
 use crate::offsets::OffsetTable;
 use crate::units::AxesMm;
 
-/// Most messages collected for one program; beyond it one last error says so (a binary file
-/// would otherwise produce a message per line).
+/// Most errors collected for one program: then checking stops with one last error (a binary
+/// file would otherwise produce a message per line). Warnings beyond this many are counted,
+/// not listed, and never stop the check.
 pub const MAX_DIAGNOSTICS: usize = 1000;
 
 /// How the arc centre words I and J are read (SPEC §2: **decided**, a setting; default relative).
@@ -105,7 +106,7 @@ pub fn compile(text: &str, setup: &Setup) -> Compiled {
 }
 
 /// Checks a whole program without keeping its blocks: every error, warning and information,
-/// in source order (capped at [`MAX_DIAGNOSTICS`]). The program may run iff none is an error.
+/// in source order (see [`MAX_DIAGNOSTICS`]). The program may run iff none is an error.
 pub fn validate(text: &str, setup: &Setup) -> Vec<Diagnostic> {
     let mut diags = Vec::new();
     run(text, setup, |_| {}, &mut diags);
@@ -114,25 +115,50 @@ pub fn validate(text: &str, setup: &Setup) -> Vec<Diagnostic> {
 
 fn run(text: &str, setup: &Setup, mut sink: impl FnMut(Block), diags: &mut Vec<Diagnostic>) {
     let mut s = stream(text, setup);
+    let mut errors = 0usize;
+    let mut dropped_notes = 0usize;
+    let mut keep_notes = |diags: &mut Vec<Diagnostic>, notes: Vec<Diagnostic>| {
+        for n in notes {
+            if diags.len() < MAX_DIAGNOSTICS {
+                diags.push(n);
+            } else {
+                dropped_notes += 1;
+            }
+        }
+    };
     while let Some(item) = s.next() {
         if s.interp.has_notes() {
-            diags.extend(s.interp.take_notes());
+            keep_notes(diags, s.interp.take_notes());
         }
         match item {
             Ok(b) => sink(b),
-            Err(d) => diags.push(d),
-        }
-        if diags.len() >= MAX_DIAGNOSTICS {
-            diags.push(Diagnostic::error(
-                None,
-                s.line_no,
-                0,
-                format!("more than {MAX_DIAGNOSTICS} messages: checking stopped here"),
-            ));
-            return;
+            Err(d) => {
+                diags.push(d);
+                errors += 1;
+                // The program cannot run anyway: stop before the list becomes useless.
+                if errors >= MAX_DIAGNOSTICS {
+                    diags.push(Diagnostic::error(
+                        None,
+                        s.line_no,
+                        0,
+                        format!("more than {MAX_DIAGNOSTICS} errors: checking stopped here"),
+                    ));
+                    return;
+                }
+            }
         }
     }
-    diags.extend(s.interp.take_notes());
+    keep_notes(diags, s.interp.take_notes());
+    // Warnings never stop the check (a program with many warnings may still run); beyond the
+    // cap they are only counted.
+    if dropped_notes > 0 {
+        diags.push(Diagnostic::info(
+            None,
+            0,
+            0,
+            format!("{dropped_notes} more warnings or notes not listed"),
+        ));
+    }
 }
 
 /// Streams the blocks of a program for execution: `Ok(block)` in order, `Err(error)` for a
