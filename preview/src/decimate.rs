@@ -1,17 +1,37 @@
 //! Geometry kept at the picture's resolution, not per block (bounded memory for programs of
 //! millions of blocks, issue #10).
 //!
-//! Points snap to a square grid: a point in the same cell as the vertex before it replaces that
-//! vertex instead of adding one, so the drawn path never strays more than one cell from the
-//! true one. The grid starts far below any useful resolution (0.1 µm) and doubles whenever the
-//! budget is exceeded, so memory stays bounded whatever the program; when the picture is laid
-//! out, [`Track::runs_at`] decimates once more to the final pixel size.
+//! Points snap to a square grid. A point in the same cell as the vertex before it replaces that
+//! vertex instead of adding one, and a step between two cells already joined by a drawn edge
+//! is not drawn again (a pocket passes the same places many times), so the drawing never
+//! strays more than one cell from the true path and its size grows with the area covered,
+//! not with the path length. The grid starts far below any useful resolution (0.1 µm) and
+//! doubles whenever the budget is exceeded, so memory stays bounded whatever the program; when
+//! the picture is laid out, [`Track::runs_at`] decimates once more to the final pixel size.
+
+use rustc_hash::FxHashSet as HashSet;
 
 /// Cell size the grids start with, mm: far below what any picture shows.
 pub const START_CELL: f64 = 1e-4;
 
-fn cell_of(p: [f64; 2], cell: f64) -> (i64, i64) {
-    ((p[0] / cell).floor() as i64, (p[1] / cell).floor() as i64)
+type Cell = (i32, i32);
+
+fn cell_of(p: [f64; 2], cell: f64) -> Cell {
+    // `as` saturates: coordinates beyond the grid's range share the border cells.
+    ((p[0] / cell).floor() as i32, (p[1] / cell).floor() as i32)
+}
+
+fn edge_key(a: Cell, b: Cell) -> (Cell, Cell) {
+    if a <= b { (a, b) } else { (b, a) }
+}
+
+/// Where the drawing stands.
+#[derive(Clone, Copy, Debug)]
+struct Pen {
+    at: [f64; 2],
+    cell: Cell,
+    /// `at` is the last vertex of the last polyline (drawing continues it).
+    drawn: bool,
 }
 
 /// Open polylines with grid decimation.
@@ -20,20 +40,26 @@ pub struct Track {
     pts: Vec<[f64; 2]>,
     /// Index in `pts` where each polyline starts.
     starts: Vec<usize>,
+    /// Edges between cells already drawn.
+    edges: HashSet<(Cell, Cell)>,
     cell: f64,
     budget: usize,
-    /// Cell of the last vertex, while a polyline is open.
-    last_cell: Option<(i64, i64)>,
+    pen: Option<Pen>,
 }
 
 impl Track {
     pub fn new(budget_points: usize) -> Self {
+        Self::with_cell(START_CELL, budget_points.max(16))
+    }
+
+    fn with_cell(cell: f64, budget: usize) -> Self {
         Track {
             pts: Vec::new(),
             starts: Vec::new(),
-            cell: START_CELL,
-            budget: budget_points.max(16),
-            last_cell: None,
+            edges: HashSet::default(),
+            cell,
+            budget,
+            pen: None,
         }
     }
 
@@ -50,14 +76,15 @@ impl Track {
         self.pts.is_empty()
     }
 
-    /// Continues the open polyline to `p`, or starts one at `from` when none is open or it
-    /// ended elsewhere.
+    /// A piece of path from `from` through `to`: continues the drawing when `from` is where
+    /// the last piece ended, else starts a new polyline.
     pub fn segment(&mut self, from: [f64; 2], to: &[[f64; 2]]) {
-        let joined = self.last_cell.is_some() && self.pts.last() == Some(&from);
-        if !joined {
-            self.starts.push(self.pts.len());
-            self.pts.push(from);
-            self.last_cell = Some(cell_of(from, self.cell));
+        if self.pen.is_none_or(|p| p.at != from) {
+            self.pen = Some(Pen {
+                at: from,
+                cell: cell_of(from, self.cell),
+                drawn: false,
+            });
         }
         for &p in to {
             self.push(p);
@@ -67,70 +94,101 @@ impl Track {
         }
     }
 
-    /// Ends the open polyline (the next segment starts a new one even if it joins).
+    /// Ends the drawing here (the next segment starts a new polyline even if it joins).
     pub fn pen_up(&mut self) {
-        self.last_cell = None;
+        self.pen = None;
     }
 
     fn push(&mut self, p: [f64; 2]) {
         let c = cell_of(p, self.cell);
-        let run_len = self.pts.len() - self.starts.last().copied().unwrap_or(0);
-        // The first vertex of a polyline stays where it is (its start is exact).
-        if self.last_cell == Some(c) && run_len > 1 {
-            *self.pts.last_mut().expect("open polyline") = p;
-        } else {
+        let Some(pen) = self.pen.as_mut() else {
+            self.pen = Some(Pen {
+                at: p,
+                cell: c,
+                drawn: false,
+            });
+            return;
+        };
+        if c == pen.cell {
+            let run_len = self.pts.len() - self.starts.last().copied().unwrap_or(0);
+            // The first vertex of a polyline stays where it is (its start is exact).
+            if pen.drawn && run_len > 1 {
+                *self.pts.last_mut().expect("open polyline") = p;
+                pen.at = p;
+            } else if pen.drawn {
+                self.pts.push(p);
+                pen.at = p;
+            }
+            return;
+        }
+        if self.edges.insert(edge_key(pen.cell, c)) {
+            if !pen.drawn {
+                self.starts.push(self.pts.len());
+                self.pts.push(pen.at);
+            }
             self.pts.push(p);
-            self.last_cell = Some(c);
+            *pen = Pen {
+                at: p,
+                cell: c,
+                drawn: true,
+            };
+        } else {
+            // Already drawn: move without drawing.
+            *pen = Pen {
+                at: p,
+                cell: c,
+                drawn: false,
+            };
         }
     }
 
-    /// Doubles the cell until the points fit half the budget (amortised constant per point).
-    fn coarsen(&mut self) {
-        while self.pts.len() > self.budget / 2 {
-            self.cell *= 2.0;
-            let (pts, starts) = decimate(&self.pts, &self.starts, self.cell);
-            self.pts = pts;
-            self.starts = starts;
+    /// The polylines redrawn on a grid of `cell`.
+    fn redrawn(&self, cell: f64, budget: usize) -> Track {
+        let mut t = Track::with_cell(cell, budget);
+        for (k, &s) in self.starts.iter().enumerate() {
+            let e = self.starts.get(k + 1).copied().unwrap_or(self.pts.len());
+            t.pen = None;
+            t.segment(self.pts[s], &self.pts[s + 1..e]);
         }
-        let open = self.last_cell.is_some();
-        self.last_cell = if open {
-            self.pts.last().map(|p| cell_of(*p, self.cell))
-        } else {
-            None
-        };
+        t
+    }
+
+    /// Doubles the cell until the points fit half the budget (amortised constant per point:
+    /// the points added since the last coarsening are already minimal on the current grid).
+    fn coarsen(&mut self) {
+        let pen = self.pen;
+        let last = self.pts.last().copied();
+        while self.pts.len() > self.budget / 2 {
+            let big = usize::MAX;
+            let t = self.redrawn(self.cell * 2.0, big);
+            self.pts = t.pts;
+            self.starts = t.starts;
+            self.edges = t.edges;
+            self.cell = t.cell;
+        }
+        self.pen = pen.map(|p| Pen {
+            at: p.at,
+            cell: cell_of(p.at, self.cell),
+            drawn: p.drawn && self.pts.last().copied() == last && last == Some(p.at),
+        });
     }
 
     /// The polylines decimated to `cell` (at least the track's own cell).
     pub fn runs_at(&self, cell: f64) -> Vec<Vec<[f64; 2]>> {
-        let cell = cell.max(self.cell);
-        let (pts, starts) = decimate(&self.pts, &self.starts, cell);
-        let mut out = Vec::with_capacity(starts.len());
-        for (k, &s) in starts.iter().enumerate() {
-            let e = starts.get(k + 1).copied().unwrap_or(pts.len());
-            out.push(pts[s..e].to_vec());
+        let redrawn;
+        let t = if cell > self.cell {
+            redrawn = self.redrawn(cell, usize::MAX);
+            &redrawn
+        } else {
+            self
+        };
+        let mut out = Vec::with_capacity(t.starts.len());
+        for (k, &s) in t.starts.iter().enumerate() {
+            let e = t.starts.get(k + 1).copied().unwrap_or(t.pts.len());
+            out.push(t.pts[s..e].to_vec());
         }
         out
     }
-}
-
-fn decimate(pts: &[[f64; 2]], starts: &[usize], cell: f64) -> (Vec<[f64; 2]>, Vec<usize>) {
-    let mut out = Vec::with_capacity(pts.len() / 2 + 2);
-    let mut out_starts = Vec::with_capacity(starts.len());
-    for (k, &s) in starts.iter().enumerate() {
-        let e = starts.get(k + 1).copied().unwrap_or(pts.len());
-        out_starts.push(out.len());
-        let mut last = None;
-        for (i, &p) in pts[s..e].iter().enumerate() {
-            let c = cell_of(p, cell);
-            if last == Some(c) && i > 1 {
-                *out.last_mut().expect("run has a vertex") = p;
-            } else {
-                out.push(p);
-                last = Some(c);
-            }
-        }
-    }
-    (out, out_starts)
 }
 
 /// A junction dot before drawing.
@@ -172,6 +230,9 @@ impl DotSet {
     pub fn add(&mut self, dot: JunctionDot) {
         self.dots.push(dot);
         if self.dots.len() > self.budget {
+            // Dots added since the last merge may share cells with earlier ones: merge at
+            // the current cell first, coarsen only if that is not enough.
+            self.dots = merge(std::mem::take(&mut self.dots), self.cell);
             while self.dots.len() > self.budget / 2 {
                 self.cell *= 2.0;
                 self.dots = merge(std::mem::take(&mut self.dots), self.cell);
@@ -234,9 +295,22 @@ mod tests {
         assert!(z.points() <= 1000, "{}", z.points());
         assert!(z.cell() > START_CELL);
         let runs = z.runs_at(0.0);
-        assert_eq!(runs.len(), 1);
         assert_eq!(runs[0][0], [0.0, 0.0]);
-        assert_eq!(*runs[0].last().unwrap(), prev);
+        // Every point of the path is within one cell (diagonal) of a kept vertex or edge
+        // end: checked for the end point and a point in the middle.
+        let near = |q: [f64; 2]| {
+            runs.iter()
+                .flatten()
+                .any(|v| (v[0] - q[0]).hypot(v[1] - q[1]) <= 2.0 * z.cell() * 1.5)
+        };
+        assert!(near(prev) && near([5.0, 1.0]));
+        // A path that retraces itself is drawn once.
+        let mut r = Track::new(1000);
+        for _ in 0..100 {
+            r.segment([0.0, 0.0], &[[10.0, 0.0], [10.0, 10.0]]);
+            r.pen_up();
+        }
+        assert_eq!(r.points(), 3);
     }
 
     #[test]

@@ -18,6 +18,8 @@ pub const FRAME: Rgb = Rgb(120, 120, 120);
 const PANEL_PX: f64 = 290.0;
 /// Dot radius, px; dots closer than about their size merge into one.
 const DOT_R_PX: f32 = 3.5;
+/// More yellow dots than this are drawn small.
+const DENSE_DOTS: usize = 1500;
 
 /// Text lines above the plot.
 pub struct Header {
@@ -199,13 +201,15 @@ pub fn preview(c: &Collector, t: &PreviewText, width_px: u32, height_px: u32) ->
             runs: c.comp.runs_at(0.5 * px_mm),
         });
     }
-    let dots = c
-        .dots
-        .at(f64::from(DOT_R_PX) * px_mm)
+    let merged = c.dots.at(f64::from(DOT_R_PX) * px_mm);
+    // Where smooth junctions cover the picture (dense programs), small yellow dots keep the
+    // path and the red dots visible.
+    let dense = merged.iter().filter(|d| !d.red).count() > DENSE_DOTS;
+    let dots = merged
         .into_iter()
         .map(|d| Dot {
             at: d.at,
-            r_px: DOT_R_PX,
+            r_px: if dense && !d.red { 1.5 } else { DOT_R_PX },
             fill: if d.red { RED_DOT } else { SMOOTH_DOT },
             outline: if d.red {
                 Rgb(120, 0, 0)
