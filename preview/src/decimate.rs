@@ -9,7 +9,9 @@
 //! doubles whenever the budget is exceeded, so memory stays bounded whatever the program; when
 //! the picture is laid out, [`Track::runs_at`] decimates once more to the final pixel size.
 
-use rustc_hash::FxHashSet as HashSet;
+use std::collections::hash_map::Entry;
+
+use rustc_hash::{FxHashMap, FxHashSet as HashSet};
 
 /// Cell size the grids start with, mm: far below what any picture shows.
 pub const START_CELL: f64 = 1e-4;
@@ -145,6 +147,8 @@ impl Track {
     /// The polylines redrawn on a grid of `cell`.
     fn redrawn(&self, cell: f64, budget: usize) -> Track {
         let mut t = Track::with_cell(cell, budget);
+        t.edges.reserve(self.pts.len());
+        t.pts.reserve(self.pts.len());
         for (k, &s) in self.starts.iter().enumerate() {
             let e = self.starts.get(k + 1).copied().unwrap_or(self.pts.len());
             t.pen = None;
@@ -249,17 +253,19 @@ impl DotSet {
     }
 }
 
-/// Merges dots of the same colour in the same cell (keeps the first one's position and label).
-fn merge(mut dots: Vec<JunctionDot>, cell: f64) -> Vec<JunctionDot> {
-    // Stable sort: within a cell the earliest junction comes first.
-    dots.sort_by_key(|d| (cell_of(d.at, cell), d.red));
-    let mut out: Vec<JunctionDot> = Vec::with_capacity(dots.len());
+/// Merges dots of the same colour in the same cell (keeps the first one's position and label,
+/// and program order).
+fn merge(dots: Vec<JunctionDot>, cell: f64) -> Vec<JunctionDot> {
+    let mut index: FxHashMap<(Cell, bool), usize> =
+        FxHashMap::with_capacity_and_hasher(dots.len(), Default::default());
+    let mut out: Vec<JunctionDot> = Vec::with_capacity(dots.len() / 2 + 1);
     for d in dots {
-        match out.last_mut() {
-            Some(l) if l.red == d.red && cell_of(l.at, cell) == cell_of(d.at, cell) => {
-                l.count += d.count;
+        match index.entry((cell_of(d.at, cell), d.red)) {
+            Entry::Occupied(e) => out[*e.get()].count += d.count,
+            Entry::Vacant(e) => {
+                e.insert(out.len());
+                out.push(d);
             }
-            _ => out.push(d),
         }
     }
     out

@@ -412,3 +412,38 @@ fn velocity_plot_follows_the_interpolator() {
     assert!(svg.contains("class=\"accel\""));
     assert!(v.to_png().expect("png").starts_with(b"\x89PNG"));
 }
+
+#[test]
+fn velocity_pages_split_the_run() {
+    let mut o = opts();
+    let whole = preview::velocity_plot(CONTOUR, &o, false).expect("plot");
+    o.page_blocks = Some(8);
+    let mut boundaries = 0;
+    let mut last_end = 0.0;
+    for page in 1..=2 {
+        o.page = page;
+        let v = preview::velocity_plot(CONTOUR, &o, false).expect("page");
+        assert_eq!(v.pages, 2);
+        assert!(v.start_s >= last_end, "pages follow each other in time");
+        last_end = v.end_s;
+        boundaries += v.boundaries;
+    }
+    assert_eq!(boundaries, whole.boundaries);
+    assert!((last_end - whole.end_s).abs() < 1e-9);
+}
+
+#[test]
+fn degenerate_programs_still_render() {
+    for text in [
+        "",
+        "N10 M3 S1000\n",
+        "N10 G0 Z5\nN20 G1 Z-1 F100\n",
+        "G0 X10 Y10\n",
+    ] {
+        let p = preview::render(text, &opts()).expect("preview");
+        assert!(p.to_svg().ends_with("</svg>\n"));
+        assert!(p.to_png().is_ok());
+        let v = preview::velocity_plot(text, &opts(), true).expect("plot");
+        assert!(v.to_png().is_ok());
+    }
+}
