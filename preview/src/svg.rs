@@ -39,17 +39,25 @@ pub fn escape(s: &str) -> String {
 }
 
 fn stroke_attrs(s: &Stroke) -> String {
+    stroke_attrs_scaled(s, 1.0)
+}
+
+/// Stroke attributes for a group whose user unit is `px_per_unit` pixels (widths and dashes
+/// are given in pixels; `vector-effect` is not used: several SVG renderers ignore it).
+fn stroke_attrs_scaled(s: &Stroke, px_per_unit: f64) -> String {
+    let k = 1.0 / px_per_unit;
+    let d = decimals_for(px_per_unit) + 1;
     let mut a = format!(
         "fill=\"none\" stroke=\"{}\" stroke-width=\"{}\"",
         color(s.color),
-        num(f64::from(s.width_px), 2)
+        num(f64::from(s.width_px) * k, d)
     );
-    if let Some([d, g]) = s.dash_px {
+    if let Some([dash, gap]) = s.dash_px {
         let _ = write!(
             a,
             " stroke-dasharray=\"{} {}\"",
-            num(f64::from(d), 2),
-            num(f64::from(g), 2)
+            num(f64::from(dash) * k, d),
+            num(f64::from(gap) * k, d)
         );
     }
     a
@@ -165,16 +173,38 @@ fn plot_svg(o: &mut String, p: &Plot) {
     for (k, v) in &p.attrs {
         let _ = write!(attrs, " {k}=\"{v}\"");
     }
+    // Equal scales (the path preview): machine coordinates under a transform, so the file
+    // holds millimetres. Unequal scales (velocity plot): pixel coordinates, since a stroke in
+    // an anisotropic user space would be distorted; `data-map` gives the world-to-pixel map.
+    let uniform = (sx.abs() - sy.abs()).abs() <= 1e-9 * sx.abs();
+    let frame = if uniform {
+        format!(
+            "transform=\"matrix({} 0 0 {} {} {})\"",
+            num(sx, 9),
+            num(sy, 9),
+            num(tx, 4),
+            num(ty, 4)
+        )
+    } else {
+        format!(
+            "data-map=\"{} {} {} {}\"",
+            num(sx, 9),
+            num(sy, 9),
+            num(tx, 4),
+            num(ty, 4)
+        )
+    };
     let _ = writeln!(
         o,
-        "<g clip-path=\"url(#clip-{id})\"><g id=\"{id}\" transform=\"matrix({} 0 0 {} {} {})\"{attrs}>",
-        num(sx, 9),
-        num(sy, 9),
-        num(tx, 4),
-        num(ty, 4),
+        "<g clip-path=\"url(#clip-{id})\"><g id=\"{id}\" {frame}{attrs}>",
         id = p.id
     );
-    let (dx, dy) = (decimals_for(sx), decimals_for(sy));
+    let (px_per_unit, dx, dy) = if uniform {
+        (sx.abs(), decimals_for(sx), decimals_for(sy))
+    } else {
+        (1.0, 2, 2)
+    };
+    let at = |q: [f64; 2]| if uniform { q } else { p.map.apply(q) };
     for item in &p.items {
         match item {
             WorldItem::Path {
@@ -187,11 +217,12 @@ fn plot_svg(o: &mut String, p: &Plot) {
                 }
                 let _ = write!(
                     o,
-                    "<path class=\"{class}\" vector-effect=\"non-scaling-stroke\" stroke-linejoin=\"round\" {} d=\"",
-                    stroke_attrs(stroke)
+                    "<path class=\"{class}\" stroke-linejoin=\"round\" {} d=\"",
+                    stroke_attrs_scaled(stroke, px_per_unit)
                 );
                 for run in runs {
                     for (k, q) in run.iter().enumerate() {
+                        let q = at(*q);
                         let _ = write!(
                             o,
                             "{}{} {} ",
@@ -207,8 +238,9 @@ fn plot_svg(o: &mut String, p: &Plot) {
             WorldItem::Dots { class, dots } => {
                 let _ = writeln!(o, "<g class=\"{class}\">");
                 for d in dots {
-                    // Radius in world units so it is r_px on the picture.
-                    let r = f64::from(d.r_px) / sx.abs();
+                    // Radius and outline in user units so they are r_px and 1 px on the picture.
+                    let r = f64::from(d.r_px) / px_per_unit;
+                    let c = at(d.at);
                     let label = d
                         .label
                         .as_ref()
@@ -216,13 +248,14 @@ fn plot_svg(o: &mut String, p: &Plot) {
                         .unwrap_or_default();
                     let _ = writeln!(
                         o,
-                        "<circle class=\"{}\" cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{}\" stroke=\"{}\" vector-effect=\"non-scaling-stroke\" data-count=\"{}\"{label}/>",
+                        "<circle class=\"{}\" cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{}\" stroke=\"{}\" stroke-width=\"{}\" data-count=\"{}\"{label}/>",
                         d.class,
-                        num(d.at[0], dx),
-                        num(d.at[1], dy),
+                        num(c[0], dx),
+                        num(c[1], dy),
                         num(r, dx + 1),
                         color(d.fill),
                         color(d.outline),
+                        num(1.0 / px_per_unit, dx + 1),
                         d.count
                     );
                 }

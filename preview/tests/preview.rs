@@ -396,10 +396,30 @@ fn velocity_plot_follows_the_interpolator() {
     );
     assert!((v.end_s - ticks as f64 * kernel::TS_S).abs() <= 2.0 * kernel::TS_S);
     let svg = v.to_svg();
-    let speed = svg_path_points(&svg, "speed").expect("speed trace");
-    // (coordinates are written to about 1/100 px)
-    assert!(speed.iter().all(|p| p[1] <= top + 1.0));
-    assert!(speed.iter().any(|p| p[1] >= top - 1.0));
+    // The velocity plot is written in pixels with its world-to-pixel map in `data-map`.
+    let doc = roxmltree::Document::parse(&svg).unwrap();
+    let map: Vec<f64> = doc
+        .descendants()
+        .find(|n| n.attribute("id") == Some("speed"))
+        .and_then(|n| n.attribute("data-map"))
+        .expect("data-map")
+        .split(' ')
+        .map(|s| s.parse().unwrap())
+        .collect();
+    let speed: Vec<[f64; 2]> = svg_path_points(&svg, "speed")
+        .expect("speed trace")
+        .iter()
+        .map(|p| [(p[0] - map[2]) / map[0], (p[1] - map[3]) / map[1]])
+        .collect();
+    // (coordinates are written to 1/100 px)
+    let tol = 0.01 / map[1].abs();
+    assert!(speed.iter().all(|p| p[1] <= top + tol), "{tol}");
+    assert!(speed.iter().any(|p| p[1] >= top - tol));
+    assert!(
+        speed
+            .iter()
+            .all(|p| p[0] >= -1e-9 && p[0] <= v.end_s + 0.01)
+    );
     let grey =
         svg.matches("class=\"boundary\"").count() + svg.matches("class=\"boundary-red\"").count();
     assert!(grey >= 1);
