@@ -515,7 +515,7 @@ impl Planner {
         if let Some(prev) = self.win.back_mut() {
             let turn = angle_between(&prev.t_end, &p.t_start);
             prev.turn = turn;
-            prev.smooth = Self::is_smooth(&self.cfg, prev, &p, turn);
+            prev.smooth = Self::is_smooth(&self.cfg, prev, &p);
             if !prev.smooth
                 && (prev.continuity == Continuity::G24 || p.continuity == Continuity::G24)
             {
@@ -527,7 +527,7 @@ impl Planner {
     }
 
     /// Junction rule of SPEC §7.1 between `prev` and `next`.
-    fn is_smooth(cfg: &PlannerConfig, prev: &Pending, next: &Pending, turn: f64) -> bool {
+    fn is_smooth(cfg: &PlannerConfig, prev: &Pending, next: &Pending) -> bool {
         let env = &cfg.envelope;
         if prev.stop_after || prev.seg.rapid || next.seg.rapid {
             // G0 is never smooth (its own dynamic set; **decided** also for the manual rule).
@@ -545,7 +545,8 @@ impl Planner {
             ContinuityRule::Manual => true,
             ContinuityRule::Automatic => {
                 let t_min = cfg.min_block_time_s;
-                turn.to_degrees() < env.smooth_angle_deg
+                // The angle test looks at the first three axes only (SPEC §7.1).
+                angle_first3(&prev.t_end, &next.t_start).to_degrees() < env.smooth_angle_deg
                     && prev.seg.length_mm / prev.seg.feed_mm_s >= t_min
                     && next.seg.length_mm / next.seg.feed_mm_s >= t_min
             }
@@ -825,6 +826,20 @@ impl Planner {
             v_next_end = v;
         }
     }
+}
+
+/// Angle between two directions over the first three axes, rad (0 when either has no
+/// component there: motion of further axes only never breaks continuity by angle).
+fn angle_first3(a: &AxesMm, b: &AxesMm) -> f64 {
+    let mut a3 = AxesMm::ZERO;
+    let mut b3 = AxesMm::ZERO;
+    a3.0[..3].copy_from_slice(&a.0[..3]);
+    b3.0[..3].copy_from_slice(&b.0[..3]);
+    let (na, nb) = (a3.norm(3), b3.norm(3));
+    if na < 1e-12 || nb < 1e-12 {
+        return 0.0;
+    }
+    angle_between(&(a3 * (1.0 / na)), &(b3 * (1.0 / nb)))
 }
 
 /// Angle between two unit vectors, rad.
