@@ -410,6 +410,82 @@ impl Controller {
         self.send(RtCommand::Plc(write))
     }
 
+    // ---- API additions (issue #8): validation, preview configuration, MDI, single block ----
+
+    /// Interprets `text` against the machine as it is now (axes, constants, memory offsets),
+    /// without selecting or running it.
+    pub fn compile_text(&self, text: &str) -> program::Compiled {
+        program::compile(text, &self.setup())
+    }
+
+    /// Compensation and planner settings a program started now would run with.
+    pub fn run_configs(&self) -> (CompConfig, PlannerConfig) {
+        let comp = CompConfig::from_constants(&self.constants.lock().unwrap().0);
+        (comp, self.planner_config())
+    }
+
+    /// Single-block mode on the RT thread: hold when the path enters a new block.
+    pub fn set_single_block(&self, on: bool) -> Result<(), ControlError> {
+        self.send(RtCommand::SingleBlock(on))
+    }
+
+    /// Runs `text` as a job without changing the selected program (MDI, single-block runs).
+    /// With `stop_at_blocks` every block ends at rest (G98), so single-block holds land on
+    /// block ends. Returns the job id and the blocks it runs.
+    pub fn start_text(
+        &self,
+        name: &str,
+        text: &str,
+        stop_at_blocks: bool,
+    ) -> Result<(u32, Arc<Vec<Block>>), ControlError> {
+        let mut run = self.run.lock().unwrap();
+        let snap = self.snapshot();
+        if snap.state != MachineState::Idle {
+            return Err(ControlError::WrongState(format!(
+                "the machine is {:?}, it must be idle to start",
+                snap.state
+            )));
+        }
+        let compiled = program::compile(text, &self.setup());
+        if compiled.has_errors() {
+            return Err(ControlError::InvalidProgram(compiled.diagnostics));
+        }
+        let mut blocks = compiled.blocks;
+        if stop_at_blocks {
+            for b in &mut blocks {
+                b.continuity = kernel::block::Continuity::G98;
+            }
+        }
+        let blocks = Arc::new(blocks);
+        let job = self.next_job.fetch_add(1, Ordering::Relaxed);
+        *self.alarm.lock().unwrap() = None;
+        self.send(RtCommand::Start { job })?;
+        let cancel = Arc::new(AtomicBool::new(false));
+        let (comp, planner) = self.run_configs();
+        let spec = JobSpec {
+            job,
+            blocks: blocks.clone(),
+            planner,
+            comp,
+            offsets: self.offsets.clone(),
+        };
+        let link = self.link.clone();
+        let c = cancel.clone();
+        let alarm_slot = self.alarm.clone();
+        let thread = std::thread::Builder::new()
+            .name(format!("cnc-plan-{job}"))
+            .spawn(move || {
+                if let Err(d) = job::run(spec, &link, &c) {
+                    tracing::error!(job, block = ?d.block, line = d.line, "planning failed: {}", d.message);
+                    *alarm_slot.lock().unwrap() = Some(d.to_string());
+                }
+            })
+            .map_err(|e| ControlError::WrongState(format!("cannot start the planner: {e}")))?;
+        tracing::info!(job, program = %name, blocks = blocks.len(), "job started");
+        *run = Some(Run { cancel, thread });
+        Ok((job, blocks))
+    }
+
     /// Brings the axes to rest and ends the RT thread (SIGTERM/SIGINT path). Blocking.
     pub fn shutdown(&self) {
         if let Some(r) = self.run.lock().unwrap().as_ref() {

@@ -37,6 +37,8 @@ pub enum RtCommand {
     Shutdown,
     /// A validated write of the PLC side, in force from the next tick (SPEC §6).
     Plc(PlcWrite),
+    /// Single-block mode: hold when the path enters a new block (API, issue #8).
+    SingleBlock(bool),
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -81,6 +83,8 @@ pub struct Snapshot {
     pub spindle_rpm: f64,
     /// PLC memory area 1 as in force this tick.
     pub plc: PlcArea,
+    /// Single-block mode is on.
+    pub single_block: bool,
 }
 
 /// Everything the RT thread owns.
@@ -118,6 +122,9 @@ struct Rt {
     shutting_down: bool,
     settle_ticks: u32,
     plc: PlcArea,
+    /// Single block: the block the path was in when last checked (`u32::MAX`: not yet moving
+    /// in this job).
+    sb_seq: u32,
 }
 
 /// Runs the loop until a `Shutdown` command has brought the axes to rest.
@@ -143,6 +150,7 @@ pub fn run(parts: RtParts) {
         shutting_down: false,
         settle_ticks: 0,
         plc: PlcArea::new(),
+        sb_seq: u32::MAX,
     };
     rt.p.bus.enable();
     let mut deadline = rt.p.clock.now_ns() + TS_NS;
@@ -175,6 +183,7 @@ impl Rt {
         self.plc.begin_tick();
         self.feed_segments();
         let out = self.interp.tick();
+        self.single_block_check(out.seq, out.path_v_mm_s);
         let axes = self.p.axes;
         self.cmd.positions_mm[..axes].copy_from_slice(&out.position.0[..axes]);
         let result = self.p.bus.cycle(&self.cmd, &mut self.fb);
@@ -208,6 +217,7 @@ impl Rt {
                     if self.snap.state == MachineState::Idle && !self.shutting_down {
                         self.active_job = job;
                         self.snap.job = job;
+                        self.sb_seq = u32::MAX;
                         self.snap.state = MachineState::Running;
                     }
                 }
@@ -229,10 +239,31 @@ impl Rt {
                     }
                 }
                 RtCommand::Plc(w) => self.plc.stage(w),
+                RtCommand::SingleBlock(on) => {
+                    self.snap.single_block = on;
+                    self.sb_seq = u32::MAX;
+                }
                 RtCommand::Shutdown => {
                     self.shutting_down = true;
                     self.abort();
                 }
+            }
+        }
+    }
+
+    /// Single-block mode: once the path of the running job moves into another block, hold.
+    fn single_block_check(&mut self, seq: u32, v_mm_s: f64) {
+        if !self.snap.single_block || self.active_job == 0 {
+            return;
+        }
+        if self.sb_seq == u32::MAX {
+            if v_mm_s > 0.0 {
+                self.sb_seq = seq;
+            }
+        } else if seq != self.sb_seq {
+            self.sb_seq = seq;
+            if self.interp.state() == InterpState::Running {
+                self.interp.hold();
             }
         }
     }

@@ -1,22 +1,295 @@
 //! Serving the API: used by `cncd` and by the in-process integration tests.
+//!
+//! Listeners (docs/api.md):
+//! - the Unix socket `api.unix_socket` (mode `api.socket_mode`, group `api.socket_group`) and
+//!   loopback TCP addresses are **local**: callers without a token get `api.local_role`;
+//! - any other TCP address is **remote**: TLS (`api.tls_cert`, `api.tls_key`) and a bearer
+//!   token are required.
+//!
+//! Every listener serves the same services: `cnc.v1.Machine`, `Offsets`, `Plc`, `Constants`,
+//! `Preview`, `grpc.health.v1.Health` (NOT_SERVING while the machine is faulted) and server
+//! reflection (`grpc.reflection.v1`).
 
 use std::future::Future;
+use std::path::Path;
 use std::sync::Arc;
+use std::time::Duration;
 
-use tokio::net::TcpListener;
-use tokio_stream::wrappers::TcpListenerStream;
+use proto::v1::constants_server::ConstantsServer;
+use proto::v1::machine_server::MachineServer;
+use proto::v1::offsets_server::OffsetsServer;
+use proto::v1::plc_server::PlcServer;
+use proto::v1::preview_server::PreviewServer;
+use tokio::net::{TcpListener, UnixListener};
+use tokio_stream::wrappers::UnixListenerStream;
+use tonic::service::interceptor::InterceptedService;
+use tonic::transport::server::{Router, TcpIncoming};
+use tonic::transport::{Identity, Server, ServerTlsConfig};
+use tonic_health::ServingStatus;
+use tonic_health::server::HealthReporter;
 
-use super::api::Api;
+use super::api::auth::{Auth, Trust};
+use super::api::{ApiState, ConstantsSvc, MachineSvc, OffsetsSvc, PlcSvc, PreviewSvc};
+use super::config::ApiConfig;
 use super::controller::Controller;
+use super::rt::MachineState;
 
-/// Serves the gRPC API on `listener` until `shutdown` resolves.
+/// Sockets to serve on, already bound.
+#[derive(Default)]
+pub struct Listeners {
+    /// Loopback TCP: local trust.
+    pub local_tcp: Vec<TcpListener>,
+    /// Other TCP addresses: TLS (when configured) and a token required.
+    pub remote_tcp: Vec<TcpListener>,
+    /// The Unix socket: local trust.
+    pub unix: Option<UnixListener>,
+}
+
+/// Serves the API on one loopback `listener` (local trust) until `shutdown` resolves.
 pub async fn serve(
     ctl: Arc<Controller>,
     listener: TcpListener,
     shutdown: impl Future<Output = ()> + Send,
-) -> Result<(), tonic::transport::Error> {
-    tonic::transport::Server::builder()
-        .add_service(Api::new(ctl).into_service())
-        .serve_with_incoming_shutdown(TcpListenerStream::new(listener), shutdown)
-        .await
+) -> Result<(), String> {
+    let l = Listeners {
+        local_tcp: vec![listener],
+        ..Listeners::default()
+    };
+    serve_listeners(ctl, l, shutdown).await
+}
+
+/// What `cncd` calls: serves `listener` (bound to `api.listen`) and binds and serves every
+/// other listener of the configuration (`api.extra_listen`, `api.unix_socket`).
+pub async fn serve_all(
+    ctl: Arc<Controller>,
+    listener: TcpListener,
+    shutdown: impl Future<Output = ()> + Send,
+) -> Result<(), String> {
+    let api = ctl.config().api.clone();
+    let mut l = bind_extra(&api, &ctl.config().storage.dir).await?;
+    let addr = listener.local_addr().map_err(|e| e.to_string())?;
+    if addr.ip().is_loopback() {
+        l.local_tcp.insert(0, listener);
+    } else {
+        l.remote_tcp.insert(0, listener);
+    }
+    let r = serve_listeners(ctl, l, shutdown).await;
+    if let Err(e) = &r {
+        tracing::error!("API: {e}");
+    }
+    r
+}
+
+/// Binds `api.extra_listen` and the Unix socket.
+pub async fn bind_extra(api: &ApiConfig, storage_dir: &Path) -> Result<Listeners, String> {
+    let mut l = Listeners::default();
+    for a in &api.extra_listen {
+        let t = TcpListener::bind(a)
+            .await
+            .map_err(|e| format!("api.extra_listen: cannot listen on {a}: {e}"))?;
+        if a.ip().is_loopback() {
+            l.local_tcp.push(t);
+        } else {
+            l.remote_tcp.push(t);
+        }
+    }
+    if let Some(path) = api.unix_socket_path(storage_dir) {
+        l.unix = Some(bind_unix(
+            &path,
+            api.socket_mode,
+            api.socket_group.as_deref(),
+        )?);
+    }
+    Ok(l)
+}
+
+/// Binds the Unix socket: a stale socket file is replaced; mode and group are set before the
+/// first connection can be accepted.
+pub fn bind_unix(path: &Path, mode: u32, group: Option<&str>) -> Result<UnixListener, String> {
+    use std::os::unix::fs::{FileTypeExt, PermissionsExt};
+    let err = |e: String| format!("api.unix_socket: {}: {e}", path.display());
+    if let Ok(m) = std::fs::symlink_metadata(path) {
+        if m.file_type().is_socket() {
+            std::fs::remove_file(path).map_err(|e| err(e.to_string()))?;
+        } else {
+            return Err(err("exists and is not a socket".into()));
+        }
+    }
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| err(e.to_string()))?;
+    }
+    let l = UnixListener::bind(path).map_err(|e| err(e.to_string()))?;
+    std::fs::set_permissions(path, std::fs::Permissions::from_mode(mode))
+        .map_err(|e| err(e.to_string()))?;
+    if let Some(g) = group {
+        let gid = group_id(g).ok_or_else(|| format!("api.socket_group: no group named {g:?}"))?;
+        std::os::unix::fs::chown(path, None, Some(gid)).map_err(|e| err(e.to_string()))?;
+    }
+    Ok(l)
+}
+
+fn group_id(name: &str) -> Option<u32> {
+    let c = std::ffi::CString::new(name).ok()?;
+    // SAFETY: getgrnam with a valid C string; the result is read at once (start-up, one thread).
+    let g = unsafe { libc::getgrnam(c.as_ptr()) };
+    if g.is_null() {
+        None
+    } else {
+        // SAFETY: non-null pointer returned by getgrnam.
+        Some(unsafe { (*g).gr_gid })
+    }
+}
+
+/// TLS settings of remote listeners, when configured.
+pub fn tls_config(api: &ApiConfig) -> Result<Option<ServerTlsConfig>, String> {
+    match (&api.tls_cert, &api.tls_key) {
+        (Some(c), Some(k)) => {
+            let cert =
+                std::fs::read(c).map_err(|e| format!("api.tls_cert: {}: {e}", c.display()))?;
+            let key = std::fs::read(k).map_err(|e| format!("api.tls_key: {}: {e}", k.display()))?;
+            Ok(Some(
+                ServerTlsConfig::new().identity(Identity::from_pem(cert, key)),
+            ))
+        }
+        _ => Ok(None),
+    }
+}
+
+fn router(
+    st: &Arc<ApiState>,
+    auth: &Arc<Auth>,
+    trust: Trust,
+    tls: Option<ServerTlsConfig>,
+    health: &tonic_health::pb::health_server::HealthServer<
+        impl tonic_health::pb::health_server::Health,
+    >,
+) -> Result<Router, String> {
+    let mut b = Server::builder();
+    if let Some(t) = tls {
+        b = b
+            .tls_config(t)
+            .map_err(|e| format!("api.tls_cert/api.tls_key: {e}"))?;
+    }
+    let i = auth.interceptor(trust);
+    let reflection = tonic_reflection::server::Builder::configure()
+        .register_encoded_file_descriptor_set(proto::FILE_DESCRIPTOR_SET)
+        .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
+        .build_v1()
+        .map_err(|e| format!("reflection: {e}"))?;
+    Ok(b.add_service(MachineServer::with_interceptor(
+        MachineSvc(st.clone()),
+        i.clone(),
+    ))
+    .add_service(OffsetsServer::with_interceptor(
+        OffsetsSvc(st.clone()),
+        i.clone(),
+    ))
+    .add_service(PlcServer::with_interceptor(PlcSvc(st.clone()), i.clone()))
+    .add_service(ConstantsServer::with_interceptor(
+        ConstantsSvc(st.clone()),
+        i.clone(),
+    ))
+    .add_service(PreviewServer::with_interceptor(
+        PreviewSvc(st.clone()),
+        i.clone(),
+    ))
+    .add_service(InterceptedService::new(health.clone(), i.clone()))
+    .add_service(InterceptedService::new(reflection, i)))
+}
+
+/// Serves every listener until `shutdown` resolves. Remote listeners use TLS from the
+/// configuration; without it they are refused (the configuration check requires it).
+pub async fn serve_listeners(
+    ctl: Arc<Controller>,
+    listeners: Listeners,
+    shutdown: impl Future<Output = ()> + Send,
+) -> Result<(), String> {
+    let tls = tls_config(&ctl.config().api)?;
+    serve_listeners_with(ctl, listeners, tls, shutdown).await
+}
+
+/// As [`serve_listeners`] with explicit TLS settings for the remote listeners (tests).
+pub async fn serve_listeners_with(
+    ctl: Arc<Controller>,
+    listeners: Listeners,
+    tls: Option<ServerTlsConfig>,
+    shutdown: impl Future<Output = ()> + Send,
+) -> Result<(), String> {
+    if !listeners.remote_tcp.is_empty() && tls.is_none() {
+        return Err("a non-loopback listener needs api.tls_cert and api.tls_key".into());
+    }
+    let st = ApiState::new(ctl.clone());
+    let auth = Auth::from_config(&ctl.config().api);
+    let (reporter, health) = tonic_health::server::health_reporter();
+    let health_task = tokio::spawn(health_watch(ctl.clone(), reporter));
+    let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
+    let stopped = move || {
+        let mut rx = stop_rx.clone();
+        async move {
+            let _ = rx.wait_for(|v| *v).await;
+        }
+    };
+    let mut tasks = tokio::task::JoinSet::new();
+    for l in listeners.local_tcp {
+        let r = router(&st, &auth, Trust::Local, None, &health)?;
+        let inc = TcpIncoming::from(l).with_nodelay(Some(true));
+        tasks.spawn(r.serve_with_incoming_shutdown(inc, stopped()));
+    }
+    for l in listeners.remote_tcp {
+        let r = router(&st, &auth, Trust::Remote, tls.clone(), &health)?;
+        let inc = TcpIncoming::from(l).with_nodelay(Some(true));
+        tasks.spawn(r.serve_with_incoming_shutdown(inc, stopped()));
+    }
+    if let Some(u) = listeners.unix {
+        let r = router(&st, &auth, Trust::Local, None, &health)?;
+        tasks.spawn(r.serve_with_incoming_shutdown(UnixListenerStream::new(u), stopped()));
+    }
+    let mut first_err = None;
+    tokio::select! {
+        _ = shutdown => {}
+        Some(r) = tasks.join_next() => {
+            if let Ok(Err(e)) = r { first_err = Some(e.to_string()); }
+        }
+    }
+    let _ = stop_tx.send(true);
+    while let Some(r) = tasks.join_next().await {
+        if let Ok(Err(e)) = r {
+            first_err.get_or_insert(e.to_string());
+        }
+    }
+    health_task.abort();
+    match first_err {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
+}
+
+/// Keeps `grpc.health.v1` in step with the machine: NOT_SERVING while faulted (or when the
+/// real-time thread has ended), SERVING otherwise.
+async fn health_watch(ctl: Arc<Controller>, reporter: HealthReporter) {
+    let names = [
+        "",
+        "cnc.v1.Machine",
+        "cnc.v1.Offsets",
+        "cnc.v1.Plc",
+        "cnc.v1.Constants",
+        "cnc.v1.Preview",
+    ];
+    let mut last = None;
+    let mut every = tokio::time::interval(Duration::from_millis(20));
+    loop {
+        every.tick().await;
+        let s = ctl.snapshot().state;
+        let serving = if matches!(s, MachineState::Fault | MachineState::Shutdown) {
+            ServingStatus::NotServing
+        } else {
+            ServingStatus::Serving
+        };
+        if last != Some(serving) {
+            for n in names {
+                reporter.set_service_status(n, serving).await;
+            }
+            last = Some(serving);
+        }
+    }
 }

@@ -1,0 +1,403 @@
+//! The gRPC API (`cnc.v1`) over the [`Controller`]: services `Machine` (programs, control,
+//! status, alarms), `Offsets`, `Plc`, `Constants` and `Preview`.
+//!
+//! Every RPC first checks the caller's role ([`auth::require`]); the API never blocks the RT
+//! thread: it sends `RtCommand`s and reads snapshots. CPU or disk work (parsing, planning,
+//! file writes) runs in `spawn_blocking`.
+
+pub mod alarms;
+pub mod auth;
+mod machine;
+pub mod preview;
+mod tables;
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+
+use prost::Message;
+use proto::v1 as pb;
+use tonic::{Code, Status};
+
+use kernel::block::{ArcDir, Block, BlockKind, Comp, Continuity, Feed, Path, Plane};
+use kernel::plc::CellId;
+use kernel::{Diagnostic, Severity};
+
+use super::controller::{ControlError, Controller};
+use super::rt::{MachineState, Snapshot};
+
+pub use machine::MachineSvc;
+pub use preview::PreviewSvc;
+pub use tables::{ConstantsSvc, OffsetsSvc, PlcSvc};
+
+/// Highest status stream rate: one snapshot per tick.
+pub const MAX_STATUS_HZ: u32 = 250;
+const DEFAULT_STATUS_HZ: u32 = 25;
+/// Programs larger than this are not planned at load for the status junction field.
+const JUNCTION_CLASSIFY_MAX_BLOCKS: usize = 200_000;
+
+/// How a job was started.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum RunMode {
+    Auto,
+    Mdi,
+}
+
+/// A job started through the API with its blocks (for the modal codes in status).
+struct RunInfo {
+    job: u32,
+    blocks: Arc<Vec<Block>>,
+    mode: RunMode,
+}
+
+/// A program stored by UploadProgram / LoadProgram.
+struct Stored {
+    text: Arc<str>,
+    blocks: u32,
+}
+
+/// Junction class per block index of the selected program.
+struct PlanInfo {
+    /// `Arc::as_ptr` of the `LoadedProgram` it belongs to.
+    program: usize,
+    junctions: Vec<pb::JunctionClass>,
+}
+
+/// State shared by every service.
+pub struct ApiState {
+    pub ctl: Arc<Controller>,
+    library: Mutex<BTreeMap<String, Stored>>,
+    plan_info: Mutex<Option<PlanInfo>>,
+    run: Mutex<Option<RunInfo>>,
+    single_block: AtomicBool,
+    streams: Arc<AtomicUsize>,
+    max_streams: usize,
+    pub alarms: Arc<alarms::AlarmLog>,
+}
+
+impl ApiState {
+    /// Builds the state and starts the alarm watcher (needs a tokio runtime).
+    pub fn new(ctl: Arc<Controller>) -> Arc<ApiState> {
+        let api = &ctl.config().api;
+        let alarms = Arc::new(alarms::AlarmLog::new(api.alarm_history as usize));
+        let state = Arc::new(ApiState {
+            max_streams: api.max_streams as usize,
+            ctl,
+            library: Mutex::new(BTreeMap::new()),
+            plan_info: Mutex::new(None),
+            run: Mutex::new(None),
+            single_block: AtomicBool::new(false),
+            streams: Arc::new(AtomicUsize::new(0)),
+            alarms,
+        });
+        alarms::spawn_watcher(state.ctl.clone(), state.alarms.clone());
+        state
+    }
+
+    /// Takes one stream slot, or RESOURCE_EXHAUSTED.
+    fn stream_slot(&self) -> Result<StreamSlot, Status> {
+        let n = self.streams.fetch_add(1, Ordering::AcqRel);
+        if n >= self.max_streams {
+            self.streams.fetch_sub(1, Ordering::AcqRel);
+            tracing::warn!(
+                open = n,
+                max = self.max_streams,
+                "stream refused: limit reached"
+            );
+            return Err(Status::resource_exhausted(format!(
+                "{n} streams are open, the limit is {} (api.max_streams)",
+                self.max_streams
+            )));
+        }
+        Ok(StreamSlot(self.streams.clone()))
+    }
+
+    /// Open status and alarm streams.
+    pub fn open_streams(&self) -> usize {
+        self.streams.load(Ordering::Acquire)
+    }
+
+    fn junction_of(&self, program_ptr: usize, seq: u32) -> pb::JunctionClass {
+        let g = self.plan_info.lock().unwrap();
+        match &*g {
+            Some(p) if p.program == program_ptr => p
+                .junctions
+                .get(seq as usize)
+                .copied()
+                .unwrap_or(pb::JunctionClass::Unspecified),
+            _ => pb::JunctionClass::Unspecified,
+        }
+    }
+
+    /// Builds the API status message from a snapshot.
+    pub fn status(&self, s: &Snapshot) -> pb::Status {
+        let ctl = &self.ctl;
+        let program = ctl.program();
+        let run = self.run.lock().unwrap();
+        let (mode, run_blocks) = match &*run {
+            Some(r) if r.job == s.job && s.job != 0 => (r.mode, Some(r.blocks.clone())),
+            _ => (RunMode::Auto, None),
+        };
+        drop(run);
+        let total = match (&run_blocks, &program) {
+            (Some(b), _) => b.len() as u32,
+            (None, Some(p)) => p.blocks.len() as u32,
+            _ => 0,
+        };
+        let running = matches!(
+            s.state,
+            MachineState::Running | MachineState::Hold | MachineState::Stopping
+        );
+        let percent = if s.finished_job == s.job && s.job != 0 && !running {
+            100.0
+        } else if total > 0 && s.job != 0 {
+            (s.block_seq as f64 / total as f64 * 100.0).min(100.0)
+        } else {
+            0.0
+        };
+        let names = ctl.config().axis_names();
+        let axes = (0..s.axes)
+            .map(|i| pb::AxisStatus {
+                name: names.get(i).map(|c| c.to_string()).unwrap_or_default(),
+                commanded_mm: s.commanded[i],
+                actual_mm: s.actual[i],
+                following_error_mm: s.commanded[i] - s.actual[i],
+            })
+            .collect();
+        let alarm = alarm_text(ctl, s).unwrap_or_default();
+        let block: Option<Block> = match (&run_blocks, &program) {
+            (Some(b), _) => b.get(s.block_seq as usize).copied(),
+            (None, Some(p)) if s.job != 0 => p.blocks.get(s.block_seq as usize).copied(),
+            _ => None,
+        };
+        let junction = match (&run_blocks, &program) {
+            (None, Some(p)) if s.job != 0 => {
+                self.junction_of(Arc::as_ptr(p) as *const () as usize, s.block_seq)
+            }
+            _ => pb::JunctionClass::Unspecified,
+        };
+        let (feed_programmed, feed_mode) = match block.map(|b| b.feed) {
+            Some(Feed::MmPerMin(f)) => (f, "G94"),
+            Some(Feed::MmPerRev(f)) => (f, "G95"),
+            None => (0.0, ""),
+        };
+        let compensation = block.map(|b| match b.comp {
+            Comp::Off => pb::Compensation {
+                code: "G40".into(),
+                entry: 0,
+                radius_mm: 0.0,
+            },
+            Comp::Left { d, radius_mm } => pb::Compensation {
+                code: "G41".into(),
+                entry: d.into(),
+                radius_mm,
+            },
+            Comp::Right { d, radius_mm } => pb::Compensation {
+                code: "G42".into(),
+                entry: d.into(),
+                radius_mm,
+            },
+        });
+        let plc = &s.plc;
+        let kr = pb::KrStatus {
+            cutting_speed_m_min: plc.input(CellId::AkrrActV) as f64 / 1000.0,
+            speed_limit_rpm: plc.input(CellId::AkrrActSmax) as f64 / 1000.0,
+            radius_mm: plc.input(CellId::AkrrActR) as f64 / 8000.0,
+            spindle_rpm: plc.input(CellId::AkrrActS) as f64 / 1000.0,
+            output: plc.input(CellId::AkrrActOut).max(0) as u32,
+            gear_max_rpm: plc.input(CellId::AkrrActP) as f64 / 1000.0,
+        };
+        pb::Status {
+            state: state_to_pb(s.state) as i32,
+            program: match (mode, &program) {
+                (RunMode::Mdi, _) => "MDI".into(),
+                (_, Some(p)) => p.name.clone(),
+                _ => String::new(),
+            },
+            block: s.block_n,
+            line: s.line,
+            block_index: s.block_seq,
+            blocks_total: total,
+            percent,
+            axes,
+            path_velocity_mm_s: s.path_v_mm_s,
+            ticks: Some(pb::TickStats {
+                ticks: s.ticks.ticks,
+                overruns: s.ticks.overruns,
+                lateness_p50_us: s.ticks.lateness_p50_us,
+                lateness_p99_us: s.ticks.lateness_p99_us,
+                lateness_max_us: s.ticks.lateness_max_us,
+            }),
+            sequence: s.sequence,
+            job: s.job,
+            alarm,
+            finished_job: s.finished_job,
+            aborted_job: s.aborted_job,
+            override_percent: s.override_pct,
+            spindle_rpm: s.spindle_rpm,
+            mode: match mode {
+                RunMode::Auto => pb::Mode::Auto,
+                RunMode::Mdi => pb::Mode::Mdi,
+            } as i32,
+            single_block: s.single_block,
+            feed_programmed,
+            feed_mode: feed_mode.into(),
+            modal_g_codes: block.map(|b| modal_codes(&b)).unwrap_or_default(),
+            compensation,
+            junction: junction as i32,
+            kr: Some(kr),
+            active_alarms: self.alarms.active(),
+            dynamic_set: plc.dynam_set().into(),
+        }
+    }
+}
+
+/// Releases a stream slot when the stream task ends.
+struct StreamSlot(Arc<AtomicUsize>);
+
+impl Drop for StreamSlot {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::AcqRel);
+    }
+}
+
+/// Modal G codes of a block, as a machinist reads them.
+fn modal_codes(b: &Block) -> Vec<String> {
+    let mut v = Vec::with_capacity(6);
+    if let BlockKind::Motion { path, .. } = b.kind {
+        v.push(
+            match path {
+                Path::Rapid => "G0",
+                Path::Line => "G1",
+                Path::Arc {
+                    dir: ArcDir::Cw, ..
+                } => "G2",
+                Path::Arc {
+                    dir: ArcDir::Ccw, ..
+                } => "G3",
+            }
+            .to_string(),
+        );
+    }
+    v.push(plane_code(b.plane).into());
+    v.push(
+        match b.comp {
+            Comp::Off => "G40",
+            Comp::Left { .. } => "G41",
+            Comp::Right { .. } => "G42",
+        }
+        .into(),
+    );
+    v.push(
+        match b.continuity {
+            Continuity::G98 => "G98",
+            Continuity::G24 => "G24",
+            Continuity::G23 => "G23",
+        }
+        .into(),
+    );
+    v.push(
+        match b.feed {
+            Feed::MmPerMin(_) => "G94",
+            Feed::MmPerRev(_) => "G95",
+        }
+        .into(),
+    );
+    if b.spindle.css {
+        v.push("G96".into());
+    }
+    v
+}
+
+pub fn plane_code(p: Plane) -> &'static str {
+    match p {
+        Plane::G17 => "G17",
+        Plane::G18 => "G18",
+        Plane::G19 => "G19",
+    }
+}
+
+/// The alarm in force: a drive/bus fault, else a planning failure.
+pub fn alarm_text(ctl: &Controller, s: &Snapshot) -> Option<String> {
+    let names = ctl.config().axis_names();
+    match (s.fault, ctl.alarm()) {
+        (Some(f), _) => {
+            let axis = f
+                .axis
+                .and_then(|a| names.get(a as usize))
+                .map(|c| format!("axis {c}, "))
+                .unwrap_or_default();
+            let node = f.node.map(|n| format!("node {n}, ")).unwrap_or_default();
+            Some(format!("{axis}{node}{}", f.reason))
+        }
+        (None, a) => a,
+    }
+}
+
+pub fn diagnostic_to_pb(d: &Diagnostic) -> pb::Diagnostic {
+    pb::Diagnostic {
+        severity: match d.severity {
+            Severity::Info => pb::Severity::Info,
+            Severity::Warning => pb::Severity::Warning,
+            Severity::Error => pb::Severity::Error,
+        } as i32,
+        block: d.block,
+        line: d.line,
+        column: d.column,
+        message: d.message.clone(),
+    }
+}
+
+/// INVALID_ARGUMENT whose message lists the first errors and whose details carry every
+/// diagnostic as a `cnc.v1.Diagnostics` message.
+pub fn invalid_with_diagnostics(what: &str, diags: &[Diagnostic]) -> Status {
+    let errors: Vec<&Diagnostic> = diags.iter().filter(|d| d.is_error()).collect();
+    let mut msg = format!("{what} rejected, {} error(s): ", errors.len());
+    for (i, d) in errors.iter().take(5).enumerate() {
+        if i > 0 {
+            msg.push_str("; ");
+        }
+        msg.push_str(&d.to_string());
+    }
+    let details = pb::Diagnostics {
+        items: diags.iter().map(diagnostic_to_pb).collect(),
+    }
+    .encode_to_vec();
+    Status::with_details(Code::InvalidArgument, msg, details.into())
+}
+
+/// Maps controller errors to gRPC statuses.
+pub fn status_of(e: ControlError) -> Status {
+    match e {
+        ControlError::InvalidProgram(diags) => invalid_with_diagnostics("program", &diags),
+        ControlError::WrongState(m) => Status::failed_precondition(m),
+        ControlError::RtGone => Status::unavailable("the real-time thread has stopped"),
+        ControlError::Storage(e) => match e {
+            super::storage::StorageError::Invalid { diagnostics, .. } => {
+                invalid_with_diagnostics("table", &diagnostics)
+            }
+            _ => Status::internal(e.to_string()),
+        },
+        ControlError::Plc(e) => Status::invalid_argument(e.to_string()),
+        ControlError::Invalid(m) => Status::invalid_argument(m),
+    }
+}
+
+fn state_to_pb(s: MachineState) -> pb::MachineState {
+    match s {
+        MachineState::Enabling => pb::MachineState::Enabling,
+        MachineState::Idle => pb::MachineState::Idle,
+        MachineState::Running => pb::MachineState::Running,
+        MachineState::Stopping => pb::MachineState::Stopping,
+        MachineState::Hold => pb::MachineState::Hold,
+        MachineState::Fault => pb::MachineState::Fault,
+        MachineState::Shutdown => pb::MachineState::Shutdown,
+    }
+}
+
+/// Runs blocking work off the async workers.
+async fn blocking<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> Result<T, Status> {
+    tokio::task::spawn_blocking(f)
+        .await
+        .map_err(|e| Status::internal(e.to_string()))
+}

@@ -1,0 +1,330 @@
+//! Services `cnc.v1.Offsets`, `cnc.v1.Plc` and `cnc.v1.Constants`.
+
+use std::sync::Arc;
+
+use proto::v1 as pb;
+use proto::v1::constants_server::Constants as ConstantsRpc;
+use proto::v1::offsets_server::Offsets;
+use proto::v1::plc_server::Plc;
+use tonic::{Request, Response, Status};
+
+use kernel::constants::{self, Constants, MAX_R};
+use kernel::offsets::{self, ENTRIES, OffsetTable, TableEdit};
+use kernel::plc::{self, Access, CellInfo, PlcWrite};
+
+use super::auth::require;
+use super::{ApiState, blocking, diagnostic_to_pb, invalid_with_diagnostics, status_of};
+use crate::runtime::config::Role::{Admin, Observer, Operator};
+
+#[derive(Clone)]
+pub struct OffsetsSvc(pub Arc<ApiState>);
+#[derive(Clone)]
+pub struct PlcSvc(pub Arc<ApiState>);
+#[derive(Clone)]
+pub struct ConstantsSvc(pub Arc<ApiState>);
+
+fn entry_pb(n: u8, memory: &OffsetTable, file: Option<&OffsetTable>) -> pb::OffsetEntry {
+    let e = memory.entry(n).copied().unwrap_or_default();
+    let changed = file.is_some_and(|f| f.entry(n).copied().unwrap_or_default() != e);
+    pb::OffsetEntry {
+        entry: n.into(),
+        radius_mm: e.radius_mm,
+        length_mm: e.length_mm.to_vec(),
+        changed_by_program: changed,
+    }
+}
+
+impl OffsetsSvc {
+    /// The file's table (parsed from the text the store would write).
+    fn file_table(&self) -> Option<OffsetTable> {
+        let names = self.0.ctl.config().axis_names();
+        offsets::parse(&self.0.ctl.offsets_file_text(), &names)
+            .ok()
+            .map(|f| f.table)
+    }
+}
+
+#[tonic::async_trait]
+impl Offsets for OffsetsSvc {
+    async fn get_offsets(
+        &self,
+        req: Request<pb::GetOffsetsRequest>,
+    ) -> Result<Response<pb::GetOffsetsReply>, Status> {
+        require(&req, Observer, "GetOffsets")?;
+        let all = req.into_inner().include_zero;
+        let memory = self.0.ctl.offsets_memory();
+        let file = self.file_table();
+        let names = self.0.ctl.config().axis_names();
+        let entries = (1..=ENTRIES)
+            .map(|n| entry_pb(n, &memory, file.as_ref()))
+            .filter(|e| {
+                all || e.changed_by_program
+                    || e.radius_mm != 0.0
+                    || e.length_mm.iter().any(|v| *v != 0.0)
+            })
+            .collect();
+        Ok(Response::new(pb::GetOffsetsReply {
+            entries,
+            labels: (0..5).map(|k| offsets::label(k, &names)).collect(),
+        }))
+    }
+
+    async fn set_offset(
+        &self,
+        req: Request<pb::SetOffsetRequest>,
+    ) -> Result<Response<pb::OffsetEntry>, Status> {
+        require(&req, Operator, "SetOffset")?;
+        let r = req.into_inner();
+        let entry = u8::try_from(r.entry)
+            .ok()
+            .filter(|n| (1..=ENTRIES).contains(n))
+            .ok_or_else(|| {
+                Status::invalid_argument(format!(
+                    "offset entry {} does not exist: entries are 01..99",
+                    r.entry
+                ))
+            })?;
+        let edit = TableEdit {
+            entry,
+            values: [
+                r.radius_mm,
+                r.length1_mm,
+                r.length2_mm,
+                r.length3_mm,
+                r.length4_mm,
+            ],
+        };
+        if edit.values.iter().all(Option::is_none) {
+            return Err(Status::invalid_argument(
+                "give at least one value (radius_mm, length1_mm..length4_mm)",
+            ));
+        }
+        let st = self.0.clone();
+        blocking(move || st.ctl.edit_offset(&edit))
+            .await?
+            .map_err(status_of)?;
+        let memory = self.0.ctl.offsets_memory();
+        let file = self.file_table();
+        Ok(Response::new(entry_pb(entry, &memory, file.as_ref())))
+    }
+
+    async fn get_offsets_file(
+        &self,
+        req: Request<pb::GetOffsetsFileRequest>,
+    ) -> Result<Response<pb::OffsetsFile>, Status> {
+        require(&req, Observer, "GetOffsetsFile")?;
+        Ok(Response::new(pb::OffsetsFile {
+            text: self.0.ctl.offsets_file_text(),
+        }))
+    }
+
+    async fn replace_offsets_file(
+        &self,
+        req: Request<pb::OffsetsFile>,
+    ) -> Result<Response<pb::ReplaceOffsetsFileReply>, Status> {
+        require(&req, Operator, "ReplaceOffsetsFile")?;
+        let text = req.into_inner().text;
+        let st = self.0.clone();
+        blocking(move || st.ctl.replace_offsets_file(&text))
+            .await?
+            .map_err(status_of)?;
+        Ok(Response::new(pb::ReplaceOffsetsFileReply {
+            entries: self.0.ctl.offsets_memory().iter_nonzero().count() as u32,
+        }))
+    }
+
+    async fn reload_offsets(
+        &self,
+        req: Request<pb::ReloadOffsetsRequest>,
+    ) -> Result<Response<pb::ReloadOffsetsReply>, Status> {
+        require(&req, Operator, "ReloadOffsets")?;
+        let st = self.0.clone();
+        blocking(move || st.ctl.reload_offsets())
+            .await?
+            .map_err(status_of)?;
+        Ok(Response::new(pb::ReloadOffsetsReply {
+            entries: self.0.ctl.offsets_memory().iter_nonzero().count() as u32,
+        }))
+    }
+}
+
+fn cell_pb(info: &CellInfo, value: i32) -> pb::PlcCell {
+    pb::PlcCell {
+        name: info.name.into(),
+        address: info.address,
+        value: value.into(),
+        unit: info.unit.symbol().into(),
+        access: match info.access {
+            Access::ReadOnly => pb::CellAccess::ReadOnly,
+            Access::ReadWrite => pb::CellAccess::ReadWrite,
+        } as i32,
+        min: info.min.into(),
+        max: info.max.into(),
+        description: info.description.into(),
+    }
+}
+
+fn find_cell(r: &pb::CellRef) -> Result<&'static CellInfo, Status> {
+    use pb::cell_ref::Cell;
+    match &r.cell {
+        Some(Cell::Name(n)) => plc::by_name(n).ok_or_else(|| {
+            Status::invalid_argument(format!(
+                "there is no PLC cell named \"{n}\" in memory area 1"
+            ))
+        }),
+        Some(Cell::Address(a)) => plc::by_address(*a).ok_or_else(|| {
+            Status::invalid_argument(format!(
+                "there is no PLC cell at address {a:X}h in memory area 1"
+            ))
+        }),
+        None => Err(Status::invalid_argument("name the cell by name or address")),
+    }
+}
+
+#[tonic::async_trait]
+impl Plc for PlcSvc {
+    async fn list_cells(
+        &self,
+        req: Request<pb::ListCellsRequest>,
+    ) -> Result<Response<pb::CellsReply>, Status> {
+        require(&req, Observer, "ListCells")?;
+        let area = self.0.ctl.snapshot().plc;
+        Ok(Response::new(pb::CellsReply {
+            cells: area.list().map(|(i, v)| cell_pb(i, v)).collect(),
+        }))
+    }
+
+    async fn read_cells(
+        &self,
+        req: Request<pb::ReadCellsRequest>,
+    ) -> Result<Response<pb::CellsReply>, Status> {
+        require(&req, Observer, "ReadCells")?;
+        let area = self.0.ctl.snapshot().plc;
+        let cells = req
+            .into_inner()
+            .cells
+            .iter()
+            .map(|r| find_cell(r).map(|i| cell_pb(i, area.latest(i.id))))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Response::new(pb::CellsReply { cells }))
+    }
+
+    async fn write_cell(
+        &self,
+        req: Request<pb::WriteCellRequest>,
+    ) -> Result<Response<pb::PlcCell>, Status> {
+        require(&req, Operator, "WriteCell")?;
+        let r = req.into_inner();
+        let info = find_cell(r.cell.as_ref().unwrap_or(&pb::CellRef { cell: None }))?;
+        let w = PlcWrite::new(info.address, r.value)
+            .map_err(|e| Status::invalid_argument(e.to_string()))?;
+        self.0.ctl.plc_write(w).map_err(status_of)?;
+        Ok(Response::new(cell_pb(info, w.value())))
+    }
+}
+
+fn constant_pb(c: &Constants, r: u16) -> pb::Constant {
+    let is_default = !c.iter().any(|(n, _)| n == r);
+    pb::Constant {
+        number: r.into(),
+        value: c.get(r),
+        text: constants::fmt_milli(c.milli(r)),
+        decades: (1..=8).map(|d| c.decade(r, d).into()).collect(),
+        negative: c.is_negative(r),
+        is_default,
+    }
+}
+
+/// Constants that take effect only after a restart: the axis codes R0..R5 (the axes come from
+/// the configuration at start-up).
+fn needs_restart(r: u16) -> bool {
+    r <= 5
+}
+
+#[tonic::async_trait]
+impl ConstantsRpc for ConstantsSvc {
+    async fn get_constants(
+        &self,
+        req: Request<pb::GetConstantsRequest>,
+    ) -> Result<Response<pb::GetConstantsReply>, Status> {
+        require(&req, Observer, "GetConstants")?;
+        let numbers = req.into_inner().numbers;
+        let c = self.0.ctl.constants();
+        let list: Vec<u16> = if numbers.is_empty() {
+            (0..=MAX_R)
+                .filter(|&r| constants::default_of(r) != 0 || c.iter().any(|(n, _)| n == r))
+                .collect()
+        } else {
+            numbers
+                .iter()
+                .map(|&n| {
+                    u16::try_from(n)
+                        .ok()
+                        .filter(|&r| r <= MAX_R)
+                        .ok_or_else(|| {
+                            Status::invalid_argument(format!(
+                                "R{n} does not exist: constants are R0..R{MAX_R}"
+                            ))
+                        })
+                })
+                .collect::<Result<_, _>>()?
+        };
+        Ok(Response::new(pb::GetConstantsReply {
+            constants: list.iter().map(|&r| constant_pb(&c, r)).collect(),
+        }))
+    }
+
+    async fn set_constants(
+        &self,
+        req: Request<pb::SetConstantsRequest>,
+    ) -> Result<Response<pb::SetConstantsReply>, Status> {
+        require(&req, Admin, "SetConstants")?;
+        let values = req.into_inner().values;
+        if values.is_empty() {
+            return Err(Status::invalid_argument("give at least one constant"));
+        }
+        let mut parsed = Vec::with_capacity(values.len());
+        for v in &values {
+            let r = u16::try_from(v.number)
+                .ok()
+                .filter(|&r| r <= MAX_R)
+                .ok_or_else(|| {
+                    Status::invalid_argument(format!(
+                        "R{} does not exist: constants are R0..R{MAX_R}",
+                        v.number
+                    ))
+                })?;
+            if !(v.value.is_finite() && v.value.abs() <= 99_999.999) {
+                return Err(Status::invalid_argument(format!(
+                    "R{r} = {} is outside ±99999.999",
+                    v.value
+                )));
+            }
+            parsed.push((r, v.value));
+        }
+        // Check the combination before anything is saved: all or nothing.
+        let mut next = self.0.ctl.constants();
+        for &(r, v) in &parsed {
+            next.set(r, v);
+        }
+        let diags = next.validate();
+        if diags.iter().any(|d| d.is_error()) {
+            return Err(invalid_with_diagnostics("constants", &diags));
+        }
+        let st = self.0.clone();
+        let p = parsed.clone();
+        blocking(move || st.ctl.set_constants(&p))
+            .await?
+            .map_err(status_of)?;
+        let mut restart: Vec<u32> = parsed
+            .iter()
+            .filter(|(r, _)| needs_restart(*r))
+            .map(|(r, _)| u32::from(*r))
+            .collect();
+        restart.dedup();
+        Ok(Response::new(pb::SetConstantsReply {
+            restart_required: restart,
+            diagnostics: diags.iter().map(diagnostic_to_pb).collect(),
+        }))
+    }
+}
