@@ -1,15 +1,27 @@
 //! `cncd`: the controller daemon.
 //!
 //! With no configuration it runs the built-in simulated 3-axis machine and serves the gRPC API
-//! on 127.0.0.1:50051.
+//! on 127.0.0.1:50051. Run by systemd (`deploy/cncd.service`, `Type=notify`) it reports ready
+//! once the drives are operational, pings the watchdog while the real-time thread ticks, and
+//! logs to the journal.
+//!
+//! Exit codes: 0 after a clean shutdown (SIGTERM/SIGINT) or a valid `--check-config`; 2 for a
+//! configuration mistake (the unit does not restart on it); 1 for anything else.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::sync::Arc;
+use std::time::Duration;
 
 use clap::Parser;
 use daemon::runtime::config::Config;
 use daemon::runtime::controller::{ClockKind, Controller};
+use daemon::runtime::logging::{self, LogTarget};
 use daemon::runtime::server;
+use daemon::runtime::systemd::{self, Notifier, NotifyState};
+
+/// Exit code of a configuration mistake (`RestartPreventExitStatus=2` in the unit).
+const EXIT_CONFIG: u8 = 2;
 
 #[derive(Parser)]
 #[command(name = "cncd", version, about = "CNC motion controller daemon")]
@@ -17,34 +29,32 @@ struct Args {
     /// Configuration file (TOML). Without it: the simulated 3-axis machine.
     #[arg(long, short)]
     config: Option<PathBuf>,
-    /// Validate the configuration file and exit.
+    /// Validate the configuration file given with --config, print a summary and exit
+    /// (status 0 when valid, 2 with the key of the first mistake otherwise).
     #[arg(long)]
     check_config: bool,
+    /// Where logs go: the journal when run by systemd, stderr otherwise (auto).
+    #[arg(long, value_enum, default_value_t = LogTarget::Auto)]
+    log: LogTarget,
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
-        )
-        .with_writer(std::io::stderr)
-        .init();
+    if args.check_config {
+        return check_config(args.config.as_deref());
+    }
+    logging::init(args.log);
     let config = match &args.config {
         Some(p) => match Config::load(p) {
             Ok(c) => c,
             Err(e) => {
+                tracing::error!("configuration: {e}");
                 eprintln!("cncd: {e}");
-                return ExitCode::from(2);
+                return ExitCode::from(EXIT_CONFIG);
             }
         },
         None => Config::default(),
     };
-    if args.check_config {
-        println!("configuration is valid");
-        return ExitCode::SUCCESS;
-    }
     let rt = match tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -52,7 +62,7 @@ fn main() -> ExitCode {
     {
         Ok(rt) => rt,
         Err(e) => {
-            eprintln!("cncd: cannot start the async runtime: {e}");
+            tracing::error!("cannot start the async runtime: {e}");
             return ExitCode::FAILURE;
         }
     };
@@ -65,41 +75,133 @@ fn main() -> ExitCode {
     }
 }
 
+/// `--check-config`: parse and validate, print what would run.
+fn check_config(path: Option<&std::path::Path>) -> ExitCode {
+    let Some(path) = path else {
+        eprintln!("cncd: --check-config needs the file: cncd --check-config --config FILE.toml");
+        return ExitCode::from(EXIT_CONFIG);
+    };
+    match Config::load(path) {
+        Ok(c) => {
+            let names: String = c.axis_names().iter().collect();
+            println!(
+                "{}: configuration is valid: axes {names}, bus {}, API on {}",
+                path.display(),
+                bus_label(&c),
+                c.api.listen
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("cncd: {e}");
+            ExitCode::from(EXIT_CONFIG)
+        }
+    }
+}
+
+/// `sim`, `can`, `serial`: the bus kind as written in the configuration, with its device.
+fn bus_label(c: &Config) -> String {
+    // The kind is the variant name; the device is the first string field (interface, port).
+    let debug = format!("{:?}", c.bus);
+    let kind: String = debug
+        .chars()
+        .take_while(char::is_ascii_alphanumeric)
+        .collect::<String>()
+        .to_lowercase();
+    match debug.split('"').nth(1) {
+        Some(device) => format!("{kind} on {device}"),
+        None => kind,
+    }
+}
+
 async fn run(config: Config) -> Result<(), String> {
+    let notifier = match Notifier::from_env() {
+        Ok(n) => n.map(Arc::new),
+        Err(e) => {
+            tracing::warn!("NOTIFY_SOCKET unusable ({e}): systemd will not hear from cncd");
+            None
+        }
+    };
+    // Signal handlers first: a SIGTERM during start-up also brakes and exits cleanly.
+    let mut signals = Signals::install()?;
     let listen = config.api.listen;
     let listener = tokio::net::TcpListener::bind(listen)
         .await
         .map_err(|e| format!("cannot listen on {listen}: {e}"))?;
+    let local = listener.local_addr().map_err(|e| e.to_string())?;
     let names: String = config.axis_names().iter().collect();
-    let bus = format!("{:?}", config.bus).to_lowercase();
+    let bus = bus_label(&config);
+    let axis_names = config.axis_names();
     let ctl = Controller::start(config, ClockKind::Monotonic)?;
-    tracing::info!(
-        "cncd ready: axes {names} on bus {bus}, gRPC API on {}",
-        listener.local_addr().map_err(|e| e.to_string())?
+    tracing::info!("cncd started: axes {names} on bus {bus}, gRPC API on {local}; enabling drives");
+    let supervision = systemd::supervise(
+        ctl.subscribe(),
+        notifier.clone(),
+        systemd::watchdog_from_env(),
+        axis_names,
+        format!("axes {names} on bus {bus}, API on {local}"),
     );
+    let health = tokio::spawn(logging::rt_health(
+        ctl.subscribe(),
+        Duration::from_secs(10),
+        Duration::from_secs(15 * 60),
+    ));
     let (tx, rx) = tokio::sync::oneshot::channel::<()>();
-    let serve = tokio::spawn(server::serve(ctl.clone(), listener, async {
+    let serve = tokio::spawn(server::serve_all(ctl.clone(), listener, async {
         let _ = rx.await;
     }));
-    shutdown_signal().await;
+    signals.recv().await;
     tracing::info!("shutting down: bringing the axes to rest");
+    if let Some(n) = &notifier {
+        n.send(&[
+            NotifyState::Stopping,
+            NotifyState::Status("bringing the axes to rest"),
+        ]);
+    }
+    // The watchdog keeps pinging while the real-time thread brakes.
     let c = ctl.clone();
     tokio::task::spawn_blocking(move || c.shutdown())
         .await
         .map_err(|e| e.to_string())?;
+    supervision.stop();
+    health.abort();
     let s = ctl.snapshot();
-    tracing::info!(commanded = ?&s.commanded.0[..s.axes], "axes at rest, exiting");
+    for (i, name) in ctl.config().axis_names().iter().enumerate().take(s.axes) {
+        tracing::info!(
+            axis = %name,
+            block = ?s.block_n,
+            line = s.line,
+            position_mm = s.commanded[i],
+            "axis at rest"
+        );
+    }
     let _ = tx.send(());
     let _ = serve.await;
+    tracing::info!("cncd stopped");
     Ok(())
 }
 
-async fn shutdown_signal() {
-    use tokio::signal::unix::{SignalKind, signal};
-    let mut term = signal(SignalKind::terminate()).expect("SIGTERM handler");
-    let mut int = signal(SignalKind::interrupt()).expect("SIGINT handler");
-    tokio::select! {
-        _ = term.recv() => {},
-        _ = int.recv() => {},
+/// SIGTERM (systemd stop) and SIGINT (Ctrl-C).
+struct Signals {
+    term: tokio::signal::unix::Signal,
+    int: tokio::signal::unix::Signal,
+}
+
+impl Signals {
+    fn install() -> Result<Signals, String> {
+        use tokio::signal::unix::{SignalKind, signal};
+        Ok(Signals {
+            term: signal(SignalKind::terminate())
+                .map_err(|e| format!("cannot handle SIGTERM: {e}"))?,
+            int: signal(SignalKind::interrupt())
+                .map_err(|e| format!("cannot handle SIGINT: {e}"))?,
+        })
+    }
+
+    async fn recv(&mut self) {
+        tokio::select! {
+            _ = self.term.recv() => {},
+            _ = self.int.recv() => {},
+        }
     }
 }

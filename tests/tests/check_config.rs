@@ -1,0 +1,227 @@
+//! `cncd --check-config`: the real binary on a good file (the documented example in `deploy/`)
+//! and on one file per class of mistake. A mistake exits with status 2 (the unit's
+//! `RestartPreventExitStatus=2`) and a message that names the key.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The `cncd` binary of this build, built once per test process (the tests package cannot name
+/// another package's binary).
+fn cncd() -> &'static Path {
+    static BIN: OnceLock<PathBuf> = OnceLock::new();
+    BIN.get_or_init(|| {
+        let exe = std::env::current_exe().unwrap();
+        // target/<profile>/deps/<test> → target/<profile>
+        let profile_dir = exe.parent().and_then(Path::parent).unwrap().to_owned();
+        let mut cmd = Command::new(env!("CARGO"));
+        cmd.args(["build", "--quiet", "-p", "daemon", "--bin", "cncd"])
+            .current_dir(repo());
+        if profile_dir.file_name().is_some_and(|n| n == "release") {
+            cmd.arg("--release");
+        }
+        assert!(
+            cmd.status().unwrap().success(),
+            "cargo build of cncd failed"
+        );
+        profile_dir.join("cncd")
+    })
+}
+
+fn check(path: &Path) -> Output {
+    Command::new(cncd())
+        .args(["--check-config", "--config"])
+        .arg(path)
+        .output()
+        .unwrap()
+}
+
+/// Writes `text` to a fresh file named after the case and checks it.
+fn check_text(case: &str, text: &str) -> Output {
+    let dir = std::env::temp_dir().join(format!("cncd-check-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(format!("{case}.toml"));
+    std::fs::write(&path, text).unwrap();
+    let out = check(&path);
+    let _ = std::fs::remove_file(&path);
+    out
+}
+
+/// The file is refused with status 2, and the message holds every one of `needles`.
+fn assert_refused(case: &str, text: &str, needles: &[&str]) {
+    let out = check_text(case, text);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "{case}: expected exit status 2, got {:?}\nstdout: {}\nstderr: {err}",
+        out.status,
+        String::from_utf8_lossy(&out.stdout)
+    );
+    for n in needles {
+        assert!(err.contains(n), "{case}: message lacks {n:?}:\n{err}");
+    }
+    assert!(
+        err.contains(&format!("{case}.toml")),
+        "{case}: message does not name the file:\n{err}"
+    );
+    assert!(out.stdout.is_empty(), "{case}: printed on stdout");
+}
+
+const AXIS: &str = "[[axes]]\nname = \"X\"\n";
+
+#[test]
+fn the_documented_example_is_valid() {
+    let out = check(&repo().join("deploy/cncd.toml"));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        text.contains("configuration is valid: axes XYZ, bus can on can0, API on 127.0.0.1:50051"),
+        "{text}"
+    );
+}
+
+#[test]
+fn an_empty_file_is_the_simulated_mill() {
+    let out = check_text("empty", "");
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("axes XYZ, bus sim"), "{text}");
+}
+
+#[test]
+fn a_missing_file_or_no_file_is_refused() {
+    let out = check(Path::new("/nonexistent/cncd.toml"));
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("cannot read /nonexistent/cncd.toml"), "{err}");
+
+    let out = Command::new(cncd()).arg("--check-config").output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--check-config --config FILE"), "{err}");
+}
+
+#[test]
+fn syntax_error_gives_line_and_column() {
+    assert_refused(
+        "syntax",
+        "[[axes]]\nname = \"X\"\nmax_accel_mm_s2 = 800 800\n",
+        &["line 3", "column"],
+    );
+    assert_refused("unclosed", "[rt\npriority = 80\n", &["line 1"]);
+}
+
+#[test]
+fn unknown_key_is_named() {
+    assert_refused("unknown-rt", "[rt]\nprio = 80\n", &["prio", "priority"]);
+    assert_refused(
+        "unknown-axis",
+        &format!("{AXIS}max_accel = 800\n"),
+        &["max_accel", "max_accel_mm_s2"],
+    );
+    assert_refused("unknown-section", "[rtt]\npriority = 80\n", &["rtt"]);
+}
+
+#[test]
+fn wrong_type_is_named() {
+    assert_refused(
+        "type-accel",
+        &format!("{AXIS}max_accel_mm_s2 = \"fast\"\n"),
+        &["max_accel_mm_s2", "invalid type"],
+    );
+    assert_refused("type-listen", "[api]\nlisten = 5\n", &["listen"]);
+    assert_refused(
+        "type-lock",
+        "[rt]\nlock_memory = \"yes\"\n",
+        &["lock_memory", "invalid type"],
+    );
+    assert_refused(
+        "type-name",
+        "[[axes]]\nname = \"XY\"\n",
+        &["name", "invalid"],
+    );
+}
+
+#[test]
+fn out_of_range_value_is_named() {
+    assert_refused(
+        "range-accel",
+        &format!("{AXIS}[[axes]]\nname = \"Y\"\nmax_accel_mm_s2 = -5\n"),
+        &["axes[1].max_accel_mm_s2: -5 must be a positive number"],
+    );
+    assert_refused(
+        "range-velocity",
+        &format!("{AXIS}max_velocity_mm_min = nan\n"),
+        &["axes[0].max_velocity_mm_min"],
+    );
+    assert_refused(
+        "range-priority",
+        "[rt]\npriority = 120\n",
+        &["rt.priority: 120 is outside 1..99"],
+    );
+    assert_refused(
+        "range-axes",
+        &"[[axes]]\nname = \"A\"\n".repeat(7),
+        &["axes:"],
+    );
+    assert_refused(
+        "range-letter",
+        "[[axes]]\nname = \"x\"\n",
+        &["axes[0].name"],
+    );
+}
+
+#[test]
+fn duplicate_axis_is_named() {
+    assert_refused(
+        "duplicate-axis",
+        "[[axes]]\nname = \"X\"\n[[axes]]\nname = \"Y\"\n[[axes]]\nname = \"X\"\n",
+        &["axes[2].name: axis X appears twice"],
+    );
+}
+
+#[test]
+fn bad_bus_settings_are_named() {
+    let can = "[bus]\nkind = \"can\"\ninterface = \"can0\"\n";
+    assert_refused("bus-kind", "[bus]\nkind = \"usb\"\n", &["usb"]);
+    assert_refused(
+        "bus-no-interface",
+        "[bus]\nkind = \"can\"\n",
+        &["interface"],
+    );
+    assert_refused("bus-no-node", &format!("{AXIS}{can}"), &["axes[0].node_id"]);
+    assert_refused(
+        "bus-node-twice",
+        &format!("{AXIS}node_id = 4\n[[axes]]\nname = \"Y\"\nnode_id = 4\n{can}"),
+        &["axes[1].node_id: node 4 is used twice"],
+    );
+    assert_refused(
+        "bus-node-range",
+        &format!("{AXIS}node_id = 127\n{can}"),
+        &["axes[0].node_id"],
+    );
+    assert_refused(
+        "bus-window",
+        &format!("{can}following_window_mm = -1\n"),
+        &["bus.following_window_mm"],
+    );
+    assert_refused(
+        "bus-unknown-key",
+        &format!("{can}bitrate = 1000000\n"),
+        &["bitrate"],
+    );
+    assert_refused(
+        "bus-serial-port",
+        "[bus]\nkind = \"serial\"\nport = \"\"\n",
+        &["bus.port"],
+    );
+}

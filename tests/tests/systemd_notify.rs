@@ -1,0 +1,411 @@
+//! systemd notify protocol against a fake service manager: a `UnixDatagram` bound by the test
+//! plays `NOTIFY_SOCKET`.
+//!
+//! - In process (the socket path is passed explicitly, the process environment is untouched):
+//!   READY=1 once the drives are operational, WATCHDOG=1 every half period while the real-time
+//!   thread ticks, no pings while a test bus holds the real-time thread inside `cycle()`, pings
+//!   again after it lets go; no READY=1 while the drives are faulted at start-up.
+//! - The real `cncd` binary, started with `NOTIFY_SOCKET` and `WATCHDOG_USEC` in its own
+//!   environment: READY=1, WATCHDOG=1, then STOPPING=1 and exit status 0 on SIGTERM.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use daemon::runtime::config::Config;
+use daemon::runtime::controller::{ClockKind, Controller};
+use daemon::runtime::rt::MachineState;
+use daemon::runtime::systemd::{self, Notifier};
+use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, FaultReason};
+use tokio::net::UnixDatagram;
+
+/// A fresh directory for one test's sockets and files.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("cncd-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The fake service manager: receives notify datagrams.
+struct Manager {
+    sock: UnixDatagram,
+}
+
+impl Manager {
+    fn bind(path: &Path) -> Manager {
+        Manager {
+            sock: UnixDatagram::bind(path).unwrap(),
+        }
+    }
+
+    /// Every message line received during `d`, with its arrival time.
+    async fn collect(&self, d: Duration) -> Vec<(Instant, String)> {
+        let end = Instant::now() + d;
+        let mut out = Vec::new();
+        let mut buf = vec![0u8; 4096];
+        while let Some(left) = end.checked_duration_since(Instant::now()) {
+            match tokio::time::timeout(left, self.sock.recv(&mut buf)).await {
+                Ok(Ok(n)) => {
+                    let t = Instant::now();
+                    for line in String::from_utf8_lossy(&buf[..n]).lines() {
+                        out.push((t, line.to_owned()));
+                    }
+                }
+                Ok(Err(e)) => panic!("receiving notify datagrams: {e}"),
+                Err(_) => break,
+            }
+        }
+        out
+    }
+
+    /// Waits up to `timeout` for the line `want`; returns everything received until then.
+    async fn wait_for(&self, want: &str, timeout: Duration) -> Vec<String> {
+        let end = Instant::now() + timeout;
+        let mut seen = Vec::new();
+        let mut buf = vec![0u8; 4096];
+        loop {
+            let left = end
+                .checked_duration_since(Instant::now())
+                .unwrap_or_else(|| panic!("no {want} within {timeout:?}; received {seen:?}"));
+            match tokio::time::timeout(left, self.sock.recv(&mut buf)).await {
+                Ok(Ok(n)) => {
+                    for line in String::from_utf8_lossy(&buf[..n]).lines() {
+                        seen.push(line.to_owned());
+                    }
+                    if seen.iter().any(|l| l == want) {
+                        return seen;
+                    }
+                }
+                Ok(Err(e)) => panic!("receiving notify datagrams: {e}"),
+                Err(_) => panic!("no {want} within {timeout:?}; received {seen:?}"),
+            }
+        }
+    }
+}
+
+fn count(msgs: &[(Instant, String)], line: &str) -> usize {
+    msgs.iter().filter(|(_, l)| l == line).count()
+}
+
+/// The simulated bus, but `cycle()` blocks while `stall` is set: a hung bus driver.
+struct StallBus {
+    inner: sim::SimBus,
+    stall: Arc<AtomicBool>,
+}
+
+impl DriveBus for StallBus {
+    fn name(&self) -> &str {
+        "stall"
+    }
+    fn axes(&self) -> usize {
+        self.inner.axes()
+    }
+    fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
+        while self.stall.load(Ordering::Acquire) {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        self.inner.cycle(cmd, fb)
+    }
+    fn enable(&mut self) {
+        self.inner.enable()
+    }
+    fn reset(&mut self) {
+        self.inner.reset()
+    }
+}
+
+/// The simulated bus, but axis Y's drive reports a fault until `healthy` is set.
+struct FaultyBus {
+    inner: sim::SimBus,
+    healthy: Arc<AtomicBool>,
+}
+
+impl DriveBus for FaultyBus {
+    fn name(&self) -> &str {
+        "faulty"
+    }
+    fn axes(&self) -> usize {
+        self.inner.axes()
+    }
+    fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
+        if self.healthy.load(Ordering::Acquire) {
+            self.inner.cycle(cmd, fb)
+        } else {
+            Err(BusFault {
+                axis: Some(1),
+                node: Some(2),
+                reason: FaultReason::DriveFault { code: 0x7500 },
+            })
+        }
+    }
+    fn enable(&mut self) {
+        self.inner.enable()
+    }
+    fn reset(&mut self) {
+        self.inner.reset()
+    }
+}
+
+fn sim_bus() -> sim::SimBus {
+    sim::SimBus::new(sim::SimDriveParams::default(), &[0.0; 3])
+}
+
+fn config() -> Config {
+    let mut cfg = Config::default();
+    // Not the tests' business to lock the test process's memory.
+    cfg.rt.lock_memory = false;
+    cfg
+}
+
+const WATCHDOG: Duration = Duration::from_millis(200);
+/// Half the watchdog period.
+const PING: Duration = Duration::from_millis(100);
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn ready_after_start_up_pings_while_ticking_and_not_while_the_rt_thread_stalls() {
+    let dir = scratch("notify-stall");
+    let path = dir.join("notify.sock");
+    let mgr = Manager::bind(&path);
+    let stall = Arc::new(AtomicBool::new(false));
+    let bus = StallBus {
+        inner: sim_bus(),
+        stall: stall.clone(),
+    };
+    let ctl = Controller::start_with_bus(config(), ClockKind::Monotonic, Box::new(bus)).unwrap();
+    let notifier = Arc::new(Notifier::new(&path).unwrap());
+    let sup = systemd::supervise(
+        ctl.subscribe(),
+        Some(notifier),
+        Some(WATCHDOG),
+        ctl.config().axis_names(),
+        "test machine".into(),
+    );
+
+    // READY=1 after start-up, and only once the drives are operational.
+    let before = mgr.wait_for("READY=1", Duration::from_secs(10)).await;
+    assert_eq!(ctl.snapshot().state, MachineState::Idle);
+    assert!(
+        before.iter().any(|l| l == "STATUS=test machine"),
+        "{before:?}"
+    );
+    assert!(
+        before.iter().any(|l| l == "STATUS=enabling drives"),
+        "{before:?}"
+    );
+    assert!(
+        sup.ready.is_finished()
+            || tokio::time::timeout(Duration::from_secs(1), async {
+                while !sup.ready.is_finished() {
+                    tokio::time::sleep(Duration::from_millis(5)).await;
+                }
+            })
+            .await
+            .is_ok()
+    );
+
+    // Periodic pings while the real-time thread ticks: ~10 in one second.
+    let ticking = mgr.collect(Duration::from_secs(1)).await;
+    let pings = count(&ticking, "WATCHDOG=1");
+    assert!(
+        (7..=12).contains(&pings),
+        "{pings} pings in 1 s: {ticking:?}"
+    );
+    assert_eq!(count(&ticking, "READY=1"), 0, "READY=1 twice: {ticking:?}");
+    let times: Vec<Instant> = ticking
+        .iter()
+        .filter(|(_, l)| l == "WATCHDOG=1")
+        .map(|(t, _)| *t)
+        .collect();
+    for w in times.windows(2) {
+        let gap = w[1] - w[0];
+        assert!(
+            gap < WATCHDOG,
+            "pings {gap:?} apart, watchdog period {WATCHDOG:?}"
+        );
+    }
+
+    // Stall the real-time thread inside cycle(): the pings stop.
+    stall.store(true, Ordering::Release);
+    // One look may still see the ticks made before the stall.
+    let settling = mgr.collect(PING * 5 / 2).await;
+    let seq = ctl.snapshot().sequence;
+    let stalled = mgr.collect(Duration::from_secs(1)).await;
+    assert_eq!(
+        ctl.snapshot().sequence,
+        seq,
+        "the test bus did not stall the real-time thread"
+    );
+    assert_eq!(
+        count(&stalled, "WATCHDOG=1"),
+        0,
+        "pings while the real-time thread is stalled: {stalled:?}"
+    );
+    let all: Vec<_> = settling.iter().chain(&stalled).collect();
+    assert!(
+        all.iter()
+            .any(|(_, l)| l == "STATUS=real-time thread stalled"),
+        "{all:?}"
+    );
+
+    // Let go: the pings come back.
+    stall.store(false, Ordering::Release);
+    let resumed = mgr.collect(Duration::from_secs(1)).await;
+    assert!(
+        count(&resumed, "WATCHDOG=1") >= 5,
+        "pings did not resume: {resumed:?}"
+    );
+    assert!(
+        resumed.iter().any(|(_, l)| l == "STATUS=running"),
+        "{resumed:?}"
+    );
+
+    sup.stop();
+    let c = ctl.clone();
+    tokio::task::spawn_blocking(move || c.shutdown())
+        .await
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn no_ready_while_the_drives_are_faulted_at_start_up() {
+    let dir = scratch("notify-fault");
+    let path = dir.join("notify.sock");
+    let mgr = Manager::bind(&path);
+    let healthy = Arc::new(AtomicBool::new(false));
+    let bus = FaultyBus {
+        inner: sim_bus(),
+        healthy: healthy.clone(),
+    };
+    let ctl = Controller::start_with_bus(config(), ClockKind::Monotonic, Box::new(bus)).unwrap();
+    let notifier = Arc::new(Notifier::new(&path).unwrap());
+    let sup = systemd::supervise(
+        ctl.subscribe(),
+        Some(notifier),
+        Some(WATCHDOG),
+        ctl.config().axis_names(),
+        "test machine".into(),
+    );
+
+    let msgs = mgr.collect(Duration::from_millis(1500)).await;
+    assert_eq!(ctl.snapshot().state, MachineState::Fault);
+    assert_eq!(
+        count(&msgs, "READY=1"),
+        0,
+        "READY=1 with faulted drives: {msgs:?}"
+    );
+    assert!(!sup.ready.is_finished());
+    assert!(
+        msgs.iter()
+            .any(|(_, l)| l.starts_with("STATUS=drive fault during start-up (axis Y)")),
+        "{msgs:?}"
+    );
+    // The real-time thread ticks in Fault: the process is alive, the watchdog is fed.
+    assert!(count(&msgs, "WATCHDOG=1") >= 8, "{msgs:?}");
+
+    // The operator clears the cause and resets before systemd's start timeout: ready.
+    healthy.store(true, Ordering::Release);
+    ctl.reset().unwrap();
+    mgr.wait_for("READY=1", Duration::from_secs(10)).await;
+    assert_eq!(ctl.snapshot().state, MachineState::Idle);
+    assert!(
+        sup.ready.await.unwrap(),
+        "the readiness task says it did not report"
+    );
+
+    sup.watchdog.as_ref().unwrap().abort();
+    let c = ctl.clone();
+    tokio::task::spawn_blocking(move || c.shutdown())
+        .await
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The `cncd` binary of this build (built on demand: the tests package cannot name another
+/// package's binary).
+fn cncd_binary() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    // target/<profile>/deps/<test> → target/<profile>
+    let profile_dir = exe.parent().and_then(Path::parent).unwrap().to_owned();
+    let mut cmd = Command::new(env!("CARGO"));
+    cmd.args(["build", "--quiet", "-p", "daemon", "--bin", "cncd"])
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
+    if profile_dir.file_name().is_some_and(|n| n == "release") {
+        cmd.arg("--release");
+    }
+    let status = cmd.status().expect("running cargo build for cncd");
+    assert!(status.success(), "cargo build of cncd failed");
+    let bin = profile_dir.join("cncd");
+    assert!(bin.exists(), "{} missing after the build", bin.display());
+    bin
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cncd_binary_notifies_ready_pings_and_stops_on_sigterm() {
+    let bin = cncd_binary();
+    let dir = scratch("notify-bin");
+    let path = dir.join("notify.sock");
+    let cfg = dir.join("cncd.toml");
+    std::fs::write(
+        &cfg,
+        "[api]\nlisten = \"127.0.0.1:0\"\n[rt]\nlock_memory = false\n",
+    )
+    .unwrap();
+    let mgr = Manager::bind(&path);
+    let mut child = Command::new(&bin)
+        .args(["--config"])
+        .arg(&cfg)
+        .args(["--log", "stderr"])
+        .env("NOTIFY_SOCKET", &path)
+        .env("WATCHDOG_USEC", WATCHDOG.as_micros().to_string())
+        .env_remove("WATCHDOG_PID")
+        .env_remove("JOURNAL_STREAM")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let pid = child.id() as libc::pid_t;
+    // The checks run in a task so that a failed one still lets us reap cncd and show its log.
+    let checks = tokio::spawn(async move {
+        let start = mgr.wait_for("READY=1", Duration::from_secs(20)).await;
+        assert!(
+            start
+                .iter()
+                .any(|l| l.starts_with("STATUS=axes XYZ on bus sim")),
+            "{start:?}"
+        );
+        let msgs = mgr.collect(Duration::from_secs(1)).await;
+        assert!(count(&msgs, "WATCHDOG=1") >= 7, "{msgs:?}");
+        // SAFETY: signalling our own child.
+        assert_eq!(unsafe { libc::kill(pid, libc::SIGTERM) }, 0);
+        mgr.wait_for("STOPPING=1", Duration::from_secs(10)).await;
+    });
+    let outcome = checks.await;
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break Some(s);
+        }
+        if Instant::now() > deadline {
+            break None;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    };
+    if status.is_none() {
+        let _ = child.kill();
+    }
+    let output = child.wait_with_output().unwrap();
+    let log = String::from_utf8_lossy(&output.stderr);
+    if let Err(p) = outcome {
+        eprintln!("cncd log:\n{log}");
+        std::panic::resume_unwind(p.into_panic());
+    }
+    let status = status.unwrap_or_else(|| panic!("cncd did not exit after SIGTERM:\n{log}"));
+    assert!(status.success(), "cncd exit {status}:\n{log}");
+    assert!(log.contains("drives operational"), "{log}");
+    assert!(log.contains("axis at rest"), "{log}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
