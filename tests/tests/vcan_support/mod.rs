@@ -163,3 +163,135 @@ pub fn temp_dir(test: &str) -> PathBuf {
     std::fs::create_dir_all(&d).unwrap();
     d
 }
+
+/// A `cncd` process with a configuration written for the test, and `cncctl` calls to it.
+pub struct Daemon {
+    pub proc: Proc,
+    pub addr: String,
+    pub dir: PathBuf,
+}
+
+/// Runs a command with a time limit; returns (success, stdout + stderr).
+pub fn run_with_timeout(cmd: &mut Command, timeout: Duration) -> (bool, String) {
+    let out_path = std::env::temp_dir().join(format!(
+        "cnc-cmd-{}-{:?}.txt",
+        std::process::id(),
+        std::thread::current().id()
+    ));
+    let out = std::fs::File::create(&out_path).unwrap();
+    let mut child = cmd
+        .stdout(out.try_clone().unwrap())
+        .stderr(out)
+        .spawn()
+        .unwrap();
+    let end = Instant::now() + timeout;
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if Instant::now() > end {
+            let _ = child.kill();
+            let _ = child.wait();
+            let text = std::fs::read_to_string(&out_path).unwrap_or_default();
+            panic!("{cmd:?} did not end within {timeout:?}: {text}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let text = std::fs::read_to_string(&out_path).unwrap_or_default();
+    let _ = std::fs::remove_file(&out_path);
+    (status.success(), text)
+}
+
+impl Daemon {
+    /// Starts cncd with `bus_section` (TOML of `[bus]`) and axes X Y Z with `node_ids`.
+    pub fn start(test: &str, bus_section: &str, node_ids: [u8; 3]) -> Daemon {
+        let dir = temp_dir(test);
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port();
+        let mut cfg = String::new();
+        for (name, id) in ['X', 'Y', 'Z'].iter().zip(node_ids) {
+            cfg.push_str(&format!(
+                "[[axes]]\nname = '{name}'\nnode_id = {id}\nincrements_per_mm = 10000\n\n"
+            ));
+        }
+        cfg.push_str(bus_section);
+        cfg.push_str(&format!(
+            "\n[api]\nlisten = '127.0.0.1:{port}'\nunix_socket = ''\n\n[rt]\nlock_memory = false\n\n\
+             [storage]\ndir = '{}'\n",
+            dir.join("data").display()
+        ));
+        let path = dir.join("cncd.toml");
+        std::fs::write(&path, cfg).unwrap();
+        let proc = Proc::spawn("cncd", &["--config", path.to_str().unwrap()]);
+        let d = Daemon {
+            proc,
+            addr: format!("http://127.0.0.1:{port}"),
+            dir,
+        };
+        d.wait_state("idle", Duration::from_secs(30));
+        d
+    }
+
+    pub fn cncctl(&self, args: &[&str], timeout: Duration) -> (bool, String) {
+        run_with_timeout(
+            Command::new(bin("cncctl"))
+                .arg("--addr")
+                .arg(&self.addr)
+                .args(args),
+            timeout,
+        )
+    }
+
+    /// One status line (`cncctl status`): state first, then block, positions, alarm.
+    pub fn status(&self) -> String {
+        let (ok, out) = self.cncctl(&["status"], Duration::from_secs(10));
+        if ok {
+            out
+        } else {
+            format!("unreachable: {out}")
+        }
+    }
+
+    pub fn wait_state(&self, state: &str, timeout: Duration) -> String {
+        let end = Instant::now() + timeout;
+        loop {
+            let s = self.status();
+            if s.starts_with(state) {
+                return s;
+            }
+            assert!(Instant::now() < end, "state {state} not reached: {s}");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
+    /// Writes a program file in the test directory.
+    pub fn program(&self, name: &str, text: &str) -> String {
+        let p = self.dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p.to_str().unwrap().to_owned()
+    }
+}
+
+/// Actual positions (mm) the daemon reports for its axes, from one status snapshot over gRPC.
+pub fn actual_positions_mm(addr: &str) -> Vec<f64> {
+    use proto::v1 as pb;
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    rt.block_on(async {
+        let mut c = pb::machine_client::MachineClient::connect(addr.to_owned())
+            .await
+            .expect("connect to cncd");
+        let mut stream = c
+            .stream_status(pb::StatusRequest { rate_hz: 25 })
+            .await
+            .expect("status stream")
+            .into_inner();
+        let s = stream.message().await.unwrap().expect("one status");
+        s.axes.iter().map(|a| a.actual_mm).collect()
+    })
+}

@@ -1,0 +1,62 @@
+//! `cncd` with `[bus] kind = "serial"` on a pseudo-terminal served by `sim-serial`, driven
+//! by `cncctl`: a program end to end, the line unplugged (alarm, fault), replugged, reset,
+//! and a program again.
+
+mod vcan_support;
+
+use std::time::Duration;
+
+use vcan_support::{Daemon, Proc};
+
+#[test]
+fn daemon_runs_a_program_over_serial_and_recovers_after_replug() {
+    let dir = vcan_support::temp_dir("serial-daemon-link");
+    let link = dir.join("drive.tty");
+    let link_s = link.to_str().unwrap();
+    let mut sim = Proc::spawn("sim-serial", &["--link", link_s, "--axes", "3"]);
+    sim.expect_line(" -> /dev/pts", Duration::from_secs(10));
+    let bus = format!("[bus]\nkind = 'serial'\nport = '{link_s}'\nreply_timeout_ticks = 50\n");
+    let d = Daemon::start("serial-daemon", &bus, [1, 2, 3]);
+
+    let prog = d.program(
+        "part.nc",
+        "N10 G1 X20 Y10 F3000\nN20 G0 Z-5\nN30 G1 X5 Y-4\n",
+    );
+    let (ok, out) = d.cncctl(&["run", "--quiet", &prog], Duration::from_secs(60));
+    assert!(ok, "cncctl run failed: {out}");
+    let s = d.wait_state("idle", Duration::from_secs(5));
+    assert!(s.contains("X5.000 Y-4.000 Z-5.000"), "{s}");
+    // The drive itself is there (actual position, from its replies), not only the setpoint.
+    let end = std::time::Instant::now() + Duration::from_secs(3);
+    loop {
+        let actual = vcan_support::actual_positions_mm(&d.addr);
+        let want = [5.0, -4.0, -5.0];
+        if actual.iter().zip(want).all(|(a, w)| (a - w).abs() < 0.001) {
+            break;
+        }
+        assert!(
+            std::time::Instant::now() < end,
+            "drive positions {actual:?}, want {want:?}"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+
+    sim.send("unplug");
+    let s = d.wait_state("fault", Duration::from_secs(5));
+    assert!(s.contains("serial link lost"), "{s}");
+    // Reset while unplugged: refused or without effect, the fault stays.
+    let _ = d.cncctl(&["reset"], Duration::from_secs(10));
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(d.status().starts_with("fault"), "{}", d.status());
+
+    sim.send("plug");
+    sim.expect_line(" -> /dev/pts", Duration::from_secs(5));
+    let (ok, out) = d.cncctl(&["reset"], Duration::from_secs(10));
+    assert!(ok, "{out}");
+    d.wait_state("idle", Duration::from_secs(10));
+    let back = d.program("back.nc", "N10 G1 X0 Y0 Z0 F3000\n");
+    let (ok, out) = d.cncctl(&["run", "--quiet", &back], Duration::from_secs(60));
+    assert!(ok, "run after replug failed: {out}");
+    let s = d.wait_state("idle", Duration::from_secs(5));
+    assert!(s.contains("X0.000 Y0.000 Z0.000"), "{s}");
+}

@@ -1,0 +1,124 @@
+//! `cncd` on vcan0 with `sim-can` drive processes, driven by `cncctl`: a program end to end,
+//! the recorded traffic, a killed drive process (controlled stop, alarm naming axis and node),
+//! reset and resume. Skipped where there is no vcan0; `tests/vcan/run.sh` runs it in a VM.
+
+mod vcan_support;
+
+use std::time::Duration;
+
+use vcan_support::{Daemon, sim_can, vcan_lock, vcan_ready};
+
+const BUS: &str = "[bus]\nkind = 'can'\ninterface = 'vcan0'\nrecord = 'RECORD'\n\
+    tpdo_missing_ticks = 50\nheartbeat_timeout_ms = 1000\ndrive_consumer_timeout_ms = 2000\n\
+    following_window_mm = 20\n";
+
+const PROGRAM: &str = "\
+; vcan end-to-end part
+N10 G1 X20 Y10 F3000
+N20 G0 Z-5
+N30 G1 X5 Y-4 F2400
+N40 X12.5 Y0
+";
+
+/// Last position (mm) each node reported in its TPDOs, and the largest |position| seen.
+fn tpdo_positions(log: &str, node: u16) -> (f64, f64) {
+    let id = format!(" {:03X}#", 0x180 + node);
+    let mut last = f64::NAN;
+    let mut max = 0.0f64;
+    for l in log.lines().filter(|l| l.contains(&id)) {
+        let data = l.split('#').nth(1).unwrap();
+        if data.len() != 12 {
+            continue;
+        }
+        let b: Vec<u8> = (0..6)
+            .map(|i| u8::from_str_radix(&data[2 * i..2 * i + 2], 16).unwrap())
+            .collect();
+        let inc = i32::from_le_bytes([b[2], b[3], b[4], b[5]]);
+        last = f64::from(inc) / 10_000.0;
+        max = max.max(last.abs());
+    }
+    (last, max)
+}
+
+#[test]
+fn daemon_runs_a_program_on_vcan_and_recovers_from_a_killed_drive() {
+    let _bus = vcan_lock();
+    if !vcan_ready("daemon_runs_a_program_on_vcan_and_recovers_from_a_killed_drive") {
+        return;
+    }
+    let _x = sim_can(&[51], &[]);
+    let mut y = sim_can(&[52], &[]);
+    let _z = sim_can(&[53], &[]);
+    let dir = vcan_support::temp_dir("vcan-daemon-record");
+    let record = dir.join("can.log");
+    let bus = BUS.replace("RECORD", record.to_str().unwrap());
+    let d = Daemon::start("vcan-daemon", &bus, [51, 52, 53]);
+
+    // A program end to end: cncctl run exits 0, the drives report the end position.
+    let prog = d.program("part.nc", PROGRAM);
+    let (ok, out) = d.cncctl(&["run", "--quiet", &prog], Duration::from_secs(120));
+    assert!(ok, "cncctl run failed: {out}");
+    let s = d.wait_state("idle", Duration::from_secs(5));
+    assert!(s.contains("X12.500 Y0.000 Z-5.000"), "{s}");
+    std::thread::sleep(Duration::from_millis(500)); // let the drives settle and the log flush
+    let log = std::fs::read_to_string(&record).unwrap();
+    let (x, _) = tpdo_positions(&log, 51);
+    let (y_end, y_max) = tpdo_positions(&log, 52);
+    let (z, _) = tpdo_positions(&log, 53);
+    assert!((x - 12.5).abs() < 0.001 && y_end.abs() < 0.001 && (z + 5.0).abs() < 0.001);
+    assert!(y_max > 9.9, "Y moved to 10 and back: {y_max}");
+    // The daemon sends SYNC and one RPDO per drive each tick: count the last 1000 SYNC periods.
+    let tail: Vec<&str> = log.lines().rev().take(8000).collect();
+    let syncs = tail.iter().filter(|l| l.contains(" 080#")).count();
+    for node in [0x233, 0x234, 0x235] {
+        let rpdos = tail
+            .iter()
+            .filter(|l| l.contains(&format!(" {node:03X}#")))
+            .count();
+        assert!(
+            rpdos.abs_diff(syncs) <= 1,
+            "{rpdos} RPDOs of {node:X} vs {syncs} SYNCs"
+        );
+    }
+
+    // A long move; the Y drive process dies on the way.
+    let long = d.program("long.nc", "N10 G1 X100 Y30 F1200\n");
+    let mut run = std::process::Command::new(vcan_support::bin("cncctl"));
+    run.args(["--addr", &d.addr, "run", "--quiet", &long]);
+    let runner = std::thread::spawn(move || {
+        vcan_support::run_with_timeout(&mut run, Duration::from_secs(120))
+    });
+    d.wait_state("running", Duration::from_secs(10));
+    std::thread::sleep(Duration::from_millis(1500));
+    y.kill();
+    let (ok, out) = runner.join().unwrap();
+    assert!(!ok, "cncctl run must fail on a fault: {out}");
+    let s = d.wait_state("fault", Duration::from_secs(5));
+    assert!(s.contains("axis Y, node 52"), "{s}");
+    assert!(s.contains("no feedback from the drive"), "{s}");
+    // Controlled stop: the commanded positions come to rest and stay there.
+    std::thread::sleep(Duration::from_millis(1500));
+    let a = d.status();
+    std::thread::sleep(Duration::from_millis(500));
+    let b = d.status();
+    let pos = |s: &str| {
+        s.split_whitespace()
+            .find(|w| w.starts_with('X'))
+            .map(str::to_owned)
+    };
+    assert_eq!(pos(&a), pos(&b), "axes at rest:\n{a}\n{b}");
+    let x_stop: f64 = pos(&a).unwrap()[1..].parse().unwrap();
+    assert!(x_stop > 12.5 && x_stop < 100.0, "stopped on the way: {a}");
+
+    // The drive comes back (where it was), reset clears the fault, a program runs again.
+    let y_at = a.split_whitespace().find(|w| w.starts_with('Y')).unwrap()[1..].to_owned();
+    let _y = sim_can(&[52], &["--start-mm", &y_at]);
+    let (ok, out) = d.cncctl(&["reset"], Duration::from_secs(10));
+    assert!(ok, "{out}");
+    d.wait_state("idle", Duration::from_secs(30));
+    let back = d.program("back.nc", "N10 G1 X0 Y0 Z0 F3000\n");
+    let (ok, out) = d.cncctl(&["run", "--quiet", &back], Duration::from_secs(120));
+    assert!(ok, "run after reset failed: {out}");
+    let s = d.wait_state("idle", Duration::from_secs(5));
+    assert!(s.contains("X0.000 Y0.000 Z0.000"), "{s}");
+}
