@@ -367,7 +367,9 @@ impl ApiConfig {
                 .iter()
                 .any(|u| u.sha256.eq_ignore_ascii_case(&t.sha256))
             {
-                return Err(format!("api.tokens[{i}].sha256: the same token appears twice"));
+                return Err(format!(
+                    "api.tokens[{i}].sha256: the same token appears twice"
+                ));
             }
         }
         if self.max_streams == 0 {

@@ -418,6 +418,12 @@ impl Controller {
         program::compile(text, &self.setup())
     }
 
+    /// What the interpreter would start a program with now (axes, position, constants, memory
+    /// offsets), for previews.
+    pub fn current_setup(&self) -> Setup {
+        self.setup()
+    }
+
     /// Compensation and planner settings a program started now would run with.
     pub fn run_configs(&self) -> (CompConfig, PlannerConfig) {
         let comp = CompConfig::from_constants(&self.constants.lock().unwrap().0);

@@ -194,6 +194,7 @@ impl Machine for MachineSvc {
         req: Request<pb::StartRequest>,
     ) -> Result<Response<pb::StartReply>, Status> {
         require(&req, Operator, "Start")?;
+        let _one_at_a_time = self.0.start_lock.lock().await;
         let st = self.0.clone();
         let job = blocking(move || -> Result<u32, Status> {
             if st.single_block.load(Ordering::Relaxed) {
@@ -219,6 +220,7 @@ impl Machine for MachineSvc {
             }
         })
         .await??;
+        self.0.wait_started(job).await;
         Ok(Response::new(pb::StartReply { job }))
     }
 
@@ -286,6 +288,7 @@ impl Machine for MachineSvc {
                 "MDI takes exactly one block (one line of program text)",
             ));
         }
+        let _one_at_a_time = self.0.start_lock.lock().await;
         let st = self.0.clone();
         let job = blocking(move || -> Result<u32, Status> {
             let (job, blocks) = st.ctl.start_text("MDI", &block, false).map_err(status_of)?;
@@ -297,6 +300,7 @@ impl Machine for MachineSvc {
             Ok(job)
         })
         .await??;
+        self.0.wait_started(job).await;
         Ok(Response::new(pb::StartReply { job }))
     }
 

@@ -70,6 +70,9 @@ pub struct ApiState {
     plan_info: Mutex<Option<PlanInfo>>,
     run: Mutex<Option<RunInfo>>,
     single_block: AtomicBool,
+    /// Serialises Start and MDI: the RT thread takes a start on its next tick, so a second
+    /// start must wait until the first is seen in the snapshot.
+    start_lock: tokio::sync::Mutex<()>,
     streams: Arc<AtomicUsize>,
     max_streams: usize,
     pub alarms: Arc<alarms::AlarmLog>,
@@ -87,6 +90,7 @@ impl ApiState {
             plan_info: Mutex::new(None),
             run: Mutex::new(None),
             single_block: AtomicBool::new(false),
+            start_lock: tokio::sync::Mutex::new(()),
             streams: Arc::new(AtomicUsize::new(0)),
             alarms,
         });
@@ -110,6 +114,14 @@ impl ApiState {
             )));
         }
         Ok(StreamSlot(self.streams.clone()))
+    }
+
+    /// Waits until the RT thread has taken job `job` (at most a few ticks).
+    async fn wait_started(&self, job: u32) {
+        let t0 = std::time::Instant::now();
+        while self.ctl.snapshot().job != job && t0.elapsed() < std::time::Duration::from_secs(1) {
+            tokio::time::sleep(std::time::Duration::from_millis(1)).await;
+        }
     }
 
     /// Open status and alarm streams.

@@ -146,4 +146,122 @@ impl Preview for PreviewSvc {
         let data = blocking(move || preview_data(&st.ctl, &r.text, r.junctions)).await??;
         Ok(Response::new(data))
     }
+
+    async fn get_preview(
+        &self,
+        req: Request<pb::GetPreviewRequest>,
+    ) -> Result<Response<pb::GetPreviewReply>, Status> {
+        require(&req, Observer, "GetPreview")?;
+        let r = req.into_inner();
+        let st = self.0.clone();
+        let reply = blocking(move || render_preview(&st.ctl, &r)).await??;
+        Ok(Response::new(reply))
+    }
+}
+
+fn no_page(page: u32, pages: u32) -> Status {
+    Status::invalid_argument(format!(
+        "page {page} does not exist: the program has {pages} page(s) (R387 blocks each)"
+    ))
+}
+
+/// Renders the picture of `GetPreview` with the preview crate, with the machine's settings.
+pub fn render_preview(
+    ctl: &Controller,
+    r: &pb::GetPreviewRequest,
+) -> Result<pb::GetPreviewReply, Status> {
+    let text = if r.text.is_empty() {
+        ctl.program()
+            .ok_or_else(|| {
+                Status::failed_precondition("no program is selected and no text was given")
+            })?
+            .text
+            .clone()
+    } else {
+        r.text.clone()
+    };
+    let mut opts = ::preview::PreviewOptions::new(ctl.current_setup());
+    let (comp, planner) = ctl.run_configs();
+    opts.comp = comp;
+    opts.planner = planner;
+    opts.plane = if r.plane.is_empty() {
+        ::preview::ViewPlane::Xy
+    } else {
+        ::preview::ViewPlane::parse(&r.plane).ok_or_else(|| {
+            Status::invalid_argument(format!("plane {:?}: use xy, xz or yz", r.plane))
+        })?
+    };
+    opts.page = r.page.max(1);
+    if r.width_px > 0 {
+        opts.width_px = r.width_px.clamp(200, 8000);
+    }
+    if r.height_px > 0 {
+        opts.height_px = r.height_px.clamp(200, 8000);
+    }
+    let png = r.format == pb::ImageFormat::Png as i32;
+    let encode =
+        |svg: String, png_bytes: Option<Result<Vec<u8>, ::preview::RenderError>>| match png_bytes {
+            Some(b) => b.map_err(|e| Status::internal(format!("PNG: {e}"))),
+            None => Ok(svg.into_bytes()),
+        };
+    let fmt = if png {
+        pb::ImageFormat::Png
+    } else {
+        pb::ImageFormat::Svg
+    };
+    let refuse = |d: Vec<Diagnostic>| invalid_with_diagnostics("program", &d);
+    if r.velocity {
+        let v = ::preview::velocity_plot(&text, &opts, true).map_err(refuse)?;
+        if opts.page > v.pages {
+            return Err(no_page(opts.page, v.pages));
+        }
+        let image = if png {
+            encode(String::new(), Some(v.to_png()))?
+        } else {
+            encode(v.to_svg(), None)?
+        };
+        return Ok(pb::GetPreviewReply {
+            image,
+            format: fmt as i32,
+            page: v.page,
+            pages: v.pages,
+            red: Vec::new(),
+            red_junctions: 0,
+            smooth_junctions: 0,
+            diagnostics: v.warnings.iter().map(diagnostic_to_pb).collect(),
+        });
+    }
+    let p = ::preview::render(&text, &opts).map_err(refuse)?;
+    if opts.page > p.pages {
+        return Err(no_page(opts.page, p.pages));
+    }
+    let image = if png {
+        encode(String::new(), Some(p.to_png()))?
+    } else {
+        encode(p.to_svg(), None)?
+    };
+    Ok(pb::GetPreviewReply {
+        image,
+        format: fmt as i32,
+        page: p.page,
+        pages: p.pages,
+        red: p
+            .red
+            .iter()
+            .map(|j| pb::RedBlock {
+                seq: j.seq,
+                block: j.n,
+                line: j.line,
+                class: match j.kind {
+                    ::preview::RedKind::Stop => pb::JunctionClass::Stop,
+                    ::preview::RedKind::SpeedDrop => pb::JunctionClass::SpeedDrop,
+                } as i32,
+                speed_mm_s: j.v_mm_s,
+                feed_mm_s: j.feed_mm_s,
+            })
+            .collect(),
+        red_junctions: p.red_junctions,
+        smooth_junctions: p.smooth_junctions,
+        diagnostics: p.warnings.iter().map(diagnostic_to_pb).collect(),
+    })
 }

@@ -65,7 +65,9 @@ impl Offsets for OffsetsSvc {
             .collect();
         Ok(Response::new(pb::GetOffsetsReply {
             entries,
-            labels: (0..5).map(|k| offsets::label(k, &names)).collect(),
+            labels: std::iter::once("R".to_string())
+                .chain((1..=4).map(|k| offsets::label(k, &names)))
+                .collect(),
         }))
     }
 

@@ -1,0 +1,355 @@
+//! Load benchmark of the gRPC API (issue #8) — prints figures, asserts nothing.
+//!
+//! While a program runs on the simulated machine: 32 status streams at 250 Hz and 200 unary
+//! calls per second (a mix of reads and override writes), for `BENCH_SECS` seconds (default
+//! 30). At the same time `cyclictest` (rt-tests; 4 ms interval, SCHED_FIFO 80, one thread)
+//! measures this machine's own timer floor, so the RT thread's tick lateness can be read
+//! against it. Prints: tick lateness p50/p99/max and overruns of the RT thread and of
+//! cyclictest side by side, the delivery rate of every stream, and the unary call latency.
+//!
+//! Run: `cargo bench -p daemon --bench api_load` (as root, or with CAP_SYS_NICE, for
+//! SCHED_FIFO). Goal: RT p99 within 1.5x of cyclictest's, overruns no more than cyclictest's,
+//! every stream at 250 Hz.
+
+use std::process::{Command, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use daemon::runtime::config::Config;
+use daemon::runtime::controller::{ClockKind, Controller};
+use daemon::runtime::rt::MachineState;
+use daemon::runtime::server;
+use proto::v1 as pb;
+use proto::v1::machine_client::MachineClient;
+use proto::v1::offsets_client::OffsetsClient;
+use proto::v1::plc_client::PlcClient;
+use tonic::transport::Channel;
+
+const STREAMS: usize = 32;
+const STREAM_HZ: u32 = 250;
+const UNARY_PER_S: u32 = 200;
+const PERIOD_US: u64 = 4000;
+
+struct Cyclic {
+    p50_us: u64,
+    p99_us: u64,
+    max_us: u64,
+    overruns: u64,
+    samples: u64,
+}
+
+/// Parses `cyclictest -h` output: one `bucket count` line per µs, then `# Max Latencies`.
+fn parse_cyclictest(out: &str) -> Option<Cyclic> {
+    let mut hist: Vec<(u64, u64)> = Vec::new();
+    let mut max_us = None;
+    let mut overflows = 0;
+    for line in out.lines() {
+        if let Some(r) = line.strip_prefix("# Max Latencies:") {
+            max_us = r.split_whitespace().next().and_then(|v| v.parse().ok());
+        } else if let Some(r) = line.strip_prefix("# Histogram Overflows:") {
+            overflows = r
+                .split_whitespace()
+                .next()
+                .and_then(|v| v.parse().ok())
+                .unwrap_or(0);
+        } else if !line.starts_with('#') {
+            let mut it = line.split_whitespace();
+            if let (Some(b), Some(c)) = (it.next(), it.next())
+                && let (Ok(b), Ok(c)) = (b.parse::<u64>(), c.parse::<u64>())
+            {
+                hist.push((b, c));
+            }
+        }
+    }
+    let samples: u64 = hist.iter().map(|h| h.1).sum::<u64>() + overflows;
+    if samples == 0 {
+        return None;
+    }
+    let pct = |p: f64| {
+        let target = (samples as f64 * p).ceil() as u64;
+        let mut acc = 0;
+        for (b, c) in &hist {
+            acc += c;
+            if acc >= target {
+                return *b;
+            }
+        }
+        max_us.unwrap_or(0)
+    };
+    let overruns = hist
+        .iter()
+        .filter(|(b, _)| *b >= PERIOD_US)
+        .map(|h| h.1)
+        .sum::<u64>()
+        + overflows;
+    Some(Cyclic {
+        p50_us: pct(0.50),
+        p99_us: pct(0.99),
+        max_us: max_us.unwrap_or(0),
+        overruns,
+        samples,
+    })
+}
+
+fn ensure_cyclictest() -> bool {
+    if Command::new("cyclictest")
+        .arg("--help")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok()
+    {
+        return true;
+    }
+    eprintln!("cyclictest not found: trying `apt-get install -y rt-tests`");
+    let ok = Command::new("apt-get")
+        .args(["install", "-y", "-q", "rt-tests"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !ok {
+        eprintln!(
+            "could not install rt-tests; install it with `sudo apt-get install rt-tests` \
+             (Debian/Ubuntu) and run the bench again. Continuing without the comparison."
+        );
+    }
+    ok
+}
+
+fn percentile(v: &mut [f64], p: f64) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[((v.len() - 1) as f64 * p).round() as usize]
+}
+
+fn main() {
+    let secs: u64 = std::env::var("BENCH_SECS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(30);
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("tokio runtime");
+    rt.block_on(bench(secs));
+}
+
+async fn bench(secs: u64) {
+    let mut cfg = Config::default();
+    cfg.storage.dir = std::env::temp_dir().join(format!("cnc-bench-{}", std::process::id()));
+    cfg.api.max_streams = 64;
+    let ctl = Controller::start(cfg, ClockKind::Monotonic).expect("controller");
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));
+    let t0 = Instant::now();
+    while ctl.snapshot().state != MachineState::Idle {
+        assert!(t0.elapsed() < Duration::from_secs(10), "drives not enabled");
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    let ch = Channel::from_shared(format!("http://{addr}"))
+        .unwrap()
+        .connect()
+        .await
+        .unwrap();
+    let mut m = MachineClient::new(ch.clone());
+
+    // A program that keeps the machine moving for the whole run (100 mm strokes at 50 mm/s).
+    let strokes = (secs / 2 + 10) as usize;
+    let mut text = String::from("N1 G1 F3000 X0 Y0\n");
+    for i in 0..strokes {
+        let x = if i % 2 == 0 { 100 } else { 0 };
+        text.push_str(&format!("N{} X{x} Y{}\n", i + 2, i % 7));
+    }
+    m.load_program(pb::LoadProgramRequest {
+        name: "bench.nc".into(),
+        text,
+    })
+    .await
+    .unwrap();
+    m.start(pb::StartRequest {}).await.unwrap();
+    let before = ctl.snapshot().ticks;
+
+    // cyclictest alongside.
+    let cyclic = if ensure_cyclictest() {
+        Command::new("cyclictest")
+            .args([
+                "-m",
+                "-n",
+                "-q",
+                "-p80",
+                "-t1",
+                "-i4000",
+                "-h10000",
+                &format!("-D{secs}s"),
+            ])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .ok()
+    } else {
+        None
+    };
+
+    // 32 status streams at 250 Hz.
+    let deadline = Instant::now() + Duration::from_secs(secs);
+    let mut streams = Vec::new();
+    for _ in 0..STREAMS {
+        let mut c = MachineClient::new(ch.clone());
+        streams.push(tokio::spawn(async move {
+            let mut s = c
+                .stream_status(pb::StatusRequest { rate_hz: STREAM_HZ })
+                .await
+                .unwrap()
+                .into_inner();
+            let start = Instant::now();
+            let mut n = 0u64;
+            while Instant::now() < deadline {
+                match s.message().await {
+                    Ok(Some(_)) => n += 1,
+                    _ => break,
+                }
+            }
+            n as f64 / start.elapsed().as_secs_f64()
+        }));
+    }
+
+    // 200 unary calls per second: reads of every service and override writes.
+    let calls = Arc::new(AtomicU64::new(0));
+    let errors = Arc::new(AtomicU64::new(0));
+    let lat: Arc<std::sync::Mutex<Vec<f64>>> = Arc::default();
+    let unary = {
+        let (calls, errors, lat) = (calls.clone(), errors.clone(), lat.clone());
+        let ch = ch.clone();
+        tokio::spawn(async move {
+            let mut every =
+                tokio::time::interval(Duration::from_secs_f64(1.0 / UNARY_PER_S as f64));
+            every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Burst);
+            let mut i = 0u64;
+            while Instant::now() < deadline {
+                every.tick().await;
+                let (calls, errors, lat) = (calls.clone(), errors.clone(), lat.clone());
+                let ch = ch.clone();
+                i += 1;
+                tokio::spawn(async move {
+                    let t = Instant::now();
+                    let ok = match i % 4 {
+                        0 => PlcClient::new(ch)
+                            .list_cells(pb::ListCellsRequest {})
+                            .await
+                            .is_ok(),
+                        1 => OffsetsClient::new(ch)
+                            .get_offsets(pb::GetOffsetsRequest::default())
+                            .await
+                            .is_ok(),
+                        2 => MachineClient::new(ch)
+                            .list_programs(pb::ListProgramsRequest {})
+                            .await
+                            .is_ok(),
+                        _ => MachineClient::new(ch)
+                            .set_override(pb::SetOverrideRequest {
+                                percent: 100.0 - (i % 3) as f64,
+                            })
+                            .await
+                            .is_ok(),
+                    };
+                    lat.lock().unwrap().push(t.elapsed().as_secs_f64() * 1e6);
+                    calls.fetch_add(1, Ordering::Relaxed);
+                    if !ok {
+                        errors.fetch_add(1, Ordering::Relaxed);
+                    }
+                });
+            }
+        })
+    };
+
+    let mut rates = Vec::new();
+    for s in streams {
+        rates.push(s.await.unwrap());
+    }
+    unary.await.unwrap();
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    let snap = ctl.snapshot();
+    let after = snap.ticks;
+    let still_running = matches!(snap.state, MachineState::Running);
+    let cyc = cyclic.and_then(|c| {
+        let out = c.wait_with_output().ok()?;
+        parse_cyclictest(&String::from_utf8_lossy(&out.stdout))
+    });
+
+    let mut r = rates.clone();
+    let rmin = percentile(&mut r, 0.0);
+    let rmed = percentile(&mut r, 0.5);
+    let rmax = percentile(&mut r, 1.0);
+    let mut l = lat.lock().unwrap().clone();
+    let n_calls = calls.load(Ordering::Relaxed);
+
+    println!();
+    println!(
+        "API load: {STREAMS} status streams at {STREAM_HZ} Hz + {UNARY_PER_S} unary calls/s for {secs} s while a program runs (machine still running at the end: {still_running})"
+    );
+    println!();
+    println!(
+        "| 4 ms timer            | lateness p50 | p99      | max      | overruns | ticks/samples |"
+    );
+    println!(
+        "|-----------------------|--------------|----------|----------|----------|---------------|"
+    );
+    println!(
+        "| cncd RT thread        | {:>9} us | {:>5} us | {:>5} us | {:>8} | {:>13} |",
+        after.lateness_p50_us,
+        after.lateness_p99_us,
+        after.lateness_max_us,
+        after.overruns - before.overruns,
+        after.ticks - before.ticks
+    );
+    match &cyc {
+        Some(c) => println!(
+            "| cyclictest (FIFO 80)  | {:>9} us | {:>5} us | {:>5} us | {:>8} | {:>13} |",
+            c.p50_us, c.p99_us, c.max_us, c.overruns, c.samples
+        ),
+        None => println!(
+            "| cyclictest            | not available (install rt-tests)                         |"
+        ),
+    }
+    println!();
+    println!(
+        "status streams: {} of {STREAMS} delivered; rate min {rmin:.1} / median {rmed:.1} / max {rmax:.1} Hz (asked {STREAM_HZ} Hz)",
+        rates.len()
+    );
+    println!(
+        "unary calls: {n_calls} in {secs} s = {:.1}/s, {} errors; latency p50 {:.0} us, p99 {:.0} us, max {:.0} us",
+        n_calls as f64 / secs as f64,
+        errors.load(Ordering::Relaxed),
+        percentile(&mut l, 0.5),
+        percentile(&mut l, 0.99),
+        percentile(&mut l, 1.0)
+    );
+    if let Some(c) = &cyc {
+        let ratio = after.lateness_p99_us as f64 / c.p99_us.max(1) as f64;
+        println!(
+            "goal: RT p99 / cyclictest p99 = {ratio:.2} (goal <= 1.5): {}; RT overruns {} vs cyclictest {}: {}; streams at >= 95% of {STREAM_HZ} Hz: {}",
+            if ratio <= 1.5 { "met" } else { "NOT met" },
+            after.overruns - before.overruns,
+            c.overruns,
+            if after.overruns - before.overruns <= c.overruns {
+                "met"
+            } else {
+                "NOT met"
+            },
+            if rmin >= 0.95 * STREAM_HZ as f64 {
+                "met"
+            } else {
+                "NOT met"
+            }
+        );
+    }
+    println!(
+        "note: the RT percentiles are cumulative since the daemon started (about 1 s of idle before the load)"
+    );
+    let c = ctl.clone();
+    tokio::task::spawn_blocking(move || c.shutdown()).await.ok();
+}

@@ -1,0 +1,207 @@
+//! Shared harness of the API tests: an in-process daemon on the simulated machine, served on a
+//! loopback port (local trust), a "remote" loopback port (TLS + token required) and a Unix
+//! socket in the test's temporary data directory.
+#![allow(dead_code)]
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use daemon::runtime::config::{Config, Role, TokenConfig};
+use daemon::runtime::controller::{ClockKind, Controller};
+use daemon::runtime::rt::MachineState;
+use daemon::runtime::server::{self, Listeners};
+use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, FaultReason};
+use proto::v1 as pb;
+use tonic::transport::{Channel, ServerTlsConfig};
+
+pub const OBSERVER_TOKEN: &str = "observer-secret-1";
+pub const OPERATOR_TOKEN: &str = "operator-secret-2";
+pub const ADMIN_TOKEN: &str = "admin-secret-3";
+
+/// The simulated bus with a fault switch.
+pub struct FaultBus {
+    inner: sim::SimBus,
+    pub fault: Arc<AtomicBool>,
+}
+
+impl DriveBus for FaultBus {
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+    fn axes(&self) -> usize {
+        self.inner.axes()
+    }
+    fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
+        let r = self.inner.cycle(cmd, fb);
+        if self.fault.load(Ordering::Relaxed) {
+            return Err(BusFault {
+                axis: Some(0),
+                node: Some(1),
+                reason: FaultReason::DriveFault { code: 0x2310 },
+            });
+        }
+        r
+    }
+    fn enable(&mut self) {
+        self.inner.enable()
+    }
+    fn reset(&mut self) {
+        self.fault.store(false, Ordering::Relaxed);
+        self.inner.reset()
+    }
+}
+
+pub struct Daemon {
+    pub ctl: Arc<Controller>,
+    /// Loopback, local trust.
+    pub local: String,
+    /// Loopback served as a remote listener: TLS and a token required.
+    pub remote: String,
+    /// Unix socket path.
+    pub unix: std::path::PathBuf,
+    pub fault: Arc<AtomicBool>,
+    pub ca_pem: String,
+}
+
+/// The test configuration with the three tokens.
+pub fn config(local_role: Role) -> Config {
+    let mut cfg = tests::test_config();
+    cfg.api.local_role = local_role;
+    cfg.api.tokens = [
+        ("hmi-view", Role::Observer, OBSERVER_TOKEN),
+        ("hmi-op", Role::Operator, OPERATOR_TOKEN),
+        ("setter", Role::Admin, ADMIN_TOKEN),
+    ]
+    .into_iter()
+    .map(|(n, r, t)| TokenConfig {
+        name: n.into(),
+        role: r,
+        sha256: daemon::runtime::api::auth::hash_token_hex(t),
+    })
+    .collect();
+    cfg
+}
+
+pub async fn start(cfg: Config) -> Daemon {
+    let fault = Arc::new(AtomicBool::new(false));
+    let bus = FaultBus {
+        inner: sim::SimBus::new(sim::SimDriveParams::default(), &vec![0.0; cfg.axes.len()]),
+        fault: fault.clone(),
+    };
+    let unix = cfg.storage.dir.join("cncd.sock");
+    let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
+    let local = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let remote = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let local_addr = local.local_addr().unwrap();
+    let remote_addr = remote.local_addr().unwrap();
+    let cert = rcgen::generate_simple_self_signed(vec!["localhost".to_string()]).unwrap();
+    let ca_pem = cert.cert.pem();
+    let tls = ServerTlsConfig::new().identity(tonic::transport::Identity::from_pem(
+        cert.cert.pem(),
+        cert.signing_key.serialize_pem(),
+    ));
+    let l = Listeners {
+        local_tcp: vec![local],
+        remote_tcp: vec![remote],
+        unix: Some(server::bind_unix(&unix, 0o660, None).unwrap()),
+    };
+    tokio::spawn(server::serve_listeners_with(
+        ctl.clone(),
+        l,
+        Some(tls),
+        std::future::pending(),
+    ));
+    wait_state(&ctl, MachineState::Idle, Duration::from_secs(10)).await;
+    Daemon {
+        ctl,
+        local: format!("http://{local_addr}"),
+        remote: format!("https://localhost:{}", remote_addr.port()),
+        unix,
+        fault,
+        ca_pem,
+    }
+}
+
+impl Daemon {
+    pub async fn channel(&self) -> Channel {
+        Channel::from_shared(self.local.clone())
+            .unwrap()
+            .connect()
+            .await
+            .unwrap()
+    }
+
+    pub async fn tls_channel(&self) -> Channel {
+        let tls = tonic::transport::ClientTlsConfig::new()
+            .ca_certificate(tonic::transport::Certificate::from_pem(&self.ca_pem))
+            .domain_name("localhost");
+        Channel::from_shared(self.remote.clone())
+            .unwrap()
+            .tls_config(tls)
+            .unwrap()
+            .connect()
+            .await
+            .unwrap()
+    }
+
+    pub async fn unix_channel(&self) -> Channel {
+        tonic::transport::Endpoint::from_shared(format!("unix:{}", self.unix.display()))
+            .unwrap()
+            .connect()
+            .await
+            .unwrap()
+    }
+}
+
+/// Adds `authorization: Bearer <token>` to a request.
+pub fn with_token<T>(msg: T, token: &str) -> tonic::Request<T> {
+    let mut r = tonic::Request::new(msg);
+    r.metadata_mut()
+        .insert("authorization", format!("Bearer {token}").parse().unwrap());
+    r
+}
+
+pub async fn wait_state(ctl: &Controller, state: MachineState, timeout: Duration) {
+    let t0 = Instant::now();
+    while ctl.snapshot().state != state {
+        assert!(
+            t0.elapsed() < timeout,
+            "state {:?} not reached: {:?}",
+            state,
+            ctl.snapshot().state
+        );
+        tokio::time::sleep(Duration::from_millis(2)).await;
+    }
+}
+
+pub async fn wait_until(what: &str, timeout: Duration, mut f: impl FnMut() -> bool) {
+    let t0 = Instant::now();
+    while !f() {
+        assert!(t0.elapsed() < timeout, "timed out waiting for {what}");
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+}
+
+pub async fn wait_job_finished(ctl: &Controller, job: u32, timeout: Duration) {
+    let t0 = Instant::now();
+    loop {
+        let s = ctl.snapshot();
+        if s.finished_job == job {
+            return;
+        }
+        assert_ne!(s.aborted_job, job, "job aborted: {s:?}");
+        assert!(
+            t0.elapsed() < timeout,
+            "job {job} did not finish: {:?}",
+            s.state
+        );
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+}
+
+/// Decodes the `Diagnostics` details of an INVALID_ARGUMENT status.
+pub fn diagnostics(s: &tonic::Status) -> Vec<pb::Diagnostic> {
+    use prost::Message;
+    pb::Diagnostics::decode(s.details()).unwrap().items
+}
