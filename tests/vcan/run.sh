@@ -74,7 +74,7 @@ OUT="$WORK/output.txt"
 # The guest (or this host) runs this script: create vcan0, run each binary, record exit codes.
 cat >"$WORK/suite.sh" <<EOF
 #!/bin/sh
-export CNC_REQUIRE_VCAN=1 RUST_BACKTRACE=1 TMPDIR="$WORK"
+export CNC_REQUIRE_VCAN=1 CNC_PREBUILT_BINS=1 RUST_BACKTRACE=1 TMPDIR="$WORK"
 ip link show vcan0 >/dev/null 2>&1 || {
     modprobe vcan 2>/dev/null
     ip link add dev vcan0 type vcan && ip link set up vcan0

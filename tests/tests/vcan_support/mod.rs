@@ -34,18 +34,35 @@ pub fn vcan_ready(test: &str) -> bool {
     false
 }
 
-/// Directory of the workspace binaries (`target/debug`), found from the test executable
-/// (`target/debug/deps/<test>`).
+/// Path of a workspace binary (`sim-can`, `sim-serial`, `cncd`, `cncctl`) of this build,
+/// found from the test executable (`target/<profile>/deps/<test>`). It is built (or brought up
+/// to date) with cargo once per test process, as the tests package cannot name another
+/// package's binary; `CNC_PREBUILT_BINS=1` (set by tests/vcan/run.sh, whose VM has no cargo
+/// and a read-only tree) uses what is there.
 pub fn bin(name: &str) -> PathBuf {
+    static BUILT: Mutex<Vec<String>> = Mutex::new(Vec::new());
     let exe = std::env::current_exe().expect("test executable path");
     let dir = exe.parent().and_then(|d| d.parent()).expect("target dir");
     let p = dir.join(name);
-    assert!(
-        p.exists(),
-        "{} is not built: run `cargo build -p sim -p daemon --bins` first \
-         (cargo test --workspace builds them)",
-        p.display()
-    );
+    let prebuilt = std::env::var("CNC_PREBUILT_BINS").is_ok_and(|v| v == "1");
+    let mut built = BUILT.lock().unwrap_or_else(|e| e.into_inner());
+    if !prebuilt && !built.iter().any(|b| b == name) {
+        let package = if name.starts_with("sim-") {
+            "sim"
+        } else {
+            "daemon"
+        };
+        let mut cmd = Command::new(env!("CARGO"));
+        cmd.args(["build", "--quiet", "-p", package, "--bin", name])
+            .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
+        if dir.file_name().is_some_and(|n| n == "release") {
+            cmd.arg("--release");
+        }
+        let ok = cmd.status().is_ok_and(|s| s.success());
+        assert!(ok, "cargo build of {name} failed");
+        built.push(name.to_owned());
+    }
+    assert!(p.exists(), "{} is not built", p.display());
     p
 }
 
