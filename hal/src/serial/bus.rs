@@ -84,6 +84,35 @@ pub struct SerialBus {
     rx: [u8; 256],
 }
 
+enum Ready {
+    Nothing,
+    Data,
+    HungUp,
+}
+
+/// Whether the port has bytes (or an end-of-file) to read, without waiting.
+fn readiness(port: &TTYPort) -> Ready {
+    use std::os::fd::AsRawFd;
+    let mut fd = libc::pollfd {
+        fd: port.as_raw_fd(),
+        events: libc::POLLIN,
+        revents: 0,
+    };
+    // SAFETY: one valid pollfd, zero timeout.
+    let n = unsafe { libc::poll(&mut fd, 1, 0) };
+    if n < 0 {
+        // EINTR: try again next tick.
+        return Ready::Nothing;
+    }
+    if fd.revents & libc::POLLIN != 0 {
+        Ready::Data
+    } else if fd.revents & (libc::POLLHUP | libc::POLLERR | libc::POLLNVAL) != 0 {
+        Ready::HungUp
+    } else {
+        Ready::Nothing
+    }
+}
+
 fn open_port(cfg: &SerialConfig) -> Result<TTYPort, String> {
     serialport::new(&cfg.path, cfg.baud)
         .timeout(Duration::ZERO)
@@ -145,6 +174,16 @@ impl SerialBus {
             let Some(port) = self.port.as_mut() else {
                 return;
             };
+            // Poll first: serialport reports "nothing to read" as an allocated error, which
+            // `cycle` must not cause every tick.
+            match readiness(port) {
+                Ready::Nothing => return,
+                Ready::HungUp => {
+                    self.link_down();
+                    return;
+                }
+                Ready::Data => {}
+            }
             let n = match port.read(&mut self.rx) {
                 Ok(0) => {
                     // Readable but end of file: the other side hung up.

@@ -1,0 +1,193 @@
+//! `DriveBus::cycle` of the CAN master and of the serial bus must not allocate: the
+//! real-time thread calls it. A counting allocator counts this thread's allocations during
+//! operational ticks, including fault and reset paths.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use hal::canopen::{CanOpenConfig, CanOpenMaster, CanPort, Frame, NodeConfig, PortError, RxEvent};
+use hal::serial::{SerialAxis, SerialBus, SerialConfig};
+use hal::{CycleCommand, CycleFeedback, DriveBus, DriveState};
+use sim::SimDriveParams;
+use sim::can_node::CanNode;
+use sim::cia402_drive::Cia402Drive;
+
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|c| c.set(c.get() + 1));
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+fn allocations() -> u64 {
+    ALLOCATIONS.with(Cell::get)
+}
+
+/// In-memory bus with every buffer allocated up front.
+struct Net {
+    nodes: Vec<CanNode>,
+    now_ms: u64,
+    out: Vec<Frame>,
+    to_master: VecDeque<Frame>,
+}
+
+impl CanPort for Net {
+    fn send(&mut self, f: &Frame) -> Result<(), PortError> {
+        for n in &mut self.nodes {
+            n.handle(f, self.now_ms, &mut self.out);
+        }
+        self.to_master.extend(self.out.drain(..));
+        Ok(())
+    }
+    fn try_recv(&mut self) -> Result<Option<RxEvent>, PortError> {
+        Ok(self.to_master.pop_front().map(RxEvent::Frame))
+    }
+}
+
+#[test]
+fn can_master_cycle_does_not_allocate() {
+    let nodes = (1..=3)
+        .map(|id| CanNode::new(id, Cia402Drive::new(SimDriveParams::default(), 1000.0, 0.0)))
+        .collect();
+    let net = Net {
+        nodes,
+        now_ms: 0,
+        out: Vec::with_capacity(256),
+        to_master: VecDeque::with_capacity(1024),
+    };
+    let cfg = CanOpenConfig::new(
+        (1..=3)
+            .map(|node_id| NodeConfig {
+                node_id,
+                increments_per_mm: 1000.0,
+                following_window_increments: Some(10_000),
+            })
+            .collect(),
+    );
+    let mut m = CanOpenMaster::new(net, "mem", cfg).unwrap();
+    let mut cmd = CycleCommand::default();
+    let mut fb = CycleFeedback::default();
+    let tick = |m: &mut CanOpenMaster<Net>, cmd: &CycleCommand, fb: &mut CycleFeedback| {
+        let net = m.port_mut();
+        net.now_ms += 4;
+        for n in &mut net.nodes {
+            n.poll(net.now_ms, &mut net.out);
+        }
+        net.to_master.extend(net.out.drain(..));
+        m.cycle(cmd, fb)
+    };
+    let before = allocations();
+    m.enable();
+    for _ in 0..200 {
+        tick(&mut m, &cmd, &mut fb).unwrap();
+    }
+    assert!(
+        fb.axes[..3]
+            .iter()
+            .all(|a| a.state == DriveState::Operational)
+    );
+    for i in 0..500 {
+        cmd.positions_mm[0] = f64::from(i) * 0.05;
+        tick(&mut m, &cmd, &mut fb).unwrap();
+    }
+    // A fault and its reset (drive restart through NMT, SDO, enable) allocate nothing either.
+    m.port_mut().nodes[1].inject.drop_heartbeat = true;
+    let mut faulted = false;
+    for _ in 0..300 {
+        faulted |= tick(&mut m, &cmd, &mut fb).is_err();
+    }
+    assert!(faulted);
+    m.port_mut().nodes[1].inject.drop_heartbeat = false;
+    m.reset();
+    for _ in 0..200 {
+        let _ = tick(&mut m, &cmd, &mut fb);
+    }
+    assert!(
+        fb.axes[..3]
+            .iter()
+            .all(|a| a.state == DriveState::Operational)
+    );
+    assert_eq!(
+        allocations() - before,
+        0,
+        "allocations in cycle/enable/reset"
+    );
+}
+
+#[test]
+fn serial_bus_cycle_does_not_allocate() {
+    use serialport::{SerialPort, TTYPort};
+    use sim::serial_drive::SerialDriveUnit;
+    use std::io::{Read, Write};
+
+    let (mut master, slave) = TTYPort::pair().unwrap();
+    master.set_timeout(Duration::from_millis(1)).unwrap();
+    let path = slave.name().unwrap();
+    // The drive unit answers on another thread (its allocations are not counted).
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let stop_drive = stop.clone();
+    let drive = std::thread::spawn(move || {
+        let _keep = slave;
+        let drives = (0..2)
+            .map(|_| Cia402Drive::new(SimDriveParams::default(), 1000.0, 0.0))
+            .collect();
+        let mut unit = SerialDriveUnit::new(drives);
+        let mut buf = [0u8; 512];
+        let mut out = Vec::new();
+        let mut ms = 0;
+        while !stop_drive.load(std::sync::atomic::Ordering::Relaxed) {
+            if let Ok(n) = master.read(&mut buf) {
+                ms += 4;
+                unit.on_bytes(&buf[..n], ms, &mut out);
+                master.write_all(&out).unwrap();
+                out.clear();
+            }
+        }
+    });
+    let mut cfg = SerialConfig::new(
+        &path,
+        (1..=2)
+            .map(|node_id| SerialAxis {
+                node_id,
+                increments_per_mm: 1000.0,
+            })
+            .collect(),
+    );
+    // Generous: this test is about allocations, not timing on a loaded machine.
+    cfg.reply_timeout_ticks = 250;
+    let mut bus = SerialBus::open(cfg).unwrap();
+    let mut cmd = CycleCommand::default();
+    let mut fb = CycleFeedback::default();
+    let before = allocations();
+    bus.enable();
+    for i in 0..400 {
+        std::thread::sleep(Duration::from_millis(2));
+        if fb.axes[0].state == DriveState::Operational {
+            cmd.positions_mm[0] = f64::from(i) * 0.01;
+        }
+        bus.cycle(&cmd, &mut fb).unwrap();
+    }
+    let during = allocations() - before;
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    drive.join().unwrap();
+    assert_eq!(fb.axes[0].state, DriveState::Operational);
+    assert_eq!(during, 0, "allocations in the serial cycle");
+}
