@@ -48,7 +48,7 @@ install_missing
 log "building simulator, daemon and test binaries"
 cargo build --locked -q -p sim -p daemon --bins
 mapfile -t TESTS < <(
-    cargo test --locked -q -p tests --no-run --message-format=json 2>/dev/null |
+    cargo test --locked -q -p tests --no-run --message-format=json |
         python3 -c '
 import json, sys, os
 for line in sys.stdin:

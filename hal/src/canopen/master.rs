@@ -1010,6 +1010,34 @@ mod tests {
     }
 
     #[test]
+    fn error_frames_fault_only_beyond_the_limit() {
+        let mut m = master(&[3]);
+        operational(&mut m);
+        let burst = |m: &mut CanOpenMaster<FakePort>, n: usize| {
+            for _ in 0..n {
+                m.port.rx.push_back(RxEvent::Error {
+                    class: err_class::PROTOCOL,
+                    data: [0; 8],
+                });
+            }
+        };
+        // 20 error frames are tolerated, and forgiven one per 10 ticks.
+        burst(&mut m, 20);
+        tpdo(&mut m, PowerState::OperationEnabled, 0, 2500);
+        assert!(step(&mut m).1.is_ok());
+        for _ in 0..20 {
+            tpdo(&mut m, PowerState::OperationEnabled, 0, 2500);
+            assert!(step(&mut m).1.is_ok());
+        }
+        burst(&mut m, 2);
+        tpdo(&mut m, PowerState::OperationEnabled, 0, 2500);
+        assert!(step(&mut m).1.is_ok(), "two were forgiven meanwhile");
+        burst(&mut m, 10);
+        let e = step(&mut m).1.unwrap_err();
+        assert_eq!((e.axis, e.reason), (None, FaultReason::ErrorFrames));
+    }
+
+    #[test]
     fn sdo_abort_and_silence_are_reported_with_the_object() {
         let mut m = master(&[3]);
         m.enable();

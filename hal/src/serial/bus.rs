@@ -42,7 +42,7 @@ impl SerialConfig {
     pub fn new(path: &str, axes: Vec<SerialAxis>) -> SerialConfig {
         SerialConfig {
             path: path.to_owned(),
-            baud: 115_200,
+            baud: 460_800,
             axes,
             reply_timeout_ticks: 25,
             enable_timeout_ticks: 500,
