@@ -511,7 +511,11 @@ async fn offsets_read_edit_replace_reload_and_g92_marking() {
         .unwrap()
         .into_inner();
     assert_eq!(t.entries.len(), 99);
-    assert_eq!(t.labels, ["R", "X", "Y", "Z", "4"], "3-axis mill: ordinal 4 has no axis");
+    assert_eq!(
+        t.labels,
+        ["R", "X", "Y", "Z", "4"],
+        "3-axis mill: ordinal 4 has no axis"
+    );
 
     // Operator edit: file and memory.
     let e = o
@@ -555,7 +559,7 @@ async fn offsets_read_edit_replace_reload_and_g92_marking() {
             ..Default::default()
         },
     ] {
-        let e = o.set_offset(bad.clone()).await.unwrap_err();
+        let e = o.set_offset(bad).await.unwrap_err();
         assert_eq!(e.code(), Code::InvalidArgument, "{bad:?}");
     }
 
@@ -690,10 +694,8 @@ async fn plc_cells_by_name_and_address_with_units() {
         .unwrap()
         .into_inner();
     assert_eq!(w.name, "AKRR_V");
-    wait_until("PLC write in force", Duration::from_secs(2), || {
-        d.ctl.snapshot().plc.dynam_set() == 3
-    })
-    .await;
+    // WriteCell returns once the RT thread has the value: in force from that tick on.
+    assert_eq!(d.ctl.snapshot().plc.dynam_set(), 3);
     let r = p
         .read_cells(pb::ReadCellsRequest {
             cells: vec![

@@ -1007,10 +1007,13 @@ fn preview_local(
     j: bool,
 ) -> Result<ExitCode, String> {
     let (_, text) = read_text(file)?;
-    let mut opts = preview::PreviewOptions::default();
-    opts.plane =
+    let plane =
         preview::ViewPlane::parse(plane).ok_or(format!("plane {plane}: use xy, xz or yz"))?;
-    opts.page = page.max(1);
+    let opts = preview::PreviewOptions {
+        plane,
+        page: page.max(1),
+        ..Default::default()
+    };
     let png = out
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("png"));

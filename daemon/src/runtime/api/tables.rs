@@ -221,6 +221,14 @@ impl Plc for PlcSvc {
         let w = PlcWrite::new(info.address, r.value)
             .map_err(|e| Status::invalid_argument(e.to_string()))?;
         self.0.ctl.plc_write(w).map_err(status_of)?;
+        // Read-your-write: reply once the RT thread has taken the write (next tick), so a
+        // ReadCells right after this call sees the value.
+        let t0 = std::time::Instant::now();
+        while self.0.ctl.snapshot().plc.latest(info.id) != w.value()
+            && t0.elapsed() < std::time::Duration::from_millis(200)
+        {
+            tokio::time::sleep(std::time::Duration::from_millis(1)).await;
+        }
         Ok(Response::new(cell_pb(info, w.value())))
     }
 }
