@@ -22,6 +22,7 @@ use super::buses::open_bus;
 use super::clock::{Clock, MonotonicClock, VirtualClock};
 use super::config::Config;
 use super::job::{self, JobLink, JobSpec};
+use super::pipeline;
 use super::rt::{self, MachineState, RtCommand, RtParts, Snapshot};
 use super::storage::{self, OffsetStore, StorageError};
 
@@ -37,12 +38,26 @@ pub enum ClockKind {
     Virtual,
 }
 
-/// A program that passed validation.
+/// A program that passed validation. Only its text is kept: blocks are streamed again when it
+/// runs (a 1,000,000-block program needs no memory for its blocks).
 pub struct LoadedProgram {
     pub name: String,
-    pub text: String,
-    pub blocks: Arc<Vec<Block>>,
+    pub text: Arc<str>,
+    /// Number of blocks.
+    pub block_count: u32,
     pub warnings: Vec<Diagnostic>,
+    /// Where the axes were when it was validated: it runs from there.
+    pub start: AxesMm,
+    /// What it was interpreted with.
+    pub setup: Setup,
+}
+
+impl LoadedProgram {
+    /// The program's canonical blocks, interpreted again (for previews and diagnostics; costs
+    /// memory in proportion to the program).
+    pub fn blocks(&self) -> Vec<Block> {
+        program::compile(&self.text, &self.setup).blocks
+    }
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -77,6 +92,8 @@ pub struct Controller {
     constants: Mutex<(Constants, bool)>,
     /// TAB0.KOR: file and memory table (SPEC §3).
     offsets: Arc<Mutex<OffsetStore>>,
+    /// Blocks of the running job near the executing one.
+    recent: Arc<Mutex<pipeline::RecentBlocks>>,
 }
 
 struct Run {
@@ -163,6 +180,7 @@ impl Controller {
             alarm: Arc::new(Mutex::new(None)),
             constants: Mutex::new(constants),
             offsets: Arc::new(Mutex::new(offsets)),
+            recent: Arc::default(),
         }))
     }
 
@@ -200,17 +218,22 @@ impl Controller {
         setup
     }
 
+    /// Validates `text` through the whole kernel pipeline (interpretation, compensation,
+    /// planning) and makes it the selected program. Nothing moves; on error the previously
+    /// selected program stays selected.
     pub fn load_program(&self, name: &str, text: &str) -> Result<Arc<LoadedProgram>, ControlError> {
         let setup = self.setup();
-        let compiled = program::compile(text, &setup);
-        if compiled.has_errors() {
-            return Err(ControlError::InvalidProgram(compiled.diagnostics));
+        let v = pipeline::validate(text, &setup, self.comp_config(), self.planner_config());
+        if v.has_errors() {
+            return Err(ControlError::InvalidProgram(v.diagnostics));
         }
         let loaded = Arc::new(LoadedProgram {
             name: name.to_owned(),
-            text: text.to_owned(),
-            blocks: Arc::new(compiled.blocks),
-            warnings: compiled.diagnostics,
+            text: Arc::from(text),
+            block_count: v.blocks,
+            warnings: v.diagnostics,
+            start: setup.start,
+            setup,
         });
         let running = matches!(
             self.snapshot().state,
@@ -223,6 +246,10 @@ impl Controller {
         }
         *self.program.lock().unwrap() = Some(loaded.clone());
         Ok(loaded)
+    }
+
+    fn comp_config(&self) -> CompConfig {
+        CompConfig::from_constants(&self.constants.lock().unwrap().0)
     }
 
     fn send(&self, cmd: RtCommand) -> Result<(), ControlError> {
@@ -246,24 +273,39 @@ impl Controller {
                 snap.state
             )));
         }
-        // Interpret again from where the axes are now (they may have moved since loading) and
-        // with the offsets in force now.
-        let setup = self.setup();
-        let compiled = program::compile(&program.text, &setup);
-        if compiled.has_errors() {
-            return Err(ControlError::InvalidProgram(compiled.diagnostics));
+        // The program was validated from where the axes were then; it runs from there.
+        let here = snap.commanded;
+        if (0..self.config.axes.len()).any(|i| (program.start[i] - here[i]).abs() > 1e-9) {
+            return Err(ControlError::WrongState(
+                "the axes moved since the program was loaded: load it again".into(),
+            ));
         }
+        let spec = JobSpec {
+            job: 0,
+            text: program.text.clone(),
+            setup: self.setup(),
+            planner: self.planner_config(),
+            comp: self.comp_config(),
+            offsets: self.offsets.clone(),
+            stop_at_blocks: false,
+            recent: self.recent.clone(),
+        };
+        self.spawn_job(&mut run, spec, &program.name, program.block_count)
+    }
+
+    /// Starts the planner thread of a new job and tells the RT thread to run it.
+    fn spawn_job(
+        &self,
+        run: &mut Option<Run>,
+        mut spec: JobSpec,
+        name: &str,
+        blocks: u32,
+    ) -> Result<u32, ControlError> {
         let job = self.next_job.fetch_add(1, Ordering::Relaxed);
+        spec.job = job;
         *self.alarm.lock().unwrap() = None;
         self.send(RtCommand::Start { job })?;
         let cancel = Arc::new(AtomicBool::new(false));
-        let spec = JobSpec {
-            job,
-            blocks: Arc::new(compiled.blocks),
-            planner: self.planner_config(),
-            comp: CompConfig::from_constants(&self.constants.lock().unwrap().0),
-            offsets: self.offsets.clone(),
-        };
         let link = self.link.clone();
         let c = cancel.clone();
         let alarm_slot = self.alarm.clone();
@@ -276,7 +318,7 @@ impl Controller {
                 }
             })
             .map_err(|e| ControlError::WrongState(format!("cannot start the planner: {e}")))?;
-        tracing::info!(job, program = %program.name, blocks = program.blocks.len(), "program started");
+        tracing::info!(job, program = %name, blocks, "job started");
         *run = Some(Run { cancel, thread });
         Ok(job)
     }
@@ -452,44 +494,43 @@ impl Controller {
                 snap.state
             )));
         }
-        let compiled = program::compile(text, &self.setup());
-        if compiled.has_errors() {
-            return Err(ControlError::InvalidProgram(compiled.diagnostics));
+        let setup = self.setup();
+        let (comp, planner) = self.run_configs();
+        let v = pipeline::validate(text, &setup, comp, planner.clone());
+        if v.has_errors() {
+            return Err(ControlError::InvalidProgram(v.diagnostics));
         }
-        let mut blocks = compiled.blocks;
+        let mut blocks = program::compile(text, &setup).blocks;
         if stop_at_blocks {
             for b in &mut blocks {
                 b.continuity = kernel::block::Continuity::G98;
             }
         }
-        let blocks = Arc::new(blocks);
-        let job = self.next_job.fetch_add(1, Ordering::Relaxed);
-        *self.alarm.lock().unwrap() = None;
-        self.send(RtCommand::Start { job })?;
-        let cancel = Arc::new(AtomicBool::new(false));
-        let (comp, planner) = self.run_configs();
         let spec = JobSpec {
-            job,
-            blocks: blocks.clone(),
+            job: 0,
+            text: Arc::from(text),
+            setup,
             planner,
             comp,
             offsets: self.offsets.clone(),
+            stop_at_blocks,
+            recent: self.recent.clone(),
         };
-        let link = self.link.clone();
-        let c = cancel.clone();
-        let alarm_slot = self.alarm.clone();
-        let thread = std::thread::Builder::new()
-            .name(format!("cnc-plan-{job}"))
-            .spawn(move || {
-                if let Err(d) = job::run(spec, &link, &c) {
-                    tracing::error!(job, block = ?d.block, line = d.line, "planning failed: {}", d.message);
-                    *alarm_slot.lock().unwrap() = Some(d.to_string());
-                }
-            })
-            .map_err(|e| ControlError::WrongState(format!("cannot start the planner: {e}")))?;
-        tracing::info!(job, program = %name, blocks = blocks.len(), "job started");
-        *run = Some(Run { cancel, thread });
-        Ok((job, blocks))
+        let job = self.spawn_job(&mut run, spec, name, v.blocks)?;
+        Ok((job, Arc::new(blocks)))
+    }
+
+    /// Block `seq` of `job` if the job is running (or just ran) and the block is near the
+    /// executing one: the modal state for status.
+    pub fn block_at(&self, job: u32, seq: u32) -> Option<Block> {
+        self.recent.lock().unwrap().get(job, seq)
+    }
+
+    /// Validates `text` through the whole pipeline against the machine as it is now, without
+    /// selecting or running it.
+    pub fn validate_text(&self, text: &str) -> pipeline::Validation {
+        let (comp, planner) = self.run_configs();
+        pipeline::validate(text, &self.setup(), comp, planner)
     }
 
     /// Brings the axes to rest and ends the RT thread (SIGTERM/SIGINT path). Blocking.

@@ -6,6 +6,7 @@ pub mod config;
 pub mod controller;
 pub mod job;
 pub mod logging;
+pub mod pipeline;
 pub mod rt;
 pub mod server;
 pub mod stats;

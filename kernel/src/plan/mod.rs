@@ -349,7 +349,9 @@ impl Planner {
         }
         let full = self.win.len() - self.emitted >= self.cfg.lookahead_blocks.max(2);
         let i = self.emitted;
-        if i >= self.finalized {
+        // Only junctions the backward pass has already seen: an end speed emitted before it
+        // could still have to come down to brake for a later block.
+        if i >= self.finalized - self.pending_backward {
             return None;
         }
         let p = &self.win[i];

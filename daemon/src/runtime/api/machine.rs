@@ -41,7 +41,7 @@ impl MachineSvc {
         })
         .await??;
         Ok(pb::LoadProgramReply {
-            blocks: loaded.blocks.len() as u32,
+            blocks: loaded.block_count,
             diagnostics: loaded.warnings.iter().map(diagnostic_to_pb).collect(),
         })
     }
@@ -61,12 +61,12 @@ impl MachineSvc {
 /// Junction class per block index (planning the whole program once); empty for very large
 /// programs or when planning fails (status then says UNSPECIFIED).
 fn classify(st: &ApiState, p: &LoadedProgram) -> Vec<pb::JunctionClass> {
-    if p.blocks.len() > JUNCTION_CLASSIFY_MAX_BLOCKS {
+    if p.block_count as usize > JUNCTION_CLASSIFY_MAX_BLOCKS {
         return Vec::new();
     }
-    match super::preview::junctions(&st.ctl, &p.blocks) {
+    match super::preview::junctions(&st.ctl, &p.blocks()) {
         Ok(js) => {
-            let mut v = vec![pb::JunctionClass::Unspecified; p.blocks.len()];
+            let mut v = vec![pb::JunctionClass::Unspecified; p.block_count as usize];
             for j in js {
                 if let Some(slot) = v.get_mut(j.seq as usize) {
                     *slot = j.class();

@@ -153,7 +153,7 @@ impl ApiState {
         drop(run);
         let total = match (&run_blocks, &program) {
             (Some(b), _) => b.len() as u32,
-            (None, Some(p)) => p.blocks.len() as u32,
+            (None, Some(p)) => p.block_count,
             _ => 0,
         };
         let running = matches!(
@@ -179,7 +179,7 @@ impl ApiState {
         let alarm = alarm_text(ctl, s).unwrap_or_default();
         let block: Option<Block> = match (&run_blocks, &program) {
             (Some(b), _) => b.get(s.block_seq as usize).copied(),
-            (None, Some(p)) if s.job != 0 => p.blocks.get(s.block_seq as usize).copied(),
+            (None, Some(_)) if s.job != 0 => ctl.block_at(s.job, s.block_seq),
             _ => None,
         };
         let junction = match (&run_blocks, &program) {

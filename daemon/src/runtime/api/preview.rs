@@ -102,7 +102,7 @@ pub fn preview_data(
         let p = ctl.program().ok_or_else(|| {
             Status::failed_precondition("no program is selected and no text was given")
         })?;
-        (p.blocks.to_vec(), p.warnings.clone())
+        (p.blocks(), p.warnings.clone())
     } else {
         let c = ctl.compile_text(text);
         if c.has_errors() {
