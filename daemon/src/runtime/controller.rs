@@ -273,12 +273,14 @@ impl Controller {
                 snap.state
             )));
         }
-        // The program was validated from where the axes were then; it runs from there.
+        // Validated from where the axes were at loading; if they moved since (MDI, another
+        // job), validate again from here so the run cannot fail half-way.
         let here = snap.commanded;
         if (0..self.config.axes.len()).any(|i| (program.start[i] - here[i]).abs() > 1e-9) {
-            return Err(ControlError::WrongState(
-                "the axes moved since the program was loaded: load it again".into(),
-            ));
+            let v = self.validate_text(&program.text);
+            if v.has_errors() {
+                return Err(ControlError::InvalidProgram(v.diagnostics));
+            }
         }
         let spec = JobSpec {
             job: 0,

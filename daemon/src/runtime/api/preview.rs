@@ -176,7 +176,7 @@ pub fn render_preview(
                 Status::failed_precondition("no program is selected and no text was given")
             })?
             .text
-            .clone()
+            .to_string()
     } else {
         r.text.clone()
     };
