@@ -21,6 +21,10 @@ fn cncd() -> &'static Path {
         let mut cmd = Command::new(env!("CARGO"));
         cmd.args(["build", "--quiet", "-p", "daemon", "--bin", "cncd"])
             .current_dir(repo());
+        // The same target directory however the outer run chose it (env or --target-dir).
+        if let Some(target) = profile_dir.parent() {
+            cmd.arg("--target-dir").arg(target);
+        }
         if profile_dir.file_name().is_some_and(|n| n == "release") {
             cmd.arg("--release");
         }

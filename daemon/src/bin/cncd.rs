@@ -16,7 +16,7 @@ use std::time::Duration;
 use clap::Parser;
 use daemon::runtime::config::Config;
 use daemon::runtime::controller::{ClockKind, Controller};
-use daemon::runtime::logging::{self, LogTarget};
+use daemon::runtime::logging::{self, BlockNo, LogTarget};
 use daemon::runtime::server;
 use daemon::runtime::systemd::{self, Notifier, NotifyState};
 
@@ -124,22 +124,44 @@ async fn run(config: Config) -> Result<(), String> {
     };
     // Signal handlers first: a SIGTERM during start-up also brakes and exits cleanly.
     let mut signals = Signals::install()?;
+    // Every API listener is bound before READY=1 (sent once the drives are operational), so
+    // ready means reachable; a listener that cannot be bound ends the start with an error.
     let listen = config.api.listen;
     let listener = tokio::net::TcpListener::bind(listen)
         .await
-        .map_err(|e| format!("cannot listen on {listen}: {e}"))?;
+        .map_err(|e| format!("api.listen: cannot listen on {listen}: {e}"))?;
     let local = listener.local_addr().map_err(|e| e.to_string())?;
+    let mut api_on = vec![local.to_string()];
+    if let Some(p) = config.api.unix_socket_path(&config.storage.dir) {
+        api_on.push(p.display().to_string());
+    }
+    let api_on = api_on.join(" and ");
     let names: String = config.axis_names().iter().collect();
     let bus = bus_label(&config);
     let axis_names = config.axis_names();
+    // The controller creates the storage directory, where the Unix socket may live.
     let ctl = Controller::start(config, ClockKind::Monotonic)?;
-    tracing::info!("cncd started: axes {names} on bus {bus}, gRPC API on {local}; enabling drives");
+    tracing::info!("cncd started: axes {names} on bus {bus}, API on {api_on}; enabling drives");
+    let cfg = ctl.config();
+    let mut listeners = match server::bind_extra(&cfg.api, &cfg.storage.dir).await {
+        Ok(l) => l,
+        Err(e) => {
+            let c = ctl.clone();
+            let _ = tokio::task::spawn_blocking(move || c.shutdown()).await;
+            return Err(e);
+        }
+    };
+    if local.ip().is_loopback() {
+        listeners.local_tcp.insert(0, listener);
+    } else {
+        listeners.remote_tcp.insert(0, listener);
+    }
     let supervision = systemd::supervise(
         ctl.subscribe(),
         notifier.clone(),
         systemd::watchdog_from_env(),
         axis_names,
-        format!("axes {names} on bus {bus}, API on {local}"),
+        format!("axes {names} on bus {bus}, API on {api_on}"),
     );
     let health = tokio::spawn(logging::rt_health(
         ctl.subscribe(),
@@ -147,10 +169,22 @@ async fn run(config: Config) -> Result<(), String> {
         Duration::from_secs(15 * 60),
     ));
     let (tx, rx) = tokio::sync::oneshot::channel::<()>();
-    let serve = tokio::spawn(server::serve_all(ctl.clone(), listener, async {
+    let mut serve = tokio::spawn(server::serve_listeners(ctl.clone(), listeners, async {
         let _ = rx.await;
     }));
-    signals.recv().await;
+    // Run until a signal, or until the API fails (then stop too: an unreachable controller
+    // must not look healthy to systemd).
+    let api_failure = tokio::select! {
+        _ = signals.recv() => None,
+        r = &mut serve => Some(match r {
+            Ok(Ok(())) => "the API stopped".to_owned(),
+            Ok(Err(e)) => format!("API: {e}"),
+            Err(e) => format!("API task: {e}"),
+        }),
+    };
+    if let Some(e) = &api_failure {
+        tracing::error!("{e}");
+    }
     tracing::info!("shutting down: bringing the axes to rest");
     if let Some(n) = &notifier {
         n.send(&[
@@ -169,16 +203,21 @@ async fn run(config: Config) -> Result<(), String> {
     for (i, name) in ctl.config().axis_names().iter().enumerate().take(s.axes) {
         tracing::info!(
             axis = %name,
-            block = ?s.block_n,
+            block = %BlockNo(s.block_n),
             line = s.line,
             position_mm = s.commanded[i],
             "axis at rest"
         );
     }
     let _ = tx.send(());
-    let _ = serve.await;
+    if api_failure.is_none() {
+        let _ = serve.await;
+    }
     tracing::info!("cncd stopped");
-    Ok(())
+    match api_failure {
+        None => Ok(()),
+        Some(_) => Err("stopped after the API failure above".into()),
+    }
 }
 
 /// SIGTERM (systemd stop) and SIGINT (Ctrl-C).

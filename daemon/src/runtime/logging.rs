@@ -22,6 +22,20 @@ use tracing_subscriber::util::SubscriberInitExt;
 
 use super::rt::Snapshot;
 
+/// A block number as a log field: `10` for `N10`, `-` for a block without number or no block.
+/// Plain, so the journal can be filtered with `CNC_BLOCK=10` (`?Option` would log `Some(10)`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BlockNo(pub Option<u32>);
+
+impl std::fmt::Display for BlockNo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.0 {
+            Some(n) => write!(f, "{n}"),
+            None => f.write_str("-"),
+        }
+    }
+}
+
 /// Where logs go.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum LogTarget {
@@ -125,7 +139,7 @@ pub async fn rt_health(
                 lateness_max_us = t.lateness_max_us,
                 state = ?s.state,
                 job = s.job,
-                block = ?s.block_n,
+                block = %BlockNo(s.block_n),
                 line = s.line,
                 "real-time deadlines missed"
             );

@@ -33,6 +33,7 @@ pub use sd_notify::NotifyState;
 use tokio::sync::watch;
 use tokio::task::JoinHandle;
 
+use super::logging::BlockNo;
 use super::rt::{MachineState, Snapshot};
 
 /// A watchdog ping needs at least this fraction of the ticks the elapsed time allows (half: a
@@ -171,7 +172,7 @@ pub async fn wait_operational(
                 tracing::error!(
                     axis,
                     node,
-                    block = ?s.block_n,
+                    block = %BlockNo(s.block_n),
                     line = s.line,
                     "drives not operational at start-up: {reason}; not reporting ready \
                      (reset through the API, or systemd's start timeout restarts the service)"
@@ -220,7 +221,7 @@ pub async fn watchdog(
                     stalled = false;
                     tracing::warn!(
                         ticks,
-                        block = ?s.block_n,
+                        block = %BlockNo(s.block_n),
                         line = s.line,
                         "real-time thread ticking again: watchdog pings resume"
                     );
@@ -236,7 +237,7 @@ pub async fn watchdog(
                         expected,
                         state = ?s.state,
                         job = s.job,
-                        block = ?s.block_n,
+                        block = %BlockNo(s.block_n),
                         line = s.line,
                         "real-time thread stalled: {ticks} ticks where {expected} were due; \
                          withholding the watchdog ping"
@@ -299,7 +300,7 @@ pub fn supervise(
         let Some(s) = wait_operational(status, &axis_names, notifier.as_deref()).await else {
             return false;
         };
-        tracing::info!(block = ?s.block_n, line = s.line, "drives operational: {ready_status}");
+        tracing::info!(block = %BlockNo(s.block_n), line = s.line, "drives operational: {ready_status}");
         if let Some(n) = &notifier {
             n.send(&[NotifyState::Ready, NotifyState::Status(&ready_status)]);
         }
