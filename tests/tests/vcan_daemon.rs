@@ -58,7 +58,7 @@ fn daemon_runs_a_program_on_vcan_and_recovers_from_a_killed_drive() {
     let prog = d.program("part.nc", PROGRAM);
     let (ok, out) = d.cncctl(&["run", "--quiet", &prog], Duration::from_secs(120));
     assert!(ok, "cncctl run failed: {out}");
-    let s = d.wait_state("idle", Duration::from_secs(5));
+    let s = d.wait_state("idle", Duration::from_secs(30));
     assert!(s.contains("X12.500 Y0.000 Z-5.000"), "{s}");
     std::thread::sleep(Duration::from_millis(500)); // let the drives settle and the log flush
     let log = std::fs::read_to_string(&record).unwrap();
@@ -81,19 +81,20 @@ fn daemon_runs_a_program_on_vcan_and_recovers_from_a_killed_drive() {
         );
     }
 
-    // A long move; the Y drive process dies on the way.
-    let long = d.program("long.nc", "N10 G1 X100 Y30 F1200\n");
+    // A long move (30 s); the Y drive process dies on the way. (Time limits here are wide:
+    // in the emulated VM one cncctl call can take seconds.)
+    let long = d.program("long.nc", "N10 G1 X300 Y30 F600\n");
     let mut run = std::process::Command::new(vcan_support::bin("cncctl"));
     run.args(["--addr", &d.addr, "run", "--quiet", &long]);
     let runner = std::thread::spawn(move || {
         vcan_support::run_with_timeout(&mut run, Duration::from_secs(120))
     });
-    d.wait_state("running", Duration::from_secs(10));
+    d.wait_state("running", Duration::from_secs(60));
     std::thread::sleep(Duration::from_millis(1500));
     y.kill();
     let (ok, out) = runner.join().unwrap();
     assert!(!ok, "cncctl run must fail on a fault: {out}");
-    let s = d.wait_state("fault", Duration::from_secs(5));
+    let s = d.wait_state("fault", Duration::from_secs(30));
     assert!(s.contains("axis Y, node 52"), "{s}");
     assert!(s.contains("no feedback from the drive"), "{s}");
     // Controlled stop: the commanded positions come to rest and stay there.
@@ -108,17 +109,17 @@ fn daemon_runs_a_program_on_vcan_and_recovers_from_a_killed_drive() {
     };
     assert_eq!(pos(&a), pos(&b), "axes at rest:\n{a}\n{b}");
     let x_stop: f64 = pos(&a).unwrap()[1..].parse().unwrap();
-    assert!(x_stop > 12.5 && x_stop < 100.0, "stopped on the way: {a}");
+    assert!(x_stop > 12.5 && x_stop < 300.0, "stopped on the way: {a}");
 
     // The drive comes back (where it was), reset clears the fault, a program runs again.
     let y_at = a.split_whitespace().find(|w| w.starts_with('Y')).unwrap()[1..].to_owned();
     let _y = sim_can(&[52], &["--start-mm", &y_at]);
-    let (ok, out) = d.cncctl(&["reset"], Duration::from_secs(10));
+    let (ok, out) = d.cncctl(&["reset"], Duration::from_secs(60));
     assert!(ok, "{out}");
-    d.wait_state("idle", Duration::from_secs(30));
+    d.wait_state("idle", Duration::from_secs(60));
     let back = d.program("back.nc", "N10 G1 X0 Y0 Z0 F3000\n");
     let (ok, out) = d.cncctl(&["run", "--quiet", &back], Duration::from_secs(120));
     assert!(ok, "run after reset failed: {out}");
-    let s = d.wait_state("idle", Duration::from_secs(5));
+    let s = d.wait_state("idle", Duration::from_secs(30));
     assert!(s.contains("X0.000 Y0.000 Z0.000"), "{s}");
 }

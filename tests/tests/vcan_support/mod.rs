@@ -248,7 +248,7 @@ impl Daemon {
             addr: format!("http://127.0.0.1:{port}"),
             dir,
         };
-        d.wait_state("idle", Duration::from_secs(30));
+        d.wait_state("idle", Duration::from_secs(90));
         d
     }
 
@@ -264,7 +264,7 @@ impl Daemon {
 
     /// One status line (`cncctl status`): state first, then block, positions, alarm.
     pub fn status(&self) -> String {
-        let (ok, out) = self.cncctl(&["status"], Duration::from_secs(10));
+        let (ok, out) = self.cncctl(&["status"], Duration::from_secs(60));
         if ok {
             out
         } else {
