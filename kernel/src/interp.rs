@@ -26,6 +26,7 @@
 //! A late tick of the real-time thread never makes a setpoint jump: one call is one Ts of
 //! trajectory, however late it comes.
 
+use crate::block::Spindle;
 use crate::plan::Segment;
 use crate::units::{AxesMm, TS_S};
 
@@ -68,6 +69,9 @@ pub struct TickOut {
     pub state: InterpState,
     /// The last segment of a program was completed in this tick.
     pub program_end: bool,
+    /// Spindle state and G0 flag of that segment (for constant cutting speed, SPEC §6).
+    pub spindle: Spindle,
+    pub rapid: bool,
 }
 
 pub struct Interpolator {
@@ -105,6 +109,8 @@ pub struct Interpolator {
     in_position: bool,
     last_seq: u32,
     last_n: Option<u32>,
+    last_spindle: Spindle,
+    last_rapid: bool,
     last_line: u32,
 }
 
@@ -136,6 +142,8 @@ impl Interpolator {
             in_position: true,
             last_seq: 0,
             last_n: None,
+            last_spindle: Spindle::default(),
+            last_rapid: false,
             last_line: 0,
         }
     }
@@ -321,6 +329,8 @@ impl Interpolator {
             line: self.last_line,
             state: self.state,
             program_end,
+            spindle: self.last_spindle,
+            rapid: self.last_rapid,
         }
     }
 
@@ -549,6 +559,8 @@ impl Interpolator {
                 self.last_seq = seg.seq;
                 self.last_n = seg.n;
                 self.last_line = seg.line;
+                self.last_spindle = seg.spindle_after.unwrap_or(seg.spindle);
+                self.last_rapid = seg.rapid;
                 program_end |= seg.last;
                 self.head = (self.head + 1) % self.buf.len();
                 self.len -= 1;
@@ -567,6 +579,8 @@ impl Interpolator {
             self.last_seq = seg.seq;
             self.last_n = seg.n;
             self.last_line = seg.line;
+            self.last_spindle = seg.spindle;
+            self.last_rapid = seg.rapid;
             break;
         }
         program_end

@@ -10,20 +10,33 @@ use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus};
 /// Every setpoint sent, one entry per tick (test code: a mutex on the RT thread is fine here).
 pub type Recording = Arc<Mutex<Vec<[f64; hal::MAX_AXES]>>>;
 
+/// Spindle speed setpoint of every tick, rpm.
+pub type SpindleRecording = Arc<Mutex<Vec<f64>>>;
+
 pub struct RecordingBus<B: DriveBus> {
     inner: B,
     pub record: Recording,
+    pub spindle: SpindleRecording,
 }
 
 impl<B: DriveBus> RecordingBus<B> {
     pub fn new(inner: B) -> (Self, Recording) {
+        let (bus, record, _) = Self::with_spindle(inner);
+        (bus, record)
+    }
+
+    /// Records the spindle speed setpoints too.
+    pub fn with_spindle(inner: B) -> (Self, Recording, SpindleRecording) {
         let record: Recording = Arc::default();
+        let spindle: SpindleRecording = Arc::default();
         (
             RecordingBus {
                 inner,
                 record: record.clone(),
+                spindle: spindle.clone(),
             },
             record,
+            spindle,
         )
     }
 }
@@ -37,6 +50,7 @@ impl<B: DriveBus> DriveBus for RecordingBus<B> {
     }
     fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
         self.record.lock().unwrap().push(cmd.positions_mm);
+        self.spindle.lock().unwrap().push(cmd.spindle_rpm);
         self.inner.cycle(cmd, fb)
     }
     fn enable(&mut self) {

@@ -86,3 +86,58 @@ fn readme_sample_program_runs() {
     assert_eq!(&s.commanded.0[..3], &[0.0, 0.0, 5.0]);
     ctl.shutdown();
 }
+
+/// Constant cutting speed on a simulated lathe (issue #7): facing from Ø300 to Ø50 under G96
+/// at 90 m/min, the spindle setpoint follows n = v/(π·d) every tick, clamped by G76; it reaches
+/// the drives through the bus; M5 stops it.
+#[test]
+fn lathe_facing_under_g96_follows_the_diameter() {
+    let mut cfg = tests::test_config();
+    cfg.axes = vec![
+        daemon::runtime::config::AxisConfig::new('X'),
+        daemon::runtime::config::AxisConfig::new('Z'),
+    ];
+    cfg.axes[0].home_mm = 300.0;
+    cfg.axes[1].home_mm = 100.0;
+    let sim = sim::SimBus::new(sim::SimDriveParams::default(), &[300.0, 100.0]);
+    let (bus, record, spindle) = RecordingBus::with_spindle(sim);
+    let ctl = Controller::start_with_bus(cfg, ClockKind::Virtual, Box::new(bus)).unwrap();
+    let text = "\
+N10 G0 X300 Z1 M41 M3 S500
+N15 G76 S400
+N20 G96 G1 X50 F2000 S900
+N30 G94 G0 X300 Z50 S500
+N40 M5
+";
+    record.lock().unwrap().clear();
+    spindle.lock().unwrap().clear();
+    run_to_end(&ctl, "facing.nc", text);
+    let points = record.lock().unwrap().clone();
+    let rpm = spindle.lock().unwrap().clone();
+    assert_eq!(points.len(), rpm.len());
+    let v_mm_min = 90_000.0; // S900 = 90 m/min (S in 0.1 m/min, SPEC §6)
+    let mut checked = 0;
+    let mut clamped = 0;
+    for (i, p) in points.iter().enumerate().skip(1) {
+        let facing = (p[1] - 1.0).abs() < 1e-9 && p[0] < 299.0 && p[0] > 50.0;
+        let moving = points[i - 1][0] != p[0];
+        if facing && moving {
+            let expect = (v_mm_min / (std::f64::consts::PI * p[0])).min(400.0);
+            assert!(
+                (rpm[i] - expect).abs() <= 1e-6 * expect,
+                "tick {i}: X{} spindle {} rpm, expected {expect}",
+                p[0],
+                rpm[i]
+            );
+            checked += 1;
+            clamped += usize::from(expect == 400.0);
+        }
+    }
+    assert!(checked > 100, "only {checked} facing ticks");
+    assert!(clamped > 10, "the G76 limit was never reached");
+    // M5 at the end stops the spindle.
+    assert_eq!(*rpm.last().unwrap(), 0.0);
+    let s = ctl.snapshot();
+    assert_eq!(s.spindle_rpm, 0.0);
+    ctl.shutdown();
+}

@@ -14,13 +14,14 @@ use kernel::program::{self, Setup};
 use kernel::units::{AxesMm, MAX_AXES};
 use tokio::sync::watch;
 
-use kernel::constants::Constants;
+use kernel::constants::{AXIS_CODES, Constants};
+use kernel::kr::{Gear, Kr, KrConfig, RadiusInput};
 use kernel::offsets::{OffsetTable, TableEdit};
 use kernel::plc::{PlcError, PlcWrite};
 
 use super::buses::open_bus;
 use super::clock::{Clock, MonotonicClock, VirtualClock};
-use super::config::Config;
+use super::config::{Config, RadiusInputConfig};
 use super::job::{self, JobLink, JobSpec};
 use super::pipeline;
 use super::rt::{self, MachineState, RtCommand, RtParts, Snapshot};
@@ -136,6 +137,8 @@ impl Controller {
             ClockKind::Monotonic => Box::new(MonotonicClock),
             ClockKind::Virtual => Box::new(VirtualClock::default()),
         };
+        let kr = Kr::new(kr_config(&config, &constants.0)?);
+        let in_position_mm = constants.0.get(6).abs().max(1e-6);
         let parts = RtParts {
             bus,
             clock,
@@ -145,6 +148,8 @@ impl Controller {
             planned_job: planned_job.clone(),
             axes,
             start,
+            kr,
+            in_position_mm,
         };
         let rt_cfg = config.rt.clone();
         let rt_thread = std::thread::Builder::new()
@@ -291,6 +296,7 @@ impl Controller {
             offsets: self.offsets.clone(),
             stop_at_blocks: false,
             recent: self.recent.clone(),
+            status: self.status.clone(),
         };
         self.spawn_job(&mut run, spec, &program.name, program.block_count)
     }
@@ -517,6 +523,7 @@ impl Controller {
             offsets: self.offsets.clone(),
             stop_at_blocks,
             recent: self.recent.clone(),
+            status: self.status.clone(),
         };
         let job = self.spawn_job(&mut run, spec, name, v.blocks)?;
         Ok((job, Arc::new(blocks)))
@@ -559,6 +566,25 @@ impl Drop for Controller {
     }
 }
 
+/// The KŘR configuration from the constants and the `[kr]` section.
+fn kr_config(config: &Config, c: &Constants) -> Result<KrConfig, String> {
+    let radius = match config.kr.radius_input {
+        RadiusInputConfig::Diameter => RadiusInput::Diameter,
+        RadiusInputConfig::Radius => RadiusInput::Radius,
+    };
+    let gears = config
+        .kr
+        .gears
+        .iter()
+        .map(|g| Gear {
+            max_rpm: g.max_rpm,
+            output_range: g.output_range,
+            m_code: g.m_code,
+        })
+        .collect();
+    KrConfig::from_constants(c, radius, gears).map_err(|e| format!("constant cutting speed: {e}"))
+}
+
 /// Creates the data directory and loads the constants and the offset table. A file that exists
 /// but does not parse stops the start-up: running with wrong offsets scraps parts.
 fn load_storage(config: &Config) -> Result<((Constants, bool), OffsetStore), String> {
@@ -566,13 +592,31 @@ fn load_storage(config: &Config) -> Result<((Constants, bool), OffsetStore), Str
     std::fs::create_dir_all(&st.dir)
         .map_err(|e| format!("storage.dir: cannot create {}: {e}", st.dir.display()))?;
     let cpath = st.constants_path();
+    let names = config.axis_names();
     let constants = if cpath.exists() {
-        (
-            storage::load_constants(&cpath).map_err(|e| e.to_string())?,
-            true,
-        )
+        let c = storage::load_constants(&cpath).map_err(|e| e.to_string())?;
+        // R0..R5 name the axes the programs use: they must be the configured ones.
+        let named = c.axis_names();
+        if named[..] != names[..] {
+            return Err(format!(
+                "{}: R0..R5 name the axes {} but the configuration has {}",
+                cpath.display(),
+                named.iter().collect::<String>(),
+                names.iter().collect::<String>()
+            ));
+        }
+        (c, true)
     } else {
-        (Constants::new(), false)
+        // Defaults, with the axes of the configuration in R0..R5.
+        let mut c = Constants::new();
+        for r in 0..6u16 {
+            let code = names
+                .get(r as usize)
+                .and_then(|n| AXIS_CODES.iter().position(|a| a == n))
+                .map_or(0.0, |k| (k + 1) as f64);
+            c.set(r, code);
+        }
+        (c, false)
     };
     let offsets = OffsetStore::load_or_empty(st.offsets_path(), &config.axis_names())
         .map_err(|e| e.to_string())?;

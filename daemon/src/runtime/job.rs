@@ -27,6 +27,8 @@ pub struct JobSpec {
     pub stop_at_blocks: bool,
     /// Where the streamed blocks are recorded for status.
     pub recent: Arc<Mutex<RecentBlocks>>,
+    /// The RT thread's snapshots: the PLC cell DYNAM_SET selects the dynamic set (SPEC §7.4).
+    pub status: tokio::sync::watch::Receiver<super::rt::Snapshot>,
 }
 
 /// Shared between the controller and the planner threads.

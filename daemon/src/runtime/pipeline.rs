@@ -4,7 +4,6 @@
 //! kept but a count), and by the planner thread of a run (segments to the RT thread). Memory
 //! stays bounded by the compensation and look-ahead windows whatever the program's length.
 
-
 use kernel::Diagnostic;
 use kernel::block::{Block, BlockKind, Continuity};
 use kernel::comp::{CompConfig, Compensator};
@@ -171,6 +170,8 @@ pub fn run(spec: &JobSpec, mut sink: impl FnMut(Segment) -> bool) -> Result<(), 
         }
         comp.push(&b)?;
         while let Some(cb) = comp.poll() {
+            // DYNAM_SET as the PLC has it now (cell 0..3 = set 1..4; acts after the look-ahead).
+            planner.set_dynam_set_cell(spec.status.borrow().plc.dynam_set() - 1);
             planner.push(&cb)?;
             if !drain(&mut planner) {
                 return Ok(());

@@ -11,6 +11,7 @@ use std::sync::atomic::{AtomicU32, Ordering};
 
 use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState};
 use kernel::interp::{InterpState, Interpolator};
+use kernel::kr::{ControllingAxis, Kr, KrFault, KrInput, KrOutput, Motion, ProgramSpindle};
 use kernel::plan::Segment;
 use kernel::plc::{PlcArea, PlcWrite};
 use kernel::units::{AxesMm, TS_NS};
@@ -85,6 +86,10 @@ pub struct Snapshot {
     pub plc: PlcArea,
     /// Single-block mode is on.
     pub single_block: bool,
+    /// Constant cutting speed (KŘR) output this tick (SPEC §6).
+    pub kr: KrOutput,
+    /// A KŘR fault stopped the machine (cleared by Reset).
+    pub kr_fault: Option<KrFault>,
 }
 
 /// Everything the RT thread owns.
@@ -98,6 +103,10 @@ pub struct RtParts {
     pub planned_job: Arc<AtomicU32>,
     pub axes: usize,
     pub start: AxesMm,
+    /// Constant cutting speed state machine (built from the constants at start-up).
+    pub kr: Kr,
+    /// Following error under which every axis counts as arrived, for G24 (R06-R07), mm.
+    pub in_position_mm: f64,
 }
 
 /// Ticks the drives get to become operational before it is a fault.
@@ -182,7 +191,12 @@ impl Rt {
         // PLC writes staged since the last tick take effect now.
         self.plc.begin_tick();
         self.feed_segments();
+        // G24 waits at a stop until every axis has caught up with its setpoint (SPEC §7.1).
+        let in_position = (0..self.p.axes)
+            .all(|i| (self.snap.commanded[i] - self.snap.actual[i]).abs() <= self.p.in_position_mm);
+        self.interp.set_in_position(in_position);
         let out = self.interp.tick();
+        self.spindle(&out);
         self.single_block_check(out.seq, out.path_v_mm_s);
         let axes = self.p.axes;
         self.cmd.positions_mm[..axes].copy_from_slice(&out.position.0[..axes]);
@@ -233,6 +247,8 @@ impl Rt {
                         && self.interp.state() == InterpState::Idle
                     {
                         self.snap.fault = None;
+                        self.snap.kr_fault = None;
+                        self.p.kr.reset();
                         self.p.bus.reset();
                         self.enable_ticks = 0;
                         self.snap.state = MachineState::Enabling;
@@ -248,6 +264,39 @@ impl Rt {
                     self.abort();
                 }
             }
+        }
+    }
+
+    /// Constant cutting speed and the spindle setpoint (SPEC §6): computed from the spindle
+    /// state of the block being executed and the commanded position of the controlling axis.
+    fn spindle(&mut self, out: &kernel::interp::TickOut) {
+        let motion = if out.path_v_mm_s <= 0.0 {
+            Motion::Stationary
+        } else if out.rapid {
+            Motion::Rapid
+        } else {
+            Motion::Feed
+        };
+        let axis = self.p.kr.config().controlling_axis;
+        let input = KrInput {
+            program: ProgramSpindle {
+                dir: out.spindle.dir,
+                css: out.spindle.css,
+                s_word: out.spindle.s,
+                limit_rpm: out.spindle.limit_rpm,
+                gear: out.spindle.gear,
+            },
+            motion,
+            axis: ControllingAxis::at(out.position[axis]),
+        };
+        let k = self.p.kr.tick(&input, &mut self.plc);
+        self.cmd.spindle_rpm = k.spindle_rpm;
+        self.snap.kr = k;
+        if let Some(f) = k.fault
+            && self.snap.kr_fault.is_none()
+        {
+            self.snap.kr_fault = Some(f);
+            self.abort();
         }
     }
 
@@ -313,7 +362,7 @@ impl Rt {
             }
             return;
         }
-        if s.fault.is_some() {
+        if s.fault.is_some() || s.kr_fault.is_some() {
             s.state = MachineState::Fault;
             return;
         }

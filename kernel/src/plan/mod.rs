@@ -32,7 +32,7 @@ use std::collections::VecDeque;
 pub use config::{ContinuityRule, DynamicSet, Envelope, PlannerConfig, Profile, jerk_from_p_mm_s3};
 pub use path::SegPath;
 
-use crate::block::{Block, BlockKind, Continuity, Feed, Path, SpindleDir};
+use crate::block::{Block, BlockKind, Continuity, Feed, Path, Spindle, SpindleDir};
 use crate::diag::Diagnostic;
 use crate::units::{AxesMm, TS_S, mm_min_to_mm_s};
 
@@ -109,6 +109,12 @@ pub struct Segment {
     pub dwell_before_s: f64,
     /// Dynamic set 1..4 in force (SPEC §7.4).
     pub dyn_set: u8,
+    /// Spindle state of the source block (M3/M4/M5, S, KŘR, G76 limit, gear): the RT thread
+    /// computes the spindle speed from it each tick (SPEC §6).
+    pub spindle: Spindle,
+    /// Spindle state of a technology block that follows this segment (e.g. M5 after the last
+    /// cut): in force once the segment is completed, at the stop before that block.
+    pub spindle_after: Option<Spindle>,
 }
 
 /// A block in the look-ahead window.
@@ -162,6 +168,8 @@ pub struct Planner {
     last_block_set: u8,
     /// A technology block or dwell arrived before any motion block.
     leading_dwell_s: f64,
+    /// Spindle state of the last block pushed (to see changes in technology blocks).
+    spindle_state: Spindle,
     /// Last result of the curvature-window search (a warm start for the next junction).
     window_guess_mm_s: f64,
     /// Junctions finalized since the last backward pass.
@@ -182,6 +190,7 @@ impl Planner {
             last_plc_cell: None,
             last_block_set: 1,
             leading_dwell_s: 0.0,
+            spindle_state: Spindle::default(),
             window_guess_mm_s: 0.0,
             pending_backward: 0,
         }
@@ -228,15 +237,29 @@ impl Planner {
                 return Ok(());
             }
             _ => {
-                // Technology functions (M codes) run at standstill: stop before them.
-                if block.m.iter().any(Option::is_some) {
+                // Technology functions (M codes) run at standstill: stop before them. A
+                // spindle change rides on the segment it follows, so the RT thread applies it
+                // when that segment ends (M5 after the last cut, S between cuts).
+                let spindle_change = block.spindle != self.spindle_state;
+                self.spindle_state = block.spindle;
+                let has_m = block.m.iter().any(Option::is_some);
+                if has_m {
                     self.flush_carry();
                     self.force_stop(0.0);
+                }
+                if spindle_change {
+                    let open = self.finalized < self.win.len();
+                    if let Some(p) = self.win.back_mut().filter(|_| open) {
+                        p.seg.spindle_after = Some(block.spindle);
+                    }
+                }
+                if has_m {
                     self.advance();
                 }
                 return Ok(());
             }
         };
+        self.spindle_state = block.spindle;
         let axes = self.cfg.axes;
         if (0..axes).any(|i| !start[i].is_finite() || !end[i].is_finite()) {
             return Err(Diagnostic::error(
@@ -495,6 +518,8 @@ impl Planner {
             dwell_s: 0.0,
             dwell_before_s: 0.0,
             dyn_set: set as u8 + 1,
+            spindle: block.spindle,
+            spindle_after: None,
         };
         let mut p = Pending {
             seg,
