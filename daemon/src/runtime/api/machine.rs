@@ -327,7 +327,9 @@ impl Machine for MachineSvc {
         tokio::spawn(async move {
             let _slot = slot;
             let mut every = tokio::time::interval(Duration::from_secs_f64(1.0 / hz as f64));
-            every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+            // Stay on the rate's grid: a late wake-up does not shift later messages, and
+            // missed slots are skipped rather than sent as a burst of the same snapshot.
+            every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
             loop {
                 tokio::select! {
                     _ = every.tick() => {}
