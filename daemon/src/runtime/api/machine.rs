@@ -32,7 +32,10 @@ impl MachineSvc {
         let st = self.0.clone();
         let loaded = blocking(move || -> Result<Arc<LoadedProgram>, Status> {
             let loaded = st.ctl.load_program(&name, &text).map_err(status_of)?;
-            let junctions = classify(&st, &loaded);
+            // Status decoration only: a planner failure (even a panic) must not fail the load.
+            let junctions =
+                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| classify(&st, &loaded)))
+                    .unwrap_or_default();
             *st.plan_info.lock().unwrap() = Some(PlanInfo {
                 program: Arc::as_ptr(&loaded) as *const () as usize,
                 junctions,
