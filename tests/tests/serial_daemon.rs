@@ -15,7 +15,7 @@ fn daemon_runs_a_program_over_serial_and_recovers_after_replug() {
     let link_s = link.to_str().unwrap();
     let mut sim = Proc::spawn("sim-serial", &["--link", link_s, "--axes", "3"]);
     sim.expect_line(" -> /dev/pts", Duration::from_secs(10));
-    let bus = format!("[bus]\nkind = 'serial'\nport = '{link_s}'\nreply_timeout_ticks = 50\n");
+    let bus = format!("[bus]\nkind = 'serial'\nport = '{link_s}'\nreply_timeout_ticks = 100\n");
     let d = Daemon::start("serial-daemon", &bus, [1, 2, 3]);
 
     let prog = d.program(
