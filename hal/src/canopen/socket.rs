@@ -50,7 +50,12 @@ impl SocketCanPort {
     pub fn recv_timeout(&mut self, timeout: Duration) -> Result<Option<RxEvent>, PortError> {
         match self.socket.read_frame_timeout(timeout) {
             Ok(f) => Ok(self.convert(f)),
-            Err(e) if matches!(e.kind(), io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock) => {
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock
+                ) =>
+            {
                 Ok(None)
             }
             Err(e) => Err(port_error(&e)),
