@@ -6,34 +6,13 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
+mod systemd_support;
+use systemd_support::{cncd_binary, repo};
 
-/// The `cncd` binary of this build, built once per test process (the tests package cannot name
-/// another package's binary).
+/// The binary, built once per test process.
 fn cncd() -> &'static Path {
     static BIN: OnceLock<PathBuf> = OnceLock::new();
-    BIN.get_or_init(|| {
-        let exe = std::env::current_exe().unwrap();
-        // target/<profile>/deps/<test> → target/<profile>
-        let profile_dir = exe.parent().and_then(Path::parent).unwrap().to_owned();
-        let mut cmd = Command::new(env!("CARGO"));
-        cmd.args(["build", "--quiet", "-p", "daemon", "--bin", "cncd"])
-            .current_dir(repo());
-        // The same target directory however the outer run chose it (env or --target-dir).
-        if let Some(target) = profile_dir.parent() {
-            cmd.arg("--target-dir").arg(target);
-        }
-        if profile_dir.file_name().is_some_and(|n| n == "release") {
-            cmd.arg("--release");
-        }
-        assert!(
-            cmd.status().unwrap().success(),
-            "cargo build of cncd failed"
-        );
-        profile_dir.join("cncd")
-    })
+    BIN.get_or_init(cncd_binary)
 }
 
 fn check(path: &Path) -> Output {
@@ -227,5 +206,59 @@ fn bad_bus_settings_are_named() {
         "bus-serial-port",
         "[bus]\nkind = \"serial\"\nport = \"\"\n",
         &["bus.port"],
+    );
+}
+
+#[test]
+fn bad_paths_are_named() {
+    assert_refused("path-dir", "[storage]\ndir = \"\"\n", &["storage.dir"]);
+    assert_refused(
+        "path-offsets",
+        "[storage]\noffsets_file = \"\"\n",
+        &["storage.offsets_file", "must name a file"],
+    );
+    assert_refused(
+        "path-dotdot",
+        "[storage]\nconstants_file = \"data/..\"\n",
+        &["storage.constants_file", "must name a file"],
+    );
+    assert_refused(
+        "path-same",
+        "[storage]\noffsets_file = \"TAB0.KOR\"\nconstants_file = \"TAB0.KOR\"\n",
+        &["storage.constants_file: the same file as storage.offsets_file"],
+    );
+    assert_refused(
+        "path-type",
+        "[storage]\ndir = 5\n",
+        &["dir", "invalid type"],
+    );
+}
+
+#[test]
+fn bad_simulation_and_api_settings_are_named() {
+    assert_refused(
+        "sim-kv",
+        "[sim]\nkv_per_s = 0\n",
+        &["sim.kv_per_s: 0 must be a positive number"],
+    );
+    assert_refused(
+        "home-nan",
+        &format!("{AXIS}home_mm = nan\n"),
+        &["axes[0].home_mm"],
+    );
+    assert_refused(
+        "api-remote-no-tls",
+        "[api]\nlisten = \"0.0.0.0:50051\"\n",
+        &["api.tls_cert", "requires TLS"],
+    );
+    assert_refused(
+        "api-token-hash",
+        "[[api.tokens]]\nname = \"hmi\"\nrole = \"operator\"\nsha256 = \"abc\"\n",
+        &["api.tokens[0].sha256"],
+    );
+    assert_refused(
+        "api-role",
+        "[api]\nlocal_role = \"root\"\n",
+        &["root", "local_role"],
     );
 }

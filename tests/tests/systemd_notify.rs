@@ -21,6 +21,9 @@ use daemon::runtime::systemd::{self, Notifier};
 use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, FaultReason};
 use tokio::net::UnixDatagram;
 
+mod systemd_support;
+use systemd_support::cncd_binary;
+
 /// A fresh directory for one test's sockets and files.
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("cncd-{name}-{}", std::process::id()));
@@ -161,9 +164,11 @@ fn config(dir: &Path) -> Config {
     cfg
 }
 
-const WATCHDOG: Duration = Duration::from_millis(400);
+/// Watchdog period of the tests: long enough that a loaded test machine (other suites
+/// compiling and running on the same two cores) does not starve a look window.
+const WATCHDOG: Duration = Duration::from_millis(1000);
 /// Half the watchdog period.
-const PING: Duration = Duration::from_millis(200);
+const PING: Duration = Duration::from_millis(500);
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn ready_after_start_up_pings_while_ticking_and_not_while_the_rt_thread_stalls() {
@@ -209,12 +214,12 @@ async fn ready_after_start_up_pings_while_ticking_and_not_while_the_rt_thread_st
             .is_ok()
     );
 
-    // Periodic pings while the real-time thread ticks: ~10 in two seconds.
-    let ticking = mgr.collect(Duration::from_secs(2)).await;
+    // Periodic pings while the real-time thread ticks: ~6 in three seconds.
+    let ticking = mgr.collect(Duration::from_secs(3)).await;
     let pings = count(&ticking, "WATCHDOG=1");
     assert!(
-        (7..=11).contains(&pings),
-        "{pings} pings in 2 s: {ticking:?}"
+        (4..=7).contains(&pings),
+        "{pings} pings in 3 s: {ticking:?}"
     );
     assert_eq!(count(&ticking, "READY=1"), 0, "READY=1 twice: {ticking:?}");
     let times: Vec<Instant> = ticking
@@ -235,7 +240,7 @@ async fn ready_after_start_up_pings_while_ticking_and_not_while_the_rt_thread_st
     // One look may still see the ticks made before the stall.
     let settling = mgr.collect(PING * 5 / 2).await;
     let seq = ctl.snapshot().sequence;
-    let stalled = mgr.collect(Duration::from_millis(1500)).await;
+    let stalled = mgr.collect(Duration::from_millis(2500)).await;
     assert_eq!(
         ctl.snapshot().sequence,
         seq,
@@ -255,9 +260,9 @@ async fn ready_after_start_up_pings_while_ticking_and_not_while_the_rt_thread_st
 
     // Let go: the pings come back.
     stall.store(false, Ordering::Release);
-    let resumed = mgr.collect(Duration::from_millis(1500)).await;
+    let resumed = mgr.collect(Duration::from_millis(2500)).await;
     assert!(
-        count(&resumed, "WATCHDOG=1") >= 4,
+        count(&resumed, "WATCHDOG=1") >= 3,
         "pings did not resume: {resumed:?}"
     );
     assert!(
@@ -295,7 +300,7 @@ async fn no_ready_while_the_drives_are_faulted_at_start_up() {
         "test machine".into(),
     );
 
-    let msgs = mgr.collect(Duration::from_secs(2)).await;
+    let msgs = mgr.collect(Duration::from_secs(3)).await;
     assert_eq!(ctl.snapshot().state, MachineState::Fault);
     assert_eq!(
         count(&msgs, "READY=1"),
@@ -309,7 +314,7 @@ async fn no_ready_while_the_drives_are_faulted_at_start_up() {
         "{msgs:?}"
     );
     // The real-time thread ticks in Fault: the process is alive, the watchdog is fed.
-    assert!(count(&msgs, "WATCHDOG=1") >= 6, "{msgs:?}");
+    assert!(count(&msgs, "WATCHDOG=1") >= 4, "{msgs:?}");
 
     // The operator clears the cause and resets before systemd's start timeout: ready.
     healthy.store(true, Ordering::Release);
@@ -335,34 +340,6 @@ fn test_config(dir: &Path) -> String {
         "[api]\nlisten = \"127.0.0.1:0\"\n[rt]\nlock_memory = false\n[storage]\ndir = {:?}\n",
         dir.join("data")
     )
-}
-
-/// The `cncd` binary of this build, built once per test process (the tests package cannot
-/// name another package's binary). The timing tests call it first, so that no build competes
-/// with their measurements for the CPU.
-fn cncd_binary() -> PathBuf {
-    static BIN: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
-    BIN.get_or_init(|| {
-        let exe = std::env::current_exe().unwrap();
-        // target/<profile>/deps/<test> → target/<profile>
-        let profile_dir = exe.parent().and_then(Path::parent).unwrap().to_owned();
-        let mut cmd = Command::new(env!("CARGO"));
-        cmd.args(["build", "--quiet", "-p", "daemon", "--bin", "cncd"])
-            .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
-        // The same target directory however the outer run chose it (env or --target-dir).
-        if let Some(target) = profile_dir.parent() {
-            cmd.arg("--target-dir").arg(target);
-        }
-        if profile_dir.file_name().is_some_and(|n| n == "release") {
-            cmd.arg("--release");
-        }
-        let status = cmd.status().expect("running cargo build for cncd");
-        assert!(status.success(), "cargo build of cncd failed");
-        let bin = profile_dir.join("cncd");
-        assert!(bin.exists(), "{} missing after the build", bin.display());
-        bin
-    })
-    .clone()
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -397,8 +374,8 @@ async fn cncd_binary_notifies_ready_pings_and_stops_on_sigterm() {
             ),
             "{start:?}"
         );
-        let msgs = mgr.collect(Duration::from_secs(2)).await;
-        assert!(count(&msgs, "WATCHDOG=1") >= 6, "{msgs:?}");
+        let msgs = mgr.collect(Duration::from_secs(3)).await;
+        assert!(count(&msgs, "WATCHDOG=1") >= 4, "{msgs:?}");
         // SAFETY: signalling our own child.
         assert_eq!(unsafe { libc::kill(pid, libc::SIGTERM) }, 0);
         mgr.wait_for("STOPPING=1", Duration::from_secs(10)).await;

@@ -99,18 +99,13 @@ fn check_config(path: Option<&std::path::Path>) -> ExitCode {
     }
 }
 
-/// `sim`, `can`, `serial`: the bus kind as written in the configuration, with its device.
+/// `sim`, `can on can0`, `serial on /dev/ttyUSB0`: the bus kind and its device.
 fn bus_label(c: &Config) -> String {
-    // The kind is the variant name; the device is the first string field (interface, port).
-    let debug = format!("{:?}", c.bus);
-    let kind: String = debug
-        .chars()
-        .take_while(char::is_ascii_alphanumeric)
-        .collect::<String>()
-        .to_lowercase();
-    match debug.split('"').nth(1) {
-        Some(device) => format!("{kind} on {device}"),
-        None => kind,
+    use daemon::runtime::buses::BusConfig;
+    match &c.bus {
+        BusConfig::Sim { .. } => "sim".into(),
+        BusConfig::Can(can) => format!("can on {}", can.interface),
+        BusConfig::Serial(s) => format!("serial on {}", s.port),
     }
 }
 

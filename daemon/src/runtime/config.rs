@@ -515,6 +515,30 @@ impl Config {
         if self.storage.dir.as_os_str().is_empty() {
             return Err("storage.dir: must name a directory".into());
         }
+        for (key, f) in [
+            ("storage.offsets_file", &self.storage.offsets_file),
+            ("storage.constants_file", &self.storage.constants_file),
+        ] {
+            if f.file_name().is_none() {
+                return Err(format!("{key}: {f:?} must name a file"));
+            }
+        }
+        if self.storage.offsets_path() == self.storage.constants_path() {
+            return Err("storage.constants_file: the same file as storage.offsets_file".into());
+        }
+        for (i, a) in self.axes.iter().enumerate() {
+            if !a.home_mm.is_finite() {
+                return Err(format!("axes[{i}].home_mm: {} is not a number", a.home_mm));
+            }
+        }
+        for (key, v) in [
+            ("sim.kv_per_s", self.sim.kv_per_s),
+            ("sim.following_window_mm", self.sim.following_window_mm),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!("{key}: {v} must be a positive number"));
+            }
+        }
         if !(1..=99).contains(&self.rt.priority) {
             return Err(format!(
                 "rt.priority: {} is outside 1..99",
