@@ -259,6 +259,12 @@ fn unit_settings_agree_with_the_daemon() {
         "TimeoutStartSec={start} shorter than the drive enable time"
     );
 
+    // The example keeps its data in the StateDirectory and its socket in the RuntimeDirectory.
+    assert_eq!(example.storage.dir, Path::new("/var/lib/cncd"));
+    assert_eq!(one(&s, "WorkingDirectory"), "/var/lib/cncd");
+    let socket = example.api.unix_socket_path(&example.storage.dir).unwrap();
+    assert!(socket.starts_with("/run/cncd/"), "{}", socket.display());
+
     // ExecStart reads the configuration from the ConfigurationDirectory.
     let exec = one(&s, "ExecStart");
     assert!(exec.contains("--config /etc/cncd/cncd.toml"), "{exec}");
