@@ -262,3 +262,25 @@ fn bad_simulation_and_api_settings_are_named() {
         &["root", "local_role"],
     );
 }
+
+#[test]
+fn the_daemon_refuses_a_bad_file_with_status_2_too() {
+    // Not only --check-config: starting on a bad file exits 2, which the unit does not restart
+    // (RestartPreventExitStatus=2).
+    let dir = std::env::temp_dir().join(format!("cncd-check-run-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("bad.toml");
+    std::fs::write(&path, "[rt]\npriority = 0\n").unwrap();
+    let out = Command::new(cncd())
+        .arg("--config")
+        .arg(&path)
+        .args(["--log", "stderr"])
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("rt.priority: 0 is outside 1..99"), "{err}");
+    assert_eq!(err.matches("rt.priority").count(), 1, "said twice:\n{err}");
+}

@@ -43,13 +43,17 @@ fn main() -> ExitCode {
     if args.check_config {
         return check_config(args.config.as_deref());
     }
-    logging::init(args.log);
+    let target = logging::init(args.log);
     let config = match &args.config {
         Some(p) => match Config::load(p) {
             Ok(c) => c,
             Err(e) => {
-                tracing::error!("configuration: {e}");
-                eprintln!("cncd: {e}");
+                // Once, where the operator looks: the journal (with a priority) or stderr.
+                if target == LogTarget::Journal {
+                    tracing::error!("configuration: {e}");
+                } else {
+                    eprintln!("cncd: {e}");
+                }
                 return ExitCode::from(EXIT_CONFIG);
             }
         },
