@@ -233,6 +233,18 @@ impl Interpolator {
         }
     }
 
+    /// Takes `position` as the commanded position; only when idle with nothing buffered
+    /// (returns false otherwise). After a fault the drives may have come to rest elsewhere:
+    /// re-enabling them at the old setpoint would make them jump.
+    pub fn set_position(&mut self, position: AxesMm) -> bool {
+        if self.state != InterpState::Idle || self.len > 0 {
+            return false;
+        }
+        self.clear();
+        self.position = position;
+        true
+    }
+
     fn clear(&mut self) {
         self.len = 0;
         self.reset_arc_length();

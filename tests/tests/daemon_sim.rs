@@ -299,3 +299,79 @@ async fn shutdown_ramps_axes_down_before_exit() {
     assert!(tail.iter().all(|p| p[0] == tail[0][0]));
     assert!((s.actual[0] - s.commanded[0]).abs() < 1e-3);
 }
+
+/// A bus that lets the test fault one simulated drive mid-motion.
+struct FaultableBus {
+    inner: sim::SimBus,
+    fault_axis: Arc<std::sync::atomic::AtomicUsize>,
+}
+
+impl hal::DriveBus for FaultableBus {
+    fn name(&self) -> &str {
+        "sim"
+    }
+    fn axes(&self) -> usize {
+        self.inner.axes()
+    }
+    fn cycle(
+        &mut self,
+        cmd: &hal::CycleCommand,
+        fb: &mut hal::CycleFeedback,
+    ) -> Result<(), hal::BusFault> {
+        let a = self
+            .fault_axis
+            .swap(usize::MAX, std::sync::atomic::Ordering::Relaxed);
+        if a != usize::MAX {
+            self.inner.drive_mut(a).force_fault();
+        }
+        self.inner.cycle(cmd, fb)
+    }
+    fn enable(&mut self) {
+        self.inner.enable()
+    }
+    fn reset(&mut self) {
+        self.inner.reset()
+    }
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn drive_fault_stops_and_reset_resumes_from_where_the_drives_are() {
+    let cfg = tests::test_config();
+    let fault_axis = Arc::new(std::sync::atomic::AtomicUsize::new(usize::MAX));
+    let bus = FaultableBus {
+        inner: sim_bus(&cfg),
+        fault_axis: fault_axis.clone(),
+    };
+    let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
+    wait_state(&ctl, MachineState::Idle, Duration::from_secs(5)).await;
+    ctl.load_program("long.nc", "N10 G1 X200 Y100 F6000")
+        .unwrap();
+    let job = ctl.start_program().unwrap();
+    tokio::time::sleep(Duration::from_millis(400)).await;
+    fault_axis.store(1, std::sync::atomic::Ordering::Relaxed);
+    wait_state(&ctl, MachineState::Fault, Duration::from_secs(5)).await;
+    let s = ctl.snapshot();
+    assert_eq!(s.aborted_job, job);
+    let f = s.fault.unwrap();
+    assert_eq!((f.axis, f.node), (Some(1), Some(2)));
+    // The faulted drive stopped following: its position differs from the last setpoint.
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let s = ctl.snapshot();
+    assert!((s.commanded[1] - s.actual[1]).abs() > 0.01, "{s:?}");
+    ctl.reset().unwrap();
+    wait_state(&ctl, MachineState::Idle, Duration::from_secs(5)).await;
+    tokio::time::sleep(Duration::from_millis(20)).await;
+    // Re-enabled where the drives are: no jump back to the old setpoint.
+    let s = ctl.snapshot();
+    for i in 0..3 {
+        assert!(
+            (s.commanded[i] - s.actual[i]).abs() < 1e-3,
+            "axis {i}: {s:?}"
+        );
+    }
+    ctl.load_program("back.nc", "N20 G1 X0 Y0 F6000").unwrap();
+    let job = ctl.start_program().unwrap();
+    wait_job_finished(&ctl, job, Duration::from_secs(20)).await;
+    assert_eq!(&ctl.snapshot().commanded.0[..2], &[0.0, 0.0]);
+    ctl.shutdown();
+}

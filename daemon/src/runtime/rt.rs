@@ -373,6 +373,17 @@ impl Rt {
                     .all(|a| a.state == DriveState::Operational);
                 self.enable_ticks += 1;
                 if ready {
+                    // Drives report where they are: command from there (after a fault or at
+                    // power-on they may be elsewhere than the last setpoint).
+                    let mut here = s.commanded;
+                    for i in 0..self.p.axes {
+                        here[i] = self.fb.axes[i].position_mm;
+                    }
+                    if self.interp.set_position(here) {
+                        s.commanded = here;
+                        self.cmd.positions_mm[..self.p.axes]
+                            .copy_from_slice(&here.0[..self.p.axes]);
+                    }
                     s.state = MachineState::Idle;
                 } else if self.enable_ticks > ENABLE_TIMEOUT_TICKS {
                     s.fault = Some(BusFault {
