@@ -107,5 +107,7 @@ pub fn test_config() -> daemon::runtime::config::Config {
     let _ = std::fs::remove_dir_all(&dir);
     let mut cfg = daemon::runtime::config::Config::default();
     cfg.storage.dir = dir;
+    // Not the tests' business to lock the whole test process's memory.
+    cfg.rt.lock_memory = false;
     cfg
 }

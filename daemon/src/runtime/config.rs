@@ -485,6 +485,13 @@ impl Config {
                     a.name
                 ));
             }
+            if !kernel::constants::AXIS_CODES.contains(&a.name) {
+                return Err(format!(
+                    "axes[{i}].name: '{}' is not one of the controller's axis letters {}",
+                    a.name,
+                    kernel::constants::AXIS_CODES.iter().collect::<String>()
+                ));
+            }
             if self.axes[..i].iter().any(|b| b.name == a.name) {
                 return Err(format!("axes[{i}].name: axis {} appears twice", a.name));
             }

@@ -23,6 +23,7 @@ use super::buses::open_bus;
 use super::clock::{Clock, MonotonicClock, VirtualClock};
 use super::config::{Config, RadiusInputConfig};
 use super::job::{self, JobLink, JobSpec};
+use super::logging::BlockNo;
 use super::pipeline;
 use super::rt::{self, MachineState, RtCommand, RtParts, Snapshot};
 use super::storage::{self, OffsetStore, StorageError};
@@ -321,7 +322,7 @@ impl Controller {
             .name(format!("cnc-plan-{job}"))
             .spawn(move || {
                 if let Err(d) = job::run(spec, &link, &c) {
-                    tracing::error!(job, block = ?d.block, line = d.line, "planning failed: {}", d.message);
+                    tracing::error!(job, block = %BlockNo(d.block), line = d.line, "planning failed: {}", d.message);
                     *alarm_slot.lock().unwrap() = Some(d.to_string());
                 }
             })
@@ -672,10 +673,10 @@ fn status_pump(
                 .and_then(|a| axis_names.get(a as usize))
                 .map(|c| c.to_string())
                 .unwrap_or_else(|| "-".into());
-            tracing::error!(axis, node = ?f.node, block = ?s.block_n, line = s.line, "alarm: {}", f.reason);
+            tracing::error!(axis, node = ?f.node, block = %BlockNo(s.block_n), line = s.line, "alarm: {}", f.reason);
         }
         if s.state != last.state {
-            tracing::info!(state = ?s.state, job = s.job, block = ?s.block_n, line = s.line, "machine state");
+            tracing::info!(state = ?s.state, job = s.job, block = %BlockNo(s.block_n), line = s.line, "machine state");
         }
         last = s;
         tx.send_replace(s);

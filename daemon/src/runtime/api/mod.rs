@@ -329,7 +329,7 @@ pub fn plane_code(p: Plane) -> &'static str {
     }
 }
 
-/// The alarm in force: a drive/bus fault, else a planning failure.
+/// The alarm in force: a drive/bus fault, else a KŘR fault, else a planning failure.
 pub fn alarm_text(ctl: &Controller, s: &Snapshot) -> Option<String> {
     let names = ctl.config().axis_names();
     match (s.fault, ctl.alarm()) {
@@ -342,7 +342,10 @@ pub fn alarm_text(ctl: &Controller, s: &Snapshot) -> Option<String> {
             let node = f.node.map(|n| format!("node {n}, ")).unwrap_or_default();
             Some(format!("{axis}{node}{}", f.reason))
         }
-        (None, a) => a,
+        (None, a) => match s.kr_fault {
+            Some(k) => Some(format!("constant cutting speed: {k}")),
+            None => a,
+        },
     }
 }
 
