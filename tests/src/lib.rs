@@ -111,3 +111,40 @@ pub fn test_config() -> daemon::runtime::config::Config {
     cfg.rt.lock_memory = false;
     cfg
 }
+
+/// Waits (polling the snapshot) until the machine is in `state`; fails the test after
+/// `timeout`.
+pub async fn wait_state(
+    ctl: &daemon::runtime::controller::Controller,
+    state: daemon::runtime::rt::MachineState,
+    timeout: std::time::Duration,
+) {
+    let t0 = std::time::Instant::now();
+    while ctl.snapshot().state != state {
+        assert!(
+            t0.elapsed() < timeout,
+            "state {:?} not reached: {:?}",
+            state,
+            ctl.snapshot()
+        );
+        tokio::time::sleep(std::time::Duration::from_millis(2)).await;
+    }
+}
+
+/// Waits until job `job` ran to its end; fails the test if it was aborted or after `timeout`.
+pub async fn wait_job_finished(
+    ctl: &daemon::runtime::controller::Controller,
+    job: u32,
+    timeout: std::time::Duration,
+) {
+    let t0 = std::time::Instant::now();
+    loop {
+        let s = ctl.snapshot();
+        if s.finished_job == job {
+            return;
+        }
+        assert_ne!(s.aborted_job, job, "job aborted: {s:?}");
+        assert!(t0.elapsed() < timeout, "job {job} did not finish: {s:?}");
+        tokio::time::sleep(std::time::Duration::from_millis(5)).await;
+    }
+}

@@ -11,7 +11,7 @@ use daemon::runtime::server;
 use prost::Message;
 use proto::v1 as pb;
 use proto::v1::machine_client::MachineClient;
-use tests::{Recording, RecordingBus, max_rates};
+use tests::{Recording, RecordingBus, max_rates, wait_job_finished, wait_state};
 use tonic::transport::Channel;
 
 const TS_S: f64 = 0.004;
@@ -35,32 +35,6 @@ async fn daemon(
         .unwrap();
     wait_state(&ctl, MachineState::Idle, Duration::from_secs(5)).await;
     (client, ctl, record)
-}
-
-async fn wait_state(ctl: &Controller, state: MachineState, timeout: Duration) {
-    let t0 = Instant::now();
-    while ctl.snapshot().state != state {
-        assert!(
-            t0.elapsed() < timeout,
-            "state {:?} not reached: {:?}",
-            state,
-            ctl.snapshot()
-        );
-        tokio::time::sleep(Duration::from_millis(2)).await;
-    }
-}
-
-async fn wait_job_finished(ctl: &Controller, job: u32, timeout: Duration) {
-    let t0 = Instant::now();
-    loop {
-        let s = ctl.snapshot();
-        if s.finished_job == job {
-            return;
-        }
-        assert_ne!(s.aborted_job, job, "job aborted: {s:?}");
-        assert!(t0.elapsed() < timeout, "job {job} did not finish: {s:?}");
-        tokio::time::sleep(Duration::from_millis(5)).await;
-    }
 }
 
 const PROGRAM: &str = "\

@@ -266,12 +266,8 @@ impl Controller {
             .map_err(|_| ControlError::RtGone)
     }
 
-    /// Starts the selected program. Returns the job id.
-    pub fn start_program(&self) -> Result<u32, ControlError> {
-        let program = self
-            .program()
-            .ok_or_else(|| ControlError::WrongState("no program is loaded".into()))?;
-        let mut run = self.run.lock().unwrap();
+    /// The latest snapshot if the machine is idle, the refusal to start otherwise.
+    fn idle_for_start(&self) -> Result<Snapshot, ControlError> {
         let snap = self.snapshot();
         if snap.state != MachineState::Idle {
             return Err(ControlError::WrongState(format!(
@@ -279,6 +275,16 @@ impl Controller {
                 snap.state
             )));
         }
+        Ok(snap)
+    }
+
+    /// Starts the selected program. Returns the job id.
+    pub fn start_program(&self) -> Result<u32, ControlError> {
+        let program = self
+            .program()
+            .ok_or_else(|| ControlError::WrongState("no program is loaded".into()))?;
+        let mut run = self.run.lock().unwrap();
+        let snap = self.idle_for_start()?;
         // Validated from where the axes were at loading; if they moved since (MDI, another
         // job), validate again from here so the run cannot fail half-way.
         let here = snap.commanded;
@@ -496,13 +502,7 @@ impl Controller {
         stop_at_blocks: bool,
     ) -> Result<(u32, Arc<Vec<Block>>), ControlError> {
         let mut run = self.run.lock().unwrap();
-        let snap = self.snapshot();
-        if snap.state != MachineState::Idle {
-            return Err(ControlError::WrongState(format!(
-                "the machine is {:?}, it must be idle to start",
-                snap.state
-            )));
-        }
+        self.idle_for_start()?;
         let setup = self.setup();
         let (comp, planner) = self.run_configs();
         let v = pipeline::validate(text, &setup, comp, planner.clone());

@@ -15,6 +15,9 @@ use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, FaultReason};
 use proto::v1 as pb;
 use tonic::transport::{Channel, ServerTlsConfig};
 
+#[allow(unused_imports)] // each test binary uses a different subset
+pub use tests::{wait_job_finished, wait_state};
+
 pub const OBSERVER_TOKEN: &str = "observer-secret-1";
 pub const OPERATOR_TOKEN: &str = "operator-secret-2";
 pub const ADMIN_TOKEN: &str = "admin-secret-3";
@@ -162,40 +165,10 @@ pub fn with_token<T>(msg: T, token: &str) -> tonic::Request<T> {
     r
 }
 
-pub async fn wait_state(ctl: &Controller, state: MachineState, timeout: Duration) {
-    let t0 = Instant::now();
-    while ctl.snapshot().state != state {
-        assert!(
-            t0.elapsed() < timeout,
-            "state {:?} not reached: {:?}",
-            state,
-            ctl.snapshot().state
-        );
-        tokio::time::sleep(Duration::from_millis(2)).await;
-    }
-}
-
 pub async fn wait_until(what: &str, timeout: Duration, mut f: impl FnMut() -> bool) {
     let t0 = Instant::now();
     while !f() {
         assert!(t0.elapsed() < timeout, "timed out waiting for {what}");
-        tokio::time::sleep(Duration::from_millis(5)).await;
-    }
-}
-
-pub async fn wait_job_finished(ctl: &Controller, job: u32, timeout: Duration) {
-    let t0 = Instant::now();
-    loop {
-        let s = ctl.snapshot();
-        if s.finished_job == job {
-            return;
-        }
-        assert_ne!(s.aborted_job, job, "job aborted: {s:?}");
-        assert!(
-            t0.elapsed() < timeout,
-            "job {job} did not finish: {:?}",
-            s.state
-        );
         tokio::time::sleep(Duration::from_millis(5)).await;
     }
 }
