@@ -101,6 +101,11 @@ pub struct Interpolator {
     hist_pos: usize,
     /// Consecutive ticks without raw motion.
     still: usize,
+    /// Smallest path acceleration (feed or stop) and jerk of the buffered segments, for the
+    /// look-ahead reach; recomputed when a segment leaves the buffer.
+    floor_accel_mm_s2: f64,
+    floor_jerk_mm_s3: f64,
+    floor_dirty: bool,
     f_s_mm: f64,
     f_v_mm_s: f64,
     position: AxesMm,
@@ -134,6 +139,9 @@ impl Interpolator {
             hist_feed: vec![f64::INFINITY; FILTER_MAX_TICKS].into_boxed_slice(),
             hist_pos: 0,
             still: FILTER_MAX_TICKS,
+            floor_accel_mm_s2: f64::INFINITY,
+            floor_jerk_mm_s3: f64::INFINITY,
+            floor_dirty: false,
             f_s_mm: 0.0,
             f_v_mm_s: 0.0,
             position,
@@ -187,6 +195,10 @@ impl Interpolator {
             self.dwell_ticks = (seg.dwell_before_s / TS_S).round().max(0.0) as u32;
         }
         self.buf[i] = seg;
+        self.floor_accel_mm_s2 = self
+            .floor_accel_mm_s2
+            .min(seg.accel_mm_s2.min(seg.stop_accel_mm_s2));
+        self.floor_jerk_mm_s3 = self.floor_jerk_mm_s3.min(seg.jerk_mm_s3);
         self.s0[i] = self.s_end_mm;
         self.s_end_mm += seg.length_mm;
         self.len += 1;
@@ -247,6 +259,7 @@ impl Interpolator {
 
     fn clear(&mut self) {
         self.len = 0;
+        self.floor_dirty = true;
         self.reset_arc_length();
         self.state = InterpState::Idle;
     }
@@ -301,6 +314,33 @@ impl Interpolator {
     }
 
     /// Acceleration the raw stage may use with the current filter (jerk ≤ J needs a ≤ J·m·Ts/2).
+    /// Lower bound of the raw acceleration on every buffered segment: a cap whose braking
+    /// distance at this bound is out of reach cannot constrain this tick. (Judging the reach
+    /// with the accelerations seen so far missed a stop behind a segment of lower
+    /// acceleration and made the speed saw between braking harder than allowed and
+    /// accelerating again.)
+    fn accel_floor(&mut self) -> f64 {
+        if self.floor_dirty {
+            self.floor_accel_mm_s2 = f64::INFINITY;
+            self.floor_jerk_mm_s3 = f64::INFINITY;
+            for k in 0..self.len {
+                let seg = &self.buf[(self.head + k) % self.buf.len()];
+                self.floor_accel_mm_s2 = self
+                    .floor_accel_mm_s2
+                    .min(seg.accel_mm_s2.min(seg.stop_accel_mm_s2));
+                self.floor_jerk_mm_s3 = self.floor_jerk_mm_s3.min(seg.jerk_mm_s3);
+            }
+            self.floor_dirty = false;
+        }
+        let a = if self.floor_jerk_mm_s3.is_finite() {
+            self.floor_accel_mm_s2
+                .min(self.floor_jerk_mm_s3 * self.m as f64 * TS_S / 2.0)
+        } else {
+            self.floor_accel_mm_s2
+        };
+        a.max(1e-6)
+    }
+
     fn raw_accel(&self, a: f64, seg: &Segment) -> f64 {
         let a = if seg.jerk_mm_s3.is_finite() {
             a.min(seg.jerk_mm_s3 * self.m as f64 * TS_S / 2.0)
@@ -432,6 +472,7 @@ impl Interpolator {
                 self.m = m;
             }
         }
+        let a_floor = self.accel_floor();
         let head = *self.seg(self.rk);
         let braking = matches!(self.state, InterpState::Holding | InterpState::Stopping);
         let a = if braking {
@@ -485,15 +526,7 @@ impl Interpolator {
                 stop_dist = d;
                 break;
             }
-            let a_next = next.map_or(a_walk, |n| {
-                let an = if braking {
-                    n.stop_accel_mm_s2
-                } else {
-                    n.accel_mm_s2
-                };
-                a_walk.min(self.raw_accel(an, &n))
-            });
-            if d > reach(a_next) {
+            if d > reach(a_floor.min(a_walk)) {
                 break;
             }
             d += next.map_or(0.0, |n| n.length_mm);
@@ -575,6 +608,7 @@ impl Interpolator {
                 self.last_rapid = seg.rapid;
                 program_end |= seg.last;
                 self.head = (self.head + 1) % self.buf.len();
+                self.floor_dirty = true;
                 self.len -= 1;
                 self.rk = self.rk.saturating_sub(1);
                 if self.len == 0 {

@@ -429,3 +429,29 @@ fn feed_per_revolution_uses_the_programmed_spindle_speed() {
     pl.finish();
     assert!(pl.poll().is_none() && pl.is_done());
 }
+
+/// Found by the random test: tiny blocks of lower acceleration before a stop. The look-ahead
+/// reach was judged with the accelerations seen so far, missed the stop, and the speed sawed
+/// (braking at 2.5× the limit, then accelerating again).
+#[test]
+fn stop_behind_a_segment_of_lower_acceleration_is_braked_for_in_time() {
+    for steps in [
+        vec![
+            (3u8, 0.0, 0.0, 10.124153287380793, 69u8, 0u8),
+            (3, 0.0, -1.0279327415791417, 0.01, 0, 2),
+            (3, 0.0, -1.4626822154166026, 0.01, 0, 2),
+        ],
+        vec![
+            (2, -0.8172627587296851, 0.0, 6.269916376282758, 87, 0),
+            (3, 2.401499701632645, -1.3854066532120526, 0.01, 0, 2),
+        ],
+        vec![
+            (0, 0.0, -1.0928620586377453, 0.01, 0, 0),
+            (3, 0.0, 1.3570993183126847, 0.1856430842270638, 0, 0),
+        ],
+    ] {
+        let blocks = random_program(&steps);
+        assert_within("regression", &cfg(1), &blocks);
+        assert_within("regression", &cfg(2), &blocks);
+    }
+}
