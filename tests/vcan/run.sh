@@ -102,7 +102,10 @@ else
     # files) and the target dir (nothing is built there, but tests may write logs).
     vng --run "$KERNEL" --disable-kvm --cpus 2 --memory 2G \
         --rwdir "$WORK" --rwdir "$CARGO_TARGET_DIR" --cwd "$ROOT" \
-        --exec "$WORK/suite.sh > $OUT 2>&1" || log "vng exited with $?"
+        --exec "$WORK/suite.sh > $OUT 2>&1" >"$WORK/vng.log" 2>&1 </dev/null ||
+        { log "vng exited with $?; its last lines:"; tail -n 20 "$WORK/vng.log"; }
+    # The VM's console goes to its own log: vng/qemu reopen their standard output, which
+    # truncated the caller's log file when it was a regular file.
     cat "$OUT"
 fi
 T1=$(date +%s)
