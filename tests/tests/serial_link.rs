@@ -4,11 +4,11 @@
 mod vcan_support;
 
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use hal::serial::{SerialAxis, SerialBus, SerialConfig};
-use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason};
-use vcan_support::{Proc, Ticker, temp_dir};
+use hal::{BusFault, DriveBus, FaultReason};
+use vcan_support::{Cycler, Proc, temp_dir};
 
 const INC_PER_MM: f64 = 10_000.0;
 
@@ -22,78 +22,22 @@ fn sim_serial(link: &Path, axes: usize) -> Proc {
     p
 }
 
-struct Rig {
-    bus: SerialBus,
-    cmd: CycleCommand,
-    fb: CycleFeedback,
-    ticker: Ticker,
-}
+type Rig = Cycler<SerialBus>;
 
-impl Rig {
-    fn new(link: &Path, axes: usize) -> Rig {
-        let mut cfg = SerialConfig::new(
-            link.to_str().unwrap(),
-            (1..=axes as u8)
-                .map(|node_id| SerialAxis {
-                    node_id,
-                    increments_per_mm: INC_PER_MM,
-                })
-                .collect(),
-        );
-        cfg.reply_timeout_ticks = 50;
-        let mut bus = SerialBus::open(cfg).unwrap();
-        bus.enable();
-        Rig {
-            bus,
-            cmd: CycleCommand::default(),
-            fb: CycleFeedback::default(),
-            ticker: Ticker::default(),
-        }
-    }
-
-    fn tick(&mut self) -> Result<(), BusFault> {
-        self.ticker.wait();
-        self.bus.cycle(&self.cmd, &mut self.fb)
-    }
-
-    fn until_operational(&mut self) {
-        let t0 = Instant::now();
-        while t0.elapsed() < Duration::from_secs(10) {
-            self.tick().expect("no fault while enabling");
-            let n = self.bus.axes();
-            if self.fb.axes[..n]
-                .iter()
-                .all(|a| a.state == DriveState::Operational)
-            {
-                return;
-            }
-        }
-        panic!("not operational after 10 s: {:?}", self.fb.axes);
-    }
-
-    fn until_fault(&mut self, within: Duration) -> BusFault {
-        let t0 = Instant::now();
-        while t0.elapsed() < within {
-            if let Err(e) = self.tick() {
-                return e;
-            }
-        }
-        panic!("no fault within {within:?}");
-    }
-
-    fn move_to(&mut self, axis: usize, to_mm: f64, v_mm_s: f64) {
-        let step = v_mm_s * 0.004;
-        while (self.cmd.positions_mm[axis] - to_mm).abs() > 1e-9 {
-            let d = (to_mm - self.cmd.positions_mm[axis]).clamp(-step, step);
-            self.cmd.positions_mm[axis] += d;
-            self.tick().expect("no fault while moving");
-        }
-        let t0 = Instant::now();
-        while (self.fb.axes[axis].position_mm - to_mm).abs() > 0.001 {
-            assert!(t0.elapsed() < Duration::from_secs(5), "{:?}", self.fb.axes);
-            self.tick().expect("no fault while settling");
-        }
-    }
+fn rig(link: &Path, axes: usize) -> Rig {
+    let mut cfg = SerialConfig::new(
+        link.to_str().unwrap(),
+        (1..=axes as u8)
+            .map(|node_id| SerialAxis {
+                node_id,
+                increments_per_mm: INC_PER_MM,
+            })
+            .collect(),
+    );
+    cfg.reply_timeout_ticks = 50;
+    let mut bus = SerialBus::open(cfg).unwrap();
+    bus.enable();
+    Cycler::new(bus, Duration::from_secs(10))
 }
 
 fn link(test: &str) -> PathBuf {
@@ -104,7 +48,7 @@ fn link(test: &str) -> PathBuf {
 fn drive_unit_follows_setpoints_over_a_pty() {
     let link = link("serial-motion");
     let _sim = sim_serial(&link, 3);
-    let mut rig = Rig::new(&link, 3);
+    let mut rig = rig(&link, 3);
     rig.until_operational();
     rig.move_to(0, 12.5, 100.0);
     rig.move_to(1, -3.0, 50.0);
@@ -116,7 +60,7 @@ fn drive_unit_follows_setpoints_over_a_pty() {
 fn unplug_is_link_down_and_replug_with_reset_resumes() {
     let link = link("serial-unplug");
     let mut sim = sim_serial(&link, 2);
-    let mut rig = Rig::new(&link, 2);
+    let mut rig = rig(&link, 2);
     rig.until_operational();
     rig.move_to(0, 5.0, 100.0);
 
@@ -149,7 +93,7 @@ fn unplug_is_link_down_and_replug_with_reset_resumes() {
 fn silent_corrupt_and_faulted_drives_are_named() {
     let link = link("serial-faults");
     let mut sim = sim_serial(&link, 2);
-    let mut rig = Rig::new(&link, 2);
+    let mut rig = rig(&link, 2);
     rig.until_operational();
     for (on, off, reason) in [
         ("silent on", "silent off", FaultReason::Timeout),

@@ -6,23 +6,33 @@ mod vcan_support;
 
 use std::path::Path;
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use hal::canopen::{CanOpenConfig, CanOpenMaster, NodeConfig, SocketCanPort};
 use hal::cia402::PowerState;
-use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason};
-use vcan_support::{IFACE, Proc, Ticker, sim_can, temp_dir, vcan_lock, vcan_ready};
+use hal::{BusFault, DriveBus, DriveState, FaultReason};
+use vcan_support::{Cycler, IFACE, Proc, sim_can, temp_dir, vcan_lock, vcan_ready};
 
 /// The simulators' default scale.
 const INC_PER_MM: f64 = 10_000.0;
 
+/// The master cycled on the grid, and the candump writer when recording.
 struct Rig {
-    bus: CanOpenMaster<SocketCanPort>,
+    c: Cycler<CanOpenMaster<SocketCanPort>>,
     recorder: Option<JoinHandle<()>>,
-    cmd: CycleCommand,
-    fb: CycleFeedback,
-    ticker: Ticker,
-    cycles: u64,
+}
+
+impl std::ops::Deref for Rig {
+    type Target = Cycler<CanOpenMaster<SocketCanPort>>;
+    fn deref(&self) -> &Self::Target {
+        &self.c
+    }
+}
+
+impl std::ops::DerefMut for Rig {
+    fn deref_mut(&mut self) -> &mut Self::Target {
+        &mut self.c
+    }
 }
 
 impl Rig {
@@ -52,65 +62,15 @@ impl Rig {
         let mut bus = CanOpenMaster::new(port, IFACE, cfg).unwrap();
         bus.enable();
         Rig {
-            bus,
+            c: Cycler::new(bus, Duration::from_secs(20)),
             recorder,
-            cmd: CycleCommand::default(),
-            fb: CycleFeedback::default(),
-            ticker: Ticker::default(),
-            cycles: 0,
-        }
-    }
-
-    fn tick(&mut self) -> Result<(), BusFault> {
-        self.ticker.wait();
-        self.cycles += 1;
-        self.bus.cycle(&self.cmd, &mut self.fb)
-    }
-
-    fn until_operational(&mut self) {
-        let t0 = Instant::now();
-        while t0.elapsed() < Duration::from_secs(20) {
-            self.tick().expect("no fault while enabling");
-            let n = self.bus.axes();
-            if self.fb.axes[..n]
-                .iter()
-                .all(|a| a.state == DriveState::Operational)
-            {
-                return;
-            }
-        }
-        panic!("drives not operational after 20 s: {:?}", self.fb.axes);
-    }
-
-    fn until_fault(&mut self, within: Duration) -> BusFault {
-        let t0 = Instant::now();
-        while t0.elapsed() < within {
-            if let Err(e) = self.tick() {
-                return e;
-            }
-        }
-        panic!("no fault within {within:?}: {:?}", self.fb.axes);
-    }
-
-    /// Moves `axis` to `to_mm` at `v_mm_s`, then holds until it settled.
-    fn move_to(&mut self, axis: usize, to_mm: f64, v_mm_s: f64) {
-        let step = v_mm_s * 0.004;
-        while (self.cmd.positions_mm[axis] - to_mm).abs() > 1e-9 {
-            let d = (to_mm - self.cmd.positions_mm[axis]).clamp(-step, step);
-            self.cmd.positions_mm[axis] += d;
-            self.tick().expect("no fault while moving");
-        }
-        let t0 = Instant::now();
-        while (self.fb.axes[axis].position_mm - to_mm).abs() > 0.001 {
-            assert!(t0.elapsed() < Duration::from_secs(5), "{:?}", self.fb.axes);
-            self.tick().expect("no fault while settling");
         }
     }
 
     /// Ends the master and waits until the recorder has written everything.
     fn finish(self) {
-        let Rig { bus, recorder, .. } = self;
-        drop(bus);
+        let Rig { c, recorder } = self;
+        drop(c);
         if let Some(h) = recorder {
             h.join().unwrap();
         }

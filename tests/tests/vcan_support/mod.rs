@@ -173,6 +173,81 @@ impl Ticker {
     }
 }
 
+/// A drive bus cycled on the 4 ms grid as the RT thread would, with the waits the bus suites
+/// share (serial link and CANopen master).
+pub struct Cycler<B: hal::DriveBus> {
+    pub bus: B,
+    pub cmd: hal::CycleCommand,
+    pub fb: hal::CycleFeedback,
+    pub ticker: Ticker,
+    /// Cycles run so far.
+    pub cycles: u64,
+    /// How long enabling may take before the test fails.
+    enable_within: Duration,
+}
+
+impl<B: hal::DriveBus> Cycler<B> {
+    pub fn new(bus: B, enable_within: Duration) -> Self {
+        Cycler {
+            bus,
+            cmd: hal::CycleCommand::default(),
+            fb: hal::CycleFeedback::default(),
+            ticker: Ticker::default(),
+            cycles: 0,
+            enable_within,
+        }
+    }
+
+    pub fn tick(&mut self) -> Result<(), hal::BusFault> {
+        self.ticker.wait();
+        self.cycles += 1;
+        self.bus.cycle(&self.cmd, &mut self.fb)
+    }
+
+    pub fn until_operational(&mut self) {
+        let t0 = Instant::now();
+        while t0.elapsed() < self.enable_within {
+            self.tick().expect("no fault while enabling");
+            let n = self.bus.axes();
+            if self.fb.axes[..n]
+                .iter()
+                .all(|a| a.state == hal::DriveState::Operational)
+            {
+                return;
+            }
+        }
+        panic!(
+            "drives not operational after {:?}: {:?}",
+            self.enable_within, self.fb.axes
+        );
+    }
+
+    pub fn until_fault(&mut self, within: Duration) -> hal::BusFault {
+        let t0 = Instant::now();
+        while t0.elapsed() < within {
+            if let Err(e) = self.tick() {
+                return e;
+            }
+        }
+        panic!("no fault within {within:?}: {:?}", self.fb.axes);
+    }
+
+    /// Moves `axis` to `to_mm` at `v_mm_s`, then holds until it settled.
+    pub fn move_to(&mut self, axis: usize, to_mm: f64, v_mm_s: f64) {
+        let step = v_mm_s * 0.004;
+        while (self.cmd.positions_mm[axis] - to_mm).abs() > 1e-9 {
+            let d = (to_mm - self.cmd.positions_mm[axis]).clamp(-step, step);
+            self.cmd.positions_mm[axis] += d;
+            self.tick().expect("no fault while moving");
+        }
+        let t0 = Instant::now();
+        while (self.fb.axes[axis].position_mm - to_mm).abs() > 0.001 {
+            assert!(t0.elapsed() < Duration::from_secs(5), "{:?}", self.fb.axes);
+            self.tick().expect("no fault while settling");
+        }
+    }
+}
+
 /// A fresh temporary directory for one test.
 pub fn temp_dir(test: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("cnc-{test}-{}", std::process::id()));
