@@ -20,8 +20,20 @@
 //!    filtered position never passes the raw one: stop points are reached exactly, at rest.
 //!    The filtered speed is an average of raw speeds of the last `m` ticks, so the raw speed
 //!    respects every speed cap `m+1` ticks early (caps are met `c·(m+1)·Ts` before the
-//!    junction) and late (the caps of the last `m+1` ticks still hold). With `m = 1` (linear
+//!    junction) and late (the caps of the last `m+1` ticks still hold; with the axis filter
+//!    below, `m+1+2n` ticks). With `m = 1` (linear
 //!    profile) both stages coincide.
+//!
+//! 3. **Axis smoothing filter** (parabolic profile only): the setpoints are the on-path
+//!    positions averaged twice over the last `n` ticks (`Segment::axis_filter_ticks`). Where
+//!    the path turns (a smooth corner, a line entering an arc) the axis velocities change
+//!    direction within one tick; the double average spreads that change over 2n ticks, so the
+//!    per-axis jerk stays bounded. The planner limits the speed at such turns so that the
+//!    jerk, the acceleration and the distance from the programmed corner stay within their
+//!    shares (`plan::criteria::FilterWindow`). On straight lines the average of points on the
+//!    line is on the line; at rest the filter settles exactly on the stop point (the average is
+//!    taken as offsets from the newest input, which are all zero there), and a stop point is
+//!    left only after it has settled.
 //!
 //! A late tick of the real-time thread never makes a setpoint jump: one call is one Ts of
 //! trajectory, however late it comes.
@@ -36,6 +48,9 @@ pub const BUFFER_SEGMENTS: usize = 4096;
 
 /// Longest jerk filter, ticks (1.024 s: a/J up to 0.5 s).
 pub const FILTER_MAX_TICKS: usize = 256;
+
+/// Longest axis smoothing filter, ticks per stage.
+pub const AXIS_FILTER_MAX_TICKS: usize = crate::plan::AXIS_FILTER_MAX_TICKS;
 
 /// Remaining distance under which a point counts as reached.
 const ARRIVE_EPS_MM: f64 = 1e-9;
@@ -108,6 +123,14 @@ pub struct Interpolator {
     floor_dirty: bool,
     f_s_mm: f64,
     f_v_mm_s: f64,
+    /// Commanded point on the path (input of the axis filter).
+    path_pos: AxesMm,
+    // Axis smoothing filter: ticks per stage, and the last inputs of both stages.
+    axis_n: usize,
+    axis_in: Box<[AxesMm]>,
+    axis_mid: Box<[AxesMm]>,
+    axis_pos: usize,
+    /// Setpoints sent to the drives (output of the axis filter).
     position: AxesMm,
     state: InterpState,
     override_factor: f64,
@@ -144,6 +167,11 @@ impl Interpolator {
             floor_dirty: false,
             f_s_mm: 0.0,
             f_v_mm_s: 0.0,
+            path_pos: position,
+            axis_n: 1,
+            axis_in: vec![position; AXIS_FILTER_MAX_TICKS].into_boxed_slice(),
+            axis_mid: vec![position; AXIS_FILTER_MAX_TICKS].into_boxed_slice(),
+            axis_pos: 0,
             position,
             state: InterpState::Idle,
             override_factor: 1.0,
@@ -254,7 +282,15 @@ impl Interpolator {
         }
         self.clear();
         self.position = position;
+        self.path_pos = position;
+        self.axis_in.fill(position);
+        self.axis_mid.fill(position);
         true
+    }
+
+    /// Length of the axis smoothing filter now in use, ticks per stage (1 = none).
+    pub fn axis_filter_ticks(&self) -> usize {
+        self.axis_n
     }
 
     fn clear(&mut self) {
@@ -292,8 +328,51 @@ impl Interpolator {
         (seg.feed_mm_s * self.override_factor).min(seg.v_max_mm_s)
     }
 
+    /// Both filters are at rest: the setpoint equals the raw position.
     fn settled(&self) -> bool {
-        self.still + 1 >= self.m
+        self.still + 1 >= self.m && self.axis_settled()
+    }
+
+    fn axis_settled(&self) -> bool {
+        if self.axis_n <= 1 {
+            return true;
+        }
+        let p = self.path_pos;
+        (0..self.axis_n).all(|j| {
+            let i = (self.axis_pos + AXIS_FILTER_MAX_TICKS - j) % AXIS_FILTER_MAX_TICKS;
+            self.axis_in[i] == p && self.axis_mid[i] == p
+        })
+    }
+
+    /// Mean of the last `n` entries of `ring` ending at `pos`, as the newest entry plus the
+    /// mean offset from it (exact when all entries are equal).
+    fn ring_mean(ring: &[AxesMm], pos: usize, n: usize, axes: usize) -> AxesMm {
+        let newest = ring[pos];
+        let mut sum = AxesMm::ZERO;
+        for j in 1..n {
+            let e = &ring[(pos + AXIS_FILTER_MAX_TICKS - j) % AXIS_FILTER_MAX_TICKS];
+            for a in 0..axes {
+                sum.0[a] += e.0[a] - newest.0[a];
+            }
+        }
+        let mut out = newest;
+        for a in 0..axes {
+            out.0[a] += sum.0[a] / n as f64;
+        }
+        out
+    }
+
+    /// Axis filter stage: the setpoint is the double moving average of the path positions.
+    fn smooth_axes(&mut self) {
+        if self.axis_n <= 1 {
+            self.position = self.path_pos;
+            return;
+        }
+        self.axis_pos = (self.axis_pos + 1) % AXIS_FILTER_MAX_TICKS;
+        self.axis_in[self.axis_pos] = self.path_pos;
+        let mid = Self::ring_mean(&self.axis_in, self.axis_pos, self.axis_n, self.axes);
+        self.axis_mid[self.axis_pos] = mid;
+        self.position = Self::ring_mean(&self.axis_mid, self.axis_pos, self.axis_n, self.axes);
     }
 
     fn raw_s(&self) -> f64 {
@@ -310,7 +389,8 @@ impl Interpolator {
         if !seg.jerk_mm_s3.is_finite() || seg.jerk_mm_s3 <= 0.0 {
             return 1;
         }
-        ((2.0 * a / (seg.jerk_mm_s3 * TS_S)).ceil() as usize).clamp(1, FILTER_MAX_TICKS - 1)
+        ((2.0 * a / (seg.jerk_mm_s3 * TS_S)).ceil() as usize)
+            .clamp(1, FILTER_MAX_TICKS - 2 * AXIS_FILTER_MAX_TICKS - 2)
     }
 
     /// Acceleration the raw stage may use with the current filter (jerk ≤ J needs a ≤ J·m·Ts/2).
@@ -369,9 +449,11 @@ impl Interpolator {
             };
             self.record(cap, feed);
             program_end = self.follow();
+            self.smooth_axes();
             self.update_state();
         } else {
             self.f_v_mm_s = 0.0;
+            self.smooth_axes();
         }
         TickOut {
             position: self.position,
@@ -414,14 +496,28 @@ impl Interpolator {
         }
     }
 
-    /// Smallest cap (hard, feed) recorded over the last `m + 1` ticks.
+    /// Ticks before and after a speed cap during which the raw speed stays within it (0: only
+    /// at the cap). The jerk filter averages raw speeds over `m` ticks, so its speed at a
+    /// point is within a cap if the raw speed was over the `m + 1` ticks around it; the axis
+    /// filter takes path speeds from 2n ticks before to 2n ticks after a turn, and the
+    /// planner's corner limits count on all of them being within the junction speed.
+    fn cap_zone_ticks(&self) -> usize {
+        if self.m <= 1 && self.axis_n <= 1 {
+            return 0;
+        }
+        let axis = if self.axis_n > 1 { 2 * self.axis_n } else { 0 };
+        self.m + 1 + axis
+    }
+
+    /// Smallest cap (hard, feed) recorded over the last `cap_zone_ticks` ticks.
     fn behind_caps(&self) -> (f64, f64) {
-        if self.m <= 1 {
+        let zone = self.cap_zone_ticks();
+        if zone == 0 {
             return (f64::INFINITY, f64::INFINITY);
         }
         let mut cap = f64::INFINITY;
         let mut feed = f64::INFINITY;
-        for j in 0..=self.m {
+        for j in 0..zone {
             let i = (self.hist_pos + FILTER_MAX_TICKS - j) % FILTER_MAX_TICKS;
             cap = cap.min(self.hist_cap[i]);
             feed = feed.min(self.hist_feed[i]);
@@ -462,6 +558,13 @@ impl Interpolator {
         if self.v_mm_s == 0.0 && self.settled() {
             // At rest (the commanded position equals the raw one): the filter may be re-sized
             // for the dynamics of what comes next; its history is all this one point.
+            let n =
+                usize::from(self.seg(self.rk).axis_filter_ticks).clamp(1, AXIS_FILTER_MAX_TICKS);
+            if n != self.axis_n {
+                self.axis_in.fill(self.path_pos);
+                self.axis_mid.fill(self.path_pos);
+                self.axis_n = n;
+            }
             let m = Self::filter_for(self.seg(self.rk));
             if m != self.m {
                 let s = self.raw_s();
@@ -480,11 +583,7 @@ impl Interpolator {
         } else {
             self.raw_accel(head.accel_mm_s2, &head)
         };
-        let lag = if self.m > 1 {
-            (self.m + 1) as f64 * TS_S
-        } else {
-            0.0
-        };
+        let lag = self.cap_zone_ticks() as f64 * TS_S;
         let v = self.v_mm_s;
         let (behind_cap, behind_feed) = self.behind_caps();
         // Soft limits: feed × override of this and later segments, approached at `a`.
@@ -600,7 +699,7 @@ impl Interpolator {
             let end = self.s0[i] + seg.length_mm;
             let raw_done = self.rk > 0 || (self.raw_at_stop && self.len == 1 && self.settled());
             if s_f >= end - ARRIVE_EPS_MM && raw_done {
-                self.position = seg.path.end();
+                self.path_pos = seg.path.end();
                 self.last_seq = seg.seq;
                 self.last_n = seg.n;
                 self.last_line = seg.line;
@@ -617,7 +716,7 @@ impl Interpolator {
                 continue;
             }
             let local = s_f - self.s0[i];
-            self.position = if local >= seg.length_mm - ARRIVE_EPS_MM {
+            self.path_pos = if local >= seg.length_mm - ARRIVE_EPS_MM {
                 seg.path.end()
             } else {
                 seg.path.point_at((local / seg.length_mm).max(0.0))
@@ -766,6 +865,39 @@ mod tests {
             assert!(j <= 20_000.0 * 1.001 + 1e-3, "jerk {j}");
         }
         assert!(a.iter().all(|x| x.abs() <= 500.0 * 1.001));
+    }
+
+    #[test]
+    fn axis_filter_rounds_a_smooth_corner_and_settles_exactly() {
+        // Two lines with a smooth 30° corner at speed 5 mm/s, axis filter 3 ticks.
+        let mut ip = Interpolator::new(3, AxesMm::ZERO);
+        let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+        let mut a = line(0, [0.0; 3], [2.0, 0.0, 0.0], 20.0, 5.0);
+        let mut b = line(1, [2.0, 0.0, 0.0], [2.0 + 2.0 * c, 2.0 * s, 0.0], 20.0, 0.0);
+        a.axis_filter_ticks = 3;
+        b.axis_filter_ticks = 3;
+        b.last = true;
+        ip.push(a).unwrap();
+        ip.push(b).unwrap();
+        let mut trace = vec![TickOut::default()];
+        trace.extend(run(&mut ip, 10_000));
+        assert_eq!(ip.axis_filter_ticks(), 3);
+        let last = trace.last().unwrap();
+        assert_eq!(&last.position.0[..3], &[2.0 + 2.0 * c, 2.0 * s, 0.0]);
+        assert!(last.program_end);
+        // The corner is cut (a setpoint off both lines), by much less than the raw tick.
+        let off = trace
+            .iter()
+            .map(|t| t.position[1] - (t.position[0] - 2.0).max(0.0) * s / c)
+            .fold(0.0f64, |m, d| m.max(d.abs()));
+        assert!(off > 1e-6 && off < 5.0 * TS_S, "{off}");
+        // Per-axis velocity of the Y axis starts over several ticks, not in one.
+        let vy: Vec<f64> = trace
+            .windows(2)
+            .map(|w| (w[1].position[1] - w[0].position[1]) / TS_S)
+            .collect();
+        let first = vy.iter().position(|v| *v > 0.0).unwrap();
+        assert!(vy[first] < 0.5 * 5.0 * s, "{:?}", &vy[first..first + 6]);
     }
 
     #[test]

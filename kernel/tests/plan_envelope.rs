@@ -9,7 +9,7 @@
 mod plan_common;
 
 use kernel::block::{Block, Continuity};
-use kernel::plan::{Junction, PlannerConfig};
+use kernel::plan::{Junction, PlannerConfig, Profile};
 use plan_common::*;
 use proptest::prelude::*;
 
@@ -27,7 +27,13 @@ fn assert_within(name: &str, cfg: &PlannerConfig, blocks: &[Block]) -> Run {
     assert!(w.path_a <= A_TOL, "path acceleration {ctx}");
     assert!(w.path_j <= A_TOL, "path jerk {ctx}");
     assert!(w.corner_dev <= 1.0, "corner deviation {ctx}");
-    assert!(w.off_path_mm <= 1e-9, "off path {ctx}");
+    if cfg.envelope.profile == Profile::Parabolic {
+        // The axis filter rounds turns within Lm, and keeps the axis jerk in its limit.
+        assert!(w.off_path_mm <= LM_UM * 1e-3, "off path {ctx}");
+        assert!(w.axis_j <= A_TOL, "axis jerk {ctx}");
+    } else {
+        assert!(w.off_path_mm <= 1e-9, "off path {ctx}");
+    }
     assert_eq!(w.missed_stops, 0, "stop points {ctx}");
     let end = blocks.iter().rev().find_map(Block::motion).unwrap().1;
     let last = r.ticks.last().unwrap();
@@ -224,10 +230,13 @@ fn short_blocks_merge_and_break_continuity() {
 
 #[test]
 fn override_and_hold_within_limits() {
-    for profile in [1u8, 2] {
+    let programs = [("mixed arcs", mixed_arcs()), ("long lines", long_lines())];
+    for (profile, (name, blocks)) in [1u8, 2]
+        .into_iter()
+        .flat_map(|p| programs.iter().map(move |b| (p, b)))
+    {
         let c = cfg(profile);
-        let blocks = mixed_arcs();
-        let r = run_with(c.clone(), &blocks, 1_000_000, |t, ip| match t {
+        let r = run_with(c.clone(), blocks, 1_000_000, |t, ip| match t {
             100 => ip.set_override(150.0),
             400 => ip.set_override(30.0),
             700 => ip.hold(),
@@ -240,15 +249,28 @@ fn override_and_hold_within_limits() {
             w.axis_v <= V_TOL && w.axis_a <= A_TOL && w.path_a <= A_TOL,
             "{w:?}"
         );
-        // Override 150 %: the path speed may reach 1.5 × F, never more.
-        assert!(w.path_v <= 1.5 * V_TOL && w.path_v > 1.05, "{w:?}");
+        // Override 150 %: the path speed may reach 1.5 × F, never more (on the long lines it
+        // does; the arcs' own limits stay below 1.05 × F in the parabolic profile).
+        assert!(w.path_v <= 1.5 * V_TOL, "{name} {w:?}");
+        if *name == "long lines" || profile == 1 {
+            assert!(w.path_v > 1.05, "{name} {w:?}");
+        }
         assert!(w.path_j <= A_TOL, "{w:?}");
-        assert!(w.off_path_mm <= 1e-9);
+        if profile == 2 {
+            assert!(w.axis_j <= A_TOL, "{w:?}");
+            assert!(w.off_path_mm <= LM_UM * 1e-3, "{w:?}");
+        } else {
+            assert!(w.off_path_mm <= 1e-9, "{w:?}");
+        }
         let held = &r.ticks[1100];
         assert_eq!(held.state, kernel::interp::InterpState::Held);
         assert_eq!(held.path_v_mm_s, 0.0);
         let end = blocks.iter().rev().find_map(Block::motion).unwrap().1;
-        assert_eq!(r.ticks.last().unwrap().position.0[..3], end.0[..3]);
+        assert_eq!(
+            r.ticks.last().unwrap().position.0[..3],
+            end.0[..3],
+            "{name}"
+        );
     }
 }
 

@@ -100,7 +100,27 @@ pub struct PlannerConfig {
     pub min_block_time_s: f64,
     /// Look-ahead window, blocks (SPEC §7.2: 500).
     pub lookahead_blocks: usize,
+    /// Axis smoothing filter of the parabolic profile, ticks per stage (1 = none): keeps the
+    /// per-axis jerk bounded where the path turns (see [`axis_filter_ticks_for`]).
+    pub axis_filter_ticks: usize,
     pub envelope: Envelope,
+}
+
+/// Longest axis smoothing filter, ticks per stage.
+pub const AXIS_FILTER_MAX_TICKS: usize = 16;
+
+/// Length of the axis smoothing filter (parabolic profile, **decided**, `docs/planner.md`):
+/// a corner of turn |Δt| crossed at v is limited by the axis jerk to v·|Δt| ≤ B·T²
+/// (B = corner share of the axis jerk) and by the accuracy Lm to v·|Δt| ≤ 3·(Lm/2)/T; the
+/// filter time T = ∛(1.5·Lm/B) makes both equal, which gives the fastest corners. Without an
+/// accuracy criterion 4 ticks. At least 2 ticks.
+pub fn axis_filter_ticks_for(lm_um: f64, corner_jerk_mm_s3: f64) -> usize {
+    let t = if lm_um > 0.0 && corner_jerk_mm_s3.is_finite() && corner_jerk_mm_s3 > 0.0 {
+        (1.5 * lm_um * 1e-3 / corner_jerk_mm_s3).cbrt()
+    } else {
+        4.0 * crate::units::TS_S
+    };
+    ((t / crate::units::TS_S).round() as usize).clamp(2, AXIS_FILTER_MAX_TICKS)
 }
 
 impl PlannerConfig {
@@ -125,6 +145,7 @@ impl PlannerConfig {
             axis_j_max_mm_s3: [50.0 * a_max_mm_s2; MAX_AXES],
             min_block_time_s: 0.004,
             lookahead_blocks: 500,
+            axis_filter_ticks: 1,
             envelope: Envelope {
                 profile: Profile::Linear,
                 rule: ContinuityRule::Manual,
@@ -148,7 +169,25 @@ impl PlannerConfig {
     /// axis limits when planning.
     pub fn with_constants(mut self, c: &Constants) -> Self {
         self.envelope = Envelope::from_constants(c, &self);
+        self.axis_filter_ticks = match self.envelope.profile {
+            Profile::Linear => 1,
+            Profile::Parabolic => {
+                let j = self.axis_j_max_mm_s3[..self.axes.max(1)]
+                    .iter()
+                    .fold(f64::INFINITY, |m, v| m.min(*v));
+                axis_filter_ticks_for(self.envelope.sets[0].accuracy_um, j * super::NORMAL_SHARE)
+            }
+        };
         self
+    }
+
+    /// Time of one stage of the axis smoothing filter, s (0 without the filter).
+    pub fn axis_filter_s(&self) -> f64 {
+        if self.axis_filter_ticks > 1 {
+            self.axis_filter_ticks as f64 * crate::units::TS_S
+        } else {
+            0.0
+        }
     }
 
     /// Largest path speed and acceleration along `dir` (unit vector) that keep every axis
@@ -176,6 +215,17 @@ impl PlannerConfig {
             }
         }
         j
+    }
+
+    /// Smallest jerk limit of the axes that move along `dir`.
+    pub fn iso_jerk(&self, dir: &AxesMm) -> f64 {
+        let mut m = f64::INFINITY;
+        for i in 0..self.axes {
+            if dir[i].abs() > 1e-12 {
+                m = m.min(self.axis_j_max_mm_s3[i]);
+            }
+        }
+        m
     }
 
     /// Smallest acceleration limit of the axes that move in `a` or `b`: an isotropic bound

@@ -104,6 +104,103 @@ pub fn arc_jerk_mm_s(jerk_mm_s3: f64, radius_mm: f64) -> f64 {
     }
 }
 
+/// Axis smoothing filter (parabolic profile, see `docs/planner.md` §"Axis jerk"): the
+/// setpoints are the path positions averaged twice over `T = n·Ts`. With u(t) the path
+/// velocity vector, the filtered axes have
+/// - jerk  = (u(t) − 2u(t−T) + u(t−2T)) / T²,
+/// - accel = mean over T of (u(t) − u(t−T)) / T,
+/// - and lie within v·|Δt|·T/6 of a corner (mean absolute deviation T/3 of the kernel) and
+///   v²κT²/12 inside a circle (variance T²/6 of the kernel).
+///
+/// Sampling the unit tangent at the path points a distance h = v·T apart around a junction
+/// turns these into speed limits; [`FilterWindow`] holds those tangents.
+#[derive(Clone, Copy, Debug)]
+pub struct FilterWindow {
+    /// Tangents at −h, just before the junction, just after it, and at +h.
+    pub before: crate::units::AxesMm,
+    pub end: crate::units::AxesMm,
+    pub start: crate::units::AxesMm,
+    pub after: crate::units::AxesMm,
+}
+
+impl FilterWindow {
+    /// Whether speed `v` (mm/s) keeps, on every axis, the jerk of the filtered setpoints within
+    /// `jerk_budget` (per axis, mm/s³) when the path acceleration is at most `a_mm_s2`, their
+    /// acceleration within `accel_budget` (per axis), and their distance from the corner within
+    /// `lm_mm` (0 = no accuracy limit). `t_s` = filter time T.
+    #[allow(clippy::too_many_arguments)]
+    pub fn allows(
+        &self,
+        v: f64,
+        a_mm_s2: f64,
+        t_s: f64,
+        axes: usize,
+        jerk_budget: &[f64],
+        accel_budget: &[f64],
+        lm_mm: f64,
+    ) -> bool {
+        let mut d1_norm = [0.0f64; 3];
+        for i in 0..axes {
+            let d1a = (self.end[i] - self.before[i]).abs();
+            let d1b = (self.after[i] - self.start[i]).abs();
+            let dc = (self.start[i] - self.end[i]).abs();
+            let mid = self.after[i] + self.before[i];
+            let d2 = (mid - 2.0 * self.end[i])
+                .abs()
+                .max((mid - 2.0 * self.start[i]).abs());
+            // Second difference of u over lag T: v·Δ²t plus the speed change over T times
+            // the direction changes it meets. Around the junction the interpolator keeps the
+            // speed within v (its cap zone), so that change is at most min(a·T, v).
+            let dv = (a_mm_s2 * t_s).min(v);
+            if v * d2 + dv * (d1a + d1b + dc) > jerk_budget[i] * t_s * t_s {
+                return false;
+            }
+            if v * d1a.max(d1b).max(dc) > accel_budget[i] * t_s {
+                return false;
+            }
+            d1_norm[0] += d1a * d1a;
+            d1_norm[1] += d1b * d1b;
+            d1_norm[2] += dc * dc;
+        }
+        let d1 = d1_norm.iter().fold(0.0f64, |m, x| m.max(x.sqrt()));
+        lm_mm <= 0.0 || v * d1 * t_s / 6.0 <= lm_mm
+    }
+}
+
+/// Inside an arc of radius R with the axis filter of time `t_s`: the per-axis jerk of circular
+/// motion with path acceleration a is at most v³/R² + 3·v·a/R on top of the path jerk (kept
+/// within `jerk_budget`), and the filter pulls the setpoints v²T²/(12R) inwards (kept within
+/// `lm_mm`, 0 = off). Returns the largest speed within both.
+pub fn arc_filtered_mm_s(
+    radius_mm: f64,
+    a_mm_s2: f64,
+    jerk_budget_mm_s3: f64,
+    t_s: f64,
+    lm_mm: f64,
+) -> f64 {
+    let k = 1.0 / radius_mm;
+    let mut v = f64::INFINITY;
+    if lm_mm > 0.0 && t_s > 0.0 {
+        v = (12.0 * lm_mm * radius_mm).sqrt() / t_s;
+    }
+    if jerk_budget_mm_s3.is_finite() {
+        // f(v) = v³κ² + 3vaκ is increasing: bisect f(v) = budget.
+        let f = |v: f64| v * v * v * k * k + 3.0 * v * a_mm_s2 * k;
+        let mut hi = (jerk_budget_mm_s3 * radius_mm * radius_mm).cbrt();
+        let mut lo = 0.0;
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if f(mid) <= jerk_budget_mm_s3 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        v = v.min(lo);
+    }
+    v
+}
+
 /// Minimum block duration: v ≤ L / t_min (0 = off).
 pub fn min_duration_mm_s(len_mm: f64, t_min_s: f64) -> f64 {
     if t_min_s > 0.0 {
@@ -167,6 +264,52 @@ mod tests {
             assert!((t.dynamic_mm_s(1000.0) / d - 1.0).abs() < 1e-9, "{deg}");
             assert!((t.accuracy_mm_s(8.0) / l - 1.0).abs() < 1e-9, "{deg}");
         }
+    }
+
+    #[test]
+    fn filter_window_limits_an_isolated_corner() {
+        use crate::units::AxesMm;
+        // 90° corner X → Y: |Δt| = 1 on both axes. Jerk: v·1 + min(a·T, v)·1 ≤ B·T²;
+        // accuracy: v·√2·T/6 ≤ Lm.
+        let x = AxesMm([1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        let y = AxesMm([0.0, 1.0, 0.0, 0.0, 0.0, 0.0]);
+        let w = FilterWindow {
+            before: x,
+            end: x,
+            start: y,
+            after: y,
+        };
+        let (t, b, a) = (0.008, 20_000.0, 1000.0);
+        let budget = [b; 6];
+        let wide = [1e9; 6];
+        // Jerk alone: 2v ≤ B·T² (v < a·T) → v ≤ 0.64 mm/s.
+        let v_j = b * t * t / 2.0;
+        assert!(w.allows(v_j * 0.999, a, t, 3, &budget, &wide, 0.0));
+        assert!(!w.allows(v_j * 1.001, a, t, 3, &budget, &wide, 0.0));
+        // Accuracy alone: v ≤ 6·Lm/(√2·T).
+        let lm = 0.004;
+        let v_l = 6.0 * lm / (2f64.sqrt() * t);
+        assert!(w.allows(v_l * 0.999, a, t, 3, &wide, &wide, lm));
+        assert!(!w.allows(v_l * 1.001, a, t, 3, &wide, &wide, lm));
+        // Straight on: no limit.
+        let s = FilterWindow {
+            before: x,
+            end: x,
+            start: x,
+            after: x,
+        };
+        assert!(s.allows(1e6, a, t, 3, &budget, &budget, lm));
+    }
+
+    #[test]
+    fn arc_under_the_axis_filter() {
+        // R = 10, a = 0: v³/R² = B → v = ∛(B·R²); accuracy v²T²/(12R) = Lm.
+        let v = arc_filtered_mm_s(10.0, 0.0, 20_000.0, 0.008, 0.0);
+        assert!((v - (20_000.0f64 * 100.0).cbrt()).abs() < 1e-6);
+        let v = arc_filtered_mm_s(10.0, 0.0, f64::INFINITY, 0.008, 0.004);
+        assert!((v * v * 0.008 * 0.008 / 120.0 - 0.004).abs() < 1e-12);
+        // Acceleration on the arc costs speed.
+        assert!(arc_filtered_mm_s(10.0, 500.0, 20_000.0, 0.008, 0.0) < 125.0);
     }
 
     #[test]

@@ -29,7 +29,10 @@ mod path;
 
 use std::collections::VecDeque;
 
-pub use config::{ContinuityRule, DynamicSet, Envelope, PlannerConfig, Profile, jerk_from_p_mm_s3};
+pub use config::{
+    AXIS_FILTER_MAX_TICKS, ContinuityRule, DynamicSet, Envelope, PlannerConfig, Profile,
+    axis_filter_ticks_for, jerk_from_p_mm_s3,
+};
 pub use path::SegPath;
 
 use crate::block::{Block, BlockKind, Continuity, Feed, Path, Spindle, SpindleDir};
@@ -115,6 +118,9 @@ pub struct Segment {
     /// Spindle state of a technology block that follows this segment (e.g. M5 after the last
     /// cut): in force once the segment is completed, at the stop before that block.
     pub spindle_after: Option<Spindle>,
+    /// Axis smoothing filter the junction speeds were planned for, ticks per stage (0 or 1 =
+    /// none; parabolic profile, `PlannerConfig::axis_filter_ticks`).
+    pub axis_filter_ticks: u16,
 }
 
 /// A block in the look-ahead window.
@@ -129,6 +135,8 @@ struct Pending {
     set: usize,
     /// Path acceleration along the block from the axis limits.
     a_axes: f64,
+    /// Path jerk along the block from the axis limits.
+    j_axes: f64,
     /// A technology block or dwell after this block forces a stop.
     stop_after: bool,
     /// Junction to the next block is smooth (known once the next block is in the window).
@@ -465,11 +473,27 @@ impl Planner {
                 .min(criteria::curvature_mm_s(a_c, 1.0 / radius_mm))
                 .min(criteria::arc_chord_mm_s(radius_mm, env.arc_chord_um));
             if env.profile == Profile::Parabolic {
-                let j = set_.jerk_mm_s3.min(self.cfg.path_jerk(&dir));
-                v_max = v_max.min(criteria::arc_jerk_mm_s(j, radius_mm));
+                let t_f = self.cfg.axis_filter_s();
+                if t_f > 0.0 {
+                    // Axis jerk of the circular motion within the corner share of the axis
+                    // jerk, and the filter's pull towards the centre within Lm/2.
+                    let (_, a_axes) = self.cfg.path_limits(&dir);
+                    let a = set_.accel_mm_s2.min(a_axes) * (1.0 - NORMAL_SHARE);
+                    v_max = v_max.min(criteria::arc_filtered_mm_s(
+                        radius_mm,
+                        a,
+                        self.cfg.iso_jerk(&dir) * NORMAL_SHARE,
+                        t_f,
+                        set_.accuracy_um * 1e-3 / 2.0,
+                    ));
+                } else {
+                    let j = set_.jerk_mm_s3.min(self.cfg.path_jerk(&dir));
+                    v_max = v_max.min(criteria::arc_jerk_mm_s(j, radius_mm));
+                }
             }
         }
         let (v_axes, a_axes) = self.cfg.path_limits(&dir);
+        let j_axes = self.cfg.path_jerk(&dir);
         v_max = v_max.min(v_axes);
         if !rapid {
             v_max = v_max.min(criteria::min_duration_mm_s(
@@ -490,7 +514,7 @@ impl Planner {
                 } else {
                     env.sets[set].jerk_mm_s3
                 };
-                j.min(self.cfg.path_jerk(&dir))
+                j.min(j_axes)
             }
         };
         // Conservative acceleration until the junctions are known (final in `finalize`).
@@ -520,6 +544,7 @@ impl Planner {
             dyn_set: set as u8 + 1,
             spindle: block.spindle,
             spindle_after: None,
+            axis_filter_ticks: self.cfg.axis_filter_ticks as u16,
         };
         let mut p = Pending {
             seg,
@@ -528,6 +553,7 @@ impl Planner {
             t_end,
             set,
             a_axes,
+            j_axes,
             stop_after: false,
             smooth: false,
             turn: 0.0,
@@ -615,7 +641,7 @@ impl Planner {
             .v_max_mm_s
             .max(b.v_max_mm_s)
             .min(OVERRIDE_MAX * a.feed_mm_s.max(b.feed_mm_s));
-        v * TS_S
+        v * TS_S * (2 * self.cfg.axis_filter_ticks).max(1) as f64
     }
 
     /// Whether the blocks after junction `i` cover half the curvature window (or end in a stop).
@@ -696,11 +722,46 @@ impl Planner {
                 // The window grows with the speed, so the bound falls as the speed rises:
                 // bisect for the largest speed within the bound of its own window.
                 let axes = self.cfg.axes;
+                // With the axis smoothing filter (parabolic profile), the corner share of the
+                // axis jerk and acceleration, and half of Lm, bound what the filter makes of
+                // the turns within ±v·T (criteria::FilterWindow).
+                let t_f = self.cfg.axis_filter_s();
+                let mut jerk_budget = [0.0; crate::units::MAX_AXES];
+                let mut accel_budget = [0.0; crate::units::MAX_AXES];
+                for k in 0..axes {
+                    jerk_budget[k] = self.cfg.axis_j_max_mm_s3[k] * NORMAL_SHARE;
+                    accel_budget[k] = self.cfg.axis_a_max_mm_s2[k] * NORMAL_SHARE;
+                }
+                let a_path =
+                    |q: &Pending| env.sets[q.set].accel_mm_s2.min(q.a_axes) * (1.0 - NORMAL_SHARE);
+                let a_corner = a_path(p).max(a_path(n));
+                let lm_half_mm = set.accuracy_um * 1e-3 / 2.0;
                 let bound = |v: f64| {
                     let half = v * TS_S / 2.0;
                     let t0 = self.tangent_near(i, -half);
                     let t1 = self.tangent_near(i, half);
                     let turn = criteria::Turn::between(&t0, &t1, axes);
+                    if t_f > 0.0 {
+                        let h = v * t_f;
+                        let w = criteria::FilterWindow {
+                            before: self.tangent_near(i, -h),
+                            end: p.t_end,
+                            start: n.t_start,
+                            after: self.tangent_near(i, h),
+                        };
+                        let ok = w.allows(
+                            v,
+                            a_corner,
+                            t_f,
+                            axes,
+                            &jerk_budget,
+                            &accel_budget,
+                            lm_half_mm,
+                        );
+                        if !ok {
+                            return 0.0;
+                        }
+                    }
                     turn.dynamic_mm_s(a_iso)
                         .min(turn.accuracy_mm_s(set.accuracy_um))
                 };
@@ -727,7 +788,9 @@ impl Planner {
                         }
                     }
                     // 0.2 % is far below the spread of the other criteria.
-                    while hi - lo > 0.002 * hi {
+                    let mut steps = 0;
+                    while hi - lo > 0.002 * hi && steps < 64 {
+                        steps += 1;
                         let mid = 0.5 * (lo + hi);
                         if bound(mid) >= mid {
                             lo = mid;
@@ -781,6 +844,10 @@ impl Planner {
             || (p.smooth && p.turn > 1e-9);
         let k = if curved { 1.0 - NORMAL_SHARE } else { 1.0 };
         p.seg.accel_mm_s2 = base.min(p.a_axes) * k;
+        if curved && p.seg.axis_filter_ticks > 1 {
+            // The rest of the axis jerk is for the turns the axis filter smooths.
+            p.seg.jerk_mm_s3 = p.seg.jerk_mm_s3.min(p.j_axes * k);
+        }
         p.seg.stop_accel_mm_s2 = rapid_a.min(p.a_axes) * k;
         if p.seg.stop_accel_mm_s2 <= 0.0 || !p.seg.stop_accel_mm_s2.is_finite() {
             p.seg.stop_accel_mm_s2 = p.seg.accel_mm_s2;

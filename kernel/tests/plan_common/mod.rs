@@ -361,9 +361,10 @@ pub struct Worst {
     pub path_v: f64,
     pub path_a: f64,
     pub path_j: f64,
-    /// Largest distance of a smooth corner from the tick chord over it, relative to Lm.
+    /// Largest distance of a smooth corner from the setpoint polyline near it, relative to Lm.
     pub corner_dev: f64,
-    /// Largest distance of a setpoint from its segment, mm.
+    /// Largest distance of a setpoint from the programmed path (its segment or a neighbour,
+    /// since the axis filter lags the path position), mm.
     pub off_path_mm: f64,
     /// Stop points (and the program end) not hit exactly.
     pub missed_stops: usize,
@@ -400,6 +401,12 @@ pub fn measure(cfg: &PlannerConfig, r: &Run, lm_um: f64) -> Worst {
     let axes = cfg.axes;
     let by_seq: std::collections::HashMap<u32, Segment> =
         r.segments.iter().map(|s| (s.seq, *s)).collect();
+    let index_of: std::collections::HashMap<u32, usize> = r
+        .segments
+        .iter()
+        .enumerate()
+        .map(|(i, s)| (s.seq, i))
+        .collect();
     let mut w = Worst::default();
     let a_path = r
         .segments
@@ -441,8 +448,12 @@ pub fn measure(cfg: &PlannerConfig, r: &Run, lm_um: f64) -> Worst {
                 w.path_j = w.path_j.max(((a - a0) / TS_S).abs() / j_path);
             }
         }
-        if let Some(s) = by_seq.get(&t[k].seq) {
-            w.off_path_mm = w.off_path_mm.max(dist_to_path(&t[k].position, s, axes));
+        if let Some(&i) = index_of.get(&t[k].seq) {
+            let d = r.segments[i.saturating_sub(64)..(i + 2).min(r.segments.len())]
+                .iter()
+                .map(|s| dist_to_path(&t[k].position, s, axes))
+                .fold(f64::INFINITY, f64::min);
+            w.off_path_mm = w.off_path_mm.max(d);
         }
     }
     // Stop points and the end are hit exactly.
@@ -479,7 +490,15 @@ pub fn measure(cfg: &PlannerConfig, r: &Run, lm_um: f64) -> Worst {
             if k >= t.len() {
                 break;
             }
-            let d = dist_to_chord(&s.path.end(), &t[k - 1].position, &t[k].position, axes);
+            // The axis filter lags and spreads the corner over 2n ticks: the nearest chord.
+            let n = usize::from(s.axis_filter_ticks.max(1));
+            let (lo, hi) = (
+                k.saturating_sub(2 * n + 3).max(1),
+                (k + 2 * n + 3).min(t.len()),
+            );
+            let d = (lo..hi)
+                .map(|j| dist_to_chord(&s.path.end(), &t[j - 1].position, &t[j].position, axes))
+                .fold(f64::INFINITY, f64::min);
             w.corner_dev = w.corner_dev.max(d / (lm_um * 1e-3));
         }
     }
