@@ -287,7 +287,9 @@ impl Rt {
                 gear: out.spindle.gear,
             },
             motion,
-            axis: ControllingAxis::at(out.position[axis]),
+            // The carriage and the offsets in force: KŘR computes at the tool tip, or at the
+            // carriage with EXT_AKRR_SUPORT (SPEC §6).
+            axis: ControllingAxis::of(out.position[axis], &out.spindle),
         };
         let k = self.p.kr.tick(&input, &mut self.plc);
         self.cmd.spindle_rpm = k.spindle_rpm;
