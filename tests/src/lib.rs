@@ -48,6 +48,9 @@ impl<B: DriveBus> DriveBus for RecordingBus<B> {
     fn axes(&self) -> usize {
         self.inner.axes()
     }
+    fn has_spindle(&self) -> bool {
+        self.inner.has_spindle()
+    }
     fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
         self.record.lock().unwrap().push(cmd.positions_mm);
         self.spindle.lock().unwrap().push(cmd.spindle_rpm);
