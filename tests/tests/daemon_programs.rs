@@ -227,3 +227,32 @@ N30 G94 G0 Z50 S500 &0
     check(&at_carriage, &|x| x, "carriage with EXT_AKRR_SUPORT");
     ctl.shutdown();
 }
+
+/// A spindle started in a block without motion must run from that block on, before the
+/// first cut; and a program of technology blocks alone (`M5`) must reach the spindle.
+/// Today the planner hands a technology block's spindle change to the RT thread only on an
+/// open segment before it (`Segment::spindle_after`): before the first motion there is none,
+/// so M3 takes effect with the first motion and a program without motion changes nothing.
+/// Fixing it needs the planner (see docs/kr.md, "Spindle changes without motion").
+#[test]
+#[ignore = "needs the planner to pass on spindle changes without an open segment (issue #7)"]
+fn spindle_started_without_motion_runs_before_the_first_cut() {
+    let (ctl, record, spindle) = lathe();
+    let (points, rpm) = run_recorded(
+        &ctl,
+        &record,
+        &spindle,
+        "N10 M3 S1000\nN20 M41\nN30 G1 X250 F2000\n",
+    );
+    let first_motion = (1..points.len())
+        .find(|&i| points[i] != points[i - 1])
+        .expect("motion");
+    let first_spindle = rpm.iter().position(|&n| n > 0.0).expect("spindle on");
+    assert!(
+        first_spindle < first_motion,
+        "spindle at {first_spindle}, motion at {first_motion}"
+    );
+    let (_, rpm) = run_recorded(&ctl, &record, &spindle, "N10 M5\n");
+    assert_eq!(rpm.last(), Some(&0.0), "M5 alone stops the spindle");
+    ctl.shutdown();
+}
