@@ -350,7 +350,7 @@ impl CanNode {
                 if cob_id & DISABLED == 0 {
                     return Err(abort::DEVICE_STATE);
                 }
-                let known = layouts(rpdo).iter().any(|want| map == *want);
+                let known = layouts(rpdo).contains(&map);
                 match v {
                     0 => *count = 0,
                     2 if known => *count = 2,

@@ -165,9 +165,9 @@ impl SimArgs {
                 _ => return Err(format!("unknown option '{k}'; {USAGE}")),
             }
         }
-        if !(a.units_per_rpm.is_finite() && a.units_per_rpm > 0.0)
-            || !(a.ramp_rpm_s.is_finite() && a.ramp_rpm_s >= 0.0)
-        {
+        let units_ok = a.units_per_rpm.is_finite() && a.units_per_rpm > 0.0;
+        let ramp_ok = a.ramp_rpm_s.is_finite() && a.ramp_rpm_s >= 0.0;
+        if !(units_ok && ramp_ok) {
             return Err("--units-per-rpm must be positive and --ramp-rpm-s not negative".into());
         }
         Ok(a)

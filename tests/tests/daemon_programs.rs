@@ -113,13 +113,18 @@ fn run_recorded(
     spindle: &tests::SpindleRecording,
     text: &str,
 ) -> (Vec<[f64; hal::MAX_AXES]>, Vec<f64>) {
-    record.lock().unwrap().clear();
-    spindle.lock().unwrap().clear();
+    // Both locks together, record first, as the recording bus takes them: the two
+    // recordings stay tick-aligned although the RT thread keeps ticking.
+    let both = || (record.lock().unwrap(), spindle.lock().unwrap());
+    {
+        let (mut r, mut s) = both();
+        r.clear();
+        s.clear();
+    }
     run_to_end(ctl, "lathe.nc", text);
-    let points = record.lock().unwrap().clone();
-    let rpm = spindle.lock().unwrap().clone();
-    assert_eq!(points.len(), rpm.len());
-    (points, rpm)
+    let (r, s) = both();
+    assert_eq!(r.len(), s.len());
+    (r.clone(), s.clone())
 }
 
 /// Constant cutting speed on a simulated lathe (issue #7): facing from Ø300 to Ø50 under G96
