@@ -15,6 +15,19 @@ pub mod serial;
 /// Most axes a bus serves.
 pub const MAX_AXES: usize = 6;
 
+/// [`BusFault::axis`] of a fault of the spindle drive: faults name the spindle the way they
+/// name an axis (alarm texts say "spindle" where they say "axis X").
+pub const SPINDLE_AXIS: u8 = u8::MAX;
+
+/// How alarms name the axis of a fault: the axis letter, "spindle", or `None` for the bus.
+pub fn fault_axis_label(axis: Option<u8>, axis_names: &[char]) -> Option<String> {
+    match axis {
+        Some(SPINDLE_AXIS) => Some("spindle".into()),
+        Some(a) => axis_names.get(usize::from(a)).map(char::to_string),
+        None => None,
+    }
+}
+
 /// Drive state as the controller sees it.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum DriveState {
@@ -150,9 +163,9 @@ impl fmt::Display for FaultReason {
 /// A fault with the axis and node it concerns, where known. `Copy` so the real-time thread can
 /// pass it on without allocating.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("{reason}{}{}", axis.map(|a| format!(", axis index {a}")).unwrap_or_default(), node.map(|n| format!(", node {n}")).unwrap_or_default())]
+#[error("{reason}{}{}", axis.map(|a| if a == SPINDLE_AXIS { ", spindle".to_string() } else { format!(", axis index {a}") }).unwrap_or_default(), node.map(|n| format!(", node {n}")).unwrap_or_default())]
 pub struct BusFault {
-    /// Axis index, if the fault concerns one axis.
+    /// Axis index, if the fault concerns one axis; [`SPINDLE_AXIS`] for the spindle drive.
     pub axis: Option<u8>,
     /// Bus node id (CANopen node, serial address), if known.
     pub node: Option<u8>,
@@ -164,8 +177,8 @@ pub struct BusFault {
 pub struct CycleCommand {
     /// Position setpoint per axis, mm (degrees for rotary axes); `[..axes()]` are used.
     pub positions_mm: [f64; MAX_AXES],
-    /// Spindle speed setpoint, rpm (signed: negative is M4). Buses without a spindle drive
-    /// ignore it.
+    /// Spindle speed setpoint, rpm (signed: negative is M4). It goes to the spindle drive as
+    /// a velocity setpoint; buses without a spindle drive ([`DriveBus::has_spindle`]) ignore it.
     pub spindle_rpm: f64,
 }
 
@@ -173,8 +186,10 @@ pub struct CycleCommand {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct CycleFeedback {
     pub axes: [AxisFeedback; MAX_AXES],
-    /// Actual spindle speed, rpm.
+    /// Actual spindle speed, rpm (signed like the setpoint); 0 without a spindle drive.
     pub spindle_rpm: f64,
+    /// State of the spindle drive; stays `Disabled` on a bus without one.
+    pub spindle_state: DriveState,
 }
 
 /// A bus that serves a fixed set of axes.
@@ -184,6 +199,12 @@ pub trait DriveBus: Send {
 
     /// Number of axes this bus serves.
     fn axes(&self) -> usize;
+
+    /// Whether a spindle drive takes [`CycleCommand::spindle_rpm`] and reports
+    /// [`CycleFeedback::spindle_rpm`]. Without one the spindle setpoint has nowhere to go.
+    fn has_spindle(&self) -> bool {
+        false
+    }
 
     /// One tick: send the setpoints, fill the feedback of `axes()` axes.
     /// An error means the machine must stop; the caller keeps calling `cycle` (holding the

@@ -114,6 +114,15 @@ pub struct Spindle {
     pub limit_rpm: f64,
     /// Gear range selected by an M code (0 = none selected), SPEC §6.
     pub gear: u8,
+    /// Tool length offset (`&`, and `G92` writes of that entry) in force for the controlling
+    /// axis R67, in that axis's units (a diameter on a diameter axis). KŘR version 2 computes
+    /// at the tool tip, carriage − offset, and offset changes act at once (SPEC §6), so the
+    /// value rides with the spindle state to the RT thread.
+    pub length_offset_mm: f64,
+    /// Origin shift in force for the controlling axis, same units. The dialect has no origin
+    /// shift function yet (no manual describes one), so the interpreter always writes 0; the
+    /// RT thread already honours the field (SPEC §6: "corrected by offsets and shifts").
+    pub origin_shift_mm: f64,
 }
 
 /// What a block does.

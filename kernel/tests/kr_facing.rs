@@ -65,6 +65,7 @@ fn facing_block(css: bool, s: f64, limit_rpm: f64, gear: u8) -> Block {
             css,
             limit_rpm,
             gear,
+            ..Spindle::default()
         },
         m: [None; 4],
     }

@@ -34,10 +34,15 @@ impl DriveBus for SimBus {
         self.drives.len()
     }
 
+    fn has_spindle(&self) -> bool {
+        true
+    }
+
     fn cycle(&mut self, cmd: &CycleCommand, feedback: &mut CycleFeedback) -> Result<(), BusFault> {
         let mut fault = None;
         // The simulated spindle reaches its setpoint at once.
         feedback.spindle_rpm = cmd.spindle_rpm;
+        feedback.spindle_state = DriveState::Operational;
         for (i, (d, (sp, fb))) in self
             .drives
             .iter_mut()

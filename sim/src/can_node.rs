@@ -1,10 +1,11 @@
 //! A simulated CANopen CiA 402 drive node: NMT slave, expedited SDO server for the objects a
-//! CSP master configures, synchronous PDOs, EMCY, heartbeat producer and consumer, and fault
-//! injection. No I/O: the caller feeds frames and the time, and sends what comes out (the
+//! CSP (axis) or CSV (spindle) master configures, synchronous PDOs, EMCY, heartbeat producer
+//! and consumer, and fault injection. The mode of operation (0x6060 = 8 or 9) and the PDO
+//! mapping the master writes decide whether the node is a position or a velocity drive. No I/O: the caller feeds frames and the time, and sends what comes out (the
 //! `sim-can` binary does that on a SocketCAN interface; tests do it in memory).
 
 use hal::canopen::emcy::Emcy;
-use hal::canopen::pdo::{RPDO1_MAPPING, Rpdo, TPDO1_MAPPING, Tpdo};
+use hal::canopen::pdo::{OpMode, Rpdo, Tpdo};
 use hal::canopen::sdo::{self, Request, abort};
 use hal::canopen::{Frame, cob, nmt};
 
@@ -70,10 +71,39 @@ impl CommObjects {
         self.tpdo_cob == 0x180 + u32::from(id) && self.tpdo_count == 2 && self.tpdo_type <= 240
     }
 
+    /// The layout of the RPDO (`rpdo == true`) or TPDO as mapped, if it is one we know.
+    fn layout(&self, rpdo: bool) -> Option<OpMode> {
+        let (map, count) = if rpdo {
+            (self.rpdo_map, self.rpdo_count)
+        } else {
+            (self.tpdo_map, self.tpdo_count)
+        };
+        [OpMode::Csp, OpMode::Csv].into_iter().find(|m| {
+            count == 2
+                && map
+                    == if rpdo {
+                        m.rpdo_mapping()
+                    } else {
+                        m.tpdo_mapping()
+                    }
+        })
+    }
+
     fn cycle_s(&self) -> f64 {
         let (v, e) = self.interp_period;
         f64::from(v) * 10f64.powi(i32::from(e))
     }
+}
+
+/// The PDO layouts this drive can be mapped to: CSP and CSV.
+fn layouts(rpdo: bool) -> [[u32; 2]; 2] {
+    [OpMode::Csp, OpMode::Csv].map(|m| {
+        if rpdo {
+            m.rpdo_mapping()
+        } else {
+            m.tpdo_mapping()
+        }
+    })
 }
 
 pub struct CanNode {
@@ -232,17 +262,39 @@ impl CanNode {
             if let Some(r) = self.latched.take() {
                 self.held = r;
             }
-            let e = self.drive.cycle(
+            let (cw, value, dt) = (
                 self.held.controlword,
                 self.held.target_increments,
                 self.od.cycle_s(),
             );
+            // The mode of operation picks the loop; a target mapped for the other mode is
+            // not a target of this one (the drive holds: position where it is, speed 0).
+            let layout = self.od.layout(true);
+            let e = if OpMode::from_code(u32::from(self.od.mode)) == Some(OpMode::Csv) {
+                let target = if layout == Some(OpMode::Csv) {
+                    value
+                } else {
+                    0
+                };
+                self.drive.cycle_velocity(cw, target, dt)
+            } else {
+                let target = if layout == Some(OpMode::Csp) {
+                    value
+                } else {
+                    self.drive.position_increments()
+                };
+                self.drive.cycle(cw, target, dt)
+            };
             self.announce(e, out);
         }
         if self.od.tpdo_active(self.id) {
+            let value = match self.od.layout(false) {
+                Some(OpMode::Csv) => self.drive.velocity_units(),
+                _ => self.drive.position_increments(),
+            };
             let mut f = Tpdo {
                 statusword: self.drive.statusword(),
-                position_increments: self.drive.position_increments(),
+                position_increments: value,
             }
             .encode(self.id);
             if self.inject.corrupt_pdo {
@@ -289,38 +341,42 @@ impl CanNode {
             (0x1800, 1) => od.tpdo_cob = v,
             (0x1800, 2) if v <= 255 => od.tpdo_type = v as u8,
             (0x1600 | 0x1A00, 0) => {
-                let (cob_id, map, count, want) = if index == 0x1600 {
-                    (od.rpdo_cob, od.rpdo_map, &mut od.rpdo_count, RPDO1_MAPPING)
+                let rpdo = index == 0x1600;
+                let (cob_id, map, count) = if rpdo {
+                    (od.rpdo_cob, od.rpdo_map, &mut od.rpdo_count)
                 } else {
-                    (od.tpdo_cob, od.tpdo_map, &mut od.tpdo_count, TPDO1_MAPPING)
+                    (od.tpdo_cob, od.tpdo_map, &mut od.tpdo_count)
                 };
                 if cob_id & DISABLED == 0 {
                     return Err(abort::DEVICE_STATE);
                 }
+                let known = layouts(rpdo).contains(&map);
                 match v {
                     0 => *count = 0,
-                    2 if map == want => *count = 2,
+                    2 if known => *count = 2,
                     2 => return Err(abort::CANNOT_MAP),
                     _ => return Err(abort::VALUE_RANGE),
                 }
             }
             (0x1600 | 0x1A00, 1 | 2) => {
                 let i = usize::from(sub - 1);
-                let (count, map, want) = if index == 0x1600 {
-                    (od.rpdo_count, &mut od.rpdo_map, RPDO1_MAPPING)
+                let rpdo = index == 0x1600;
+                let (count, map) = if rpdo {
+                    (od.rpdo_count, &mut od.rpdo_map)
                 } else {
-                    (od.tpdo_count, &mut od.tpdo_map, TPDO1_MAPPING)
+                    (od.tpdo_count, &mut od.tpdo_map)
                 };
                 if count != 0 {
                     return Err(abort::DEVICE_STATE);
                 }
-                // This drive supports only the one CSP layout; say so instead of misbehaving.
-                if v != want[i] {
+                // This drive supports only the CSP and CSV layouts; say so instead of
+                // misbehaving.
+                if !layouts(rpdo).iter().any(|want| v == want[i]) {
                     return Err(abort::CANNOT_MAP);
                 }
                 map[i] = v;
             }
-            (0x6060, 0) if v == 8 => od.mode = 8,
+            (0x6060, 0) if OpMode::from_code(v).is_some() => od.mode = v as u8,
             (0x6060, 0) => return Err(abort::VALUE_RANGE),
             (0x60C2, 1) if v <= 255 => od.interp_period.0 = v as u8,
             (0x60C2, 2) if v <= 255 => od.interp_period.1 = v as u8 as i8,
@@ -328,7 +384,9 @@ impl CanNode {
             (0x1017, 0) if v <= 0xFFFF => od.heartbeat_ms = v as u16,
             (0x1016, 1) => od.consumer = v,
             (0x6065, 0) => self.drive.set_window_increments(v),
-            (0x1000 | 0x6041 | 0x6064 | 0x6061 | 0x603F, 0) => return Err(abort::READ_ONLY),
+            (0x1000 | 0x6041 | 0x6064 | 0x606C | 0x6061 | 0x603F, 0) => {
+                return Err(abort::READ_ONLY);
+            }
             (
                 0x1400 | 0x1800 | 0x1600 | 0x1A00 | 0x60C2 | 0x1017 | 0x1016 | 0x6060 | 0x1006
                 | 0x6065,
@@ -355,6 +413,7 @@ impl CanNode {
             (0x6060 | 0x6061, 0) => (u32::from(od.mode), 1),
             (0x6041, 0) => (u32::from(self.drive.statusword()), 2),
             (0x6064, 0) => (self.drive.position_increments() as u32, 4),
+            (0x606C, 0) => (self.drive.velocity_units() as u32, 4),
             (0x6065, 0) => (self.drive.window_increments(), 4),
             (0x603F, 0) => (u32::from(self.drive.error_code()), 2),
             _ => return Err(abort::NO_OBJECT),

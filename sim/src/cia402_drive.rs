@@ -1,6 +1,8 @@
-//! A CiA 402 servo drive in cyclic synchronous position mode, as the bus simulators expose
-//! it: power state machine, position loop with lag ([`crate::drive::follow`]), following-error
-//! window (0x6065), error code (0x603F). Positions on the wire are increments.
+//! A CiA 402 servo drive as the bus simulators expose it: power state machine, error code
+//! (0x603F), and either cyclic synchronous position mode (position loop with lag,
+//! [`crate::drive::follow`], following-error window 0x6065; positions on the wire are
+//! increments) or cyclic synchronous velocity mode (a spindle: the speed ramps toward the
+//! target velocity 0x60FF at a set acceleration; velocities on the wire are drive units).
 
 use hal::cia402::{self, PowerState, sw};
 
@@ -27,6 +29,11 @@ pub struct Cia402Drive {
     position_mm: f64,
     following_error: bool,
     error_code: u16,
+    /// Actual velocity in CSV, drive units.
+    velocity_units: f64,
+    /// Acceleration of the velocity ramp in CSV, drive units per second (0: the speed follows
+    /// the target at once).
+    pub velocity_ramp_units_s2: f64,
 }
 
 impl Cia402Drive {
@@ -39,7 +46,16 @@ impl Cia402Drive {
             position_mm: start_mm,
             following_error: false,
             error_code: 0,
+            velocity_units: 0.0,
+            velocity_ramp_units_s2: 0.0,
         }
+    }
+
+    /// Actual velocity (0x606C), drive units.
+    pub fn velocity_units(&self) -> i32 {
+        self.velocity_units
+            .round()
+            .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
     }
 
     pub fn state(&self) -> PowerState {
@@ -99,15 +115,7 @@ impl Cia402Drive {
     /// One cycle: apply the controlword, then follow `target_increments` for `dt_s` when
     /// enabled (the target is ignored otherwise: the drive holds where it is).
     pub fn cycle(&mut self, controlword: u16, target_increments: i32, dt_s: f64) -> Option<Event> {
-        let before = self.state;
-        self.state = cia402::apply_controlword(self.state, self.last_controlword, controlword);
-        self.last_controlword = controlword;
-        let mut event = None;
-        if before == PowerState::Fault && self.state != PowerState::Fault {
-            self.following_error = false;
-            self.error_code = 0;
-            event = Some(Event::FaultCleared);
-        }
+        let mut event = self.apply(controlword);
         if self.state == PowerState::OperationEnabled {
             let target_mm = f64::from(target_increments) / self.increments_per_mm;
             self.position_mm = follow(&self.params, self.position_mm, target_mm, dt_s);
@@ -117,6 +125,42 @@ impl Cia402Drive {
             }
         }
         event
+    }
+
+    /// One cycle in velocity mode: apply the controlword, then ramp the speed toward
+    /// `target_units` when enabled; a drive without power stage coasts down on the same ramp.
+    pub fn cycle_velocity(
+        &mut self,
+        controlword: u16,
+        target_units: i32,
+        dt_s: f64,
+    ) -> Option<Event> {
+        let event = self.apply(controlword);
+        let target = if self.state == PowerState::OperationEnabled {
+            f64::from(target_units)
+        } else {
+            0.0
+        };
+        let step = self.velocity_ramp_units_s2 * dt_s;
+        self.velocity_units = if step <= 0.0 {
+            target
+        } else {
+            self.velocity_units + (target - self.velocity_units).clamp(-step, step)
+        };
+        event
+    }
+
+    /// The controlword's effect on the power state machine; a fault reset clears the fault.
+    fn apply(&mut self, controlword: u16) -> Option<Event> {
+        let before = self.state;
+        self.state = cia402::apply_controlword(self.state, self.last_controlword, controlword);
+        self.last_controlword = controlword;
+        if before == PowerState::Fault && self.state != PowerState::Fault {
+            self.following_error = false;
+            self.error_code = 0;
+            return Some(Event::FaultCleared);
+        }
+        None
     }
 }
 
@@ -132,6 +176,25 @@ mod tests {
         }
         assert_eq!(d.state(), PowerState::OperationEnabled);
         d
+    }
+
+    #[test]
+    fn velocity_mode_ramps_to_the_target_and_coasts_when_disabled() {
+        let mut d = enabled();
+        d.velocity_ramp_units_s2 = 10_000.0; // 40 units per 4 ms cycle
+        d.cycle_velocity(cw::ENABLE_OPERATION_CMD, 100, 0.004);
+        assert_eq!(d.velocity_units(), 40);
+        for _ in 0..5 {
+            d.cycle_velocity(cw::ENABLE_OPERATION_CMD, 100, 0.004);
+        }
+        assert_eq!(d.velocity_units(), 100);
+        d.cycle_velocity(cw::ENABLE_OPERATION_CMD, -20, 0.004);
+        assert_eq!(d.velocity_units(), 60);
+        // Power stage off: the target no longer counts, the spindle runs down.
+        d.cycle_velocity(cw::DISABLE_VOLTAGE, 100, 0.004);
+        assert_eq!(d.velocity_units(), 20);
+        d.cycle_velocity(cw::DISABLE_VOLTAGE, 100, 0.004);
+        assert_eq!(d.velocity_units(), 0);
     }
 
     #[test]

@@ -103,10 +103,18 @@ pub struct SimArgs {
     pub increments_per_mm: f64,
     pub start_mm: f64,
     pub params: SimDriveParams,
+    /// Velocity units per rpm of a drive run in velocity mode (a spindle: CAN nodes the master
+    /// puts in CSV, the serial unit's spindle).
+    pub units_per_rpm: f64,
+    /// Acceleration of a spindle, rpm/s (0: it reaches the setpoint at once).
+    pub ramp_rpm_s: f64,
+    /// The serial unit has a spindle drive (protocol version 2).
+    pub spindle: bool,
 }
 
-pub const USAGE: &str = "options: --iface IF --node N (repeatable) | --link PATH --axes N; \
-    --increments-per-mm F --start-mm F --kv F --v-max-mm-s F --window-mm F";
+pub const USAGE: &str = "options: --iface IF --node N (repeatable) | --link PATH --axes N \
+    [--spindle]; --increments-per-mm F --start-mm F --kv F --v-max-mm-s F --window-mm F \
+    --units-per-rpm F --ramp-rpm-s F";
 
 impl SimArgs {
     pub fn parse(args: impl Iterator<Item = String>) -> Result<SimArgs, String> {
@@ -118,6 +126,9 @@ impl SimArgs {
             increments_per_mm: 10_000.0,
             start_mm: 0.0,
             params: SimDriveParams::default(),
+            units_per_rpm: 1.0,
+            ramp_rpm_s: 2000.0,
+            spindle: false,
         };
         let mut it = args;
         while let Some(k) = it.next() {
@@ -147,11 +158,30 @@ impl SimArgs {
                 "--kv" => a.params.kv_per_s = num(v()?)?,
                 "--v-max-mm-s" => a.params.v_max_mm_s = num(v()?)?,
                 "--window-mm" => a.params.following_window_mm = num(v()?)?,
+                "--units-per-rpm" => a.units_per_rpm = num(v()?)?,
+                "--ramp-rpm-s" => a.ramp_rpm_s = num(v()?)?,
+                "--spindle" => a.spindle = true,
                 "-h" | "--help" => return Err(USAGE.into()),
                 _ => return Err(format!("unknown option '{k}'; {USAGE}")),
             }
         }
+        let units_ok = a.units_per_rpm.is_finite() && a.units_per_rpm > 0.0;
+        let ramp_ok = a.ramp_rpm_s.is_finite() && a.ramp_rpm_s >= 0.0;
+        if !(units_ok && ramp_ok) {
+            return Err("--units-per-rpm must be positive and --ramp-rpm-s not negative".into());
+        }
         Ok(a)
+    }
+
+    /// A drive with these options; in velocity mode it ramps at `ramp_rpm_s`.
+    pub fn drive(&self) -> crate::cia402_drive::Cia402Drive {
+        let mut d = crate::cia402_drive::Cia402Drive::new(
+            self.params,
+            self.increments_per_mm,
+            self.start_mm,
+        );
+        d.velocity_ramp_units_s2 = self.ramp_rpm_s * self.units_per_rpm;
+        d
     }
 }
 
@@ -180,6 +210,16 @@ mod tests {
         )
         .unwrap();
         assert_eq!(a.nodes, [1, 2]);
+        assert_eq!(a.drive().velocity_ramp_units_s2, 2000.0);
+        let s = SimArgs::parse(
+            ["--spindle", "--units-per-rpm", "10", "--ramp-rpm-s", "500"]
+                .into_iter()
+                .map(String::from),
+        )
+        .unwrap();
+        assert!(s.spindle);
+        assert_eq!(s.drive().velocity_ramp_units_s2, 5000.0);
+        assert!(SimArgs::parse(["--units-per-rpm", "0"].into_iter().map(String::from)).is_err());
         assert_eq!(a.params.following_window_mm, 5.0);
         assert!(SimArgs::parse(["--node", "200"].into_iter().map(String::from)).is_err());
     }

@@ -1,6 +1,6 @@
 //! A simulated multi-axis drive unit behind the serial protocol (`hal/SERIAL_PROTOCOL.md`):
-//! one reply per request, CiA 402 drives per axis, a communication watchdog, and fault
-//! injection. No I/O: the `sim-serial` binary feeds it bytes from a pseudo-terminal.
+//! one reply per request, CiA 402 drives per axis, optionally a spindle drive in velocity
+//! mode (protocol version 2), a communication watchdog, and fault injection. No I/O: the `sim-serial` binary feeds it bytes from a pseudo-terminal.
 
 use hal::MAX_AXES;
 use hal::cia402::PowerState;
@@ -22,6 +22,8 @@ pub struct SerialInjection {
 
 pub struct SerialDriveUnit {
     pub drives: Vec<Cia402Drive>,
+    /// The spindle drive (velocity mode), answered in version 2 requests.
+    pub spindle: Option<Cia402Drive>,
     pub inject: SerialInjection,
     decoder: Decoder,
     last_request_ms: Option<u64>,
@@ -34,6 +36,7 @@ impl SerialDriveUnit {
         assert!((1..=MAX_AXES).contains(&drives.len()));
         SerialDriveUnit {
             drives,
+            spindle: None,
             inject: SerialInjection::default(),
             decoder: Decoder::default(),
             last_request_ms: None,
@@ -61,13 +64,16 @@ impl SerialDriveUnit {
         });
         for req in requests.iter().flatten() {
             self.last_request_ms = Some(now_ms);
-            if usize::from(req.axes) != self.drives.len() {
+            if usize::from(req.axes) != self.drives.len()
+                || (req.spindle.is_some() && self.spindle.is_none())
+            {
                 continue; // misconfigured controller: no answer, it times out
             }
             let mut reply = Reply {
                 seq: req.seq,
                 axes: req.axes,
                 axis: [AxisReply::default(); MAX_AXES],
+                spindle: None,
             };
             for ((d, r), y) in self.drives.iter_mut().zip(&req.axis).zip(&mut reply.axis) {
                 d.cycle(r.controlword, r.target_increments, 0.004);
@@ -76,6 +82,16 @@ impl SerialDriveUnit {
                     position_increments: d.position_increments(),
                     error_code: d.error_code(),
                 };
+            }
+            // Version 2: the spindle record. A version 1 request leaves the spindle alone and
+            // gets a version 1 reply.
+            if let (Some(r), Some(d)) = (req.spindle, self.spindle.as_mut()) {
+                d.cycle_velocity(r.controlword, r.target_increments, 0.004);
+                reply.spindle = Some(AxisReply {
+                    statusword: d.statusword(),
+                    position_increments: d.velocity_units(),
+                    error_code: d.error_code(),
+                });
             }
             if self.inject.silent {
                 continue;
@@ -101,7 +117,7 @@ impl SerialDriveUnit {
             && now_ms.saturating_sub(last) > WATCHDOG_MS
         {
             self.last_request_ms = None;
-            for d in &mut self.drives {
+            for d in self.drives.iter_mut().chain(self.spindle.as_mut()) {
                 if d.state() == PowerState::OperationEnabled {
                     d.fault(COMMUNICATION_LOST);
                 }

@@ -253,3 +253,95 @@ fn drive_watches_the_master_heartbeat() {
         "EMCY 8130h expected: {out:?}"
     );
 }
+
+/// The spindle drive (CSV, node 5, 10 units per rpm, ramp 1000 rpm/s) next to axis node 1:
+/// it is configured and enabled with the axis, its speed follows the setpoint on its ramp,
+/// the actual speed comes back, and its faults name the spindle.
+#[test]
+fn spindle_node_follows_the_speed_setpoint_on_its_ramp() {
+    const UNITS_PER_RPM: f64 = 10.0;
+    let axis = CanNode::new(
+        1,
+        Cia402Drive::new(SimDriveParams::default(), INC_PER_MM, 0.0),
+    );
+    let mut spindle_drive = Cia402Drive::new(SimDriveParams::default(), INC_PER_MM, 0.0);
+    spindle_drive.velocity_ramp_units_s2 = 1000.0 * UNITS_PER_RPM;
+    let net = Net {
+        nodes: vec![axis, CanNode::new(5, spindle_drive)],
+        now_ms: 0,
+        to_master: VecDeque::new(),
+        log: Vec::new(),
+    };
+    let mut cfg = CanOpenConfig::new(vec![NodeConfig {
+        node_id: 1,
+        increments_per_mm: INC_PER_MM,
+        following_window_increments: Some(10_000),
+    }]);
+    cfg.spindle = Some(hal::canopen::SpindleNodeConfig {
+        node_id: 5,
+        units_per_rpm: UNITS_PER_RPM,
+    });
+    let mut m = CanOpenMaster::new(net, "mem", cfg).unwrap();
+    m.enable();
+    let mut rig = Rig {
+        m,
+        cmd: CycleCommand::default(),
+        fb: CycleFeedback::default(),
+    };
+    rig.until_operational();
+    let mut t = 0;
+    while rig.fb.spindle_state != DriveState::Operational {
+        rig.tick().unwrap();
+        t += 1;
+        assert!(t < 100, "spindle not operational: {:?}", rig.fb);
+    }
+
+    // M3 S800: the speed rises by at most 4 rpm per 4 ms tick and settles at 800.
+    rig.cmd.spindle_rpm = 800.0;
+    let mut speeds = vec![rig.fb.spindle_rpm];
+    for _ in 0..300 {
+        rig.tick().unwrap();
+        speeds.push(rig.fb.spindle_rpm);
+    }
+    assert_eq!(*speeds.last().unwrap(), 800.0);
+    assert!(
+        speeds
+            .windows(2)
+            .all(|w| w[1] >= w[0] && w[1] - w[0] <= 4.0 + 1e-9),
+        "ramp {speeds:?}"
+    );
+    assert!(speeds.iter().filter(|&&v| v > 0.0 && v < 800.0).count() > 150);
+    // The setpoint on the bus: the RPDO of node 5 carries 8000 units (0x60FF).
+    let last_rpdo = rig
+        .net()
+        .log
+        .iter()
+        .rev()
+        .find(|(_, f)| f.id == 0x205)
+        .map(|(_, f)| hal::canopen::pdo::Rpdo::decode(f.payload()).unwrap())
+        .unwrap();
+    assert_eq!(last_rpdo.target_increments, 8000);
+
+    // M4: negative speed.
+    rig.cmd.spindle_rpm = -200.0;
+    for _ in 0..300 {
+        rig.tick().unwrap();
+    }
+    assert_eq!(rig.fb.spindle_rpm, -200.0);
+
+    // A spindle drive fault stops the machine like an axis fault, naming the spindle.
+    let mut out = Vec::new();
+    rig.net().nodes[1].force_fault(0x2310, &mut out);
+    rig.net().to_master.extend(out);
+    let (_, e) = rig.until_fault(5);
+    assert_eq!(
+        e,
+        BusFault {
+            axis: Some(hal::SPINDLE_AXIS),
+            node: Some(5),
+            reason: FaultReason::DriveFault { code: 0x2310 }
+        }
+    );
+    assert_eq!(rig.fb.spindle_state, DriveState::Fault);
+    assert_eq!(rig.fb.axes[0].state, DriveState::Operational);
+}

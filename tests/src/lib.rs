@@ -48,9 +48,17 @@ impl<B: DriveBus> DriveBus for RecordingBus<B> {
     fn axes(&self) -> usize {
         self.inner.axes()
     }
+    fn has_spindle(&self) -> bool {
+        self.inner.has_spindle()
+    }
     fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
-        self.record.lock().unwrap().push(cmd.positions_mm);
-        self.spindle.lock().unwrap().push(cmd.spindle_rpm);
+        // Both locks at once (always record first), so a reader that takes them in the same
+        // order sees both recordings with the same ticks.
+        let mut record = self.record.lock().unwrap();
+        let mut spindle = self.spindle.lock().unwrap();
+        record.push(cmd.positions_mm);
+        spindle.push(cmd.spindle_rpm);
+        drop((record, spindle));
         self.inner.cycle(cmd, fb)
     }
     fn enable(&mut self) {

@@ -60,3 +60,43 @@ fn daemon_runs_a_program_over_serial_and_recovers_after_replug() {
     let s = d.wait_state("idle", Duration::from_secs(30));
     assert!(s.contains("X0.000 Y0.000 Z0.000"), "{s}");
 }
+
+/// A serial drive unit with a spindle (protocol version 2, issue #7): the daemon's M3 S… and
+/// M5 reach the unit's spindle drive and its actual speed comes back into the status.
+#[test]
+fn daemon_runs_the_spindle_over_serial() {
+    let dir = vcan_support::temp_dir("serial-daemon-spindle-link");
+    let link = dir.join("drive.tty");
+    let link_s = link.to_str().unwrap();
+    let mut sim = Proc::spawn(
+        "sim-serial",
+        &[
+            "--link",
+            link_s,
+            "--axes",
+            "3",
+            "--spindle",
+            "--ramp-rpm-s",
+            "0",
+        ],
+    );
+    sim.expect_line(" -> /dev/pts", Duration::from_secs(10));
+    let bus = format!(
+        "[bus]\nkind = 'serial'\nport = '{link_s}'\nreply_timeout_ticks = 100\nspindle_node = 4\n"
+    );
+    let d = Daemon::start("serial-daemon-spindle", &bus, [1, 2, 3]);
+    let prog = d.program("turn.nc", "N10 M3 S800\nN20 G1 X2 F3000\n");
+    let (ok, out) = d.cncctl(&["run", "--quiet", &prog], Duration::from_secs(60));
+    assert!(ok, "cncctl run failed: {out}");
+    vcan_support::wait_spindle_rpm(&d.addr, 800.0, Duration::from_secs(30));
+    // M5 after a motion (a program of technology blocks alone has no segment to carry it to
+    // the RT thread, see docs/kr.md "Spindle changes without motion").
+    let prog = d.program("stop.nc", "N10 G1 X0 F3000\nN20 M5\n");
+    let (ok, out) = d.cncctl(&["run", "--quiet", &prog], Duration::from_secs(60));
+    assert!(ok, "cncctl run failed: {out}");
+    vcan_support::wait_spindle_rpm(&d.addr, 0.0, Duration::from_secs(30));
+
+    sim.send("fault 2310 4");
+    let s = d.wait_state("fault", Duration::from_secs(30));
+    assert!(s.contains("spindle, node 4"), "{s}");
+}

@@ -6,18 +6,21 @@ mod vcan_support;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use hal::serial::{SerialAxis, SerialBus, SerialConfig};
+use hal::serial::{SerialAxis, SerialBus, SerialConfig, SerialSpindle};
 use hal::{BusFault, DriveBus, FaultReason};
 use vcan_support::{Cycler, Proc, temp_dir};
 
 const INC_PER_MM: f64 = 10_000.0;
 
 fn sim_serial(link: &Path, axes: usize) -> Proc {
+    sim_serial_with(link, axes, &[])
+}
+
+fn sim_serial_with(link: &Path, axes: usize, extra: &[&str]) -> Proc {
     let axes = axes.to_string();
-    let mut p = Proc::spawn(
-        "sim-serial",
-        &["--link", link.to_str().unwrap(), "--axes", &axes],
-    );
+    let mut args = vec!["--link", link.to_str().unwrap(), "--axes", &axes];
+    args.extend_from_slice(extra);
+    let mut p = Proc::spawn("sim-serial", &args);
     p.expect_line(" -> /dev/pts", Duration::from_secs(10));
     p
 }
@@ -124,4 +127,65 @@ fn silent_corrupt_and_faulted_drives_are_named() {
     rig.cmd.positions_mm[0] = 80.0;
     let e = rig.until_fault(Duration::from_secs(2));
     assert_eq!((e.axis, e.reason), (Some(0), FaultReason::FollowingError));
+}
+
+/// Protocol version 2 (issue #7): the spindle setpoint goes to the unit's spindle drive in
+/// every request, its actual speed comes back in every reply (with the unit's ramp), M4 is
+/// negative, and a spindle drive fault names the spindle.
+#[test]
+fn spindle_speed_crosses_the_link_both_ways() {
+    let link = link("serial-spindle");
+    let mut sim = sim_serial_with(
+        &link,
+        2,
+        &["--spindle", "--units-per-rpm", "10", "--ramp-rpm-s", "5000"],
+    );
+    let mut cfg = SerialConfig::new(
+        link.to_str().unwrap(),
+        (1..=2)
+            .map(|node_id| SerialAxis {
+                node_id,
+                increments_per_mm: INC_PER_MM,
+            })
+            .collect(),
+    );
+    cfg.reply_timeout_ticks = 50;
+    cfg.spindle = Some(SerialSpindle {
+        node_id: 3,
+        units_per_rpm: 10.0,
+    });
+    let mut bus = SerialBus::open(cfg).unwrap();
+    bus.enable();
+    let mut rig = Cycler::new(bus, Duration::from_secs(10));
+    assert_eq!(rig.bus.axes(), 2);
+    rig.until_operational();
+    rig.until_spindle_operational();
+    // On the way up the actual speed passes through the ramp.
+    rig.cmd.spindle_rpm = 900.0;
+    let mut seen_between = 0;
+    let t0 = std::time::Instant::now();
+    while rig.fb.spindle_rpm != 900.0 {
+        assert!(t0.elapsed() < Duration::from_secs(10), "{:?}", rig.fb);
+        rig.tick().unwrap();
+        seen_between += usize::from(rig.fb.spindle_rpm > 0.0 && rig.fb.spindle_rpm < 900.0);
+    }
+    assert!(seen_between > 10, "ramp seen in {seen_between} replies");
+    rig.spindle_to(-123.4, Duration::from_secs(10));
+    rig.move_to(0, 2.0, 100.0);
+    assert!((rig.fb.spindle_rpm + 123.4).abs() < 1e-9);
+
+    sim.send("fault 2310 3");
+    let e = rig.until_fault(Duration::from_secs(2));
+    assert_eq!(
+        e,
+        BusFault {
+            axis: Some(hal::SPINDLE_AXIS),
+            node: Some(3),
+            reason: FaultReason::DriveFault { code: 0x2310 }
+        }
+    );
+    rig.cmd.spindle_rpm = 0.0;
+    rig.bus.reset();
+    rig.until_operational();
+    rig.until_spindle_operational();
 }

@@ -8,7 +8,8 @@ use std::path::Path;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use hal::canopen::{CanOpenConfig, CanOpenMaster, NodeConfig, SocketCanPort};
+use hal::canopen::pdo::{Rpdo, Tpdo};
+use hal::canopen::{CanOpenConfig, CanOpenMaster, NodeConfig, SocketCanPort, SpindleNodeConfig};
 use hal::cia402::PowerState;
 use hal::{BusFault, DriveBus, DriveState, FaultReason};
 use vcan_support::{Cycler, IFACE, Proc, sim_can, temp_dir, vcan_lock, vcan_ready};
@@ -37,6 +38,11 @@ impl std::ops::DerefMut for Rig {
 
 impl Rig {
     fn new(nodes: &[u8], record: Option<&Path>) -> Rig {
+        Rig::with_spindle(nodes, None, record)
+    }
+
+    /// `spindle`: node id and velocity units per rpm of a spindle drive.
+    fn with_spindle(nodes: &[u8], spindle: Option<(u8, f64)>, record: Option<&Path>) -> Rig {
         let mut cfg = CanOpenConfig::new(
             nodes
                 .iter()
@@ -52,6 +58,10 @@ impl Rig {
         cfg.heartbeat_timeout_ms = 1000;
         cfg.drive_consumer_timeout_ms = 2000;
         cfg.sdo_timeout_ms = 500;
+        cfg.spindle = spindle.map(|(node_id, units_per_rpm)| SpindleNodeConfig {
+            node_id,
+            units_per_rpm,
+        });
         let mut port = SocketCanPort::open(IFACE).unwrap();
         let mut recorder = None;
         if let Some(path) = record {
@@ -323,4 +333,81 @@ fn bus_off_error_frame_stops_the_bus() {
     );
     rig.bus.reset();
     rig.until_operational();
+}
+
+/// The spindle drive on the bus (issue #7): `sim-can` node 62 is set up in cyclic synchronous
+/// velocity mode next to axis node 61; the speed setpoint goes out in its RPDO (0x60FF), the
+/// actual speed comes back in its TPDO (0x606C) and reaches the feedback; M4 is negative; a
+/// spindle drive fault names the spindle.
+#[test]
+fn spindle_node_gets_the_speed_setpoint_and_reports_the_actual_speed() {
+    let _bus = vcan_lock();
+    if !vcan_ready("spindle_node_gets_the_speed_setpoint_and_reports_the_actual_speed") {
+        return;
+    }
+    let log = temp_dir("vcan-spindle").join("can.log");
+    let _axis = sim_can(&[61], &[]);
+    // 10 units per rpm (0.1 rpm resolution), ramp 5000 rpm/s.
+    let mut spindle = sim_can(&[62], &["--units-per-rpm", "10", "--ramp-rpm-s", "5000"]);
+    let mut rig = Rig::with_spindle(&[61], Some((62, 10.0)), Some(&log));
+    assert_eq!(rig.bus.axes(), 1);
+    assert!(rig.bus.has_spindle());
+    rig.until_operational();
+    rig.until_spindle_operational();
+    rig.spindle_to(1500.0, Duration::from_secs(10));
+    rig.spindle_to(-250.5, Duration::from_secs(10));
+    rig.move_to(0, 1.0, 50.0);
+    assert!((rig.fb.spindle_rpm + 250.5).abs() < 1e-9);
+
+    spindle.send("fault 2310");
+    let e = rig.until_fault(Duration::from_secs(5));
+    assert_eq!(
+        e,
+        BusFault {
+            axis: Some(hal::SPINDLE_AXIS),
+            node: Some(62),
+            reason: FaultReason::DriveFault { code: 0x2310 }
+        }
+    );
+    assert!(e.to_string().contains("spindle, node 62"), "{e}");
+    assert_eq!(rig.fb.spindle_state, DriveState::Fault);
+    rig.cmd.spindle_rpm = 0.0;
+    rig.bus.reset();
+    rig.until_operational();
+    rig.until_spindle_operational();
+    rig.finish();
+
+    // On the wire: CSV set up by SDO (0x6060 = 9, RPDO mapped to 0x60FF), then the setpoints
+    // 15000 and -2505 units in the RPDOs and the same values back in the TPDOs.
+    let frames = read_log(&log);
+    assert!(
+        frames
+            .iter()
+            .any(|(_, id, d)| *id == 0x600 + 62 && d[..5] == [0x2F, 0x60, 0x60, 0, 9]),
+        "0x6060 = 9 written"
+    );
+    assert!(frames.iter().any(|(_, id, d)| *id == 0x600 + 62
+        && d[1..4] == [0x00, 0x16, 2]
+        && d[4..] == [0x20, 0, 0xFF, 0x60]));
+    let rpdo: Vec<i32> = frames
+        .iter()
+        .filter(|(_, id, d)| *id == 0x200 + 62 && d.len() == 6)
+        .map(|(_, _, d)| Rpdo::decode(d).unwrap().target_increments)
+        .collect();
+    let tpdo: Vec<i32> = frames
+        .iter()
+        .filter(|(_, id, d)| *id == 0x180 + 62 && d.len() == 6)
+        .map(|(_, _, d)| Tpdo::decode(d).unwrap().position_increments)
+        .collect();
+    assert_eq!(
+        dedup(rpdo.iter().copied()),
+        [0, 15_000, -2505, 0],
+        "setpoints"
+    );
+    assert!(
+        tpdo.contains(&15_000) && tpdo.contains(&-2505),
+        "actual speeds"
+    );
+    // The ramp (5000 rpm/s = 200 units per 4 ms): intermediate speeds on the way up.
+    assert!(tpdo.iter().filter(|&&v| v > 0 && v < 15_000).count() > 10);
 }

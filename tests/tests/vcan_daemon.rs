@@ -6,7 +6,7 @@ mod vcan_support;
 
 use std::time::Duration;
 
-use vcan_support::{Daemon, sim_can, vcan_lock, vcan_ready};
+use vcan_support::{Daemon, sim_can, vcan_lock, vcan_ready, wait_spindle_rpm};
 
 const BUS: &str = "[bus]\nkind = 'can'\ninterface = 'vcan0'\nrecord = 'RECORD'\n\
     tpdo_missing_ticks = 50\nheartbeat_timeout_ms = 1000\ndrive_consumer_timeout_ms = 2000\n\
@@ -122,4 +122,74 @@ fn daemon_runs_a_program_on_vcan_and_recovers_from_a_killed_drive() {
     assert!(ok, "run after reset failed: {out}");
     let s = d.wait_state("idle", Duration::from_secs(30));
     assert!(s.contains("X0.000 Y0.000 Z0.000"), "{s}");
+}
+
+/// The daemon drives a spindle node on vcan (issue #7): M3 S1200 reaches the drive as a
+/// velocity setpoint (decoded from the recorded RPDOs), its actual speed comes back into the
+/// status, M4 and M5 follow, and a spindle drive fault is an alarm naming the spindle.
+#[test]
+fn daemon_sends_the_spindle_speed_to_the_spindle_node() {
+    let _bus = vcan_lock();
+    if !vcan_ready("daemon_sends_the_spindle_speed_to_the_spindle_node") {
+        return;
+    }
+    let _axes = sim_can(&[51, 52, 53], &[]);
+    // The simulated spindle reaches its speed at once (no ramp): what the status shows
+    // afterwards does not depend on timing.
+    let mut spindle = sim_can(&[54], &["--units-per-rpm", "10", "--ramp-rpm-s", "0"]);
+    let dir = vcan_support::temp_dir("vcan-daemon-spindle-record");
+    let record = dir.join("can.log");
+    let bus = BUS.replace("RECORD", record.to_str().unwrap())
+        + "spindle_node = 54\nspindle_units_per_rpm = 10\n";
+    let d = Daemon::start("vcan-daemon-spindle", &bus, [51, 52, 53]);
+
+    let prog = d.program("turn.nc", "N10 M3 S1200\nN20 G1 X5 F3000\n");
+    let (ok, out) = d.cncctl(&["run", "--quiet", &prog], Duration::from_secs(120));
+    assert!(ok, "cncctl run failed: {out}");
+    wait_spindle_rpm(&d.addr, 1200.0, Duration::from_secs(30));
+    let prog = d.program("m4.nc", "N10 M4 S300\nN20 G1 X0 F3000\n");
+    let (ok, out) = d.cncctl(&["run", "--quiet", &prog], Duration::from_secs(120));
+    assert!(ok, "cncctl run failed: {out}");
+    wait_spindle_rpm(&d.addr, -300.0, Duration::from_secs(30));
+    // M5 after a motion (technology blocks alone have no segment to ride on).
+    let prog = d.program("m5.nc", "N10 G1 X1 F3000\nN20 M5\n");
+    let (ok, out) = d.cncctl(&["run", "--quiet", &prog], Duration::from_secs(120));
+    assert!(ok, "cncctl run failed: {out}");
+    wait_spindle_rpm(&d.addr, 0.0, Duration::from_secs(30));
+
+    std::thread::sleep(Duration::from_millis(500)); // let the log flush
+    let log = std::fs::read_to_string(&record).unwrap();
+    let values = |id: u16| -> Vec<i32> {
+        let id = format!(" {id:03X}#");
+        let mut v: Vec<i32> = Vec::new();
+        for l in log.lines().filter(|l| l.contains(&id)) {
+            let data = l.split('#').nth(1).unwrap();
+            if data.len() != 12 {
+                continue;
+            }
+            let b: Vec<u8> = (0..6)
+                .map(|i| u8::from_str_radix(&data[2 * i..2 * i + 2], 16).unwrap())
+                .collect();
+            let x = i32::from_le_bytes([b[2], b[3], b[4], b[5]]);
+            if v.last() != Some(&x) {
+                v.push(x);
+            }
+        }
+        v
+    };
+    // 0x60FF in the RPDO of node 54: 1200 rpm = 12000 units, M4 S300 = -3000, M5 = 0.
+    assert_eq!(
+        values(0x200 + 54),
+        [0, 12_000, -3000, 0],
+        "spindle setpoints"
+    );
+    assert_eq!(values(0x180 + 54), [0, 12_000, -3000, 0], "spindle speeds");
+
+    spindle.send("fault 2310");
+    let s = d.wait_state("fault", Duration::from_secs(30));
+    assert!(s.contains("spindle, node 54"), "{s}");
+    assert!(s.contains("overcurrent"), "{s}");
+    let (ok, out) = d.cncctl(&["reset"], Duration::from_secs(60));
+    assert!(ok, "{out}");
+    d.wait_state("idle", Duration::from_secs(60));
 }

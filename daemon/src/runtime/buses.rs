@@ -5,13 +5,15 @@
 //! kind = "can"            # or "sim" (default), "serial"
 //! interface = "can0"
 //! record = "/var/log/cnc/can.log"   # optional: candump log of all traffic
+//! spindle_node = 10       # optional: the spindle drive (CiA 402 velocity mode)
+//! spindle_units_per_rpm = 1
 //! ```
 //! Every key is listed in `docs/buses.md`.
 
 use std::path::PathBuf;
 
-use hal::canopen::{CanOpenConfig, CanOpenMaster, NodeConfig, SocketCanPort};
-use hal::serial::{SerialAxis, SerialBus, SerialConfig};
+use hal::canopen::{CanOpenConfig, CanOpenMaster, NodeConfig, SocketCanPort, SpindleNodeConfig};
+use hal::serial::{SerialAxis, SerialBus, SerialConfig, SerialSpindle};
 use serde::Deserialize;
 
 use super::config::{AxisConfig, SimConfig};
@@ -74,6 +76,42 @@ pub struct CanBusConfig {
     /// Error frames tolerated (decaying by one per 40 ms) before a fault.
     #[serde(default = "default_error_frame_limit")]
     pub error_frame_limit: u32,
+    /// Node id of the spindle drive (CiA 402, cyclic synchronous velocity); unset: no spindle
+    /// drive on this bus.
+    #[serde(default)]
+    pub spindle_node: Option<u8>,
+    /// Spindle drive velocity units (0x60FF, 0x606C) per rpm.
+    #[serde(default = "default_units_per_rpm")]
+    pub spindle_units_per_rpm: f64,
+}
+
+fn default_units_per_rpm() -> f64 {
+    1.0
+}
+
+/// Checks the spindle keys shared by the CAN and serial sections.
+fn validate_spindle(
+    node: Option<u8>,
+    units_per_rpm: f64,
+    axes: &[AxisConfig],
+) -> Result<(), String> {
+    if !(units_per_rpm.is_finite() && units_per_rpm > 0.0) {
+        return Err(format!(
+            "bus.spindle_units_per_rpm: {units_per_rpm} must be a positive number"
+        ));
+    }
+    if let Some(id) = node {
+        if !(1..=127).contains(&id) {
+            return Err(format!("bus.spindle_node: {id} is outside 1..127"));
+        }
+        if let Some(a) = axes.iter().find(|a| a.node_id == Some(id)) {
+            return Err(format!(
+                "bus.spindle_node: node {id} is the drive of axis {}",
+                a.name
+            ));
+        }
+    }
+    Ok(())
 }
 
 fn default_master_node_id() -> u8 {
@@ -121,6 +159,13 @@ pub struct SerialBusConfig {
     /// Ticks allowed for the CiA 402 enable sequence.
     #[serde(default = "default_enable_timeout_ticks")]
     pub enable_timeout_ticks: u32,
+    /// Address of the unit's spindle drive (named in alarms); set: the unit has a spindle and
+    /// the link speaks protocol version 2. Unset: no spindle drive, protocol version 1.
+    #[serde(default)]
+    pub spindle_node: Option<u8>,
+    /// Spindle drive velocity units per rpm.
+    #[serde(default = "default_units_per_rpm")]
+    pub spindle_units_per_rpm: f64,
 }
 
 fn default_baud() -> u32 {
@@ -183,7 +228,13 @@ impl BusConfig {
                             .into(),
                     );
                 }
-                Ok(())
+                if c.spindle_node == Some(c.master_node_id) {
+                    return Err(format!(
+                        "bus.spindle_node: {} equals bus.master_node_id",
+                        c.master_node_id
+                    ));
+                }
+                validate_spindle(c.spindle_node, c.spindle_units_per_rpm, axes)
             }
             BusConfig::Serial(s) => {
                 if s.port.is_empty() {
@@ -192,7 +243,7 @@ impl BusConfig {
                 if s.reply_timeout_ticks == 0 {
                     return Err("bus.reply_timeout_ticks must be above 0".into());
                 }
-                Ok(())
+                validate_spindle(s.spindle_node, s.spindle_units_per_rpm, axes)
             }
         }
     }
@@ -223,6 +274,10 @@ pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
         enable_timeout_ms: c.enable_timeout_ms,
         following_error_limit_mm: c.following_error_limit_mm,
         error_frame_limit: c.error_frame_limit,
+        spindle: c.spindle_node.map(|node_id| SpindleNodeConfig {
+            node_id,
+            units_per_rpm: c.spindle_units_per_rpm,
+        }),
         ..CanOpenConfig::new(nodes)
     }
 }
@@ -258,6 +313,10 @@ pub fn open_bus(
                 baud: s.baud,
                 reply_timeout_ticks: s.reply_timeout_ticks,
                 enable_timeout_ticks: s.enable_timeout_ticks,
+                spindle: s.spindle_node.map(|node_id| SerialSpindle {
+                    node_id,
+                    units_per_rpm: s.spindle_units_per_rpm,
+                }),
                 ..SerialConfig::new(
                     &s.port,
                     axes.iter()
@@ -309,6 +368,50 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains("axes[0].node_id"), "{e}");
+
+        // The spindle drive: node id and scaling reach the master; bad values name the key.
+        let c = Config::parse(
+            "[bus]\nkind = 'can'\ninterface = 'vcan0'\nspindle_node = 10\nspindle_units_per_rpm = 10\n",
+            Path::new("m.toml"),
+        )
+        .unwrap();
+        let BusConfig::Can(can) = &c.bus else {
+            panic!()
+        };
+        assert_eq!(
+            can_config(can, &c.axes).spindle,
+            Some(SpindleNodeConfig {
+                node_id: 10,
+                units_per_rpm: 10.0
+            })
+        );
+        assert_eq!(
+            can_config(
+                &CanBusConfig {
+                    spindle_node: None,
+                    ..can.clone()
+                },
+                &c.axes
+            )
+            .spindle,
+            None
+        );
+        for (bad, key) in [
+            ("spindle_node = 3", "node 3 is the drive of axis Z"),
+            ("spindle_node = 127", "equals bus.master_node_id"),
+            ("spindle_node = 0", "outside 1..127"),
+            (
+                "spindle_node = 9\nspindle_units_per_rpm = -1",
+                "bus.spindle_units_per_rpm",
+            ),
+        ] {
+            let e = Config::parse(
+                &format!("[bus]\nkind = 'can'\ninterface = 'vcan0'\n{bad}\n"),
+                Path::new("m.toml"),
+            )
+            .unwrap_err();
+            assert!(e.to_string().contains(key), "{bad}: {e}");
+        }
     }
 
     #[test]
@@ -325,7 +428,28 @@ mod tests {
                 baud: 460_800,
                 reply_timeout_ticks: 25,
                 enable_timeout_ticks: 500,
+                spindle_node: None,
+                spindle_units_per_rpm: 1.0,
             })
+        );
+        let c = Config::parse(
+            "[bus]\nkind = 'serial'\nport = '/dev/ttyUSB0'\nspindle_node = 4\nspindle_units_per_rpm = 10\n",
+            Path::new("m.toml"),
+        )
+        .unwrap();
+        let BusConfig::Serial(s) = &c.bus else {
+            panic!()
+        };
+        assert_eq!((s.spindle_node, s.spindle_units_per_rpm), (Some(4), 10.0));
+        let e = Config::parse(
+            "[bus]\nkind = 'serial'\nport = 'x'\nspindle_node = 2\n",
+            Path::new("m.toml"),
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("bus.spindle_node: node 2 is the drive of axis Y"),
+            "{e}"
         );
         let e = Config::parse("[bus]\nkind = 'sim'\nport = 'x'\n", Path::new("m.toml"));
         assert!(e.is_err(), "unknown key of the sim bus: {e:?}");

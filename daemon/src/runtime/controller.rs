@@ -118,6 +118,14 @@ impl Controller {
         bus: Box<dyn hal::DriveBus>,
     ) -> Result<Arc<Controller>, String> {
         let axes = config.axes.len();
+        if !bus.has_spindle() {
+            // Said once here: the RT thread keeps computing the speed (KŘR, the PLC cells),
+            // but the setpoint has no drive to go to (issue #7).
+            tracing::warn!(
+                bus = bus.name(),
+                "no spindle drive configured on the bus: the spindle speed is computed but not sent to any drive"
+            );
+        }
         let (constants, offsets) = load_storage(&config)?;
         let mut start = AxesMm::ZERO;
         for (i, a) in config.axes.iter().enumerate() {
@@ -668,11 +676,7 @@ fn status_pump(
         if s.fault != last.fault
             && let Some(f) = s.fault
         {
-            let axis = f
-                .axis
-                .and_then(|a| axis_names.get(a as usize))
-                .map(|c| c.to_string())
-                .unwrap_or_else(|| "-".into());
+            let axis = hal::fault_axis_label(f.axis, axis_names).unwrap_or_else(|| "-".into());
             tracing::error!(axis, node = ?f.node, block = %BlockNo(s.block_n), line = s.line, "alarm: {}", f.reason);
         }
         if s.state != last.state {

@@ -134,6 +134,8 @@ struct Rt {
     /// Single block: the block the path was in when last checked (`u32::MAX`: not yet moving
     /// in this job).
     sb_seq: u32,
+    /// The bus has a spindle drive (asked once at start-up).
+    has_spindle: bool,
 }
 
 /// Runs the loop until a `Shutdown` command has brought the axes to rest.
@@ -160,7 +162,9 @@ pub fn run(parts: RtParts) {
         settle_ticks: 0,
         plc: PlcArea::new(),
         sb_seq: u32::MAX,
+        has_spindle: false,
     };
+    rt.has_spindle = rt.p.bus.has_spindle();
     rt.p.bus.enable();
     let mut deadline = rt.p.clock.now_ns() + TS_NS;
     loop {
@@ -287,7 +291,9 @@ impl Rt {
                 gear: out.spindle.gear,
             },
             motion,
-            axis: ControllingAxis::at(out.position[axis]),
+            // The carriage and the offsets in force: KŘR computes at the tool tip, or at the
+            // carriage with EXT_AKRR_SUPORT (SPEC §6).
+            axis: ControllingAxis::of(out.position[axis], &out.spindle),
         };
         let k = self.p.kr.tick(&input, &mut self.plc);
         self.cmd.spindle_rpm = k.spindle_rpm;
@@ -368,9 +374,12 @@ impl Rt {
         }
         match s.state {
             MachineState::Enabling => {
+                // The spindle drive, where there is one, must be ready too: a program's M3
+                // would otherwise go to a drive that cannot turn yet.
                 let ready = self.fb.axes[..self.p.axes]
                     .iter()
-                    .all(|a| a.state == DriveState::Operational);
+                    .all(|a| a.state == DriveState::Operational)
+                    && (!self.has_spindle || self.fb.spindle_state == DriveState::Operational);
                 self.enable_ticks += 1;
                 if ready {
                     // Drives report where they are: command from there (after a fault or at

@@ -192,9 +192,7 @@ pub async fn wait_operational(
 }
 
 fn axis_label(axis: Option<u8>, names: &[char]) -> String {
-    axis.and_then(|a| names.get(usize::from(a)))
-        .map(|c| c.to_string())
-        .unwrap_or_else(|| "-".into())
+    hal::fault_axis_label(axis, names).unwrap_or_else(|| "-".into())
 }
 
 /// Sends `WATCHDOG=1` every `interval` while the real-time thread is ticking (see [`judge`]).

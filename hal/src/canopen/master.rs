@@ -1,4 +1,7 @@
-//! The cyclic CANopen master for CiA 402 drives in Cyclic Synchronous Position mode.
+//! The cyclic CANopen master for CiA 402 drives: axes in Cyclic Synchronous Position mode
+//! (CSP), and an optional spindle drive in Cyclic Synchronous Velocity mode (CSV) that gets
+//! the spindle speed setpoint and reports the actual speed. The spindle node goes through the
+//! same start-up, enable sequence, watchdogs and fault handling as the axis nodes.
 //!
 //! Everything happens inside [`DriveBus::cycle`], once per tick, without blocking or
 //! allocating:
@@ -17,7 +20,7 @@ use crate::{
 };
 
 use super::emcy::{self, Emcy};
-use super::pdo::{self, Rpdo, Tpdo};
+use super::pdo::{self, OpMode, Rpdo, Tpdo};
 use super::sdo::{self, Response};
 use super::{CanPort, Frame, PortError, RxEvent, cob, err_class, nmt};
 use crate::cia402::{self, PowerState, cw, sw};
@@ -34,10 +37,23 @@ pub struct NodeConfig {
     pub following_window_increments: Option<u32>,
 }
 
+/// The spindle drive (CiA 402 in cyclic synchronous velocity mode).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpindleNodeConfig {
+    /// CANopen node id, 1..=127, not used by an axis.
+    pub node_id: u8,
+    /// Drive velocity units (0x60FF, 0x606C) per rpm, e.g. 1 for a drive in rpm, 10 for
+    /// 0.1 rpm, or encoder increments per second per rpm (increments per revolution / 60).
+    pub units_per_rpm: f64,
+}
+
 /// Bus-wide settings. Times are converted to ticks of `cycle_us`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CanOpenConfig {
+    /// Axis drives, in axis order.
     pub nodes: Vec<NodeConfig>,
+    /// The spindle drive, if the spindle is on this bus.
+    pub spindle: Option<SpindleNodeConfig>,
     /// The master's own node id: it produces a heartbeat the drives consume (0x1016).
     pub master_node_id: u8,
     /// Tick period, µs (0x1006 and 0x60C2 of the drives).
@@ -70,6 +86,7 @@ impl CanOpenConfig {
     pub fn new(nodes: Vec<NodeConfig>) -> CanOpenConfig {
         CanOpenConfig {
             nodes,
+            spindle: None,
             master_node_id: 127,
             cycle_us: 4000,
             tpdo_missing_ticks: 25,
@@ -95,7 +112,7 @@ enum Step {
         value: u32,
         size: u8,
     },
-    /// Reads 0x6064 so the target can start at the actual position.
+    /// Reads 0x6064 so the target can start at the actual position (CSP only).
     ReadPosition,
 }
 
@@ -125,10 +142,13 @@ enum Phase {
 }
 
 struct Node {
+    /// For the spindle node `increments_per_mm` holds its velocity units per rpm.
     cfg: NodeConfig,
+    mode: OpMode,
     steps: Vec<Step>,
     phase: Phase,
     statusword: u16,
+    /// The TPDO's value: actual position (CSP) or actual velocity (CSV), drive units.
     position_increments: i32,
     tpdo_seen: bool,
     tpdo_missing: u32,
@@ -144,7 +164,9 @@ pub struct CanOpenMaster<P: CanPort> {
     port: P,
     name: String,
     cfg: CanOpenConfig,
+    /// Axis nodes first (`[..axes]`), then the spindle node if configured.
     nodes: Vec<Node>,
+    axes: usize,
     tick: u64,
     enabled: bool,
     bus_fault: Option<FaultReason>,
@@ -156,18 +178,19 @@ fn ticks(ms: u32, cycle_us: u32) -> u64 {
     (u64::from(ms) * 1000).div_ceil(u64::from(cycle_us.max(1)))
 }
 
-fn startup_steps(c: &CanOpenConfig, n: &NodeConfig) -> Vec<Step> {
+fn startup_steps(c: &CanOpenConfig, n: &NodeConfig, mode: OpMode) -> Vec<Step> {
     let w = |index, subindex, value, size| Step::Write {
         index,
         subindex,
         value,
         size,
     };
-    let mut steps: Vec<Step> = pdo::mapping_writes(n.node_id)
+    let mut steps: Vec<Step> = pdo::mapping_writes(n.node_id, mode)
         .iter()
         .map(|&(i, s, v, z)| w(i, s, v, z))
         .collect();
-    steps.push(w(0x6060, 0, 8, 1)); // modes of operation: cyclic synchronous position
+    // Modes of operation: cyclic synchronous position (8) or velocity (9).
+    steps.push(w(0x6060, 0, u32::from(mode.code()), 1));
     steps.push(w(0x60C2, 1, (c.cycle_us / 1000).max(1), 1)); // interpolation period...
     steps.push(w(0x60C2, 2, (-3i8) as u8 as u32, 1)); // ...in 10^-3 s
     steps.push(w(0x1006, 0, c.cycle_us, 4)); // communication cycle period, µs
@@ -186,7 +209,9 @@ fn startup_steps(c: &CanOpenConfig, n: &NodeConfig) -> Vec<Step> {
     if let Some(window) = n.following_window_increments {
         steps.push(w(0x6065, 0, window, 4));
     }
-    steps.push(Step::ReadPosition);
+    if mode == OpMode::Csp {
+        steps.push(Step::ReadPosition);
+    }
     steps
 }
 
@@ -234,12 +259,37 @@ impl<P: CanPort> CanOpenMaster<P> {
                 return Err(format!("increments per mm of axis {i} must be positive"));
             }
         }
-        let nodes = cfg
-            .nodes
-            .iter()
-            .map(|n| Node {
-                cfg: n.clone(),
-                steps: startup_steps(&cfg, n),
+        let mut drives: Vec<(NodeConfig, OpMode)> =
+            cfg.nodes.iter().map(|n| (n.clone(), OpMode::Csp)).collect();
+        if let Some(sp) = &cfg.spindle {
+            if !(1..=127).contains(&sp.node_id) || sp.node_id == cfg.master_node_id {
+                return Err(format!(
+                    "node id {} of the spindle is outside 1..127 or equals the master's",
+                    sp.node_id
+                ));
+            }
+            if cfg.nodes.iter().any(|m| m.node_id == sp.node_id) {
+                return Err(format!(
+                    "node id {} of the spindle is used by an axis",
+                    sp.node_id
+                ));
+            }
+            if !(sp.units_per_rpm.is_finite() && sp.units_per_rpm > 0.0) {
+                return Err("velocity units per rpm of the spindle must be positive".into());
+            }
+            let n = NodeConfig {
+                node_id: sp.node_id,
+                increments_per_mm: sp.units_per_rpm,
+                following_window_increments: None,
+            };
+            drives.push((n, OpMode::Csv));
+        }
+        let nodes = drives
+            .into_iter()
+            .map(|(n, mode)| Node {
+                steps: startup_steps(&cfg, &n, mode),
+                cfg: n,
+                mode,
                 phase: Phase::Idle,
                 statusword: 0,
                 position_increments: 0,
@@ -255,6 +305,7 @@ impl<P: CanPort> CanOpenMaster<P> {
         Ok(CanOpenMaster {
             port,
             name: name.to_owned(),
+            axes: cfg.nodes.len(),
             cfg,
             nodes,
             tick: 0,
@@ -282,6 +333,15 @@ impl<P: CanPort> CanOpenMaster<P> {
 
     fn node_index(&self, node_id: u8) -> Option<usize> {
         self.nodes.iter().position(|n| n.cfg.node_id == node_id)
+    }
+
+    /// The axis a fault of node `i` names: its index, or the spindle.
+    fn axis_of(&self, i: usize) -> u8 {
+        if i < self.axes {
+            i as u8
+        } else {
+            crate::SPINDLE_AXIS
+        }
     }
 
     fn fault(&mut self, i: usize, reason: FaultReason) {
@@ -405,7 +465,7 @@ impl<P: CanPort> CanOpenMaster<P> {
             n.phase = Phase::Starting { since: tick };
             n.tpdo_seen = false;
             n.last_heartbeat = tick;
-            n.target_increments = n.position_increments;
+            n.target_increments = n.hold_target();
             n.controlword = cw::DISABLE_VOLTAGE;
             let id = n.cfg.node_id;
             self.send(&nmt::command(nmt::Command::Start, id));
@@ -438,8 +498,10 @@ impl<P: CanPort> CanOpenMaster<P> {
         let enable_ticks = ticks(c.enable_timeout_ms, c.cycle_us);
         let hb_ticks = ticks(c.heartbeat_timeout_ms, c.cycle_us);
         let missing_limit = c.tpdo_missing_ticks;
+        // The master's following-error check is a position check: not for a velocity node.
         let fe_limit = c
             .following_error_limit_mm
+            .filter(|_| self.nodes[i].mode == OpMode::Csp)
             .map(|mm| mm * self.nodes[i].cfg.increments_per_mm);
 
         // Watchdogs of a started node: TPDO every SYNC, heartbeat.
@@ -511,7 +573,7 @@ impl<P: CanPort> CanOpenMaster<P> {
                 }
             }
             Phase::Starting { since } => {
-                n.target_increments = n.position_increments;
+                n.target_increments = n.hold_target();
                 if n.tpdo_seen {
                     n.tpdo_missing = 0;
                     n.phase = Phase::Enabling { since: tick };
@@ -522,8 +584,9 @@ impl<P: CanPort> CanOpenMaster<P> {
                 }
             }
             Phase::Enabling { since } => {
-                // Target follows the actual position until enabled, so nothing jumps.
-                n.target_increments = n.position_increments;
+                // Target follows the actual position (a spindle: stands) until enabled, so
+                // nothing jumps.
+                n.target_increments = n.hold_target();
                 let state = PowerState::from_statusword(n.statusword);
                 if state == PowerState::OperationEnabled {
                     n.phase = Phase::Operational;
@@ -555,16 +618,21 @@ impl<P: CanPort> CanOpenMaster<P> {
             Phase::Faulted(_) => {
                 // Power stage off; the target stays where the drive is.
                 n.controlword = cw::DISABLE_VOLTAGE;
-                n.target_increments = n.position_increments;
+                n.target_increments = n.hold_target();
             }
         }
         // A node that just faulted gets its power stage switched off in this tick's RPDO.
         let n = &mut self.nodes[i];
         if matches!(n.phase, Phase::Faulted(_)) {
             n.controlword = cw::DISABLE_VOLTAGE;
-            n.target_increments = n.position_increments;
+            n.target_increments = n.hold_target();
         }
         n.tpdo_seen = false;
+    }
+
+    /// The spindle node, if configured.
+    fn spindle(&self) -> Option<&Node> {
+        self.nodes.get(self.axes)
     }
 
     fn state_of(phase: Phase) -> DriveState {
@@ -581,13 +649,34 @@ impl<P: CanPort> CanOpenMaster<P> {
 /// tick (the rest waits in the socket buffer for the next tick).
 const MAX_RX_PER_TICK: usize = 256;
 
+impl Node {
+    /// The target that holds the drive still: where it is (CSP), or speed 0 (CSV).
+    fn hold_target(&self) -> i32 {
+        match self.mode {
+            OpMode::Csp => self.position_increments,
+            OpMode::Csv => 0,
+        }
+    }
+}
+
+/// A value in drive units, rounded and saturated to the 32-bit PDO field.
+fn to_units(value: f64, units_per: f64) -> i32 {
+    (value * units_per)
+        .round()
+        .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
+}
+
 impl<P: CanPort> DriveBus for CanOpenMaster<P> {
     fn name(&self) -> &str {
         &self.name
     }
 
     fn axes(&self) -> usize {
-        self.nodes.len()
+        self.axes
+    }
+
+    fn has_spindle(&self) -> bool {
+        self.spindle().is_some()
     }
 
     fn cycle(&mut self, cmd: &CycleCommand, feedback: &mut CycleFeedback) -> Result<(), BusFault> {
@@ -609,8 +698,17 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
 
         let blocked_before = self.tx_blocked_ticks;
         for i in 0..self.nodes.len() {
-            let mm = cmd.positions_mm[i] * self.nodes[i].cfg.increments_per_mm;
-            let target = mm.round().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32;
+            let value = if i < self.axes {
+                cmd.positions_mm[i]
+            } else {
+                // A setpoint that is not a number stops the spindle rather than the bus.
+                if cmd.spindle_rpm.is_finite() {
+                    cmd.spindle_rpm
+                } else {
+                    0.0
+                }
+            };
+            let target = to_units(value, self.nodes[i].cfg.increments_per_mm);
             self.update_node(i, target);
         }
 
@@ -646,12 +744,22 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
             self.bus_fault.get_or_insert(FaultReason::BusError);
         }
 
-        for (fb, n) in feedback.axes.iter_mut().zip(&self.nodes) {
+        for (fb, n) in feedback.axes.iter_mut().zip(&self.nodes[..self.axes]) {
             *fb = AxisFeedback {
                 position_mm: f64::from(n.position_increments) / n.cfg.increments_per_mm,
                 state: Self::state_of(n.phase),
             };
         }
+        let (spindle_rpm, spindle_state) = match self.spindle() {
+            Some(n) if n.phase == Phase::Operational => (
+                f64::from(n.position_increments) / n.cfg.increments_per_mm,
+                DriveState::Operational,
+            ),
+            Some(n) => (0.0, Self::state_of(n.phase)),
+            None => (0.0, DriveState::Disabled),
+        };
+        feedback.spindle_rpm = spindle_rpm;
+        feedback.spindle_state = spindle_state;
         if let Some(reason) = self.bus_fault {
             return Err(BusFault {
                 axis: None,
@@ -662,7 +770,7 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
         for (i, n) in self.nodes.iter().enumerate() {
             if let Phase::Faulted(reason) = n.phase {
                 return Err(BusFault {
-                    axis: Some(i as u8),
+                    axis: Some(self.axis_of(i)),
                     node: Some(n.cfg.node_id),
                     reason,
                 });
@@ -1083,5 +1191,237 @@ mod tests {
         }
         assert_eq!(r.unwrap_err().reason, FaultReason::NoBootUp);
         assert_eq!(resets, 3, "the reset is sent three times before giving up");
+    }
+
+    /// Axis node 3 and spindle node 9 (10 velocity units per rpm).
+    fn master_with_spindle() -> CanOpenMaster<FakePort> {
+        let mut cfg = CanOpenConfig::new(vec![NodeConfig {
+            node_id: 3,
+            increments_per_mm: 1000.0,
+            following_window_increments: Some(5000),
+        }]);
+        cfg.spindle = Some(SpindleNodeConfig {
+            node_id: 9,
+            units_per_rpm: 10.0,
+        });
+        CanOpenMaster::new(FakePort::default(), "fake", cfg).unwrap()
+    }
+
+    /// Plays both drives until they are operational; returns the SDO writes to node 9 and
+    /// whether node 9 was asked for its position.
+    fn spindle_bring_up(m: &mut CanOpenMaster<FakePort>) -> (Vec<(u16, u8, u32)>, bool) {
+        m.enable();
+        let _ = step(m);
+        rx(m, nmt::heartbeat(3, nmt::state::BOOT_UP));
+        rx(m, nmt::heartbeat(9, nmt::state::BOOT_UP));
+        let mut writes = Vec::new();
+        let mut uploads = false;
+        let mut states = [PowerState::SwitchOnDisabled; 2];
+        let mut last_cw = [0u16; 2];
+        let mut started = [false; 2];
+        for _ in 0..200 {
+            for (k, id) in [3u8, 9].into_iter().enumerate() {
+                if started[k] {
+                    rx(
+                        m,
+                        Tpdo {
+                            statusword: states[k].statusword_bits(),
+                            position_increments: if id == 3 { 2500 } else { 0 },
+                        }
+                        .encode(id),
+                    );
+                    rx(m, nmt::heartbeat(id, nmt::state::OPERATIONAL));
+                }
+            }
+            let (sent, r) = step(m);
+            assert!(r.is_ok(), "{r:?}");
+            for f in &sent {
+                if f.id == 0x609 {
+                    match sdo::parse_request(f.payload()) {
+                        Ok(sdo::Request::Download {
+                            index,
+                            subindex,
+                            value,
+                            ..
+                        }) => writes.push((index, subindex, value)),
+                        Ok(sdo::Request::Upload { .. }) => uploads = true,
+                        Err(_) => {}
+                    }
+                }
+                for (k, id) in [3u8, 9].into_iter().enumerate() {
+                    if *f == nmt::command(nmt::Command::Start, id) {
+                        started[k] = true;
+                    }
+                    if f.id == 0x200 + u16::from(id) {
+                        let c = Rpdo::decode(f.payload()).unwrap().controlword;
+                        states[k] = cia402::apply_controlword(states[k], last_cw[k], c);
+                        last_cw[k] = c;
+                    }
+                }
+            }
+            answer_sdos(m, &sent);
+            if m.nodes.iter().all(|n| n.phase == Phase::Operational) {
+                return (writes, uploads);
+            }
+        }
+        panic!(
+            "not operational: {:?}",
+            m.nodes.iter().map(|n| n.phase).collect::<Vec<_>>()
+        );
+    }
+
+    #[test]
+    fn spindle_node_runs_in_csv_and_carries_the_speed_both_ways() {
+        let mut m = master_with_spindle();
+        assert_eq!(m.axes(), 1, "the spindle is not an axis");
+        assert!(m.has_spindle());
+        let (writes, uploads) = spindle_bring_up(&mut m);
+        for w in [
+            (0x6060, 0, 9),
+            (0x1600, 1, 0x6040_0010),
+            (0x1600, 2, 0x60FF_0020),
+            (0x1A00, 2, 0x606C_0020),
+            (0x1400, 1, 0x209),
+            (0x1800, 1, 0x189),
+            (0x1006, 0, 4000),
+        ] {
+            assert!(writes.contains(&w), "missing spindle write {w:X?}");
+        }
+        assert!(!writes.iter().any(|w| w.0 == 0x6065), "no position window");
+        assert!(!uploads, "a velocity drive has no position to start from");
+
+        // M3 S1200: 12000 units in the spindle's RPDO; M4 is negative.
+        let mut fb = CycleFeedback::default();
+        let mut cmd = CycleCommand::default();
+        cmd.positions_mm[0] = 2.5;
+        for (rpm, units) in [(1200.0, 12_000), (-300.04, -3000), (f64::NAN, 0)] {
+            cmd.spindle_rpm = rpm;
+            tpdo(&mut m, PowerState::OperationEnabled, 0, 2500);
+            rx(
+                &mut m,
+                Tpdo {
+                    statusword: PowerState::OperationEnabled.statusword_bits(),
+                    position_increments: 11_990,
+                }
+                .encode(9),
+            );
+            rx(&mut m, nmt::heartbeat(9, nmt::state::OPERATIONAL));
+            m.cycle(&cmd, &mut fb).unwrap();
+            let f = m
+                .port
+                .tx
+                .iter()
+                .find(|f| f.id == 0x209)
+                .expect("spindle RPDO");
+            let r = Rpdo::decode(f.payload()).unwrap();
+            assert_eq!(r.controlword, cw::ENABLE_OPERATION_CMD);
+            assert_eq!(r.target_increments, units, "{rpm} rpm");
+            assert_eq!(rpdo_of(&m.port.tx).target_increments, 2500);
+            m.port.tx.clear();
+        }
+        // 0x606C back: 11990 units = 1199 rpm.
+        assert!((fb.spindle_rpm - 1199.0).abs() < 1e-9);
+        assert_eq!(fb.spindle_state, DriveState::Operational);
+        assert_eq!(fb.axes[0].state, DriveState::Operational);
+    }
+
+    #[test]
+    fn spindle_faults_name_the_spindle_and_reset_like_an_axis() {
+        let mut m = master_with_spindle();
+        spindle_bring_up(&mut m);
+        rx(
+            &mut m,
+            Emcy {
+                code: 0x2310,
+                register: 1,
+                vendor: [0; 5],
+            }
+            .encode(9),
+        );
+        tpdo(&mut m, PowerState::OperationEnabled, 0, 2500);
+        let e = step(&mut m).1.unwrap_err();
+        assert_eq!(
+            e,
+            BusFault {
+                axis: Some(crate::SPINDLE_AXIS),
+                node: Some(9),
+                reason: FaultReason::DriveFault { code: 0x2310 }
+            }
+        );
+        assert!(e.to_string().contains("spindle, node 9"), "{e}");
+        // The faulted spindle is switched off with speed 0.
+        let mut fb = CycleFeedback::default();
+        let cmd = CycleCommand {
+            spindle_rpm: 1000.0,
+            ..CycleCommand::default()
+        };
+        let _ = m.cycle(&cmd, &mut fb);
+        let f = m.port.tx.iter().find(|f| f.id == 0x209).unwrap();
+        assert_eq!(
+            Rpdo::decode(f.payload()).unwrap(),
+            Rpdo {
+                controlword: cw::DISABLE_VOLTAGE,
+                target_increments: 0
+            }
+        );
+        assert_eq!(fb.spindle_state, DriveState::Fault);
+        assert_eq!(fb.spindle_rpm, 0.0);
+        // Reset: fault reset over the spindle's RPDO.
+        m.port.tx.clear();
+        m.reset();
+        rx(
+            &mut m,
+            Tpdo {
+                statusword: PowerState::Fault.statusword_bits(),
+                position_increments: 0,
+            }
+            .encode(9),
+        );
+        let (sent, _) = step(&mut m);
+        let f = sent.iter().find(|f| f.id == 0x209).unwrap();
+        assert_eq!(
+            Rpdo::decode(f.payload()).unwrap().controlword,
+            cw::FAULT_RESET
+        );
+
+        // A silent spindle times out like an axis.
+        let mut m = master_with_spindle();
+        spindle_bring_up(&mut m);
+        let mut fault = None;
+        for _ in 0..40 {
+            tpdo(&mut m, PowerState::OperationEnabled, 0, 2500);
+            if let Err(e) = step(&mut m).1 {
+                fault = Some(e);
+                break;
+            }
+        }
+        let e = fault.expect("silent spindle must fault");
+        assert_eq!(
+            (e.axis, e.node, e.reason),
+            (Some(crate::SPINDLE_AXIS), Some(9), FaultReason::Timeout)
+        );
+    }
+
+    #[test]
+    fn spindle_node_ids_are_checked() {
+        let cfg = |id: u8, units: f64| {
+            let mut c = CanOpenConfig::new(vec![NodeConfig {
+                node_id: 3,
+                increments_per_mm: 1000.0,
+                following_window_increments: None,
+            }]);
+            c.spindle = Some(SpindleNodeConfig {
+                node_id: id,
+                units_per_rpm: units,
+            });
+            CanOpenMaster::new(FakePort::default(), "fake", c).err()
+        };
+        assert!(cfg(3, 1.0).unwrap().contains("used by an axis"));
+        assert!(cfg(127, 1.0).unwrap().contains("equals the master"));
+        assert!(cfg(0, 1.0).is_some());
+        assert!(cfg(9, 0.0).unwrap().contains("units per rpm"));
+        assert!(cfg(9, 1.0).is_none());
+        // Without a spindle node the bus says so.
+        assert!(!master(&[3]).has_spindle());
     }
 }

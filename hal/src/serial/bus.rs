@@ -5,6 +5,11 @@
 //! (zero timeout), so a tick never waits for the drive; a reply missing for
 //! `reply_timeout_ticks` consecutive ticks is a fault. A port that reports hang-up or an I/O
 //! error is closed; [`DriveBus::reset`] opens it again (the operator's reset after replugging).
+//!
+//! With a spindle drive configured the link speaks protocol version 2: each request carries
+//! the spindle's controlword and target velocity, each reply its statusword and actual
+//! velocity. The spindle goes through the same CiA 402 enable sequence and fault handling as
+//! the axes. Without one it speaks version 1, as drive units without a spindle expect.
 
 use std::io::{self, Read, Write};
 use std::time::Duration;
@@ -26,12 +31,23 @@ pub struct SerialAxis {
     pub increments_per_mm: f64,
 }
 
+/// The drive unit's spindle drive (CiA 402 velocity mode, protocol version 2).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SerialSpindle {
+    /// Reported in alarms (the drive unit's address of the spindle).
+    pub node_id: u8,
+    /// Drive velocity units per rpm.
+    pub units_per_rpm: f64,
+}
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct SerialConfig {
     /// Device path (`/dev/ttyUSB0`, a pty, or a stable symlink to one).
     pub path: String,
     pub baud: u32,
     pub axes: Vec<SerialAxis>,
+    /// The spindle drive of the unit, if it has one.
+    pub spindle: Option<SerialSpindle>,
     /// Consecutive ticks without a valid reply before the link counts as silent.
     pub reply_timeout_ticks: u32,
     /// Ticks allowed for the enable sequence.
@@ -44,6 +60,7 @@ impl SerialConfig {
             path: path.to_owned(),
             baud: 460_800,
             axes,
+            spindle: None,
             reply_timeout_ticks: 25,
             enable_timeout_ticks: 500,
         }
@@ -60,6 +77,8 @@ enum Phase {
 
 #[derive(Clone, Copy)]
 struct Axis {
+    /// The spindle: the target is a velocity, holding still means speed 0.
+    velocity: bool,
     phase: Phase,
     statusword: u16,
     position_increments: i32,
@@ -72,7 +91,9 @@ pub struct SerialBus {
     cfg: SerialConfig,
     port: Option<TTYPort>,
     decoder: Decoder,
+    /// The axes (`[..n_axes]`), then the spindle if configured.
     axes: Vec<Axis>,
+    n_axes: usize,
     tick: u64,
     seq: u8,
     /// The last request still waits for its reply.
@@ -137,8 +158,14 @@ impl SerialBus {
         {
             return Err(format!("increments per mm of axis {i} must be positive"));
         }
+        if let Some(sp) = &cfg.spindle
+            && !(sp.units_per_rpm.is_finite() && sp.units_per_rpm > 0.0)
+        {
+            return Err("velocity units per rpm of the spindle must be positive".into());
+        }
         let port = open_port(&cfg)?;
         let axis = Axis {
+            velocity: false,
             phase: Phase::Idle,
             statusword: 0,
             position_increments: 0,
@@ -146,8 +173,16 @@ impl SerialBus {
             controlword: 0,
             target_increments: 0,
         };
+        let mut axes = vec![axis; cfg.axes.len()];
+        if cfg.spindle.is_some() {
+            axes.push(Axis {
+                velocity: true,
+                ..axis
+            });
+        }
         Ok(SerialBus {
-            axes: vec![axis; cfg.axes.len()],
+            n_axes: cfg.axes.len(),
+            axes,
             cfg,
             port: Some(port),
             decoder: Decoder::default(),
@@ -218,10 +253,14 @@ impl SerialBus {
                 Err(FrameError::Crc | FrameError::Encoding | FrameError::TooLong) => corrupt += 1,
             });
             self.corrupt_since_reply += corrupt;
+            // A reply must have our axes and, exactly when we have one, the spindle.
+            let spindle = self.axes.len() > self.n_axes;
             if let Some(y) = reply
-                && usize::from(y.axes) == self.axes.len()
+                && usize::from(y.axes) == self.n_axes
+                && y.spindle.is_some() == spindle
             {
-                for (a, r) in self.axes.iter_mut().zip(&y.axis) {
+                let records = y.axis[..self.n_axes].iter().chain(y.spindle.as_ref());
+                for (a, r) in self.axes.iter_mut().zip(records) {
                     a.statusword = r.statusword;
                     a.position_increments = r.position_increments;
                     a.error_code = r.error_code;
@@ -242,10 +281,10 @@ impl SerialBus {
         match a.phase {
             Phase::Idle => {
                 a.controlword = cw::DISABLE_VOLTAGE;
-                a.target_increments = a.position_increments;
+                a.target_increments = a.hold_target();
             }
             Phase::Enabling { since } => {
-                a.target_increments = a.position_increments;
+                a.target_increments = a.hold_target();
                 if !fresh {
                     // Wait for a reply before stepping the state machine.
                 } else if state == PowerState::OperationEnabled {
@@ -275,7 +314,7 @@ impl SerialBus {
         }
         if matches!(a.phase, Phase::Faulted(_)) {
             a.controlword = cw::DISABLE_VOLTAGE;
-            a.target_increments = a.position_increments;
+            a.target_increments = a.hold_target();
         }
     }
 
@@ -284,16 +323,18 @@ impl SerialBus {
             return;
         };
         self.seq = self.seq.wrapping_add(1);
+        let record = |a: &Axis| AxisRequest {
+            controlword: a.controlword,
+            target_increments: a.target_increments,
+        };
         let mut req = Request {
             seq: self.seq,
-            axes: self.axes.len() as u8,
+            axes: self.n_axes as u8,
             axis: [AxisRequest::default(); MAX_AXES],
+            spindle: self.axes.get(self.n_axes).map(record),
         };
-        for (r, a) in req.axis.iter_mut().zip(&self.axes) {
-            *r = AxisRequest {
-                controlword: a.controlword,
-                target_increments: a.target_increments,
-            };
+        for (r, a) in req.axis.iter_mut().zip(&self.axes[..self.n_axes]) {
+            *r = record(a);
         }
         let mut payload = [0u8; 64];
         let n = req.encode(&mut payload);
@@ -315,6 +356,10 @@ impl SerialBus {
         }
     }
 
+    fn spindle_units_per_rpm(&self) -> f64 {
+        self.cfg.spindle.as_ref().map_or(1.0, |s| s.units_per_rpm)
+    }
+
     fn link_scope(&self) -> (Option<u8>, Option<u8>) {
         // A one-axis link names its axis; a multi-axis link concerns all its axes.
         if self.axes.len() == 1 {
@@ -325,13 +370,28 @@ impl SerialBus {
     }
 }
 
+impl Axis {
+    /// The target that holds the drive still: where it is, or speed 0 for the spindle.
+    fn hold_target(&self) -> i32 {
+        if self.velocity {
+            0
+        } else {
+            self.position_increments
+        }
+    }
+}
+
 impl DriveBus for SerialBus {
     fn name(&self) -> &str {
         &self.cfg.path
     }
 
     fn axes(&self) -> usize {
-        self.axes.len()
+        self.n_axes
+    }
+
+    fn has_spindle(&self) -> bool {
+        self.axes.len() > self.n_axes
     }
 
     fn cycle(&mut self, cmd: &CycleCommand, feedback: &mut CycleFeedback) -> Result<(), BusFault> {
@@ -350,40 +410,71 @@ impl DriveBus for SerialBus {
             }
         }
         for i in 0..self.axes.len() {
-            let inc = cmd.positions_mm[i] * self.cfg.axes[i].increments_per_mm;
-            let target = inc.round().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32;
+            let units = match self.cfg.axes.get(i) {
+                Some(c) => cmd.positions_mm[i] * c.increments_per_mm,
+                None => {
+                    // The spindle; a setpoint that is not a number stops it.
+                    let rpm = if cmd.spindle_rpm.is_finite() {
+                        cmd.spindle_rpm
+                    } else {
+                        0.0
+                    };
+                    rpm * self.spindle_units_per_rpm()
+                }
+            };
+            let target = units
+                .round()
+                .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32;
             if self.link_fault.is_some() && !matches!(self.axes[i].phase, Phase::Idle) {
                 // The drive is unreachable or unreliable: hold, and ask it to switch off.
                 let a = &mut self.axes[i];
                 a.controlword = cw::DISABLE_VOLTAGE;
-                a.target_increments = a.position_increments;
+                a.target_increments = a.hold_target();
             } else {
                 self.update_axis(i, target, fresh);
             }
         }
         self.send_request();
 
+        let state_of = |a: &Axis| match a.phase {
+            _ if self.link_fault.is_some() => DriveState::Fault,
+            Phase::Idle => DriveState::Disabled,
+            Phase::Enabling { .. } => DriveState::Enabling,
+            Phase::Operational => DriveState::Operational,
+            Phase::Faulted(_) => DriveState::Fault,
+        };
         for ((fb, a), c) in feedback.axes.iter_mut().zip(&self.axes).zip(&self.cfg.axes) {
             *fb = AxisFeedback {
                 position_mm: f64::from(a.position_increments) / c.increments_per_mm,
-                state: match a.phase {
-                    _ if self.link_fault.is_some() => DriveState::Fault,
-                    Phase::Idle => DriveState::Disabled,
-                    Phase::Enabling { .. } => DriveState::Enabling,
-                    Phase::Operational => DriveState::Operational,
-                    Phase::Faulted(_) => DriveState::Fault,
-                },
+                state: state_of(a),
             };
         }
+        (feedback.spindle_rpm, feedback.spindle_state) = match self.axes.get(self.n_axes) {
+            Some(a) => {
+                let state = state_of(a);
+                let rpm = if state == DriveState::Operational {
+                    f64::from(a.position_increments) / self.spindle_units_per_rpm()
+                } else {
+                    0.0
+                };
+                (rpm, state)
+            }
+            None => (0.0, DriveState::Disabled),
+        };
         if let Some(reason) = self.link_fault {
             let (axis, node) = self.link_scope();
             return Err(BusFault { axis, node, reason });
         }
         for (i, a) in self.axes.iter().enumerate() {
             if let Phase::Faulted(reason) = a.phase {
+                let (axis, node) = match (&self.cfg.axes.get(i), &self.cfg.spindle) {
+                    (Some(c), _) => (i as u8, c.node_id),
+                    (None, Some(sp)) => (crate::SPINDLE_AXIS, sp.node_id),
+                    (None, None) => (i as u8, 0),
+                };
                 return Err(BusFault {
-                    axis: Some(i as u8),
-                    node: Some(self.cfg.axes[i].node_id),
+                    axis: Some(axis),
+                    node: Some(node),
                     reason,
                 });
             }
@@ -453,6 +544,7 @@ mod tests {
                 seq: req.seq,
                 axes: 1,
                 axis: [AxisReply::default(); MAX_AXES],
+                spindle: None,
             };
             y.axis[0] = AxisReply {
                 statusword,

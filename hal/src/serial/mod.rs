@@ -5,4 +5,4 @@ pub mod bus;
 pub mod frame;
 pub mod message;
 
-pub use bus::{SerialAxis, SerialBus, SerialConfig};
+pub use bus::{SerialAxis, SerialBus, SerialConfig, SerialSpindle};

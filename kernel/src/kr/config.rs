@@ -152,16 +152,22 @@ impl KrConfig {
 /// R67 holds the axis code (as R0..R5 do, [`AXIS_CODES`]: 1 = X ... 9 = C) of the controlling
 /// axis; its machine index is where R0..R5 name that axis (SPEC §6).
 fn controlling_axis(c: &Constants) -> Result<usize, KrConfigError> {
-    let m = c.milli(67);
     let bad = || KrConfigError::R67(c.get(67));
-    if m % 1000 != 0 || !(1..=AXIS_CODES.len() as i64).contains(&(m / 1000)) {
-        return Err(bad());
-    }
-    let letter = AXIS_CODES[(m / 1000 - 1) as usize];
+    let letter = controlling_axis_letter(c).ok_or_else(bad)?;
     c.axis_names()
         .iter()
         .position(|&a| a == letter)
         .ok_or_else(bad)
+}
+
+/// Letter of the controlling axis R67 names (SPEC §6), `None` when R67 is not an axis code.
+/// The interpreter uses it to pick the length offset of that axis for KŘR at the tool tip.
+pub fn controlling_axis_letter(c: &Constants) -> Option<char> {
+    let m = c.milli(67);
+    if m % 1000 != 0 || !(1..=AXIS_CODES.len() as i64).contains(&(m / 1000)) {
+        return None;
+    }
+    Some(AXIS_CODES[(m / 1000 - 1) as usize])
 }
 
 /// R580 decades 1..2 (SPEC §6): `00` old, `01` version 2. The manual also says "set the value 1

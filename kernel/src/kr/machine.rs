@@ -4,7 +4,7 @@
 //! AKRR_ACT_* cells written into the [`PlcArea`]. No allocation, no IO, no panics.
 
 use super::config::{Gear, KrConfig, KrVersion, RadiusInput};
-use crate::block::{Block, SpindleDir};
+use crate::block::{Block, Spindle, SpindleDir};
 use crate::plc::{CellId, PlcArea, cntr};
 
 /// 1/8 µm per mm (units of AKRR_DIST and AKRR_ACT_R).
@@ -70,6 +70,17 @@ pub struct ControllingAxis {
 }
 
 impl ControllingAxis {
+    /// The axis with its carriage at `carriage_mm` and the length offset and origin shift that
+    /// ride with the spindle state of the block being executed (SPEC §6: offset and origin
+    /// changes act at once, the speed follows the tool tip).
+    pub fn of(carriage_mm: f64, spindle: &Spindle) -> Self {
+        ControllingAxis {
+            carriage_mm,
+            length_offset_mm: spindle.length_offset_mm,
+            origin_shift_mm: spindle.origin_shift_mm,
+        }
+    }
+
     /// Axis at a program position `tip_mm` with no offsets or shifts.
     pub fn at(tip_mm: f64) -> Self {
         ControllingAxis {

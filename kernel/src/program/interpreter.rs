@@ -140,6 +140,10 @@ pub struct Interpreter {
     seq: u32,
     notes: Vec<Diagnostic>,
     setup_error: Option<String>,
+    /// Index of the controlling axis R67 among the program's axes, for the length offset that
+    /// rides with the spindle state (KŘR at the tool tip, SPEC §6); `None`: R67 names no axis
+    /// of this machine (the daemon refuses such constants when KŘR is configured).
+    kr_axis: Option<usize>,
 }
 
 impl Interpreter {
@@ -168,7 +172,15 @@ impl Interpreter {
             axis_letters[k] = up as u8;
         }
         let start = setup.start;
+        let kr_axis = crate::kr::config::controlling_axis_letter(c).and_then(|l| {
+            setup
+                .axis_names
+                .iter()
+                .take(MAX_AXES)
+                .position(|a| a.to_ascii_uppercase() == l)
+        });
         Interpreter {
+            kr_axis,
             axis_letters,
             n_axes: setup.axis_names.len().min(MAX_AXES),
             rules: Rules {
@@ -693,6 +705,9 @@ impl Interpreter {
 
         // Positions.
         let offset = self.length_offset(st.amp, edit.as_ref());
+        // KŘR version 2 computes at the tool tip with the offset in force from this block on,
+        // also in blocks without motion (SPEC §6).
+        st.spindle.length_offset_mm = self.kr_axis.map_or(0.0, |k| offset[k]);
         for (k, v) in w.axes[..self.n_axes].iter().enumerate() {
             if let Some((v, _)) = v {
                 st.prog[k] = if st.absolute { *v } else { old.prog[k] + v };

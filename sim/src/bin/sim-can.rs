@@ -1,5 +1,7 @@
 //! `sim-can --iface vcan0 --node 1 [--node 2 ...]`: simulated CiA 402 drives on a SocketCAN
-//! interface, one process for one or several nodes. Fault injection through stdin (see
+//! interface, one process for one or several nodes. Each node is a position drive (CSP) or,
+//! when the master sets it up in velocity mode (CSV), a spindle drive that ramps at
+//! `--ramp-rpm-s` with `--units-per-rpm`. Fault injection through stdin (see
 //! `sim::control`). Prints `sim-can ready` once listening.
 
 use std::io::Write;
@@ -7,7 +9,6 @@ use std::time::{Duration, Instant};
 
 use hal::canopen::{CanPort, RxEvent, SocketCanPort};
 use sim::can_node::CanNode;
-use sim::cia402_drive::Cia402Drive;
 use sim::control::{self, Command, SimArgs};
 
 fn main() {
@@ -20,10 +21,7 @@ fn main() {
     let mut nodes: Vec<CanNode> = args
         .nodes
         .iter()
-        .map(|&id| {
-            let d = Cia402Drive::new(args.params, args.increments_per_mm, args.start_mm);
-            CanNode::new(id, d)
-        })
+        .map(|&id| CanNode::new(id, args.drive()))
         .collect();
     let commands = control::stdin_commands();
     let start = Instant::now();

@@ -1,5 +1,6 @@
-//! `sim-serial --link /tmp/drive.tty --axes 3`: a simulated drive unit behind the serial
-//! protocol on a pseudo-terminal. The controller opens `--link`, a symlink to the pty; `unplug`
+//! `sim-serial --link /tmp/drive.tty --axes 3 [--spindle]`: a simulated drive unit behind the
+//! serial protocol on a pseudo-terminal; `--spindle` adds a spindle drive (protocol version 2,
+//! ramping at `--ramp-rpm-s` with `--units-per-rpm`). The controller opens `--link`, a symlink to the pty; `unplug`
 //! on stdin closes the pty (the controller sees a hang-up), `plug` creates a new one behind
 //! the same link. Other fault injection: see `sim::control`.
 
@@ -7,7 +8,6 @@ use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
 use serialport::{SerialPort, TTYPort};
-use sim::cia402_drive::Cia402Drive;
 use sim::control::{self, Command, SimArgs};
 use sim::serial_drive::SerialDriveUnit;
 
@@ -43,10 +43,11 @@ fn main() {
         Ok(_) => fail("give --link PATH"),
         Err(e) => fail(&e),
     };
-    let drives = (0..args.axes)
-        .map(|_| Cia402Drive::new(args.params, args.increments_per_mm, args.start_mm))
-        .collect();
+    let drives = (0..args.axes).map(|_| args.drive()).collect();
     let mut unit = SerialDriveUnit::new(drives);
+    if args.spindle {
+        unit.spindle = Some(args.drive());
+    }
     let mut line = Some(plug(&args.link));
     let commands = control::stdin_commands();
     let start = Instant::now();
@@ -60,7 +61,9 @@ fn main() {
                 Command::Silent(on, _) => unit.inject.silent = on,
                 Command::Corrupt(on, _) => unit.inject.corrupt = on,
                 Command::Fault(code, which) => {
-                    for (i, d) in unit.drives.iter_mut().enumerate() {
+                    // The spindle is the drive after the axes (`fault CODE <axes + 1>`).
+                    let all = unit.drives.iter_mut().chain(unit.spindle.as_mut());
+                    for (i, d) in all.enumerate() {
                         if which.is_none_or(|w| usize::from(w) == i + 1) {
                             d.fault(code);
                         }

@@ -222,6 +222,29 @@ impl<B: hal::DriveBus> Cycler<B> {
         );
     }
 
+    /// Waits until the spindle drive is operational.
+    pub fn until_spindle_operational(&mut self) {
+        let t0 = Instant::now();
+        while self.fb.spindle_state != hal::DriveState::Operational {
+            assert!(t0.elapsed() < self.enable_within, "spindle: {:?}", self.fb);
+            self.tick().expect("no fault while enabling the spindle");
+        }
+    }
+
+    /// Runs the spindle at `rpm` until its actual speed (feedback) gets there.
+    pub fn spindle_to(&mut self, rpm: f64, within: Duration) {
+        self.cmd.spindle_rpm = rpm;
+        let t0 = Instant::now();
+        while (self.fb.spindle_rpm - rpm).abs() > 1e-9 {
+            assert!(
+                t0.elapsed() < within,
+                "spindle at {} rpm, want {rpm}",
+                self.fb.spindle_rpm
+            );
+            self.tick().expect("no fault while the spindle runs up");
+        }
+    }
+
     pub fn until_fault(&mut self, within: Duration) -> hal::BusFault {
         let t0 = Instant::now();
         while t0.elapsed() < within {
@@ -364,6 +387,44 @@ impl Daemon {
         let p = self.dir.join(name);
         std::fs::write(&p, text).unwrap();
         p.to_str().unwrap().to_owned()
+    }
+}
+
+/// Actual spindle speed (rpm, from the spindle drive's feedback) the daemon reports.
+pub fn actual_spindle_rpm(addr: &str) -> f64 {
+    use proto::v1 as pb;
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    rt.block_on(async {
+        let mut c = pb::machine_client::MachineClient::connect(addr.to_owned())
+            .await
+            .expect("connect to cncd");
+        let mut stream = c
+            .stream_status(pb::StatusRequest { rate_hz: 25 })
+            .await
+            .expect("status stream")
+            .into_inner();
+        stream
+            .message()
+            .await
+            .unwrap()
+            .expect("one status")
+            .spindle_rpm
+    })
+}
+
+/// Polls the daemon until its actual spindle speed is `rpm` (±0.5); fails after `timeout`.
+pub fn wait_spindle_rpm(addr: &str, rpm: f64, timeout: Duration) {
+    let end = Instant::now() + timeout;
+    loop {
+        let actual = actual_spindle_rpm(addr);
+        if (actual - rpm).abs() <= 0.5 {
+            return;
+        }
+        assert!(Instant::now() < end, "spindle at {actual} rpm, want {rpm}");
+        std::thread::sleep(Duration::from_millis(100));
     }
 }
 

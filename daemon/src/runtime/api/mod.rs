@@ -334,11 +334,12 @@ pub fn alarm_text(ctl: &Controller, s: &Snapshot) -> Option<String> {
     let names = ctl.config().axis_names();
     match (s.fault, ctl.alarm()) {
         (Some(f), _) => {
-            let axis = f
-                .axis
-                .and_then(|a| names.get(a as usize))
-                .map(|c| format!("axis {c}, "))
-                .unwrap_or_default();
+            // "axis X, " or "spindle, " (SPINDLE_AXIS).
+            let axis = match hal::fault_axis_label(f.axis, &names) {
+                Some(l) if f.axis == Some(hal::SPINDLE_AXIS) => format!("{l}, "),
+                Some(l) => format!("axis {l}, "),
+                None => String::new(),
+            };
             let node = f.node.map(|n| format!("node {n}, ")).unwrap_or_default();
             Some(format!("{axis}{node}{}", f.reason))
         }
