@@ -135,6 +135,9 @@ pub struct Interpolator {
     state: InterpState,
     override_factor: f64,
     in_position: bool,
+    spindle_ready: bool,
+    /// Spindle state of the last tick's output (what `spindle_ready` was judged against).
+    reported_spindle: Spindle,
     last_seq: u32,
     last_n: Option<u32>,
     last_spindle: Spindle,
@@ -176,6 +179,8 @@ impl Interpolator {
             state: InterpState::Idle,
             override_factor: 1.0,
             in_position: true,
+            spindle_ready: true,
+            reported_spindle: Spindle::default(),
             last_seq: 0,
             last_n: None,
             last_spindle: Spindle::default(),
@@ -211,16 +216,31 @@ impl Interpolator {
 
     /// Appends a segment. Gives it back when the buffer is full or while stopping (the caller
     /// keeps it for the next tick, so the error carries the whole segment by design).
+    ///
+    /// A segment of zero length only carries a spindle state (technology blocks without
+    /// motion): in force at once when nothing is buffered, else once the buffered path ends.
     #[allow(clippy::result_large_err)]
     pub fn push(&mut self, seg: Segment) -> Result<(), Segment> {
         let empty = seg.length_mm.is_nan() || seg.length_mm <= 0.0;
-        if !self.has_room() || self.state == InterpState::Stopping || empty {
+        if !self.has_room() || self.state == InterpState::Stopping || seg.length_mm.is_nan() {
             return Err(seg);
+        }
+        if empty {
+            if self.len == 0 {
+                self.last_spindle = seg.spindle;
+            } else {
+                let i = (self.head + self.len - 1) % self.buf.len();
+                self.buf[i].spindle_after = Some(seg.spindle);
+            }
+            return Ok(());
         }
         let i = (self.head + self.len) % self.buf.len();
         if self.len == 0 {
             // The raw position starts at this segment: wait its leading dwell there.
             self.dwell_ticks = (seg.dwell_before_s / TS_S).round().max(0.0) as u32;
+            // Its spindle state is in force from now on, before the motion starts: a
+            // spindle started ahead of the first cut runs up while the axes wait.
+            self.last_spindle = seg.spindle;
         }
         self.buf[i] = seg;
         self.floor_accel_mm_s2 = self
@@ -246,6 +266,13 @@ impl Interpolator {
     /// calls this every tick; a G24 stop point is left only while it is true.
     pub fn set_in_position(&mut self, in_position: bool) {
         self.in_position = in_position;
+    }
+
+    /// Whether the spindle runs at its commanded speed. The daemon calls this every tick; a
+    /// feed move does not start from rest while it is false (rapids do), so the first cut
+    /// after `M3 S..` waits for the spindle to run up.
+    pub fn set_spindle_ready(&mut self, ready: bool) {
+        self.spindle_ready = ready;
     }
 
     pub fn hold(&mut self) {
@@ -455,6 +482,7 @@ impl Interpolator {
             self.f_v_mm_s = 0.0;
             self.smooth_axes();
         }
+        self.reported_spindle = self.last_spindle;
         TickOut {
             position: self.position,
             path_v_mm_s: self.f_v_mm_s,
@@ -553,6 +581,12 @@ impl Interpolator {
         if self.dwell_ticks > 0 && self.v_mm_s == 0.0 && self.settled() {
             // Leading dwell (before the first motion).
             self.dwell_ticks -= 1;
+            return idle;
+        }
+        let spindle_ok = self.spindle_ready && self.last_spindle == self.reported_spindle;
+        if self.v_mm_s == 0.0 && self.rs_mm == 0.0 && !spindle_ok && !self.seg(self.rk).rapid {
+            // A cut starts from rest only with the spindle at speed, judged by the daemon on a
+            // spindle state it has already been given.
             return idle;
         }
         if self.v_mm_s == 0.0 && self.settled() {
@@ -724,7 +758,18 @@ impl Interpolator {
             self.last_seq = seg.seq;
             self.last_n = seg.n;
             self.last_line = seg.line;
-            self.last_spindle = seg.spindle;
+            // At rest at a stop point (from the tick after the arrival): the spindle state of
+            // what comes next is in force, so the spindle runs up (or stops) before the next
+            // move, not with it.
+            let at_stop = self.raw_at_stop
+                && self.rk == 0
+                && self.f_v_mm_s == 0.0
+                && local >= seg.length_mm - ARRIVE_EPS_MM;
+            self.last_spindle = match (at_stop, seg.spindle_after) {
+                (false, _) => seg.spindle,
+                (true, _) if self.len > 1 => self.buf[self.idx(1)].spindle,
+                (true, after) => after.unwrap_or(seg.spindle),
+            };
             self.last_rapid = seg.rapid;
             break;
         }
@@ -898,6 +943,32 @@ mod tests {
             .collect();
         let first = vy.iter().position(|v| *v > 0.0).unwrap();
         assert!(vy[first] < 0.5 * 5.0 * s, "{:?}", &vy[first..first + 6]);
+    }
+
+    #[test]
+    fn a_cut_waits_for_the_spindle_a_rapid_does_not() {
+        use crate::block::SpindleDir;
+        let mut ip = Interpolator::new(3, AxesMm::ZERO);
+        let mut cut = line(0, [0.0; 3], [1.0, 0.0, 0.0], 50.0, 0.0);
+        cut.spindle.dir = SpindleDir::Cw;
+        cut.spindle.s = 1000.0;
+        ip.set_spindle_ready(false);
+        ip.push(cut).unwrap();
+        // The spindle state is in force at once, the axes wait.
+        for _ in 0..50 {
+            let t = ip.tick();
+            assert_eq!(t.spindle.dir, SpindleDir::Cw);
+            assert_eq!(t.position[0], 0.0);
+        }
+        ip.set_spindle_ready(true);
+        run(&mut ip, 1000);
+        assert_eq!(ip.position()[0], 1.0);
+        let mut rapid = line(1, [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], 50.0, 0.0);
+        rapid.rapid = true;
+        ip.set_spindle_ready(false);
+        ip.push(rapid).unwrap();
+        run(&mut ip, 1000);
+        assert_eq!(ip.position()[0], 2.0);
     }
 
     #[test]

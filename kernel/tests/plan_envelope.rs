@@ -477,3 +477,88 @@ fn stop_behind_a_segment_of_lower_acceleration_is_braked_for_in_time() {
         assert_within("regression", &cfg(2), &blocks);
     }
 }
+
+/// Spindle changes in blocks without motion (SPEC §6): before the first motion the first
+/// segment carries them; a program without motion hands them out as one zero-length segment.
+#[test]
+fn spindle_changes_without_motion_reach_the_interpolator() {
+    use kernel::block::{BlockKind, SpindleDir};
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 3000.0, Continuity::G98);
+    p.g1(p3(10.0, 0.0, 0.0));
+    let mut tech = p.blocks[0];
+    tech.kind = BlockKind::Technology;
+    tech.m = [Some(3), None, None, None];
+    tech.spindle.dir = SpindleDir::Cw;
+    tech.spindle.s = 1000.0;
+    let mut cut = p.blocks[0];
+    cut.seq = 1;
+    cut.spindle = tech.spindle;
+    // M3 S1000, then a cut: one segment, with the spindle on; the interpolator holds the cut
+    // until the spindle is reported at speed, with the spindle state in force meanwhile.
+    let mut pl = kernel::plan::Planner::new(cfg(1), 1);
+    pl.push(&tech).unwrap();
+    pl.push(&cut).unwrap();
+    pl.finish();
+    let segs: Vec<_> = std::iter::from_fn(|| pl.poll()).collect();
+    assert_eq!(segs.len(), 1);
+    assert_eq!(segs[0].spindle.dir, SpindleDir::Cw);
+    let mut ip = kernel::interp::Interpolator::new(3, p3(0.0, 0.0, 0.0));
+    ip.set_spindle_ready(false);
+    ip.push(segs[0]).unwrap();
+    for _ in 0..20 {
+        let t = ip.tick();
+        assert_eq!((t.spindle.dir, t.position[0]), (SpindleDir::Cw, 0.0));
+    }
+    ip.set_spindle_ready(true);
+    let mut last = ip.tick();
+    while ip.state() != kernel::interp::InterpState::Idle {
+        last = ip.tick();
+    }
+    assert_eq!(last.position[0], 10.0);
+    // M5 alone: one zero-length segment with the spindle stopped, applied at once.
+    let mut m5 = tech;
+    m5.m = [Some(5), None, None, None];
+    m5.spindle.dir = SpindleDir::Stopped;
+    let mut pl = kernel::plan::Planner::new(cfg(1), 1);
+    pl.push(&m5).unwrap();
+    pl.finish();
+    let seg = pl.poll().expect("a zero-length segment");
+    assert!(pl.poll().is_none() && pl.is_done());
+    assert_eq!((seg.length_mm, seg.spindle.dir), (0.0, SpindleDir::Stopped));
+    ip.push(seg).unwrap();
+    assert_eq!(ip.tick().spindle.dir, SpindleDir::Stopped);
+    assert_eq!(ip.state(), kernel::interp::InterpState::Idle);
+}
+
+/// At a stop point between two cuts the next cut's spindle state is in force while the axes
+/// rest, so the spindle runs up before the cut, and the cut waits for it.
+#[test]
+fn spindle_runs_up_at_the_stop_before_the_next_cut() {
+    use kernel::block::SpindleDir;
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 3000.0, Continuity::G98);
+    p.g1(p3(5.0, 0.0, 0.0)).g1(p3(10.0, 0.0, 0.0));
+    p.blocks[1].spindle.dir = SpindleDir::Cw;
+    p.blocks[1].spindle.s = 800.0;
+    let mut ready_from = usize::MAX;
+    let mut on_at_rest = false;
+    let r = run_with(cfg(2), &p.blocks, 100_000, |t, ip| {
+        let pos = ip.position()[0];
+        if pos == 5.0 && ready_from == usize::MAX {
+            ready_from = t + 30;
+        }
+        // The spindle (off for the first cut) is at speed, until the second cut's M3 S800
+        // comes in force at X5; it runs up for 30 ticks.
+        ip.set_spindle_ready(pos < 5.0 || t >= ready_from);
+    });
+    for w in r.ticks.windows(2) {
+        if w[1].position[0] == 5.0 && w[1].spindle.dir == SpindleDir::Cw {
+            on_at_rest = true;
+        }
+        // The second cut does not leave X5 before the spindle is ready.
+        assert!(w[1].position[0] <= 5.0 || on_at_rest);
+    }
+    assert!(on_at_rest);
+    let left = r.ticks.iter().position(|t| t.position[0] > 5.0).unwrap();
+    assert!(left > ready_from, "{left} {ready_from}");
+    assert_eq!(r.ticks.last().unwrap().position[0], 10.0);
+}

@@ -233,14 +233,10 @@ N30 G94 G0 Z50 S500 &0
     ctl.shutdown();
 }
 
-/// A spindle started in a block without motion must run from that block on, before the
-/// first cut; and a program of technology blocks alone (`M5`) must reach the spindle.
-/// Today the planner hands a technology block's spindle change to the RT thread only on an
-/// open segment before it (`Segment::spindle_after`): before the first motion there is none,
-/// so M3 takes effect with the first motion and a program without motion changes nothing.
-/// Fixing it needs the planner (see docs/kr.md, "Spindle changes without motion").
+/// A spindle started in a block without motion runs from that block on, before the first
+/// cut (which waits for it to be at speed); a program of technology blocks alone (`M5`)
+/// reaches the spindle too (a zero-length segment carries its state).
 #[test]
-#[ignore = "needs the planner to pass on spindle changes without an open segment (issue #7)"]
 fn spindle_started_without_motion_runs_before_the_first_cut() {
     let (ctl, record, spindle) = lathe();
     let (points, rpm) = run_recorded(

@@ -115,6 +115,16 @@ const ENABLE_TIMEOUT_TICKS: u32 = 2_500;
 const SETTLE_TICKS: u32 = 250;
 /// Following error under which an axis counts as settled, mm.
 const SETTLED_MM: f64 = 0.001;
+/// The spindle counts as at speed within this share of its setpoint (or `SPINDLE_AT_SPEED_RPM`).
+const SPINDLE_AT_SPEED_SHARE: f64 = 0.05;
+const SPINDLE_AT_SPEED_RPM: f64 = 2.0;
+
+/// Whether the actual spindle speed is close enough to the setpoint (same sign) for a cut.
+fn spindle_at_speed(set_rpm: f64, actual_rpm: f64) -> bool {
+    (set_rpm - actual_rpm).abs()
+        <= (SPINDLE_AT_SPEED_SHARE * set_rpm.abs()).max(SPINDLE_AT_SPEED_RPM)
+}
+
 /// Refresh the lateness percentiles every this many ticks (a histogram walk).
 const STATS_REFRESH_TICKS: u64 = 50;
 
@@ -199,6 +209,10 @@ impl Rt {
         let in_position = (0..self.p.axes)
             .all(|i| (self.snap.commanded[i] - self.snap.actual[i]).abs() <= self.p.in_position_mm);
         self.interp.set_in_position(in_position);
+        // A cut starts from rest only with the spindle at the speed commanded last tick.
+        self.interp.set_spindle_ready(
+            !self.has_spindle || spindle_at_speed(self.cmd.spindle_rpm, self.fb.spindle_rpm),
+        );
         let out = self.interp.tick();
         self.spindle(&out);
         self.single_block_check(out.seq, out.path_v_mm_s);

@@ -182,6 +182,13 @@ pub struct Planner {
     window_guess_mm_s: f64,
     /// Junctions finalized since the last backward pass.
     pending_backward: usize,
+    /// A spindle change in a technology block before any motion (`M3 S..` at the top of a
+    /// program, or a program of technology blocks only); the first motion segment carries it
+    /// (its state is in force from when it reaches the interpolator), else `finish` hands it
+    /// out as a segment of zero length.
+    leading_spindle: Option<Segment>,
+    /// That zero-length segment, once the program has ended without motion.
+    tech_out: Option<Segment>,
 }
 
 impl Planner {
@@ -201,6 +208,8 @@ impl Planner {
             spindle_state: Spindle::default(),
             window_guess_mm_s: 0.0,
             pending_backward: 0,
+            leading_spindle: None,
+            tech_out: None,
         }
     }
 
@@ -255,10 +264,22 @@ impl Planner {
                     self.flush_carry();
                     self.force_stop(0.0);
                 }
-                if spindle_change {
+                // M3/M4/M5 count even when the state looks unchanged: each run starts from the
+                // power-on state, while the spindle may still turn from an earlier run.
+                let spindle_m = block.m.iter().flatten().any(|m| matches!(m, 3..=5));
+                if spindle_change || (spindle_m && self.win.is_empty()) {
                     let open = self.finalized < self.win.len();
                     if let Some(p) = self.win.back_mut().filter(|_| open) {
                         p.seg.spindle_after = Some(block.spindle);
+                    } else if self.win.is_empty() {
+                        self.leading_spindle = Some(Segment {
+                            job: self.job,
+                            seq: block.seq,
+                            n: block.n,
+                            line: block.line,
+                            spindle: block.spindle,
+                            ..Segment::default()
+                        });
                     }
                 }
                 if has_m {
@@ -369,14 +390,19 @@ impl Planner {
         self.finished = true;
         if let Some(last) = self.win.back_mut() {
             last.seg.last = true;
+        } else {
+            self.tech_out = self.leading_spindle.take();
         }
         self.advance();
     }
 
     /// Next committed segment, if any.
+    ///
+    /// A program without motion whose technology blocks change the spindle yields one segment
+    /// of zero length carrying that spindle state (the interpolator applies it at once).
     pub fn poll(&mut self) -> Option<Segment> {
         if self.emitted >= self.win.len() {
-            return None;
+            return self.tech_out.take();
         }
         let full = self.win.len() - self.emitted >= self.cfg.lookahead_blocks.max(2);
         let i = self.emitted;
@@ -402,7 +428,7 @@ impl Planner {
 
     /// True when everything pushed has been polled and `finish` was called.
     pub fn is_done(&self) -> bool {
-        self.finished && self.emitted == self.win.len()
+        self.finished && self.emitted == self.win.len() && self.tech_out.is_none()
     }
 
     fn dyn_set_of(&mut self, block: &Block) -> usize {
@@ -448,6 +474,8 @@ impl Planner {
         feed_mm_min: f64,
         set: usize,
     ) {
+        // The motion segment carries the spindle state of the blocks before it.
+        self.leading_spindle = None;
         let axes = self.cfg.axes;
         let env = &self.cfg.envelope;
         let t_start = path.tangent_at(0.0, axes);
