@@ -118,8 +118,8 @@ pub struct Interpolator {
     still: usize,
     /// Smallest path acceleration (feed or stop) and jerk of the buffered segments, for the
     /// look-ahead reach; recomputed when a segment leaves the buffer.
-    floor_accel_mm_s2: f64,
-    floor_jerk_mm_s3: f64,
+    floor_accel: Floor,
+    floor_jerk: Floor,
     floor_dirty: bool,
     f_s_mm: f64,
     f_v_mm_s: f64,
@@ -165,8 +165,8 @@ impl Interpolator {
             hist_feed: vec![f64::INFINITY; FILTER_MAX_TICKS].into_boxed_slice(),
             hist_pos: 0,
             still: FILTER_MAX_TICKS,
-            floor_accel_mm_s2: f64::INFINITY,
-            floor_jerk_mm_s3: f64::INFINITY,
+            floor_accel: Floor::default(),
+            floor_jerk: Floor::default(),
             floor_dirty: false,
             f_s_mm: 0.0,
             f_v_mm_s: 0.0,
@@ -243,10 +243,9 @@ impl Interpolator {
             self.last_spindle = seg.spindle;
         }
         self.buf[i] = seg;
-        self.floor_accel_mm_s2 = self
-            .floor_accel_mm_s2
-            .min(seg.accel_mm_s2.min(seg.stop_accel_mm_s2));
-        self.floor_jerk_mm_s3 = self.floor_jerk_mm_s3.min(seg.jerk_mm_s3);
+        self.floor_accel
+            .add(seg.accel_mm_s2.min(seg.stop_accel_mm_s2));
+        self.floor_jerk.add(seg.jerk_mm_s3);
         self.s0[i] = self.s_end_mm;
         self.s_end_mm += seg.length_mm;
         self.len += 1;
@@ -428,22 +427,21 @@ impl Interpolator {
     /// accelerating again.)
     fn accel_floor(&mut self) -> f64 {
         if self.floor_dirty {
-            self.floor_accel_mm_s2 = f64::INFINITY;
-            self.floor_jerk_mm_s3 = f64::INFINITY;
+            self.floor_accel = Floor::default();
+            self.floor_jerk = Floor::default();
             for k in 0..self.len {
                 let seg = &self.buf[(self.head + k) % self.buf.len()];
-                self.floor_accel_mm_s2 = self
-                    .floor_accel_mm_s2
-                    .min(seg.accel_mm_s2.min(seg.stop_accel_mm_s2));
-                self.floor_jerk_mm_s3 = self.floor_jerk_mm_s3.min(seg.jerk_mm_s3);
+                self.floor_accel
+                    .add(seg.accel_mm_s2.min(seg.stop_accel_mm_s2));
+                self.floor_jerk.add(seg.jerk_mm_s3);
             }
             self.floor_dirty = false;
         }
-        let a = if self.floor_jerk_mm_s3.is_finite() {
-            self.floor_accel_mm_s2
-                .min(self.floor_jerk_mm_s3 * self.m as f64 * TS_S / 2.0)
+        let (floor_a, floor_j) = (self.floor_accel.value, self.floor_jerk.value);
+        let a = if floor_j.is_finite() {
+            floor_a.min(floor_j * self.m as f64 * TS_S / 2.0)
         } else {
-            self.floor_accel_mm_s2
+            floor_a
         };
         a.max(1e-6)
     }
@@ -741,7 +739,13 @@ impl Interpolator {
                 self.last_rapid = seg.rapid;
                 program_end |= seg.last;
                 self.head = (self.head + 1) % self.buf.len();
-                self.floor_dirty = true;
+                // Rescan only when the last segment at a floor value leaves (a uniform dense
+                // path never rescans).
+                let a_left = self
+                    .floor_accel
+                    .remove(seg.accel_mm_s2.min(seg.stop_accel_mm_s2));
+                let j_left = self.floor_jerk.remove(seg.jerk_mm_s3);
+                self.floor_dirty |= a_left || j_left;
                 self.len -= 1;
                 self.rk = self.rk.saturating_sub(1);
                 if self.len == 0 {
@@ -774,6 +778,41 @@ impl Interpolator {
             break;
         }
         program_end
+    }
+}
+
+/// Smallest value over the buffered segments and how many of them have it.
+#[derive(Clone, Copy, Debug)]
+struct Floor {
+    value: f64,
+    count: usize,
+}
+
+impl Default for Floor {
+    fn default() -> Self {
+        Floor {
+            value: f64::INFINITY,
+            count: 0,
+        }
+    }
+}
+
+impl Floor {
+    fn add(&mut self, v: f64) {
+        if v < self.value {
+            self.value = v;
+            self.count = 1;
+        } else if v == self.value {
+            self.count += 1;
+        }
+    }
+
+    /// Takes a leaving segment's value out; true when the floor must be recomputed.
+    fn remove(&mut self, v: f64) -> bool {
+        if v <= self.value && self.count > 0 {
+            self.count -= 1;
+        }
+        v <= self.value && self.count == 0
     }
 }
 
