@@ -1011,6 +1011,21 @@ mod tests {
     }
 
     #[test]
+    fn floor_asks_for_a_rescan_only_when_its_last_holder_leaves() {
+        let mut f = Floor::default();
+        for v in [5.0, 3.0, 3.0, 4.0] {
+            f.add(v);
+        }
+        assert_eq!((f.value, f.count), (3.0, 2));
+        assert!(!f.remove(5.0));
+        assert!(!f.remove(3.0));
+        assert!(f.remove(3.0));
+        let mut inf = Floor::default();
+        inf.add(f64::INFINITY);
+        assert!(inf.remove(f64::INFINITY));
+    }
+
+    #[test]
     fn g24_waits_for_in_position() {
         let mut ip = Interpolator::new(3, AxesMm::ZERO);
         let mut a = line(0, [0.0; 3], [1.0, 0.0, 0.0], 50.0, 0.0);
