@@ -138,6 +138,8 @@ pub struct Interpolator {
     spindle_ready: bool,
     /// Spindle state of the last tick's output (what `spindle_ready` was judged against).
     reported_spindle: Spindle,
+    /// This tick a cut waited for the spindle to be at speed.
+    spindle_wait: bool,
     last_seq: u32,
     last_n: Option<u32>,
     last_spindle: Spindle,
@@ -181,6 +183,7 @@ impl Interpolator {
             in_position: true,
             spindle_ready: true,
             reported_spindle: Spindle::default(),
+            spindle_wait: false,
             last_seq: 0,
             last_n: None,
             last_spindle: Spindle::default(),
@@ -272,6 +275,11 @@ impl Interpolator {
     /// after `M3 S..` waits for the spindle to run up.
     pub fn set_spindle_ready(&mut self, ready: bool) {
         self.spindle_ready = ready;
+    }
+
+    /// A cut is waiting at rest for the spindle to be at speed (shown in the status).
+    pub fn waiting_for_spindle(&self) -> bool {
+        self.spindle_wait
     }
 
     pub fn hold(&mut self) {
@@ -466,6 +474,7 @@ impl Interpolator {
     /// Advances one tick.
     pub fn tick(&mut self) -> TickOut {
         let mut program_end = false;
+        self.spindle_wait = false;
         if self.len > 0 {
             let (cap, feed) = if matches!(self.state, InterpState::Held | InterpState::Idle) {
                 (f64::INFINITY, f64::INFINITY)
@@ -585,6 +594,7 @@ impl Interpolator {
         if self.v_mm_s == 0.0 && self.rs_mm == 0.0 && !spindle_ok && !self.seg(self.rk).rapid {
             // A cut starts from rest only with the spindle at speed, judged by the daemon on a
             // spindle state it has already been given.
+            self.spindle_wait = true;
             return idle;
         }
         if self.v_mm_s == 0.0 && self.settled() {
@@ -998,8 +1008,11 @@ mod tests {
             let t = ip.tick();
             assert_eq!(t.spindle.dir, SpindleDir::Cw);
             assert_eq!(t.position[0], 0.0);
+            assert!(ip.waiting_for_spindle());
         }
         ip.set_spindle_ready(true);
+        ip.tick();
+        assert!(!ip.waiting_for_spindle());
         run(&mut ip, 1000);
         assert_eq!(ip.position()[0], 1.0);
         let mut rapid = line(1, [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], 50.0, 0.0);

@@ -76,8 +76,9 @@ fn daemon_runs_the_spindle_over_serial() {
             "--axes",
             "3",
             "--spindle",
+            // The spindle runs up in 0.2 s: the cut waits for it (spindle at speed).
             "--ramp-rpm-s",
-            "0",
+            "4000",
         ],
     );
     sim.expect_line(" -> /dev/pts", Duration::from_secs(10));
@@ -89,9 +90,11 @@ fn daemon_runs_the_spindle_over_serial() {
     let (ok, out) = d.cncctl(&["run", "--quiet", &prog], Duration::from_secs(60));
     assert!(ok, "cncctl run failed: {out}");
     vcan_support::wait_spindle_rpm(&d.addr, 800.0, Duration::from_secs(30));
-    // M5 after a motion (a program of technology blocks alone has no segment to carry it to
-    // the RT thread, see docs/kr.md "Spindle changes without motion").
-    let prog = d.program("stop.nc", "N10 G1 X0 F3000\nN20 M5\n");
+    // M5 alone (a program of technology blocks only) stops the spindle too.
+    let prog = d.program("back.nc", "N10 G1 X0 F3000\n");
+    let (ok, out) = d.cncctl(&["run", "--quiet", &prog], Duration::from_secs(60));
+    assert!(ok, "cncctl run failed: {out}");
+    let prog = d.program("stop.nc", "N10 M5\n");
     let (ok, out) = d.cncctl(&["run", "--quiet", &prog], Duration::from_secs(60));
     assert!(ok, "cncctl run failed: {out}");
     vcan_support::wait_spindle_rpm(&d.addr, 0.0, Duration::from_secs(30));

@@ -353,6 +353,9 @@ fn status_line(s: &pb::Status) -> String {
         t.lateness_max_us,
         t.overruns
     );
+    if s.waiting_for_spindle {
+        line.push_str("  waiting for the spindle to reach its speed");
+    }
     if !s.alarm.is_empty() {
         line.push_str(&format!("  ALARM: {}", s.alarm));
     }
@@ -379,6 +382,7 @@ fn status_json(s: &pb::Status) -> Value {
             "speed_limit_rpm": k.speed_limit_rpm, "radius_mm": k.radius_mm,
             "spindle_rpm": k.spindle_rpm, "output": k.output, "gear_max_rpm": k.gear_max_rpm})),
         "dynamic_set": s.dynamic_set,
+        "waiting_for_spindle": s.waiting_for_spindle,
         "ticks": {"ticks": t.ticks, "overruns": t.overruns, "lateness_p50_us": t.lateness_p50_us,
             "lateness_p99_us": t.lateness_p99_us, "lateness_max_us": t.lateness_max_us},
         "alarm": s.alarm,

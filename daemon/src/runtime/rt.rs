@@ -86,6 +86,8 @@ pub struct Snapshot {
     pub plc: PlcArea,
     /// Single-block mode is on.
     pub single_block: bool,
+    /// A cut waits at rest for the spindle to reach its speed.
+    pub waiting_for_spindle: bool,
     /// Constant cutting speed (KŘR) output this tick (SPEC §6).
     pub kr: KrOutput,
     /// A KŘR fault stopped the machine (cleared by Reset).
@@ -237,6 +239,7 @@ impl Rt {
         s.line = out.line;
         s.ticks = self.stats.summary();
         s.spindle_rpm = self.fb.spindle_rpm;
+        s.waiting_for_spindle = self.interp.waiting_for_spindle();
         s.plc = self.plc;
         self.p.status.write(*s);
         !(self.shutting_down && self.settle_ticks >= SETTLE_TICKS)

@@ -260,6 +260,7 @@ impl ApiState {
             kr: Some(kr),
             active_alarms: self.alarms.active(),
             dynamic_set: plc.dynam_set().into(),
+            waiting_for_spindle: s.waiting_for_spindle,
         }
     }
 }
