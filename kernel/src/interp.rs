@@ -117,7 +117,7 @@ pub struct Interpolator {
     /// Consecutive ticks without raw motion.
     still: usize,
     /// Smallest path acceleration (feed or stop) and jerk of the buffered segments, for the
-    /// look-ahead reach; recomputed when a segment leaves the buffer.
+    /// look-ahead reach; recomputed when the last segment at a floor value leaves.
     floor_accel: Floor,
     floor_jerk: Floor,
     floor_dirty: bool,

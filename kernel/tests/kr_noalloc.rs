@@ -2,8 +2,7 @@
 //! (ARCHITECTURE.md, threads). Counted with a global allocator; this file holds one test so no
 //! other test thread allocates meanwhile.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
+mod alloc_count;
 
 use kernel::block::SpindleDir;
 use kernel::constants::Constants;
@@ -11,23 +10,6 @@ use kernel::kr::{
     ControllingAxis, Gear, Kr, KrConfig, KrInput, Motion, ProgramSpindle, RadiusInput,
 };
 use kernel::plc::{PlcArea, PlcWrite, cntr};
-
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
 
 #[test]
 fn tick_does_not_allocate() {
@@ -45,7 +27,7 @@ fn tick_does_not_allocate() {
         PlcWrite::by_name("AKRR_V", 80_000).unwrap(),
         PlcWrite::by_name("AKRR_CNTR", i64::from(cntr::ALL)).unwrap(),
     ];
-    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let before = alloc_count::allocations();
     let mut sum = 0.0;
     for k in 0..10_000 {
         if k == 5000 {
@@ -70,6 +52,6 @@ fn tick_does_not_allocate() {
         );
         sum += out.spindle_rpm;
     }
-    assert_eq!(ALLOCATIONS.load(Ordering::SeqCst), before);
+    assert_eq!(alloc_count::allocations(), before);
     assert!(sum > 0.0);
 }

@@ -2,31 +2,12 @@
 //! (ARCHITECTURE.md, threads). Counted with a global allocator; this file holds one test so no
 //! other test thread allocates meanwhile.
 
+mod alloc_count;
 mod plan_common;
-
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use kernel::interp::{InterpState, Interpolator};
 use kernel::plan::Planner;
 use plan_common::*;
-
-struct Counting;
-
-static ALLOCATIONS: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        ALLOCATIONS.fetch_add(1, Ordering::SeqCst);
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
-#[global_allocator]
-static GLOBAL: Counting = Counting;
 
 #[test]
 fn push_and_tick_do_not_allocate() {
@@ -45,7 +26,7 @@ fn push_and_tick_do_not_allocate() {
         pl.finish();
         segs.extend(std::iter::from_fn(|| pl.poll()));
         let mut ip = Interpolator::new(3, segs[0].path.start());
-        let before = ALLOCATIONS.load(Ordering::SeqCst);
+        let before = alloc_count::allocations();
         let mut next = 0;
         let mut ticks = 0usize;
         loop {
@@ -66,7 +47,7 @@ fn push_and_tick_do_not_allocate() {
                 break;
             }
         }
-        let after = ALLOCATIONS.load(Ordering::SeqCst);
+        let after = alloc_count::allocations();
         assert_eq!(after - before, 0, "profile {profile}: {ticks} ticks");
         assert!(ticks > 1000);
     }
