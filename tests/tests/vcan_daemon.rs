@@ -20,20 +20,29 @@ N30 G1 X5 Y-4 F2400
 N40 X12.5 Y0
 ";
 
+/// The 32-bit value after the 16-bit control/status word of every 6-byte frame with this
+/// COB-ID in a candump log (the PDO layout of both axes and spindle).
+fn pdo_i32_values(log: &str, cob_id: u16) -> impl Iterator<Item = i32> + '_ {
+    let id = format!(" {cob_id:03X}#");
+    log.lines()
+        .filter(move |l| l.contains(&id))
+        .filter_map(|l| {
+            let data = l.split('#').nth(1).unwrap();
+            if data.len() != 12 {
+                return None;
+            }
+            let b: Vec<u8> = (0..6)
+                .map(|i| u8::from_str_radix(&data[2 * i..2 * i + 2], 16).unwrap())
+                .collect();
+            Some(i32::from_le_bytes([b[2], b[3], b[4], b[5]]))
+        })
+}
+
 /// Last position (mm) each node reported in its TPDOs, and the largest |position| seen.
 fn tpdo_positions(log: &str, node: u16) -> (f64, f64) {
-    let id = format!(" {:03X}#", 0x180 + node);
     let mut last = f64::NAN;
     let mut max = 0.0f64;
-    for l in log.lines().filter(|l| l.contains(&id)) {
-        let data = l.split('#').nth(1).unwrap();
-        if data.len() != 12 {
-            continue;
-        }
-        let b: Vec<u8> = (0..6)
-            .map(|i| u8::from_str_radix(&data[2 * i..2 * i + 2], 16).unwrap())
-            .collect();
-        let inc = i32::from_le_bytes([b[2], b[3], b[4], b[5]]);
+    for inc in pdo_i32_values(log, 0x180 + node) {
         last = f64::from(inc) / 10_000.0;
         max = max.max(last.abs());
     }
@@ -160,17 +169,8 @@ fn daemon_sends_the_spindle_speed_to_the_spindle_node() {
     std::thread::sleep(Duration::from_millis(500)); // let the log flush
     let log = std::fs::read_to_string(&record).unwrap();
     let values = |id: u16| -> Vec<i32> {
-        let id = format!(" {id:03X}#");
         let mut v: Vec<i32> = Vec::new();
-        for l in log.lines().filter(|l| l.contains(&id)) {
-            let data = l.split('#').nth(1).unwrap();
-            if data.len() != 12 {
-                continue;
-            }
-            let b: Vec<u8> = (0..6)
-                .map(|i| u8::from_str_radix(&data[2 * i..2 * i + 2], 16).unwrap())
-                .collect();
-            let x = i32::from_le_bytes([b[2], b[3], b[4], b[5]]);
+        for x in pdo_i32_values(&log, id) {
             if v.last() != Some(&x) {
                 v.push(x);
             }

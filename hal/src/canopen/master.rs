@@ -859,6 +859,16 @@ mod tests {
         m.port.rx.push_back(RxEvent::Frame(f));
     }
 
+    /// The drive `node` reports continuous overcurrent (EMCY 2310h).
+    fn overcurrent(m: &mut CanOpenMaster<FakePort>, node: u8) {
+        let emcy = Emcy {
+            code: 0x2310,
+            register: 1,
+            vendor: [0; 5],
+        };
+        rx(m, emcy.encode(node));
+    }
+
     /// Answers every SDO request of the last tick as a cooperative drive would.
     fn answer_sdos(m: &mut CanOpenMaster<FakePort>, sent: &[Frame]) -> usize {
         let mut n = 0;
@@ -1046,15 +1056,7 @@ mod tests {
     fn emcy_and_statusword_faults_then_reset_resumes() {
         let mut m = master(&[3]);
         operational(&mut m);
-        rx(
-            &mut m,
-            Emcy {
-                code: 0x2310,
-                register: 1,
-                vendor: [0; 5],
-            }
-            .encode(3),
-        );
+        overcurrent(&mut m, 3);
         tpdo(&mut m, PowerState::Fault, 0, 2500);
         let e = step(&mut m).1.unwrap_err();
         assert_eq!(e.reason, FaultReason::DriveFault { code: 0x2310 });
@@ -1329,15 +1331,7 @@ mod tests {
     fn spindle_faults_name_the_spindle_and_reset_like_an_axis() {
         let mut m = master_with_spindle();
         spindle_bring_up(&mut m);
-        rx(
-            &mut m,
-            Emcy {
-                code: 0x2310,
-                register: 1,
-                vendor: [0; 5],
-            }
-            .encode(9),
-        );
+        overcurrent(&mut m, 9);
         tpdo(&mut m, PowerState::OperationEnabled, 0, 2500);
         let e = step(&mut m).1.unwrap_err();
         assert_eq!(

@@ -390,8 +390,8 @@ impl Daemon {
     }
 }
 
-/// Actual spindle speed (rpm, from the spindle drive's feedback) the daemon reports.
-pub fn actual_spindle_rpm(addr: &str) -> f64 {
+/// One status snapshot of the daemon at `addr`, over gRPC.
+pub fn status_once(addr: &str) -> proto::v1::Status {
     use proto::v1 as pb;
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -406,13 +406,13 @@ pub fn actual_spindle_rpm(addr: &str) -> f64 {
             .await
             .expect("status stream")
             .into_inner();
-        stream
-            .message()
-            .await
-            .unwrap()
-            .expect("one status")
-            .spindle_rpm
+        stream.message().await.unwrap().expect("one status")
     })
+}
+
+/// Actual spindle speed (rpm, from the spindle drive's feedback) the daemon reports.
+pub fn actual_spindle_rpm(addr: &str) -> f64 {
+    status_once(addr).spindle_rpm
 }
 
 /// Polls the daemon until its actual spindle speed is `rpm` (±0.5); fails after `timeout`.
@@ -430,21 +430,5 @@ pub fn wait_spindle_rpm(addr: &str, rpm: f64, timeout: Duration) {
 
 /// Actual positions (mm) the daemon reports for its axes, from one status snapshot over gRPC.
 pub fn actual_positions_mm(addr: &str) -> Vec<f64> {
-    use proto::v1 as pb;
-    let rt = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .unwrap();
-    rt.block_on(async {
-        let mut c = pb::machine_client::MachineClient::connect(addr.to_owned())
-            .await
-            .expect("connect to cncd");
-        let mut stream = c
-            .stream_status(pb::StatusRequest { rate_hz: 25 })
-            .await
-            .expect("status stream")
-            .into_inner();
-        let s = stream.message().await.unwrap().expect("one status");
-        s.axes.iter().map(|a| a.actual_mm).collect()
-    })
+    status_once(addr).axes.iter().map(|a| a.actual_mm).collect()
 }
