@@ -482,7 +482,6 @@ impl Planner {
         let t_end = path.tangent_at(1.0, axes);
         // Direction for axis limits: for arcs both plane axes may move at full path speed.
         let mut dir = t_start;
-        let mut v_max = f64::INFINITY;
         if let SegPath::Arc {
             plane,
             radius_mm,
@@ -494,6 +493,11 @@ impl Planner {
             let plane_share = (radius_mm * sweep_rad.abs()) / length_mm;
             dir[a] = plane_share;
             dir[b] = plane_share;
+        }
+        let (v_axes, a_axes) = self.cfg.path_limits(&dir);
+        let j_axes = self.cfg.path_jerk(&dir);
+        let mut v_max = f64::INFINITY;
+        if let SegPath::Arc { radius_mm, .. } = path {
             let set_ = &env.sets[set];
             let a_iso = self.cfg.iso_accel(&dir, &dir) * NORMAL_SHARE;
             let a_c = set_.centripetal_mm_s2.min(a_iso);
@@ -505,7 +509,6 @@ impl Planner {
                 if t_f > 0.0 {
                     // Axis jerk of the circular motion within the corner share of the axis
                     // jerk, and the filter's pull towards the centre within Lm/2.
-                    let (_, a_axes) = self.cfg.path_limits(&dir);
                     let a = set_.accel_mm_s2.min(a_axes) * (1.0 - NORMAL_SHARE);
                     v_max = v_max.min(criteria::arc_filtered_mm_s(
                         radius_mm,
@@ -515,13 +518,11 @@ impl Planner {
                         set_.accuracy_um * 1e-3 / 2.0,
                     ));
                 } else {
-                    let j = set_.jerk_mm_s3.min(self.cfg.path_jerk(&dir));
+                    let j = set_.jerk_mm_s3.min(j_axes);
                     v_max = v_max.min(criteria::arc_jerk_mm_s(j, radius_mm));
                 }
             }
         }
-        let (v_axes, a_axes) = self.cfg.path_limits(&dir);
-        let j_axes = self.cfg.path_jerk(&dir);
         v_max = v_max.min(v_axes);
         if !rapid {
             v_max = v_max.min(criteria::min_duration_mm_s(
