@@ -152,14 +152,7 @@ pub struct PreviewText<'a> {
 /// Lays out the preview picture.
 pub fn preview(c: &Collector, t: &PreviewText, width_px: u32, height_px: u32) -> Scene {
     let (w, h) = (f64::from(width_px), f64::from(height_px));
-    let mut scene = Scene::new(width_px, height_px);
-    scene.items.push(Item::Rect {
-        at: [0.0, 0.0],
-        size: [w, h],
-        fill: Some(Rgb::WHITE),
-        stroke: None,
-    });
-    scene.text([16.0, 24.0], 16.0, Anchor::Start, "title", &t.header.title);
+    let mut scene = Scene::page(width_px, height_px, &t.header.title);
     scene.text(
         [16.0, 44.0],
         12.0,

@@ -147,6 +147,19 @@ impl Scene {
         }
     }
 
+    /// A white page with its title at the top left: how every picture starts.
+    pub fn page(width_px: u32, height_px: u32, title: &str) -> Self {
+        let mut scene = Scene::new(width_px, height_px);
+        scene.items.push(Item::Rect {
+            at: [0.0, 0.0],
+            size: [f64::from(width_px), f64::from(height_px)],
+            fill: Some(Rgb::WHITE),
+            stroke: None,
+        });
+        scene.text([16.0, 24.0], 16.0, Anchor::Start, "title", title);
+        scene
+    }
+
     pub fn text(
         &mut self,
         at: [f64; 2],

@@ -158,14 +158,7 @@ pub fn layout(
     height_px: u32,
 ) -> Scene {
     let (w, h) = (f64::from(width_px), f64::from(height_px));
-    let mut scene = Scene::new(width_px, height_px);
-    scene.items.push(Item::Rect {
-        at: [0.0, 0.0],
-        size: [w, h],
-        fill: Some(Rgb::WHITE),
-        stroke: None,
-    });
-    scene.text([16.0, 24.0], 16.0, Anchor::Start, "title", title);
+    let mut scene = Scene::page(width_px, height_px, title);
     let s = &r.series;
     let tpb = s.ticks_per_bucket as f64;
     let t_of = |k: usize| (s.first_tick.unwrap_or(0) as f64 + k as f64 * tpb) * TS_S;
