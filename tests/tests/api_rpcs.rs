@@ -499,6 +499,16 @@ async fn reflection_lists_the_services() {
     }
 }
 
+/// The offset entries in use (non-zero), as the API lists them.
+async fn offsets_in_use(o: &mut OffsetsClient<tonic::transport::Channel>) -> pb::GetOffsetsReply {
+    o.get_offsets(pb::GetOffsetsRequest {
+        include_zero: false,
+    })
+    .await
+    .unwrap()
+    .into_inner()
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn offsets_read_edit_replace_reload_and_g92_marking() {
     let d = start(config(Role::Admin)).await;
@@ -572,13 +582,7 @@ async fn offsets_read_edit_replace_reload_and_g92_marking() {
     .unwrap();
     let job = c.start(pb::StartRequest {}).await.unwrap().into_inner().job;
     wait_job_finished(&d.ctl, job, Duration::from_secs(10)).await;
-    let t = o
-        .get_offsets(pb::GetOffsetsRequest {
-            include_zero: false,
-        })
-        .await
-        .unwrap()
-        .into_inner();
+    let t = offsets_in_use(&mut o).await;
     let e12 = t.entries.iter().find(|e| e.entry == 12).expect("entry 12");
     assert_eq!(e12.radius_mm, 4.0);
     assert!(e12.changed_by_program);
@@ -609,13 +613,7 @@ async fn offsets_read_edit_replace_reload_and_g92_marking() {
         .unwrap()
         .into_inner();
     assert_eq!(r.entries, 1);
-    let t = o
-        .get_offsets(pb::GetOffsetsRequest {
-            include_zero: false,
-        })
-        .await
-        .unwrap()
-        .into_inner();
+    let t = offsets_in_use(&mut o).await;
     assert!(t.entries.iter().all(|e| e.entry != 12));
 
     // Replace the whole file.
@@ -627,13 +625,7 @@ async fn offsets_read_edit_replace_reload_and_g92_marking() {
         .unwrap()
         .into_inner();
     assert_eq!(r.entries, 2);
-    let t = o
-        .get_offsets(pb::GetOffsetsRequest {
-            include_zero: false,
-        })
-        .await
-        .unwrap()
-        .into_inner();
+    let t = offsets_in_use(&mut o).await;
     assert_eq!(t.entries.len(), 2);
     assert_eq!(t.entries[0].length_mm[2], 50.0);
 

@@ -170,6 +170,24 @@ const WATCHDOG: Duration = Duration::from_millis(1000);
 /// Half the watchdog period.
 const PING: Duration = Duration::from_millis(500);
 
+/// The daemon on `bus`, supervised with a watchdog of `WATCHDOG` that notifies `path`.
+fn supervised(
+    dir: &Path,
+    path: &Path,
+    bus: Box<dyn DriveBus>,
+) -> (Arc<Controller>, systemd::Supervision) {
+    let ctl = Controller::start_with_bus(config(dir), ClockKind::Monotonic, bus).unwrap();
+    let notifier = Arc::new(Notifier::new(path).unwrap());
+    let sup = systemd::supervise(
+        ctl.subscribe(),
+        Some(notifier),
+        Some(WATCHDOG),
+        ctl.config().axis_names(),
+        "test machine".into(),
+    );
+    (ctl, sup)
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn ready_after_start_up_pings_while_ticking_and_not_while_the_rt_thread_stalls() {
     cncd_binary();
@@ -181,16 +199,7 @@ async fn ready_after_start_up_pings_while_ticking_and_not_while_the_rt_thread_st
         inner: sim_bus(),
         stall: stall.clone(),
     };
-    let ctl =
-        Controller::start_with_bus(config(&dir), ClockKind::Monotonic, Box::new(bus)).unwrap();
-    let notifier = Arc::new(Notifier::new(&path).unwrap());
-    let sup = systemd::supervise(
-        ctl.subscribe(),
-        Some(notifier),
-        Some(WATCHDOG),
-        ctl.config().axis_names(),
-        "test machine".into(),
-    );
+    let (ctl, sup) = supervised(&dir, &path, Box::new(bus));
 
     // READY=1 after start-up, and only once the drives are operational.
     let before = mgr.wait_for("READY=1", Duration::from_secs(10)).await;
@@ -289,16 +298,7 @@ async fn no_ready_while_the_drives_are_faulted_at_start_up() {
         inner: sim_bus(),
         healthy: healthy.clone(),
     };
-    let ctl =
-        Controller::start_with_bus(config(&dir), ClockKind::Monotonic, Box::new(bus)).unwrap();
-    let notifier = Arc::new(Notifier::new(&path).unwrap());
-    let sup = systemd::supervise(
-        ctl.subscribe(),
-        Some(notifier),
-        Some(WATCHDOG),
-        ctl.config().axis_names(),
-        "test machine".into(),
-    );
+    let (ctl, sup) = supervised(&dir, &path, Box::new(bus));
 
     let msgs = mgr.collect(Duration::from_secs(3)).await;
     assert_eq!(ctl.snapshot().state, MachineState::Fault);
