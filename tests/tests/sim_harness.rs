@@ -3,15 +3,14 @@
 //! the simulated machine, everything stepped in one thread. No wall clock, no other threads:
 //! these tests give the same result on an idle laptop and on a loaded CI machine.
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::Ordering;
 
 use daemon::runtime::clock::SimClock;
 use daemon::runtime::config::Config;
 use daemon::runtime::harness::{Harness, JobEnd};
 use daemon::runtime::rt::{MachineState, RtCommand};
 use kernel::units::TS_NS;
-use tests::{Recording, RecordingBus, max_rates};
+use tests::{FaultableBus, Recording, RecordingBus, max_rates};
 
 const TS_S: f64 = 0.004;
 /// A bound on the ticks of any run here (about 3.3 hours of machining): not a timing.
@@ -204,48 +203,12 @@ fn shutdown_ramps_axes_down_before_exit() {
     assert!((s.actual[0] - s.commanded[0]).abs() < 1e-3);
 }
 
-/// A bus that faults one simulated drive when the test says so.
-struct FaultableBus {
-    inner: sim::SimBus,
-    fault_axis: Arc<AtomicUsize>,
-}
-
-impl hal::DriveBus for FaultableBus {
-    fn name(&self) -> &str {
-        "sim"
-    }
-    fn axes(&self) -> usize {
-        self.inner.axes()
-    }
-    fn cycle(
-        &mut self,
-        cmd: &hal::CycleCommand,
-        fb: &mut hal::CycleFeedback,
-    ) -> Result<(), hal::BusFault> {
-        let a = self.fault_axis.swap(usize::MAX, Ordering::Relaxed);
-        if a != usize::MAX {
-            self.inner.drive_mut(a).force_fault();
-        }
-        self.inner.cycle(cmd, fb)
-    }
-    fn enable(&mut self) {
-        self.inner.enable()
-    }
-    fn reset(&mut self) {
-        self.inner.reset()
-    }
-}
-
 /// A drive fault mid-motion aborts the job; the faulted drive stops following; Reset
 /// re-enables where the drives are (no jump back to the old setpoint) and the next job runs.
 #[test]
 fn drive_fault_stops_and_reset_resumes_from_where_the_drives_are() {
     let cfg = tests::test_config();
-    let fault_axis = Arc::new(AtomicUsize::new(usize::MAX));
-    let bus = FaultableBus {
-        inner: sim_bus(&cfg),
-        fault_axis: fault_axis.clone(),
-    };
+    let (bus, fault_axis) = FaultableBus::new(sim_bus(&cfg));
     let mut h = Harness::new(cfg, Box::new(bus), SimClock::seeded(9, 500_000, 100)).unwrap();
     h.wait_state(MachineState::Idle, 10_000).unwrap();
     let job = h.start_program("N10 G1 X200 Y100 F6000").unwrap();
