@@ -229,6 +229,12 @@ impl Harness {
     /// (ticking whenever the segment ring is full) and returns the job id once every segment
     /// is on the ring. The machine must be idle.
     pub fn start_program(&mut self, text: &str) -> Result<u32, HarnessError> {
+        self.start_job(text, false)
+    }
+
+    /// As [`Harness::start_program`]; with `stop_at_blocks` every block ends at rest (the
+    /// single-block runs of the API).
+    pub fn start_job(&mut self, text: &str, stop_at_blocks: bool) -> Result<u32, HarnessError> {
         let setup = self.setup();
         let comp = kernel::comp::CompConfig::from_constants(&self.constants.0);
         let planner = planner_config(&self.config, &self.constants.0, self.constants.1);
@@ -246,7 +252,7 @@ impl Harness {
             planner,
             comp,
             offsets: self.offsets.clone(),
-            stop_at_blocks: false,
+            stop_at_blocks,
             recent: self.recent.clone(),
             status: self.status.1.clone(),
         };
