@@ -309,3 +309,29 @@ fn single_block_holds_at_every_block() {
     assert!((stops[1] - 10.0).abs() < 0.05, "{stops:?}");
     assert!((h.snapshot().commanded[0] - 15.0).abs() < 1e-6);
 }
+
+/// A program longer than the segment ring: the inline planner ticks the RT core whenever the
+/// ring is full (the RT core never starves), and a stop cancels the planning.
+#[test]
+fn planning_beyond_the_ring_ticks_the_core_and_a_stop_cancels_it() {
+    let mut text = String::from("G1 F3000\n");
+    for i in 1..=6000 {
+        text.push_str(&format!("X{} Y{:.2}\n", i % 2, i as f64 * 0.01));
+    }
+    let (mut h, _, _) = recorded(SimClock::seeded(31, 1_000_000, 100));
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    let t0 = h.snapshot().sequence;
+    let job = h.start_program(&text).unwrap();
+    // The ring (4096) could not hold the program: the core ran while it was planned.
+    assert!(h.snapshot().sequence > t0, "no tick during planning");
+    assert_eq!(h.finish_job(job, 1_000_000).unwrap(), JobEnd::Finished);
+    assert!((h.snapshot().commanded[1] - 60.0).abs() < 1e-9);
+
+    let back = h.snapshot().sequence;
+    h.at_tick(back + 100, RtCommand::Stop);
+    let job = h.start_program(&text.replace("Y", "Y-")).unwrap();
+    // Returned at the stop, long before the program could have been planned to its end.
+    assert!(h.snapshot().sequence < back + 200, "{:?}", h.snapshot());
+    assert_eq!(h.finish_job(job, 10_000).unwrap(), JobEnd::Aborted);
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+}
