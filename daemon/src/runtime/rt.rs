@@ -22,8 +22,8 @@ use super::stats::{TickStats, TickSummary};
 /// Commands from the non-RT side.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum RtCommand {
-    /// Run the segments of `job` (arriving on the segment ring).
-    Start { job: u32 },
+    /// Run the segments of `job` (arriving on the segment ring), with the job's machine setup.
+    Start { job: u32, machine: JobMachine },
     /// Brake to rest on the path, drop the rest of the job.
     Stop,
     /// Feed hold.
@@ -40,6 +40,17 @@ pub enum RtCommand {
     Plc(PlcWrite),
     /// Single-block mode: hold when the path enters a new block (API, issue #8).
     SingleBlock(bool),
+}
+
+/// What the RT side reads of a job's machine setup (issue #14): taken with the job's start, so
+/// KŘR, the spindle and the G24 window use the same constants as the job's planning. `Copy`:
+/// no allocation on the RT thread.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JobMachine {
+    /// R67, R329 d3, R580 (the gear table is the configuration's).
+    pub kr: kernel::kr::KrConstants,
+    /// G24 in-position window per axis (R6, R7), mm.
+    pub in_position_mm: AxesMm,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -107,8 +118,9 @@ pub struct RtParts {
     pub start: AxesMm,
     /// Constant cutting speed state machine (built from the constants at start-up).
     pub kr: Kr,
-    /// Following error under which every axis counts as arrived, for G24 (R06-R07), mm.
-    pub in_position_mm: f64,
+    /// Following error under which each axis counts as arrived, for G24 (R06-R07), mm; the
+    /// running job's (see [`JobMachine`]).
+    pub in_position_mm: AxesMm,
 }
 
 /// Ticks the drives get to become operational before it is a fault.
@@ -208,8 +220,9 @@ impl Rt {
         self.plc.begin_tick();
         self.feed_segments();
         // G24 waits at a stop until every axis has caught up with its setpoint (SPEC §7.1).
-        let in_position = (0..self.p.axes)
-            .all(|i| (self.snap.commanded[i] - self.snap.actual[i]).abs() <= self.p.in_position_mm);
+        let in_position = (0..self.p.axes).all(|i| {
+            (self.snap.commanded[i] - self.snap.actual[i]).abs() <= self.p.in_position_mm[i]
+        });
         self.interp.set_in_position(in_position);
         // A cut starts from rest only with the spindle at the speed commanded last tick.
         self.interp.set_spindle_ready(
@@ -248,8 +261,10 @@ impl Rt {
     fn commands(&mut self) {
         while let Ok(c) = self.p.commands.pop() {
             match c {
-                RtCommand::Start { job } => {
+                RtCommand::Start { job, machine } => {
                     if self.snap.state == MachineState::Idle && !self.shutting_down {
+                        self.p.kr.set_constants(machine.kr);
+                        self.p.in_position_mm = machine.in_position_mm;
                         self.active_job = job;
                         self.snap.job = job;
                         self.sb_seq = u32::MAX;
