@@ -79,6 +79,8 @@ pub struct Pipeline {
     comp: Compensator,
     planner: Planner,
     stop_at_blocks: bool,
+    /// Gear ranges the machine has (`None`: no spindle configured, nothing checked).
+    gears: Option<usize>,
     summary: Summary,
 }
 
@@ -88,6 +90,7 @@ impl Pipeline {
             comp: Compensator::new(setup.comp()),
             planner: Planner::new(setup.planner().clone(), opts.job),
             stop_at_blocks: opts.stop_at_blocks,
+            gears: setup.kr().map(|k| k.gears.len()),
             summary: Summary::default(),
         }
     }
@@ -116,6 +119,9 @@ impl Pipeline {
         if self.stop_at_blocks {
             b.continuity = Continuity::G98;
         }
+        if let Err(d) = self.check_machine(&b) {
+            return self.report(d, obs);
+        }
         obs.programmed(&b, modal);
         if let BlockKind::TableWrite { entry, values } = b.kind {
             let f = obs.table_write(&b, &TableEdit { entry, values });
@@ -129,6 +135,23 @@ impl Pipeline {
             return Flow::Stop;
         }
         self.drain_comp(obs)
+    }
+
+    /// What the interpreter cannot know about this machine: its gear ranges (a gear the
+    /// machine lacks would stop the run with a KŘR fault, SPEC §6).
+    fn check_machine(&self, b: &Block) -> Result<(), Diagnostic> {
+        match self.gears {
+            Some(n) if usize::from(b.spindle.gear) > n => Err(Diagnostic::error(
+                b.n,
+                b.line,
+                0,
+                format!(
+                    "gear range {} is not configured on this machine ({n} gear range(s) in [kr] gears)",
+                    b.spindle.gear
+                ),
+            )),
+            _ => Ok(()),
+        }
     }
 
     /// Compensator diagnostics and tool-centre blocks into the planner.
