@@ -53,6 +53,9 @@ pub fn default_of(r: u16) -> i64 {
     }
 }
 
+/// R55 = 0: the arc end-point tolerance used instead, mm (10 µm).
+pub const DEFAULT_ARC_TOLERANCE_MM: f64 = 0.010;
+
 /// Axis code of constants R0..R5 and R67 (SPEC §1 leaves the encoding open; **decided**):
 /// 0 = no axis, 1..9 = the letters below.
 pub const AXIS_CODES: [char; 9] = ['X', 'Y', 'Z', 'U', 'V', 'W', 'A', 'B', 'C'];
@@ -134,9 +137,27 @@ impl Constants {
             .collect()
     }
 
-    /// R55: largest distance of an arc's end point from its circle, mm (SPEC §2).
+    /// R55: largest distance of an arc's end point from its circle, mm (SPEC §2). R55 = 0
+    /// reads as [`DEFAULT_ARC_TOLERANCE_MM`] (**decided**: an exact 0 would refuse every arc
+    /// whose end point was written to the program's 3 decimals). The interpreter and the
+    /// compensator both read this one accessor.
     pub fn arc_tolerance_mm(&self) -> f64 {
-        self.get(55).abs()
+        match self.get(55).abs() {
+            0.0 => DEFAULT_ARC_TOLERANCE_MM,
+            t => t,
+        }
+    }
+
+    /// R6 (axes 1..3) and R7 (axes 4..6): following error under which an axis counts as
+    /// arrived, the G24 in-position window (SPEC §7.1 "R06-R07"; the split by axis is
+    /// **decided**, see docs/files.md). 0 reads as 1 nm (arrived only at rest).
+    pub fn in_position_window_mm(&self) -> crate::units::AxesMm {
+        let mut w = crate::units::AxesMm::ZERO;
+        for (i, v) in w.0.iter_mut().enumerate() {
+            let r = if i < 3 { 6 } else { 7 };
+            *v = self.get(r).abs().max(1e-6);
+        }
+        w
     }
 
     /// 7.R397 = 1: an arc whose end point is not on the circle is replaced by a line (SPEC §4.5).

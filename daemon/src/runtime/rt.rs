@@ -15,7 +15,9 @@ use hal::DriveBus;
 use kernel::plan::Segment;
 
 use super::clock::Clock;
-pub use super::rt_core::{MachineState, RtCommand, RtCore, RtCoreConfig, RtRings, Snapshot};
+pub use super::rt_core::{
+    JobMachine, MachineState, RtCommand, RtCore, RtCoreConfig, RtRings, Snapshot,
+};
 
 /// Everything the RT thread owns.
 pub struct RtParts {

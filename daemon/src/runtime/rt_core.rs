@@ -25,7 +25,7 @@ use super::stats::{TickStats, TickSummary};
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum RtCommand {
     /// Run the segments of `job` (arriving on the segment ring).
-    Start { job: u32 },
+    Start { job: u32, machine: JobMachine },
     /// Brake to rest on the path, drop the rest of the job.
     Stop,
     /// Feed hold.
@@ -42,6 +42,17 @@ pub enum RtCommand {
     Plc(PlcWrite),
     /// Single-block mode: hold when the path enters a new block (API, issue #8).
     SingleBlock(bool),
+}
+
+/// What the RT side reads of a job's machine setup (issue #14): taken with the job's start, so
+/// KŘR, the spindle and the G24 window use the same constants as the job's planning. `Copy`:
+/// no allocation on the RT thread.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JobMachine {
+    /// R67, R329 d3, R580 (the gear table is the configuration's).
+    pub kr: kernel::kr::KrConstants,
+    /// G24 in-position window per axis (R6, R7), mm.
+    pub in_position_mm: AxesMm,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -144,14 +155,14 @@ pub struct RtCoreConfig {
     /// Constant cutting speed state machine (built from the constants at start-up).
     pub kr: Kr,
     /// Following error under which every axis counts as arrived, for G24 (R06-R07), mm.
-    pub in_position_mm: f64,
+    pub in_position_mm: AxesMm,
 }
 
 /// The real-time core. Everything the tick owns; the caller owns time, rings and bus.
 pub struct RtCore {
     axes: usize,
     kr: Kr,
-    in_position_mm: f64,
+    in_position_mm: AxesMm,
     interp: Interpolator,
     stats: TickStats,
     snap: Snapshot,
@@ -249,8 +260,9 @@ impl RtCore {
     /// up with its setpoint (SPEC §7.1); a cut starts from rest only with the spindle at the
     /// speed commanded last tick.
     fn motion(&mut self) -> TickOut {
-        let in_position = (0..self.axes)
-            .all(|i| (self.snap.commanded[i] - self.snap.actual[i]).abs() <= self.in_position_mm);
+        let in_position = (0..self.axes).all(|i| {
+            (self.snap.commanded[i] - self.snap.actual[i]).abs() <= self.in_position_mm[i]
+        });
         self.interp.set_in_position(in_position);
         self.interp.set_spindle_ready(
             !self.has_spindle || spindle_at_speed(self.cmd.spindle_rpm, self.fb.spindle_rpm),
@@ -290,8 +302,10 @@ impl RtCore {
     fn commands(&mut self, commands: &mut rtrb::Consumer<RtCommand>, bus: &mut dyn DriveBus) {
         while let Ok(c) = commands.pop() {
             match c {
-                RtCommand::Start { job } => {
+                RtCommand::Start { job, machine } => {
                     if self.snap.state == MachineState::Idle && !self.shutting_down {
+                        self.kr.set_constants(machine.kr);
+                        self.in_position_mm = machine.in_position_mm;
                         self.active_job = job;
                         self.snap.job = job;
                         self.sb_seq = u32::MAX;

@@ -106,7 +106,7 @@ impl Default for CompConfig {
 }
 
 /// R55 = 0 reads as 10 µm (the manual gives R55's use, not its default: our decision).
-pub const DEFAULT_ARC_END_TOLERANCE_MM: f64 = 0.010;
+pub const DEFAULT_ARC_END_TOLERANCE_MM: f64 = crate::constants::DEFAULT_ARC_TOLERANCE_MM;
 
 impl CompConfig {
     /// Reads R95, R234, R339, R397, R764, R765 and R55 (SPEC §1 decades, §4).
@@ -124,7 +124,6 @@ impl CompConfig {
             0 => default,
             p => p as f64,
         };
-        let tol = c.get(55).abs();
         CompConfig {
             enabled: c.decade(95, 8) == 1,
             corner_mode,
@@ -152,11 +151,8 @@ impl CompConfig {
                 report: c.decade(765, 7) == 1,
                 optimise: c.decade(765, 8) == 1,
             },
-            arc_end_tolerance_mm: if tol > 0.0 {
-                tol
-            } else {
-                DEFAULT_ARC_END_TOLERANCE_MM
-            },
+            // One accessor for the interpreter and the compensator (issue #14).
+            arc_end_tolerance_mm: c.arc_tolerance_mm(),
         }
     }
 }

@@ -81,6 +81,73 @@ struct State {
     speed_from_css: bool,
 }
 
+/// The modal state a program or MDI leaves for the next MDI (docs/language.md, "What MDI
+/// inherits"): motion, plane, G90/G91, G94/G95, feed, M37, continuity, dynamic set and the
+/// spindle (direction, S, gear, KŘR). Compensation, D and & offsets and the R parameters are
+/// not inherited: they end with the program.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Modal {
+    motion: Motion,
+    plane: Plane,
+    absolute: bool,
+    feed_mode: FeedMode,
+    feed: Option<Feed>,
+    m37: bool,
+    continuity: Continuity,
+    dyn_set: u8,
+    spindle: Spindle,
+    speed_from_css: bool,
+}
+
+impl Modal {
+    /// The spindle state in force.
+    pub fn spindle(&self) -> Spindle {
+        self.spindle
+    }
+
+    /// G91 (incremental) is in force.
+    pub fn incremental(&self) -> bool {
+        !self.absolute
+    }
+
+    /// The programmed feed in force, if any.
+    pub fn feed(&self) -> Option<Feed> {
+        self.feed
+    }
+}
+
+impl State {
+    fn modal(&self) -> Modal {
+        Modal {
+            motion: self.motion,
+            plane: self.plane,
+            absolute: self.absolute,
+            feed_mode: self.feed_mode,
+            feed: self.feed,
+            m37: self.m37,
+            continuity: self.continuity,
+            dyn_set: self.dyn_set,
+            spindle: self.spindle,
+            speed_from_css: self.speed_from_css,
+        }
+    }
+
+    fn inherit(&mut self, m: &Modal) {
+        self.motion = m.motion;
+        self.plane = m.plane;
+        self.absolute = m.absolute;
+        self.feed_mode = m.feed_mode;
+        self.feed = m.feed;
+        self.m37 = m.m37;
+        self.continuity = m.continuity;
+        self.dyn_set = m.dyn_set;
+        self.spindle = m.spindle;
+        self.speed_from_css = m.speed_from_css;
+        // Offsets are not inherited: the spindle's length offset for KŘR goes with them.
+        self.spindle.length_offset_mm = 0.0;
+    }
+}
+
 /// The words of one block, collected before anything is interpreted.
 #[derive(Default)]
 struct Words {
@@ -179,7 +246,7 @@ impl Interpreter {
                 .take(MAX_AXES)
                 .position(|a| a.to_ascii_uppercase() == l)
         });
-        Interpreter {
+        let mut interp = Interpreter {
             kr_axis,
             axis_letters,
             n_axes: setup.axis_names.len().min(MAX_AXES),
@@ -218,7 +285,11 @@ impl Interpreter {
             seq: 0,
             notes: Vec::new(),
             setup_error,
+        };
+        if let Some(m) = &setup.modal {
+            interp.state.inherit(m);
         }
+        interp
     }
 
     /// A problem with the setup itself (axis names); reported once, before any block.
@@ -236,6 +307,11 @@ impl Interpreter {
     /// Whether notes are waiting (cheap check for the streaming loop).
     pub fn has_notes(&self) -> bool {
         !self.notes.is_empty()
+    }
+
+    /// The modal state after the last block (what an MDI after it inherits).
+    pub fn modal(&self) -> Modal {
+        self.state.modal()
     }
 
     /// The interpreter's copy of the offset table (including `G92` writes so far).

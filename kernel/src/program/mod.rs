@@ -18,7 +18,7 @@ pub mod interpreter;
 pub mod words;
 
 pub use feed::{FeedMode, MAX_FEED_MM_MIN, MAX_FEED_MM_REV};
-pub use interpreter::Interpreter;
+pub use interpreter::{Interpreter, Modal};
 
 use crate::block::Block;
 use crate::constants::Constants;
@@ -56,6 +56,9 @@ pub struct Setup {
     pub ij: IjMode,
     /// `$63` of CNC836.KNF: the preprocessor is on (default), needed for R325 refinement.
     pub preprocessor: bool,
+    /// Modal state to start in (MDI inherits what the last program or MDI left); `None`: the
+    /// power-on state.
+    pub modal: Option<Modal>,
 }
 
 impl Setup {
@@ -67,6 +70,7 @@ impl Setup {
             offsets: OffsetTable::new(),
             ij: IjMode::default(),
             preprocessor: true,
+            modal: None,
         }
     }
 
