@@ -655,18 +655,26 @@ impl Compensator {
         if m == 0 || m + 1 >= elems.len() {
             return;
         }
-        // Only between compensated blocks (no start) and not where arcs are inserted.
-        if !elems[m - 1].is_regular()
-            || !elems[m].is_regular()
-            || elems[m].corner.is_some()
-            || elems[m + 1].corner.is_some()
-        {
+        // Only between compensated blocks (no start).
+        if !elems[m - 1].is_regular() || !elems[m].is_regular() {
             return;
         }
         if !runs_backwards(&elems[m], s) {
             return;
         }
         let src = elems[m].src;
+        // Next to an inserted arc SPEC §4.5 does no R397 check; the loop is resolved
+        // geometrically instead (docs/compensation.md, decision 18).
+        if elems[m].corner.is_some() || elems[m + 1].corner.is_some() {
+            if trim_at_corner_arc(elems, m, s) {
+                return;
+            }
+            elems[m].backward_unfixed = true;
+            if cfg.check.check && cfg.check.warn {
+                self.notes.push(backward_warning(&src));
+            }
+            return;
+        }
         if elems[m].geo.is_arc() && cfg.check.complementary_arc_to_line {
             let mut trial = elems.clone();
             if try_chord(&mut trial, m, s, &cfg) && !runs_backwards(&trial[m], s) {
@@ -684,16 +692,7 @@ impl Compensator {
             return;
         }
         if cfg.check.warn {
-            self.notes.push(Diagnostic::warning(
-                src.n,
-                src.line,
-                0,
-                format!(
-                    "Chyba v zadání ekvidistanty pro poloměrové korekce v bloku {}: error in the equidistant of block {}: the tool centre would run backwards (the tool is too large for this detail)",
-                    name(&src),
-                    name(&src)
-                ),
-            ));
+            self.notes.push(backward_warning(&src));
         }
         // 4-block: this and the previous element both loop; join m-2 and m+1 directly.
         if cfg.check.optimise_4_blocks
@@ -1040,6 +1039,106 @@ fn try_chord(elems: &mut VecDeque<Elem>, i: usize, s: f64, cfg: &CompConfig) -> 
         }
     }
     true
+}
+
+/// The R397 warning: the equidistant of `src` runs backwards (SPEC §4.5).
+fn backward_warning(src: &Block) -> Diagnostic {
+    Diagnostic::warning(
+        src.n,
+        src.line,
+        0,
+        format!(
+            "Chyba v zadání ekvidistanty pro poloměrové korekce v bloku {}: error in the equidistant of block {}: the tool centre would run backwards (the tool is too large for this detail)",
+            name(src),
+            name(src)
+        ),
+    )
+}
+
+/// Sweep from angle `from` to angle `to` (rad) in the direction of `like` (its sign), in
+/// (0, 2π] for a positive direction.
+fn sweep_like(from: f64, to: f64, like: f64) -> f64 {
+    let mut sw = wrap_pi(to - from);
+    if like > 0.0 && sw < 0.0 {
+        sw += 2.0 * PI;
+    } else if like < 0.0 && sw > 0.0 {
+        sw -= 2.0 * PI;
+    }
+    sw
+}
+
+/// Element `m` runs backwards and an arc is inserted at one of its ends (a short step between
+/// an inside and an outside corner). Its equidistant is dropped and the inserted arc is cut
+/// against the equidistant on the other side of the step: the previous element when the arc
+/// is at `m`'s end, the next one when it is at `m`'s start. The tool centre then goes straight
+/// from that equidistant onto the arc, which stays at the tool radius from the corner, instead
+/// of running back along the step (docs/compensation.md, decision 18). `false` (nothing
+/// changed) when the arc and the equidistant do not meet within the arc, or the trimmed
+/// neighbour would run backwards itself.
+fn trim_at_corner_arc(elems: &mut VecDeque<Elem>, m: usize, s: f64) -> bool {
+    let r = s.abs();
+    if let Some(c) = elems[m + 1].corner {
+        // Arc at the end of m: trim the previous equidistant against it.
+        if elems[m].corner.is_some() || elems[m - 1].collapsed {
+            return false;
+        }
+        let circle = geom::Support::Circle { c: c.corner, r };
+        let Some(x) = intersect(&elems[m - 1].geo.support(s), &circle, elems[m].start) else {
+            return false;
+        };
+        let sw = sweep_like(
+            (x - c.corner).angle(),
+            (c.to - c.corner).angle(),
+            c.sweep_rad,
+        );
+        let mut trial = elems[m - 1].clone();
+        trial.end = x;
+        if sw.abs() > c.sweep_rad.abs() + 1e-9 || runs_backwards(&trial, s) {
+            return false;
+        }
+        elems[m - 1].end = x;
+        collapse_at(&mut elems[m], x);
+        if let Some(cc) = elems[m + 1].corner.as_mut() {
+            cc.sweep_rad = sw;
+        }
+        return true;
+    }
+    let (Some(c), true) = (elems[m].corner, elems[m + 1].corner.is_none()) else {
+        return false;
+    };
+    // Arc at the start of m: it now ends on the next equidistant.
+    let circle = geom::Support::Circle { c: c.corner, r };
+    let Some(x) = intersect(&circle, &elems[m + 1].geo.support(s), elems[m].end) else {
+        return false;
+    };
+    let from = (elems[m - 1].end - c.corner).angle();
+    let sw = sweep_like(from, (x - c.corner).angle(), c.sweep_rad);
+    let mut trial = elems[m + 1].clone();
+    trial.start = x;
+    trial.end = if trial.closed {
+        trial.end
+    } else {
+        trial.geo.offset_end(s)
+    };
+    if sw.abs() > c.sweep_rad.abs() + 1e-9 || runs_backwards(&trial, s) {
+        return false;
+    }
+    collapse_at(&mut elems[m], x);
+    elems[m].corner = Some(CornerArc {
+        to: x,
+        sweep_rad: sw,
+        ..c
+    });
+    elems[m + 1].start = x;
+    true
+}
+
+/// The element's equidistant is removed: it starts and ends at `x`.
+fn collapse_at(e: &mut Elem, x: V2) {
+    e.start = x;
+    e.end = x;
+    e.collapsed = true;
+    e.backward_unfixed = false;
 }
 
 /// The 3-block (`first + 2 == last`) and 4-block (`first + 3 == last`) optimisation: the
