@@ -9,101 +9,9 @@ mod comp_helpers;
 
 use comp_helpers::*;
 use kernel::Severity;
-use kernel::block::{ArcDir, Block, Path, Plane};
+use kernel::block::{Block, Path, Plane};
 use kernel::comp::geom::V2;
 use kernel::comp::{CompBlock, CompConfig, CornerMode, Role};
-
-/// Distance from `q` to a programmed line or arc (plane G17).
-fn dist_to_block(q: V2, b: &Block) -> f64 {
-    let (s, e, path) = b.motion().expect("motion");
-    let (a, bb) = (V2::of(&s, Plane::G17), V2::of(&e, Plane::G17));
-    match path {
-        Path::Arc { dir, center, .. } => {
-            let c = V2::of(&center, Plane::G17);
-            let rho = a.dist(c);
-            let a0 = (a - c).angle();
-            let mut sweep = (bb - c).angle() - a0;
-            let ccw = dir == ArcDir::Ccw;
-            while ccw && sweep <= 0.0 {
-                sweep += std::f64::consts::TAU;
-            }
-            while !ccw && sweep >= 0.0 {
-                sweep -= std::f64::consts::TAU;
-            }
-            let mut t = (q - c).angle() - a0;
-            // Angle of q measured along the arc's direction, in [0, 2π).
-            if !ccw {
-                t = -t;
-            }
-            let t = t.rem_euclid(std::f64::consts::TAU);
-            if t <= sweep.abs() {
-                (q.dist(c) - rho).abs()
-            } else {
-                q.dist(a).min(q.dist(bb))
-            }
-        }
-        _ => {
-            let d = bb - a;
-            let t = ((q - a).dot(d) / d.dot(d)).clamp(0.0, 1.0);
-            q.dist(a + d * t)
-        }
-    }
-}
-
-/// Points along an output motion, at most `step_mm` apart.
-fn samples(b: &Block, step_mm: f64) -> Vec<V2> {
-    let (s, e, path) = b.motion().expect("motion");
-    let (a, bb) = (V2::of(&s, Plane::G17), V2::of(&e, Plane::G17));
-    match path {
-        Path::Arc { dir, center, .. } => {
-            let c = V2::of(&center, Plane::G17);
-            let rho = a.dist(c);
-            let a0 = (a - c).angle();
-            let mut sweep = (bb - c).angle() - a0;
-            let ccw = dir == ArcDir::Ccw;
-            while ccw && sweep < 0.0 {
-                sweep += std::f64::consts::TAU;
-            }
-            while !ccw && sweep > 0.0 {
-                sweep -= std::f64::consts::TAU;
-            }
-            let n = ((sweep.abs() * rho / step_mm).ceil() as usize).max(1);
-            (0..=n)
-                .map(|k| c + V2::from_angle(a0 + sweep * k as f64 / n as f64) * rho)
-                .collect()
-        }
-        _ => {
-            let n = ((a.dist(bb) / step_mm).ceil() as usize).max(1);
-            (0..=n)
-                .map(|k| a + (bb - a) * (k as f64 / n as f64))
-                .collect()
-        }
-    }
-}
-
-/// The smallest distance of the compensated tool path (equidistants, corner arcs, collapsed
-/// elements; not the start and cancel moves) from the programmed contour elements `contour`
-/// (seq numbers), with the tool block and contour block where it occurs.
-fn clearance(input: &[Block], out: &[CompBlock], contour: &[u32]) -> (f64, u32, u32) {
-    let mut worst = (f64::INFINITY, 0, 0);
-    for c in motions(out) {
-        if !matches!(
-            c.role,
-            Role::Equidistant | Role::CornerArc | Role::Collapsed | Role::EquidistantChord
-        ) {
-            continue;
-        }
-        for q in samples(&c.block, 0.01) {
-            for &k in contour {
-                let d = dist_to_block(q, &input[k as usize]);
-                if d < worst.0 {
-                    worst = (d, c.block.seq, k);
-                }
-            }
-        }
-    }
-    worst
-}
 
 /// Every equidistant piece runs in the programmed direction.
 fn never_backwards(input: &[Block], out: &[CompBlock]) -> Result<(), String> {
@@ -192,7 +100,7 @@ fn short_step_next_to_an_inserted_arc_never_gouges() {
                 );
                 check_continuous(&out).unwrap();
                 never_backwards(&p.blocks, &out).unwrap_or_else(|e| panic!("{what}: {e}"));
-                let (d, tool, prog) = clearance(&p.blocks, &out, &contour);
+                let (d, tool, prog) = clearance(&p.blocks, &out, &contour, Plane::G17);
                 assert!(
                     d >= r - 1e-3,
                     "{what}: tool centre of seq {tool} {d:.4} mm from seq {prog}"

@@ -18,6 +18,7 @@
 pub mod config;
 pub mod corner;
 pub mod geom;
+pub mod gouge;
 
 use std::collections::VecDeque;
 use std::f64::consts::PI;
@@ -142,6 +143,8 @@ pub struct Compensator {
     tool: Option<AxesMm>,
     /// Plane of the last compensation, for reconciling after G40 without motion (7.R339).
     last_plane: Plane,
+    /// The whole-run gouge check (docs/compensation.md decision 19).
+    gouge: gouge::Check,
 }
 
 impl Default for Compensator {
@@ -196,9 +199,13 @@ fn err(b: &Block, msg: impl Into<String>) -> Diagnostic {
 }
 
 fn name(b: &Block) -> String {
-    match b.n {
+    source_name(b.n, b.line)
+}
+
+fn source_name(n: Option<u32>, line: u32) -> String {
+    match n {
         Some(n) => format!("N{n}"),
-        None => format!("on line {}", b.line),
+        None => format!("on line {line}"),
     }
 }
 
@@ -332,6 +339,7 @@ impl Compensator {
             notes: Notes::default(),
             tool: None,
             last_plane: Plane::G17,
+            gouge: gouge::Check::default(),
         }
     }
 
@@ -515,6 +523,8 @@ impl Compensator {
 
     fn start_run(&mut self, b: &Block, geo: Geo, rapid: bool) {
         self.last_plane = b.plane;
+        let r = signed_offset(b.comp).abs();
+        self.gouge.begin(b.plane, r, self.cfg.gouge_tolerance_mm(r));
         let start = self.tool.map_or(geo.start(), |t| V2::of(&t, b.plane));
         self.run = Some(Run {
             comp: b.comp,
@@ -763,6 +773,39 @@ impl Compensator {
         for e in run.elems {
             self.emit_elem(e, s, run.plane);
         }
+        self.report_gouges();
+    }
+
+    /// The whole-run gouge check (docs/compensation.md decision 19): one message per tool
+    /// block that cuts into the contour, naming both blocks and the depth.
+    fn report_gouges(&mut self) {
+        let (found, skipped) = self.gouge.finish();
+        for g in found {
+            let (t, c) = (g.tool, g.contour);
+            let msg = format!(
+                "{} the tool centre of block {} comes {:.3} mm closer than the tool radius to the contour of block {}: the tool cuts into the part",
+                gouge::MESSAGE_PREFIX,
+                source_name(t.n, t.line),
+                g.depth_mm,
+                source_name(c.n, c.line)
+            );
+            self.notes.push(if self.cfg.refuse_gouges {
+                Diagnostic::error(t.n, t.line, 0, msg)
+            } else {
+                Diagnostic::warning(t.n, t.line, 0, msg)
+            });
+        }
+        if let Some(t) = skipped {
+            self.notes.push(Diagnostic::info(
+                t.n,
+                t.line,
+                0,
+                format!(
+                    "the gouge check covers the first {} elements of a compensated contour; from here on it is not checked",
+                    gouge::MAX_CHECKED_ELEMENTS
+                ),
+            ));
+        }
     }
 
     /// R764: the last working block before a rapid, shorter than the limit, whose
@@ -802,6 +845,12 @@ impl Compensator {
     }
 
     fn put(&mut self, block: Block, role: Role, offset_mm: f64) {
+        if matches!(
+            role,
+            Role::Equidistant | Role::EquidistantChord | Role::CornerArc | Role::Collapsed
+        ) {
+            self.gouge.tool(&block);
+        }
         if let Some((_, end, _)) = block.motion() {
             self.tool = Some(end);
         }
@@ -876,6 +925,7 @@ impl Compensator {
                 self.put_motion(&src, with_plane(pend, e.end, plane), path, role, s);
             }
             ElemKind::Regular => {
+                self.gouge.contour(&e.geo, &src);
                 if let Some(d) = e.far_mm
                     && self.cfg.position.report
                 {
