@@ -12,7 +12,7 @@
 //! §4.2) and are programmed by the machinist as such. The check works in the compensation
 //! plane: a run that cuts different contours at different depths is seen from above.
 
-use std::f64::consts::TAU;
+use std::f64::consts::PI;
 
 use crate::block::{ArcDir, Block, BlockKind, Path, Plane};
 use crate::diag::Diagnostic;
@@ -36,20 +36,96 @@ pub fn is_gouge(d: &Diagnostic) -> bool {
     d.message.starts_with(MESSAGE_PREFIX)
 }
 
-/// A line segment or a circular arc in the compensation plane.
+/// A line segment or a circular arc in the compensation plane. Arcs keep their end points and
+/// end directions, so measuring needs no trigonometry (the check's inner loop).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Shape {
-    Seg {
-        a: V2,
-        b: V2,
-    },
-    /// Centre, radius, start angle and signed sweep (positive counter-clockwise).
-    Arc {
-        c: V2,
-        r: f64,
-        a0: f64,
-        sweep: f64,
-    },
+    Seg { a: V2, b: V2 },
+    Arc(ArcShape),
+}
+
+/// A circular arc: centre, radius, end points, direction and whether it is longer than a
+/// half circle (all that measuring needs; no angles).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ArcShape {
+    c: V2,
+    r: f64,
+    p0: V2,
+    p1: V2,
+    ccw: bool,
+    major: bool,
+}
+
+fn dist(a: V2, b: V2) -> f64 {
+    let d = a - b;
+    d.dot(d).sqrt()
+}
+
+fn unit(v: V2) -> Option<V2> {
+    let l = v.dot(v).sqrt();
+    (l > 1e-12).then(|| v * (1.0 / l))
+}
+
+impl ArcShape {
+    /// The arc about `c` of radius `r` from angle `a0` (rad) sweeping `sweep`.
+    pub fn new(c: V2, r: f64, a0: f64, sweep: f64) -> ArcShape {
+        ArcShape {
+            c,
+            r,
+            p0: c + V2::from_angle(a0) * r,
+            p1: c + V2::from_angle(a0 + sweep) * r,
+            ccw: sweep > 0.0,
+            major: sweep.abs() > PI,
+        }
+    }
+
+    /// The arc about `c` from `a` in direction `ccw`, ending in the direction of `b` (an end
+    /// point off the circle, within R55, is projected onto it); `major`: longer than a half
+    /// circle.
+    fn from_points(c: V2, a: V2, b: V2, ccw: bool, major: bool) -> ArcShape {
+        let r = dist(a, c);
+        let p1 = match unit(b - c) {
+            Some(u) if dist(a, b) > 1e-12 => c + u * r,
+            _ => a,
+        };
+        ArcShape {
+            c,
+            r,
+            p0: a,
+            p1,
+            ccw,
+            major,
+        }
+    }
+
+    /// Whether direction `v` (from the centre) lies within the sweep.
+    fn contains(&self, v: V2) -> bool {
+        // Signs of cross products: the end directions need no normalising.
+        let (u0, u1) = (self.p0 - self.c, self.p1 - self.c);
+        let s = if self.ccw { 1.0 } else { -1.0 };
+        if !self.major {
+            s * u0.cross(v) >= 0.0 && s * v.cross(u1) >= 0.0
+        } else {
+            // Outside the complementary arc (shorter than a half circle).
+            !(s * u1.cross(v) > 0.0 && s * v.cross(u0) > 0.0)
+        }
+    }
+
+    fn dist_point(&self, p: V2) -> f64 {
+        let v = p - self.c;
+        let d = v.dot(v).sqrt();
+        if d > 0.0 && self.contains(v) {
+            (d - self.r).abs()
+        } else {
+            dist(p, self.p0).min(dist(p, self.p1))
+        }
+    }
+
+    /// The points of the arc in direction ±`u` from its centre.
+    fn along(&self, u: V2) -> [Option<V2>; 2] {
+        let pick = |d: V2| self.contains(d).then(|| self.c + d * self.r);
+        [pick(u), pick(-u)]
+    }
 }
 
 impl Shape {
@@ -58,12 +134,13 @@ impl Shape {
             Geo::Line { a, b } => Shape::Seg { a, b },
             Geo::Arc {
                 a, c, sweep_rad, ..
-            } => Shape::Arc {
+            } => Shape::Arc(ArcShape::from_points(
                 c,
-                r: a.dist(c),
-                a0: (a - c).angle(),
-                sweep: sweep_rad,
-            },
+                a,
+                g.end(),
+                sweep_rad > 0.0,
+                sweep_rad.abs() > PI,
+            )),
         }
     }
 
@@ -76,100 +153,78 @@ impl Shape {
         Some(match path {
             Path::Arc { dir, center, .. } => {
                 let c = V2::of(&center, plane);
-                let a0 = (a - c).angle();
-                let mut sweep = ((e - c).angle() - a0).rem_euclid(TAU);
-                if dir == ArcDir::Cw && sweep > 0.0 {
-                    sweep -= TAU;
-                }
-                Shape::Arc {
-                    c,
-                    r: a.dist(c),
-                    a0,
-                    sweep,
-                }
+                let ccw = dir == ArcDir::Ccw;
+                // Longer than a half circle when the end lies behind the start as seen in
+                // the direction of motion (output arcs are halved above 180°, so rarely).
+                let cross = (a - c).cross(e - c);
+                let major = if ccw { cross < 0.0 } else { cross > 0.0 };
+                Shape::Arc(ArcShape::from_points(c, a, e, ccw, major))
             }
             _ => Shape::Seg { a, b: e },
         })
     }
 
     fn ends(&self) -> [V2; 2] {
-        match *self {
-            Shape::Seg { a, b } => [a, b],
-            Shape::Arc { c, r, a0, sweep } => [
-                c + V2::from_angle(a0) * r,
-                c + V2::from_angle(a0 + sweep) * r,
-            ],
+        match self {
+            Shape::Seg { a, b } => [*a, *b],
+            Shape::Arc(k) => [k.p0, k.p1],
         }
     }
 
-    /// Axis-aligned bounding box (min, max).
+    /// Axis-aligned bounding box (min, max): end points and the extreme points of the circle
+    /// that lie within an arc.
     fn bbox(&self) -> (V2, V2) {
-        match *self {
-            Shape::Seg { a, b } => (
-                V2::new(a.x.min(b.x), a.y.min(b.y)),
-                V2::new(a.x.max(b.x), a.y.max(b.y)),
-            ),
-            // The circle's box: cheap and only ever too large.
-            Shape::Arc { c, r, .. } => (c - V2::new(r, r), c + V2::new(r, r)),
+        let [a, b] = self.ends();
+        let mut lo = V2::new(a.x.min(b.x), a.y.min(b.y));
+        let mut hi = V2::new(a.x.max(b.x), a.y.max(b.y));
+        if let Shape::Arc(k) = self {
+            for d in [
+                V2::new(1.0, 0.0),
+                V2::new(-1.0, 0.0),
+                V2::new(0.0, 1.0),
+                V2::new(0.0, -1.0),
+            ] {
+                if k.contains(d) {
+                    let p = k.c + d * k.r;
+                    lo = V2::new(lo.x.min(p.x), lo.y.min(p.y));
+                    hi = V2::new(hi.x.max(p.x), hi.y.max(p.y));
+                }
+            }
         }
-    }
-
-    /// Whether the direction of `p` from the centre lies within the arc.
-    fn arc_contains_angle(c: V2, a0: f64, sweep: f64, p: V2) -> bool {
-        let t = ((p - c).angle() - a0) * sweep.signum();
-        t.rem_euclid(TAU) <= sweep.abs() + 1e-12
+        (lo, hi)
     }
 
     /// Distance from a point.
     pub fn dist_point(&self, p: V2) -> f64 {
-        match *self {
+        match self {
             Shape::Seg { a, b } => {
-                let d = b - a;
+                let d = *b - *a;
                 let l2 = d.dot(d);
                 if l2 == 0.0 {
-                    return p.dist(a);
+                    return dist(p, *a);
                 }
-                let t = ((p - a).dot(d) / l2).clamp(0.0, 1.0);
-                p.dist(a + d * t)
+                let t = ((p - *a).dot(d) / l2).clamp(0.0, 1.0);
+                dist(p, *a + d * t)
             }
-            Shape::Arc { c, r, a0, sweep } => {
-                if p.dist(c) > 0.0 && Shape::arc_contains_angle(c, a0, sweep, p) {
-                    (p.dist(c) - r).abs()
-                } else {
-                    let [s, e] = self.ends();
-                    p.dist(s).min(p.dist(e))
-                }
-            }
+            Shape::Arc(k) => k.dist_point(p),
         }
     }
 
-    /// Points of `self` where the distance to another shape can be smallest besides its end
-    /// points: the foot of a circle centre on a segment, the points of an arc on the line
-    /// through both centres (or towards a segment's foot).
+    /// Points of `self` where the distance to `other` can be smallest besides its end points:
+    /// the foot of a circle centre on a segment; the points of an arc on the line through
+    /// both centres, or towards a segment's foot.
     fn interior_candidates(&self, other: &Shape) -> [Option<V2>; 2] {
-        match (*self, *other) {
-            (Shape::Seg { a, b }, Shape::Arc { c, .. }) => {
-                let d = b - a;
-                let l2 = d.dot(d);
-                let t = if l2 > 0.0 { (c - a).dot(d) / l2 } else { -1.0 };
-                [(0.0..=1.0).contains(&t).then(|| a + d * t), None]
-            }
-            (Shape::Arc { c, r, a0, sweep }, Shape::Arc { c: c2, .. }) => {
-                // Concentric arcs: the end points are the candidates.
-                if c2.dist(c) <= 1e-12 {
-                    return [None, None];
-                }
-                let u = (c2 - c).unit();
-                let pick = |p: V2| Shape::arc_contains_angle(c, a0, sweep, p).then_some(p);
-                [pick(c + u * r), pick(c - u * r)]
-            }
-            (Shape::Arc { c, r, a0, sweep }, Shape::Seg { a, b }) => {
-                let foot = Shape::Seg { a, b }.interior_candidates(self)[0];
+        match (self, other) {
+            (Shape::Seg { a, b }, Shape::Arc(k)) => [foot(*a, *b, k.c), None],
+            (Shape::Arc(k), Shape::Arc(k2)) => match unit(k2.c - k.c) {
+                Some(u) => k.along(u),
+                // Concentric arcs: the end points decide.
+                None => [None, None],
+            },
+            (Shape::Arc(k), Shape::Seg { a, b }) => {
                 // A foot on the centre: every arc point is as far from it; the ends decide.
-                let u = foot.filter(|f| f.dist(c) > 1e-12).map(|f| (f - c).unit());
-                let pick = |p: V2| Shape::arc_contains_angle(c, a0, sweep, p).then_some(p);
-                match u {
-                    Some(u) => [pick(c + u * r), pick(c - u * r)],
+                match foot(*a, *b, k.c).and_then(|f| unit(f - k.c)) {
+                    Some(u) => k.along(u),
                     None => [None, None],
                 }
             }
@@ -179,54 +234,42 @@ impl Shape {
 
     /// Whether the two shapes cross or touch.
     fn crosses(&self, other: &Shape) -> bool {
-        match (*self, *other) {
+        match (self, other) {
             (Shape::Seg { a, b }, Shape::Seg { a: c, b: d }) => {
                 let o = |p: V2, q: V2, r: V2| (q - p).cross(r - p);
-                let (d1, d2) = (o(a, b, c), o(a, b, d));
-                let (d3, d4) = (o(c, d, a), o(c, d, b));
-                d1 * d2 < 0.0 && d3 * d4 < 0.0
+                o(*a, *b, *c) * o(*a, *b, *d) < 0.0 && o(*c, *d, *a) * o(*c, *d, *b) < 0.0
             }
-            (Shape::Seg { a, b }, Shape::Arc { c, r, a0, sweep })
-            | (Shape::Arc { c, r, a0, sweep }, Shape::Seg { a, b }) => {
-                let d = b - a;
+            (Shape::Seg { a, b }, Shape::Arc(k)) | (Shape::Arc(k), Shape::Seg { a, b }) => {
+                let (a, d) = (*a, *b - *a);
                 let l2 = d.dot(d);
                 if l2 == 0.0 {
                     return false;
                 }
                 // |a + t d − c|² = r²
-                let w = a - c;
-                let (qb, qc) = (w.dot(d) / l2, (w.dot(w) - r * r) / l2);
+                let w = a - k.c;
+                let (qb, qc) = (w.dot(d) / l2, (w.dot(w) - k.r * k.r) / l2);
                 let disc = qb * qb - qc;
                 if disc < 0.0 {
                     return false;
                 }
                 let h = disc.sqrt();
-                [-qb - h, -qb + h].into_iter().any(|t| {
-                    (0.0..=1.0).contains(&t) && Shape::arc_contains_angle(c, a0, sweep, a + d * t)
-                })
+                [-qb - h, -qb + h]
+                    .into_iter()
+                    .any(|t| (0.0..=1.0).contains(&t) && k.contains(w + d * t))
             }
-            (
-                Shape::Arc { c, r, a0, sweep },
-                Shape::Arc {
-                    c: c2,
-                    r: r2,
-                    a0: b0,
-                    sweep: sw2,
-                },
-            ) => {
-                let dv = c2 - c;
-                let dd = dv.len();
-                if dd == 0.0 || dd > r + r2 || dd < (r - r2).abs() {
+            (Shape::Arc(k), Shape::Arc(k2)) => {
+                let dv = k2.c - k.c;
+                let dd = dv.dot(dv).sqrt();
+                if dd == 0.0 || dd > k.r + k2.r || dd < (k.r - k2.r).abs() {
                     return false;
                 }
                 let e = dv * (1.0 / dd);
-                let x = 0.5 * (dd + (r - r2) * (r + r2) / dd);
-                let h = (r * r - x * x).max(0.0).sqrt();
-                let m = c + e * x;
-                [m + e.left() * h, m - e.left() * h].into_iter().any(|p| {
-                    Shape::arc_contains_angle(c, a0, sweep, p)
-                        && Shape::arc_contains_angle(c2, b0, sw2, p)
-                })
+                let x = 0.5 * (dd + (k.r - k2.r) * (k.r + k2.r) / dd);
+                let h = (k.r * k.r - x * x).max(0.0).sqrt();
+                let m = k.c + e * x;
+                [m + e.left() * h, m - e.left() * h]
+                    .into_iter()
+                    .any(|p| k.contains(p - k.c) && k2.contains(p - k2.c))
             }
         }
     }
@@ -237,22 +280,24 @@ impl Shape {
             return 0.0;
         }
         let mut d = f64::INFINITY;
-        for p in self
-            .ends()
-            .into_iter()
-            .chain(self.interior_candidates(other).into_iter().flatten())
-        {
+        let mine = self.interior_candidates(other);
+        for p in self.ends().into_iter().chain(mine.into_iter().flatten()) {
             d = d.min(other.dist_point(p));
         }
-        for p in other
-            .ends()
-            .into_iter()
-            .chain(other.interior_candidates(self).into_iter().flatten())
-        {
+        let theirs = other.interior_candidates(self);
+        for p in other.ends().into_iter().chain(theirs.into_iter().flatten()) {
             d = d.min(self.dist_point(p));
         }
         d
     }
+}
+
+/// The foot of `p` on segment a–b, if it falls within the segment.
+fn foot(a: V2, b: V2, p: V2) -> Option<V2> {
+    let d = b - a;
+    let l2 = d.dot(d);
+    let t = if l2 > 0.0 { (p - a).dot(d) / l2 } else { -1.0 };
+    (0.0..=1.0).contains(&t).then(|| a + d * t)
 }
 
 /// Where a tool-centre piece or a contour element comes from.
@@ -273,6 +318,16 @@ impl Source {
     }
 }
 
+/// A tool-centre piece. `own`: it lies on the equidistant of its own contour element, so it
+/// is at least the radius from that element (the offset of a line or circle) and that pair is
+/// not measured.
+#[derive(Clone, Copy, Debug)]
+struct Piece {
+    shape: Shape,
+    src: Source,
+    own: bool,
+}
+
 /// A gouge: the tool centre of `tool` comes `depth_mm` closer than the radius to `contour`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Gouge {
@@ -288,8 +343,8 @@ pub struct Check {
     plane: Plane,
     radius_mm: f64,
     tolerance_mm: f64,
-    contour: Vec<(Shape, Source)>,
-    tool: Vec<(Shape, Source)>,
+    contour: Chunked<(Shape, Source)>,
+    tool: Chunked<Piece>,
     /// Elements not kept because the run was longer than [`MAX_CHECKED_ELEMENTS`].
     skipped_from: Option<Source>,
 }
@@ -321,13 +376,18 @@ impl Check {
         }
     }
 
-    /// A tool-centre motion on (or collapsed onto) the equidistant.
-    pub fn tool(&mut self, out: &Block) {
+    /// A tool-centre motion on (or collapsed onto) the equidistant; `own`: on the
+    /// equidistant of its own source block (see [`Piece`]).
+    pub fn tool(&mut self, out: &Block, own: bool) {
         if self.active
             && self.room(out)
-            && let Some(s) = Shape::of_block(out, self.plane)
+            && let Some(shape) = Shape::of_block(out, self.plane)
         {
-            self.tool.push((s, Source::of(out)));
+            self.tool.push(Piece {
+                shape,
+                src: Source::of(out),
+                own,
+            });
         }
     }
 
@@ -343,9 +403,53 @@ impl Check {
             &self.tool,
             self.radius_mm - self.tolerance_mm,
         );
-        self.contour = Vec::new();
-        self.tool = Vec::new();
+        self.contour = Chunked::default();
+        self.tool = Chunked::default();
         (found, self.skipped_from.take())
+    }
+}
+
+/// A growing list in fixed chunks: long runs never copy what they hold (no reallocation).
+#[derive(Debug)]
+struct Chunked<T> {
+    chunks: Vec<Vec<T>>,
+    len: usize,
+}
+
+const CHUNK: usize = 1024;
+
+impl<T> Default for Chunked<T> {
+    fn default() -> Self {
+        Chunked {
+            chunks: Vec::new(),
+            len: 0,
+        }
+    }
+}
+
+impl<T> Chunked<T> {
+    fn push(&mut self, v: T) {
+        if self.len.is_multiple_of(CHUNK) {
+            self.chunks.push(Vec::with_capacity(CHUNK));
+        }
+        self.chunks.last_mut().expect("a chunk").push(v);
+        self.len += 1;
+    }
+    fn len(&self) -> usize {
+        self.len
+    }
+    fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+    fn clear(&mut self) {
+        self.chunks.clear();
+        self.len = 0;
+    }
+    fn get(&self, i: usize) -> &T {
+        &self.chunks[i / CHUNK][i % CHUNK]
+    }
+    fn iter(&self) -> impl Iterator<Item = &T> {
+        self.chunks.iter().flatten()
     }
 }
 
@@ -361,13 +465,12 @@ struct Grid {
 }
 
 impl Grid {
-    fn new(shapes: &[(Shape, Source)]) -> Grid {
-        let n = shapes.len().max(1);
-        let boxes: Vec<(V2, V2)> = shapes.iter().map(|(s, _)| s.bbox()).collect();
+    fn new(boxes: &[(V2, V2)]) -> Grid {
+        let n = boxes.len().max(1);
         let mut lo = V2::new(f64::INFINITY, f64::INFINITY);
         let mut hi = V2::new(f64::NEG_INFINITY, f64::NEG_INFINITY);
         let mut mean = 0.0;
-        for (a, b) in &boxes {
+        for (a, b) in boxes {
             lo = V2::new(lo.x.min(a.x), lo.y.min(a.y));
             hi = V2::new(hi.x.max(b.x), hi.y.max(b.y));
             mean += (b.x - a.x).max(b.y - a.y) / n as f64;
@@ -389,7 +492,7 @@ impl Grid {
             items: Vec::new(),
         };
         let mut counts = vec![0u32; nx * ny];
-        for b in &boxes {
+        for b in boxes {
             g.for_cells(*b, |k| counts[k] += 1);
         }
         let mut acc = 0u32;
@@ -411,8 +514,7 @@ impl Grid {
     }
 
     fn cells(origin: V2, cell: f64, nx: usize, ny: usize, b: (V2, V2), mut f: impl FnMut(usize)) {
-        let idx =
-            |v: f64, o: f64, n: usize| (((v - o) / cell).floor().max(0.0) as usize).min(n - 1);
+        let idx = |v: f64, o: f64, n: usize| (((v - o) / cell).max(0.0) as usize).min(n - 1);
         let (x0, x1) = (idx(b.0.x, origin.x, nx), idx(b.1.x, origin.x, nx));
         let (y0, y1) = (idx(b.0.y, origin.y, ny), idx(b.1.y, origin.y, ny));
         for y in y0..=y1 {
@@ -428,16 +530,17 @@ impl Grid {
 }
 
 /// Every tool piece closer than `min_mm` to a contour element, the deepest per tool block.
-fn find(contour: &[(Shape, Source)], tool: &[(Shape, Source)], min_mm: f64) -> Vec<Gouge> {
+fn find(contour: &Chunked<(Shape, Source)>, tool: &Chunked<Piece>, min_mm: f64) -> Vec<Gouge> {
     if contour.is_empty() || tool.is_empty() || min_mm <= 0.0 {
         return Vec::new();
     }
-    let grid = Grid::new(contour);
     let boxes: Vec<(V2, V2)> = contour.iter().map(|(s, _)| s.bbox()).collect();
+    let grid = Grid::new(&boxes);
     // Last query that looked at an element: each element is measured once per tool piece.
     let mut seen = vec![u32::MAX; contour.len()];
     let mut out: Vec<Gouge> = Vec::new();
-    for (q, (shape, src)) in tool.iter().enumerate() {
+    for (q, piece) in tool.iter().enumerate() {
+        let (shape, src) = (&piece.shape, &piece.src);
         let (a, b) = shape.bbox();
         let m = V2::new(min_mm, min_mm);
         let (a, b) = (a - m, b + m);
@@ -453,7 +556,11 @@ fn find(contour: &[(Shape, Source)], tool: &[(Shape, Source)], min_mm: f64) -> V
                 if ea.x > b.x || ea.y > b.y || eb.x < a.x || eb.y < a.y {
                     continue;
                 }
-                let d = shape.dist(&contour[i].0);
+                let (other, osrc) = contour.get(i);
+                if piece.own && osrc.seq == src.seq {
+                    continue;
+                }
+                let d = shape.dist(other);
                 if d < min_mm && worst.is_none_or(|(w, _)| d < w) {
                     worst = Some((d, i));
                 }
@@ -462,7 +569,7 @@ fn find(contour: &[(Shape, Source)], tool: &[(Shape, Source)], min_mm: f64) -> V
         if let Some((d, i)) = worst {
             let g = Gouge {
                 tool: *src,
-                contour: contour[i].1,
+                contour: contour.get(i).1,
                 depth_mm: min_mm - d,
             };
             match out.last_mut() {
@@ -481,7 +588,6 @@ fn find(contour: &[(Shape, Source)], tool: &[(Shape, Source)], min_mm: f64) -> V
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::f64::consts::PI;
 
     fn seg(ax: f64, ay: f64, bx: f64, by: f64) -> Shape {
         Shape::Seg {
@@ -496,55 +602,32 @@ mod tests {
         assert!((s.dist(&seg(0.0, 3.0, 10.0, 5.0)) - 3.0).abs() < 1e-12);
         assert_eq!(s.dist(&seg(5.0, -1.0, 5.0, 1.0)), 0.0);
         // Upper half circle of radius 2 about (5, 5): nearest point (5, 3).
-        let up = Shape::Arc {
-            c: V2::new(5.0, 5.0),
-            r: 2.0,
-            a0: 0.0,
-            sweep: PI,
-        };
+        let arc = |cx, cy, r, a0, sweep| Shape::Arc(ArcShape::new(V2::new(cx, cy), r, a0, sweep));
+        let up = arc(5.0, 5.0, 2.0, 0.0, PI);
         assert!((s.dist(&up) - 5.0).abs() < 1e-12, "{}", s.dist(&up));
-        let down = Shape::Arc {
-            c: V2::new(5.0, 5.0),
-            r: 2.0,
-            a0: 0.0,
-            sweep: -PI,
-        };
+        let down = arc(5.0, 5.0, 2.0, 0.0, -PI);
         assert!((s.dist(&down) - 3.0).abs() < 1e-12);
         // An arc about a point of the segment, turned away from it: its ends decide.
-        let about_end = Shape::Arc {
-            c: V2::new(10.0, 0.0),
-            r: 2.0,
-            a0: -PI / 2.0,
-            sweep: PI / 2.0,
-        };
+        let about_end = arc(10.0, 0.0, 2.0, -PI / 2.0, PI / 2.0);
         assert!((s.dist(&about_end) - 2.0).abs() < 1e-12);
         // Two arcs facing each other along the centre line.
-        let left = Shape::Arc {
-            c: V2::new(0.0, 0.0),
-            r: 1.0,
-            a0: -0.5,
-            sweep: 1.0,
-        };
-        let right = Shape::Arc {
-            c: V2::new(5.0, 0.0),
-            r: 1.0,
-            a0: PI - 0.5,
-            sweep: 1.0,
-        };
+        let left = arc(0.0, 0.0, 1.0, -0.5, 1.0);
+        let right = arc(5.0, 0.0, 1.0, PI - 0.5, 1.0);
         assert!((left.dist(&right) - 3.0).abs() < 1e-12);
-        let crossing = Shape::Arc {
-            c: V2::new(1.5, 0.0),
-            r: 1.0,
-            a0: PI - 0.8,
-            sweep: 1.6,
-        };
-        let left = Shape::Arc {
-            c: V2::new(0.0, 0.0),
-            r: 1.0,
-            a0: -0.8,
-            sweep: 1.6,
-        };
+        let crossing = arc(1.5, 0.0, 1.0, PI - 0.8, 1.6);
+        let left = arc(0.0, 0.0, 1.0, -0.8, 1.6);
         assert_eq!(left.dist(&crossing), 0.0);
+        // Three quarters of a circle about the origin, open towards +x: the gap decides.
+        let big = arc(0.0, 0.0, 1.0, PI / 4.0, 1.5 * PI);
+        assert!(
+            (big.dist_point(V2::new(3.0, 0.0)) - V2::new(3.0, 0.0).dist(V2::from_angle(PI / 4.0)))
+                .abs()
+                < 1e-12
+        );
+        assert!((big.dist_point(V2::new(-3.0, 0.0)) - 2.0).abs() < 1e-12);
+        let (lo, hi) = big.bbox();
+        assert!((lo.x + 1.0).abs() < 1e-12 && (hi.x - 0.5f64.sqrt()).abs() < 1e-12);
+        assert!((lo.y + 1.0).abs() < 1e-12 && (hi.y - 1.0).abs() < 1e-12);
     }
 
     #[test]
@@ -554,15 +637,22 @@ mod tests {
             n: Some(seq * 10),
             line: seq,
         };
-        let contour: Vec<_> = (0..100)
-            .map(|k| (seg(k as f64, 0.0, k as f64 + 1.0, 0.0), src(k)))
-            .collect();
+        let mut contour = Chunked::default();
+        for k in 0..100 {
+            contour.push((seg(k as f64, 0.0, k as f64 + 1.0, 0.0), src(k)));
+        }
         // Tool pieces 1 mm above the contour, one dipping to 0.25 mm at element 70.
         let mut tool: Vec<_> = (0..100)
-            .map(|k| (seg(k as f64, 1.0, k as f64 + 1.0, 1.0), src(200 + k)))
+            .map(|k| Piece {
+                shape: seg(k as f64, 1.0, k as f64 + 1.0, 1.0),
+                src: src(200 + k),
+                own: false,
+            })
             .collect();
-        tool[70].0 = seg(70.0, 1.0, 70.5, 0.25);
-        let g = find(&contour, &tool, 1.0 - 1e-3);
+        tool[70].shape = seg(70.0, 1.0, 70.5, 0.25);
+        let mut pieces = Chunked::default();
+        tool.into_iter().for_each(|p| pieces.push(p));
+        let g = find(&contour, &pieces, 1.0 - 1e-3);
         assert_eq!(g.len(), 1);
         assert_eq!(g[0].tool.seq, 270);
         assert!(matches!(g[0].contour.seq, 70));

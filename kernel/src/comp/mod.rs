@@ -845,11 +845,10 @@ impl Compensator {
     }
 
     fn put(&mut self, block: Block, role: Role, offset_mm: f64) {
-        if matches!(
-            role,
-            Role::Equidistant | Role::EquidistantChord | Role::CornerArc | Role::Collapsed
-        ) {
-            self.gouge.tool(&block);
+        match role {
+            Role::Equidistant | Role::EquidistantChord => self.gouge.tool(&block, true),
+            Role::CornerArc | Role::Collapsed => self.gouge.tool(&block, false),
+            _ => {}
         }
         if let Some((_, end, _)) = block.motion() {
             self.tool = Some(end);
