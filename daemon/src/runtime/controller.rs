@@ -229,6 +229,7 @@ impl Controller {
         setup.start = self.snapshot().commanded;
         setup.constants = self.constants.lock().unwrap().0.clone();
         setup.offsets = self.offsets.lock().unwrap().memory().clone();
+        setup.ij = self.config.program.ij.into();
         setup
     }
 
