@@ -117,12 +117,26 @@ impl Machine for MachineSvc {
         require(&req, Observer, "ValidateProgram")?;
         let text = req.into_inner().text;
         let st = self.0.clone();
-        let compiled = blocking(move || st.ctl.compile_text(&text)).await?;
+        let (compiled, refined) = blocking(move || {
+            let compiled = st.ctl.compile_text(&text);
+            let setup = st.ctl.current_setup();
+            // SPEC §4.6: refinements only with the preprocessor on and 8.R325 set.
+            let refining = setup.preprocessor
+                && setup.constants.refinement() != kernel::constants::Refinement::Off;
+            let refined = if refining && !compiled.has_errors() {
+                kernel::program::refinement_listing(&text, &setup).1
+            } else {
+                Vec::new()
+            };
+            (compiled, refined)
+        })
+        .await?;
         let valid = !compiled.has_errors();
         Ok(Response::new(pb::ValidateProgramReply {
             valid,
             blocks: compiled.blocks.len() as u32,
             diagnostics: compiled.diagnostics.iter().map(diagnostic_to_pb).collect(),
+            refinements: refined.iter().map(refinement_to_pb).collect(),
         }))
     }
 
@@ -394,5 +408,54 @@ impl Machine for MachineSvc {
         Ok(Response::new(Box::pin(
             tokio_stream::wrappers::ReceiverStream::new(rx),
         )))
+    }
+
+    async fn get_refined_program(
+        &self,
+        req: Request<pb::RefinedProgramRequest>,
+    ) -> Result<Response<pb::RefinedProgramReply>, Status> {
+        require(&req, Observer, "GetRefinedProgram")?;
+        let text = req.into_inner().text;
+        let st = self.0.clone();
+        let text = if text.is_empty() {
+            st.ctl
+                .program()
+                .ok_or_else(|| {
+                    Status::failed_precondition("no program is selected and no text was given")
+                })?
+                .text
+                .to_string()
+        } else {
+            text
+        };
+        let (listing, refined, diags) =
+            blocking(move || kernel::program::refinement_listing(&text, &st.ctl.current_setup()))
+                .await?;
+        Ok(Response::new(pb::RefinedProgramReply {
+            text: listing,
+            refinements: refined.iter().map(refinement_to_pb).collect(),
+            diagnostics: diags.iter().map(diagnostic_to_pb).collect(),
+        }))
+    }
+}
+
+/// One R325 refinement for the API (SPEC §4.6).
+fn refinement_to_pb(r: &kernel::program::arc::Refined) -> pb::Refinement {
+    use kernel::program::arc::Corrected;
+    pb::Refinement {
+        seq: r.seq,
+        block: r.n,
+        line: r.line,
+        coordinate: if r.refinement.which == Corrected::I {
+            "I"
+        } else {
+            "J"
+        }
+        .into(),
+        delta_mm: r.refinement.delta_mm,
+        e_word: r
+            .word
+            .map(|w| format!("E{:.3}", w.encode()))
+            .unwrap_or_default(),
     }
 }
