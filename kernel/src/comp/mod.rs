@@ -17,6 +17,8 @@
 
 pub mod config;
 pub mod corner;
+#[doc(hidden)]
+pub mod fuzz;
 pub mod geom;
 pub mod gouge;
 
@@ -97,6 +99,10 @@ struct CornerArc {
 struct Elem {
     src: Block,
     geo: Geo,
+    /// The programmed element as the gouge check measures it: `geo` before an arc was
+    /// replaced by its chord for its equidistant (R397 d5, d8; d7's arc is not a circle, so
+    /// its chord is the element).
+    programmed: Geo,
     /// Arc replaced by its chord (R397 d5, d7, d8).
     chord: bool,
     kind: ElemKind,
@@ -533,6 +539,7 @@ impl Compensator {
             elems: VecDeque::from([Elem {
                 src: *b,
                 geo,
+                programmed: geo,
                 chord: false,
                 kind: ElemKind::Transition { rapid },
                 start,
@@ -585,6 +592,7 @@ impl Compensator {
         let elem = Elem {
             src: *b,
             geo,
+            programmed: geo,
             chord,
             kind: ElemKind::Regular,
             start: geo.start(),
@@ -846,8 +854,11 @@ impl Compensator {
 
     fn put(&mut self, block: Block, role: Role, offset_mm: f64) {
         match role {
-            Role::Equidistant | Role::EquidistantChord => self.gouge.tool(&block, true),
-            Role::CornerArc | Role::Collapsed => self.gouge.tool(&block, false),
+            Role::Equidistant => self.gouge.tool(&block, true),
+            // A chord's equidistant is not at the radius from the programmed arc.
+            Role::EquidistantChord | Role::CornerArc | Role::Collapsed => {
+                self.gouge.tool(&block, false)
+            }
             _ => {}
         }
         if let Some((_, end, _)) = block.motion() {
@@ -924,7 +935,7 @@ impl Compensator {
                 self.put_motion(&src, with_plane(pend, e.end, plane), path, role, s);
             }
             ElemKind::Regular => {
-                self.gouge.contour(&e.geo, &src);
+                self.gouge.contour(&e.programmed, &src);
                 if let Some(d) = e.far_mm
                     && self.cfg.position.report
                 {
