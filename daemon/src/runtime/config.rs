@@ -24,6 +24,8 @@ pub struct Config {
     pub storage: StorageConfig,
     #[serde(default)]
     pub kr: KrSection,
+    #[serde(default)]
+    pub program: ProgramSection,
 }
 
 impl Default for Config {
@@ -36,6 +38,35 @@ impl Default for Config {
             sim: SimConfig::default(),
             storage: StorageConfig::default(),
             kr: KrSection::default(),
+            program: ProgramSection::default(),
+        }
+    }
+}
+
+/// How part programs are read (SPEC §2 **decide** points that are settings).
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct ProgramSection {
+    /// Arc centre words I J: `"relative"` to the arc's start point (default) or `"absolute"`
+    /// program coordinates. Every path from text to motion (load, run, preview) reads it.
+    #[serde(default)]
+    pub ij: IjSetting,
+}
+
+/// `[program] ij`.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum IjSetting {
+    #[default]
+    Relative,
+    Absolute,
+}
+
+impl From<IjSetting> for kernel::program::IjMode {
+    fn from(s: IjSetting) -> Self {
+        match s {
+            IjSetting::Relative => kernel::program::IjMode::RelativeToStart,
+            IjSetting::Absolute => kernel::program::IjMode::Absolute,
         }
     }
 }
@@ -815,5 +846,20 @@ mod tests {
         assert!(e.to_string().contains("listen"), "{e}");
         let e = Config::parse("[rt]\nprio = 5\n", Path::new("m.toml")).unwrap_err();
         assert!(e.to_string().contains("prio"), "{e}");
+    }
+
+    // SPEC §2: I J relative (default) or absolute, a setting.
+    #[test]
+    fn program_ij_setting() {
+        let c = Config::parse("", Path::new("x.toml")).unwrap();
+        assert_eq!(c.program.ij, IjSetting::Relative);
+        let c = Config::parse("[program]\nij = \"absolute\"\n", Path::new("x.toml")).unwrap();
+        assert_eq!(
+            kernel::program::IjMode::from(c.program.ij),
+            kernel::program::IjMode::Absolute
+        );
+        let e =
+            Config::parse("[program]\nij = \"incremental\"\n", Path::new("m.toml")).unwrap_err();
+        assert!(e.to_string().contains("ij"), "{e}");
     }
 }

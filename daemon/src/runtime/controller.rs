@@ -249,6 +249,16 @@ impl Controller {
         .map_err(|e| ControlError::Invalid(format!("constant cutting speed: {e}")))
     }
 
+    /// The R325 listing of `text` under the setup in force (SPEC §4.6): the text with E
+    /// written, the refinements, the program's messages.
+    pub fn refinement_listing(
+        &self,
+        text: &str,
+    ) -> Result<(String, Vec<kernel::program::arc::Refined>, Vec<Diagnostic>), ControlError> {
+        let setup = self.machine_setup()?;
+        Ok(kernel::program::refinement_listing(text, setup.program()))
+    }
+
     /// Validates `text` through the whole pipeline (interpretation, compensation, planning)
     /// against the machine as it is now, passing what the stages produce to `obs`. Nothing is
     /// selected or run. The verdict of validate, upload, load, previews, start and MDI.
@@ -678,7 +688,7 @@ pub(crate) fn machine_config(config: &Config) -> MachineConfig {
             })
             .collect(),
         radius_input,
-        ij: kernel::program::IjMode::default(),
+        ij: config.program.ij.into(),
         preprocessor: true,
     }
 }

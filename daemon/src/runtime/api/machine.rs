@@ -138,11 +138,20 @@ impl Machine for MachineSvc {
     ) -> Result<Response<pb::ValidateProgramReply>, Status> {
         require(&req, Observer, "ValidateProgram")?;
         let text = req.into_inner().text;
-        let v = self.validate(text).await?;
+        let v = self.validate(text.clone()).await?;
+        let refined = if v.has_errors() {
+            Vec::new()
+        } else {
+            let st = self.0.clone();
+            blocking(move || st.ctl.refinement_listing(&text).map_err(status_of))
+                .await??
+                .1
+        };
         Ok(Response::new(pb::ValidateProgramReply {
             valid: !v.has_errors(),
             blocks: v.blocks,
             diagnostics: v.diagnostics.iter().map(diagnostic_to_pb).collect(),
+            refinements: refined.iter().map(refinement_to_pb).collect(),
         }))
     }
 
@@ -415,5 +424,53 @@ impl Machine for MachineSvc {
         Ok(Response::new(Box::pin(
             tokio_stream::wrappers::ReceiverStream::new(rx),
         )))
+    }
+
+    async fn get_refined_program(
+        &self,
+        req: Request<pb::RefinedProgramRequest>,
+    ) -> Result<Response<pb::RefinedProgramReply>, Status> {
+        require(&req, Observer, "GetRefinedProgram")?;
+        let text = req.into_inner().text;
+        let st = self.0.clone();
+        let text = if text.is_empty() {
+            st.ctl
+                .program()
+                .ok_or_else(|| {
+                    Status::failed_precondition("no program is selected and no text was given")
+                })?
+                .text
+                .to_string()
+        } else {
+            text
+        };
+        let (listing, refined, diags) =
+            blocking(move || st.ctl.refinement_listing(&text).map_err(status_of)).await??;
+        Ok(Response::new(pb::RefinedProgramReply {
+            text: listing,
+            refinements: refined.iter().map(refinement_to_pb).collect(),
+            diagnostics: diags.iter().map(diagnostic_to_pb).collect(),
+        }))
+    }
+}
+
+/// One R325 refinement for the API (SPEC §4.6).
+fn refinement_to_pb(r: &kernel::program::arc::Refined) -> pb::Refinement {
+    use kernel::program::arc::Corrected;
+    pb::Refinement {
+        seq: r.seq,
+        block: r.n,
+        line: r.line,
+        coordinate: if r.refinement.which == Corrected::I {
+            "I"
+        } else {
+            "J"
+        }
+        .into(),
+        delta_mm: r.refinement.delta_mm,
+        e_word: r
+            .word
+            .map(|w| format!("E{:.3}", w.encode()))
+            .unwrap_or_default(),
     }
 }
