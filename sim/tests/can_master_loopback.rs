@@ -15,19 +15,47 @@ const INC_PER_MM: f64 = 1000.0;
 struct Net {
     nodes: Vec<CanNode>,
     now_ms: u64,
+    tick: u64,
     to_master: VecDeque<Frame>,
     /// Every frame the master sent, with the tick.
     log: Vec<(u64, Frame)>,
+    /// Every frame the nodes sent, with the tick.
+    from_nodes: Vec<(u64, Frame)>,
+    /// Index of a node that does not hear the master's heartbeat (a broken receive path).
+    deaf_to_heartbeat: Option<usize>,
+}
+
+impl Net {
+    fn new(nodes: Vec<CanNode>) -> Net {
+        Net {
+            nodes,
+            now_ms: 0,
+            tick: 0,
+            to_master: VecDeque::new(),
+            log: Vec::new(),
+            from_nodes: Vec::new(),
+            deaf_to_heartbeat: None,
+        }
+    }
+
+    fn deliver(&mut self, out: Vec<Frame>) {
+        let t = self.tick;
+        self.from_nodes.extend(out.iter().map(|f| (t, *f)));
+        self.to_master.extend(out);
+    }
 }
 
 impl CanPort for Net {
     fn send(&mut self, f: &Frame) -> Result<(), PortError> {
-        self.log.push((self.now_ms / 4, *f));
+        self.log.push((self.tick, *f));
         let mut out = Vec::new();
-        for n in &mut self.nodes {
+        for (k, n) in self.nodes.iter_mut().enumerate() {
+            if f.id == 0x77F && self.deaf_to_heartbeat == Some(k) {
+                continue;
+            }
             n.handle(f, self.now_ms, &mut out);
         }
-        self.to_master.extend(out);
+        self.deliver(out);
         Ok(())
     }
     fn try_recv(&mut self) -> Result<Option<RxEvent>, PortError> {
@@ -39,40 +67,45 @@ struct Rig {
     m: CanOpenMaster<Net>,
     cmd: CycleCommand,
     fb: CycleFeedback,
+    cycle_ms: u64,
 }
 
 impl Rig {
     fn new(ids: &[u8]) -> Rig {
+        Rig::with(ids, &[0.0; 6], 4)
+    }
+
+    /// Drives `ids` standing at `start_mm`, bus cycle `cycle_ms`.
+    fn with(ids: &[u8], start_mm: &[f64], cycle_ms: u32) -> Rig {
         let nodes = ids
             .iter()
-            .map(|&id| {
+            .zip(start_mm)
+            .map(|(&id, &mm)| {
                 CanNode::new(
                     id,
-                    Cia402Drive::new(SimDriveParams::default(), INC_PER_MM, 0.0),
+                    Cia402Drive::new(SimDriveParams::default(), INC_PER_MM, mm),
                 )
             })
             .collect();
-        let net = Net {
-            nodes,
-            now_ms: 0,
-            to_master: VecDeque::new(),
-            log: Vec::new(),
-        };
-        let cfg = CanOpenConfig::new(
+        let net = Net::new(nodes);
+        let mut cfg = CanOpenConfig::new(
             ids.iter()
                 .map(|&node_id| NodeConfig {
                     node_id,
                     increments_per_mm: INC_PER_MM,
                     following_window_increments: Some(10_000),
+                    max_velocity_mm_s: 200.0,
                 })
                 .collect(),
         );
+        cfg.cycle_us = cycle_ms * 1000;
         let mut m = CanOpenMaster::new(net, "mem", cfg).unwrap();
         m.enable();
         Rig {
             m,
             cmd: CycleCommand::default(),
             fb: CycleFeedback::default(),
+            cycle_ms: u64::from(cycle_ms),
         }
     }
 
@@ -80,16 +113,23 @@ impl Rig {
         self.m.port_mut()
     }
 
-    /// One 4 ms tick: nodes see time pass, then the master cycles.
+    /// One tick (4 ms unless set): nodes see time pass, then the master cycles.
     fn tick(&mut self) -> Result<(), BusFault> {
+        self.pass_time();
+        self.m.cycle(&self.cmd, &mut self.fb)
+    }
+
+    /// The nodes see one tick pass (heartbeats, their watch on the master's).
+    fn pass_time(&mut self) {
+        let cycle_ms = self.cycle_ms;
         let net = self.m.port_mut();
-        net.now_ms += 4;
+        net.now_ms += cycle_ms;
+        net.tick += 1;
         let mut out = Vec::new();
         for n in &mut net.nodes {
             n.poll(net.now_ms, &mut out);
         }
-        net.to_master.extend(out);
-        self.m.cycle(&self.cmd, &mut self.fb)
+        net.deliver(out);
     }
 
     fn until_operational(&mut self) -> usize {
@@ -181,7 +221,7 @@ fn lost_heartbeat_names_axis_and_node_and_reset_restarts_the_drive() {
 }
 
 #[test]
-fn silent_and_corrupt_drives_time_out() {
+fn silent_drives_time_out_and_short_tpdos_are_a_mapping_fault() {
     for corrupt in [false, true] {
         let mut r = Rig::new(&[5]);
         r.until_operational();
@@ -191,17 +231,23 @@ fn silent_and_corrupt_drives_time_out() {
             r.net().nodes[0].inject.silent = true;
         }
         let (t, e) = r.until_fault(100);
-        assert_eq!(e.reason, FaultReason::Timeout);
-        // The first tick still reads the last answer; 25 missing ticks are tolerated.
-        assert_eq!(t, 26);
+        let reason = if corrupt {
+            // A 3-byte TPDO where the mapping gives 6: named at the first one.
+            assert_eq!(t, 1);
+            FaultReason::PdoLength {
+                cob_id: 0x185,
+                len: 3,
+                expected: 6,
+            }
+        } else {
+            // The first tick still reads the last answer; 25 missing ticks are tolerated.
+            assert_eq!(t, 26);
+            FaultReason::Timeout
+        };
+        assert_eq!(e.reason, reason);
         assert_eq!(r.fb.axes[0].state, DriveState::Fault);
         // Fault persists until reset; recovery after the drive answers again.
-        r.until_fault(1)
-            .1
-            .reason
-            .eq(&FaultReason::Timeout)
-            .then_some(())
-            .unwrap();
+        assert_eq!(r.until_fault(1).1.reason, reason);
         let n = &mut r.net().nodes[0];
         n.inject = Default::default();
         r.m.reset();
@@ -266,16 +312,12 @@ fn spindle_node_follows_the_speed_setpoint_on_its_ramp() {
     );
     let mut spindle_drive = Cia402Drive::new(SimDriveParams::default(), INC_PER_MM, 0.0);
     spindle_drive.velocity_ramp_units_s2 = 1000.0 * UNITS_PER_RPM;
-    let net = Net {
-        nodes: vec![axis, CanNode::new(5, spindle_drive)],
-        now_ms: 0,
-        to_master: VecDeque::new(),
-        log: Vec::new(),
-    };
+    let net = Net::new(vec![axis, CanNode::new(5, spindle_drive)]);
     let mut cfg = CanOpenConfig::new(vec![NodeConfig {
         node_id: 1,
         increments_per_mm: INC_PER_MM,
         following_window_increments: Some(10_000),
+        max_velocity_mm_s: 200.0,
     }]);
     cfg.spindle = Some(hal::canopen::SpindleNodeConfig {
         node_id: 5,
@@ -287,6 +329,7 @@ fn spindle_node_follows_the_speed_setpoint_on_its_ramp() {
         m,
         cmd: CycleCommand::default(),
         fb: CycleFeedback::default(),
+        cycle_ms: 4,
     };
     rig.until_operational();
     let mut t = 0;

@@ -76,6 +76,11 @@ pub struct CanBusConfig {
     /// Error frames tolerated (decaying by one per 40 ms) before a fault.
     #[serde(default = "default_error_frame_limit")]
     pub error_frame_limit: u32,
+    /// Bus cycle (SYNC period), ms; the drives' interpolation period 0x60C2 and
+    /// communication cycle 0x1006 follow it. 1..=10 for the master; the daemon's real-time
+    /// tick is 4 ms, so the daemon accepts 4 only (checked in `validate`).
+    #[serde(default = "default_cycle_ms")]
+    pub cycle_ms: u32,
     /// Node id of the spindle drive (CiA 402, cyclic synchronous velocity); unset: no spindle
     /// drive on this bus.
     #[serde(default)]
@@ -143,6 +148,9 @@ fn default_enable_timeout_ms() -> u32 {
 }
 fn default_error_frame_limit() -> u32 {
     20
+}
+fn default_cycle_ms() -> u32 {
+    4
 }
 
 /// `[bus] kind = "serial"`.
@@ -228,6 +236,16 @@ impl BusConfig {
                             .into(),
                     );
                 }
+                if !(1..=10).contains(&c.cycle_ms) {
+                    return Err(format!("bus.cycle_ms: {} is outside 1..10 ms", c.cycle_ms));
+                }
+                let tick_ms = kernel::units::TS_NS / 1_000_000;
+                if u64::from(c.cycle_ms) != tick_ms {
+                    return Err(format!(
+                        "bus.cycle_ms: {} ms differs from the controller's real-time tick of {tick_ms} ms (the SYNC goes out once per tick)",
+                        c.cycle_ms
+                    ));
+                }
                 if c.spindle_node == Some(c.master_node_id) {
                     return Err(format!(
                         "bus.spindle_node: {} equals bus.master_node_id",
@@ -260,6 +278,7 @@ pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
             following_window_increments: c
                 .following_window_mm
                 .map(|mm| (mm * a.increments_per_mm).round().min(f64::from(u32::MAX)) as u32),
+            max_velocity_mm_s: a.max_velocity_mm_min / 60.0,
         })
         .collect();
     CanOpenConfig {
@@ -274,6 +293,7 @@ pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
         enable_timeout_ms: c.enable_timeout_ms,
         following_error_limit_mm: c.following_error_limit_mm,
         error_frame_limit: c.error_frame_limit,
+        cycle_us: c.cycle_ms * 1000,
         spindle: c.spindle_node.map(|node_id| SpindleNodeConfig {
             node_id,
             units_per_rpm: c.spindle_units_per_rpm,
@@ -355,6 +375,24 @@ mod tests {
         assert_eq!(m.nodes.len(), 3);
         assert_eq!(m.nodes[2].node_id, 3);
         assert_eq!(m.nodes[0].following_window_increments, Some(50_000));
+        // The axis speed limit bounds the hand-over step at enable; the cycle is 4 ms.
+        assert_eq!(m.nodes[0].max_velocity_mm_s, 200.0);
+        assert_eq!(m.cycle_us, 4000);
+        for (ms, what) in [
+            (0, "outside 1..10"),
+            (11, "outside 1..10"),
+            (2, "real-time tick"),
+        ] {
+            let e = Config::parse(
+                &format!("[bus]\nkind = 'can'\ninterface = 'vcan0'\ncycle_ms = {ms}\n"),
+                Path::new("m.toml"),
+            )
+            .unwrap_err();
+            assert!(
+                e.to_string().contains("bus.cycle_ms") && e.to_string().contains(what),
+                "{e}"
+            );
+        }
 
         let e = Config::parse(
             "[bus]\nkind = 'can'\ninterface = 'vcan0'\ntpdo_timeout = 3\n",

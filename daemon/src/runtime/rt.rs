@@ -111,8 +111,10 @@ pub struct RtParts {
     pub in_position_mm: f64,
 }
 
-/// Ticks the drives get to become operational before it is a fault.
-const ENABLE_TIMEOUT_TICKS: u32 = 2_500;
+/// Ticks the drives get to become operational beyond the bus's own enable deadline
+/// ([`DriveBus::enable_timeout_ticks`]): the bus names the drive that is late, so its alarm
+/// must come first.
+const ENABLE_MARGIN_TICKS: u32 = 250;
 /// After shutdown braking: ticks to let the drives settle before the thread ends.
 const SETTLE_TICKS: u32 = 250;
 /// Following error under which an axis counts as settled, mm.
@@ -140,6 +142,8 @@ struct Rt {
     /// Job whose segments are accepted (0: none).
     active_job: u32,
     enable_ticks: u32,
+    /// Enabling window: the bus's deadline plus a margin.
+    enable_window_ticks: u32,
     shutting_down: bool,
     settle_ticks: u32,
     plc: PlcArea,
@@ -170,6 +174,7 @@ pub fn run(parts: RtParts) {
         fb: CycleFeedback::default(),
         active_job: 0,
         enable_ticks: 0,
+        enable_window_ticks: 0,
         shutting_down: false,
         settle_ticks: 0,
         plc: PlcArea::new(),
@@ -177,6 +182,10 @@ pub fn run(parts: RtParts) {
         has_spindle: false,
     };
     rt.has_spindle = rt.p.bus.has_spindle();
+    rt.enable_window_ticks =
+        rt.p.bus
+            .enable_timeout_ticks()
+            .saturating_add(ENABLE_MARGIN_TICKS);
     rt.p.bus.enable();
     let mut deadline = rt.p.clock.now_ns() + TS_NS;
     loop {
@@ -198,6 +207,13 @@ pub fn run(parts: RtParts) {
             rt.pace_virtual();
         }
     }
+    // The axes are at rest: the bus switches its drives off in order (CANopen: disable step
+    // by step, heartbeat watch cleared, NMT pre-operational), still on the tick grid.
+    let (clock, bus) = (&mut rt.p.clock, &mut rt.p.bus);
+    hal::shut_down(bus.as_mut(), &rt.cmd, &mut rt.fb, || {
+        clock.sleep_until_ns(deadline);
+        deadline += TS_NS;
+    });
 }
 
 impl Rt {
@@ -411,7 +427,7 @@ impl Rt {
                             .copy_from_slice(&here.0[..self.p.axes]);
                     }
                     s.state = MachineState::Idle;
-                } else if self.enable_ticks > ENABLE_TIMEOUT_TICKS {
+                } else if self.enable_ticks > self.enable_window_ticks {
                     s.fault = Some(BusFault {
                         axis: None,
                         node: None,
