@@ -1421,6 +1421,61 @@ mod tests {
         );
     }
 
+    /// Issue #23, seen 3: after a reset the last statusword known (Operation Enabled, from
+    /// before the fault) is stale; the master waits for the drive's next TPDO and walks the
+    /// sequence from the state that reports.
+    #[test]
+    fn reset_waits_for_a_fresh_statusword() {
+        let mut m = master(&[3]);
+        operational(&mut m);
+        overcurrent(&mut m, 3);
+        rx(&mut m, nmt::heartbeat(3, nmt::state::OPERATIONAL));
+        assert!(step(&mut m).1.is_err());
+        m.reset();
+        for _ in 0..5 {
+            rx(&mut m, nmt::heartbeat(3, nmt::state::OPERATIONAL));
+            let (sent, r) = step(&mut m);
+            assert!(r.is_ok());
+            assert_eq!(rpdo_of(&sent).controlword, cw::DISABLE_VOLTAGE);
+        }
+        tpdo(&mut m, PowerState::SwitchOnDisabled, 0, 2500);
+        let (sent, _) = step(&mut m);
+        assert_eq!(rpdo_of(&sent).controlword, cw::SHUTDOWN);
+    }
+
+    /// A TPDO of the wrong length is a mapping fault, named with its COB-ID and lengths; the
+    /// reset restarts the node (reset communication, configuration).
+    #[test]
+    fn short_tpdo_is_a_pdo_length_fault() {
+        let mut m = master(&[3]);
+        operational(&mut m);
+        rx(&mut m, Frame::new(0x183, &[0x37, 0x02, 0xC4]));
+        let e = step(&mut m).1.unwrap_err();
+        assert_eq!(
+            e.reason,
+            FaultReason::PdoLength {
+                cob_id: 0x183,
+                len: 3,
+                expected: 6
+            }
+        );
+        m.reset();
+        let (sent, _) = step(&mut m);
+        assert!(sent.contains(&nmt::command(nmt::Command::ResetCommunication, 3)));
+        assert!(
+            !sent.iter().any(|f| f.id == 0x203),
+            "no RPDO while restarting"
+        );
+    }
+
+    /// The enable deadline the bus reports covers every per-node timeout on the way.
+    #[test]
+    fn enable_deadline_covers_the_node_timeouts() {
+        let m = master(&[3]);
+        let per_node = ticks(3000, 4000) * 2 + 2000 / 4;
+        assert!(u64::from(m.enable_timeout_ticks()) > per_node);
+    }
+
     #[test]
     fn bus_off_and_bad_frames() {
         let mut m = master(&[3]);
