@@ -306,12 +306,12 @@ impl CanNode {
 
     /// Time passes: heartbeat production and the consumer watch on the master.
     pub fn poll(&mut self, now_ms: u64, out: &mut Vec<Frame>) {
+        if self.inject.silent {
+            return; // a silent drive from the start is one that is not powered yet
+        }
         if !self.booted {
             self.booted = true;
             self.boot(now_ms, out);
-        }
-        if self.inject.silent {
-            return;
         }
         let hb = u64::from(self.od.heartbeat_ms);
         if hb > 0 && now_ms >= self.next_heartbeat_ms {
