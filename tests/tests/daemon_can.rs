@@ -133,12 +133,8 @@ async fn drives_away_from_zero_enable_without_a_jump_and_shut_down_switched_off(
     let (ctl, bus) = daemon(start, None, "");
     wait_state(&ctl, MachineState::Idle, Duration::from_secs(30)).await;
     let s = ctl.snapshot();
-    for i in 0..3 {
-        assert!(
-            (s.commanded[i] - start[i]).abs() < 1e-3,
-            "{:?}",
-            s.commanded
-        );
+    for (i, &mm) in start.iter().enumerate() {
+        assert!((s.commanded[i] - mm).abs() < 1e-3, "{:?}", s.commanded);
     }
     // One tick's travel at the axis limit: 12000 mm/min × 4 ms × 10000 increments/mm.
     let max_step = 200.0 * 0.004 * INC_PER_MM;
