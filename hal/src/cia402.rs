@@ -16,6 +16,8 @@ pub mod cw {
     pub const SHUTDOWN: u16 = ENABLE_VOLTAGE | QUICK_STOP;
     pub const SWITCH_ON_CMD: u16 = SHUTDOWN | SWITCH_ON;
     pub const ENABLE_OPERATION_CMD: u16 = SWITCH_ON_CMD | ENABLE_OPERATION;
+    /// "Quick stop": voltage enabled, quick-stop bit low.
+    pub const QUICK_STOP_CMD: u16 = ENABLE_VOLTAGE;
 }
 
 /// Statusword bits (0x6041).
@@ -107,6 +109,16 @@ pub fn controlword_toward_disabled(state: PowerState) -> u16 {
     match state {
         PowerState::OperationEnabled => cw::SWITCH_ON_CMD, // "disable operation"
         PowerState::SwitchedOn => cw::SHUTDOWN,
+        _ => cw::DISABLE_VOLTAGE,
+    }
+}
+
+/// Master side: as [`controlword_toward_disabled`], but through a quick stop (02h) while
+/// enabled, then disable voltage (00h) from Quick Stop Active: the drive stops by its quick
+/// stop option (0x605A) first.
+pub fn controlword_toward_disabled_by_quick_stop(state: PowerState) -> u16 {
+    match state {
+        PowerState::OperationEnabled => cw::QUICK_STOP_CMD,
         _ => cw::DISABLE_VOLTAGE,
     }
 }
@@ -203,6 +215,24 @@ mod tests {
                 PowerState::OperationEnabled,
                 PowerState::SwitchedOn,
                 PowerState::ReadyToSwitchOn,
+                PowerState::SwitchOnDisabled
+            ]
+        );
+        // Through a quick stop: Quick Stop Active, then Switch On Disabled.
+        let mut state = PowerState::OperationEnabled;
+        let mut last_cw = cw::ENABLE_OPERATION_CMD;
+        let mut seen = vec![state];
+        while state != PowerState::SwitchOnDisabled && seen.len() < 10 {
+            let c = controlword_toward_disabled_by_quick_stop(state);
+            state = apply_controlword(state, last_cw, c);
+            last_cw = c;
+            seen.push(state);
+        }
+        assert_eq!(
+            seen,
+            [
+                PowerState::OperationEnabled,
+                PowerState::QuickStopActive,
                 PowerState::SwitchOnDisabled
             ]
         );

@@ -5,7 +5,9 @@
 use std::collections::VecDeque;
 
 use hal::canopen::pdo::Rpdo;
-use hal::canopen::{CanOpenConfig, CanOpenMaster, CanPort, Frame, NodeConfig, PortError, RxEvent};
+use hal::canopen::{
+    CanOpenConfig, CanOpenMaster, CanPort, Frame, NodeConfig, PortError, RxEvent, ShutdownMode,
+};
 use hal::cia402::PowerState;
 use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason};
 use sim::SimDriveParams;
@@ -80,6 +82,10 @@ impl Rig {
 
     /// Drives `ids` standing at `start_mm`, bus cycle `cycle_ms`.
     fn with(ids: &[u8], start_mm: &[f64], cycle_ms: u32) -> Rig {
+        Rig::build(ids, start_mm, cycle_ms, ShutdownMode::Disable)
+    }
+
+    fn build(ids: &[u8], start_mm: &[f64], cycle_ms: u32, shutdown: ShutdownMode) -> Rig {
         let nodes = ids
             .iter()
             .zip(start_mm)
@@ -102,6 +108,7 @@ impl Rig {
                 .collect(),
         );
         cfg.cycle_us = cycle_ms * 1000;
+        cfg.shutdown = shutdown;
         let mut m = CanOpenMaster::new(net, "mem", cfg).unwrap();
         m.enable();
         Rig {
@@ -619,6 +626,33 @@ fn shutdown_leaves_the_drives_switched_off_without_a_fault() {
             .any(|(_, f)| f.id & 0x780 == 0x080 && f.data[0] != 0),
         "no EMCY"
     );
+}
+
+/// With `shutdown = quick_stop` the walk is quick stop (02h), then disable voltage (00h).
+#[test]
+fn shutdown_by_quick_stop() {
+    let mut r = Rig::build(&[1], &[3.0], 4, ShutdownMode::QuickStop);
+    r.enable_like_the_daemon(200);
+    for _ in 0..10 {
+        r.tick().unwrap();
+    }
+    let before = r.net().log.len();
+    r.m.shutdown();
+    let mut ticks = 0;
+    while !r.m.is_shut_down() {
+        r.tick().unwrap();
+        ticks += 1;
+        assert!(ticks < 500, "shutdown must end by itself");
+    }
+    let mut cws: Vec<u16> = rpdos(&r.net().log[before..], 1)
+        .iter()
+        .map(|(_, p)| p.controlword)
+        .collect();
+    cws.dedup();
+    assert_eq!(cws, [0x02, 0x00], "{cws:X?}");
+    let n = &r.net().nodes[0];
+    assert_eq!(n.drive.state(), PowerState::SwitchOnDisabled);
+    assert_eq!(n.consumer(), 0);
 }
 
 /// Index in `log` of the SDO write of `index:sub` with value 0 to `node`.

@@ -12,7 +12,9 @@
 
 use std::path::PathBuf;
 
-use hal::canopen::{CanOpenConfig, CanOpenMaster, NodeConfig, SocketCanPort, SpindleNodeConfig};
+use hal::canopen::{
+    CanOpenConfig, CanOpenMaster, NodeConfig, ShutdownMode, SocketCanPort, SpindleNodeConfig,
+};
 use hal::serial::{SerialAxis, SerialBus, SerialConfig, SerialSpindle};
 use serde::Deserialize;
 
@@ -81,6 +83,10 @@ pub struct CanBusConfig {
     /// tick is 4 ms, so the daemon accepts 4 only (checked in `validate`).
     #[serde(default = "default_cycle_ms")]
     pub cycle_ms: u32,
+    /// How the drives are switched off when the daemon ends: `disable` (07h, 06h, 00h) or
+    /// `quick_stop` (02h, 00h).
+    #[serde(default)]
+    pub shutdown: ShutdownKey,
     /// Node id of the spindle drive (CiA 402, cyclic synchronous velocity); unset: no spindle
     /// drive on this bus.
     #[serde(default)]
@@ -88,6 +94,15 @@ pub struct CanBusConfig {
     /// Spindle drive velocity units (0x60FF, 0x606C) per rpm.
     #[serde(default = "default_units_per_rpm")]
     pub spindle_units_per_rpm: f64,
+}
+
+/// `[bus] shutdown` of the CAN bus.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ShutdownKey {
+    #[default]
+    Disable,
+    QuickStop,
 }
 
 fn default_units_per_rpm() -> f64 {
@@ -294,6 +309,10 @@ pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
         following_error_limit_mm: c.following_error_limit_mm,
         error_frame_limit: c.error_frame_limit,
         cycle_us: c.cycle_ms * 1000,
+        shutdown: match c.shutdown {
+            ShutdownKey::Disable => ShutdownMode::Disable,
+            ShutdownKey::QuickStop => ShutdownMode::QuickStop,
+        },
         spindle: c.spindle_node.map(|node_id| SpindleNodeConfig {
             node_id,
             units_per_rpm: c.spindle_units_per_rpm,
@@ -378,6 +397,16 @@ mod tests {
         // The axis speed limit bounds the hand-over step at enable; the cycle is 4 ms.
         assert_eq!(m.nodes[0].max_velocity_mm_s, 200.0);
         assert_eq!(m.cycle_us, 4000);
+        assert_eq!(m.shutdown, ShutdownMode::Disable);
+        let c = Config::parse(
+            "[bus]\nkind = 'can'\ninterface = 'vcan0'\nshutdown = 'quick_stop'\n",
+            Path::new("m.toml"),
+        )
+        .unwrap();
+        let BusConfig::Can(can) = &c.bus else {
+            panic!()
+        };
+        assert_eq!(can_config(can, &c.axes).shutdown, ShutdownMode::QuickStop);
         for (ms, what) in [
             (0, "outside 1..10"),
             (11, "outside 1..10"),

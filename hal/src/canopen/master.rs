@@ -65,6 +65,17 @@ pub struct SpindleNodeConfig {
     pub units_per_rpm: f64,
 }
 
+/// How the orderly shutdown switches an enabled drive off.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ShutdownMode {
+    /// Disable operation (07h), shutdown (06h), disable voltage (00h).
+    #[default]
+    Disable,
+    /// Quick stop (02h), then disable voltage (00h): the drive stops by its quick stop
+    /// option (0x605A) first.
+    QuickStop,
+}
+
 /// Bus-wide settings. Times are converted to ticks of `cycle_us`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CanOpenConfig {
@@ -98,6 +109,8 @@ pub struct CanOpenConfig {
     pub following_error_limit_mm: Option<f64>,
     /// Error frames (decaying by one every 10 ticks) tolerated before a fault.
     pub error_frame_limit: u32,
+    /// How the orderly shutdown switches the drives off.
+    pub shutdown: ShutdownMode,
 }
 
 impl CanOpenConfig {
@@ -118,6 +131,7 @@ impl CanOpenConfig {
             enable_timeout_ms: 2000,
             following_error_limit_mm: None,
             error_frame_limit: 20,
+            shutdown: ShutdownMode::Disable,
         }
     }
 }
@@ -839,9 +853,14 @@ impl<P: CanPort> CanOpenMaster<P> {
         }
     }
 
-    /// Shutdown: walk the power stage down (07h → 06h → 00h) on fresh statuswords.
+    /// Shutdown: walk the power stage down (07h → 06h → 00h, or 02h → 00h) on fresh
+    /// statuswords.
     fn power_down(&mut self, i: usize, since: u64) {
         let enable_ticks = self.ticks(self.cfg.enable_timeout_ms);
+        let toward_off = match self.cfg.shutdown {
+            ShutdownMode::Disable => cia402::controlword_toward_disabled,
+            ShutdownMode::QuickStop => cia402::controlword_toward_disabled_by_quick_stop,
+        };
         let tick = self.tick;
         let n = &mut self.nodes[i];
         let state = PowerState::from_statusword(n.statusword);
@@ -859,7 +878,7 @@ impl<P: CanPort> CanOpenMaster<P> {
             n.controlword = cw::DISABLE_VOLTAGE;
             self.send_clear_consumer(i, false);
         } else if n.tpdo_seen {
-            n.controlword = cia402::controlword_toward_disabled(state);
+            n.controlword = toward_off(state);
         }
     }
 
