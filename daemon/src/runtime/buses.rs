@@ -10,11 +10,13 @@
 //! ```
 //! Every key is listed in `docs/buses.md`.
 
-use hal::canopen::{CanOpenConfig, CanOpenMaster, NodeConfig, SocketCanPort, SpindleNodeConfig};
+use hal::canopen::{
+    CanOpenConfig, CanOpenMaster, NodeConfig, ShutdownMode, SocketCanPort, SpindleNodeConfig,
+};
 use hal::serial::{SerialAxis, SerialBus, SerialConfig, SerialSpindle};
 
 use super::config::{AxisConfig, SimConfig};
-pub use super::config::{BusConfig, CanBusConfig, SerialBusConfig};
+pub use super::config::{BusConfig, CanBusConfig, SerialBusConfig, ShutdownKey};
 
 /// The master settings for `axes` (validated: every axis has a node id).
 pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
@@ -27,6 +29,7 @@ pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
             following_window_increments: c
                 .following_window_mm
                 .map(|mm| (mm * a.increments_per_mm).round().min(f64::from(u32::MAX)) as u32),
+            max_velocity_mm_s: a.max_velocity_mm_min / 60.0,
         })
         .collect();
     CanOpenConfig {
@@ -41,6 +44,11 @@ pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
         enable_timeout_ms: c.enable_timeout_ms,
         following_error_limit_mm: c.following_error_limit_mm,
         error_frame_limit: c.error_frame_limit,
+        cycle_us: c.cycle_ms * 1000,
+        shutdown: match c.shutdown {
+            ShutdownKey::Disable => ShutdownMode::Disable,
+            ShutdownKey::QuickStop => ShutdownMode::QuickStop,
+        },
         spindle: c.spindle_node.map(|node_id| SpindleNodeConfig {
             node_id,
             units_per_rpm: c.spindle_units_per_rpm,
@@ -122,6 +130,34 @@ mod tests {
         assert_eq!(m.nodes.len(), 3);
         assert_eq!(m.nodes[2].node_id, 3);
         assert_eq!(m.nodes[0].following_window_increments, Some(50_000));
+        // The axis speed limit bounds the hand-over step at enable; the cycle is 4 ms.
+        assert_eq!(m.nodes[0].max_velocity_mm_s, 200.0);
+        assert_eq!(m.cycle_us, 4000);
+        assert_eq!(m.shutdown, ShutdownMode::Disable);
+        let c = Config::parse(
+            "[bus]\nkind = 'can'\ninterface = 'vcan0'\nshutdown = 'quick_stop'\n",
+            Path::new("m.toml"),
+        )
+        .unwrap();
+        let BusConfig::Can(can) = &c.bus else {
+            panic!()
+        };
+        assert_eq!(can_config(can, &c.axes).shutdown, ShutdownMode::QuickStop);
+        for (ms, what) in [
+            (0, "outside 1..10"),
+            (11, "outside 1..10"),
+            (2, "real-time tick"),
+        ] {
+            let e = Config::parse(
+                &format!("[bus]\nkind = 'can'\ninterface = 'vcan0'\ncycle_ms = {ms}\n"),
+                Path::new("m.toml"),
+            )
+            .unwrap_err();
+            assert!(
+                e.to_string().contains("bus.cycle_ms") && e.to_string().contains(what),
+                "{e}"
+            );
+        }
 
         let e = Config::parse(
             "[bus]\nkind = 'can'\ninterface = 'vcan0'\ntpdo_timeout = 3\n",

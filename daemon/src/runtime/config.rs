@@ -650,6 +650,15 @@ pub struct CanBusConfig {
     /// Error frames tolerated (decaying by one per 40 ms) before a fault.
     #[serde(default = "default_error_frame_limit")]
     pub error_frame_limit: u32,
+    /// Bus cycle (SYNC period), ms; the drives' interpolation period 0x60C2 and
+    /// communication cycle 0x1006 follow it. 1..=10 for the master; the daemon's real-time
+    /// tick is 4 ms, so the daemon accepts 4 only (checked in `validate`).
+    #[serde(default = "default_cycle_ms")]
+    pub cycle_ms: u32,
+    /// How the drives are switched off when the daemon ends: `disable` (07h, 06h, 00h) or
+    /// `quick_stop` (02h, 00h).
+    #[serde(default)]
+    pub shutdown: ShutdownKey,
     /// Node id of the spindle drive (CiA 402, cyclic synchronous velocity); unset: no spindle
     /// drive on this bus.
     #[serde(default)]
@@ -657,6 +666,19 @@ pub struct CanBusConfig {
     /// Spindle drive velocity units (0x60FF, 0x606C) per rpm.
     #[serde(default = "default_units_per_rpm")]
     pub spindle_units_per_rpm: f64,
+}
+
+/// `[bus] shutdown` of the CAN bus.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ShutdownKey {
+    #[default]
+    Disable,
+    QuickStop,
+}
+
+fn default_cycle_ms() -> u32 {
+    4
 }
 
 fn default_units_per_rpm() -> f64 {
@@ -801,6 +823,16 @@ impl BusConfig {
                         "bus.tpdo_missing_ticks and bus.heartbeat_timeout_ms must be above 0"
                             .into(),
                     );
+                }
+                if !(1..=10).contains(&c.cycle_ms) {
+                    return Err(format!("bus.cycle_ms: {} is outside 1..10 ms", c.cycle_ms));
+                }
+                let tick_ms = kernel::units::TS_NS / 1_000_000;
+                if u64::from(c.cycle_ms) != tick_ms {
+                    return Err(format!(
+                        "bus.cycle_ms: {} ms differs from the controller's real-time tick of {tick_ms} ms (the SYNC goes out once per tick)",
+                        c.cycle_ms
+                    ));
                 }
                 if c.spindle_node == Some(c.master_node_id) {
                     return Err(format!(

@@ -206,6 +206,28 @@ impl Harness {
         self.status.0.send_replace(*s);
     }
 
+    /// Shuts down as cncd does on SIGTERM: `Shutdown` brakes the axes to rest and ends the
+    /// loop (at most `max_ticks`), then the bus switches its drives off in order.
+    pub fn shut_down(&mut self, max_ticks: u64) -> Result<(), HarnessError> {
+        self.send(RtCommand::Shutdown)?;
+        let mut ticks = 0;
+        while !self.core.finished() {
+            if ticks == max_ticks {
+                return Err(HarnessError::Timeout {
+                    ticks,
+                    snapshot: Box::new(self.snapshot()),
+                });
+            }
+            self.step();
+            ticks += 1;
+        }
+        let clock = &mut self.clock;
+        self.core.shut_down_bus(self.bus.as_mut(), |t| {
+            clock.wake(t);
+        });
+        Ok(())
+    }
+
     /// Ticks until `done` holds for a snapshot; at most `max_ticks`.
     pub fn run_until(
         &mut self,

@@ -120,8 +120,10 @@ impl Snapshot {
     }
 }
 
-/// Ticks the drives get to become operational before it is a fault.
-const ENABLE_TIMEOUT_TICKS: u32 = 2_500;
+/// Ticks the drives get to become operational beyond the bus's own enable deadline
+/// ([`hal::DriveBus::enable_timeout_ticks`]): the bus names the drive that is late, so its
+/// alarm must come first.
+const ENABLE_MARGIN_TICKS: u32 = 250;
 /// After shutdown braking: ticks to let the drives settle before the thread ends.
 const SETTLE_TICKS: u32 = 250;
 /// Following error under which an axis counts as settled, mm.
@@ -173,6 +175,8 @@ pub struct RtCore {
     /// Job whose segments are accepted (0: none).
     active_job: u32,
     enable_ticks: u32,
+    /// Enabling window: the bus's deadline plus a margin.
+    enable_window_ticks: u32,
     shutting_down: bool,
     settle_ticks: u32,
     plc: PlcArea,
@@ -190,6 +194,9 @@ impl RtCore {
         let mut cmd = CycleCommand::default();
         cmd.positions_mm[..cfg.axes].copy_from_slice(&cfg.start.0[..cfg.axes]);
         let has_spindle = bus.has_spindle();
+        let enable_window_ticks = bus
+            .enable_timeout_ticks()
+            .saturating_add(ENABLE_MARGIN_TICKS);
         bus.enable();
         RtCore {
             axes: cfg.axes,
@@ -203,12 +210,26 @@ impl RtCore {
             deadline_ns: now_ns + TS_NS,
             active_job: 0,
             enable_ticks: 0,
+            enable_window_ticks,
             shutting_down: false,
             settle_ticks: 0,
             plc: PlcArea::new(),
             sb_seq: u32::MAX,
             has_spindle,
         }
+    }
+
+    /// After the loop has ended ([`RtCore::finished`]): the bus switches its drives off in
+    /// order (CANopen: disable step by step, heartbeat watch cleared, NMT pre-operational),
+    /// still on the tick grid, holding the last setpoints. `sleep_until_ns` waits for a
+    /// deadline. Bounded by the bus's own step timeouts.
+    pub fn shut_down_bus(&mut self, bus: &mut dyn DriveBus, mut sleep_until_ns: impl FnMut(u64)) {
+        let mut deadline = self.deadline_ns;
+        hal::shut_down(bus, &self.cmd, &mut self.fb, || {
+            sleep_until_ns(deadline);
+            deadline += TS_NS;
+        });
+        self.deadline_ns = deadline;
     }
 
     /// The absolute time the next tick is due: sleep until then, then call [`RtCore::tick`].
@@ -468,7 +489,7 @@ impl RtCore {
                         self.cmd.positions_mm[..self.axes].copy_from_slice(&here.0[..self.axes]);
                     }
                     s.state = MachineState::Idle;
-                } else if self.enable_ticks > ENABLE_TIMEOUT_TICKS {
+                } else if self.enable_ticks > self.enable_window_ticks {
                     s.fault = Some(BusFault {
                         axis: None,
                         node: None,
