@@ -430,23 +430,25 @@ async fn r55_is_one_tolerance_for_interpreter_and_compensation() {
     let d = start(config(Role::Admin)).await;
     d.ctl.replace_offsets_file(TABLE).unwrap();
     let mut doors = Doors::new(d.channel().await).await;
-    // An arc whose end point is 5 µm off its circle (radially), compensated.
+    // A compensated arc whose end point is 5 µm off its circle (radially).
     let text =
         "N10 G0 X0 Y0\nN20 D3 G41 G1 X10 Y0 F500\nN30 G3 X30.005 Y0 I10 J0\nN40 G40 G1 X40 Y0\n";
-    doors.set(&[(55, 0.0)]).await;
-    let (v, _) = doors.validate(text).await;
-    assert!(v.valid, "R55 = 0 reads 10 µm everywhere: {v:?}");
-    doors.set(&[(55, 0.001)]).await;
-    let (v, _) = doors.validate(text).await;
-    assert!(!v.valid);
-    assert_eq!(
+    let errors = |v: &Verdict| {
         v.diagnostics
             .iter()
             .filter(|d| d.severity == pb::Severity::Error as i32)
-            .count(),
-        1,
-        "one stage refuses it once: {v:?}"
-    );
+            .count()
+    };
+    for (r55, valid) in [(0.0, false), (0.001, false), (0.006, true), (0.010, true)] {
+        doors.set(&[(55, r55)]).await;
+        let (v, _) = doors.validate(text).await;
+        assert_eq!(v.valid, valid, "R55 = {r55}: {v:?}");
+        assert_eq!(errors(&v), usize::from(!valid), "R55 = {r55}: {v:?}");
+        // Both stages read the one accessor of the job's setup.
+        let setup = d.ctl.machine_setup().unwrap();
+        let tol = setup.program().constants.arc_tolerance_mm();
+        assert_eq!(setup.comp().arc_end_tolerance_mm, tol);
+    }
 }
 
 /// N10 takes 5 s at F600: time to stop before N20.
