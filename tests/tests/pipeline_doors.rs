@@ -611,3 +611,61 @@ async fn mdi_inherits_spindle_gear_feed_and_g91() {
     assert!((d.ctl.snapshot().commanded[0] - 75.0).abs() < 1e-6);
     assert_eq!(kr(&d).spindle_rpm, 0.0, "M5 kept");
 }
+
+/// Junction classes of `text` from the preview data.
+async fn junction_classes(doors: &mut Doors, text: &str) -> Vec<i32> {
+    doors
+        .p
+        .get_preview_data(pb::PreviewDataRequest {
+            text: text.into(),
+            junctions: true,
+        })
+        .await
+        .unwrap()
+        .into_inner()
+        .junctions
+        .iter()
+        .map(|j| j.class)
+        .collect()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn planner_and_interpreter_constants_take_effect_at_the_next_pass() {
+    let d = start(config(Role::Admin)).await;
+    d.ctl.replace_offsets_file(TABLE).unwrap();
+    let mut doors = Doors::new(d.channel().await).await;
+    let smooth = pb::JunctionClass::Smooth as i32;
+    let stop = pb::JunctionClass::Stop as i32;
+
+    // 1.R97 = 2 (automatic continuity) with R39 = 60°: a 16.7° corner under G23 is smooth;
+    // R39 = 10° makes it a stop.
+    let corner = "N10 G23 G1 X10 Y0 F3000\nN20 X20 Y3\nN30 X30 Y3\n";
+    doors.set(&[(97, 0.002), (39, 60.0)]).await;
+    assert_eq!(junction_classes(&mut doors, corner).await[0], smooth);
+    doors.set(&[(39, 10.0)]).await;
+    assert_eq!(junction_classes(&mut doors, corner).await[0], stop);
+    // The run takes the same setup: it starts and ends without alarm.
+    assert!(doors.load(corner).await.valid);
+    let job = doors
+        .m
+        .start(pb::StartRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .job;
+    wait_job_finished(&d.ctl, job, WAIT).await;
+    assert!(d.ctl.alarm().is_none());
+
+    // 6.R397 = 1: G41 may change to G42 directly, for the interpreter and compensation alike.
+    let switch = "N10 G0 X0 Y0\nN20 D1 G41 G1 X10 Y0 F500\nN30 G42 X20 Y0\nN40 G40 X30 Y0\n";
+    let (v, _) = doors.validate(switch).await;
+    assert!(!v.valid);
+    doors.set(&[(397, 100.0)]).await;
+    let (v, _) = doors.validate(switch).await;
+    assert!(v.valid, "{v:?}");
+    assert!(doors.load(switch).await.valid);
+    doors.set(&[(397, 0.0)]).await;
+    // Loaded under 6.R397 = 1; Start validates again with the constants in force now.
+    let e = doors.m.start(pb::StartRequest {}).await.unwrap_err();
+    assert_eq!(from_refusal(e), doors.validate(switch).await.0);
+}
