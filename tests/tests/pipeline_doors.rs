@@ -669,3 +669,112 @@ async fn planner_and_interpreter_constants_take_effect_at_the_next_pass() {
     let e = doors.m.start(pb::StartRequest {}).await.unwrap_err();
     assert_eq!(from_refusal(e), doors.validate(switch).await.0);
 }
+
+/// The simulated machine whose axis 1 always reads `LAG_MM` behind: a following error that
+/// never settles, to see which G24 window (R6) a job runs with.
+struct LaggingBus(sim::SimBus);
+
+const LAG_MM: f64 = 0.05;
+
+impl hal::DriveBus for LaggingBus {
+    fn name(&self) -> &str {
+        self.0.name()
+    }
+    fn axes(&self) -> usize {
+        self.0.axes()
+    }
+    fn cycle(
+        &mut self,
+        cmd: &hal::CycleCommand,
+        fb: &mut hal::CycleFeedback,
+    ) -> Result<(), hal::BusFault> {
+        let r = self.0.cycle(cmd, fb);
+        fb.axes[0].position_mm -= LAG_MM;
+        r
+    }
+    fn enable(&mut self) {
+        self.0.enable()
+    }
+    fn reset(&mut self) {
+        self.0.reset()
+    }
+}
+
+/// A daemon on [`LaggingBus`], served on loopback (local trust, admin).
+async fn lagging_daemon() -> (
+    std::sync::Arc<daemon::runtime::controller::Controller>,
+    Channel,
+) {
+    use daemon::runtime::controller::{ClockKind, Controller};
+    use daemon::runtime::server::{Listeners, serve_listeners_with};
+    let cfg = config(Role::Admin);
+    let bus = LaggingBus(sim::SimBus::new(
+        sim::SimDriveParams::default(),
+        &vec![0.0; cfg.axes.len()],
+    ));
+    let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
+    let local = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = local.local_addr().unwrap();
+    let listeners = Listeners {
+        local_tcp: vec![local],
+        remote_tcp: Vec::new(),
+        unix: None,
+    };
+    tokio::spawn(serve_listeners_with(
+        ctl.clone(),
+        listeners,
+        None,
+        std::future::pending(),
+    ));
+    wait_state(&ctl, MachineState::Idle, WAIT).await;
+    let ch = Channel::from_shared(format!("http://{addr}"))
+        .unwrap()
+        .connect()
+        .await
+        .unwrap();
+    (ctl, ch)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn r6_g24_window_reaches_the_rt_thread_at_the_next_start() {
+    let (ctl, ch) = lagging_daemon().await;
+    let mut doors = Doors::new(ch).await;
+    let program = "N10 G24 G1 X5 F3000\nN20 X10\n";
+    // R6 = 0.1 mm: the 0.05 mm lag counts as arrived; G24 goes on to N20 and the job ends.
+    doors.set(&[(6, 0.1)]).await;
+    assert!(doors.load(program).await.valid);
+    let job = doors
+        .m
+        .start(pb::StartRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .job;
+    wait_job_finished(&ctl, job, WAIT).await;
+    // R6 = 0.01 mm (in force at the next start): G24 waits at the end of N10 for ever.
+    doors.set(&[(6, 0.01)]).await;
+    assert!(doors.load("N10 G24 G1 X15 F3000\nN20 X20\n").await.valid);
+    let job = doors
+        .m
+        .start(pb::StartRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .job;
+    let c = ctl.clone();
+    wait_until("at the end of N10", WAIT, || {
+        let s = c.snapshot();
+        s.job == job && (s.commanded[0] - 15.0).abs() < 1e-9 && s.path_v_mm_s == 0.0
+    })
+    .await;
+    // 250 ticks (1 s of machine time) later it still waits there.
+    let t0 = ctl.snapshot().sequence;
+    let c = ctl.clone();
+    wait_until("250 ticks", WAIT, || c.snapshot().sequence > t0 + 250).await;
+    let s = ctl.snapshot();
+    assert_eq!(s.block_n, Some(10), "{s:?}");
+    assert_eq!(s.state, MachineState::Running);
+    assert!((s.commanded[0] - 15.0).abs() < 1e-9);
+    doors.m.stop(pb::StopRequest {}).await.unwrap();
+    wait_state(&ctl, MachineState::Idle, WAIT).await;
+}
