@@ -127,13 +127,11 @@ impl MachineSetup {
         self.in_position_mm
     }
 
-    /// The same setup for a program starting at `start` in modal state `modal` (MDI
-    /// inherits the state the last program or MDI left, SPEC §5 / docs/language.md).
-    pub fn starting(&self, start: AxesMm, modal: Option<Modal>) -> Self {
-        let mut s = self.clone();
-        s.program.start = start;
-        s.program.modal = modal;
-        s
+    /// The same setup for a program starting in modal state `modal` (MDI inherits the state
+    /// the last program or MDI left, docs/language.md); `None`: the power-on state.
+    pub fn with_modal(mut self, modal: Option<Modal>) -> Self {
+        self.program.modal = modal;
+        self
     }
 }
 
