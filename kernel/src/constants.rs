@@ -53,9 +53,6 @@ pub fn default_of(r: u16) -> i64 {
     }
 }
 
-/// R55 = 0: the arc end-point tolerance used instead, mm (10 µm).
-pub const DEFAULT_ARC_TOLERANCE_MM: f64 = 0.010;
-
 /// Axis code of constants R0..R5 and R67 (SPEC §1 leaves the encoding open; **decided**):
 /// 0 = no axis, 1..9 = the letters below.
 pub const AXIS_CODES: [char; 9] = ['X', 'Y', 'Z', 'U', 'V', 'W', 'A', 'B', 'C'];
@@ -137,15 +134,11 @@ impl Constants {
             .collect()
     }
 
-    /// R55: largest distance of an arc's end point from its circle, mm (SPEC §2). R55 = 0
-    /// reads as [`DEFAULT_ARC_TOLERANCE_MM`] (**decided**: an exact 0 would refuse every arc
-    /// whose end point was written to the program's 3 decimals). The interpreter and the
-    /// compensator both read this one accessor.
+    /// R55: largest distance of an arc's end point from its circle, mm (SPEC §2); 0 = exact.
+    /// The interpreter and the compensator both read this one accessor (issue #14: R55 = 0
+    /// meant 0 to one and 10 µm to the other).
     pub fn arc_tolerance_mm(&self) -> f64 {
-        match self.get(55).abs() {
-            0.0 => DEFAULT_ARC_TOLERANCE_MM,
-            t => t,
-        }
+        self.get(55).abs()
     }
 
     /// R6 (axes 1..3) and R7 (axes 4..6): following error under which an axis counts as

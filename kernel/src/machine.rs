@@ -127,13 +127,11 @@ impl MachineSetup {
         self.in_position_mm
     }
 
-    /// The same setup for a program starting at `start` in modal state `modal` (MDI
-    /// inherits the state the last program or MDI left, SPEC §5 / docs/language.md).
-    pub fn starting(&self, start: AxesMm, modal: Option<Modal>) -> Self {
-        let mut s = self.clone();
-        s.program.start = start;
-        s.program.modal = modal;
-        s
+    /// The same setup for a program starting in modal state `modal` (MDI inherits the state
+    /// the last program or MDI left, docs/language.md); `None`: the power-on state.
+    pub fn with_modal(mut self, modal: Option<Modal>) -> Self {
+        self.program.modal = modal;
+        self
     }
 }
 
@@ -166,4 +164,64 @@ pub fn planner_config(
         cfg = cfg.with_constants(constants);
     }
     cfg
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mill() -> MachineConfig {
+        let axis = |name| AxisLimits {
+            name,
+            max_velocity_mm_min: 12_000.0,
+            max_accel_mm_s2: 800.0,
+        };
+        MachineConfig {
+            axes: vec![axis('X'), axis('Y'), axis('Z')],
+            gears: vec![Gear {
+                max_rpm: 6000.0,
+                output_range: 0x7FFF,
+                m_code: Some(41),
+            }],
+            radius_input: RadiusInput::Diameter,
+            ij: IjMode::default(),
+            preprocessor: true,
+        }
+    }
+
+    fn setup(c: &Constants) -> MachineSetup {
+        MachineSetup::new(&mill(), c, true, &OffsetTable::new(), AxesMm::ZERO).unwrap()
+    }
+
+    #[test]
+    fn one_r55_for_interpreter_and_compensator() {
+        for r55 in [0.0, 0.005, 0.02] {
+            let mut c = Constants::new();
+            c.set(55, r55);
+            let s = setup(&c);
+            assert_eq!(s.comp().arc_end_tolerance_mm, c.arc_tolerance_mm());
+            assert_eq!(
+                s.program().constants.arc_tolerance_mm(),
+                c.arc_tolerance_mm()
+            );
+        }
+    }
+
+    #[test]
+    fn kr_and_g24_window_come_from_the_same_constants() {
+        let mut c = Constants::new();
+        c.set(329, 0.2);
+        c.set(67, 2.0);
+        c.set(6, 0.02);
+        c.set(7, 0.5);
+        let s = setup(&c);
+        let k = s.kr_constants().unwrap();
+        assert!(k.s_word.s_in_m_min);
+        assert_eq!(k.controlling_axis, 1);
+        assert_eq!(s.in_position_mm()[0], 0.02);
+        assert_eq!(s.in_position_mm()[2], 0.02);
+        assert_eq!(s.in_position_mm()[3], 0.5);
+        c.set(580, 7.0);
+        assert!(MachineSetup::new(&mill(), &c, true, &OffsetTable::new(), AxesMm::ZERO).is_err());
+    }
 }

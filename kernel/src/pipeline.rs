@@ -339,3 +339,88 @@ pub fn validate_into(
     v.validation.close(s);
     v.validation
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::comp::CompConfig;
+    use crate::constants::Constants;
+    use crate::plan::{Junction, PlannerConfig};
+    use crate::program::Setup;
+
+    fn setup(c: Constants) -> MachineSetup {
+        let mut s = Setup::new(&['X', 'Y', 'Z']);
+        s.offsets
+            .set_entry(
+                1,
+                crate::offsets::OffsetEntry {
+                    radius_mm: 2.0,
+                    length_mm: [0.0; 4],
+                },
+            )
+            .unwrap();
+        let comp = CompConfig::from_constants(&c);
+        s.constants = c;
+        MachineSetup::from_stages(s, comp, PlannerConfig::uniform(3, 200.0, 800.0))
+    }
+
+    #[derive(Default)]
+    struct Count {
+        segments: Vec<Segment>,
+        stop_after: Option<usize>,
+    }
+
+    impl Observer for Count {
+        fn segment(&mut self, s: Segment) -> Flow {
+            self.segments.push(s);
+            match self.stop_after {
+                Some(n) if self.segments.len() >= n => Flow::Stop,
+                _ => Flow::Go,
+            }
+        }
+    }
+
+    #[test]
+    fn validation_lists_the_errors_of_every_stage() {
+        let mut c = Constants::new();
+        c.set(95, 0.0); // 8.R95 = 0: compensation refused by the compensator
+        let text = "N10 G1 X10 F500\nN20 G7\nN30 D1 G41 X20 Y5\nN40 G40 X30\n";
+        let v = validate(text, &setup(c), Options::default());
+        let errors: Vec<_> = v.diagnostics.iter().filter(|d| d.is_error()).collect();
+        assert_eq!(errors.len(), 2, "{:?}", v.diagnostics);
+        assert_eq!(errors[0].block, Some(20), "interpreter");
+        assert_eq!(errors[1].block, Some(30), "compensator");
+        assert_eq!(v.blocks, 3);
+    }
+
+    #[test]
+    fn an_observer_stops_the_pass_and_single_block_stops_at_every_block() {
+        let text = "G23 G1 X10 F3000\nX20\nX30\nX40\n";
+        let s = setup(Constants::new());
+        let mut all = Count::default();
+        let sum = run(text, &s, Options::default(), &mut all);
+        assert_eq!((sum.blocks, sum.errors, sum.stopped), (4, 0, false));
+        assert!(
+            all.segments[..3]
+                .iter()
+                .any(|s| s.junction != Junction::Stop)
+        );
+        let mut one = Count {
+            stop_after: Some(1),
+            ..Count::default()
+        };
+        assert!(run(text, &s, Options::default(), &mut one).stopped);
+        assert_eq!(one.segments.len(), 1);
+        let mut sb = Count::default();
+        let opts = Options {
+            job: 7,
+            stop_at_blocks: true,
+        };
+        run(text, &s, opts, &mut sb);
+        assert!(
+            sb.segments
+                .iter()
+                .all(|s| s.junction == Junction::Stop && s.job == 7)
+        );
+    }
+}

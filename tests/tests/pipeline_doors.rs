@@ -428,23 +428,25 @@ async fn r55_is_one_tolerance_for_interpreter_and_compensation() {
     let d = start(config(Role::Admin)).await;
     d.ctl.replace_offsets_file(TABLE).unwrap();
     let mut doors = Doors::new(d.channel().await).await;
-    // An arc whose end point is 5 µm off its circle (radially), compensated.
+    // A compensated arc whose end point is 5 µm off its circle (radially).
     let text =
         "N10 G0 X0 Y0\nN20 D3 G41 G1 X10 Y0 F500\nN30 G3 X30.005 Y0 I10 J0\nN40 G40 G1 X40 Y0\n";
-    doors.set(&[(55, 0.0)]).await;
-    let (v, _) = doors.validate(text).await;
-    assert!(v.valid, "R55 = 0 reads 10 µm everywhere: {v:?}");
-    doors.set(&[(55, 0.001)]).await;
-    let (v, _) = doors.validate(text).await;
-    assert!(!v.valid);
-    assert_eq!(
+    let errors = |v: &Verdict| {
         v.diagnostics
             .iter()
             .filter(|d| d.severity == pb::Severity::Error as i32)
-            .count(),
-        1,
-        "one stage refuses it once: {v:?}"
-    );
+            .count()
+    };
+    for (r55, valid) in [(0.0, false), (0.001, false), (0.006, true), (0.010, true)] {
+        doors.set(&[(55, r55)]).await;
+        let (v, _) = doors.validate(text).await;
+        assert_eq!(v.valid, valid, "R55 = {r55}: {v:?}");
+        assert_eq!(errors(&v), usize::from(!valid), "R55 = {r55}: {v:?}");
+        // Both stages read the one accessor of the job's setup.
+        let setup = d.ctl.machine_setup().unwrap();
+        let tol = setup.program().constants.arc_tolerance_mm();
+        assert_eq!(setup.comp().arc_end_tolerance_mm, tol);
+    }
 }
 
 /// N10 takes 5 s at F600: time to stop before N20.
@@ -606,4 +608,171 @@ async fn mdi_inherits_spindle_gear_feed_and_g91() {
     mdi(&d, &mut m, "X-5").await;
     assert!((d.ctl.snapshot().commanded[0] - 75.0).abs() < 1e-6);
     assert_eq!(kr(&d).spindle_rpm, 0.0, "M5 kept");
+}
+
+/// Junction classes of `text` from the preview data.
+async fn junction_classes(doors: &mut Doors, text: &str) -> Vec<i32> {
+    doors
+        .p
+        .get_preview_data(pb::PreviewDataRequest {
+            text: text.into(),
+            junctions: true,
+        })
+        .await
+        .unwrap()
+        .into_inner()
+        .junctions
+        .iter()
+        .map(|j| j.class)
+        .collect()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn planner_and_interpreter_constants_take_effect_at_the_next_pass() {
+    let d = start(config(Role::Admin)).await;
+    d.ctl.replace_offsets_file(TABLE).unwrap();
+    let mut doors = Doors::new(d.channel().await).await;
+    let smooth = pb::JunctionClass::Smooth as i32;
+    let stop = pb::JunctionClass::Stop as i32;
+
+    // 1.R97 = 2 (automatic continuity) with R39 = 60°: a 16.7° corner under G23 is smooth;
+    // R39 = 10° makes it a stop.
+    let corner = "N10 G23 G1 X10 Y0 F3000\nN20 X20 Y3\nN30 X30 Y3\n";
+    doors.set(&[(97, 0.002), (39, 60.0)]).await;
+    assert_eq!(junction_classes(&mut doors, corner).await[0], smooth);
+    doors.set(&[(39, 10.0)]).await;
+    assert_eq!(junction_classes(&mut doors, corner).await[0], stop);
+    // The run takes the same setup: it starts and ends without alarm.
+    assert!(doors.load(corner).await.valid);
+    let job = doors
+        .m
+        .start(pb::StartRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .job;
+    wait_job_finished(&d.ctl, job).await;
+    assert!(d.ctl.alarm().is_none());
+
+    // 6.R397 = 1: G41 may change to G42 directly, for the interpreter and compensation alike.
+    let switch = "N10 G0 X0 Y0\nN20 D1 G41 G1 X10 Y0 F500\nN30 G42 X20 Y0\nN40 G40 X30 Y0\n";
+    let (v, _) = doors.validate(switch).await;
+    assert!(!v.valid);
+    doors.set(&[(397, 100.0)]).await;
+    let (v, _) = doors.validate(switch).await;
+    assert!(v.valid, "{v:?}");
+    assert!(doors.load(switch).await.valid);
+    doors.set(&[(397, 0.0)]).await;
+    // Loaded under 6.R397 = 1; Start validates again with the constants in force now.
+    let e = doors.m.start(pb::StartRequest {}).await.unwrap_err();
+    assert_eq!(from_refusal(e), doors.validate(switch).await.0);
+}
+
+/// The simulated machine whose axis 1 always reads `LAG_MM` behind: a following error that
+/// never settles, to see which G24 window (R6) a job runs with.
+struct LaggingBus(sim::SimBus);
+
+const LAG_MM: f64 = 0.05;
+
+impl hal::DriveBus for LaggingBus {
+    fn name(&self) -> &str {
+        self.0.name()
+    }
+    fn axes(&self) -> usize {
+        self.0.axes()
+    }
+    fn cycle(
+        &mut self,
+        cmd: &hal::CycleCommand,
+        fb: &mut hal::CycleFeedback,
+    ) -> Result<(), hal::BusFault> {
+        let r = self.0.cycle(cmd, fb);
+        fb.axes[0].position_mm -= LAG_MM;
+        r
+    }
+    fn enable(&mut self) {
+        self.0.enable()
+    }
+    fn reset(&mut self) {
+        self.0.reset()
+    }
+}
+
+/// A daemon on [`LaggingBus`], served on loopback (local trust, admin).
+async fn lagging_daemon() -> (
+    std::sync::Arc<daemon::runtime::controller::Controller>,
+    Channel,
+) {
+    use daemon::runtime::controller::{ClockKind, Controller};
+    use daemon::runtime::server::{Listeners, serve_listeners_with};
+    let cfg = config(Role::Admin);
+    let bus = LaggingBus(sim::SimBus::new(
+        sim::SimDriveParams::default(),
+        &vec![0.0; cfg.axes.len()],
+    ));
+    let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
+    let local = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = local.local_addr().unwrap();
+    let listeners = Listeners {
+        local_tcp: vec![local],
+        remote_tcp: Vec::new(),
+        unix: None,
+    };
+    tokio::spawn(serve_listeners_with(
+        ctl.clone(),
+        listeners,
+        None,
+        std::future::pending(),
+    ));
+    wait_state(&ctl, MachineState::Idle).await;
+    let ch = Channel::from_shared(format!("http://{addr}"))
+        .unwrap()
+        .connect()
+        .await
+        .unwrap();
+    (ctl, ch)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn r6_g24_window_reaches_the_rt_thread_at_the_next_start() {
+    let (ctl, ch) = lagging_daemon().await;
+    let mut doors = Doors::new(ch).await;
+    let program = "N10 G24 G1 X5 F3000\nN20 X10\n";
+    // R6 = 0.1 mm: the 0.05 mm lag counts as arrived; G24 goes on to N20 and the job ends.
+    doors.set(&[(6, 0.1)]).await;
+    assert!(doors.load(program).await.valid);
+    let job = doors
+        .m
+        .start(pb::StartRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .job;
+    wait_job_finished(&ctl, job).await;
+    // R6 = 0.01 mm (in force at the next start): G24 waits at the end of N10 for ever.
+    doors.set(&[(6, 0.01)]).await;
+    assert!(doors.load("N10 G24 G1 X15 F3000\nN20 X20\n").await.valid);
+    let job = doors
+        .m
+        .start(pb::StartRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .job;
+    let c = ctl.clone();
+    wait_until("at the end of N10", || {
+        let s = c.snapshot();
+        s.job == job && (s.commanded[0] - 15.0).abs() < 1e-9 && s.path_v_mm_s == 0.0
+    })
+    .await;
+    // 250 ticks (1 s of machine time) later it still waits there.
+    let t0 = ctl.snapshot().sequence;
+    let c = ctl.clone();
+    wait_until("250 ticks", || c.snapshot().sequence > t0 + 250).await;
+    let s = ctl.snapshot();
+    assert_eq!(s.block_n, Some(10), "{s:?}");
+    assert_eq!(s.state, MachineState::Running);
+    assert!((s.commanded[0] - 15.0).abs() < 1e-9);
+    doors.m.stop(pb::StopRequest {}).await.unwrap();
+    wait_state(&ctl, MachineState::Idle).await;
 }

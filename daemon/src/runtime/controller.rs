@@ -270,11 +270,7 @@ impl Controller {
         obs: &mut impl Observer,
     ) -> Result<(Validation, MachineSetup, u64), ControlError> {
         let generation = self.generation.load(Ordering::Acquire);
-        let setup = self.machine_setup()?;
-        let setup = match modal {
-            Some(_) => setup.starting(setup.program().start, modal),
-            None => setup,
-        };
+        let setup = self.machine_setup()?.with_modal(modal);
         let v = pipeline::validate_into(text, &setup, opts, obs);
         Ok((v, setup, generation))
     }

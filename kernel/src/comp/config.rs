@@ -109,8 +109,9 @@ impl Default for CompConfig {
     }
 }
 
-/// R55 = 0 reads as 10 µm (the manual gives R55's use, not its default: our decision).
-pub const DEFAULT_ARC_END_TOLERANCE_MM: f64 = crate::constants::DEFAULT_ARC_TOLERANCE_MM;
+/// Arc end tolerance of `CompConfig::default()` (R55 default, 10 µm). From the constants it is
+/// `Constants::arc_tolerance_mm`, the interpreter's too.
+pub const DEFAULT_ARC_END_TOLERANCE_MM: f64 = 0.010;
 
 impl CompConfig {
     /// How much closer than the radius `radius_mm` the tool centre may come to the contour
