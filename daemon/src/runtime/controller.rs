@@ -9,9 +9,9 @@ use std::time::Duration;
 use kernel::Diagnostic;
 use kernel::block::Block;
 use kernel::comp::CompConfig;
-use kernel::plan::PlannerConfig;
+use kernel::plan::{AxisLimits, PlannerConfig};
 use kernel::program::{self, Setup};
-use kernel::units::{AxesMm, MAX_AXES};
+use kernel::units::AxesMm;
 use tokio::sync::watch;
 
 use kernel::constants::{AXIS_CODES, Constants};
@@ -347,29 +347,21 @@ impl Controller {
     }
 
     fn planner_config(&self) -> PlannerConfig {
-        let axes = &self.config.axes;
-        // Path-level defaults from the slowest axis; per-axis limits then from each axis.
-        let v_min = axes
+        // One function builds the machine's planner setup (the bench runs the same one). The
+        // envelope settings come from the constants when the machine has a constants file;
+        // otherwise each move is limited by the axes it moves.
+        let axes: Vec<AxisLimits> = self
+            .config
+            .axes
             .iter()
-            .map(|a| a.max_velocity_mm_min / 60.0)
-            .fold(f64::INFINITY, f64::min);
-        let a_min = axes
-            .iter()
-            .map(|a| a.max_accel_mm_s2)
-            .fold(f64::INFINITY, f64::min);
-        let mut cfg = PlannerConfig::uniform(axes.len(), v_min, a_min);
-        for (i, a) in axes.iter().enumerate().take(MAX_AXES) {
-            cfg.axis_v_max_mm_s[i] = a.max_velocity_mm_min / 60.0;
-            cfg.axis_a_max_mm_s2[i] = a.max_accel_mm_s2;
-            cfg.axis_j_max_mm_s3[i] = 50.0 * a.max_accel_mm_s2;
-        }
-        // The envelope settings (continuity, criteria, dynamic sets) come from the constants
-        // when the machine has a constants file; otherwise the axis limits alone apply.
+            .map(|a| AxisLimits {
+                v_max_mm_s: a.max_velocity_mm_min / 60.0,
+                a_max_mm_s2: a.max_accel_mm_s2,
+            })
+            .collect();
+        let t_min_s = self.config.planner.min_block_time_ms / 1000.0;
         let (constants, from_file) = &*self.constants.lock().unwrap();
-        if *from_file {
-            cfg = cfg.with_constants(constants);
-        }
-        cfg
+        PlannerConfig::for_machine(&axes, t_min_s, from_file.then_some(constants))
     }
 
     /// Stops motion: brake on the path, drop the rest of the program.

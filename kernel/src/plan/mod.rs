@@ -30,8 +30,8 @@ mod path;
 use std::collections::VecDeque;
 
 pub use config::{
-    AXIS_FILTER_MAX_TICKS, ContinuityRule, DynamicSet, Envelope, PlannerConfig, Profile,
-    axis_filter_ticks_for, jerk_from_p_mm_s3,
+    AXIS_FILTER_MAX_TICKS, AXIS_JERK_PER_ACCEL_PER_S, AxisLimits, ContinuityRule, DynamicSet,
+    Envelope, PlannerConfig, Profile, axis_filter_ticks_for, jerk_from_p_mm_s3,
 };
 pub use path::SegPath;
 
