@@ -171,10 +171,10 @@ pub struct AxisConfig {
 }
 
 fn default_v_max() -> f64 {
-    12_000.0
+    kernel::plan::DEFAULT_AXIS_LIMITS.v_max_mm_s * 60.0
 }
 fn default_a_max() -> f64 {
-    800.0
+    kernel::plan::DEFAULT_AXIS_LIMITS.a_max_mm_s2
 }
 fn default_increments() -> f64 {
     10_000.0

@@ -130,6 +130,13 @@ pub struct AxisLimits {
     pub a_max_mm_s2: f64,
 }
 
+/// Limits of an axis the daemon's configuration does not set (`[[axes]]` without
+/// `max_velocity_mm_min` / `max_accel_mm_s2`): 12000 mm/min, 800 mm/s².
+pub const DEFAULT_AXIS_LIMITS: AxisLimits = AxisLimits {
+    v_max_mm_s: 200.0,
+    a_max_mm_s2: 800.0,
+};
+
 /// Axis jerk per unit of axis acceleration, 1/s: the machine configuration has no jerk
 /// setting, so an axis's jerk limit is 50·a (a/J = 20 ms).
 pub const AXIS_JERK_PER_ACCEL_PER_S: f64 = 50.0;

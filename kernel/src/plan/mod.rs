@@ -30,8 +30,9 @@ mod path;
 use std::collections::VecDeque;
 
 pub use config::{
-    AXIS_FILTER_MAX_TICKS, AXIS_JERK_PER_ACCEL_PER_S, AxisLimits, ContinuityRule, DynamicSet,
-    Envelope, PlannerConfig, Profile, axis_filter_ticks_for, jerk_from_p_mm_s3,
+    AXIS_FILTER_MAX_TICKS, AXIS_JERK_PER_ACCEL_PER_S, AxisLimits, ContinuityRule,
+    DEFAULT_AXIS_LIMITS, DynamicSet, Envelope, PlannerConfig, Profile, axis_filter_ticks_for,
+    jerk_from_p_mm_s3,
 };
 pub use path::SegPath;
 
@@ -92,6 +93,9 @@ pub struct Segment {
     /// Highest speed allowed at the end of the segment, mm/s (0: stop there). Safe: later
     /// committed segments can be followed from it.
     pub v_end_mm_s: f64,
+    /// Speed the junction criteria allow at the end (0 at a stop), before braking for later
+    /// blocks: what a time-optimal profile under the same constraints may reach there.
+    pub junction_cap_mm_s: f64,
     /// Path acceleration limit on this segment, mm/s².
     pub accel_mm_s2: f64,
     /// Path jerk limit, mm/s³ (`f64::INFINITY` for the linear profile).
@@ -561,6 +565,7 @@ impl Planner {
             feed_mm_s,
             v_max_mm_s: v_max,
             v_end_mm_s: 0.0,
+            junction_cap_mm_s: 0.0,
             accel_mm_s2: a_plan,
             jerk_mm_s3: jerk,
             stop_accel_mm_s2: a_plan,
@@ -855,6 +860,7 @@ impl Planner {
         let p = &mut self.win[i];
         p.crit = crit;
         p.cap = cap;
+        p.seg.junction_cap_mm_s = cap;
         // Acceleration: R52 without continuity, R236 (or the set's A) during continuity, R237
         // for rapids; halved on curved blocks (NORMAL_SHARE).
         let continuous = prev_smooth || p.smooth;
