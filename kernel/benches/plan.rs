@@ -109,7 +109,8 @@ fn time_optimal_s(cfg: &PlannerConfig, segs: &[Segment]) -> f64 {
     let mut end: Vec<f64> = (0..n)
         .map(|k| {
             let next = if k + 1 < n { ceil[k + 1] } else { 0.0 };
-            if segs[k].junction == Junction::Stop || segs[k].last {
+            // The criteria cap, also where the planner chose to stop (0 at real stops).
+            if segs[k].last {
                 0.0
             } else {
                 segs[k].junction_cap_mm_s.min(ceil[k]).min(next)

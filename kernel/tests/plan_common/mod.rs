@@ -322,7 +322,10 @@ pub fn run_stream(
                 progressed = true;
             }
             max_window = max_window.max(next.saturating_sub(segments.len()));
-            if ip.buffered() > 0 || planner.is_done() || held.is_some() {
+            // Motion starts with the first segment; after that the planner runs ahead until
+            // the interpolator's buffer is full, like the daemon's planner thread (feeding one
+            // block per tick starved dense paths whose window is full of unsettled blocks).
+            if (ip.buffered() > 0 && t == 0) || planner.is_done() || held.is_some() {
                 break;
             }
             // Nothing committed yet: the planner needs more input (or the program is over).
