@@ -52,6 +52,10 @@ pub const FILTER_MAX_TICKS: usize = 256;
 /// Longest axis smoothing filter, ticks per stage.
 pub const AXIS_FILTER_MAX_TICKS: usize = crate::plan::AXIS_FILTER_MAX_TICKS;
 
+/// Segments looked at (from rest) for the highest speed the jerk filter is sized for; with
+/// more buffered before the next stop the filter is sized for the full acceleration.
+const FILTER_SCAN_SEGMENTS: usize = 256;
+
 /// Remaining distance under which a point counts as reached.
 const ARRIVE_EPS_MM: f64 = 1e-9;
 
@@ -421,14 +425,33 @@ impl Interpolator {
         self.s0[self.idx(self.rk)] + self.rs_mm
     }
 
-    /// Filter length a segment needs: the raw acceleration steps by at most 2a, so the jerk
-    /// of the average is ≤ 2a/(m·Ts) ≤ J.
-    fn filter_for(seg: &Segment) -> usize {
+    /// Filter length for the motion that starts at rest on segment `rk`: the raw acceleration
+    /// steps by at most 2a, so the jerk of the average is ≤ 2a/(m·Ts) ≤ J. A motion that
+    /// cannot reach `a` before its speed (the highest programmed speed up to the next stop,
+    /// at 100 % override) is a pure parabola: it needs only a = √(v·J), so the filter is sized
+    /// for that (the ramp to F takes 3·√(F/J) instead of 2a/J + F/a; the manual's
+    /// T = 1.478·√(F/P) is 2·√(F/J)).
+    fn filter_for(&self) -> usize {
+        let seg = self.seg(self.rk);
         let a = seg.accel_mm_s2.max(seg.stop_accel_mm_s2);
-        if !seg.jerk_mm_s3.is_finite() || seg.jerk_mm_s3 <= 0.0 {
+        let j = seg.jerk_mm_s3;
+        if !j.is_finite() || j <= 0.0 {
             return 1;
         }
-        ((2.0 * a / (seg.jerk_mm_s3 * TS_S)).ceil() as usize)
+        // (Segments that arrive later are followed at the acceleration this filter allows:
+        // slower, never above the jerk.)
+        let mut v = f64::INFINITY;
+        let mut top = 0.0f64;
+        for k in self.rk..self.len.min(self.rk + FILTER_SCAN_SEGMENTS) {
+            let s = self.seg(k);
+            top = top.max(s.feed_mm_s.min(s.v_max_mm_s));
+            if s.v_end_mm_s == 0.0 || k + 1 == self.len {
+                v = top;
+                break;
+            }
+        }
+        let a = a.min((v * j).sqrt());
+        ((2.0 * a / (j * TS_S)).ceil() as usize)
             .clamp(1, FILTER_MAX_TICKS - 2 * AXIS_FILTER_MAX_TICKS - 2)
     }
 
@@ -637,7 +660,7 @@ impl Interpolator {
                 self.axis_mid.fill(self.path_pos);
                 self.axis_n = n;
             }
-            let m = Self::filter_for(self.seg(self.rk));
+            let m = self.filter_for();
             if m != self.m {
                 let s = self.raw_s();
                 self.hist_s.fill(s);
