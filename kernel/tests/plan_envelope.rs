@@ -588,3 +588,28 @@ fn spindle_runs_up_at_the_stop_before_the_next_cut() {
     assert!(left > ready_from, "{left} {ready_from}");
     assert_eq!(r.ticks.last().unwrap().position[0], 10.0);
 }
+
+/// Issue #16: stops land on the continuous profile. Stop-to-stop moves take their closed-form
+/// time (ramps at a, cruise at F) to within one tick each (rounding and the tick the
+/// interpolator rests at a stop point before it leaves it together).
+#[test]
+fn stops_land_on_the_continuous_profile() {
+    let cfg = PlannerConfig::for_machine(&[kernel::plan::DEFAULT_AXIS_LIMITS; 3], 0.0, None);
+    let (f, a) = (100.0, 800.0);
+    let lengths = [100.0, 3.0, 0.5, 37.0, 12.5, 0.02];
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), f * 60.0, Continuity::G98);
+    let mut x = 0.0;
+    let mut ideal = 0.0;
+    for l in lengths {
+        x += l;
+        p.g1(p3(x, 0.0, 0.0));
+        let v = f.min((a * l).sqrt());
+        ideal += l / v + v / a;
+    }
+    let r = assert_within("stops", &cfg, &p.blocks);
+    let n = lengths.len() as f64;
+    let t = r.time_s();
+    assert!(t >= ideal - n * kernel::TS_S, "{t} s, ideal {ideal} s");
+    assert!(t <= ideal + n * kernel::TS_S, "{t} s, ideal {ideal} s");
+    println!("stops: {t:.3} s, closed form {ideal:.3} s, {n} stops");
+}
