@@ -117,25 +117,27 @@ impl Machine for MachineSvc {
         require(&req, Observer, "ValidateProgram")?;
         let text = req.into_inner().text;
         let st = self.0.clone();
-        let (compiled, refined) = blocking(move || {
-            let compiled = st.ctl.compile_text(&text);
+        let (v, refined) = blocking(move || {
+            // The whole pipeline, as loading does (compensation with its gouge check,
+            // planning), streaming: a long program is never held as blocks.
+            let v = st.ctl.validate_text(&text);
             let setup = st.ctl.current_setup();
             // SPEC §4.6: refinements only with the preprocessor on and 8.R325 set.
             let refining = setup.preprocessor
                 && setup.constants.refinement() != kernel::constants::Refinement::Off;
-            let refined = if refining && !compiled.has_errors() {
+            let refined = if refining && !v.has_errors() {
                 kernel::program::refinement_listing(&text, &setup).1
             } else {
                 Vec::new()
             };
-            (compiled, refined)
+            (v, refined)
         })
         .await?;
-        let valid = !compiled.has_errors();
+        let valid = !v.has_errors();
         Ok(Response::new(pb::ValidateProgramReply {
             valid,
-            blocks: compiled.blocks.len() as u32,
-            diagnostics: compiled.diagnostics.iter().map(diagnostic_to_pb).collect(),
+            blocks: if valid { v.blocks } else { 0 },
+            diagnostics: v.diagnostics.iter().map(diagnostic_to_pb).collect(),
             refinements: refined.iter().map(refinement_to_pb).collect(),
         }))
     }
