@@ -15,6 +15,7 @@ pub mod constants;
 pub mod diag;
 pub mod interp;
 pub mod kr;
+pub mod limits;
 pub mod offsets;
 pub mod plan;
 pub mod plc;

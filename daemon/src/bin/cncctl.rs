@@ -86,6 +86,11 @@ enum Cmd {
         #[arg(value_parser = ["on", "off"])]
         mode: String,
     },
+    /// Optional stop on or off: when on, M1 stops the program like M0 (Resume continues).
+    OptionalStop {
+        #[arg(value_parser = ["on", "off"])]
+        mode: String,
+    },
     /// Run one block (MDI), e.g. `cncctl mdi "G1 X10 F500"`.
     Mdi { block: String },
     /// Show the machine status.
@@ -356,6 +361,18 @@ fn status_line(s: &pb::Status) -> String {
     if s.waiting_for_spindle {
         line.push_str("  waiting for the spindle to reach its speed");
     }
+    if s.optional_stop {
+        line.push_str("  [M1 stops]");
+    }
+    if s.program_stop {
+        line.push_str("  program stop (M0/M1): resume to continue");
+    }
+    if s.fault_path_deviation_mm > 0.0 {
+        line.push_str(&format!(
+            "  fault stop left the path by {:.3} mm",
+            s.fault_path_deviation_mm
+        ));
+    }
     if !s.alarm.is_empty() {
         line.push_str(&format!("  ALARM: {}", s.alarm));
     }
@@ -371,7 +388,8 @@ fn status_json(s: &pb::Status) -> Value {
         "program": s.program, "job": s.job, "block": s.block, "line": s.line,
         "block_index": s.block_index, "blocks_total": s.blocks_total, "percent": s.percent,
         "axes": s.axes.iter().map(|a| json!({"name": a.name, "commanded_mm": a.commanded_mm,
-            "actual_mm": a.actual_mm, "following_error_mm": a.following_error_mm})).collect::<Vec<_>>(),
+            "actual_mm": a.actual_mm, "following_error_mm": a.following_error_mm,
+            "soft_min_mm": a.soft_min_mm, "soft_max_mm": a.soft_max_mm})).collect::<Vec<_>>(),
         "path_velocity_mm_s": s.path_velocity_mm_s,
         "feed_programmed": s.feed_programmed, "feed_mode": s.feed_mode,
         "override_percent": s.override_percent, "spindle_rpm": s.spindle_rpm,
@@ -383,6 +401,8 @@ fn status_json(s: &pb::Status) -> Value {
             "spindle_rpm": k.spindle_rpm, "output": k.output, "gear_max_rpm": k.gear_max_rpm})),
         "dynamic_set": s.dynamic_set,
         "waiting_for_spindle": s.waiting_for_spindle,
+        "optional_stop": s.optional_stop, "program_stop": s.program_stop,
+        "fault_path_deviation_mm": s.fault_path_deviation_mm,
         "ticks": {"ticks": t.ticks, "overruns": t.overruns, "lateness_p50_us": t.lateness_p50_us,
             "lateness_p99_us": t.lateness_p99_us, "lateness_max_us": t.lateness_max_us},
         "alarm": s.alarm,
@@ -588,6 +608,11 @@ async fn run(args: Args) -> Result<ExitCode, String> {
                 enabled: mode == "on",
             })
             .await,
+        ),
+        Cmd::OptionalStop { mode } => done(
+            j,
+            c.m.set_optional_stop(pb::SetOptionalStopRequest { on: mode == "on" })
+                .await,
         ),
         Cmd::Mdi { block } => {
             let job =

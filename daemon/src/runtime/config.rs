@@ -165,6 +165,17 @@ pub struct AxisConfig {
     /// Position at power-on of the simulated machine, mm.
     #[serde(default)]
     pub home_mm: f64,
+    /// Soft limits (travel limits), machine coordinates, mm (degrees on a rotary axis).
+    /// Programs, MDI and jogs never command the axis beyond them. Unset: no limit on that
+    /// side (the axis is not protected there: docs/operator.md).
+    #[serde(default)]
+    pub soft_min_mm: Option<f64>,
+    #[serde(default)]
+    pub soft_max_mm: Option<f64>,
+    /// Deceleration of this axis in an emergency stop (a fault of any axis), mm/s². Unset:
+    /// `max_accel_mm_s2`. Each axis brakes on its own at this rate, not along the path.
+    #[serde(default)]
+    pub stop_decel_mm_s2: Option<f64>,
 }
 
 fn default_v_max() -> f64 {
@@ -178,6 +189,11 @@ fn default_increments() -> f64 {
 }
 
 impl AxisConfig {
+    /// Emergency-stop deceleration, mm/s².
+    pub fn stop_decel(&self) -> f64 {
+        self.stop_decel_mm_s2.unwrap_or(self.max_accel_mm_s2)
+    }
+
     pub fn new(name: char) -> Self {
         AxisConfig {
             name,
@@ -186,6 +202,9 @@ impl AxisConfig {
             increments_per_mm: default_increments(),
             node_id: None,
             home_mm: 0.0,
+            soft_min_mm: None,
+            soft_max_mm: None,
+            stop_decel_mm_s2: None,
         }
     }
 }
@@ -537,6 +556,7 @@ impl Config {
             if !a.home_mm.is_finite() {
                 return Err(format!("axes[{i}].home_mm: {} is not a number", a.home_mm));
             }
+            validate_axis_safety(i, a)?;
         }
         for (key, v) in [
             ("sim.kv_per_s", self.sim.kv_per_s),
@@ -559,6 +579,45 @@ impl Config {
     pub fn axis_names(&self) -> Vec<char> {
         self.axes.iter().map(|a| a.name).collect()
     }
+
+    /// The soft limits of every axis (issue #15); unset sides are unlimited.
+    pub fn soft_limits(&self) -> kernel::limits::SoftLimits {
+        let mut l = kernel::limits::SoftLimits::NONE;
+        for (i, a) in self.axes.iter().enumerate().take(kernel::MAX_AXES) {
+            l.min_mm[i] = a.soft_min_mm.unwrap_or(f64::NEG_INFINITY);
+            l.max_mm[i] = a.soft_max_mm.unwrap_or(f64::INFINITY);
+        }
+        l
+    }
+}
+
+/// Soft limits and the stop deceleration of axis `i`.
+fn validate_axis_safety(i: usize, a: &AxisConfig) -> Result<(), String> {
+    for (key, v) in [
+        ("soft_min_mm", a.soft_min_mm),
+        ("soft_max_mm", a.soft_max_mm),
+    ] {
+        if let Some(v) = v
+            && !v.is_finite()
+        {
+            return Err(format!("axes[{i}].{key}: {v} is not a number"));
+        }
+    }
+    if let (Some(lo), Some(hi)) = (a.soft_min_mm, a.soft_max_mm)
+        && lo >= hi
+    {
+        return Err(format!(
+            "axes[{i}].soft_max_mm: {hi} must be above soft_min_mm {lo}"
+        ));
+    }
+    if let Some(d) = a.stop_decel_mm_s2
+        && !(d.is_finite() && d > 0.0)
+    {
+        return Err(format!(
+            "axes[{i}].stop_decel_mm_s2: {d} must be a positive number"
+        ));
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -96,6 +96,9 @@ pub struct Controller {
     offsets: Arc<Mutex<OffsetStore>>,
     /// Blocks of the running job near the executing one.
     recent: Arc<Mutex<pipeline::RecentBlocks>>,
+    /// A feed hold was asked for and not yet resumed or stopped (the RT thread may not have
+    /// published the hold yet).
+    hold_requested: AtomicBool,
 }
 
 struct Run {
@@ -195,6 +198,7 @@ impl Controller {
             constants: Mutex::new(constants),
             offsets: Arc::new(Mutex::new(offsets)),
             recent: Arc::default(),
+            hold_requested: AtomicBool::new(false),
         }))
     }
 
@@ -229,6 +233,7 @@ impl Controller {
         setup.start = self.snapshot().commanded;
         setup.constants = self.constants.lock().unwrap().0.clone();
         setup.offsets = self.offsets.lock().unwrap().memory().clone();
+        setup.soft_limits = self.config.soft_limits();
         setup
     }
 
@@ -326,6 +331,7 @@ impl Controller {
     ) -> Result<u32, ControlError> {
         let job = self.next_job.fetch_add(1, Ordering::Relaxed);
         spec.job = job;
+        self.hold_requested.store(false, Ordering::Relaxed);
         *self.alarm.lock().unwrap() = None;
         self.send(RtCommand::Start { job })?;
         let cancel = Arc::new(AtomicBool::new(false));
@@ -372,20 +378,76 @@ impl Controller {
         cfg
     }
 
-    /// Stops motion: brake on the path, drop the rest of the program.
+    /// Stops motion: brake on the path, drop the rest of the program; the spindle stops once
+    /// the axes are at rest. Never refused (a stop is always allowed, also to stop a spindle
+    /// left turning on an idle machine).
     pub fn stop(&self) -> Result<(), ControlError> {
         if let Some(r) = self.run.lock().unwrap().as_ref() {
             r.cancel.store(true, Ordering::Relaxed);
         }
+        self.hold_requested.store(false, Ordering::Relaxed);
         self.send(RtCommand::Stop)
     }
 
+    /// A job was started and has neither ended nor been stopped: it runs, is held, or the RT
+    /// thread has not taken its start yet.
+    fn job_active(&self, snap: &Snapshot) -> bool {
+        let last = self.next_job.load(Ordering::Relaxed).saturating_sub(1);
+        let pending =
+            last != 0 && snap.job != last && snap.finished_job != last && snap.aborted_job != last;
+        pending
+            || matches!(
+                snap.state,
+                MachineState::Running | MachineState::Hold | MachineState::Stopping
+            )
+    }
+
+    /// Feed hold. FAILED_PRECONDITION when nothing runs.
     pub fn hold(&self) -> Result<(), ControlError> {
+        let snap = self.snapshot();
+        if !self.job_active(&snap) || snap.state == MachineState::Stopping {
+            return Err(ControlError::WrongState(format!(
+                "nothing runs to hold: the machine is {:?}",
+                snap.state
+            )));
+        }
+        self.hold_requested.store(true, Ordering::Relaxed);
         self.send(RtCommand::Hold)
     }
 
+    /// Continues after a feed hold, a single-block hold or a program stop (M0/M1).
+    /// FAILED_PRECONDITION when nothing is held (idle, after a stop, while stopping).
     pub fn resume(&self) -> Result<(), ControlError> {
+        let snap = self.snapshot();
+        let held = snap.state == MachineState::Hold
+            || (self.hold_requested.load(Ordering::Relaxed)
+                && self.job_active(&snap)
+                && snap.state != MachineState::Stopping);
+        if !held {
+            return Err(ControlError::WrongState(format!(
+                "nothing is held to resume: the machine is {:?}",
+                snap.state
+            )));
+        }
+        self.hold_requested.store(false, Ordering::Relaxed);
         self.send(RtCommand::Resume)
+    }
+
+    /// Start while held (feed hold or a program stop M0/M1) continues the job: returns its
+    /// id; `None` when nothing is held.
+    pub fn start_resumes(&self) -> Result<Option<u32>, ControlError> {
+        let snap = self.snapshot();
+        if snap.state != MachineState::Hold {
+            return Ok(None);
+        }
+        self.hold_requested.store(false, Ordering::Relaxed);
+        self.send(RtCommand::Resume)?;
+        Ok(Some(snap.job))
+    }
+
+    /// Optional stop switch: M1 stops the program only while it is on.
+    pub fn set_optional_stop(&self, on: bool) -> Result<(), ControlError> {
+        self.send(RtCommand::OptionalStop(on))
     }
 
     pub fn set_override(&self, percent: f64) -> Result<(), ControlError> {

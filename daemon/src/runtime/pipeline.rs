@@ -47,6 +47,14 @@ pub fn validate(text: &str, setup: &Setup, comp: CompConfig, planner: PlannerCon
     let mut stream = program::stream(text, setup);
     let mut comp = Compensator::new(comp);
     let mut planner = Planner::new(planner, 0);
+    // Soft limits (issue #15): every planned segment, so with offsets and compensation.
+    let drain = |planner: &mut Planner, v: &mut Validation| {
+        while let Some(seg) = planner.poll() {
+            if let Err(d) = check_limits(&seg, setup) {
+                v.add(d);
+            }
+        }
+    };
     let feed = |b: &Block, comp: &mut Compensator, planner: &mut Planner, v: &mut Validation| {
         if let Err(d) = comp.push(b) {
             v.add(d);
@@ -56,7 +64,7 @@ pub fn validate(text: &str, setup: &Setup, comp: CompConfig, planner: PlannerCon
             if let Err(d) = planner.push(&cb) {
                 v.add(d);
             }
-            while planner.poll().is_some() {}
+            drain(planner, v);
         }
     };
     while let Some(item) = stream.next() {
@@ -76,10 +84,10 @@ pub fn validate(text: &str, setup: &Setup, comp: CompConfig, planner: PlannerCon
         if let Err(d) = planner.push(&cb) {
             v.add(d);
         }
-        while planner.poll().is_some() {}
+        drain(&mut planner, &mut v);
     }
     planner.finish();
-    while planner.poll().is_some() {}
+    drain(&mut planner, &mut v);
     let listed = v.diagnostics.len();
     if listed >= MAX_LISTED {
         v.diagnostics.push(Diagnostic::info(
@@ -90,6 +98,15 @@ pub fn validate(text: &str, setup: &Setup, comp: CompConfig, planner: PlannerCon
         ));
     }
     v
+}
+
+/// Refuses a planned segment that leaves the soft limits of `setup` (issue #15).
+fn check_limits(seg: &Segment, setup: &Setup) -> Result<(), Diagnostic> {
+    let axes = setup.axis_names.len();
+    match setup.soft_limits.check_path(&seg.path, axes) {
+        Some(hit) => Err(hit.diagnostic(seg, &setup.axis_names)),
+        None => Ok(()),
+    }
 }
 
 /// The blocks of the running job around the one executing, for status (modal state of the
@@ -143,13 +160,16 @@ pub fn run(spec: &JobSpec, mut sink: impl FnMut(Segment) -> bool) -> Result<(), 
     let job = spec.job;
     let mut comp = Compensator::new(spec.comp);
     let mut planner = Planner::new(spec.planner.clone(), job);
-    let mut drain = |planner: &mut Planner| -> bool {
+    // The soft limits again, as the segments go out: the program was validated against
+    // them, but the offsets may have been edited since (a refusal here ends the run).
+    let mut drain = |planner: &mut Planner| -> Result<bool, Diagnostic> {
         while let Some(seg) = planner.poll() {
+            check_limits(&seg, &spec.setup)?;
             if !sink(seg) {
-                return false;
+                return Ok(false);
             }
         }
-        true
+        Ok(true)
     };
     for item in program::stream(&spec.text, &spec.setup) {
         let mut b = item?;
@@ -173,7 +193,7 @@ pub fn run(spec: &JobSpec, mut sink: impl FnMut(Segment) -> bool) -> Result<(), 
             // DYNAM_SET as the PLC has it now (cell 0..3 = set 1..4; acts after the look-ahead).
             planner.set_dynam_set_cell(spec.status.borrow().plc.dynam_set() - 1);
             planner.push(&cb)?;
-            if !drain(&mut planner) {
+            if !drain(&mut planner)? {
                 return Ok(());
             }
         }
@@ -181,11 +201,11 @@ pub fn run(spec: &JobSpec, mut sink: impl FnMut(Segment) -> bool) -> Result<(), 
     comp.finish();
     while let Some(cb) = comp.poll() {
         planner.push(&cb)?;
-        if !drain(&mut planner) {
+        if !drain(&mut planner)? {
             return Ok(());
         }
     }
     planner.finish();
-    drain(&mut planner);
+    drain(&mut planner)?;
     Ok(())
 }

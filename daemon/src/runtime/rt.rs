@@ -40,6 +40,8 @@ pub enum RtCommand {
     Plc(PlcWrite),
     /// Single-block mode: hold when the path enters a new block (API, issue #8).
     SingleBlock(bool),
+    /// Optional stop switch: M1 stops the program while on (issue #15).
+    OptionalStop(bool),
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -92,6 +94,12 @@ pub struct Snapshot {
     pub kr: KrOutput,
     /// A KŘR fault stopped the machine (cleared by Reset).
     pub kr_fault: Option<KrFault>,
+    /// Optional stop is on: M1 stops the program.
+    pub optional_stop: bool,
+    /// Held at a program stop (M0, or M1 with optional stop on).
+    pub program_stop: bool,
+    /// Largest distance from the programmed path the last fault stop caused, mm.
+    pub fault_path_deviation_mm: f64,
 }
 
 /// Everything the RT thread owns.
@@ -148,6 +156,9 @@ struct Rt {
     sb_seq: u32,
     /// The bus has a spindle drive (asked once at start-up).
     has_spindle: bool,
+    /// A stop ended the job: the spindle stops once the axes are at rest (until the next
+    /// start).
+    spindle_off: bool,
 }
 
 /// Runs the loop until a `Shutdown` command has brought the axes to rest.
@@ -175,6 +186,7 @@ pub fn run(parts: RtParts) {
         plc: PlcArea::new(),
         sb_seq: u32::MAX,
         has_spindle: false,
+        spindle_off: false,
     };
     rt.has_spindle = rt.p.bus.has_spindle();
     rt.p.bus.enable();
@@ -240,6 +252,7 @@ impl Rt {
         s.ticks = self.stats.summary();
         s.spindle_rpm = self.fb.spindle_rpm;
         s.waiting_for_spindle = self.interp.waiting_for_spindle();
+        s.program_stop = self.interp.at_program_stop();
         s.plc = self.plc;
         self.p.status.write(*s);
         !(self.shutting_down && self.settle_ticks >= SETTLE_TICKS)
@@ -253,6 +266,7 @@ impl Rt {
                         self.active_job = job;
                         self.snap.job = job;
                         self.sb_seq = u32::MAX;
+                        self.spindle_off = false;
                         self.snap.state = MachineState::Running;
                     }
                 }
@@ -280,6 +294,10 @@ impl Rt {
                     self.snap.single_block = on;
                     self.sb_seq = u32::MAX;
                 }
+                RtCommand::OptionalStop(on) => {
+                    self.interp.set_optional_stop(on);
+                    self.snap.optional_stop = on;
+                }
                 RtCommand::Shutdown => {
                     self.shutting_down = true;
                     self.abort();
@@ -299,9 +317,16 @@ impl Rt {
             Motion::Feed
         };
         let axis = self.p.kr.config().controlling_axis;
+        // After a stop the spindle stops once the axes are at rest; on a fault at once.
+        let off = self.snap.fault.is_some()
+            || (self.spindle_off && self.interp.state() == InterpState::Idle);
         let input = KrInput {
             program: ProgramSpindle {
-                dir: out.spindle.dir,
+                dir: if off {
+                    kernel::block::SpindleDir::Stopped
+                } else {
+                    out.spindle.dir
+                },
                 css: out.spindle.css,
                 s_word: out.spindle.s,
                 limit_rpm: out.spindle.limit_rpm,
@@ -342,6 +367,7 @@ impl Rt {
 
     /// Ends the active job: brake on the path and drop what remains.
     fn abort(&mut self) {
+        self.spindle_off = true;
         if self.active_job != 0 {
             self.snap.aborted_job = self.active_job;
             self.active_job = 0;

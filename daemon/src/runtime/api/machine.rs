@@ -198,6 +198,10 @@ impl Machine for MachineSvc {
     ) -> Result<Response<pb::StartReply>, Status> {
         require(&req, Operator, "Start")?;
         let _one_at_a_time = self.0.start_lock.lock().await;
+        // Start on a held machine (feed hold, M0/M1) continues the job.
+        if let Some(job) = self.0.ctl.start_resumes().map_err(status_of)? {
+            return Ok(Response::new(pb::StartReply { job }));
+        }
         let st = self.0.clone();
         let job = blocking(move || -> Result<u32, Status> {
             if st.single_block.load(Ordering::Relaxed) {
@@ -281,6 +285,16 @@ impl Machine for MachineSvc {
         self.0.ctl.set_single_block(on).map_err(status_of)?;
         self.0.single_block.store(on, Ordering::Relaxed);
         Ok(Response::new(pb::SetSingleBlockReply {}))
+    }
+
+    async fn set_optional_stop(
+        &self,
+        req: Request<pb::SetOptionalStopRequest>,
+    ) -> Result<Response<pb::SetOptionalStopReply>, Status> {
+        require(&req, Operator, "SetOptionalStop")?;
+        let on = req.into_inner().on;
+        self.0.ctl.set_optional_stop(on).map_err(status_of)?;
+        Ok(Response::new(pb::SetOptionalStopReply {}))
     }
 
     async fn mdi(&self, req: Request<pb::MdiRequest>) -> Result<Response<pb::StartReply>, Status> {
