@@ -216,4 +216,9 @@ pub trait DriveBus: Send {
 
     /// Clears faults (CiA 402 fault reset), then enables again.
     fn reset(&mut self);
+
+    /// After a fault stop, once the healthy axes are at rest: brings every drive to its safe
+    /// state (CiA 402: quick stop, then power stage off), so nothing moves until a reset.
+    /// Default: nothing (the bus has no such command; its drives hold their last setpoint).
+    fn safe_state(&mut self) {}
 }

@@ -198,6 +198,12 @@ impl Interpolator {
         }
     }
 
+    /// Path of the segment the commanded position lies on (`None` with nothing buffered): the
+    /// programmed path a fault stop is measured against.
+    pub fn current_path(&self) -> Option<crate::plan::SegPath> {
+        (self.len > 0).then(|| self.seg(0).path)
+    }
+
     /// Operator switch "optional stop": M1 stops the program only while it is on.
     pub fn set_optional_stop(&mut self, on: bool) {
         self.optional_stop = on;

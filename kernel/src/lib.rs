@@ -13,6 +13,7 @@ pub mod block;
 pub mod comp;
 pub mod constants;
 pub mod diag;
+pub mod estop;
 pub mod interp;
 pub mod kr;
 pub mod limits;

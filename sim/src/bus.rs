@@ -69,6 +69,10 @@ impl DriveBus for SimBus {
         self.drives.iter_mut().for_each(SimDrive::enable);
     }
 
+    fn safe_state(&mut self) {
+        self.drives.iter_mut().for_each(SimDrive::disable);
+    }
+
     fn reset(&mut self) {
         for d in &mut self.drives {
             d.reset();

@@ -80,6 +80,14 @@ impl SimDrive {
         }
     }
 
+    /// Switches the power stage off (the safe state after a fault stop); a faulted drive
+    /// stays faulted until reset.
+    pub fn disable(&mut self) {
+        if self.state != DriveState::Fault {
+            self.state = DriveState::Disabled;
+        }
+    }
+
     pub fn force_fault(&mut self) {
         self.state = DriveState::Fault;
     }

@@ -67,6 +67,9 @@ impl<B: DriveBus> DriveBus for RecordingBus<B> {
     fn reset(&mut self) {
         self.inner.reset()
     }
+    fn safe_state(&mut self) {
+        self.inner.safe_state()
+    }
 }
 
 /// Per-axis finite differences of a setpoint stream: (max |v| mm/s, max |a| mm/s²) per axis.
