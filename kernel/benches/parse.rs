@@ -8,53 +8,17 @@
 //!
 //! Run: `cargo bench -p kernel --bench parse` (release profile).
 
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::hint::black_box;
-use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 use std::time::Instant;
 
 use kernel::program::{Setup, compile, stream, validate};
 
-struct Counting;
-
-static CURRENT: AtomicUsize = AtomicUsize::new(0);
-static PEAK: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
-        let p = unsafe { System.alloc(l) };
-        if !p.is_null() {
-            let now = CURRENT.fetch_add(l.size(), Relaxed) + l.size();
-            PEAK.fetch_max(now, Relaxed);
-        }
-        p
-    }
-    unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
-        unsafe { System.dealloc(p, l) };
-        CURRENT.fetch_sub(l.size(), Relaxed);
-    }
-    unsafe fn realloc(&self, p: *mut u8, l: Layout, new: usize) -> *mut u8 {
-        let q = unsafe { System.realloc(p, l, new) };
-        if !q.is_null() {
-            if new >= l.size() {
-                let now = CURRENT.fetch_add(new - l.size(), Relaxed) + new - l.size();
-                PEAK.fetch_max(now, Relaxed);
-            } else {
-                CURRENT.fetch_sub(l.size() - new, Relaxed);
-            }
-        }
-        q
-    }
-}
-
 #[global_allocator]
-static ALLOC: Counting = Counting;
+static ALLOC: alloc_count::Counting = alloc_count::Counting;
 
 /// Resets the peak to the current level and returns that level.
 fn mark() -> usize {
-    let now = CURRENT.load(Relaxed);
-    PEAK.store(now, Relaxed);
-    now
+    alloc_count::mark_peak()
 }
 
 const BLOCKS: usize = 1_000_000;
@@ -133,7 +97,7 @@ fn main() {
         let d = validate(black_box(&text), &setup);
         let dt = t.elapsed().as_secs_f64();
         assert!(d.is_empty(), "{:?}", &d[..d.len().min(3)]);
-        peak = peak.max(PEAK.load(Relaxed) - base);
+        peak = peak.max(alloc_count::peak_bytes() - base);
         best = best.min(dt);
         drop(d);
     }
@@ -163,7 +127,7 @@ fn main() {
         let dt = t.elapsed().as_secs_f64();
         black_box(sum);
         assert_eq!(count, blocks);
-        peak = peak.max(PEAK.load(Relaxed) - base);
+        peak = peak.max(alloc_count::peak_bytes() - base);
         best = best.min(dt);
     }
     row(
@@ -179,7 +143,7 @@ fn main() {
     let t = Instant::now();
     let c = compile(black_box(&text), &setup);
     let dt = t.elapsed().as_secs_f64();
-    let peak = PEAK.load(Relaxed) - base;
+    let peak = alloc_count::peak_bytes() - base;
     assert_eq!(c.blocks.len(), blocks);
     drop(c);
     row("compile (all blocks held)", dt, blocks, peak, text.len());

@@ -15,6 +15,7 @@ pub mod constants;
 pub mod diag;
 pub mod estop;
 pub mod interp;
+pub mod jog;
 pub mod kr;
 pub mod limits;
 pub mod offsets;

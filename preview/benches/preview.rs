@@ -6,45 +6,21 @@
 //! Peak heap is counted by a global allocator above the level before each call (the program
 //! text itself is not counted: the caller holds it anyway).
 
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::fmt::Write;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use preview::PreviewOptions;
 
-struct Counting;
-
-static CURRENT: AtomicUsize = AtomicUsize::new(0);
-static PEAK: AtomicUsize = AtomicUsize::new(0);
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        let p = unsafe { System.alloc(layout) };
-        if !p.is_null() {
-            let now = CURRENT.fetch_add(layout.size(), Ordering::Relaxed) + layout.size();
-            PEAK.fetch_max(now, Ordering::Relaxed);
-        }
-        p
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        unsafe { System.dealloc(ptr, layout) };
-        CURRENT.fetch_sub(layout.size(), Ordering::Relaxed);
-    }
-}
-
 #[global_allocator]
-static GLOBAL: Counting = Counting;
+static ALLOC: alloc_count::Counting = alloc_count::Counting;
 
 /// Runs `f`, returns its result, seconds and peak heap above the level before, MiB.
 fn measure<T>(f: impl FnOnce() -> T) -> (T, f64, f64) {
-    let base = CURRENT.load(Ordering::Relaxed);
-    PEAK.store(base, Ordering::Relaxed);
+    let base = alloc_count::mark_peak();
     let t = Instant::now();
     let out = f();
     let s = t.elapsed().as_secs_f64();
-    let peak = PEAK.load(Ordering::Relaxed).saturating_sub(base);
+    let peak = alloc_count::peak_bytes().saturating_sub(base);
     (out, s, peak as f64 / (1024.0 * 1024.0))
 }
 

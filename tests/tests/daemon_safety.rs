@@ -272,3 +272,149 @@ fn diagnostics(s: &tonic::Status) -> Vec<pb::Diagnostic> {
     use prost::Message;
     pb::Diagnostics::decode(s.details()).unwrap().items
 }
+
+/// Records the drives' actual positions of every tick (the tool position the fault test
+/// measures the deviation from the path with, independently of the daemon's own figure).
+struct FeedbackBus {
+    inner: sim::SimBus,
+    actual: Arc<std::sync::Mutex<Vec<[f64; hal::MAX_AXES]>>>,
+    states: Arc<std::sync::Mutex<[hal::DriveState; hal::MAX_AXES]>>,
+}
+
+impl hal::DriveBus for FeedbackBus {
+    fn name(&self) -> &str {
+        "sim"
+    }
+    fn axes(&self) -> usize {
+        self.inner.axes()
+    }
+    fn has_spindle(&self) -> bool {
+        true
+    }
+    fn cycle(
+        &mut self,
+        cmd: &hal::CycleCommand,
+        fb: &mut hal::CycleFeedback,
+    ) -> Result<(), hal::BusFault> {
+        let r = self.inner.cycle(cmd, fb);
+        let mut p = [0.0; hal::MAX_AXES];
+        for (i, a) in fb.axes.iter().enumerate() {
+            p[i] = a.position_mm;
+        }
+        self.actual.lock().unwrap().push(p);
+        let mut st = self.states.lock().unwrap();
+        for (i, a) in fb.axes.iter().enumerate() {
+            st[i] = a.state;
+        }
+        r
+    }
+    fn enable(&mut self) {
+        self.inner.enable()
+    }
+    fn reset(&mut self) {
+        self.inner.reset()
+    }
+    fn safe_state(&mut self) {
+        self.inner.safe_state()
+    }
+}
+
+/// Distance of (x, y) from the line through the origin and (1000, 200).
+fn off_line_mm(p: &[f64; hal::MAX_AXES]) -> f64 {
+    (p[0] * 200.0 - p[1] * 1000.0).abs() / 1000f64.hypot(200.0)
+}
+
+/// Issue #15: with a 5 mm following window, `N20 G1 X1000 Y200 F12000` makes X fault (its
+/// following error passes 5 mm at about 150 mm/s). Before: the RT thread braked along the path
+/// while X stood still, Y ran on 5.3 mm and the tool ended 5.19 mm off the line. Now every
+/// healthy axis brakes on its own at its stop deceleration: Y stops after its following error
+/// plus v²/2a.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn fault_stops_every_axis_on_its_own_and_reports_the_path_deviation() {
+    let mut cfg = tests::test_config();
+    cfg.sim.following_window_mm = 5.0;
+    let params = sim::SimDriveParams {
+        kv_per_s: cfg.sim.kv_per_s,
+        following_window_mm: cfg.sim.following_window_mm,
+        ..Default::default()
+    };
+    let actual = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let states = Arc::new(std::sync::Mutex::new(Default::default()));
+    let bus = FeedbackBus {
+        inner: sim::SimBus::new(params, &[0.0, 0.0, 0.0]),
+        actual: actual.clone(),
+        states: states.clone(),
+    };
+    let ctl = Controller::start_with_bus(cfg.clone(), ClockKind::Virtual, Box::new(bus)).unwrap();
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));
+    let mut c = MachineClient::connect(format!("http://{addr}"))
+        .await
+        .unwrap();
+    wait_state(&ctl, MachineState::Idle, Duration::from_secs(10)).await;
+    load(&mut c, "N10 S1000 M3\nN20 G1 X1000 Y200 F12000\n")
+        .await
+        .unwrap();
+    let job = start(&mut c).await;
+    wait_for(&ctl, "fault", |s| s.state == MachineState::Fault).await;
+    // Wait until the drives are at rest: 250 ticks without any change of the actual position.
+    let t0 = Instant::now();
+    loop {
+        let n = actual.lock().unwrap().len();
+        {
+            let a = actual.lock().unwrap();
+            if n > 300 && a[n - 250..].iter().all(|p| p == &a[n - 1]) {
+                break;
+            }
+        }
+        assert!(t0.elapsed() < Duration::from_secs(30), "never at rest");
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    let s = ctl.snapshot();
+    assert_eq!(s.aborted_job, job);
+    let f = s.fault.expect("a fault");
+    assert_eq!((f.axis, f.node), (Some(0), Some(1)));
+    assert_eq!(f.reason, hal::FaultReason::FollowingError);
+    let worst = actual
+        .lock()
+        .unwrap()
+        .iter()
+        .map(off_line_mm)
+        .fold(0.0, f64::max);
+    eprintln!(
+        "fault stop: tool left the programmed line by {worst:.3} mm (status says {:.3} mm)",
+        s.fault_path_deviation_mm
+    );
+    // The alarm names axis, node and reason.
+    let st = status(&mut c).await;
+    assert!(
+        st.alarm.contains("axis X") && st.alarm.contains("node 1"),
+        "{}",
+        st.alarm
+    );
+    assert!(
+        (st.fault_path_deviation_mm - worst).abs() < 1e-6,
+        "{} vs {worst}",
+        st.fault_path_deviation_mm
+    );
+    // Y at the fault: about 38 mm/s, 1.27 mm following error; braking at 800 mm/s² takes
+    // 0.9 mm more: the tool ends about 2.2 mm off the line (5.19 mm before).
+    assert!(worst < 2.4, "deviation {worst} mm");
+    // The spindle stops at once; the healthy drives are switched off once at rest.
+    assert_eq!(s.spindle_rpm, 0.0);
+    wait_for(&ctl, "drives in their safe state", |_| {
+        let st = states.lock().unwrap();
+        st[0] == hal::DriveState::Fault
+            && st[1] == hal::DriveState::Disabled
+            && st[2] == hal::DriveState::Disabled
+    })
+    .await;
+    // Reset re-enables the drives where they stand; the machine runs again.
+    c.reset(pb::ResetRequest {}).await.unwrap();
+    wait_state(&ctl, MachineState::Idle, Duration::from_secs(10)).await;
+    let here = ctl.snapshot().commanded;
+    let job = ctl.start_text("mdi", "G91 G1 X-10 F1000", false).unwrap().0;
+    wait_job_finished(&ctl, job, Duration::from_secs(30)).await;
+    assert!((ctl.snapshot().commanded[0] - (here[0] - 10.0)).abs() < 1e-9);
+}

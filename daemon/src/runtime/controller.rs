@@ -162,6 +162,7 @@ impl Controller {
             start,
             kr,
             in_position_mm,
+            stop_decel_mm_s2: stop_decel(&config),
         };
         let rt_cfg = config.rt.clone();
         let rt_thread = std::thread::Builder::new()
@@ -635,6 +636,15 @@ impl Drop for Controller {
     fn drop(&mut self) {
         self.pump_stop.store(true, Ordering::Relaxed);
     }
+}
+
+/// Fault-reaction deceleration of each axis (`stop_decel_mm_s2`, else its acceleration).
+fn stop_decel(config: &Config) -> [f64; MAX_AXES] {
+    let mut d = [f64::INFINITY; MAX_AXES];
+    for (i, a) in config.axes.iter().enumerate().take(MAX_AXES) {
+        d[i] = a.stop_decel();
+    }
+    d
 }
 
 /// The KŘR configuration from the constants and the `[kr]` section.

@@ -8,6 +8,7 @@ pub mod job;
 pub mod logging;
 pub mod pipeline;
 pub mod rt;
+pub mod rt_core;
 pub mod server;
 pub mod stats;
 pub mod storage;

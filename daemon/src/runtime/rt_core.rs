@@ -1,0 +1,591 @@
+//! The real-time core: the whole 4 ms tick as a pure state machine driven by its caller, in the
+//! style of quinn-proto's `Connection`. The caller owns the clock, the sleeping, the rings and
+//! the bus; it calls [`RtCore::tick`] once per wake-up with the time it woke and gets the
+//! snapshot to publish. The core keeps the deadline grid and accounts lateness and overruns
+//! against it, so the same code runs on the RT thread ([`super::rt::run`]) and in the
+//! single-threaded simulation harness of the tests, where the clock is seeded, jittery and late.
+//!
+//! One tick, in phases (one method each): timing → commands → PLC → segments → motion
+//! (interpolator, in-position, spindle ready) → KŘR/spindle → single block → bus exchange →
+//! state machine → snapshot. After [`RtCore::new`] no phase allocates, locks or logs.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU32, Ordering};
+
+use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState};
+use kernel::block::SpindleDir;
+use kernel::estop::AxisBrake;
+use kernel::interp::{InterpState, Interpolator, TickOut};
+use kernel::kr::{ControllingAxis, Kr, KrFault, KrInput, KrOutput, Motion, ProgramSpindle};
+use kernel::plan::Segment;
+use kernel::plc::{PlcArea, PlcWrite};
+use kernel::units::{AxesMm, MAX_AXES, TS_NS};
+
+use super::stats::{TickStats, TickSummary};
+
+/// Commands from the non-RT side.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RtCommand {
+    /// Run the segments of `job` (arriving on the segment ring).
+    Start { job: u32 },
+    /// Brake to rest on the path, drop the rest of the job.
+    Stop,
+    /// Feed hold.
+    Hold,
+    /// Continue after a feed hold.
+    Resume,
+    /// Feed override in percent (0..150).
+    Override(f64),
+    /// Clear a fault and re-enable the drives.
+    Reset,
+    /// Bring the axes to rest and end the thread.
+    Shutdown,
+    /// A validated write of the PLC side, in force from the next tick (SPEC §6).
+    Plc(PlcWrite),
+    /// Single-block mode: hold when the path enters a new block (API, issue #8).
+    SingleBlock(bool),
+    /// Optional stop switch: M1 stops the program while on (issue #15).
+    OptionalStop(bool),
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MachineState {
+    /// Drives are being enabled.
+    #[default]
+    Enabling,
+    Idle,
+    Running,
+    Stopping,
+    Hold,
+    Fault,
+    /// Shutting down: braking, then the thread ends.
+    Shutdown,
+}
+
+/// What the RT thread publishes every tick. `Copy`, fixed size: written without allocation.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Snapshot {
+    /// Increases by one per tick.
+    pub sequence: u64,
+    /// Clock time of the tick, ns.
+    pub time_ns: u64,
+    pub state: MachineState,
+    pub axes: usize,
+    pub commanded: AxesMm,
+    pub actual: AxesMm,
+    pub path_v_mm_s: f64,
+    /// Job running, or the last one started.
+    pub job: u32,
+    /// Last job that ran to its end.
+    pub finished_job: u32,
+    /// Last job that was stopped or ended by a fault.
+    pub aborted_job: u32,
+    /// Block being executed: index in the program, `N`, source line.
+    pub block_seq: u32,
+    pub block_n: Option<u32>,
+    pub line: u32,
+    pub ticks: TickSummary,
+    pub fault: Option<BusFault>,
+    pub override_pct: f64,
+    pub spindle_rpm: f64,
+    /// PLC memory area 1 as in force this tick.
+    pub plc: PlcArea,
+    /// Single-block mode is on.
+    pub single_block: bool,
+    /// A cut waits at rest for the spindle to reach its speed.
+    pub waiting_for_spindle: bool,
+    /// Constant cutting speed (KŘR) output this tick (SPEC §6).
+    pub kr: KrOutput,
+    /// A KŘR fault stopped the machine (cleared by Reset).
+    pub kr_fault: Option<KrFault>,
+    /// Optional stop is on: M1 stops the program.
+    pub optional_stop: bool,
+    /// Held at a program stop (M0, or M1 with optional stop on).
+    pub program_stop: bool,
+    /// Largest distance of the tool from the programmed path the last fault stop caused, mm.
+    pub fault_path_deviation_mm: f64,
+}
+
+impl Snapshot {
+    /// The snapshot before the first tick: at `start`, override 100 %.
+    pub fn initial(axes: usize, start: AxesMm) -> Snapshot {
+        Snapshot {
+            axes,
+            commanded: start,
+            actual: start,
+            override_pct: 100.0,
+            ..Snapshot::default()
+        }
+    }
+}
+
+/// Ticks the drives get to become operational before it is a fault.
+const ENABLE_TIMEOUT_TICKS: u32 = 2_500;
+/// After shutdown braking: ticks to let the drives settle before the thread ends.
+const SETTLE_TICKS: u32 = 250;
+/// Following error under which an axis counts as settled, mm.
+const SETTLED_MM: f64 = 0.001;
+/// The spindle counts as at speed within this share of its setpoint (or `SPINDLE_AT_SPEED_RPM`).
+const SPINDLE_AT_SPEED_SHARE: f64 = 0.05;
+const SPINDLE_AT_SPEED_RPM: f64 = 2.0;
+
+/// Whether the actual spindle speed is close enough to the setpoint (same sign) for a cut.
+fn spindle_at_speed(set_rpm: f64, actual_rpm: f64) -> bool {
+    (set_rpm - actual_rpm).abs()
+        <= (SPINDLE_AT_SPEED_SHARE * set_rpm.abs()).max(SPINDLE_AT_SPEED_RPM)
+}
+
+/// Refresh the lateness percentiles every this many ticks (a histogram walk).
+const STATS_REFRESH_TICKS: u64 = 50;
+
+/// The RT side of the links to the rest of the daemon: two bounded lock-free SPSC rings in and
+/// the id of the last job whose planning is complete.
+pub struct RtRings {
+    pub commands: rtrb::Consumer<RtCommand>,
+    pub segments: rtrb::Consumer<Segment>,
+    /// Id of the last job whose planning is complete (all its segments are on the ring).
+    pub planned_job: Arc<AtomicU32>,
+}
+
+/// What the core is built from (once, at start-up).
+pub struct RtCoreConfig {
+    pub axes: usize,
+    pub start: AxesMm,
+    /// Constant cutting speed state machine (built from the constants at start-up).
+    pub kr: Kr,
+    /// Following error under which every axis counts as arrived, for G24 (R06-R07), mm.
+    pub in_position_mm: f64,
+}
+
+/// The real-time core. Everything the tick owns; the caller owns time, rings and bus.
+pub struct RtCore {
+    axes: usize,
+    kr: Kr,
+    in_position_mm: f64,
+    interp: Interpolator,
+    stats: TickStats,
+    snap: Snapshot,
+    cmd: CycleCommand,
+    fb: CycleFeedback,
+    /// Next deadline of the absolute grid, ns of the caller's clock.
+    deadline_ns: u64,
+    /// Job whose segments are accepted (0: none).
+    active_job: u32,
+    enable_ticks: u32,
+    shutting_down: bool,
+    settle_ticks: u32,
+    plc: PlcArea,
+    /// Single block: the block the path was in when last checked (`u32::MAX`: not yet moving
+    /// in this job).
+    sb_seq: u32,
+    /// The bus has a spindle drive (asked once at start-up).
+    has_spindle: bool,
+    /// A stop ended the job: the spindle stops once the axes are at rest (until the next
+    /// start).
+    spindle_off: bool,
+    /// Fault reaction (issue #15): every healthy axis brakes on its own.
+    brake: AxisBrake,
+    /// Setpoints sent the tick before the last one (the brake starts from their speed).
+    prev_setpoint: AxesMm,
+    /// Ticks since the brake came to rest; the drives go to their safe state once settled.
+    brake_rest_ticks: u32,
+    safe_state_sent: bool,
+}
+
+/// Stop deceleration of every axis until [`RtCore::set_stop_decel`] gives the configured ones,
+/// mm/s² (the default axis acceleration of the configuration).
+const DEFAULT_STOP_DECEL_MM_S2: f64 = 800.0;
+
+impl RtCore {
+    /// Builds the core (allocates: call before the RT loop starts), asks the bus to enable the
+    /// drives and puts the first deadline one period after `now_ns`.
+    pub fn new(cfg: RtCoreConfig, bus: &mut dyn DriveBus, now_ns: u64) -> RtCore {
+        let mut cmd = CycleCommand::default();
+        cmd.positions_mm[..cfg.axes].copy_from_slice(&cfg.start.0[..cfg.axes]);
+        let has_spindle = bus.has_spindle();
+        bus.enable();
+        RtCore {
+            axes: cfg.axes,
+            interp: Interpolator::new(cfg.axes, cfg.start),
+            snap: Snapshot::initial(cfg.axes, cfg.start),
+            kr: cfg.kr,
+            in_position_mm: cfg.in_position_mm,
+            stats: TickStats::new(),
+            cmd,
+            fb: CycleFeedback::default(),
+            deadline_ns: now_ns + TS_NS,
+            active_job: 0,
+            enable_ticks: 0,
+            shutting_down: false,
+            settle_ticks: 0,
+            plc: PlcArea::new(),
+            sb_seq: u32::MAX,
+            has_spindle,
+            spindle_off: false,
+            brake: AxisBrake::new(cfg.axes, [DEFAULT_STOP_DECEL_MM_S2; MAX_AXES]),
+            prev_setpoint: cfg.start,
+            brake_rest_ticks: 0,
+            safe_state_sent: false,
+        }
+    }
+
+    /// Stop deceleration of each axis for the fault reaction, mm/s² (`[axes]` in machine order).
+    pub fn set_stop_decel(&mut self, decel_mm_s2: [f64; MAX_AXES]) {
+        self.brake = AxisBrake::new(self.axes, decel_mm_s2);
+    }
+
+    /// The absolute time the next tick is due: sleep until then, then call [`RtCore::tick`].
+    pub fn next_deadline_ns(&self) -> u64 {
+        self.deadline_ns
+    }
+
+    /// The last snapshot.
+    pub fn snapshot(&self) -> &Snapshot {
+        &self.snap
+    }
+
+    /// Job whose segments are accepted (0: none).
+    pub fn active_job(&self) -> u32 {
+        self.active_job
+    }
+
+    /// The interpolator has room for more segments.
+    pub fn wants_segments(&self) -> bool {
+        self.interp.has_room()
+    }
+
+    /// A `Shutdown` command has brought the axes to rest: the loop should end.
+    pub fn finished(&self) -> bool {
+        self.shutting_down && self.settle_ticks >= SETTLE_TICKS
+    }
+
+    /// One tick at `now_ns` (the time the caller woke, at or after [`RtCore::next_deadline_ns`]).
+    /// Never allocates, locks or blocks.
+    pub fn tick(&mut self, now_ns: u64, rings: &mut RtRings, bus: &mut dyn DriveBus) -> &Snapshot {
+        self.timing(now_ns);
+        self.commands(&mut rings.commands, bus);
+        // PLC writes staged since the last tick take effect now.
+        self.plc.begin_tick();
+        self.feed_segments(&mut rings.segments);
+        let out = self.motion();
+        self.spindle(&out);
+        self.single_block_check(out.seq, out.path_v_mm_s);
+        self.exchange(&out, bus);
+        self.fault_reaction(bus);
+        let planned = rings.planned_job.load(Ordering::Acquire);
+        self.update_state(planned, rings.segments.is_empty());
+        self.publish(now_ns, &out)
+    }
+
+    /// Deadline grid: a tick that woke after the next deadline skips the missed ones and stays
+    /// on the grid (no drift). The trajectory advances one Ts per executed tick, so no setpoint
+    /// jumps either.
+    fn timing(&mut self, now_ns: u64) {
+        let lateness_ns = now_ns.saturating_sub(self.deadline_ns);
+        let missed = lateness_ns / TS_NS;
+        self.deadline_ns += (missed + 1) * TS_NS;
+        self.stats.record(lateness_ns, missed);
+        if self.snap.sequence.is_multiple_of(STATS_REFRESH_TICKS) {
+            self.stats.refresh();
+        }
+    }
+
+    /// The interpolator's setpoint of this tick. G24 waits at a stop until every axis has caught
+    /// up with its setpoint (SPEC §7.1); a cut starts from rest only with the spindle at the
+    /// speed commanded last tick.
+    fn motion(&mut self) -> TickOut {
+        let in_position = (0..self.axes)
+            .all(|i| (self.snap.commanded[i] - self.snap.actual[i]).abs() <= self.in_position_mm);
+        self.interp.set_in_position(in_position);
+        self.interp.set_spindle_ready(
+            !self.has_spindle || spindle_at_speed(self.cmd.spindle_rpm, self.fb.spindle_rpm),
+        );
+        self.interp.tick()
+    }
+
+    /// Setpoints out, feedback in; a bus fault stops the machine.
+    fn exchange(&mut self, out: &TickOut, bus: &mut dyn DriveBus) {
+        let axes = self.axes;
+        self.prev_setpoint = AxesMm(self.cmd.positions_mm);
+        // After a fault the brake, not the path, commands the axes.
+        let setpoint = if self.brake.active() {
+            self.brake.tick()
+        } else {
+            out.position
+        };
+        self.cmd.positions_mm[..axes].copy_from_slice(&setpoint.0[..axes]);
+        let result = bus.cycle(&self.cmd, &mut self.fb);
+        for i in 0..axes {
+            self.snap.actual[i] = self.fb.axes[i].position_mm;
+        }
+        if let Err(fault) = result {
+            self.fault(fault);
+        }
+    }
+
+    fn publish(&mut self, now_ns: u64, out: &TickOut) -> &Snapshot {
+        let s = &mut self.snap;
+        s.sequence += 1;
+        s.time_ns = now_ns;
+        s.commanded = AxesMm(self.cmd.positions_mm);
+        s.path_v_mm_s = out.path_v_mm_s;
+        s.block_seq = out.seq;
+        s.block_n = out.n;
+        s.line = out.line;
+        s.ticks = self.stats.summary();
+        s.spindle_rpm = self.fb.spindle_rpm;
+        s.waiting_for_spindle = self.interp.waiting_for_spindle();
+        s.program_stop = self.interp.at_program_stop();
+        s.plc = self.plc;
+        &self.snap
+    }
+
+    fn commands(&mut self, commands: &mut rtrb::Consumer<RtCommand>, bus: &mut dyn DriveBus) {
+        while let Ok(c) = commands.pop() {
+            match c {
+                RtCommand::Start { job } => {
+                    if self.snap.state == MachineState::Idle && !self.shutting_down {
+                        self.active_job = job;
+                        self.snap.job = job;
+                        self.sb_seq = u32::MAX;
+                        self.spindle_off = false;
+                        self.snap.state = MachineState::Running;
+                    }
+                }
+                RtCommand::Stop => self.abort(),
+                RtCommand::Hold => self.interp.hold(),
+                RtCommand::Resume => self.interp.resume(),
+                RtCommand::Override(pct) => {
+                    self.interp.set_override(pct);
+                    self.snap.override_pct = pct.clamp(0.0, 150.0);
+                }
+                RtCommand::Reset => {
+                    if self.snap.state == MachineState::Fault
+                        && self.interp.state() == InterpState::Idle
+                    {
+                        self.snap.fault = None;
+                        self.snap.kr_fault = None;
+                        self.brake.clear();
+                        self.safe_state_sent = false;
+                        self.kr.reset();
+                        bus.reset();
+                        self.enable_ticks = 0;
+                        self.snap.state = MachineState::Enabling;
+                    }
+                }
+                RtCommand::Plc(w) => self.plc.stage(w),
+                RtCommand::SingleBlock(on) => {
+                    self.snap.single_block = on;
+                    self.sb_seq = u32::MAX;
+                }
+                RtCommand::OptionalStop(on) => {
+                    self.interp.set_optional_stop(on);
+                    self.snap.optional_stop = on;
+                }
+                RtCommand::Shutdown => {
+                    self.shutting_down = true;
+                    self.abort();
+                }
+            }
+        }
+    }
+
+    /// Constant cutting speed and the spindle setpoint (SPEC §6): computed from the spindle
+    /// state of the block being executed and the commanded position of the controlling axis.
+    fn spindle(&mut self, out: &TickOut) {
+        let motion = if out.path_v_mm_s <= 0.0 {
+            Motion::Stationary
+        } else if out.rapid {
+            Motion::Rapid
+        } else {
+            Motion::Feed
+        };
+        let axis = self.kr.config().controlling_axis;
+        // After a stop the spindle stops once the axes are at rest; on a fault at once.
+        let off = self.snap.fault.is_some()
+            || (self.spindle_off && self.interp.state() == InterpState::Idle);
+        let input = KrInput {
+            program: ProgramSpindle {
+                dir: if off {
+                    SpindleDir::Stopped
+                } else {
+                    out.spindle.dir
+                },
+                css: out.spindle.css,
+                s_word: out.spindle.s,
+                limit_rpm: out.spindle.limit_rpm,
+                gear: out.spindle.gear,
+            },
+            motion,
+            // The carriage and the offsets in force: KŘR computes at the tool tip, or at the
+            // carriage with EXT_AKRR_SUPORT (SPEC §6).
+            axis: ControllingAxis::of(out.position[axis], &out.spindle),
+        };
+        let k = self.kr.tick(&input, &mut self.plc);
+        self.cmd.spindle_rpm = k.spindle_rpm;
+        self.snap.kr = k;
+        if let Some(f) = k.fault
+            && self.snap.kr_fault.is_none()
+        {
+            self.snap.kr_fault = Some(f);
+            self.abort();
+        }
+    }
+
+    /// Single-block mode: once the path of the running job moves into another block, hold.
+    fn single_block_check(&mut self, seq: u32, v_mm_s: f64) {
+        if !self.snap.single_block || self.active_job == 0 {
+            return;
+        }
+        if self.sb_seq == u32::MAX {
+            if v_mm_s > 0.0 {
+                self.sb_seq = seq;
+            }
+        } else if seq != self.sb_seq {
+            self.sb_seq = seq;
+            if self.interp.state() == InterpState::Running {
+                self.interp.hold();
+            }
+        }
+    }
+
+    /// Ends the active job: brake on the path and drop what remains.
+    fn abort(&mut self) {
+        self.spindle_off = true;
+        if self.active_job != 0 {
+            self.snap.aborted_job = self.active_job;
+            self.active_job = 0;
+        }
+        self.interp.stop();
+    }
+
+    fn fault(&mut self, fault: BusFault) {
+        if self.snap.fault.is_none() {
+            self.snap.fault = Some(fault);
+            self.start_fault_stop(fault);
+            self.abort();
+        }
+    }
+
+    /// Fault reaction (issue #15): a faulted axis no longer follows, so braking along the path
+    /// would pull the tool off it. Every healthy axis brakes on its own at its stop
+    /// deceleration from the speed of its last setpoints; a faulted axis keeps its setpoint
+    /// where it stands.
+    fn start_fault_stop(&mut self, fault: BusFault) {
+        let now = AxesMm(self.cmd.positions_mm);
+        self.brake
+            .start(&self.prev_setpoint, &now, self.interp.current_path());
+        if let Some(a) = fault.axis.map(usize::from).filter(|&a| a < self.axes) {
+            self.brake.hold_axis(a, self.fb.axes[a].position_mm);
+        }
+        self.brake_rest_ticks = 0;
+        self.safe_state_sent = false;
+        self.snap.fault_path_deviation_mm = 0.0;
+    }
+
+    /// While the fault stop runs: measure the deviation from the path; once every axis is at
+    /// rest (setpoints still, drives caught up, or a settle timeout), bring the drives to
+    /// their safe state (CiA 402 quick stop / disable).
+    fn fault_reaction(&mut self, bus: &mut dyn DriveBus) {
+        if !self.brake.active() {
+            return;
+        }
+        self.brake.observe(&self.snap.actual);
+        self.snap.fault_path_deviation_mm = self.brake.deviation_mm();
+        if self.safe_state_sent || !self.brake.at_rest() {
+            return;
+        }
+        let settled = (0..self.axes)
+            .all(|i| (self.cmd.positions_mm[i] - self.snap.actual[i]).abs() < SETTLED_MM);
+        self.brake_rest_ticks += 1;
+        if settled || self.brake_rest_ticks >= SETTLE_TICKS {
+            bus.safe_state();
+            self.safe_state_sent = true;
+        }
+    }
+
+    fn feed_segments(&mut self, segments: &mut rtrb::Consumer<Segment>) {
+        while self.interp.has_room() {
+            match segments.pop() {
+                Ok(seg) if seg.job == self.active_job && self.active_job != 0 => {
+                    // Cannot fail: room was checked and we are not stopping this job.
+                    let _ = self.interp.push(seg);
+                }
+                Ok(_) => {} // a stopped job's leftovers
+                Err(_) => break,
+            }
+        }
+    }
+
+    /// The machine state after this tick. `planned_job`: the last job whose planning is
+    /// complete; `ring_empty`: no segment waits on the ring.
+    fn update_state(&mut self, planned_job: u32, ring_empty: bool) {
+        let is = self.interp.state();
+        let s = &mut self.snap;
+        if self.shutting_down {
+            s.state = MachineState::Shutdown;
+            if is == InterpState::Idle {
+                let settled =
+                    (0..self.axes).all(|i| (s.commanded[i] - s.actual[i]).abs() < SETTLED_MM);
+                self.settle_ticks = if settled {
+                    SETTLE_TICKS
+                } else {
+                    self.settle_ticks + 1
+                };
+            }
+            return;
+        }
+        if s.fault.is_some() || s.kr_fault.is_some() {
+            s.state = MachineState::Fault;
+            return;
+        }
+        match s.state {
+            MachineState::Enabling => {
+                // The spindle drive, where there is one, must be ready too: a program's M3
+                // would otherwise go to a drive that cannot turn yet.
+                let ready = self.fb.axes[..self.axes]
+                    .iter()
+                    .all(|a| a.state == DriveState::Operational)
+                    && (!self.has_spindle || self.fb.spindle_state == DriveState::Operational);
+                self.enable_ticks += 1;
+                if ready {
+                    // Drives report where they are: command from there (after a fault or at
+                    // power-on they may be elsewhere than the last setpoint).
+                    let mut here = s.commanded;
+                    for i in 0..self.axes {
+                        here[i] = self.fb.axes[i].position_mm;
+                    }
+                    if self.interp.set_position(here) {
+                        s.commanded = here;
+                        self.cmd.positions_mm[..self.axes].copy_from_slice(&here.0[..self.axes]);
+                    }
+                    s.state = MachineState::Idle;
+                } else if self.enable_ticks > ENABLE_TIMEOUT_TICKS {
+                    s.fault = Some(BusFault {
+                        axis: None,
+                        node: None,
+                        reason: hal::FaultReason::Timeout,
+                    });
+                    s.state = MachineState::Fault;
+                }
+            }
+            MachineState::Running | MachineState::Hold | MachineState::Stopping => {
+                let job_done = self.active_job != 0
+                    && planned_job == self.active_job
+                    && ring_empty
+                    && is == InterpState::Idle;
+                if job_done {
+                    s.finished_job = self.active_job;
+                    self.active_job = 0;
+                }
+                s.state = match is {
+                    _ if self.active_job == 0 && is == InterpState::Idle => MachineState::Idle,
+                    InterpState::Stopping => MachineState::Stopping,
+                    InterpState::Holding | InterpState::Held => MachineState::Hold,
+                    _ => MachineState::Running,
+                };
+            }
+            MachineState::Idle | MachineState::Fault | MachineState::Shutdown => {}
+        }
+    }
+}
