@@ -418,3 +418,181 @@ async fn fault_stops_every_axis_on_its_own_and_reports_the_path_deviation() {
     wait_job_finished(&ctl, job, Duration::from_secs(30)).await;
     assert!((ctl.snapshot().commanded[0] - (here[0] - 10.0)).abs() < 1e-9);
 }
+
+/// A jog request stream kept open by the test: drop the sender to end it.
+async fn jog_stream(
+    c: &MachineClient<Channel>,
+    axis: &str,
+    direction: i32,
+    speed_mm_min: f64,
+) -> (
+    tokio::sync::mpsc::Sender<pb::JogRequest>,
+    tokio::task::JoinHandle<Result<tonic::Response<pb::JogReply>, tonic::Status>>,
+) {
+    let (tx, rx) = tokio::sync::mpsc::channel(4);
+    let msg = pb::JogRequest {
+        axis: axis.into(),
+        direction,
+        speed_mm_min,
+    };
+    tx.send(msg).await.unwrap();
+    let mut c = c.clone();
+    let call =
+        tokio::spawn(async move { c.jog(tokio_stream::wrappers::ReceiverStream::new(rx)).await });
+    (tx, call)
+}
+
+/// Distance axis `axis` travelled from its fastest tick to the end of the recording, with
+/// that speed (mm/s).
+fn braking_after_peak(points: &[[f64; hal::MAX_AXES]], axis: usize) -> (f64, f64) {
+    let v: Vec<f64> = points
+        .windows(2)
+        .map(|w| (w[1][axis] - w[0][axis]) / 0.004)
+        .collect();
+    let (k, vmax) =
+        v.iter().enumerate().fold(
+            (0, 0.0f64),
+            |m, (k, x)| if x.abs() >= m.1 { (k, x.abs()) } else { m },
+        );
+    let end = points.last().unwrap()[axis];
+    ((end - points[k + 1][axis]).abs(), vmax)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn jog_steps_and_continuous_jog_rest_on_the_soft_limit() {
+    let mut cfg = tests::test_config();
+    cfg.axes[0].soft_min_mm = Some(-1.0);
+    cfg.axes[0].soft_max_mm = Some(2.0);
+    let mut d = daemon(cfg).await;
+    let step = |axis: &str, step_mm: f64| pb::JogStepRequest {
+        axis: axis.into(),
+        step_mm,
+        speed_mm_min: 600.0,
+    };
+    let r = d.c.jog_step(step("X", 0.1)).await.unwrap().into_inner();
+    assert_eq!(r.target_mm, 0.1);
+    wait_for(&d.ctl, "step done", |s| {
+        s.state == MachineState::Idle && s.commanded[0] == 0.1
+    })
+    .await;
+    // A step past the soft limit stops on it.
+    let r = d.c.jog_step(step("X", -5.0)).await.unwrap().into_inner();
+    assert_eq!(r.target_mm, -1.0);
+    wait_for(&d.ctl, "clamped step done", |s| {
+        s.state == MachineState::Idle && s.commanded[0] == -1.0
+    })
+    .await;
+    let e = d.c.jog_step(step("Q", 1.0)).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument);
+
+    // Continuous jog toward the limit: decelerates to rest exactly on it, never beyond.
+    d.record.lock().unwrap().clear();
+    let (tx, call) = jog_stream(&d.c, "x", 1, 1000.0).await;
+    wait_for(&d.ctl, "jog started", |s| s.state == MachineState::Jog).await;
+    wait_for(&d.ctl, "at rest on the limit", |s| {
+        s.state == MachineState::Idle && s.commanded[0] == 2.0
+    })
+    .await;
+    assert!(d.record.lock().unwrap().iter().all(|p| p[0] <= 2.0));
+    drop(tx);
+    call.await.unwrap().unwrap();
+    // Jogging while a program runs is refused.
+    load(&mut d.c, "N10 G1 Y1000000 F600\n").await.unwrap();
+    start(&mut d.c).await;
+    wait_for(&d.ctl, "running", |s| s.state == MachineState::Running).await;
+    let e = d.c.jog_step(step("X", -0.5)).await.unwrap_err();
+    assert_eq!(e.code(), Code::FailedPrecondition);
+    d.c.stop(pb::StopRequest {}).await.unwrap();
+}
+
+/// The dead-man: a client that goes away mid-jog (its connection dropped) leaves the axis at
+/// rest within its braking distance from where braking started.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn jog_stops_when_the_client_goes_away() {
+    let d = daemon(tests::test_config()).await;
+    let addr_client = d.c.clone();
+    let (tx, call) = jog_stream(&addr_client, "X", -1, 6000.0).await;
+    wait_for(&d.ctl, "jogging", |s| {
+        s.state == MachineState::Jog && s.commanded[0] < -5.0
+    })
+    .await;
+    // The client vanishes: its task and connection are dropped without ending the stream.
+    call.abort();
+    drop(tx);
+    drop(addr_client);
+    wait_for(&d.ctl, "at rest", |s| s.state == MachineState::Idle).await;
+    let points = d.record.lock().unwrap().clone();
+    let (dist, v) = braking_after_peak(&points, 0);
+    let a = 800.0;
+    assert!(v > 50.0, "never jogged fast: {v}");
+    assert!(
+        dist <= v * v / (2.0 * a) + v * 0.004 + 1e-9,
+        "braked over {dist} mm from {v} mm/s"
+    );
+    let s = d.ctl.snapshot();
+    let last = points.last().unwrap()[0];
+    assert_eq!(s.commanded[0], last, "at rest");
+}
+
+/// Path of a workspace binary of this build (built once per test process if needed).
+fn bin(name: &str) -> std::path::PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    let dir = exe.parent().and_then(|d| d.parent()).unwrap().to_path_buf();
+    let ok = std::process::Command::new(env!("CARGO"))
+        .args(["build", "--quiet", "-p", "daemon", "--bin", name])
+        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
+        .status()
+        .is_ok_and(|s| s.success());
+    assert!(ok, "cargo build of {name} failed");
+    dir.join(name)
+}
+
+/// `cncctl jog X+ --speed 1000` killed (SIGKILL) mid-jog: the axis comes to rest on its own.
+/// Real time here (cncctl renews every 100 ms of wall clock); the bound does not depend on
+/// how late anything runs: after the last renewal the lease (0.5 s) plus the braking distance.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn cncctl_jog_killed_mid_jog_leaves_the_axis_at_rest() {
+    let cncctl = bin("cncctl");
+    let (bus, record) = RecordingBus::new(sim::SimBus::new(
+        sim::SimDriveParams::default(),
+        &[0.0, 0.0, 0.0],
+    ));
+    let ctl = Controller::start_with_bus(tests::test_config(), ClockKind::Monotonic, Box::new(bus))
+        .unwrap();
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));
+    wait_state(&ctl, MachineState::Idle, Duration::from_secs(10)).await;
+    let mut child = std::process::Command::new(&cncctl)
+        .args([
+            "--addr",
+            &format!("http://{addr}"),
+            "jog",
+            "Y+",
+            "--speed",
+            "1000",
+        ])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    wait_for(&ctl, "jogging Y", |s| {
+        s.state == MachineState::Jog && s.commanded[1] > 1.0
+    })
+    .await;
+    child.kill().unwrap();
+    let y_killed = ctl.snapshot().commanded[1];
+    child.wait().unwrap();
+    wait_for(&ctl, "at rest", |s| s.state == MachineState::Idle).await;
+    let v = 1000.0 / 60.0;
+    let y = ctl.snapshot().commanded[1];
+    assert!(
+        y >= y_killed && y - y_killed <= v * 0.5 + v * v / 1600.0 + 1e-6,
+        "{y_killed} -> {y}"
+    );
+    let points = record.lock().unwrap().clone();
+    let (dist, vmax) = braking_after_peak(&points, 1);
+    assert!(vmax <= v + 1e-6);
+    assert!(dist <= vmax * vmax / 1600.0 + vmax * 0.004 + 1e-9, "{dist}");
+    ctl.shutdown();
+}

@@ -91,6 +91,19 @@ enum Cmd {
         #[arg(value_parser = ["on", "off"])]
         mode: String,
     },
+    /// Jog an axis: `cncctl jog X+ --speed 1000` moves X in + at 1000 mm/min until Ctrl-C
+    /// (the axis brakes to rest when cncctl stops, however it stops); `cncctl jog X --step 0.1`
+    /// (or `X- --step 0.1`) moves by one step. Soft limits are never passed.
+    Jog {
+        /// Axis letter, with `+` or `-` for the direction (required for a continuous jog).
+        axis: String,
+        /// Speed, mm/min (default: 10 % of the axis's maximum).
+        #[arg(long, default_value_t = 0.0)]
+        speed: f64,
+        /// Move by this many mm instead of jogging continuously.
+        #[arg(long, allow_hyphen_values = true)]
+        step: Option<f64>,
+    },
     /// Run one block (MDI), e.g. `cncctl mdi "G1 X10 F500"`.
     Mdi { block: String },
     /// Show the machine status.
@@ -614,6 +627,7 @@ async fn run(args: Args) -> Result<ExitCode, String> {
             c.m.set_optional_stop(pb::SetOptionalStopRequest { on: mode == "on" })
                 .await,
         ),
+        Cmd::Jog { axis, speed, step } => jog(&mut c.m, j, &axis, speed, step).await,
         Cmd::Mdi { block } => {
             let job =
                 c.m.mdi(pb::MdiRequest { block })
@@ -1098,6 +1112,80 @@ fn preview_local(
             )
         },
     );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `X+`, `X-` or `X` → (letter, direction: +1, -1 or 0).
+fn jog_axis(arg: &str) -> Result<(String, i32), String> {
+    let (name, dir) = match arg.trim() {
+        a if a.ends_with('+') => (&a[..a.len() - 1], 1),
+        a if a.ends_with('-') => (&a[..a.len() - 1], -1),
+        a => (a, 0),
+    };
+    if name.chars().count() != 1 {
+        return Err(format!("{arg:?}: give an axis letter, e.g. X+ or Z-"));
+    }
+    Ok((name.to_string(), dir))
+}
+
+/// Continuous jog until Ctrl-C (renewed every 100 ms: the daemon stops the axis when the
+/// renewals stop, also if this process is killed), or one step.
+async fn jog(
+    m: &mut MachineClient<Svc>,
+    j: bool,
+    arg: &str,
+    speed: f64,
+    step: Option<f64>,
+) -> Result<ExitCode, String> {
+    let (axis, dir) = jog_axis(arg)?;
+    if let Some(step) = step {
+        let step_mm = if dir < 0 { -step.abs() } else { step };
+        let r = m
+            .jog_step(pb::JogStepRequest {
+                axis,
+                step_mm,
+                speed_mm_min: speed,
+            })
+            .await
+            .map_err(explain)?
+            .into_inner();
+        print(j, json!({"target_mm": r.target_mm}), || {
+            format!("moving to {:.4}", r.target_mm)
+        });
+        return Ok(ExitCode::SUCCESS);
+    }
+    if dir == 0 {
+        return Err("a continuous jog needs a direction: X+ or X-".into());
+    }
+    let (tx, rx) = tokio::sync::mpsc::channel(4);
+    let msg = pb::JogRequest {
+        axis,
+        direction: dir,
+        speed_mm_min: speed,
+    };
+    let feeder = tokio::spawn(async move {
+        let mut tick = tokio::time::interval(Duration::from_millis(100));
+        let mut interrupted = std::pin::pin!(tokio::signal::ctrl_c());
+        loop {
+            tokio::select! {
+                _ = tick.tick() => {
+                    if tx.send(msg.clone()).await.is_err() {
+                        return;
+                    }
+                }
+                _ = &mut interrupted => return,
+            }
+        }
+    });
+    let call = m.jog(tokio_stream::wrappers::ReceiverStream::new(rx));
+    if !j {
+        eprintln!("jogging {arg}: Ctrl-C to stop");
+    }
+    let r = call.await.map_err(explain)?.into_inner();
+    feeder.abort();
+    print(j, json!({"stopped": true, "limit_mm": r.target_mm}), || {
+        "jog stopped".to_string()
+    });
     Ok(ExitCode::SUCCESS)
 }
 

@@ -15,6 +15,7 @@ use kernel::units::{AxesMm, MAX_AXES};
 use tokio::sync::watch;
 
 use kernel::constants::{AXIS_CODES, Constants};
+use kernel::jog::{Jog, JogRequest};
 use kernel::kr::{Gear, Kr, KrConfig, RadiusInput};
 use kernel::offsets::{OffsetTable, TableEdit};
 use kernel::plc::{PlcError, PlcWrite};
@@ -32,6 +33,9 @@ use super::storage::{self, OffsetStore, StorageError};
 const SEGMENT_RING: usize = 4096;
 /// Command ring capacity (API → RT).
 const COMMAND_RING: usize = 64;
+/// A continuous jog stops by itself unless renewed within this many ticks (0.5 s): the
+/// dead-man of a client that goes away without a word (the API renews it every 100 ms).
+pub const JOG_LEASE_TICKS: u32 = 125;
 
 /// Which clock drives the tick loop.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -444,6 +448,115 @@ impl Controller {
         self.hold_requested.store(false, Ordering::Relaxed);
         self.send(RtCommand::Resume)?;
         Ok(Some(snap.job))
+    }
+
+    /// Axis index of letter `axis`, or INVALID_ARGUMENT.
+    fn axis_index(&self, axis: &str) -> Result<usize, ControlError> {
+        let mut chars = axis.trim().chars();
+        let letter = chars.next().map(|c| c.to_ascii_uppercase());
+        self.config
+            .axes
+            .iter()
+            .position(|a| Some(a.name) == letter && chars.next().is_none())
+            .ok_or_else(|| {
+                ControlError::Invalid(format!(
+                    "no axis {axis:?}: the machine has {}",
+                    self.config.axis_names().iter().collect::<String>()
+                ))
+            })
+    }
+
+    /// Jog speed in mm/s: the asked speed within the axis's maximum; 0 asks for 10 % of it.
+    fn jog_speed(&self, axis: usize, speed_mm_min: f64) -> Result<f64, ControlError> {
+        let max = self.config.axes[axis].max_velocity_mm_min;
+        if !speed_mm_min.is_finite() || speed_mm_min < 0.0 {
+            return Err(ControlError::Invalid(format!(
+                "jog speed {speed_mm_min} mm/min must be positive"
+            )));
+        }
+        let v = if speed_mm_min == 0.0 {
+            0.1 * max
+        } else {
+            speed_mm_min.min(max)
+        };
+        Ok(v / 60.0)
+    }
+
+    /// Starts or renews a continuous jog of `axis` in direction `dir` (sign) at `speed_mm_min`.
+    /// The real-time thread stops it by itself unless renewed within [`JOG_LEASE_TICKS`]
+    /// (the dead-man). Returns the target: the soft limit in that direction.
+    pub fn jog(&self, axis: &str, dir: i32, speed_mm_min: f64) -> Result<f64, ControlError> {
+        let i = self.axis_index(axis)?;
+        if dir == 0 {
+            return Err(ControlError::Invalid(
+                "jog direction must be +1 or -1".into(),
+            ));
+        }
+        let speed = self.jog_speed(i, speed_mm_min)?;
+        let snap = self.snapshot();
+        if !matches!(snap.state, MachineState::Idle | MachineState::Jog) {
+            return Err(ControlError::WrongState(format!(
+                "jogging needs an idle machine; it is {:?}",
+                snap.state
+            )));
+        }
+        let a = &self.config.axes[i];
+        let (lo, hi) = (
+            a.soft_min_mm.unwrap_or(f64::NEG_INFINITY),
+            a.soft_max_mm.unwrap_or(f64::INFINITY),
+        );
+        let target = Jog::continuous_target(snap.commanded[i], f64::from(dir.signum()), lo, hi);
+        self.send(RtCommand::Jog(JogRequest {
+            axis: i,
+            target_mm: target,
+            speed_mm_s: speed,
+            accel_mm_s2: a.max_accel_mm_s2,
+            lease_ticks: JOG_LEASE_TICKS,
+        }))?;
+        Ok(if dir > 0 { hi } else { lo })
+    }
+
+    /// Incremental jog: `step_mm` on `axis`, clamped to the soft limits. Returns the target.
+    pub fn jog_step(
+        &self,
+        axis: &str,
+        step_mm: f64,
+        speed_mm_min: f64,
+    ) -> Result<f64, ControlError> {
+        let i = self.axis_index(axis)?;
+        if !step_mm.is_finite() || step_mm == 0.0 {
+            return Err(ControlError::Invalid(format!("jog step {step_mm} mm")));
+        }
+        let speed = self.jog_speed(i, speed_mm_min)?;
+        let snap = self.snapshot();
+        if snap.state != MachineState::Idle {
+            return Err(ControlError::WrongState(format!(
+                "a jog step needs an idle machine; it is {:?}",
+                snap.state
+            )));
+        }
+        let a = &self.config.axes[i];
+        let here = snap.commanded[i];
+        let mut target = here + step_mm;
+        if let Some(hi) = a.soft_max_mm {
+            target = target.min(hi.max(here));
+        }
+        if let Some(lo) = a.soft_min_mm {
+            target = target.max(lo.min(here));
+        }
+        self.send(RtCommand::Jog(JogRequest {
+            axis: i,
+            target_mm: target,
+            speed_mm_s: speed,
+            accel_mm_s2: a.max_accel_mm_s2,
+            lease_ticks: u32::MAX,
+        }))?;
+        Ok(target)
+    }
+
+    /// Brakes a jog to rest (the client let go, or went away).
+    pub fn jog_stop(&self) -> Result<(), ControlError> {
+        self.send(RtCommand::JogStop)
     }
 
     /// Optional stop switch: M1 stops the program only while it is on.

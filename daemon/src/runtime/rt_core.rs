@@ -16,6 +16,7 @@ use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState};
 use kernel::block::SpindleDir;
 use kernel::estop::AxisBrake;
 use kernel::interp::{InterpState, Interpolator, TickOut};
+use kernel::jog::{Jog, JogRequest};
 use kernel::kr::{ControllingAxis, Kr, KrFault, KrInput, KrOutput, Motion, ProgramSpindle};
 use kernel::plan::Segment;
 use kernel::plc::{PlcArea, PlcWrite};
@@ -46,6 +47,10 @@ pub enum RtCommand {
     SingleBlock(bool),
     /// Optional stop switch: M1 stops the program while on (issue #15).
     OptionalStop(bool),
+    /// Start or renew a jog (idle machine only; issue #15).
+    Jog(JogRequest),
+    /// Brake a jog to rest.
+    JogStop,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -60,6 +65,8 @@ pub enum MachineState {
     Fault,
     /// Shutting down: braking, then the thread ends.
     Shutdown,
+    /// An axis is jogged (or brakes at the end of a jog).
+    Jog,
 }
 
 /// What the RT thread publishes every tick. `Copy`, fixed size: written without allocation.
@@ -190,6 +197,8 @@ pub struct RtCore {
     /// Ticks since the brake came to rest; the drives go to their safe state once settled.
     brake_rest_ticks: u32,
     safe_state_sent: bool,
+    /// Jogging one axis by hand.
+    jog: Jog,
 }
 
 /// Stop deceleration of every axis until [`RtCore::set_stop_decel`] gives the configured ones,
@@ -226,6 +235,7 @@ impl RtCore {
             prev_setpoint: cfg.start,
             brake_rest_ticks: 0,
             safe_state_sent: false,
+            jog: Jog::default(),
         }
     }
 
@@ -310,6 +320,10 @@ impl RtCore {
         // After a fault the brake, not the path, commands the axes.
         let setpoint = if self.brake.active() {
             self.brake.tick()
+        } else if self.jog.active() {
+            let mut p = out.position;
+            p[self.jog.axis()] = self.jog.tick();
+            p
         } else {
             out.position
         };
@@ -352,7 +366,12 @@ impl RtCore {
                         self.snap.state = MachineState::Running;
                     }
                 }
-                RtCommand::Stop => self.abort(),
+                RtCommand::Stop => {
+                    self.jog.stop();
+                    self.abort();
+                }
+                RtCommand::Jog(r) => self.jog_request(r),
+                RtCommand::JogStop => self.jog.stop(),
                 RtCommand::Hold => self.interp.hold(),
                 RtCommand::Resume => self.interp.resume(),
                 RtCommand::Override(pct) => {
@@ -383,6 +402,7 @@ impl RtCore {
                     self.snap.optional_stop = on;
                 }
                 RtCommand::Shutdown => {
+                    self.jog.stop();
                     self.shutting_down = true;
                     self.abort();
                 }
@@ -467,11 +487,30 @@ impl RtCore {
         }
     }
 
+    /// A jog starts only on an idle machine (or renews the running jog); its speed is scaled
+    /// by the feed override in force.
+    fn jog_request(&mut self, mut r: JogRequest) {
+        let free = matches!(self.snap.state, MachineState::Idle | MachineState::Jog)
+            && self.active_job == 0
+            && !self.shutting_down
+            && r.axis < self.axes;
+        if !free {
+            return;
+        }
+        r.speed_mm_s *= self.snap.override_pct / 100.0;
+        let here = self.cmd.positions_mm[r.axis];
+        if self.jog.request(r, here) {
+            self.snap.state = MachineState::Jog;
+        }
+    }
+
     /// Fault reaction (issue #15): a faulted axis no longer follows, so braking along the path
     /// would pull the tool off it. Every healthy axis brakes on its own at its stop
     /// deceleration from the speed of its last setpoints; a faulted axis keeps its setpoint
     /// where it stands.
     fn start_fault_stop(&mut self, fault: BusFault) {
+        // The brake takes over from the jog's last setpoints.
+        self.jog.cancel();
         let now = AxesMm(self.cmd.positions_mm);
         self.brake
             .start(&self.prev_setpoint, &now, self.interp.current_path());
@@ -585,7 +624,17 @@ impl RtCore {
                     _ => MachineState::Running,
                 };
             }
-            MachineState::Idle | MachineState::Fault | MachineState::Shutdown => {}
+            MachineState::Jog if !self.jog.active() => {
+                // The jog ended at rest: the path continues from where the axis is now.
+                let here = AxesMm(self.cmd.positions_mm);
+                if self.interp.set_position(here) {
+                    s.state = MachineState::Idle;
+                }
+            }
+            MachineState::Jog
+            | MachineState::Idle
+            | MachineState::Fault
+            | MachineState::Shutdown => {}
         }
     }
 }

@@ -297,6 +297,44 @@ impl Machine for MachineSvc {
         Ok(Response::new(pb::SetOptionalStopReply {}))
     }
 
+    async fn jog(
+        &self,
+        req: Request<tonic::Streaming<pb::JogRequest>>,
+    ) -> Result<Response<pb::JogReply>, Status> {
+        require(&req, Operator, "Jog")?;
+        let mut stream = req.into_inner();
+        let ctl = &self.0.ctl;
+        let mut target = 0.0;
+        // Every message renews the jog; the end of the stream (or its failure: the client
+        // went away) stops it. A silent client is stopped by the RT thread's lease.
+        let result = loop {
+            match stream.message().await {
+                Ok(Some(m)) => match ctl.jog(&m.axis, m.direction, m.speed_mm_min) {
+                    Ok(t) => target = t,
+                    Err(e) => break Err(status_of(e)),
+                },
+                Ok(None) => break Ok(()),
+                Err(e) => break Err(e),
+            }
+        };
+        let _ = ctl.jog_stop();
+        result.map(|()| Response::new(pb::JogReply { target_mm: target }))
+    }
+
+    async fn jog_step(
+        &self,
+        req: Request<pb::JogStepRequest>,
+    ) -> Result<Response<pb::JogReply>, Status> {
+        require(&req, Operator, "JogStep")?;
+        let r = req.into_inner();
+        let target = self
+            .0
+            .ctl
+            .jog_step(&r.axis, r.step_mm, r.speed_mm_min)
+            .map_err(status_of)?;
+        Ok(Response::new(pb::JogReply { target_mm: target }))
+    }
+
     async fn mdi(&self, req: Request<pb::MdiRequest>) -> Result<Response<pb::StartReply>, Status> {
         require(&req, Operator, "Mdi")?;
         let block = req.into_inner().block;

@@ -420,6 +420,7 @@ fn state_to_pb(s: MachineState) -> pb::MachineState {
         MachineState::Hold => pb::MachineState::Hold,
         MachineState::Fault => pb::MachineState::Fault,
         MachineState::Shutdown => pb::MachineState::Shutdown,
+        MachineState::Jog => pb::MachineState::Jog,
     }
 }
 
