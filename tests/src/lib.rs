@@ -3,6 +3,7 @@
 //! [`RecordingBus`] wraps the simulated bus and records every setpoint the real-time thread
 //! sends, so tests can check the whole setpoint stream, tick by tick.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus};
@@ -69,6 +70,52 @@ impl<B: DriveBus> DriveBus for RecordingBus<B> {
     }
     fn safe_state(&mut self) {
         self.inner.safe_state()
+    }
+}
+
+/// A simulated bus that faults one drive when the test says so (it stores the axis; the next
+/// cycle forces the fault).
+pub struct FaultableBus {
+    inner: sim::SimBus,
+    fault_axis: Arc<AtomicUsize>,
+}
+
+impl FaultableBus {
+    /// The bus and the cell to store the axis to fault in (`usize::MAX`: none).
+    pub fn new(inner: sim::SimBus) -> (Self, Arc<AtomicUsize>) {
+        let fault_axis = Arc::new(AtomicUsize::new(usize::MAX));
+        (
+            FaultableBus {
+                inner,
+                fault_axis: fault_axis.clone(),
+            },
+            fault_axis,
+        )
+    }
+}
+
+impl DriveBus for FaultableBus {
+    fn name(&self) -> &str {
+        "sim"
+    }
+    fn axes(&self) -> usize {
+        self.inner.axes()
+    }
+    fn has_spindle(&self) -> bool {
+        self.inner.has_spindle()
+    }
+    fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
+        let a = self.fault_axis.swap(usize::MAX, Ordering::Relaxed);
+        if a != usize::MAX {
+            self.inner.drive_mut(a).force_fault();
+        }
+        self.inner.cycle(cmd, fb)
+    }
+    fn enable(&mut self) {
+        self.inner.enable()
+    }
+    fn reset(&mut self) {
+        self.inner.reset()
     }
 }
 

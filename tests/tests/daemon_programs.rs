@@ -1,36 +1,26 @@
-//! Sample programs of the repository run end to end on the simulated machine (virtual time).
+//! Sample programs of the repository run end to end on the simulated machine, in simulated
+//! time: the daemon's pipeline and RT core stepped in one thread (`runtime::harness`), so
+//! nothing here depends on the load of the machine running the tests.
 
-use std::time::{Duration, Instant};
-
-use daemon::runtime::controller::{ClockKind, Controller};
-use daemon::runtime::rt::MachineState;
+use daemon::runtime::clock::SimClock;
+use daemon::runtime::harness::{Harness, JobEnd};
+use daemon::runtime::rt::RtCommand;
 use tests::RecordingBus;
 
-fn run_to_end(ctl: &Controller, name: &str, text: &str) {
-    let t0 = Instant::now();
-    while ctl.snapshot().state != MachineState::Idle {
-        assert!(
-            t0.elapsed() < Duration::from_secs(10),
-            "{:?}",
-            ctl.snapshot()
-        );
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    ctl.load_program(name, text)
+/// Ticks any of these programs may take (about 2 hours of machining): a bound, not a timing.
+const MAX_TICKS: u64 = 2_000_000;
+
+/// The daemon's pipeline and RT core on one thread, with a jittery seeded clock that now and
+/// then misses deadlines (the setpoints must not care).
+fn machine(cfg: daemon::runtime::config::Config, bus: impl hal::DriveBus + 'static) -> Harness {
+    Harness::new(cfg, Box::new(bus), SimClock::seeded(20, 500_000, 200)).unwrap()
+}
+
+fn run_to_end(h: &mut Harness, name: &str, text: &str) {
+    let end = h
+        .run_program(text, MAX_TICKS)
         .unwrap_or_else(|e| panic!("{name}: {e:?}"));
-    let job = ctl.start_program().unwrap();
-    loop {
-        let s = ctl.snapshot();
-        if s.finished_job == job {
-            return;
-        }
-        assert_ne!(s.aborted_job, job, "{name} aborted: {s:?}");
-        assert!(
-            t0.elapsed() < Duration::from_secs(120),
-            "{name} hangs: {s:?}"
-        );
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    assert_eq!(end, JobEnd::Finished, "{name}: {:?}", h.snapshot());
 }
 
 /// MIKROPROG template (issue #4): a 10 mm cutter (D1 = 5 mm, written by G92 in the program)
@@ -43,9 +33,9 @@ fn mikroprog_template_runs_compensated() {
     cfg.axes[0].home_mm = -30.0;
     let sim = sim::SimBus::new(sim::SimDriveParams::default(), &[-30.0, 0.0, 0.0]);
     let (bus, record) = RecordingBus::new(sim);
-    let ctl = Controller::start_with_bus(cfg, ClockKind::Virtual, Box::new(bus)).unwrap();
-    run_to_end(&ctl, "mikroprog_template.nc", &text);
-    let s = ctl.snapshot();
+    let mut h = machine(cfg, bus);
+    run_to_end(&mut h, "mikroprog_template.nc", &text);
+    let s = h.snapshot();
     assert!((s.commanded[0] + 30.0).abs() < 1e-9 && s.commanded[1].abs() < 1e-9);
     let points = record.lock().unwrap().clone();
     let side: Vec<&[f64; 6]> = points
@@ -67,32 +57,30 @@ fn mikroprog_template_runs_compensated() {
         "the cutter entered the template"
     );
     // G92 D1 R0=5.0 wrote the memory table only (SPEC §3 c).
-    let entry = ctl.offsets_memory().entry(1).copied().unwrap_or_default();
+    let offsets = h.offsets();
+    let offsets = offsets.lock().unwrap();
+    let entry = offsets.memory().entry(1).copied().unwrap_or_default();
     assert_eq!(entry.values()[0], 5.0);
     assert!(
-        !ctl.offsets_file_text().contains("01:"),
+        !offsets.file_text().contains("01:"),
         "G92 must not touch the file"
     );
-    ctl.shutdown();
 }
 
 /// The README's sample program.
 #[test]
 fn readme_sample_program_runs() {
     let text = std::fs::read_to_string("../programs/sample.nc").unwrap();
-    let ctl = Controller::start(tests::test_config(), ClockKind::Virtual).unwrap();
-    run_to_end(&ctl, "sample.nc", &text);
-    let s = ctl.snapshot();
+    let cfg = tests::test_config();
+    let bus = sim::SimBus::new(sim::SimDriveParams::default(), &[0.0; 3]);
+    let mut h = machine(cfg, bus);
+    run_to_end(&mut h, "sample.nc", &text);
+    let s = h.snapshot();
     assert_eq!(&s.commanded.0[..3], &[0.0, 0.0, 5.0]);
-    ctl.shutdown();
 }
 
 /// A simulated lathe X (diameter) Z at X300 Z100, recording every setpoint and spindle speed.
-fn lathe() -> (
-    std::sync::Arc<Controller>,
-    tests::Recording,
-    tests::SpindleRecording,
-) {
+fn lathe() -> (Harness, tests::Recording, tests::SpindleRecording) {
     let mut cfg = tests::test_config();
     cfg.axes = vec![
         daemon::runtime::config::AxisConfig::new('X'),
@@ -102,26 +90,23 @@ fn lathe() -> (
     cfg.axes[1].home_mm = 100.0;
     let sim = sim::SimBus::new(sim::SimDriveParams::default(), &[300.0, 100.0]);
     let (bus, record, spindle) = RecordingBus::with_spindle(sim);
-    let ctl = Controller::start_with_bus(cfg, ClockKind::Virtual, Box::new(bus)).unwrap();
-    (ctl, record, spindle)
+    (machine(cfg, bus), record, spindle)
 }
 
 /// Runs `text` on the lathe; returns the setpoints and spindle speeds of the run.
 fn run_recorded(
-    ctl: &Controller,
+    h: &mut Harness,
     record: &tests::Recording,
     spindle: &tests::SpindleRecording,
     text: &str,
 ) -> (Vec<[f64; hal::MAX_AXES]>, Vec<f64>) {
-    // Both locks together, record first, as the recording bus takes them: the two
-    // recordings stay tick-aligned although the RT thread keeps ticking.
     let both = || (record.lock().unwrap(), spindle.lock().unwrap());
     {
         let (mut r, mut s) = both();
         r.clear();
         s.clear();
     }
-    run_to_end(ctl, "lathe.nc", text);
+    run_to_end(h, "lathe.nc", text);
     let (r, s) = both();
     assert_eq!(r.len(), s.len());
     (r.clone(), s.clone())
@@ -132,7 +117,7 @@ fn run_recorded(
 /// the drives through the bus; M5 stops it.
 #[test]
 fn lathe_facing_under_g96_follows_the_diameter() {
-    let (ctl, record, spindle) = lathe();
+    let (mut h, record, spindle) = lathe();
     let text = "\
 N10 G0 X300 Z1 M41 M3 S500
 N15 G76 S400
@@ -140,7 +125,7 @@ N20 G96 G1 X50 F2000 S900
 N30 G94 G0 X300 Z50 S500
 N40 M5
 ";
-    let (points, rpm) = run_recorded(&ctl, &record, &spindle, text);
+    let (points, rpm) = run_recorded(&mut h, &record, &spindle, text);
     let v_mm_min = 90_000.0; // S900 = 90 m/min (S in 0.1 m/min, SPEC §6)
     let mut checked = 0;
     let mut clamped = 0;
@@ -163,9 +148,7 @@ N40 M5
     assert!(clamped > 10, "the G76 limit was never reached");
     // M5 at the end stops the spindle.
     assert_eq!(*rpm.last().unwrap(), 0.0);
-    let s = ctl.snapshot();
-    assert_eq!(s.spindle_rpm, 0.0);
-    ctl.shutdown();
+    assert_eq!(h.snapshot().spindle_rpm, 0.0);
 }
 
 /// Spindle speeds of the facing ticks of a run (X moving at Z1), with the carriage diameter.
@@ -185,7 +168,7 @@ fn facing_ticks(points: &[[f64; hal::MAX_AXES]], rpm: &[f64]) -> Vec<(f64, f64)>
 /// With EXT_AKRR_SUPORT set by the PLC, the speed follows the carriage diameter instead.
 #[test]
 fn lathe_g96_speed_follows_the_tool_tip_and_ext_akrr_suport_the_carriage() {
-    let (ctl, record, spindle) = lathe();
+    let (mut h, record, spindle) = lathe();
     let plain = "\
 N10 G0 X300 Z1 M41 M3 S500
 N20 G96 G1 X50 F2000 S900
@@ -213,11 +196,11 @@ N30 G94 G0 Z50 S500 &0
         }
     };
 
-    let (points, rpm) = run_recorded(&ctl, &record, &spindle, plain);
+    let (points, rpm) = run_recorded(&mut h, &record, &spindle, plain);
     let no_offset = facing_ticks(&points, &rpm);
     check(&no_offset, &|x| x, "without offset");
 
-    let (points, rpm) = run_recorded(&ctl, &record, &spindle, offset);
+    let (points, rpm) = run_recorded(&mut h, &record, &spindle, offset);
     let with_offset = facing_ticks(&points, &rpm);
     // The carriage went to Ø320 .. Ø70: the tip to Ø300 .. Ø50.
     assert!(with_offset.iter().all(|&(x, _)| x > 69.999));
@@ -226,11 +209,10 @@ N30 G94 G0 Z50 S500 &0
 
     // The PLC asks for the carriage (AKRR_CNTR bit 5, EXT_AKRR_SUPORT).
     let suport = kernel::plc::PlcWrite::by_name("AKRR_CNTR", 1 << 5).unwrap();
-    ctl.plc_write(suport).unwrap();
-    let (points, rpm) = run_recorded(&ctl, &record, &spindle, offset);
+    h.send(RtCommand::Plc(suport)).unwrap();
+    let (points, rpm) = run_recorded(&mut h, &record, &spindle, offset);
     let at_carriage = facing_ticks(&points, &rpm);
     check(&at_carriage, &|x| x, "carriage with EXT_AKRR_SUPORT");
-    ctl.shutdown();
 }
 
 /// A spindle started in a block without motion runs from that block on, before the first
@@ -238,9 +220,9 @@ N30 G94 G0 Z50 S500 &0
 /// reaches the spindle too (a zero-length segment carries its state).
 #[test]
 fn spindle_started_without_motion_runs_before_the_first_cut() {
-    let (ctl, record, spindle) = lathe();
+    let (mut h, record, spindle) = lathe();
     let (points, rpm) = run_recorded(
-        &ctl,
+        &mut h,
         &record,
         &spindle,
         "N10 M3 S1000\nN20 M41\nN30 G1 X250 F2000\n",
@@ -253,7 +235,6 @@ fn spindle_started_without_motion_runs_before_the_first_cut() {
         first_spindle < first_motion,
         "spindle at {first_spindle}, motion at {first_motion}"
     );
-    let (_, rpm) = run_recorded(&ctl, &record, &spindle, "N10 M5\n");
+    let (_, rpm) = run_recorded(&mut h, &record, &spindle, "N10 M5\n");
     assert_eq!(rpm.last(), Some(&0.0), "M5 alone stops the spindle");
-    ctl.shutdown();
 }

@@ -31,7 +31,7 @@ async fn daemon(cfg: Config) -> Daemon {
     };
     let start: Vec<f64> = cfg.axes.iter().map(|a| a.home_mm).collect();
     let (bus, record, spindle) = RecordingBus::with_spindle(sim::SimBus::new(params, &start));
-    let ctl = Controller::start_with_bus(cfg, ClockKind::Virtual, Box::new(bus)).unwrap();
+    let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap();
     tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));
@@ -345,7 +345,7 @@ async fn fault_stops_every_axis_on_its_own_and_reports_the_path_deviation() {
         actual: actual.clone(),
         states: states.clone(),
     };
-    let ctl = Controller::start_with_bus(cfg.clone(), ClockKind::Virtual, Box::new(bus)).unwrap();
+    let ctl = Controller::start_with_bus(cfg.clone(), ClockKind::Monotonic, Box::new(bus)).unwrap();
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap();
     tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));

@@ -21,12 +21,12 @@ use kernel::offsets::{OffsetTable, TableEdit};
 use kernel::plc::{PlcError, PlcWrite};
 
 use super::buses::open_bus;
-use super::clock::{Clock, MonotonicClock, VirtualClock};
+use super::clock::{Clock, MonotonicClock};
 use super::config::{Config, RadiusInputConfig};
 use super::job::{self, JobLink, JobSpec};
 use super::logging::BlockNo;
 use super::pipeline;
-use super::rt::{self, MachineState, RtCommand, RtParts, Snapshot};
+use super::rt::{self, MachineState, RtCommand, RtCoreConfig, RtParts, Snapshot};
 use super::storage::{self, OffsetStore, StorageError};
 
 /// Segment ring capacity (planner → RT).
@@ -37,11 +37,12 @@ const COMMAND_RING: usize = 64;
 /// dead-man of a client that goes away without a word (the API renews it every 100 ms).
 pub const JOG_LEASE_TICKS: u32 = 125;
 
-/// Which clock drives the tick loop.
+/// Which clock drives the tick loop of the RT thread. Simulated time is not a clock of the
+/// threaded daemon: tests that need it step the RT core in the single-threaded harness
+/// ([`super::harness`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ClockKind {
     Monotonic,
-    Virtual,
 }
 
 /// A program that passed validation. Only its text is kept: blocks are streamed again when it
@@ -134,27 +135,15 @@ impl Controller {
             );
         }
         let (constants, offsets) = load_storage(&config)?;
-        let mut start = AxesMm::ZERO;
-        for (i, a) in config.axes.iter().enumerate() {
-            start[i] = a.home_mm;
-        }
+        let core = rt_core_config(&config, &constants.0)?;
         let (cmd_tx, cmd_rx) = rtrb::RingBuffer::new(COMMAND_RING);
         let (seg_tx, seg_rx) = rtrb::RingBuffer::new(SEGMENT_RING);
-        let initial = Snapshot {
-            axes,
-            commanded: start,
-            actual: start,
-            override_pct: 100.0,
-            ..Snapshot::default()
-        };
+        let initial = Snapshot::initial(axes, core.start);
         let (snap_in, mut snap_out) = triple_buffer::triple_buffer(&initial);
         let planned_job = Arc::new(AtomicU32::new(0));
         let clock: Box<dyn Clock> = match clock {
             ClockKind::Monotonic => Box::new(MonotonicClock),
-            ClockKind::Virtual => Box::new(VirtualClock::default()),
         };
-        let kr = Kr::new(kr_config(&config, &constants.0)?);
-        let in_position_mm = constants.0.get(6).abs().max(1e-6);
         let parts = RtParts {
             bus,
             clock,
@@ -162,11 +151,7 @@ impl Controller {
             segments: seg_rx,
             status: snap_in,
             planned_job: planned_job.clone(),
-            axes,
-            start,
-            kr,
-            in_position_mm,
-            stop_decel_mm_s2: stop_decel(&config),
+            core,
         };
         let rt_cfg = config.rt.clone();
         let rt_thread = std::thread::Builder::new()
@@ -358,29 +343,8 @@ impl Controller {
     }
 
     fn planner_config(&self) -> PlannerConfig {
-        let axes = &self.config.axes;
-        // Path-level defaults from the slowest axis; per-axis limits then from each axis.
-        let v_min = axes
-            .iter()
-            .map(|a| a.max_velocity_mm_min / 60.0)
-            .fold(f64::INFINITY, f64::min);
-        let a_min = axes
-            .iter()
-            .map(|a| a.max_accel_mm_s2)
-            .fold(f64::INFINITY, f64::min);
-        let mut cfg = PlannerConfig::uniform(axes.len(), v_min, a_min);
-        for (i, a) in axes.iter().enumerate().take(MAX_AXES) {
-            cfg.axis_v_max_mm_s[i] = a.max_velocity_mm_min / 60.0;
-            cfg.axis_a_max_mm_s2[i] = a.max_accel_mm_s2;
-            cfg.axis_j_max_mm_s3[i] = 50.0 * a.max_accel_mm_s2;
-        }
-        // The envelope settings (continuity, criteria, dynamic sets) come from the constants
-        // when the machine has a constants file; otherwise the axis limits alone apply.
         let (constants, from_file) = &*self.constants.lock().unwrap();
-        if *from_file {
-            cfg = cfg.with_constants(constants);
-        }
-        cfg
+        planner_config(&self.config, constants, *from_file)
     }
 
     /// Stops motion: brake on the path, drop the rest of the program; the spindle stops once
@@ -760,8 +724,55 @@ fn stop_decel(config: &Config) -> [f64; MAX_AXES] {
     d
 }
 
+/// The planner settings of the machine: axis limits from the configuration, the envelope
+/// settings from the constants when they came from a file.
+pub(crate) fn planner_config(
+    config: &Config,
+    constants: &Constants,
+    from_file: bool,
+) -> PlannerConfig {
+    let axes = &config.axes;
+    // Path-level defaults from the slowest axis; per-axis limits then from each axis.
+    let v_min = axes
+        .iter()
+        .map(|a| a.max_velocity_mm_min / 60.0)
+        .fold(f64::INFINITY, f64::min);
+    let a_min = axes
+        .iter()
+        .map(|a| a.max_accel_mm_s2)
+        .fold(f64::INFINITY, f64::min);
+    let mut cfg = PlannerConfig::uniform(axes.len(), v_min, a_min);
+    for (i, a) in axes.iter().enumerate().take(MAX_AXES) {
+        cfg.axis_v_max_mm_s[i] = a.max_velocity_mm_min / 60.0;
+        cfg.axis_a_max_mm_s2[i] = a.max_accel_mm_s2;
+        cfg.axis_j_max_mm_s3[i] = 50.0 * a.max_accel_mm_s2;
+    }
+    // The envelope settings (continuity, criteria, dynamic sets) come from the constants
+    // when the machine has a constants file; otherwise the axis limits alone apply.
+    if from_file {
+        cfg = cfg.with_constants(constants);
+    }
+    cfg
+}
+
+/// What the RT core is built from: the axes at their home positions, KŘR from the constants
+/// and the `[kr]` section, the in-position window of G24 (R06).
+pub(crate) fn rt_core_config(config: &Config, c: &Constants) -> Result<RtCoreConfig, String> {
+    let mut start = AxesMm::ZERO;
+    for (i, a) in config.axes.iter().enumerate() {
+        start[i] = a.home_mm;
+    }
+    Ok(RtCoreConfig {
+        axes: config.axes.len(),
+        start,
+        kr: Kr::new(kr_config(config, c)?),
+        in_position_mm: c.get(6).abs().max(1e-6),
+        stop_decel_mm_s2: stop_decel(config),
+    })
+}
+
 /// The KŘR configuration from the constants and the `[kr]` section.
-fn kr_config(config: &Config, c: &Constants) -> Result<KrConfig, String> {
+pub(crate) fn kr_config(config: &Config, c: &Constants) -> Result<KrConfig, String> {
     let radius = match config.kr.radius_input {
         RadiusInputConfig::Diameter => RadiusInput::Diameter,
         RadiusInputConfig::Radius => RadiusInput::Radius,
@@ -781,7 +792,7 @@ fn kr_config(config: &Config, c: &Constants) -> Result<KrConfig, String> {
 
 /// Creates the data directory and loads the constants and the offset table. A file that exists
 /// but does not parse stops the start-up: running with wrong offsets scraps parts.
-fn load_storage(config: &Config) -> Result<((Constants, bool), OffsetStore), String> {
+pub(crate) fn load_storage(config: &Config) -> Result<((Constants, bool), OffsetStore), String> {
     let st = &config.storage;
     std::fs::create_dir_all(&st.dir)
         .map_err(|e| format!("storage.dir: cannot create {}: {e}", st.dir.display()))?;

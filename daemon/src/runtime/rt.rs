@@ -12,9 +12,7 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicU32;
 
 use hal::DriveBus;
-use kernel::kr::Kr;
 use kernel::plan::Segment;
-use kernel::units::AxesMm;
 
 use super::clock::Clock;
 pub use super::rt_core::{MachineState, RtCommand, RtCore, RtCoreConfig, RtRings, Snapshot};
@@ -28,14 +26,8 @@ pub struct RtParts {
     pub status: triple_buffer::Input<Snapshot>,
     /// Id of the last job whose planning is complete (all its segments are on the ring).
     pub planned_job: Arc<AtomicU32>,
-    pub axes: usize,
-    pub start: AxesMm,
-    /// Constant cutting speed state machine (built from the constants at start-up).
-    pub kr: Kr,
-    /// Following error under which every axis counts as arrived, for G24 (R06-R07), mm.
-    pub in_position_mm: f64,
-    /// Stop deceleration of each axis for the fault reaction, mm/s² (issue #15).
-    pub stop_decel_mm_s2: [f64; kernel::MAX_AXES],
+    /// What the core is built from.
+    pub core: RtCoreConfig,
 }
 
 /// Runs the loop until a `Shutdown` command has brought the axes to rest.
@@ -47,48 +39,18 @@ pub fn run(parts: RtParts) {
         segments,
         mut status,
         planned_job,
-        axes,
-        start,
-        kr,
-        in_position_mm,
-        stop_decel_mm_s2,
+        core,
     } = parts;
     let mut rings = RtRings {
         commands,
         segments,
         planned_job,
     };
-    let cfg = RtCoreConfig {
-        axes,
-        start,
-        kr,
-        in_position_mm,
-    };
-    let mut core = RtCore::new(cfg, bus.as_mut(), clock.now_ns());
-    core.set_stop_decel(stop_decel_mm_s2);
+    let mut core = RtCore::new(core, bus.as_mut(), clock.now_ns());
     while !core.finished() {
         clock.sleep_until_ns(core.next_deadline_ns());
         let now = clock.now_ns();
         status.write(*core.tick(now, &mut rings, bus.as_mut()));
-        if clock.is_virtual() {
-            pace_virtual(&core, &rings);
-        }
-    }
-}
-
-/// Virtual time only: wait (in real time) for the planner instead of starving, so a virtual
-/// run is deterministic whatever the host load; and don't spin when there is nothing to do.
-fn pace_virtual(core: &RtCore, rings: &RtRings) {
-    if core.active_job() != 0 {
-        while core.wants_segments()
-            && rings.segments.is_empty()
-            && rings.planned_job.load(std::sync::atomic::Ordering::Acquire) != core.active_job()
-            && rings.commands.is_empty()
-        {
-            std::thread::yield_now();
-        }
-    } else if rings.commands.is_empty() && core.snapshot().state != MachineState::Enabling {
-        std::thread::sleep(std::time::Duration::from_micros(200));
     }
 }
 

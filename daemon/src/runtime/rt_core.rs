@@ -162,6 +162,8 @@ pub struct RtCoreConfig {
     pub kr: Kr,
     /// Following error under which every axis counts as arrived, for G24 (R06-R07), mm.
     pub in_position_mm: f64,
+    /// Stop deceleration of each axis for the fault reaction, mm/s² (issue #15).
+    pub stop_decel_mm_s2: [f64; MAX_AXES],
 }
 
 /// The real-time core. Everything the tick owns; the caller owns time, rings and bus.
@@ -201,10 +203,6 @@ pub struct RtCore {
     jog: Jog,
 }
 
-/// Stop deceleration of every axis until [`RtCore::set_stop_decel`] gives the configured ones,
-/// mm/s² (the default axis acceleration of the configuration).
-const DEFAULT_STOP_DECEL_MM_S2: f64 = 800.0;
-
 impl RtCore {
     /// Builds the core (allocates: call before the RT loop starts), asks the bus to enable the
     /// drives and puts the first deadline one period after `now_ns`.
@@ -231,17 +229,12 @@ impl RtCore {
             sb_seq: u32::MAX,
             has_spindle,
             spindle_off: false,
-            brake: AxisBrake::new(cfg.axes, [DEFAULT_STOP_DECEL_MM_S2; MAX_AXES]),
+            brake: AxisBrake::new(cfg.axes, cfg.stop_decel_mm_s2),
             prev_setpoint: cfg.start,
             brake_rest_ticks: 0,
             safe_state_sent: false,
             jog: Jog::default(),
         }
-    }
-
-    /// Stop deceleration of each axis for the fault reaction, mm/s² (`[axes]` in machine order).
-    pub fn set_stop_decel(&mut self, decel_mm_s2: [f64; MAX_AXES]) {
-        self.brake = AxisBrake::new(self.axes, decel_mm_s2);
     }
 
     /// The absolute time the next tick is due: sleep until then, then call [`RtCore::tick`].

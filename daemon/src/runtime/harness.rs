@@ -1,0 +1,306 @@
+//! The single-threaded simulation harness (in the style of quinn's test `Pair` or TigerBeetle's
+//! simulator): the daemon's rings, planner pipeline, RT core and a drive bus (the simulated
+//! machine of the `sim` crate, or a test's wrapper of it) stepped in one thread under a seeded
+//! [`SimClock`] with jitter, late ticks and missed deadlines.
+//!
+//! Built from the daemon's own configuration and wiring (the same constants, KŘR, planner and
+//! compensation settings, the same `pipeline::run`, the same rings and [`RtCore`]); only the
+//! threads and the wall clock are gone. The planner runs inline: it fills the segment ring and,
+//! whenever the ring is full, the harness runs RT ticks until there is room, so the RT core
+//! never starves and a run is a pure function of the program, the configuration and the seed.
+//! Hours of machining take seconds, and a replay with the same seed is bit-identical
+//! ([`Harness::setpoint_hash`], [`Harness::timeline_hash`]).
+
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::{Arc, Mutex};
+
+use hal::DriveBus;
+use kernel::Diagnostic;
+use kernel::constants::Constants;
+use kernel::plan::Segment;
+use kernel::program::Setup;
+use tokio::sync::watch;
+
+use super::clock::SimClock;
+use super::config::Config;
+use super::controller::{load_storage, planner_config, rt_core_config};
+use super::job::JobSpec;
+use super::pipeline::{self, RecentBlocks};
+use super::rt_core::{MachineState, RtCommand, RtCore, RtRings, Snapshot};
+use super::storage::OffsetStore;
+
+/// Ring capacities: as in the daemon.
+const SEGMENT_RING: usize = 4096;
+const COMMAND_RING: usize = 64;
+
+/// Why a run did not end as asked.
+#[derive(Debug, thiserror::Error)]
+pub enum HarnessError {
+    #[error("the program has errors")]
+    InvalidProgram(Vec<Diagnostic>),
+    #[error("planning failed: {0}")]
+    Planning(Diagnostic),
+    #[error("the command ring is full")]
+    CommandRingFull,
+    #[error("not reached within {ticks} ticks: {snapshot:?}")]
+    Timeout { ticks: u64, snapshot: Box<Snapshot> },
+}
+
+/// How a job ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum JobEnd {
+    Finished,
+    /// Stopped, or ended by a fault.
+    Aborted,
+}
+
+/// The daemon's pipeline and RT core on one thread, under a simulated clock.
+pub struct Harness {
+    config: Config,
+    core: RtCore,
+    rings: RtRings,
+    bus: Box<dyn DriveBus>,
+    clock: SimClock,
+    commands: rtrb::Producer<RtCommand>,
+    segments: rtrb::Producer<Segment>,
+    constants: (Constants, bool),
+    offsets: Arc<Mutex<OffsetStore>>,
+    recent: Arc<Mutex<RecentBlocks>>,
+    status: (watch::Sender<Snapshot>, watch::Receiver<Snapshot>),
+    next_job: u32,
+    /// Commands to send before the tick of the given sequence number (sorted by the caller's
+    /// order of adding; several per tick allowed).
+    scheduled: Vec<(u64, RtCommand)>,
+    setpoint_hash: Fnv,
+    timeline_hash: Fnv,
+}
+
+impl Harness {
+    /// The machine of `config` on `bus` (the daemon's storage directory is read as at start-up).
+    pub fn new(
+        config: Config,
+        mut bus: Box<dyn DriveBus>,
+        clock: SimClock,
+    ) -> Result<Self, String> {
+        let (constants, offsets) = load_storage(&config)?;
+        let cfg = rt_core_config(&config, &constants.0)?;
+        let (commands, cmd_rx) = rtrb::RingBuffer::new(COMMAND_RING);
+        let (segments, seg_rx) = rtrb::RingBuffer::new(SEGMENT_RING);
+        let core = RtCore::new(cfg, bus.as_mut(), clock.now_ns());
+        let status = watch::channel(*core.snapshot());
+        Ok(Harness {
+            config,
+            core,
+            rings: RtRings {
+                commands: cmd_rx,
+                segments: seg_rx,
+                planned_job: Arc::new(AtomicU32::new(0)),
+            },
+            bus,
+            clock,
+            commands,
+            segments,
+            constants,
+            offsets: Arc::new(Mutex::new(offsets)),
+            recent: Arc::default(),
+            status,
+            next_job: 1,
+            scheduled: Vec::new(),
+            setpoint_hash: Fnv::new(),
+            timeline_hash: Fnv::new(),
+        })
+    }
+
+    /// The RT core (deadline grid, state).
+    pub fn core(&self) -> &RtCore {
+        &self.core
+    }
+
+    /// The latest snapshot.
+    pub fn snapshot(&self) -> Snapshot {
+        *self.core.snapshot()
+    }
+
+    pub fn clock(&self) -> &SimClock {
+        &self.clock
+    }
+
+    /// The offset table (file and memory), as the daemon holds it.
+    pub fn offsets(&self) -> Arc<Mutex<OffsetStore>> {
+        self.offsets.clone()
+    }
+
+    /// Hash of every setpoint (positions and spindle speed) sent so far: the same for the same
+    /// program whatever the clock did (the trajectory advances one Ts per executed tick).
+    pub fn setpoint_hash(&self) -> u64 {
+        self.setpoint_hash.0
+    }
+
+    /// Hash of every setpoint with the time of its tick and the tick statistics: the same for
+    /// the same seed, bit for bit.
+    pub fn timeline_hash(&self) -> u64 {
+        self.timeline_hash.0
+    }
+
+    /// Sends a command now (it acts at the next tick).
+    pub fn send(&mut self, cmd: RtCommand) -> Result<(), HarnessError> {
+        self.commands
+            .push(cmd)
+            .map_err(|_| HarnessError::CommandRingFull)
+    }
+
+    /// Sends `cmd` just before the tick with snapshot sequence `sequence` runs.
+    pub fn at_tick(&mut self, sequence: u64, cmd: RtCommand) {
+        self.scheduled.push((sequence, cmd));
+    }
+
+    /// One RT tick: the clock wakes at (or after) the core's next deadline, the core ticks.
+    pub fn step(&mut self) -> Snapshot {
+        let next = self.core.snapshot().sequence + 1;
+        let mut i = 0;
+        while i < self.scheduled.len() {
+            if self.scheduled[i].0 <= next {
+                let (_, cmd) = self.scheduled.remove(i);
+                // A full command ring in a test is a defect of the test.
+                self.send(cmd).expect("command ring full");
+            } else {
+                i += 1;
+            }
+        }
+        let now = self.clock.wake(self.core.next_deadline_ns());
+        let snap = *self.core.tick(now, &mut self.rings, self.bus.as_mut());
+        self.record(&snap);
+        snap
+    }
+
+    fn record(&mut self, s: &Snapshot) {
+        for v in &s.commanded.0[..s.axes] {
+            self.setpoint_hash.write(v.to_bits());
+            self.timeline_hash.write(v.to_bits());
+        }
+        self.setpoint_hash.write(s.kr.spindle_rpm.to_bits());
+        self.timeline_hash.write(s.kr.spindle_rpm.to_bits());
+        self.timeline_hash.write(s.time_ns);
+        self.timeline_hash.write(s.ticks.overruns);
+        self.timeline_hash.write(u64::from(s.ticks.lateness_max_us));
+        self.status.0.send_replace(*s);
+    }
+
+    /// Ticks until `done` holds for a snapshot; at most `max_ticks`.
+    pub fn run_until(
+        &mut self,
+        max_ticks: u64,
+        mut done: impl FnMut(&Snapshot) -> bool,
+    ) -> Result<Snapshot, HarnessError> {
+        for _ in 0..max_ticks {
+            let s = self.step();
+            if done(&s) {
+                return Ok(s);
+            }
+        }
+        Err(HarnessError::Timeout {
+            ticks: max_ticks,
+            snapshot: Box::new(self.snapshot()),
+        })
+    }
+
+    /// Ticks until the machine is in `state`; at most `max_ticks`.
+    pub fn wait_state(
+        &mut self,
+        state: MachineState,
+        max_ticks: u64,
+    ) -> Result<Snapshot, HarnessError> {
+        if self.snapshot().state == state {
+            return Ok(self.snapshot());
+        }
+        self.run_until(max_ticks, |s| s.state == state)
+    }
+
+    /// What the interpreter starts a program with now (as the controller's).
+    pub fn setup(&self) -> Setup {
+        let mut setup = Setup::new(&self.config.axis_names());
+        setup.start = self.snapshot().commanded;
+        setup.constants = self.constants.0.clone();
+        setup.offsets = self.offsets.lock().unwrap().memory().clone();
+        setup
+    }
+
+    /// Validates `text` as the controller does at loading, starts it as a job, plans it inline
+    /// (ticking whenever the segment ring is full) and returns the job id once every segment
+    /// is on the ring. The machine must be idle.
+    pub fn start_program(&mut self, text: &str) -> Result<u32, HarnessError> {
+        let setup = self.setup();
+        let comp = kernel::comp::CompConfig::from_constants(&self.constants.0);
+        let planner = planner_config(&self.config, &self.constants.0, self.constants.1);
+        let v = pipeline::validate(text, &setup, comp, planner.clone());
+        if v.has_errors() {
+            return Err(HarnessError::InvalidProgram(v.diagnostics));
+        }
+        let job = self.next_job;
+        self.next_job += 1;
+        self.send(RtCommand::Start { job })?;
+        let spec = JobSpec {
+            job,
+            text: Arc::from(text),
+            setup,
+            planner,
+            comp,
+            offsets: self.offsets.clone(),
+            stop_at_blocks: false,
+            recent: self.recent.clone(),
+            status: self.status.1.clone(),
+        };
+        let result = pipeline::run(&spec, |seg| self.push_segment(seg));
+        self.rings.planned_job.store(job, Ordering::Release);
+        result.map_err(HarnessError::Planning)?;
+        Ok(job)
+    }
+
+    /// Pushes one segment, running RT ticks while the ring is full. False (cancel the
+    /// planning) when the job was stopped meanwhile.
+    fn push_segment(&mut self, mut seg: Segment) -> bool {
+        loop {
+            match self.segments.push(seg) {
+                Ok(()) => return true,
+                Err(rtrb::PushError::Full(s)) => {
+                    seg = s;
+                    let snap = self.step();
+                    if snap.aborted_job == seg.job {
+                        return false;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Ticks until job `job` ends (ran to its end, or was stopped / ended by a fault).
+    pub fn finish_job(&mut self, job: u32, max_ticks: u64) -> Result<JobEnd, HarnessError> {
+        let s = self.run_until(max_ticks, |s| s.finished_job == job || s.aborted_job == job)?;
+        Ok(if s.finished_job == job {
+            JobEnd::Finished
+        } else {
+            JobEnd::Aborted
+        })
+    }
+
+    /// Starts `text` and runs it to its end; an aborted job is an error of the caller's test.
+    pub fn run_program(&mut self, text: &str, max_ticks: u64) -> Result<JobEnd, HarnessError> {
+        self.wait_state(MachineState::Idle, max_ticks)?;
+        let job = self.start_program(text)?;
+        self.finish_job(job, max_ticks)
+    }
+}
+
+/// FNV-1a over whole 64-bit words (one multiply per word, cheap enough for every tick of hours
+/// of machining): stable across platforms and releases, unlike `DefaultHasher`.
+struct Fnv(u64);
+
+impl Fnv {
+    fn new() -> Fnv {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+
+    fn write(&mut self, word: u64) {
+        self.0 = (self.0 ^ word).wrapping_mul(0x0100_0000_01b3);
+    }
+}

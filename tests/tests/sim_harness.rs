@@ -1,0 +1,243 @@
+//! The daemon's pipeline and RT core in the single-threaded simulation harness
+//! (`daemon::runtime::harness`): a seeded clock with jitter, late ticks and missed deadlines,
+//! the simulated machine, everything stepped in one thread. No wall clock, no other threads:
+//! these tests give the same result on an idle laptop and on a loaded CI machine.
+
+use std::sync::atomic::Ordering;
+
+use daemon::runtime::clock::SimClock;
+use daemon::runtime::config::Config;
+use daemon::runtime::harness::{Harness, JobEnd};
+use daemon::runtime::rt::{MachineState, RtCommand};
+use kernel::units::TS_NS;
+use tests::{FaultableBus, Recording, RecordingBus, max_rates};
+
+const TS_S: f64 = 0.004;
+/// A bound on the ticks of any run here (about 3.3 hours of machining): not a timing.
+const MAX_TICKS: u64 = 3_000_000;
+
+fn sim_bus(cfg: &Config) -> sim::SimBus {
+    sim::SimBus::new(sim::SimDriveParams::default(), &vec![0.0; cfg.axes.len()])
+}
+
+fn recorded(clock: SimClock) -> (Harness, Recording, Config) {
+    let cfg = tests::test_config();
+    let (bus, record) = RecordingBus::new(sim_bus(&cfg));
+    let h = Harness::new(cfg.clone(), Box::new(bus), clock).unwrap();
+    (h, record, cfg)
+}
+
+/// A program with rapids, lines, arcs, a feed change and block ends at rest.
+const PART: &str = "\
+N10 G0 X10 Y5 Z1
+N20 G1 Z-1 F600
+N30 G23 X40 F3000
+N40 G3 X60 Y25 I0 J20
+N50 G2 X40 Y45 I-20 J0
+N60 G1 X10 F1800
+N70 G98 Y5
+N80 G0 Z5
+N90 X0 Y0
+";
+
+/// About 3 hours of machining (120 zig-zag passes of 300 mm at 200 mm/min) on a clock that
+/// jitters and misses deadlines: every tick executed, the end exact, the overruns those the
+/// clock caused.
+#[test]
+fn hours_of_machining_in_seconds() {
+    let mut text = String::from("G0 X0 Y0\nG1 F200\n");
+    for i in 0..120 {
+        let x = if i % 2 == 0 { 300 } else { 0 };
+        text.push_str(&format!("N{} X{x} Y{:.2}\n", i + 1, i as f64 * 0.1));
+    }
+    let mut h = Harness::new(
+        tests::test_config(),
+        Box::new(sim_bus(&tests::test_config())),
+        SimClock::seeded(3, 800_000, 1000),
+    )
+    .unwrap();
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    let (t0, seq0, deadline0) = (
+        h.snapshot().time_ns,
+        h.snapshot().sequence,
+        h.core().next_deadline_ns(),
+    );
+    let overruns0 = h.snapshot().ticks.overruns;
+    let end = h.run_program(&text, MAX_TICKS).unwrap();
+    assert_eq!(end, JobEnd::Finished);
+    let s = h.snapshot();
+    let machining_s = (s.time_ns - t0) as f64 * 1e-9;
+    assert!(
+        machining_s > 3.0 * 3600.0 * 0.95,
+        "machined {machining_s} s"
+    );
+    assert!(s.commanded[0].abs() < 1e-9 && (s.commanded[1] - 11.9).abs() < 1e-9);
+    // The clock was late now and then: the grid skipped those periods and did not drift. The
+    // deadlines advanced by one period per tick executed plus one per period skipped.
+    let overruns = s.ticks.overruns - overruns0;
+    assert!(overruns > 100, "{:?}", s.ticks);
+    let ticks = s.sequence - seq0;
+    assert_eq!(
+        h.core().next_deadline_ns() - deadline0,
+        (ticks + overruns) * TS_NS
+    );
+}
+
+/// Late ticks, exactly as late as the test says: each skips `lateness / Ts` grid points
+/// (counted as overruns, exactly), the next deadline is the next grid point after the wake-up,
+/// and the setpoints do not jump (the trajectory advances one Ts per executed tick).
+#[test]
+fn late_ticks_skip_grid_points_counted_exactly_without_setpoint_jump() {
+    let mut clock = SimClock::exact();
+    // (wake-up, lateness): under a period, 2.5 periods, exactly 7 periods, 1 ns short of 1.
+    let forced = [
+        (100, TS_NS / 2),
+        (150, 5 * TS_NS / 2),
+        (200, 7 * TS_NS),
+        (250, TS_NS - 1),
+        (300, 40 * TS_NS + 3),
+    ];
+    clock.forced = forced.to_vec();
+    let expected_overruns: u64 = forced.iter().map(|&(_, l)| l / TS_NS).sum();
+    assert_eq!(expected_overruns, 2 + 7 + 40);
+    let (mut h, record, cfg) = recorded(clock);
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    let job = h.start_program("G1 X200 Y100 F6000").unwrap();
+    let mut deadline = h.core().next_deadline_ns();
+    let mut max_lateness_ns = 0;
+    while h.snapshot().finished_job != job {
+        let s = h.step();
+        let lateness = s.time_ns - deadline;
+        max_lateness_ns = max_lateness_ns.max(lateness);
+        let next = h.core().next_deadline_ns();
+        // On the grid (the clock starts at 0, so the grid is the multiples of Ts) ...
+        assert_eq!(next % TS_NS, 0);
+        // ... and the next deadline is the first grid point after the wake-up.
+        assert!(next > s.time_ns && next - s.time_ns <= TS_NS, "{s:?}");
+        assert_eq!(next - deadline, (lateness / TS_NS + 1) * TS_NS);
+        deadline = next;
+        assert!(s.sequence < 100_000, "{s:?}");
+    }
+    let s = h.snapshot();
+    assert!(
+        h.clock().wakeups() > 300,
+        "the run ended before the late ticks"
+    );
+    assert_eq!(s.ticks.overruns, expected_overruns);
+    assert_eq!(s.ticks.ticks, s.sequence);
+    assert_eq!(max_lateness_ns, 40 * TS_NS + 3);
+    assert_eq!(u64::from(s.ticks.lateness_max_us), (40 * TS_NS + 3) / 1000);
+    // No setpoint jump anywhere: every step within the axis limits.
+    let points = record.lock().unwrap().clone();
+    for (i, (vmax, amax)) in max_rates(&points, 3, TS_S).into_iter().enumerate() {
+        let a = &cfg.axes[i];
+        assert!(
+            vmax <= a.max_velocity_mm_min / 60.0 * (1.0 + 1e-6),
+            "axis {i}: {vmax}"
+        );
+        assert!(
+            amax <= a.max_accel_mm_s2 * (1.0 + 1e-6) + 1e-6,
+            "axis {i}: {amax}"
+        );
+    }
+    assert_eq!(&s.commanded.0[..2], &[200.0, 100.0]);
+}
+
+/// Runs `PART` with override changes and a hold on `clock`; returns (setpoint hash, timeline
+/// hash, overruns).
+fn part_run(clock: SimClock) -> (u64, u64, u64) {
+    let (mut h, _, _) = recorded(clock);
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    let start = h.snapshot().sequence;
+    h.at_tick(start + 200, RtCommand::Override(60.0));
+    h.at_tick(start + 500, RtCommand::Hold);
+    h.at_tick(start + 700, RtCommand::Resume);
+    h.at_tick(start + 900, RtCommand::Override(120.0));
+    let job = h.start_program(PART).unwrap();
+    assert_eq!(h.finish_job(job, 1_000_000).unwrap(), JobEnd::Finished);
+    let s = h.snapshot();
+    assert_eq!(&s.commanded.0[..3], &[0.0, 0.0, 5.0]);
+    (h.setpoint_hash(), h.timeline_hash(), s.ticks.overruns)
+}
+
+/// Same seed, same run, bit for bit (every setpoint, every tick time). Another seed changes
+/// the timing but not one setpoint: late ticks never change the trajectory.
+#[test]
+fn replay_with_the_same_seed_is_bit_identical() {
+    let a = part_run(SimClock::seeded(42, 1_500_000, 50));
+    let b = part_run(SimClock::seeded(42, 1_500_000, 50));
+    assert_eq!(a, b);
+    assert!(a.2 > 0, "the clock missed no deadline: {a:?}");
+    let c = part_run(SimClock::seeded(43, 1_500_000, 50));
+    assert_ne!(a.1, c.1, "another seed, another timeline");
+    assert_eq!(a.0, c.0, "another seed, the same setpoints");
+    let exact = part_run(SimClock::exact());
+    assert_eq!(exact.2, 0);
+    assert_eq!(a.0, exact.0, "late ticks changed the setpoints");
+}
+
+/// Shutdown mid-motion: the axes brake on the path within the acceleration limit, come to
+/// rest, the drives settle on the last setpoint, and only then the loop may end.
+#[test]
+fn shutdown_ramps_axes_down_before_exit() {
+    let (mut h, record, cfg) = recorded(SimClock::seeded(5, 500_000, 100));
+    let a_lim = cfg.axes[0].max_accel_mm_s2;
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    h.start_program("G1 X500 F6000").unwrap();
+    h.run_until(100_000, |s| s.path_v_mm_s > 50.0).unwrap();
+    h.send(RtCommand::Shutdown).unwrap();
+    let mut ticks = 0;
+    while !h.core().finished() {
+        let s = h.step();
+        assert_eq!(s.state, MachineState::Shutdown);
+        ticks += 1;
+        assert!(ticks < 100_000, "{s:?}");
+    }
+    let s = h.snapshot();
+    assert!(s.commanded[0] < 500.0);
+    let points = record.lock().unwrap().clone();
+    let (_, amax) = max_rates(&points, 1, TS_S)[0];
+    assert!(amax <= a_lim * (1.0 + 1e-6), "braking at {amax} mm/s²");
+    let tail = &points[points.len() - 3..];
+    assert!(tail.iter().all(|p| p[0] == tail[0][0]));
+    assert!((s.actual[0] - s.commanded[0]).abs() < 1e-3);
+}
+
+/// A drive fault mid-motion aborts the job; the faulted drive stops following; Reset
+/// re-enables where the drives are (no jump back to the old setpoint) and the next job runs.
+#[test]
+fn drive_fault_stops_and_reset_resumes_from_where_the_drives_are() {
+    let cfg = tests::test_config();
+    let (bus, fault_axis) = FaultableBus::new(sim_bus(&cfg));
+    let mut h = Harness::new(cfg, Box::new(bus), SimClock::seeded(9, 500_000, 100)).unwrap();
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    let job = h.start_program("N10 G1 X200 Y100 F6000").unwrap();
+    h.run_until(100_000, |s| s.path_v_mm_s > 50.0).unwrap();
+    fault_axis.store(1, Ordering::Relaxed);
+    let s = h.wait_state(MachineState::Fault, 10).unwrap();
+    assert_eq!(s.aborted_job, job);
+    let f = s.fault.unwrap();
+    assert_eq!((f.axis, f.node), (Some(1), Some(2)));
+    // The faulted drive no longer follows: its setpoint stays where it stands (fault
+    // reaction, issue #15) while the healthy X brakes to rest on its own.
+    for _ in 0..75 {
+        h.step();
+    }
+    let s = h.snapshot();
+    assert_eq!(s.commanded[1], s.actual[1], "{s:?}");
+    assert!(s.actual[0] > 0.0, "{s:?}");
+    h.send(RtCommand::Reset).unwrap();
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    // The tick that enables reports the setpoint it sent; from the next one on, the drives'
+    // positions.
+    let s = h.step();
+    for i in 0..3 {
+        assert!(
+            (s.commanded[i] - s.actual[i]).abs() < 1e-3,
+            "axis {i}: {s:?}"
+        );
+    }
+    let end = h.run_program("N20 G1 X0 Y0 F6000", 100_000).unwrap();
+    assert_eq!(end, JobEnd::Finished);
+    assert_eq!(&h.snapshot().commanded.0[..2], &[0.0, 0.0]);
+}
