@@ -142,8 +142,7 @@ pub fn distance_to_path(path: &SegPath, p: &AxesMm, axes: usize) -> f64 {
             ..
         } => {
             let (a, b) = plane.axes();
-            let radial = ((p[a] - center[a]).hypot(p[b] - center[b]) - radius_mm).abs();
-            radial
+            ((p[a] - center[a]).hypot(p[b] - center[b]) - radius_mm).abs()
         }
     }
 }

@@ -596,3 +596,109 @@ async fn cncctl_jog_killed_mid_jog_leaves_the_axis_at_rest() {
     assert!(dist <= vmax * vmax / 1600.0 + vmax * 0.004 + 1e-9, "{dist}");
     ctl.shutdown();
 }
+
+/// Homing on the simulated machine's home switches (built from the configuration as `cncd`
+/// builds it): refusals before, the configured order, the reference taken at the switch.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn homing_in_order_and_refusals_before_it() {
+    use daemon::runtime::config::HomingMode;
+    let mut cfg = tests::test_config();
+    for (i, order, dir, switch) in [(0, 2, -1, -5.0), (2, 1, 1, 3.0)] {
+        let a = &mut cfg.axes[i];
+        a.homing = HomingMode::Required;
+        a.home_order = Some(order);
+        a.homing_direction = dir;
+        a.sim_home_switch_mm = Some(switch);
+        a.homing_speed_mm_min = Some(600.0);
+        a.reference_mm = 0.0;
+    }
+    let ctl = Controller::start(cfg, ClockKind::Monotonic).unwrap();
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));
+    let mut c = MachineClient::connect(format!("http://{addr}"))
+        .await
+        .unwrap();
+    wait_state(&ctl, MachineState::Idle, Duration::from_secs(10)).await;
+
+    // Not homed: programs, MDI and continuous jogs are refused; steps are allowed.
+    let st = status(&mut c).await;
+    let homed: Vec<bool> = st.axes.iter().map(|a| a.homed).collect();
+    assert_eq!(homed, [false, true, false], "Y needs no homing");
+    load(&mut c, "N10 G1 X1 F1000\n").await.unwrap();
+    let e = c.start(pb::StartRequest {}).await.unwrap_err();
+    assert_eq!(e.code(), Code::FailedPrecondition);
+    let e = c
+        .mdi(pb::MdiRequest {
+            block: "G1 X1 F1000".into(),
+        })
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::FailedPrecondition);
+    let (tx, call) = jog_stream(&c, "X", 1, 600.0).await;
+    drop(tx);
+    assert_eq!(
+        call.await.unwrap().unwrap_err().code(),
+        Code::FailedPrecondition
+    );
+
+    // Watch the order: Z moves before X.
+    let mut rx = ctl.subscribe();
+    let watcher = tokio::spawn(async move {
+        let mut first_x = None;
+        let mut first_z = None;
+        let mut n = 0u64;
+        while rx.changed().await.is_ok() {
+            let s = *rx.borrow_and_update();
+            n += 1;
+            if s.commanded[2] != 0.0 && first_z.is_none() {
+                first_z = Some(n);
+            }
+            if s.commanded[0] != 0.0 && first_x.is_none() {
+                first_x = Some(n);
+            }
+            if s.homed & 0b101 == 0b101 {
+                return (first_z, first_x);
+            }
+        }
+        (first_z, first_x)
+    });
+    let r = c
+        .home(pb::HomeRequest {
+            axes: String::new(),
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!(r.homed, "ZX", "configured order");
+    let (first_z, first_x) = watcher.await.unwrap();
+    assert!(first_z.unwrap() < first_x.unwrap(), "Z homes before X");
+    let s = ctl.snapshot();
+    assert_eq!(s.homed & 0b101, 0b101);
+    // The switch position became the reference: the axis stands at 0 plus its overshoot in
+    // the search direction: the following error when the drive met the switch (10 mm/s at
+    // kv 30/s: 0.33 mm) and the braking distance (0.0625 mm at 800 mm/s²).
+    let over = 10.0 / 30.0 + 0.0625 + 10.0 * 0.004;
+    assert!(s.commanded[0] <= 0.0 && s.commanded[0] > -over, "{s:?}");
+    assert!(s.commanded[2] >= 0.0 && s.commanded[2] < over, "{s:?}");
+    // The drive settles on its setpoint in the new coordinates (no jump, no offset).
+    let x = s.commanded[0];
+    wait_for(&ctl, "X settled at the reference", |s| {
+        s.commanded[0] == x && (s.actual[0] - x).abs() < 1e-3
+    })
+    .await;
+    let st = status(&mut c).await;
+    assert!(st.axes.iter().all(|a| a.homed));
+
+    // Homed: the program runs.
+    load(&mut c, "N10 G1 X1 Z-1 F1000\n").await.unwrap();
+    let job = start(&mut c).await;
+    wait_job_finished(&ctl, job, Duration::from_secs(30)).await;
+    // A reference run stopped by the operator (here Y, which has no switch) is ABORTED.
+    let mut c2 = c.clone();
+    let run = tokio::spawn(async move { c2.home(pb::HomeRequest { axes: "Y".into() }).await });
+    wait_for(&ctl, "homing Y", |s| s.state == MachineState::Homing).await;
+    c.stop(pb::StopRequest {}).await.unwrap();
+    assert_eq!(run.await.unwrap().unwrap_err().code(), Code::Aborted);
+    ctl.shutdown();
+}

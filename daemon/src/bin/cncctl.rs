@@ -104,6 +104,12 @@ enum Cmd {
         #[arg(long, allow_hyphen_values = true)]
         step: Option<f64>,
     },
+    /// Reference run (homing): `cncctl home` homes every axis in the configured order,
+    /// `cncctl home Z` or `cncctl home XY` only those. Returns when done.
+    Home {
+        #[arg(default_value = "")]
+        axes: String,
+    },
     /// Run one block (MDI), e.g. `cncctl mdi "G1 X10 F500"`.
     Mdi { block: String },
     /// Show the machine status.
@@ -349,7 +355,10 @@ fn status_line(s: &pb::Status) -> String {
     let pos: Vec<String> = s
         .axes
         .iter()
-        .map(|a| format!("{}{:.3}", a.name, a.commanded_mm))
+        .map(|a| {
+            let unhomed = if a.homed { "" } else { "(not homed)" };
+            format!("{}{:.3}{unhomed}", a.name, a.commanded_mm)
+        })
         .collect();
     let block = s
         .block
@@ -402,7 +411,8 @@ fn status_json(s: &pb::Status) -> Value {
         "block_index": s.block_index, "blocks_total": s.blocks_total, "percent": s.percent,
         "axes": s.axes.iter().map(|a| json!({"name": a.name, "commanded_mm": a.commanded_mm,
             "actual_mm": a.actual_mm, "following_error_mm": a.following_error_mm,
-            "soft_min_mm": a.soft_min_mm, "soft_max_mm": a.soft_max_mm})).collect::<Vec<_>>(),
+            "soft_min_mm": a.soft_min_mm, "soft_max_mm": a.soft_max_mm,
+            "homed": a.homed, "homing_required": a.homing_required})).collect::<Vec<_>>(),
         "path_velocity_mm_s": s.path_velocity_mm_s,
         "feed_programmed": s.feed_programmed, "feed_mode": s.feed_mode,
         "override_percent": s.override_percent, "spindle_rpm": s.spindle_rpm,
@@ -627,6 +637,17 @@ async fn run(args: Args) -> Result<ExitCode, String> {
             c.m.set_optional_stop(pb::SetOptionalStopRequest { on: mode == "on" })
                 .await,
         ),
+        Cmd::Home { axes } => {
+            let r =
+                c.m.home(pb::HomeRequest { axes })
+                    .await
+                    .map_err(explain)?
+                    .into_inner();
+            print(j, json!({"homed": r.homed}), || {
+                format!("homed {}", r.homed)
+            });
+            Ok(ExitCode::SUCCESS)
+        }
         Cmd::Jog { axis, speed, step } => jog(&mut c.m, j, &axis, speed, step).await,
         Cmd::Mdi { block } => {
             let job =

@@ -176,6 +176,43 @@ pub struct AxisConfig {
     /// `max_accel_mm_s2`. Each axis brakes on its own at this rate, not along the path.
     #[serde(default)]
     pub stop_decel_mm_s2: Option<f64>,
+    /// Reference run (homing): `required` (incremental encoders: programs, MDI and continuous
+    /// jogs are refused until the axis is homed) or `none` (absolute encoders; the default,
+    /// so an existing configuration keeps working).
+    #[serde(default)]
+    pub homing: HomingMode,
+    /// Machine coordinate of the home switch: the axis's position once it is found.
+    #[serde(default)]
+    pub reference_mm: f64,
+    /// Direction of the switch search: -1 or +1.
+    #[serde(default = "default_homing_direction")]
+    pub homing_direction: i8,
+    /// Search speed, mm/min (unset: 10 % of `max_velocity_mm_min`).
+    #[serde(default)]
+    pub homing_speed_mm_min: Option<f64>,
+    /// Order of the reference run (lower first; unset: after the numbered axes, in machine
+    /// order). Typically Z first, so the tool leaves the work before X and Y move.
+    #[serde(default)]
+    pub home_order: Option<u8>,
+    /// Simulated machine only: where the home switch of this axis is, in the drive's power-on
+    /// coordinates (pressed from there on in `homing_direction`). Unset: no switch.
+    #[serde(default)]
+    pub sim_home_switch_mm: Option<f64>,
+}
+
+/// Reference run of an axis.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum HomingMode {
+    /// Absolute encoder, or the machine is referenced otherwise.
+    #[default]
+    None,
+    /// The axis must be homed after power-on before it runs programs.
+    Required,
+}
+
+fn default_homing_direction() -> i8 {
+    -1
 }
 
 fn default_v_max() -> f64 {
@@ -205,6 +242,12 @@ impl AxisConfig {
             soft_min_mm: None,
             soft_max_mm: None,
             stop_decel_mm_s2: None,
+            homing: HomingMode::None,
+            reference_mm: 0.0,
+            homing_direction: -1,
+            homing_speed_mm_min: None,
+            home_order: None,
+            sim_home_switch_mm: None,
         }
     }
 }
@@ -608,6 +651,19 @@ fn validate_axis_safety(i: usize, a: &AxisConfig) -> Result<(), String> {
     {
         return Err(format!(
             "axes[{i}].soft_max_mm: {hi} must be above soft_min_mm {lo}"
+        ));
+    }
+    if a.homing_direction != 1 && a.homing_direction != -1 {
+        return Err(format!(
+            "axes[{i}].homing_direction: {} must be -1 or 1",
+            a.homing_direction
+        ));
+    }
+    if let Some(v) = a.homing_speed_mm_min
+        && !(v.is_finite() && v > 0.0 && v <= a.max_velocity_mm_min)
+    {
+        return Err(format!(
+            "axes[{i}].homing_speed_mm_min: {v} must be above 0 and at most max_velocity_mm_min"
         ));
     }
     if let Some(d) = a.stop_decel_mm_s2

@@ -22,11 +22,12 @@ use kernel::plc::{PlcError, PlcWrite};
 
 use super::buses::open_bus;
 use super::clock::{Clock, MonotonicClock};
-use super::config::{Config, RadiusInputConfig};
+use super::config::{Config, HomingMode, RadiusInputConfig};
 use super::job::{self, JobLink, JobSpec};
 use super::logging::BlockNo;
 use super::pipeline;
 use super::rt::{self, MachineState, RtCommand, RtCoreConfig, RtParts, Snapshot};
+use super::rt_core::HomeRequest;
 use super::storage::{self, OffsetStore, StorageError};
 
 /// Segment ring capacity (planner → RT).
@@ -36,6 +37,8 @@ const COMMAND_RING: usize = 64;
 /// A continuous jog stops by itself unless renewed within this many ticks (0.5 s): the
 /// dead-man of a client that goes away without a word (the API renews it every 100 ms).
 pub const JOG_LEASE_TICKS: u32 = 125;
+/// Longest switch search of an axis without both soft limits, mm.
+const HOMING_MAX_TRAVEL_MM: f64 = 2000.0;
 
 /// Which clock drives the tick loop of the RT thread. Simulated time is not a clock of the
 /// threaded daemon: tests that need it step the RT core in the single-threaded harness
@@ -81,6 +84,9 @@ pub enum ControlError {
     Plc(#[from] PlcError),
     #[error("{0}")]
     Invalid(String),
+    /// An operation was started and did not complete (e.g. a reference run failed).
+    #[error("{0}")]
+    Aborted(String),
 }
 
 pub struct Controller {
@@ -104,6 +110,8 @@ pub struct Controller {
     /// A feed hold was asked for and not yet resumed or stopped (the RT thread may not have
     /// published the hold yet).
     hold_requested: AtomicBool,
+    /// The bus can run reference runs (homing).
+    can_home: bool,
 }
 
 struct Run {
@@ -126,6 +134,7 @@ impl Controller {
         bus: Box<dyn hal::DriveBus>,
     ) -> Result<Arc<Controller>, String> {
         let axes = config.axes.len();
+        let can_home = bus.supports_homing();
         if !bus.has_spindle() {
             // Said once here: the RT thread keeps computing the speed (KŘR, the PLC cells),
             // but the setpoint has no drive to go to (issue #7).
@@ -189,6 +198,7 @@ impl Controller {
             offsets: Arc::new(Mutex::new(offsets)),
             recent: Arc::default(),
             hold_requested: AtomicBool::new(false),
+            can_home,
         }))
     }
 
@@ -281,8 +291,113 @@ impl Controller {
         Ok(snap)
     }
 
+    /// Whether axis `i` is referenced: homed since power-on, or needing no reference run.
+    pub fn axis_homed(&self, snap: &Snapshot, i: usize) -> bool {
+        self.config.axes[i].homing == HomingMode::None || snap.homed & (1 << i) != 0
+    }
+
+    /// FAILED_PRECONDITION while an axis that needs a reference run has not had one.
+    fn require_homed(&self, what: &str) -> Result<(), ControlError> {
+        let snap = self.snapshot();
+        let missing: String = (0..self.config.axes.len())
+            .filter(|&i| !self.axis_homed(&snap, i))
+            .map(|i| self.config.axes[i].name)
+            .collect();
+        if missing.is_empty() {
+            return Ok(());
+        }
+        Err(ControlError::WrongState(format!(
+            "{what} needs homed axes: home {missing} first (cncctl home)"
+        )))
+    }
+
+    /// The axes named in `axes` (when empty: those with `homing = "required"`), in their
+    /// configured homing order.
+    fn homing_order(&self, axes: &str) -> Result<Vec<usize>, ControlError> {
+        let mut list: Vec<usize> = if axes.trim().is_empty() {
+            (0..self.config.axes.len())
+                .filter(|&i| self.config.axes[i].homing == HomingMode::Required)
+                .collect()
+        } else {
+            let mut v = Vec::new();
+            for c in axes.chars().filter(|c| !c.is_whitespace() && *c != ',') {
+                let i = self.axis_index(&c.to_string())?;
+                if !v.contains(&i) {
+                    v.push(i);
+                }
+            }
+            v
+        };
+        list.sort_by_key(|&i| (self.config.axes[i].home_order.unwrap_or(u8::MAX), i));
+        Ok(list)
+    }
+
+    /// Reference run of `axes` (all when empty), one axis after the other in the configured
+    /// order. Returns the letters homed.
+    pub async fn home(&self, axes: &str) -> Result<String, ControlError> {
+        if !self.can_home {
+            return Err(ControlError::WrongState(
+                "this bus cannot run a reference run yet (homing is built for the simulated \
+                 machine; CANopen mode 6 and serial homing are not done)"
+                    .into(),
+            ));
+        }
+        let order = self.homing_order(axes)?;
+        let mut done = String::new();
+        for i in order {
+            self.home_axis(i).await?;
+            done.push(self.config.axes[i].name);
+        }
+        Ok(done)
+    }
+
+    async fn home_axis(&self, i: usize) -> Result<(), ControlError> {
+        let a = &self.config.axes[i];
+        let snap = self.snapshot();
+        if snap.state != MachineState::Idle {
+            return Err(ControlError::WrongState(format!(
+                "homing needs an idle machine; it is {:?}",
+                snap.state
+            )));
+        }
+        let travel = match (a.soft_min_mm, a.soft_max_mm) {
+            (Some(lo), Some(hi)) => 1.5 * (hi - lo),
+            _ => HOMING_MAX_TRAVEL_MM,
+        };
+        self.send(RtCommand::Home(HomeRequest {
+            axis: i,
+            direction: f64::from(a.homing_direction),
+            speed_mm_s: a.homing_speed_mm_min.unwrap_or(0.1 * a.max_velocity_mm_min) / 60.0,
+            accel_mm_s2: a.max_accel_mm_s2,
+            reference_mm: a.reference_mm,
+            max_travel_mm: travel,
+        }))?;
+        // Commands are taken at the start of a tick: two snapshots later it has been seen.
+        let mut rx = self.subscribe();
+        let bit = 1u8 << i;
+        loop {
+            let s = *rx.borrow_and_update();
+            if s.sequence >= snap.sequence + 2 && s.state != MachineState::Homing {
+                if s.homed & bit != 0 {
+                    return Ok(());
+                }
+                return Err(ControlError::Aborted(format!(
+                    "homing of {} failed: {}",
+                    a.name,
+                    if s.homing_failed & bit != 0 {
+                        "home switch not found, or stopped"
+                    } else {
+                        "the machine was not idle"
+                    }
+                )));
+            }
+            rx.changed().await.map_err(|_| ControlError::RtGone)?;
+        }
+    }
+
     /// Starts the selected program. Returns the job id.
     pub fn start_program(&self) -> Result<u32, ControlError> {
+        self.require_homed("a program")?;
         let program = self
             .program()
             .ok_or_else(|| ControlError::WrongState("no program is loaded".into()))?;
@@ -458,6 +573,13 @@ impl Controller {
         }
         let speed = self.jog_speed(i, speed_mm_min)?;
         let snap = self.snapshot();
+        if !self.axis_homed(&snap, i) {
+            return Err(ControlError::WrongState(format!(
+                "axis {} is not homed: its soft limits mean nothing yet, so it jogs only by \
+                 steps until homed (cncctl home {})",
+                self.config.axes[i].name, self.config.axes[i].name
+            )));
+        }
         if !matches!(snap.state, MachineState::Idle | MachineState::Jog) {
             return Err(ControlError::WrongState(format!(
                 "jogging needs an idle machine; it is {:?}",
@@ -649,6 +771,7 @@ impl Controller {
         text: &str,
         stop_at_blocks: bool,
     ) -> Result<(u32, Arc<Vec<Block>>), ControlError> {
+        self.require_homed("MDI")?;
         let mut run = self.run.lock().unwrap();
         self.idle_for_start()?;
         let setup = self.setup();

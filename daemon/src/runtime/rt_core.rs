@@ -51,6 +51,31 @@ pub enum RtCommand {
     Jog(JogRequest),
     /// Brake a jog to rest.
     JogStop,
+    /// Reference run of one axis (idle machine only; issue #15).
+    Home(HomeRequest),
+}
+
+/// A reference run of one axis: search the home switch, then make its position the reference.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HomeRequest {
+    pub axis: usize,
+    /// -1 or +1.
+    pub direction: f64,
+    pub speed_mm_s: f64,
+    pub accel_mm_s2: f64,
+    /// The axis's position at the switch once homed.
+    pub reference_mm: f64,
+    /// Give up (homing failed) after this much travel without the switch.
+    pub max_travel_mm: f64,
+}
+
+/// A reference run under way.
+#[derive(Clone, Copy, Debug)]
+struct HomingRun {
+    axis: usize,
+    reference_mm: f64,
+    /// Drive position where the switch was found.
+    trigger_mm: Option<f64>,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -67,6 +92,8 @@ pub enum MachineState {
     Shutdown,
     /// An axis is jogged (or brakes at the end of a jog).
     Jog,
+    /// An axis runs its reference run (homing).
+    Homing,
 }
 
 /// What the RT thread publishes every tick. `Copy`, fixed size: written without allocation.
@@ -111,6 +138,10 @@ pub struct Snapshot {
     pub program_stop: bool,
     /// Largest distance of the tool from the programmed path the last fault stop caused, mm.
     pub fault_path_deviation_mm: f64,
+    /// Axes homed since power-on (bit i: axis i).
+    pub homed: u8,
+    /// Axes whose last reference run failed (switch not found, stopped, fault).
+    pub homing_failed: u8,
 }
 
 impl Snapshot {
@@ -201,6 +232,8 @@ pub struct RtCore {
     safe_state_sent: bool,
     /// Jogging one axis by hand.
     jog: Jog,
+    /// Reference run under way.
+    homing: Option<HomingRun>,
 }
 
 impl RtCore {
@@ -234,6 +267,7 @@ impl RtCore {
             brake_rest_ticks: 0,
             safe_state_sent: false,
             jog: Jog::default(),
+            homing: None,
         }
     }
 
@@ -275,6 +309,7 @@ impl RtCore {
         self.single_block_check(out.seq, out.path_v_mm_s);
         self.exchange(&out, bus);
         self.fault_reaction(bus);
+        self.homing_step(bus);
         let planned = rings.planned_job.load(Ordering::Acquire);
         self.update_state(planned, rings.segments.is_empty());
         self.publish(now_ns, &out)
@@ -365,6 +400,7 @@ impl RtCore {
                 }
                 RtCommand::Jog(r) => self.jog_request(r),
                 RtCommand::JogStop => self.jog.stop(),
+                RtCommand::Home(r) => self.home_request(r),
                 RtCommand::Hold => self.interp.hold(),
                 RtCommand::Resume => self.interp.resume(),
                 RtCommand::Override(pct) => {
@@ -497,6 +533,65 @@ impl RtCore {
         }
     }
 
+    /// Starts a reference run: the axis moves toward its switch like a jog (no lease: the
+    /// operator started it and Stop ends it), at most `max_travel_mm`.
+    fn home_request(&mut self, r: HomeRequest) {
+        let free = self.snap.state == MachineState::Idle
+            && self.active_job == 0
+            && !self.shutting_down
+            && r.axis < self.axes;
+        if !free {
+            return;
+        }
+        let bit = 1u8 << r.axis;
+        self.snap.homed &= !bit;
+        self.snap.homing_failed &= !bit;
+        let here = self.cmd.positions_mm[r.axis];
+        let jog = JogRequest {
+            axis: r.axis,
+            target_mm: here + r.direction.signum() * r.max_travel_mm,
+            speed_mm_s: r.speed_mm_s,
+            accel_mm_s2: r.accel_mm_s2,
+            lease_ticks: u32::MAX,
+        };
+        if self.jog.request(jog, here) {
+            self.homing = Some(HomingRun {
+                axis: r.axis,
+                reference_mm: r.reference_mm,
+                trigger_mm: None,
+            });
+            self.snap.state = MachineState::Homing;
+        }
+    }
+
+    /// The reference run after this tick's feedback: brake at the switch; once at rest the
+    /// switch position becomes the reference (drive and setpoint shift together: no jump).
+    fn homing_step(&mut self, bus: &mut dyn DriveBus) {
+        let Some(mut h) = self.homing else { return };
+        if h.trigger_mm.is_none() && bus.home_switch(h.axis) {
+            h.trigger_mm = Some(self.fb.axes[h.axis].position_mm);
+            self.jog.stop();
+        }
+        if self.jog.active() {
+            self.homing = Some(h);
+            return;
+        }
+        let bit = 1u8 << h.axis;
+        match h.trigger_mm {
+            Some(t) => {
+                bus.set_home(h.axis, t, h.reference_mm);
+                // Setpoint and this tick's feedback shift with the drive's position.
+                let shift = h.reference_mm - t;
+                self.cmd.positions_mm[h.axis] += shift;
+                self.fb.axes[h.axis].position_mm += shift;
+                self.snap.actual[h.axis] += shift;
+                self.snap.homed |= bit;
+            }
+            None => self.snap.homing_failed |= bit,
+        }
+        self.homing = None;
+    }
+
     /// Fault reaction (issue #15): a faulted axis no longer follows, so braking along the path
     /// would pull the tool off it. Every healthy axis brakes on its own at its stop
     /// deceleration from the speed of its last setpoints; a faulted axis keeps its setpoint
@@ -504,6 +599,9 @@ impl RtCore {
     fn start_fault_stop(&mut self, fault: BusFault) {
         // The brake takes over from the jog's last setpoints.
         self.jog.cancel();
+        if let Some(h) = self.homing.take() {
+            self.snap.homing_failed |= 1 << h.axis;
+        }
         let now = AxesMm(self.cmd.positions_mm);
         self.brake
             .start(&self.prev_setpoint, &now, self.interp.current_path());
@@ -624,7 +722,14 @@ impl RtCore {
                     s.state = MachineState::Idle;
                 }
             }
+            MachineState::Homing if self.homing.is_none() => {
+                let here = AxesMm(self.cmd.positions_mm);
+                if self.interp.set_position(here) {
+                    s.state = MachineState::Idle;
+                }
+            }
             MachineState::Jog
+            | MachineState::Homing
             | MachineState::Idle
             | MachineState::Fault
             | MachineState::Shutdown => {}

@@ -321,6 +321,13 @@ impl Machine for MachineSvc {
         result.map(|()| Response::new(pb::JogReply { target_mm: target }))
     }
 
+    async fn home(&self, req: Request<pb::HomeRequest>) -> Result<Response<pb::HomeReply>, Status> {
+        require(&req, Operator, "Home")?;
+        let axes = req.into_inner().axes;
+        let homed = self.0.ctl.home(&axes).await.map_err(status_of)?;
+        Ok(Response::new(pb::HomeReply { homed }))
+    }
+
     async fn jog_step(
         &self,
         req: Request<pb::JogStepRequest>,

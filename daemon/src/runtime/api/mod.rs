@@ -176,6 +176,9 @@ impl ApiState {
                 following_error_mm: s.commanded[i] - s.actual[i],
                 soft_min_mm: ctl.config().axes.get(i).and_then(|a| a.soft_min_mm),
                 soft_max_mm: ctl.config().axes.get(i).and_then(|a| a.soft_max_mm),
+                homed: ctl.axis_homed(s, i),
+                homing_required: ctl.config().axes[i].homing
+                    == crate::runtime::config::HomingMode::Required,
             })
             .collect();
         let alarm = alarm_text(ctl, s).unwrap_or_default();
@@ -408,6 +411,7 @@ pub fn status_of(e: ControlError) -> Status {
         },
         ControlError::Plc(e) => Status::invalid_argument(e.to_string()),
         ControlError::Invalid(m) => Status::invalid_argument(m),
+        ControlError::Aborted(m) => Status::aborted(m),
     }
 }
 
@@ -421,6 +425,7 @@ fn state_to_pb(s: MachineState) -> pb::MachineState {
         MachineState::Fault => pb::MachineState::Fault,
         MachineState::Shutdown => pb::MachineState::Shutdown,
         MachineState::Jog => pb::MachineState::Jog,
+        MachineState::Homing => pb::MachineState::Homing,
     }
 }
 
