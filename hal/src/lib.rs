@@ -243,6 +243,26 @@ pub trait DriveBus: Send {
     fn is_shut_down(&self) -> bool {
         true
     }
+
+    /// After a fault stop, once the healthy axes are at rest: brings every drive to its safe
+    /// state (CiA 402: quick stop, then power stage off), so nothing moves until a reset.
+    /// Default: nothing (the bus has no such command; its drives hold their last setpoint).
+    fn safe_state(&mut self) {}
+
+    /// Whether this bus can run a reference run (homing) of its axes: [`DriveBus::home_switch`]
+    /// reports the switch and [`DriveBus::set_home`] redefines a drive's position.
+    fn supports_homing(&self) -> bool {
+        false
+    }
+
+    /// The home switch of `axis` is pressed (last cycle).
+    fn home_switch(&self, _axis: usize) -> bool {
+        false
+    }
+
+    /// Ends a reference run of `axis`: the drive's position where the switch was found
+    /// (`trigger_mm`) becomes `reference_mm`; its reported positions shift by the difference.
+    fn set_home(&mut self, _axis: usize, _trigger_mm: f64, _reference_mm: f64) {}
 }
 
 /// Runs the orderly switch-off of `bus` to its end: `wait_tick` sleeps until the next tick.

@@ -148,6 +148,37 @@ pub enum BlockKind {
 /// Up to four M functions per block, in the order written.
 pub type MCodes = [Option<u16>; 4];
 
+/// A program stop at the end of a block (M0, M1): the machine comes to rest on the path and
+/// waits for Resume (or Start).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ProgramStop {
+    #[default]
+    None,
+    /// M0: always stops.
+    Always,
+    /// M1: stops only while "optional stop" is switched on.
+    Optional,
+}
+
+impl ProgramStop {
+    /// The stop the M functions of a block ask for (M0 wins over M1).
+    pub fn of(m: &MCodes) -> Self {
+        let has = |code: u16| m.iter().flatten().any(|&c| c == code);
+        if has(0) {
+            ProgramStop::Always
+        } else if has(1) {
+            ProgramStop::Optional
+        } else {
+            ProgramStop::None
+        }
+    }
+}
+
+/// Whether the M functions of a block end the program (M2, M30): later blocks are not run.
+pub fn ends_program(m: &MCodes) -> bool {
+    m.iter().flatten().any(|&c| c == 2 || c == 30)
+}
+
 /// A canonical block.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Block {

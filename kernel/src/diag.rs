@@ -24,6 +24,8 @@ pub struct Diagnostic {
     /// 1-based column in the line (0 when not tied to a column).
     pub column: u32,
     pub message: String,
+    /// Set when the message is a soft-limit refusal (issue #15): which axis, where, which limit.
+    pub limit: Option<crate::limits::LimitHit>,
 }
 
 impl Diagnostic {
@@ -34,6 +36,7 @@ impl Diagnostic {
             line,
             column,
             message: message.into(),
+            limit: None,
         }
     }
 

@@ -38,7 +38,7 @@
 //! A late tick of the real-time thread never makes a setpoint jump: one call is one Ts of
 //! trajectory, however late it comes.
 
-use crate::block::Spindle;
+use crate::block::{ProgramStop, Spindle};
 use crate::plan::Segment;
 use crate::units::{AxesMm, TS_S};
 
@@ -152,6 +152,10 @@ pub struct Interpolator {
     last_spindle: Spindle,
     last_rapid: bool,
     last_line: u32,
+    /// M1 stops the program (operator switch "optional stop").
+    optional_stop: bool,
+    /// Held at a program stop (M0/M1) rather than by a feed hold.
+    at_program_stop: bool,
 }
 
 impl Interpolator {
@@ -197,7 +201,59 @@ impl Interpolator {
             last_spindle: Spindle::default(),
             last_rapid: false,
             last_line: 0,
+            optional_stop: false,
+            at_program_stop: false,
         }
+    }
+
+    /// Path of the segment the commanded position lies on (`None` with nothing buffered): the
+    /// programmed path a fault stop is measured against.
+    pub fn current_path(&self) -> Option<crate::plan::SegPath> {
+        (self.len > 0).then(|| self.seg(0).path)
+    }
+
+    /// Operator switch "optional stop": M1 stops the program only while it is on.
+    pub fn set_optional_stop(&mut self, on: bool) {
+        self.optional_stop = on;
+    }
+
+    /// Held at rest at a program stop (M0, or M1 with optional stop on); `resume` continues.
+    pub fn at_program_stop(&self) -> bool {
+        self.at_program_stop
+    }
+
+    fn stops_here(&self, stop: ProgramStop) -> bool {
+        match stop {
+            ProgramStop::None => false,
+            ProgramStop::Always => true,
+            ProgramStop::Optional => self.optional_stop,
+        }
+    }
+
+    /// At rest between segment `rk` and the next: holds if a program stop (M0/M1) is due
+    /// there. Each stop is honoured once (cleared in the buffer).
+    fn program_stop_at(&mut self, before_next: bool) -> bool {
+        if self.state != InterpState::Running {
+            return false;
+        }
+        let here = self.idx(self.rk);
+        let due_after = before_next && self.stops_here(self.buf[here].program_stop);
+        let next = if before_next {
+            self.idx(self.rk + 1)
+        } else {
+            here
+        };
+        let due_before = self.stops_here(self.buf[next].program_stop_before);
+        if !(due_after || due_before) {
+            return false;
+        }
+        if before_next {
+            self.buf[here].program_stop = ProgramStop::None;
+        }
+        self.buf[next].program_stop_before = ProgramStop::None;
+        self.state = InterpState::Holding;
+        self.at_program_stop = true;
+        true
     }
 
     pub fn axes(&self) -> usize {
@@ -297,6 +353,7 @@ impl Interpolator {
     }
 
     pub fn resume(&mut self) {
+        self.at_program_stop = false;
         if matches!(self.state, InterpState::Holding | InterpState::Held) {
             self.state = if self.len > 0 {
                 InterpState::Running
@@ -336,6 +393,7 @@ impl Interpolator {
     }
 
     fn clear(&mut self) {
+        self.at_program_stop = false;
         self.len = 0;
         self.floor_dirty = true;
         self.reset_arc_length();
@@ -634,9 +692,17 @@ impl Interpolator {
             if here.wait_in_position && !self.in_position {
                 return idle;
             }
+            if self.program_stop_at(true) {
+                return idle;
+            }
             self.raw_at_stop = false;
             self.rk += 1;
             self.rs_mm = 0.0;
+        }
+        if self.rs_mm == 0.0 && self.v_mm_s == 0.0 && self.settled() && self.program_stop_at(false)
+        {
+            // M0/M1 before the first motion.
+            return idle;
         }
         if self.dwell_ticks > 0 && self.v_mm_s == 0.0 && self.settled() {
             // Leading dwell (before the first motion).

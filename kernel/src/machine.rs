@@ -38,6 +38,8 @@ pub struct MachineConfig {
     /// Minimum block duration of the planner (`[planner] min_block_time_ms`; 0: as many
     /// blocks per tick as the criteria allow, 4 ms: CNC8x9 compatibility), s.
     pub min_block_time_s: f64,
+    /// Travel limits per axis in machine coordinates (issue #15).
+    pub soft_limits: crate::limits::SoftLimits,
 }
 
 impl MachineConfig {
@@ -74,6 +76,7 @@ impl MachineSetup {
         program.offsets = offsets.clone();
         program.ij = machine.ij;
         program.preprocessor = machine.preprocessor;
+        program.soft_limits = machine.soft_limits;
         Ok(MachineSetup {
             program,
             comp: CompConfig::from_constants(constants),
@@ -182,6 +185,7 @@ mod tests {
             ij: IjMode::default(),
             preprocessor: true,
             min_block_time_s: 0.0,
+            soft_limits: crate::limits::SoftLimits::NONE,
         }
     }
 

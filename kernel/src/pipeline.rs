@@ -81,6 +81,10 @@ pub struct Pipeline {
     stop_at_blocks: bool,
     /// Gear ranges the machine has (`None`: no spindle configured, nothing checked).
     gears: Option<usize>,
+    /// Travel limits: every planned segment (offsets and compensation applied) must stay
+    /// inside them (issue #15).
+    limits: crate::limits::SoftLimits,
+    axis_names: Vec<char>,
     summary: Summary,
 }
 
@@ -91,6 +95,8 @@ impl Pipeline {
             planner: Planner::new(setup.planner().clone(), opts.job),
             stop_at_blocks: opts.stop_at_blocks,
             gears: setup.kr().map(|k| k.gears.len()),
+            limits: setup.program().soft_limits,
+            axis_names: setup.program().axis_names.clone(),
             summary: Summary::default(),
         }
     }
@@ -180,6 +186,13 @@ impl Pipeline {
 
     fn drain_planner(&mut self, obs: &mut impl Observer) -> Flow {
         while let Some(s) = self.planner.poll() {
+            if let Some(hit) = self.limits.check_path(&s.path, self.axis_names.len()) {
+                let d = hit.diagnostic(&s, &self.axis_names);
+                if self.report(d, obs) == Flow::Stop {
+                    return Flow::Stop;
+                }
+                continue;
+            }
             if self.flow(obs.segment(s)) == Flow::Stop {
                 return Flow::Stop;
             }

@@ -9,6 +9,11 @@ const CYCLE_S: f64 = 0.004;
 
 pub struct SimBus {
     drives: Vec<SimDrive>,
+    /// Home switch per axis: (where it is in the drive's power-on coordinates, the side it
+    /// is pressed on: -1 at and below, +1 at and above).
+    switches: Vec<Option<(f64, f64)>>,
+    /// Shift of each drive's reported position since power-on (homing).
+    shifts: Vec<f64>,
 }
 
 impl SimBus {
@@ -16,7 +21,16 @@ impl SimBus {
     pub fn new(params: SimDriveParams, start_mm: &[f64]) -> Self {
         SimBus {
             drives: start_mm.iter().map(|&p| SimDrive::new(params, p)).collect(),
+            switches: vec![None; start_mm.len()],
+            shifts: vec![0.0; start_mm.len()],
         }
+    }
+
+    /// Home switch model (issue #15): axis `axis` has a switch at `at_mm` (power-on
+    /// coordinates), pressed at and beyond it on side `side` (-1 or +1).
+    pub fn with_home_switch(mut self, axis: usize, at_mm: f64, side: f64) -> Self {
+        self.switches[axis] = Some((at_mm, side.signum()));
+        self
     }
 
     /// Access for fault injection in tests.
@@ -67,6 +81,27 @@ impl DriveBus for SimBus {
 
     fn enable(&mut self) {
         self.drives.iter_mut().for_each(SimDrive::enable);
+    }
+
+    fn supports_homing(&self) -> bool {
+        true
+    }
+
+    fn home_switch(&self, axis: usize) -> bool {
+        let Some((at, side)) = self.switches.get(axis).copied().flatten() else {
+            return false;
+        };
+        let p = self.drives[axis].position_mm() - self.shifts[axis];
+        (p - at) * side >= 0.0
+    }
+
+    fn set_home(&mut self, axis: usize, trigger_mm: f64, reference_mm: f64) {
+        self.drives[axis].shift_reference(trigger_mm, reference_mm);
+        self.shifts[axis] += reference_mm - trigger_mm;
+    }
+
+    fn safe_state(&mut self) {
+        self.drives.iter_mut().for_each(SimDrive::disable);
     }
 
     fn reset(&mut self) {

@@ -80,6 +80,20 @@ impl SimDrive {
         }
     }
 
+    /// Redefines the reported position (homing): the position `trigger_mm` becomes
+    /// `reference_mm`; the motor does not move.
+    pub fn shift_reference(&mut self, trigger_mm: f64, reference_mm: f64) {
+        self.position_mm += reference_mm - trigger_mm;
+    }
+
+    /// Switches the power stage off (the safe state after a fault stop); a faulted drive
+    /// stays faulted until reset.
+    pub fn disable(&mut self) {
+        if self.state != DriveState::Fault {
+            self.state = DriveState::Disabled;
+        }
+    }
+
     pub fn force_fault(&mut self) {
         self.state = DriveState::Fault;
     }

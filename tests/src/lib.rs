@@ -68,6 +68,9 @@ impl<B: DriveBus> DriveBus for RecordingBus<B> {
     fn reset(&mut self) {
         self.inner.reset()
     }
+    fn safe_state(&mut self) {
+        self.inner.safe_state()
+    }
 }
 
 /// A simulated bus that faults one drive when the test says so (it stores the axis; the next

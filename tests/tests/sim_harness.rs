@@ -218,12 +218,14 @@ fn drive_fault_stops_and_reset_resumes_from_where_the_drives_are() {
     assert_eq!(s.aborted_job, job);
     let f = s.fault.unwrap();
     assert_eq!((f.axis, f.node), (Some(1), Some(2)));
-    // The faulted drive stopped following: its position differs from the last setpoint.
+    // The faulted drive no longer follows: its setpoint stays where it stands (fault
+    // reaction, issue #15) while the healthy X brakes to rest on its own.
     for _ in 0..75 {
         h.step();
     }
     let s = h.snapshot();
-    assert!((s.commanded[1] - s.actual[1]).abs() > 0.01, "{s:?}");
+    assert_eq!(s.commanded[1], s.actual[1], "{s:?}");
+    assert!(s.actual[0] > 0.0, "{s:?}");
     h.send(RtCommand::Reset).unwrap();
     h.wait_state(MachineState::Idle, 10_000).unwrap();
     // The tick that enables reports the setpoint it sent; from the next one on, the drives'

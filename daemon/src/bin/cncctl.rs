@@ -89,6 +89,30 @@ enum Cmd {
         #[arg(value_parser = ["on", "off"])]
         mode: String,
     },
+    /// Optional stop on or off: when on, M1 stops the program like M0 (Resume continues).
+    OptionalStop {
+        #[arg(value_parser = ["on", "off"])]
+        mode: String,
+    },
+    /// Jog an axis: `cncctl jog X+ --speed 1000` moves X in + at 1000 mm/min until Ctrl-C
+    /// (the axis brakes to rest when cncctl stops, however it stops); `cncctl jog X --step 0.1`
+    /// (or `X- --step 0.1`) moves by one step. Soft limits are never passed.
+    Jog {
+        /// Axis letter, with `+` or `-` for the direction (required for a continuous jog).
+        axis: String,
+        /// Speed, mm/min (default: 10 % of the axis's maximum).
+        #[arg(long, default_value_t = 0.0)]
+        speed: f64,
+        /// Move by this many mm instead of jogging continuously.
+        #[arg(long, allow_hyphen_values = true)]
+        step: Option<f64>,
+    },
+    /// Reference run (homing): `cncctl home` homes every axis in the configured order,
+    /// `cncctl home Z` or `cncctl home XY` only those. Returns when done.
+    Home {
+        #[arg(default_value = "")]
+        axes: String,
+    },
     /// Run one block (MDI), e.g. `cncctl mdi "G1 X10 F500"`.
     Mdi { block: String },
     /// Show the machine status.
@@ -345,7 +369,10 @@ fn status_line(s: &pb::Status) -> String {
     let pos: Vec<String> = s
         .axes
         .iter()
-        .map(|a| format!("{}{:.3}", a.name, a.commanded_mm))
+        .map(|a| {
+            let unhomed = if a.homed { "" } else { "(not homed)" };
+            format!("{}{:.3}{unhomed}", a.name, a.commanded_mm)
+        })
         .collect();
     let block = s
         .block
@@ -370,6 +397,18 @@ fn status_line(s: &pb::Status) -> String {
     if s.waiting_for_spindle {
         line.push_str("  waiting for the spindle to reach its speed");
     }
+    if s.optional_stop {
+        line.push_str("  [M1 stops]");
+    }
+    if s.program_stop {
+        line.push_str("  program stop (M0/M1): resume to continue");
+    }
+    if s.fault_path_deviation_mm > 0.0 {
+        line.push_str(&format!(
+            "  fault stop left the path by {:.3} mm",
+            s.fault_path_deviation_mm
+        ));
+    }
     if !s.alarm.is_empty() {
         line.push_str(&format!("  ALARM: {}", s.alarm));
     }
@@ -385,7 +424,9 @@ fn status_json(s: &pb::Status) -> Value {
         "program": s.program, "job": s.job, "block": s.block, "line": s.line,
         "block_index": s.block_index, "blocks_total": s.blocks_total, "percent": s.percent,
         "axes": s.axes.iter().map(|a| json!({"name": a.name, "commanded_mm": a.commanded_mm,
-            "actual_mm": a.actual_mm, "following_error_mm": a.following_error_mm})).collect::<Vec<_>>(),
+            "actual_mm": a.actual_mm, "following_error_mm": a.following_error_mm,
+            "soft_min_mm": a.soft_min_mm, "soft_max_mm": a.soft_max_mm,
+            "homed": a.homed, "homing_required": a.homing_required})).collect::<Vec<_>>(),
         "path_velocity_mm_s": s.path_velocity_mm_s,
         "feed_programmed": s.feed_programmed, "feed_mode": s.feed_mode,
         "override_percent": s.override_percent, "spindle_rpm": s.spindle_rpm,
@@ -397,6 +438,8 @@ fn status_json(s: &pb::Status) -> Value {
             "spindle_rpm": k.spindle_rpm, "output": k.output, "gear_max_rpm": k.gear_max_rpm})),
         "dynamic_set": s.dynamic_set,
         "waiting_for_spindle": s.waiting_for_spindle,
+        "optional_stop": s.optional_stop, "program_stop": s.program_stop,
+        "fault_path_deviation_mm": s.fault_path_deviation_mm,
         "ticks": {"ticks": t.ticks, "overruns": t.overruns, "lateness_p50_us": t.lateness_p50_us,
             "lateness_p99_us": t.lateness_p99_us, "lateness_max_us": t.lateness_max_us},
         "alarm": s.alarm,
@@ -622,6 +665,23 @@ async fn run(args: Args) -> Result<ExitCode, String> {
             })
             .await,
         ),
+        Cmd::OptionalStop { mode } => done(
+            j,
+            c.m.set_optional_stop(pb::SetOptionalStopRequest { on: mode == "on" })
+                .await,
+        ),
+        Cmd::Home { axes } => {
+            let r =
+                c.m.home(pb::HomeRequest { axes })
+                    .await
+                    .map_err(explain)?
+                    .into_inner();
+            print(j, json!({"homed": r.homed}), || {
+                format!("homed {}", r.homed)
+            });
+            Ok(ExitCode::SUCCESS)
+        }
+        Cmd::Jog { axis, speed, step } => jog(&mut c.m, j, &axis, speed, step).await,
         Cmd::Mdi { block } => {
             let job =
                 c.m.mdi(pb::MdiRequest { block })
@@ -1119,6 +1179,80 @@ fn preview_local(
             )
         },
     );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `X+`, `X-` or `X` → (letter, direction: +1, -1 or 0).
+fn jog_axis(arg: &str) -> Result<(String, i32), String> {
+    let (name, dir) = match arg.trim() {
+        a if a.ends_with('+') => (&a[..a.len() - 1], 1),
+        a if a.ends_with('-') => (&a[..a.len() - 1], -1),
+        a => (a, 0),
+    };
+    if name.chars().count() != 1 {
+        return Err(format!("{arg:?}: give an axis letter, e.g. X+ or Z-"));
+    }
+    Ok((name.to_string(), dir))
+}
+
+/// Continuous jog until Ctrl-C (renewed every 100 ms: the daemon stops the axis when the
+/// renewals stop, also if this process is killed), or one step.
+async fn jog(
+    m: &mut MachineClient<Svc>,
+    j: bool,
+    arg: &str,
+    speed: f64,
+    step: Option<f64>,
+) -> Result<ExitCode, String> {
+    let (axis, dir) = jog_axis(arg)?;
+    if let Some(step) = step {
+        let step_mm = if dir < 0 { -step.abs() } else { step };
+        let r = m
+            .jog_step(pb::JogStepRequest {
+                axis,
+                step_mm,
+                speed_mm_min: speed,
+            })
+            .await
+            .map_err(explain)?
+            .into_inner();
+        print(j, json!({"target_mm": r.target_mm}), || {
+            format!("moving to {:.4}", r.target_mm)
+        });
+        return Ok(ExitCode::SUCCESS);
+    }
+    if dir == 0 {
+        return Err("a continuous jog needs a direction: X+ or X-".into());
+    }
+    let (tx, rx) = tokio::sync::mpsc::channel(4);
+    let msg = pb::JogRequest {
+        axis,
+        direction: dir,
+        speed_mm_min: speed,
+    };
+    let feeder = tokio::spawn(async move {
+        let mut tick = tokio::time::interval(Duration::from_millis(100));
+        let mut interrupted = std::pin::pin!(tokio::signal::ctrl_c());
+        loop {
+            tokio::select! {
+                _ = tick.tick() => {
+                    if tx.send(msg.clone()).await.is_err() {
+                        return;
+                    }
+                }
+                _ = &mut interrupted => return,
+            }
+        }
+    });
+    let call = m.jog(tokio_stream::wrappers::ReceiverStream::new(rx));
+    if !j {
+        eprintln!("jogging {arg}: Ctrl-C to stop");
+    }
+    let r = call.await.map_err(explain)?.into_inner();
+    feeder.abort();
+    print(j, json!({"stopped": true, "limit_mm": r.target_mm}), || {
+        "jog stopped".to_string()
+    });
     Ok(ExitCode::SUCCESS)
 }
 

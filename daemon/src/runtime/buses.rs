@@ -71,7 +71,13 @@ pub fn open_bus(
                 ..Default::default()
             };
             let start: Vec<f64> = axes.iter().map(|a| a.home_mm).collect();
-            Ok(Box::new(sim::SimBus::new(params, &start)))
+            let mut bus = sim::SimBus::new(params, &start);
+            for (i, a) in axes.iter().enumerate() {
+                if let Some(at) = a.sim_home_switch_mm {
+                    bus = bus.with_home_switch(i, at, f64::from(a.homing_direction));
+                }
+            }
+            Ok(Box::new(bus))
         }
         BusConfig::Can(c) => {
             let mut port = SocketCanPort::open(&c.interface)?;

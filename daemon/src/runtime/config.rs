@@ -197,6 +197,54 @@ pub struct AxisConfig {
     /// Position at power-on of the simulated machine, mm.
     #[serde(default)]
     pub home_mm: f64,
+    /// Soft limits (travel limits), machine coordinates, mm (degrees on a rotary axis).
+    /// Programs, MDI and jogs never command the axis beyond them. Unset: no limit on that
+    /// side (the axis is not protected there: docs/operator.md).
+    #[serde(default)]
+    pub soft_min_mm: Option<f64>,
+    #[serde(default)]
+    pub soft_max_mm: Option<f64>,
+    /// Deceleration of this axis in an emergency stop (a fault of any axis), mm/s². Unset:
+    /// `max_accel_mm_s2`. Each axis brakes on its own at this rate, not along the path.
+    #[serde(default)]
+    pub stop_decel_mm_s2: Option<f64>,
+    /// Reference run (homing): `required` (incremental encoders: programs, MDI and continuous
+    /// jogs are refused until the axis is homed) or `none` (absolute encoders; the default,
+    /// so an existing configuration keeps working).
+    #[serde(default)]
+    pub homing: HomingMode,
+    /// Machine coordinate of the home switch: the axis's position once it is found.
+    #[serde(default)]
+    pub reference_mm: f64,
+    /// Direction of the switch search: -1 or +1.
+    #[serde(default = "default_homing_direction")]
+    pub homing_direction: i8,
+    /// Search speed, mm/min (unset: 10 % of `max_velocity_mm_min`).
+    #[serde(default)]
+    pub homing_speed_mm_min: Option<f64>,
+    /// Order of the reference run (lower first; unset: after the numbered axes, in machine
+    /// order). Typically Z first, so the tool leaves the work before X and Y move.
+    #[serde(default)]
+    pub home_order: Option<u8>,
+    /// Simulated machine only: where the home switch of this axis is, in the drive's power-on
+    /// coordinates (pressed from there on in `homing_direction`). Unset: no switch.
+    #[serde(default)]
+    pub sim_home_switch_mm: Option<f64>,
+}
+
+/// Reference run of an axis.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum HomingMode {
+    /// Absolute encoder, or the machine is referenced otherwise.
+    #[default]
+    None,
+    /// The axis must be homed after power-on before it runs programs.
+    Required,
+}
+
+fn default_homing_direction() -> i8 {
+    -1
 }
 
 fn default_v_max() -> f64 {
@@ -210,6 +258,11 @@ fn default_increments() -> f64 {
 }
 
 impl AxisConfig {
+    /// Emergency-stop deceleration, mm/s².
+    pub fn stop_decel(&self) -> f64 {
+        self.stop_decel_mm_s2.unwrap_or(self.max_accel_mm_s2)
+    }
+
     pub fn new(name: char) -> Self {
         AxisConfig {
             name,
@@ -218,6 +271,15 @@ impl AxisConfig {
             increments_per_mm: default_increments(),
             node_id: None,
             home_mm: 0.0,
+            soft_min_mm: None,
+            soft_max_mm: None,
+            stop_decel_mm_s2: None,
+            homing: HomingMode::None,
+            reference_mm: 0.0,
+            homing_direction: -1,
+            homing_speed_mm_min: None,
+            home_order: None,
+            sim_home_switch_mm: None,
         }
     }
 }
@@ -582,6 +644,7 @@ impl Config {
             if !a.home_mm.is_finite() {
                 return Err(format!("axes[{i}].home_mm: {} is not a number", a.home_mm));
             }
+            validate_axis_safety(i, a)?;
         }
         for (key, v) in [
             ("sim.kv_per_s", self.sim.kv_per_s),
@@ -610,6 +673,58 @@ impl Config {
     pub fn axis_names(&self) -> Vec<char> {
         self.axes.iter().map(|a| a.name).collect()
     }
+
+    /// The soft limits of every axis (issue #15); unset sides are unlimited.
+    pub fn soft_limits(&self) -> kernel::limits::SoftLimits {
+        let mut l = kernel::limits::SoftLimits::NONE;
+        for (i, a) in self.axes.iter().enumerate().take(kernel::MAX_AXES) {
+            l.min_mm[i] = a.soft_min_mm.unwrap_or(f64::NEG_INFINITY);
+            l.max_mm[i] = a.soft_max_mm.unwrap_or(f64::INFINITY);
+        }
+        l
+    }
+}
+
+/// Soft limits and the stop deceleration of axis `i`.
+fn validate_axis_safety(i: usize, a: &AxisConfig) -> Result<(), String> {
+    for (key, v) in [
+        ("soft_min_mm", a.soft_min_mm),
+        ("soft_max_mm", a.soft_max_mm),
+    ] {
+        if let Some(v) = v
+            && !v.is_finite()
+        {
+            return Err(format!("axes[{i}].{key}: {v} is not a number"));
+        }
+    }
+    if let (Some(lo), Some(hi)) = (a.soft_min_mm, a.soft_max_mm)
+        && lo >= hi
+    {
+        return Err(format!(
+            "axes[{i}].soft_max_mm: {hi} must be above soft_min_mm {lo}"
+        ));
+    }
+    if a.homing_direction != 1 && a.homing_direction != -1 {
+        return Err(format!(
+            "axes[{i}].homing_direction: {} must be -1 or 1",
+            a.homing_direction
+        ));
+    }
+    if let Some(v) = a.homing_speed_mm_min
+        && !(v.is_finite() && v > 0.0 && v <= a.max_velocity_mm_min)
+    {
+        return Err(format!(
+            "axes[{i}].homing_speed_mm_min: {v} must be above 0 and at most max_velocity_mm_min"
+        ));
+    }
+    if let Some(d) = a.stop_decel_mm_s2
+        && !(d.is_finite() && d > 0.0)
+    {
+        return Err(format!(
+            "axes[{i}].stop_decel_mm_s2: {d} must be a positive number"
+        ));
+    }
+    Ok(())
 }
 
 // ---- [bus] section (opened by `super::buses`) ----------------------------------------------

@@ -10,27 +10,34 @@ use kernel::Diagnostic;
 use kernel::block::Block;
 use kernel::machine::{AxisLimits, MachineConfig, MachineSetup};
 use kernel::pipeline::{self, Observer, Options, Validation};
-use kernel::units::AxesMm;
+use kernel::units::{AxesMm, MAX_AXES};
 use tokio::sync::watch;
 
 use kernel::constants::{AXIS_CODES, Constants};
+use kernel::jog::{Jog, JogRequest};
 use kernel::kr::{Gear, Kr, RadiusInput};
 use kernel::offsets::{OffsetTable, TableEdit};
 use kernel::plc::{PlcError, PlcWrite};
 
 use super::buses::open_bus;
 use super::clock::{Clock, MonotonicClock};
-use super::config::{Config, RadiusInputConfig};
+use super::config::{Config, HomingMode, RadiusInputConfig};
 use super::job::{self, JobLink, JobSpec};
 use super::logging::BlockNo;
 use super::pipeline::Execution;
 use super::rt::{self, JobMachine, MachineState, RtCommand, RtCoreConfig, RtParts, Snapshot};
+use super::rt_core::HomeRequest;
 use super::storage::{self, OffsetStore, StorageError};
 
 /// Segment ring capacity (planner → RT).
 const SEGMENT_RING: usize = 4096;
 /// Command ring capacity (API → RT).
 const COMMAND_RING: usize = 64;
+/// A continuous jog stops by itself unless renewed within this many ticks (0.5 s): the
+/// dead-man of a client that goes away without a word (the API renews it every 100 ms).
+pub const JOG_LEASE_TICKS: u32 = 125;
+/// Longest switch search of an axis without both soft limits, mm.
+const HOMING_MAX_TRAVEL_MM: f64 = 2000.0;
 
 /// Which clock drives the tick loop of the RT thread. Simulated time is not a clock of the
 /// threaded daemon: tests that need it step the RT core in the single-threaded harness
@@ -68,6 +75,9 @@ pub enum ControlError {
     Plc(#[from] PlcError),
     #[error("{0}")]
     Invalid(String),
+    /// An operation was started and did not complete (e.g. a reference run failed).
+    #[error("{0}")]
+    Aborted(String),
 }
 
 pub struct Controller {
@@ -94,6 +104,11 @@ pub struct Controller {
     /// Increases whenever something a job's setup is built from changes (constants, offset
     /// table): a program validated under another generation is validated again at start.
     generation: Arc<AtomicU64>,
+    /// A feed hold was asked for and not yet resumed or stopped (the RT thread may not have
+    /// published the hold yet).
+    hold_requested: AtomicBool,
+    /// The bus can run reference runs (homing).
+    can_home: bool,
 }
 
 /// The constants: the file's, and those in force (the file's, except the constants that
@@ -130,6 +145,7 @@ impl Controller {
         bus: Box<dyn hal::DriveBus>,
     ) -> Result<Arc<Controller>, String> {
         let axes = config.axes.len();
+        let can_home = bus.supports_homing();
         if !bus.has_spindle() {
             // Said once here: the RT thread keeps computing the speed (KŘR, the PLC cells),
             // but the setpoint has no drive to go to (issue #7).
@@ -208,6 +224,8 @@ impl Controller {
             offsets,
             execution,
             generation,
+            hold_requested: AtomicBool::new(false),
+            can_home,
         }))
     }
 
@@ -340,8 +358,113 @@ impl Controller {
         Ok(snap)
     }
 
+    /// Whether axis `i` is referenced: homed since power-on, or needing no reference run.
+    pub fn axis_homed(&self, snap: &Snapshot, i: usize) -> bool {
+        self.config.axes[i].homing == HomingMode::None || snap.homed & (1 << i) != 0
+    }
+
+    /// FAILED_PRECONDITION while an axis that needs a reference run has not had one.
+    fn require_homed(&self, what: &str) -> Result<(), ControlError> {
+        let snap = self.snapshot();
+        let missing: String = (0..self.config.axes.len())
+            .filter(|&i| !self.axis_homed(&snap, i))
+            .map(|i| self.config.axes[i].name)
+            .collect();
+        if missing.is_empty() {
+            return Ok(());
+        }
+        Err(ControlError::WrongState(format!(
+            "{what} needs homed axes: home {missing} first (cncctl home)"
+        )))
+    }
+
+    /// The axes named in `axes` (when empty: those with `homing = "required"`), in their
+    /// configured homing order.
+    fn homing_order(&self, axes: &str) -> Result<Vec<usize>, ControlError> {
+        let mut list: Vec<usize> = if axes.trim().is_empty() {
+            (0..self.config.axes.len())
+                .filter(|&i| self.config.axes[i].homing == HomingMode::Required)
+                .collect()
+        } else {
+            let mut v = Vec::new();
+            for c in axes.chars().filter(|c| !c.is_whitespace() && *c != ',') {
+                let i = self.axis_index(&c.to_string())?;
+                if !v.contains(&i) {
+                    v.push(i);
+                }
+            }
+            v
+        };
+        list.sort_by_key(|&i| (self.config.axes[i].home_order.unwrap_or(u8::MAX), i));
+        Ok(list)
+    }
+
+    /// Reference run of `axes` (all when empty), one axis after the other in the configured
+    /// order. Returns the letters homed.
+    pub async fn home(&self, axes: &str) -> Result<String, ControlError> {
+        if !self.can_home {
+            return Err(ControlError::WrongState(
+                "this bus cannot run a reference run yet (homing is built for the simulated \
+                 machine; CANopen mode 6 and serial homing are not done)"
+                    .into(),
+            ));
+        }
+        let order = self.homing_order(axes)?;
+        let mut done = String::new();
+        for i in order {
+            self.home_axis(i).await?;
+            done.push(self.config.axes[i].name);
+        }
+        Ok(done)
+    }
+
+    async fn home_axis(&self, i: usize) -> Result<(), ControlError> {
+        let a = &self.config.axes[i];
+        let snap = self.snapshot();
+        if snap.state != MachineState::Idle {
+            return Err(ControlError::WrongState(format!(
+                "homing needs an idle machine; it is {:?}",
+                snap.state
+            )));
+        }
+        let travel = match (a.soft_min_mm, a.soft_max_mm) {
+            (Some(lo), Some(hi)) => 1.5 * (hi - lo),
+            _ => HOMING_MAX_TRAVEL_MM,
+        };
+        self.send(RtCommand::Home(HomeRequest {
+            axis: i,
+            direction: f64::from(a.homing_direction),
+            speed_mm_s: a.homing_speed_mm_min.unwrap_or(0.1 * a.max_velocity_mm_min) / 60.0,
+            accel_mm_s2: a.max_accel_mm_s2,
+            reference_mm: a.reference_mm,
+            max_travel_mm: travel,
+        }))?;
+        // Commands are taken at the start of a tick: two snapshots later it has been seen.
+        let mut rx = self.subscribe();
+        let bit = 1u8 << i;
+        loop {
+            let s = *rx.borrow_and_update();
+            if s.sequence >= snap.sequence + 2 && s.state != MachineState::Homing {
+                if s.homed & bit != 0 {
+                    return Ok(());
+                }
+                return Err(ControlError::Aborted(format!(
+                    "homing of {} failed: {}",
+                    a.name,
+                    if s.homing_failed & bit != 0 {
+                        "home switch not found, or stopped"
+                    } else {
+                        "the machine was not idle"
+                    }
+                )));
+            }
+            rx.changed().await.map_err(|_| ControlError::RtGone)?;
+        }
+    }
+
     /// Starts the selected program. Returns the job id.
     pub fn start_program(&self) -> Result<u32, ControlError> {
+        self.require_homed("a program")?;
         let program = self
             .program()
             .ok_or_else(|| ControlError::WrongState("no program is loaded".into()))?;
@@ -380,6 +503,7 @@ impl Controller {
     ) -> Result<u32, ControlError> {
         let job = self.next_job.fetch_add(1, Ordering::Relaxed);
         spec.opts.job = job;
+        self.hold_requested.store(false, Ordering::Relaxed);
         *self.alarm.lock().unwrap() = None;
         self.execution.lock().unwrap().begin(job);
         let machine = JobMachine {
@@ -408,20 +532,192 @@ impl Controller {
         Ok(job)
     }
 
-    /// Stops motion: brake on the path, drop the rest of the program.
+    /// Stops motion: brake on the path, drop the rest of the program; the spindle stops once
+    /// the axes are at rest. Never refused (a stop is always allowed, also to stop a spindle
+    /// left turning on an idle machine).
     pub fn stop(&self) -> Result<(), ControlError> {
         if let Some(r) = self.run.lock().unwrap().as_ref() {
             r.cancel.store(true, Ordering::Relaxed);
         }
+        self.hold_requested.store(false, Ordering::Relaxed);
         self.send(RtCommand::Stop)
     }
 
+    /// A job was started and has neither ended nor been stopped: it runs, is held, or the RT
+    /// thread has not taken its start yet.
+    fn job_active(&self, snap: &Snapshot) -> bool {
+        let last = self.next_job.load(Ordering::Relaxed).saturating_sub(1);
+        let pending =
+            last != 0 && snap.job != last && snap.finished_job != last && snap.aborted_job != last;
+        pending
+            || matches!(
+                snap.state,
+                MachineState::Running | MachineState::Hold | MachineState::Stopping
+            )
+    }
+
+    /// Feed hold. FAILED_PRECONDITION when nothing runs.
     pub fn hold(&self) -> Result<(), ControlError> {
+        let snap = self.snapshot();
+        if !self.job_active(&snap) || snap.state == MachineState::Stopping {
+            return Err(ControlError::WrongState(format!(
+                "nothing runs to hold: the machine is {:?}",
+                snap.state
+            )));
+        }
+        self.hold_requested.store(true, Ordering::Relaxed);
         self.send(RtCommand::Hold)
     }
 
+    /// Continues after a feed hold, a single-block hold or a program stop (M0/M1).
+    /// FAILED_PRECONDITION when nothing is held (idle, after a stop, while stopping).
     pub fn resume(&self) -> Result<(), ControlError> {
+        let snap = self.snapshot();
+        let held = snap.state == MachineState::Hold
+            || (self.hold_requested.load(Ordering::Relaxed)
+                && self.job_active(&snap)
+                && snap.state != MachineState::Stopping);
+        if !held {
+            return Err(ControlError::WrongState(format!(
+                "nothing is held to resume: the machine is {:?}",
+                snap.state
+            )));
+        }
+        self.hold_requested.store(false, Ordering::Relaxed);
         self.send(RtCommand::Resume)
+    }
+
+    /// Start while held (feed hold or a program stop M0/M1) continues the job: returns its
+    /// id; `None` when nothing is held.
+    pub fn start_resumes(&self) -> Result<Option<u32>, ControlError> {
+        let snap = self.snapshot();
+        if snap.state != MachineState::Hold {
+            return Ok(None);
+        }
+        self.hold_requested.store(false, Ordering::Relaxed);
+        self.send(RtCommand::Resume)?;
+        Ok(Some(snap.job))
+    }
+
+    /// Axis index of letter `axis`, or INVALID_ARGUMENT.
+    fn axis_index(&self, axis: &str) -> Result<usize, ControlError> {
+        let mut chars = axis.trim().chars();
+        let letter = chars.next().map(|c| c.to_ascii_uppercase());
+        self.config
+            .axes
+            .iter()
+            .position(|a| Some(a.name) == letter && chars.next().is_none())
+            .ok_or_else(|| {
+                ControlError::Invalid(format!(
+                    "no axis {axis:?}: the machine has {}",
+                    self.config.axis_names().iter().collect::<String>()
+                ))
+            })
+    }
+
+    /// Jog speed in mm/s: the asked speed within the axis's maximum; 0 asks for 10 % of it.
+    fn jog_speed(&self, axis: usize, speed_mm_min: f64) -> Result<f64, ControlError> {
+        let max = self.config.axes[axis].max_velocity_mm_min;
+        if !speed_mm_min.is_finite() || speed_mm_min < 0.0 {
+            return Err(ControlError::Invalid(format!(
+                "jog speed {speed_mm_min} mm/min must be positive"
+            )));
+        }
+        let v = if speed_mm_min == 0.0 {
+            0.1 * max
+        } else {
+            speed_mm_min.min(max)
+        };
+        Ok(v / 60.0)
+    }
+
+    /// Starts or renews a continuous jog of `axis` in direction `dir` (sign) at `speed_mm_min`.
+    /// The real-time thread stops it by itself unless renewed within [`JOG_LEASE_TICKS`]
+    /// (the dead-man). Returns the target: the soft limit in that direction.
+    pub fn jog(&self, axis: &str, dir: i32, speed_mm_min: f64) -> Result<f64, ControlError> {
+        let i = self.axis_index(axis)?;
+        if dir == 0 {
+            return Err(ControlError::Invalid(
+                "jog direction must be +1 or -1".into(),
+            ));
+        }
+        let speed = self.jog_speed(i, speed_mm_min)?;
+        let snap = self.snapshot();
+        if !self.axis_homed(&snap, i) {
+            return Err(ControlError::WrongState(format!(
+                "axis {} is not homed: its soft limits mean nothing yet, so it jogs only by \
+                 steps until homed (cncctl home {})",
+                self.config.axes[i].name, self.config.axes[i].name
+            )));
+        }
+        if !matches!(snap.state, MachineState::Idle | MachineState::Jog) {
+            return Err(ControlError::WrongState(format!(
+                "jogging needs an idle machine; it is {:?}",
+                snap.state
+            )));
+        }
+        let a = &self.config.axes[i];
+        let (lo, hi) = (
+            a.soft_min_mm.unwrap_or(f64::NEG_INFINITY),
+            a.soft_max_mm.unwrap_or(f64::INFINITY),
+        );
+        let target = Jog::continuous_target(snap.commanded[i], f64::from(dir.signum()), lo, hi);
+        self.send(RtCommand::Jog(JogRequest {
+            axis: i,
+            target_mm: target,
+            speed_mm_s: speed,
+            accel_mm_s2: a.max_accel_mm_s2,
+            lease_ticks: JOG_LEASE_TICKS,
+        }))?;
+        Ok(if dir > 0 { hi } else { lo })
+    }
+
+    /// Incremental jog: `step_mm` on `axis`, clamped to the soft limits. Returns the target.
+    pub fn jog_step(
+        &self,
+        axis: &str,
+        step_mm: f64,
+        speed_mm_min: f64,
+    ) -> Result<f64, ControlError> {
+        let i = self.axis_index(axis)?;
+        if !step_mm.is_finite() || step_mm == 0.0 {
+            return Err(ControlError::Invalid(format!("jog step {step_mm} mm")));
+        }
+        let speed = self.jog_speed(i, speed_mm_min)?;
+        let snap = self.snapshot();
+        if snap.state != MachineState::Idle {
+            return Err(ControlError::WrongState(format!(
+                "a jog step needs an idle machine; it is {:?}",
+                snap.state
+            )));
+        }
+        let a = &self.config.axes[i];
+        let here = snap.commanded[i];
+        let mut target = here + step_mm;
+        if let Some(hi) = a.soft_max_mm {
+            target = target.min(hi.max(here));
+        }
+        if let Some(lo) = a.soft_min_mm {
+            target = target.max(lo.min(here));
+        }
+        self.send(RtCommand::Jog(JogRequest {
+            axis: i,
+            target_mm: target,
+            speed_mm_s: speed,
+            accel_mm_s2: a.max_accel_mm_s2,
+            lease_ticks: u32::MAX,
+        }))?;
+        Ok(target)
+    }
+
+    /// Brakes a jog to rest (the client let go, or went away).
+    pub fn jog_stop(&self) -> Result<(), ControlError> {
+        self.send(RtCommand::JogStop)
+    }
+
+    /// Optional stop switch: M1 stops the program only while it is on.
+    pub fn set_optional_stop(&self, on: bool) -> Result<(), ControlError> {
+        self.send(RtCommand::OptionalStop(on))
     }
 
     pub fn set_override(&self, percent: f64) -> Result<(), ControlError> {
@@ -565,6 +861,7 @@ impl Controller {
         stop_at_blocks: bool,
         mdi: bool,
     ) -> Result<(u32, Arc<Vec<Block>>), ControlError> {
+        self.require_homed("MDI")?;
         let mut run = self.run.lock().unwrap();
         self.idle_for_start()?;
         let opts = Options {
@@ -630,6 +927,15 @@ impl Drop for Controller {
     }
 }
 
+/// Fault-reaction deceleration of each axis (`stop_decel_mm_s2`, else its acceleration).
+fn stop_decel(config: &Config) -> [f64; MAX_AXES] {
+    let mut d = [f64::INFINITY; MAX_AXES];
+    for (i, a) in config.axes.iter().enumerate().take(MAX_AXES) {
+        d[i] = a.stop_decel();
+    }
+    d
+}
+
 /// What the RT core is built from: the axes at their home positions, KŘR and the G24 window
 /// of the machine setup at start-up (each job's Start brings its own, see [`JobMachine`]).
 pub(crate) fn rt_core_config(
@@ -654,6 +960,7 @@ pub(crate) fn rt_core_config(
         start,
         kr: Kr::new(setup.kr().cloned().expect("the daemon's setup has KŘR")),
         in_position_mm: setup.in_position_mm(),
+        stop_decel_mm_s2: stop_decel(config),
     })
 }
 
@@ -687,6 +994,7 @@ pub(crate) fn machine_config(config: &Config) -> MachineConfig {
         ij: config.program.ij.into(),
         preprocessor: true,
         min_block_time_s: config.planner.min_block_time_ms / 1000.0,
+        soft_limits: config.soft_limits(),
     }
 }
 

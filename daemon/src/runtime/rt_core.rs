@@ -13,11 +13,14 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU32, Ordering};
 
 use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState};
+use kernel::block::SpindleDir;
+use kernel::estop::AxisBrake;
 use kernel::interp::{InterpState, Interpolator, TickOut};
+use kernel::jog::{Jog, JogRequest};
 use kernel::kr::{ControllingAxis, Kr, KrFault, KrInput, KrOutput, Motion, ProgramSpindle};
 use kernel::plan::Segment;
 use kernel::plc::{PlcArea, PlcWrite};
-use kernel::units::{AxesMm, TS_NS};
+use kernel::units::{AxesMm, MAX_AXES, TS_NS};
 
 use super::stats::{TickStats, TickSummary};
 
@@ -42,6 +45,37 @@ pub enum RtCommand {
     Plc(PlcWrite),
     /// Single-block mode: hold when the path enters a new block (API, issue #8).
     SingleBlock(bool),
+    /// Optional stop switch: M1 stops the program while on (issue #15).
+    OptionalStop(bool),
+    /// Start or renew a jog (idle machine only; issue #15).
+    Jog(JogRequest),
+    /// Brake a jog to rest.
+    JogStop,
+    /// Reference run of one axis (idle machine only; issue #15).
+    Home(HomeRequest),
+}
+
+/// A reference run of one axis: search the home switch, then make its position the reference.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HomeRequest {
+    pub axis: usize,
+    /// -1 or +1.
+    pub direction: f64,
+    pub speed_mm_s: f64,
+    pub accel_mm_s2: f64,
+    /// The axis's position at the switch once homed.
+    pub reference_mm: f64,
+    /// Give up (homing failed) after this much travel without the switch.
+    pub max_travel_mm: f64,
+}
+
+/// A reference run under way.
+#[derive(Clone, Copy, Debug)]
+struct HomingRun {
+    axis: usize,
+    reference_mm: f64,
+    /// Drive position where the switch was found.
+    trigger_mm: Option<f64>,
 }
 
 /// What the RT side reads of a job's machine setup (issue #14): taken with the job's start, so
@@ -67,6 +101,10 @@ pub enum MachineState {
     Fault,
     /// Shutting down: braking, then the thread ends.
     Shutdown,
+    /// An axis is jogged (or brakes at the end of a jog).
+    Jog,
+    /// An axis runs its reference run (homing).
+    Homing,
 }
 
 /// What the RT thread publishes every tick. `Copy`, fixed size: written without allocation.
@@ -105,6 +143,16 @@ pub struct Snapshot {
     pub kr: KrOutput,
     /// A KŘR fault stopped the machine (cleared by Reset).
     pub kr_fault: Option<KrFault>,
+    /// Optional stop is on: M1 stops the program.
+    pub optional_stop: bool,
+    /// Held at a program stop (M0, or M1 with optional stop on).
+    pub program_stop: bool,
+    /// Largest distance of the tool from the programmed path the last fault stop caused, mm.
+    pub fault_path_deviation_mm: f64,
+    /// Axes homed since power-on (bit i: axis i).
+    pub homed: u8,
+    /// Axes whose last reference run failed (switch not found, stopped, fault).
+    pub homing_failed: u8,
 }
 
 impl Snapshot {
@@ -158,6 +206,8 @@ pub struct RtCoreConfig {
     pub kr: Kr,
     /// Following error under which every axis counts as arrived, for G24 (R06-R07), mm.
     pub in_position_mm: AxesMm,
+    /// Stop deceleration of each axis for the fault reaction, mm/s² (issue #15).
+    pub stop_decel_mm_s2: [f64; MAX_AXES],
 }
 
 /// The real-time core. Everything the tick owns; the caller owns time, rings and bus.
@@ -185,6 +235,20 @@ pub struct RtCore {
     sb_seq: u32,
     /// The bus has a spindle drive (asked once at start-up).
     has_spindle: bool,
+    /// A stop ended the job: the spindle stops once the axes are at rest (until the next
+    /// start).
+    spindle_off: bool,
+    /// Fault reaction (issue #15): every healthy axis brakes on its own.
+    brake: AxisBrake,
+    /// Setpoints sent the tick before the last one (the brake starts from their speed).
+    prev_setpoint: AxesMm,
+    /// Ticks since the brake came to rest; the drives go to their safe state once settled.
+    brake_rest_ticks: u32,
+    safe_state_sent: bool,
+    /// Jogging one axis by hand.
+    jog: Jog,
+    /// Reference run under way.
+    homing: Option<HomingRun>,
 }
 
 impl RtCore {
@@ -216,6 +280,13 @@ impl RtCore {
             plc: PlcArea::new(),
             sb_seq: u32::MAX,
             has_spindle,
+            spindle_off: false,
+            brake: AxisBrake::new(cfg.axes, cfg.stop_decel_mm_s2),
+            prev_setpoint: cfg.start,
+            brake_rest_ticks: 0,
+            safe_state_sent: false,
+            jog: Jog::default(),
+            homing: None,
         }
     }
 
@@ -259,6 +330,8 @@ impl RtCore {
         self.spindle(&out);
         self.single_block_check(out.seq, out.path_v_mm_s);
         self.exchange(&out, bus);
+        self.fault_reaction(bus);
+        self.homing_step(bus);
         let planned = rings.planned_job.load(Ordering::Acquire);
         self.update_state(planned, rings.segments.is_empty());
         self.publish(now_ns, &out)
@@ -294,7 +367,18 @@ impl RtCore {
     /// Setpoints out, feedback in; a bus fault stops the machine.
     fn exchange(&mut self, out: &TickOut, bus: &mut dyn DriveBus) {
         let axes = self.axes;
-        self.cmd.positions_mm[..axes].copy_from_slice(&out.position.0[..axes]);
+        self.prev_setpoint = AxesMm(self.cmd.positions_mm);
+        // After a fault the brake, not the path, commands the axes.
+        let setpoint = if self.brake.active() {
+            self.brake.tick()
+        } else if self.jog.active() {
+            let mut p = out.position;
+            p[self.jog.axis()] = self.jog.tick();
+            p
+        } else {
+            out.position
+        };
+        self.cmd.positions_mm[..axes].copy_from_slice(&setpoint.0[..axes]);
         let result = bus.cycle(&self.cmd, &mut self.fb);
         for i in 0..axes {
             self.snap.actual[i] = self.fb.axes[i].position_mm;
@@ -308,7 +392,7 @@ impl RtCore {
         let s = &mut self.snap;
         s.sequence += 1;
         s.time_ns = now_ns;
-        s.commanded = out.position;
+        s.commanded = AxesMm(self.cmd.positions_mm);
         s.path_v_mm_s = out.path_v_mm_s;
         s.block_seq = out.seq;
         s.block_n = out.n;
@@ -316,6 +400,7 @@ impl RtCore {
         s.ticks = self.stats.summary();
         s.spindle_rpm = self.fb.spindle_rpm;
         s.waiting_for_spindle = self.interp.waiting_for_spindle();
+        s.program_stop = self.interp.at_program_stop();
         s.plc = self.plc;
         &self.snap
     }
@@ -330,10 +415,17 @@ impl RtCore {
                         self.active_job = job;
                         self.snap.job = job;
                         self.sb_seq = u32::MAX;
+                        self.spindle_off = false;
                         self.snap.state = MachineState::Running;
                     }
                 }
-                RtCommand::Stop => self.abort(),
+                RtCommand::Stop => {
+                    self.jog.stop();
+                    self.abort();
+                }
+                RtCommand::Jog(r) => self.jog_request(r),
+                RtCommand::JogStop => self.jog.stop(),
+                RtCommand::Home(r) => self.home_request(r),
                 RtCommand::Hold => self.interp.hold(),
                 RtCommand::Resume => self.interp.resume(),
                 RtCommand::Override(pct) => {
@@ -346,6 +438,8 @@ impl RtCore {
                     {
                         self.snap.fault = None;
                         self.snap.kr_fault = None;
+                        self.brake.clear();
+                        self.safe_state_sent = false;
                         self.kr.reset();
                         bus.reset();
                         self.enable_ticks = 0;
@@ -357,7 +451,12 @@ impl RtCore {
                     self.snap.single_block = on;
                     self.sb_seq = u32::MAX;
                 }
+                RtCommand::OptionalStop(on) => {
+                    self.interp.set_optional_stop(on);
+                    self.snap.optional_stop = on;
+                }
                 RtCommand::Shutdown => {
+                    self.jog.stop();
                     self.shutting_down = true;
                     self.abort();
                 }
@@ -376,9 +475,16 @@ impl RtCore {
             Motion::Feed
         };
         let axis = self.kr.config().controlling_axis;
+        // After a stop the spindle stops once the axes are at rest; on a fault at once.
+        let off = self.snap.fault.is_some()
+            || (self.spindle_off && self.interp.state() == InterpState::Idle);
         let input = KrInput {
             program: ProgramSpindle {
-                dir: out.spindle.dir,
+                dir: if off {
+                    SpindleDir::Stopped
+                } else {
+                    out.spindle.dir
+                },
                 css: out.spindle.css,
                 s_word: out.spindle.s,
                 limit_rpm: out.spindle.limit_rpm,
@@ -419,6 +525,7 @@ impl RtCore {
 
     /// Ends the active job: brake on the path and drop what remains.
     fn abort(&mut self) {
+        self.spindle_off = true;
         if self.active_job != 0 {
             self.snap.aborted_job = self.active_job;
             self.active_job = 0;
@@ -429,7 +536,126 @@ impl RtCore {
     fn fault(&mut self, fault: BusFault) {
         if self.snap.fault.is_none() {
             self.snap.fault = Some(fault);
+            self.start_fault_stop(fault);
             self.abort();
+        }
+    }
+
+    /// A jog starts only on an idle machine (or renews the running jog); its speed is scaled
+    /// by the feed override in force.
+    fn jog_request(&mut self, mut r: JogRequest) {
+        let free = matches!(self.snap.state, MachineState::Idle | MachineState::Jog)
+            && self.active_job == 0
+            && !self.shutting_down
+            && r.axis < self.axes;
+        if !free {
+            return;
+        }
+        r.speed_mm_s *= self.snap.override_pct / 100.0;
+        let here = self.cmd.positions_mm[r.axis];
+        if self.jog.request(r, here) {
+            self.snap.state = MachineState::Jog;
+        }
+    }
+
+    /// Starts a reference run: the axis moves toward its switch like a jog (no lease: the
+    /// operator started it and Stop ends it), at most `max_travel_mm`.
+    fn home_request(&mut self, r: HomeRequest) {
+        let free = self.snap.state == MachineState::Idle
+            && self.active_job == 0
+            && !self.shutting_down
+            && r.axis < self.axes;
+        if !free {
+            return;
+        }
+        let bit = 1u8 << r.axis;
+        self.snap.homed &= !bit;
+        self.snap.homing_failed &= !bit;
+        let here = self.cmd.positions_mm[r.axis];
+        let jog = JogRequest {
+            axis: r.axis,
+            target_mm: here + r.direction.signum() * r.max_travel_mm,
+            speed_mm_s: r.speed_mm_s,
+            accel_mm_s2: r.accel_mm_s2,
+            lease_ticks: u32::MAX,
+        };
+        if self.jog.request(jog, here) {
+            self.homing = Some(HomingRun {
+                axis: r.axis,
+                reference_mm: r.reference_mm,
+                trigger_mm: None,
+            });
+            self.snap.state = MachineState::Homing;
+        }
+    }
+
+    /// The reference run after this tick's feedback: brake at the switch; once at rest the
+    /// switch position becomes the reference (drive and setpoint shift together: no jump).
+    fn homing_step(&mut self, bus: &mut dyn DriveBus) {
+        let Some(mut h) = self.homing else { return };
+        if h.trigger_mm.is_none() && bus.home_switch(h.axis) {
+            h.trigger_mm = Some(self.fb.axes[h.axis].position_mm);
+            self.jog.stop();
+        }
+        if self.jog.active() {
+            self.homing = Some(h);
+            return;
+        }
+        let bit = 1u8 << h.axis;
+        match h.trigger_mm {
+            Some(t) => {
+                bus.set_home(h.axis, t, h.reference_mm);
+                // Setpoint and this tick's feedback shift with the drive's position.
+                let shift = h.reference_mm - t;
+                self.cmd.positions_mm[h.axis] += shift;
+                self.fb.axes[h.axis].position_mm += shift;
+                self.snap.actual[h.axis] += shift;
+                self.snap.homed |= bit;
+            }
+            None => self.snap.homing_failed |= bit,
+        }
+        self.homing = None;
+    }
+
+    /// Fault reaction (issue #15): a faulted axis no longer follows, so braking along the path
+    /// would pull the tool off it. Every healthy axis brakes on its own at its stop
+    /// deceleration from the speed of its last setpoints; a faulted axis keeps its setpoint
+    /// where it stands.
+    fn start_fault_stop(&mut self, fault: BusFault) {
+        // The brake takes over from the jog's last setpoints.
+        self.jog.cancel();
+        if let Some(h) = self.homing.take() {
+            self.snap.homing_failed |= 1 << h.axis;
+        }
+        let now = AxesMm(self.cmd.positions_mm);
+        self.brake
+            .start(&self.prev_setpoint, &now, self.interp.current_path());
+        if let Some(a) = fault.axis.map(usize::from).filter(|&a| a < self.axes) {
+            self.brake.hold_axis(a, self.fb.axes[a].position_mm);
+        }
+        self.brake_rest_ticks = 0;
+        self.safe_state_sent = false;
+        self.snap.fault_path_deviation_mm = 0.0;
+    }
+
+    /// While the fault stop runs: measure the deviation from the path; once every axis is at
+    /// rest (setpoints still, drives caught up, or a settle timeout), bring the drives to
+    /// their safe state (CiA 402 quick stop / disable).
+    fn fault_reaction(&mut self, bus: &mut dyn DriveBus) {
+        if !self.brake.active() {
+            return;
+        }
+        self.brake.observe(&self.snap.actual);
+        self.snap.fault_path_deviation_mm = self.brake.deviation_mm();
+        if self.safe_state_sent || !self.brake.at_rest() {
+            return;
+        }
+        let settled = (0..self.axes)
+            .all(|i| (self.cmd.positions_mm[i] - self.snap.actual[i]).abs() < SETTLED_MM);
+        self.brake_rest_ticks += 1;
+        if settled || self.brake_rest_ticks >= SETTLE_TICKS {
+            bus.safe_state();
+            self.safe_state_sent = true;
         }
     }
 
@@ -514,7 +740,24 @@ impl RtCore {
                     _ => MachineState::Running,
                 };
             }
-            MachineState::Idle | MachineState::Fault | MachineState::Shutdown => {}
+            MachineState::Jog if !self.jog.active() => {
+                // The jog ended at rest: the path continues from where the axis is now.
+                let here = AxesMm(self.cmd.positions_mm);
+                if self.interp.set_position(here) {
+                    s.state = MachineState::Idle;
+                }
+            }
+            MachineState::Homing if self.homing.is_none() => {
+                let here = AxesMm(self.cmd.positions_mm);
+                if self.interp.set_position(here) {
+                    s.state = MachineState::Idle;
+                }
+            }
+            MachineState::Jog
+            | MachineState::Homing
+            | MachineState::Idle
+            | MachineState::Fault
+            | MachineState::Shutdown => {}
         }
     }
 }

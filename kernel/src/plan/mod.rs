@@ -36,7 +36,7 @@ pub use config::{
 };
 pub use path::SegPath;
 
-use crate::block::{Block, BlockKind, Continuity, Feed, Path, Spindle, SpindleDir};
+use crate::block::{Block, BlockKind, Continuity, Feed, Path, ProgramStop, Spindle, SpindleDir};
 use crate::diag::Diagnostic;
 use crate::units::{AxesMm, TS_S, mm_min_to_mm_s};
 
@@ -122,6 +122,11 @@ pub struct Segment {
     /// Spindle state of a technology block that follows this segment (e.g. M5 after the last
     /// cut): in force once the segment is completed, at the stop before that block.
     pub spindle_after: Option<Spindle>,
+    /// M0/M1 after this segment: the interpolator holds at its end (a stop point) until
+    /// resumed (issue #15).
+    pub program_stop: ProgramStop,
+    /// M0/M1 before the first motion of a program: held at this segment's start.
+    pub program_stop_before: ProgramStop,
     /// Axis smoothing filter the junction speeds were planned for, ticks per stage (0 or 1 =
     /// none; parabolic profile, `PlannerConfig::axis_filter_ticks`).
     pub axis_filter_ticks: u16,
@@ -180,6 +185,9 @@ pub struct Planner {
     last_block_set: u8,
     /// A technology block or dwell arrived before any motion block.
     leading_dwell_s: f64,
+    /// M0/M1 that could not ride on the last segment (none yet, or already committed): held
+    /// at the start of the next segment, which starts from rest anyway.
+    leading_stop: ProgramStop,
     /// Spindle state of the last block pushed (to see changes in technology blocks).
     spindle_state: Spindle,
     /// Last result of the curvature-window search (a warm start for the next junction).
@@ -209,6 +217,7 @@ impl Planner {
             last_plc_cell: None,
             last_block_set: 1,
             leading_dwell_s: 0.0,
+            leading_stop: ProgramStop::None,
             spindle_state: Spindle::default(),
             window_guess_mm_s: 0.0,
             pending_backward: 0,
@@ -267,6 +276,7 @@ impl Planner {
                 if has_m {
                     self.flush_carry();
                     self.force_stop(0.0);
+                    self.program_stop(ProgramStop::of(&block.m));
                 }
                 // M3/M4/M5 count even when the state looks unchanged: each run starts from the
                 // power-on state, while the spindle may still turn from an earlier run.
@@ -381,8 +391,30 @@ impl Planner {
         }
         let set = self.dyn_set_of(block);
         self.append(block, seg_path, length_mm, rapid, feed_mm_min, set);
+        let stop = ProgramStop::of(&block.m);
+        if stop != ProgramStop::None {
+            // M0/M1 in a motion block act at its end, at rest.
+            self.force_stop(0.0);
+            self.program_stop(stop);
+        }
         self.advance();
         Ok(())
+    }
+
+    /// Marks a program stop (M0/M1) at the end of the open last segment, or before the first
+    /// motion when nothing has moved yet.
+    fn program_stop(&mut self, stop: ProgramStop) {
+        if stop == ProgramStop::None {
+            return;
+        }
+        let open = self.finalized < self.win.len();
+        let slot = match self.win.back_mut() {
+            Some(p) if open => &mut p.seg.program_stop,
+            _ => &mut self.leading_stop,
+        };
+        if *slot != ProgramStop::Always {
+            *slot = stop;
+        }
     }
 
     /// No more blocks will come.
@@ -578,6 +610,8 @@ impl Planner {
             dyn_set: set as u8 + 1,
             spindle: block.spindle,
             spindle_after: None,
+            program_stop: ProgramStop::None,
+            program_stop_before: ProgramStop::None,
             axis_filter_ticks: self.cfg.axis_filter_ticks as u16,
         };
         let mut p = Pending {
@@ -594,6 +628,7 @@ impl Planner {
             crit: 0.0,
             cap: 0.0,
         };
+        p.seg.program_stop_before = std::mem::take(&mut self.leading_stop);
         if self.win.is_empty() && self.leading_dwell_s > 0.0 {
             // A dwell before the first motion: waited for at the start of this segment.
             p.seg.dwell_before_s = self.leading_dwell_s;

@@ -317,6 +317,10 @@ impl Interpreter {
             .unwrap_or_default()
     }
 
+    pub(crate) fn note(&mut self, d: Diagnostic) {
+        self.notes.push(d);
+    }
+
     pub fn take_notes(&mut self) -> Vec<Diagnostic> {
         std::mem::take(&mut self.notes)
     }
@@ -664,6 +668,11 @@ impl Interpreter {
                 37 => st.m37 = true,
                 _ => st.spindle.gear = (*m - 40) as u8,
             }
+        }
+        if crate::block::ends_program(&m_codes) {
+            // M2/M30 end the program: the spindle stops with it (the next run starts from the
+            // power-on modal state anyway, docs/language.md).
+            st.spindle.dir = SpindleDir::Stopped;
         }
 
         // Feed group and constant cutting speed (SPEC §5, §6).

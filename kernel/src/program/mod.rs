@@ -59,6 +59,9 @@ pub struct Setup {
     /// Modal state to start in (MDI inherits what the last program or MDI left); `None`: the
     /// power-on state.
     pub modal: Option<Modal>,
+    /// Travel limits of the machine: the daemon's validation refuses a program whose planned
+    /// path leaves them (the interpreter itself does not look at them).
+    pub soft_limits: crate::limits::SoftLimits,
 }
 
 impl Setup {
@@ -71,6 +74,7 @@ impl Setup {
             ij: IjMode::default(),
             preprocessor: true,
             modal: None,
+            soft_limits: crate::limits::SoftLimits::NONE,
         }
     }
 
@@ -274,6 +278,31 @@ impl Stream<'_> {
     }
 }
 
+impl Stream<'_> {
+    /// M2/M30 end the program: what follows is neither interpreted nor run; a note says so
+    /// when there is something.
+    fn end_program(&mut self, b: &Block) {
+        self.done = true;
+        let rest = self
+            .rest
+            .lines()
+            .map(|l| l.split(';').next().unwrap_or("").trim())
+            .any(|l| !l.is_empty() && l != "%");
+        if rest {
+            self.interp.note(Diagnostic::info(
+                b.n,
+                b.line,
+                0,
+                format!(
+                    "the program ends at line {} (M2/M30): the lines after it are not run",
+                    b.line
+                ),
+            ));
+        }
+        self.rest = "";
+    }
+}
+
 impl Iterator for Stream<'_> {
     type Item = Result<Block, Diagnostic>;
 
@@ -293,7 +322,12 @@ impl Iterator for Stream<'_> {
             self.rest = rest;
             self.line_no += 1;
             match self.interp.line(self.line_no, line) {
-                Ok(Some(b)) => return Some(Ok(b)),
+                Ok(Some(b)) => {
+                    if crate::block::ends_program(&b.m) {
+                        self.end_program(&b);
+                    }
+                    return Some(Ok(b));
+                }
                 Ok(None) => {}
                 Err(d) => return Some(Err(d)),
             }
@@ -375,6 +409,37 @@ mod tests {
         assert!(c.diagnostics[0].message.contains("unknown address Q"));
         assert_eq!(c.diagnostics[1].block, Some(30));
         assert!(c.diagnostics[1].message.contains("no value"));
+    }
+
+    #[test]
+    fn m30_ends_the_program_and_stops_the_spindle() {
+        let c = compile(
+            "N10 S1000 M3\nN20 G1 X1 F100\nN30 M30\nN40 G1 X99\nN50 Q5\n",
+            &setup(),
+        );
+        assert!(!c.has_errors(), "{:?}", c.diagnostics);
+        assert_eq!(c.blocks.len(), 3, "nothing after M30 is interpreted");
+        assert_eq!(c.blocks[2].spindle.dir, crate::block::SpindleDir::Stopped);
+        assert_eq!(c.diagnostics.len(), 1);
+        assert_eq!(c.diagnostics[0].block, Some(30));
+        assert!(!c.diagnostics[0].is_error());
+        let c = compile("N10 G1 X1 F100\nN20 M2\n; done\n", &setup());
+        assert_eq!((c.blocks.len(), c.diagnostics.len()), (2, 0));
+    }
+
+    #[test]
+    fn m0_and_m1_are_program_stops() {
+        use crate::block::ProgramStop;
+        let c = compile("N10 G1 X1 F100 M1\nN20 M0\nN30 M5\n", &setup());
+        let stops: Vec<_> = c.blocks.iter().map(|b| ProgramStop::of(&b.m)).collect();
+        assert_eq!(
+            stops,
+            [
+                ProgramStop::Optional,
+                ProgramStop::Always,
+                ProgramStop::None
+            ]
+        );
     }
 
     #[test]

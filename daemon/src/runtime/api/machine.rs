@@ -225,6 +225,10 @@ impl Machine for MachineSvc {
     ) -> Result<Response<pb::StartReply>, Status> {
         require(&req, Operator, "Start")?;
         let _one_at_a_time = self.0.start_lock.lock().await;
+        // Start on a held machine (feed hold, M0/M1) continues the job.
+        if let Some(job) = self.0.ctl.start_resumes().map_err(status_of)? {
+            return Ok(Response::new(pb::StartReply { job }));
+        }
         let st = self.0.clone();
         let job = blocking(move || -> Result<u32, Status> {
             if st.single_block.load(Ordering::Relaxed) {
@@ -308,6 +312,61 @@ impl Machine for MachineSvc {
         self.0.ctl.set_single_block(on).map_err(status_of)?;
         self.0.single_block.store(on, Ordering::Relaxed);
         Ok(Response::new(pb::SetSingleBlockReply {}))
+    }
+
+    async fn set_optional_stop(
+        &self,
+        req: Request<pb::SetOptionalStopRequest>,
+    ) -> Result<Response<pb::SetOptionalStopReply>, Status> {
+        require(&req, Operator, "SetOptionalStop")?;
+        let on = req.into_inner().on;
+        self.0.ctl.set_optional_stop(on).map_err(status_of)?;
+        Ok(Response::new(pb::SetOptionalStopReply {}))
+    }
+
+    async fn jog(
+        &self,
+        req: Request<tonic::Streaming<pb::JogRequest>>,
+    ) -> Result<Response<pb::JogReply>, Status> {
+        require(&req, Operator, "Jog")?;
+        let mut stream = req.into_inner();
+        let ctl = &self.0.ctl;
+        let mut target = 0.0;
+        // Every message renews the jog; the end of the stream (or its failure: the client
+        // went away) stops it. A silent client is stopped by the RT thread's lease.
+        let result = loop {
+            match stream.message().await {
+                Ok(Some(m)) => match ctl.jog(&m.axis, m.direction, m.speed_mm_min) {
+                    Ok(t) => target = t,
+                    Err(e) => break Err(status_of(e)),
+                },
+                Ok(None) => break Ok(()),
+                Err(e) => break Err(e),
+            }
+        };
+        let _ = ctl.jog_stop();
+        result.map(|()| Response::new(pb::JogReply { target_mm: target }))
+    }
+
+    async fn home(&self, req: Request<pb::HomeRequest>) -> Result<Response<pb::HomeReply>, Status> {
+        require(&req, Operator, "Home")?;
+        let axes = req.into_inner().axes;
+        let homed = self.0.ctl.home(&axes).await.map_err(status_of)?;
+        Ok(Response::new(pb::HomeReply { homed }))
+    }
+
+    async fn jog_step(
+        &self,
+        req: Request<pb::JogStepRequest>,
+    ) -> Result<Response<pb::JogReply>, Status> {
+        require(&req, Operator, "JogStep")?;
+        let r = req.into_inner();
+        let target = self
+            .0
+            .ctl
+            .jog_step(&r.axis, r.step_mm, r.speed_mm_min)
+            .map_err(status_of)?;
+        Ok(Response::new(pb::JogReply { target_mm: target }))
     }
 
     async fn mdi(&self, req: Request<pb::MdiRequest>) -> Result<Response<pb::StartReply>, Status> {

@@ -176,6 +176,11 @@ impl ApiState {
                 commanded_mm: s.commanded[i],
                 actual_mm: s.actual[i],
                 following_error_mm: s.commanded[i] - s.actual[i],
+                soft_min_mm: ctl.config().axes.get(i).and_then(|a| a.soft_min_mm),
+                soft_max_mm: ctl.config().axes.get(i).and_then(|a| a.soft_max_mm),
+                homed: ctl.axis_homed(s, i),
+                homing_required: ctl.config().axes[i].homing
+                    == crate::runtime::config::HomingMode::Required,
             })
             .collect();
         let alarm = alarm_text(ctl, s).unwrap_or_default();
@@ -263,6 +268,9 @@ impl ApiState {
             active_alarms: self.alarms.active(),
             dynamic_set: plc.dynam_set().into(),
             waiting_for_spindle: s.waiting_for_spindle,
+            optional_stop: s.optional_stop,
+            program_stop: s.program_stop,
+            fault_path_deviation_mm: s.fault_path_deviation_mm,
         }
     }
 }
@@ -364,6 +372,12 @@ pub fn diagnostic_to_pb(d: &Diagnostic) -> pb::Diagnostic {
         line: d.line,
         column: d.column,
         message: d.message.clone(),
+        soft_limit: d.limit.map(|h| pb::SoftLimitHit {
+            axis: h.axis_name.to_string(),
+            position_mm: h.position_mm,
+            limit_mm: h.limit_mm,
+            upper: h.upper,
+        }),
     }
 }
 
@@ -399,6 +413,7 @@ pub fn status_of(e: ControlError) -> Status {
         },
         ControlError::Plc(e) => Status::invalid_argument(e.to_string()),
         ControlError::Invalid(m) => Status::invalid_argument(m),
+        ControlError::Aborted(m) => Status::aborted(m),
     }
 }
 
@@ -411,6 +426,8 @@ fn state_to_pb(s: MachineState) -> pb::MachineState {
         MachineState::Hold => pb::MachineState::Hold,
         MachineState::Fault => pb::MachineState::Fault,
         MachineState::Shutdown => pb::MachineState::Shutdown,
+        MachineState::Jog => pb::MachineState::Jog,
+        MachineState::Homing => pb::MachineState::Homing,
     }
 }
 
