@@ -38,7 +38,7 @@ async fn daemon(cfg: Config) -> Daemon {
     let c = MachineClient::connect(format!("http://{addr}"))
         .await
         .unwrap();
-    wait_state(&ctl, MachineState::Idle, Duration::from_secs(10)).await;
+    wait_state(&ctl, MachineState::Idle).await;
     Daemon {
         c,
         ctl,
@@ -54,7 +54,7 @@ async fn wait_for(ctl: &Controller, what: &str, mut f: impl FnMut(&Snapshot) -> 
         if f(&s) {
             return;
         }
-        assert!(t0.elapsed() < Duration::from_secs(60), "{what}: {s:?}");
+        assert!(t0.elapsed() < tests::PATIENCE, "{what}: {s:?}");
         tokio::time::sleep(Duration::from_millis(2)).await;
     }
 }
@@ -91,7 +91,7 @@ async fn m30_ends_the_program_and_the_spindle_stops() {
     let loaded = load(&mut d.c, text).await.unwrap();
     assert_eq!(loaded.blocks, 3, "blocks after M30 are not part of the run");
     let job = start(&mut d.c).await;
-    wait_job_finished(&d.ctl, job, Duration::from_secs(60)).await;
+    wait_job_finished(&d.ctl, job).await;
     let s = d.ctl.snapshot();
     assert!((s.commanded[0] - 10.0).abs() < 1e-9, "N40 ran: {s:?}");
     assert!(
@@ -104,7 +104,7 @@ async fn m30_ends_the_program_and_the_spindle_stops() {
         .await
         .unwrap();
     let job = start(&mut d.c).await;
-    wait_job_finished(&d.ctl, job, Duration::from_secs(60)).await;
+    wait_job_finished(&d.ctl, job).await;
     assert!((d.ctl.snapshot().commanded[0] - 20.0).abs() < 1e-9);
     wait_for(&d.ctl, "spindle stopped at M2", |s| s.spindle_rpm == 0.0).await;
 }
@@ -132,7 +132,7 @@ async fn m0_stops_until_resume_and_m1_only_with_optional_stop() {
     wait_for(&d.ctl, "time passes", |s| s.sequence > seq + 200).await;
     assert_eq!(d.ctl.snapshot().commanded[0], s.commanded[0]);
     d.c.resume(pb::ResumeRequest {}).await.unwrap();
-    wait_job_finished(&d.ctl, job, Duration::from_secs(60)).await;
+    wait_job_finished(&d.ctl, job).await;
     assert!((d.ctl.snapshot().commanded[0] - 30.0).abs() < 1e-9);
 
     // Optional stop on: M0 and M1 both stop; Start continues like Resume.
@@ -151,7 +151,7 @@ async fn m0_stops_until_resume_and_m1_only_with_optional_stop() {
     assert!(status(&mut d.c).await.optional_stop);
     let again = start(&mut d.c).await;
     assert_eq!(again, job, "Start at a program stop continues the job");
-    wait_job_finished(&d.ctl, job, Duration::from_secs(60)).await;
+    wait_job_finished(&d.ctl, job).await;
     assert!((d.ctl.snapshot().commanded[0] - 20.0).abs() < 1e-9);
 }
 
@@ -352,7 +352,7 @@ async fn fault_stops_every_axis_on_its_own_and_reports_the_path_deviation() {
     let mut c = MachineClient::connect(format!("http://{addr}"))
         .await
         .unwrap();
-    wait_state(&ctl, MachineState::Idle, Duration::from_secs(10)).await;
+    wait_state(&ctl, MachineState::Idle).await;
     load(&mut c, "N10 S1000 M3\nN20 G1 X1000 Y200 F12000\n")
         .await
         .unwrap();
@@ -368,7 +368,7 @@ async fn fault_stops_every_axis_on_its_own_and_reports_the_path_deviation() {
                 break;
             }
         }
-        assert!(t0.elapsed() < Duration::from_secs(30), "never at rest");
+        assert!(t0.elapsed() < tests::PATIENCE, "never at rest");
         tokio::time::sleep(Duration::from_millis(5)).await;
     }
     let s = ctl.snapshot();
@@ -412,10 +412,10 @@ async fn fault_stops_every_axis_on_its_own_and_reports_the_path_deviation() {
     .await;
     // Reset re-enables the drives where they stand; the machine runs again.
     c.reset(pb::ResetRequest {}).await.unwrap();
-    wait_state(&ctl, MachineState::Idle, Duration::from_secs(10)).await;
+    wait_state(&ctl, MachineState::Idle).await;
     let here = ctl.snapshot().commanded;
     let job = ctl.start_text("mdi", "G91 G1 X-10 F1000", false).unwrap().0;
-    wait_job_finished(&ctl, job, Duration::from_secs(30)).await;
+    wait_job_finished(&ctl, job).await;
     assert!((ctl.snapshot().commanded[0] - (here[0] - 10.0)).abs() < 1e-9);
 }
 
@@ -562,7 +562,7 @@ async fn cncctl_jog_killed_mid_jog_leaves_the_axis_at_rest() {
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     let addr = listener.local_addr().unwrap();
     tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));
-    wait_state(&ctl, MachineState::Idle, Duration::from_secs(10)).await;
+    wait_state(&ctl, MachineState::Idle).await;
     let mut child = std::process::Command::new(&cncctl)
         .args([
             "--addr",
@@ -619,7 +619,7 @@ async fn homing_in_order_and_refusals_before_it() {
     let mut c = MachineClient::connect(format!("http://{addr}"))
         .await
         .unwrap();
-    wait_state(&ctl, MachineState::Idle, Duration::from_secs(10)).await;
+    wait_state(&ctl, MachineState::Idle).await;
 
     // Not homed: programs, MDI and continuous jogs are refused; steps are allowed.
     let st = status(&mut c).await;
@@ -693,7 +693,7 @@ async fn homing_in_order_and_refusals_before_it() {
     // Homed: the program runs.
     load(&mut c, "N10 G1 X1 Z-1 F1000\n").await.unwrap();
     let job = start(&mut c).await;
-    wait_job_finished(&ctl, job, Duration::from_secs(30)).await;
+    wait_job_finished(&ctl, job).await;
     // A reference run stopped by the operator (here Y, which has no switch) is ABORTED.
     let mut c2 = c.clone();
     let run = tokio::spawn(async move { c2.home(pb::HomeRequest { axes: "Y".into() }).await });

@@ -241,3 +241,99 @@ fn drive_fault_stops_and_reset_resumes_from_where_the_drives_are() {
     assert_eq!(end, JobEnd::Finished);
     assert_eq!(&h.snapshot().commanded.0[..2], &[0.0, 0.0]);
 }
+
+/// Override, feed hold at rest (no motion while held), resume, stop: the RT logic behind the
+/// Hold/Resume/Stop/SetOverride RPCs (their door is tested in api_rpcs), tick by tick.
+#[test]
+fn override_hold_resume_stop() {
+    let (mut h, _, _) = recorded(SimClock::seeded(17, 1_000_000, 100));
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    let job = h.start_program("N10 G1 X80 F600\nN20 X0\n").unwrap();
+    h.wait_state(MachineState::Running, 100).unwrap();
+    let full = h
+        .run_until(10_000, |s| s.path_v_mm_s >= 10.0 - 1e-9)
+        .unwrap();
+    assert!((full.path_v_mm_s - 10.0).abs() < 1e-6, "{full:?}");
+    h.send(RtCommand::Override(50.0)).unwrap();
+    let s = h.step();
+    assert_eq!(s.override_pct, 50.0);
+    let half = h
+        .run_until(10_000, |s| s.path_v_mm_s <= 5.0 + 1e-9)
+        .unwrap();
+    assert!(half.commanded[0] < 80.0);
+    h.send(RtCommand::Hold).unwrap();
+    let held = h
+        .run_until(10_000, |s| {
+            s.state == MachineState::Hold && s.path_v_mm_s == 0.0
+        })
+        .unwrap();
+    for _ in 0..500 {
+        assert_eq!(h.step().commanded, held.commanded, "moved while held");
+    }
+    h.send(RtCommand::Resume).unwrap();
+    h.run_until(10_000, |s| s.commanded[0] > held.commanded[0])
+        .unwrap();
+    h.send(RtCommand::Stop).unwrap();
+    let stopped = h
+        .run_until(10_000, |s| {
+            s.aborted_job == job && s.state == MachineState::Idle
+        })
+        .unwrap();
+    assert!(stopped.commanded[0] < 80.0, "{stopped:?}");
+    assert_ne!(stopped.finished_job, job);
+}
+
+/// Single block: the path holds at every block end (within the braking distance from rest),
+/// and runs on at each resume to the program's end.
+#[test]
+fn single_block_holds_at_every_block() {
+    let (mut h, _, _) = recorded(SimClock::seeded(23, 1_000_000, 100));
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    h.send(RtCommand::SingleBlock(true)).unwrap();
+    // As the API starts a program in single-block mode: every block ends at rest.
+    let job = h
+        .start_job("N10 G1 X5 F3000\nN20 G23 X10\nN30 X15\n", true)
+        .unwrap();
+    let mut stops = Vec::new();
+    for _ in 0..2 {
+        let s = h
+            .run_until(10_000, |s| {
+                s.state == MachineState::Hold && s.path_v_mm_s == 0.0
+            })
+            .unwrap();
+        assert!(s.single_block);
+        stops.push(s.commanded[0]);
+        h.send(RtCommand::Resume).unwrap();
+        h.run_until(10, |s| s.state != MachineState::Hold).unwrap();
+    }
+    assert_eq!(h.finish_job(job, 10_000).unwrap(), JobEnd::Finished);
+    assert!((stops[0] - 5.0).abs() < 0.05, "{stops:?}");
+    assert!((stops[1] - 10.0).abs() < 0.05, "{stops:?}");
+    assert!((h.snapshot().commanded[0] - 15.0).abs() < 1e-6);
+}
+
+/// A program longer than the segment ring: the inline planner ticks the RT core whenever the
+/// ring is full (the RT core never starves), and a stop cancels the planning.
+#[test]
+fn planning_beyond_the_ring_ticks_the_core_and_a_stop_cancels_it() {
+    let mut text = String::from("G1 F3000\n");
+    for i in 1..=6000 {
+        text.push_str(&format!("X{} Y{:.2}\n", i % 2, i as f64 * 0.01));
+    }
+    let (mut h, _, _) = recorded(SimClock::seeded(31, 1_000_000, 100));
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    let t0 = h.snapshot().sequence;
+    let job = h.start_program(&text).unwrap();
+    // The ring (4096) could not hold the program: the core ran while it was planned.
+    assert!(h.snapshot().sequence > t0, "no tick during planning");
+    assert_eq!(h.finish_job(job, 1_000_000).unwrap(), JobEnd::Finished);
+    assert!((h.snapshot().commanded[1] - 60.0).abs() < 1e-9);
+
+    let back = h.snapshot().sequence;
+    h.at_tick(back + 100, RtCommand::Stop);
+    let job = h.start_program(&text.replace("Y", "Y-")).unwrap();
+    // Returned at the stop, long before the program could have been planned to its end.
+    assert!(h.snapshot().sequence < back + 200, "{:?}", h.snapshot());
+    assert_eq!(h.finish_job(job, 10_000).unwrap(), JobEnd::Aborted);
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+}

@@ -68,6 +68,9 @@ pub struct Harness {
     recent: Arc<Mutex<RecentBlocks>>,
     status: (watch::Sender<Snapshot>, watch::Receiver<Snapshot>),
     next_job: u32,
+    /// The planning of the current job is cancelled (the controller cancels it on Stop and
+    /// Shutdown; on a fault it runs on and the RT core drops the leftovers).
+    cancel: bool,
     /// Commands to send before the tick of the given sequence number (sorted by the caller's
     /// order of adding; several per tick allowed).
     scheduled: Vec<(u64, RtCommand)>,
@@ -105,6 +108,7 @@ impl Harness {
             recent: Arc::default(),
             status,
             next_job: 1,
+            cancel: false,
             scheduled: Vec::new(),
             setpoint_hash: Fnv::new(),
             timeline_hash: Fnv::new(),
@@ -142,8 +146,12 @@ impl Harness {
         self.timeline_hash.0
     }
 
-    /// Sends a command now (it acts at the next tick).
+    /// Sends a command now (it acts at the next tick). Stop and Shutdown also cancel the
+    /// planning of the running job, as the controller does.
     pub fn send(&mut self, cmd: RtCommand) -> Result<(), HarnessError> {
+        if matches!(cmd, RtCommand::Stop | RtCommand::Shutdown) {
+            self.cancel = true;
+        }
         self.commands
             .push(cmd)
             .map_err(|_| HarnessError::CommandRingFull)
@@ -229,6 +237,12 @@ impl Harness {
     /// (ticking whenever the segment ring is full) and returns the job id once every segment
     /// is on the ring. The machine must be idle.
     pub fn start_program(&mut self, text: &str) -> Result<u32, HarnessError> {
+        self.start_job(text, false)
+    }
+
+    /// As [`Harness::start_program`]; with `stop_at_blocks` every block ends at rest (the
+    /// single-block runs of the API).
+    pub fn start_job(&mut self, text: &str, stop_at_blocks: bool) -> Result<u32, HarnessError> {
         let setup = self.setup();
         let comp = kernel::comp::CompConfig::from_constants(&self.constants.0);
         let planner = planner_config(&self.config, &self.constants.0, self.constants.1);
@@ -238,6 +252,7 @@ impl Harness {
         }
         let job = self.next_job;
         self.next_job += 1;
+        self.cancel = false;
         self.send(RtCommand::Start { job })?;
         let spec = JobSpec {
             job,
@@ -246,7 +261,7 @@ impl Harness {
             planner,
             comp,
             offsets: self.offsets.clone(),
-            stop_at_blocks: false,
+            stop_at_blocks,
             recent: self.recent.clone(),
             status: self.status.1.clone(),
         };
@@ -256,18 +271,18 @@ impl Harness {
         Ok(job)
     }
 
-    /// Pushes one segment, running RT ticks while the ring is full. False (cancel the
-    /// planning) when the job was stopped meanwhile.
+    /// Pushes one segment, running RT ticks while the ring is full (the controller's planner
+    /// thread waits instead). False (cancel the planning) once the job was stopped.
     fn push_segment(&mut self, mut seg: Segment) -> bool {
         loop {
+            if self.cancel {
+                return false;
+            }
             match self.segments.push(seg) {
                 Ok(()) => return true,
                 Err(rtrb::PushError::Full(s)) => {
                     seg = s;
-                    let snap = self.step();
-                    if snap.aborted_job == seg.job {
-                        return false;
-                    }
+                    self.step();
                 }
             }
         }

@@ -281,16 +281,6 @@ impl RtCore {
         &self.snap
     }
 
-    /// Job whose segments are accepted (0: none).
-    pub fn active_job(&self) -> u32 {
-        self.active_job
-    }
-
-    /// The interpolator has room for more segments.
-    pub fn wants_segments(&self) -> bool {
-        self.interp.has_room()
-    }
-
     /// A `Shutdown` command has brought the axes to rest: the loop should end.
     pub fn finished(&self) -> bool {
         self.shutting_down && self.settle_ticks >= SETTLE_TICKS

@@ -115,7 +115,7 @@ pub async fn start(cfg: Config) -> Daemon {
         Some(tls),
         std::future::pending(),
     ));
-    wait_state(&ctl, MachineState::Idle, Duration::from_secs(10)).await;
+    wait_state(&ctl, MachineState::Idle).await;
     Daemon {
         ctl,
         local: format!("http://{local_addr}"),
@@ -165,10 +165,14 @@ pub fn with_token<T>(msg: T, token: &str) -> tonic::Request<T> {
     r
 }
 
-pub async fn wait_until(what: &str, timeout: Duration, mut f: impl FnMut() -> bool) {
+/// Waits until `f` holds; fails the test after [`tests::PATIENCE`] (a hang bound, not a timing).
+pub async fn wait_until(what: &str, mut f: impl FnMut() -> bool) {
     let t0 = Instant::now();
     while !f() {
-        assert!(t0.elapsed() < timeout, "timed out waiting for {what}");
+        assert!(
+            t0.elapsed() < tests::PATIENCE,
+            "timed out waiting for {what}"
+        );
         tokio::time::sleep(Duration::from_millis(5)).await;
     }
 }
