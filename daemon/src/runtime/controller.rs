@@ -215,6 +215,7 @@ impl Controller {
         setup.start = self.snapshot().commanded;
         setup.constants = self.constants.lock().unwrap().0.clone();
         setup.offsets = self.offsets.lock().unwrap().memory().clone();
+        spindle_setup(&self.config, &mut setup);
         setup
     }
 
@@ -592,7 +593,13 @@ pub(crate) fn kr_config(config: &Config, c: &Constants) -> Result<KrConfig, Stri
         RadiusInputConfig::Diameter => RadiusInput::Diameter,
         RadiusInputConfig::Radius => RadiusInput::Radius,
     };
-    let gears = config
+    KrConfig::from_constants(c, radius, gears(config))
+        .map_err(|e| format!("constant cutting speed: {e}"))
+}
+
+/// The gear table of `[kr.gears]`.
+fn gears(config: &Config) -> Vec<Gear> {
+    config
         .kr
         .gears
         .iter()
@@ -601,8 +608,19 @@ pub(crate) fn kr_config(config: &Config, c: &Constants) -> Result<KrConfig, Stri
             output_range: g.output_range,
             m_code: g.m_code,
         })
-        .collect();
-    KrConfig::from_constants(c, radius, gears).map_err(|e| format!("constant cutting speed: {e}"))
+        .collect()
+}
+
+/// What the interpreter needs of the spindle and the feed: the gear table (an M code selects
+/// the range whose `m_code` it is; feed per revolution is planned at a nominal speed capped
+/// by its P) and the fastest axis speed as Vmax of the βmax warning (SPEC §5, §6).
+pub(crate) fn spindle_setup(config: &Config, setup: &mut Setup) {
+    setup.gears = gears(config);
+    setup.max_feed_mm_min = config
+        .axes
+        .iter()
+        .map(|a| a.max_velocity_mm_min)
+        .fold(0.0, f64::max);
 }
 
 /// Creates the data directory and loads the constants and the offset table. A file that exists

@@ -230,6 +230,7 @@ impl Harness {
         setup.start = self.snapshot().commanded;
         setup.constants = self.constants.0.clone();
         setup.offsets = self.offsets.lock().unwrap().memory().clone();
+        super::controller::spindle_setup(&self.config, &mut setup);
         setup
     }
 

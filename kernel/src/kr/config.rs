@@ -142,11 +142,20 @@ impl KrConfig {
 
     /// Gear number (1-based) that M code `m` selects, for the program interpreter.
     pub fn gear_for_m(&self, m: u16) -> Option<u8> {
-        self.gears
-            .iter()
-            .position(|g| g.m_code == Some(m))
-            .map(|i| (i + 1) as u8)
+        gear_for_m_code(&self.gears, m)
     }
+}
+
+/// Gear number (1-based) that M code `m` selects in `gears`. An empty table (no machine
+/// configuration: unit tests, tools) keeps the convention M41..M44 = ranges 1..4.
+pub fn gear_for_m_code(gears: &[Gear], m: u16) -> Option<u8> {
+    if gears.is_empty() {
+        return (41..=44).contains(&m).then(|| (m - 40) as u8);
+    }
+    gears
+        .iter()
+        .position(|g| g.m_code == Some(m))
+        .map(|i| (i + 1) as u8)
 }
 
 /// R67 holds the axis code (as R0..R5 do, [`AXIS_CODES`]: 1 = X ... 9 = C) of the controlling
