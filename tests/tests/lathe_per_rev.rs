@@ -5,7 +5,7 @@
 
 use daemon::runtime::clock::SimClock;
 use daemon::runtime::config::{AxisConfig, Config, GearConfig};
-use daemon::runtime::harness::{Harness, HarnessError, JobEnd};
+use daemon::runtime::harness::{Harness, HarnessError};
 use daemon::runtime::rt::{MachineState, Snapshot};
 use kernel::constants::Constants;
 
@@ -200,5 +200,25 @@ fn gears_from_the_configuration() {
         .unwrap();
     assert_eq!(end.finished_job, job);
     assert!(within(top, 500.0, 0.01), "top feed {top} mm/min");
-    let _ = JobEnd::Finished;
+}
+
+/// SPEC §5: βmax = Vmax/S. 10 mm/rev at 2000 rpm (S capped by M44's P) is 20000 mm/min, above
+/// the fastest axis (12000 mm/min): a warning with the block, at validation; 5 mm/rev is not.
+#[test]
+fn feed_above_beta_max_is_a_warning_with_the_block() {
+    let (h, _) = lathe();
+    let warnings = |text: &str| {
+        let c = kernel::program::compile(text, &h.setup());
+        assert!(!c.has_errors(), "{:?}", c.diagnostics);
+        c.diagnostics
+            .into_iter()
+            .filter(|d| d.severity == kernel::diag::Severity::Warning)
+            .map(|d| d.block)
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(
+        warnings("N10 M44 M3 S3000\nN20 G95 G1 X200 F10.0\n"),
+        vec![Some(20)]
+    );
+    assert!(warnings("N10 M44 M3 S3000\nN20 G95 G1 X200 F5.0\n").is_empty());
 }
