@@ -222,3 +222,50 @@ fn feed_above_beta_max_is_a_warning_with_the_block() {
     );
     assert!(warnings("N10 M44 M3 S3000\nN20 G95 G1 X200 F5.0\n").is_empty());
 }
+
+/// The lathe example of the repository (`programs/lathe/`): its configuration and constants
+/// load as `cncd` loads them (bus opened from the configuration: the simulated lathe with a
+/// spindle ramp), and every sample program runs to its end.
+#[test]
+fn lathe_example_configuration_runs_its_sample_programs() {
+    let dir = std::path::Path::new("../programs/lathe");
+    let mut cfg = Config::load(&dir.join("cncd-lathe.toml")).unwrap();
+    cfg.storage.dir = tests::test_config().storage.dir;
+    cfg.rt.lock_memory = false;
+    std::fs::create_dir_all(&cfg.storage.dir).unwrap();
+    std::fs::copy(dir.join("TAB0.REK"), cfg.storage.constants_path()).unwrap();
+    let bus = daemon::runtime::buses::open_bus(&cfg.bus, &cfg.axes, &cfg.sim).unwrap();
+    let mut h = Harness::new(cfg, bus, SimClock::seeded(5, 500_000, 200)).unwrap();
+    // Program, its cutting blocks, the top feed expected there, where it ends (X).
+    for (name, cuts, feed_mm_min, end_x) in [
+        ("manual_css.nc", &[20][..], None, 300.0),
+        ("turning_g95.nc", &[20, 30][..], Some(250.0), 300.0),
+        ("facing_clamped.nc", &[30][..], Some(1500.0 * 0.15), 200.0),
+    ] {
+        let text = std::fs::read_to_string(dir.join(name)).unwrap();
+        h.wait_state(MachineState::Idle, 10_000).unwrap();
+        let job = h.start_program(&text).unwrap();
+        let mut top_cut = 0.0f64;
+        let end = h
+            .run_until(MAX_TICKS, |s| {
+                if s.block_n.is_some_and(|n| cuts.contains(&n)) {
+                    top_cut = top_cut.max(s.path_v_mm_s * 60.0);
+                }
+                s.finished_job == job || s.aborted_job == job
+            })
+            .unwrap();
+        assert_eq!(end.finished_job, job, "{name}: {end:?}");
+        assert_eq!(end.kr.spindle_rpm, 0.0, "{name}: M5 at the end");
+        assert!(
+            (end.commanded[0] - end_x).abs() < 1e-9 && (end.commanded[1] - 100.0).abs() < 1e-9,
+            "{name}: ends at X{end_x} Z100: {:?}",
+            end.commanded
+        );
+        if let Some(f) = feed_mm_min {
+            assert!(
+                within(top_cut, f, 0.01),
+                "{name}: top feed {top_cut}, expected {f}"
+            );
+        }
+    }
+}

@@ -296,7 +296,9 @@ pub fn open_bus(
                 ..Default::default()
             };
             let start: Vec<f64> = axes.iter().map(|a| a.home_mm).collect();
-            Ok(Box::new(sim::SimBus::new(params, &start)))
+            Ok(Box::new(
+                sim::SimBus::new(params, &start).with_spindle_ramp(sim.spindle_ramp_rpm_s),
+            ))
         }
         BusConfig::Can(c) => {
             let mut port = SocketCanPort::open(&c.interface)?;

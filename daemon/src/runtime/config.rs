@@ -416,6 +416,9 @@ pub struct SimConfig {
     /// Following-error window, mm.
     #[serde(default = "default_window")]
     pub following_window_mm: f64,
+    /// Acceleration of the simulated spindle, rpm/s (0: it reaches its setpoint at once).
+    #[serde(default)]
+    pub spindle_ramp_rpm_s: f64,
 }
 
 fn default_kv() -> f64 {
@@ -430,6 +433,7 @@ impl Default for SimConfig {
         SimConfig {
             kv_per_s: default_kv(),
             following_window_mm: default_window(),
+            spindle_ramp_rpm_s: 0.0,
         }
     }
 }
@@ -545,6 +549,12 @@ impl Config {
             if !(v.is_finite() && v > 0.0) {
                 return Err(format!("{key}: {v} must be a positive number"));
             }
+        }
+        let ramp = self.sim.spindle_ramp_rpm_s;
+        if !(ramp.is_finite() && ramp >= 0.0) {
+            return Err(format!(
+                "sim.spindle_ramp_rpm_s: {ramp} must be 0 (at once) or a positive number"
+            ));
         }
         if !(1..=99).contains(&self.rt.priority) {
             return Err(format!(
