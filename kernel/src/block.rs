@@ -213,3 +213,59 @@ impl Block {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spindle(css: bool, s: f64, limit_rpm: f64, gear_max_rpm: f64) -> Spindle {
+        Spindle {
+            dir: SpindleDir::Cw,
+            s,
+            css,
+            limit_rpm,
+            gear_max_rpm,
+            ..Spindle::default()
+        }
+    }
+
+    /// Feed per revolution is planned at the highest speed the spindle can have in the block.
+    #[test]
+    fn per_rev_nominal_speed() {
+        // G95: S capped by the gear maximum P (issue #17: M42 with P 2000, S3000).
+        assert_eq!(
+            spindle(false, 3000.0, 0.0, 2000.0).per_rev_nominal_rpm(),
+            Some(2000.0)
+        );
+        assert_eq!(
+            spindle(false, 800.0, 0.0, 2000.0).per_rev_nominal_rpm(),
+            Some(800.0)
+        );
+        // No gear table: the programmed S; after KŘR ended without S: P.
+        assert_eq!(
+            spindle(false, 800.0, 0.0, 0.0).per_rev_nominal_rpm(),
+            Some(800.0)
+        );
+        assert_eq!(
+            spindle(false, 0.0, 0.0, 2000.0).per_rev_nominal_rpm(),
+            Some(2000.0)
+        );
+        assert_eq!(spindle(false, 0.0, 0.0, 0.0).per_rev_nominal_rpm(), None);
+        // KŘR: S is a cutting speed; min(P, G76).
+        assert_eq!(
+            spindle(true, 90.0, 400.0, 2000.0).per_rev_nominal_rpm(),
+            Some(400.0)
+        );
+        assert_eq!(
+            spindle(true, 90.0, 0.0, 2000.0).per_rev_nominal_rpm(),
+            Some(2000.0)
+        );
+        assert_eq!(spindle(true, 90.0, 0.0, 0.0).per_rev_nominal_rpm(), None);
+        // A standing spindle: none.
+        let stopped = Spindle {
+            dir: SpindleDir::Stopped,
+            ..spindle(false, 800.0, 0.0, 2000.0)
+        };
+        assert_eq!(stopped.per_rev_nominal_rpm(), None);
+    }
+}

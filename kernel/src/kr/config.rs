@@ -239,6 +239,10 @@ mod tests {
         assert_eq!(k.version, KrVersion::V2);
         assert!(k.s_word.swap_g96_g97 && k.s_word.s_in_m_min);
         assert_eq!(k.gear_for_m(44), Some(2));
+        assert_eq!(k.gear_for_m(42), None);
+        // Without a table the convention M41..M44 = ranges 1..4 holds.
+        assert_eq!(gear_for_m_code(&[], 43), Some(3));
+        assert_eq!(gear_for_m_code(&[], 45), None);
         assert_eq!(k.gear(0).unwrap().max_rpm, 500.0);
         assert!(k.gear(3).is_none());
         // Z (code 3) is the second axis of this lathe.
