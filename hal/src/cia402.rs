@@ -16,6 +16,8 @@ pub mod cw {
     pub const SHUTDOWN: u16 = ENABLE_VOLTAGE | QUICK_STOP;
     pub const SWITCH_ON_CMD: u16 = SHUTDOWN | SWITCH_ON;
     pub const ENABLE_OPERATION_CMD: u16 = SWITCH_ON_CMD | ENABLE_OPERATION;
+    /// "Quick stop": voltage enabled, quick-stop bit low.
+    pub const QUICK_STOP_CMD: u16 = ENABLE_VOLTAGE;
 }
 
 /// Statusword bits (0x6041).
@@ -100,6 +102,27 @@ pub fn controlword_toward_enabled(state: PowerState, previous: u16) -> u16 {
     }
 }
 
+/// Master side: the controlword that moves a drive in `state` one step toward Switch On
+/// Disabled in the orderly order of a shutdown: disable operation (07h) while enabled, then
+/// shutdown (06h), then disable voltage (00h). Sent until the statusword shows each step.
+pub fn controlword_toward_disabled(state: PowerState) -> u16 {
+    match state {
+        PowerState::OperationEnabled => cw::SWITCH_ON_CMD, // "disable operation"
+        PowerState::SwitchedOn => cw::SHUTDOWN,
+        _ => cw::DISABLE_VOLTAGE,
+    }
+}
+
+/// Master side: as [`controlword_toward_disabled`], but through a quick stop (02h) while
+/// enabled, then disable voltage (00h) from Quick Stop Active: the drive stops by its quick
+/// stop option (0x605A) first.
+pub fn controlword_toward_disabled_by_quick_stop(state: PowerState) -> u16 {
+    match state {
+        PowerState::OperationEnabled => cw::QUICK_STOP_CMD,
+        _ => cw::DISABLE_VOLTAGE,
+    }
+}
+
 /// Drive side: the state after receiving controlword `c` in `state` (CiA 402 transitions 2..16;
 /// `previous` is the last controlword, for the fault-reset edge). Fault entry is the drive's
 /// own decision and not handled here.
@@ -173,6 +196,47 @@ pub fn apply_controlword(state: PowerState, previous: u16, c: u16) -> PowerState
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The shutdown walk goes through Switched On and Ready to Switch On, never a jump.
+    #[test]
+    fn orderly_disable_walks_down_step_by_step() {
+        let mut state = PowerState::OperationEnabled;
+        let mut last_cw = cw::ENABLE_OPERATION_CMD;
+        let mut seen = vec![state];
+        while state != PowerState::SwitchOnDisabled && seen.len() < 10 {
+            let c = controlword_toward_disabled(state);
+            state = apply_controlword(state, last_cw, c);
+            last_cw = c;
+            seen.push(state);
+        }
+        assert_eq!(
+            seen,
+            [
+                PowerState::OperationEnabled,
+                PowerState::SwitchedOn,
+                PowerState::ReadyToSwitchOn,
+                PowerState::SwitchOnDisabled
+            ]
+        );
+        // Through a quick stop: Quick Stop Active, then Switch On Disabled.
+        let mut state = PowerState::OperationEnabled;
+        let mut last_cw = cw::ENABLE_OPERATION_CMD;
+        let mut seen = vec![state];
+        while state != PowerState::SwitchOnDisabled && seen.len() < 10 {
+            let c = controlword_toward_disabled_by_quick_stop(state);
+            state = apply_controlword(state, last_cw, c);
+            last_cw = c;
+            seen.push(state);
+        }
+        assert_eq!(
+            seen,
+            [
+                PowerState::OperationEnabled,
+                PowerState::QuickStopActive,
+                PowerState::SwitchOnDisabled
+            ]
+        );
+    }
 
     /// The master's controlwords bring a drive from power-on to Operation Enabled, and from
     /// Fault back to it, through the drive-side transitions.

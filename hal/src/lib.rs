@@ -67,13 +67,18 @@ pub enum FaultReason {
     BusOff,
     /// Too many CAN error frames in a short time.
     ErrorFrames,
-    /// Start-up configuration of the drive failed (SDO abort, or no answer when
-    /// `abort_code` is 0).
-    Configuration {
+    /// The drive refused an SDO request of its configuration: the object and the CiA 301
+    /// abort code.
+    SdoAbort {
         index: u16,
         subindex: u8,
         abort_code: u32,
     },
+    /// The drive did not answer an SDO request of its configuration (one retry included).
+    SdoTimeout { index: u16, subindex: u8 },
+    /// A process data object arrived with a length that does not match the mapping the
+    /// master configured (the drive's PDO mapping differs, or another device uses the COB-ID).
+    PdoLength { cob_id: u16, len: u8, expected: u8 },
     /// The drive did not report boot-up after an NMT reset.
     NoBootUp,
     /// The drive did not reach Operation Enabled in time.
@@ -117,22 +122,26 @@ impl fmt::Display for FaultReason {
                 f,
                 "too many CAN error frames (check the wiring, termination and baud rate)"
             ),
-            FaultReason::Configuration {
-                index,
-                subindex,
-                abort_code: 0,
-            } => write!(
+            FaultReason::SdoTimeout { index, subindex } => write!(
                 f,
                 "drive did not answer its configuration (object {index:04X}h:{subindex})"
             ),
-            FaultReason::Configuration {
+            FaultReason::SdoAbort {
                 index,
                 subindex,
                 abort_code,
             } => write!(
                 f,
-                "drive refused its configuration (object {index:04X}h:{subindex}: {})",
+                "drive refused its configuration (object {index:04X}h:{subindex}: {}, abort code {abort_code:08X}h)",
                 canopen::sdo::abort_text(*abort_code)
+            ),
+            FaultReason::PdoLength {
+                cob_id,
+                len,
+                expected,
+            } => write!(
+                f,
+                "process data of wrong length (COB-ID {cob_id:03X}h: {len} bytes, the mapping gives {expected}; check the drive's PDO mapping)"
             ),
             FaultReason::NoBootUp => write!(
                 f,
@@ -216,4 +225,38 @@ pub trait DriveBus: Send {
 
     /// Clears faults (CiA 402 fault reset), then enables again.
     fn reset(&mut self);
+
+    /// Ticks from [`DriveBus::enable`] or [`DriveBus::reset`] within which the bus either
+    /// reports every drive operational or a fault naming the drive (its own per-drive
+    /// timeouts). The caller's enabling window must not be shorter.
+    fn enable_timeout_ticks(&self) -> u32 {
+        2_500
+    }
+
+    /// Orderly switch-off, called once the axes are at rest before the daemon exits: the
+    /// drives go to a safe state (CANopen: power stage disabled step by step, heartbeat
+    /// watch cleared, NMT pre-operational). The caller keeps calling [`DriveBus::cycle`]
+    /// (holding the setpoints) until [`DriveBus::is_shut_down`]; the bus bounds that time.
+    fn shutdown(&mut self) {}
+
+    /// Whether the switch-off begun by [`DriveBus::shutdown`] is complete.
+    fn is_shut_down(&self) -> bool {
+        true
+    }
+}
+
+/// Runs the orderly switch-off of `bus` to its end: `wait_tick` sleeps until the next tick.
+/// Bounded by the bus (every step of its switch-off has a timeout).
+pub fn shut_down(
+    bus: &mut dyn DriveBus,
+    cmd: &CycleCommand,
+    feedback: &mut CycleFeedback,
+    mut wait_tick: impl FnMut(),
+) {
+    bus.shutdown();
+    while !bus.is_shut_down() {
+        wait_tick();
+        // Faults no longer matter here: the drives are being switched off.
+        let _ = bus.cycle(cmd, feedback);
+    }
 }

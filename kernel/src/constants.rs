@@ -134,9 +134,23 @@ impl Constants {
             .collect()
     }
 
-    /// R55: largest distance of an arc's end point from its circle, mm (SPEC §2).
+    /// R55: largest distance of an arc's end point from its circle, mm (SPEC §2); 0 = exact.
+    /// The interpreter and the compensator both read this one accessor (issue #14: R55 = 0
+    /// meant 0 to one and 10 µm to the other).
     pub fn arc_tolerance_mm(&self) -> f64 {
         self.get(55).abs()
+    }
+
+    /// R6 (axes 1..3) and R7 (axes 4..6): following error under which an axis counts as
+    /// arrived, the G24 in-position window (SPEC §7.1 "R06-R07"; the split by axis is
+    /// **decided**, see docs/files.md). 0 reads as 1 nm (arrived only at rest).
+    pub fn in_position_window_mm(&self) -> crate::units::AxesMm {
+        let mut w = crate::units::AxesMm::ZERO;
+        for (i, v) in w.0.iter_mut().enumerate() {
+            let r = if i < 3 { 6 } else { 7 };
+            *v = self.get(r).abs().max(1e-6);
+        }
+        w
     }
 
     /// 7.R397 = 1: an arc whose end point is not on the circle is replaced by a line (SPEC §4.5).

@@ -11,7 +11,7 @@ pub mod machine;
 pub mod per_rev;
 pub mod s_word;
 
-pub use config::{Gear, KrConfig, KrConfigError, KrVersion, RadiusInput};
+pub use config::{Gear, KrConfig, KrConfigError, KrConstants, KrVersion, RadiusInput};
 pub use machine::{
     ControllingAxis, Kr, KrFault, KrInput, KrOutput, Motion, ProgramSpindle, output_value,
     speed_for,

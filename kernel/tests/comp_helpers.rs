@@ -122,6 +122,21 @@ pub fn errors(d: &[Diagnostic]) -> Vec<&Diagnostic> {
     d.iter().filter(|d| d.severity == Severity::Error).collect()
 }
 
+/// Gouge warnings (or errors) of the whole-run check.
+pub fn gouges(d: &[Diagnostic]) -> Vec<&Diagnostic> {
+    d.iter()
+        .filter(|d| kernel::comp::gouge::is_gouge(d))
+        .collect()
+}
+
+/// Everything but the gouge check's messages.
+pub fn without_gouges(d: &[Diagnostic]) -> Vec<Diagnostic> {
+    d.iter()
+        .filter(|d| !kernel::comp::gouge::is_gouge(d))
+        .cloned()
+        .collect()
+}
+
 pub fn with_severity(d: &[Diagnostic], s: Severity) -> Vec<&Diagnostic> {
     d.iter().filter(|d| d.severity == s).collect()
 }
@@ -307,6 +322,206 @@ pub fn check_continuous(out: &[CompBlock]) -> Result<(), String> {
         let (s1, _, _) = w[1].block.motion().unwrap();
         if (e0 - s1).max_abs(6) > 1e-9 {
             return Err(format!("gap between {:?} and {:?}", w[0], w[1]));
+        }
+    }
+    Ok(())
+}
+
+/// Distance from `q` to a programmed line or arc (plane G17).
+pub fn dist_to_block(q: V2, b: &Block, plane: Plane) -> f64 {
+    let (s, e, path) = b.motion().expect("motion");
+    let (a, bb) = (V2::of(&s, plane), V2::of(&e, plane));
+    match path {
+        Path::Arc { dir, center, .. } => {
+            let c = V2::of(&center, plane);
+            let rho = a.dist(c);
+            let a0 = (a - c).angle();
+            let mut sweep = (bb - c).angle() - a0;
+            let ccw = dir == ArcDir::Ccw;
+            while ccw && sweep <= 0.0 {
+                sweep += std::f64::consts::TAU;
+            }
+            while !ccw && sweep >= 0.0 {
+                sweep -= std::f64::consts::TAU;
+            }
+            let mut t = (q - c).angle() - a0;
+            // Angle of q measured along the arc's direction, in [0, 2π).
+            if !ccw {
+                t = -t;
+            }
+            let t = t.rem_euclid(std::f64::consts::TAU);
+            if t <= sweep.abs() {
+                (q.dist(c) - rho).abs()
+            } else {
+                q.dist(a).min(q.dist(bb))
+            }
+        }
+        _ => {
+            let d = bb - a;
+            let t = ((q - a).dot(d) / d.dot(d)).clamp(0.0, 1.0);
+            q.dist(a + d * t)
+        }
+    }
+}
+
+/// Points along an output motion, at most `step_mm` apart.
+pub fn samples(b: &Block, step_mm: f64, plane: Plane) -> Vec<V2> {
+    let (s, e, path) = b.motion().expect("motion");
+    let (a, bb) = (V2::of(&s, plane), V2::of(&e, plane));
+    match path {
+        Path::Arc { dir, center, .. } => {
+            let c = V2::of(&center, plane);
+            let rho = a.dist(c);
+            let a0 = (a - c).angle();
+            let mut sweep = (bb - c).angle() - a0;
+            let ccw = dir == ArcDir::Ccw;
+            while ccw && sweep < 0.0 {
+                sweep += std::f64::consts::TAU;
+            }
+            while !ccw && sweep > 0.0 {
+                sweep -= std::f64::consts::TAU;
+            }
+            let n = ((sweep.abs() * rho / step_mm).ceil() as usize).max(1);
+            (0..=n)
+                .map(|k| c + V2::from_angle(a0 + sweep * k as f64 / n as f64) * rho)
+                .collect()
+        }
+        _ => {
+            let n = ((a.dist(bb) / step_mm).ceil() as usize).max(1);
+            (0..=n)
+                .map(|k| a + (bb - a) * (k as f64 / n as f64))
+                .collect()
+        }
+    }
+}
+
+/// The smallest distance of the compensated tool path (equidistants, corner arcs, collapsed
+/// elements; not the start and cancel moves) from the programmed contour elements `contour`
+/// (seq numbers), with the tool block and contour block where it occurs.
+pub fn clearance(
+    input: &[Block],
+    out: &[CompBlock],
+    contour: &[u32],
+    plane: Plane,
+) -> (f64, u32, u32) {
+    let mut worst = (f64::INFINITY, 0, 0);
+    let boxes: Vec<(V2, V2)> = contour
+        .iter()
+        .map(|&k| bbox(&samples(&input[k as usize], 1.0, plane)))
+        .collect();
+    for c in motions(out) {
+        if !matches!(
+            c.role,
+            Role::Equidistant | Role::CornerArc | Role::Collapsed | Role::EquidistantChord
+        ) {
+            continue;
+        }
+        let qs = samples(&c.block, SAMPLE_MM, plane);
+        let (lo, hi) = bbox(&qs);
+        for (&k, &(a, b)) in contour.iter().zip(&boxes) {
+            // Box gap (the 1 mm samples of an arc's box may cut its bulge by < 1 mm).
+            let gap = (a.x - hi.x).max(lo.x - b.x).max(a.y - hi.y).max(lo.y - b.y) - 1.0;
+            if gap > worst.0 {
+                continue;
+            }
+            for &q in &qs {
+                let d = dist_to_block(q, &input[k as usize], plane);
+                if d < worst.0 {
+                    worst = (d, c.block.seq, k);
+                }
+            }
+        }
+    }
+    worst
+}
+
+fn bbox(pts: &[V2]) -> (V2, V2) {
+    let mut lo = V2::new(f64::INFINITY, f64::INFINITY);
+    let mut hi = V2::new(f64::NEG_INFINITY, f64::NEG_INFINITY);
+    for p in pts {
+        lo = V2::new(lo.x.min(p.x), lo.y.min(p.y));
+        hi = V2::new(hi.x.max(p.x), hi.y.max(p.y));
+    }
+    (lo, hi)
+}
+
+/// Spacing of the tool-path samples of the independent gouge checker, mm.
+pub const SAMPLE_MM: f64 = 0.02;
+
+/// The seq numbers of the programmed contour: in-plane motions under G41/G42, without the
+/// start block of each run (it leaves the equidistant by definition, SPEC §4.2).
+pub fn contour_seqs(input: &[Block], plane: Plane) -> Vec<u32> {
+    let mut out = Vec::new();
+    let mut running = false;
+    for b in input {
+        let Some((s, e, path)) = b.motion() else {
+            continue;
+        };
+        let in_plane =
+            matches!(path, Path::Arc { .. }) || V2::of(&s, plane).dist(V2::of(&e, plane)) > 1e-9;
+        if !in_plane {
+            continue;
+        }
+        let on = b.comp != Comp::Off && path != Path::Rapid;
+        if on && running {
+            out.push(b.seq);
+        }
+        running = on;
+    }
+    out
+}
+
+/// The smallest sampled distance of each tool block's compensated pieces from the contour.
+pub fn clearance_per_tool_block(
+    input: &[Block],
+    out: &[CompBlock],
+    plane: Plane,
+) -> HashMap<u32, f64> {
+    let contour = contour_seqs(input, plane);
+    let mut per = HashMap::new();
+    for c in motions(out) {
+        let one = [c];
+        let (d, _, _) = clearance(input, &one, &contour, plane);
+        if d.is_infinite() {
+            continue;
+        }
+        let e = per.entry(c.block.seq).or_insert(f64::INFINITY);
+        *e = d.min(*e);
+    }
+    per
+}
+
+/// The gouge invariant (issue #18): wherever the sampled tool centre comes closer than
+/// r − `tol` to the contour, a gouge warning names that block; and every gouge warning is
+/// real (the samples come within r − tol + the sampling step).
+pub fn gouge_invariant(
+    input: &[Block],
+    out: &[CompBlock],
+    diags: &[Diagnostic],
+    r: f64,
+    tol: f64,
+    plane: Plane,
+) -> Result<(), String> {
+    let named: Vec<Option<u32>> = diags
+        .iter()
+        .filter(|d| kernel::comp::gouge::is_gouge(d))
+        .map(|d| d.block)
+        .collect();
+    let n_of = |seq: u32| input[seq as usize].n;
+    let per = clearance_per_tool_block(input, out, plane);
+    for (&seq, &d) in &per {
+        if d < r - tol && !named.contains(&n_of(seq)) {
+            return Err(format!(
+                "tool centre of seq {seq} is {d:.4} mm from the contour (r = {r}) and no warning names it: {diags:?}"
+            ));
+        }
+    }
+    for n in named {
+        let real = per
+            .iter()
+            .any(|(seq, d)| n_of(*seq) == n && *d < r - tol + SAMPLE_MM);
+        if !real {
+            return Err(format!("gouge warning for {n:?} is not real: {per:?}"));
         }
     }
     Ok(())

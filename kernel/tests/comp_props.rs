@@ -126,11 +126,18 @@ fn check_in(
 ) -> Result<(), TestCaseError> {
     let (out, diags) = p.run(cfg);
     prop_assert!(errors(&diags).is_empty(), "{:?}", diags);
+    // Random contours may come back close to themselves (or close at an inside corner where
+    // the start and cancel perpendiculars cut into the neighbour): real gouges, each named.
     prop_assert!(
-        with_severity(&diags, Severity::Warning).is_empty(),
+        with_severity(&diags, Severity::Warning)
+            .iter()
+            .all(|d| kernel::comp::gouge::is_gouge(d)),
         "{:?}",
         diags
     );
+    let r = out.iter().map(|c| c.offset_mm.abs()).fold(0.0, f64::max);
+    gouge_invariant(&p.blocks, &out, &diags, r, cfg.gouge_tolerance_mm(r), plane)
+        .map_err(TestCaseError::fail)?;
     let (pieces, arcs) = check_path(&p.blocks, &out, plane, 1e-6).map_err(TestCaseError::fail)?;
     // Every programmed element appears (an arc over 180° as two halves).
     prop_assert!(pieces >= expect_pieces, "{pieces} < {expect_pieces}");

@@ -110,6 +110,16 @@ impl PreviewOptions {
         }
     }
 
+    /// Options with the settings of a machine setup (the daemon's: what a job started now
+    /// would run with).
+    pub fn from_machine(m: &kernel::machine::MachineSetup) -> Self {
+        PreviewOptions {
+            planner: m.planner().clone(),
+            comp: m.comp(),
+            ..Self::new(m.program().clone())
+        }
+    }
+
     fn page(&self) -> (Page, u32) {
         let per = self
             .page_blocks

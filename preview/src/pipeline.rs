@@ -1,12 +1,14 @@
-//! The same straight line of stages the daemon runs (parse → compensate → plan, see
-//! `ARCHITECTURE.md`), streamed block by block into a [`Sink`], so memory does not grow with the
-//! program: the preview reads the stages rather than recomputing them.
+//! The preview reads the outputs of the controller's one pipeline (`kernel::pipeline`, the
+//! same pass validate, load and the daemon's run make, see `ARCHITECTURE.md`): a [`Sink`]
+//! collects what a picture needs, block by block, so memory does not grow with the program.
 
 use kernel::Diagnostic;
 use kernel::block::Block;
-use kernel::comp::{CompBlock, Compensator};
-use kernel::plan::{Planner, Segment};
-use kernel::program::{self, MAX_DIAGNOSTICS};
+use kernel::comp::CompBlock;
+use kernel::machine::MachineSetup;
+use kernel::pipeline::{self, Flow, Observer, Options};
+use kernel::plan::Segment;
+use kernel::program::Modal;
 
 use crate::PreviewOptions;
 
@@ -18,8 +20,8 @@ pub trait Sink {
     fn compensated(&mut self, _c: &CompBlock) {}
     /// A planned segment, in order, with its final junction class.
     fn segment(&mut self, s: &Segment);
-    /// The sink has all it needs (its page is over): the stages stop, parsing goes on to
-    /// count the blocks and find errors.
+    /// The sink has all it needs (its page is over): it is given nothing more, while the pass
+    /// goes on to count the blocks and find every error.
     fn done(&self) -> bool {
         false
     }
@@ -32,93 +34,49 @@ pub trait Sink {
 pub struct Outcome {
     /// Programmed blocks in the program.
     pub blocks: u32,
-    /// Warnings and information (capped at [`MAX_DIAGNOSTICS`]).
+    /// Warnings and information.
     pub notes: Vec<Diagnostic>,
 }
 
-/// Streams `text` through the stages into `sink`. A program with an error gives every error
-/// found (parse errors of the whole program; a compensation or planning error stops those
-/// stages, since what follows it would be meaningless).
+/// The sink as an observer of the pipeline.
+struct Feed<'a, S: Sink>(&'a mut S);
+
+impl<S: Sink> Observer for Feed<'_, S> {
+    fn programmed(&mut self, b: &Block, _modal: &Modal) {
+        if !self.0.done() {
+            self.0.programmed(b);
+        }
+    }
+    fn compensated(&mut self, c: &CompBlock) {
+        if !self.0.done() {
+            self.0.compensated(c);
+        }
+    }
+    fn segment(&mut self, s: Segment) -> Flow {
+        if !self.0.done() {
+            self.0.segment(&s);
+        }
+        Flow::Go
+    }
+}
+
+/// Streams `text` through the pipeline into `sink`. A program with an error gives its every
+/// diagnostic (the verdict of validation, with the same settings).
 pub fn run(
     text: &str,
     opts: &PreviewOptions,
     sink: &mut impl Sink,
 ) -> Result<Outcome, Vec<Diagnostic>> {
-    let mut stream = program::stream(text, &opts.setup);
-    let mut comp = Compensator::new(opts.comp);
-    let mut planner = Planner::new(opts.planner.clone(), 1);
-    let mut errors: Vec<Diagnostic> = Vec::new();
-    let mut out = Outcome::default();
-    let mut stages_on = true;
-    let note = |out: &mut Outcome, d: Diagnostic| {
-        if out.notes.len() < MAX_DIAGNOSTICS {
-            out.notes.push(d);
-        }
-    };
-    while let Some(item) = stream.next() {
-        for d in stream.take_notes() {
-            note(&mut out, d);
-        }
-        match item {
-            Ok(b) => {
-                out.blocks = b.seq + 1;
-                if stages_on && errors.is_empty() && !sink.done() {
-                    sink.programmed(&b);
-                    let fed = comp
-                        .push(&b)
-                        .and_then(|()| drain(&mut comp, &mut planner, sink));
-                    if let Err(d) = fed {
-                        errors.push(d);
-                        stages_on = false;
-                    }
-                }
-            }
-            Err(d) => {
-                errors.push(d);
-                if errors.len() >= MAX_DIAGNOSTICS {
-                    break;
-                }
-            }
-        }
+    let setup = MachineSetup::from_stages(opts.setup.clone(), opts.comp, opts.planner.clone());
+    let v = pipeline::validate_into(text, &setup, Options::default(), &mut Feed(sink));
+    if v.has_errors() {
+        return Err(v.diagnostics);
     }
-    for d in stream.take_notes() {
-        note(&mut out, d);
+    if !sink.done() {
+        sink.finish();
     }
-    if stages_on && errors.is_empty() && !sink.done() {
-        comp.finish();
-        match drain(&mut comp, &mut planner, sink) {
-            Ok(()) => {
-                planner.finish();
-                while let Some(s) = planner.poll() {
-                    sink.segment(&s);
-                }
-                sink.finish();
-            }
-            Err(d) => errors.push(d),
-        }
-    }
-    for d in comp.take_diagnostics() {
-        note(&mut out, d);
-    }
-    if errors.is_empty() {
-        Ok(out)
-    } else {
-        Err(errors)
-    }
-}
-
-/// Moves every tool-centre block into the planner and every committed segment to the sink.
-fn drain(
-    comp: &mut Compensator,
-    planner: &mut Planner,
-    sink: &mut impl Sink,
-) -> Result<(), Diagnostic> {
-    while let Some(c) = comp.poll_traced() {
-        sink.compensated(&c);
-        planner.push(&c.block)?;
-        while let Some(s) = planner.poll() {
-            sink.segment(&s);
-        }
-    }
-    Ok(())
+    Ok(Outcome {
+        blocks: v.blocks,
+        notes: v.diagnostics,
+    })
 }

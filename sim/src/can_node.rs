@@ -306,12 +306,12 @@ impl CanNode {
 
     /// Time passes: heartbeat production and the consumer watch on the master.
     pub fn poll(&mut self, now_ms: u64, out: &mut Vec<Frame>) {
+        if self.inject.silent {
+            return; // a silent drive from the start is one that is not powered yet
+        }
         if !self.booted {
             self.booted = true;
             self.boot(now_ms, out);
-        }
-        if self.inject.silent {
-            return;
         }
         let hb = u64::from(self.od.heartbeat_ms);
         if hb > 0 && now_ms >= self.next_heartbeat_ms {
@@ -320,22 +320,51 @@ impl CanNode {
                 out.push(nmt::heartbeat(self.id, self.nmt));
             }
         }
+        // The heartbeat consumer (0x1016) watches in operational and pre-operational alike,
+        // from the first heartbeat on (CiA 301): a master that stops without clearing it
+        // leaves a faulted drive in pre-operational (0x1029 error behaviour).
         let consumer_ms = u64::from(self.od.consumer & 0xFFFF);
         if let Some(last) = self.master_heartbeat_ms
             && consumer_ms > 0
             && now_ms.saturating_sub(last) > consumer_ms
         {
             self.master_heartbeat_ms = None;
-            if self.nmt == nmt::state::OPERATIONAL {
+            if self.nmt != nmt::state::STOPPED {
                 let e = self.drive.fault(COMMUNICATION_LOST);
                 self.announce(e, out);
+                self.nmt = nmt::state::PRE_OPERATIONAL;
+                self.latched = None;
             }
         }
+    }
+
+    /// The heartbeat consumer entry 0x1016:1 (master node id << 16 | time in ms; 0: off).
+    pub fn consumer(&self) -> u32 {
+        self.od.consumer
+    }
+
+    /// One line for a test: NMT state, statusword, error code, consumer entry.
+    pub fn state_line(&self) -> String {
+        format!(
+            "state node {} nmt {:02X} statusword {:04X} error {:04X} consumer {:08X}",
+            self.id,
+            self.nmt,
+            self.drive.statusword(),
+            self.drive.error_code(),
+            self.od.consumer
+        )
     }
 
     fn write(&mut self, index: u16, sub: u8, v: u32) -> Result<(), u32> {
         let od = &mut self.od;
         match (index, sub) {
+            // CiA 301: a valid PDO's COB-ID changes only through invalid (bit 31 set first).
+            (0x1400, 1) if od.rpdo_cob & DISABLED == 0 && v & DISABLED == 0 && v != od.rpdo_cob => {
+                return Err(abort::VALUE_RANGE);
+            }
+            (0x1800, 1) if od.tpdo_cob & DISABLED == 0 && v & DISABLED == 0 && v != od.tpdo_cob => {
+                return Err(abort::VALUE_RANGE);
+            }
             (0x1400, 1) => od.rpdo_cob = v,
             (0x1400, 2) if v <= 255 => od.rpdo_type = v as u8,
             (0x1800, 1) => od.tpdo_cob = v,
@@ -366,7 +395,9 @@ impl CanNode {
                 } else {
                     (od.tpdo_count, &mut od.tpdo_map)
                 };
-                if count != 0 {
+                // Mapping entries change only with the PDO invalid and its count at 0.
+                let cob_id = if rpdo { od.rpdo_cob } else { od.tpdo_cob };
+                if count != 0 || cob_id & DISABLED == 0 {
                     return Err(abort::DEVICE_STATE);
                 }
                 // This drive supports only the CSP and CSV layouts; say so instead of

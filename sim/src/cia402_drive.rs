@@ -34,6 +34,8 @@ pub struct Cia402Drive {
     /// Acceleration of the velocity ramp in CSV, drive units per second (0: the speed follows
     /// the target at once).
     pub velocity_ramp_units_s2: f64,
+    /// Safe torque off: the power stage cannot be switched on (stays Switch On Disabled).
+    pub sto: bool,
 }
 
 impl Cia402Drive {
@@ -48,6 +50,7 @@ impl Cia402Drive {
             error_code: 0,
             velocity_units: 0.0,
             velocity_ramp_units_s2: 0.0,
+            sto: false,
         }
     }
 
@@ -154,6 +157,14 @@ impl Cia402Drive {
     fn apply(&mut self, controlword: u16) -> Option<Event> {
         let before = self.state;
         self.state = cia402::apply_controlword(self.state, self.last_controlword, controlword);
+        // Strict handshake: Ready to Switch On goes to Operation Enabled only through
+        // Switched On (07h, then 0Fh), as some drives insist; no 3+4 in one step.
+        if before == PowerState::ReadyToSwitchOn && self.state == PowerState::OperationEnabled {
+            self.state = PowerState::ReadyToSwitchOn;
+        }
+        if self.sto && self.state != PowerState::Fault {
+            self.state = PowerState::SwitchOnDisabled;
+        }
         self.last_controlword = controlword;
         if before == PowerState::Fault && self.state != PowerState::Fault {
             self.following_error = false;

@@ -10,6 +10,7 @@
 //! | `corrupt on [NODE]` / `corrupt off [NODE]` | send corrupt frames (CAN: short TPDO; serial: bit flip) |
 //! | `fault CODE [NODE]` | force a drive fault with error code CODE (hex, e.g. `2310`) |
 //! | `unplug` / `plug` | close the serial line / open a new one at the same link path (serial) |
+//! | `state` | print each node's state (CAN: NMT state, statusword, error code, 0x1016:1) |
 //! | `quit` | exit |
 //!
 //! NODE is a CAN node id, or a 1-based axis number for the serial unit; without it the
@@ -28,6 +29,9 @@ pub enum Command {
     Fault(u16, Option<u8>),
     Unplug,
     Plug,
+    /// Print each node's state on stdout (CAN: `state node N nmt .. statusword .. error ..
+    /// consumer ..`).
+    State,
     Quit,
 }
 
@@ -61,6 +65,7 @@ pub fn parse(line: &str) -> Result<Command, String> {
         }
         "unplug" => Command::Unplug,
         "plug" => Command::Plug,
+        "state" => Command::State,
         "quit" => Command::Quit,
         _ => return Err(format!("unknown command '{cmd}'")),
     })

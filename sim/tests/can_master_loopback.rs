@@ -1,9 +1,14 @@
 //! The CANopen master against simulated drive nodes on an in-memory bus: start-up, CSP
-//! motion, and every fault path, in virtual time (4 ms per tick).
+//! motion, every fault path, enabling from anywhere, orderly shutdown and resets, in virtual
+//! time (4 ms per tick unless a test sets the cycle).
 
 use std::collections::VecDeque;
 
-use hal::canopen::{CanOpenConfig, CanOpenMaster, CanPort, Frame, NodeConfig, PortError, RxEvent};
+use hal::canopen::pdo::Rpdo;
+use hal::canopen::{
+    CanOpenConfig, CanOpenMaster, CanPort, Frame, NodeConfig, PortError, RxEvent, ShutdownMode,
+};
+use hal::cia402::PowerState;
 use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason};
 use sim::SimDriveParams;
 use sim::can_node::CanNode;
@@ -15,19 +20,47 @@ const INC_PER_MM: f64 = 1000.0;
 struct Net {
     nodes: Vec<CanNode>,
     now_ms: u64,
+    tick: u64,
     to_master: VecDeque<Frame>,
     /// Every frame the master sent, with the tick.
     log: Vec<(u64, Frame)>,
+    /// Every frame the nodes sent, with the tick.
+    from_nodes: Vec<(u64, Frame)>,
+    /// Index of a node that does not hear the master's heartbeat (a broken receive path).
+    deaf_to_heartbeat: Option<usize>,
+}
+
+impl Net {
+    fn new(nodes: Vec<CanNode>) -> Net {
+        Net {
+            nodes,
+            now_ms: 0,
+            tick: 0,
+            to_master: VecDeque::new(),
+            log: Vec::new(),
+            from_nodes: Vec::new(),
+            deaf_to_heartbeat: None,
+        }
+    }
+
+    fn deliver(&mut self, out: Vec<Frame>) {
+        let t = self.tick;
+        self.from_nodes.extend(out.iter().map(|f| (t, *f)));
+        self.to_master.extend(out);
+    }
 }
 
 impl CanPort for Net {
     fn send(&mut self, f: &Frame) -> Result<(), PortError> {
-        self.log.push((self.now_ms / 4, *f));
+        self.log.push((self.tick, *f));
         let mut out = Vec::new();
-        for n in &mut self.nodes {
+        for (k, n) in self.nodes.iter_mut().enumerate() {
+            if f.id == 0x77F && self.deaf_to_heartbeat == Some(k) {
+                continue;
+            }
             n.handle(f, self.now_ms, &mut out);
         }
-        self.to_master.extend(out);
+        self.deliver(out);
         Ok(())
     }
     fn try_recv(&mut self) -> Result<Option<RxEvent>, PortError> {
@@ -39,40 +72,50 @@ struct Rig {
     m: CanOpenMaster<Net>,
     cmd: CycleCommand,
     fb: CycleFeedback,
+    cycle_ms: u64,
 }
 
 impl Rig {
     fn new(ids: &[u8]) -> Rig {
+        Rig::with(ids, &[0.0; 6], 4)
+    }
+
+    /// Drives `ids` standing at `start_mm`, bus cycle `cycle_ms`.
+    fn with(ids: &[u8], start_mm: &[f64], cycle_ms: u32) -> Rig {
+        Rig::build(ids, start_mm, cycle_ms, ShutdownMode::Disable)
+    }
+
+    fn build(ids: &[u8], start_mm: &[f64], cycle_ms: u32, shutdown: ShutdownMode) -> Rig {
         let nodes = ids
             .iter()
-            .map(|&id| {
+            .zip(start_mm)
+            .map(|(&id, &mm)| {
                 CanNode::new(
                     id,
-                    Cia402Drive::new(SimDriveParams::default(), INC_PER_MM, 0.0),
+                    Cia402Drive::new(SimDriveParams::default(), INC_PER_MM, mm),
                 )
             })
             .collect();
-        let net = Net {
-            nodes,
-            now_ms: 0,
-            to_master: VecDeque::new(),
-            log: Vec::new(),
-        };
-        let cfg = CanOpenConfig::new(
+        let net = Net::new(nodes);
+        let mut cfg = CanOpenConfig::new(
             ids.iter()
                 .map(|&node_id| NodeConfig {
                     node_id,
                     increments_per_mm: INC_PER_MM,
                     following_window_increments: Some(10_000),
+                    max_velocity_mm_s: 200.0,
                 })
                 .collect(),
         );
+        cfg.cycle_us = cycle_ms * 1000;
+        cfg.shutdown = shutdown;
         let mut m = CanOpenMaster::new(net, "mem", cfg).unwrap();
         m.enable();
         Rig {
             m,
             cmd: CycleCommand::default(),
             fb: CycleFeedback::default(),
+            cycle_ms: u64::from(cycle_ms),
         }
     }
 
@@ -80,16 +123,23 @@ impl Rig {
         self.m.port_mut()
     }
 
-    /// One 4 ms tick: nodes see time pass, then the master cycles.
+    /// One tick (4 ms unless set): nodes see time pass, then the master cycles.
     fn tick(&mut self) -> Result<(), BusFault> {
+        self.pass_time();
+        self.m.cycle(&self.cmd, &mut self.fb)
+    }
+
+    /// The nodes see one tick pass (heartbeats, their watch on the master's).
+    fn pass_time(&mut self) {
+        let cycle_ms = self.cycle_ms;
         let net = self.m.port_mut();
-        net.now_ms += 4;
+        net.now_ms += cycle_ms;
+        net.tick += 1;
         let mut out = Vec::new();
         for n in &mut net.nodes {
             n.poll(net.now_ms, &mut out);
         }
-        net.to_master.extend(out);
-        self.m.cycle(&self.cmd, &mut self.fb)
+        net.deliver(out);
     }
 
     fn until_operational(&mut self) -> usize {
@@ -181,7 +231,7 @@ fn lost_heartbeat_names_axis_and_node_and_reset_restarts_the_drive() {
 }
 
 #[test]
-fn silent_and_corrupt_drives_time_out() {
+fn silent_drives_time_out_and_short_tpdos_are_a_mapping_fault() {
     for corrupt in [false, true] {
         let mut r = Rig::new(&[5]);
         r.until_operational();
@@ -191,17 +241,23 @@ fn silent_and_corrupt_drives_time_out() {
             r.net().nodes[0].inject.silent = true;
         }
         let (t, e) = r.until_fault(100);
-        assert_eq!(e.reason, FaultReason::Timeout);
-        // The first tick still reads the last answer; 25 missing ticks are tolerated.
-        assert_eq!(t, 26);
+        let reason = if corrupt {
+            // A 3-byte TPDO where the mapping gives 6: named at the first one.
+            assert_eq!(t, 1);
+            FaultReason::PdoLength {
+                cob_id: 0x185,
+                len: 3,
+                expected: 6,
+            }
+        } else {
+            // The first tick still reads the last answer; 25 missing ticks are tolerated.
+            assert_eq!(t, 26);
+            FaultReason::Timeout
+        };
+        assert_eq!(e.reason, reason);
         assert_eq!(r.fb.axes[0].state, DriveState::Fault);
         // Fault persists until reset; recovery after the drive answers again.
-        r.until_fault(1)
-            .1
-            .reason
-            .eq(&FaultReason::Timeout)
-            .then_some(())
-            .unwrap();
+        assert_eq!(r.until_fault(1).1.reason, reason);
         let n = &mut r.net().nodes[0];
         n.inject = Default::default();
         r.m.reset();
@@ -266,16 +322,12 @@ fn spindle_node_follows_the_speed_setpoint_on_its_ramp() {
     );
     let mut spindle_drive = Cia402Drive::new(SimDriveParams::default(), INC_PER_MM, 0.0);
     spindle_drive.velocity_ramp_units_s2 = 1000.0 * UNITS_PER_RPM;
-    let net = Net {
-        nodes: vec![axis, CanNode::new(5, spindle_drive)],
-        now_ms: 0,
-        to_master: VecDeque::new(),
-        log: Vec::new(),
-    };
+    let net = Net::new(vec![axis, CanNode::new(5, spindle_drive)]);
     let mut cfg = CanOpenConfig::new(vec![NodeConfig {
         node_id: 1,
         increments_per_mm: INC_PER_MM,
         following_window_increments: Some(10_000),
+        max_velocity_mm_s: 200.0,
     }]);
     cfg.spindle = Some(hal::canopen::SpindleNodeConfig {
         node_id: 5,
@@ -287,6 +339,7 @@ fn spindle_node_follows_the_speed_setpoint_on_its_ramp() {
         m,
         cmd: CycleCommand::default(),
         fb: CycleFeedback::default(),
+        cycle_ms: 4,
     };
     rig.until_operational();
     let mut t = 0;
@@ -344,4 +397,433 @@ fn spindle_node_follows_the_speed_setpoint_on_its_ramp() {
     );
     assert_eq!(rig.fb.spindle_state, DriveState::Fault);
     assert_eq!(rig.fb.axes[0].state, DriveState::Operational);
+}
+
+/// Controlword and target of every RPDO the master sent to `node`, in order, with the tick.
+fn rpdos(log: &[(u64, Frame)], node: u8) -> Vec<(u64, Rpdo)> {
+    log.iter()
+        .filter(|(_, f)| f.id == 0x200 + u16::from(node))
+        .map(|(t, f)| (*t, Rpdo::decode(f.payload()).unwrap()))
+        .collect()
+}
+
+/// One tick's travel at the axis's speed limit (200 mm/s at 4 ms, 1000 increments/mm).
+const MAX_STEP: i64 = 800;
+
+impl Rig {
+    /// The daemon's enabling: the commanded positions stay where they were (`cmd`) until
+    /// every axis reports Operational, then they are taken from the drives' actual positions.
+    fn enable_like_the_daemon(&mut self, max_ticks: usize) {
+        let n = self.m.axes();
+        for _ in 0..max_ticks {
+            self.tick().expect("no fault while enabling");
+            if self.fb.axes[..n]
+                .iter()
+                .all(|a| a.state == DriveState::Operational)
+            {
+                for i in 0..n {
+                    self.cmd.positions_mm[i] = self.fb.axes[i].position_mm;
+                }
+                return;
+            }
+        }
+        panic!("not operational: {:?}", self.fb);
+    }
+
+    /// Largest step between consecutive targets sent to `node`, and its first target.
+    fn target_steps(&mut self, node: u8) -> (i64, i32) {
+        let r = rpdos(&self.net().log, node);
+        let first = r[0].1.target_increments;
+        let max = r
+            .windows(2)
+            .map(|w| {
+                (i64::from(w[1].1.target_increments) - i64::from(w[0].1.target_increments)).abs()
+            })
+            .max()
+            .unwrap_or(0);
+        (max, first)
+    }
+}
+
+/// Issue #23, seen 1: drives standing away from 0 while the controller's commanded position
+/// is still 0, one drive held back by safe torque off so the others are enabled long before
+/// it. Every target equals the drive's own position from the first RPDO on; none steps by
+/// more than one tick's travel at the axis limit; nobody faults; then the axes move.
+#[test]
+fn enable_holds_every_drive_where_it_stands_until_the_command_takes_over() {
+    let starts = [25.0, -40.0, 7.5];
+    for late in [None, Some(0), Some(1), Some(2)] {
+        let mut r = Rig::with(&[1, 2, 3], &starts, 4);
+        if let Some(k) = late {
+            r.net().nodes[k].drive.sto = true;
+        }
+        // The others come up and are enabled; the late one stays Switch On Disabled.
+        for _ in 0..300 {
+            r.tick()
+                .expect("no fault while a drive waits for its power stage");
+        }
+        if let Some(k) = late {
+            let n = r.m.axes();
+            let up = (0..n).filter(|&i| r.fb.axes[i].state == DriveState::Operational);
+            assert_eq!(up.count(), n - 1, "late {k}: {:?}", r.fb);
+            r.net().nodes[k].drive.sto = false;
+        }
+        r.enable_like_the_daemon(200);
+        for _ in 0..20 {
+            r.tick().unwrap();
+        }
+        for (k, &mm) in starts.iter().enumerate() {
+            let node = k as u8 + 1;
+            let (max_step, first) = r.target_steps(node);
+            assert_eq!(first, (mm * INC_PER_MM) as i32, "node {node}: first target");
+            assert!(
+                max_step <= MAX_STEP,
+                "late {late:?}, node {node}: step {max_step}"
+            );
+            assert!(
+                (r.fb.axes[k].position_mm - mm).abs() < 1e-3,
+                "node {node} stood still"
+            );
+        }
+        // The commanded positions lead now: X moves 2 mm.
+        for i in 1..=50 {
+            r.cmd.positions_mm[0] = starts[0] + f64::from(i) * 0.04;
+            r.tick().unwrap();
+        }
+        for _ in 0..200 {
+            r.tick().unwrap();
+        }
+        assert!(
+            (r.fb.axes[0].position_mm - starts[0] - 2.0).abs() < 1e-3,
+            "{:?}",
+            r.fb
+        );
+    }
+}
+
+/// The master never sends SYNC or an RPDO before every drive is configured and started.
+#[test]
+fn sync_and_pdos_start_after_the_configuration_of_every_drive() {
+    let mut r = Rig::new(&[1, 2, 3]);
+    r.until_operational();
+    let log = &r.net().log;
+    let pos = |pred: &dyn Fn(&Frame) -> bool| log.iter().position(|(_, f)| pred(f));
+    let first_sync = pos(&|f| f.id == 0x080).unwrap();
+    let last_sdo = log
+        .iter()
+        .rposition(|(_, f)| f.id & 0x780 == 0x600)
+        .unwrap();
+    assert!(
+        last_sdo < first_sync,
+        "SDO {last_sdo} after SYNC {first_sync}"
+    );
+    for node in 1..=3u16 {
+        let start = pos(&|f| f.id == 0 && f.payload() == [0x01, node as u8]).unwrap();
+        let first_rpdo = pos(&|f| f.id == 0x200 + node).unwrap();
+        assert!(start < first_sync && first_sync < first_rpdo, "node {node}");
+    }
+}
+
+/// The CiA 301 remapping order is what the simulated drive insists on: a mapping entry of a
+/// valid PDO, a count before the PDO is invalid, or a new COB-ID over a valid one is refused.
+#[test]
+fn the_simulated_drive_refuses_remapping_out_of_order() {
+    use hal::canopen::sdo;
+    let mut n = CanNode::new(
+        4,
+        Cia402Drive::new(SimDriveParams::default(), INC_PER_MM, 0.0),
+    );
+    let mut out = Vec::new();
+    n.poll(0, &mut out);
+    let mut write = |index: u16, sub: u8, value: u32, size: u8| {
+        let mut out = Vec::new();
+        n.handle(&sdo::download(4, index, sub, value, size), 0, &mut out);
+        match sdo::parse_response(out[0].payload()).unwrap() {
+            sdo::Response::Abort { code, .. } => Err(code),
+            _ => Ok(()),
+        }
+    };
+    // Valid COB-ID (as the drive would have from an earlier configuration).
+    write(0x1400, 1, 0x204, 4).unwrap();
+    assert_eq!(write(0x1400, 1, 0x305, 4), Err(sdo::abort::VALUE_RANGE));
+    assert_eq!(write(0x1600, 0, 0, 1), Err(sdo::abort::DEVICE_STATE));
+    assert_eq!(
+        write(0x1600, 1, 0x6040_0010, 4),
+        Err(sdo::abort::DEVICE_STATE)
+    );
+    // The order the master uses: invalid, count 0, entries, count, valid.
+    write(0x1400, 1, 0x8000_0204, 4).unwrap();
+    write(0x1600, 0, 0, 1).unwrap();
+    write(0x1600, 1, 0x6040_0010, 4).unwrap();
+    write(0x1600, 2, 0x607A_0020, 4).unwrap();
+    write(0x1600, 0, 2, 1).unwrap();
+    assert_eq!(
+        write(0x1600, 1, 0x6040_0010, 4),
+        Err(sdo::abort::DEVICE_STATE)
+    );
+    write(0x1400, 1, 0x204, 4).unwrap();
+}
+
+/// Issue #23, seen 2: an orderly shutdown walks every drive down 0Fh → 07h → 06h → 00h on
+/// its statusword, clears its heartbeat consumer, sends it to pre-operational, then the bus
+/// falls silent; long after, no drive has faulted.
+#[test]
+fn shutdown_leaves_the_drives_switched_off_without_a_fault() {
+    let mut r = Rig::with(&[1, 2, 3], &[3.0, 4.0, 5.0], 4);
+    r.enable_like_the_daemon(200);
+    for _ in 0..50 {
+        r.tick().unwrap();
+    }
+    let before = r.net().log.len();
+    r.m.shutdown();
+    let mut ticks = 0;
+    while !r.m.is_shut_down() {
+        r.tick().unwrap();
+        ticks += 1;
+        assert!(ticks < 500, "shutdown must end by itself");
+    }
+    let log = r.net().log[before..].to_vec();
+    for node in 1..=3u8 {
+        let cws: Vec<u16> = rpdos(&log, node)
+            .iter()
+            .map(|(_, p)| p.controlword)
+            .collect();
+        let mut walk = cws.clone();
+        walk.dedup();
+        assert_eq!(walk, [0x07, 0x06, 0x00], "node {node}: {cws:X?}");
+        let clear = sdo_write_index(&log, node, 0x1016, 1).expect("0x1016:1 cleared");
+        let pre_op = log
+            .iter()
+            .position(|(_, f)| f.id == 0 && f.payload() == [0x80, node])
+            .expect("NMT pre-operational");
+        let last_rpdo = log
+            .iter()
+            .rposition(|(_, f)| f.id == 0x200 + u16::from(node))
+            .unwrap();
+        assert!(clear < pre_op && last_rpdo < pre_op, "node {node}");
+    }
+    // After shutdown: nothing more goes out, and the drives, unwatched, stay fault-free.
+    let sent = r.net().log.len();
+    for _ in 0..500 {
+        r.tick().unwrap();
+    }
+    assert_eq!(r.net().log.len(), sent, "the bus is silent after shutdown");
+    for n in &r.net().nodes {
+        assert_eq!(n.nmt_state(), hal::canopen::nmt::state::PRE_OPERATIONAL);
+        assert_eq!(n.consumer(), 0);
+        assert_eq!(
+            n.drive.state(),
+            PowerState::SwitchOnDisabled,
+            "node {}",
+            n.id
+        );
+        assert_eq!(n.drive.error_code(), 0, "node {}", n.id);
+    }
+    assert!(
+        !r.net()
+            .from_nodes
+            .iter()
+            .any(|(_, f)| f.id & 0x780 == 0x080 && f.data[0] != 0),
+        "no EMCY"
+    );
+}
+
+/// With `shutdown = quick_stop` the walk is quick stop (02h), then disable voltage (00h).
+#[test]
+fn shutdown_by_quick_stop() {
+    let mut r = Rig::build(&[1], &[3.0], 4, ShutdownMode::QuickStop);
+    r.enable_like_the_daemon(200);
+    for _ in 0..10 {
+        r.tick().unwrap();
+    }
+    let before = r.net().log.len();
+    r.m.shutdown();
+    let mut ticks = 0;
+    while !r.m.is_shut_down() {
+        r.tick().unwrap();
+        ticks += 1;
+        assert!(ticks < 500, "shutdown must end by itself");
+    }
+    let mut cws: Vec<u16> = rpdos(&r.net().log[before..], 1)
+        .iter()
+        .map(|(_, p)| p.controlword)
+        .collect();
+    cws.dedup();
+    assert_eq!(cws, [0x02, 0x00], "{cws:X?}");
+    let n = &r.net().nodes[0];
+    assert_eq!(n.drive.state(), PowerState::SwitchOnDisabled);
+    assert_eq!(n.consumer(), 0);
+}
+
+/// Index in `log` of the SDO write of `index:sub` with value 0 to `node`.
+fn sdo_write_index(log: &[(u64, Frame)], node: u8, index: u16, sub: u8) -> Option<usize> {
+    use hal::canopen::sdo;
+    log.iter().position(|(_, f)| {
+        f.id == 0x600 + u16::from(node)
+            && matches!(
+                sdo::parse_request(f.payload()),
+                Ok(sdo::Request::Download { index: i, subindex: s, value: 0, .. }) if i == index && s == sub
+            )
+    })
+}
+
+/// Without the orderly shutdown (SIGKILL, power loss of the controller) the drives' own
+/// heartbeat consumer is the safety net: each faults with 8130h and leaves operational.
+#[test]
+fn without_shutdown_the_drives_heartbeat_consumer_stops_them() {
+    let mut r = Rig::new(&[1, 2]);
+    r.until_operational();
+    for _ in 0..100 {
+        r.tick().unwrap();
+    }
+    for _ in 0..200 {
+        r.pass_time(); // the master is gone
+    }
+    for n in &r.net().nodes {
+        assert_eq!(n.drive.error_code(), 0x8130, "node {}", n.id);
+        assert_eq!(n.nmt_state(), hal::canopen::nmt::state::PRE_OPERATIONAL);
+    }
+}
+
+/// Issue #23, seen 3: a drive whose watch on the master's heartbeat fired (EMCY 8130h, it
+/// left operational) gets no more RPDOs; a single reset restarts it fully (NMT reset
+/// communication, configuration) and walks 06h → 07h → 0Fh on fresh statuswords, from where
+/// it stands.
+#[test]
+fn reset_after_a_heartbeat_consumer_fault_restarts_the_drive_once() {
+    let mut r = Rig::with(&[1, 2], &[10.0, -3.0], 4);
+    r.enable_like_the_daemon(200);
+    for _ in 0..50 {
+        r.tick().unwrap(); // the drive's watch starts with the first heartbeat it hears
+    }
+    r.net().deaf_to_heartbeat = Some(1);
+    let (_, e) = r.until_fault(300);
+    assert_eq!(
+        e,
+        BusFault {
+            axis: Some(1),
+            node: Some(2),
+            reason: FaultReason::DriveFault { code: 0x8130 }
+        }
+    );
+    // Once its heartbeat says pre-operational, no RPDO goes to node 2.
+    for _ in 0..100 {
+        let _ = r.tick();
+    }
+    let quiet_from = r.net().tick - 50;
+    let late: Vec<_> = rpdos(&r.net().log, 2)
+        .into_iter()
+        .filter(|(t, _)| *t > quiet_from)
+        .collect();
+    assert!(
+        late.is_empty(),
+        "RPDOs to a pre-operational node: {}",
+        late.len()
+    );
+
+    r.net().deaf_to_heartbeat = None;
+    let before = r.net().log.len();
+    r.m.reset();
+    r.enable_like_the_daemon(500);
+    let log = r.net().log[before..].to_vec();
+    assert!(
+        log.iter()
+            .any(|(_, f)| f.id == 0 && f.payload() == [0x82, 2])
+    );
+    assert!(
+        !log.iter().any(|(_, f)| f.id == 0 && f.payload()[1] == 1),
+        "node 1 untouched"
+    );
+    let mut cws: Vec<u16> = rpdos(&log, 2).iter().map(|(_, p)| p.controlword).collect();
+    cws.dedup();
+    // Reset communication leaves the drive's fault latched: its first TPDO says Fault, so a
+    // fault reset comes first, then the enable walk.
+    assert_eq!(
+        cws,
+        [0x00, 0x80, 0x00, 0x06, 0x07, 0x0F],
+        "walk after the restart"
+    );
+    let (max_step, _) = r.target_steps(2);
+    assert!(max_step <= MAX_STEP, "step {max_step}");
+    assert!((r.fb.axes[1].position_mm + 3.0).abs() < 1e-3);
+}
+
+/// A drive fault while the drive stays operational: the reset acts on the statusword that
+/// arrives after it, never on the one from before the fault (which still said enabled).
+#[test]
+fn reset_walks_the_enable_sequence_from_the_fresh_statusword() {
+    let mut r = Rig::with(&[1], &[2.0], 4);
+    r.enable_like_the_daemon(200);
+    let mut out = Vec::new();
+    r.net().nodes[0].force_fault(0x2310, &mut out);
+    r.net().deliver(out);
+    let (_, e) = r.until_fault(5);
+    assert_eq!(e.reason, FaultReason::DriveFault { code: 0x2310 });
+    let before = r.net().log.len();
+    r.m.reset();
+    r.enable_like_the_daemon(200);
+    let mut cws: Vec<u16> = rpdos(&r.net().log[before..], 1)
+        .iter()
+        .map(|(_, p)| p.controlword)
+        .collect();
+    cws.dedup();
+    // The TPDO answering the SYNC after the fault already says Fault: fault reset first.
+    assert_eq!(cws, [0x80, 0x00, 0x06, 0x07, 0x0F], "{cws:X?}");
+}
+
+/// The bus's enable deadline covers its per-drive timeouts: a drive that never boots is
+/// named by the bus before the deadline the daemon's enabling window derives from.
+#[test]
+fn a_missing_drive_is_named_before_the_enable_deadline() {
+    let mut r = Rig::new(&[1, 2]);
+    r.net().nodes[1].inject.silent = true;
+    let deadline = r.m.enable_timeout_ticks() as usize;
+    let (t, e) = r.until_fault(deadline);
+    assert_eq!(
+        (e.axis, e.node, e.reason),
+        (Some(1), Some(2), FaultReason::NoBootUp)
+    );
+    assert!(t < deadline);
+}
+
+/// A 2 ms cycle: the drives are told so (0x60C2 = 2 × 10⁻³ s, 0x1006 = 2000 µs), timeouts
+/// count in 2 ms ticks, and CSP motion works.
+#[test]
+fn the_cycle_time_is_configurable() {
+    use hal::canopen::sdo;
+    let mut r = Rig::with(&[1], &[0.0], 2);
+    r.until_operational();
+    let writes: Vec<(u16, u8, u32)> = r
+        .net()
+        .log
+        .iter()
+        .filter_map(|(_, f)| match sdo::parse_request(f.payload()) {
+            Ok(sdo::Request::Download {
+                index,
+                subindex,
+                value,
+                ..
+            }) if f.id == 0x601 => Some((index, subindex, value)),
+            _ => None,
+        })
+        .collect();
+    assert!(writes.contains(&(0x60C2, 1, 2)) && writes.contains(&(0x1006, 0, 2000)));
+    for i in 1..=100 {
+        r.cmd.positions_mm[0] = f64::from(i) * 0.01;
+        r.tick().unwrap();
+    }
+    for _ in 0..500 {
+        r.tick().unwrap();
+    }
+    assert!((r.fb.axes[0].position_mm - 1.0).abs() < 1e-3);
+    // Heartbeat lost after 500 ms = 250 ticks of 2 ms (plus the 100 ms heartbeat period).
+    r.net().nodes[0].inject.drop_heartbeat = true;
+    let (t, e) = r.until_fault(500);
+    assert_eq!(e.reason, FaultReason::HeartbeatLost);
+    assert!((200..=320).contains(&t), "{t}");
+    let cfg = CanOpenConfig {
+        cycle_us: 500,
+        ..CanOpenConfig::new(vec![NodeConfig::new(1, 1000.0)])
+    };
+    assert!(CanOpenMaster::new(Net::new(vec![]), "mem", cfg).is_err());
 }

@@ -208,7 +208,8 @@ fn gears_from_the_configuration() {
 fn feed_above_beta_max_is_a_warning_with_the_block() {
     let (h, _) = lathe();
     let warnings = |text: &str| {
-        let c = kernel::program::compile(text, &h.setup());
+        let setup = h.machine_setup().unwrap();
+        let c = kernel::program::compile(text, setup.program());
         assert!(!c.has_errors(), "{:?}", c.diagnostics);
         c.diagnostics
             .into_iter()

@@ -50,6 +50,7 @@ impl Rig {
                     node_id,
                     increments_per_mm: INC_PER_MM,
                     following_window_increments: Some((10.0 * INC_PER_MM) as u32),
+                    max_velocity_mm_s: 200.0,
                 })
                 .collect(),
         );
@@ -142,8 +143,16 @@ fn master_moves_drives_and_the_recorded_traffic_is_cia402() {
         .filter(|(_, id, _)| *id == 0x080)
         .map(|f| f.0)
         .collect();
-    // SYNC every tick, on a 4 ms grid on average.
-    assert_eq!(syncs.len() as u64, cycles, "one SYNC per cycle");
+    // SYNC every tick once the drives are configured, on a 4 ms grid on average: none
+    // before the last configuration SDO, and from the first on one per cycle (the cycles
+    // before it were the start-up).
+    let first_sync = frames.iter().position(|(_, id, _)| *id == 0x080).unwrap();
+    let last_sdo = frames
+        .iter()
+        .rposition(|(_, id, _)| (0x601..=0x67F).contains(id))
+        .unwrap();
+    assert!(last_sdo < first_sync, "SYNC before the configuration ended");
+    assert!((syncs.len() as u64) < cycles, "no SYNC during the start-up");
     let mean_ms = (syncs[syncs.len() - 1] - syncs[0]) * 1000.0 / (syncs.len() - 1) as f64;
     assert!(
         (3.9..12.0).contains(&mean_ms),
@@ -280,7 +289,15 @@ fn injected_faults_are_reported_with_their_reason() {
     let cases: [(&str, &str, FaultReason); 4] = [
         ("heartbeat off", "heartbeat on", FaultReason::HeartbeatLost),
         ("fault 2310", "", FaultReason::DriveFault { code: 0x2310 }),
-        ("corrupt on", "corrupt off", FaultReason::Timeout),
+        (
+            "corrupt on",
+            "corrupt off",
+            FaultReason::PdoLength {
+                cob_id: 0x180 + 31,
+                len: 3,
+                expected: 6,
+            },
+        ),
         ("silent on", "silent off", FaultReason::Timeout),
     ];
     for (on, off, reason) in cases {
@@ -298,7 +315,12 @@ fn injected_faults_are_reported_with_their_reason() {
         rig.until_operational();
     }
 
-    // Following error: a setpoint jump beyond the 10 mm window written to 0x6065.
+    // Following error: a setpoint jump beyond the 10 mm window written to 0x6065 (once the
+    // master has handed the drive over to the commanded position: a jump at the hand-over
+    // itself is never taken over, the drive keeps holding).
+    for _ in 0..5 {
+        rig.tick().unwrap();
+    }
     rig.cmd.positions_mm[0] = 40.0;
     let e = rig.until_fault(Duration::from_secs(2));
     assert_eq!(e.reason, FaultReason::FollowingError);
@@ -410,4 +432,112 @@ fn spindle_node_gets_the_speed_setpoint_and_reports_the_actual_speed() {
     );
     // The ramp (5000 rpm/s = 200 units per 4 ms): intermediate speeds on the way up.
     assert!(tpdo.iter().filter(|&&v| v > 0 && v < 15_000).count() > 10);
+}
+
+/// The largest step between consecutive RPDO targets of `node` in a recorded log, and the
+/// first target.
+fn largest_target_step(frames: &[(f64, u16, Vec<u8>)], node: u8) -> (i64, i32) {
+    let targets: Vec<i32> = frames
+        .iter()
+        .filter(|(_, id, d)| *id == 0x200 + u16::from(node) && d.len() == 6)
+        .map(|(_, _, d)| Rpdo::decode(d).unwrap().target_increments)
+        .collect();
+    let step = targets
+        .windows(2)
+        .map(|w| (i64::from(w[1]) - i64::from(w[0])).abs())
+        .max()
+        .unwrap_or(0);
+    (step, targets[0])
+}
+
+/// Issue #23, seen 1, on the Linux CAN stack: drives standing at 25 and -40 mm, the second
+/// powered half a second later, while the commanded positions stay at 0 until every drive is
+/// enabled (the daemon's way); then the command is taken from the drives. No target on the
+/// wire steps by more than one tick's travel at the axis limit (200 mm/s: 8000 increments).
+#[test]
+fn enable_from_away_from_zero_without_a_target_jump() {
+    let _bus = vcan_lock();
+    if !vcan_ready("enable_from_away_from_zero_without_a_target_jump") {
+        return;
+    }
+    let log = temp_dir("vcan-enable-jump").join("can.log");
+    let _a = sim_can(&[71], &["--start-mm", "25"]);
+    let mut rig = Rig::new(&[71, 72], Some(&log));
+    for _ in 0..125 {
+        rig.tick().expect("no fault while the second drive is off");
+    }
+    let _b = sim_can(&[72], &["--start-mm", "-40"]);
+    rig.until_operational();
+    for i in 0..2 {
+        rig.cmd.positions_mm[i] = rig.fb.axes[i].position_mm;
+    }
+    rig.move_to(0, 26.0, 50.0);
+    rig.move_to(1, -39.0, 50.0);
+    rig.finish();
+    let frames = read_log(&log);
+    for (node, start) in [(71u8, 25.0), (72, -40.0)] {
+        let (step, first) = largest_target_step(&frames, node);
+        println!("node {node}: first target {first}, largest target step {step} increments");
+        assert_eq!(first, (start * INC_PER_MM) as i32, "node {node}");
+        assert!(step <= 8000, "node {node}: target step {step}");
+    }
+}
+
+/// Issue #23, seen 3: the master goes quiet for longer than the drives' heartbeat consumer
+/// time (2 s): each drive faults (EMCY 8130h) and drops to pre-operational. One reset brings
+/// them back: NMT reset communication, configuration, then the enable walk from the state the
+/// drive reports (fault reset first), never 0Fh before 06h and 07h.
+#[test]
+fn reset_after_a_heartbeat_consumer_fault_recovers_at_once() {
+    let _bus = vcan_lock();
+    if !vcan_ready("reset_after_a_heartbeat_consumer_fault_recovers_at_once") {
+        return;
+    }
+    let log = temp_dir("vcan-consumer-fault").join("can.log");
+    let mut sim = sim_can(&[81], &["--start-mm", "3"]);
+    let mut rig = Rig::new(&[81], Some(&log));
+    rig.until_operational();
+    rig.cmd.positions_mm[0] = rig.fb.axes[0].position_mm;
+    for _ in 0..50 {
+        rig.tick().unwrap();
+    }
+    std::thread::sleep(Duration::from_millis(3000)); // the master hangs
+    let e = rig.until_fault(Duration::from_secs(5));
+    assert_eq!(
+        (e.axis, e.node, e.reason),
+        (Some(0), Some(81), FaultReason::DriveFault { code: 0x8130 })
+    );
+    sim.send("state");
+    let line = sim.expect_line("state node 81", Duration::from_secs(10));
+    assert!(
+        line.contains("nmt 7F") && line.contains("error 8130"),
+        "{line}"
+    );
+    let reset_at = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .as_secs_f64();
+    rig.bus.reset();
+    rig.until_operational();
+    rig.move_to(0, 4.0, 50.0);
+    rig.finish();
+    let frames = read_log(&log);
+    let after: Vec<_> = frames.iter().filter(|f| f.0 >= reset_at).collect();
+    assert!(
+        after
+            .iter()
+            .any(|(_, id, d)| *id == 0 && d[..] == [0x82, 81]),
+        "NMT reset communication"
+    );
+    let cws = dedup(
+        after
+            .iter()
+            .filter(|(_, id, d)| *id == 0x200 + 81 && d.len() == 6)
+            .map(|(_, _, d)| u16::from_le_bytes([d[0], d[1]])),
+    );
+    // Power off, fault reset (the 00h between the reset edges depends on when the drive's
+    // next TPDO arrives), then 06h, 07h, 0Fh in this order, 0Fh only at the end.
+    assert_eq!(cws[..2], [0x00, 0x80], "{cws:X?}");
+    assert!(cws.ends_with(&[0x06, 0x07, 0x0F]), "{cws:X?}");
+    assert_eq!(cws.iter().filter(|&&c| c == 0x0F).count(), 1, "{cws:X?}");
 }

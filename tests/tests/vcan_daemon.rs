@@ -193,3 +193,66 @@ fn daemon_sends_the_spindle_speed_to_the_spindle_node() {
     assert!(ok, "{out}");
     d.wait_state("idle", Duration::from_secs(60));
 }
+
+/// Issue #23 through `cncd`: drives standing away from 0 (25, -40, 7.5 mm) are enabled without
+/// a target jump; SIGTERM brings the axes to rest and switches every drive off in order: the
+/// drives end in Switch On Disabled, pre-operational, heartbeat watch cleared, no fault, and
+/// stay so long after the daemon is gone.
+#[test]
+fn daemon_enables_without_a_jump_and_sigterm_switches_the_drives_off() {
+    let _bus = vcan_lock();
+    if !vcan_ready("daemon_enables_without_a_jump_and_sigterm_switches_the_drives_off") {
+        return;
+    }
+    let mut x = sim_can(&[55], &["--start-mm", "25"]);
+    let mut y = sim_can(&[56], &["--start-mm", "-40"]);
+    let mut z = sim_can(&[57], &["--start-mm", "7.5"]);
+    let dir = vcan_support::temp_dir("vcan-daemon-sigterm");
+    let record = dir.join("can.log");
+    let bus = BUS.replace("RECORD", record.to_str().unwrap());
+    let mut d = Daemon::start("vcan-daemon-sigterm", &bus, [55, 56, 57]);
+    let s = d.status();
+    assert!(s.contains("X25.000 Y-40.000 Z7.500"), "{s}");
+    let prog = d.program("nudge.nc", "N10 G1 X26 Y-39 Z8 F3000\n");
+    let (ok, out) = d.cncctl(&["run", "--quiet", &prog], Duration::from_secs(120));
+    assert!(ok, "cncctl run failed: {out}");
+    d.wait_state("idle", Duration::from_secs(30));
+
+    let status = d.proc.terminate(Duration::from_secs(60));
+    assert!(status.success(), "cncd exit: {status:?}");
+    std::thread::sleep(Duration::from_millis(300)); // the recorder's last flush
+    let log = std::fs::read_to_string(&record).unwrap();
+    // One tick's travel at the axis limit (12000 mm/min, 4 ms, 10000 increments/mm).
+    for (node, start) in [(55u16, 25.0), (56, -40.0), (57, 7.5)] {
+        let targets: Vec<i32> = pdo_i32_values(&log, 0x200 + node).collect();
+        let step = targets
+            .windows(2)
+            .map(|w| (i64::from(w[1]) - i64::from(w[0])).abs())
+            .max()
+            .unwrap();
+        println!("node {node}: largest target step {step} increments");
+        assert_eq!(targets[0], (start * 10_000.0) as i32, "node {node}");
+        assert!(step <= 8000, "node {node}: target step {step}");
+    }
+    // Longer than the drives' consumer time (2 s) after the daemon ended: no drive faulted.
+    std::thread::sleep(Duration::from_millis(3000));
+    for (sim, node) in [(&mut x, 55), (&mut y, 56), (&mut z, 57)] {
+        sim.send("state");
+        let line = sim.expect_line(&format!("state node {node}"), Duration::from_secs(10));
+        println!("{line}");
+        let word = |key: &str| {
+            let mut w = line.split_whitespace();
+            w.find(|t| *t == key);
+            u32::from_str_radix(w.next().unwrap(), 16).unwrap()
+        };
+        assert_eq!(word("nmt"), 0x7F, "{line}");
+        assert_eq!(word("error"), 0, "{line}");
+        assert_eq!(word("consumer"), 0, "{line}");
+        let sw = u16::try_from(word("statusword")).unwrap();
+        assert_eq!(
+            hal::cia402::PowerState::from_statusword(sw),
+            hal::cia402::PowerState::SwitchOnDisabled,
+            "{line}"
+        );
+    }
+}

@@ -58,6 +58,8 @@ enum Cmd {
     Load { file: PathBuf },
     /// Validate a program only: every error and warning with block and line.
     Validate { file: PathBuf },
+    /// The R325 listing: the program with the circle refinements written as address E.
+    Refine { file: PathBuf },
     /// Store a program on the daemon without selecting it.
     Upload {
         file: PathBuf,
@@ -479,6 +481,25 @@ async fn run(args: Args) -> Result<ExitCode, String> {
                     }
                     s
                 },
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        Cmd::Refine { file } => {
+            let (_, text) = read_text(&file)?;
+            let r =
+                c.m.get_refined_program(pb::RefinedProgramRequest { text })
+                    .await
+                    .map_err(explain)?
+                    .into_inner();
+            let refs: Vec<Value> = r
+                .refinements
+                .iter()
+                .map(|x| json!({"seq": x.seq, "block": x.block, "line": x.line, "coordinate": x.coordinate, "delta_mm": x.delta_mm, "e_word": x.e_word}))
+                .collect();
+            print(
+                j,
+                json!({"text": r.text, "refinements": refs, "diagnostics": r.diagnostics.iter().map(diag_json).collect::<Vec<_>>()}),
+                || r.text.trim_end().to_string(),
             );
             Ok(ExitCode::SUCCESS)
         }

@@ -10,244 +10,13 @@
 //! ```
 //! Every key is listed in `docs/buses.md`.
 
-use std::path::PathBuf;
-
-use hal::canopen::{CanOpenConfig, CanOpenMaster, NodeConfig, SocketCanPort, SpindleNodeConfig};
+use hal::canopen::{
+    CanOpenConfig, CanOpenMaster, NodeConfig, ShutdownMode, SocketCanPort, SpindleNodeConfig,
+};
 use hal::serial::{SerialAxis, SerialBus, SerialConfig, SerialSpindle};
-use serde::Deserialize;
 
 use super::config::{AxisConfig, SimConfig};
-
-/// `[bus]` section of the configuration.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
-pub enum BusConfig {
-    /// The built-in simulated machine (default). A struct variant, so that serde rejects
-    /// unknown keys next to `kind = "sim"` (a unit variant would ignore them).
-    Sim {},
-    /// CANopen CiA 402 drives on a SocketCAN interface; node ids from `axes[i].node_id`.
-    Can(CanBusConfig),
-    /// One drive unit on a serial port (`hal/SERIAL_PROTOCOL.md`).
-    Serial(SerialBusConfig),
-}
-
-/// `[bus] kind = "can"`. Times in ms are converted to 4 ms ticks.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct CanBusConfig {
-    /// SocketCAN interface (`can0`, `vcan0`).
-    pub interface: String,
-    /// Append all CAN traffic to this file in candump log format (`candump -l`).
-    #[serde(default)]
-    pub record: Option<PathBuf>,
-    /// The controller's own node id (its heartbeat is watched by the drives).
-    #[serde(default = "default_master_node_id")]
-    pub master_node_id: u8,
-    /// Consecutive ticks without a drive's TPDO before it is a fault.
-    #[serde(default = "default_tpdo_missing_ticks")]
-    pub tpdo_missing_ticks: u32,
-    /// Heartbeat period the drives are told to produce (0x1017).
-    #[serde(default = "default_drive_heartbeat_ms")]
-    pub drive_heartbeat_ms: u16,
-    /// A drive heartbeat older than this is a fault.
-    #[serde(default = "default_heartbeat_timeout_ms")]
-    pub heartbeat_timeout_ms: u32,
-    /// Period of the controller's heartbeat (0: none, drives do not watch it).
-    #[serde(default = "default_master_heartbeat_ms")]
-    pub master_heartbeat_ms: u16,
-    /// The drives fault when the controller's heartbeat is older than this (0x1016).
-    #[serde(default = "default_drive_consumer_timeout_ms")]
-    pub drive_consumer_timeout_ms: u16,
-    /// Answer time per start-up SDO request.
-    #[serde(default = "default_sdo_timeout_ms")]
-    pub sdo_timeout_ms: u32,
-    /// Time from NMT reset to boot-up, and from NMT start to the first TPDO.
-    #[serde(default = "default_boot_timeout_ms")]
-    pub boot_timeout_ms: u32,
-    /// Time for the CiA 402 enable sequence.
-    #[serde(default = "default_enable_timeout_ms")]
-    pub enable_timeout_ms: u32,
-    /// Following-error window written to the drives (0x6065), mm; unset keeps the drives'.
-    #[serde(default)]
-    pub following_window_mm: Option<f64>,
-    /// The controller's own following-error check (setpoint − actual), mm; unset: off.
-    #[serde(default)]
-    pub following_error_limit_mm: Option<f64>,
-    /// Error frames tolerated (decaying by one per 40 ms) before a fault.
-    #[serde(default = "default_error_frame_limit")]
-    pub error_frame_limit: u32,
-    /// Node id of the spindle drive (CiA 402, cyclic synchronous velocity); unset: no spindle
-    /// drive on this bus.
-    #[serde(default)]
-    pub spindle_node: Option<u8>,
-    /// Spindle drive velocity units (0x60FF, 0x606C) per rpm.
-    #[serde(default = "default_units_per_rpm")]
-    pub spindle_units_per_rpm: f64,
-}
-
-fn default_units_per_rpm() -> f64 {
-    1.0
-}
-
-/// Checks the spindle keys shared by the CAN and serial sections.
-fn validate_spindle(
-    node: Option<u8>,
-    units_per_rpm: f64,
-    axes: &[AxisConfig],
-) -> Result<(), String> {
-    if !(units_per_rpm.is_finite() && units_per_rpm > 0.0) {
-        return Err(format!(
-            "bus.spindle_units_per_rpm: {units_per_rpm} must be a positive number"
-        ));
-    }
-    if let Some(id) = node {
-        if !(1..=127).contains(&id) {
-            return Err(format!("bus.spindle_node: {id} is outside 1..127"));
-        }
-        if let Some(a) = axes.iter().find(|a| a.node_id == Some(id)) {
-            return Err(format!(
-                "bus.spindle_node: node {id} is the drive of axis {}",
-                a.name
-            ));
-        }
-    }
-    Ok(())
-}
-
-fn default_master_node_id() -> u8 {
-    127
-}
-fn default_tpdo_missing_ticks() -> u32 {
-    25
-}
-fn default_drive_heartbeat_ms() -> u16 {
-    100
-}
-fn default_heartbeat_timeout_ms() -> u32 {
-    500
-}
-fn default_master_heartbeat_ms() -> u16 {
-    100
-}
-fn default_drive_consumer_timeout_ms() -> u16 {
-    500
-}
-fn default_sdo_timeout_ms() -> u32 {
-    200
-}
-fn default_boot_timeout_ms() -> u32 {
-    3000
-}
-fn default_enable_timeout_ms() -> u32 {
-    2000
-}
-fn default_error_frame_limit() -> u32 {
-    20
-}
-
-/// `[bus] kind = "serial"`.
-#[derive(Clone, Debug, Deserialize, PartialEq)]
-#[serde(deny_unknown_fields)]
-pub struct SerialBusConfig {
-    /// Device path; prefer a stable name (`/dev/serial/by-id/...`): reset reopens it by path.
-    pub port: String,
-    #[serde(default = "default_baud")]
-    pub baud: u32,
-    /// Consecutive ticks without a valid reply before it is a fault.
-    #[serde(default = "default_tpdo_missing_ticks")]
-    pub reply_timeout_ticks: u32,
-    /// Ticks allowed for the CiA 402 enable sequence.
-    #[serde(default = "default_enable_timeout_ticks")]
-    pub enable_timeout_ticks: u32,
-    /// Address of the unit's spindle drive (named in alarms); set: the unit has a spindle and
-    /// the link speaks protocol version 2. Unset: no spindle drive, protocol version 1.
-    #[serde(default)]
-    pub spindle_node: Option<u8>,
-    /// Spindle drive velocity units per rpm.
-    #[serde(default = "default_units_per_rpm")]
-    pub spindle_units_per_rpm: f64,
-}
-
-fn default_baud() -> u32 {
-    460_800
-}
-fn default_enable_timeout_ticks() -> u32 {
-    500
-}
-
-impl Default for BusConfig {
-    fn default() -> Self {
-        BusConfig::Sim {}
-    }
-}
-
-impl BusConfig {
-    /// Checks the bus settings against the axes; the message names the key.
-    pub fn validate(&self, axes: &[AxisConfig]) -> Result<(), String> {
-        match self {
-            BusConfig::Sim {} => Ok(()),
-            BusConfig::Can(c) => {
-                if c.interface.is_empty() {
-                    return Err("bus.interface: give the CAN interface, e.g. \"can0\"".into());
-                }
-                if !(1..=127).contains(&c.master_node_id) {
-                    return Err(format!(
-                        "bus.master_node_id: {} is outside 1..127",
-                        c.master_node_id
-                    ));
-                }
-                for (i, a) in axes.iter().enumerate() {
-                    let Some(id) = a.node_id else {
-                        return Err(format!(
-                            "axes[{i}].node_id: axis {} needs the CANopen node id of its drive",
-                            a.name
-                        ));
-                    };
-                    if !(1..=127).contains(&id) || id == c.master_node_id {
-                        return Err(format!(
-                            "axes[{i}].node_id: {id} is outside 1..127 or equals bus.master_node_id"
-                        ));
-                    }
-                    if axes[..i].iter().any(|b| b.node_id == Some(id)) {
-                        return Err(format!("axes[{i}].node_id: node {id} is used twice"));
-                    }
-                }
-                for (key, v) in [
-                    ("following_window_mm", c.following_window_mm),
-                    ("following_error_limit_mm", c.following_error_limit_mm),
-                ] {
-                    if let Some(v) = v
-                        && !(v.is_finite() && v > 0.0)
-                    {
-                        return Err(format!("bus.{key}: {v} must be a positive number"));
-                    }
-                }
-                if c.tpdo_missing_ticks == 0 || c.heartbeat_timeout_ms == 0 {
-                    return Err(
-                        "bus.tpdo_missing_ticks and bus.heartbeat_timeout_ms must be above 0"
-                            .into(),
-                    );
-                }
-                if c.spindle_node == Some(c.master_node_id) {
-                    return Err(format!(
-                        "bus.spindle_node: {} equals bus.master_node_id",
-                        c.master_node_id
-                    ));
-                }
-                validate_spindle(c.spindle_node, c.spindle_units_per_rpm, axes)
-            }
-            BusConfig::Serial(s) => {
-                if s.port.is_empty() {
-                    return Err("bus.port: give the serial device, e.g. \"/dev/ttyUSB0\"".into());
-                }
-                if s.reply_timeout_ticks == 0 {
-                    return Err("bus.reply_timeout_ticks must be above 0".into());
-                }
-                validate_spindle(s.spindle_node, s.spindle_units_per_rpm, axes)
-            }
-        }
-    }
-}
+pub use super::config::{BusConfig, CanBusConfig, SerialBusConfig, ShutdownKey};
 
 /// The master settings for `axes` (validated: every axis has a node id).
 pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
@@ -260,6 +29,7 @@ pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
             following_window_increments: c
                 .following_window_mm
                 .map(|mm| (mm * a.increments_per_mm).round().min(f64::from(u32::MAX)) as u32),
+            max_velocity_mm_s: a.max_velocity_mm_min / 60.0,
         })
         .collect();
     CanOpenConfig {
@@ -274,6 +44,11 @@ pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
         enable_timeout_ms: c.enable_timeout_ms,
         following_error_limit_mm: c.following_error_limit_mm,
         error_frame_limit: c.error_frame_limit,
+        cycle_us: c.cycle_ms * 1000,
+        shutdown: match c.shutdown {
+            ShutdownKey::Disable => ShutdownMode::Disable,
+            ShutdownKey::QuickStop => ShutdownMode::QuickStop,
+        },
         spindle: c.spindle_node.map(|node_id| SpindleNodeConfig {
             node_id,
             units_per_rpm: c.spindle_units_per_rpm,
@@ -357,6 +132,34 @@ mod tests {
         assert_eq!(m.nodes.len(), 3);
         assert_eq!(m.nodes[2].node_id, 3);
         assert_eq!(m.nodes[0].following_window_increments, Some(50_000));
+        // The axis speed limit bounds the hand-over step at enable; the cycle is 4 ms.
+        assert_eq!(m.nodes[0].max_velocity_mm_s, 200.0);
+        assert_eq!(m.cycle_us, 4000);
+        assert_eq!(m.shutdown, ShutdownMode::Disable);
+        let c = Config::parse(
+            "[bus]\nkind = 'can'\ninterface = 'vcan0'\nshutdown = 'quick_stop'\n",
+            Path::new("m.toml"),
+        )
+        .unwrap();
+        let BusConfig::Can(can) = &c.bus else {
+            panic!()
+        };
+        assert_eq!(can_config(can, &c.axes).shutdown, ShutdownMode::QuickStop);
+        for (ms, what) in [
+            (0, "outside 1..10"),
+            (11, "outside 1..10"),
+            (2, "real-time tick"),
+        ] {
+            let e = Config::parse(
+                &format!("[bus]\nkind = 'can'\ninterface = 'vcan0'\ncycle_ms = {ms}\n"),
+                Path::new("m.toml"),
+            )
+            .unwrap_err();
+            assert!(
+                e.to_string().contains("bus.cycle_ms") && e.to_string().contains(what),
+                "{e}"
+            );
+        }
 
         let e = Config::parse(
             "[bus]\nkind = 'can'\ninterface = 'vcan0'\ntpdo_timeout = 3\n",

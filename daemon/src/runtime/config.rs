@@ -6,8 +6,6 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use super::buses::BusConfig;
-
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Config {
@@ -26,6 +24,8 @@ pub struct Config {
     pub storage: StorageConfig,
     #[serde(default)]
     pub kr: KrSection,
+    #[serde(default)]
+    pub program: ProgramSection,
 }
 
 impl Default for Config {
@@ -38,6 +38,35 @@ impl Default for Config {
             sim: SimConfig::default(),
             storage: StorageConfig::default(),
             kr: KrSection::default(),
+            program: ProgramSection::default(),
+        }
+    }
+}
+
+/// How part programs are read (SPEC §2 **decide** points that are settings).
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(deny_unknown_fields)]
+pub struct ProgramSection {
+    /// Arc centre words I J: `"relative"` to the arc's start point (default) or `"absolute"`
+    /// program coordinates. Every path from text to motion (load, run, preview) reads it.
+    #[serde(default)]
+    pub ij: IjSetting,
+}
+
+/// `[program] ij`.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum IjSetting {
+    #[default]
+    Relative,
+    Absolute,
+}
+
+impl From<IjSetting> for kernel::program::IjMode {
+    fn from(s: IjSetting) -> Self {
+        match s {
+            IjSetting::Relative => kernel::program::IjMode::RelativeToStart,
+            IjSetting::Absolute => kernel::program::IjMode::Absolute,
         }
     }
 }
@@ -571,6 +600,271 @@ impl Config {
     }
 }
 
+// ---- [bus] section (opened by `super::buses`) ----------------------------------------------
+
+/// `[bus]` section of the configuration.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
+pub enum BusConfig {
+    /// The built-in simulated machine (default). A struct variant, so that serde rejects
+    /// unknown keys next to `kind = "sim"` (a unit variant would ignore them).
+    Sim {},
+    /// CANopen CiA 402 drives on a SocketCAN interface; node ids from `axes[i].node_id`.
+    Can(CanBusConfig),
+    /// One drive unit on a serial port (`hal/SERIAL_PROTOCOL.md`).
+    Serial(SerialBusConfig),
+}
+
+/// `[bus] kind = "can"`. Times in ms are converted to 4 ms ticks.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct CanBusConfig {
+    /// SocketCAN interface (`can0`, `vcan0`).
+    pub interface: String,
+    /// Append all CAN traffic to this file in candump log format (`candump -l`).
+    #[serde(default)]
+    pub record: Option<PathBuf>,
+    /// The controller's own node id (its heartbeat is watched by the drives).
+    #[serde(default = "default_master_node_id")]
+    pub master_node_id: u8,
+    /// Consecutive ticks without a drive's TPDO before it is a fault.
+    #[serde(default = "default_tpdo_missing_ticks")]
+    pub tpdo_missing_ticks: u32,
+    /// Heartbeat period the drives are told to produce (0x1017).
+    #[serde(default = "default_drive_heartbeat_ms")]
+    pub drive_heartbeat_ms: u16,
+    /// A drive heartbeat older than this is a fault.
+    #[serde(default = "default_heartbeat_timeout_ms")]
+    pub heartbeat_timeout_ms: u32,
+    /// Period of the controller's heartbeat (0: none, drives do not watch it).
+    #[serde(default = "default_master_heartbeat_ms")]
+    pub master_heartbeat_ms: u16,
+    /// The drives fault when the controller's heartbeat is older than this (0x1016).
+    #[serde(default = "default_drive_consumer_timeout_ms")]
+    pub drive_consumer_timeout_ms: u16,
+    /// Answer time per start-up SDO request.
+    #[serde(default = "default_sdo_timeout_ms")]
+    pub sdo_timeout_ms: u32,
+    /// Time from NMT reset to boot-up, and from NMT start to the first TPDO.
+    #[serde(default = "default_boot_timeout_ms")]
+    pub boot_timeout_ms: u32,
+    /// Time for the CiA 402 enable sequence.
+    #[serde(default = "default_enable_timeout_ms")]
+    pub enable_timeout_ms: u32,
+    /// Following-error window written to the drives (0x6065), mm; unset keeps the drives'.
+    #[serde(default)]
+    pub following_window_mm: Option<f64>,
+    /// The controller's own following-error check (setpoint − actual), mm; unset: off.
+    #[serde(default)]
+    pub following_error_limit_mm: Option<f64>,
+    /// Error frames tolerated (decaying by one per 40 ms) before a fault.
+    #[serde(default = "default_error_frame_limit")]
+    pub error_frame_limit: u32,
+    /// Bus cycle (SYNC period), ms; the drives' interpolation period 0x60C2 and
+    /// communication cycle 0x1006 follow it. 1..=10 for the master; the daemon's real-time
+    /// tick is 4 ms, so the daemon accepts 4 only (checked in `validate`).
+    #[serde(default = "default_cycle_ms")]
+    pub cycle_ms: u32,
+    /// How the drives are switched off when the daemon ends: `disable` (07h, 06h, 00h) or
+    /// `quick_stop` (02h, 00h).
+    #[serde(default)]
+    pub shutdown: ShutdownKey,
+    /// Node id of the spindle drive (CiA 402, cyclic synchronous velocity); unset: no spindle
+    /// drive on this bus.
+    #[serde(default)]
+    pub spindle_node: Option<u8>,
+    /// Spindle drive velocity units (0x60FF, 0x606C) per rpm.
+    #[serde(default = "default_units_per_rpm")]
+    pub spindle_units_per_rpm: f64,
+}
+
+/// `[bus] shutdown` of the CAN bus.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum ShutdownKey {
+    #[default]
+    Disable,
+    QuickStop,
+}
+
+fn default_cycle_ms() -> u32 {
+    4
+}
+
+fn default_units_per_rpm() -> f64 {
+    1.0
+}
+
+/// Checks the spindle keys shared by the CAN and serial sections.
+fn validate_spindle(
+    node: Option<u8>,
+    units_per_rpm: f64,
+    axes: &[AxisConfig],
+) -> Result<(), String> {
+    if !(units_per_rpm.is_finite() && units_per_rpm > 0.0) {
+        return Err(format!(
+            "bus.spindle_units_per_rpm: {units_per_rpm} must be a positive number"
+        ));
+    }
+    if let Some(id) = node {
+        if !(1..=127).contains(&id) {
+            return Err(format!("bus.spindle_node: {id} is outside 1..127"));
+        }
+        if let Some(a) = axes.iter().find(|a| a.node_id == Some(id)) {
+            return Err(format!(
+                "bus.spindle_node: node {id} is the drive of axis {}",
+                a.name
+            ));
+        }
+    }
+    Ok(())
+}
+
+fn default_master_node_id() -> u8 {
+    127
+}
+fn default_tpdo_missing_ticks() -> u32 {
+    25
+}
+fn default_drive_heartbeat_ms() -> u16 {
+    100
+}
+fn default_heartbeat_timeout_ms() -> u32 {
+    500
+}
+fn default_master_heartbeat_ms() -> u16 {
+    100
+}
+fn default_drive_consumer_timeout_ms() -> u16 {
+    500
+}
+fn default_sdo_timeout_ms() -> u32 {
+    200
+}
+fn default_boot_timeout_ms() -> u32 {
+    3000
+}
+fn default_enable_timeout_ms() -> u32 {
+    2000
+}
+fn default_error_frame_limit() -> u32 {
+    20
+}
+
+/// `[bus] kind = "serial"`.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct SerialBusConfig {
+    /// Device path; prefer a stable name (`/dev/serial/by-id/...`): reset reopens it by path.
+    pub port: String,
+    #[serde(default = "default_baud")]
+    pub baud: u32,
+    /// Consecutive ticks without a valid reply before it is a fault.
+    #[serde(default = "default_tpdo_missing_ticks")]
+    pub reply_timeout_ticks: u32,
+    /// Ticks allowed for the CiA 402 enable sequence.
+    #[serde(default = "default_enable_timeout_ticks")]
+    pub enable_timeout_ticks: u32,
+    /// Address of the unit's spindle drive (named in alarms); set: the unit has a spindle and
+    /// the link speaks protocol version 2. Unset: no spindle drive, protocol version 1.
+    #[serde(default)]
+    pub spindle_node: Option<u8>,
+    /// Spindle drive velocity units per rpm.
+    #[serde(default = "default_units_per_rpm")]
+    pub spindle_units_per_rpm: f64,
+}
+
+fn default_baud() -> u32 {
+    460_800
+}
+fn default_enable_timeout_ticks() -> u32 {
+    500
+}
+
+impl Default for BusConfig {
+    fn default() -> Self {
+        BusConfig::Sim {}
+    }
+}
+
+impl BusConfig {
+    /// Checks the bus settings against the axes; the message names the key.
+    pub fn validate(&self, axes: &[AxisConfig]) -> Result<(), String> {
+        match self {
+            BusConfig::Sim {} => Ok(()),
+            BusConfig::Can(c) => {
+                if c.interface.is_empty() {
+                    return Err("bus.interface: give the CAN interface, e.g. \"can0\"".into());
+                }
+                if !(1..=127).contains(&c.master_node_id) {
+                    return Err(format!(
+                        "bus.master_node_id: {} is outside 1..127",
+                        c.master_node_id
+                    ));
+                }
+                for (i, a) in axes.iter().enumerate() {
+                    let Some(id) = a.node_id else {
+                        return Err(format!(
+                            "axes[{i}].node_id: axis {} needs the CANopen node id of its drive",
+                            a.name
+                        ));
+                    };
+                    if !(1..=127).contains(&id) || id == c.master_node_id {
+                        return Err(format!(
+                            "axes[{i}].node_id: {id} is outside 1..127 or equals bus.master_node_id"
+                        ));
+                    }
+                    if axes[..i].iter().any(|b| b.node_id == Some(id)) {
+                        return Err(format!("axes[{i}].node_id: node {id} is used twice"));
+                    }
+                }
+                for (key, v) in [
+                    ("following_window_mm", c.following_window_mm),
+                    ("following_error_limit_mm", c.following_error_limit_mm),
+                ] {
+                    if let Some(v) = v
+                        && !(v.is_finite() && v > 0.0)
+                    {
+                        return Err(format!("bus.{key}: {v} must be a positive number"));
+                    }
+                }
+                if c.tpdo_missing_ticks == 0 || c.heartbeat_timeout_ms == 0 {
+                    return Err(
+                        "bus.tpdo_missing_ticks and bus.heartbeat_timeout_ms must be above 0"
+                            .into(),
+                    );
+                }
+                if !(1..=10).contains(&c.cycle_ms) {
+                    return Err(format!("bus.cycle_ms: {} is outside 1..10 ms", c.cycle_ms));
+                }
+                let tick_ms = kernel::units::TS_NS / 1_000_000;
+                if u64::from(c.cycle_ms) != tick_ms {
+                    return Err(format!(
+                        "bus.cycle_ms: {} ms differs from the controller's real-time tick of {tick_ms} ms (the SYNC goes out once per tick)",
+                        c.cycle_ms
+                    ));
+                }
+                if c.spindle_node == Some(c.master_node_id) {
+                    return Err(format!(
+                        "bus.spindle_node: {} equals bus.master_node_id",
+                        c.master_node_id
+                    ));
+                }
+                validate_spindle(c.spindle_node, c.spindle_units_per_rpm, axes)
+            }
+            BusConfig::Serial(s) => {
+                if s.port.is_empty() {
+                    return Err("bus.port: give the serial device, e.g. \"/dev/ttyUSB0\"".into());
+                }
+                if s.reply_timeout_ticks == 0 {
+                    return Err("bus.reply_timeout_ticks must be above 0".into());
+                }
+                validate_spindle(s.spindle_node, s.spindle_units_per_rpm, axes)
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -594,5 +888,20 @@ mod tests {
         assert!(e.to_string().contains("listen"), "{e}");
         let e = Config::parse("[rt]\nprio = 5\n", Path::new("m.toml")).unwrap_err();
         assert!(e.to_string().contains("prio"), "{e}");
+    }
+
+    // SPEC §2: I J relative (default) or absolute, a setting.
+    #[test]
+    fn program_ij_setting() {
+        let c = Config::parse("", Path::new("x.toml")).unwrap();
+        assert_eq!(c.program.ij, IjSetting::Relative);
+        let c = Config::parse("[program]\nij = \"absolute\"\n", Path::new("x.toml")).unwrap();
+        assert_eq!(
+            kernel::program::IjMode::from(c.program.ij),
+            kernel::program::IjMode::Absolute
+        );
+        let e =
+            Config::parse("[program]\nij = \"incremental\"\n", Path::new("m.toml")).unwrap_err();
+        assert!(e.to_string().contains("ij"), "{e}");
     }
 }

@@ -1,21 +1,20 @@
 //! The controller: owns the RT thread, the loaded program and the planner threads, and offers
 //! the operations the API calls. Everything here runs outside the RT thread.
 
-use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
 use kernel::Diagnostic;
 use kernel::block::Block;
-use kernel::comp::CompConfig;
-use kernel::plan::PlannerConfig;
-use kernel::program::{self, Setup};
-use kernel::units::{AxesMm, MAX_AXES};
+use kernel::machine::{AxisLimits, MachineConfig, MachineSetup};
+use kernel::pipeline::{self, Observer, Options, Validation};
+use kernel::units::AxesMm;
 use tokio::sync::watch;
 
 use kernel::constants::{AXIS_CODES, Constants};
-use kernel::kr::{Gear, Kr, KrConfig, RadiusInput};
+use kernel::kr::{Gear, Kr, RadiusInput};
 use kernel::offsets::{OffsetTable, TableEdit};
 use kernel::plc::{PlcError, PlcWrite};
 
@@ -24,8 +23,8 @@ use super::clock::{Clock, MonotonicClock};
 use super::config::{Config, RadiusInputConfig};
 use super::job::{self, JobLink, JobSpec};
 use super::logging::BlockNo;
-use super::pipeline;
-use super::rt::{self, MachineState, RtCommand, RtCoreConfig, RtParts, Snapshot};
+use super::pipeline::Execution;
+use super::rt::{self, JobMachine, MachineState, RtCommand, RtCoreConfig, RtParts, Snapshot};
 use super::storage::{self, OffsetStore, StorageError};
 
 /// Segment ring capacity (planner → RT).
@@ -49,18 +48,10 @@ pub struct LoadedProgram {
     /// Number of blocks.
     pub block_count: u32,
     pub warnings: Vec<Diagnostic>,
-    /// Where the axes were when it was validated: it runs from there.
+    /// Where the axes were when it was validated.
     pub start: AxesMm,
-    /// What it was interpreted with.
-    pub setup: Setup,
-}
-
-impl LoadedProgram {
-    /// The program's canonical blocks, interpreted again (for previews and diagnostics; costs
-    /// memory in proportion to the program).
-    pub fn blocks(&self) -> Vec<Block> {
-        program::compile(&self.text, &self.setup).blocks
-    }
+    /// The setup generation it was validated with (see `Controller::generation`).
+    generation: u64,
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -91,12 +82,32 @@ pub struct Controller {
     pump_stop: Arc<AtomicBool>,
     /// Last alarm raised outside the RT thread (e.g. a planning failure), for status.
     alarm: Arc<Mutex<Option<String>>>,
-    /// Machine constants in force (SPEC §1) and whether they came from a file.
-    constants: Mutex<(Constants, bool)>,
+    /// Machine constants (SPEC §1).
+    constants: Mutex<ConstantsState>,
+    /// The configuration's part of every job's machine setup.
+    machine: MachineConfig,
     /// TAB0.KOR: file and memory table (SPEC §3).
     offsets: Arc<Mutex<OffsetStore>>,
-    /// Blocks of the running job near the executing one.
-    recent: Arc<Mutex<pipeline::RecentBlocks>>,
+    /// The running job's pass: blocks near the executing one, pending `G92` writes, the modal
+    /// state left for MDI.
+    execution: Arc<Mutex<Execution>>,
+    /// Increases whenever something a job's setup is built from changes (constants, offset
+    /// table): a program validated under another generation is validated again at start.
+    generation: Arc<AtomicU64>,
+}
+
+/// The constants: the file's, and those in force (the file's, except the constants that
+/// need a restart, which keep their value from start-up until then).
+struct ConstantsState {
+    saved: Constants,
+    in_force: Constants,
+    from_file: bool,
+}
+
+/// Constants read only at daemon start: axis codes R0..R5 (checked against the configured
+/// axes). Changing them is saved, listed in `restart_required` and not used before.
+pub fn needs_restart(r: u16) -> bool {
+    r <= 5
 }
 
 struct Run {
@@ -128,7 +139,8 @@ impl Controller {
             );
         }
         let (constants, offsets) = load_storage(&config)?;
-        let core = rt_core_config(&config, &constants.0)?;
+        let core = rt_core_config(&config, &constants, offsets.memory())?;
+        let machine = machine_config(&config);
         let (cmd_tx, cmd_rx) = rtrb::RingBuffer::new(COMMAND_RING);
         let (seg_tx, seg_rx) = rtrb::RingBuffer::new(SEGMENT_RING);
         let initial = Snapshot::initial(axes, core.start);
@@ -159,9 +171,18 @@ impl Controller {
         let pump_stop = Arc::new(AtomicBool::new(false));
         let stop = pump_stop.clone();
         let names = config.axis_names();
+        let execution: Arc<Mutex<Execution>> = Arc::default();
+        let offsets = Arc::new(Mutex::new(offsets));
+        let generation = Arc::new(AtomicU64::new(0));
+        let pump = Pump {
+            execution: execution.clone(),
+            offsets: offsets.clone(),
+            generation: generation.clone(),
+            axis_names: names,
+        };
         std::thread::Builder::new()
             .name("cnc-status".into())
-            .spawn(move || status_pump(&mut snap_out, &status_tx, &stop, &names))
+            .spawn(move || pump.run(&mut snap_out, &status_tx, &stop))
             .map_err(|e| format!("cannot start the status thread: {e}"))?;
 
         Ok(Arc::new(Controller {
@@ -178,9 +199,15 @@ impl Controller {
             rt_thread: Mutex::new(Some(rt_thread)),
             pump_stop,
             alarm: Arc::new(Mutex::new(None)),
-            constants: Mutex::new(constants),
-            offsets: Arc::new(Mutex::new(offsets)),
-            recent: Arc::default(),
+            constants: Mutex::new(ConstantsState {
+                saved: constants.0.clone(),
+                in_force: constants.0,
+                from_file: constants.1,
+            }),
+            machine,
+            offsets,
+            execution,
+            generation,
         }))
     }
 
@@ -206,36 +233,72 @@ impl Controller {
         self.alarm.lock().unwrap().clone()
     }
 
-    /// Validates `text` and makes it the selected program. Nothing moves; on error the
-    /// previously selected program stays selected.
-    /// What the interpreter needs: axes, where they are, constants and the memory offset table.
-    fn setup(&self) -> Setup {
-        let mut setup = Setup::new(&self.config.axis_names());
-        // Programs start where the axes are commanded now.
-        setup.start = self.snapshot().commanded;
-        setup.constants = self.constants.lock().unwrap().0.clone();
-        setup.offsets = self.offsets.lock().unwrap().memory().clone();
-        spindle_setup(&self.config, &mut setup);
-        setup
+    /// The machine setup a job started now would take: the configuration, the constants in
+    /// force and the memory offset table, decoded once (issue #14), from where the axes are
+    /// commanded now.
+    pub fn machine_setup(&self) -> Result<MachineSetup, ControlError> {
+        let c = self.constants.lock().unwrap();
+        let offsets = self.offsets.lock().unwrap();
+        MachineSetup::new(
+            &self.machine,
+            &c.in_force,
+            c.from_file,
+            offsets.memory(),
+            self.snapshot().commanded,
+        )
+        .map_err(|e| ControlError::Invalid(format!("constant cutting speed: {e}")))
     }
 
-    /// Validates `text` through the whole kernel pipeline (interpretation, compensation,
-    /// planning) and makes it the selected program. Nothing moves; on error the previously
-    /// selected program stays selected.
-    pub fn load_program(&self, name: &str, text: &str) -> Result<Arc<LoadedProgram>, ControlError> {
-        let setup = self.setup();
-        let v = pipeline::validate(text, &setup, self.comp_config(), self.planner_config());
+    /// The R325 listing of `text` under the setup in force (SPEC §4.6): the text with E
+    /// written, the refinements, the program's messages.
+    pub fn refinement_listing(
+        &self,
+        text: &str,
+    ) -> Result<(String, Vec<kernel::program::arc::Refined>, Vec<Diagnostic>), ControlError> {
+        let setup = self.machine_setup()?;
+        Ok(kernel::program::refinement_listing(text, setup.program()))
+    }
+
+    /// Validates `text` through the whole pipeline (interpretation, compensation, planning)
+    /// against the machine as it is now, passing what the stages produce to `obs`. Nothing is
+    /// selected or run. The verdict of validate, upload, load, previews, start and MDI.
+    pub fn validate_with(
+        &self,
+        text: &str,
+        opts: Options,
+        modal: Option<kernel::program::Modal>,
+        obs: &mut impl Observer,
+    ) -> Result<(Validation, MachineSetup, u64), ControlError> {
+        let generation = self.generation.load(Ordering::Acquire);
+        let setup = self.machine_setup()?.with_modal(modal);
+        let v = pipeline::validate_into(text, &setup, opts, obs);
+        Ok((v, setup, generation))
+    }
+
+    /// Validates `text` (see [`Controller::validate_with`]) into a program that may be
+    /// selected; `obs` sees the pass. Errors: the program's diagnostics.
+    pub fn prepare_program(
+        &self,
+        name: &str,
+        text: &str,
+        obs: &mut impl Observer,
+    ) -> Result<Arc<LoadedProgram>, ControlError> {
+        let (v, setup, generation) = self.validate_with(text, Options::default(), None, obs)?;
         if v.has_errors() {
             return Err(ControlError::InvalidProgram(v.diagnostics));
         }
-        let loaded = Arc::new(LoadedProgram {
+        Ok(Arc::new(LoadedProgram {
             name: name.to_owned(),
             text: Arc::from(text),
             block_count: v.blocks,
             warnings: v.diagnostics,
-            start: setup.start,
-            setup,
-        });
+            start: setup.program().start,
+            generation,
+        }))
+    }
+
+    /// Makes a validated program the selected one. Refused while a program runs.
+    pub fn select(&self, loaded: Arc<LoadedProgram>) -> Result<(), ControlError> {
         let running = matches!(
             self.snapshot().state,
             MachineState::Running | MachineState::Hold | MachineState::Stopping
@@ -245,12 +308,16 @@ impl Controller {
                 "a program is running: stop it before loading another".into(),
             ));
         }
-        *self.program.lock().unwrap() = Some(loaded.clone());
-        Ok(loaded)
+        *self.program.lock().unwrap() = Some(loaded);
+        Ok(())
     }
 
-    fn comp_config(&self) -> CompConfig {
-        CompConfig::from_constants(&self.constants.lock().unwrap().0)
+    /// Validates `text` and makes it the selected program. Nothing moves; on error the
+    /// previously selected program stays selected.
+    pub fn load_program(&self, name: &str, text: &str) -> Result<Arc<LoadedProgram>, ControlError> {
+        let loaded = self.prepare_program(name, text, &mut NoObserver)?;
+        self.select(loaded.clone())?;
+        Ok(loaded)
     }
 
     fn send(&self, cmd: RtCommand) -> Result<(), ControlError> {
@@ -280,30 +347,30 @@ impl Controller {
             .ok_or_else(|| ControlError::WrongState("no program is loaded".into()))?;
         let mut run = self.run.lock().unwrap();
         let snap = self.idle_for_start()?;
-        // Validated from where the axes were at loading; if they moved since (MDI, another
-        // job), validate again from here so the run cannot fail half-way.
+        // The job's snapshot of the machine, taken now: every stage of the run reads it.
+        let setup = self.machine_setup()?;
+        // Validated with another setup (the axes moved by MDI or another job, constants or
+        // offsets changed): validate again with this one, so the run cannot fail half-way.
         let here = snap.commanded;
-        if (0..self.config.axes.len()).any(|i| (program.start[i] - here[i]).abs() > 1e-9) {
-            let v = self.validate_text(&program.text);
+        let moved = (0..self.config.axes.len()).any(|i| (program.start[i] - here[i]).abs() > 1e-9);
+        if moved || program.generation != self.generation.load(Ordering::Acquire) {
+            let v = pipeline::validate(&program.text, &setup, Options::default());
             if v.has_errors() {
                 return Err(ControlError::InvalidProgram(v.diagnostics));
             }
         }
         let spec = JobSpec {
-            job: 0,
             text: program.text.clone(),
-            setup: self.setup(),
-            planner: self.planner_config(),
-            comp: self.comp_config(),
-            offsets: self.offsets.clone(),
-            stop_at_blocks: false,
-            recent: self.recent.clone(),
+            setup,
+            opts: Options::default(),
+            execution: self.execution.clone(),
             status: self.status.clone(),
         };
         self.spawn_job(&mut run, spec, &program.name, program.block_count)
     }
 
-    /// Starts the planner thread of a new job and tells the RT thread to run it.
+    /// Starts the planner thread of a new job and tells the RT thread to run it with the
+    /// job's machine setup.
     fn spawn_job(
         &self,
         run: &mut Option<Run>,
@@ -312,9 +379,17 @@ impl Controller {
         blocks: u32,
     ) -> Result<u32, ControlError> {
         let job = self.next_job.fetch_add(1, Ordering::Relaxed);
-        spec.job = job;
+        spec.opts.job = job;
         *self.alarm.lock().unwrap() = None;
-        self.send(RtCommand::Start { job })?;
+        self.execution.lock().unwrap().begin(job);
+        let machine = JobMachine {
+            kr: spec
+                .setup
+                .kr_constants()
+                .expect("the daemon's setup has KŘR"),
+            in_position_mm: spec.setup.in_position_mm(),
+        };
+        self.send(RtCommand::Start { job, machine })?;
         let cancel = Arc::new(AtomicBool::new(false));
         let link = self.link.clone();
         let c = cancel.clone();
@@ -331,11 +406,6 @@ impl Controller {
         tracing::info!(job, program = %name, blocks, "job started");
         *run = Some(Run { cancel, thread });
         Ok(job)
-    }
-
-    fn planner_config(&self) -> PlannerConfig {
-        let (constants, from_file) = &*self.constants.lock().unwrap();
-        planner_config(&self.config, constants, *from_file)
     }
 
     /// Stops motion: brake on the path, drop the rest of the program.
@@ -394,13 +464,17 @@ impl Controller {
 
     /// Operator edit of one entry: file and memory (SPEC §3 b).
     pub fn edit_offset(&self, edit: &TableEdit) -> Result<(), ControlError> {
-        Ok(self.offsets.lock().unwrap().operator_edit(edit)?)
+        self.offsets.lock().unwrap().operator_edit(edit)?;
+        self.generation.fetch_add(1, Ordering::AcqRel);
+        Ok(())
     }
 
     /// Replaces the whole file; memory becomes the file's table (SPEC §3 a). A rejected text
     /// changes nothing.
     pub fn replace_offsets_file(&self, text: &str) -> Result<(), ControlError> {
-        Ok(self.offsets.lock().unwrap().save_file_text(text)?)
+        self.offsets.lock().unwrap().save_file_text(text)?;
+        self.generation.fetch_add(1, Ordering::AcqRel);
+        Ok(())
     }
 
     /// Reloads the table from its file (power-on semantics).
@@ -409,19 +483,30 @@ impl Controller {
         let path = self.config.storage.offsets_path();
         let fresh = OffsetStore::load_or_empty(path, &self.config.axis_names())?;
         *self.offsets.lock().unwrap() = fresh;
+        self.generation.fetch_add(1, Ordering::AcqRel);
         Ok(())
     }
 
+    /// The constants as saved (the file; see [`needs_restart`] for those not yet in force).
     pub fn constants(&self) -> Constants {
-        self.constants.lock().unwrap().0.clone()
+        self.constants.lock().unwrap().saved.clone()
     }
 
-    /// Sets machine constants and saves the constants file. Only on an idle machine: the
-    /// planner and compensation read them when a program starts.
-    pub fn set_constants(&self, values: &[(u16, f64)]) -> Result<(), ControlError> {
+    /// The constants jobs start with now.
+    pub fn constants_in_force(&self) -> Constants {
+        self.constants.lock().unwrap().in_force.clone()
+    }
+
+    /// Sets machine constants and saves the constants file. Only on an idle machine. Each is
+    /// in force for every stage from the next start, except those of [`needs_restart`], which
+    /// are saved and used from the next daemon start only. Refused (nothing changed) when the
+    /// machine could not run with them. Returns the constants that need a restart.
+    pub fn set_constants(&self, values: &[(u16, f64)]) -> Result<Vec<u16>, ControlError> {
         self.idle_or_refuse("changing machine constants")?;
         let mut guard = self.constants.lock().unwrap();
-        let mut next = guard.0.clone();
+        let mut saved = guard.saved.clone();
+        let mut in_force = guard.in_force.clone();
+        let mut restart = Vec::new();
         for &(r, v) in values {
             if r > kernel::constants::MAX_R {
                 return Err(ControlError::Invalid(format!(
@@ -429,11 +514,32 @@ impl Controller {
                     kernel::constants::MAX_R
                 )));
             }
-            next.set(r, v);
+            saved.set(r, v);
+            if needs_restart(r) {
+                if !restart.contains(&r) {
+                    restart.push(r);
+                }
+            } else {
+                in_force.set(r, v);
+            }
         }
-        storage::save_constants(&self.config.storage.constants_path(), &next)?;
-        *guard = (next, true);
-        Ok(())
+        // The next job's setup must build with them (KŘR refuses some values).
+        MachineSetup::new(
+            &self.machine,
+            &in_force,
+            true,
+            &OffsetTable::new(),
+            AxesMm::ZERO,
+        )
+        .map_err(|e| ControlError::Invalid(format!("constant cutting speed: {e}")))?;
+        storage::save_constants(&self.config.storage.constants_path(), &saved)?;
+        *guard = ConstantsState {
+            saved,
+            in_force,
+            from_file: true,
+        };
+        self.generation.fetch_add(1, Ordering::AcqRel);
+        Ok(restart)
     }
 
     /// Writes a PLC input cell; in force from the next tick. Refusals change nothing.
@@ -441,25 +547,7 @@ impl Controller {
         self.send(RtCommand::Plc(write))
     }
 
-    // ---- API additions (issue #8): validation, preview configuration, MDI, single block ----
-
-    /// Interprets `text` against the machine as it is now (axes, constants, memory offsets),
-    /// without selecting or running it.
-    pub fn compile_text(&self, text: &str) -> program::Compiled {
-        program::compile(text, &self.setup())
-    }
-
-    /// What the interpreter would start a program with now (axes, position, constants, memory
-    /// offsets), for previews.
-    pub fn current_setup(&self) -> Setup {
-        self.setup()
-    }
-
-    /// Compensation and planner settings a program started now would run with.
-    pub fn run_configs(&self) -> (CompConfig, PlannerConfig) {
-        let comp = CompConfig::from_constants(&self.constants.lock().unwrap().0);
-        (comp, self.planner_config())
-    }
+    // ---- API additions (issue #8): validation, MDI, single block ----
 
     /// Single-block mode on the RT thread: hold when the path enters a new block.
     pub fn set_single_block(&self, on: bool) -> Result<(), ControlError> {
@@ -468,53 +556,54 @@ impl Controller {
 
     /// Runs `text` as a job without changing the selected program (MDI, single-block runs).
     /// With `stop_at_blocks` every block ends at rest (G98), so single-block holds land on
-    /// block ends. Returns the job id and the blocks it runs.
+    /// block ends. MDI (`mdi`) starts in the modal state the last program or MDI left.
+    /// Returns the job id and the blocks it runs.
     pub fn start_text(
         &self,
         name: &str,
         text: &str,
         stop_at_blocks: bool,
+        mdi: bool,
     ) -> Result<(u32, Arc<Vec<Block>>), ControlError> {
         let mut run = self.run.lock().unwrap();
         self.idle_for_start()?;
-        let setup = self.setup();
-        let (comp, planner) = self.run_configs();
-        let v = pipeline::validate(text, &setup, comp, planner.clone());
+        let opts = Options {
+            job: 0,
+            stop_at_blocks,
+        };
+        let modal = if mdi {
+            self.execution.lock().unwrap().modal_left()
+        } else {
+            None
+        };
+        let mut blocks = Blocks::default();
+        let (v, setup, _) = self.validate_with(text, opts, modal, &mut blocks)?;
         if v.has_errors() {
             return Err(ControlError::InvalidProgram(v.diagnostics));
         }
-        let mut blocks = program::compile(text, &setup).blocks;
-        if stop_at_blocks {
-            for b in &mut blocks {
-                b.continuity = kernel::block::Continuity::G98;
-            }
-        }
         let spec = JobSpec {
-            job: 0,
             text: Arc::from(text),
             setup,
-            planner,
-            comp,
-            offsets: self.offsets.clone(),
-            stop_at_blocks,
-            recent: self.recent.clone(),
+            opts,
+            execution: self.execution.clone(),
             status: self.status.clone(),
         };
         let job = self.spawn_job(&mut run, spec, name, v.blocks)?;
-        Ok((job, Arc::new(blocks)))
+        Ok((job, Arc::new(blocks.0)))
     }
 
     /// Block `seq` of `job` if the job is running (or just ran) and the block is near the
     /// executing one: the modal state for status.
     pub fn block_at(&self, job: u32, seq: u32) -> Option<Block> {
-        self.recent.lock().unwrap().get(job, seq)
+        self.execution.lock().unwrap().block(job, seq)
     }
 
     /// Validates `text` through the whole pipeline against the machine as it is now, without
     /// selecting or running it.
-    pub fn validate_text(&self, text: &str) -> pipeline::Validation {
-        let (comp, planner) = self.run_configs();
-        pipeline::validate(text, &self.setup(), comp, planner)
+    pub fn validate_text(&self, text: &str) -> Result<Validation, ControlError> {
+        Ok(self
+            .validate_with(text, Options::default(), None, &mut NoObserver)?
+            .0)
     }
 
     /// Brings the axes to rest and ends the RT thread (SIGTERM/SIGINT path). Blocking.
@@ -541,86 +630,85 @@ impl Drop for Controller {
     }
 }
 
-/// The planner settings of the machine: axis limits from the configuration, the envelope
-/// settings from the constants when they came from a file.
-pub(crate) fn planner_config(
+/// What the RT core is built from: the axes at their home positions, KŘR and the G24 window
+/// of the machine setup at start-up (each job's Start brings its own, see [`JobMachine`]).
+pub(crate) fn rt_core_config(
     config: &Config,
-    constants: &Constants,
-    from_file: bool,
-) -> PlannerConfig {
-    let axes = &config.axes;
-    // Path-level defaults from the slowest axis; per-axis limits then from each axis.
-    let v_min = axes
-        .iter()
-        .map(|a| a.max_velocity_mm_min / 60.0)
-        .fold(f64::INFINITY, f64::min);
-    let a_min = axes
-        .iter()
-        .map(|a| a.max_accel_mm_s2)
-        .fold(f64::INFINITY, f64::min);
-    let mut cfg = PlannerConfig::uniform(axes.len(), v_min, a_min);
-    for (i, a) in axes.iter().enumerate().take(MAX_AXES) {
-        cfg.axis_v_max_mm_s[i] = a.max_velocity_mm_min / 60.0;
-        cfg.axis_a_max_mm_s2[i] = a.max_accel_mm_s2;
-        cfg.axis_j_max_mm_s3[i] = 50.0 * a.max_accel_mm_s2;
-    }
-    // The envelope settings (continuity, criteria, dynamic sets) come from the constants
-    // when the machine has a constants file; otherwise the axis limits alone apply.
-    if from_file {
-        cfg = cfg.with_constants(constants);
-    }
-    cfg
-}
-
-/// What the RT core is built from: the axes at their home positions, KŘR from the constants
-/// and the `[kr]` section, the in-position window of G24 (R06).
-pub(crate) fn rt_core_config(config: &Config, c: &Constants) -> Result<RtCoreConfig, String> {
+    constants: &(Constants, bool),
+    offsets: &OffsetTable,
+) -> Result<RtCoreConfig, String> {
     let mut start = AxesMm::ZERO;
     for (i, a) in config.axes.iter().enumerate() {
         start[i] = a.home_mm;
     }
+    let setup = MachineSetup::new(
+        &machine_config(config),
+        &constants.0,
+        constants.1,
+        offsets,
+        start,
+    )
+    .map_err(|e| format!("constant cutting speed: {e}"))?;
     Ok(RtCoreConfig {
         axes: config.axes.len(),
         start,
-        kr: Kr::new(kr_config(config, c)?),
-        in_position_mm: c.get(6).abs().max(1e-6),
+        kr: Kr::new(setup.kr().cloned().expect("the daemon's setup has KŘR")),
+        in_position_mm: setup.in_position_mm(),
     })
 }
 
-/// The KŘR configuration from the constants and the `[kr]` section.
-pub(crate) fn kr_config(config: &Config, c: &Constants) -> Result<KrConfig, String> {
-    let radius = match config.kr.radius_input {
+/// The configuration's part of the machine setup: axis limits, gear table, radius input.
+pub(crate) fn machine_config(config: &Config) -> MachineConfig {
+    let radius_input = match config.kr.radius_input {
         RadiusInputConfig::Diameter => RadiusInput::Diameter,
         RadiusInputConfig::Radius => RadiusInput::Radius,
     };
-    KrConfig::from_constants(c, radius, gears(config))
-        .map_err(|e| format!("constant cutting speed: {e}"))
+    MachineConfig {
+        axes: config
+            .axes
+            .iter()
+            .map(|a| AxisLimits {
+                name: a.name,
+                max_velocity_mm_min: a.max_velocity_mm_min,
+                max_accel_mm_s2: a.max_accel_mm_s2,
+            })
+            .collect(),
+        gears: config
+            .kr
+            .gears
+            .iter()
+            .map(|g| Gear {
+                max_rpm: g.max_rpm,
+                output_range: g.output_range,
+                m_code: g.m_code,
+            })
+            .collect(),
+        radius_input,
+        ij: config.program.ij.into(),
+        preprocessor: true,
+    }
 }
 
-/// The gear table of `[kr.gears]`.
-fn gears(config: &Config) -> Vec<Gear> {
-    config
-        .kr
-        .gears
-        .iter()
-        .map(|g| Gear {
-            max_rpm: g.max_rpm,
-            output_range: g.output_range,
-            m_code: g.m_code,
-        })
-        .collect()
+/// An observer that keeps nothing (the validation is returned separately).
+struct NoObserver;
+
+impl Observer for NoObserver {
+    fn segment(&mut self, _s: kernel::plan::Segment) -> pipeline::Flow {
+        pipeline::Flow::Go
+    }
 }
 
-/// What the interpreter needs of the spindle and the feed: the gear table (an M code selects
-/// the range whose `m_code` it is; feed per revolution is planned at a nominal speed capped
-/// by its P) and the fastest axis speed as Vmax of the βmax warning (SPEC §5, §6).
-pub(crate) fn spindle_setup(config: &Config, setup: &mut Setup) {
-    setup.gears = gears(config);
-    setup.max_feed_mm_min = config
-        .axes
-        .iter()
-        .map(|a| a.max_velocity_mm_min)
-        .fold(0.0, f64::max);
+/// Keeps the programmed blocks (MDI and single-block runs: status shows their modal state).
+#[derive(Default)]
+struct Blocks(Vec<Block>);
+
+impl Observer for Blocks {
+    fn programmed(&mut self, b: &Block, _modal: &kernel::program::Modal) {
+        self.0.push(*b);
+    }
+    fn segment(&mut self, _s: kernel::plan::Segment) -> pipeline::Flow {
+        pipeline::Flow::Go
+    }
 }
 
 /// Creates the data directory and loads the constants and the offset table. A file that exists
@@ -687,31 +775,66 @@ fn prepare_rt_thread(priority: i32, lock: bool) {
     }
 }
 
-/// Copies RT snapshots into the watch channel and logs state changes and alarms (formatting
-/// happens here, never on the RT thread).
-fn status_pump(
-    out: &mut triple_buffer::Output<Snapshot>,
-    tx: &watch::Sender<Snapshot>,
-    stop: &AtomicBool,
-    axis_names: &[char],
-) {
-    let mut last = *out.read();
-    while !stop.load(Ordering::Relaxed) {
-        std::thread::sleep(Duration::from_millis(1));
-        if !out.update() {
-            continue;
+/// The status thread: copies RT snapshots into the watch channel, follows execution (`G92`
+/// writes apply when their block executes, SPEC §3 c) and logs state changes and alarms
+/// (formatting happens here, never on the RT thread).
+pub(crate) struct Pump {
+    pub(crate) execution: Arc<Mutex<Execution>>,
+    pub(crate) offsets: Arc<Mutex<OffsetStore>>,
+    pub(crate) generation: Arc<AtomicU64>,
+    pub(crate) axis_names: Vec<char>,
+}
+
+impl Pump {
+    fn run(
+        &self,
+        out: &mut triple_buffer::Output<Snapshot>,
+        tx: &watch::Sender<Snapshot>,
+        stop: &AtomicBool,
+    ) {
+        let mut last = *out.read();
+        while !stop.load(Ordering::Relaxed) {
+            std::thread::sleep(Duration::from_millis(1));
+            if !out.update() {
+                continue;
+            }
+            let s = *out.output_buffer();
+            self.log_changes(&last, &s);
+            // Before the snapshot is published: who sees the job ended sees its writes.
+            self.apply_executed_writes(&s);
+            last = s;
+            tx.send_replace(s);
         }
-        let s = *out.output_buffer();
+    }
+
+    pub(crate) fn apply_executed_writes(&self, s: &Snapshot) {
+        let mut applied = false;
+        // Lock order: execution, then offsets (nothing takes them the other way round).
+        let mut execution = self.execution.lock().unwrap_or_else(|e| e.into_inner());
+        execution.observe(s, |w| {
+            let mut offsets = self.offsets.lock().unwrap_or_else(|e| e.into_inner());
+            // Validated by the interpreter with the same table; a refusal here means the
+            // table changed under the program (operator edit): say so, keep running.
+            if let Err(m) = offsets.program_write(&w.edit) {
+                tracing::error!(block = %BlockNo(w.n), line = w.line, "G92 write not applied: {m}");
+            }
+            applied = true;
+        });
+        if applied {
+            self.generation.fetch_add(1, Ordering::AcqRel);
+        }
+    }
+
+    fn log_changes(&self, last: &Snapshot, s: &Snapshot) {
         if s.fault != last.fault
             && let Some(f) = s.fault
         {
-            let axis = hal::fault_axis_label(f.axis, axis_names).unwrap_or_else(|| "-".into());
+            let axis =
+                hal::fault_axis_label(f.axis, &self.axis_names).unwrap_or_else(|| "-".into());
             tracing::error!(axis, node = ?f.node, block = %BlockNo(s.block_n), line = s.line, "alarm: {}", f.reason);
         }
         if s.state != last.state {
             tracing::info!(state = ?s.state, job = s.job, block = %BlockNo(s.block_n), line = s.line, "machine state");
         }
-        last = s;
-        tx.send_replace(s);
     }
 }

@@ -11,22 +11,25 @@
 //! Hours of machining take seconds, and a replay with the same seed is bit-identical
 //! ([`Harness::setpoint_hash`], [`Harness::timeline_hash`]).
 
-use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use hal::DriveBus;
 use kernel::Diagnostic;
+use kernel::block::Block;
 use kernel::constants::Constants;
+use kernel::machine::MachineSetup;
+use kernel::offsets::TableEdit;
+use kernel::pipeline::{self, Flow, Observer, Options};
 use kernel::plan::Segment;
-use kernel::program::Setup;
+use kernel::program::Modal;
 use tokio::sync::watch;
 
 use super::clock::SimClock;
 use super::config::Config;
-use super::controller::{load_storage, planner_config, rt_core_config};
-use super::job::JobSpec;
-use super::pipeline::{self, RecentBlocks};
-use super::rt_core::{MachineState, RtCommand, RtCore, RtRings, Snapshot};
+use super::controller::{Pump, load_storage, machine_config, rt_core_config};
+use super::pipeline::PendingWrite;
+use super::rt_core::{JobMachine, MachineState, RtCommand, RtCore, RtRings, Snapshot};
 use super::storage::OffsetStore;
 
 /// Ring capacities: as in the daemon.
@@ -40,6 +43,8 @@ pub enum HarnessError {
     InvalidProgram(Vec<Diagnostic>),
     #[error("planning failed: {0}")]
     Planning(Diagnostic),
+    #[error("machine setup: {0}")]
+    Setup(String),
     #[error("the command ring is full")]
     CommandRingFull,
     #[error("not reached within {ticks} ticks: {snapshot:?}")]
@@ -64,8 +69,9 @@ pub struct Harness {
     commands: rtrb::Producer<RtCommand>,
     segments: rtrb::Producer<Segment>,
     constants: (Constants, bool),
-    offsets: Arc<Mutex<OffsetStore>>,
-    recent: Arc<Mutex<RecentBlocks>>,
+    /// Follows execution and applies `G92` writes when their block executes, as the
+    /// controller's status thread does.
+    pump: Pump,
     status: (watch::Sender<Snapshot>, watch::Receiver<Snapshot>),
     next_job: u32,
     /// The planning of the current job is cancelled (the controller cancels it on Stop and
@@ -86,7 +92,8 @@ impl Harness {
         clock: SimClock,
     ) -> Result<Self, String> {
         let (constants, offsets) = load_storage(&config)?;
-        let cfg = rt_core_config(&config, &constants.0)?;
+        let axis_names = config.axis_names();
+        let cfg = rt_core_config(&config, &constants, offsets.memory())?;
         let (commands, cmd_rx) = rtrb::RingBuffer::new(COMMAND_RING);
         let (segments, seg_rx) = rtrb::RingBuffer::new(SEGMENT_RING);
         let core = RtCore::new(cfg, bus.as_mut(), clock.now_ns());
@@ -104,8 +111,12 @@ impl Harness {
             commands,
             segments,
             constants,
-            offsets: Arc::new(Mutex::new(offsets)),
-            recent: Arc::default(),
+            pump: Pump {
+                execution: Arc::default(),
+                offsets: Arc::new(Mutex::new(offsets)),
+                generation: Arc::new(AtomicU64::new(0)),
+                axis_names,
+            },
             status,
             next_job: 1,
             cancel: false,
@@ -131,7 +142,7 @@ impl Harness {
 
     /// The offset table (file and memory), as the daemon holds it.
     pub fn offsets(&self) -> Arc<Mutex<OffsetStore>> {
-        self.offsets.clone()
+        self.pump.offsets.clone()
     }
 
     /// Hash of every setpoint (positions and spindle speed) sent so far: the same for the same
@@ -178,6 +189,7 @@ impl Harness {
         let now = self.clock.wake(self.core.next_deadline_ns());
         let snap = *self.core.tick(now, &mut self.rings, self.bus.as_mut());
         self.record(&snap);
+        self.pump.apply_executed_writes(&snap);
         snap
     }
 
@@ -192,6 +204,28 @@ impl Harness {
         self.timeline_hash.write(s.ticks.overruns);
         self.timeline_hash.write(u64::from(s.ticks.lateness_max_us));
         self.status.0.send_replace(*s);
+    }
+
+    /// Shuts down as cncd does on SIGTERM: `Shutdown` brakes the axes to rest and ends the
+    /// loop (at most `max_ticks`), then the bus switches its drives off in order.
+    pub fn shut_down(&mut self, max_ticks: u64) -> Result<(), HarnessError> {
+        self.send(RtCommand::Shutdown)?;
+        let mut ticks = 0;
+        while !self.core.finished() {
+            if ticks == max_ticks {
+                return Err(HarnessError::Timeout {
+                    ticks,
+                    snapshot: Box::new(self.snapshot()),
+                });
+            }
+            self.step();
+            ticks += 1;
+        }
+        let clock = &mut self.clock;
+        self.core.shut_down_bus(self.bus.as_mut(), |t| {
+            clock.wake(t);
+        });
+        Ok(())
     }
 
     /// Ticks until `done` holds for a snapshot; at most `max_ticks`.
@@ -224,14 +258,18 @@ impl Harness {
         self.run_until(max_ticks, |s| s.state == state)
     }
 
-    /// What the interpreter starts a program with now (as the controller's).
-    pub fn setup(&self) -> Setup {
-        let mut setup = Setup::new(&self.config.axis_names());
-        setup.start = self.snapshot().commanded;
-        setup.constants = self.constants.0.clone();
-        setup.offsets = self.offsets.lock().unwrap().memory().clone();
-        super::controller::spindle_setup(&self.config, &mut setup);
-        setup
+    /// The machine setup a job started now takes (as the controller's): configuration,
+    /// constants and memory offsets, from where the axes are commanded now.
+    pub fn machine_setup(&self) -> Result<MachineSetup, String> {
+        let offsets = self.pump.offsets.lock().unwrap();
+        MachineSetup::new(
+            &machine_config(&self.config),
+            &self.constants.0,
+            self.constants.1,
+            offsets.memory(),
+            self.snapshot().commanded,
+        )
+        .map_err(|e| format!("constant cutting speed: {e}"))
     }
 
     /// Validates `text` as the controller does at loading, starts it as a job, plans it inline
@@ -244,32 +282,33 @@ impl Harness {
     /// As [`Harness::start_program`]; with `stop_at_blocks` every block ends at rest (the
     /// single-block runs of the API).
     pub fn start_job(&mut self, text: &str, stop_at_blocks: bool) -> Result<u32, HarnessError> {
-        let setup = self.setup();
-        let comp = kernel::comp::CompConfig::from_constants(&self.constants.0);
-        let planner = planner_config(&self.config, &self.constants.0, self.constants.1);
-        let v = pipeline::validate(text, &setup, comp, planner.clone());
+        let setup = self.machine_setup().map_err(HarnessError::Setup)?;
+        let job = self.next_job;
+        let opts = Options {
+            job,
+            stop_at_blocks,
+        };
+        let v = pipeline::validate(text, &setup, opts);
         if v.has_errors() {
             return Err(HarnessError::InvalidProgram(v.diagnostics));
         }
-        let job = self.next_job;
         self.next_job += 1;
         self.cancel = false;
-        self.send(RtCommand::Start { job })?;
-        let spec = JobSpec {
-            job,
-            text: Arc::from(text),
-            setup,
-            planner,
-            comp,
-            offsets: self.offsets.clone(),
-            stop_at_blocks,
-            recent: self.recent.clone(),
-            status: self.status.1.clone(),
+        self.pump.execution.lock().unwrap().begin(job);
+        let machine = JobMachine {
+            kr: setup.kr_constants().expect("the daemon's setup has KŘR"),
+            in_position_mm: setup.in_position_mm(),
         };
-        let result = pipeline::run(&spec, |seg| self.push_segment(seg));
+        self.send(RtCommand::Start { job, machine })?;
+        let mut runner = Runner {
+            h: self,
+            job,
+            error: None,
+        };
+        pipeline::run(text, &setup, opts, &mut runner);
+        let error = runner.error.take();
         self.rings.planned_job.store(job, Ordering::Release);
-        result.map_err(HarnessError::Planning)?;
-        Ok(job)
+        error.map_or(Ok(job), |d| Err(HarnessError::Planning(d)))
     }
 
     /// Pushes one segment, running RT ticks while the ring is full (the controller's planner
@@ -318,5 +357,60 @@ impl Fnv {
 
     fn write(&mut self, word: u64) {
         self.0 = (self.0 ^ word).wrapping_mul(0x0100_0000_01b3);
+    }
+}
+
+/// The inline planner's observer: segments onto the ring (ticking while it is full), blocks
+/// and table writes to the execution record, as the controller's planner thread does.
+struct Runner<'a> {
+    h: &'a mut Harness,
+    job: u32,
+    error: Option<Diagnostic>,
+}
+
+impl Observer for Runner<'_> {
+    fn programmed(&mut self, b: &Block, modal: &Modal) {
+        self.h
+            .pump
+            .execution
+            .lock()
+            .unwrap()
+            .record(self.job, b, modal);
+    }
+
+    fn segment(&mut self, s: Segment) -> Flow {
+        if self.h.push_segment(s) {
+            Flow::Go
+        } else {
+            Flow::Stop
+        }
+    }
+
+    fn diagnostic(&mut self, d: Diagnostic) -> Flow {
+        if d.is_error() {
+            self.error = Some(d);
+            return Flow::Stop;
+        }
+        Flow::Go
+    }
+
+    fn table_write(&mut self, b: &Block, edit: &TableEdit) -> Flow {
+        let w = PendingWrite {
+            seq: b.seq,
+            n: b.n,
+            line: b.line,
+            edit: *edit,
+        };
+        self.h
+            .pump
+            .execution
+            .lock()
+            .unwrap()
+            .table_write(self.job, w);
+        Flow::Go
+    }
+
+    fn dynam_set_cell(&mut self) -> Option<u8> {
+        Some(self.h.snapshot().plc.dynam_set().saturating_sub(1))
     }
 }

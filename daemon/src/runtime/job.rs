@@ -1,32 +1,30 @@
 //! The planner thread of one program run: the program streams through the kernel pipeline
-//! into the segment ring to the RT thread. Runs outside the RT thread; waits (sleeps) while the
-//! ring is full, so memory stays bounded by the look-ahead.
+//! (`kernel::pipeline`, the same pass that validated it) into the segment ring to the RT
+//! thread. Runs outside the RT thread; waits (sleeps) while the ring is full, so memory stays
+//! bounded by the look-ahead.
 
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use kernel::Diagnostic;
-use kernel::comp::CompConfig;
-use kernel::plan::{PlannerConfig, Segment};
-use kernel::program::Setup;
+use kernel::block::Block;
+use kernel::machine::MachineSetup;
+use kernel::offsets::TableEdit;
+use kernel::pipeline::{self, Flow, Observer, Options};
+use kernel::plan::Segment;
+use kernel::program::Modal;
 
-use super::pipeline::{self, RecentBlocks};
-use super::storage::OffsetStore;
+use super::pipeline::{Execution, PendingWrite};
 
 /// What a run needs.
 pub struct JobSpec {
-    pub job: u32,
     pub text: Arc<str>,
-    pub setup: Setup,
-    pub planner: PlannerConfig,
-    pub comp: CompConfig,
-    /// The offset table: `G92 D..` blocks write its memory copy (SPEC §3 c).
-    pub offsets: Arc<Mutex<OffsetStore>>,
-    /// Every block ends at rest (single-block runs).
-    pub stop_at_blocks: bool,
-    /// Where the streamed blocks are recorded for status.
-    pub recent: Arc<Mutex<RecentBlocks>>,
+    /// The job's snapshot of the machine setup: every stage reads it.
+    pub setup: MachineSetup,
+    pub opts: Options,
+    /// Where the streamed blocks and `G92` writes are recorded until they execute.
+    pub execution: Arc<Mutex<Execution>>,
     /// The RT thread's snapshots: the PLC cell DYNAM_SET selects the dynamic set (SPEC §7.4).
     pub status: tokio::sync::watch::Receiver<super::rt::Snapshot>,
 }
@@ -40,13 +38,71 @@ pub struct JobLink {
     pub planned_job: Arc<AtomicU32>,
 }
 
+/// The run's observer: segments to the ring, blocks and table writes to the execution record.
+struct Runner<'a> {
+    spec: &'a JobSpec,
+    ring: &'a mut rtrb::Producer<Segment>,
+    cancel: &'a AtomicBool,
+    error: Option<Diagnostic>,
+}
+
+impl Observer for Runner<'_> {
+    fn programmed(&mut self, b: &Block, modal: &Modal) {
+        let job = self.spec.opts.job;
+        lock(&self.spec.execution).record(job, b, modal);
+    }
+
+    fn segment(&mut self, s: Segment) -> Flow {
+        if push_waiting(self.ring, s, self.cancel) {
+            Flow::Go
+        } else {
+            Flow::Stop
+        }
+    }
+
+    fn diagnostic(&mut self, d: Diagnostic) -> Flow {
+        if d.is_error() {
+            self.error = Some(d);
+            return Flow::Stop;
+        }
+        Flow::Go
+    }
+
+    fn table_write(&mut self, b: &Block, edit: &TableEdit) -> Flow {
+        let w = PendingWrite {
+            seq: b.seq,
+            n: b.n,
+            line: b.line,
+            edit: *edit,
+        };
+        lock(&self.spec.execution).table_write(self.spec.opts.job, w);
+        Flow::Go
+    }
+
+    fn dynam_set_cell(&mut self) -> Option<u8> {
+        // DYNAM_SET as the PLC has it now (cell 0..3 = set 1..4; acts after the look-ahead).
+        Some(self.spec.status.borrow().plc.dynam_set().saturating_sub(1))
+    }
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 /// Runs the planning of one job to its end. Always marks the job planned when it returns,
 /// whether it finished, was cancelled or failed, so the RT thread never waits for it forever.
 pub fn run(spec: JobSpec, link: &JobLink, cancel: &AtomicBool) -> Result<(), Diagnostic> {
     let mut ring = link.segments.lock().unwrap_or_else(|e| e.into_inner());
-    let result = pipeline::run(&spec, |seg| push_waiting(&mut ring, seg, cancel));
-    link.planned_job.store(spec.job, Ordering::Release);
-    result
+    let mut runner = Runner {
+        spec: &spec,
+        ring: &mut ring,
+        cancel,
+        error: None,
+    };
+    pipeline::run(&spec.text, &spec.setup, spec.opts, &mut runner);
+    let error = runner.error.take();
+    link.planned_job.store(spec.opts.job, Ordering::Release);
+    error.map_or(Ok(()), Err)
 }
 
 /// Pushes one segment, waiting while the ring is full. False when the run was cancelled.

@@ -1,191 +1,130 @@
-//! The kernel pipeline of a program, streaming: interpret → compensate → plan.
+//! What the daemon keeps of a job's pipeline pass (`kernel::pipeline`) until the RT thread has
+//! executed it: the blocks around the executing one (modal state for status and for the next
+//! MDI) and the `G92 D..` table writes, applied to the memory offset table when their block
+//! executes (SPEC §3 c). The status pump calls [`Execution::observe`] with every snapshot.
 //!
-//! Used twice: to validate a whole program when it is loaded (every error and warning, nothing
-//! kept but a count), and by the planner thread of a run (segments to the RT thread). Memory
-//! stays bounded by the compensation and look-ahead windows whatever the program's length.
+//! The planner thread records ahead of execution (by at most the look-ahead and the rings), so
+//! memory stays bounded by [`RECENT_BLOCKS`] whatever the program's length.
 
-use kernel::Diagnostic;
-use kernel::block::{Block, BlockKind, Continuity};
-use kernel::comp::{CompConfig, Compensator};
+use std::collections::VecDeque;
+
+use kernel::block::Block;
 use kernel::offsets::TableEdit;
-use kernel::plan::{Planner, PlannerConfig, Segment};
-use kernel::program::{self, Setup};
+use kernel::program::Modal;
 
-use super::job::JobSpec;
-
-/// Diagnostics beyond this many are counted, not listed.
-const MAX_LISTED: usize = 1000;
-
-/// Outcome of validating a program.
-#[derive(Debug, Default)]
-pub struct Validation {
-    /// Blocks the program has (the interpreter's count).
-    pub blocks: u32,
-    /// Every error, warning and information, in the order found.
-    pub diagnostics: Vec<Diagnostic>,
-}
-
-impl Validation {
-    pub fn has_errors(&self) -> bool {
-        self.diagnostics.iter().any(Diagnostic::is_error)
-    }
-
-    fn add(&mut self, d: Diagnostic) {
-        if self.diagnostics.len() < MAX_LISTED
-            || d.is_error() && self.diagnostics.len() < 2 * MAX_LISTED
-        {
-            self.diagnostics.push(d);
-        }
-    }
-}
-
-/// Runs the whole program through interpretation, compensation and planning without motion.
-/// A block refused by a stage is reported and skipped (stages change nothing on a refusal), so
-/// one pass finds every error.
-pub fn validate(text: &str, setup: &Setup, comp: CompConfig, planner: PlannerConfig) -> Validation {
-    let mut v = Validation::default();
-    let mut stream = program::stream(text, setup);
-    let mut comp = Compensator::new(comp);
-    let mut planner = Planner::new(planner, 0);
-    let feed = |b: &Block, comp: &mut Compensator, planner: &mut Planner, v: &mut Validation| {
-        if let Err(d) = comp.push(b) {
-            v.add(d);
-        }
-        comp.take_diagnostics().into_iter().for_each(|d| v.add(d));
-        while let Some(cb) = comp.poll() {
-            if let Err(d) = planner.push(&cb) {
-                v.add(d);
-            }
-            while planner.poll().is_some() {}
-        }
-    };
-    while let Some(item) = stream.next() {
-        stream.take_notes().into_iter().for_each(|d| v.add(d));
-        match item {
-            Ok(b) => {
-                v.blocks += 1;
-                feed(&b, &mut comp, &mut planner, &mut v);
-            }
-            Err(d) => v.add(d),
-        }
-    }
-    stream.take_notes().into_iter().for_each(|d| v.add(d));
-    comp.finish();
-    comp.take_diagnostics().into_iter().for_each(|d| v.add(d));
-    while let Some(cb) = comp.poll() {
-        if let Err(d) = planner.push(&cb) {
-            v.add(d);
-        }
-        while planner.poll().is_some() {}
-    }
-    planner.finish();
-    while planner.poll().is_some() {}
-    let listed = v.diagnostics.len();
-    if listed >= MAX_LISTED {
-        v.diagnostics.push(Diagnostic::info(
-            None,
-            0,
-            0,
-            format!("only the first {listed} messages are listed"),
-        ));
-    }
-    v
-}
-
-/// The blocks of the running job around the one executing, for status (modal state of the
-/// current block) without keeping the whole program: the planner thread records each block it
-/// streams; execution trails interpretation by at most the look-ahead and the rings.
-pub struct RecentBlocks {
-    job: u32,
-    blocks: std::collections::VecDeque<Block>,
-}
+use super::rt::Snapshot;
 
 /// Blocks kept: more than compensation window + planner look-ahead + segment ring +
 /// interpolator buffer together.
-const RECENT_BLOCKS: usize = 16_384;
+pub const RECENT_BLOCKS: usize = 16_384;
 
-impl Default for RecentBlocks {
-    fn default() -> Self {
-        RecentBlocks {
-            job: 0,
-            blocks: std::collections::VecDeque::with_capacity(RECENT_BLOCKS),
-        }
-    }
+/// A `G92 D..` write waiting for its block to execute.
+#[derive(Clone, Debug)]
+pub struct PendingWrite {
+    pub seq: u32,
+    pub n: Option<u32>,
+    pub line: u32,
+    pub edit: TableEdit,
 }
 
-impl RecentBlocks {
-    fn record(&mut self, job: u32, b: &Block) {
+/// The pass of the running job as the planner thread saw it, and what execution has reached.
+#[derive(Default)]
+pub struct Execution {
+    job: u32,
+    blocks: VecDeque<(Block, Modal)>,
+    pending: VecDeque<PendingWrite>,
+    /// The job's path has moved: from then on the snapshot's block index is this job's.
+    moved: bool,
+    /// The modal state the last finished or stopped job (or MDI) left (what MDI inherits).
+    modal_left: Option<Modal>,
+    /// Jobs already settled (finished or stopped) by [`Execution::observe`].
+    settled: u32,
+}
+
+impl Execution {
+    /// A new job's pass begins (the planner thread, before its first block).
+    pub fn begin(&mut self, job: u32) {
+        self.job = job;
+        self.blocks.clear();
+        self.pending.clear();
+        self.moved = false;
+    }
+
+    /// The planner thread streamed block `b` of `job`; `modal` is the state after it.
+    pub fn record(&mut self, job: u32, b: &Block, modal: &Modal) {
         if job != self.job {
-            self.job = job;
-            self.blocks.clear();
+            return;
         }
         if self.blocks.len() == RECENT_BLOCKS {
             self.blocks.pop_front();
         }
-        self.blocks.push_back(*b);
+        self.blocks.push_back((*b, *modal));
     }
 
-    /// Block `seq` of `job`, if it is still (or already) known.
-    pub fn get(&self, job: u32, seq: u32) -> Option<Block> {
+    /// A `G92` block of `job` was planned: its write waits for the block to execute.
+    pub fn table_write(&mut self, job: u32, w: PendingWrite) {
+        if job == self.job {
+            self.pending.push_back(w);
+        }
+    }
+
+    fn entry(&self, job: u32, seq: u32) -> Option<&(Block, Modal)> {
         if job != self.job {
             return None;
         }
-        let first = self.blocks.front()?.seq;
+        let first = self.blocks.front()?.0.seq;
         let i = seq.checked_sub(first)? as usize;
-        self.blocks.get(i).filter(|b| b.seq == seq).copied()
+        self.blocks.get(i).filter(|(b, _)| b.seq == seq)
     }
-}
 
-/// Streams a validated program's segments to `sink` (which returns false to cancel). Stops at
-/// the first error. `G92 D..` blocks write the memory offset table when planned (at most the
-/// look-ahead before they execute); the interpreter already applied them to its own copy.
-pub fn run(spec: &JobSpec, mut sink: impl FnMut(Segment) -> bool) -> Result<(), Diagnostic> {
-    let job = spec.job;
-    let mut comp = Compensator::new(spec.comp);
-    let mut planner = Planner::new(spec.planner.clone(), job);
-    let mut drain = |planner: &mut Planner| -> bool {
-        while let Some(seg) = planner.poll() {
-            if !sink(seg) {
-                return false;
+    /// Block `seq` of `job`, if it is still (or already) known.
+    pub fn block(&self, job: u32, seq: u32) -> Option<Block> {
+        self.entry(job, seq).map(|e| e.0)
+    }
+
+    /// What the next MDI starts with.
+    pub fn modal_left(&self) -> Option<Modal> {
+        self.modal_left
+    }
+
+    /// Follows execution with snapshot `s`: hands `apply` the table writes whose block the
+    /// path has passed (to apply now, in order). A stopped job's writes that it did not reach
+    /// are dropped; a finished job's remaining writes all apply. Allocates nothing, so the
+    /// single-threaded harness can run it beside the RT core.
+    pub fn observe(&mut self, s: &Snapshot, mut apply: impl FnMut(&PendingWrite)) {
+        if self.job == 0 || self.settled == self.job || s.job != self.job {
+            return;
+        }
+        if s.path_v_mm_s > 0.0 {
+            self.moved = true;
+        }
+        if s.finished_job == self.job {
+            self.pending.drain(..).for_each(|w| apply(&w));
+            self.modal_left = self.blocks.back().map(|e| e.1).or(self.modal_left);
+            self.settled = self.job;
+        } else if s.aborted_job == self.job {
+            self.take_passed(s.block_seq, &mut apply);
+            self.pending.clear();
+            if self.moved
+                && let Some(e) = self.entry(self.job, s.block_seq)
+            {
+                self.modal_left = Some(e.1);
             }
+            self.settled = self.job;
+        } else {
+            self.take_passed(s.block_seq, &mut apply);
         }
-        true
-    };
-    for item in program::stream(&spec.text, &spec.setup) {
-        let mut b = item?;
-        if spec.stop_at_blocks {
-            b.continuity = Continuity::G98;
+    }
+
+    /// Writes of blocks before the executing block `seq` (once the job's path has moved).
+    fn take_passed(&mut self, seq: u32, apply: &mut impl FnMut(&PendingWrite)) {
+        if !self.moved {
+            return;
         }
-        spec.recent
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .record(job, &b);
-        if let BlockKind::TableWrite { entry, values } = b.kind {
-            let edit = TableEdit { entry, values };
-            spec.offsets
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .program_write(&edit)
-                .map_err(|m| Diagnostic::error(b.n, b.line, 0, m))?;
-        }
-        comp.push(&b)?;
-        while let Some(cb) = comp.poll() {
-            // DYNAM_SET as the PLC has it now (cell 0..3 = set 1..4; acts after the look-ahead).
-            planner.set_dynam_set_cell(spec.status.borrow().plc.dynam_set() - 1);
-            planner.push(&cb)?;
-            if !drain(&mut planner) {
-                return Ok(());
+        while self.pending.front().is_some_and(|w| w.seq < seq) {
+            if let Some(w) = self.pending.pop_front() {
+                apply(&w);
             }
         }
     }
-    comp.finish();
-    while let Some(cb) = comp.poll() {
-        planner.push(&cb)?;
-        if !drain(&mut planner) {
-            return Ok(());
-        }
-    }
-    planner.finish();
-    drain(&mut planner);
-    Ok(())
 }

@@ -15,7 +15,9 @@ use hal::DriveBus;
 use kernel::plan::Segment;
 
 use super::clock::Clock;
-pub use super::rt_core::{MachineState, RtCommand, RtCore, RtCoreConfig, RtRings, Snapshot};
+pub use super::rt_core::{
+    JobMachine, MachineState, RtCommand, RtCore, RtCoreConfig, RtRings, Snapshot,
+};
 
 /// Everything the RT thread owns.
 pub struct RtParts {
@@ -52,6 +54,8 @@ pub fn run(parts: RtParts) {
         let now = clock.now_ns();
         status.write(*core.tick(now, &mut rings, bus.as_mut()));
     }
+    // The axes are at rest: the drives are switched off in order before the thread ends.
+    core.shut_down_bus(bus.as_mut(), |t| clock.sleep_until_ns(t));
 }
 
 /// Asks for `SCHED_FIFO` at `priority` for the calling thread.

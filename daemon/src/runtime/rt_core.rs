@@ -25,7 +25,7 @@ use super::stats::{TickStats, TickSummary};
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum RtCommand {
     /// Run the segments of `job` (arriving on the segment ring).
-    Start { job: u32 },
+    Start { job: u32, machine: JobMachine },
     /// Brake to rest on the path, drop the rest of the job.
     Stop,
     /// Feed hold.
@@ -42,6 +42,17 @@ pub enum RtCommand {
     Plc(PlcWrite),
     /// Single-block mode: hold when the path enters a new block (API, issue #8).
     SingleBlock(bool),
+}
+
+/// What the RT side reads of a job's machine setup (issue #14): taken with the job's start, so
+/// KŘR, the spindle and the G24 window use the same constants as the job's planning. `Copy`:
+/// no allocation on the RT thread.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JobMachine {
+    /// R67, R329 d3, R580 (the gear table is the configuration's).
+    pub kr: kernel::kr::KrConstants,
+    /// G24 in-position window per axis (R6, R7), mm.
+    pub in_position_mm: AxesMm,
 }
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -110,8 +121,10 @@ impl Snapshot {
     }
 }
 
-/// Ticks the drives get to become operational before it is a fault.
-const ENABLE_TIMEOUT_TICKS: u32 = 2_500;
+/// Ticks the drives get to become operational beyond the bus's own enable deadline
+/// ([`hal::DriveBus::enable_timeout_ticks`]): the bus names the drive that is late, so its
+/// alarm must come first.
+const ENABLE_MARGIN_TICKS: u32 = 250;
 /// After shutdown braking: ticks to let the drives settle before the thread ends.
 const SETTLE_TICKS: u32 = 250;
 /// Following error under which an axis counts as settled, mm.
@@ -159,14 +172,14 @@ pub struct RtCoreConfig {
     /// Constant cutting speed state machine (built from the constants at start-up).
     pub kr: Kr,
     /// Following error under which every axis counts as arrived, for G24 (R06-R07), mm.
-    pub in_position_mm: f64,
+    pub in_position_mm: AxesMm,
 }
 
 /// The real-time core. Everything the tick owns; the caller owns time, rings and bus.
 pub struct RtCore {
     axes: usize,
     kr: Kr,
-    in_position_mm: f64,
+    in_position_mm: AxesMm,
     interp: Interpolator,
     stats: TickStats,
     snap: Snapshot,
@@ -177,6 +190,8 @@ pub struct RtCore {
     /// Job whose segments are accepted (0: none).
     active_job: u32,
     enable_ticks: u32,
+    /// Enabling window: the bus's deadline plus a margin.
+    enable_window_ticks: u32,
     shutting_down: bool,
     settle_ticks: u32,
     plc: PlcArea,
@@ -194,6 +209,9 @@ impl RtCore {
         let mut cmd = CycleCommand::default();
         cmd.positions_mm[..cfg.axes].copy_from_slice(&cfg.start.0[..cfg.axes]);
         let has_spindle = bus.has_spindle();
+        let enable_window_ticks = bus
+            .enable_timeout_ticks()
+            .saturating_add(ENABLE_MARGIN_TICKS);
         bus.enable();
         RtCore {
             axes: cfg.axes,
@@ -207,12 +225,26 @@ impl RtCore {
             deadline_ns: now_ns + TS_NS,
             active_job: 0,
             enable_ticks: 0,
+            enable_window_ticks,
             shutting_down: false,
             settle_ticks: 0,
             plc: PlcArea::new(),
             sb_seq: u32::MAX,
             has_spindle,
         }
+    }
+
+    /// After the loop has ended ([`RtCore::finished`]): the bus switches its drives off in
+    /// order (CANopen: disable step by step, heartbeat watch cleared, NMT pre-operational),
+    /// still on the tick grid, holding the last setpoints. `sleep_until_ns` waits for a
+    /// deadline. Bounded by the bus's own step timeouts.
+    pub fn shut_down_bus(&mut self, bus: &mut dyn DriveBus, mut sleep_until_ns: impl FnMut(u64)) {
+        let mut deadline = self.deadline_ns;
+        hal::shut_down(bus, &self.cmd, &mut self.fb, || {
+            sleep_until_ns(deadline);
+            deadline += TS_NS;
+        });
+        self.deadline_ns = deadline;
     }
 
     /// The absolute time the next tick is due: sleep until then, then call [`RtCore::tick`].
@@ -264,8 +296,9 @@ impl RtCore {
     /// up with its setpoint (SPEC §7.1); a cut starts from rest only with the spindle at the
     /// speed commanded last tick.
     fn motion(&mut self) -> TickOut {
-        let in_position = (0..self.axes)
-            .all(|i| (self.snap.commanded[i] - self.snap.actual[i]).abs() <= self.in_position_mm);
+        let in_position = (0..self.axes).all(|i| {
+            (self.snap.commanded[i] - self.snap.actual[i]).abs() <= self.in_position_mm[i]
+        });
         self.interp.set_in_position(in_position);
         self.interp.set_spindle_ready(
             !self.has_spindle || spindle_at_speed(self.cmd.spindle_rpm, self.fb.spindle_rpm),
@@ -312,8 +345,10 @@ impl RtCore {
     fn commands(&mut self, commands: &mut rtrb::Consumer<RtCommand>, bus: &mut dyn DriveBus) {
         while let Ok(c) = commands.pop() {
             match c {
-                RtCommand::Start { job } => {
+                RtCommand::Start { job, machine } => {
                     if self.snap.state == MachineState::Idle && !self.shutting_down {
+                        self.kr.set_constants(machine.kr);
+                        self.in_position_mm = machine.in_position_mm;
                         self.active_job = job;
                         self.snap.job = job;
                         self.sb_seq = u32::MAX;
@@ -476,7 +511,7 @@ impl RtCore {
                         self.cmd.positions_mm[..self.axes].copy_from_slice(&here.0[..self.axes]);
                     }
                     s.state = MachineState::Idle;
-                } else if self.enable_ticks > ENABLE_TIMEOUT_TICKS {
+                } else if self.enable_ticks > self.enable_window_ticks {
                     s.fault = Some(BusFault {
                         axis: None,
                         node: None,

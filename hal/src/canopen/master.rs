@@ -7,9 +7,11 @@
 //! allocating:
 //! 1. drain the received frames (TPDOs answering the last SYNC, heartbeats, EMCY, SDO
 //!    answers, error frames);
-//! 2. advance each node: NMT reset → boot-up → SDO configuration → NMT start → CiA 402
-//!    enable sequence → operational; watch TPDOs, heartbeats, statusword;
-//! 3. send SYNC, then one RPDO (controlword, target position) per started node.
+//! 2. advance each node through its [`Phase`]: NMT reset → boot-up → SDO configuration →
+//!    (all configured) NMT start → CiA 402 enable sequence → operational; watch TPDOs,
+//!    heartbeats, statusword; on shutdown walk the power stage down and leave the bus;
+//! 3. send SYNC (once a node is started), then one RPDO (controlword, target position) per
+//!    node in NMT operational.
 //!
 //! Drives latch the RPDO at the next SYNC and answer each SYNC with their TPDO, so feedback is
 //! one tick old. Timeouts are counted in ticks, so a late tick never causes a false alarm.
@@ -35,6 +37,22 @@ pub struct NodeConfig {
     /// Following-error window written to 0x6065 at start-up, increments; `None` keeps the
     /// drive's own setting.
     pub following_window_increments: Option<u32>,
+    /// The axis's highest speed, mm/s. One tick's travel at it is the largest target step the
+    /// master accepts when an enabled drive is handed from holding its own position over to
+    /// the commanded positions.
+    pub max_velocity_mm_s: f64,
+}
+
+impl NodeConfig {
+    /// A drive with its own following window and a speed limit of 200 mm/s.
+    pub fn new(node_id: u8, increments_per_mm: f64) -> NodeConfig {
+        NodeConfig {
+            node_id,
+            increments_per_mm,
+            following_window_increments: None,
+            max_velocity_mm_s: 200.0,
+        }
+    }
 }
 
 /// The spindle drive (CiA 402 in cyclic synchronous velocity mode).
@@ -47,6 +65,17 @@ pub struct SpindleNodeConfig {
     pub units_per_rpm: f64,
 }
 
+/// How the orderly shutdown switches an enabled drive off.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ShutdownMode {
+    /// Disable operation (07h), shutdown (06h), disable voltage (00h).
+    #[default]
+    Disable,
+    /// Quick stop (02h), then disable voltage (00h): the drive stops by its quick stop
+    /// option (0x605A) first.
+    QuickStop,
+}
+
 /// Bus-wide settings. Times are converted to ticks of `cycle_us`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CanOpenConfig {
@@ -56,7 +85,8 @@ pub struct CanOpenConfig {
     pub spindle: Option<SpindleNodeConfig>,
     /// The master's own node id: it produces a heartbeat the drives consume (0x1016).
     pub master_node_id: u8,
-    /// Tick period, µs (0x1006 and 0x60C2 of the drives).
+    /// Tick period, µs, 1000..=10000 in whole ms (0x1006 and 0x60C2 of the drives follow it;
+    /// the caller must call `cycle` at this period).
     pub cycle_us: u32,
     /// Consecutive ticks without a TPDO before a drive counts as silent.
     pub tpdo_missing_ticks: u32,
@@ -72,13 +102,15 @@ pub struct CanOpenConfig {
     pub sdo_timeout_ms: u32,
     /// Time allowed from NMT reset to boot-up, and from NMT start to the first TPDO, ms.
     pub boot_timeout_ms: u32,
-    /// Time allowed for the enable sequence, ms.
+    /// Time allowed for the enable sequence (and for the disable walk at shutdown), ms.
     pub enable_timeout_ms: u32,
     /// Master-side following-error check (setpoint minus actual), mm; `None`: only the
     /// drive's own check (statusword bit 13, EMCY 8611h).
     pub following_error_limit_mm: Option<f64>,
     /// Error frames (decaying by one every 10 ticks) tolerated before a fault.
     pub error_frame_limit: u32,
+    /// How the orderly shutdown switches the drives off.
+    pub shutdown: ShutdownMode,
 }
 
 impl CanOpenConfig {
@@ -99,6 +131,7 @@ impl CanOpenConfig {
             enable_timeout_ms: 2000,
             following_error_limit_mm: None,
             error_frame_limit: 20,
+            shutdown: ShutdownMode::Disable,
         }
     }
 }
@@ -116,29 +149,52 @@ enum Step {
     ReadPosition,
 }
 
+/// The orderly shutdown of one node, in this order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Off {
+    /// Power stage walked down by the statusword: 07h → 06h → 00h.
+    PowerDown { since: u64 },
+    /// SDO write 0x1016:1 = 0: the drive stops watching the master's heartbeat, so the
+    /// master may go silent without the drive faulting.
+    ClearConsumer { sent_at: u64, retried: bool },
+    /// NMT pre-operational sent: nothing more goes to this node.
+    Done,
+}
+
+/// Where a node is. The order of the variants is the order of a start-up; a reset re-enters
+/// at `ResetPending` (communication lost) or `Enabling` (drive-level fault).
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Phase {
     /// Before `enable()`.
     Idle,
-    /// NMT reset goes out next tick.
-    ResetPending,
+    /// The NMT reset goes out next tick: reset node at the first enable, reset communication
+    /// to restart a node after a loss of communication.
+    ResetPending {
+        command: nmt::Command,
+    },
     Booting {
         since: u64,
+        command: nmt::Command,
     },
     Configuring {
         step: usize,
         sent_at: u64,
         retried: bool,
     },
+    /// Configured; NMT start waits until no node is still being configured, so SYNC and PDOs
+    /// start after the configuration.
+    Configured,
     /// NMT start sent; waiting for the first TPDO.
     Starting {
         since: u64,
     },
+    /// CiA 402 enable sequence, acting on fresh statuswords only.
     Enabling {
         since: u64,
     },
     Operational,
     Faulted(FaultReason),
+    ShuttingDown(Off),
 }
 
 struct Node {
@@ -150,13 +206,22 @@ struct Node {
     statusword: u16,
     /// The TPDO's value: actual position (CSP) or actual velocity (CSV), drive units.
     position_increments: i32,
+    /// A TPDO arrived in this tick (its statusword is fresh).
     tpdo_seen: bool,
     tpdo_missing: u32,
     last_heartbeat: u64,
+    /// The NMT state as last known: from the node's heartbeat or TPDO, or what the master
+    /// commanded. RPDOs go only to nodes known operational.
+    nmt_state: u8,
     booted: bool,
     controlword: u16,
     target_increments: i32,
     emcy_code: Option<u16>,
+    /// The commanded positions have been taken over: until then an enabled drive holds its
+    /// own position, so the target never jumps (CSV nodes take the setpoint at once).
+    taken_over: bool,
+    /// One tick's travel at the axis's highest speed, increments (at least 1).
+    max_step_increments: i64,
 }
 
 /// Drives configured and started by this master over a [`CanPort`].
@@ -169,6 +234,7 @@ pub struct CanOpenMaster<P: CanPort> {
     axes: usize,
     tick: u64,
     enabled: bool,
+    shutting_down: bool,
     bus_fault: Option<FaultReason>,
     error_score: u32,
     tx_blocked_ticks: u32,
@@ -224,7 +290,8 @@ fn step_object(s: Step) -> (u16, u8) {
     }
 }
 
-/// Faults a reset can clear at the drive (fault reset over the PDO) instead of a restart.
+/// Faults a reset can clear at the drive (fault reset over the PDO) instead of a restart,
+/// provided the node is still in NMT operational.
 fn is_drive_level(r: FaultReason) -> bool {
     matches!(
         r,
@@ -235,73 +302,132 @@ fn is_drive_level(r: FaultReason) -> bool {
     )
 }
 
+/// Checks the settings the master cannot run with.
+fn check_config(cfg: &CanOpenConfig) -> Result<(), String> {
+    if cfg.nodes.is_empty() || cfg.nodes.len() > MAX_AXES {
+        return Err(format!(
+            "{} drives configured, 1..={MAX_AXES} are supported",
+            cfg.nodes.len()
+        ));
+    }
+    if !(1000..=10_000).contains(&cfg.cycle_us) || !cfg.cycle_us.is_multiple_of(1000) {
+        return Err(format!(
+            "cycle time {} µs: 1 to 10 ms in whole ms are supported",
+            cfg.cycle_us
+        ));
+    }
+    for (i, n) in cfg.nodes.iter().enumerate() {
+        if !(1..=127).contains(&n.node_id) || n.node_id == cfg.master_node_id {
+            return Err(format!(
+                "node id {} of axis {i} is outside 1..127 or equals the master's",
+                n.node_id
+            ));
+        }
+        if cfg.nodes[..i].iter().any(|m| m.node_id == n.node_id) {
+            return Err(format!("node id {} is used twice", n.node_id));
+        }
+        if !(n.increments_per_mm.is_finite() && n.increments_per_mm > 0.0) {
+            return Err(format!("increments per mm of axis {i} must be positive"));
+        }
+        if !(n.max_velocity_mm_s.is_finite() && n.max_velocity_mm_s > 0.0) {
+            return Err(format!("maximum speed of axis {i} must be positive"));
+        }
+    }
+    let Some(sp) = &cfg.spindle else {
+        return Ok(());
+    };
+    if !(1..=127).contains(&sp.node_id) || sp.node_id == cfg.master_node_id {
+        return Err(format!(
+            "node id {} of the spindle is outside 1..127 or equals the master's",
+            sp.node_id
+        ));
+    }
+    if cfg.nodes.iter().any(|m| m.node_id == sp.node_id) {
+        return Err(format!(
+            "node id {} of the spindle is used by an axis",
+            sp.node_id
+        ));
+    }
+    if !(sp.units_per_rpm.is_finite() && sp.units_per_rpm > 0.0) {
+        return Err("velocity units per rpm of the spindle must be positive".into());
+    }
+    Ok(())
+}
+
+impl Node {
+    fn new(c: &CanOpenConfig, cfg: NodeConfig, mode: OpMode) -> Node {
+        let step = cfg.max_velocity_mm_s * cfg.increments_per_mm * f64::from(c.cycle_us) * 1e-6;
+        Node {
+            steps: startup_steps(c, &cfg, mode),
+            max_step_increments: (step.floor() as i64).max(1),
+            cfg,
+            mode,
+            phase: Phase::Idle,
+            statusword: 0,
+            position_increments: 0,
+            tpdo_seen: false,
+            tpdo_missing: 0,
+            last_heartbeat: 0,
+            nmt_state: nmt::state::PRE_OPERATIONAL,
+            booted: false,
+            controlword: 0,
+            target_increments: 0,
+            emcy_code: None,
+            taken_over: false,
+        }
+    }
+
+    /// The target that holds the drive still: where it is (CSP), or speed 0 (CSV).
+    fn hold_target(&self) -> i32 {
+        match self.mode {
+            OpMode::Csp => self.position_increments,
+            OpMode::Csv => 0,
+        }
+    }
+
+    /// Phases in which the node sends a TPDO every SYNC.
+    fn expects_pdo(&self) -> bool {
+        matches!(
+            self.phase,
+            Phase::Starting { .. } | Phase::Enabling { .. } | Phase::Operational
+        )
+    }
+
+    /// Whether the node gets an RPDO this tick: it is known to be in NMT operational and the
+    /// master talks to it (a drive-level fault keeps the power stage off over the RPDO).
+    fn gets_rpdo(&self) -> bool {
+        self.nmt_state == nmt::state::OPERATIONAL
+            && match self.phase {
+                Phase::Starting { .. } | Phase::Enabling { .. } | Phase::Operational => true,
+                // A silent drive may still listen: controlword 0 switches it off.
+                Phase::Faulted(r) => is_drive_level(r) || r == FaultReason::Timeout,
+                Phase::ShuttingDown(off) => off != Off::Done,
+                _ => false,
+            }
+    }
+
+    fn is_off(&self) -> bool {
+        matches!(self.phase, Phase::Idle | Phase::ShuttingDown(Off::Done))
+    }
+}
+
 impl<P: CanPort> CanOpenMaster<P> {
     /// A master for `cfg.nodes` (one per axis, in axis order) on `port`; `name` is the
     /// interface name for logs. Nothing is sent before [`DriveBus::enable`].
     pub fn new(port: P, name: &str, cfg: CanOpenConfig) -> Result<Self, String> {
-        if cfg.nodes.is_empty() || cfg.nodes.len() > MAX_AXES {
-            return Err(format!(
-                "{} drives configured, 1..={MAX_AXES} are supported",
-                cfg.nodes.len()
-            ));
-        }
-        for (i, n) in cfg.nodes.iter().enumerate() {
-            if !(1..=127).contains(&n.node_id) || n.node_id == cfg.master_node_id {
-                return Err(format!(
-                    "node id {} of axis {i} is outside 1..127 or equals the master's",
-                    n.node_id
-                ));
-            }
-            if cfg.nodes[..i].iter().any(|m| m.node_id == n.node_id) {
-                return Err(format!("node id {} is used twice", n.node_id));
-            }
-            if !(n.increments_per_mm.is_finite() && n.increments_per_mm > 0.0) {
-                return Err(format!("increments per mm of axis {i} must be positive"));
-            }
-        }
-        let mut drives: Vec<(NodeConfig, OpMode)> =
-            cfg.nodes.iter().map(|n| (n.clone(), OpMode::Csp)).collect();
-        if let Some(sp) = &cfg.spindle {
-            if !(1..=127).contains(&sp.node_id) || sp.node_id == cfg.master_node_id {
-                return Err(format!(
-                    "node id {} of the spindle is outside 1..127 or equals the master's",
-                    sp.node_id
-                ));
-            }
-            if cfg.nodes.iter().any(|m| m.node_id == sp.node_id) {
-                return Err(format!(
-                    "node id {} of the spindle is used by an axis",
-                    sp.node_id
-                ));
-            }
-            if !(sp.units_per_rpm.is_finite() && sp.units_per_rpm > 0.0) {
-                return Err("velocity units per rpm of the spindle must be positive".into());
-            }
-            let n = NodeConfig {
-                node_id: sp.node_id,
-                increments_per_mm: sp.units_per_rpm,
-                following_window_increments: None,
-            };
-            drives.push((n, OpMode::Csv));
-        }
-        let nodes = drives
-            .into_iter()
-            .map(|(n, mode)| Node {
-                steps: startup_steps(&cfg, &n, mode),
-                cfg: n,
-                mode,
-                phase: Phase::Idle,
-                statusword: 0,
-                position_increments: 0,
-                tpdo_seen: false,
-                tpdo_missing: 0,
-                last_heartbeat: 0,
-                booted: false,
-                controlword: 0,
-                target_increments: 0,
-                emcy_code: None,
-            })
+        check_config(&cfg)?;
+        let mut nodes: Vec<Node> = cfg
+            .nodes
+            .iter()
+            .map(|n| Node::new(&cfg, n.clone(), OpMode::Csp))
             .collect();
+        if let Some(sp) = &cfg.spindle {
+            let n = NodeConfig {
+                following_window_increments: None,
+                ..NodeConfig::new(sp.node_id, sp.units_per_rpm)
+            };
+            nodes.push(Node::new(&cfg, n, OpMode::Csv));
+        }
         Ok(CanOpenMaster {
             port,
             name: name.to_owned(),
@@ -310,6 +436,7 @@ impl<P: CanPort> CanOpenMaster<P> {
             nodes,
             tick: 0,
             enabled: false,
+            shutting_down: false,
             bus_fault: None,
             error_score: 0,
             tx_blocked_ticks: 0,
@@ -346,7 +473,10 @@ impl<P: CanPort> CanOpenMaster<P> {
 
     fn fault(&mut self, i: usize, reason: FaultReason) {
         let n = &mut self.nodes[i];
-        if !matches!(n.phase, Phase::Faulted(_) | Phase::Idle) {
+        if !matches!(
+            n.phase,
+            Phase::Faulted(_) | Phase::Idle | Phase::ShuttingDown(_)
+        ) {
             n.phase = Phase::Faulted(reason);
         }
     }
@@ -371,15 +501,7 @@ impl<P: CanPort> CanOpenMaster<P> {
             return;
         };
         match code {
-            cob::TPDO1 => {
-                // A wrong-length TPDO counts as missing: the tick-based timeout catches it.
-                if let Some(t) = Tpdo::decode(f.payload()) {
-                    let n = &mut self.nodes[i];
-                    n.statusword = t.statusword;
-                    n.position_increments = t.position_increments;
-                    n.tpdo_seen = true;
-                }
-            }
+            cob::TPDO1 => self.on_tpdo(i, f),
             cob::EMCY => {
                 let Some(e) = Emcy::decode(f.payload()) else {
                     return;
@@ -396,34 +518,71 @@ impl<P: CanPort> CanOpenMaster<P> {
                 self.fault(i, reason);
             }
             cob::HEARTBEAT => {
-                let Some(&state) = f.payload().first() else {
-                    return;
-                };
-                let tick = self.tick;
-                let n = &mut self.nodes[i];
-                n.last_heartbeat = tick;
-                let started = matches!(
-                    n.phase,
-                    Phase::Starting { .. } | Phase::Enabling { .. } | Phase::Operational
-                );
-                if state == nmt::state::BOOT_UP {
-                    n.booted = true;
-                    if started {
-                        self.fault(i, FaultReason::NmtStateChanged { state });
-                    }
-                } else if state != nmt::state::OPERATIONAL
-                    && matches!(n.phase, Phase::Enabling { .. } | Phase::Operational)
-                {
-                    self.fault(i, FaultReason::NmtStateChanged { state });
+                if let Some(&state) = f.payload().first() {
+                    self.on_heartbeat(i, state);
                 }
             }
             cob::SDO_TX => {
-                let Phase::Configuring { step, .. } = self.nodes[i].phase else {
-                    return;
-                };
-                let Some(r) = sdo::parse_response(f.payload()) else {
-                    return;
-                };
+                if let Some(r) = sdo::parse_response(f.payload()) {
+                    self.on_sdo_response(i, r);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn on_tpdo(&mut self, i: usize, f: &Frame) {
+        match Tpdo::decode(f.payload()) {
+            Some(t) => {
+                let n = &mut self.nodes[i];
+                n.statusword = t.statusword;
+                n.position_increments = t.position_increments;
+                n.tpdo_seen = true;
+                // Only a node in NMT operational sends PDOs.
+                n.nmt_state = nmt::state::OPERATIONAL;
+            }
+            // CAN frames are checked by CRC: a wrong length is a mapping mismatch, not noise.
+            None if self.nodes[i].expects_pdo() => self.fault(
+                i,
+                FaultReason::PdoLength {
+                    cob_id: f.id,
+                    len: f.len,
+                    expected: pdo::LEN as u8,
+                },
+            ),
+            None => {}
+        }
+    }
+
+    fn on_heartbeat(&mut self, i: usize, state: u8) {
+        let tick = self.tick;
+        let n = &mut self.nodes[i];
+        n.last_heartbeat = tick;
+        if state == nmt::state::BOOT_UP {
+            n.booted = true;
+            n.nmt_state = nmt::state::PRE_OPERATIONAL;
+            if matches!(
+                n.phase,
+                Phase::Starting { .. } | Phase::Enabling { .. } | Phase::Operational
+            ) {
+                self.fault(i, FaultReason::NmtStateChanged { state });
+            }
+            return;
+        }
+        // A heartbeat sent before our NMT start may still arrive while starting.
+        if !matches!(n.phase, Phase::Starting { .. }) {
+            n.nmt_state = state;
+        }
+        if state != nmt::state::OPERATIONAL
+            && matches!(n.phase, Phase::Enabling { .. } | Phase::Operational)
+        {
+            self.fault(i, FaultReason::NmtStateChanged { state });
+        }
+    }
+
+    fn on_sdo_response(&mut self, i: usize, r: Response) {
+        match self.nodes[i].phase {
+            Phase::Configuring { step, .. } => {
                 let expected = self.nodes[i].steps[step];
                 if r.object() != step_object(expected) {
                     return; // a late answer to an earlier, retried request
@@ -431,14 +590,12 @@ impl<P: CanPort> CanOpenMaster<P> {
                 match r {
                     Response::Abort { code, .. } => {
                         let (index, subindex) = r.object();
-                        self.fault(
-                            i,
-                            FaultReason::Configuration {
-                                index,
-                                subindex,
-                                abort_code: code,
-                            },
-                        );
+                        let reason = FaultReason::SdoAbort {
+                            index,
+                            subindex,
+                            abort_code: code,
+                        };
+                        self.fault(i, reason);
                     }
                     Response::UploadOk { value, .. } => {
                         self.nodes[i].position_increments = value as i32;
@@ -446,6 +603,11 @@ impl<P: CanPort> CanOpenMaster<P> {
                     }
                     Response::DownloadOk { .. } => self.next_step(i, step),
                 }
+            }
+            // Done either way: a drive that refuses is switched off and told to stop all the
+            // same.
+            Phase::ShuttingDown(Off::ClearConsumer { .. }) if r.object() == (0x1016, 1) => {
+                self.leave_bus(i)
             }
             _ => {}
         }
@@ -461,10 +623,33 @@ impl<P: CanPort> CanOpenMaster<P> {
             };
             self.send_step(i, step + 1);
         } else {
+            self.nodes[i].phase = Phase::Configured;
+        }
+    }
+
+    /// NMT start for every configured node once no node is still being configured: the
+    /// drives get SYNC and PDOs only after all of them have their configuration.
+    fn start_configured(&mut self) {
+        if self.shutting_down
+            || self.nodes.iter().any(|n| {
+                matches!(
+                    n.phase,
+                    Phase::ResetPending { .. } | Phase::Booting { .. } | Phase::Configuring { .. }
+                )
+            })
+        {
+            return;
+        }
+        let tick = self.tick;
+        for i in 0..self.nodes.len() {
             let n = &mut self.nodes[i];
+            if n.phase != Phase::Configured {
+                continue;
+            }
             n.phase = Phase::Starting { since: tick };
             n.tpdo_seen = false;
             n.last_heartbeat = tick;
+            n.nmt_state = nmt::state::OPERATIONAL;
             n.target_increments = n.hold_target();
             n.controlword = cw::DISABLE_VOLTAGE;
             let id = n.cfg.node_id;
@@ -489,145 +674,241 @@ impl<P: CanPort> CanOpenMaster<P> {
         }
     }
 
-    /// Advances node `i` by one tick; `target` is this tick's setpoint in increments.
-    fn update_node(&mut self, i: usize, target: i32) {
+    fn ticks(&self, ms: u32) -> u64 {
+        ticks(ms, self.cfg.cycle_us)
+    }
+
+    /// Watchdogs of a started node: a TPDO every SYNC, the heartbeat.
+    fn watch(&mut self, i: usize) {
+        let hb_ticks = self.ticks(self.cfg.heartbeat_timeout_ms);
+        let missing_limit = self.cfg.tpdo_missing_ticks;
         let tick = self.tick;
-        let c = &self.cfg;
-        let boot_ticks = ticks(c.boot_timeout_ms, c.cycle_us);
-        let sdo_ticks = ticks(c.sdo_timeout_ms, c.cycle_us);
-        let enable_ticks = ticks(c.enable_timeout_ms, c.cycle_us);
-        let hb_ticks = ticks(c.heartbeat_timeout_ms, c.cycle_us);
-        let missing_limit = c.tpdo_missing_ticks;
-        // The master's following-error check is a position check: not for a velocity node.
-        let fe_limit = c
-            .following_error_limit_mm
-            .filter(|_| self.nodes[i].mode == OpMode::Csp)
-            .map(|mm| mm * self.nodes[i].cfg.increments_per_mm);
-
-        // Watchdogs of a started node: TPDO every SYNC, heartbeat.
         let n = &mut self.nodes[i];
-        if matches!(n.phase, Phase::Enabling { .. } | Phase::Operational) {
-            if n.tpdo_seen {
-                n.tpdo_missing = 0;
-            } else {
-                n.tpdo_missing += 1;
-            }
-            if n.tpdo_missing > missing_limit {
-                self.fault(i, FaultReason::Timeout);
-            } else if tick - n.last_heartbeat > hb_ticks {
-                self.fault(i, FaultReason::HeartbeatLost);
-            }
+        if !matches!(n.phase, Phase::Enabling { .. } | Phase::Operational) {
+            return;
         }
+        if n.tpdo_seen {
+            n.tpdo_missing = 0;
+        } else {
+            n.tpdo_missing += 1;
+        }
+        if n.tpdo_missing > missing_limit {
+            self.fault(i, FaultReason::Timeout);
+        } else if tick - n.last_heartbeat > hb_ticks {
+            self.fault(i, FaultReason::HeartbeatLost);
+        }
+    }
 
-        let n = &mut self.nodes[i];
-        match n.phase {
-            Phase::Idle => {}
-            Phase::ResetPending => {
+    /// Advances node `i` by one tick; `target` is this tick's setpoint in drive units.
+    fn update_node(&mut self, i: usize, target: i32) {
+        self.watch(i);
+        match self.nodes[i].phase {
+            Phase::Idle | Phase::Configured | Phase::ShuttingDown(Off::Done) => {}
+            Phase::ResetPending { command } => {
+                let tick = self.tick;
+                let n = &mut self.nodes[i];
                 n.booted = false;
                 n.emcy_code = None;
-                n.phase = Phase::Booting { since: tick };
+                n.nmt_state = nmt::state::PRE_OPERATIONAL;
+                n.phase = Phase::Booting {
+                    since: tick,
+                    command,
+                };
                 let id = n.cfg.node_id;
-                self.send(&nmt::command(nmt::Command::ResetNode, id));
+                self.send(&nmt::command(command, id));
             }
-            Phase::Booting { since } => {
-                if n.booted {
-                    n.phase = Phase::Configuring {
-                        step: 0,
-                        sent_at: tick,
-                        retried: false,
-                    };
-                    self.send_step(i, 0);
-                } else if tick - since > boot_ticks {
-                    self.fault(i, FaultReason::NoBootUp);
-                } else if (tick - since).is_multiple_of(boot_ticks / 3 + 1) {
-                    // The reset may have been lost (a drive busy or not yet listening): ask
-                    // again, twice, before giving up.
-                    let id = n.cfg.node_id;
-                    self.send(&nmt::command(nmt::Command::ResetNode, id));
-                }
-            }
+            Phase::Booting { since, command } => self.boot(i, since, command),
             Phase::Configuring {
                 step,
                 sent_at,
                 retried,
-            } => {
-                if tick - sent_at > sdo_ticks {
-                    if retried {
-                        let (index, subindex) = step_object(n.steps[step]);
-                        self.fault(
-                            i,
-                            FaultReason::Configuration {
-                                index,
-                                subindex,
-                                abort_code: 0,
-                            },
-                        );
-                    } else {
-                        n.phase = Phase::Configuring {
-                            step,
-                            sent_at: tick,
-                            retried: true,
-                        };
-                        self.send_step(i, step);
-                    }
-                }
-            }
-            Phase::Starting { since } => {
-                n.target_increments = n.hold_target();
-                if n.tpdo_seen {
-                    n.tpdo_missing = 0;
-                    n.phase = Phase::Enabling { since: tick };
-                    let state = PowerState::from_statusword(n.statusword);
-                    n.controlword = cia402::controlword_toward_enabled(state, n.controlword);
-                } else if tick - since > boot_ticks {
-                    self.fault(i, FaultReason::Timeout);
-                }
-            }
-            Phase::Enabling { since } => {
-                // Target follows the actual position (a spindle: stands) until enabled, so
-                // nothing jumps.
-                n.target_increments = n.hold_target();
-                let state = PowerState::from_statusword(n.statusword);
-                if state == PowerState::OperationEnabled {
-                    n.phase = Phase::Operational;
-                    n.controlword = cw::ENABLE_OPERATION_CMD;
-                } else if tick - since > enable_ticks {
-                    let statusword = n.statusword;
-                    self.fault(i, FaultReason::EnableTimeout { statusword });
-                } else {
-                    n.controlword = cia402::controlword_toward_enabled(state, n.controlword);
-                }
-            }
-            Phase::Operational => {
-                let s = n.statusword;
-                let state = PowerState::from_statusword(s);
-                let lag = f64::from(n.target_increments) - f64::from(n.position_increments);
-                if s & sw::FOLLOWING_ERROR != 0 {
-                    self.fault(i, FaultReason::FollowingError);
-                } else if matches!(state, PowerState::Fault | PowerState::FaultReactionActive) {
-                    let code = n.emcy_code.unwrap_or(0);
-                    self.fault(i, FaultReason::DriveFault { code });
-                } else if state != PowerState::OperationEnabled {
-                    self.fault(i, FaultReason::DriveDisabled { statusword: s });
-                } else if fe_limit.is_some_and(|l| lag.abs() > l) {
-                    self.fault(i, FaultReason::FollowingError);
-                } else {
-                    n.target_increments = target;
-                }
-            }
-            Phase::Faulted(_) => {
-                // Power stage off; the target stays where the drive is.
-                n.controlword = cw::DISABLE_VOLTAGE;
-                n.target_increments = n.hold_target();
+            } => self.configure(i, step, sent_at, retried),
+            Phase::Starting { since } => self.start(i, since),
+            Phase::Enabling { since } => self.enable_step(i, since),
+            Phase::Operational => self.operate(i, target),
+            Phase::Faulted(_) => {}
+            Phase::ShuttingDown(Off::PowerDown { since }) => self.power_down(i, since),
+            Phase::ShuttingDown(Off::ClearConsumer { sent_at, retried }) => {
+                self.clear_consumer(i, sent_at, retried)
             }
         }
-        // A node that just faulted gets its power stage switched off in this tick's RPDO.
+        // A faulted node gets its power stage switched off in this tick's RPDO; its target
+        // stays where the drive is.
         let n = &mut self.nodes[i];
         if matches!(n.phase, Phase::Faulted(_)) {
             n.controlword = cw::DISABLE_VOLTAGE;
             n.target_increments = n.hold_target();
+            n.taken_over = false;
         }
         n.tpdo_seen = false;
+    }
+
+    fn boot(&mut self, i: usize, since: u64, command: nmt::Command) {
+        let boot_ticks = self.ticks(self.cfg.boot_timeout_ms);
+        let tick = self.tick;
+        let n = &mut self.nodes[i];
+        if n.booted {
+            n.phase = Phase::Configuring {
+                step: 0,
+                sent_at: tick,
+                retried: false,
+            };
+            self.send_step(i, 0);
+        } else if tick - since > boot_ticks {
+            self.fault(i, FaultReason::NoBootUp);
+        } else if (tick - since).is_multiple_of(boot_ticks / 3 + 1) {
+            // The reset may have been lost (a drive busy or not yet listening): ask again,
+            // twice, before giving up.
+            let id = n.cfg.node_id;
+            self.send(&nmt::command(command, id));
+        }
+    }
+
+    fn configure(&mut self, i: usize, step: usize, sent_at: u64, retried: bool) {
+        if self.tick - sent_at <= self.ticks(self.cfg.sdo_timeout_ms) {
+            return;
+        }
+        if retried {
+            let (index, subindex) = step_object(self.nodes[i].steps[step]);
+            self.fault(i, FaultReason::SdoTimeout { index, subindex });
+        } else {
+            self.nodes[i].phase = Phase::Configuring {
+                step,
+                sent_at: self.tick,
+                retried: true,
+            };
+            self.send_step(i, step);
+        }
+    }
+
+    fn start(&mut self, i: usize, since: u64) {
+        let boot_ticks = self.ticks(self.cfg.boot_timeout_ms);
+        let tick = self.tick;
+        let n = &mut self.nodes[i];
+        n.target_increments = n.hold_target();
+        if n.tpdo_seen {
+            n.tpdo_missing = 0;
+            n.phase = Phase::Enabling { since: tick };
+            self.enable_step(i, tick);
+        } else if tick - since > boot_ticks {
+            self.fault(i, FaultReason::Timeout);
+        }
+    }
+
+    /// The CiA 402 enable sequence. It acts only on a statusword that arrived this tick: after
+    /// a reset the last one known may be stale (the drive faulted or switched off since).
+    fn enable_step(&mut self, i: usize, since: u64) {
+        let enable_ticks = self.ticks(self.cfg.enable_timeout_ms);
+        let tick = self.tick;
+        let n = &mut self.nodes[i];
+        // The target follows the actual position (a spindle: stands) until enabled.
+        n.target_increments = n.hold_target();
+        let state = PowerState::from_statusword(n.statusword);
+        if tick - since > enable_ticks {
+            let statusword = n.statusword;
+            self.fault(i, FaultReason::EnableTimeout { statusword });
+        } else if !n.tpdo_seen {
+            // Keep the last controlword until the drive reports again.
+        } else if state == PowerState::OperationEnabled {
+            n.phase = Phase::Operational;
+            n.controlword = cw::ENABLE_OPERATION_CMD;
+            n.taken_over = n.mode == OpMode::Csv;
+        } else {
+            n.controlword = cia402::controlword_toward_enabled(state, n.controlword);
+        }
+    }
+
+    fn operate(&mut self, i: usize, target: i32) {
+        // The master's following-error check is a position check: not for a velocity node.
+        let fe_limit = self
+            .cfg
+            .following_error_limit_mm
+            .filter(|_| self.nodes[i].mode == OpMode::Csp)
+            .map(|mm| mm * self.nodes[i].cfg.increments_per_mm);
+        let n = &mut self.nodes[i];
+        let s = n.statusword;
+        let state = PowerState::from_statusword(s);
+        let lag = f64::from(n.target_increments) - f64::from(n.position_increments);
+        if s & sw::FOLLOWING_ERROR != 0 {
+            self.fault(i, FaultReason::FollowingError);
+        } else if matches!(state, PowerState::Fault | PowerState::FaultReactionActive) {
+            let code = n.emcy_code.unwrap_or(0);
+            self.fault(i, FaultReason::DriveFault { code });
+        } else if state != PowerState::OperationEnabled {
+            self.fault(i, FaultReason::DriveDisabled { statusword: s });
+        } else if fe_limit.is_some_and(|l| lag.abs() > l) {
+            self.fault(i, FaultReason::FollowingError);
+        } else if n.taken_over {
+            n.target_increments = target;
+        } else if (i64::from(target) - i64::from(n.target_increments)).abs()
+            <= n.max_step_increments
+        {
+            // The controller commands from where the drive is: from now on it leads.
+            n.taken_over = true;
+            n.target_increments = target;
+        } else {
+            // The controller has not yet taken its commanded position from this drive's
+            // actual position (it does so once every drive is enabled): hold still.
+            n.target_increments = n.hold_target();
+        }
+    }
+
+    /// Shutdown: walk the power stage down (07h → 06h → 00h, or 02h → 00h) on fresh
+    /// statuswords.
+    fn power_down(&mut self, i: usize, since: u64) {
+        let enable_ticks = self.ticks(self.cfg.enable_timeout_ms);
+        let toward_off = match self.cfg.shutdown {
+            ShutdownMode::Disable => cia402::controlword_toward_disabled,
+            ShutdownMode::QuickStop => cia402::controlword_toward_disabled_by_quick_stop,
+        };
+        let tick = self.tick;
+        let n = &mut self.nodes[i];
+        let state = PowerState::from_statusword(n.statusword);
+        let off = matches!(
+            state,
+            PowerState::SwitchOnDisabled
+                | PowerState::NotReadyToSwitchOn
+                | PowerState::Fault
+                | PowerState::FaultReactionActive
+        );
+        if (n.tpdo_seen && off)
+            || tick - since > enable_ticks
+            || n.nmt_state != nmt::state::OPERATIONAL
+        {
+            n.controlword = cw::DISABLE_VOLTAGE;
+            self.send_clear_consumer(i, false);
+        } else if n.tpdo_seen {
+            n.controlword = toward_off(state);
+        }
+    }
+
+    fn send_clear_consumer(&mut self, i: usize, retried: bool) {
+        self.nodes[i].phase = Phase::ShuttingDown(Off::ClearConsumer {
+            sent_at: self.tick,
+            retried,
+        });
+        let id = self.nodes[i].cfg.node_id;
+        self.send(&sdo::download(id, 0x1016, 1, 0, 4));
+    }
+
+    fn clear_consumer(&mut self, i: usize, sent_at: u64, retried: bool) {
+        if self.tick - sent_at <= self.ticks(self.cfg.sdo_timeout_ms) {
+            return;
+        }
+        if retried {
+            self.leave_bus(i);
+        } else {
+            self.send_clear_consumer(i, true);
+        }
+    }
+
+    /// Last step of a node's shutdown: NMT pre-operational (PDOs stop, SDO stays possible).
+    fn leave_bus(&mut self, i: usize) {
+        let n = &mut self.nodes[i];
+        n.phase = Phase::ShuttingDown(Off::Done);
+        n.nmt_state = nmt::state::PRE_OPERATIONAL;
+        let id = n.cfg.node_id;
+        self.send(&nmt::command(nmt::Command::EnterPreOperational, id));
     }
 
     /// The spindle node, if configured.
@@ -637,27 +918,110 @@ impl<P: CanPort> CanOpenMaster<P> {
 
     fn state_of(phase: Phase) -> DriveState {
         match phase {
-            Phase::Idle => DriveState::Disabled,
+            Phase::Idle | Phase::ShuttingDown(_) => DriveState::Disabled,
             Phase::Operational => DriveState::Operational,
             Phase::Faulted(_) => DriveState::Fault,
             _ => DriveState::Enabling,
         }
+    }
+
+    /// This tick's setpoint of node `i` in drive units.
+    fn target_of(&self, i: usize, cmd: &CycleCommand) -> i32 {
+        let value = if i < self.axes {
+            cmd.positions_mm[i]
+        } else if cmd.spindle_rpm.is_finite() {
+            cmd.spindle_rpm
+        } else {
+            // A setpoint that is not a number stops the spindle rather than the bus.
+            0.0
+        };
+        to_units(value, self.nodes[i].cfg.increments_per_mm)
+    }
+
+    /// SYNC (once a node is started), one RPDO per node in NMT operational, the heartbeat.
+    fn send_cyclic(&mut self) {
+        if self.nodes.iter().any(Node::gets_rpdo) {
+            self.send(&pdo::sync());
+        }
+        for i in 0..self.nodes.len() {
+            let n = &self.nodes[i];
+            if n.gets_rpdo() {
+                let f = Rpdo {
+                    controlword: n.controlword,
+                    target_increments: n.target_increments,
+                }
+                .encode(n.cfg.node_id);
+                self.send(&f);
+            }
+        }
+        let hb = self.ticks(u32::from(self.cfg.master_heartbeat_ms));
+        if hb > 0 && self.tick.is_multiple_of(hb) {
+            let id = self.cfg.master_node_id;
+            self.send(&nmt::heartbeat(id, nmt::state::OPERATIONAL));
+        }
+    }
+
+    fn drain(&mut self) {
+        for _ in 0..MAX_RX_PER_TICK {
+            match self.port.try_recv() {
+                Ok(Some(RxEvent::Frame(f))) => self.on_frame(&f),
+                Ok(Some(RxEvent::Error { class, .. })) => self.on_error_frame(class),
+                Ok(None) | Err(PortError::WouldBlock) => break,
+                Err(PortError::Down) => {
+                    self.bus_fault.get_or_insert(FaultReason::BusError);
+                    break;
+                }
+            }
+        }
+        if self.tick.is_multiple_of(10) {
+            self.error_score = self.error_score.saturating_sub(1);
+        }
+    }
+
+    fn fill_feedback(&self, feedback: &mut CycleFeedback) {
+        for (fb, n) in feedback.axes.iter_mut().zip(&self.nodes[..self.axes]) {
+            *fb = AxisFeedback {
+                position_mm: f64::from(n.position_increments) / n.cfg.increments_per_mm,
+                state: Self::state_of(n.phase),
+            };
+        }
+        let (spindle_rpm, spindle_state) = match self.spindle() {
+            Some(n) if n.phase == Phase::Operational => (
+                f64::from(n.position_increments) / n.cfg.increments_per_mm,
+                DriveState::Operational,
+            ),
+            Some(n) => (0.0, Self::state_of(n.phase)),
+            None => (0.0, DriveState::Disabled),
+        };
+        feedback.spindle_rpm = spindle_rpm;
+        feedback.spindle_state = spindle_state;
+    }
+
+    /// The fault to report this tick: the bus's, else the first faulted node's.
+    fn first_fault(&self) -> Result<(), BusFault> {
+        if let Some(reason) = self.bus_fault {
+            return Err(BusFault {
+                axis: None,
+                node: None,
+                reason,
+            });
+        }
+        for (i, n) in self.nodes.iter().enumerate() {
+            if let Phase::Faulted(reason) = n.phase {
+                return Err(BusFault {
+                    axis: Some(self.axis_of(i)),
+                    node: Some(n.cfg.node_id),
+                    reason,
+                });
+            }
+        }
+        Ok(())
     }
 }
 
 /// Largest number of received frames handled per tick, so a babbling node cannot stall the
 /// tick (the rest waits in the socket buffer for the next tick).
 const MAX_RX_PER_TICK: usize = 256;
-
-impl Node {
-    /// The target that holds the drive still: where it is (CSP), or speed 0 (CSV).
-    fn hold_target(&self) -> i32 {
-        match self.mode {
-            OpMode::Csp => self.position_increments,
-            OpMode::Csv => 0,
-        }
-    }
-}
 
 /// A value in drive units, rounded and saturated to the 32-bit PDO field.
 fn to_units(value: f64, units_per: f64) -> i32 {
@@ -681,61 +1045,19 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
 
     fn cycle(&mut self, cmd: &CycleCommand, feedback: &mut CycleFeedback) -> Result<(), BusFault> {
         self.tick += 1;
-        for _ in 0..MAX_RX_PER_TICK {
-            match self.port.try_recv() {
-                Ok(Some(RxEvent::Frame(f))) => self.on_frame(&f),
-                Ok(Some(RxEvent::Error { class, .. })) => self.on_error_frame(class),
-                Ok(None) | Err(PortError::WouldBlock) => break,
-                Err(PortError::Down) => {
-                    self.bus_fault.get_or_insert(FaultReason::BusError);
-                    break;
-                }
-            }
-        }
-        if self.tick.is_multiple_of(10) {
-            self.error_score = self.error_score.saturating_sub(1);
-        }
-
+        self.drain();
         let blocked_before = self.tx_blocked_ticks;
         for i in 0..self.nodes.len() {
-            let value = if i < self.axes {
-                cmd.positions_mm[i]
-            } else {
-                // A setpoint that is not a number stops the spindle rather than the bus.
-                if cmd.spindle_rpm.is_finite() {
-                    cmd.spindle_rpm
-                } else {
-                    0.0
-                }
-            };
-            let target = to_units(value, self.nodes[i].cfg.increments_per_mm);
+            let target = self.target_of(i, cmd);
             self.update_node(i, target);
         }
-
+        self.start_configured();
         if self.enabled {
-            self.send(&pdo::sync());
-            for i in 0..self.nodes.len() {
-                let n = &self.nodes[i];
-                if matches!(
-                    n.phase,
-                    Phase::Starting { .. }
-                        | Phase::Enabling { .. }
-                        | Phase::Operational
-                        | Phase::Faulted(_)
-                ) {
-                    let f = Rpdo {
-                        controlword: n.controlword,
-                        target_increments: n.target_increments,
-                    }
-                    .encode(n.cfg.node_id);
-                    self.send(&f);
-                }
-            }
-            let hb = ticks(u32::from(self.cfg.master_heartbeat_ms), self.cfg.cycle_us);
-            if hb > 0 && self.tick.is_multiple_of(hb) {
-                let id = self.cfg.master_node_id;
-                self.send(&nmt::heartbeat(id, nmt::state::OPERATIONAL));
-            }
+            self.send_cyclic();
+        }
+        if self.shutting_down && self.nodes.iter().all(Node::is_off) {
+            // Every drive has left: SYNC and the master's heartbeat stop.
+            self.enabled = false;
         }
         // A transmit queue that stays full (nobody acknowledges, bus jammed) is a bus fault.
         if self.tx_blocked_ticks == blocked_before {
@@ -743,71 +1065,104 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
         } else if self.tx_blocked_ticks > self.cfg.tpdo_missing_ticks {
             self.bus_fault.get_or_insert(FaultReason::BusError);
         }
-
-        for (fb, n) in feedback.axes.iter_mut().zip(&self.nodes[..self.axes]) {
-            *fb = AxisFeedback {
-                position_mm: f64::from(n.position_increments) / n.cfg.increments_per_mm,
-                state: Self::state_of(n.phase),
-            };
-        }
-        let (spindle_rpm, spindle_state) = match self.spindle() {
-            Some(n) if n.phase == Phase::Operational => (
-                f64::from(n.position_increments) / n.cfg.increments_per_mm,
-                DriveState::Operational,
-            ),
-            Some(n) => (0.0, Self::state_of(n.phase)),
-            None => (0.0, DriveState::Disabled),
-        };
-        feedback.spindle_rpm = spindle_rpm;
-        feedback.spindle_state = spindle_state;
-        if let Some(reason) = self.bus_fault {
-            return Err(BusFault {
-                axis: None,
-                node: None,
-                reason,
-            });
-        }
-        for (i, n) in self.nodes.iter().enumerate() {
-            if let Phase::Faulted(reason) = n.phase {
-                return Err(BusFault {
-                    axis: Some(self.axis_of(i)),
-                    node: Some(n.cfg.node_id),
-                    reason,
-                });
-            }
-        }
-        Ok(())
+        self.fill_feedback(feedback);
+        self.first_fault()
     }
 
     fn enable(&mut self) {
+        if self.shutting_down {
+            return;
+        }
         self.enabled = true;
         for n in &mut self.nodes {
             if matches!(n.phase, Phase::Idle) {
-                n.phase = Phase::ResetPending;
+                n.phase = Phase::ResetPending {
+                    command: nmt::Command::ResetNode,
+                };
             }
         }
     }
 
     fn reset(&mut self) {
+        if self.shutting_down {
+            return;
+        }
         self.enabled = true;
         let whole_bus = self.bus_fault.take().is_some();
         self.error_score = 0;
         self.tx_blocked_ticks = 0;
         let tick = self.tick;
+        let hb_ticks = self.ticks(self.cfg.heartbeat_timeout_ms);
+        let restart = Phase::ResetPending {
+            command: nmt::Command::ResetCommunication,
+        };
         for n in &mut self.nodes {
+            // Still in NMT operational by its own latest word: a fault reset over the RPDO
+            // is enough. Otherwise (it left operational, or went quiet) the whole start-up.
+            let talking =
+                n.nmt_state == nmt::state::OPERATIONAL && tick - n.last_heartbeat <= hb_ticks;
             match n.phase {
-                Phase::Faulted(r) if is_drive_level(r) && !whole_bus => {
-                    // The drive still talks: a fault reset over the RPDO is enough.
+                Phase::Faulted(r) if is_drive_level(r) && !whole_bus && talking => {
                     n.emcy_code = None;
                     n.tpdo_missing = 0;
-                    n.last_heartbeat = tick;
                     n.phase = Phase::Enabling { since: tick };
                 }
-                Phase::Faulted(_) | Phase::Idle => n.phase = Phase::ResetPending,
-                _ if whole_bus => n.phase = Phase::ResetPending,
+                Phase::Faulted(_) => n.phase = restart,
+                Phase::Idle => {
+                    n.phase = Phase::ResetPending {
+                        command: nmt::Command::ResetNode,
+                    }
+                }
+                _ if whole_bus => n.phase = restart,
                 _ => {}
             }
         }
+    }
+
+    fn enable_timeout_ticks(&self) -> u32 {
+        // The slowest path a node may take before it is operational or faulted by its own
+        // timeouts: boot-up, every SDO with its retry, NMT start to the first TPDO, enable.
+        let c = &self.cfg;
+        let steps = self.nodes.iter().map(|n| n.steps.len()).max().unwrap_or(0) as u64;
+        let boot = self.ticks(c.boot_timeout_ms) + 1;
+        let sdo = 2 * (self.ticks(c.sdo_timeout_ms) + 1);
+        let total = 2 * boot + steps * sdo + self.ticks(c.enable_timeout_ms) + 2;
+        u32::try_from(total).unwrap_or(u32::MAX)
+    }
+
+    fn shutdown(&mut self) {
+        if self.shutting_down {
+            return;
+        }
+        self.shutting_down = true;
+        let tick = self.tick;
+        for i in 0..self.nodes.len() {
+            let n = &mut self.nodes[i];
+            match n.phase {
+                Phase::Idle
+                | Phase::ResetPending { .. }
+                | Phase::Booting { .. }
+                | Phase::Faulted(FaultReason::NoBootUp) => {
+                    n.phase = Phase::ShuttingDown(Off::Done);
+                }
+                Phase::Starting { .. } | Phase::Enabling { .. } | Phase::Operational => {
+                    n.phase = Phase::ShuttingDown(Off::PowerDown { since: tick });
+                }
+                Phase::Faulted(r) if is_drive_level(r) => {
+                    n.phase = Phase::ShuttingDown(Off::PowerDown { since: tick });
+                }
+                // Configured but not started, or communication lost: no power stage to walk
+                // down, but the heartbeat watch may be set.
+                Phase::Configuring { .. } | Phase::Configured | Phase::Faulted(_) => {
+                    self.send_clear_consumer(i, false);
+                }
+                Phase::ShuttingDown(_) => {}
+            }
+        }
+    }
+
+    fn is_shut_down(&self) -> bool {
+        self.shutting_down && !self.enabled
     }
 }
 
@@ -842,6 +1197,7 @@ mod tests {
                     node_id,
                     increments_per_mm: 1000.0,
                     following_window_increments: Some(5000),
+                    ..NodeConfig::new(node_id, 1000.0)
                 })
                 .collect(),
         );
@@ -1084,13 +1440,67 @@ mod tests {
         );
     }
 
+    /// Issue #23, seen 3: after a reset the last statusword known (Operation Enabled, from
+    /// before the fault) is stale; the master waits for the drive's next TPDO and walks the
+    /// sequence from the state that reports.
+    #[test]
+    fn reset_waits_for_a_fresh_statusword() {
+        let mut m = master(&[3]);
+        operational(&mut m);
+        overcurrent(&mut m, 3);
+        rx(&mut m, nmt::heartbeat(3, nmt::state::OPERATIONAL));
+        assert!(step(&mut m).1.is_err());
+        m.reset();
+        for _ in 0..5 {
+            rx(&mut m, nmt::heartbeat(3, nmt::state::OPERATIONAL));
+            let (sent, r) = step(&mut m);
+            assert!(r.is_ok());
+            assert_eq!(rpdo_of(&sent).controlword, cw::DISABLE_VOLTAGE);
+        }
+        tpdo(&mut m, PowerState::SwitchOnDisabled, 0, 2500);
+        let (sent, _) = step(&mut m);
+        assert_eq!(rpdo_of(&sent).controlword, cw::SHUTDOWN);
+    }
+
+    /// A TPDO of the wrong length is a mapping fault, named with its COB-ID and lengths; the
+    /// reset restarts the node (reset communication, configuration).
+    #[test]
+    fn short_tpdo_is_a_pdo_length_fault() {
+        let mut m = master(&[3]);
+        operational(&mut m);
+        rx(&mut m, Frame::new(0x183, &[0x37, 0x02, 0xC4]));
+        let e = step(&mut m).1.unwrap_err();
+        assert_eq!(
+            e.reason,
+            FaultReason::PdoLength {
+                cob_id: 0x183,
+                len: 3,
+                expected: 6
+            }
+        );
+        m.reset();
+        let (sent, _) = step(&mut m);
+        assert!(sent.contains(&nmt::command(nmt::Command::ResetCommunication, 3)));
+        assert!(
+            !sent.iter().any(|f| f.id == 0x203),
+            "no RPDO while restarting"
+        );
+    }
+
+    /// The enable deadline the bus reports covers every per-node timeout on the way.
+    #[test]
+    fn enable_deadline_covers_the_node_timeouts() {
+        let m = master(&[3]);
+        let per_node = ticks(3000, 4000) * 2 + 2000 / 4;
+        assert!(u64::from(m.enable_timeout_ticks()) > per_node);
+    }
+
     #[test]
     fn bus_off_and_bad_frames() {
         let mut m = master(&[3]);
         operational(&mut m);
-        // Garbage must not panic: short PDO, short EMCY, empty heartbeat, unknown nodes.
+        // Garbage must not panic: short EMCY, empty heartbeat, unknown nodes.
         for f in [
-            Frame::new(0x183, &[1]),
             Frame::new(0x83, &[1, 2]),
             Frame::new(0x703, &[]),
             Frame::new(0x583, &[0xFF; 8]),
@@ -1113,10 +1523,10 @@ mod tests {
                 reason: FaultReason::BusOff
             }
         );
-        // Reset after bus-off restarts every node.
+        // Reset after bus-off restarts every node (reset communication, configuration).
         m.reset();
         let (sent, _) = step(&mut m);
-        assert!(sent.contains(&nmt::command(nmt::Command::ResetNode, 3)));
+        assert!(sent.contains(&nmt::command(nmt::Command::ResetCommunication, 3)));
     }
 
     #[test]
@@ -1168,7 +1578,7 @@ mod tests {
         let e = step(&mut m).1.unwrap_err();
         assert_eq!(
             e.reason,
-            FaultReason::Configuration {
+            FaultReason::SdoAbort {
                 index,
                 subindex,
                 abort_code: sdo::abort::CANNOT_MAP
@@ -1201,6 +1611,7 @@ mod tests {
             node_id: 3,
             increments_per_mm: 1000.0,
             following_window_increments: Some(5000),
+            ..NodeConfig::new(3, 1000.0)
         }]);
         cfg.spindle = Some(SpindleNodeConfig {
             node_id: 9,
@@ -1403,6 +1814,7 @@ mod tests {
                 node_id: 3,
                 increments_per_mm: 1000.0,
                 following_window_increments: None,
+                ..NodeConfig::new(3, 1000.0)
             }]);
             c.spindle = Some(SpindleNodeConfig {
                 node_id: id,

@@ -76,6 +76,9 @@ pub struct CompConfig {
     pub position: PercentRule,
     /// R55: how far an arc end point may lie off its circle, mm (used by R397 d7).
     pub arc_end_tolerance_mm: f64,
+    /// 6.R765 = 1: a gouge found by the whole-run check is an error (the program is refused),
+    /// not a warning (docs/compensation.md decision 19; a decade the manual leaves unused).
+    pub refuse_gouges: bool,
 }
 
 impl Default for CompConfig {
@@ -101,14 +104,24 @@ impl Default for CompConfig {
                 ..PercentRule::default()
             },
             arc_end_tolerance_mm: DEFAULT_ARC_END_TOLERANCE_MM,
+            refuse_gouges: false,
         }
     }
 }
 
-/// R55 = 0 reads as 10 µm (the manual gives R55's use, not its default: our decision).
+/// Arc end tolerance of `CompConfig::default()` (R55 default, 10 µm). From the constants it is
+/// `Constants::arc_tolerance_mm`, the interpreter's too.
 pub const DEFAULT_ARC_END_TOLERANCE_MM: f64 = 0.010;
 
 impl CompConfig {
+    /// How much closer than the radius `radius_mm` the tool centre may come to the contour
+    /// without a gouge being reported: 1 µm, plus the error of R234's perpendicular point
+    /// r·(1 − cos(α/2)) which the machinist chose (SPEC §4.4).
+    pub fn gouge_tolerance_mm(&self, radius_mm: f64) -> f64 {
+        let half = self.continuity_limit_deg.to_radians() / 2.0;
+        super::gouge::GOUGE_TOLERANCE_MM + radius_mm * (1.0 - half.cos())
+    }
+
     /// Reads R95, R234, R339, R397, R764, R765 and R55 (SPEC §1 decades, §4).
     pub fn from_constants(c: &Constants) -> Self {
         let corner_mode = match c.decade(339, 8) {
@@ -124,7 +137,6 @@ impl CompConfig {
             0 => default,
             p => p as f64,
         };
-        let tol = c.get(55).abs();
         CompConfig {
             enabled: c.decade(95, 8) == 1,
             corner_mode,
@@ -152,11 +164,9 @@ impl CompConfig {
                 report: c.decade(765, 7) == 1,
                 optimise: c.decade(765, 8) == 1,
             },
-            arc_end_tolerance_mm: if tol > 0.0 {
-                tol
-            } else {
-                DEFAULT_ARC_END_TOLERANCE_MM
-            },
+            // One accessor for the interpreter and the compensator (issue #14).
+            arc_end_tolerance_mm: c.arc_tolerance_mm(),
+            refuse_gouges: c.decade(765, 6) == 1,
         }
     }
 }
@@ -190,6 +200,9 @@ mod tests {
         assert_eq!(cfg.exit.percent, 150.0);
         assert!(cfg.exit.report && cfg.exit.optimise);
         assert_eq!(cfg.position.percent, 300.0);
+        assert!(!cfg.refuse_gouges);
+        c.set(765, 11100.0);
+        assert!(CompConfig::from_constants(&c).refuse_gouges);
     }
 
     #[test]

@@ -17,7 +17,10 @@
 
 pub mod config;
 pub mod corner;
+#[doc(hidden)]
+pub mod fuzz;
 pub mod geom;
+pub mod gouge;
 
 use std::collections::VecDeque;
 use std::f64::consts::PI;
@@ -96,6 +99,10 @@ struct CornerArc {
 struct Elem {
     src: Block,
     geo: Geo,
+    /// The programmed element as the gouge check measures it: `geo` before an arc was
+    /// replaced by its chord for its equidistant (R397 d5, d8; d7's arc is not a circle, so
+    /// its chord is the element).
+    programmed: Geo,
     /// Arc replaced by its chord (R397 d5, d7, d8).
     chord: bool,
     kind: ElemKind,
@@ -142,6 +149,8 @@ pub struct Compensator {
     tool: Option<AxesMm>,
     /// Plane of the last compensation, for reconciling after G40 without motion (7.R339).
     last_plane: Plane,
+    /// The whole-run gouge check (docs/compensation.md decision 19).
+    gouge: gouge::Check,
 }
 
 impl Default for Compensator {
@@ -196,9 +205,13 @@ fn err(b: &Block, msg: impl Into<String>) -> Diagnostic {
 }
 
 fn name(b: &Block) -> String {
-    match b.n {
+    source_name(b.n, b.line)
+}
+
+fn source_name(n: Option<u32>, line: u32) -> String {
+    match n {
         Some(n) => format!("N{n}"),
-        None => format!("on line {}", b.line),
+        None => format!("on line {line}"),
     }
 }
 
@@ -332,6 +345,7 @@ impl Compensator {
             notes: Notes::default(),
             tool: None,
             last_plane: Plane::G17,
+            gouge: gouge::Check::default(),
         }
     }
 
@@ -515,6 +529,8 @@ impl Compensator {
 
     fn start_run(&mut self, b: &Block, geo: Geo, rapid: bool) {
         self.last_plane = b.plane;
+        let r = signed_offset(b.comp).abs();
+        self.gouge.begin(b.plane, r, self.cfg.gouge_tolerance_mm(r));
         let start = self.tool.map_or(geo.start(), |t| V2::of(&t, b.plane));
         self.run = Some(Run {
             comp: b.comp,
@@ -523,6 +539,7 @@ impl Compensator {
             elems: VecDeque::from([Elem {
                 src: *b,
                 geo,
+                programmed: geo,
                 chord: false,
                 kind: ElemKind::Transition { rapid },
                 start,
@@ -575,6 +592,7 @@ impl Compensator {
         let elem = Elem {
             src: *b,
             geo,
+            programmed: geo,
             chord,
             kind: ElemKind::Regular,
             start: geo.start(),
@@ -655,18 +673,26 @@ impl Compensator {
         if m == 0 || m + 1 >= elems.len() {
             return;
         }
-        // Only between compensated blocks (no start) and not where arcs are inserted.
-        if !elems[m - 1].is_regular()
-            || !elems[m].is_regular()
-            || elems[m].corner.is_some()
-            || elems[m + 1].corner.is_some()
-        {
+        // Only between compensated blocks (no start).
+        if !elems[m - 1].is_regular() || !elems[m].is_regular() {
             return;
         }
         if !runs_backwards(&elems[m], s) {
             return;
         }
         let src = elems[m].src;
+        // Next to an inserted arc SPEC §4.5 does no R397 check; the loop is resolved
+        // geometrically instead (docs/compensation.md, decision 18).
+        if elems[m].corner.is_some() || elems[m + 1].corner.is_some() {
+            if trim_at_corner_arc(elems, m, s) {
+                return;
+            }
+            elems[m].backward_unfixed = true;
+            if cfg.check.check && cfg.check.warn {
+                self.notes.push(backward_warning(&src));
+            }
+            return;
+        }
         if elems[m].geo.is_arc() && cfg.check.complementary_arc_to_line {
             let mut trial = elems.clone();
             if try_chord(&mut trial, m, s, &cfg) && !runs_backwards(&trial[m], s) {
@@ -684,16 +710,7 @@ impl Compensator {
             return;
         }
         if cfg.check.warn {
-            self.notes.push(Diagnostic::warning(
-                src.n,
-                src.line,
-                0,
-                format!(
-                    "Chyba v zadání ekvidistanty pro poloměrové korekce v bloku {}: error in the equidistant of block {}: the tool centre would run backwards (the tool is too large for this detail)",
-                    name(&src),
-                    name(&src)
-                ),
-            ));
+            self.notes.push(backward_warning(&src));
         }
         // 4-block: this and the previous element both loop; join m-2 and m+1 directly.
         if cfg.check.optimise_4_blocks
@@ -764,6 +781,39 @@ impl Compensator {
         for e in run.elems {
             self.emit_elem(e, s, run.plane);
         }
+        self.report_gouges();
+    }
+
+    /// The whole-run gouge check (docs/compensation.md decision 19): one message per tool
+    /// block that cuts into the contour, naming both blocks and the depth.
+    fn report_gouges(&mut self) {
+        let (found, skipped) = self.gouge.finish();
+        for g in found {
+            let (t, c) = (g.tool, g.contour);
+            let msg = format!(
+                "{} the tool centre of block {} comes {:.3} mm closer than the tool radius to the contour of block {}: the tool cuts into the part",
+                gouge::MESSAGE_PREFIX,
+                source_name(t.n, t.line),
+                g.depth_mm,
+                source_name(c.n, c.line)
+            );
+            self.notes.push(if self.cfg.refuse_gouges {
+                Diagnostic::error(t.n, t.line, 0, msg)
+            } else {
+                Diagnostic::warning(t.n, t.line, 0, msg)
+            });
+        }
+        if let Some(t) = skipped {
+            self.notes.push(Diagnostic::info(
+                t.n,
+                t.line,
+                0,
+                format!(
+                    "the gouge check covers the first {} elements of a compensated contour; from here on it is not checked",
+                    gouge::MAX_CHECKED_ELEMENTS
+                ),
+            ));
+        }
     }
 
     /// R764: the last working block before a rapid, shorter than the limit, whose
@@ -803,6 +853,14 @@ impl Compensator {
     }
 
     fn put(&mut self, block: Block, role: Role, offset_mm: f64) {
+        match role {
+            Role::Equidistant => self.gouge.tool(&block, true),
+            // A chord's equidistant is not at the radius from the programmed arc.
+            Role::EquidistantChord | Role::CornerArc | Role::Collapsed => {
+                self.gouge.tool(&block, false)
+            }
+            _ => {}
+        }
         if let Some((_, end, _)) = block.motion() {
             self.tool = Some(end);
         }
@@ -877,6 +935,7 @@ impl Compensator {
                 self.put_motion(&src, with_plane(pend, e.end, plane), path, role, s);
             }
             ElemKind::Regular => {
+                self.gouge.contour(&e.programmed, &src);
                 if let Some(d) = e.far_mm
                     && self.cfg.position.report
                 {
@@ -1040,6 +1099,106 @@ fn try_chord(elems: &mut VecDeque<Elem>, i: usize, s: f64, cfg: &CompConfig) -> 
         }
     }
     true
+}
+
+/// The R397 warning: the equidistant of `src` runs backwards (SPEC §4.5).
+fn backward_warning(src: &Block) -> Diagnostic {
+    Diagnostic::warning(
+        src.n,
+        src.line,
+        0,
+        format!(
+            "Chyba v zadání ekvidistanty pro poloměrové korekce v bloku {}: error in the equidistant of block {}: the tool centre would run backwards (the tool is too large for this detail)",
+            name(src),
+            name(src)
+        ),
+    )
+}
+
+/// Sweep from angle `from` to angle `to` (rad) in the direction of `like` (its sign), in
+/// (0, 2π] for a positive direction.
+fn sweep_like(from: f64, to: f64, like: f64) -> f64 {
+    let mut sw = wrap_pi(to - from);
+    if like > 0.0 && sw < 0.0 {
+        sw += 2.0 * PI;
+    } else if like < 0.0 && sw > 0.0 {
+        sw -= 2.0 * PI;
+    }
+    sw
+}
+
+/// Element `m` runs backwards and an arc is inserted at one of its ends (a short step between
+/// an inside and an outside corner). Its equidistant is dropped and the inserted arc is cut
+/// against the equidistant on the other side of the step: the previous element when the arc
+/// is at `m`'s end, the next one when it is at `m`'s start. The tool centre then goes straight
+/// from that equidistant onto the arc, which stays at the tool radius from the corner, instead
+/// of running back along the step (docs/compensation.md, decision 18). `false` (nothing
+/// changed) when the arc and the equidistant do not meet within the arc, or the trimmed
+/// neighbour would run backwards itself.
+fn trim_at_corner_arc(elems: &mut VecDeque<Elem>, m: usize, s: f64) -> bool {
+    let r = s.abs();
+    if let Some(c) = elems[m + 1].corner {
+        // Arc at the end of m: trim the previous equidistant against it.
+        if elems[m].corner.is_some() || elems[m - 1].collapsed {
+            return false;
+        }
+        let circle = geom::Support::Circle { c: c.corner, r };
+        let Some(x) = intersect(&elems[m - 1].geo.support(s), &circle, elems[m].start) else {
+            return false;
+        };
+        let sw = sweep_like(
+            (x - c.corner).angle(),
+            (c.to - c.corner).angle(),
+            c.sweep_rad,
+        );
+        let mut trial = elems[m - 1].clone();
+        trial.end = x;
+        if sw.abs() > c.sweep_rad.abs() + 1e-9 || runs_backwards(&trial, s) {
+            return false;
+        }
+        elems[m - 1].end = x;
+        collapse_at(&mut elems[m], x);
+        if let Some(cc) = elems[m + 1].corner.as_mut() {
+            cc.sweep_rad = sw;
+        }
+        return true;
+    }
+    let (Some(c), true) = (elems[m].corner, elems[m + 1].corner.is_none()) else {
+        return false;
+    };
+    // Arc at the start of m: it now ends on the next equidistant.
+    let circle = geom::Support::Circle { c: c.corner, r };
+    let Some(x) = intersect(&circle, &elems[m + 1].geo.support(s), elems[m].end) else {
+        return false;
+    };
+    let from = (elems[m - 1].end - c.corner).angle();
+    let sw = sweep_like(from, (x - c.corner).angle(), c.sweep_rad);
+    let mut trial = elems[m + 1].clone();
+    trial.start = x;
+    trial.end = if trial.closed {
+        trial.end
+    } else {
+        trial.geo.offset_end(s)
+    };
+    if sw.abs() > c.sweep_rad.abs() + 1e-9 || runs_backwards(&trial, s) {
+        return false;
+    }
+    collapse_at(&mut elems[m], x);
+    elems[m].corner = Some(CornerArc {
+        to: x,
+        sweep_rad: sw,
+        ..c
+    });
+    elems[m + 1].start = x;
+    true
+}
+
+/// The element's equidistant is removed: it starts and ends at `x`.
+fn collapse_at(e: &mut Elem, x: V2) {
+    e.start = x;
+    e.end = x;
+    e.collapsed = true;
+    e.backward_unfixed = false;
 }
 
 /// The 3-block (`first + 2 == last`) and 4-block (`first + 3 == last`) optimisation: the

@@ -66,6 +66,26 @@ pub enum KrConfigError {
     TooManyGears,
 }
 
+/// What KŘR reads from the machine constants (R67, R329 d3, R580), decoded once per job.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct KrConstants {
+    /// Controlling axis (R67), 0-based machine axis index.
+    pub controlling_axis: usize,
+    pub version: KrVersion,
+    pub s_word: SWordMode,
+}
+
+impl KrConstants {
+    /// Decodes R67, R329 decade 3 and R580; refuses values the manual does not define.
+    pub fn from_constants(c: &Constants) -> Result<Self, KrConfigError> {
+        Ok(KrConstants {
+            controlling_axis: controlling_axis(c)?,
+            s_word: SWordMode::from_constants(c)?,
+            version: version_of(c)?,
+        })
+    }
+}
+
 /// Everything KŘR needs to know about the machine.
 #[derive(Clone, Debug, PartialEq)]
 pub struct KrConfig {
@@ -87,18 +107,33 @@ impl KrConfig {
         radius_input: RadiusInput,
         gears: Vec<Gear>,
     ) -> Result<Self, KrConfigError> {
-        let controlling_axis = controlling_axis(c)?;
-        let s_word = SWordMode::from_constants(c)?;
-        let version = version_of(c)?;
+        let k = KrConstants::from_constants(c)?;
         let cfg = KrConfig {
-            controlling_axis,
+            controlling_axis: k.controlling_axis,
             radius_input,
-            version,
-            s_word,
+            version: k.version,
+            s_word: k.s_word,
             gears,
         };
         cfg.check_gears()?;
         Ok(cfg)
+    }
+
+    /// The part of the configuration that comes from the constants.
+    pub fn constants(&self) -> KrConstants {
+        KrConstants {
+            controlling_axis: self.controlling_axis,
+            version: self.version,
+            s_word: self.s_word,
+        }
+    }
+
+    /// Takes the constants' part from `k` (a job's snapshot), keeping the gear table. `Copy`
+    /// and allocation-free: the RT thread applies it when a job starts.
+    pub fn set_constants(&mut self, k: KrConstants) {
+        self.controlling_axis = k.controlling_axis;
+        self.version = k.version;
+        self.s_word = k.s_word;
     }
 
     fn check_gears(&self) -> Result<(), KrConfigError> {

@@ -152,6 +152,12 @@ impl Kr {
         &self.cfg
     }
 
+    /// A job's constants (R67, R329, R580) take effect: called when the job starts, so every
+    /// stage of the job reads the same snapshot. No allocation.
+    pub fn set_constants(&mut self, k: super::config::KrConstants) {
+        self.cfg.set_constants(k);
+    }
+
     /// Forgets the program's state (program reset): KŘR off, no held speed, speed 0.
     pub fn reset(&mut self) {
         self.active = false;

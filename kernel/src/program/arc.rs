@@ -68,6 +68,23 @@ impl ERefinement {
     }
 }
 
+/// A block whose centre the preprocessor refined (R325, SPEC §4.6).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Refined {
+    /// Index of the block in the program, its `N` number and 1-based source line.
+    pub seq: u32,
+    pub n: Option<u32>,
+    pub line: u32,
+    /// The refinement the preprocessor applied.
+    pub refinement: ERefinement,
+    /// The E word the block carries after refinement (a programmed E on the same coordinate
+    /// plus the refinement); `None` when a programmed E corrects the other coordinate (a
+    /// block has one E word only).
+    pub word: Option<ERefinement>,
+    /// Byte offset of a programmed E word in its line.
+    pub programmed_e_at: Option<usize>,
+}
+
 /// Radii of the start and end point about `center`.
 pub fn radii(start: (f64, f64), end: (f64, f64), center: (f64, f64)) -> (f64, f64) {
     (

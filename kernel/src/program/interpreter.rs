@@ -4,7 +4,7 @@
 //! state is computed into a copy. Only when nothing is wrong is the copy committed, so a bad
 //! block never changes state half-way.
 
-use super::arc::{self, ERefinement};
+use super::arc::{self, Corrected, ERefinement, Refined};
 use super::feed::{self, FeedMode};
 use super::words::{LexError, Lexer, MAX_PARAM, Num, Token, Value};
 use super::{IjMode, Setup};
@@ -81,6 +81,73 @@ struct State {
     speed_from_css: bool,
 }
 
+/// The modal state a program or MDI leaves for the next MDI (docs/language.md, "What MDI
+/// inherits"): motion, plane, G90/G91, G94/G95, feed, M37, continuity, dynamic set and the
+/// spindle (direction, S, gear, KŘR). Compensation, D and & offsets and the R parameters are
+/// not inherited: they end with the program.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Modal {
+    motion: Motion,
+    plane: Plane,
+    absolute: bool,
+    feed_mode: FeedMode,
+    feed: Option<Feed>,
+    m37: bool,
+    continuity: Continuity,
+    dyn_set: u8,
+    spindle: Spindle,
+    speed_from_css: bool,
+}
+
+impl Modal {
+    /// The spindle state in force.
+    pub fn spindle(&self) -> Spindle {
+        self.spindle
+    }
+
+    /// G91 (incremental) is in force.
+    pub fn incremental(&self) -> bool {
+        !self.absolute
+    }
+
+    /// The programmed feed in force, if any.
+    pub fn feed(&self) -> Option<Feed> {
+        self.feed
+    }
+}
+
+impl State {
+    fn modal(&self) -> Modal {
+        Modal {
+            motion: self.motion,
+            plane: self.plane,
+            absolute: self.absolute,
+            feed_mode: self.feed_mode,
+            feed: self.feed,
+            m37: self.m37,
+            continuity: self.continuity,
+            dyn_set: self.dyn_set,
+            spindle: self.spindle,
+            speed_from_css: self.speed_from_css,
+        }
+    }
+
+    fn inherit(&mut self, m: &Modal) {
+        self.motion = m.motion;
+        self.plane = m.plane;
+        self.absolute = m.absolute;
+        self.feed_mode = m.feed_mode;
+        self.feed = m.feed;
+        self.m37 = m.m37;
+        self.continuity = m.continuity;
+        self.dyn_set = m.dyn_set;
+        self.spindle = m.spindle;
+        self.speed_from_css = m.speed_from_css;
+        // Offsets are not inherited: the spindle's length offset for KŘR goes with them.
+        self.spindle.length_offset_mm = 0.0;
+    }
+}
+
 /// The words of one block, collected before anything is interpreted.
 #[derive(Default)]
 struct Words {
@@ -139,6 +206,9 @@ pub struct Interpreter {
     params: [Option<Num>; MAX_PARAM as usize + 1],
     seq: u32,
     notes: Vec<Diagnostic>,
+    /// R325 refinements of committed blocks, kept only when asked for (see
+    /// [`Interpreter::record_refinements`]): a streaming run never grows.
+    refinements: Option<Vec<Refined>>,
     setup_error: Option<String>,
     /// Index of the controlling axis R67 among the program's axes, for the length offset that
     /// rides with the spindle state (KŘR at the tool tip, SPEC §6); `None`: R67 names no axis
@@ -183,7 +253,7 @@ impl Interpreter {
                 .take(MAX_AXES)
                 .position(|a| a.to_ascii_uppercase() == l)
         });
-        Interpreter {
+        let mut interp = Interpreter {
             kr_axis,
             gears: setup.gears.clone(),
             max_feed_mm_min: setup.max_feed_mm_min,
@@ -223,8 +293,13 @@ impl Interpreter {
             params: [None; MAX_PARAM as usize + 1],
             seq: 0,
             notes: Vec::new(),
+            refinements: None,
             setup_error,
+        };
+        if let Some(m) = &setup.modal {
+            interp.state.inherit(m);
         }
+        interp
     }
 
     /// A problem with the setup itself (axis names); reported once, before any block.
@@ -235,6 +310,19 @@ impl Interpreter {
     }
 
     /// Warnings and information produced since the last call (arc replaced by a line, ...).
+    /// Keep every R325 refinement for [`Interpreter::take_refinements`] (listings).
+    pub fn record_refinements(&mut self) {
+        self.refinements.get_or_insert_with(Vec::new);
+    }
+
+    /// R325 refinements recorded so far (empty unless recording).
+    pub fn take_refinements(&mut self) -> Vec<Refined> {
+        self.refinements
+            .as_mut()
+            .map(std::mem::take)
+            .unwrap_or_default()
+    }
+
     pub fn take_notes(&mut self) -> Vec<Diagnostic> {
         std::mem::take(&mut self.notes)
     }
@@ -242,6 +330,11 @@ impl Interpreter {
     /// Whether notes are waiting (cheap check for the streaming loop).
     pub fn has_notes(&self) -> bool {
         !self.notes.is_empty()
+    }
+
+    /// The modal state after the last block (what an MDI after it inherits).
+    pub fn modal(&self) -> Modal {
+        self.state.modal()
     }
 
     /// The interpreter's copy of the offset table (including `G92` writes so far).
@@ -751,6 +844,7 @@ impl Interpreter {
         let moves = motion_words || (arc_block && ij_present);
         let mut kind = BlockKind::Technology;
         let mut warn: Option<(usize, String)> = None;
+        let mut refined = None;
         if let Some(ed) = edit {
             kind = BlockKind::TableWrite {
                 entry: ed.entry,
@@ -759,7 +853,10 @@ impl Interpreter {
         } else if moves {
             let path = if arc_block {
                 match self.arc(w, &st, old, start, end, offset)? {
-                    Ok(p) => p,
+                    Ok((p, r)) => {
+                        refined = r;
+                        p
+                    }
                     Err(msg) => {
                         warn = Some((w.first, msg));
                         Path::Line
@@ -836,6 +933,9 @@ impl Interpreter {
                 msg,
             ));
         }
+        if let Some(r) = refined {
+            self.note_refinement(w, line_no, r);
+        }
         if matches!(kind, BlockKind::Motion { .. }) {
             st.machine = end;
         }
@@ -871,8 +971,48 @@ impl Interpreter {
         })
     }
 
+    /// SPEC §4.6: the preprocessor records a refinement as address E in the block; here it
+    /// is an information message with the E word (and, when recording, a [`Refined`]).
+    fn note_refinement(&mut self, w: &Words, line_no: u32, r: ERefinement) {
+        // A programmed E on the same coordinate adds up; on the other one the block would
+        // need two E words, which the language does not have: only the message tells.
+        let programmed =
+            w.e.and_then(|(e, at)| Some((ERefinement::decode(e.value).ok()?, at)));
+        let word = match programmed {
+            Some((p, _)) if p.which == r.which => Some(ERefinement {
+                which: r.which,
+                delta_mm: p.delta_mm + r.delta_mm,
+            }),
+            Some(_) => None,
+            None => Some(r),
+        };
+        let coord = if r.which == Corrected::I { 'I' } else { 'J' };
+        let shown = word.unwrap_or(r);
+        self.notes.push(Diagnostic::info(
+            w.n,
+            line_no,
+            0,
+            format!(
+                "circle refinement (R325): E{:.3}, {coord} corrected by {:+.6} mm",
+                shown.encode(),
+                r.delta_mm
+            ),
+        ));
+        if let Some(list) = self.refinements.as_mut() {
+            list.push(Refined {
+                seq: self.seq,
+                n: w.n,
+                line: line_no,
+                refinement: r,
+                word,
+                programmed_e_at: programmed.map(|(_, at)| at),
+            });
+        }
+    }
+
     /// Builds and checks an arc. `Ok(Err(msg))`: the end point misses the circle and 7.R397
-    /// turns the arc into a line (the message becomes a warning).
+    /// turns the arc into a line (the message becomes a warning). `Ok(Ok((path, E)))`: E is
+    /// the R325 refinement the preprocessor applied, if any.
     fn arc(
         &self,
         w: &Words,
@@ -881,7 +1021,7 @@ impl Interpreter {
         start: AxesMm,
         end: AxesMm,
         offset: AxesMm,
-    ) -> Result<Result<Path, String>, Fail> {
+    ) -> Result<Result<(Path, Option<ERefinement>), String>, Fail> {
         let rules = self.rules;
         let (a, b) = st.plane.axes();
         let (Some((i, _)), Some((j, _))) = (w.i, w.j) else {
@@ -908,7 +1048,8 @@ impl Interpreter {
             IjMode::Absolute => (ij.0 + offset[a], ij.1 + offset[b]),
         };
         let mut c2 = centre_of(ij);
-        if let Some(r) = arc::refine(s2, e2, c2, rules.refinement) {
+        let refined = arc::refine(s2, e2, c2, rules.refinement);
+        if let Some(r) = refined {
             ij = r.apply(ij);
             c2 = centre_of(ij);
         }
@@ -934,15 +1075,18 @@ impl Interpreter {
         let mut center = start;
         center[a] = c2.0;
         center[b] = c2.1;
-        Ok(Ok(Path::Arc {
-            dir: if st.motion == Motion::Cw {
-                ArcDir::Cw
-            } else {
-                ArcDir::Ccw
+        Ok(Ok((
+            Path::Arc {
+                dir: if st.motion == Motion::Cw {
+                    ArcDir::Cw
+                } else {
+                    ArcDir::Ccw
+                },
+                center,
+                plane: st.plane,
             },
-            center,
-            plane: st.plane,
-        }))
+            refined,
+        )))
     }
 }
 

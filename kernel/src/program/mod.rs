@@ -18,7 +18,7 @@ pub mod interpreter;
 pub mod words;
 
 pub use feed::{FeedMode, MAX_FEED_MM_MIN, MAX_FEED_MM_REV};
-pub use interpreter::Interpreter;
+pub use interpreter::{Interpreter, Modal};
 
 use crate::block::Block;
 use crate::constants::Constants;
@@ -63,6 +63,9 @@ pub struct Setup {
     /// Highest path feed the machine can reach, mm/min (the fastest axis; 0 = unknown): a
     /// feed per revolution above βmax = Vmax/S is a warning (SPEC §5).
     pub max_feed_mm_min: f64,
+    /// Modal state to start in (MDI inherits what the last program or MDI left); `None`: the
+    /// power-on state.
+    pub modal: Option<Modal>,
 }
 
 impl Setup {
@@ -76,6 +79,7 @@ impl Setup {
             preprocessor: true,
             gears: Vec::new(),
             max_feed_mm_min: 0.0,
+            modal: None,
         }
     }
 
@@ -168,6 +172,78 @@ fn run(text: &str, setup: &Setup, mut sink: impl FnMut(Block), diags: &mut Vec<D
             format!("{dropped_notes} more warnings or notes not listed"),
         ));
     }
+}
+
+/// The R325 listing (SPEC §4.6): the program text with the preprocessor's refinements written
+/// as address E the way the manual shows (`E2.054`, `E-10006.992`), every refinement per block,
+/// and the program's messages. A programmed E is replaced by the total; a refinement of the
+/// other coordinate than a programmed E is listed but not written (one E per block).
+pub fn refinement_listing(
+    text: &str,
+    setup: &Setup,
+) -> (String, Vec<arc::Refined>, Vec<Diagnostic>) {
+    let mut s = stream(text, setup);
+    s.interp.record_refinements();
+    let mut diags = Vec::new();
+    let mut refined = Vec::new();
+    while let Some(item) = s.next() {
+        diags.extend(s.interp.take_notes());
+        refined.extend(s.interp.take_refinements());
+        if let Err(d) = item {
+            diags.push(d);
+        }
+    }
+    diags.extend(s.interp.take_notes());
+    refined.extend(s.interp.take_refinements());
+    (write_refinements(text, &refined), refined, diags)
+}
+
+/// `text` with the E words of `refined` written into their lines.
+fn write_refinements(text: &str, refined: &[arc::Refined]) -> String {
+    let mut out = String::with_capacity(text.len() + 16 * refined.len());
+    let mut next = refined.iter().peekable();
+    for (k, line) in text.split_inclusive('\n').enumerate() {
+        let line_no = k as u32 + 1;
+        let mut word = None;
+        while let Some(r) = next.next_if(|r| r.line <= line_no) {
+            if r.line == line_no {
+                word = r.word.map(|w| (w, r.programmed_e_at));
+            }
+        }
+        match word {
+            Some((w, at)) => out.push_str(&with_e_word(line, w.encode(), at)),
+            None => out.push_str(line),
+        }
+    }
+    out
+}
+
+/// One line with its E word set to `e`: a programmed E word (at byte `at`) is replaced,
+/// otherwise ` E…` is written after the last word, before a remark.
+fn with_e_word(line: &str, e: f64, at: Option<usize>) -> String {
+    let word = format!("E{e:.3}");
+    if let Some(at) = at {
+        let rest = &line[at + 1..];
+        let len = rest
+            .find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | '+' | '-' | ' ')))
+            .unwrap_or(rest.len());
+        let tail = &rest[len..];
+        let gap = if tail.is_empty() || tail.starts_with(['\r', '\n']) {
+            ""
+        } else {
+            " "
+        };
+        return format!("{}{word}{gap}{tail}", &line[..at]);
+    }
+    let end = words::remark_start(line);
+    let code = line[..end].trim_end();
+    let tail = &line[code.len()..];
+    let gap = if tail.trim_start().is_empty() {
+        ""
+    } else {
+        " "
+    };
+    format!("{code} {word}{gap}{}", tail.trim_start_matches([' ', '\t']))
 }
 
 /// Streams the blocks of a program for execution: `Ok(block)` in order, `Err(error)` for a

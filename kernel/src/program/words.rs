@@ -307,6 +307,20 @@ impl Iterator for Lexer<'_> {
     }
 }
 
+/// Byte offset where the remark of a line starts (`;` or a quote, as the lexer reads them),
+/// or the line's length.
+pub fn remark_start(line: &str) -> usize {
+    let b = line.as_bytes();
+    (0..b.len())
+        .find(|&i| {
+            matches!(b[i], b';' | b'"')
+                || (b[i] == 0xE2
+                    && b.get(i + 1) == Some(&0x80)
+                    && matches!(b.get(i + 2), Some(0x9C..=0x9E)))
+        })
+        .unwrap_or(b.len())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -38,10 +38,12 @@ fn main() {
                     Command::Silent(on, w) if pick(n, w) => n.inject.silent = on,
                     Command::Corrupt(on, w) if pick(n, w) => n.inject.corrupt_pdo = on,
                     Command::Fault(code, w) if pick(n, w) => n.force_fault(code, &mut out),
+                    Command::State => println!("{}", n.state_line()),
                     Command::Quit => return,
                     _ => {}
                 }
             }
+            let _ = std::io::stdout().flush();
             eprintln!("sim-can: {c:?}");
         }
         // Wait briefly for a frame, then take everything already queued.

@@ -119,6 +119,25 @@ impl Proc {
         s.flush().unwrap();
     }
 
+    /// Sends SIGTERM and waits up to `timeout` for the process to end; its exit status.
+    pub fn terminate(&mut self, timeout: Duration) -> std::process::ExitStatus {
+        let pid = libc::pid_t::try_from(self.child.id()).unwrap();
+        // SAFETY: plain syscall on our own child's pid (not yet reaped, so not reused).
+        unsafe { libc::kill(pid, libc::SIGTERM) };
+        let end = Instant::now() + timeout;
+        loop {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return status;
+            }
+            assert!(
+                Instant::now() < end,
+                "{} did not end after SIGTERM",
+                self.name
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
     /// Kills the process (SIGKILL) and reaps it.
     pub fn kill(&mut self) {
         let _ = self.child.kill();

@@ -11,6 +11,9 @@ use tokio_stream::Stream;
 use tonic::{Request, Response, Status};
 
 use super::auth::require;
+use kernel::pipeline::{self, Flow};
+use kernel::plan::Segment;
+
 use super::{
     ApiState, DEFAULT_STATUS_HZ, JUNCTION_CLASSIFY_MAX_BLOCKS, MAX_STATUS_HZ, PlanInfo, RunInfo,
     RunMode, Stored, blocking, diagnostic_to_pb, invalid_with_diagnostics, status_of,
@@ -27,28 +30,40 @@ pub struct MachineSvc(pub Arc<ApiState>);
 type Stream_<T> = Pin<Box<dyn Stream<Item = Result<T, Status>> + Send>>;
 
 impl MachineSvc {
-    /// Validates and selects `text` under `name`, then classifies its junctions for status.
-    async fn select(&self, name: String, text: Arc<str>) -> Result<pb::LoadProgramReply, Status> {
+    /// Validates `text` (the whole pipeline, collecting the junction classes for status on the
+    /// same pass); then, only if it is valid, `keep` runs (storing it) and the program is
+    /// selected. The last step has no await point: a call cancelled by its deadline before it
+    /// stops before it, and a refusal (e.g. RESOURCE_EXHAUSTED from `keep`) changes nothing.
+    async fn select(
+        &self,
+        name: String,
+        text: Arc<str>,
+        keep: impl FnOnce(&LoadedProgram) -> Result<(), Status>,
+    ) -> Result<pb::LoadProgramReply, Status> {
         let st = self.0.clone();
-        let loaded = blocking(move || -> Result<Arc<LoadedProgram>, Status> {
-            let loaded = st.ctl.load_program(&name, &text).map_err(status_of)?;
-            // Status decoration only: a planner failure (even a panic) must not fail the load.
-            let junctions =
-                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| classify(&st, &loaded)))
-                    .unwrap_or_default();
-            *st.plan_info.lock().unwrap() = Some(PlanInfo {
-                program: Arc::as_ptr(&loaded) as *const () as usize,
-                junctions,
-            });
-            Ok(loaded)
+        let (loaded, junctions) = blocking(move || {
+            let mut js = Junctions::default();
+            let loaded = st
+                .ctl
+                .prepare_program(&name, &text, &mut js)
+                .map_err(status_of)?;
+            Ok::<_, Status>((loaded, js.classes))
         })
         .await??;
+        keep(&loaded)?;
+        self.0.ctl.select(loaded.clone()).map_err(status_of)?;
+        *self.0.plan_info.lock().unwrap() = Some(PlanInfo {
+            program: Arc::as_ptr(&loaded) as *const () as usize,
+            junctions,
+        });
         Ok(pb::LoadProgramReply {
             blocks: loaded.block_count,
             diagnostics: loaded.warnings.iter().map(diagnostic_to_pb).collect(),
         })
     }
 
+    /// Stores `text` under `name`, or RESOURCE_EXHAUSTED (nothing stored) when the library is
+    /// full.
     fn store(&self, name: &str, text: Arc<str>, blocks: u32) -> Result<(), Status> {
         let mut lib = self.0.library.lock().unwrap();
         if !lib.contains_key(name) && lib.len() >= MAX_STORED_PROGRAMS {
@@ -59,25 +74,31 @@ impl MachineSvc {
         lib.insert(name.to_string(), Stored { text, blocks });
         Ok(())
     }
+
+    /// The whole pipeline's verdict on `text` (validate and upload).
+    async fn validate(&self, text: String) -> Result<kernel::pipeline::Validation, Status> {
+        let st = self.0.clone();
+        blocking(move || st.ctl.validate_text(&text).map_err(status_of)).await?
+    }
 }
 
-/// Junction class per block index (planning the whole program once); empty for very large
-/// programs or when planning fails (status then says UNSPECIFIED).
-fn classify(st: &ApiState, p: &LoadedProgram) -> Vec<pb::JunctionClass> {
-    if p.block_count as usize > JUNCTION_CLASSIFY_MAX_BLOCKS {
-        return Vec::new();
-    }
-    match super::preview::junctions(&st.ctl, &p.blocks()) {
-        Ok(js) => {
-            let mut v = vec![pb::JunctionClass::Unspecified; p.block_count as usize];
-            for j in js {
-                if let Some(slot) = v.get_mut(j.seq as usize) {
-                    *slot = j.class();
-                }
+/// Junction class per block index, from the validation pass (SPEC §7.5); left empty for very
+/// large programs (status then says UNSPECIFIED).
+#[derive(Default)]
+struct Junctions {
+    classes: Vec<pb::JunctionClass>,
+}
+
+impl pipeline::Observer for Junctions {
+    fn segment(&mut self, s: Segment) -> Flow {
+        let i = s.seq as usize;
+        if i < JUNCTION_CLASSIFY_MAX_BLOCKS {
+            if self.classes.len() <= i {
+                self.classes.resize(i + 1, pb::JunctionClass::Unspecified);
             }
-            v
+            self.classes[i] = super::preview::junction_class(s.junction);
         }
-        Err(_) => Vec::new(),
+        Flow::Go
     }
 }
 
@@ -105,8 +126,9 @@ impl Machine for MachineSvc {
         };
         check_name(&name)?;
         let text: Arc<str> = r.text.into();
-        let reply = self.select(name.clone(), text.clone()).await?;
-        self.store(&name, text, reply.blocks)?;
+        let stored = text.clone();
+        let keep = |p: &LoadedProgram| self.store(&p.name, stored, p.block_count);
+        let reply = self.select(name, text, keep).await?;
         Ok(Response::new(reply))
     }
 
@@ -116,13 +138,20 @@ impl Machine for MachineSvc {
     ) -> Result<Response<pb::ValidateProgramReply>, Status> {
         require(&req, Observer, "ValidateProgram")?;
         let text = req.into_inner().text;
-        let st = self.0.clone();
-        let compiled = blocking(move || st.ctl.compile_text(&text)).await?;
-        let valid = !compiled.has_errors();
+        let v = self.validate(text.clone()).await?;
+        let refined = if v.has_errors() {
+            Vec::new()
+        } else {
+            let st = self.0.clone();
+            blocking(move || st.ctl.refinement_listing(&text).map_err(status_of))
+                .await??
+                .1
+        };
         Ok(Response::new(pb::ValidateProgramReply {
-            valid,
-            blocks: compiled.blocks.len() as u32,
-            diagnostics: compiled.diagnostics.iter().map(diagnostic_to_pb).collect(),
+            valid: !v.has_errors(),
+            blocks: v.blocks,
+            diagnostics: v.diagnostics.iter().map(diagnostic_to_pb).collect(),
+            refinements: refined.iter().map(refinement_to_pb).collect(),
         }))
     }
 
@@ -134,16 +163,14 @@ impl Machine for MachineSvc {
         let r = req.into_inner();
         check_name(&r.name)?;
         let text: Arc<str> = r.text.into();
-        let st = self.0.clone();
-        let t = text.clone();
-        let compiled = blocking(move || st.ctl.compile_text(&t)).await?;
-        if compiled.has_errors() {
-            return Err(invalid_with_diagnostics("program", &compiled.diagnostics));
+        let v = self.validate(text.to_string()).await?;
+        if v.has_errors() {
+            return Err(invalid_with_diagnostics("program", &v.diagnostics));
         }
-        self.store(&r.name, text, compiled.blocks.len() as u32)?;
+        self.store(&r.name, text, v.blocks)?;
         Ok(Response::new(pb::LoadProgramReply {
-            blocks: compiled.blocks.len() as u32,
-            diagnostics: compiled.diagnostics.iter().map(diagnostic_to_pb).collect(),
+            blocks: v.blocks,
+            diagnostics: v.diagnostics.iter().map(diagnostic_to_pb).collect(),
         }))
     }
 
@@ -161,7 +188,7 @@ impl Machine for MachineSvc {
             .get(&name)
             .map(|s| s.text.clone())
             .ok_or_else(|| Status::not_found(format!("no stored program is called {name:?}")))?;
-        Ok(Response::new(self.select(name, text).await?))
+        Ok(Response::new(self.select(name, text, |_| Ok(())).await?))
     }
 
     async fn list_programs(
@@ -208,7 +235,7 @@ impl Machine for MachineSvc {
                     .ok_or_else(|| Status::failed_precondition("no program is loaded"))?;
                 let (job, blocks) = st
                     .ctl
-                    .start_text(&p.name, &p.text, true)
+                    .start_text(&p.name, &p.text, true, false)
                     .map_err(status_of)?;
                 *st.run.lock().unwrap() = Some(RunInfo {
                     job,
@@ -294,7 +321,10 @@ impl Machine for MachineSvc {
         let _one_at_a_time = self.0.start_lock.lock().await;
         let st = self.0.clone();
         let job = blocking(move || -> Result<u32, Status> {
-            let (job, blocks) = st.ctl.start_text("MDI", &block, false).map_err(status_of)?;
+            let (job, blocks) = st
+                .ctl
+                .start_text("MDI", &block, false, true)
+                .map_err(status_of)?;
             *st.run.lock().unwrap() = Some(RunInfo {
                 job,
                 blocks,
@@ -394,5 +424,53 @@ impl Machine for MachineSvc {
         Ok(Response::new(Box::pin(
             tokio_stream::wrappers::ReceiverStream::new(rx),
         )))
+    }
+
+    async fn get_refined_program(
+        &self,
+        req: Request<pb::RefinedProgramRequest>,
+    ) -> Result<Response<pb::RefinedProgramReply>, Status> {
+        require(&req, Observer, "GetRefinedProgram")?;
+        let text = req.into_inner().text;
+        let st = self.0.clone();
+        let text = if text.is_empty() {
+            st.ctl
+                .program()
+                .ok_or_else(|| {
+                    Status::failed_precondition("no program is selected and no text was given")
+                })?
+                .text
+                .to_string()
+        } else {
+            text
+        };
+        let (listing, refined, diags) =
+            blocking(move || st.ctl.refinement_listing(&text).map_err(status_of)).await??;
+        Ok(Response::new(pb::RefinedProgramReply {
+            text: listing,
+            refinements: refined.iter().map(refinement_to_pb).collect(),
+            diagnostics: diags.iter().map(diagnostic_to_pb).collect(),
+        }))
+    }
+}
+
+/// One R325 refinement for the API (SPEC §4.6).
+fn refinement_to_pb(r: &kernel::program::arc::Refined) -> pb::Refinement {
+    use kernel::program::arc::Corrected;
+    pb::Refinement {
+        seq: r.seq,
+        block: r.n,
+        line: r.line,
+        coordinate: if r.refinement.which == Corrected::I {
+            "I"
+        } else {
+            "J"
+        }
+        .into(),
+        delta_mm: r.refinement.delta_mm,
+        e_word: r
+            .word
+            .map(|w| format!("E{:.3}", w.encode()))
+            .unwrap_or_default(),
     }
 }

@@ -1,5 +1,6 @@
 //! Service `cnc.v1.Preview`: programmed path, compensated path and junction classification of
-//! a program, computed with the same kernel stages a run uses (interpret → compensate → plan).
+//! a program, read from the outputs of the one kernel pipeline a run uses
+//! (`kernel::pipeline`, with the machine setup a job started now would take).
 
 use std::sync::Arc;
 
@@ -9,16 +10,18 @@ use tonic::{Request, Response, Status};
 
 use kernel::Diagnostic;
 use kernel::block::{ArcDir, Block, BlockKind, Path};
-use kernel::comp::compensate_all;
-use kernel::plan::{Junction, Planner};
+use kernel::comp::CompBlock;
+use kernel::pipeline::{self, Flow, Options};
+use kernel::plan::{Junction, Segment};
+use kernel::program::Modal;
 
 use super::auth::require;
 use super::{ApiState, blocking, diagnostic_to_pb, invalid_with_diagnostics, plane_code};
 use crate::runtime::config::Role::Observer;
 use crate::runtime::controller::Controller;
 
-/// Largest program the preview service plans, blocks (larger ones: paths only).
-const PREVIEW_MAX_BLOCKS: usize = 1_000_000;
+/// Most junctions listed by the preview service (larger programs: paths only after these).
+const PREVIEW_MAX_JUNCTIONS: usize = 1_000_000;
 
 #[derive(Clone)]
 pub struct PreviewSvc(pub Arc<ApiState>);
@@ -51,87 +54,83 @@ fn element(b: &Block, axes: usize) -> Option<pb::PathElement> {
     })
 }
 
-/// Plans `blocks` (compensated first) and classifies the junction at the end of every
-/// segment (SPEC §7.5).
-pub fn junctions(ctl: &Controller, blocks: &[Block]) -> Result<Vec<pb::Junction>, Diagnostic> {
-    let (comp_cfg, plan_cfg) = ctl.run_configs();
-    let (comp, _) = compensate_all(blocks, &comp_cfg);
-    plan_junctions(ctl, &comp, plan_cfg)
+/// The API's name of a junction class.
+pub fn junction_class(j: Junction) -> pb::JunctionClass {
+    match j {
+        Junction::Stop => pb::JunctionClass::Stop,
+        Junction::Smooth => pb::JunctionClass::Smooth,
+        Junction::SpeedDrop => pb::JunctionClass::SpeedDrop,
+    }
 }
 
-fn plan_junctions(
-    ctl: &Controller,
-    comp: &[Block],
-    plan_cfg: kernel::plan::PlannerConfig,
-) -> Result<Vec<pb::Junction>, Diagnostic> {
-    let axes = ctl.config().axes.len();
-    let mut planner = Planner::new(plan_cfg, 0);
-    let mut out = Vec::new();
-    let take = |planner: &mut Planner, out: &mut Vec<pb::Junction>| {
-        while let Some(s) = planner.poll() {
-            out.push(pb::Junction {
+/// What the preview data collects from the pipeline's pass.
+struct Collect {
+    axes: usize,
+    junctions: bool,
+    data: pb::PreviewData,
+}
+
+impl pipeline::Observer for Collect {
+    fn programmed(&mut self, b: &Block, _modal: &Modal) {
+        self.data.programmed.extend(element(b, self.axes));
+    }
+    fn compensated(&mut self, c: &CompBlock) {
+        self.data.compensated.extend(element(&c.block, self.axes));
+    }
+    fn segment(&mut self, s: Segment) -> Flow {
+        if self.junctions && self.data.junctions.len() < PREVIEW_MAX_JUNCTIONS {
+            self.data.junctions.push(pb::Junction {
                 seq: s.seq,
                 block: s.n,
                 line: s.line,
-                class: match s.junction {
-                    Junction::Stop => pb::JunctionClass::Stop,
-                    Junction::Smooth => pb::JunctionClass::Smooth,
-                    Junction::SpeedDrop => pb::JunctionClass::SpeedDrop,
-                } as i32,
-                position_mm: s.path.end().0[..axes].to_vec(),
+                class: junction_class(s.junction) as i32,
+                position_mm: s.path.end().0[..self.axes].to_vec(),
                 speed_mm_s: s.v_end_mm_s,
             });
         }
-    };
-    for b in comp {
-        planner.push(b)?;
-        take(&mut planner, &mut out);
+        Flow::Go
     }
-    planner.finish();
-    take(&mut planner, &mut out);
-    Ok(out)
 }
 
-/// Preview data of `text` (or of the selected program when `text` is empty).
+/// Preview data of `text` (or of the selected program when `text` is empty): one pass of the
+/// pipeline, whose verdict and diagnostics are those of validate and load.
 pub fn preview_data(
     ctl: &Controller,
     text: &str,
     with_junctions: bool,
 ) -> Result<pb::PreviewData, Status> {
-    let (blocks, mut diags): (Vec<Block>, Vec<Diagnostic>) = if text.is_empty() {
-        let p = ctl.program().ok_or_else(|| {
-            Status::failed_precondition("no program is selected and no text was given")
-        })?;
-        (p.blocks(), p.warnings.clone())
+    let text: Arc<str> = if text.is_empty() {
+        ctl.program()
+            .ok_or_else(|| {
+                Status::failed_precondition("no program is selected and no text was given")
+            })?
+            .text
+            .clone()
     } else {
-        let c = ctl.compile_text(text);
-        if c.has_errors() {
-            return Err(invalid_with_diagnostics("program", &c.diagnostics));
-        }
-        (c.blocks, c.diagnostics)
+        Arc::from(text)
     };
     let axes = ctl.config().axes.len();
-    let (comp_cfg, plan_cfg) = ctl.run_configs();
-    let (comp, comp_diags) = compensate_all(&blocks, &comp_cfg);
-    diags.extend(comp_diags);
-    let junctions = if with_junctions && comp.len() <= PREVIEW_MAX_BLOCKS {
-        plan_junctions(ctl, &comp, plan_cfg)
-            .map_err(|d| invalid_with_diagnostics("program", &[d]))?
-    } else {
-        Vec::new()
+    let mut c = Collect {
+        axes,
+        junctions: with_junctions,
+        data: pb::PreviewData {
+            axes: ctl
+                .config()
+                .axis_names()
+                .iter()
+                .map(|c| c.to_string())
+                .collect(),
+            ..Default::default()
+        },
     };
-    Ok(pb::PreviewData {
-        axes: ctl
-            .config()
-            .axis_names()
-            .iter()
-            .map(|c| c.to_string())
-            .collect(),
-        programmed: blocks.iter().filter_map(|b| element(b, axes)).collect(),
-        compensated: comp.iter().filter_map(|b| element(b, axes)).collect(),
-        junctions,
-        diagnostics: diags.iter().map(diagnostic_to_pb).collect(),
-    })
+    let (v, _, _) = ctl
+        .validate_with(&text, Options::default(), None, &mut c)
+        .map_err(super::status_of)?;
+    if v.has_errors() {
+        return Err(invalid_with_diagnostics("program", &v.diagnostics));
+    }
+    c.data.diagnostics = v.diagnostics.iter().map(diagnostic_to_pb).collect();
+    Ok(c.data)
 }
 
 #[tonic::async_trait]
@@ -180,10 +179,8 @@ pub fn render_preview(
     } else {
         r.text.clone()
     };
-    let mut opts = ::preview::PreviewOptions::new(ctl.current_setup());
-    let (comp, planner) = ctl.run_configs();
-    opts.comp = comp;
-    opts.planner = planner;
+    let setup = ctl.machine_setup().map_err(super::status_of)?;
+    let mut opts = ::preview::PreviewOptions::from_machine(&setup);
     opts.plane = if r.plane.is_empty() {
         ::preview::ViewPlane::Xy
     } else {

@@ -245,12 +245,6 @@ fn constant_pb(c: &Constants, r: u16) -> pb::Constant {
     }
 }
 
-/// Constants that take effect only after a restart: the axis codes R0..R5 (the axes come from
-/// the configuration at start-up).
-fn needs_restart(r: u16) -> bool {
-    r <= 5
-}
-
 #[tonic::async_trait]
 impl ConstantsRpc for ConstantsSvc {
     async fn get_constants(
@@ -323,17 +317,11 @@ impl ConstantsRpc for ConstantsSvc {
         }
         let st = self.0.clone();
         let p = parsed.clone();
-        blocking(move || st.ctl.set_constants(&p))
+        let restart = blocking(move || st.ctl.set_constants(&p))
             .await?
             .map_err(status_of)?;
-        let mut restart: Vec<u32> = parsed
-            .iter()
-            .filter(|(r, _)| needs_restart(*r))
-            .map(|(r, _)| u32::from(*r))
-            .collect();
-        restart.dedup();
         Ok(Response::new(pb::SetConstantsReply {
-            restart_required: restart,
+            restart_required: restart.into_iter().map(u32::from).collect(),
             diagnostics: diags.iter().map(diagnostic_to_pb).collect(),
         }))
     }

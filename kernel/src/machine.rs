@@ -1,0 +1,234 @@
+//! One machine setup per job: the configuration, the machine constants and the offset table,
+//! decoded once, in one place, into what every stage reads (issue #14).
+//!
+//! A job takes a [`MachineSetup`] when it starts and every consumer reads that snapshot: the
+//! interpreter ([`MachineSetup::program`]), the compensator ([`MachineSetup::comp`]), the
+//! planner ([`MachineSetup::planner`]), the interpolator's G24 window
+//! ([`MachineSetup::in_position_mm`]) and constant cutting speed / the spindle
+//! ([`MachineSetup::kr`]). A constants change is therefore in force for all of them at the next
+//! start, never for some of them only.
+
+use crate::comp::CompConfig;
+use crate::constants::Constants;
+use crate::kr::{Gear, KrConfig, KrConfigError, KrConstants, RadiusInput};
+use crate::offsets::OffsetTable;
+use crate::plan::PlannerConfig;
+use crate::program::{IjMode, Modal, Setup};
+use crate::units::{AxesMm, MAX_AXES};
+
+/// Limits of one configured axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AxisLimits {
+    pub name: char,
+    /// Also the rapid speed, mm/min.
+    pub max_velocity_mm_min: f64,
+    pub max_accel_mm_s2: f64,
+}
+
+/// What the configuration file says about the machine (fixed for the daemon's life).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MachineConfig {
+    pub axes: Vec<AxisLimits>,
+    /// Spindle gear ranges (KŘR, SPEC §6).
+    pub gears: Vec<Gear>,
+    pub radius_input: RadiusInput,
+    pub ij: IjMode,
+    /// `$63`: the preprocessor is on (R325 refinement).
+    pub preprocessor: bool,
+}
+
+impl MachineConfig {
+    pub fn axis_names(&self) -> Vec<char> {
+        self.axes.iter().map(|a| a.name).collect()
+    }
+}
+
+/// Everything a job reads about the machine, decoded once.
+#[derive(Clone, Debug)]
+pub struct MachineSetup {
+    program: Setup,
+    comp: CompConfig,
+    planner: PlannerConfig,
+    /// `None` only for tools without a machine configuration ([`MachineSetup::from_stages`]).
+    kr: Option<KrConfig>,
+    in_position_mm: AxesMm,
+}
+
+impl MachineSetup {
+    /// Decodes `constants` for every stage. `constants_from_file`: without a constants file
+    /// the envelope settings are the axis limits alone (see [`planner_config`]). Refused when a
+    /// constant has a value the controller cannot run with (KŘR's R67, R329, R580, the gears).
+    pub fn new(
+        machine: &MachineConfig,
+        constants: &Constants,
+        constants_from_file: bool,
+        offsets: &OffsetTable,
+        start: AxesMm,
+    ) -> Result<Self, KrConfigError> {
+        let mut program = Setup::new(&machine.axis_names());
+        program.start = start;
+        program.constants = constants.clone();
+        program.offsets = offsets.clone();
+        program.ij = machine.ij;
+        program.preprocessor = machine.preprocessor;
+        // Gears select by M code; the fastest axis is Vmax of the βmax warning (SPEC §5, §6).
+        program.gears = machine.gears.clone();
+        program.max_feed_mm_min = machine
+            .axes
+            .iter()
+            .map(|a| a.max_velocity_mm_min)
+            .fold(0.0, f64::max);
+        Ok(MachineSetup {
+            program,
+            comp: CompConfig::from_constants(constants),
+            planner: planner_config(machine, constants, constants_from_file),
+            kr: Some(KrConfig::from_constants(
+                constants,
+                machine.radius_input,
+                machine.gears.clone(),
+            )?),
+            in_position_mm: constants.in_position_window_mm(),
+        })
+    }
+
+    /// The interpreter's setup: axes, start position, constants, memory offset table.
+    pub fn program(&self) -> &Setup {
+        &self.program
+    }
+
+    /// Radius compensation settings (R95, R234, R339, R397, R764, R765, R55).
+    pub fn comp(&self) -> CompConfig {
+        self.comp
+    }
+
+    /// Planner limits and envelope settings (axis limits, R39, R52, R97, R236, R237, R338 ...).
+    pub fn planner(&self) -> &PlannerConfig {
+        &self.planner
+    }
+
+    /// Constant cutting speed: the gear table and R67, R329 d3, R580.
+    pub fn kr(&self) -> Option<&KrConfig> {
+        self.kr.as_ref()
+    }
+
+    /// The constants' part of [`MachineSetup::kr`], handed to the RT thread with a job's start.
+    pub fn kr_constants(&self) -> Option<KrConstants> {
+        self.kr.as_ref().map(KrConfig::constants)
+    }
+
+    /// A setup for tools that have no machine configuration (the preview's command line, benches):
+    /// the stages' settings as given, no spindle.
+    pub fn from_stages(program: Setup, comp: CompConfig, planner: PlannerConfig) -> Self {
+        let in_position_mm = program.constants.in_position_window_mm();
+        MachineSetup {
+            program,
+            comp,
+            planner,
+            kr: None,
+            in_position_mm,
+        }
+    }
+
+    /// G24 in-position window per axis (R6, R7), mm.
+    pub fn in_position_mm(&self) -> AxesMm {
+        self.in_position_mm
+    }
+
+    /// The same setup for a program starting in modal state `modal` (MDI inherits the state
+    /// the last program or MDI left, docs/language.md); `None`: the power-on state.
+    pub fn with_modal(mut self, modal: Option<Modal>) -> Self {
+        self.program.modal = modal;
+        self
+    }
+}
+
+/// The planner's configuration from the axis limits and the constants: the one function that
+/// builds it (daemon, preview, benches).
+pub fn planner_config(
+    machine: &MachineConfig,
+    constants: &Constants,
+    constants_from_file: bool,
+) -> PlannerConfig {
+    let axes = &machine.axes;
+    // Path-level defaults from the slowest axis; per-axis limits then from each axis.
+    let v_min = axes
+        .iter()
+        .map(|a| a.max_velocity_mm_min / 60.0)
+        .fold(f64::INFINITY, f64::min);
+    let a_min = axes
+        .iter()
+        .map(|a| a.max_accel_mm_s2)
+        .fold(f64::INFINITY, f64::min);
+    let mut cfg = PlannerConfig::uniform(axes.len(), v_min, a_min);
+    for (i, a) in axes.iter().enumerate().take(MAX_AXES) {
+        cfg.axis_v_max_mm_s[i] = a.max_velocity_mm_min / 60.0;
+        cfg.axis_a_max_mm_s2[i] = a.max_accel_mm_s2;
+        cfg.axis_j_max_mm_s3[i] = 50.0 * a.max_accel_mm_s2;
+    }
+    // The envelope settings (continuity, criteria, dynamic sets) come from the constants
+    // when the machine has a constants file; otherwise the axis limits alone apply.
+    if constants_from_file {
+        cfg = cfg.with_constants(constants);
+    }
+    cfg
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mill() -> MachineConfig {
+        let axis = |name| AxisLimits {
+            name,
+            max_velocity_mm_min: 12_000.0,
+            max_accel_mm_s2: 800.0,
+        };
+        MachineConfig {
+            axes: vec![axis('X'), axis('Y'), axis('Z')],
+            gears: vec![Gear {
+                max_rpm: 6000.0,
+                output_range: 0x7FFF,
+                m_code: Some(41),
+            }],
+            radius_input: RadiusInput::Diameter,
+            ij: IjMode::default(),
+            preprocessor: true,
+        }
+    }
+
+    fn setup(c: &Constants) -> MachineSetup {
+        MachineSetup::new(&mill(), c, true, &OffsetTable::new(), AxesMm::ZERO).unwrap()
+    }
+
+    #[test]
+    fn one_r55_for_interpreter_and_compensator() {
+        for r55 in [0.0, 0.005, 0.02] {
+            let mut c = Constants::new();
+            c.set(55, r55);
+            let s = setup(&c);
+            assert_eq!(s.comp().arc_end_tolerance_mm, c.arc_tolerance_mm());
+            assert_eq!(
+                s.program().constants.arc_tolerance_mm(),
+                c.arc_tolerance_mm()
+            );
+        }
+    }
+
+    #[test]
+    fn kr_and_g24_window_come_from_the_same_constants() {
+        let mut c = Constants::new();
+        c.set(329, 0.2);
+        c.set(67, 2.0);
+        c.set(6, 0.02);
+        c.set(7, 0.5);
+        let s = setup(&c);
+        let k = s.kr_constants().unwrap();
+        assert!(k.s_word.s_in_m_min);
+        assert_eq!(k.controlling_axis, 1);
+        assert_eq!(s.in_position_mm()[0], 0.02);
+        assert_eq!(s.in_position_mm()[2], 0.02);
+        assert_eq!(s.in_position_mm()[3], 0.5);
+        c.set(580, 7.0);
+        assert!(MachineSetup::new(&mill(), &c, true, &OffsetTable::new(), AxesMm::ZERO).is_err());
+    }
+}

@@ -1,0 +1,426 @@
+//! The one pipeline of the controller: interpret → compensate → plan, streaming (issue #14).
+//!
+//! Validation, upload, load, start, MDI, both previews and the daemon's run all go through
+//! [`run`] with the job's [`MachineSetup`]; they differ only in their [`Observer`], which sees
+//! what the stages produce (programmed blocks, tool-centre blocks, segments with their junction
+//! class, diagnostics, `G92` writes) and answers the dynamic-set requests. So what is validated
+//! is what runs, and a preview shows what runs.
+//!
+//! Memory stays bounded whatever the program's length: one block at a time from the text, the
+//! compensator's window, the planner's look-ahead; segments go to the observer as soon as the
+//! planner commits them.
+//!
+//! Errors: a block refused by a stage is reported to [`Observer::diagnostic`] and skipped (the
+//! stage's state is unchanged), so one pass finds every error; an observer that runs the
+//! program answers [`Flow::Stop`] to the first error.
+
+use crate::block::{Block, BlockKind, Continuity};
+use crate::comp::{CompBlock, Compensator};
+use crate::diag::Diagnostic;
+use crate::machine::MachineSetup;
+use crate::offsets::TableEdit;
+use crate::plan::{Planner, Segment};
+use crate::program::{self, Modal};
+
+/// Whether the pipeline goes on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Flow {
+    Go,
+    Stop,
+}
+
+/// What a caller sees of the stages. Every hook but [`Observer::segment`] has a default that
+/// ignores it.
+pub trait Observer {
+    /// A programmed (interpreted, uncompensated) block and the modal state after it.
+    fn programmed(&mut self, _b: &Block, _modal: &Modal) {}
+    /// A tool-centre block from the compensator, with the programmed block it comes from.
+    fn compensated(&mut self, _c: &CompBlock) {}
+    /// A planned segment, in order, with its final junction class.
+    fn segment(&mut self, s: Segment) -> Flow;
+    /// An error, warning or information from any stage, in the order found.
+    fn diagnostic(&mut self, _d: Diagnostic) -> Flow {
+        Flow::Go
+    }
+    /// A `G92 D..` block writes the offset table (SPEC §3 c): `b` is the block (its `seq`
+    /// tells when it executes). The interpreter has applied it to its own copy already.
+    fn table_write(&mut self, _b: &Block, _edit: &TableEdit) -> Flow {
+        Flow::Go
+    }
+    /// The PLC's dynamic-set cell DYNAM_SET (0..3 = set 1..4, SPEC §7.4), asked before each
+    /// block is planned; `None` keeps the program's own choice.
+    fn dynam_set_cell(&mut self) -> Option<u8> {
+        None
+    }
+}
+
+/// How a job runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Options {
+    /// Job id stamped on the segments.
+    pub job: u32,
+    /// Every block ends at rest (G98): single-block runs.
+    pub stop_at_blocks: bool,
+}
+
+/// What a pass found besides what the observer collected.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Summary {
+    /// Programmed blocks the interpreter accepted.
+    pub blocks: u32,
+    /// Errors reported.
+    pub errors: u32,
+    /// The observer stopped the pass.
+    pub stopped: bool,
+}
+
+/// Compensator and planner of one pass; the interpreter feeds it block by block.
+pub struct Pipeline {
+    comp: Compensator,
+    planner: Planner,
+    stop_at_blocks: bool,
+    /// Gear ranges the machine has (`None`: no spindle configured, nothing checked).
+    gears: Option<usize>,
+    summary: Summary,
+}
+
+impl Pipeline {
+    pub fn new(setup: &MachineSetup, opts: Options) -> Self {
+        Pipeline {
+            comp: Compensator::new(setup.comp()),
+            planner: Planner::new(setup.planner().clone(), opts.job),
+            stop_at_blocks: opts.stop_at_blocks,
+            gears: setup.kr().map(|k| k.gears.len()),
+            summary: Summary::default(),
+        }
+    }
+
+    pub fn summary(&self) -> Summary {
+        self.summary
+    }
+
+    fn report(&mut self, d: Diagnostic, obs: &mut impl Observer) -> Flow {
+        if d.is_error() {
+            self.summary.errors += 1;
+        }
+        self.flow(obs.diagnostic(d))
+    }
+
+    fn flow(&mut self, f: Flow) -> Flow {
+        if f == Flow::Stop {
+            self.summary.stopped = true;
+        }
+        f
+    }
+
+    /// One programmed block in: compensated, planned, and every committed segment out.
+    pub fn push(&mut self, mut b: Block, modal: &Modal, obs: &mut impl Observer) -> Flow {
+        self.summary.blocks += 1;
+        if self.stop_at_blocks {
+            b.continuity = Continuity::G98;
+        }
+        if let Err(d) = self.check_machine(&b) {
+            return self.report(d, obs);
+        }
+        obs.programmed(&b, modal);
+        if let BlockKind::TableWrite { entry, values } = b.kind {
+            let f = obs.table_write(&b, &TableEdit { entry, values });
+            if self.flow(f) == Flow::Stop {
+                return Flow::Stop;
+            }
+        }
+        if let Err(d) = self.comp.push(&b)
+            && self.report(d, obs) == Flow::Stop
+        {
+            return Flow::Stop;
+        }
+        self.drain_comp(obs)
+    }
+
+    /// What the interpreter cannot know about this machine: its gear ranges (a gear the
+    /// machine lacks would stop the run with a KŘR fault, SPEC §6).
+    fn check_machine(&self, b: &Block) -> Result<(), Diagnostic> {
+        match self.gears {
+            Some(n) if usize::from(b.spindle.gear) > n => Err(Diagnostic::error(
+                b.n,
+                b.line,
+                0,
+                format!(
+                    "gear range {} is not configured on this machine ({n} gear range(s) in [kr] gears)",
+                    b.spindle.gear
+                ),
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// Compensator diagnostics and tool-centre blocks into the planner.
+    fn drain_comp(&mut self, obs: &mut impl Observer) -> Flow {
+        for d in self.comp.take_diagnostics() {
+            if self.report(d, obs) == Flow::Stop {
+                return Flow::Stop;
+            }
+        }
+        while let Some(cb) = self.comp.poll_traced() {
+            obs.compensated(&cb);
+            if let Some(cell) = obs.dynam_set_cell() {
+                self.planner.set_dynam_set_cell(cell);
+            }
+            if let Err(d) = self.planner.push(&cb.block)
+                && self.report(d, obs) == Flow::Stop
+            {
+                return Flow::Stop;
+            }
+            if self.drain_planner(obs) == Flow::Stop {
+                return Flow::Stop;
+            }
+        }
+        Flow::Go
+    }
+
+    fn drain_planner(&mut self, obs: &mut impl Observer) -> Flow {
+        while let Some(s) = self.planner.poll() {
+            if self.flow(obs.segment(s)) == Flow::Stop {
+                return Flow::Stop;
+            }
+        }
+        Flow::Go
+    }
+
+    /// The program ended: the compensator's and the planner's windows empty out.
+    pub fn finish(&mut self, obs: &mut impl Observer) -> Flow {
+        self.comp.finish();
+        if self.drain_comp(obs) == Flow::Stop {
+            return Flow::Stop;
+        }
+        self.planner.finish();
+        self.drain_planner(obs)
+    }
+}
+
+/// Streams `text` through the stages with `setup` into `obs`.
+pub fn run(text: &str, setup: &MachineSetup, opts: Options, obs: &mut impl Observer) -> Summary {
+    let mut stream = program::stream(text, setup.program());
+    let mut p = Pipeline::new(setup, opts);
+    let notes = |stream: &mut program::Stream, p: &mut Pipeline, obs: &mut _| {
+        for d in stream.take_notes() {
+            if p.report(d, obs) == Flow::Stop {
+                return Flow::Stop;
+            }
+        }
+        Flow::Go
+    };
+    while let Some(item) = stream.next() {
+        if notes(&mut stream, &mut p, obs) == Flow::Stop {
+            return p.summary;
+        }
+        let f = match item {
+            Ok(b) => {
+                let modal = stream.interpreter().modal();
+                p.push(b, &modal, obs)
+            }
+            Err(d) => p.report(d, obs),
+        };
+        if f == Flow::Stop {
+            return p.summary;
+        }
+    }
+    if notes(&mut stream, &mut p, obs) == Flow::Go {
+        p.finish(obs);
+    }
+    p.summary
+}
+
+/// Diagnostics beyond this many are counted, not listed.
+pub const MAX_LISTED: usize = 1000;
+
+/// Outcome of validating a program: the verdict of validate, upload, load, start and MDI.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Validation {
+    /// Programmed blocks (the interpreter's count).
+    pub blocks: u32,
+    /// Every error, warning and information, in the order found (see [`MAX_LISTED`]).
+    pub diagnostics: Vec<Diagnostic>,
+    /// Messages found but not listed.
+    unlisted: usize,
+}
+
+impl Validation {
+    pub fn has_errors(&self) -> bool {
+        self.diagnostics.iter().any(Diagnostic::is_error)
+    }
+
+    /// Keeps `d` unless the list is full (errors get a second allowance so that a program
+    /// with many warnings still lists its errors).
+    pub fn add(&mut self, d: Diagnostic) {
+        let n = self.diagnostics.len();
+        if n < MAX_LISTED || d.is_error() && n < 2 * MAX_LISTED {
+            self.diagnostics.push(d);
+        } else {
+            self.unlisted += 1;
+        }
+    }
+
+    fn close(&mut self, s: Summary) {
+        self.blocks = s.blocks;
+        if self.unlisted > 0 {
+            self.diagnostics.push(Diagnostic::info(
+                None,
+                0,
+                0,
+                format!("{} more messages not listed", self.unlisted),
+            ));
+        }
+    }
+}
+
+impl Observer for Validation {
+    fn segment(&mut self, _s: Segment) -> Flow {
+        Flow::Go
+    }
+
+    fn diagnostic(&mut self, d: Diagnostic) -> Flow {
+        self.add(d);
+        Flow::Go
+    }
+}
+
+/// Validates `text`: the whole pipeline without motion, every error and warning.
+pub fn validate(text: &str, setup: &MachineSetup, opts: Options) -> Validation {
+    let mut v = Validation::default();
+    let s = run(text, setup, opts, &mut v);
+    v.close(s);
+    v
+}
+
+/// An observer that validates and passes everything on to `inner` (previews collect what
+/// they draw and get the verdict of the same pass).
+pub struct Validating<'a, O: Observer> {
+    pub inner: &'a mut O,
+    pub validation: Validation,
+}
+
+impl<'a, O: Observer> Validating<'a, O> {
+    pub fn new(inner: &'a mut O) -> Self {
+        Validating {
+            inner,
+            validation: Validation::default(),
+        }
+    }
+}
+
+impl<O: Observer> Observer for Validating<'_, O> {
+    fn programmed(&mut self, b: &Block, modal: &Modal) {
+        self.inner.programmed(b, modal);
+    }
+    fn compensated(&mut self, c: &CompBlock) {
+        self.inner.compensated(c);
+    }
+    /// The pass goes on whatever `inner` says: the verdict covers the whole program.
+    fn segment(&mut self, s: Segment) -> Flow {
+        self.inner.segment(s);
+        Flow::Go
+    }
+    fn diagnostic(&mut self, d: Diagnostic) -> Flow {
+        self.validation.add(d);
+        Flow::Go
+    }
+}
+
+/// Runs `text` into `inner` and returns the validation of the same pass.
+pub fn validate_into(
+    text: &str,
+    setup: &MachineSetup,
+    opts: Options,
+    inner: &mut impl Observer,
+) -> Validation {
+    let mut v = Validating::new(inner);
+    let s = run(text, setup, opts, &mut v);
+    v.validation.close(s);
+    v.validation
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::comp::CompConfig;
+    use crate::constants::Constants;
+    use crate::plan::{Junction, PlannerConfig};
+    use crate::program::Setup;
+
+    fn setup(c: Constants) -> MachineSetup {
+        let mut s = Setup::new(&['X', 'Y', 'Z']);
+        s.offsets
+            .set_entry(
+                1,
+                crate::offsets::OffsetEntry {
+                    radius_mm: 2.0,
+                    length_mm: [0.0; 4],
+                },
+            )
+            .unwrap();
+        let comp = CompConfig::from_constants(&c);
+        s.constants = c;
+        MachineSetup::from_stages(s, comp, PlannerConfig::uniform(3, 200.0, 800.0))
+    }
+
+    #[derive(Default)]
+    struct Count {
+        segments: Vec<Segment>,
+        stop_after: Option<usize>,
+    }
+
+    impl Observer for Count {
+        fn segment(&mut self, s: Segment) -> Flow {
+            self.segments.push(s);
+            match self.stop_after {
+                Some(n) if self.segments.len() >= n => Flow::Stop,
+                _ => Flow::Go,
+            }
+        }
+    }
+
+    #[test]
+    fn validation_lists_the_errors_of_every_stage() {
+        let mut c = Constants::new();
+        c.set(95, 0.0); // 8.R95 = 0: compensation refused by the compensator
+        let text = "N10 G1 X10 F500\nN20 G7\nN30 D1 G41 X20 Y5\nN40 G40 X30\n";
+        let v = validate(text, &setup(c), Options::default());
+        let errors: Vec<_> = v.diagnostics.iter().filter(|d| d.is_error()).collect();
+        assert_eq!(errors.len(), 2, "{:?}", v.diagnostics);
+        assert_eq!(errors[0].block, Some(20), "interpreter");
+        assert_eq!(errors[1].block, Some(30), "compensator");
+        assert_eq!(v.blocks, 3);
+    }
+
+    #[test]
+    fn an_observer_stops_the_pass_and_single_block_stops_at_every_block() {
+        let text = "G23 G1 X10 F3000\nX20\nX30\nX40\n";
+        let s = setup(Constants::new());
+        let mut all = Count::default();
+        let sum = run(text, &s, Options::default(), &mut all);
+        assert_eq!((sum.blocks, sum.errors, sum.stopped), (4, 0, false));
+        assert!(
+            all.segments[..3]
+                .iter()
+                .any(|s| s.junction != Junction::Stop)
+        );
+        let mut one = Count {
+            stop_after: Some(1),
+            ..Count::default()
+        };
+        assert!(run(text, &s, Options::default(), &mut one).stopped);
+        assert_eq!(one.segments.len(), 1);
+        let mut sb = Count::default();
+        let opts = Options {
+            job: 7,
+            stop_at_blocks: true,
+        };
+        run(text, &s, opts, &mut sb);
+        assert!(
+            sb.segments
+                .iter()
+                .all(|s| s.junction == Junction::Stop && s.job == 7)
+        );
+    }
+}

@@ -1,0 +1,778 @@
+//! Issue #14 through the gRPC API on the simulated machine: what is validated is what runs.
+//! Every door (validate, upload, load, preview data, start) gives the same verdict and the
+//! same diagnostics; a constants change is in force for every stage at the next start; G92
+//! changes the memory table when its block executes; a refused load changes nothing; MDI
+//! inherits the modal state the last program or MDI left.
+
+mod api_common;
+
+use std::path::Path;
+use std::time::Duration;
+
+use api_common::*;
+use daemon::runtime::config::{GearConfig, Role};
+use daemon::runtime::rt::MachineState;
+use proto::v1 as pb;
+use proto::v1::constants_client::ConstantsClient;
+use proto::v1::machine_client::MachineClient;
+use proto::v1::preview_client::PreviewClient;
+use tonic::Code;
+use tonic::transport::Channel;
+
+/// The offset table of the crafted programs: D1 radius 3, D2 radius 5, D3 radius 2.
+const TABLE: &str = "$KOR\n01: R=3.0\n02: R=5.0\n03: R=2.0\n";
+
+/// A crafted program and the constants it is checked under.
+struct Crafted {
+    name: String,
+    text: String,
+    constants: Vec<(u32, f64)>,
+}
+
+fn crafted(name: String, text: String, constants: &[(u32, f64)]) -> Crafted {
+    Crafted {
+        name,
+        text,
+        constants: constants.to_vec(),
+    }
+}
+
+/// Programs the interpreter accepts and compensation or planning refuses (≥ 30).
+fn crafted_programs() -> Vec<Crafted> {
+    let mut v = Vec::new();
+    // Manual Fig. 5 (inside arc, then a line turning away): no intersection of the
+    // equidistants with 8.R339 = 0 (NENALEZEN PRUSEČÍK EKVIDISTANT), for two tools, four exit
+    // angles and both sides.
+    for d in [1, 2] {
+        for deg in [-30.0f64, -40.0, -50.0, -60.0] {
+            let (dx, dy) = (20.0 * deg.to_radians().cos(), 20.0 * deg.to_radians().sin());
+            let text = format!(
+                "N10 G0 X-10 Y-10\nN20 D{d} G41 G1 X0 Y-10 F500\nN30 G3 X10 Y0 I0 J10\nN40 G1 X{:.3} Y{:.3}\nN50 G40 X40 Y-20\n",
+                10.0 + dx,
+                dy
+            );
+            v.push(crafted(format!("nenalezen_d{d}_{deg}"), text, &[]));
+            // Mirrored in Y with G42.
+            let text = format!(
+                "N10 G0 X-10 Y10\nN20 D{d} G42 G1 X0 Y10 F500\nN30 G2 X10 Y0 I0 J-10\nN40 G1 X{:.3} Y{:.3}\nN50 G40 X40 Y20\n",
+                10.0 + dx,
+                -dy
+            );
+            v.push(crafted(format!("nenalezen_mirror_d{d}_{deg}"), text, &[]));
+        }
+    }
+    // More than 200 blocks without motion in the compensation plane while compensating.
+    for extra in [201, 203, 250, 300] {
+        let mut text = String::from("N10 D1 G41 G1 X10 Y0 F500\n");
+        for i in 0..extra {
+            text.push_str(&format!("Z-{:.3}\n", i as f64 * 0.001));
+        }
+        text.push_str("X20 Y0\nG40 X30 Y0\n");
+        v.push(crafted(format!("bridged_{extra}"), text, &[]));
+    }
+    // 8.R95 = 0: radius compensation is not enabled.
+    for (k, code) in ["G41", "G42", "G41", "G42", "G41", "G42"]
+        .into_iter()
+        .enumerate()
+    {
+        let text = format!(
+            "N10 G0 X0 Y0\nN20 D{} {code} G1 X{} Y5 F800\nN30 G40 X30 Y5\n",
+            1 + k % 3,
+            10 + k
+        );
+        v.push(crafted(format!("r95_{k}"), text, &[(95, 0.0)]));
+    }
+    // KŘR with feed per revolution (standard R329: G97 = KŘR with F in mm/rev).
+    for (k, (s, f)) in [
+        (900, 0.2),
+        (500, 0.1),
+        (1200, 0.3),
+        (100, 0.05),
+        (2000, 0.5),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let text = format!("N10 G0 X100 Y0\nN20 M3 G97 S{s}\nN30 G1 X60 F{f}\n");
+        v.push(crafted(format!("kr_per_rev_{k}"), text, &[]));
+    }
+    // The same with G96 when R329 swaps G96 and G97.
+    for (k, s) in [90, 250, 600].into_iter().enumerate() {
+        let text = format!("N10 G0 X80 Y0\nN20 M3 G96 S{s}\nN30 G1 X40 F0.15\n");
+        v.push(crafted(
+            format!("kr_per_rev_swapped_{k}"),
+            text,
+            &[(329, 0.1)],
+        ));
+    }
+    v
+}
+
+/// What a door said: valid or not, and its diagnostics.
+#[derive(Debug, PartialEq)]
+struct Verdict {
+    valid: bool,
+    diagnostics: Vec<pb::Diagnostic>,
+}
+
+fn from_reply(diags: Vec<pb::Diagnostic>) -> Verdict {
+    Verdict {
+        valid: true,
+        diagnostics: diags,
+    }
+}
+
+fn from_refusal(e: tonic::Status) -> Verdict {
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    Verdict {
+        valid: false,
+        diagnostics: diagnostics(&e),
+    }
+}
+
+struct Doors {
+    m: MachineClient<Channel>,
+    p: PreviewClient<Channel>,
+    k: ConstantsClient<Channel>,
+}
+
+impl Doors {
+    async fn new(ch: Channel) -> Self {
+        Doors {
+            m: MachineClient::new(ch.clone()),
+            p: PreviewClient::new(ch.clone()),
+            k: ConstantsClient::new(ch),
+        }
+    }
+
+    async fn set(&mut self, values: &[(u32, f64)]) -> pb::SetConstantsReply {
+        self.k
+            .set_constants(pb::SetConstantsRequest {
+                values: values
+                    .iter()
+                    .map(|&(number, value)| pb::ConstantValue { number, value })
+                    .collect(),
+            })
+            .await
+            .unwrap()
+            .into_inner()
+    }
+
+    async fn validate(&mut self, text: &str) -> (Verdict, u32) {
+        let v = self
+            .m
+            .validate_program(pb::ValidateProgramRequest { text: text.into() })
+            .await
+            .unwrap()
+            .into_inner();
+        (
+            Verdict {
+                valid: v.valid,
+                diagnostics: v.diagnostics,
+            },
+            v.blocks,
+        )
+    }
+
+    async fn upload(&mut self, text: &str) -> Verdict {
+        let r = self
+            .m
+            .upload_program(pb::LoadProgramRequest {
+                name: "corpus.nc".into(),
+                text: text.into(),
+            })
+            .await;
+        r.map(|r| from_reply(r.into_inner().diagnostics))
+            .unwrap_or_else(from_refusal)
+    }
+
+    async fn load(&mut self, text: &str) -> Verdict {
+        let r = self
+            .m
+            .load_program(pb::LoadProgramRequest {
+                name: "corpus.nc".into(),
+                text: text.into(),
+            })
+            .await;
+        r.map(|r| from_reply(r.into_inner().diagnostics))
+            .unwrap_or_else(from_refusal)
+    }
+
+    async fn preview(&mut self, text: &str) -> Verdict {
+        let r = self
+            .p
+            .get_preview_data(pb::PreviewDataRequest {
+                text: text.into(),
+                junctions: true,
+            })
+            .await;
+        r.map(|r| from_reply(r.into_inner().diagnostics))
+            .unwrap_or_else(from_refusal)
+    }
+
+    /// Every door on `text`; panics with the door that disagrees with validation.
+    async fn same_everywhere(&mut self, d: &Daemon, name: &str, text: &str) -> bool {
+        let (v, _) = self.validate(text).await;
+        assert_eq!(self.upload(text).await, v, "{name}: upload ≠ validate");
+        assert_eq!(self.load(text).await, v, "{name}: load ≠ validate");
+        assert_eq!(
+            self.preview(text).await,
+            v,
+            "{name}: preview data ≠ validate"
+        );
+        if v.valid {
+            // Start accepts what load accepted (the run is stopped at once: the verdict is
+            // what is compared here, the runs are tested elsewhere).
+            let job = self
+                .m
+                .start(pb::StartRequest {})
+                .await
+                .unwrap()
+                .into_inner()
+                .job;
+            assert_ne!(job, 0);
+            self.m.stop(pb::StopRequest {}).await.unwrap();
+            wait_state(&d.ctl, MachineState::Idle).await;
+            let s = d.ctl.snapshot();
+            assert!(
+                s.finished_job == job || s.aborted_job == job,
+                "{name}: {s:?}"
+            );
+            assert!(d.ctl.alarm().is_none(), "{name}: {:?}", d.ctl.alarm());
+        }
+        v.valid
+    }
+}
+
+fn programs_in(dir: &Path) -> Vec<(String, String)> {
+    let mut v: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "nc"))
+        .map(|p| {
+            let text = String::from_utf8_lossy(&std::fs::read(&p).unwrap()).into_owned();
+            (p.display().to_string(), text)
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+fn corpus() -> Vec<(String, String)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut v = programs_in(&root.join("programs"));
+    for d in ["good", "programs"] {
+        v.extend(programs_in(&root.join("kernel/tests/corpus").join(d)));
+    }
+    v
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn every_door_gives_the_verdict_of_validation() {
+    let d = start(config(Role::Admin)).await;
+    d.ctl.replace_offsets_file(TABLE).unwrap();
+    let mut doors = Doors::new(d.channel().await).await;
+
+    let programs = corpus();
+    assert!(programs.len() >= 50, "corpus has {}", programs.len());
+    let mut valid = 0;
+    for (name, text) in &programs {
+        valid += usize::from(doors.same_everywhere(&d, name, text).await);
+    }
+    assert!(valid >= 5, "only {valid} corpus programs are valid");
+
+    let crafted = crafted_programs();
+    assert!(crafted.len() >= 30, "{} crafted programs", crafted.len());
+    for c in &crafted {
+        if !c.constants.is_empty() {
+            doors.set(&c.constants).await;
+        }
+        // The interpreter alone accepts it: the refusal comes from compensation or planning.
+        let setup = d.ctl.machine_setup().unwrap();
+        let interpreted = kernel::program::compile(&c.text, setup.program());
+        assert!(
+            !interpreted.has_errors(),
+            "{}: {:?}",
+            c.name,
+            interpreted.diagnostics
+        );
+        let valid = doors.same_everywhere(&d, &c.name, &c.text).await;
+        assert!(!valid, "{}: accepted", c.name);
+        if !c.constants.is_empty() {
+            let defaults: Vec<(u32, f64)> = c
+                .constants
+                .iter()
+                .map(|&(r, _)| (r, kernel::constants::default_of(r as u16) as f64 / 1000.0))
+                .collect();
+            doors.set(&defaults).await;
+        }
+    }
+}
+
+/// Manual Fig. 5 with tool D1: valid with 8.R339 = 4 (an arc where no intersection exists).
+fn fig5() -> String {
+    crafted_programs().swap_remove(0).text
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn start_refuses_what_the_constants_in_force_refuse() {
+    let d = start(config(Role::Admin)).await;
+    d.ctl.replace_offsets_file(TABLE).unwrap();
+    let mut doors = Doors::new(d.channel().await).await;
+    // 8.R339 = 4: R339 = 40000.000.
+    doors.set(&[(339, 40_000.0)]).await;
+    assert!(doors.load(&fig5()).await.valid);
+    doors.set(&[(339, 0.0)]).await;
+    let (v, _) = doors.validate(&fig5()).await;
+    assert!(!v.valid);
+    let e = doors.m.start(pb::StartRequest {}).await.unwrap_err();
+    assert_eq!(from_refusal(e), v);
+    assert_eq!(d.ctl.snapshot().state, MachineState::Idle);
+}
+
+/// A program held at N30 (a slow move) with KŘR on from N20.
+const KR_PROGRAM: &str = "N10 G0 X100 Y40\nN20 M3 G96 S900\nN30 G1 X99 F6\n";
+
+async fn kr_status_while_running(d: &Daemon, m: &mut MachineClient<Channel>) -> pb::KrStatus {
+    m.load_program(pb::LoadProgramRequest {
+        name: "kr.nc".into(),
+        text: KR_PROGRAM.into(),
+    })
+    .await
+    .unwrap();
+    let job = m.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let st = d.ctl.clone();
+    wait_until("KŘR in N30", || {
+        let s = st.snapshot();
+        s.job == job && s.block_n == Some(30) && s.kr.spindle_rpm > 0.0
+    })
+    .await;
+    let state = daemon::runtime::api::ApiState::new(d.ctl.clone());
+    let kr = state.status(&d.ctl.snapshot()).kr.unwrap();
+    m.stop(pb::StopRequest {}).await.unwrap();
+    wait_state(&d.ctl, MachineState::Idle).await;
+    kr
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn s_units_r329_reach_kr_and_the_spindle_at_the_next_start() {
+    let d = start(config(Role::Admin)).await;
+    let mut doors = Doors::new(d.channel().await).await;
+    // n = v / (2π r), r from the controlling axis X (a diameter: about Ø100).
+    let rpm = |kr: &pb::KrStatus, v_m_min: f64| {
+        v_m_min * 1000.0 / (2.0 * std::f64::consts::PI * kr.radius_mm)
+    };
+    // Standard: S900 = 90 m/min.
+    let kr = kr_status_while_running(&d, &mut doors.m).await;
+    assert!((kr.cutting_speed_m_min - 90.0).abs() < 1e-6, "{kr:?}");
+    assert!((kr.spindle_rpm - rpm(&kr, 90.0)).abs() < 1.0, "{kr:?}");
+    // 3.R329 = 2: S in m/min. In force for the interpreter and KŘR alike at the next start:
+    // 900 m/min, and the spindle speed follows.
+    let r = doors.set(&[(329, 0.2)]).await;
+    assert!(r.restart_required.is_empty());
+    let kr = kr_status_while_running(&d, &mut doors.m).await;
+    assert!((kr.cutting_speed_m_min - 900.0).abs() < 1e-6, "{kr:?}");
+    assert!((kr.spindle_rpm - rpm(&kr, 900.0)).abs() < 1.0, "{kr:?}");
+    // And back: R329 = 0 is 90 m/min again (the rule from daemon start is not kept).
+    doors.set(&[(329, 0.0)]).await;
+    let kr = kr_status_while_running(&d, &mut doors.m).await;
+    assert!((kr.cutting_speed_m_min - 90.0).abs() < 1e-6, "{kr:?}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn r67_controlling_axis_changes_at_the_next_start() {
+    let d = start(config(Role::Admin)).await;
+    let mut doors = Doors::new(d.channel().await).await;
+    let kr = kr_status_while_running(&d, &mut doors.m).await;
+    assert!((kr.radius_mm - 50.0).abs() < 0.5, "X diameter 100: {kr:?}");
+    doors.set(&[(67, 2.0)]).await; // Y
+    let kr = kr_status_while_running(&d, &mut doors.m).await;
+    assert!((kr.radius_mm - 20.0).abs() < 0.01, "Y diameter 40: {kr:?}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn r580_bad_value_is_refused_and_changes_nothing() {
+    let d = start(config(Role::Admin)).await;
+    let mut doors = Doors::new(d.channel().await).await;
+    let e = doors
+        .k
+        .set_constants(pb::SetConstantsRequest {
+            values: vec![pb::ConstantValue {
+                number: 580,
+                value: 7.0,
+            }],
+        })
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument);
+    assert_eq!(d.ctl.constants().get(580), 1.0);
+    assert_eq!(d.ctl.constants_in_force().get(580), 1.0);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn axis_codes_need_a_restart_and_are_not_used_before() {
+    let d = start(config(Role::Admin)).await;
+    let mut doors = Doors::new(d.channel().await).await;
+    let r = doors.set(&[(2, 0.0), (39, 45.0)]).await;
+    assert_eq!(r.restart_required, [2]);
+    assert_eq!(d.ctl.constants().get(2), 0.0, "saved");
+    assert_eq!(d.ctl.constants_in_force().get(2), 3.0, "not in force");
+    assert_eq!(d.ctl.constants_in_force().get(39), 45.0);
+    // Z still programs and runs.
+    let (v, _) = doors.validate("G1 Z-1 F500\n").await;
+    assert!(v.valid, "{v:?}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn r55_is_one_tolerance_for_interpreter_and_compensation() {
+    let d = start(config(Role::Admin)).await;
+    d.ctl.replace_offsets_file(TABLE).unwrap();
+    let mut doors = Doors::new(d.channel().await).await;
+    // A compensated arc whose end point is 5 µm off its circle (radially).
+    let text =
+        "N10 G0 X0 Y0\nN20 D3 G41 G1 X10 Y0 F500\nN30 G3 X30.005 Y0 I10 J0\nN40 G40 G1 X40 Y0\n";
+    let errors = |v: &Verdict| {
+        v.diagnostics
+            .iter()
+            .filter(|d| d.severity == pb::Severity::Error as i32)
+            .count()
+    };
+    for (r55, valid) in [(0.0, false), (0.001, false), (0.006, true), (0.010, true)] {
+        doors.set(&[(55, r55)]).await;
+        let (v, _) = doors.validate(text).await;
+        assert_eq!(v.valid, valid, "R55 = {r55}: {v:?}");
+        assert_eq!(errors(&v), usize::from(!valid), "R55 = {r55}: {v:?}");
+        // Both stages read the one accessor of the job's setup.
+        let setup = d.ctl.machine_setup().unwrap();
+        let tol = setup.program().constants.arc_tolerance_mm();
+        assert_eq!(setup.comp().arc_end_tolerance_mm, tol);
+    }
+}
+
+/// N10 takes 5 s at F600: time to stop before N20.
+const G92_PROGRAM: &str = "N10 G1 X50 F600\nN20 G92 D7 R0=2.5\nN30 G1 X60 F6000\n";
+
+fn radius_7(d: &Daemon) -> Option<f64> {
+    d.ctl.offsets_memory().entry(7).map(|e| e.radius_mm)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn g92_changes_the_memory_table_when_it_executes() {
+    let d = start(config(Role::Admin)).await;
+    let mut m = MachineClient::new(d.channel().await);
+    m.load_program(pb::LoadProgramRequest {
+        name: "g92.nc".into(),
+        text: G92_PROGRAM.into(),
+    })
+    .await
+    .unwrap();
+    let before = radius_7(&d);
+    // Stopped in N10: planned past N20, but N20 never executed.
+    let job = m.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let st = d.ctl.clone();
+    wait_until("moving in N10", || {
+        let s = st.snapshot();
+        s.job == job && s.block_n == Some(10) && s.path_v_mm_s > 0.0
+    })
+    .await;
+    assert_eq!(radius_7(&d), before, "not yet executed");
+    m.stop(pb::StopRequest {}).await.unwrap();
+    wait_state(&d.ctl, MachineState::Idle).await;
+    assert_eq!(d.ctl.snapshot().aborted_job, job);
+    assert_eq!(
+        radius_7(&d),
+        before,
+        "a stopped program's unreached G92 changes nothing"
+    );
+    // Run to the end: the write is in memory.
+    m.load_program(pb::LoadProgramRequest {
+        name: "g92.nc".into(),
+        text: "N20 G92 D7 R0=2.5\nN30 G1 X60 F6000\n".into(),
+    })
+    .await
+    .unwrap();
+    let job = m.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    wait_job_finished(&d.ctl, job).await;
+    assert_eq!(radius_7(&d), Some(2.5));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_refused_load_selects_nothing() {
+    let d = start(config(Role::Admin)).await;
+    let mut m = MachineClient::new(d.channel().await);
+    for i in 0..64 {
+        m.upload_program(pb::LoadProgramRequest {
+            name: format!("p{i}.nc"),
+            text: "G1 X1 F100\n".into(),
+        })
+        .await
+        .unwrap();
+    }
+    let e = m
+        .load_program(pb::LoadProgramRequest {
+            name: "one-too-many.nc".into(),
+            text: "G1 X5 F100\n".into(),
+        })
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::ResourceExhausted);
+    let list = m
+        .list_programs(pb::ListProgramsRequest {})
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!(list.selected, "");
+    assert_eq!(list.programs.len(), 64);
+    let e = m.start(pb::StartRequest {}).await.unwrap_err();
+    assert_eq!(e.code(), Code::FailedPrecondition);
+
+    // A load whose deadline expires while it validates: never selected afterwards.
+    let mut long = String::new();
+    for i in 0..100_000 {
+        long.push_str(&format!("G1 X{} F3000\n", i % 50));
+    }
+    let mut req = tonic::Request::new(pb::LoadProgramRequest {
+        name: "p0.nc".into(),
+        text: long,
+    });
+    req.set_timeout(Duration::from_millis(1));
+    let e = m.load_program(req).await.unwrap_err();
+    assert!(
+        matches!(e.code(), Code::DeadlineExceeded | Code::Cancelled),
+        "{e:?}"
+    );
+    // The validation may still be running on the server: it must never select.
+    tokio::time::sleep(Duration::from_secs(3)).await;
+    assert!(d.ctl.program().is_none());
+}
+
+fn gear_config() -> daemon::runtime::config::Config {
+    let mut cfg = config(Role::Admin);
+    cfg.kr.gears = (1..=4)
+        .map(|g| GearConfig {
+            max_rpm: 1000.0 * g as f64,
+            output_range: 0x7FFF,
+            m_code: Some(40 + g),
+        })
+        .collect();
+    cfg
+}
+
+async fn mdi(d: &Daemon, m: &mut MachineClient<Channel>, block: &str) -> u32 {
+    let job = m
+        .mdi(pb::MdiRequest {
+            block: block.into(),
+        })
+        .await
+        .unwrap_or_else(|e| panic!("{block}: {e:?}"))
+        .into_inner()
+        .job;
+    wait_job_finished(&d.ctl, job).await;
+    job
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn mdi_inherits_spindle_gear_feed_and_g91() {
+    let d = start(gear_config()).await;
+    let mut m = MachineClient::new(d.channel().await);
+    m.load_program(pb::LoadProgramRequest {
+        name: "gear4.nc".into(),
+        text: "N10 M44 M3 S800\nN20 G1 X10 F3000\n".into(),
+    })
+    .await
+    .unwrap();
+    let job = m.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    wait_job_finished(&d.ctl, job).await;
+    // S800 in gear 4 (P = 4000 rpm): output 800/4000 of 7FFFh.
+    let gear4 = (800.0 / 4000.0 * 32767.0) as u16;
+    let kr = |d: &Daemon| d.ctl.snapshot().kr;
+    assert_eq!(kr(&d).spindle_rpm, 800.0);
+    assert!(kr(&d).output.abs_diff(gear4) <= 1, "{:?}", kr(&d));
+
+    // Spindle and gear stay: the MDI move cuts with the spindle the program left on.
+    mdi(&d, &mut m, "G1 X90 F3000").await;
+    assert_eq!(kr(&d).spindle_rpm, 800.0, "spindle kept");
+    assert!(
+        kr(&d).output.abs_diff(gear4) <= 1,
+        "gear 4 kept: {:?}",
+        kr(&d)
+    );
+    assert!((d.ctl.snapshot().commanded[0] - 90.0).abs() < 1e-6);
+
+    // G91 and the feed carry from one MDI to the next.
+    mdi(&d, &mut m, "G91 G1 X-5 F3000").await;
+    mdi(&d, &mut m, "G1 X-5").await;
+    assert!((d.ctl.snapshot().commanded[0] - 80.0).abs() < 1e-6);
+    // M5 in MDI: the next MDI keeps the spindle stopped.
+    mdi(&d, &mut m, "M5").await;
+    mdi(&d, &mut m, "X-5").await;
+    assert!((d.ctl.snapshot().commanded[0] - 75.0).abs() < 1e-6);
+    assert_eq!(kr(&d).spindle_rpm, 0.0, "M5 kept");
+}
+
+/// Junction classes of `text` from the preview data.
+async fn junction_classes(doors: &mut Doors, text: &str) -> Vec<i32> {
+    doors
+        .p
+        .get_preview_data(pb::PreviewDataRequest {
+            text: text.into(),
+            junctions: true,
+        })
+        .await
+        .unwrap()
+        .into_inner()
+        .junctions
+        .iter()
+        .map(|j| j.class)
+        .collect()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn planner_and_interpreter_constants_take_effect_at_the_next_pass() {
+    let d = start(config(Role::Admin)).await;
+    d.ctl.replace_offsets_file(TABLE).unwrap();
+    let mut doors = Doors::new(d.channel().await).await;
+    let smooth = pb::JunctionClass::Smooth as i32;
+    let stop = pb::JunctionClass::Stop as i32;
+
+    // 1.R97 = 2 (automatic continuity) with R39 = 60°: a 16.7° corner under G23 is smooth;
+    // R39 = 10° makes it a stop.
+    let corner = "N10 G23 G1 X10 Y0 F3000\nN20 X20 Y3\nN30 X30 Y3\n";
+    doors.set(&[(97, 0.002), (39, 60.0)]).await;
+    assert_eq!(junction_classes(&mut doors, corner).await[0], smooth);
+    doors.set(&[(39, 10.0)]).await;
+    assert_eq!(junction_classes(&mut doors, corner).await[0], stop);
+    // The run takes the same setup: it starts and ends without alarm.
+    assert!(doors.load(corner).await.valid);
+    let job = doors
+        .m
+        .start(pb::StartRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .job;
+    wait_job_finished(&d.ctl, job).await;
+    assert!(d.ctl.alarm().is_none());
+
+    // 6.R397 = 1: G41 may change to G42 directly, for the interpreter and compensation alike.
+    let switch = "N10 G0 X0 Y0\nN20 D1 G41 G1 X10 Y0 F500\nN30 G42 X20 Y0\nN40 G40 X30 Y0\n";
+    let (v, _) = doors.validate(switch).await;
+    assert!(!v.valid);
+    doors.set(&[(397, 100.0)]).await;
+    let (v, _) = doors.validate(switch).await;
+    assert!(v.valid, "{v:?}");
+    assert!(doors.load(switch).await.valid);
+    doors.set(&[(397, 0.0)]).await;
+    // Loaded under 6.R397 = 1; Start validates again with the constants in force now.
+    let e = doors.m.start(pb::StartRequest {}).await.unwrap_err();
+    assert_eq!(from_refusal(e), doors.validate(switch).await.0);
+}
+
+/// The simulated machine whose axis 1 always reads `LAG_MM` behind: a following error that
+/// never settles, to see which G24 window (R6) a job runs with.
+struct LaggingBus(sim::SimBus);
+
+const LAG_MM: f64 = 0.05;
+
+impl hal::DriveBus for LaggingBus {
+    fn name(&self) -> &str {
+        self.0.name()
+    }
+    fn axes(&self) -> usize {
+        self.0.axes()
+    }
+    fn cycle(
+        &mut self,
+        cmd: &hal::CycleCommand,
+        fb: &mut hal::CycleFeedback,
+    ) -> Result<(), hal::BusFault> {
+        let r = self.0.cycle(cmd, fb);
+        fb.axes[0].position_mm -= LAG_MM;
+        r
+    }
+    fn enable(&mut self) {
+        self.0.enable()
+    }
+    fn reset(&mut self) {
+        self.0.reset()
+    }
+}
+
+/// A daemon on [`LaggingBus`], served on loopback (local trust, admin).
+async fn lagging_daemon() -> (
+    std::sync::Arc<daemon::runtime::controller::Controller>,
+    Channel,
+) {
+    use daemon::runtime::controller::{ClockKind, Controller};
+    use daemon::runtime::server::{Listeners, serve_listeners_with};
+    let cfg = config(Role::Admin);
+    let bus = LaggingBus(sim::SimBus::new(
+        sim::SimDriveParams::default(),
+        &vec![0.0; cfg.axes.len()],
+    ));
+    let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
+    let local = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = local.local_addr().unwrap();
+    let listeners = Listeners {
+        local_tcp: vec![local],
+        remote_tcp: Vec::new(),
+        unix: None,
+    };
+    tokio::spawn(serve_listeners_with(
+        ctl.clone(),
+        listeners,
+        None,
+        std::future::pending(),
+    ));
+    wait_state(&ctl, MachineState::Idle).await;
+    let ch = Channel::from_shared(format!("http://{addr}"))
+        .unwrap()
+        .connect()
+        .await
+        .unwrap();
+    (ctl, ch)
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn r6_g24_window_reaches_the_rt_thread_at_the_next_start() {
+    let (ctl, ch) = lagging_daemon().await;
+    let mut doors = Doors::new(ch).await;
+    let program = "N10 G24 G1 X5 F3000\nN20 X10\n";
+    // R6 = 0.1 mm: the 0.05 mm lag counts as arrived; G24 goes on to N20 and the job ends.
+    doors.set(&[(6, 0.1)]).await;
+    assert!(doors.load(program).await.valid);
+    let job = doors
+        .m
+        .start(pb::StartRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .job;
+    wait_job_finished(&ctl, job).await;
+    // R6 = 0.01 mm (in force at the next start): G24 waits at the end of N10 for ever.
+    doors.set(&[(6, 0.01)]).await;
+    assert!(doors.load("N10 G24 G1 X15 F3000\nN20 X20\n").await.valid);
+    let job = doors
+        .m
+        .start(pb::StartRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .job;
+    let c = ctl.clone();
+    wait_until("at the end of N10", || {
+        let s = c.snapshot();
+        s.job == job && (s.commanded[0] - 15.0).abs() < 1e-9 && s.path_v_mm_s == 0.0
+    })
+    .await;
+    // 250 ticks (1 s of machine time) later it still waits there.
+    let t0 = ctl.snapshot().sequence;
+    let c = ctl.clone();
+    wait_until("250 ticks", || c.snapshot().sequence > t0 + 250).await;
+    let s = ctl.snapshot();
+    assert_eq!(s.block_n, Some(10), "{s:?}");
+    assert_eq!(s.state, MachineState::Running);
+    assert!((s.commanded[0] - 15.0).abs() < 1e-9);
+    doors.m.stop(pb::StopRequest {}).await.unwrap();
+    wait_state(&ctl, MachineState::Idle).await;
+}
