@@ -1,8 +1,11 @@
-//! Planner and interpolator figures (issue #5): machining time per toolpath in linear and
-//! parabolic mode against a reference planner (16-block look-ahead, one block per tick),
-//! planner throughput, and interpolation cost per tick. Prints tables; asserts nothing.
+//! Planner and interpolator figures (issues #5, #16, #24): machining time per toolpath on the
+//! configuration `cncd` builds (`PlannerConfig::for_machine`, the same function the daemon
+//! calls), against the time-optimal time under the same constraints (an independent exact
+//! forward/backward pass in this file) and a reference planner (16-block look-ahead, one block
+//! per tick); planner throughput; interpolation cost per tick. Prints tables; asserts nothing.
 //!
-//! Run: `cargo bench -p kernel --bench plan`
+//! Run: `cargo bench -p kernel --bench plan`. `PLAN_CONSTANTS=path/to/TAB0.REK` adds a run
+//! with that constants file (on the daemon's default axes).
 
 #[path = "../tests/plan_common/mod.rs"]
 mod plan_common;
@@ -10,44 +13,224 @@ mod plan_common;
 use std::time::Instant;
 
 use kernel::block::{Block, Continuity};
+use kernel::constants::Constants;
 use kernel::interp::{InterpState, Interpolator};
-use kernel::plan::{Planner, PlannerConfig};
+use kernel::plan::{
+    AxisLimits, DEFAULT_AXIS_LIMITS, Junction, Planner, PlannerConfig, SegPath, Segment,
+};
 use plan_common::*;
 
-/// Our settings: the suite constants with the minimum block duration at 0.
-fn ours(profile: u8) -> PlannerConfig {
-    let mut c = config(profile);
-    c.min_block_time_s = 0.0;
-    c
+/// The daemon's default machine: three axes at the configuration defaults.
+fn default_axes() -> Vec<AxisLimits> {
+    vec![DEFAULT_AXIS_LIMITS; 3]
 }
 
-/// Reference planner in the style of LinuxCNC/Grbl: the same junction criteria, but a
-/// 16-block look-ahead window and every block lasting at least one tick (one block per tick).
-fn reference() -> PlannerConfig {
-    let mut c = config(1);
+/// The machine of `deploy/cncd.toml`: X/Y 200 mm/s 800 mm/s², Z 100 mm/s 500 mm/s².
+fn unequal_axes() -> Vec<AxisLimits> {
+    let z = AxisLimits {
+        v_max_mm_s: 100.0,
+        a_max_mm_s2: 500.0,
+    };
+    vec![DEFAULT_AXIS_LIMITS, DEFAULT_AXIS_LIMITS, z]
+}
+
+fn constants_file(path: &str) -> Constants {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    Constants::parse(&text).unwrap_or_else(|e| panic!("{path}: {e:?}"))
+}
+
+/// A daemon configuration: axes, constants file (None = none on the machine), default
+/// `[planner] min_block_time_ms` (0).
+fn daemon_config(axes: &[AxisLimits], constants: Option<&Constants>) -> PlannerConfig {
+    PlannerConfig::for_machine(axes, 0.0, constants)
+}
+
+/// Reference planner in the style of LinuxCNC/Grbl: the same configuration and criteria, but
+/// a 16-block look-ahead window and every block lasting at least one tick.
+fn reference(cfg: &PlannerConfig) -> PlannerConfig {
+    let mut c = cfg.clone();
     c.lookahead_blocks = 16;
     c.min_block_time_s = kernel::TS_S;
     c.envelope.rule = kernel::plan::ContinuityRule::Manual;
     c
 }
 
-fn machining_times() {
-    println!("## Machining time per toolpath (virtual time, 4 ms ticks)\n");
+/// Path acceleration limit of a segment under the constraint set: the axes it moves
+/// (a_i/|u_i|; arcs with both plane axes at full share, as the planner) and the path
+/// accelerations of the constants (R52 / R236 / set A / R237 and the rapid set).
+fn path_accel(cfg: &PlannerConfig, seg: &Segment, continuous: bool) -> f64 {
+    let axes = cfg.axes;
+    let mut dir = seg.path.tangent_at(0.0, axes);
+    if let SegPath::Arc {
+        plane,
+        radius_mm,
+        sweep_rad,
+        ..
+    } = seg.path
+    {
+        let (a, b) = plane.axes();
+        let share = radius_mm * sweep_rad.abs() / seg.length_mm;
+        dir[a] = share;
+        dir[b] = share;
+    }
+    let mut acc = f64::INFINITY;
+    for i in 0..axes {
+        if dir[i].abs() > 1e-12 {
+            acc = acc.min(cfg.axis_a_max_mm_s2[i] / dir[i].abs());
+        }
+    }
+    let env = &cfg.envelope;
+    let set_a = env.sets[usize::from(seg.dyn_set.clamp(1, 4) - 1)].accel_mm_s2;
+    let path = if seg.rapid {
+        env.accel_rapid_mm_s2.min(env.rapid_accel_mm_s2)
+    } else if continuous {
+        set_a
+    } else {
+        env.accel_stop_mm_s2.min(set_a)
+    };
+    acc.min(path)
+}
+
+/// Time-optimal machining time under the planner's constraints, computed independently of
+/// the planner's speed decisions: per segment the ceiling (feed, axis velocities, arc
+/// criteria: `min(feed, v_max)`), per junction the criteria cap (dynamic, accuracy, local
+/// curvature; 0 at stops), per segment the full path acceleration of the axes it moves.
+/// Exact forward/backward pass, continuous time.
+fn time_optimal_s(cfg: &PlannerConfig, segs: &[Segment]) -> f64 {
+    let n = segs.len();
+    let ceil: Vec<f64> = segs.iter().map(|s| s.feed_mm_s.min(s.v_max_mm_s)).collect();
+    let acc: Vec<f64> = (0..n)
+        .map(|k| {
+            let prev_smooth = k > 0 && segs[k - 1].junction != Junction::Stop;
+            let continuous = prev_smooth || segs[k].junction != Junction::Stop;
+            path_accel(cfg, &segs[k], continuous)
+        })
+        .collect();
+    let mut end: Vec<f64> = (0..n)
+        .map(|k| {
+            let next = if k + 1 < n { ceil[k + 1] } else { 0.0 };
+            // The criteria cap, also where the planner chose to stop (0 at real stops).
+            if segs[k].last {
+                0.0
+            } else {
+                segs[k].junction_cap_mm_s.min(ceil[k]).min(next)
+            }
+        })
+        .collect();
+    for k in (1..n).rev() {
+        let v = (end[k] * end[k] + 2.0 * acc[k] * segs[k].length_mm).sqrt();
+        end[k - 1] = end[k - 1].min(v);
+    }
+    let mut t = 0.0;
+    let mut v0 = 0.0;
+    for k in 0..n {
+        let (a, l) = (acc[k], segs[k].length_mm);
+        end[k] = end[k].min((v0 * v0 + 2.0 * a * l).sqrt());
+        let v1 = end[k];
+        let peak = ceil[k].min(((2.0 * a * l + v0 * v0 + v1 * v1) / 2.0).sqrt());
+        let ramps = (2.0 * peak * peak - v0 * v0 - v1 * v1) / (2.0 * a);
+        t += (peak - v0) / a + (peak - v1) / a + (l - ramps).max(0.0) / peak;
+        v0 = v1;
+    }
+    t
+}
+
+/// Largest per-axis acceleration and jerk of the setpoints, as fractions of the axis limits.
+fn axis_peaks(cfg: &PlannerConfig, r: &Run) -> (f64, f64) {
+    let ts = kernel::TS_S;
+    let t = &r.ticks;
+    let (mut a_max, mut j_max) = (0.0f64, 0.0f64);
+    for i in 0..cfg.axes {
+        let v: Vec<f64> = t
+            .windows(2)
+            .map(|w| (w[1].position[i] - w[0].position[i]) / ts)
+            .collect();
+        let a: Vec<f64> = v.windows(2).map(|w| (w[1] - w[0]) / ts).collect();
+        for x in &a {
+            a_max = a_max.max(x.abs() / cfg.axis_a_max_mm_s2[i]);
+        }
+        for w in a.windows(2) {
+            j_max = j_max.max(((w[1] - w[0]) / ts).abs() / cfg.axis_j_max_mm_s3[i]);
+        }
+    }
+    (a_max, j_max)
+}
+
+fn machining_table(title: &str, cfg: &PlannerConfig, paths: &[(&str, Vec<Block>)]) {
+    println!("#### {title}\n");
     println!(
-        "| toolpath | blocks | linear s | parabolic s | reference s (16 blocks, 1 block/tick) | reference / linear |"
+        "| toolpath | blocks | time s | time-optimal s | ratio | reference s (16 blocks, 1 block/tick) | reference / time | max axis a / limit | max axis jerk / limit |"
     );
-    println!("|---|---:|---:|---:|---:|---:|");
-    for (name, blocks) in suite() {
-        let lin = run(ours(1), &blocks).time_s();
-        let par = run(ours(2), &blocks).time_s();
-        let refr = run(reference(), &blocks).time_s();
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for (name, blocks) in paths {
+        let r = run(cfg.clone(), blocks);
+        let t = r.time_s();
+        let opt = time_optimal_s(cfg, &r.segments);
+        let refr = run(reference(cfg), blocks).time_s();
+        let (a, j) = axis_peaks(cfg, &r);
         println!(
-            "| {name} | {} | {lin:.3} | {par:.3} | {refr:.3} | {:.2} |",
+            "| {name} | {} | {t:.3} | {opt:.3} | {:.3} | {refr:.3} | {:.2} | {a:.3} | {j:.3} |",
             blocks.len(),
-            refr / lin
+            t / opt,
+            refr / t
         );
     }
     println!();
+}
+
+fn machining_times() {
+    println!("## Machining time per toolpath (virtual time, 4 ms ticks)\n");
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/plan");
+    let linear = constants_file(&format!("{dir}/linear.rek"));
+    let parabolic = constants_file(&format!("{dir}/parabolic.rek"));
+    let suite = daemon_suite();
+    let unequal = [(
+        "unequal limits: XZ ramps, XY diagonals",
+        unequal_limits_path(),
+    )];
+    let runs: [(&str, Option<&Constants>); 3] = [
+        (
+            "daemon defaults, no constants file (linear, manual continuity)",
+            None,
+        ),
+        (
+            "constants benches/plan/linear.rek (R384 = 0.008, R385 = 1.000, R52 = R237 = 1000)",
+            Some(&linear),
+        ),
+        (
+            "constants benches/plan/parabolic.rek (as linear.rek, 2.R338 = 2)",
+            Some(&parabolic),
+        ),
+    ];
+    for (title, c) in runs {
+        machining_table(
+            &format!("{title}; axes 3 × 200 mm/s, 800 mm/s²"),
+            &daemon_config(&default_axes(), c),
+            &suite,
+        );
+        machining_table(
+            &format!("{title}; axes X/Y 200 mm/s 800 mm/s², Z 100 mm/s 500 mm/s²"),
+            &daemon_config(&unequal_axes(), c),
+            &unequal,
+        );
+    }
+    if let Ok(path) = std::env::var("PLAN_CONSTANTS") {
+        let c = constants_file(&path);
+        machining_table(
+            &format!("constants {path}; axes 3 × 200 mm/s, 800 mm/s²"),
+            &daemon_config(&default_axes(), Some(&c)),
+            &suite,
+        );
+    }
+}
+
+/// The configuration of the throughput and tick-cost figures: the daemon's, with the bench's
+/// constants file of the given profile (1 linear, 2 parabolic).
+fn ours(profile: u8) -> PlannerConfig {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/plan");
+    let name = if profile == 1 { "linear" } else { "parabolic" };
+    let c = constants_file(&format!("{dir}/{name}.rek"));
+    daemon_config(&default_axes(), Some(&c))
 }
 
 /// A long program of 0.05 mm chords on circles of 10 mm, generated on the fly.

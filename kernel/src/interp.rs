@@ -52,6 +52,10 @@ pub const FILTER_MAX_TICKS: usize = 256;
 /// Longest axis smoothing filter, ticks per stage.
 pub const AXIS_FILTER_MAX_TICKS: usize = crate::plan::AXIS_FILTER_MAX_TICKS;
 
+/// Segments looked at (from rest) for the highest speed the jerk filter is sized for; with
+/// more buffered before the next stop the filter is sized for the full acceleration.
+const FILTER_SCAN_SEGMENTS: usize = 256;
+
 /// Remaining distance under which a point counts as reached.
 const ARRIVE_EPS_MM: f64 = 1e-9;
 
@@ -107,6 +111,9 @@ pub struct Interpolator {
     v_mm_s: f64,
     /// The raw position rests at the end of segment `rk`, a stop point.
     raw_at_stop: bool,
+    /// The last tick ended exactly on a junction: its cap holds for the next tick too (the
+    /// velocity turns between these two ticks).
+    entry_cap_mm_s: f64,
     dwell_ticks: u32,
     // Filter stage.
     m: usize,
@@ -163,6 +170,7 @@ impl Interpolator {
             rs_mm: 0.0,
             v_mm_s: 0.0,
             raw_at_stop: false,
+            entry_cap_mm_s: f64::INFINITY,
             dwell_ticks: 0,
             m: 1,
             hist_s: vec![0.0; FILTER_MAX_TICKS].into_boxed_slice(),
@@ -355,6 +363,7 @@ impl Interpolator {
         self.rs_mm = 0.0;
         self.v_mm_s = 0.0;
         self.raw_at_stop = false;
+        self.entry_cap_mm_s = f64::INFINITY;
         self.dwell_ticks = 0;
         self.hist_s.fill(0.0);
         self.hist_cap.fill(f64::INFINITY);
@@ -439,14 +448,33 @@ impl Interpolator {
         self.s0[self.idx(self.rk)] + self.rs_mm
     }
 
-    /// Filter length a segment needs: the raw acceleration steps by at most 2a, so the jerk
-    /// of the average is ≤ 2a/(m·Ts) ≤ J.
-    fn filter_for(seg: &Segment) -> usize {
+    /// Filter length for the motion that starts at rest on segment `rk`: the raw acceleration
+    /// steps by at most 2a, so the jerk of the average is ≤ 2a/(m·Ts) ≤ J. A motion that
+    /// cannot reach `a` before its speed (the highest programmed speed up to the next stop,
+    /// at 100 % override) is a pure parabola: it needs only a = √(v·J), so the filter is sized
+    /// for that (the ramp to F takes 3·√(F/J) instead of 2a/J + F/a; the manual's
+    /// T = 1.478·√(F/P) is 2·√(F/J)).
+    fn filter_for(&self) -> usize {
+        let seg = self.seg(self.rk);
         let a = seg.accel_mm_s2.max(seg.stop_accel_mm_s2);
-        if !seg.jerk_mm_s3.is_finite() || seg.jerk_mm_s3 <= 0.0 {
+        let j = seg.jerk_mm_s3;
+        if !j.is_finite() || j <= 0.0 {
             return 1;
         }
-        ((2.0 * a / (seg.jerk_mm_s3 * TS_S)).ceil() as usize)
+        // (Segments that arrive later are followed at the acceleration this filter allows:
+        // slower, never above the jerk.)
+        let mut v = f64::INFINITY;
+        let mut top = 0.0f64;
+        for k in self.rk..self.len.min(self.rk + FILTER_SCAN_SEGMENTS) {
+            let s = self.seg(k);
+            top = top.max(s.feed_mm_s.min(s.v_max_mm_s));
+            if s.v_end_mm_s == 0.0 || k + 1 == self.len {
+                v = top;
+                break;
+            }
+        }
+        let a = a.min((v * j).sqrt());
+        ((2.0 * a / (j * TS_S)).ceil() as usize)
             .clamp(1, FILTER_MAX_TICKS - 2 * AXIS_FILTER_MAX_TICKS - 2)
     }
 
@@ -486,17 +514,40 @@ impl Interpolator {
         a.max(1e-6)
     }
 
-    /// Highest per-tick speed that still lets us brake from the end of this tick to `v_cap` over
-    /// the distance `d` (from the current position) with deceleration `a`:
-    /// (v² − v_cap²)/(2a) ≤ d − v·Ts.
+    /// Highest speed for this tick from which the per-tick speeds, falling by u = a·Ts per
+    /// tick, are down to `v_cap` when the path reaches the cap point `d` ahead. Exact in
+    /// discrete time: the speeds before the point are v_cap + r + j·u (j = J..0, 0 < r ≤ u),
+    /// covering Ts·((J+1)·(v_cap + r) + u·J(J+1)/2) ≤ d − v_cap·Ts. For a stop (v_cap = 0) they end exactly on it, so braking runs at the full
+    /// deceleration and the last tick is the only one rounded (the continuous bound
+    /// (v² − v_cap²)/(2a) ≤ d − v·Ts started braking half a tick early and crept at the end).
     fn v_brake(d: f64, v_cap: f64, a: f64) -> f64 {
-        let d = d.max(0.0);
-        (-a * TS_S + (a * a * TS_S * TS_S + v_cap * v_cap + 2.0 * a * d).sqrt()).max(0.0)
+        let u = a * TS_S;
+        // The last tick before the point runs at v_cap and ends on it (the tick after the point
+        // is held to the cap too, see `entry_cap_mm_s`): the faster ticks end one v_cap·Ts
+        // earlier. Distances in speed·ticks.
+        let dd = d.max(0.0) / TS_S - v_cap;
+        // Distance of the J+1 ticks faster than v_cap with r = 0.
+        let lower = |j: f64| (j + 1.0) * v_cap + u * j * (j + 1.0) / 2.0;
+        if dd <= v_cap {
+            return dd.max(0.0);
+        }
+        let b = v_cap + u / 2.0;
+        let root = (-b + (b * b + 2.0 * u * (dd - v_cap)).sqrt()) / u;
+        let mut j = (root.ceil() - 1.0).max(0.0);
+        while j > 0.0 && lower(j) >= dd {
+            j -= 1.0;
+        }
+        while lower(j + 1.0) < dd {
+            j += 1.0;
+        }
+        let r = ((dd - lower(j)) / (j + 1.0)).min(u);
+        v_cap + r + j * u
     }
 
     /// Advances one tick.
     pub fn tick(&mut self) -> TickOut {
         let mut program_end = false;
+        let mut path_v = 0.0;
         self.spindle_wait = false;
         if self.len > 0 {
             let (cap, feed) = if matches!(self.state, InterpState::Held | InterpState::Idle) {
@@ -506,7 +557,9 @@ impl Interpolator {
             };
             self.record(cap, feed);
             program_end = self.follow();
+            path_v = self.f_v_mm_s;
             self.smooth_axes();
+            // (Resets the speed when the last segment has been left: report this tick's.)
             self.update_state();
         } else {
             self.f_v_mm_s = 0.0;
@@ -515,7 +568,7 @@ impl Interpolator {
         self.reported_spindle = self.last_spindle;
         TickOut {
             position: self.position,
-            path_v_mm_s: self.f_v_mm_s,
+            path_v_mm_s: path_v,
             seq: self.last_seq,
             n: self.last_n,
             line: self.last_line,
@@ -630,7 +683,7 @@ impl Interpolator {
                 self.axis_mid.fill(self.path_pos);
                 self.axis_n = n;
             }
-            let m = Self::filter_for(self.seg(self.rk));
+            let m = self.filter_for();
             if m != self.m {
                 let s = self.raw_s();
                 self.hist_s.fill(s);
@@ -662,7 +715,7 @@ impl Interpolator {
             self.ceiling(&head).min(behind_feed * self.override_factor)
         };
         // Hard limits: geometric ceilings, planned end speeds, end of the buffer.
-        let mut hard = head.v_max_mm_s.min(behind_cap);
+        let mut hard = head.v_max_mm_s.min(behind_cap).min(self.entry_cap_mm_s);
         let v_up = v + a * TS_S;
         // Caps farther than this cannot constrain this tick (braking distance at `a_walk`).
         let reach = |a_walk: f64| v_up * v_up / (2.0 * a_walk) + 2.0 * v_up * TS_S + v_up * lag;
@@ -724,10 +777,15 @@ impl Interpolator {
         let first = *self.seg(self.rk);
         let mut cap = first.v_max_mm_s;
         let mut feed = self.feed_of(&first);
+        self.entry_cap_mm_s = f64::INFINITY;
         loop {
             let seg = *self.seg(self.rk);
             let rest = seg.length_mm - self.rs_mm;
             if ds < rest - ARRIVE_EPS_MM {
+                if self.rs_mm == 0.0 && ds <= ARRIVE_EPS_MM {
+                    // Ended on the junction just crossed.
+                    self.entry_cap_mm_s = cap;
+                }
                 self.rs_mm += ds;
                 return (cap, feed);
             }

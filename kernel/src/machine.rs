@@ -14,7 +14,7 @@ use crate::kr::{Gear, KrConfig, KrConfigError, KrConstants, RadiusInput};
 use crate::offsets::OffsetTable;
 use crate::plan::PlannerConfig;
 use crate::program::{IjMode, Modal, Setup};
-use crate::units::{AxesMm, MAX_AXES};
+use crate::units::AxesMm;
 
 /// Limits of one configured axis.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -35,6 +35,9 @@ pub struct MachineConfig {
     pub ij: IjMode,
     /// `$63`: the preprocessor is on (R325 refinement).
     pub preprocessor: bool,
+    /// Minimum block duration of the planner (`[planner] min_block_time_ms`; 0: as many
+    /// blocks per tick as the criteria allow, 4 ms: CNC8x9 compatibility), s.
+    pub min_block_time_s: f64,
 }
 
 impl MachineConfig {
@@ -143,34 +146,26 @@ impl MachineSetup {
 }
 
 /// The planner's configuration from the axis limits and the constants: the one function that
-/// builds it (daemon, preview, benches).
+/// builds it (daemon, preview, benches). The envelope settings come from the constants when the
+/// machine has a constants file; otherwise each move is limited by the axes it moves (#24).
 pub fn planner_config(
     machine: &MachineConfig,
     constants: &Constants,
     constants_from_file: bool,
 ) -> PlannerConfig {
-    let axes = &machine.axes;
-    // Path-level defaults from the slowest axis; per-axis limits then from each axis.
-    let v_min = axes
+    let axes: Vec<crate::plan::AxisLimits> = machine
+        .axes
         .iter()
-        .map(|a| a.max_velocity_mm_min / 60.0)
-        .fold(f64::INFINITY, f64::min);
-    let a_min = axes
-        .iter()
-        .map(|a| a.max_accel_mm_s2)
-        .fold(f64::INFINITY, f64::min);
-    let mut cfg = PlannerConfig::uniform(axes.len(), v_min, a_min);
-    for (i, a) in axes.iter().enumerate().take(MAX_AXES) {
-        cfg.axis_v_max_mm_s[i] = a.max_velocity_mm_min / 60.0;
-        cfg.axis_a_max_mm_s2[i] = a.max_accel_mm_s2;
-        cfg.axis_j_max_mm_s3[i] = 50.0 * a.max_accel_mm_s2;
-    }
-    // The envelope settings (continuity, criteria, dynamic sets) come from the constants
-    // when the machine has a constants file; otherwise the axis limits alone apply.
-    if constants_from_file {
-        cfg = cfg.with_constants(constants);
-    }
-    cfg
+        .map(|a| crate::plan::AxisLimits {
+            v_max_mm_s: a.max_velocity_mm_min / 60.0,
+            a_max_mm_s2: a.max_accel_mm_s2,
+        })
+        .collect();
+    PlannerConfig::for_machine(
+        &axes,
+        machine.min_block_time_s,
+        constants_from_file.then_some(constants),
+    )
 }
 
 #[cfg(test)]
@@ -193,6 +188,7 @@ mod tests {
             radius_input: RadiusInput::Diameter,
             ij: IjMode::default(),
             preprocessor: true,
+            min_block_time_s: 0.0,
         }
     }
 

@@ -1,6 +1,6 @@
-//! R325 circle refinement through the API (issue #18, SPEC §4.6): ValidateProgram returns the
-//! refined E per block and GetRefinedProgram the program text with E written the way the
-//! manual shows; cncd runs the listing exactly like the original.
+//! Issue #18 through the API: ValidateProgram runs the whole pipeline (the gouge check
+//! included) and returns the R325 refined E per block; GetRefinedProgram gives the program
+//! text with E written the way the manual shows (SPEC §4.6).
 
 mod api_common;
 
@@ -90,5 +90,39 @@ async fn refinements_are_returned_and_written_as_e() {
         .into_inner();
     assert_eq!(sel.text, l.text);
     assert!(sel.refinements.is_empty());
+    d.ctl.shutdown();
+}
+
+/// A block 1 mm long between two inside corners, tool radius 5: its equidistant loops
+/// backwards 4 mm into N40.
+const LOOP: &str = "N10 G92 D1 R0=5.0\nN20 G17 D1\nN25 G0 X-10 Y-10\nN30 G41 G1 X0 Y0 F500\n\
+N40 G1 X20\nN50 G1 Y1\nN60 G1 X0 Y21\nN70 G40 G1 X-10 Y31\n";
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn validate_program_reports_gouges() {
+    let d = start(config(Role::Admin)).await;
+    let mut c = MachineClient::new(d.channel().await);
+    let v = c
+        .validate_program(pb::ValidateProgramRequest { text: LOOP.into() })
+        .await
+        .unwrap()
+        .into_inner();
+    assert!(v.valid, "{:?}", v.diagnostics);
+    assert_eq!(v.blocks, 8);
+    assert!(
+        v.diagnostics.iter().any(|g| g.block == Some(50)
+            && g.severity == pb::Severity::Warning as i32
+            && g.message.starts_with(kernel::comp::gouge::MESSAGE_PREFIX)
+            && g.message.contains("N40")),
+        "{:?}",
+        v.diagnostics
+    );
+    d.ctl.set_constants(&[(765, 100.0)]).unwrap(); // 6.R765 = 1: refuse
+    let v = c
+        .validate_program(pb::ValidateProgramRequest { text: LOOP.into() })
+        .await
+        .unwrap()
+        .into_inner();
+    assert!(!v.valid);
     d.ctl.shutdown();
 }

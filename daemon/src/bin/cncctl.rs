@@ -15,6 +15,7 @@ use proto::v1::machine_client::MachineClient;
 use proto::v1::offsets_client::OffsetsClient;
 use proto::v1::plc_client::PlcClient;
 use proto::v1::preview_client::PreviewClient;
+use proto::v1::trajectory_client::TrajectoryClient;
 use serde_json::{Value, json};
 use tonic::metadata::{Ascii, MetadataValue};
 use tonic::service::Interceptor;
@@ -168,6 +169,15 @@ enum Cmd {
         #[arg(long)]
         remote: bool,
     },
+    /// The planned per-tick trajectory of a program file (or of the selected program) on the
+    /// daemon, without moving the machine: total time, and with -o a CSV of every tick
+    /// (time, setpoints, path speed, block) for plotting.
+    Trajectory {
+        file: Option<PathBuf>,
+        /// CSV output file.
+        #[arg(short = 'o', long)]
+        out: Option<PathBuf>,
+    },
     /// grpc.health.v1 status of the daemon.
     Health,
     /// Print the SHA-256 of a token, for `[[api.tokens]] sha256 = ...`.
@@ -213,6 +223,7 @@ struct Clients {
     p: PlcClient<Svc>,
     k: ConstantsClient<Svc>,
     v: PreviewClient<Svc>,
+    t: TrajectoryClient<Svc>,
     ch: Channel,
     token: Token,
 }
@@ -304,6 +315,7 @@ async fn connect(args: &Args) -> Result<Clients, String> {
         p: PlcClient::new(svc()),
         k: ConstantsClient::new(svc()),
         v: PreviewClient::new(svc()),
+        t: TrajectoryClient::new(svc()),
         ch: ch.clone(),
         token: token.clone(),
     })
@@ -998,6 +1010,19 @@ async fn run(args: Args) -> Result<ExitCode, String> {
             );
             Ok(ExitCode::SUCCESS)
         }
+        Cmd::Trajectory { file, out } => {
+            let text = match file {
+                Some(f) => read_text(&f)?.1,
+                None => String::new(),
+            };
+            let (total_s, ticks) = trajectory(&mut c.t, text, out.as_deref()).await?;
+            if j {
+                println!("{}", json!({"total_s": total_s, "ticks": ticks}));
+            } else {
+                println!("machining time {total_s:.3} s ({ticks} ticks of 4 ms)");
+            }
+            Ok(ExitCode::SUCCESS)
+        }
         Cmd::Health => {
             use tonic_health::pb::HealthCheckRequest;
             use tonic_health::pb::health_client::HealthClient;
@@ -1160,4 +1185,58 @@ async fn follow(
         }
     }
     Err("the daemon closed the status stream".into())
+}
+
+/// Streams the trajectory of `text` (the selected program when empty); writes the CSV to
+/// `out` when given. Returns the total time and the number of ticks.
+async fn trajectory(
+    t: &mut TrajectoryClient<Svc>,
+    text: String,
+    out: Option<&std::path::Path>,
+) -> Result<(f64, u64), String> {
+    use std::io::Write;
+    let mut stream = t
+        .get_trajectory(pb::TrajectoryRequest { text })
+        .await
+        .map_err(explain)?
+        .into_inner();
+    let mut csv = match out {
+        Some(p) => Some(std::io::BufWriter::new(
+            std::fs::File::create(p).map_err(|e| format!("{}: {e}", p.display()))?,
+        )),
+        None => None,
+    };
+    let io = |e: std::io::Error| format!("writing the CSV: {e}");
+    let (mut total_s, mut ticks) = (0.0, 0u64);
+    while let Some(chunk) = stream.message().await.map_err(explain)? {
+        if let Some(w) = csv.as_mut()
+            && !chunk.axes.is_empty()
+        {
+            let names: Vec<String> = chunk.axes.iter().map(|a| format!("{a}_mm")).collect();
+            writeln!(w, "t_s,{},path_v_mm_s,seq,block", names.join(",")).map_err(io)?;
+        }
+        for k in &chunk.ticks {
+            ticks += 1;
+            if let Some(w) = csv.as_mut() {
+                let pos: Vec<String> = k.position_mm.iter().map(|p| format!("{p:.6}")).collect();
+                let block = k.block.map(|n| n.to_string()).unwrap_or_default();
+                writeln!(
+                    w,
+                    "{:.3},{},{:.6},{},{block}",
+                    k.t_s,
+                    pos.join(","),
+                    k.path_v_mm_s,
+                    k.seq
+                )
+                .map_err(io)?;
+            }
+        }
+        if chunk.last {
+            total_s = chunk.total_s;
+        }
+    }
+    if let Some(mut w) = csv {
+        w.flush().map_err(io)?;
+    }
+    Ok((total_s, ticks))
 }

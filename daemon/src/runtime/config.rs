@@ -26,6 +26,8 @@ pub struct Config {
     pub kr: KrSection,
     #[serde(default)]
     pub program: ProgramSection,
+    #[serde(default)]
+    pub planner: PlannerSection,
 }
 
 impl Default for Config {
@@ -39,6 +41,7 @@ impl Default for Config {
             storage: StorageConfig::default(),
             kr: KrSection::default(),
             program: ProgramSection::default(),
+            planner: PlannerSection::default(),
         }
     }
 }
@@ -197,10 +200,10 @@ pub struct AxisConfig {
 }
 
 fn default_v_max() -> f64 {
-    12_000.0
+    kernel::plan::DEFAULT_AXIS_LIMITS.v_max_mm_s * 60.0
 }
 fn default_a_max() -> f64 {
-    800.0
+    kernel::plan::DEFAULT_AXIS_LIMITS.a_max_mm_s2
 }
 fn default_increments() -> f64 {
     10_000.0
@@ -408,6 +411,19 @@ impl ApiConfig {
     }
 }
 
+/// `[planner]`: machine settings of the look-ahead planner (docs/planner.md). The envelope
+/// settings (continuity, criteria, dynamic sets) are machine constants, not keys here.
+#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct PlannerSection {
+    /// Minimum block duration, ms (SPEC §7.2): a block runs no faster than its length over
+    /// this time, and the automatic continuity rule (1.R97 = 2) makes a junction a stop when
+    /// a block would be shorter. 0 (default) = off: the interpolator crosses several blocks
+    /// per tick. 4 = the CNC8x9 behaviour.
+    #[serde(default)]
+    pub min_block_time_ms: f64,
+}
+
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct RtConfig {
@@ -583,6 +599,12 @@ impl Config {
         if !(ramp.is_finite() && ramp >= 0.0) {
             return Err(format!(
                 "sim.spindle_ramp_rpm_s: {ramp} must be 0 (at once) or a positive number"
+            ));
+        }
+        let t = self.planner.min_block_time_ms;
+        if !(t.is_finite() && (0.0..=1000.0).contains(&t)) {
+            return Err(format!(
+                "planner.min_block_time_ms: {t} is outside 0..1000 ms"
             ));
         }
         if !(1..=99).contains(&self.rt.priority) {

@@ -686,6 +686,7 @@ pub(crate) fn machine_config(config: &Config) -> MachineConfig {
         radius_input,
         ij: config.program.ij.into(),
         preprocessor: true,
+        min_block_time_s: config.planner.min_block_time_ms / 1000.0,
     }
 }
 

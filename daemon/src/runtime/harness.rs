@@ -258,6 +258,15 @@ impl Harness {
         self.run_until(max_ticks, |s| s.state == state)
     }
 
+    /// Sets machine constants as `SetConstants` does on an idle machine: in force for the next
+    /// job (the constants then count as coming from a file).
+    pub fn set_constants(&mut self, values: &[(u16, f64)]) {
+        for &(r, v) in values {
+            self.constants.0.set(r, v);
+        }
+        self.constants.1 = true;
+    }
+
     /// The machine setup a job started now takes (as the controller's): configuration,
     /// constants and memory offsets, from where the axes are commanded now.
     pub fn machine_setup(&self) -> Result<MachineSetup, String> {

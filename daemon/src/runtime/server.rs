@@ -7,7 +7,7 @@
 //!   token are required.
 //!
 //! Every listener serves the same services: `cnc.v1.Machine`, `Offsets`, `Plc`, `Constants`,
-//! `Preview`, `grpc.health.v1.Health` (NOT_SERVING while the machine is faulted) and server
+//! `Preview`, `Trajectory`, `grpc.health.v1.Health` (NOT_SERVING while the machine is faulted) and server
 //! reflection (`grpc.reflection.v1`).
 
 use std::future::Future;
@@ -20,6 +20,7 @@ use proto::v1::machine_server::MachineServer;
 use proto::v1::offsets_server::OffsetsServer;
 use proto::v1::plc_server::PlcServer;
 use proto::v1::preview_server::PreviewServer;
+use proto::v1::trajectory_server::TrajectoryServer;
 use tokio::net::{TcpListener, UnixListener};
 use tokio_stream::wrappers::UnixListenerStream;
 use tonic::service::interceptor::InterceptedService;
@@ -29,7 +30,9 @@ use tonic_health::ServingStatus;
 use tonic_health::server::HealthReporter;
 
 use super::api::auth::{Auth, Trust};
-use super::api::{ApiState, ConstantsSvc, MachineSvc, OffsetsSvc, PlcSvc, PreviewSvc};
+use super::api::{
+    ApiState, ConstantsSvc, MachineSvc, OffsetsSvc, PlcSvc, PreviewSvc, TrajectorySvc,
+};
 use super::config::ApiConfig;
 use super::controller::Controller;
 use super::rt::MachineState;
@@ -193,6 +196,10 @@ fn router(
         PreviewSvc(st.clone()),
         i.clone(),
     ))
+    .add_service(TrajectoryServer::with_interceptor(
+        TrajectorySvc(st.clone()),
+        i.clone(),
+    ))
     .add_service(InterceptedService::new(health.clone(), i.clone()))
     .add_service(InterceptedService::new(reflection, i)))
 }
@@ -274,6 +281,7 @@ async fn health_watch(ctl: Arc<Controller>, reporter: HealthReporter) {
         "cnc.v1.Plc",
         "cnc.v1.Constants",
         "cnc.v1.Preview",
+        "cnc.v1.Trajectory",
     ];
     let mut last = None;
     let mut every = tokio::time::interval(Duration::from_millis(20));

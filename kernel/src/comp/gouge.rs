@@ -479,7 +479,9 @@ impl Grid {
         // About one element per cell, never cells smaller than the elements themselves, and
         // at most 4 n cells however thin the contour.
         let mut cell = ((w * h) / n as f64).sqrt().max(mean).max(1e-6);
-        while ((w / cell) as usize + 1) * ((h / cell) as usize + 1) > 4 * n + 16 {
+        // Counted in f64: no overflow whatever the coordinates.
+        let cells = |c: f64| ((w / c).floor() + 1.0) * ((h / c).floor() + 1.0);
+        while cells(cell) > (4 * n + 16) as f64 {
             cell *= 1.5;
         }
         let (nx, ny) = ((w / cell) as usize + 1, (h / cell) as usize + 1);

@@ -123,7 +123,52 @@ pub fn axis_filter_ticks_for(lm_um: f64, corner_jerk_mm_s3: f64) -> usize {
     ((t / crate::units::TS_S).round() as usize).clamp(2, AXIS_FILTER_MAX_TICKS)
 }
 
+/// Limits of one machine axis, as a machine configuration gives them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AxisLimits {
+    pub v_max_mm_s: f64,
+    pub a_max_mm_s2: f64,
+}
+
+/// Limits of an axis the daemon's configuration does not set (`[[axes]]` without
+/// `max_velocity_mm_min` / `max_accel_mm_s2`): 12000 mm/min, 800 mm/s².
+pub const DEFAULT_AXIS_LIMITS: AxisLimits = AxisLimits {
+    v_max_mm_s: 200.0,
+    a_max_mm_s2: 800.0,
+};
+
+/// Axis jerk per unit of axis acceleration, 1/s: the machine configuration has no jerk
+/// setting, so an axis's jerk limit is 50·a (a/J = 20 ms).
+pub const AXIS_JERK_PER_ACCEL_PER_S: f64 = 50.0;
+
 impl PlannerConfig {
+    /// The planner configuration of a machine: what `cncd` runs, and what the planner bench
+    /// runs (one function, so the figures are the daemon's). Per-axis velocity, acceleration
+    /// and jerk (50·a) from `axes`; the minimum block duration (SPEC §7.2, 0 = off); the
+    /// envelope settings from the machine constants when there is a constants file.
+    ///
+    /// Without constants (or where a constant is 0) the path-level accelerations and jerks
+    /// are unbounded, so only the axes a move actually moves limit it (A = min over axes with
+    /// u_i ≠ 0 of a_i/|u_i|, issue #24): an axis that does not move never slows a move down.
+    pub fn for_machine(
+        axes: &[AxisLimits],
+        min_block_time_s: f64,
+        constants: Option<&Constants>,
+    ) -> Self {
+        let n = axes.len().min(MAX_AXES);
+        let mut cfg = PlannerConfig::uniform(n, f64::INFINITY, f64::INFINITY);
+        for (i, a) in axes.iter().take(MAX_AXES).enumerate() {
+            cfg.axis_v_max_mm_s[i] = a.v_max_mm_s;
+            cfg.axis_a_max_mm_s2[i] = a.a_max_mm_s2;
+            cfg.axis_j_max_mm_s3[i] = AXIS_JERK_PER_ACCEL_PER_S * a.a_max_mm_s2;
+        }
+        cfg.min_block_time_s = min_block_time_s.max(0.0);
+        match constants {
+            Some(c) => cfg.with_constants(c),
+            None => cfg,
+        }
+    }
+
     /// Limits with the same velocity and acceleration on the first `axes` axes, and defaults
     /// for everything else: linear profile, manual continuity, R39 = 60°, dynamic criterion
     /// at the axis acceleration, accuracy criterion 10 µm, jerk 50·a per axis, 4 ms minimum
@@ -250,10 +295,12 @@ impl Envelope {
     /// Reads SPEC §7 settings from the constants. Dynamic-set entries that refer to program
     /// parameters (control word d2..d6 = 1) are not resolvable here and fall back to set 1.
     pub fn from_constants(c: &Constants, cfg: &PlannerConfig) -> Envelope {
-        let a_axes = cfg.axis_a_max_mm_s2[..cfg.axes.max(1)]
-            .iter()
-            .fold(f64::INFINITY, |m, v| m.min(*v));
-        let j_axes = cfg.axis_j_max_mm_s3[..cfg.axes.max(1)]
+        // A constant left at 0 means "the axis limits": unbounded at path level, so each move
+        // is limited by the axes it moves only (issue #24).
+        let a_axes = f64::INFINITY;
+        let j_axes = f64::INFINITY;
+        // Only the old centripetal form needs a finite acceleration (a percentage of R52).
+        let a_slowest = cfg.axis_a_max_mm_s2[..cfg.axes.max(1)]
             .iter()
             .fold(f64::INFINITY, |m, v| m.min(*v));
         let profile = if c.decade(338, 2) == 2 {
@@ -282,9 +329,10 @@ impl Envelope {
         };
         // R232 d5..8 old form: percent of √(R·a) (**decided**: v ≤ p/100·√(R·R52), i.e. a
         // centripetal acceleration of (p/100)²·R52). 0 = off.
+        let old_ref = nonzero(c.get(52).abs()).unwrap_or(a_slowest);
         let old_centripetal = |pct: f64| {
             if pct > 0.0 {
-                (pct / 100.0).powi(2) * accel_stop
+                (pct / 100.0).powi(2) * old_ref
             } else {
                 f64::INFINITY
             }

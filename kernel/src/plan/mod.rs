@@ -30,8 +30,9 @@ mod path;
 use std::collections::VecDeque;
 
 pub use config::{
-    AXIS_FILTER_MAX_TICKS, ContinuityRule, DynamicSet, Envelope, PlannerConfig, Profile,
-    axis_filter_ticks_for, jerk_from_p_mm_s3,
+    AXIS_FILTER_MAX_TICKS, AXIS_JERK_PER_ACCEL_PER_S, AxisLimits, ContinuityRule,
+    DEFAULT_AXIS_LIMITS, DynamicSet, Envelope, PlannerConfig, Profile, axis_filter_ticks_for,
+    jerk_from_p_mm_s3,
 };
 pub use path::SegPath;
 
@@ -92,6 +93,9 @@ pub struct Segment {
     /// Highest speed allowed at the end of the segment, mm/s (0: stop there). Safe: later
     /// committed segments can be followed from it.
     pub v_end_mm_s: f64,
+    /// Speed the junction criteria allow at the end (0 at a stop), before braking for later
+    /// blocks: what a time-optimal profile under the same constraints may reach there.
+    pub junction_cap_mm_s: f64,
     /// Path acceleration limit on this segment, mm/s².
     pub accel_mm_s2: f64,
     /// Path jerk limit, mm/s³ (`f64::INFINITY` for the linear profile).
@@ -561,6 +565,7 @@ impl Planner {
             feed_mm_s,
             v_max_mm_s: v_max,
             v_end_mm_s: 0.0,
+            junction_cap_mm_s: 0.0,
             accel_mm_s2: a_plan,
             jerk_mm_s3: jerk,
             stop_accel_mm_s2: a_plan,
@@ -840,6 +845,14 @@ impl Planner {
         if guess > 0.0 {
             self.window_guess_mm_s = guess;
         }
+        let criteria_cap = cap;
+        let planned_stop = !last && self.corner_is_a_stop(i, cap);
+        let cap = if planned_stop {
+            self.win[i].smooth = false;
+            0.0
+        } else {
+            cap
+        };
         let prev_crit = if i > 0 { self.win[i - 1].crit } else { 0.0 };
         let prev_smooth = i > 0 && self.win[i - 1].smooth;
         // A smooth neighbour that is an arc brings its centripetal acceleration into the ticks
@@ -859,6 +872,7 @@ impl Planner {
         let p = &mut self.win[i];
         p.crit = crit;
         p.cap = cap;
+        p.seg.junction_cap_mm_s = criteria_cap;
         // Acceleration: R52 without continuity, R236 (or the set's A) during continuity, R237
         // for rapids; halved on curved blocks (NORMAL_SHARE).
         let continuous = prev_smooth || p.smooth;
@@ -902,13 +916,58 @@ impl Planner {
             }
         }
         let drop = self.cfg.envelope.sets[p.set].drop_percent / 100.0;
-        p.seg.junction = if !p.smooth || last {
+        p.seg.junction = if planned_stop {
+            // Still a G23 junction for the preview: a speed drop (to rest).
+            Junction::SpeedDrop
+        } else if !p.smooth || last {
             Junction::Stop
         } else if cap < drop * p.seg.feed_mm_s {
             Junction::SpeedDrop
         } else {
             Junction::Smooth
         };
+    }
+
+    /// A smooth junction that makes the acceleration of a neighbouring line shared with the
+    /// turn (a turning corner, or an arc next to it) is planned as a stop where that is
+    /// faster (**decided**, issue #16): when its criteria cap is below one tick's
+    /// acceleration step, or when the time the line sides lose by ramping at the shared
+    /// acceleration exceeds what passing at the cap gains over stopping. Linear profile only
+    /// (the parabolic profile's filters plan their own corner speeds).
+    fn corner_is_a_stop(&self, i: usize, cap: f64) -> bool {
+        let (p, n) = (&self.win[i], &self.win[i + 1]);
+        let is_arc = |q: &Pending| matches!(q.seg.path, SegPath::Arc { .. });
+        let shares = p.turn > 1e-9 || is_arc(p) || is_arc(n);
+        if !p.smooth || !shares || self.cfg.envelope.profile != Profile::Linear {
+            return false;
+        }
+        let sets = &self.cfg.envelope.sets;
+        let a = |q: &Pending| sets[q.set].accel_mm_s2.min(q.a_axes);
+        // The speed the corner can actually be passed at, with rest at the far ends.
+        let cap = cap
+            .min((a(p) * p.seg.length_mm).sqrt())
+            .min((a(n) * n.seg.length_mm).sqrt());
+        if cap < a(p).min(a(n)) * TS_S {
+            return true;
+        }
+        // Per side, with V the speed the block reaches from the cap: passing at the cap
+        // instead of from rest saves cap/a − cap²/(2aV); a line ramping between cap and V at
+        // a/2 instead of a loses (V − cap)²/(2aV).
+        let (mut gain, mut loss) = (0.0, 0.0);
+        for q in [p, n] {
+            let aq = a(q);
+            let v = q
+                .seg
+                .feed_mm_s
+                .min(q.seg.v_max_mm_s)
+                .min((cap * cap + aq * q.seg.length_mm).sqrt())
+                .max(cap);
+            gain += cap / aq - cap * cap / (2.0 * aq * v);
+            if !is_arc(q) {
+                loss += (v - cap) * (v - cap) / (2.0 * aq * v);
+            }
+        }
+        loss > gain
     }
 
     /// Backward pass from the newly finalized junction `i`: end speeds that allow braking for

@@ -322,7 +322,10 @@ pub fn run_stream(
                 progressed = true;
             }
             max_window = max_window.max(next.saturating_sub(segments.len()));
-            if ip.buffered() > 0 || planner.is_done() || held.is_some() {
+            // Motion starts with the first segment; after that the planner runs ahead until
+            // the interpolator's buffer is full, like the daemon's planner thread (feeding one
+            // block per tick starved dense paths whose window is full of unsettled blocks).
+            if (ip.buffered() > 0 && t == 0) || planner.is_done() || held.is_some() {
                 break;
             }
             // Nothing committed yet: the planner needs more input (or the program is over).
@@ -545,6 +548,103 @@ pub fn random_program(steps: &[(u8, f64, f64, f64, u8, u8)]) -> Vec<Block> {
                 p.g1(end);
             }
         }
+    }
+    p.blocks
+}
+
+/// The toolpaths of issue #16 (machining time on the daemon's configuration, `kernel/benches/plan.rs`).
+pub fn daemon_suite() -> Vec<(&'static str, Vec<Block>)> {
+    vec![
+        ("100 mm line", line_100()),
+        (
+            "circle r20 of 0.05 mm chords",
+            dense_circle(20.0, 0.05, 6000.0),
+        ),
+        (
+            "zig-zag of 0.2 mm blocks",
+            surface(50, 40.0, 1.0, 0.2, 6000.0),
+        ),
+        (
+            "rectangular pocket spiral",
+            pocket_spiral(60.0, 40.0, 1.0, 41, 6000.0),
+        ),
+        ("Lissajous 0.02..0.1 mm chords", lissajous(6000.0)),
+        ("3D raster 0.1 mm", surface(8, 30.0, 1.0, 0.1, 4000.0)),
+        ("star (long blocks)", star(40.0, 6000.0)),
+    ]
+}
+
+/// Issue #24's path for a machine with unequal axis limits: ramps in XZ and diagonals in XY.
+pub fn unequal_limits_path() -> Vec<Block> {
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 6000.0, Continuity::G23);
+    for i in 0..6 {
+        let y = i as f64 * 4.0;
+        p.g1(p3(40.0, y, -1.0 - i as f64));
+        p.g1(p3(60.0, y + 2.0, -1.0 - i as f64));
+        p.g1(p3(0.0, y + 4.0, -i as f64 - 2.0));
+    }
+    p.g0(p3(0.0, 0.0, 10.0));
+    p.blocks
+}
+
+pub fn line_100() -> Vec<Block> {
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 6000.0, Continuity::G23);
+    p.g1(p3(100.0, 0.0, 0.0));
+    p.blocks
+}
+
+/// A rectangular spiral inwards with 90° corners: `sides` lines, G23.
+pub fn pocket_spiral(w: f64, h: f64, step: f64, sides: usize, feed: f64) -> Vec<Block> {
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), feed, Continuity::G23);
+    let (mut x0, mut y0, mut x1, mut y1) = (0.0, 0.0, w, h);
+    for k in 0..sides {
+        match k % 4 {
+            0 => p.g1(p3(x1, y0, 0.0)),
+            1 => p.g1(p3(x1, y1, 0.0)),
+            2 => p.g1(p3(x0, y1, 0.0)),
+            _ => {
+                x0 += step;
+                y0 += step;
+                x1 -= step;
+                y1 -= step;
+                p.g1(p3(x0 - step, y0, 0.0))
+            }
+        };
+        if k % 4 == 3 {
+            p.g1(p3(x0, y0, 0.0));
+        }
+    }
+    p.blocks
+}
+
+/// Lissajous figure x = 30·sin 3t, y = 20·sin 4t as chords of 0.02..0.1 mm, G23.
+pub fn lissajous(feed: f64) -> Vec<Block> {
+    let at = |t: f64| p3(30.0 * (3.0 * t).sin(), 20.0 * (4.0 * t).sin(), 0.0);
+    let mut p = Prog::new(at(0.0), feed, Continuity::G23);
+    let mut t = 0.0;
+    let mut k = 0usize;
+    while t < TAU {
+        // Chord length cycles through 0.02..0.1 mm.
+        let chord = 0.06 + 0.04 * (k as f64 * 0.37).sin();
+        let speed = (90.0f64 * (3.0 * t).cos())
+            .hypot(80.0 * (4.0 * t).cos())
+            .max(1e-3);
+        t = (t + chord / speed).min(TAU);
+        p.g1(at(t));
+        k += 1;
+    }
+    p.blocks
+}
+
+/// Five-pointed star of long lines (sharp corners), G23.
+pub fn star(r: f64, feed: f64) -> Vec<Block> {
+    let pt = |k: usize| {
+        let a = TAU * (k % 5) as f64 * 2.0 / 5.0;
+        p3(r * a.cos(), r * a.sin(), 0.0)
+    };
+    let mut p = Prog::new(pt(0), feed, Continuity::G23);
+    for k in 1..=5 {
+        p.g1(pt(k));
     }
     p.blocks
 }

@@ -10,6 +10,7 @@ pub mod auth;
 mod machine;
 pub mod preview;
 mod tables;
+mod trajectory;
 
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -29,6 +30,7 @@ use super::rt::{MachineState, Snapshot};
 pub use machine::MachineSvc;
 pub use preview::PreviewSvc;
 pub use tables::{ConstantsSvc, OffsetsSvc, PlcSvc};
+pub use trajectory::TrajectorySvc;
 
 /// Highest status stream rate: one snapshot per tick.
 pub const MAX_STATUS_HZ: u32 = 250;
