@@ -123,6 +123,41 @@ pub struct Spindle {
     /// shift function yet (no manual describes one), so the interpreter always writes 0; the
     /// RT thread already honours the field (SPEC §6: "corrected by offsets and shifts").
     pub origin_shift_mm: f64,
+    /// P of the gear range in force (rpm), from the machine's gear table (0 = no table given
+    /// to the interpreter). Feed per revolution is planned at a nominal speed capped by it.
+    pub gear_max_rpm: f64,
+}
+
+impl Spindle {
+    /// Nominal spindle speed (rpm) at which a feed per revolution of this block is planned
+    /// (SPEC §5: V = S·β), or `None` when the spindle stands or no speed is known. The RT
+    /// thread scales the planned feed by actual/nominal every tick (capped at 1), so the
+    /// nominal must be the **highest** speed the spindle can reach in the block:
+    /// - G95: the programmed S, capped by the gear maximum P (after KŘR ended without S:
+    ///   P, the last reached speed is not known before the run);
+    /// - KŘR (G96/G97): the speed changes along the cut: min(P, G76 limit).
+    pub fn per_rev_nominal_rpm(&self) -> Option<f64> {
+        if self.dir == SpindleDir::Stopped {
+            return None;
+        }
+        let p = if self.gear_max_rpm > 0.0 {
+            self.gear_max_rpm
+        } else {
+            f64::INFINITY
+        };
+        let n = if self.css {
+            if self.limit_rpm > 0.0 {
+                p.min(self.limit_rpm)
+            } else {
+                p
+            }
+        } else if self.s > 0.0 {
+            p.min(self.s)
+        } else {
+            p
+        };
+        (n.is_finite() && n > 0.0).then_some(n)
+    }
 }
 
 /// What a block does.
@@ -207,5 +242,61 @@ impl Block {
             BlockKind::Motion { start, end, path } => Some((start, end, path)),
             _ => None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spindle(css: bool, s: f64, limit_rpm: f64, gear_max_rpm: f64) -> Spindle {
+        Spindle {
+            dir: SpindleDir::Cw,
+            s,
+            css,
+            limit_rpm,
+            gear_max_rpm,
+            ..Spindle::default()
+        }
+    }
+
+    /// Feed per revolution is planned at the highest speed the spindle can have in the block.
+    #[test]
+    fn per_rev_nominal_speed() {
+        // G95: S capped by the gear maximum P (issue #17: M42 with P 2000, S3000).
+        assert_eq!(
+            spindle(false, 3000.0, 0.0, 2000.0).per_rev_nominal_rpm(),
+            Some(2000.0)
+        );
+        assert_eq!(
+            spindle(false, 800.0, 0.0, 2000.0).per_rev_nominal_rpm(),
+            Some(800.0)
+        );
+        // No gear table: the programmed S; after KŘR ended without S: P.
+        assert_eq!(
+            spindle(false, 800.0, 0.0, 0.0).per_rev_nominal_rpm(),
+            Some(800.0)
+        );
+        assert_eq!(
+            spindle(false, 0.0, 0.0, 2000.0).per_rev_nominal_rpm(),
+            Some(2000.0)
+        );
+        assert_eq!(spindle(false, 0.0, 0.0, 0.0).per_rev_nominal_rpm(), None);
+        // KŘR: S is a cutting speed; min(P, G76).
+        assert_eq!(
+            spindle(true, 90.0, 400.0, 2000.0).per_rev_nominal_rpm(),
+            Some(400.0)
+        );
+        assert_eq!(
+            spindle(true, 90.0, 0.0, 2000.0).per_rev_nominal_rpm(),
+            Some(2000.0)
+        );
+        assert_eq!(spindle(true, 90.0, 0.0, 0.0).per_rev_nominal_rpm(), None);
+        // A standing spindle: none.
+        let stopped = Spindle {
+            dir: SpindleDir::Stopped,
+            ..spindle(false, 800.0, 0.0, 2000.0)
+        };
+        assert_eq!(stopped.per_rev_nominal_rpm(), None);
     }
 }

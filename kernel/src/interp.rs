@@ -141,6 +141,9 @@ pub struct Interpolator {
     position: AxesMm,
     state: InterpState,
     override_factor: f64,
+    /// Actual spindle speed for feed per revolution, rpm (∞: no spindle feedback, planned
+    /// feed), see [`Interpolator::set_spindle_feed_rpm`].
+    spindle_feed_rpm: f64,
     in_position: bool,
     spindle_ready: bool,
     /// Spindle state of the last tick's output (what `spindle_ready` was judged against).
@@ -192,6 +195,7 @@ impl Interpolator {
             position,
             state: InterpState::Idle,
             override_factor: 1.0,
+            spindle_feed_rpm: f64::INFINITY,
             in_position: true,
             spindle_ready: true,
             reported_spindle: Spindle::default(),
@@ -328,6 +332,15 @@ impl Interpolator {
         self.override_factor = p.clamp(0.0, 150.0) / 100.0;
     }
 
+    /// Actual spindle speed (rpm, ≥ 0) that feed per revolution follows (SPEC §5: V = n·β).
+    /// The daemon calls this every tick with the drive's feedback (0 when the spindle is below
+    /// its hold threshold or turns the wrong way; ∞ without spindle feedback). A per-rev
+    /// segment's feed is scaled by actual / nominal, capped at 1 so the planned limits hold;
+    /// like the override it is a soft limit, approached within the acceleration limit.
+    pub fn set_spindle_feed_rpm(&mut self, rpm: f64) {
+        self.spindle_feed_rpm = if rpm.is_nan() { 0.0 } else { rpm.max(0.0) };
+    }
+
     /// Whether the following error is below the G24 limit R06-R07 (SPEC §7.1). The daemon
     /// calls this every tick; a G24 stop point is left only while it is true.
     pub fn set_in_position(&mut self, in_position: bool) {
@@ -341,7 +354,8 @@ impl Interpolator {
         self.spindle_ready = ready;
     }
 
-    /// A cut is waiting at rest for the spindle to be at speed (shown in the status).
+    /// A cut is waiting for the spindle: at rest for it to be at speed, or a feed per
+    /// revolution held by a spindle below its hold threshold (shown in the status).
     pub fn waiting_for_spindle(&self) -> bool {
         self.spindle_wait
     }
@@ -426,7 +440,16 @@ impl Interpolator {
     }
 
     fn ceiling(&self, seg: &Segment) -> f64 {
-        (seg.feed_mm_s * self.override_factor).min(seg.v_max_mm_s)
+        (self.feed_of(seg) * self.override_factor).min(seg.v_max_mm_s)
+    }
+
+    /// Programmed feed of a segment now: feed per revolution follows the actual spindle speed.
+    fn feed_of(&self, seg: &Segment) -> f64 {
+        if seg.per_rev_nominal_rpm > 0.0 {
+            seg.feed_mm_s * (self.spindle_feed_rpm / seg.per_rev_nominal_rpm).min(1.0)
+        } else {
+            seg.feed_mm_s
+        }
     }
 
     /// Both filters are at rest: the setpoint equals the raw position.
@@ -747,6 +770,10 @@ impl Interpolator {
         let lag = self.cap_zone_ticks() as f64 * TS_S;
         let v = self.v_mm_s;
         let (behind_cap, behind_feed) = self.behind_caps();
+        if head.per_rev_nominal_rpm > 0.0 && self.spindle_feed_rpm <= 0.0 {
+            // Feed per revolution with a standing spindle: the feed holds (status says why).
+            self.spindle_wait = true;
+        }
         // Soft limits: feed × override of this and later segments, approached at `a`.
         let mut soft = if braking {
             0.0
@@ -804,7 +831,7 @@ impl Interpolator {
         }
         if v_next <= 0.0 && stop_dist > ARRIVE_EPS_MM {
             self.v_mm_s = 0.0;
-            return (head.v_max_mm_s, head.feed_mm_s);
+            return (head.v_max_mm_s, self.feed_of(&head));
         }
         self.v_mm_s = v_next;
         self.move_raw(ds)
@@ -815,7 +842,7 @@ impl Interpolator {
     fn move_raw(&mut self, mut ds: f64) -> (f64, f64) {
         let first = *self.seg(self.rk);
         let mut cap = first.v_max_mm_s;
-        let mut feed = first.feed_mm_s;
+        let mut feed = self.feed_of(&first);
         self.entry_cap_mm_s = f64::INFINITY;
         loop {
             let seg = *self.seg(self.rk);
@@ -839,7 +866,7 @@ impl Interpolator {
             }
             let next = *self.seg(self.rk + 1);
             cap = cap.min(seg.v_end_mm_s).min(next.v_max_mm_s);
-            feed = feed.min(next.feed_mm_s);
+            feed = feed.min(self.feed_of(&next));
             self.rk += 1;
             self.rs_mm = 0.0;
         }

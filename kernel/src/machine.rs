@@ -77,6 +77,13 @@ impl MachineSetup {
         program.ij = machine.ij;
         program.preprocessor = machine.preprocessor;
         program.soft_limits = machine.soft_limits;
+        // Gears select by M code; the fastest axis is Vmax of the βmax warning (SPEC §5, §6).
+        program.gears = machine.gears.clone();
+        program.max_feed_mm_min = machine
+            .axes
+            .iter()
+            .map(|a| a.max_velocity_mm_min)
+            .fold(0.0, f64::max);
         Ok(MachineSetup {
             program,
             comp: CompConfig::from_constants(constants),

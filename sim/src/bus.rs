@@ -1,5 +1,8 @@
 //! In-process simulated bus: one [`SimDrive`] per axis, stepped once per cycle.
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use hal::{AxisFeedback, BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason};
 
 use crate::drive::{SimDrive, SimDriveParams};
@@ -14,6 +17,31 @@ pub struct SimBus {
     switches: Vec<Option<(f64, f64)>>,
     /// Shift of each drive's reported position since power-on (homing).
     shifts: Vec<f64>,
+    /// Spindle acceleration, rpm/s (0: the setpoint is reached at once).
+    spindle_ramp_rpm_s: f64,
+    spindle_rpm: f64,
+    spindle_load: SpindleLoad,
+}
+
+/// Test knob of the simulated spindle: the share (0..1) of its speed lost to cutting load.
+/// With load L the spindle settles at (1 − L) × setpoint, ramping there as it would.
+#[derive(Clone, Debug, Default)]
+pub struct SpindleLoad(Arc<AtomicU64>);
+
+impl SpindleLoad {
+    /// Sets the share of speed lost, clamped to 0..1 (1: stalled).
+    pub fn set(&self, share: f64) {
+        let share = if share.is_nan() {
+            0.0
+        } else {
+            share.clamp(0.0, 1.0)
+        };
+        self.0.store(share.to_bits(), Ordering::Relaxed);
+    }
+
+    pub fn get(&self) -> f64 {
+        f64::from_bits(self.0.load(Ordering::Relaxed))
+    }
 }
 
 impl SimBus {
@@ -23,6 +51,9 @@ impl SimBus {
             drives: start_mm.iter().map(|&p| SimDrive::new(params, p)).collect(),
             switches: vec![None; start_mm.len()],
             shifts: vec![0.0; start_mm.len()],
+            spindle_ramp_rpm_s: 0.0,
+            spindle_rpm: 0.0,
+            spindle_load: SpindleLoad::default(),
         }
     }
 
@@ -31,6 +62,29 @@ impl SimBus {
     pub fn with_home_switch(mut self, axis: usize, at_mm: f64, side: f64) -> Self {
         self.switches[axis] = Some((at_mm, side.signum()));
         self
+    }
+
+    /// The spindle accelerates at `rpm_per_s` instead of reaching its setpoint at once.
+    pub fn with_spindle_ramp(mut self, rpm_per_s: f64) -> Self {
+        self.spindle_ramp_rpm_s = rpm_per_s.max(0.0);
+        self
+    }
+
+    /// The load knob of the spindle (shared: set it while the bus runs).
+    pub fn spindle_load(&self) -> SpindleLoad {
+        self.spindle_load.clone()
+    }
+
+    /// One cycle of the spindle: toward setpoint × (1 − load), within the ramp.
+    fn step_spindle(&mut self, set_rpm: f64) -> f64 {
+        let target = set_rpm * (1.0 - self.spindle_load.get());
+        self.spindle_rpm = if self.spindle_ramp_rpm_s > 0.0 {
+            let dv = self.spindle_ramp_rpm_s * CYCLE_S;
+            self.spindle_rpm + (target - self.spindle_rpm).clamp(-dv, dv)
+        } else {
+            target
+        };
+        self.spindle_rpm
     }
 
     /// Access for fault injection in tests.
@@ -54,8 +108,7 @@ impl DriveBus for SimBus {
 
     fn cycle(&mut self, cmd: &CycleCommand, feedback: &mut CycleFeedback) -> Result<(), BusFault> {
         let mut fault = None;
-        // The simulated spindle reaches its setpoint at once.
-        feedback.spindle_rpm = cmd.spindle_rpm;
+        feedback.spindle_rpm = self.step_spindle(cmd.spindle_rpm);
         feedback.spindle_state = DriveState::Operational;
         for (i, (d, (sp, fb))) in self
             .drives

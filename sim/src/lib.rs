@@ -9,5 +9,5 @@ pub mod control;
 pub mod drive;
 pub mod serial_drive;
 
-pub use bus::SimBus;
+pub use bus::{SimBus, SpindleLoad};
 pub use drive::{SimDrive, SimDriveParams};

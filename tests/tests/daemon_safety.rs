@@ -414,7 +414,10 @@ async fn fault_stops_every_axis_on_its_own_and_reports_the_path_deviation() {
     c.reset(pb::ResetRequest {}).await.unwrap();
     wait_state(&ctl, MachineState::Idle).await;
     let here = ctl.snapshot().commanded;
-    let job = ctl.start_text("mdi", "G91 G1 X-10 F1000", false, true).unwrap().0;
+    let job = ctl
+        .start_text("mdi", "G91 G1 X-10 F1000", false, true)
+        .unwrap()
+        .0;
     wait_job_finished(&ctl, job).await;
     assert!((ctl.snapshot().commanded[0] - (here[0] - 10.0)).abs() < 1e-9);
 }

@@ -71,7 +71,8 @@ pub fn open_bus(
                 ..Default::default()
             };
             let start: Vec<f64> = axes.iter().map(|a| a.home_mm).collect();
-            let mut bus = sim::SimBus::new(params, &start);
+            let mut bus =
+                sim::SimBus::new(params, &start).with_spindle_ramp(sim.spindle_ramp_rpm_s);
             for (i, a) in axes.iter().enumerate() {
                 if let Some(at) = a.sim_home_switch_mm {
                     bus = bus.with_home_switch(i, at, f64::from(a.homing_direction));

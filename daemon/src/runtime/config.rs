@@ -523,6 +523,9 @@ pub struct SimConfig {
     /// Following-error window, mm.
     #[serde(default = "default_window")]
     pub following_window_mm: f64,
+    /// Acceleration of the simulated spindle, rpm/s (0: it reaches its setpoint at once).
+    #[serde(default)]
+    pub spindle_ramp_rpm_s: f64,
 }
 
 fn default_kv() -> f64 {
@@ -537,6 +540,7 @@ impl Default for SimConfig {
         SimConfig {
             kv_per_s: default_kv(),
             following_window_mm: default_window(),
+            spindle_ramp_rpm_s: 0.0,
         }
     }
 }
@@ -653,6 +657,12 @@ impl Config {
             if !(v.is_finite() && v > 0.0) {
                 return Err(format!("{key}: {v} must be a positive number"));
             }
+        }
+        let ramp = self.sim.spindle_ramp_rpm_s;
+        if !(ramp.is_finite() && ramp >= 0.0) {
+            return Err(format!(
+                "sim.spindle_ramp_rpm_s: {ramp} must be 0 (at once) or a positive number"
+            ));
         }
         let t = self.planner.min_block_time_ms;
         if !(t.is_finite() && (0.0..=1000.0).contains(&t)) {

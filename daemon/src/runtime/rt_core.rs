@@ -137,7 +137,8 @@ pub struct Snapshot {
     pub plc: PlcArea,
     /// Single-block mode is on.
     pub single_block: bool,
-    /// A cut waits at rest for the spindle to reach its speed.
+    /// A cut waits for the spindle: at rest for it to reach its speed, or a feed per
+    /// revolution held because the spindle is below 1 rpm (stopped, stalled by load).
     pub waiting_for_spindle: bool,
     /// Constant cutting speed (KŘR) output this tick (SPEC §6).
     pub kr: KrOutput,
@@ -184,6 +185,20 @@ const SPINDLE_AT_SPEED_RPM: f64 = 2.0;
 fn spindle_at_speed(set_rpm: f64, actual_rpm: f64) -> bool {
     (set_rpm - actual_rpm).abs()
         <= (SPINDLE_AT_SPEED_SHARE * set_rpm.abs()).max(SPINDLE_AT_SPEED_RPM)
+}
+
+/// Below this actual spindle speed feed per revolution holds (SPEC §5: V = n·β; a spindle
+/// stalled by load must not be fed into), rpm. Above it the feed follows the speed in proportion.
+const SPINDLE_HOLD_RPM: f64 = 1.0;
+
+/// The spindle speed feed per revolution follows: the drive's actual speed, or 0 (hold) when
+/// it is below [`SPINDLE_HOLD_RPM`] or turns against its setpoint.
+fn spindle_feed_rpm(set_rpm: f64, actual_rpm: f64) -> f64 {
+    if actual_rpm.abs() < SPINDLE_HOLD_RPM || set_rpm * actual_rpm < 0.0 {
+        0.0
+    } else {
+        actual_rpm.abs()
+    }
 }
 
 /// Refresh the lateness percentiles every this many ticks (a histogram walk).
@@ -361,6 +376,13 @@ impl RtCore {
         self.interp.set_spindle_ready(
             !self.has_spindle || spindle_at_speed(self.cmd.spindle_rpm, self.fb.spindle_rpm),
         );
+        // Feed per revolution follows the speed the drive reported last tick; without a
+        // spindle drive there is no feedback and the planned (nominal) feed runs.
+        self.interp.set_spindle_feed_rpm(if self.has_spindle {
+            spindle_feed_rpm(self.cmd.spindle_rpm, self.fb.spindle_rpm)
+        } else {
+            f64::INFINITY
+        });
         self.interp.tick()
     }
 

@@ -177,11 +177,20 @@ impl KrConfig {
 
     /// Gear number (1-based) that M code `m` selects, for the program interpreter.
     pub fn gear_for_m(&self, m: u16) -> Option<u8> {
-        self.gears
-            .iter()
-            .position(|g| g.m_code == Some(m))
-            .map(|i| (i + 1) as u8)
+        gear_for_m_code(&self.gears, m)
     }
+}
+
+/// Gear number (1-based) that M code `m` selects in `gears`. An empty table (no machine
+/// configuration: unit tests, tools) keeps the convention M41..M44 = ranges 1..4.
+pub fn gear_for_m_code(gears: &[Gear], m: u16) -> Option<u8> {
+    if gears.is_empty() {
+        return (41..=44).contains(&m).then(|| (m - 40) as u8);
+    }
+    gears
+        .iter()
+        .position(|g| g.m_code == Some(m))
+        .map(|i| (i + 1) as u8)
 }
 
 /// R67 holds the axis code (as R0..R5 do, [`AXIS_CODES`]: 1 = X ... 9 = C) of the controlling
@@ -265,6 +274,10 @@ mod tests {
         assert_eq!(k.version, KrVersion::V2);
         assert!(k.s_word.swap_g96_g97 && k.s_word.s_in_m_min);
         assert_eq!(k.gear_for_m(44), Some(2));
+        assert_eq!(k.gear_for_m(42), None);
+        // Without a table the convention M41..M44 = ranges 1..4 holds.
+        assert_eq!(gear_for_m_code(&[], 43), Some(3));
+        assert_eq!(gear_for_m_code(&[], 45), None);
         assert_eq!(k.gear(0).unwrap().max_rpm, 500.0);
         assert!(k.gear(3).is_none());
         // Z (code 3) is the second axis of this lathe.

@@ -36,7 +36,7 @@ pub use config::{
 };
 pub use path::SegPath;
 
-use crate::block::{Block, BlockKind, Continuity, Feed, Path, ProgramStop, Spindle, SpindleDir};
+use crate::block::{Block, BlockKind, Continuity, Feed, Path, ProgramStop, Spindle};
 use crate::diag::Diagnostic;
 use crate::units::{AxesMm, TS_S, mm_min_to_mm_s};
 
@@ -130,6 +130,9 @@ pub struct Segment {
     /// Axis smoothing filter the junction speeds were planned for, ticks per stage (0 or 1 =
     /// none; parabolic profile, `PlannerConfig::axis_filter_ticks`).
     pub axis_filter_ticks: u16,
+    /// Feed per revolution: the spindle speed (rpm) `feed_mm_s` was planned at; the
+    /// interpolator scales the feed by actual/nominal each tick (0 = feed per minute).
+    pub per_rev_nominal_rpm: f64,
 }
 
 /// A block in the look-ahead window.
@@ -324,25 +327,22 @@ impl Planner {
                     "no feed programmed for a cutting move (F missing or zero)",
                 ));
             }
-            // G95 (SPEC §5): V = S·β with the programmed spindle speed; the daemon scales the
-            // feed by actual/programmed speed (override) if the spindle deviates.
-            Feed::MmPerRev(f)
-                if f.is_finite()
-                    && f > 0.0
-                    && !block.spindle.css
-                    && block.spindle.s > 0.0
-                    && block.spindle.dir != SpindleDir::Stopped =>
-            {
-                f * block.spindle.s
-            }
-            Feed::MmPerRev(_) if block.spindle.css => {
-                return Err(Diagnostic::error(
-                    block.n,
-                    block.line,
-                    0,
-                    "feed per revolution with constant cutting speed (G97) is not supported \
-                     by the planner yet",
-                ));
+            // Feed per revolution (G95, KŘR with mm/rev; SPEC §5, §6): V = n·β, planned at the
+            // nominal (highest) spindle speed of the block; the interpolator scales it by
+            // n_actual / nominal every tick (`Segment::per_rev_nominal_rpm`).
+            Feed::MmPerRev(f) if f.is_finite() && f > 0.0 => {
+                match block.spindle.per_rev_nominal_rpm() {
+                    Some(n) => f * n,
+                    None => {
+                        return Err(Diagnostic::error(
+                            block.n,
+                            block.line,
+                            0,
+                            "feed per revolution needs a running spindle with a programmed \
+                             speed S",
+                        ));
+                    }
+                }
             }
             Feed::MmPerRev(_) => {
                 return Err(Diagnostic::error(
@@ -613,6 +613,10 @@ impl Planner {
             program_stop: ProgramStop::None,
             program_stop_before: ProgramStop::None,
             axis_filter_ticks: self.cfg.axis_filter_ticks as u16,
+            per_rev_nominal_rpm: match block.feed {
+                Feed::MmPerRev(_) if !rapid => block.spindle.per_rev_nominal_rpm().unwrap_or(0.0),
+                _ => 0.0,
+            },
         };
         let mut p = Pending {
             seg,

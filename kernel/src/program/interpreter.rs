@@ -214,6 +214,10 @@ pub struct Interpreter {
     /// rides with the spindle state (KŘR at the tool tip, SPEC §6); `None`: R67 names no axis
     /// of this machine (the daemon refuses such constants when KŘR is configured).
     kr_axis: Option<usize>,
+    /// The spindle gear table (empty: M41..M44 select ranges 1..4), SPEC §6.
+    gears: Vec<crate::kr::Gear>,
+    /// Fastest path feed of the machine, mm/min (0 = unknown), for the βmax warning (SPEC §5).
+    max_feed_mm_min: f64,
 }
 
 impl Interpreter {
@@ -251,6 +255,8 @@ impl Interpreter {
         });
         let mut interp = Interpreter {
             kr_axis,
+            gears: setup.gears.clone(),
+            max_feed_mm_min: setup.max_feed_mm_min,
             axis_letters,
             n_axes: setup.axis_names.len().min(MAX_AXES),
             rules: Rules {
@@ -650,10 +656,20 @@ impl Interpreter {
         let (mut dir_at, mut scale_at, mut gear_at) = (None, None, None);
         for (k, (m, at)) in w.m.iter().flatten().enumerate() {
             m_codes[k] = Some(*m);
+            let gear = crate::kr::config::gear_for_m_code(&self.gears, *m);
             let (slot, what) = match m {
                 3..=5 => (&mut dir_at, "spindle direction (M3/M4/M5)"),
                 36 | 37 => (&mut scale_at, "feed scale (M36/M37)"),
-                41..=44 => (&mut gear_at, "gear (M41..M44)"),
+                _ if gear.is_some() => (&mut gear_at, "gear range"),
+                41..=44 => {
+                    return fail(
+                        *at,
+                        format!(
+                            "M{m} selects no gear range: the machine's [kr.gears] table has no \
+                             range with m_code = {m}"
+                        ),
+                    );
+                }
                 _ => continue,
             };
             if slot.is_some() {
@@ -666,7 +682,7 @@ impl Interpreter {
                 5 => st.spindle.dir = SpindleDir::Stopped,
                 36 => st.m37 = false,
                 37 => st.m37 = true,
-                _ => st.spindle.gear = (*m - 40) as u8,
+                _ => st.spindle.gear = gear.unwrap_or(0),
             }
         }
         if crate::block::ends_program(&m_codes) {
@@ -674,6 +690,12 @@ impl Interpreter {
             // power-on modal state anyway, docs/language.md).
             st.spindle.dir = SpindleDir::Stopped;
         }
+
+        // P of the range in force (gear 0, none selected yet, is range 1), for feed per rev.
+        st.spindle.gear_max_rpm = self
+            .gears
+            .get(usize::from(st.spindle.gear.max(1)) - 1)
+            .map_or(0.0, |g| g.max_rpm);
 
         // Feed group and constant cutting speed (SPEC §5, §6).
         if let Some((fm, _)) = w.feed_mode {
@@ -909,6 +931,17 @@ impl Interpreter {
             self.notes
                 .push(Diagnostic::warning(w.n, line_no, column(text, at), msg));
         }
+        if let (BlockKind::Motion { path, .. }, Feed::MmPerRev(beta)) = (kind, feed_out)
+            && path != Path::Rapid
+            && let Some(msg) = self.beta_max_warning(beta, &st.spindle)
+        {
+            self.notes.push(Diagnostic::warning(
+                w.n,
+                line_no,
+                column(text, w.first),
+                msg,
+            ));
+        }
         if let Some(r) = refined {
             self.note_refinement(w, line_no, r);
         }
@@ -931,6 +964,20 @@ impl Interpreter {
         };
         self.seq += 1;
         Ok(block)
+    }
+
+    /// SPEC §5: βmax = Vmax/S. A feed per revolution above it cannot be followed at the
+    /// nominal spindle speed of the block (the axes cap the feed): a warning.
+    fn beta_max_warning(&self, beta_mm_rev: f64, spindle: &Spindle) -> Option<String> {
+        let n = spindle.per_rev_nominal_rpm()?;
+        let beta_max = crate::kr::max_feed_mm_rev(self.max_feed_mm_min, n)?;
+        (self.max_feed_mm_min > 0.0 && beta_mm_rev > beta_max + 1e-9).then(|| {
+            format!(
+                "feed {beta_mm_rev} mm/rev is above βmax = {beta_max:.3} mm/rev (Vmax {} mm/min \
+                 / {n} rpm): the axes limit the feed, it will not follow the spindle",
+                self.max_feed_mm_min
+            )
+        })
     }
 
     /// SPEC §4.6: the preprocessor records a refinement as address E in the block; here it

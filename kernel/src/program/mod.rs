@@ -56,6 +56,13 @@ pub struct Setup {
     pub ij: IjMode,
     /// `$63` of CNC836.KNF: the preprocessor is on (default), needed for R325 refinement.
     pub preprocessor: bool,
+    /// The spindle gear table (`[kr.gears]`): an M code selects the range whose `m_code` it
+    /// is. Empty (unit tests, tools without a machine): M41..M44 select ranges 1..4 and feed
+    /// per revolution is planned at the programmed S.
+    pub gears: Vec<crate::kr::Gear>,
+    /// Highest path feed the machine can reach, mm/min (the fastest axis; 0 = unknown): a
+    /// feed per revolution above βmax = Vmax/S is a warning (SPEC §5).
+    pub max_feed_mm_min: f64,
     /// Modal state to start in (MDI inherits what the last program or MDI left); `None`: the
     /// power-on state.
     pub modal: Option<Modal>,
@@ -73,6 +80,8 @@ impl Setup {
             offsets: OffsetTable::new(),
             ij: IjMode::default(),
             preprocessor: true,
+            gears: Vec::new(),
+            max_feed_mm_min: 0.0,
             modal: None,
             soft_limits: crate::limits::SoftLimits::NONE,
         }
