@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Runs every test of the project on a fresh machine: installs what the suites need, then the
-# Rust workspace tests, then the suites that need more than cargo (vcan in a VM, foreign
-# clients). Exits non-zero if anything failed.
+# Rust workspace tests, then the suites that need more than cargo (vcan in a VM, the Debian
+# package in a systemd VM, foreign clients). Exits non-zero if anything failed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -11,6 +11,11 @@ cargo test --workspace --locked
 if [ -x tests/vcan/run.sh ]; then
   echo "== vcan suite (CANopen on a real Linux CAN stack)"
   tests/vcan/run.sh
+fi
+
+if [ -x tests/systemd-vm/run.sh ]; then
+  echo "== systemd VM suite (the Debian package under a real systemd)"
+  tests/systemd-vm/run.sh
 fi
 
 if [ -x tests/python/run.sh ]; then
