@@ -9,7 +9,8 @@
 # or compile on the build machine beyond the Rust toolchain and dpkg). The version is the
 # workspace version plus the commit time and hash, so every commit's package upgrades the one
 # before (`+git202611232045.abc1234`); CNC_DEB_VERSION overrides it.
-# --no-build packages the binaries already in target/release/.
+# --no-build packages the binaries already in target/release/. CNC_DEB_PROFILE=debug packages
+# the dev build instead (quicker to iterate on the VM suite; never for a machine).
 set -eu
 cd "$(dirname "$0")/.."
 ROOT=$PWD
@@ -19,13 +20,19 @@ if [ "${1:-}" = --no-build ]; then
     shift
 fi
 TARGET="${CARGO_TARGET_DIR:-$ROOT/target}"
+PROFILE="${CNC_DEB_PROFILE:-release}"
+case "$PROFILE" in
+release) BIN="$TARGET/release" PROFILE_FLAG=--release ;;
+debug) BIN="$TARGET/debug" PROFILE_FLAG= ;;
+*) echo "build-deb: CNC_DEB_PROFILE must be release or debug" >&2; exit 2 ;;
+esac
 OUT="${1:-$TARGET/debian}"
 
 if [ "$BUILD" = 1 ]; then
-    cargo build --release --locked -q -p daemon --bin cncd --bin cncctl
+    cargo build $PROFILE_FLAG --locked -q -p daemon --bin cncd --bin cncctl
 fi
 for b in cncd cncctl; do
-    [ -x "$TARGET/release/$b" ] || { echo "build-deb: $TARGET/release/$b missing" >&2; exit 1; }
+    [ -x "$BIN/$b" ] || { echo "build-deb: $BIN/$b missing" >&2; exit 1; }
 done
 
 base=$(sed -n '/^\[workspace.package\]/,/^\[/s/^version *= *"\(.*\)"/\1/p' Cargo.toml)
@@ -48,7 +55,7 @@ install -d "$pkg/DEBIAN" "$pkg/usr/bin" "$pkg/usr/lib/systemd/system" \
     "$doc/docs" "$doc/examples/network"
 for b in cncd cncctl; do
     # Without the line tables of the release profile: the package is a fifth of the size.
-    strip --strip-debug -o "$pkg/usr/bin/$b" "$TARGET/release/$b"
+    strip --strip-debug -o "$pkg/usr/bin/$b" "$BIN/$b"
     chmod 0755 "$pkg/usr/bin/$b"
 done
 # The unit of deploy/ names the paths of a manual install under /usr/local.

@@ -43,7 +43,10 @@ journal_since() {
         awk -v t="$1" '{ ts = $1; gsub(/[\[\]]/, "", ts); if (ts * 1000000 >= t) print }'
 }
 
+export -f wait_until journal_since
+
 finish() {
+    journalctl -b --no-pager -o short-monotonic >"$S/journal.txt" 2>&1
     say "systemd-vm-guest: $PASS passed, $FAIL failed"
     echo "GUEST-DONE" >>"$RES"
     sync
@@ -133,7 +136,10 @@ check "READY=1 came with the status line of the running machine" \
 check "the journal says 'drives operational' before systemd's 'Started'" \
     bash -c 'journalctl -b -u cncd -o cat --no-pager | grep -m1 -e "drives operational" -e "^Started cncd" |
              grep -q "drives operational"'
-info "start: $(journalctl -b -u cncd -o short-monotonic --no-pager | grep -m1 'cncd started' | cut -c1-80)"
+pid=$(prop MainPID)
+sleep 6
+check "cncd stays up under the watchdog (same process 6 s later, no restart)" \
+    [ "$(prop MainPID)" = "$pid" -a "$(prop NRestarts)" = 0 ]
 
 # --- real-time scheduling through the unit's limits, not root -------------------------------
 pid=$(prop MainPID)
@@ -170,11 +176,12 @@ check "cncd exited by itself with status 0 (Result=success)" \
              [ "$(systemctl show -P ExecMainStatus cncd)" = 0 ]'
 check "no SIGKILL and no stop timeout in the journal" \
     bash -c "! journal_since $t0 | grep -Ei 'sigkill|timed out|killing'"
-check "the open status stream ended cleanly (cncctl exit 0)" \
-    bash -c "wait_until() { local e=\$((SECONDS+\$1)); shift; until \"\$@\"; do [ \$SECONDS -ge \$e ] && return 1; sleep 0.2; done; };
-             wait_until 10 bash -c '! kill -0 $watch_pid 2>/dev/null'"
+check "the open status stream ended with the stop" \
+    wait_until 10 bash -c "! kill -0 $watch_pid 2>/dev/null"
 wait "$watch_pid"
-check "... and cncctl status --watch exited 0" [ $? -eq 0 ]
+watch_rc=$?
+info "cncctl status --watch: exit $watch_rc, $(wc -l </root/watch.jsonl) status lines, stderr: $(head -c 300 /root/watch.err)"
+check "... cleanly: cncctl status --watch exited 0" [ "$watch_rc" -eq 0 ]
 rest_exit=$(journal_since "$t0" | awk '
     /axis at rest/ { ts = $1; gsub(/[\[\]]/, "", ts); rest = ts }
     /cncd stopped/ { ts = $1; gsub(/[\[\]]/, "", ts); if (rest) printf "%d", (ts - rest) * 1000 }')
@@ -192,7 +199,9 @@ check "events carry the block number (CNC_BLOCK) and job (CNC_JOB)" \
 
 # --- hardening ------------------------------------------------------------------------------
 systemctl start cncd
+wait_until 60 is_state active
 pid=$(prop MainPID)
+info "hardening checks on cncd pid $pid"
 sec=$(systemd-analyze security cncd.service --no-pager 2>&1)
 level=$(sed -n 's/.*Overall exposure level for cncd.service: \([0-9.]*\).*/\1/p' <<<"$sec")
 info "systemd-analyze security cncd: exposure ${level:-?}"
@@ -204,6 +213,8 @@ as_cncd() { nsenter -t "$pid" -m setpriv --reuid=cncd --regid=cncd --init-groups
 for d in /var/lib/cncd /run/cncd /var/log/cncd; do
     check "the service can write in $d" as_cncd sh -c "touch $d/.w && rm $d/.w"
 done
+# Only meaningful while that process lives (a failed nsenter would look like a refused write).
+check "cncd still the same process" [ "$(prop MainPID)" = "$pid" ]
 denied=""
 for d in /etc /etc/cncd /usr/bin /var/lib /var/cache /run /run/lock /dev/shm /home /root /srv /opt /boot; do
     as_cncd sh -c "touch $d/.cncd-write-test" 2>/dev/null && denied="$denied $d"
@@ -232,11 +243,9 @@ systemctl restart cncd
 rm /run/systemd/system/cncd.service.d/50-stall.conf
 systemctl daemon-reload
 check "with the RT thread stalled systemd's watchdog fires" \
-    wait_until 90 bash -c "journalctl -b -u cncd -o cat --since=-5min --no-pager | grep -q 'Watchdog timeout'"
+    wait_until 90 bash -c "journal_since $t0 | grep -q 'Watchdog timeout'"
 check "cncd said why first: 'real-time thread stalled'" \
-    bash -c "journal_since() { journalctl -b -u cncd.service -o short-monotonic --no-pager |
-             awk -v t=\"\$1\" '{ ts = \$1; gsub(/[\\[\\]]/, \"\", ts); if (ts * 1000000 >= t) print }'; };
-             journal_since $t0 | grep -q 'real-time thread stalled'"
+    bash -c "journal_since $t0 | grep -q 'real-time thread stalled'"
 check "systemd restarted cncd and it is active again" \
     wait_until 90 bash -c "[ \"\$(systemctl show -P NRestarts cncd)\" -gt $restarts0 ] &&
                            [ \"\$(systemctl show -P ActiveState cncd)\" = active ]"

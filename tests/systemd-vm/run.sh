@@ -115,7 +115,7 @@ T_IMAGE=$(($(date +%s) - T0))
 
 # --- the package and the simulator ---------------------------------------------------------
 T0=$(date +%s)
-log "building the Debian package (release) and sim-can"
+log "building the Debian package (${CNC_DEB_PROFILE:-release}) and sim-can"
 DEB=$(deploy/build-deb.sh | tail -n 1)
 cargo build --locked -q -p sim --bin sim-can
 T_BUILD=$(($(date +%s) - T0))
