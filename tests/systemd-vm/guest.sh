@@ -104,6 +104,13 @@ increments_per_mm = 10000
 [bus]
 kind = "can"
 interface = "vcan0"
+# The emulated VM runs late ticks: bus timeouts with room for that.
+tpdo_missing_ticks = 250
+heartbeat_timeout_ms = 5000
+drive_consumer_timeout_ms = 5000
+boot_timeout_ms = 20000
+enable_timeout_ms = 20000
+sdo_timeout_ms = 2000
 [api]
 listen = "127.0.0.1:50051"
 unix_socket = "/run/cncd/cncd.sock"
@@ -115,6 +122,13 @@ lock_memory = true
 EOF
 check "the vcan configuration passes --check-config" \
     cncd --check-config --config /etc/cncd/cncd.toml
+
+# Software emulation on a shared host cannot hold the 4 ms period: cncd judges itself stalled
+# (fewer than half the ticks due) and the watchdog restarts it again and again. So the VM runs
+# without the watchdog, except in the watchdog check below, which restores the unit's value.
+mkdir -p /etc/systemd/system/cncd.service.d
+printf '[Service]\nWatchdogSec=0\n' >/etc/systemd/system/cncd.service.d/50-vm.conf
+systemctl daemon-reload
 
 # --- start: active only after READY=1, i.e. once the drives are operational ----------------
 systemctl start --no-block cncd
@@ -138,7 +152,7 @@ check "the journal says 'drives operational' before systemd's 'Started'" \
              grep -q "drives operational"'
 pid=$(prop MainPID)
 sleep 6
-check "cncd stays up under the watchdog (same process 6 s later, no restart)" \
+check "cncd stays up (same process 6 s later, no restart)" \
     [ "$(prop MainPID)" = "$pid" -a "$(prop NRestarts)" = 0 ]
 
 # --- real-time scheduling through the unit's limits, not root -------------------------------
@@ -233,23 +247,27 @@ check "/tmp of the service is private (not the system's /tmp)" \
 # --- watchdog: a stalled real-time thread makes systemd restart cncd -------------------------
 restarts0=$(prop NRestarts)
 mkdir -p /run/systemd/system/cncd.service.d
-# 2000 ticks (8 s) after the start: well after READY=1, when the watchdog is armed.
-printf '[Service]\nEnvironment=CNCD_FAULT_STALL_RT_AFTER_TICKS=2000\n' \
+# The unit's WatchdogSec=3s again, and the stall 1000 ticks after the start (after READY=1 in
+# a fast machine; here emulation may stall it first: the journal line below tells).
+rm /etc/systemd/system/cncd.service.d/50-vm.conf
+printf '[Service]\nEnvironment=CNCD_FAULT_STALL_RT_AFTER_TICKS=1000\n' \
     >/run/systemd/system/cncd.service.d/50-stall.conf
 systemctl daemon-reload
+info "watchdog period now $(prop WatchdogUSec)"
 t0=$(mono_us)
-systemctl restart cncd
-# The knob applies to this process only: the restart after the watchdog runs without it.
-rm /run/systemd/system/cncd.service.d/50-stall.conf
-systemctl daemon-reload
+systemctl restart --no-block cncd
 check "with the RT thread stalled systemd's watchdog fires" \
-    wait_until 90 bash -c "journal_since $t0 | grep -q 'Watchdog timeout'"
+    wait_until 120 bash -c "journal_since $t0 | grep -q 'Watchdog timeout'"
+# Before the restart (RestartSec=5s): no knob, and the VM's watchdog setting again.
+rm /run/systemd/system/cncd.service.d/50-stall.conf
+printf '[Service]\nWatchdogSec=0\n' >/etc/systemd/system/cncd.service.d/50-vm.conf
+systemctl daemon-reload
 check "cncd said why first: 'real-time thread stalled'" \
-    bash -c "journal_since $t0 | grep -q 'real-time thread stalled'"
+    bash -c "journal_since $t0 | grep -B1000 'Watchdog timeout' | grep -q 'real-time thread stalled'"
 check "systemd restarted cncd and it is active again" \
-    wait_until 90 bash -c "[ \"\$(systemctl show -P NRestarts cncd)\" -gt $restarts0 ] &&
-                           [ \"\$(systemctl show -P ActiveState cncd)\" = active ]"
-info "watchdog: $(journal_since "$t0" | grep -E 'stalled|Watchdog|Main process exited|Scheduled restart' | cut -c1-110 | tr '\n' '|')"
+    wait_until 120 bash -c "[ \"\$(systemctl show -P NRestarts cncd)\" -gt $restarts0 ] &&
+                            [ \"\$(systemctl show -P ActiveState cncd)\" = active ]"
+info "watchdog: $(journal_since "$t0" | grep -E 'fault injection|stalled|Watchdog|Main process exited|Scheduled restart' | cut -c1-120 | tr '\n' '|')"
 check "after the restart the program runs again" \
     bash -c "timeout 120 cncctl --addr $SOCK run --quiet /root/part.nc >/dev/null"
 
