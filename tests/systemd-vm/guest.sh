@@ -40,7 +40,7 @@ ctl() { timeout 120 cncctl --addr "$SOCK" "$@"; }
 # The journal of cncd (and of systemd about cncd) since monotonic time $1 (µs).
 journal_since() {
     journalctl -b -u cncd.service -o short-monotonic --no-pager |
-        awk -v t="$1" '{ ts = $1; gsub(/[\[\]]/, "", ts); if (ts * 1000000 >= t) print }'
+        awk -v t="$1" '{ ts = $0; sub(/^\[ */, "", ts); sub(/\].*/, "", ts); if (ts * 1000000 >= t) print }'
 }
 
 export -f wait_until journal_since
@@ -188,6 +188,8 @@ check "systemctl stop ends within the unit's timeout" [ "$stop_ms" -lt 30000 ]
 check "cncd exited by itself with status 0 (Result=success)" \
     bash -c '[ "$(systemctl show -P Result cncd)" = success ] &&
              [ "$(systemctl show -P ExecMainStatus cncd)" = 0 ]'
+check "the journal of the stop is there (Stopping ... Stopped)" \
+    bash -c "journal_since $t0 | grep -q 'Stopped cncd'"
 check "no SIGKILL and no stop timeout in the journal" \
     bash -c "! journal_since $t0 | grep -Ei 'sigkill|timed out|killing'"
 check "the open status stream ended with the stop" \
@@ -197,8 +199,9 @@ watch_rc=$?
 info "cncctl status --watch: exit $watch_rc, $(wc -l </root/watch.jsonl) status lines, stderr: $(head -c 300 /root/watch.err)"
 check "... cleanly: cncctl status --watch exited 0" [ "$watch_rc" -eq 0 ]
 rest_exit=$(journal_since "$t0" | awk '
-    /axis at rest/ { ts = $1; gsub(/[\[\]]/, "", ts); rest = ts }
-    /cncd stopped/ { ts = $1; gsub(/[\[\]]/, "", ts); if (rest) printf "%d", (ts - rest) * 1000 }')
+    { ts = $0; sub(/^\[ */, "", ts); sub(/\].*/, "", ts) }
+    /axis at rest/ { rest = ts }
+    /cncd stopped/ { if (rest) printf "%d", (ts - rest) * 1000 }')
 info "from the axes at rest to 'cncd stopped': ${rest_exit:-?} ms"
 check "cncd stopped within 1 s after the axes were at rest" \
     [ -n "$rest_exit" ] && [ "${rest_exit:-9999}" -le 1000 ]
