@@ -256,7 +256,6 @@ rm /etc/systemd/system/cncd.service.d/50-vm.conf
 printf '[Service]\nEnvironment=CNCD_FAULT_STALL_RT_AFTER_TICKS=1000\n' \
     >/run/systemd/system/cncd.service.d/50-stall.conf
 systemctl daemon-reload
-info "watchdog period now $(prop WatchdogUSec)"
 t0=$(mono_us)
 systemctl restart --no-block cncd
 check "with the RT thread stalled systemd's watchdog fires" \
