@@ -492,3 +492,106 @@ async fn logs_go_to_the_journal_only_when_stderr_is_the_journal_stream() {
         assert!(text.contains("cncd started"), "{text}");
     }
 }
+
+/// `systemctl stop` with an HMI watching: SIGTERM brakes the axes, then every open status and
+/// alarm stream ends cleanly (its last message, then the end of the stream, no transport
+/// error) and cncd exits 0 — without the fix the open stream kept it alive until SIGKILL
+/// (issue #19). The systemd VM suite checks the same under a real systemd.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sigterm_ends_open_streams_and_cncd_exits() {
+    use proto::v1 as pb;
+    use proto::v1::machine_client::MachineClient;
+
+    let bin = cncd_binary();
+    let dir = scratch("stop-streams");
+    let path = dir.join("notify.sock");
+    let cfg = dir.join("cncd.toml");
+    std::fs::write(&cfg, test_config(&dir)).unwrap();
+    let mgr = Manager::bind(&path);
+    let mut child = Command::new(&bin)
+        .arg("--config")
+        .arg(&cfg)
+        .args(["--log", "stderr"])
+        .env("NOTIFY_SOCKET", &path)
+        .env_remove("WATCHDOG_USEC")
+        .env_remove("JOURNAL_STREAM")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .current_dir(&dir)
+        .spawn()
+        .unwrap();
+    let pid = child.id() as libc::pid_t;
+    let socket = dir.join("data/cncd.sock");
+    let checks = tokio::spawn(async move {
+        mgr.wait_for("READY=1", Duration::from_secs(20)).await;
+        let ch = tonic::transport::Endpoint::from_shared(format!("unix:{}", socket.display()))
+            .unwrap()
+            .connect()
+            .await
+            .unwrap();
+        let mut m = MachineClient::new(ch);
+        let mut status = m
+            .stream_status(pb::StatusRequest { rate_hz: 10 })
+            .await
+            .unwrap()
+            .into_inner();
+        let mut alarms = m
+            .stream_alarms(pb::StreamAlarmsRequest { skip_history: true })
+            .await
+            .unwrap()
+            .into_inner();
+        // The status stream is live before the stop.
+        assert!(status.message().await.unwrap().is_some());
+        // SAFETY: signalling our own child.
+        assert_eq!(unsafe { libc::kill(pid, libc::SIGTERM) }, 0);
+        mgr.wait_for("STOPPING=1", Duration::from_secs(10)).await;
+        let mut last = None;
+        while let Some(s) = status
+            .message()
+            .await
+            .unwrap_or_else(|e| panic!("status stream ended with an error: {e}"))
+        {
+            last = Some(s);
+        }
+        let alarm_end = alarms.message().await;
+        assert!(matches!(alarm_end, Ok(None)), "alarm stream: {alarm_end:?}");
+        last.expect("a status after SIGTERM")
+    });
+    let outcome = checks.await;
+    let status = wait_exit(&mut child, Duration::from_secs(30)).await;
+    let output = child.wait_with_output().unwrap();
+    let log = String::from_utf8_lossy(&output.stderr);
+    let last = match outcome {
+        Ok(last) => last,
+        Err(p) => {
+            eprintln!("cncd log:\n{log}");
+            std::panic::resume_unwind(p.into_panic());
+        }
+    };
+    let status = status.unwrap_or_else(|| panic!("cncd did not exit after SIGTERM:\n{log}"));
+    assert!(status.success(), "cncd exit {status}:\n{log}");
+    // The last status the HMI saw is the machine at rest, after the brake.
+    assert_eq!(last.path_velocity_mm_s, 0.0, "{last:?}");
+    let rest = log.find("axis at rest").expect("axis at rest logged");
+    let stopped = log.find("cncd stopped").expect("cncd stopped logged");
+    assert!(rest < stopped, "{log}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Waits up to `limit` for `child` to exit; kills it when it does not (then `None`).
+async fn wait_exit(
+    child: &mut std::process::Child,
+    limit: Duration,
+) -> Option<std::process::ExitStatus> {
+    let deadline = Instant::now() + limit;
+    loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            return Some(s);
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            return None;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}

@@ -171,8 +171,9 @@ fn unit_hardening_exposure_stays_low() {
             )
         });
     println!("systemd-analyze security: exposure {level}");
-    // 2.1 today; what remains is what a controller needs: network, serial devices, realtime.
-    assert!(level <= 2.5, "exposure {level} (was 2.1):\n{text}");
+    // 1.8 (systemd 252, here and under the real systemd of the VM suite); what remains is what
+    // a controller needs: network, serial devices, real-time scheduling. The goal is <= 2.0.
+    assert!(level <= 2.0, "exposure {level} (was 1.8):\n{text}");
 }
 
 #[test]

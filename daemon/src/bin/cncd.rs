@@ -139,7 +139,7 @@ async fn run(config: Config) -> Result<(), String> {
     let bus = bus_label(&config);
     let axis_names = config.axis_names();
     // The controller creates the storage directory, where the Unix socket may live.
-    let ctl = Controller::start(config, ClockKind::Monotonic)?;
+    let ctl = start_controller(config)?;
     tracing::info!("cncd started: axes {names} on bus {bus}, API on {api_on}; enabling drives");
     let cfg = ctl.config();
     let mut listeners = match server::bind_extra(&cfg.api, &cfg.storage.dir).await {
@@ -217,6 +217,28 @@ async fn run(config: Config) -> Result<(), String> {
         None => Ok(()),
         Some(_) => Err("stopped after the API failure above".into()),
     }
+}
+
+/// Opens the bus and starts the controller; with the test-only stall knob set
+/// (`daemon::runtime::fault_inject`), on a bus that wedges the real-time thread.
+fn start_controller(config: Config) -> Result<Arc<Controller>, String> {
+    use daemon::runtime::buses::open_bus;
+    use daemon::runtime::fault_inject::{self, STALL_RT_AFTER_TICKS, StallAfter};
+    let knob = std::env::var(STALL_RT_AFTER_TICKS).ok();
+    let Some(ticks) = fault_inject::stall_after_ticks(knob.as_deref())? else {
+        return Controller::start(config, ClockKind::Monotonic);
+    };
+    tracing::warn!(
+        ticks,
+        "fault injection: the real-time thread will stall after {ticks} ticks \
+         ({STALL_RT_AFTER_TICKS}; for tests only)"
+    );
+    let bus = open_bus(&config.bus, &config.axes, &config.sim)?;
+    Controller::start_with_bus(
+        config,
+        ClockKind::Monotonic,
+        Box::new(StallAfter::new(bus, ticks)),
+    )
 }
 
 /// SIGTERM (systemd stop) and SIGINT (Ctrl-C).

@@ -37,6 +37,11 @@ use super::config::ApiConfig;
 use super::controller::Controller;
 use super::rt::MachineState;
 
+/// How long the API waits at shutdown for calls in flight (open streams end at once): the
+/// daemon exits within a second after the axes are at rest (issue #19), well inside the unit's
+/// `TimeoutStopSec=`.
+pub const SHUTDOWN_DRAIN: Duration = Duration::from_millis(500);
+
 /// Sockets to serve on, already bound.
 #[derive(Default)]
 pub struct Listeners {
@@ -258,11 +263,24 @@ pub async fn serve_listeners_with(
             if let Ok(Err(e)) = r { first_err = Some(e.to_string()); }
         }
     }
+    // Streams end first (their last message is sent), then the listeners stop accepting and
+    // wait for the calls in flight; a client that does not read its stream any more must not
+    // hold the daemon past the drain time.
+    st.close_streams();
     let _ = stop_tx.send(true);
-    while let Some(r) = tasks.join_next().await {
-        if let Ok(Err(e)) = r {
-            first_err.get_or_insert(e.to_string());
+    let drain = async {
+        while let Some(r) = tasks.join_next().await {
+            if let Ok(Err(e)) = r {
+                first_err.get_or_insert(e.to_string());
+            }
         }
+    };
+    if tokio::time::timeout(SHUTDOWN_DRAIN, drain).await.is_err() {
+        tracing::warn!(
+            drain_ms = SHUTDOWN_DRAIN.as_millis() as u64,
+            "API calls still open after the drain time: closing their connections"
+        );
+        tasks.shutdown().await;
     }
     health_task.abort();
     match first_err {

@@ -416,16 +416,24 @@ impl Machine for MachineSvc {
         let (tx, rx) = tokio::sync::mpsc::channel(16);
         let st = self.0.clone();
         let watch = st.ctl.subscribe();
+        let closing = st.closing();
         tokio::spawn(async move {
             let _slot = slot;
             let mut every = tokio::time::interval(Duration::from_secs_f64(1.0 / hz as f64));
             // Stay on the rate's grid: a late wake-up does not shift later messages, and
             // missed slots are skipped rather than sent as a burst of the same snapshot.
             every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+            tokio::pin!(closing);
             loop {
                 tokio::select! {
                     _ = every.tick() => {}
                     _ = tx.closed() => break,
+                    _ = &mut closing => {
+                        // Shutdown: the last status (axes at rest), then the end of the stream.
+                        let snap = *watch.borrow();
+                        let _ = tx.try_send(Ok(st.status(&snap)));
+                        break;
+                    }
                 }
                 let snap = *watch.borrow();
                 let msg = st.status(&snap);
@@ -450,8 +458,10 @@ impl Machine for MachineSvc {
         let slot = self.0.stream_slot()?;
         let (history, mut live) = self.0.alarms.subscribe(!skip_history);
         let (tx, rx) = tokio::sync::mpsc::channel(64);
+        let closing = self.0.closing();
         tokio::spawn(async move {
             let _slot = slot;
+            tokio::pin!(closing);
             for e in history {
                 if tx.send(Ok(e)).await.is_err() {
                     return;
@@ -461,6 +471,7 @@ impl Machine for MachineSvc {
                 let e = tokio::select! {
                     e = live.recv() => e,
                     _ = tx.closed() => return,
+                    _ = &mut closing => return,
                 };
                 match e {
                     Ok(e) => {

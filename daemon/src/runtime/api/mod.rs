@@ -77,6 +77,8 @@ pub struct ApiState {
     start_lock: tokio::sync::Mutex<()>,
     streams: Arc<AtomicUsize>,
     max_streams: usize,
+    /// Set once the daemon shuts down: every open stream sends its last message and ends.
+    closing: tokio::sync::watch::Sender<bool>,
     pub alarms: Arc<alarms::AlarmLog>,
 }
 
@@ -94,6 +96,7 @@ impl ApiState {
             single_block: AtomicBool::new(false),
             start_lock: tokio::sync::Mutex::new(()),
             streams: Arc::new(AtomicUsize::new(0)),
+            closing: tokio::sync::watch::Sender::new(false),
             alarms,
         });
         alarms::spawn_watcher(state.ctl.clone(), state.alarms.clone());
@@ -123,6 +126,20 @@ impl ApiState {
         let t0 = std::time::Instant::now();
         while self.ctl.snapshot().job != job && t0.elapsed() < std::time::Duration::from_secs(1) {
             tokio::time::sleep(std::time::Duration::from_millis(1)).await;
+        }
+    }
+
+    /// Ends every open stream (shutdown): the HTTP/2 graceful shutdown waits for open responses,
+    /// so a status stream left open would keep the daemon alive until systemd's SIGKILL.
+    pub fn close_streams(&self) {
+        self.closing.send_replace(true);
+    }
+
+    /// Resolves once [`ApiState::close_streams`] was called (at once if it already was).
+    fn closing(&self) -> impl std::future::Future<Output = ()> + Send + 'static {
+        let mut rx = self.closing.subscribe();
+        async move {
+            let _ = rx.wait_for(|c| *c).await;
         }
     }
 
