@@ -16,19 +16,16 @@ use std::sync::{Arc, Mutex};
 
 use hal::DriveBus;
 use kernel::Diagnostic;
-use kernel::block::Block;
 use kernel::constants::Constants;
 use kernel::machine::MachineSetup;
-use kernel::offsets::TableEdit;
-use kernel::pipeline::{self, Flow, Observer, Options};
+use kernel::pipeline::{self, Options};
 use kernel::plan::Segment;
-use kernel::program::Modal;
 use tokio::sync::watch;
 
 use super::clock::SimClock;
 use super::config::Config;
 use super::controller::{Pump, load_storage, machine_config, rt_core_config};
-use super::pipeline::PendingWrite;
+use super::job::{JobSpec, plan_into};
 use super::rt_core::{JobMachine, MachineState, RtCommand, RtCore, RtRings, Snapshot};
 use super::storage::OffsetStore;
 
@@ -309,15 +306,17 @@ impl Harness {
             in_position_mm: setup.in_position_mm(),
         };
         self.send(RtCommand::Start { job, machine })?;
-        let mut runner = Runner {
-            h: self,
-            job,
-            error: None,
+        let spec = JobSpec {
+            text: Arc::from(text),
+            setup,
+            opts,
+            execution: self.pump.execution.clone(),
+            status: self.status.1.clone(),
         };
-        pipeline::run(text, &setup, opts, &mut runner);
-        let error = runner.error.take();
+        let result = plan_into(&spec, |seg| self.push_segment(seg));
         self.rings.planned_job.store(job, Ordering::Release);
-        error.map_or(Ok(job), |d| Err(HarnessError::Planning(d)))
+        result.map_err(HarnessError::Planning)?;
+        Ok(job)
     }
 
     /// Pushes one segment, running RT ticks while the ring is full (the controller's planner
@@ -366,60 +365,5 @@ impl Fnv {
 
     fn write(&mut self, word: u64) {
         self.0 = (self.0 ^ word).wrapping_mul(0x0100_0000_01b3);
-    }
-}
-
-/// The inline planner's observer: segments onto the ring (ticking while it is full), blocks
-/// and table writes to the execution record, as the controller's planner thread does.
-struct Runner<'a> {
-    h: &'a mut Harness,
-    job: u32,
-    error: Option<Diagnostic>,
-}
-
-impl Observer for Runner<'_> {
-    fn programmed(&mut self, b: &Block, modal: &Modal) {
-        self.h
-            .pump
-            .execution
-            .lock()
-            .unwrap()
-            .record(self.job, b, modal);
-    }
-
-    fn segment(&mut self, s: Segment) -> Flow {
-        if self.h.push_segment(s) {
-            Flow::Go
-        } else {
-            Flow::Stop
-        }
-    }
-
-    fn diagnostic(&mut self, d: Diagnostic) -> Flow {
-        if d.is_error() {
-            self.error = Some(d);
-            return Flow::Stop;
-        }
-        Flow::Go
-    }
-
-    fn table_write(&mut self, b: &Block, edit: &TableEdit) -> Flow {
-        let w = PendingWrite {
-            seq: b.seq,
-            n: b.n,
-            line: b.line,
-            edit: *edit,
-        };
-        self.h
-            .pump
-            .execution
-            .lock()
-            .unwrap()
-            .table_write(self.job, w);
-        Flow::Go
-    }
-
-    fn dynam_set_cell(&mut self) -> Option<u8> {
-        Some(self.h.snapshot().plc.dynam_set().saturating_sub(1))
     }
 }

@@ -38,26 +38,22 @@ pub struct JobLink {
     pub planned_job: Arc<AtomicU32>,
 }
 
-/// The run's observer: segments to the ring, blocks and table writes to the execution record.
-struct Runner<'a> {
+/// A run's observer: segments to `sink` (false: cancel the run), blocks and table writes to
+/// the execution record.
+struct Runner<'a, S> {
     spec: &'a JobSpec,
-    ring: &'a mut rtrb::Producer<Segment>,
-    cancel: &'a AtomicBool,
+    sink: S,
     error: Option<Diagnostic>,
 }
 
-impl Observer for Runner<'_> {
+impl<S: FnMut(Segment) -> bool> Observer for Runner<'_, S> {
     fn programmed(&mut self, b: &Block, modal: &Modal) {
         let job = self.spec.opts.job;
         lock(&self.spec.execution).record(job, b, modal);
     }
 
     fn segment(&mut self, s: Segment) -> Flow {
-        if push_waiting(self.ring, s, self.cancel) {
-            Flow::Go
-        } else {
-            Flow::Stop
-        }
+        if (self.sink)(s) { Flow::Go } else { Flow::Stop }
     }
 
     fn diagnostic(&mut self, d: Diagnostic) -> Flow {
@@ -93,16 +89,25 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 /// whether it finished, was cancelled or failed, so the RT thread never waits for it forever.
 pub fn run(spec: JobSpec, link: &JobLink, cancel: &AtomicBool) -> Result<(), Diagnostic> {
     let mut ring = link.segments.lock().unwrap_or_else(|e| e.into_inner());
+    let result = plan_into(&spec, |s| push_waiting(&mut ring, s, cancel));
+    link.planned_job.store(spec.opts.job, Ordering::Release);
+    result
+}
+
+/// Plans `spec` through the pipeline, handing its segments in order to `sink` (false: cancel)
+/// and recording blocks and `G92` writes for execution. The first error ends it. Shared by the
+/// planner thread and the single-threaded harness.
+pub(crate) fn plan_into(
+    spec: &JobSpec,
+    sink: impl FnMut(Segment) -> bool,
+) -> Result<(), Diagnostic> {
     let mut runner = Runner {
-        spec: &spec,
-        ring: &mut ring,
-        cancel,
+        spec,
+        sink,
         error: None,
     };
     pipeline::run(&spec.text, &spec.setup, spec.opts, &mut runner);
-    let error = runner.error.take();
-    link.planned_job.store(spec.opts.job, Ordering::Release);
-    error.map_or(Ok(()), Err)
+    runner.error.map_or(Ok(()), Err)
 }
 
 /// Pushes one segment, waiting while the ring is full. False when the run was cancelled.
