@@ -153,6 +153,14 @@ impl Constants {
         w
     }
 
+    /// R387: blocks per preview page, 0 = the whole program on one page (SPEC §7.5).
+    ///
+    /// **Decided**: R387 is read as its digit string like the other integer-unit constants of
+    /// SPEC §7 (the manual's example `R387 50.000` means 50000 blocks, and its text says 50000).
+    pub fn preview_page_blocks(&self) -> u32 {
+        self.field_digits(387, 1, 8) as u32
+    }
+
     /// 7.R397 = 1: an arc whose end point is not on the circle is replaced by a line (SPEC §4.5).
     pub fn bad_arc_becomes_line(&self) -> bool {
         self.decade(397, 7) == 1

@@ -57,6 +57,7 @@ pub struct MachineSetup {
     /// `None` only for tools without a machine configuration ([`MachineSetup::from_stages`]).
     kr: Option<KrConfig>,
     in_position_mm: AxesMm,
+    preview_page_blocks: u32,
 }
 
 impl MachineSetup {
@@ -94,6 +95,7 @@ impl MachineSetup {
                 machine.gears.clone(),
             )?),
             in_position_mm: constants.in_position_window_mm(),
+            preview_page_blocks: constants.preview_page_blocks(),
         })
     }
 
@@ -126,12 +128,14 @@ impl MachineSetup {
     /// the stages' settings as given, no spindle.
     pub fn from_stages(program: Setup, comp: CompConfig, planner: PlannerConfig) -> Self {
         let in_position_mm = program.constants.in_position_window_mm();
+        let preview_page_blocks = program.constants.preview_page_blocks();
         MachineSetup {
             program,
             comp,
             planner,
             kr: None,
             in_position_mm,
+            preview_page_blocks,
         }
     }
 
@@ -140,12 +144,118 @@ impl MachineSetup {
         self.in_position_mm
     }
 
+    /// Blocks per preview page (R387, 0 = all).
+    pub fn preview_page_blocks(&self) -> u32 {
+        self.preview_page_blocks
+    }
+
     /// The same setup for a program starting in modal state `modal` (MDI inherits the state
     /// the last program or MDI left, docs/language.md); `None`: the power-on state.
     pub fn with_modal(mut self, modal: Option<Modal>) -> Self {
         self.program.modal = modal;
         self
     }
+}
+
+/// Who reads a constant.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reader {
+    /// Read once at daemon start (the axis codes R0..R5): listed in `restart_required`.
+    DaemonStart,
+    Interpreter,
+    Compensation,
+    Planner,
+    /// Constant cutting speed and the spindle on the RT thread.
+    Kr,
+    /// The G24 in-position window on the RT thread.
+    G24Window,
+    Preview,
+}
+
+/// Constants `first..=last` and who reads them.
+#[derive(Clone, Copy, Debug)]
+pub struct ConstantUse {
+    pub first: u16,
+    pub last: u16,
+    pub readers: &'static [Reader],
+    pub meaning: &'static str,
+}
+
+const fn used(
+    first: u16,
+    last: u16,
+    readers: &'static [Reader],
+    meaning: &'static str,
+) -> ConstantUse {
+    ConstantUse {
+        first,
+        last,
+        readers,
+        meaning,
+    }
+}
+
+/// Every constant the controller reads (SPEC sections in the accessors). All but R0..R5 are
+/// decoded by [`MachineSetup::new`] (a unit test below checks this table against what it
+/// decodes); the daemon-level tests of each are listed in `tests/tests/constants_next_start.rs`.
+pub const CONSTANTS_READ: &[ConstantUse] = {
+    use Reader::*;
+    &[
+        used(
+            0,
+            5,
+            &[DaemonStart, Interpreter, Kr],
+            "axis codes (restart)",
+        ),
+        used(6, 6, &[G24Window], "in-position window, axes 1..3"),
+        used(7, 7, &[G24Window], "in-position window, axes 4..6"),
+        used(39, 39, &[Planner], "smooth-junction angle"),
+        used(52, 52, &[Planner], "acceleration to a stop"),
+        used(55, 55, &[Interpreter, Compensation], "arc end tolerance"),
+        used(67, 67, &[Interpreter, Kr], "KŘR controlling axis"),
+        used(95, 95, &[Compensation], "radius compensation enabled"),
+        used(97, 97, &[Planner], "continuity rule"),
+        used(
+            232,
+            232,
+            &[Planner],
+            "arc chord error, old centripetal limit",
+        ),
+        used(234, 234, &[Compensation], "continuity angle limit"),
+        used(236, 236, &[Planner], "acceleration in continuous moves"),
+        used(237, 237, &[Planner], "acceleration of rapids"),
+        used(325, 325, &[Interpreter], "preprocessor refinement"),
+        used(329, 329, &[Interpreter, Kr], "S units, G96/G97 meaning"),
+        used(338, 338, &[Planner], "acceleration profile"),
+        used(
+            339,
+            339,
+            &[Interpreter, Compensation],
+            "compensation corners, G40",
+        ),
+        used(382, 382, &[Planner], "short-block break length"),
+        used(383, 383, &[Planner], "short-block merge length"),
+        used(384, 384, &[Planner], "contour accuracy, speed drop"),
+        used(385, 385, &[Planner], "overload acceleration"),
+        used(387, 387, &[Preview], "blocks per preview page"),
+        used(395, 395, &[Planner], "ramp rise time"),
+        used(397, 397, &[Interpreter, Compensation], "compensation rules"),
+        used(406, 429, &[Planner], "dynamic sets 1..4"),
+        used(430, 432, &[Planner], "rapid and stop set"),
+        used(580, 580, &[Kr], "KŘR version"),
+        used(
+            764,
+            764,
+            &[Compensation],
+            "short-block report / optimisation",
+        ),
+        used(765, 765, &[Compensation], "gouge report / optimisation"),
+    ]
+};
+
+/// Every constant number of [`CONSTANTS_READ`], ascending.
+pub fn constants_read() -> impl Iterator<Item = u16> {
+    CONSTANTS_READ.iter().flat_map(|u| u.first..=u.last)
 }
 
 /// The planner's configuration from the axis limits and the constants: the one function that
@@ -212,6 +322,87 @@ mod tests {
                 c.arc_tolerance_mm()
             );
         }
+    }
+
+    /// What the stages decoded from the constants (the raw constants the interpreter's setup
+    /// carries are left out: the interpreter's decoding is in its rules).
+    fn decoded(s: &Result<MachineSetup, KrConfigError>) -> String {
+        match s {
+            Err(e) => format!("refused: {e:?}"),
+            Ok(s) => format!(
+                "{:?} {:?} {:?} {:?} {} {}",
+                s.comp(),
+                s.planner(),
+                s.kr_constants(),
+                s.in_position_mm(),
+                s.preview_page_blocks(),
+                crate::program::Interpreter::new(s.program()).decoded_rules()
+            ),
+        }
+    }
+
+    /// Constants `base` decodes differently when one of them changes alone (each digit, each
+    /// sign).
+    fn constants_read_from(base: &Constants, range: std::ops::RangeInclusive<u16>) -> Vec<u16> {
+        // Six axes: KŘR's axis may be any of R0..R5.
+        let mut machine = mill();
+        for name in ['U', 'V', 'W'] {
+            let mut a = machine.axes[0];
+            a.name = name;
+            machine.axes.push(a);
+        }
+        let build =
+            |c: &Constants| MachineSetup::new(&machine, c, true, &OffsetTable::new(), AxesMm::ZERO);
+        let reference = decoded(&build(base));
+        assert!(!reference.starts_with("refused"), "{reference}");
+        let mut read = Vec::new();
+        for r in range {
+            let changes = (0..8u32).flat_map(|d| {
+                [1i64, 2, 3, 4, 5, 9]
+                    .into_iter()
+                    .flat_map(move |k| [k * 10i64.pow(d), -k * 10i64.pow(d)])
+            });
+            let reads = changes.into_iter().any(|milli| {
+                let mut c = base.clone();
+                c.set(r, milli as f64 / 1000.0);
+                decoded(&build(&c)) != reference
+            });
+            if reads {
+                read.push(r);
+            }
+        }
+        read
+    }
+
+    /// Changes each digit and the sign of every constant R0..R999 alone and lists those whose
+    /// change reaches what the setup decodes: they must be exactly the table's. Twice: with
+    /// the default constants and with the dynamic sets and the rapid set switched on (their
+    /// values are read only then), and R0..R5 with X, KŘR's axis, coded in each of them. A constant a
+    /// stage starts reading fails this until it is listed (and given a daemon-level test).
+    #[test]
+    fn the_table_lists_every_constant_the_setup_decodes() {
+        let all = 0..=crate::constants::MAX_R;
+        let mut sets_on = Constants::new();
+        for (k, r) in [406u16, 412, 418, 424, 430].into_iter().enumerate() {
+            sets_on.set(r, 0.001);
+            // An acceleration of its own, so that switching the set off shows.
+            sets_on.set(r + 2, 0.1 * (k + 1) as f64);
+        }
+        let mut read = constants_read_from(&Constants::new(), all.clone());
+        read.extend(constants_read_from(&sets_on, all));
+        for axis in 1..=6 {
+            let mut c = Constants::new();
+            // R67 = 1 (X): KŘR's axis is where R0..R5 code X; code it in R(k-1) only.
+            c.set(67, 1.0);
+            for r in 0..6 {
+                let code = if r + 1 == axis { 1.0 } else { 4.0 + r as f64 };
+                c.set(r, code);
+            }
+            read.extend(constants_read_from(&c, 0..=5));
+        }
+        read.sort();
+        read.dedup();
+        assert_eq!(read, constants_read().collect::<Vec<_>>());
     }
 
     #[test]

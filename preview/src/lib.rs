@@ -116,6 +116,7 @@ impl PreviewOptions {
         PreviewOptions {
             planner: m.planner().clone(),
             comp: m.comp(),
+            page_blocks: Some(m.preview_page_blocks()),
             ..Self::new(m.program().clone())
         }
     }

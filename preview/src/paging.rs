@@ -2,12 +2,10 @@
 
 use kernel::constants::Constants;
 
-/// Blocks per page from R387 (0 = the whole program on one page).
-///
-/// **Decided**: R387 is read as its digit string like the other integer-unit constants of
-/// SPEC §7 (the manual's example `R387 50.000` means 50000 blocks, and its text says 50000).
+/// Blocks per page from R387 (0 = the whole program on one page), for tools without a machine
+/// setup; the daemon's preview takes [`kernel::machine::MachineSetup::preview_page_blocks`].
 pub fn blocks_per_page(c: &Constants) -> u32 {
-    c.field_digits(387, 1, 8) as u32
+    c.preview_page_blocks()
 }
 
 /// One page: programmed blocks with `seq` in `first..end` (0-based program order).

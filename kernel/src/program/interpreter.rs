@@ -221,6 +221,13 @@ pub struct Interpreter {
 }
 
 impl Interpreter {
+    /// What the interpreter decoded from the constants (the check that every constant read is
+    /// in `kernel::machine::CONSTANTS_READ`).
+    #[cfg(test)]
+    pub(crate) fn decoded_rules(&self) -> String {
+        format!("{:?} {:?}", self.rules, self.kr_axis)
+    }
+
     pub fn new(setup: &Setup) -> Self {
         let c = &setup.constants;
         let mut axis_letters = [0u8; MAX_AXES];
