@@ -793,3 +793,48 @@ async fn r6_g24_window_reaches_the_rt_thread_at_the_next_start() {
     doors.m.stop(pb::StopRequest {}).await.unwrap();
     wait_state(&ctl, MachineState::Idle).await;
 }
+
+/// Arcs of radius 1e-9 mm (issue #14): one verdict and the same diagnostics at every door.
+/// (name, text, the arc's block when refused). The radius is the compensator's EPS_MM
+/// (1e-9 mm): the half circle's centre is rounded onto it, "arc with zero radius"; the full
+/// circle's centre lies a hair beyond it in floating point and passes, at every door alike.
+fn tiny_arcs() -> Vec<(&'static str, &'static str, Option<u32>)> {
+    vec![
+        (
+            "half circle",
+            "N10 G1 X10 Y0 F500\nN20 G2 X10 Y0.000000002 I0 J0.000000001\nN30 G1 X20 Y0\n",
+            Some(20),
+        ),
+        (
+            "full circle",
+            "N10 G1 X10 Y0 F500\nN20 G3 X10 Y0 I0.000000001 J0\nN30 G1 X20 Y0\n",
+            None,
+        ),
+        (
+            "compensated",
+            "N10 G0 X-10 Y0\nN20 D1 G41 G1 X10 Y0 F500\nN30 G2 X10 Y0.000000002 I0 J0.000000001\nN40 G40 G1 X20 Y0\n",
+            Some(30),
+        ),
+    ]
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_1e_9_mm_arc_gets_one_verdict_at_every_door() {
+    let d = start(config(Role::Admin)).await;
+    d.ctl.replace_offsets_file(TABLE).unwrap();
+    let mut doors = Doors::new(d.channel().await).await;
+    for (name, text, refused_at) in tiny_arcs() {
+        let valid = doors.same_everywhere(&d, name, text).await;
+        assert_eq!(valid, refused_at.is_none(), "{name}");
+        if let Some(n) = refused_at {
+            let (v, _) = doors.validate(text).await;
+            let errors: Vec<_> = v
+                .diagnostics
+                .iter()
+                .filter(|d| d.severity == pb::Severity::Error as i32)
+                .map(|d| d.block)
+                .collect();
+            assert_eq!(errors, [Some(n)], "{name}: {v:?}");
+        }
+    }
+}
