@@ -54,6 +54,46 @@ pub trait Observer {
     }
 }
 
+/// Two observers of one pass (e.g. `LoadProgram` keeps the junction classes for status and
+/// the preview data of the selected program from the same pass). The first one's `Flow::Stop`
+/// and dynamic-set cell win.
+impl<A: Observer, B: Observer> Observer for (A, B) {
+    fn programmed(&mut self, b: &Block, modal: &Modal) {
+        self.0.programmed(b, modal);
+        self.1.programmed(b, modal);
+    }
+    fn compensated(&mut self, c: &CompBlock) {
+        self.0.compensated(c);
+        self.1.compensated(c);
+    }
+    fn segment(&mut self, s: Segment) -> Flow {
+        let a = self.0.segment(s);
+        let b = self.1.segment(s);
+        both(a, b)
+    }
+    fn diagnostic(&mut self, d: Diagnostic) -> Flow {
+        let a = self.0.diagnostic(d.clone());
+        let b = self.1.diagnostic(d);
+        both(a, b)
+    }
+    fn table_write(&mut self, b: &Block, edit: &TableEdit) -> Flow {
+        let x = self.0.table_write(b, edit);
+        let y = self.1.table_write(b, edit);
+        both(x, y)
+    }
+    fn dynam_set_cell(&mut self) -> Option<u8> {
+        self.0.dynam_set_cell().or(self.1.dynam_set_cell())
+    }
+}
+
+fn both(a: Flow, b: Flow) -> Flow {
+    if a == Flow::Stop || b == Flow::Stop {
+        Flow::Stop
+    } else {
+        Flow::Go
+    }
+}
+
 /// How a job runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Options {

@@ -838,3 +838,63 @@ async fn a_1e_9_mm_arc_gets_one_verdict_at_every_door() {
         }
     }
 }
+
+/// Preview data of the selected program (empty text).
+async fn selected_preview(doors: &mut Doors, junctions: bool) -> pb::PreviewData {
+    doors
+        .p
+        .get_preview_data(pb::PreviewDataRequest {
+            text: String::new(),
+            junctions,
+        })
+        .await
+        .unwrap()
+        .into_inner()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn preview_of_the_selected_program_reads_the_pass_of_its_load() {
+    let d = start(config(Role::Admin)).await;
+    d.ctl.replace_offsets_file(TABLE).unwrap();
+    let mut doors = Doors::new(d.channel().await).await;
+    let smooth = pb::JunctionClass::Smooth as i32;
+    let stop = pb::JunctionClass::Stop as i32;
+    // Automatic continuity, R39 = 60°: the 16.7° corner after N10 is smooth; compensated.
+    doors.set(&[(97, 0.002), (39, 60.0)]).await;
+    let text = "N5 D1 G41 G1 X0 Y0 F3000\nN10 G23 X10 Y0\nN20 X20 Y3\nN30 X30 Y3\nN40 G40 X40 Y3\n";
+    assert!(doors.load(text).await.valid);
+    let passes = d.ctl.validation_passes();
+    let recorded = selected_preview(&mut doors, true).await;
+    assert_eq!(d.ctl.validation_passes(), passes, "no pass of its own");
+    assert!(!recorded.programmed.is_empty() && !recorded.compensated.is_empty());
+    assert_eq!(recorded.junctions[1].class, smooth, "{recorded:?}");
+    // What a pass of its own over the text gives: the same data.
+    let own = doors
+        .p
+        .get_preview_data(pb::PreviewDataRequest {
+            text: text.into(),
+            junctions: true,
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!(d.ctl.validation_passes(), passes + 1);
+    assert_eq!(recorded, own);
+    let without = selected_preview(&mut doors, false).await;
+    assert!(without.junctions.is_empty());
+    assert_eq!(without.programmed, own.programmed);
+    assert_eq!(d.ctl.validation_passes(), passes + 1);
+
+    // The constants changed: load's pass is no longer the next start's; the preview makes
+    // the pass the start would make, with the constants in force.
+    doors.set(&[(39, 10.0)]).await;
+    let passes = d.ctl.validation_passes();
+    let again = selected_preview(&mut doors, true).await;
+    assert_eq!(d.ctl.validation_passes(), passes + 1);
+    assert_eq!(again.junctions[1].class, stop, "{again:?}");
+    // Loaded again: recorded again.
+    assert!(doors.load(text).await.valid);
+    let passes = d.ctl.validation_passes();
+    assert_eq!(selected_preview(&mut doors, true).await, again);
+    assert_eq!(d.ctl.validation_passes(), passes);
+}

@@ -104,6 +104,8 @@ pub struct Controller {
     /// Increases whenever something a job's setup is built from changes (constants, offset
     /// table): a program validated under another generation is validated again at start.
     generation: Arc<AtomicU64>,
+    /// See [`Controller::validation_passes`].
+    validation_passes: AtomicU64,
     /// A feed hold was asked for and not yet resumed or stopped (the RT thread may not have
     /// published the hold yet).
     hold_requested: AtomicBool,
@@ -224,6 +226,7 @@ impl Controller {
             offsets,
             execution,
             generation,
+            validation_passes: AtomicU64::new(0),
             hold_requested: AtomicBool::new(false),
             can_home,
         }))
@@ -289,6 +292,7 @@ impl Controller {
     ) -> Result<(Validation, MachineSetup, u64), ControlError> {
         let generation = self.generation.load(Ordering::Acquire);
         let setup = self.machine_setup()?.with_modal(modal);
+        self.validation_passes.fetch_add(1, Ordering::Relaxed);
         let v = pipeline::validate_into(text, &setup, opts, obs);
         Ok((v, setup, generation))
     }
@@ -462,6 +466,21 @@ impl Controller {
         }
     }
 
+    /// Whether `program` was validated with the setup a job started now would take: the same
+    /// constants and offsets (generation) and the same start position. Its load's pass is then
+    /// the pass of the next start.
+    pub fn validated_as_now(&self, program: &LoadedProgram, snap: &Snapshot) -> bool {
+        let here = snap.commanded;
+        let moved = (0..self.config.axes.len()).any(|i| (program.start[i] - here[i]).abs() > 1e-9);
+        !moved && program.generation == self.generation.load(Ordering::Acquire)
+    }
+
+    /// Passes of the pipeline made for validation so far (validate, upload, load, previews
+    /// of a text): tests see with it that a preview read load's pass instead of making one.
+    pub fn validation_passes(&self) -> u64 {
+        self.validation_passes.load(Ordering::Relaxed)
+    }
+
     /// Starts the selected program. Returns the job id.
     pub fn start_program(&self) -> Result<u32, ControlError> {
         self.require_homed("a program")?;
@@ -474,9 +493,7 @@ impl Controller {
         let setup = self.machine_setup()?;
         // Validated with another setup (the axes moved by MDI or another job, constants or
         // offsets changed): validate again with this one, so the run cannot fail half-way.
-        let here = snap.commanded;
-        let moved = (0..self.config.axes.len()).any(|i| (program.start[i] - here[i]).abs() > 1e-9);
-        if moved || program.generation != self.generation.load(Ordering::Acquire) {
+        if !self.validated_as_now(&program, &snap) {
             let v = pipeline::validate(&program.text, &setup, Options::default());
             if v.has_errors() {
                 return Err(ControlError::InvalidProgram(v.diagnostics));

@@ -41,13 +41,18 @@ impl MachineSvc {
         keep: impl FnOnce(&LoadedProgram) -> Result<(), Status>,
     ) -> Result<pb::LoadProgramReply, Status> {
         let st = self.0.clone();
-        let (loaded, junctions) = blocking(move || {
-            let mut js = Junctions::default();
+        let (loaded, junctions, preview) = blocking(move || {
+            // One pass: the junction classes for status and the preview data of the selected
+            // program (GetPreviewData reads it instead of making a pass of its own).
+            let record =
+                super::preview::Collect::new(&st.ctl, true, super::preview::RECORD_MAX_ITEMS);
+            let mut obs = (Junctions::default(), record);
             let loaded = st
                 .ctl
-                .prepare_program(&name, &text, &mut js)
+                .prepare_program(&name, &text, &mut obs)
                 .map_err(status_of)?;
-            Ok::<_, Status>((loaded, js.classes))
+            let preview = obs.1.finish(&loaded.warnings).map(Arc::new);
+            Ok::<_, Status>((loaded, obs.0.classes, preview))
         })
         .await??;
         keep(&loaded)?;
@@ -55,6 +60,7 @@ impl MachineSvc {
         *self.0.plan_info.lock().unwrap() = Some(PlanInfo {
             program: Arc::as_ptr(&loaded) as *const () as usize,
             junctions,
+            preview,
         });
         Ok(pb::LoadProgramReply {
             blocks: loaded.block_count,

@@ -63,6 +63,8 @@ struct PlanInfo {
     /// `Arc::as_ptr` of the `LoadedProgram` it belongs to.
     program: usize,
     junctions: Vec<pb::JunctionClass>,
+    /// The preview data of the same pass (`None`: too large to keep).
+    preview: Option<Arc<pb::PreviewData>>,
 }
 
 /// State shared by every service.

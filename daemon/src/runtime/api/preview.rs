@@ -63,22 +63,73 @@ pub fn junction_class(j: Junction) -> pb::JunctionClass {
     }
 }
 
-/// What the preview data collects from the pipeline's pass.
-struct Collect {
+/// Most path elements and junctions `LoadProgram` keeps of its pass for the preview data of
+/// the selected program; a larger program's preview makes its own pass (with the same setup).
+pub(super) const RECORD_MAX_ITEMS: usize = 200_000;
+
+/// What the preview data collects from the pipeline's pass, up to `limit` items.
+pub(super) struct Collect {
     axes: usize,
     junctions: bool,
+    limit: usize,
+    /// More than `limit` items: the data is incomplete and dropped.
+    overflow: bool,
     data: pb::PreviewData,
+}
+
+impl Collect {
+    pub(super) fn new(ctl: &Controller, junctions: bool, limit: usize) -> Self {
+        Collect {
+            axes: ctl.config().axes.len(),
+            junctions,
+            limit,
+            overflow: false,
+            data: pb::PreviewData {
+                axes: ctl
+                    .config()
+                    .axis_names()
+                    .iter()
+                    .map(|c| c.to_string())
+                    .collect(),
+                ..Default::default()
+            },
+        }
+    }
+
+    fn room(&mut self) -> bool {
+        let d = &self.data;
+        if d.programmed.len() + d.compensated.len() + d.junctions.len() >= self.limit {
+            self.overflow = true;
+            self.data.programmed = Vec::new();
+            self.data.compensated = Vec::new();
+            self.data.junctions = Vec::new();
+        }
+        !self.overflow
+    }
+
+    /// The preview data with the pass's diagnostics; `None` when it overflowed.
+    pub(super) fn finish(mut self, diagnostics: &[Diagnostic]) -> Option<pb::PreviewData> {
+        if self.overflow {
+            return None;
+        }
+        self.data.diagnostics = diagnostics.iter().map(diagnostic_to_pb).collect();
+        Some(self.data)
+    }
 }
 
 impl pipeline::Observer for Collect {
     fn programmed(&mut self, b: &Block, _modal: &Modal) {
-        self.data.programmed.extend(element(b, self.axes));
+        if self.room() {
+            self.data.programmed.extend(element(b, self.axes));
+        }
     }
     fn compensated(&mut self, c: &CompBlock) {
-        self.data.compensated.extend(element(&c.block, self.axes));
+        if self.room() {
+            self.data.compensated.extend(element(&c.block, self.axes));
+        }
     }
     fn segment(&mut self, s: Segment) -> Flow {
-        if self.junctions && self.data.junctions.len() < PREVIEW_MAX_JUNCTIONS {
+        if self.junctions && self.data.junctions.len() < PREVIEW_MAX_JUNCTIONS && self.room() {
             self.data.junctions.push(pb::Junction {
                 seq: s.seq,
                 block: s.n,
@@ -90,6 +141,26 @@ impl pipeline::Observer for Collect {
         }
         Flow::Go
     }
+}
+
+/// The preview data `LoadProgram` (or `SelectProgram`) recorded of the selected program's
+/// pass, if the program is still validated as a job started now would be (same constants,
+/// offsets and start position: that pass is the next start's).
+pub fn recorded_preview(st: &ApiState, with_junctions: bool) -> Option<pb::PreviewData> {
+    let program = st.ctl.program()?;
+    if !st.ctl.validated_as_now(&program, &st.ctl.snapshot()) {
+        return None;
+    }
+    let info = st.plan_info.lock().unwrap();
+    let info = info.as_ref()?;
+    if info.program != Arc::as_ptr(&program) as *const () as usize {
+        return None;
+    }
+    let mut data = pb::PreviewData::clone(info.preview.as_ref()?);
+    if !with_junctions {
+        data.junctions.clear();
+    }
+    Some(data)
 }
 
 /// Preview data of `text` (or of the selected program when `text` is empty): one pass of the
@@ -109,28 +180,14 @@ pub fn preview_data(
     } else {
         Arc::from(text)
     };
-    let axes = ctl.config().axes.len();
-    let mut c = Collect {
-        axes,
-        junctions: with_junctions,
-        data: pb::PreviewData {
-            axes: ctl
-                .config()
-                .axis_names()
-                .iter()
-                .map(|c| c.to_string())
-                .collect(),
-            ..Default::default()
-        },
-    };
+    let mut c = Collect::new(ctl, with_junctions, usize::MAX);
     let (v, _, _) = ctl
         .validate_with(&text, Options::default(), None, &mut c)
         .map_err(super::status_of)?;
     if v.has_errors() {
         return Err(invalid_with_diagnostics("program", &v.diagnostics));
     }
-    c.data.diagnostics = v.diagnostics.iter().map(diagnostic_to_pb).collect();
-    Ok(c.data)
+    Ok(c.finish(&v.diagnostics).expect("no limit"))
 }
 
 #[tonic::async_trait]
@@ -141,6 +198,13 @@ impl Preview for PreviewSvc {
     ) -> Result<Response<pb::PreviewData>, Status> {
         require(&req, Observer, "GetPreviewData")?;
         let r = req.into_inner();
+        // The selected program: what its load's pass recorded, if that is still the pass
+        // of the next start (no second pass of the same program with the same setup).
+        if r.text.is_empty()
+            && let Some(data) = recorded_preview(&self.0, r.junctions)
+        {
+            return Ok(Response::new(data));
+        }
         let st = self.0.clone();
         let data = blocking(move || preview_data(&st.ctl, &r.text, r.junctions)).await??;
         Ok(Response::new(data))
