@@ -21,8 +21,9 @@ use proto::v1::trajectory_client::TrajectoryClient;
 use tonic::Code;
 use tonic::transport::Channel;
 
-/// Each constant read (ranges of `CONSTANTS_READ`) and the daemon-level test that changes it
-/// through `SetConstants`: (first, last, test file, test function).
+/// Each constant read (ranges of `CONSTANTS_READ`) and the daemon-level tests that change it
+/// through `SetConstants`: (first, last, test file, test function). A constant whose decades
+/// mean different things has a case per decade in its test (see the cases' names).
 const COVERAGE: &[(u16, u16, &str, &str)] = &[
     (
         0,
@@ -142,22 +143,27 @@ fn source_of(file: &str) -> &'static str {
 #[test]
 fn every_constant_read_has_a_daemon_test() {
     for r in kernel::machine::constants_read() {
-        let (_, _, file, test) = COVERAGE
+        let tests: Vec<_> = COVERAGE
             .iter()
-            .find(|(a, b, _, _)| (*a..=*b).contains(&r))
-            .unwrap_or_else(|| panic!("R{r} is read but has no daemon-level test"));
-        let src = source_of(file);
-        let at = src
-            .find(&format!("async fn {test}()"))
-            .unwrap_or_else(|| panic!("R{r}: {file}.rs has no test {test}"));
-        // A daemon-level test: it runs in tokio, on a daemon, and sets the constant through
-        // the API (`doors.set`, `set_constants` or `set(`).
+            .filter(|(a, b, _, _)| (*a..=*b).contains(&r))
+            .collect();
         assert!(
-            src[..at]
-                .trim_end()
-                .ends_with("#[tokio::test(flavor = \"multi_thread\", worker_threads = 2)]"),
-            "{test} is not a daemon test"
+            !tests.is_empty(),
+            "R{r} is read but has no daemon-level test"
         );
+        for (_, _, file, test) in tests {
+            let src = source_of(file);
+            let at = src
+                .find(&format!("async fn {test}()"))
+                .unwrap_or_else(|| panic!("R{r}: {file}.rs has no test {test}"));
+            // A daemon-level test: it runs in tokio, on a daemon.
+            assert!(
+                src[..at]
+                    .trim_end()
+                    .ends_with("#[tokio::test(flavor = \"multi_thread\", worker_threads = 2)]"),
+                "{test} is not a daemon test"
+            );
+        }
     }
     // And nothing in the table is stale.
     for (a, b, _, _) in COVERAGE {
@@ -763,4 +769,49 @@ async fn r7_g24_window_of_axes_4_to_6_at_the_next_start() {
     assert_eq!(s.state, MachineState::Running);
     api.m.stop(pb::StopRequest {}).await.unwrap();
     wait_state(&ctl, MachineState::Idle).await;
+}
+
+/// Junction classes of `text` in the preview data.
+async fn junction_classes(api: &mut Api, text: &str) -> Vec<i32> {
+    api.preview(text)
+        .await
+        .junctions
+        .iter()
+        .map(|j| j.class)
+        .collect()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn r384_speed_drop_classifies_the_next_junctions() {
+    let (d, mut api) = daemon().await;
+    let drop = pb::JunctionClass::SpeedDrop as i32;
+    let text = in_set(ZIGZAG, 1);
+    api.reset([384]).await;
+    let before = junction_classes(&mut api, &text).await;
+    assert!(!before.contains(&drop), "{before:?}");
+    // R384 d5..6 = 99 %: a smooth junction slower than 99 % of the feed is a speed drop
+    // (SPEC §7.5, red in the preview).
+    api.set(&[(384, 990.0)]).await.unwrap();
+    let after = junction_classes(&mut api, &text).await;
+    assert!(after.contains(&drop), "{after:?}");
+    api.run(&d, &text).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn r232_chord_error_slows_the_next_arc() {
+    // Axes of 10 m/s²: the chord error of 1 µm per tick, not the centripetal acceleration,
+    // limits a 10 mm arc at 6 m/min (v ≤ √(8·R·e)/T = 70.7 mm/s).
+    let mut cfg = config(Role::Admin);
+    for a in &mut cfg.axes {
+        a.max_accel_mm_s2 = 10_000.0;
+    }
+    let d = start(cfg).await;
+    let mut api = Api::new(d.channel().await).await;
+    let text = in_set(ARC, 1);
+    api.reset([232]).await;
+    let before = api.planned_s(&text).await;
+    api.set(&[(232, 0.001)]).await.unwrap();
+    let after = api.planned_s(&text).await;
+    assert!(after > before + 0.008, "{before} s → {after} s");
+    api.run(&d, &text).await;
 }
