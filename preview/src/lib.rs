@@ -216,10 +216,18 @@ fn page_error(page: u32, pages: u32) -> Vec<Diagnostic> {
 
 /// Renders page `opts.page` of the program preview (SPEC §7.5).
 pub fn render(text: &str, opts: &PreviewOptions) -> Result<Preview, Vec<Diagnostic>> {
+    render_source(pipeline::Source::Text(text), opts)
+}
+
+/// [`render`] of a text or of a recorded pass (the daemon's selected program).
+pub fn render_source(
+    source: pipeline::Source<'_>,
+    opts: &PreviewOptions,
+) -> Result<Preview, Vec<Diagnostic>> {
     let proj = plane::Projection::new(opts.plane, &opts.setup.axis_names).map_err(|d| vec![d])?;
     let (page, per) = opts.page();
     let mut c = collect::Collector::new(proj, page, opts.max_listed);
-    let outcome = pipeline::run(text, opts, &mut c)?;
+    let outcome = pipeline::run_source(source, opts, &mut c)?;
     let pages = Page::count(outcome.blocks, per);
     if page.number > pages {
         return Err(page_error(page.number, pages));
@@ -295,10 +303,19 @@ pub fn velocity_plot(
     opts: &PreviewOptions,
     with_accel: bool,
 ) -> Result<VelocityPlot, Vec<Diagnostic>> {
+    velocity_plot_source(pipeline::Source::Text(text), opts, with_accel)
+}
+
+/// [`velocity_plot`] of a text or of a recorded pass (the daemon's selected program).
+pub fn velocity_plot_source(
+    source: pipeline::Source<'_>,
+    opts: &PreviewOptions,
+    with_accel: bool,
+) -> Result<VelocityPlot, Vec<Diagnostic>> {
     let (page, per) = opts.page();
     let axes = opts.planner.axes;
     let mut r = velocity::Recorder::new(axes, opts.setup.start, page);
-    let outcome = pipeline::run(text, opts, &mut r)?;
+    let outcome = pipeline::run_source(source, opts, &mut r)?;
     let pages = Page::count(outcome.blocks, per);
     if page.number > pages {
         return Err(page_error(page.number, pages));

@@ -30,7 +30,7 @@ pub trait Sink {
 }
 
 /// What the run found besides the sink's data.
-#[derive(Debug, Default)]
+#[derive(Clone, Debug, Default)]
 pub struct Outcome {
     /// Programmed blocks in the program.
     pub blocks: u32,
@@ -57,6 +57,110 @@ impl<S: Sink> Observer for Feed<'_, S> {
             self.0.segment(&s);
         }
         Flow::Go
+    }
+}
+
+/// One output of a stage, in the order the pass gave it.
+#[derive(Clone, Debug)]
+enum Event {
+    Programmed(Block),
+    Compensated(CompBlock),
+    Segment(Segment),
+}
+
+/// The outputs of a valid pass, kept to be read again (the daemon's `LoadProgram` keeps the
+/// selected program's, so that its previews read that pass instead of making another).
+#[derive(Clone, Debug)]
+pub struct Recording {
+    events: Vec<Event>,
+    outcome: Outcome,
+}
+
+impl Recording {
+    /// Gives `sink` the recorded outputs, in their order, as a pass would.
+    pub fn replay(&self, sink: &mut impl Sink) -> Outcome {
+        for e in &self.events {
+            if sink.done() {
+                return self.outcome.clone();
+            }
+            match e {
+                Event::Programmed(b) => sink.programmed(b),
+                Event::Compensated(c) => sink.compensated(c),
+                Event::Segment(s) => sink.segment(s),
+            }
+        }
+        sink.finish();
+        self.outcome.clone()
+    }
+}
+
+/// Records a pass's outputs, up to `limit` of them (a larger program is not recorded).
+#[derive(Debug)]
+pub struct Recorder {
+    events: Vec<Event>,
+    limit: usize,
+    overflow: bool,
+}
+
+impl Recorder {
+    pub fn new(limit: usize) -> Self {
+        Recorder {
+            events: Vec::new(),
+            limit,
+            overflow: false,
+        }
+    }
+
+    fn push(&mut self, e: Event) {
+        if self.events.len() >= self.limit {
+            self.overflow = true;
+            self.events = Vec::new();
+        }
+        if !self.overflow {
+            self.events.push(e);
+        }
+    }
+
+    /// The recording of a valid pass of `blocks` blocks with diagnostics `notes`; `None` when
+    /// it had more outputs than the limit.
+    pub fn finish(self, blocks: u32, notes: Vec<Diagnostic>) -> Option<Recording> {
+        (!self.overflow).then_some(Recording {
+            events: self.events,
+            outcome: Outcome { blocks, notes },
+        })
+    }
+}
+
+impl Observer for Recorder {
+    fn programmed(&mut self, b: &Block, _modal: &Modal) {
+        self.push(Event::Programmed(*b));
+    }
+    fn compensated(&mut self, c: &CompBlock) {
+        self.push(Event::Compensated(*c));
+    }
+    fn segment(&mut self, s: Segment) -> Flow {
+        self.push(Event::Segment(s));
+        Flow::Go
+    }
+}
+
+/// Where a picture's data comes from: a pass over a program text, or a recorded pass.
+#[derive(Clone, Copy)]
+pub enum Source<'a> {
+    Text(&'a str),
+    Recorded(&'a Recording),
+}
+
+/// Gives `sink` the outputs of `source`: a recorded pass is replayed; a text is streamed
+/// through the pipeline.
+pub fn run_source(
+    source: Source<'_>,
+    opts: &PreviewOptions,
+    sink: &mut impl Sink,
+) -> Result<Outcome, Vec<Diagnostic>> {
+    match source {
+        Source::Text(text) => run(text, opts, sink),
+        Source::Recorded(r) => Ok(r.replay(sink)),
     }
 }
 

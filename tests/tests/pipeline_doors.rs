@@ -898,3 +898,49 @@ async fn preview_of_the_selected_program_reads_the_pass_of_its_load() {
     assert_eq!(selected_preview(&mut doors, true).await, again);
     assert_eq!(d.ctl.validation_passes(), passes);
 }
+
+/// The picture of `text` (empty: the selected program): SVG, or the velocity plot.
+async fn picture(doors: &mut Doors, text: &str, velocity: bool) -> pb::GetPreviewReply {
+    doors
+        .p
+        .get_preview(pb::GetPreviewRequest {
+            text: text.into(),
+            velocity,
+            ..Default::default()
+        })
+        .await
+        .unwrap()
+        .into_inner()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn picture_of_the_selected_program_reads_the_pass_of_its_load() {
+    let d = start(config(Role::Admin)).await;
+    d.ctl.replace_offsets_file(TABLE).unwrap();
+    let mut doors = Doors::new(d.channel().await).await;
+    let text = "N5 D1 G41 G1 X0 Y0 F3000\nN10 G23 X10 Y0\nN20 X20 Y3\nN30 G3 X30 Y13 I0 J10\nN40 G40 G1 X40 Y3\n";
+    assert!(doors.load(text).await.valid);
+    for velocity in [false, true] {
+        let passes = d.ctl.validation_passes();
+        let recorded = picture(&mut doors, "", velocity).await;
+        assert_eq!(d.ctl.validation_passes(), passes, "no pass of its own");
+        let own = picture(&mut doors, text, velocity).await;
+        assert_eq!(d.ctl.validation_passes(), passes + 1);
+        assert_eq!(recorded, own, "velocity {velocity}");
+    }
+    // Moved by MDI: the load's pass is not the next start's any more; the picture makes a
+    // pass from where the machine is now.
+    let job = doors
+        .m
+        .mdi(pb::MdiRequest {
+            block: "G0 X5".into(),
+        })
+        .await
+        .unwrap()
+        .into_inner()
+        .job;
+    wait_job_finished(&d.ctl, job).await;
+    let passes = d.ctl.validation_passes();
+    picture(&mut doors, "", false).await;
+    assert_eq!(d.ctl.validation_passes(), passes + 1);
+}

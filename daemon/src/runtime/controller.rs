@@ -481,6 +481,11 @@ impl Controller {
         self.validation_passes.load(Ordering::Relaxed)
     }
 
+    /// Counts a pass made outside [`Controller::validate_with`] (the preview crate's picture).
+    pub fn count_validation_pass(&self) {
+        self.validation_passes.fetch_add(1, Ordering::Relaxed);
+    }
+
     /// Starts the selected program. Returns the job id.
     pub fn start_program(&self) -> Result<u32, ControlError> {
         self.require_homed("a program")?;

@@ -41,18 +41,20 @@ impl MachineSvc {
         keep: impl FnOnce(&LoadedProgram) -> Result<(), Status>,
     ) -> Result<pb::LoadProgramReply, Status> {
         let st = self.0.clone();
-        let (loaded, junctions, preview) = blocking(move || {
-            // One pass: the junction classes for status and the preview data of the selected
-            // program (GetPreviewData reads it instead of making a pass of its own).
-            let record =
-                super::preview::Collect::new(&st.ctl, true, super::preview::RECORD_MAX_ITEMS);
+        let (loaded, junctions, pass) = blocking(move || {
+            // One pass: the junction classes for status and the outputs the previews of the
+            // selected program read (instead of making a pass of their own).
+            let record = ::preview::pipeline::Recorder::new(super::preview::RECORD_MAX_OUTPUTS);
             let mut obs = (Junctions::default(), record);
             let loaded = st
                 .ctl
                 .prepare_program(&name, &text, &mut obs)
                 .map_err(status_of)?;
-            let preview = obs.1.finish(&loaded.warnings).map(Arc::new);
-            Ok::<_, Status>((loaded, obs.0.classes, preview))
+            let pass = obs
+                .1
+                .finish(loaded.block_count, loaded.warnings.clone())
+                .map(Arc::new);
+            Ok::<_, Status>((loaded, obs.0.classes, pass))
         })
         .await??;
         keep(&loaded)?;
@@ -60,7 +62,7 @@ impl MachineSvc {
         *self.0.plan_info.lock().unwrap() = Some(PlanInfo {
             program: Arc::as_ptr(&loaded) as *const () as usize,
             junctions,
-            preview,
+            pass,
         });
         Ok(pb::LoadProgramReply {
             blocks: loaded.block_count,

@@ -63,8 +63,9 @@ struct PlanInfo {
     /// `Arc::as_ptr` of the `LoadedProgram` it belongs to.
     program: usize,
     junctions: Vec<pb::JunctionClass>,
-    /// The preview data of the same pass (`None`: too large to keep).
-    preview: Option<Arc<pb::PreviewData>>,
+    /// The outputs of the same pass, read by the previews of the selected program (`None`:
+    /// too large to keep).
+    pass: Option<Arc<::preview::pipeline::Recording>>,
 }
 
 /// State shared by every service.

@@ -63,27 +63,23 @@ pub fn junction_class(j: Junction) -> pb::JunctionClass {
     }
 }
 
-/// Most path elements and junctions `LoadProgram` keeps of its pass for the preview data of
-/// the selected program; a larger program's preview makes its own pass (with the same setup).
-pub(super) const RECORD_MAX_ITEMS: usize = 200_000;
+/// Most stage outputs (programmed and compensated blocks, segments) `LoadProgram` keeps of
+/// its pass for the previews of the selected program; a larger program's previews make their
+/// own pass (with the same setup).
+pub(super) const RECORD_MAX_OUTPUTS: usize = 100_000;
 
-/// What the preview data collects from the pipeline's pass, up to `limit` items.
-pub(super) struct Collect {
+/// What the preview data collects from the pipeline's pass (or from a recorded one).
+struct Collect {
     axes: usize,
     junctions: bool,
-    limit: usize,
-    /// More than `limit` items: the data is incomplete and dropped.
-    overflow: bool,
     data: pb::PreviewData,
 }
 
 impl Collect {
-    pub(super) fn new(ctl: &Controller, junctions: bool, limit: usize) -> Self {
+    fn new(ctl: &Controller, junctions: bool) -> Self {
         Collect {
             axes: ctl.config().axes.len(),
             junctions,
-            limit,
-            overflow: false,
             data: pb::PreviewData {
                 axes: ctl
                     .config()
@@ -96,40 +92,21 @@ impl Collect {
         }
     }
 
-    fn room(&mut self) -> bool {
-        let d = &self.data;
-        if d.programmed.len() + d.compensated.len() + d.junctions.len() >= self.limit {
-            self.overflow = true;
-            self.data.programmed = Vec::new();
-            self.data.compensated = Vec::new();
-            self.data.junctions = Vec::new();
-        }
-        !self.overflow
-    }
-
-    /// The preview data with the pass's diagnostics; `None` when it overflowed.
-    pub(super) fn finish(mut self, diagnostics: &[Diagnostic]) -> Option<pb::PreviewData> {
-        if self.overflow {
-            return None;
-        }
+    fn finish(mut self, diagnostics: &[Diagnostic]) -> pb::PreviewData {
         self.data.diagnostics = diagnostics.iter().map(diagnostic_to_pb).collect();
-        Some(self.data)
+        self.data
     }
 }
 
-impl pipeline::Observer for Collect {
-    fn programmed(&mut self, b: &Block, _modal: &Modal) {
-        if self.room() {
-            self.data.programmed.extend(element(b, self.axes));
-        }
+impl ::preview::pipeline::Sink for Collect {
+    fn programmed(&mut self, b: &Block) {
+        self.data.programmed.extend(element(b, self.axes));
     }
     fn compensated(&mut self, c: &CompBlock) {
-        if self.room() {
-            self.data.compensated.extend(element(&c.block, self.axes));
-        }
+        self.data.compensated.extend(element(&c.block, self.axes));
     }
-    fn segment(&mut self, s: Segment) -> Flow {
-        if self.junctions && self.data.junctions.len() < PREVIEW_MAX_JUNCTIONS && self.room() {
+    fn segment(&mut self, s: &Segment) {
+        if self.junctions && self.data.junctions.len() < PREVIEW_MAX_JUNCTIONS {
             self.data.junctions.push(pb::Junction {
                 seq: s.seq,
                 block: s.n,
@@ -139,14 +116,26 @@ impl pipeline::Observer for Collect {
                 speed_mm_s: s.v_end_mm_s,
             });
         }
+    }
+}
+
+impl pipeline::Observer for Collect {
+    fn programmed(&mut self, b: &Block, _modal: &Modal) {
+        ::preview::pipeline::Sink::programmed(self, b);
+    }
+    fn compensated(&mut self, c: &CompBlock) {
+        ::preview::pipeline::Sink::compensated(self, c);
+    }
+    fn segment(&mut self, s: Segment) -> Flow {
+        ::preview::pipeline::Sink::segment(self, &s);
         Flow::Go
     }
 }
 
-/// The preview data `LoadProgram` (or `SelectProgram`) recorded of the selected program's
-/// pass, if the program is still validated as a job started now would be (same constants,
-/// offsets and start position: that pass is the next start's).
-pub fn recorded_preview(st: &ApiState, with_junctions: bool) -> Option<pb::PreviewData> {
+/// The pass `LoadProgram` (or `SelectProgram`) recorded of the selected program, if the
+/// program is still validated as a job started now would be (same constants, offsets and
+/// start position: that pass is the next start's).
+pub fn recorded_pass(st: &ApiState) -> Option<Arc<::preview::pipeline::Recording>> {
     let program = st.ctl.program()?;
     if !st.ctl.validated_as_now(&program, &st.ctl.snapshot()) {
         return None;
@@ -156,11 +145,15 @@ pub fn recorded_preview(st: &ApiState, with_junctions: bool) -> Option<pb::Previ
     if info.program != Arc::as_ptr(&program) as *const () as usize {
         return None;
     }
-    let mut data = pb::PreviewData::clone(info.preview.as_ref()?);
-    if !with_junctions {
-        data.junctions.clear();
-    }
-    Some(data)
+    info.pass.clone()
+}
+
+/// The preview data of the selected program from its load's pass (see [`recorded_pass`]).
+pub fn recorded_preview(st: &ApiState, with_junctions: bool) -> Option<pb::PreviewData> {
+    let pass = recorded_pass(st)?;
+    let mut c = Collect::new(&st.ctl, with_junctions);
+    let outcome = pass.replay(&mut c);
+    Some(c.finish(&outcome.notes))
 }
 
 /// Preview data of `text` (or of the selected program when `text` is empty): one pass of the
@@ -180,14 +173,14 @@ pub fn preview_data(
     } else {
         Arc::from(text)
     };
-    let mut c = Collect::new(ctl, with_junctions, usize::MAX);
+    let mut c = Collect::new(ctl, with_junctions);
     let (v, _, _) = ctl
         .validate_with(&text, Options::default(), None, &mut c)
         .map_err(super::status_of)?;
     if v.has_errors() {
         return Err(invalid_with_diagnostics("program", &v.diagnostics));
     }
-    Ok(c.finish(&v.diagnostics).expect("no limit"))
+    Ok(c.finish(&v.diagnostics))
 }
 
 #[tonic::async_trait]
@@ -217,7 +210,7 @@ impl Preview for PreviewSvc {
         require(&req, Observer, "GetPreview")?;
         let r = req.into_inner();
         let st = self.0.clone();
-        let reply = blocking(move || render_preview(&st.ctl, &r)).await??;
+        let reply = blocking(move || render_preview(&st, &r)).await??;
         Ok(Response::new(reply))
     }
 }
@@ -228,11 +221,19 @@ fn no_page(page: u32, pages: u32) -> Status {
     ))
 }
 
-/// Renders the picture of `GetPreview` with the preview crate, with the machine's settings.
+/// Renders the picture of `GetPreview` with the preview crate, with the machine's settings:
+/// of the selected program from its load's pass while that is the next start's
+/// ([`recorded_pass`]), else from a pass with the setup in force.
 pub fn render_preview(
-    ctl: &Controller,
+    st: &ApiState,
     r: &pb::GetPreviewRequest,
 ) -> Result<pb::GetPreviewReply, Status> {
+    let ctl = &st.ctl;
+    let recorded = if r.text.is_empty() {
+        recorded_pass(st)
+    } else {
+        None
+    };
     let text = if r.text.is_empty() {
         ctl.program()
             .ok_or_else(|| {
@@ -242,6 +243,13 @@ pub fn render_preview(
             .to_string()
     } else {
         r.text.clone()
+    };
+    let source = match &recorded {
+        Some(pass) => ::preview::pipeline::Source::Recorded(pass),
+        None => {
+            ctl.count_validation_pass();
+            ::preview::pipeline::Source::Text(&text)
+        }
     };
     let setup = ctl.machine_setup().map_err(super::status_of)?;
     let mut opts = ::preview::PreviewOptions::from_machine(&setup);
@@ -272,7 +280,7 @@ pub fn render_preview(
     };
     let refuse = |d: Vec<Diagnostic>| invalid_with_diagnostics("program", &d);
     if r.velocity {
-        let v = ::preview::velocity_plot(&text, &opts, true).map_err(refuse)?;
+        let v = ::preview::velocity_plot_source(source, &opts, true).map_err(refuse)?;
         if opts.page > v.pages {
             return Err(no_page(opts.page, v.pages));
         }
@@ -292,7 +300,7 @@ pub fn render_preview(
             diagnostics: v.warnings.iter().map(diagnostic_to_pb).collect(),
         });
     }
-    let p = ::preview::render(&text, &opts).map_err(refuse)?;
+    let p = ::preview::render_source(source, &opts).map_err(refuse)?;
     if opts.page > p.pages {
         return Err(no_page(opts.page, p.pages));
     }
