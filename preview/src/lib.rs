@@ -86,6 +86,9 @@ pub struct PreviewOptions {
     pub height_px: u32,
     /// Most red junctions listed in [`Preview::red`] (all are counted).
     pub max_listed: usize,
+    /// The machine's whole setup when there is one ([`PreviewOptions::from_machine`]): the
+    /// pass then checks what only the machine knows (its gear ranges) as validation does.
+    pub machine: Option<kernel::machine::MachineSetup>,
 }
 
 impl PreviewOptions {
@@ -107,6 +110,7 @@ impl PreviewOptions {
             width_px: 1200,
             height_px: 800,
             max_listed: 10_000,
+            machine: None,
         }
     }
 
@@ -117,6 +121,7 @@ impl PreviewOptions {
             planner: m.planner().clone(),
             comp: m.comp(),
             page_blocks: Some(m.preview_page_blocks()),
+            machine: Some(m.clone()),
             ..Self::new(m.program().clone())
         }
     }

@@ -171,7 +171,9 @@ pub fn run(
     opts: &PreviewOptions,
     sink: &mut impl Sink,
 ) -> Result<Outcome, Vec<Diagnostic>> {
-    let setup = MachineSetup::from_stages(opts.setup.clone(), opts.comp, opts.planner.clone());
+    let setup = opts.machine.clone().unwrap_or_else(|| {
+        MachineSetup::from_stages(opts.setup.clone(), opts.comp, opts.planner.clone())
+    });
     let v = pipeline::validate_into(text, &setup, Options::default(), &mut Feed(sink));
     if v.has_errors() {
         return Err(v.diagnostics);

@@ -1,6 +1,6 @@
 //! Issue #14 through the gRPC API on the simulated machine: what is validated is what runs.
-//! Every door (validate, upload, load, preview data, start) gives the same verdict and the
-//! same diagnostics; a constants change is in force for every stage at the next start; G92
+//! Every door (validate, upload, load, preview data, preview picture, start) gives the same
+//! verdict and the same diagnostics; a constants change is in force for every stage at the next start; G92
 //! changes the memory table when its block executes; a refused load changes nothing; MDI
 //! inherits the modal state the last program or MDI left.
 
@@ -214,6 +214,18 @@ impl Doors {
             .unwrap_or_else(from_refusal)
     }
 
+    async fn picture(&mut self, text: &str) -> Verdict {
+        let r = self
+            .p
+            .get_preview(pb::GetPreviewRequest {
+                text: text.into(),
+                ..Default::default()
+            })
+            .await;
+        r.map(|r| from_reply(r.into_inner().diagnostics))
+            .unwrap_or_else(from_refusal)
+    }
+
     /// Every door on `text`; panics with the door that disagrees with validation.
     async fn same_everywhere(&mut self, d: &Daemon, name: &str, text: &str) -> bool {
         let (v, _) = self.validate(text).await;
@@ -224,6 +236,7 @@ impl Doors {
             v,
             "{name}: preview data ≠ validate"
         );
+        assert_eq!(self.picture(text).await, v, "{name}: picture ≠ validate");
         if v.valid {
             // Start accepts what load accepted (the run is stopped at once: the verdict is
             // what is compared here, the runs are tested elsewhere).
@@ -943,4 +956,27 @@ async fn picture_of_the_selected_program_reads_the_pass_of_its_load() {
     let passes = d.ctl.validation_passes();
     picture(&mut doors, "", false).await;
     assert_eq!(d.ctl.validation_passes(), passes + 1);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_gear_range_the_machine_lacks_is_refused_at_every_door() {
+    // Two gear ranges (M41, M42): M44 is refused by the pass with the machine's setup, at
+    // every door including the picture (whose pass now takes the whole machine setup).
+    let mut cfg = config(Role::Admin);
+    cfg.kr.gears = (1..=2)
+        .map(|g| GearConfig {
+            max_rpm: 1000.0 * g as f64,
+            output_range: 0x7FFF,
+            m_code: Some(40 + g),
+        })
+        .collect();
+    let d = start(cfg).await;
+    let mut doors = Doors::new(d.channel().await).await;
+    let text = "N10 M44 M3 S100\nN20 G1 X1 F100\n";
+    assert!(!doors.same_everywhere(&d, "M44", text).await);
+    assert!(
+        doors
+            .same_everywhere(&d, "M42", &text.replace("M44", "M42"))
+            .await
+    );
 }
