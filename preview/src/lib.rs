@@ -87,7 +87,8 @@ pub struct PreviewOptions {
     /// Most red junctions listed in [`Preview::red`] (all are counted).
     pub max_listed: usize,
     /// The machine's whole setup when there is one ([`PreviewOptions::from_machine`]): the
-    /// pass then checks what only the machine knows (its gear ranges) as validation does.
+    /// pass then reads it (not `setup`, `planner`, `comp`, which are its copies) and checks
+    /// what only the machine knows (its gear ranges) as validation does.
     pub machine: Option<kernel::machine::MachineSetup>,
 }
 
