@@ -3,11 +3,13 @@
 //!
 //! `cargo run -p preview --example render -- FILE OUT.svg|OUT.png [--plane xy|xz|yz]
 //! [--page N] [--page-blocks N] [--velocity] [--accel] [--const R=VALUE]... [--axes XZ]
-//! [--diameter X] [--offset D:R:X:Z]...`
+//! [--diameter X] [--offset D:R:X:Z]... [--gear M:P]...`
 //!
 //! `--axes` sets the machine's axis letters (default XYZ), `--diameter` the axis programmed as
 //! a diameter (a lathe's X, docs/lathe.md: the picture shows the true profile, X as a radius),
-//! `--offset` fills an offset table entry (radius, X length as a diameter, Z length).
+//! `--offset` fills an offset table entry (radius, X length as a diameter, Z length), `--gear`
+//! adds a spindle gear range selected by M code M with top speed P rpm (feed per revolution
+//! under KŘR is planned at the gear's top speed).
 
 use preview::{PreviewOptions, ViewPlane};
 
@@ -15,7 +17,7 @@ fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.len() < 2 {
         eprintln!(
-            "usage: render FILE OUT.svg|OUT.png [--plane xy|xz|yz] [--page N] [--page-blocks N] [--velocity] [--accel] [--const R=VALUE]... [--axes XZ] [--diameter X] [--offset D:R:X:Z]..."
+            "usage: render FILE OUT.svg|OUT.png [--plane xy|xz|yz] [--page N] [--page-blocks N] [--velocity] [--accel] [--const R=VALUE]... [--axes XZ] [--diameter X] [--offset D:R:X:Z]... [--gear M:P]..."
         );
         std::process::exit(2);
     }
@@ -76,6 +78,15 @@ fn main() {
                     values,
                 };
                 setup.offsets.apply(&edit).expect("offset entry 1..99");
+            }
+            "--gear" => {
+                i += 1;
+                let (m, p) = args[i].split_once(':').expect("M:P");
+                setup.gears.push(kernel::kr::Gear {
+                    max_rpm: p.parse().expect("rpm"),
+                    output_range: 0x7FFF,
+                    m_code: Some(m.parse().expect("M code")),
+                });
             }
             other => panic!("unknown option {other}"),
         }
