@@ -14,7 +14,7 @@ use crate::kr::{Gear, KrConfig, KrConfigError, KrConstants, RadiusInput};
 use crate::offsets::OffsetTable;
 use crate::plan::PlannerConfig;
 use crate::program::{IjMode, Modal, Setup};
-use crate::units::AxesMm;
+use crate::units::{AxesMm, MAX_AXES};
 
 /// Limits of one configured axis.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -32,6 +32,8 @@ pub struct MachineConfig {
     /// Spindle gear ranges (KŘR, SPEC §6).
     pub gears: Vec<Gear>,
     pub radius_input: RadiusInput,
+    /// Encoder pulses per revolution of each rotary axis, in machine order (`None`: linear).
+    pub rotary_pulses_per_rev: Vec<Option<f64>>,
     pub ij: IjMode,
     /// `$63`: the preprocessor is on (R325 refinement).
     pub preprocessor: bool,
@@ -85,15 +87,23 @@ impl MachineSetup {
             .iter()
             .map(|a| a.max_velocity_mm_min)
             .fold(0.0, f64::max);
+        // Every stage after the interpreter works in radius (the true XZ geometry): the
+        // interpreter halves the diameter axis's values, so KŘR reads positions as radii.
+        let kr = KrConfig::from_constants(constants, RadiusInput::Radius, machine.gears.clone())?;
+        program.diameter_axis = diameter_axis(machine, &kr);
+        for (k, p) in machine
+            .rotary_pulses_per_rev
+            .iter()
+            .enumerate()
+            .take(MAX_AXES)
+        {
+            program.rotary_kpulses_per_rev[k] = p.map_or(0.0, |p| p / 1000.0);
+        }
         Ok(MachineSetup {
             program,
             comp: CompConfig::from_constants(constants),
             planner: planner_config(machine, constants, constants_from_file),
-            kr: Some(KrConfig::from_constants(
-                constants,
-                machine.radius_input,
-                machine.gears.clone(),
-            )?),
+            kr: Some(kr),
             in_position_mm: constants.in_position_window_mm(),
             preview_page_blocks: constants.preview_page_blocks(),
         })
@@ -258,6 +268,13 @@ pub fn constants_read() -> impl Iterator<Item = u16> {
     CONSTANTS_READ.iter().flat_map(|u| u.first..=u.last)
 }
 
+/// The axis programmed as a diameter: the controlling axis of KŘR (R67) when the machine is
+/// set to `radius_input = "diameter"` (a lathe's X), otherwise none (docs/lathe.md).
+pub fn diameter_axis(machine: &MachineConfig, kr: &KrConfig) -> Option<usize> {
+    let k = kr.controlling_axis;
+    (machine.radius_input == RadiusInput::Diameter && k < machine.axes.len()).then_some(k)
+}
+
 /// The planner's configuration from the axis limits and the constants: the one function that
 /// builds it (daemon, preview, benches). The envelope settings come from the constants when the
 /// machine has a constants file; otherwise each move is limited by the axes it moves (#24).
@@ -298,7 +315,8 @@ mod tests {
                 output_range: 0x7FFF,
                 m_code: Some(41),
             }],
-            radius_input: RadiusInput::Diameter,
+            radius_input: RadiusInput::Radius,
+            rotary_pulses_per_rev: Vec::new(),
             ij: IjMode::default(),
             preprocessor: true,
             min_block_time_s: 0.0,

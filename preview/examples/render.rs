@@ -2,7 +2,14 @@
 //! it, see `docs/preview.md`). The library itself does no IO; this example does.
 //!
 //! `cargo run -p preview --example render -- FILE OUT.svg|OUT.png [--plane xy|xz|yz]
-//! [--page N] [--page-blocks N] [--velocity] [--accel] [--const R=VALUE]...`
+//! [--page N] [--page-blocks N] [--velocity] [--accel] [--const R=VALUE]... [--axes XZ]
+//! [--diameter X] [--offset D:R:X:Z]... [--gear M:P]...`
+//!
+//! `--axes` sets the machine's axis letters (default XYZ), `--diameter` the axis programmed as
+//! a diameter (a lathe's X, docs/lathe.md: the picture shows the true profile, X as a radius),
+//! `--offset` fills an offset table entry (radius, X length as a diameter, Z length), `--gear`
+//! adds a spindle gear range selected by M code M with top speed P rpm (feed per revolution
+//! under KŘR is planned at the gear's top speed).
 
 use preview::{PreviewOptions, ViewPlane};
 
@@ -10,7 +17,7 @@ fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.len() < 2 {
         eprintln!(
-            "usage: render FILE OUT.svg|OUT.png [--plane xy|xz|yz] [--page N] [--page-blocks N] [--velocity] [--accel] [--const R=VALUE]..."
+            "usage: render FILE OUT.svg|OUT.png [--plane xy|xz|yz] [--page N] [--page-blocks N] [--velocity] [--accel] [--const R=VALUE]... [--axes XZ] [--diameter X] [--offset D:R:X:Z]... [--gear M:P]..."
         );
         std::process::exit(2);
     }
@@ -45,6 +52,41 @@ fn main() {
                     r.parse().expect("constant number"),
                     v.parse().expect("value"),
                 );
+            }
+            "--axes" => {
+                i += 1;
+                setup.axis_names = args[i].to_ascii_uppercase().chars().collect();
+            }
+            "--diameter" => {
+                i += 1;
+                let letter = args[i].to_ascii_uppercase().chars().next();
+                setup.diameter_axis = setup.axis_names.iter().position(|&a| Some(a) == letter);
+                assert!(setup.diameter_axis.is_some(), "--diameter: not an axis");
+            }
+            "--offset" => {
+                i += 1;
+                let v: Vec<f64> = args[i]
+                    .split(':')
+                    .map(|x| x.parse().expect("number"))
+                    .collect();
+                let mut values = [None; 5];
+                for (k, x) in v.iter().skip(1).take(5).enumerate() {
+                    values[k] = Some(*x);
+                }
+                let edit = kernel::offsets::TableEdit {
+                    entry: v[0] as u8,
+                    values,
+                };
+                setup.offsets.apply(&edit).expect("offset entry 1..99");
+            }
+            "--gear" => {
+                i += 1;
+                let (m, p) = args[i].split_once(':').expect("M:P");
+                setup.gears.push(kernel::kr::Gear {
+                    max_rpm: p.parse().expect("rpm"),
+                    output_range: 0x7FFF,
+                    m_code: Some(m.parse().expect("M code")),
+                });
             }
             other => panic!("unknown option {other}"),
         }

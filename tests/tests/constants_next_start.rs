@@ -620,8 +620,9 @@ async fn r387_pages_the_next_preview() {
     assert_eq!(pages(&mut api).await, 3);
 }
 
-/// A program in KŘR at Ø100 (X100) under a G76 limit of 200 rpm, held in N30 (a slow move).
-const G76_PROGRAM: &str = "N10 G0 X100 Y40\nN15 G76 S200\nN20 M3 G96 S900\nN30 G1 X99 F6\n";
+/// A program in KŘR at r = 50 mm under a G76 limit of 200 rpm, held in N30 (a slow move). X is a
+/// radius on this mill (`radius_input = "radius"`, the default since diameter programming, #17).
+const G76_PROGRAM: &str = "N10 G0 X50 Y40\nN15 G76 S200\nN20 M3 G96 S900\nN30 G1 X49 F6\n";
 
 /// The spindle speed while `G76_PROGRAM` is in N30; the job is stopped afterwards.
 async fn g76_spindle_rpm(d: &Daemon, api: &mut Api) -> f64 {

@@ -79,16 +79,18 @@ fn readme_sample_program_runs() {
     assert_eq!(&s.commanded.0[..3], &[0.0, 0.0, 5.0]);
 }
 
-/// A simulated lathe X (diameter) Z at X300 Z100, recording every setpoint and spindle speed.
+/// A simulated lathe X (programmed as a diameter) Z at Ø300 Z100, recording every setpoint
+/// and spindle speed. Setpoints are machine coordinates: X is the radius.
 fn lathe() -> (Harness, tests::Recording, tests::SpindleRecording) {
     let mut cfg = tests::test_config();
     cfg.axes = vec![
         daemon::runtime::config::AxisConfig::new('X'),
         daemon::runtime::config::AxisConfig::new('Z'),
     ];
-    cfg.axes[0].home_mm = 300.0;
+    cfg.kr.radius_input = daemon::runtime::config::RadiusInputConfig::Diameter;
+    cfg.axes[0].home_mm = 150.0;
     cfg.axes[1].home_mm = 100.0;
-    let sim = sim::SimBus::new(sim::SimDriveParams::default(), &[300.0, 100.0]);
+    let sim = sim::SimBus::new(sim::SimDriveParams::default(), &[150.0, 100.0]);
     let (bus, record, spindle) = RecordingBus::with_spindle(sim);
     (machine(cfg, bus), record, spindle)
 }
@@ -130,14 +132,14 @@ N40 M5
     let mut checked = 0;
     let mut clamped = 0;
     for (i, p) in points.iter().enumerate().skip(1) {
-        let facing = (p[1] - 1.0).abs() < 1e-9 && p[0] < 299.0 && p[0] > 50.0;
+        let d = 2.0 * p[0]; // the setpoint is the radius
+        let facing = (p[1] - 1.0).abs() < 1e-9 && d < 299.0 && d > 50.0;
         let moving = points[i - 1][0] != p[0];
         if facing && moving {
-            let expect = (v_mm_min / (std::f64::consts::PI * p[0])).min(400.0);
+            let expect = (v_mm_min / (std::f64::consts::PI * d)).min(400.0);
             assert!(
                 (rpm[i] - expect).abs() <= 1e-6 * expect,
-                "tick {i}: X{} spindle {} rpm, expected {expect}",
-                p[0],
+                "tick {i}: Ø{d} spindle {} rpm, expected {expect}",
                 rpm[i]
             );
             checked += 1;
@@ -151,14 +153,15 @@ N40 M5
     assert_eq!(h.snapshot().spindle_rpm, 0.0);
 }
 
-/// Spindle speeds of the facing ticks of a run (X moving at Z1), with the carriage diameter.
+/// Spindle speeds of the facing ticks of a run (X moving at Z1), with the carriage diameter
+/// (twice the X setpoint, a radius).
 fn facing_ticks(points: &[[f64; hal::MAX_AXES]], rpm: &[f64]) -> Vec<(f64, f64)> {
     (1..points.len())
         .filter(|&i| {
             let p = points[i];
-            (p[1] - 1.0).abs() < 1e-9 && points[i - 1][0] != p[0] && p[0] < 299.0
+            (p[1] - 1.0).abs() < 1e-9 && points[i - 1][0] != p[0] && 2.0 * p[0] < 299.0
         })
-        .map(|i| (points[i][0], rpm[i]))
+        .map(|i| (2.0 * points[i][0], rpm[i]))
         .collect()
 }
 

@@ -27,7 +27,9 @@ N20 G96 G1 F200 S90 X50
 fn lathe_config() -> Config {
     let mut cfg = tests::test_config();
     cfg.axes = vec![AxisConfig::new('X'), AxisConfig::new('Z')];
-    cfg.axes[0].home_mm = 300.0;
+    // X is programmed as a diameter; machine coordinates (home, setpoints) are the radius.
+    cfg.kr.radius_input = daemon::runtime::config::RadiusInputConfig::Diameter;
+    cfg.axes[0].home_mm = 150.0;
     cfg.axes[1].home_mm = 100.0;
     cfg.kr.gears = [(41, 250.0), (42, 500.0), (43, 1000.0), (44, 2000.0)]
         .iter()
@@ -53,7 +55,7 @@ fn lathe_config() -> Config {
 
 fn lathe() -> (Harness, sim::SpindleLoad) {
     let cfg = lathe_config();
-    let bus = sim::SimBus::new(sim::SimDriveParams::default(), &[300.0, 100.0])
+    let bus = sim::SimBus::new(sim::SimDriveParams::default(), &[150.0, 100.0])
         .with_spindle_ramp(RAMP_RPM_S);
     let load = bus.spindle_load();
     let h = Harness::new(cfg, Box::new(bus), SimClock::seeded(17, 500_000, 200)).unwrap();
@@ -93,12 +95,12 @@ fn manual_lathe_example_feeds_per_revolution_of_the_actual_spindle() {
     let (mut h, _) = lathe();
     let mut checked = 0;
     run(&mut h, MANUAL_EXAMPLE, |prev, s, _| {
-        let x = s.commanded[0];
+        let x = 2.0 * s.commanded[0]; // diameter: the setpoint is the radius
         if s.block_n != Some(20) || !(60.0..290.0).contains(&x) {
             return;
         }
         let n = s.spindle_rpm;
-        let v = 2.0 * std::f64::consts::PI * n * x / 2.0;
+        let v = 2.0 * std::f64::consts::PI * n * s.commanded[0];
         assert!(within(v, V_MM_MIN, 0.01), "X{x}: n {n} rpm gives v {v}");
         let (feed, n_fed) = feed_and_spindle(prev, s);
         assert!(
@@ -109,7 +111,7 @@ fn manual_lathe_example_feeds_per_revolution_of_the_actual_spindle() {
     });
     assert!(checked > 10_000, "only {checked} ticks checked");
     let s = h.snapshot();
-    assert!((s.commanded[0] - 50.0).abs() < 1e-9 && (s.commanded[1] + 1.0).abs() < 1e-9);
+    assert!((s.commanded[0] - 25.0).abs() < 1e-9 && (s.commanded[1] + 1.0).abs() < 1e-9);
 }
 
 /// With `G76 S400` the spindle is clamped at 400 rpm below Ø71.6 and the feed with it
@@ -126,7 +128,7 @@ N20 G96 G1 F200 S90 X50
 ";
     let (mut clamped, mut loaded, mut held, mut after) = (0, 0, 0, 0);
     run(&mut h, text, |prev, s, _| {
-        let x = s.commanded[0];
+        let x = 2.0 * s.commanded[0]; // diameter
         if s.block_n != Some(20) {
             return;
         }
@@ -175,7 +177,7 @@ N20 G96 G1 F200 S90 X50
 fn gears_from_the_configuration() {
     let mut cfg = lathe_config();
     cfg.kr.gears.truncate(2); // M41, M42 only
-    let bus = sim::SimBus::new(sim::SimDriveParams::default(), &[300.0, 100.0]);
+    let bus = sim::SimBus::new(sim::SimDriveParams::default(), &[150.0, 100.0]);
     let mut h = Harness::new(cfg, Box::new(bus), SimClock::seeded(1, 0, 0)).unwrap();
     h.wait_state(MachineState::Idle, 10_000).unwrap();
     match h.start_program("N10 M44 M3 S100\n") {
@@ -242,6 +244,7 @@ fn lathe_example_configuration_runs_its_sample_programs() {
         ("manual_css.nc", &[20][..], None, 300.0),
         ("turning_g95.nc", &[20, 30][..], Some(250.0), 300.0),
         ("facing_clamped.nc", &[30][..], Some(1500.0 * 0.15), 200.0),
+        ("profile_g41.nc", &[40, 70][..], Some(800.0 * 0.15), 300.0),
     ] {
         let text = std::fs::read_to_string(dir.join(name)).unwrap();
         h.wait_state(MachineState::Idle, 10_000).unwrap();
@@ -258,8 +261,9 @@ fn lathe_example_configuration_runs_its_sample_programs() {
         assert_eq!(end.finished_job, job, "{name}: {end:?}");
         assert_eq!(end.kr.spindle_rpm, 0.0, "{name}: M5 at the end");
         assert!(
-            (end.commanded[0] - end_x).abs() < 1e-9 && (end.commanded[1] - 100.0).abs() < 1e-9,
-            "{name}: ends at X{end_x} Z100: {:?}",
+            (2.0 * end.commanded[0] - end_x).abs() < 1e-9
+                && (end.commanded[1] - 100.0).abs() < 1e-9,
+            "{name}: ends at Ø{end_x} Z100: {:?}",
             end.commanded
         );
         if let Some(f) = feed_mm_min {

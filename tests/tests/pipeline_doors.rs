@@ -388,7 +388,7 @@ async fn kr_status_while_running(d: &Daemon, m: &mut MachineClient<Channel>) -> 
 async fn s_units_r329_reach_kr_and_the_spindle_at_the_next_start() {
     let d = start(config(Role::Admin)).await;
     let mut doors = Doors::new(d.channel().await).await;
-    // n = v / (2π r), r from the controlling axis X (a diameter: about Ø100).
+    // n = v / (2π r), r from the controlling axis X (about X100).
     let rpm = |kr: &pb::KrStatus, v_m_min: f64| {
         v_m_min * 1000.0 / (2.0 * std::f64::consts::PI * kr.radius_mm)
     };
@@ -414,10 +414,11 @@ async fn r67_controlling_axis_changes_at_the_next_start() {
     let d = start(config(Role::Admin)).await;
     let mut doors = Doors::new(d.channel().await).await;
     let kr = kr_status_while_running(&d, &mut doors.m).await;
-    assert!((kr.radius_mm - 50.0).abs() < 0.5, "X diameter 100: {kr:?}");
+    // A mill (radius_input = "radius", the default): the position is the radius.
+    assert!((kr.radius_mm - 100.0).abs() < 0.5, "X100: {kr:?}");
     doors.set(&[(67, 2.0)]).await; // Y
     let kr = kr_status_while_running(&d, &mut doors.m).await;
-    assert!((kr.radius_mm - 20.0).abs() < 0.01, "Y diameter 40: {kr:?}");
+    assert!((kr.radius_mm - 40.0).abs() < 0.01, "Y40: {kr:?}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -365,13 +365,22 @@ fn state_name(s: i32) -> String {
         .unwrap_or_else(|_| "unknown".into())
 }
 
+/// One axis as the DRO shows it: `X12.500`, or `XØ25.000` on a diameter axis (docs/lathe.md).
+fn dro(a: &pb::AxisStatus) -> String {
+    if a.diameter {
+        format!("{}Ø{:.3}", a.name, a.display_mm)
+    } else {
+        format!("{}{:.3}", a.name, a.commanded_mm)
+    }
+}
+
 fn status_line(s: &pb::Status) -> String {
     let pos: Vec<String> = s
         .axes
         .iter()
         .map(|a| {
             let unhomed = if a.homed { "" } else { "(not homed)" };
-            format!("{}{:.3}{unhomed}", a.name, a.commanded_mm)
+            format!("{}{unhomed}", dro(a))
         })
         .collect();
     let block = s
@@ -426,7 +435,8 @@ fn status_json(s: &pb::Status) -> Value {
         "axes": s.axes.iter().map(|a| json!({"name": a.name, "commanded_mm": a.commanded_mm,
             "actual_mm": a.actual_mm, "following_error_mm": a.following_error_mm,
             "soft_min_mm": a.soft_min_mm, "soft_max_mm": a.soft_max_mm,
-            "homed": a.homed, "homing_required": a.homing_required})).collect::<Vec<_>>(),
+            "homed": a.homed, "homing_required": a.homing_required,
+            "diameter": a.diameter, "display_mm": a.display_mm})).collect::<Vec<_>>(),
         "path_velocity_mm_s": s.path_velocity_mm_s,
         "feed_programmed": s.feed_programmed, "feed_mode": s.feed_mode,
         "override_percent": s.override_percent, "spindle_rpm": s.spindle_rpm,
@@ -1286,11 +1296,7 @@ async fn follow(
     bar.enable_steady_tick(Duration::from_millis(200));
     while let Some(s) = stream.message().await.map_err(explain)? {
         bar.set_position((s.percent * 10.0) as u64);
-        let pos: Vec<String> = s
-            .axes
-            .iter()
-            .map(|a| format!("{}{:.3}", a.name, a.commanded_mm))
-            .collect();
+        let pos: Vec<String> = s.axes.iter().map(dro).collect();
         let block = s
             .block
             .map(|n| format!("N{n}"))

@@ -120,14 +120,18 @@ impl StorageConfig {
     }
 }
 
-/// How the controlling axis of constant cutting speed (R67) is read (SPEC §6).
+/// How the controlling axis of constant cutting speed (R67) is programmed (SPEC §6,
+/// docs/lathe.md). Machine coordinates (setpoints, soft limits, `home_mm`, jog) are always
+/// the radius: the true travel of the slide.
 #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "lowercase")]
 pub enum RadiusInputConfig {
-    /// The axis is programmed as a diameter (lathes): radius = |x| / 2.
-    #[default]
+    /// Diameter programming (lathes): the axis's program words, its absolute arc centres and
+    /// its TAB0.KOR lengths are diameters, halved by the interpreter; the status and the DRO
+    /// show it as a diameter. The KŘR radius is the axis position.
     Diameter,
-    /// The axis position is the radius.
+    /// The axis is programmed as a radius, like every other axis (mills; the default).
+    #[default]
     Radius,
 }
 
@@ -230,6 +234,11 @@ pub struct AxisConfig {
     /// coordinates (pressed from there on in `homing_direction`). Unset: no switch.
     #[serde(default)]
     pub sim_home_switch_mm: Option<f64>,
+    /// Rotary axis (SPEC §5, docs/lathe.md): encoder pulses per revolution. The axis is then
+    /// positioned in degrees (its `_mm` settings are degrees), and F of a block that moves
+    /// only rotary axes is in thousands of these pulses per minute. Unset: a linear axis.
+    #[serde(default)]
+    pub rotary_pulses_per_rev: Option<f64>,
 }
 
 /// Reference run of an axis.
@@ -280,6 +289,7 @@ impl AxisConfig {
             homing_speed_mm_min: None,
             home_order: None,
             sim_home_switch_mm: None,
+            rotary_pulses_per_rev: None,
         }
     }
 }
@@ -614,6 +624,13 @@ impl Config {
                 if !(v.is_finite() && v > 0.0) {
                     return Err(format!("axes[{i}].{key}: {v} must be a positive number"));
                 }
+            }
+            if let Some(p) = a.rotary_pulses_per_rev
+                && !(p.is_finite() && p > 0.0)
+            {
+                return Err(format!(
+                    "axes[{i}].rotary_pulses_per_rev: {p} must be a positive number of pulses"
+                ));
             }
         }
         for (i, g) in self.kr.gears.iter().enumerate() {

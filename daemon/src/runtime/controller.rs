@@ -815,6 +815,19 @@ impl Controller {
         self.constants.lock().unwrap().in_force.clone()
     }
 
+    /// The axis programmed (and shown) as a diameter: the controlling axis R67 in force when
+    /// `[kr] radius_input = "diameter"` (docs/lathe.md). Its machine coordinates are radii.
+    pub fn diameter_axis(&self) -> Option<usize> {
+        if self.config.kr.radius_input != RadiusInputConfig::Diameter {
+            return None;
+        }
+        let letter = {
+            let c = self.constants.lock().unwrap();
+            kernel::kr::config::controlling_axis_letter(&c.in_force)?
+        };
+        self.config.axes.iter().position(|a| a.name == letter)
+    }
+
     /// Sets machine constants and saves the constants file. Only on an idle machine. Each is
     /// in force for every stage from the next start, except those of [`needs_restart`], which
     /// are saved and used from the next daemon start only. Refused (nothing changed) when the
@@ -1013,6 +1026,11 @@ pub(crate) fn machine_config(config: &Config) -> MachineConfig {
             })
             .collect(),
         radius_input,
+        rotary_pulses_per_rev: config
+            .axes
+            .iter()
+            .map(|a| a.rotary_pulses_per_rev)
+            .collect(),
         ij: config.program.ij.into(),
         preprocessor: true,
         min_block_time_s: config.planner.min_block_time_ms / 1000.0,

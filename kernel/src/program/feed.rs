@@ -124,3 +124,71 @@ mod tests {
         assert!(!FeedMode::G97.per_rev(true));
     }
 }
+
+/// SPEC §5: the speed of a rotary axis at radius `radius_mm` from its centre of rotation,
+/// mm/min, when the axis alone moves at `f_kpulses_min` thousands of encoder pulses per minute
+/// and its encoder gives `kpulses_per_rev` thousands of pulses per revolution:
+/// Fsk = F · 2πR / (thousands of pulses per revolution).
+pub fn rotary_surface_speed_mm_min(
+    f_kpulses_min: f64,
+    radius_mm: f64,
+    kpulses_per_rev: f64,
+) -> f64 {
+    f_kpulses_min * 2.0 * std::f64::consts::PI * radius_mm / kpulses_per_rev
+}
+
+/// The factor from the programmed F to the feed along the whole axis vector of a line from
+/// `start` to `end` (linear axes in mm, rotary axes in degrees) that the planner follows
+/// (docs/lathe.md, "Rotary axes"). `kpulses_per_rev[k]` > 0 marks axis `k` rotary.
+///
+/// - No rotary axis moves: 1 (F is the path speed).
+/// - Linear and rotary axes move: F is the path speed of the linear axes (mm/min, or mm/rev);
+///   the rotary axes take the same time: factor = L_all / L_linear.
+/// - Only rotary axes move: F is in thousands of encoder pulses per minute (per revolution
+///   under G95) along the rotary axes' vector in pulses: factor = L_degrees / L_kpulses.
+pub fn rotary_feed_factor(start: &[f64], end: &[f64], kpulses_per_rev: &[f64]) -> f64 {
+    let (mut lin2, mut deg2, mut kp2) = (0.0, 0.0, 0.0);
+    for k in 0..start.len().min(end.len()).min(kpulses_per_rev.len()) {
+        let d = end[k] - start[k];
+        let kppr = kpulses_per_rev[k];
+        if kppr > 0.0 {
+            deg2 += d * d;
+            let kp = d * kppr / 360.0;
+            kp2 += kp * kp;
+        } else {
+            lin2 += d * d;
+        }
+    }
+    if deg2 == 0.0 {
+        1.0
+    } else if lin2 > 0.0 {
+        ((lin2 + deg2) / lin2).sqrt()
+    } else {
+        (deg2 / kp2).sqrt()
+    }
+}
+
+#[cfg(test)]
+mod rotary_tests {
+    use super::*;
+
+    #[test]
+    fn fsk_is_f_times_2_pi_r_over_kpulses() {
+        // 360 000 pulses/rev (1000 per degree): F3600 = 10 rev/min; at R100 that is
+        // 2π·100·10 mm/min.
+        let v = rotary_surface_speed_mm_min(3600.0, 100.0, 360.0);
+        assert!((v - 2.0 * std::f64::consts::PI * 1000.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn factors_of_linear_mixed_and_rotary_lines() {
+        let kppr = [0.0, 0.0, 720.0]; // X, Y linear; A with 2000 pulses per degree
+        assert_eq!(rotary_feed_factor(&[0.0; 3], &[3.0, 4.0, 0.0], &kppr), 1.0);
+        // X30 A40: L_all 50, L_lin 30.
+        let f = rotary_feed_factor(&[0.0; 3], &[30.0, 0.0, 40.0], &kppr);
+        assert!((f - 50.0 / 30.0).abs() < 1e-12);
+        // A90 alone: 90° = 180 kpulses; F kpulses/min → F/2 °/min.
+        let f = rotary_feed_factor(&[0.0; 3], &[0.0, 0.0, 90.0], &kppr);
+        assert!((f - 0.5).abs() < 1e-12);
+    }
+}

@@ -216,6 +216,10 @@ pub struct Interpreter {
     kr_axis: Option<usize>,
     /// The spindle gear table (empty: M41..M44 select ranges 1..4), SPEC §6.
     gears: Vec<crate::kr::Gear>,
+    /// The axis programmed as a diameter ([`Setup::diameter_axis`]): its words are halved.
+    diameter_axis: Option<usize>,
+    /// Thousands of encoder pulses per revolution of rotary axes, 0 for linear ones.
+    rotary_kppr: [f64; MAX_AXES],
     /// Fastest path feed of the machine, mm/min (0 = unknown), for the βmax warning (SPEC §5).
     max_feed_mm_min: f64,
 }
@@ -263,6 +267,8 @@ impl Interpreter {
         let mut interp = Interpreter {
             kr_axis,
             gears: setup.gears.clone(),
+            diameter_axis: setup.diameter_axis.filter(|&k| k < setup.axis_names.len()),
+            rotary_kppr: setup.rotary_kpulses_per_rev,
             max_feed_mm_min: setup.max_feed_mm_min,
             axis_letters,
             n_axes: setup.axis_names.len().min(MAX_AXES),
@@ -607,7 +613,21 @@ impl Interpreter {
                 }
             }
         }
+        // TAB0.KOR holds the diameter axis's length as a diameter (measured the way the
+        // machinist reads the part); the tool tip moves by half of it.
+        if let Some(k) = self.diameter_axis {
+            off[k] = self.to_radius(k, off[k]);
+        }
         off
+    }
+
+    /// A value of axis `k` in program units → internal (radius) units.
+    fn to_radius(&self, k: usize, v: f64) -> f64 {
+        if self.diameter_axis == Some(k) {
+            v / 2.0
+        } else {
+            v
+        }
     }
 
     /// Radius of entry `d`, seeing a `G92` write of the same block.
@@ -841,7 +861,8 @@ impl Interpreter {
         st.spindle.length_offset_mm = self.kr_axis.map_or(0.0, |k| offset[k]);
         for (k, v) in w.axes[..self.n_axes].iter().enumerate() {
             if let Some((v, _)) = v {
-                st.prog[k] = if st.absolute { *v } else { old.prog[k] + v };
+                let v = self.to_radius(k, *v);
+                st.prog[k] = if st.absolute { v } else { old.prog[k] + v };
             }
         }
         let start = old.machine;
@@ -867,6 +888,15 @@ impl Interpreter {
                 values: ed.values,
             };
         } else if moves {
+            if arc_block && let Some(k) = self.moving_rotary_axis(start, end) {
+                return fail(
+                    w.axes[k].map_or(w.first, |a| a.1),
+                    format!(
+                        "{} is a rotary axis: it moves in linear blocks (G0, G1), not in an arc",
+                        self.axis_letters[k] as char
+                    ),
+                );
+            }
             let path = if arc_block {
                 match self.arc(w, &st, old, start, end, offset)? {
                     Ok((p, r)) => {
@@ -926,6 +956,9 @@ impl Interpreter {
                 Feed::MmPerRev(f) => Feed::MmPerRev(f / 100.0),
             };
         }
+        if let BlockKind::Motion { start, end, .. } = kind {
+            feed_out = self.rotary_feed(feed_out, start, end);
+        }
         if let Some(ed) = &edit {
             self.table
                 .apply(ed)
@@ -973,6 +1006,25 @@ impl Interpreter {
         Ok(block)
     }
 
+    /// The first rotary axis that moves between `start` and `end`.
+    fn moving_rotary_axis(&self, start: AxesMm, end: AxesMm) -> Option<usize> {
+        (0..self.n_axes).find(|&k| self.rotary_kppr[k] > 0.0 && (end[k] - start[k]).abs() > 1e-12)
+    }
+
+    /// The programmed feed as the feed along the block's whole axis vector (rotary axes in
+    /// degrees), by the rule of [`super::feed::rotary_feed_factor`] (docs/lathe.md).
+    fn rotary_feed(&self, f: Feed, start: AxesMm, end: AxesMm) -> Feed {
+        if self.moving_rotary_axis(start, end).is_none() {
+            return f;
+        }
+        let n = self.n_axes;
+        let k = super::feed::rotary_feed_factor(&start.0[..n], &end.0[..n], &self.rotary_kppr[..n]);
+        match f {
+            Feed::MmPerMin(v) => Feed::MmPerMin(v * k),
+            Feed::MmPerRev(v) => Feed::MmPerRev(v * k),
+        }
+    }
+
     /// SPEC §5: βmax = Vmax/S. A feed per revolution above it cannot be followed at the
     /// nominal spindle speed of the block (the axes cap the feed): a warning.
     fn beta_max_warning(&self, beta_mm_rev: f64, spindle: &Spindle) -> Option<String> {
@@ -981,8 +1033,10 @@ impl Interpreter {
         (self.max_feed_mm_min > 0.0 && beta_mm_rev > beta_max + 1e-9).then(|| {
             format!(
                 "feed {beta_mm_rev} mm/rev is above βmax = {beta_max:.3} mm/rev (Vmax {} mm/min \
-                 / {n} rpm): the axes limit the feed, it will not follow the spindle",
-                self.max_feed_mm_min
+                 / {n} rpm; at this feed Smax = Vmax/β = {:.0} rpm): the axes limit the feed, \
+                 it will not follow the spindle",
+                self.max_feed_mm_min,
+                self.max_feed_mm_min / beta_mm_rev
             )
         })
     }
@@ -1054,6 +1108,11 @@ impl Interpreter {
             );
         }
         let mut ij = (i.value, j.value);
+        if rules.ij == IjMode::Absolute {
+            // An absolute centre is a coordinate: a diameter on the diameter axis. A relative
+            // one is a distance from the start: always a radius (docs/lathe.md).
+            ij = (self.to_radius(a, ij.0), self.to_radius(b, ij.1));
+        }
         if let Some((e, at)) = w.e {
             let r = ERefinement::decode(e.value).map_err(|m| Fail { at, message: m })?;
             ij = r.apply(ij);

@@ -17,7 +17,9 @@ pub mod feed;
 pub mod interpreter;
 pub mod words;
 
-pub use feed::{FeedMode, MAX_FEED_MM_MIN, MAX_FEED_MM_REV};
+pub use feed::{
+    FeedMode, MAX_FEED_MM_MIN, MAX_FEED_MM_REV, rotary_feed_factor, rotary_surface_speed_mm_min,
+};
 pub use interpreter::{Interpreter, Modal};
 
 use crate::block::Block;
@@ -54,6 +56,16 @@ pub struct Setup {
     pub offsets: OffsetTable,
     /// How I and J are read.
     pub ij: IjMode,
+    /// The axis programmed as a diameter (`[kr] radius_input = "diameter"`: the controlling
+    /// axis R67 of a lathe), `None` on a machine programmed in radius everywhere. Its words,
+    /// its absolute arc centre and its TAB0.KOR length are diameters; the interpreter halves
+    /// them, so every block it emits (and compensation, planning, setpoints after it) is in
+    /// radius: the true geometry. A relative arc centre (I) is a radius. See docs/lathe.md.
+    pub diameter_axis: Option<usize>,
+    /// Thousands of encoder pulses per revolution of each rotary axis, 0 for a linear axis
+    /// (`rotary_pulses_per_rev` of the axis / 1000). A rotary axis is positioned in degrees;
+    /// its feed is in thousands of pulses per minute (SPEC §5, docs/lathe.md).
+    pub rotary_kpulses_per_rev: [f64; crate::units::MAX_AXES],
     /// `$63` of CNC836.KNF: the preprocessor is on (default), needed for R325 refinement.
     pub preprocessor: bool,
     /// The spindle gear table (`[kr.gears]`): an M code selects the range whose `m_code` it
@@ -79,6 +91,8 @@ impl Setup {
             constants: Constants::new(),
             offsets: OffsetTable::new(),
             ij: IjMode::default(),
+            diameter_axis: None,
+            rotary_kpulses_per_rev: [0.0; crate::units::MAX_AXES],
             preprocessor: true,
             gears: Vec::new(),
             max_feed_mm_min: 0.0,

@@ -190,8 +190,11 @@ impl ApiState {
             0.0
         };
         let names = ctl.config().axis_names();
+        let diameter_axis = ctl.diameter_axis();
         let axes = (0..s.axes)
             .map(|i| pb::AxisStatus {
+                diameter: diameter_axis == Some(i),
+                display_mm: s.commanded[i] * if diameter_axis == Some(i) { 2.0 } else { 1.0 },
                 name: names.get(i).map(|c| c.to_string()).unwrap_or_default(),
                 commanded_mm: s.commanded[i],
                 actual_mm: s.actual[i],

@@ -1,0 +1,161 @@
+//! The manual's lathe example (issue #17, SPEC §5, §6) over CANopen: the daemon's pipeline and
+//! RT core in the single-threaded harness with its CANopen master on an in-memory bus (as
+//! `daemon_can.rs`): X and Z are CSP drives (nodes 1, 2), the spindle a CSV drive (node 3)
+//! whose speed ramps at 1000 rpm/s and comes back over the bus. The feed per revolution
+//! follows the spindle's actual speed as the bus reports it.
+
+use std::collections::VecDeque;
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+
+use daemon::runtime::buses::{BusConfig, can_config};
+use daemon::runtime::clock::SimClock;
+use daemon::runtime::config::Config;
+use daemon::runtime::harness::Harness;
+use daemon::runtime::rt::MachineState;
+use hal::canopen::{CanOpenMaster, CanPort, Frame, PortError, RxEvent};
+use kernel::constants::Constants;
+use sim::SimDriveParams;
+use sim::can_node::CanNode;
+use sim::cia402_drive::Cia402Drive;
+
+const INC_PER_MM: f64 = 10_000.0;
+const V_MM_MIN: f64 = 90_000.0;
+const BETA_MM_REV: f64 = 0.2;
+
+/// The simulated drives; time passes 4 ms when the master has read everything.
+#[derive(Default)]
+struct Bus {
+    nodes: Vec<CanNode>,
+    now_ms: u64,
+    to_master: VecDeque<Frame>,
+}
+
+struct Port(Arc<Mutex<Bus>>);
+
+impl CanPort for Port {
+    fn send(&mut self, f: &Frame) -> Result<(), PortError> {
+        let mut b = self.0.lock().unwrap();
+        let (now, mut out) = (b.now_ms, Vec::new());
+        for n in &mut b.nodes {
+            n.handle(f, now, &mut out);
+        }
+        b.to_master.extend(out);
+        Ok(())
+    }
+    fn try_recv(&mut self) -> Result<Option<RxEvent>, PortError> {
+        let mut b = self.0.lock().unwrap();
+        match b.to_master.pop_front() {
+            Some(f) => Ok(Some(RxEvent::Frame(f))),
+            None => {
+                b.now_ms += 4;
+                let (now, mut out) = (b.now_ms, Vec::new());
+                for n in &mut b.nodes {
+                    n.poll(now, &mut out);
+                }
+                b.to_master.extend(out);
+                Ok(None)
+            }
+        }
+    }
+}
+
+/// A lathe X (diameter programming; the drive stands at radius 150 = Ø300), Z at 100, gears
+/// M41..M44, R67 = 1, R329 d3 = 3, spindle on node 3 (1 velocity unit per rpm).
+fn lathe() -> Harness {
+    let mut toml = String::new();
+    for (i, name) in ['X', 'Z'].iter().enumerate() {
+        toml.push_str(&format!(
+            "[[axes]]\nname = '{name}'\nnode_id = {}\nincrements_per_mm = {INC_PER_MM}\n\
+             max_velocity_mm_min = 6000\n\n",
+            i + 1
+        ));
+    }
+    toml.push_str("[kr]\nradius_input = 'diameter'\n");
+    for (m, p) in [(41, 250), (42, 500), (43, 1000), (44, 2000)] {
+        toml.push_str(&format!("[[kr.gears]]\nmax_rpm = {p}\nm_code = {m}\n"));
+    }
+    toml.push_str("[bus]\nkind = 'can'\ninterface = 'mem0'\nfollowing_window_mm = 50\n");
+    toml.push_str("spindle_node = 3\nspindle_units_per_rpm = 1\n");
+    let mut cfg = Config::parse(&toml, Path::new("lathe-can.toml")).unwrap();
+    let base = tests::test_config();
+    cfg.storage = base.storage;
+    cfg.rt = base.rt;
+    let mut c = Constants::new();
+    c.set(0, 1.0); // X
+    c.set(1, 3.0); // Z
+    for r in 2..6 {
+        c.set(r, 0.0);
+    }
+    c.set(67, 1.0);
+    let d3 = f64::from(c.decade(329, 3));
+    c.set(329, c.get(329) + (3.0 - d3) * 0.1);
+    std::fs::create_dir_all(&cfg.storage.dir).unwrap();
+    daemon::runtime::storage::save_constants(&cfg.storage.constants_path(), &c).unwrap();
+
+    let BusConfig::Can(can) = &cfg.bus else {
+        panic!("{:?}", cfg.bus)
+    };
+    let master_cfg = can_config(can, &cfg.axes);
+    let mut spindle = Cia402Drive::new(SimDriveParams::default(), 1.0, 0.0);
+    spindle.velocity_ramp_units_s2 = 1000.0; // rpm/s
+    let nodes = vec![
+        CanNode::new(
+            1,
+            Cia402Drive::new(SimDriveParams::default(), INC_PER_MM, 150.0),
+        ),
+        CanNode::new(
+            2,
+            Cia402Drive::new(SimDriveParams::default(), INC_PER_MM, 100.0),
+        ),
+        CanNode::new(3, spindle),
+    ];
+    let bus = Arc::new(Mutex::new(Bus {
+        nodes,
+        ..Bus::default()
+    }));
+    let master = CanOpenMaster::new(Port(bus), "mem0", master_cfg).unwrap();
+    Harness::new(cfg, Box::new(master), SimClock::exact()).unwrap()
+}
+
+fn within(a: f64, b: f64, share: f64) -> bool {
+    (a - b).abs() <= share * b.abs()
+}
+
+/// `N10 G0 X300 Z100 M44 M3 S100` / `N15 Z-1` / `N20 G96 G1 F200 S90 X50`: along the cut
+/// v = 2π·n·r within 1 % (n the speed the spindle node reports) and the feed = n · 0.2 mm/rev
+/// within 1 % (n of the tick the RT core fed from), every tick from Ø290 to Ø60.
+#[test]
+fn manual_lathe_example_over_can_feeds_per_revolution_of_the_spindle_node() {
+    let mut h = lathe();
+    h.wait_state(MachineState::Idle, 100_000).unwrap();
+    let job = h
+        .start_program("N10 G0 X300 Z100 M44 M3 S100\nN15 Z-1\nN20 G96 G1 F200 S90 X50\n")
+        .unwrap();
+    let mut prev = h.snapshot();
+    let mut checked = 0;
+    for _ in 0..1_000_000 {
+        let s = h.step();
+        let d = 2.0 * s.commanded[0];
+        if s.block_n == Some(20) && (60.0..290.0).contains(&d) {
+            let n = s.spindle_rpm;
+            let v = 2.0 * std::f64::consts::PI * n * s.commanded[0];
+            assert!(within(v, V_MM_MIN, 0.01), "Ø{d}: n {n} rpm gives v {v}");
+            let feed = s.path_v_mm_s * 60.0;
+            assert!(
+                within(feed, prev.spindle_rpm * BETA_MM_REV, 0.01),
+                "Ø{d}: feed {feed} mm/min at {} rpm",
+                prev.spindle_rpm
+            );
+            checked += 1;
+        }
+        prev = s;
+        if s.finished_job == job || s.aborted_job == job {
+            assert_eq!(s.finished_job, job, "aborted: {s:?}");
+            break;
+        }
+    }
+    assert!(checked > 10_000, "only {checked} ticks checked");
+    let s = h.snapshot();
+    assert!((s.commanded[0] - 25.0).abs() < 1e-9 && (s.commanded[1] + 1.0).abs() < 1e-9);
+}

@@ -1,0 +1,199 @@
+//! The manual's lathe example (issue #17) over the serial drive link: the daemon's pipeline and
+//! RT core in the single-threaded harness with its serial bus (`hal::serial::SerialBus`) on a
+//! pseudo-terminal whose other end is served, in the same thread between ticks, by the
+//! simulated drive unit (`sim::serial_drive`, X, Z and a spindle drive ramping at 1000 rpm/s).
+//! No second thread and no wall clock: each tick the unit answers the request of the tick
+//! before, as a real unit does. The feed per revolution follows the spindle's actual speed as
+//! the unit reports it.
+
+use std::io::{Read, Write};
+
+use daemon::runtime::clock::SimClock;
+use daemon::runtime::config::{AxisConfig, Config, GearConfig, RadiusInputConfig};
+use daemon::runtime::harness::Harness;
+use daemon::runtime::rt::MachineState;
+use hal::serial::{SerialAxis, SerialBus, SerialConfig, SerialSpindle};
+use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus};
+use kernel::constants::Constants;
+use serialport::{SerialPort, TTYPort};
+use sim::SimDriveParams;
+use sim::cia402_drive::Cia402Drive;
+use sim::serial_drive::SerialDriveUnit;
+
+const INC_PER_MM: f64 = 10_000.0;
+const V_MM_MIN: f64 = 90_000.0;
+const BETA_MM_REV: f64 = 0.2;
+
+/// The serial bus and, on the pty's other end, the drive unit.
+struct Line {
+    bus: SerialBus,
+    master: TTYPort,
+    /// The controller side, kept open to see when a reply has reached it.
+    slave: TTYPort,
+    unit: SerialDriveUnit,
+    now_ms: u64,
+    out: Vec<u8>,
+}
+
+impl Line {
+    /// The unit reads what the controller sent and answers it.
+    fn serve(&mut self) {
+        self.now_ms += 4;
+        let n = self.master.bytes_to_read().unwrap() as usize;
+        let mut bytes = vec![0u8; n];
+        self.master.read_exact(&mut bytes).unwrap();
+        self.out.clear();
+        self.unit.poll(self.now_ms);
+        self.unit.on_bytes(&bytes, self.now_ms, &mut self.out);
+        self.master.write_all(&self.out).unwrap();
+        self.master.flush().unwrap();
+        // The pty hands bytes over asynchronously: wait (a bounded number of yields, not a
+        // time) until the controller's side holds the whole answer, as a wire would.
+        wait_for(|| self.slave.bytes_to_read().unwrap() as usize >= self.out.len());
+    }
+}
+
+impl DriveBus for Line {
+    fn name(&self) -> &str {
+        self.bus.name()
+    }
+    fn axes(&self) -> usize {
+        self.bus.axes()
+    }
+    fn has_spindle(&self) -> bool {
+        self.bus.has_spindle()
+    }
+    fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
+        self.serve();
+        let r = self.bus.cycle(cmd, fb);
+        // The bus sends a request every tick: let it arrive before the next tick.
+        wait_for(|| self.master.bytes_to_read().unwrap() > 0);
+        r
+    }
+    fn enable(&mut self) {
+        self.bus.enable()
+    }
+    fn reset(&mut self) {
+        self.bus.reset()
+    }
+    fn enable_timeout_ticks(&self) -> u32 {
+        self.bus.enable_timeout_ticks()
+    }
+}
+
+/// Yields until `ready` (bounded: a pty that never delivers fails the test).
+fn wait_for(mut ready: impl FnMut() -> bool) {
+    for _ in 0..10_000_000 {
+        if ready() {
+            return;
+        }
+        std::thread::yield_now();
+    }
+    panic!("the pty never delivered");
+}
+
+/// The lathe of `lathe_per_rev.rs` (X as a diameter at Ø300, Z100, gears M41..M44, R67 = 1,
+/// R329 d3 = 3) on the serial line.
+fn lathe() -> Harness {
+    let mut cfg: Config = tests::test_config();
+    cfg.axes = vec![AxisConfig::new('X'), AxisConfig::new('Z')];
+    for a in &mut cfg.axes {
+        a.max_velocity_mm_min = 6000.0;
+    }
+    cfg.axes[0].home_mm = 150.0;
+    cfg.axes[1].home_mm = 100.0;
+    cfg.kr.radius_input = RadiusInputConfig::Diameter;
+    cfg.kr.gears = [(41, 250.0), (42, 500.0), (43, 1000.0), (44, 2000.0)]
+        .iter()
+        .map(|&(m, p)| GearConfig {
+            max_rpm: p,
+            output_range: 0x7FFF,
+            m_code: Some(m),
+        })
+        .collect();
+    let mut c = Constants::new();
+    c.set(0, 1.0); // X
+    c.set(1, 3.0); // Z
+    for r in 2..6 {
+        c.set(r, 0.0);
+    }
+    c.set(67, 1.0);
+    let d3 = f64::from(c.decade(329, 3));
+    c.set(329, c.get(329) + (3.0 - d3) * 0.1);
+    std::fs::create_dir_all(&cfg.storage.dir).unwrap();
+    daemon::runtime::storage::save_constants(&cfg.storage.constants_path(), &c).unwrap();
+
+    let (master, slave) = TTYPort::pair().unwrap();
+    let path = slave.name().unwrap();
+    let axes = (1..=2)
+        .map(|node_id| SerialAxis {
+            node_id,
+            increments_per_mm: INC_PER_MM,
+        })
+        .collect();
+    let mut scfg = SerialConfig::new(&path, axes);
+    scfg.spindle = Some(SerialSpindle {
+        node_id: 3,
+        units_per_rpm: 1.0,
+    });
+    let bus = SerialBus::open(scfg).unwrap();
+    let drives = [150.0, 100.0]
+        .iter()
+        .map(|&mm| Cia402Drive::new(SimDriveParams::default(), INC_PER_MM, mm))
+        .collect();
+    let mut unit = SerialDriveUnit::new(drives);
+    let mut spindle = Cia402Drive::new(SimDriveParams::default(), 1.0, 0.0);
+    spindle.velocity_ramp_units_s2 = 1000.0; // rpm/s
+    unit.spindle = Some(spindle);
+    let line = Line {
+        bus,
+        master,
+        slave,
+        unit,
+        now_ms: 0,
+        out: Vec::new(),
+    };
+    Harness::new(cfg, Box::new(line), SimClock::exact()).unwrap()
+}
+
+fn within(a: f64, b: f64, share: f64) -> bool {
+    (a - b).abs() <= share * b.abs()
+}
+
+/// `N10 G0 X300 Z100 M44 M3 S100` / `N15 Z-1` / `N20 G96 G1 F200 S90 X50` over serial: along
+/// the cut (Ø290 .. Ø60) v = 2π·n·r within 1 % with n as the unit reports it, and the feed
+/// = n · 0.2 mm/rev within 1 % (n of the tick the RT core fed from), every tick.
+#[test]
+fn manual_lathe_example_over_serial_feeds_per_revolution_of_the_spindle_drive() {
+    let mut h = lathe();
+    h.wait_state(MachineState::Idle, 100_000).unwrap();
+    let job = h
+        .start_program("N10 G0 X300 Z100 M44 M3 S100\nN15 Z-1\nN20 G96 G1 F200 S90 X50\n")
+        .unwrap();
+    let mut prev = h.snapshot();
+    let mut checked = 0;
+    for _ in 0..1_000_000 {
+        let s = h.step();
+        let d = 2.0 * s.commanded[0];
+        if s.block_n == Some(20) && (60.0..290.0).contains(&d) {
+            let n = s.spindle_rpm;
+            let v = 2.0 * std::f64::consts::PI * n * s.commanded[0];
+            assert!(within(v, V_MM_MIN, 0.01), "Ø{d}: n {n} rpm gives v {v}");
+            let feed = s.path_v_mm_s * 60.0;
+            assert!(
+                within(feed, prev.spindle_rpm * BETA_MM_REV, 0.01),
+                "Ø{d}: feed {feed} mm/min at {} rpm",
+                prev.spindle_rpm
+            );
+            checked += 1;
+        }
+        prev = s;
+        if s.finished_job == job || s.aborted_job == job {
+            assert_eq!(s.finished_job, job, "aborted: {s:?}");
+            break;
+        }
+    }
+    assert!(checked > 10_000, "only {checked} ticks checked");
+    let s = h.snapshot();
+    assert!((s.commanded[0] - 25.0).abs() < 1e-9 && (s.commanded[1] + 1.0).abs() < 1e-9);
+}
