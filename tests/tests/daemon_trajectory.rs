@@ -98,7 +98,11 @@ fn dense_circle_uses_the_axis_acceleration_within_its_limits() {
     // the ramps at both ends run along the axes the normal acceleration leaves free, so the
     // whole circle takes about 1.50 s (1.62 s with the tangential acceleration halved on every
     // turning block). Per-axis acceleration stays within 800 mm/s² on every tick.
-    let d = Daemon::start("daemon-trajectory-circle", "[bus]\nkind = 'sim'\n", [1, 2, 3]);
+    let d = Daemon::start(
+        "daemon-trajectory-circle",
+        "[bus]\nkind = 'sim'\n",
+        [1, 2, 3],
+    );
     let r = 20.0f64;
     let n = (2.0 * std::f64::consts::PI * r / 0.05).round() as usize;
     let mut text = format!("N1 G23 G1 X{r:.6} Y0 F6000\n");
@@ -115,7 +119,11 @@ fn dense_circle_uses_the_axis_acceleration_within_its_limits() {
     assert!(ok, "cncctl trajectory failed: {out}");
     let rows = csv_rows(&csv);
     // Start at the first point (the move from X0 Y0 to X20 is a line of its own).
-    let from = rows.iter().position(|r| r[5] >= 1.0).unwrap().saturating_sub(1);
+    let from = rows
+        .iter()
+        .position(|r| r[5] >= 1.0)
+        .unwrap()
+        .saturating_sub(1);
     let circle = &rows[from..];
     let t = circle.last().unwrap()[0] - circle[0][0];
     assert!(t < 1.56, "circle took {t} s");

@@ -222,7 +222,11 @@ impl Planner {
         if arcs || self.cfg.envelope.profile != Profile::Linear || !p.a_axes.is_finite() {
             return split;
         }
-        let start_cap = if prev_smooth { self.win[i - 1].cap } else { 0.0 };
+        let start_cap = if prev_smooth {
+            self.win[i - 1].cap
+        } else {
+            0.0
+        };
         let end_cap = if next_smooth { p.cap } else { 0.0 };
         let a_t = self.line_tangential_mm_s2(i, start_cap, end_cap);
         (a_t / p.a_axes).clamp(split, 1.0)
@@ -334,7 +338,11 @@ impl Planner {
                 continue;
             }
             let b = if linear && q.a_axes.is_finite() && !is_arc(p) && !is_arc(n) {
-                let (c0, c1) = if side == i { (start_cap, cap) } else { (cap, 0.0) };
+                let (c0, c1) = if side == i {
+                    (start_cap, cap)
+                } else {
+                    (cap, 0.0)
+                };
                 self.line_tangential_mm_s2(side, c0, c1)
                     .clamp(split * q.a_axes, q.a_axes)
                     .min(aq)

@@ -53,8 +53,7 @@ impl Planner {
             return false;
         };
         let short = path == Path::Line && length_mm < m;
-        if !(short && block.continuity == Continuity::G23 && block.m.iter().all(Option::is_none))
-        {
+        if !(short && block.continuity == Continuity::G23 && block.m.iter().all(Option::is_none)) {
             return false;
         }
         let set = self.dyn_set_of(block);

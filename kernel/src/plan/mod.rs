@@ -429,7 +429,14 @@ impl Planner {
     /// the chord criterion R232, and in the parabolic profile the axis jerk of the circular
     /// motion (with the axis filter: within the corner share, and its pull towards the centre
     /// within Lm/2).
-    fn arc_ceiling(&self, path: &SegPath, dir: &AxesMm, set: usize, a_axes: f64, j_axes: f64) -> f64 {
+    fn arc_ceiling(
+        &self,
+        path: &SegPath,
+        dir: &AxesMm,
+        set: usize,
+        a_axes: f64,
+        j_axes: f64,
+    ) -> f64 {
         let SegPath::Arc { radius_mm, .. } = *path else {
             return f64::INFINITY;
         };
@@ -457,6 +464,57 @@ impl Planner {
         ))
     }
 
+    /// Judges the junction between the last block of the window and `p` (SPEC §7.1), and `p`
+    /// takes over the M0/M1 and dwell waiting before the first motion.
+    fn link_previous(&mut self, p: &mut Pending) {
+        p.seg.program_stop_before = std::mem::take(&mut self.leading_stop);
+        if self.win.is_empty() && self.leading_dwell_s > 0.0 {
+            // A dwell before the first motion: waited for at the start of this segment.
+            p.seg.dwell_before_s = self.leading_dwell_s;
+            self.leading_dwell_s = 0.0;
+        }
+        if let Some(prev) = self.win.back_mut() {
+            let turn = angle_between(&prev.t_end, &p.t_start);
+            prev.turn = turn;
+            prev.smooth = Self::is_smooth(&self.cfg, prev, p);
+            if !prev.smooth
+                && (prev.continuity == Continuity::G24 || p.continuity == Continuity::G24)
+            {
+                prev.seg.wait_in_position = true;
+            }
+        }
+    }
+
+    /// Path jerk of a segment: none in the linear profile; the set's (or the rapid set's)
+    /// jerk within the axes' in the parabolic profile.
+    fn path_jerk_of(&self, rapid: bool, set: usize, j_axes: f64) -> f64 {
+        let env = &self.cfg.envelope;
+        match env.profile {
+            Profile::Linear => f64::INFINITY,
+            Profile::Parabolic if rapid => env.rapid_jerk_mm_s3.min(j_axes),
+            Profile::Parabolic => env.sets[set].jerk_mm_s3.min(j_axes),
+        }
+    }
+
+    /// Direction for the axis limits of a path: the tangent, and for arcs both plane axes at
+    /// full path speed.
+    fn limit_direction(path: &SegPath, t_start: AxesMm, length_mm: f64) -> AxesMm {
+        let mut dir = t_start;
+        if let SegPath::Arc {
+            plane,
+            radius_mm,
+            sweep_rad,
+            ..
+        } = *path
+        {
+            let (a, b) = plane.axes();
+            let plane_share = (radius_mm * sweep_rad.abs()) / length_mm;
+            dir[a] = plane_share;
+            dir[b] = plane_share;
+        }
+        dir
+    }
+
     fn append(
         &mut self,
         block: &Block,
@@ -472,20 +530,7 @@ impl Planner {
         let env = &self.cfg.envelope;
         let t_start = path.tangent_at(0.0, axes);
         let t_end = path.tangent_at(1.0, axes);
-        // Direction for axis limits: for arcs both plane axes may move at full path speed.
-        let mut dir = t_start;
-        if let SegPath::Arc {
-            plane,
-            radius_mm,
-            sweep_rad,
-            ..
-        } = path
-        {
-            let (a, b) = plane.axes();
-            let plane_share = (radius_mm * sweep_rad.abs()) / length_mm;
-            dir[a] = plane_share;
-            dir[b] = plane_share;
-        }
+        let dir = Self::limit_direction(&path, t_start, length_mm);
         let (v_axes, a_axes) = self.cfg.path_limits(&dir);
         let j_axes = self.cfg.path_jerk(&dir);
         let mut v_max = self.arc_ceiling(&path, &dir, set, a_axes, j_axes);
@@ -501,17 +546,7 @@ impl Planner {
         } else {
             mm_min_to_mm_s(feed_mm_min)
         };
-        let jerk = match env.profile {
-            Profile::Linear => f64::INFINITY,
-            Profile::Parabolic => {
-                let j = if rapid {
-                    env.rapid_jerk_mm_s3
-                } else {
-                    env.sets[set].jerk_mm_s3
-                };
-                j.min(j_axes)
-            }
-        };
+        let jerk = self.path_jerk_of(rapid, set, j_axes);
         // Conservative acceleration until the junctions are known (final in `finalize`).
         let a_plan = a_axes
             .min(env.accel_stop_mm_s2)
@@ -543,10 +578,7 @@ impl Planner {
             program_stop: ProgramStop::None,
             program_stop_before: ProgramStop::None,
             axis_filter_ticks: self.cfg.axis_filter_ticks as u16,
-            per_rev_nominal_rpm: match block.feed {
-                Feed::MmPerRev(_) if !rapid => block.spindle.per_rev_nominal_rpm().unwrap_or(0.0),
-                _ => 0.0,
-            },
+            per_rev_nominal_rpm: per_rev_nominal_rpm(block, rapid),
         };
         let mut p = Pending {
             seg,
@@ -562,22 +594,7 @@ impl Planner {
             crit: 0.0,
             cap: 0.0,
         };
-        p.seg.program_stop_before = std::mem::take(&mut self.leading_stop);
-        if self.win.is_empty() && self.leading_dwell_s > 0.0 {
-            // A dwell before the first motion: waited for at the start of this segment.
-            p.seg.dwell_before_s = self.leading_dwell_s;
-            self.leading_dwell_s = 0.0;
-        }
-        if let Some(prev) = self.win.back_mut() {
-            let turn = angle_between(&prev.t_end, &p.t_start);
-            prev.turn = turn;
-            prev.smooth = Self::is_smooth(&self.cfg, prev, &p);
-            if !prev.smooth
-                && (prev.continuity == Continuity::G24 || p.continuity == Continuity::G24)
-            {
-                prev.seg.wait_in_position = true;
-            }
-        }
+        self.link_previous(&mut p);
         p.seg.wait_in_position = false;
         self.win.push_back(p);
     }
@@ -773,6 +790,14 @@ fn feed_mm_min(block: &Block) -> Result<f64, Diagnostic> {
             "feed per revolution needs a running spindle with a programmed speed S and a \
              feed F above zero",
         )),
+    }
+}
+
+/// Spindle speed (rpm) a feed per revolution was planned at (0 = feed per minute).
+fn per_rev_nominal_rpm(block: &Block, rapid: bool) -> f64 {
+    match block.feed {
+        Feed::MmPerRev(_) if !rapid => block.spindle.per_rev_nominal_rpm().unwrap_or(0.0),
+        _ => 0.0,
     }
 }
 
