@@ -244,8 +244,8 @@ impl Planner {
         let p = &self.win[i];
         let mut normal = [0.0f64; MAX_AXES];
         let mut dir = [0.0f64; MAX_AXES];
-        for k in 0..axes {
-            dir[k] = p.t_start[k].abs().max(p.t_end[k].abs());
+        for (k, d) in dir.iter_mut().enumerate().take(axes) {
+            *d = p.t_start[k].abs().max(p.t_end[k].abs());
         }
         for (j, cap) in [(i.wrapping_sub(1), start_cap), (i, end_cap)] {
             if cap <= 0.0 {
