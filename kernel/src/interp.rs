@@ -602,6 +602,33 @@ impl Interpolator {
         v_cap + r + j * u
     }
 
+    /// Smallest raw acceleration of the segments the next tick covers at speeds up to `v_up`,
+    /// starting with `a` (the raw segment's): the velocity change of a tick is along the
+    /// chord of that tick, and the planner gives each segment the tangential acceleration
+    /// the turns near it leave (a segment next to a turn may have less than its neighbour).
+    fn accel_over_next_tick(&self, a: f64, v_up: f64, braking: bool) -> f64 {
+        let mut a = a;
+        let mut d = self.seg(self.rk).length_mm - self.rs_mm;
+        let reach = v_up * TS_S;
+        let mut k = self.rk + 1;
+        while d < reach && k < self.len {
+            if self.seg(k - 1).v_end_mm_s == 0.0 {
+                // A stop point: the tick ends there.
+                break;
+            }
+            let seg = self.seg(k);
+            let ak = if braking {
+                seg.stop_accel_mm_s2
+            } else {
+                seg.accel_mm_s2
+            };
+            a = a.min(self.raw_accel(ak, seg));
+            d += seg.length_mm;
+            k += 1;
+        }
+        a
+    }
+
     /// Advances one tick.
     pub fn tick(&mut self) -> TickOut {
         let mut program_end = false;
@@ -818,7 +845,8 @@ impl Interpolator {
             }
             d += next.map_or(0.0, |n| n.length_mm);
         }
-        let mut v_next = (v + a * TS_S)
+        let a_up = self.accel_over_next_tick(a, v_up, braking);
+        let mut v_next = (v + a_up * TS_S)
             .min(soft)
             .max(v - a * TS_S)
             .min(hard)

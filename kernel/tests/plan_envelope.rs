@@ -108,6 +108,30 @@ fn dense_polyline_runs_near_feed_without_minimum_duration() {
 }
 
 #[test]
+fn lines_keep_the_acceleration_a_turn_in_another_axis_leaves() {
+    // Issue #16: a surface of 0.2 mm blocks whose turns are in Z (the undulation) while X moves,
+    // on the daemon's configuration. The normal acceleration of those turns takes little of the
+    // X axis, so many lines keep more than the old split (half of the path acceleration for
+    // every block next to a turn), and every axis stays within its limit.
+    let c = PlannerConfig::for_machine(&[kernel::plan::DEFAULT_AXIS_LIMITS; 3], 0.0, None);
+    let blocks = surface(3, 20.0, 1.0, 0.2, 6000.0);
+    let r = assert_within("surface", &c, &blocks);
+    let turning: Vec<_> = r
+        .segments
+        .iter()
+        .filter(|s| s.junction != Junction::Stop && s.length_mm < 0.5)
+        .collect();
+    assert!(turning.len() > 200, "{}", turning.len());
+    // Where the curvature cap binds the normal share is used up in Z; on the flanks of the
+    // undulation (and everywhere else) the X axis keeps most of its acceleration.
+    let kept = turning
+        .iter()
+        .filter(|s| s.accel_mm_s2 >= 1.3 * 0.5 * 800.0)
+        .count();
+    assert!(kept * 3 > turning.len(), "{kept} of {} kept", turning.len());
+}
+
+#[test]
 fn dense_circle_respects_curvature() {
     // 0.2 mm chords on R 6.75 at F6000: per-junction caps alone would allow v²·α/L far above the
     // axis limits; the curvature window keeps every axis within its acceleration.

@@ -67,6 +67,72 @@ fn cncctl_trajectory_gives_the_planned_ticks_without_moving() {
     );
 }
 
+/// Rows of a trajectory CSV (t, X, Y, Z, path v, seq, block).
+fn csv_rows(path: &std::path::Path) -> Vec<Vec<f64>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    text.lines()
+        .skip(1)
+        .map(|l| {
+            l.split(',')
+                .map(|x| x.parse::<f64>().unwrap_or(f64::NAN))
+                .collect()
+        })
+        .collect()
+}
+
+/// Largest per-axis acceleration of the setpoints (finite differences of 4 ms ticks).
+fn max_axis_accel(rows: &[Vec<f64>], axis: usize) -> f64 {
+    let vel: Vec<f64> = rows
+        .windows(2)
+        .map(|w| (w[1][axis] - w[0][axis]) / TS_S)
+        .collect();
+    vel.windows(2)
+        .map(|w| ((w[1] - w[0]) / TS_S).abs())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn dense_circle_uses_the_axis_acceleration_within_its_limits() {
+    // Issue #16: a circle r20 of 0.05 mm chords, G23, F6000, default axes (200 mm/s,
+    // 800 mm/s²). The curvature cap (normal share ½ of 800 mm/s²) gives √(400·20) = 89.4 mm/s;
+    // the ramps at both ends run along the axes the normal acceleration leaves free, so the
+    // whole circle takes about 1.50 s (1.62 s with the tangential acceleration halved on every
+    // turning block). Per-axis acceleration stays within 800 mm/s² on every tick.
+    let d = Daemon::start(
+        "daemon-trajectory-circle",
+        "[bus]\nkind = 'sim'\n",
+        [1, 2, 3],
+    );
+    let r = 20.0f64;
+    let n = (2.0 * std::f64::consts::PI * r / 0.05).round() as usize;
+    let mut text = format!("N1 G23 G1 X{r:.6} Y0 F6000\n");
+    for k in 1..=n {
+        let a = 2.0 * std::f64::consts::PI * k as f64 / n as f64;
+        text.push_str(&format!("G1 X{:.6} Y{:.6}\n", r * a.cos(), r * a.sin()));
+    }
+    let prog = d.program("circle.nc", &text);
+    let csv = d.dir.join("circle.csv");
+    let (ok, out) = d.cncctl(
+        &["--json", "trajectory", &prog, "-o", csv.to_str().unwrap()],
+        Duration::from_secs(300),
+    );
+    assert!(ok, "cncctl trajectory failed: {out}");
+    let rows = csv_rows(&csv);
+    // Start at the first point (the move from X0 Y0 to X20 is a line of its own).
+    let from = rows
+        .iter()
+        .position(|r| r[5] >= 1.0)
+        .unwrap()
+        .saturating_sub(1);
+    let circle = &rows[from..];
+    let t = circle.last().unwrap()[0] - circle[0][0];
+    assert!(t < 1.56, "circle took {t} s");
+    for axis in 1..4 {
+        let a = max_axis_accel(circle, axis);
+        assert!(a <= 800.0 * (1.0 + 1e-6) + 1e-3, "axis {axis}: {a} mm/s²");
+    }
+}
+
 /// The two numbers of `cncctl --json trajectory` (no JSON crate in the tests package).
 mod serde_like {
     pub struct Summary {

@@ -320,13 +320,6 @@ impl Envelope {
         // R395 in ms, 0 → 500 ms.
         let rise_ms = nonzero(c.field_digits(395, 1, 8) as f64).unwrap_or(500.0);
         // Global (set-less) criteria: R384, R385, R232.
-        let ref_len = |d: u8| match d {
-            1 => 1.0,
-            2 => 0.5,
-            3 => 0.1,
-            4 => 0.05,
-            _ => 0.0,
-        };
         // R232 d5..8 old form: percent of √(R·a) (**decided**: v ≤ p/100·√(R·R52), i.e. a
         // centripetal acceleration of (p/100)²·R52). 0 = off.
         let old_ref = nonzero(c.get(52).abs()).unwrap_or(a_slowest);
@@ -346,65 +339,12 @@ impl Envelope {
             overload_ref_len_mm: ref_len(c.decade(385, 8)),
             centripetal_mm_s2: old_centripetal(c.field_digits(232, 5, 8) as f64),
         };
-        let p_scale = |r: u16| match c.decade(r, 8) {
-            2 => 0.01,
-            3 => 0.001,
-            _ => 1.0,
-        };
-        // Reads set k (0-based); `None` for a disabled set.
-        let read_set = |k: u16| -> Option<[Option<f64>; 6]> {
-            let base = 406 + 6 * k;
-            if c.decade(base, 1) != 1 {
-                return None;
-            }
-            // d2..d6 = 1: value is a reference to a program parameter (not resolvable here).
-            let direct = |i: u32| c.decade(base, i + 1) == 0;
-            let p = nonzero(c.field_digits(base + 1, 1, 7) as f64)
-                .filter(|_| direct(1))
-                .map(|p| jerk_from_p_mm_s3(p * p_scale(base + 1)));
-            let a = nonzero(c.field_digits(base + 2, 1, 8) as f64).filter(|_| direct(2));
-            let acc = nonzero(c.field_digits(base + 3, 1, 4) as f64).filter(|_| direct(3));
-            let drop = nonzero(c.field_digits(base + 3, 5, 6) as f64).filter(|_| direct(3));
-            let over = nonzero(c.field_digits(base + 4, 1, 7) as f64).filter(|_| direct(4));
-            let cen = if !direct(5) {
-                None
-            } else if c.decade(base + 5, 8) == 1 {
-                nonzero(c.field_digits(base + 5, 1, 7) as f64 / 10.0)
-            } else {
-                nonzero(c.field_value(base + 5, 1, 7)).map(old_centripetal)
-            };
-            Some([p, a, acc, drop, over, cen])
-        };
-        let mut sets = [global; 4];
-        if let Some(s1) = read_set(0) {
-            let merge = |s: [Option<f64>; 6], base: &DynamicSet, r_over: u16| DynamicSet {
-                jerk_mm_s3: s[0].unwrap_or(base.jerk_mm_s3),
-                accel_mm_s2: s[1].unwrap_or(base.accel_mm_s2),
-                accuracy_um: s[2].unwrap_or(base.accuracy_um),
-                drop_percent: s[3].unwrap_or(base.drop_percent),
-                overload_mm_s2: s[4].unwrap_or(base.overload_mm_s2),
-                overload_ref_len_mm: if s[4].is_some() {
-                    ref_len(c.decade(r_over, 8))
-                } else {
-                    base.overload_ref_len_mm
-                },
-                centripetal_mm_s2: s[5].unwrap_or(base.centripetal_mm_s2),
-            };
-            // Set 1 completes from the global constants; sets 2..4 from set 1 (SPEC §7.4).
-            let set1 = merge(s1, &global, 410);
-            sets[0] = set1;
-            for k in 1..4u16 {
-                sets[k as usize] = match read_set(k) {
-                    Some(s) => merge(s, &set1, 410 + 6 * k),
-                    None => set1,
-                };
-            }
-        }
+        let sets = dynamic_sets(c, global, &old_centripetal);
         // Rapid and stop set R430..R432 (control, P, A); falls back to set 1 / R237.
         let (mut rapid_a, mut rapid_j) = (accel_rapid, sets[0].jerk_mm_s3);
         if c.decade(430, 1) == 1 {
             if let Some(p) = nonzero(c.field_digits(431, 1, 7) as f64) {
-                rapid_j = jerk_from_p_mm_s3(p * p_scale(431));
+                rapid_j = jerk_from_p_mm_s3(p * p_scale(c, 431));
             }
             if let Some(a) = nonzero(c.field_digits(432, 1, 8) as f64) {
                 rapid_a = a;
@@ -428,6 +368,85 @@ impl Envelope {
             rapid_jerk_mm_s3: rapid_j,
         }
     }
+}
+
+/// Reference block length of the 8.R385 correction, mm (0 = off).
+fn ref_len(d: u8) -> f64 {
+    match d {
+        1 => 1.0,
+        2 => 0.5,
+        3 => 0.1,
+        4 => 0.05,
+        _ => 0.0,
+    }
+}
+
+/// Scale of the parabolic ramp P of constant `r` (8.Rxxx = 2, 3: 1/100, 1/1000).
+fn p_scale(c: &Constants, r: u16) -> f64 {
+    match c.decade(r, 8) {
+        2 => 0.01,
+        3 => 0.001,
+        _ => 1.0,
+    }
+}
+
+/// The dynamic sets 1..4 (R406..R429, SPEC §7.4): set 1 completes from the global constants,
+/// sets 2..4 from set 1; a disabled set is set 1; set 1 disabled → the global values for all.
+fn dynamic_sets(
+    c: &Constants,
+    global: DynamicSet,
+    old_centripetal: &dyn Fn(f64) -> f64,
+) -> [DynamicSet; 4] {
+    // Reads set k (0-based); `None` for a disabled set.
+    let read_set = |k: u16| -> Option<[Option<f64>; 6]> {
+        let base = 406 + 6 * k;
+        if c.decade(base, 1) != 1 {
+            return None;
+        }
+        // d2..d6 = 1: value is a reference to a program parameter (not resolvable here).
+        let direct = |i: u32| c.decade(base, i + 1) == 0;
+        let p = nonzero(c.field_digits(base + 1, 1, 7) as f64)
+            .filter(|_| direct(1))
+            .map(|p| jerk_from_p_mm_s3(p * p_scale(c, base + 1)));
+        let a = nonzero(c.field_digits(base + 2, 1, 8) as f64).filter(|_| direct(2));
+        let acc = nonzero(c.field_digits(base + 3, 1, 4) as f64).filter(|_| direct(3));
+        let drop = nonzero(c.field_digits(base + 3, 5, 6) as f64).filter(|_| direct(3));
+        let over = nonzero(c.field_digits(base + 4, 1, 7) as f64).filter(|_| direct(4));
+        let cen = if !direct(5) {
+            None
+        } else if c.decade(base + 5, 8) == 1 {
+            nonzero(c.field_digits(base + 5, 1, 7) as f64 / 10.0)
+        } else {
+            nonzero(c.field_value(base + 5, 1, 7)).map(old_centripetal)
+        };
+        Some([p, a, acc, drop, over, cen])
+    };
+    let mut sets = [global; 4];
+    if let Some(s1) = read_set(0) {
+        let merge = |s: [Option<f64>; 6], base: &DynamicSet, r_over: u16| DynamicSet {
+            jerk_mm_s3: s[0].unwrap_or(base.jerk_mm_s3),
+            accel_mm_s2: s[1].unwrap_or(base.accel_mm_s2),
+            accuracy_um: s[2].unwrap_or(base.accuracy_um),
+            drop_percent: s[3].unwrap_or(base.drop_percent),
+            overload_mm_s2: s[4].unwrap_or(base.overload_mm_s2),
+            overload_ref_len_mm: if s[4].is_some() {
+                ref_len(c.decade(r_over, 8))
+            } else {
+                base.overload_ref_len_mm
+            },
+            centripetal_mm_s2: s[5].unwrap_or(base.centripetal_mm_s2),
+        };
+        // Set 1 completes from the global constants; sets 2..4 from set 1 (SPEC §7.4).
+        let set1 = merge(s1, &global, 410);
+        sets[0] = set1;
+        for k in 1..4u16 {
+            sets[k as usize] = match read_set(k) {
+                Some(s) => merge(s, &set1, 410 + 6 * k),
+                None => set1,
+            };
+        }
+    }
+    sets
 }
 
 #[cfg(test)]

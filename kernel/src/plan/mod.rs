@@ -25,6 +25,8 @@
 
 mod config;
 pub mod criteria;
+mod junction;
+mod merge;
 mod path;
 
 use std::collections::VecDeque;
@@ -161,16 +163,6 @@ struct Pending {
     cap: f64,
 }
 
-/// A short line held back for merging into the next block (R383).
-#[derive(Clone, Copy, Debug)]
-struct Carry {
-    start: AxesMm,
-    end: AxesMm,
-    feed_mm_min: f64,
-    block: Block,
-    set: usize,
-}
-
 /// Streaming planner: push blocks, poll committed segments.
 pub struct Planner {
     cfg: PlannerConfig,
@@ -181,7 +173,7 @@ pub struct Planner {
     /// Leading entries of `win` whose end junction is final.
     finalized: usize,
     finished: bool,
-    carry: Option<Carry>,
+    carry: Option<merge::Carry>,
     /// Dynamic set chosen by the PLC cell DYNAM_SET, until the program selects one again.
     plc_set: Option<usize>,
     last_plc_cell: Option<u8>,
@@ -270,38 +262,7 @@ impl Planner {
                 return Ok(());
             }
             _ => {
-                // Technology functions (M codes) run at standstill: stop before them. A
-                // spindle change rides on the segment it follows, so the RT thread applies it
-                // when that segment ends (M5 after the last cut, S between cuts).
-                let spindle_change = block.spindle != self.spindle_state;
-                self.spindle_state = block.spindle;
-                let has_m = block.m.iter().any(Option::is_some);
-                if has_m {
-                    self.flush_carry();
-                    self.force_stop(0.0);
-                    self.program_stop(ProgramStop::of(&block.m));
-                }
-                // M3/M4/M5 count even when the state looks unchanged: each run starts from the
-                // power-on state, while the spindle may still turn from an earlier run.
-                let spindle_m = block.m.iter().flatten().any(|m| matches!(m, 3..=5));
-                if spindle_change || (spindle_m && self.win.is_empty()) {
-                    let open = self.finalized < self.win.len();
-                    if let Some(p) = self.win.back_mut().filter(|_| open) {
-                        p.seg.spindle_after = Some(block.spindle);
-                    } else if self.win.is_empty() {
-                        self.leading_spindle = Some(Segment {
-                            job: self.job,
-                            seq: block.seq,
-                            n: block.n,
-                            line: block.line,
-                            spindle: block.spindle,
-                            ..Segment::default()
-                        });
-                    }
-                }
-                if has_m {
-                    self.advance();
-                }
+                self.push_technology(block);
                 return Ok(());
             }
         };
@@ -316,55 +277,9 @@ impl Planner {
             ));
         }
         let rapid = path == Path::Rapid;
-        let feed_mm_min = match block.feed {
-            _ if rapid => 0.0,
-            Feed::MmPerMin(f) if f.is_finite() && f > 0.0 => f,
-            Feed::MmPerMin(_) => {
-                return Err(Diagnostic::error(
-                    block.n,
-                    block.line,
-                    0,
-                    "no feed programmed for a cutting move (F missing or zero)",
-                ));
-            }
-            // Feed per revolution (G95, KŘR with mm/rev; SPEC §5, §6): V = n·β, planned at the
-            // nominal (highest) spindle speed of the block; the interpolator scales it by
-            // n_actual / nominal every tick (`Segment::per_rev_nominal_rpm`).
-            Feed::MmPerRev(f) if f.is_finite() && f > 0.0 => {
-                match block.spindle.per_rev_nominal_rpm() {
-                    Some(n) => f * n,
-                    None => {
-                        return Err(Diagnostic::error(
-                            block.n,
-                            block.line,
-                            0,
-                            "feed per revolution needs a running spindle with a programmed \
-                             speed S",
-                        ));
-                    }
-                }
-            }
-            Feed::MmPerRev(_) => {
-                return Err(Diagnostic::error(
-                    block.n,
-                    block.line,
-                    0,
-                    "feed per revolution needs a running spindle with a programmed speed S \
-                     and a feed F above zero",
-                ));
-            }
-        };
+        let feed_mm_min = if rapid { 0.0 } else { feed_mm_min(block)? };
         // R383: a short line with nothing else in it merges into the next block (SPEC §7.2).
-        let mut start = start;
-        let is_line = path == Path::Line;
-        if let Some(c) = self.carry {
-            if is_line && c.feed_mm_min == feed_mm_min && block.continuity == Continuity::G23 {
-                start = c.start;
-                self.carry = None;
-            } else {
-                self.flush_carry();
-            }
-        }
+        let start = self.merged_start(block, path, start, feed_mm_min);
         let seg_path = match path {
             Path::Rapid | Path::Line => SegPath::Line { start, end },
             Path::Arc { dir, center, plane } => SegPath::arc(start, end, center, plane, dir),
@@ -373,20 +288,7 @@ impl Planner {
         if length_mm.is_nan() || length_mm <= 1e-9 {
             return Ok(());
         }
-        if let Some(m) = self.cfg.envelope.merge_len_mm
-            && is_line
-            && length_mm < m
-            && block.continuity == Continuity::G23
-            && block.m.iter().all(Option::is_none)
-        {
-            let set = self.dyn_set_of(block);
-            self.carry = Some(Carry {
-                start,
-                end,
-                feed_mm_min,
-                block: *block,
-                set,
-            });
+        if self.hold_back_short_line(block, path, start, end, length_mm, feed_mm_min) {
             return Ok(());
         }
         let set = self.dyn_set_of(block);
@@ -399,6 +301,41 @@ impl Planner {
         }
         self.advance();
         Ok(())
+    }
+
+    /// A block without motion. Technology functions (M codes) run at standstill: stop before
+    /// them. A spindle change rides on the segment it follows, so the RT thread applies it
+    /// when that segment ends (M5 after the last cut, S between cuts).
+    fn push_technology(&mut self, block: &Block) {
+        let spindle_change = block.spindle != self.spindle_state;
+        self.spindle_state = block.spindle;
+        let has_m = block.m.iter().any(Option::is_some);
+        if has_m {
+            self.flush_carry();
+            self.force_stop(0.0);
+            self.program_stop(ProgramStop::of(&block.m));
+        }
+        // M3/M4/M5 count even when the state looks unchanged: each run starts from the
+        // power-on state, while the spindle may still turn from an earlier run.
+        let spindle_m = block.m.iter().flatten().any(|m| matches!(m, 3..=5));
+        if spindle_change || (spindle_m && self.win.is_empty()) {
+            let open = self.finalized < self.win.len();
+            if let Some(p) = self.win.back_mut().filter(|_| open) {
+                p.seg.spindle_after = Some(block.spindle);
+            } else if self.win.is_empty() {
+                self.leading_spindle = Some(Segment {
+                    job: self.job,
+                    seq: block.seq,
+                    n: block.n,
+                    line: block.line,
+                    spindle: block.spindle,
+                    ..Segment::default()
+                });
+            }
+        }
+        if has_m {
+            self.advance();
+        }
     }
 
     /// Marks a program stop (M0/M1) at the end of the open last segment, or before the first
@@ -488,17 +425,94 @@ impl Planner {
         }
     }
 
-    /// Emits a held-back short line as a block of its own (the next block cannot absorb it).
-    fn flush_carry(&mut self) {
-        let Some(c) = self.carry.take() else { return };
-        let path = SegPath::Line {
-            start: c.start,
-            end: c.end,
+    /// Ceiling of an arc (∞ for lines): centripetal acceleration within the normal share,
+    /// the chord criterion R232, and in the parabolic profile the axis jerk of the circular
+    /// motion (with the axis filter: within the corner share, and its pull towards the centre
+    /// within Lm/2).
+    fn arc_ceiling(
+        &self,
+        path: &SegPath,
+        dir: &AxesMm,
+        set: usize,
+        a_axes: f64,
+        j_axes: f64,
+    ) -> f64 {
+        let SegPath::Arc { radius_mm, .. } = *path else {
+            return f64::INFINITY;
         };
-        let length_mm = path.length(self.cfg.axes);
-        if length_mm > 1e-9 {
-            self.append(&c.block, path, length_mm, false, c.feed_mm_min, c.set);
+        let env = &self.cfg.envelope;
+        let set_ = &env.sets[set];
+        let a_iso = self.cfg.iso_accel(dir, dir) * NORMAL_SHARE;
+        let a_c = set_.centripetal_mm_s2.min(a_iso);
+        let v_max = criteria::curvature_mm_s(a_c, 1.0 / radius_mm)
+            .min(criteria::arc_chord_mm_s(radius_mm, env.arc_chord_um));
+        if env.profile != Profile::Parabolic {
+            return v_max;
         }
+        let t_f = self.cfg.axis_filter_s();
+        if t_f <= 0.0 {
+            let j = set_.jerk_mm_s3.min(j_axes);
+            return v_max.min(criteria::arc_jerk_mm_s(j, radius_mm));
+        }
+        let a = set_.accel_mm_s2.min(a_axes) * (1.0 - NORMAL_SHARE);
+        v_max.min(criteria::arc_filtered_mm_s(
+            radius_mm,
+            a,
+            self.cfg.iso_jerk(dir) * NORMAL_SHARE,
+            t_f,
+            set_.accuracy_um * 1e-3 / 2.0,
+        ))
+    }
+
+    /// Judges the junction between the last block of the window and `p` (SPEC §7.1), and `p`
+    /// takes over the M0/M1 and dwell waiting before the first motion.
+    fn link_previous(&mut self, p: &mut Pending) {
+        p.seg.program_stop_before = std::mem::take(&mut self.leading_stop);
+        if self.win.is_empty() && self.leading_dwell_s > 0.0 {
+            // A dwell before the first motion: waited for at the start of this segment.
+            p.seg.dwell_before_s = self.leading_dwell_s;
+            self.leading_dwell_s = 0.0;
+        }
+        if let Some(prev) = self.win.back_mut() {
+            let turn = angle_between(&prev.t_end, &p.t_start);
+            prev.turn = turn;
+            prev.smooth = Self::is_smooth(&self.cfg, prev, p);
+            if !prev.smooth
+                && (prev.continuity == Continuity::G24 || p.continuity == Continuity::G24)
+            {
+                prev.seg.wait_in_position = true;
+            }
+        }
+    }
+
+    /// Path jerk of a segment: none in the linear profile; the set's (or the rapid set's)
+    /// jerk within the axes' in the parabolic profile.
+    fn path_jerk_of(&self, rapid: bool, set: usize, j_axes: f64) -> f64 {
+        let env = &self.cfg.envelope;
+        match env.profile {
+            Profile::Linear => f64::INFINITY,
+            Profile::Parabolic if rapid => env.rapid_jerk_mm_s3.min(j_axes),
+            Profile::Parabolic => env.sets[set].jerk_mm_s3.min(j_axes),
+        }
+    }
+
+    /// Direction for the axis limits of a path: the tangent, and for arcs both plane axes at
+    /// full path speed.
+    fn limit_direction(path: &SegPath, t_start: AxesMm, length_mm: f64) -> AxesMm {
+        let mut dir = t_start;
+        if let SegPath::Arc {
+            plane,
+            radius_mm,
+            sweep_rad,
+            ..
+        } = *path
+        {
+            let (a, b) = plane.axes();
+            let plane_share = (radius_mm * sweep_rad.abs()) / length_mm;
+            dir[a] = plane_share;
+            dir[b] = plane_share;
+        }
+        dir
     }
 
     fn append(
@@ -516,49 +530,10 @@ impl Planner {
         let env = &self.cfg.envelope;
         let t_start = path.tangent_at(0.0, axes);
         let t_end = path.tangent_at(1.0, axes);
-        // Direction for axis limits: for arcs both plane axes may move at full path speed.
-        let mut dir = t_start;
-        if let SegPath::Arc {
-            plane,
-            radius_mm,
-            sweep_rad,
-            ..
-        } = path
-        {
-            let (a, b) = plane.axes();
-            let plane_share = (radius_mm * sweep_rad.abs()) / length_mm;
-            dir[a] = plane_share;
-            dir[b] = plane_share;
-        }
+        let dir = Self::limit_direction(&path, t_start, length_mm);
         let (v_axes, a_axes) = self.cfg.path_limits(&dir);
         let j_axes = self.cfg.path_jerk(&dir);
-        let mut v_max = f64::INFINITY;
-        if let SegPath::Arc { radius_mm, .. } = path {
-            let set_ = &env.sets[set];
-            let a_iso = self.cfg.iso_accel(&dir, &dir) * NORMAL_SHARE;
-            let a_c = set_.centripetal_mm_s2.min(a_iso);
-            v_max = v_max
-                .min(criteria::curvature_mm_s(a_c, 1.0 / radius_mm))
-                .min(criteria::arc_chord_mm_s(radius_mm, env.arc_chord_um));
-            if env.profile == Profile::Parabolic {
-                let t_f = self.cfg.axis_filter_s();
-                if t_f > 0.0 {
-                    // Axis jerk of the circular motion within the corner share of the axis
-                    // jerk, and the filter's pull towards the centre within Lm/2.
-                    let a = set_.accel_mm_s2.min(a_axes) * (1.0 - NORMAL_SHARE);
-                    v_max = v_max.min(criteria::arc_filtered_mm_s(
-                        radius_mm,
-                        a,
-                        self.cfg.iso_jerk(&dir) * NORMAL_SHARE,
-                        t_f,
-                        set_.accuracy_um * 1e-3 / 2.0,
-                    ));
-                } else {
-                    let j = set_.jerk_mm_s3.min(j_axes);
-                    v_max = v_max.min(criteria::arc_jerk_mm_s(j, radius_mm));
-                }
-            }
-        }
+        let mut v_max = self.arc_ceiling(&path, &dir, set, a_axes, j_axes);
         v_max = v_max.min(v_axes);
         if !rapid {
             v_max = v_max.min(criteria::min_duration_mm_s(
@@ -571,17 +546,7 @@ impl Planner {
         } else {
             mm_min_to_mm_s(feed_mm_min)
         };
-        let jerk = match env.profile {
-            Profile::Linear => f64::INFINITY,
-            Profile::Parabolic => {
-                let j = if rapid {
-                    env.rapid_jerk_mm_s3
-                } else {
-                    env.sets[set].jerk_mm_s3
-                };
-                j.min(j_axes)
-            }
-        };
+        let jerk = self.path_jerk_of(rapid, set, j_axes);
         // Conservative acceleration until the junctions are known (final in `finalize`).
         let a_plan = a_axes
             .min(env.accel_stop_mm_s2)
@@ -613,10 +578,7 @@ impl Planner {
             program_stop: ProgramStop::None,
             program_stop_before: ProgramStop::None,
             axis_filter_ticks: self.cfg.axis_filter_ticks as u16,
-            per_rev_nominal_rpm: match block.feed {
-                Feed::MmPerRev(_) if !rapid => block.spindle.per_rev_nominal_rpm().unwrap_or(0.0),
-                _ => 0.0,
-            },
+            per_rev_nominal_rpm: per_rev_nominal_rpm(block, rapid),
         };
         let mut p = Pending {
             seg,
@@ -632,22 +594,7 @@ impl Planner {
             crit: 0.0,
             cap: 0.0,
         };
-        p.seg.program_stop_before = std::mem::take(&mut self.leading_stop);
-        if self.win.is_empty() && self.leading_dwell_s > 0.0 {
-            // A dwell before the first motion: waited for at the start of this segment.
-            p.seg.dwell_before_s = self.leading_dwell_s;
-            self.leading_dwell_s = 0.0;
-        }
-        if let Some(prev) = self.win.back_mut() {
-            let turn = angle_between(&prev.t_end, &p.t_start);
-            prev.turn = turn;
-            prev.smooth = Self::is_smooth(&self.cfg, prev, &p);
-            if !prev.smooth
-                && (prev.continuity == Continuity::G24 || p.continuity == Continuity::G24)
-            {
-                prev.seg.wait_in_position = true;
-            }
-        }
+        self.link_previous(&mut p);
         p.seg.wait_in_position = false;
         self.win.push_back(p);
     }
@@ -768,243 +715,6 @@ impl Planner {
         }
     }
 
-    /// Computes the junction at the end of block `i` (all criteria of SPEC §7.2) and the final
-    /// limits of block `i` itself.
-    fn finalize(&mut self, i: usize, last: bool) {
-        let env = &self.cfg.envelope;
-        let mut guess = 0.0;
-        let (crit, cap) = if last {
-            (0.0, 0.0)
-        } else {
-            let (p, n) = (&self.win[i], &self.win[i + 1]);
-            let set = &env.sets[n.set];
-            let a_iso = self.cfg.iso_accel(&p.t_end, &n.t_start) * NORMAL_SHARE;
-            let am = set.overload_mm_s2.min(a_iso);
-            let len = 0.5 * (p.seg.length_mm + n.seg.length_mm);
-            let turn = p.turn;
-            // Dynamic criterion (R385, with the 8.R385 length correction) and accuracy (R384).
-            let mut v = criteria::dynamic_mm_s(am, turn, set.overload_ref_len_mm, len)
-                .min(criteria::accuracy_mm_s(set.accuracy_um, turn))
-                .min(p.seg.v_max_mm_s)
-                .min(n.seg.v_max_mm_s)
-                .min(OVERRIDE_MAX * p.seg.feed_mm_s.max(n.seg.feed_mm_s));
-            if p.smooth {
-                // Several junctions can fall within one tick: apply both criteria to the turn
-                // over the path one tick covers (centred on the junction). This is the local
-                // curvature cap v ≤ √(a/κ) in the form of the dynamic criterion.
-                // The window grows with the speed, so the bound falls as the speed rises:
-                // bisect for the largest speed within the bound of its own window.
-                let axes = self.cfg.axes;
-                // With the axis smoothing filter (parabolic profile), the corner share of the
-                // axis jerk and acceleration, and half of Lm, bound what the filter makes of
-                // the turns within ±v·T (criteria::FilterWindow).
-                let t_f = self.cfg.axis_filter_s();
-                let mut jerk_budget = [0.0; crate::units::MAX_AXES];
-                let mut accel_budget = [0.0; crate::units::MAX_AXES];
-                for k in 0..axes {
-                    jerk_budget[k] = self.cfg.axis_j_max_mm_s3[k] * NORMAL_SHARE;
-                    accel_budget[k] = self.cfg.axis_a_max_mm_s2[k] * NORMAL_SHARE;
-                }
-                let a_path =
-                    |q: &Pending| env.sets[q.set].accel_mm_s2.min(q.a_axes) * (1.0 - NORMAL_SHARE);
-                let a_corner = a_path(p).max(a_path(n));
-                let lm_half_mm = set.accuracy_um * 1e-3 / 2.0;
-                let bound = |v: f64| {
-                    let half = v * TS_S / 2.0;
-                    let t0 = self.tangent_near(i, -half);
-                    let t1 = self.tangent_near(i, half);
-                    let turn = criteria::Turn::between(&t0, &t1, axes);
-                    if t_f > 0.0 {
-                        let h = v * t_f;
-                        let w = criteria::FilterWindow {
-                            before: self.tangent_near(i, -h),
-                            end: p.t_end,
-                            start: n.t_start,
-                            after: self.tangent_near(i, h),
-                        };
-                        let ok = w.allows(
-                            v,
-                            a_corner,
-                            t_f,
-                            axes,
-                            &jerk_budget,
-                            &accel_budget,
-                            lm_half_mm,
-                        );
-                        if !ok {
-                            return 0.0;
-                        }
-                    }
-                    turn.dynamic_mm_s(a_iso)
-                        .min(turn.accuracy_mm_s(set.accuracy_um))
-                };
-                if bound(v) < v * (1.0 - 1e-12) {
-                    let (mut lo, mut hi) = (0.0, v);
-                    // Neighbouring junctions of a dense path have similar limits: bracket
-                    // around the previous result first.
-                    let g = self.window_guess_mm_s;
-                    for w in [0.001, 0.03] {
-                        if !(g > 0.0 && g < v) || hi - lo <= 0.002 * hi {
-                            break;
-                        }
-                        let (gl, gh) = ((1.0 - w) * g, ((1.0 + w) * g).min(v));
-                        if gl <= lo || gh >= hi {
-                            continue;
-                        }
-                        if bound(gl) >= gl {
-                            lo = gl;
-                            if bound(gh) < gh {
-                                hi = gh;
-                            }
-                        } else {
-                            hi = gl;
-                        }
-                    }
-                    // 0.2 % is far below the spread of the other criteria.
-                    let mut steps = 0;
-                    while hi - lo > 0.002 * hi && steps < 64 {
-                        steps += 1;
-                        let mid = 0.5 * (lo + hi);
-                        if bound(mid) >= mid {
-                            lo = mid;
-                        } else {
-                            hi = mid;
-                        }
-                    }
-                    v = lo;
-                    guess = v;
-                }
-            }
-            (v, if p.smooth { v } else { 0.0 })
-        };
-        if guess > 0.0 {
-            self.window_guess_mm_s = guess;
-        }
-        let criteria_cap = cap;
-        let planned_stop = !last && self.corner_is_a_stop(i, cap);
-        let cap = if planned_stop {
-            self.win[i].smooth = false;
-            0.0
-        } else {
-            cap
-        };
-        let prev_crit = if i > 0 { self.win[i - 1].crit } else { 0.0 };
-        let prev_smooth = i > 0 && self.win[i - 1].smooth;
-        // A smooth neighbour that is an arc brings its centripetal acceleration into the ticks
-        // that cross the junction.
-        let is_arc = |p: &Pending| matches!(p.seg.path, SegPath::Arc { .. });
-        let arc_next = !last && self.win[i].smooth && is_arc(&self.win[i + 1]);
-        let arc_prev = prev_smooth && is_arc(&self.win[i - 1]);
-        let prev_turn = if prev_smooth {
-            self.win[i - 1].turn
-        } else {
-            0.0
-        };
-        let rise_limit = env.rise_time_s;
-        let accel_stop = env.accel_stop_mm_s2;
-        let accel_rapid = env.accel_rapid_mm_s2;
-        let rapid_a = env.rapid_accel_mm_s2;
-        let p = &mut self.win[i];
-        p.crit = crit;
-        p.cap = cap;
-        p.seg.junction_cap_mm_s = criteria_cap;
-        // Acceleration: R52 without continuity, R236 (or the set's A) during continuity, R237
-        // for rapids; halved on curved blocks (NORMAL_SHARE).
-        let continuous = prev_smooth || p.smooth;
-        let set_a = self.cfg.envelope.sets[p.set].accel_mm_s2;
-        let base = if p.seg.rapid {
-            accel_rapid.min(rapid_a)
-        } else if continuous {
-            set_a
-        } else {
-            accel_stop.min(set_a)
-        };
-        let curved = matches!(p.seg.path, SegPath::Arc { .. })
-            || arc_next
-            || arc_prev
-            || (prev_smooth && prev_turn > 1e-9)
-            || (p.smooth && p.turn > 1e-9);
-        let k = if curved { 1.0 - NORMAL_SHARE } else { 1.0 };
-        p.seg.accel_mm_s2 = base.min(p.a_axes) * k;
-        if curved && p.seg.axis_filter_ticks > 1 {
-            // The rest of the axis jerk is for the turns the axis filter smooths.
-            p.seg.jerk_mm_s3 = p.seg.jerk_mm_s3.min(p.j_axes * k);
-        }
-        p.seg.stop_accel_mm_s2 = rapid_a.min(p.a_axes) * k;
-        if p.seg.stop_accel_mm_s2 <= 0.0 || !p.seg.stop_accel_mm_s2.is_finite() {
-            p.seg.stop_accel_mm_s2 = p.seg.accel_mm_s2;
-        }
-        // R395: keep the junction speeds through a short block unless rising pays off. Only
-        // between two smooth junctions (**decided**): at a stop there is no criterion speed
-        // to keep, and a block between stops is a plain point-to-point move.
-        if !p.seg.rapid && prev_smooth && p.smooth {
-            let v_flat = prev_crit.max(crit).min(p.seg.v_max_mm_s);
-            let v_top = p.seg.v_max_mm_s.min(p.seg.feed_mm_s);
-            if !criteria::rise_pays_off(
-                p.seg.length_mm,
-                v_flat,
-                v_top,
-                p.seg.accel_mm_s2,
-                rise_limit,
-            ) {
-                p.seg.v_max_mm_s = p.seg.v_max_mm_s.min(v_flat.max(1e-9).max(cap));
-            }
-        }
-        let drop = self.cfg.envelope.sets[p.set].drop_percent / 100.0;
-        p.seg.junction = if planned_stop {
-            // Still a G23 junction for the preview: a speed drop (to rest).
-            Junction::SpeedDrop
-        } else if !p.smooth || last {
-            Junction::Stop
-        } else if cap < drop * p.seg.feed_mm_s {
-            Junction::SpeedDrop
-        } else {
-            Junction::Smooth
-        };
-    }
-
-    /// A smooth junction that makes the acceleration of a neighbouring line shared with the
-    /// turn (a turning corner, or an arc next to it) is planned as a stop where that is
-    /// faster (**decided**, issue #16): when its criteria cap is below one tick's
-    /// acceleration step, or when the time the line sides lose by ramping at the shared
-    /// acceleration exceeds what passing at the cap gains over stopping. Linear profile only
-    /// (the parabolic profile's filters plan their own corner speeds).
-    fn corner_is_a_stop(&self, i: usize, cap: f64) -> bool {
-        let (p, n) = (&self.win[i], &self.win[i + 1]);
-        let is_arc = |q: &Pending| matches!(q.seg.path, SegPath::Arc { .. });
-        let shares = p.turn > 1e-9 || is_arc(p) || is_arc(n);
-        if !p.smooth || !shares || self.cfg.envelope.profile != Profile::Linear {
-            return false;
-        }
-        let sets = &self.cfg.envelope.sets;
-        let a = |q: &Pending| sets[q.set].accel_mm_s2.min(q.a_axes);
-        // The speed the corner can actually be passed at, with rest at the far ends.
-        let cap = cap
-            .min((a(p) * p.seg.length_mm).sqrt())
-            .min((a(n) * n.seg.length_mm).sqrt());
-        if cap < a(p).min(a(n)) * TS_S {
-            return true;
-        }
-        // Per side, with V the speed the block reaches from the cap: passing at the cap
-        // instead of from rest saves cap/a − cap²/(2aV); a line ramping between cap and V at
-        // a/2 instead of a loses (V − cap)²/(2aV).
-        let (mut gain, mut loss) = (0.0, 0.0);
-        for q in [p, n] {
-            let aq = a(q);
-            let v = q
-                .seg
-                .feed_mm_s
-                .min(q.seg.v_max_mm_s)
-                .min((cap * cap + aq * q.seg.length_mm).sqrt())
-                .max(cap);
-            gain += cap / aq - cap * cap / (2.0 * aq * v);
-            if !is_arc(q) {
-                loss += (v - cap) * (v - cap) / (2.0 * aq * v);
-            }
-        }
-        loss > gain
-    }
-
     /// Backward pass from the newly finalized junction `i`: end speeds that allow braking for
     /// everything up to the end of the window (treated as a stop).
     /// Junctions `fresh..=i` are new and always computed; older ones stop the pass once
@@ -1046,6 +756,62 @@ impl Planner {
             k -= 1;
             v_next_end = v;
         }
+    }
+}
+
+/// Programmed feed of a cutting move, mm/min, or the error of a missing one.
+fn feed_mm_min(block: &Block) -> Result<f64, Diagnostic> {
+    match block.feed {
+        Feed::MmPerMin(f) if f.is_finite() && f > 0.0 => Ok(f),
+        Feed::MmPerMin(_) => Err(Diagnostic::error(
+            block.n,
+            block.line,
+            0,
+            "no feed programmed for a cutting move (F missing or zero)",
+        )),
+        // Feed per revolution (G95, KŘR with mm/rev; SPEC §5, §6): V = n·β, planned at the
+        // nominal (highest) spindle speed of the block; the interpolator scales it by
+        // n_actual / nominal every tick (`Segment::per_rev_nominal_rpm`).
+        Feed::MmPerRev(f) if f.is_finite() && f > 0.0 => {
+            match block.spindle.per_rev_nominal_rpm() {
+                Some(n) => Ok(f * n),
+                None => Err(Diagnostic::error(
+                    block.n,
+                    block.line,
+                    0,
+                    "feed per revolution needs a running spindle with a programmed speed S",
+                )),
+            }
+        }
+        Feed::MmPerRev(_) => Err(Diagnostic::error(
+            block.n,
+            block.line,
+            0,
+            "feed per revolution needs a running spindle with a programmed speed S and a \
+             feed F above zero",
+        )),
+    }
+}
+
+/// Spindle speed (rpm) a feed per revolution was planned at (0 = feed per minute).
+fn per_rev_nominal_rpm(block: &Block, rapid: bool) -> f64 {
+    match block.feed {
+        Feed::MmPerRev(_) if !rapid => block.spindle.per_rev_nominal_rpm().unwrap_or(0.0),
+        _ => 0.0,
+    }
+}
+
+/// Classification of a finalized junction for the preview and the API (SPEC §7.5).
+fn junction_of(planned_stop: bool, smooth: bool, cap: f64, drop: f64, seg: &Segment) -> Junction {
+    if planned_stop {
+        // Still a G23 junction for the preview: a speed drop (to rest).
+        Junction::SpeedDrop
+    } else if !smooth {
+        Junction::Stop
+    } else if cap < drop * seg.feed_mm_s {
+        Junction::SpeedDrop
+    } else {
+        Junction::Smooth
     }
 }
 

@@ -1,0 +1,356 @@
+//! Finalizing a junction (SPEC §7.2): the criteria speed at the end of a block, the choice
+//! between passing a corner and stopping there, the block's acceleration budget and its R395
+//! ceiling. `Planner::finalize` runs these steps in order; each is a function of its own.
+
+use super::{
+    NORMAL_SHARE, OVERRIDE_MAX, Pending, Planner, Profile, SegPath, Segment, criteria, junction_of,
+};
+use crate::units::{MAX_AXES, TS_S};
+
+/// What the curvature window of a junction is checked against (SPEC §7.2 criteria applied to
+/// the turn within one tick, and in the parabolic profile the axis filter's corner budgets).
+struct WindowLimits {
+    /// Normal share of the smallest axis acceleration of the axes involved, mm/s².
+    a_iso: f64,
+    /// Accuracy criterion Lm, µm (0 = off).
+    lm_um: f64,
+    /// Axis filter time T (0 without the filter), s.
+    t_f: f64,
+    /// Path acceleration next to the corner (parabolic corner jerk term), mm/s².
+    a_corner: f64,
+    jerk_budget: [f64; MAX_AXES],
+    accel_budget: [f64; MAX_AXES],
+}
+
+/// Largest speed in [0, v] within `bound` (bound(v) ≥ v), found by bisection to 0.2 % (far
+/// below the spread of the other criteria); `guess` (the previous junction's result) brackets
+/// it first, since neighbouring junctions of a dense path have similar limits. `v` itself when
+/// it is within its bound. Returns the speed and whether a search ran.
+fn largest_within(v: f64, guess: f64, bound: impl Fn(f64) -> f64) -> (f64, bool) {
+    if bound(v) >= v * (1.0 - 1e-12) {
+        return (v, false);
+    }
+    let (mut lo, mut hi) = (0.0, v);
+    for w in [0.001, 0.03] {
+        if !(guess > 0.0 && guess < v) || hi - lo <= 0.002 * hi {
+            break;
+        }
+        let (gl, gh) = ((1.0 - w) * guess, ((1.0 + w) * guess).min(v));
+        if gl <= lo || gh >= hi {
+            continue;
+        }
+        if bound(gl) >= gl {
+            lo = gl;
+            if bound(gh) < gh {
+                hi = gh;
+            }
+        } else {
+            hi = gl;
+        }
+    }
+    let mut steps = 0;
+    while hi - lo > 0.002 * hi && steps < 64 {
+        steps += 1;
+        let mid = 0.5 * (lo + hi);
+        if bound(mid) >= mid {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    (lo, true)
+}
+
+impl Planner {
+    /// Computes the junction at the end of block `i` (all criteria of SPEC §7.2) and the final
+    /// limits of block `i` itself.
+    pub(super) fn finalize(&mut self, i: usize, last: bool) {
+        let (crit, criteria_cap) = if last {
+            (0.0, 0.0)
+        } else {
+            self.junction_speed(i)
+        };
+        let planned_stop = !last && self.corner_is_a_stop(i, criteria_cap);
+        let p = &mut self.win[i];
+        if planned_stop {
+            p.smooth = false;
+        }
+        p.crit = crit;
+        p.cap = if planned_stop { 0.0 } else { criteria_cap };
+        p.seg.junction_cap_mm_s = criteria_cap;
+        self.set_accelerations(i, last);
+        self.apply_rise_limit(i);
+        let p = &mut self.win[i];
+        let drop = self.cfg.envelope.sets[p.set].drop_percent / 100.0;
+        p.seg.junction = junction_of(planned_stop, p.smooth && !last, p.cap, drop, &p.seg);
+    }
+
+    /// Criteria speed at the end of block `i` as if the junction were smooth, and its hard cap
+    /// (0 when it is not smooth): dynamic (R385 with the 8.R385 correction), accuracy (R384),
+    /// the ceilings of both blocks, and for a smooth junction the local curvature window.
+    fn junction_speed(&mut self, i: usize) -> (f64, f64) {
+        let env = &self.cfg.envelope;
+        let (p, n) = (&self.win[i], &self.win[i + 1]);
+        let set = &env.sets[n.set];
+        let a_iso = self.cfg.iso_accel(&p.t_end, &n.t_start) * NORMAL_SHARE;
+        let am = set.overload_mm_s2.min(a_iso);
+        let len = 0.5 * (p.seg.length_mm + n.seg.length_mm);
+        let v = criteria::dynamic_mm_s(am, p.turn, set.overload_ref_len_mm, len)
+            .min(criteria::accuracy_mm_s(set.accuracy_um, p.turn))
+            .min(p.seg.v_max_mm_s)
+            .min(n.seg.v_max_mm_s)
+            .min(OVERRIDE_MAX * p.seg.feed_mm_s.max(n.seg.feed_mm_s));
+        if !p.smooth {
+            return (v, 0.0);
+        }
+        let limits = self.window_limits(i, a_iso);
+        let guess = self.window_guess_mm_s;
+        let (v, searched) = largest_within(v, guess, |v| self.window_bound(i, v, &limits));
+        if searched {
+            self.window_guess_mm_s = v;
+        }
+        (v, v)
+    }
+
+    fn window_limits(&self, i: usize, a_iso: f64) -> WindowLimits {
+        let env = &self.cfg.envelope;
+        let (p, n) = (&self.win[i], &self.win[i + 1]);
+        let mut jerk_budget = [0.0; MAX_AXES];
+        let mut accel_budget = [0.0; MAX_AXES];
+        for k in 0..self.cfg.axes {
+            jerk_budget[k] = self.cfg.axis_j_max_mm_s3[k] * NORMAL_SHARE;
+            accel_budget[k] = self.cfg.axis_a_max_mm_s2[k] * NORMAL_SHARE;
+        }
+        let a_path = |q: &Pending| env.sets[q.set].accel_mm_s2.min(q.a_axes) * (1.0 - NORMAL_SHARE);
+        WindowLimits {
+            a_iso,
+            lm_um: env.sets[n.set].accuracy_um,
+            t_f: self.cfg.axis_filter_s(),
+            a_corner: a_path(p).max(a_path(n)),
+            jerk_budget,
+            accel_budget,
+        }
+    }
+
+    /// Several junctions can fall within one tick: both criteria are applied to the turn over
+    /// the path one tick covers at `v` (centred on junction `i`), the local curvature cap
+    /// v ≤ √(a/κ) in the form of the dynamic criterion. With the axis smoothing filter
+    /// (parabolic profile) the corner share of the axis jerk and acceleration, and half of Lm,
+    /// bound what the filter makes of the turns within ±v·T (criteria::FilterWindow); 0 when
+    /// `v` breaks them.
+    fn window_bound(&self, i: usize, v: f64, l: &WindowLimits) -> f64 {
+        let axes = self.cfg.axes;
+        let half = v * TS_S / 2.0;
+        let t0 = self.tangent_near(i, -half);
+        let t1 = self.tangent_near(i, half);
+        let turn = criteria::Turn::between(&t0, &t1, axes);
+        if l.t_f > 0.0 {
+            let h = v * l.t_f;
+            let w = criteria::FilterWindow {
+                before: self.tangent_near(i, -h),
+                end: self.win[i].t_end,
+                start: self.win[i + 1].t_start,
+                after: self.tangent_near(i, h),
+            };
+            let lm_half_mm = l.lm_um * 1e-3 / 2.0;
+            if !w.allows(
+                v,
+                l.a_corner,
+                l.t_f,
+                axes,
+                &l.jerk_budget,
+                &l.accel_budget,
+                lm_half_mm,
+            ) {
+                return 0.0;
+            }
+        }
+        turn.dynamic_mm_s(l.a_iso).min(turn.accuracy_mm_s(l.lm_um))
+    }
+
+    /// Acceleration of block `i` (feed, and stop/hold): R52 without continuity, R236 (or the
+    /// set's A) during continuity, R237 for rapids, capped by the axes it moves. Where the
+    /// path turns, part of every axis's acceleration is taken by the normal acceleration;
+    /// see [`Planner::tangential_share`].
+    fn set_accelerations(&mut self, i: usize, last: bool) {
+        let env = &self.cfg.envelope;
+        let prev_smooth = i > 0 && self.win[i - 1].smooth;
+        let p = &self.win[i];
+        let set_a = env.sets[p.set].accel_mm_s2;
+        let base = if p.seg.rapid {
+            env.accel_rapid_mm_s2.min(env.rapid_accel_mm_s2)
+        } else if prev_smooth || p.smooth {
+            set_a
+        } else {
+            env.accel_stop_mm_s2.min(set_a)
+        };
+        let share = self.tangential_share(i, last);
+        let (a_axes, j_axes) = (p.a_axes, p.j_axes);
+        let rapid_a = env.rapid_accel_mm_s2;
+        let p = &mut self.win[i];
+        p.seg.accel_mm_s2 = base.min(a_axes * share);
+        if share < 1.0 && p.seg.axis_filter_ticks > 1 {
+            // The rest of the axis jerk is for the turns the axis filter smooths.
+            p.seg.jerk_mm_s3 = p.seg.jerk_mm_s3.min(j_axes * share);
+        }
+        p.seg.stop_accel_mm_s2 = rapid_a.min(a_axes * share);
+        if p.seg.stop_accel_mm_s2 <= 0.0 || !p.seg.stop_accel_mm_s2.is_finite() {
+            p.seg.stop_accel_mm_s2 = p.seg.accel_mm_s2;
+        }
+    }
+
+    /// Fraction of the path acceleration of the axes (`a_axes`) block `i` may use along the
+    /// path. 1 where the path does not turn at a smooth junction of the block. On arcs, next
+    /// to arcs and in the parabolic profile: 1 − NORMAL_SHARE (the normal acceleration takes
+    /// at most NORMAL_SHARE of the smallest axis acceleration, **decided**). On lines between
+    /// turning junctions in the linear profile, per axis what the normal acceleration of the
+    /// turns leaves ([`Planner::line_tangential_mm_s2`]), never less than that split.
+    fn tangential_share(&self, i: usize, last: bool) -> f64 {
+        let is_arc = |q: &Pending| matches!(q.seg.path, SegPath::Arc { .. });
+        let prev_smooth = i > 0 && self.win[i - 1].smooth;
+        let p = &self.win[i];
+        let next_smooth = p.smooth && !last;
+        let arcs = is_arc(p)
+            || (next_smooth && is_arc(&self.win[i + 1]))
+            || (prev_smooth && is_arc(&self.win[i - 1]));
+        let turning =
+            (prev_smooth && self.win[i - 1].turn > 1e-9) || (next_smooth && p.turn > 1e-9);
+        if !arcs && !turning {
+            return 1.0;
+        }
+        let split = 1.0 - NORMAL_SHARE;
+        if arcs || self.cfg.envelope.profile != Profile::Linear || !p.a_axes.is_finite() {
+            return split;
+        }
+        let start_cap = if prev_smooth {
+            self.win[i - 1].cap
+        } else {
+            0.0
+        };
+        let end_cap = if next_smooth { p.cap } else { 0.0 };
+        let a_t = self.line_tangential_mm_s2(i, start_cap, end_cap);
+        (a_t / p.a_axes).clamp(split, 1.0)
+    }
+
+    /// Largest tangential acceleration on line block `i` that keeps every axis within its limit
+    /// on top of the normal acceleration of the turns at its junctions, passed at their caps
+    /// (0 = not passed: a stop). Per axis k: a_t·|u_k| + N_k ≤ a_k, with u the tangents the
+    /// ticks near the block move along and N_k = v·|t(+h) − t(−h)|_k/Ts the velocity turn per
+    /// tick within the tick window (h = v·Ts/2) of each junction at the highest speed a tick
+    /// touching it runs, v = cap + a·Ts. This is the per-axis form of the local curvature
+    /// criterion that bounds the junction speed (|N| ≤ NORMAL_SHARE·a_iso at the cap).
+    pub(super) fn line_tangential_mm_s2(&self, i: usize, start_cap: f64, end_cap: f64) -> f64 {
+        let axes = self.cfg.axes;
+        let p = &self.win[i];
+        let mut normal = [0.0f64; MAX_AXES];
+        let mut dir = [0.0f64; MAX_AXES];
+        for (k, d) in dir.iter_mut().enumerate().take(axes) {
+            *d = p.t_start[k].abs().max(p.t_end[k].abs());
+        }
+        for (j, cap) in [(i.wrapping_sub(1), start_cap), (i, end_cap)] {
+            if cap <= 0.0 {
+                continue;
+            }
+            let v = cap + p.a_axes * TS_S;
+            let h = v * TS_S / 2.0;
+            let t0 = self.tangent_near(j, -h);
+            let t1 = self.tangent_near(j, h);
+            let t2 = self.tangent_near(j, 3.0 * h);
+            let tm = self.tangent_near(j, -3.0 * h);
+            for k in 0..axes {
+                normal[k] = normal[k].max(v * (t1[k] - t0[k]).abs() / TS_S);
+                dir[k] = dir[k].max(t1[k].abs()).max(t2[k].abs()).max(tm[k].abs());
+            }
+        }
+        let mut a_t = f64::INFINITY;
+        for k in 0..axes {
+            if dir[k] > 1e-12 {
+                let left = (self.cfg.axis_a_max_mm_s2[k] - normal[k]).max(0.0);
+                a_t = a_t.min(left / dir[k]);
+            }
+        }
+        a_t
+    }
+
+    /// R395: keep the junction speeds through a short block unless rising pays off. Only
+    /// between two smooth junctions (**decided**): at a stop there is no criterion speed to
+    /// keep, and a block between stops is a plain point-to-point move.
+    fn apply_rise_limit(&mut self, i: usize) {
+        let prev = (i > 0 && self.win[i - 1].smooth).then(|| self.win[i - 1].crit);
+        let rise_limit = self.cfg.envelope.rise_time_s;
+        let p = &mut self.win[i];
+        let Some(prev_crit) = prev else { return };
+        if p.seg.rapid || !p.smooth {
+            return;
+        }
+        let seg: &mut Segment = &mut p.seg;
+        let v_flat = prev_crit.max(p.crit).min(seg.v_max_mm_s);
+        let v_top = seg.v_max_mm_s.min(seg.feed_mm_s);
+        if !criteria::rise_pays_off(seg.length_mm, v_flat, v_top, seg.accel_mm_s2, rise_limit) {
+            seg.v_max_mm_s = seg.v_max_mm_s.min(v_flat.max(1e-9).max(p.cap));
+        }
+    }
+}
+
+impl Planner {
+    /// A smooth junction where the path turns (a corner, or an arc next to it) is planned as a
+    /// stop where that is faster (**decided**, issue #16): when the speed it can actually be
+    /// passed at is below one tick's acceleration step, or when the time the line sides lose
+    /// by ramping at the acceleration the turn leaves them exceeds what passing at that speed
+    /// gains over stopping.
+    pub(super) fn corner_is_a_stop(&self, i: usize, cap: f64) -> bool {
+        let (p, n) = (&self.win[i], &self.win[i + 1]);
+        let is_arc = |q: &Pending| matches!(q.seg.path, SegPath::Arc { .. });
+        let shares = p.turn > 1e-9 || is_arc(p) || is_arc(n);
+        if !p.smooth || !shares {
+            return false;
+        }
+        let sets = &self.cfg.envelope.sets;
+        let a = |q: &Pending| sets[q.set].accel_mm_s2.min(q.a_axes);
+        // The speed the corner can actually be passed at, with rest at the far ends.
+        let cap = cap
+            .min((a(p) * p.seg.length_mm).sqrt())
+            .min((a(n) * n.seg.length_mm).sqrt());
+        if cap < a(p).min(a(n)) * TS_S {
+            return true;
+        }
+        let start_cap = if i > 0 && self.win[i - 1].smooth {
+            self.win[i - 1].cap
+        } else {
+            0.0
+        };
+        let split = 1.0 - NORMAL_SHARE;
+        let linear = self.cfg.envelope.profile == Profile::Linear;
+        // Per side, with V the speed the block reaches from the cap: passing at the cap
+        // instead of from rest saves cap/a − cap²/(2aV); a line ramping between cap and V at
+        // b < a instead of a loses (1/b − 1/a)·(V − cap)²/(2V).
+        let (mut gain, mut loss) = (0.0, 0.0);
+        for (side, q) in [(i, p), (i + 1, n)] {
+            let aq = a(q);
+            let v = q
+                .seg
+                .feed_mm_s
+                .min(q.seg.v_max_mm_s)
+                .min((cap * cap + aq * q.seg.length_mm).sqrt())
+                .max(cap);
+            gain += cap / aq - cap * cap / (2.0 * aq * v);
+            if is_arc(q) {
+                continue;
+            }
+            let b = if linear && q.a_axes.is_finite() && !is_arc(p) && !is_arc(n) {
+                let (c0, c1) = if side == i {
+                    (start_cap, cap)
+                } else {
+                    (cap, 0.0)
+                };
+                self.line_tangential_mm_s2(side, c0, c1)
+                    .clamp(split * q.a_axes, q.a_axes)
+                    .min(aq)
+            } else {
+                split * aq
+            };
+            loss += (1.0 / b - 1.0 / aq) * (v - cap) * (v - cap) / (2.0 * v);
+        }
+        loss > gain
+    }
+}
