@@ -18,7 +18,7 @@
 
 use crate::{
     AxisFeedback, BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason,
-    MAX_AXES,
+    HomingState, MAX_AXES,
 };
 
 use super::emcy::{self, Emcy};
@@ -26,6 +26,11 @@ use super::pdo::{self, OpMode, Rpdo, Tpdo};
 use super::sdo::{self, Response};
 use super::{CanPort, Frame, PortError, RxEvent, cob, err_class, nmt};
 use crate::cia402::{self, PowerState, cw, sw};
+
+#[path = "homing.rs"]
+mod homing;
+use homing::Home;
+pub use homing::HomingParams;
 
 /// One drive on the bus (one axis).
 #[derive(Clone, Debug, PartialEq)]
@@ -41,16 +46,20 @@ pub struct NodeConfig {
     /// master accepts when an enabled drive is handed from holding its own position over to
     /// the commanded positions.
     pub max_velocity_mm_s: f64,
+    /// The drive's reference run (CiA 402 homing mode 6); `None`: the axis cannot be homed
+    /// on this bus.
+    pub homing: Option<HomingParams>,
 }
 
 impl NodeConfig {
-    /// A drive with its own following window and a speed limit of 200 mm/s.
+    /// A drive with its own following window, a speed limit of 200 mm/s and no homing.
     pub fn new(node_id: u8, increments_per_mm: f64) -> NodeConfig {
         NodeConfig {
             node_id,
             increments_per_mm,
             following_window_increments: None,
             max_velocity_mm_s: 200.0,
+            homing: None,
         }
     }
 }
@@ -74,6 +83,21 @@ pub enum ShutdownMode {
     /// Quick stop (02h), then disable voltage (00h): the drive stops by its quick stop
     /// option (0x605A) first.
     QuickStop,
+}
+
+/// What the drives do after a fault stop, once the healthy axes are at rest
+/// ([`DriveBus::safe_state`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FaultReaction {
+    /// Quick stop (controlword 02h): the drives end in Quick Stop Active (or Switch On
+    /// Disabled, by their quick stop option 0x605A).
+    #[default]
+    QuickStop,
+    /// Disable voltage (00h): power stage off at once, Switch On Disabled (an axis with a
+    /// holding brake needs it; a vertical axis without one may sag).
+    DisableVoltage,
+    /// The drives stay enabled and hold their last setpoint.
+    Hold,
 }
 
 /// Bus-wide settings. Times are converted to ticks of `cycle_us`.
@@ -111,6 +135,10 @@ pub struct CanOpenConfig {
     pub error_frame_limit: u32,
     /// How the orderly shutdown switches the drives off.
     pub shutdown: ShutdownMode,
+    /// What the drives do after a fault stop.
+    pub fault_reaction: FaultReaction,
+    /// Time allowed for a drive's reference run, from its start to the return to CSP, ms.
+    pub homing_timeout_ms: u32,
 }
 
 impl CanOpenConfig {
@@ -132,6 +160,8 @@ impl CanOpenConfig {
             following_error_limit_mm: None,
             error_frame_limit: 20,
             shutdown: ShutdownMode::Disable,
+            fault_reaction: FaultReaction::QuickStop,
+            homing_timeout_ms: 60_000,
         }
     }
 }
@@ -147,6 +177,8 @@ enum Step {
     },
     /// Reads 0x6064 so the target can start at the actual position (CSP only).
     ReadPosition,
+    /// Reads the modes of operation display 0x6061 until it shows this mode.
+    CheckMode(u8),
 }
 
 /// The orderly shutdown of one node, in this order.
@@ -193,6 +225,11 @@ enum Phase {
         since: u64,
     },
     Operational,
+    /// The drive's own reference run (homing mode 6), then back to CSP.
+    Homing(Home),
+    /// Brought to the safe state after a fault stop ([`FaultReaction`]); a reset enables it
+    /// again.
+    Stopped,
     Faulted(FaultReason),
     ShuttingDown(Off),
 }
@@ -222,6 +259,13 @@ struct Node {
     taken_over: bool,
     /// One tick's travel at the axis's highest speed, increments (at least 1).
     max_step_increments: i64,
+    /// The drive's reference run, as reported to the controller.
+    homing: HomingState,
+    /// Tick the reference run started (its timeout counts from there).
+    home_since: u64,
+    /// The mode of operation may not be CSP (a reference run did not return): a reset
+    /// restarts the node so its configuration writes 0x6060 = 8 again.
+    mode_changed: bool,
 }
 
 /// Drives configured and started by this master over a [`CanPort`].
@@ -287,6 +331,7 @@ fn step_object(s: Step) -> (u16, u8) {
             index, subindex, ..
         } => (index, subindex),
         Step::ReadPosition => (0x6064, 0),
+        Step::CheckMode(_) => (0x6061, 0),
     }
 }
 
@@ -374,6 +419,9 @@ impl Node {
             target_increments: 0,
             emcy_code: None,
             taken_over: false,
+            homing: HomingState::Idle,
+            home_since: 0,
+            mode_changed: false,
         }
     }
 
@@ -389,7 +437,11 @@ impl Node {
     fn expects_pdo(&self) -> bool {
         matches!(
             self.phase,
-            Phase::Starting { .. } | Phase::Enabling { .. } | Phase::Operational
+            Phase::Starting { .. }
+                | Phase::Enabling { .. }
+                | Phase::Operational
+                | Phase::Homing(_)
+                | Phase::Stopped
         )
     }
 
@@ -398,7 +450,11 @@ impl Node {
     fn gets_rpdo(&self) -> bool {
         self.nmt_state == nmt::state::OPERATIONAL
             && match self.phase {
-                Phase::Starting { .. } | Phase::Enabling { .. } | Phase::Operational => true,
+                Phase::Starting { .. }
+                | Phase::Enabling { .. }
+                | Phase::Operational
+                | Phase::Homing(_)
+                | Phase::Stopped => true,
                 // A silent drive may still listen: controlword 0 switches it off.
                 Phase::Faulted(r) => is_drive_level(r) || r == FaultReason::Timeout,
                 Phase::ShuttingDown(off) => off != Off::Done,
@@ -478,19 +534,31 @@ impl<P: CanPort> CanOpenMaster<P> {
             Phase::Faulted(_) | Phase::Idle | Phase::ShuttingDown(_)
         ) {
             n.phase = Phase::Faulted(reason);
+            if n.homing == HomingState::Running {
+                n.homing = HomingState::Aborted;
+            }
         }
     }
 
     fn send_step(&mut self, i: usize, step: usize) {
+        let s = self.nodes[i].steps[step];
+        self.send_sdo(i, s);
+    }
+
+    /// The SDO request of one step.
+    fn send_sdo(&mut self, i: usize, s: Step) {
         let id = self.nodes[i].cfg.node_id;
-        let f = match self.nodes[i].steps[step] {
+        let f = match s {
             Step::Write {
                 index,
                 subindex,
                 value,
                 size,
             } => sdo::download(id, index, subindex, value, size),
-            Step::ReadPosition => sdo::upload(id, 0x6064, 0),
+            Step::ReadPosition | Step::CheckMode(_) => {
+                let (index, subindex) = step_object(s);
+                sdo::upload(id, index, subindex)
+            }
         };
         self.send(&f);
     }
@@ -563,7 +631,11 @@ impl<P: CanPort> CanOpenMaster<P> {
             n.nmt_state = nmt::state::PRE_OPERATIONAL;
             if matches!(
                 n.phase,
-                Phase::Starting { .. } | Phase::Enabling { .. } | Phase::Operational
+                Phase::Starting { .. }
+                    | Phase::Enabling { .. }
+                    | Phase::Operational
+                    | Phase::Homing(_)
+                    | Phase::Stopped
             ) {
                 self.fault(i, FaultReason::NmtStateChanged { state });
             }
@@ -574,7 +646,10 @@ impl<P: CanPort> CanOpenMaster<P> {
             n.nmt_state = state;
         }
         if state != nmt::state::OPERATIONAL
-            && matches!(n.phase, Phase::Enabling { .. } | Phase::Operational)
+            && matches!(
+                n.phase,
+                Phase::Enabling { .. } | Phase::Operational | Phase::Homing(_) | Phase::Stopped
+            )
         {
             self.fault(i, FaultReason::NmtStateChanged { state });
         }
@@ -598,7 +673,9 @@ impl<P: CanPort> CanOpenMaster<P> {
                         self.fault(i, reason);
                     }
                     Response::UploadOk { value, .. } => {
-                        self.nodes[i].position_increments = value as i32;
+                        if expected == Step::ReadPosition {
+                            self.nodes[i].position_increments = value as i32;
+                        }
                         self.next_step(i, step);
                     }
                     Response::DownloadOk { .. } => self.next_step(i, step),
@@ -608,6 +685,9 @@ impl<P: CanPort> CanOpenMaster<P> {
             // same.
             Phase::ShuttingDown(Off::ClearConsumer { .. }) if r.object() == (0x1016, 1) => {
                 self.leave_bus(i)
+            }
+            Phase::Homing(Home::Sdo { leaving, step, .. }) => {
+                self.on_homing_sdo(i, leaving, step, r)
             }
             _ => {}
         }
@@ -684,7 +764,10 @@ impl<P: CanPort> CanOpenMaster<P> {
         let missing_limit = self.cfg.tpdo_missing_ticks;
         let tick = self.tick;
         let n = &mut self.nodes[i];
-        if !matches!(n.phase, Phase::Enabling { .. } | Phase::Operational) {
+        if !matches!(
+            n.phase,
+            Phase::Enabling { .. } | Phase::Operational | Phase::Homing(_) | Phase::Stopped
+        ) {
             return;
         }
         if n.tpdo_seen {
@@ -726,6 +809,12 @@ impl<P: CanPort> CanOpenMaster<P> {
             Phase::Starting { since } => self.start(i, since),
             Phase::Enabling { since } => self.enable_step(i, since),
             Phase::Operational => self.operate(i, target),
+            Phase::Homing(h) => self.update_homing(i, h),
+            Phase::Stopped => {
+                // The safe state's controlword stays; the drive holds where it stands.
+                let n = &mut self.nodes[i];
+                n.target_increments = n.hold_target();
+            }
             Phase::Faulted(_) => {}
             Phase::ShuttingDown(Off::PowerDown { since }) => self.power_down(i, since),
             Phase::ShuttingDown(Off::ClearConsumer { sent_at, retried }) => {
@@ -918,8 +1007,9 @@ impl<P: CanPort> CanOpenMaster<P> {
 
     fn state_of(phase: Phase) -> DriveState {
         match phase {
-            Phase::Idle | Phase::ShuttingDown(_) => DriveState::Disabled,
-            Phase::Operational => DriveState::Operational,
+            Phase::Idle | Phase::ShuttingDown(_) | Phase::Stopped => DriveState::Disabled,
+            // The drive homes on its own, enabled: the axis counts as operational.
+            Phase::Operational | Phase::Homing(_) => DriveState::Operational,
             Phase::Faulted(_) => DriveState::Fault,
             _ => DriveState::Enabling,
         }
@@ -1051,6 +1141,7 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
             let target = self.target_of(i, cmd);
             self.update_node(i, target);
         }
+        self.interrupt_homing_on_fault();
         self.start_configured();
         if self.enabled {
             self.send_cyclic();
@@ -1102,12 +1193,19 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
             let talking =
                 n.nmt_state == nmt::state::OPERATIONAL && tick - n.last_heartbeat <= hb_ticks;
             match n.phase {
+                // A reference run that did not return to CSP: restart, so the configuration
+                // sets the mode again.
+                Phase::Faulted(_) | Phase::Stopped if n.mode_changed => n.phase = restart,
                 Phase::Faulted(r) if is_drive_level(r) && !whole_bus && talking => {
                     n.emcy_code = None;
                     n.tpdo_missing = 0;
                     n.phase = Phase::Enabling { since: tick };
                 }
-                Phase::Faulted(_) => n.phase = restart,
+                Phase::Stopped if !whole_bus => {
+                    n.tpdo_missing = 0;
+                    n.phase = Phase::Enabling { since: tick };
+                }
+                Phase::Faulted(_) | Phase::Stopped => n.phase = restart,
                 Phase::Idle => {
                     n.phase = Phase::ResetPending {
                         command: nmt::Command::ResetNode,
@@ -1145,7 +1243,11 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
                 | Phase::Faulted(FaultReason::NoBootUp) => {
                     n.phase = Phase::ShuttingDown(Off::Done);
                 }
-                Phase::Starting { .. } | Phase::Enabling { .. } | Phase::Operational => {
+                Phase::Starting { .. }
+                | Phase::Enabling { .. }
+                | Phase::Operational
+                | Phase::Homing(_)
+                | Phase::Stopped => {
                     n.phase = Phase::ShuttingDown(Off::PowerDown { since: tick });
                 }
                 Phase::Faulted(r) if is_drive_level(r) => {
@@ -1163,6 +1265,39 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
 
     fn is_shut_down(&self) -> bool {
         self.shutting_down && !self.enabled
+    }
+
+    fn safe_state(&mut self) {
+        self.enter_safe_state();
+    }
+
+    fn supports_homing(&self) -> bool {
+        self.nodes[..self.axes]
+            .iter()
+            .any(|n| n.cfg.homing.is_some())
+    }
+
+    fn drive_homes(&self) -> bool {
+        true
+    }
+
+    fn start_homing(&mut self, axis: usize) {
+        if axis < self.axes {
+            self.start_homing_node(axis);
+        }
+    }
+
+    fn stop_homing(&mut self, axis: usize) {
+        if axis < self.axes {
+            self.stop_homing_node(axis);
+        }
+    }
+
+    fn homing_state(&self, axis: usize) -> HomingState {
+        self.nodes
+            .get(axis)
+            .filter(|_| axis < self.axes)
+            .map_or(HomingState::Idle, |n| n.homing)
     }
 }
 
