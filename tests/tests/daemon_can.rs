@@ -397,3 +397,55 @@ fn after_a_fault_the_healthy_drives_go_to_the_configured_safe_state() {
         }
     }
 }
+
+/// A stop during a drive's reference run interrupts it: the drive stops, returns to CSP, the
+/// run ends not homed and the commanded position is where the drive stands. A run longer
+/// than `homing_timeout_ms` is a typed fault; reset restarts the drive (its configuration
+/// sets CSP again) and the machine is idle again.
+#[test]
+fn a_stop_interrupts_a_drive_homing_and_a_timeout_is_a_fault() {
+    let keys = "homing = 'required'\nhoming_speed_mm_min = 600";
+    let (mut h, bus) = daemon_with(
+        [0.0; 3],
+        None,
+        "homing_timeout_ms = 2000\n",
+        [keys, "", ""],
+        [Some(-100.0), None, None],
+    );
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    h.send(RtCommand::Home(homing::home_request(h.config(), 0)))
+        .unwrap();
+    h.run_until(10_000, |s| s.actual[0] < -1.0).unwrap();
+    h.send(RtCommand::Stop).unwrap();
+    let s = h
+        .run_until(10_000, |s| s.state != MachineState::Homing)
+        .unwrap();
+    assert_eq!(s.state, MachineState::Idle);
+    assert_eq!((s.homed & 1, s.homing_failed & 1), (0, 1));
+    assert!(s.fault.is_none());
+    let s = h.run_until(100, |_| true).unwrap();
+    assert!((s.commanded[0] - s.actual[0]).abs() < 1e-3, "{s:?}");
+    {
+        let b = bus.lock().unwrap();
+        let modes: Vec<u8> = mode_writes(&b.sent, 1).iter().map(|&(_, m)| m).collect();
+        assert_eq!(modes, [8, 6, 8]);
+        assert_eq!(b.nodes[0].drive.state(), PowerState::OperationEnabled);
+    }
+
+    // The switch is 100 mm away at 10 mm/s: the 2 s timeout ends the run.
+    let e = h.home("X", 10_000).unwrap_err();
+    assert!(
+        matches!(e, HarnessError::Control(ControlError::Aborted(_))),
+        "{e:?}"
+    );
+    let f = h.snapshot().fault.unwrap();
+    assert_eq!(
+        (f.axis, f.node, f.reason),
+        (Some(0), Some(1), FaultReason::HomingTimeout)
+    );
+    h.send(RtCommand::Reset).unwrap();
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    let b = bus.lock().unwrap();
+    let modes: Vec<u8> = mode_writes(&b.sent, 1).iter().map(|&(_, m)| m).collect();
+    assert_eq!(modes, [8, 6, 8, 6, 8], "the restart wrote CSP again");
+}
