@@ -183,13 +183,15 @@ mod tests {
     use super::*;
 
     fn run(method: i8, start_mm: f64, switch: Option<f64>) -> (Homer, f64, Option<f64>, u32) {
-        let mut h = Homer::default();
-        h.objects = HomingObjects {
-            method,
-            offset: 20_000, // 2 mm at 10000 increments/mm
-            search_speed: 100_000,
-            zero_speed: 10_000,
-            accel: 1_000_000,
+        let mut h = Homer {
+            objects: HomingObjects {
+                method,
+                offset: 20_000, // 2 mm at 10000 increments/mm
+                search_speed: 100_000,
+                zero_speed: 10_000,
+                accel: 1_000_000,
+            },
+            ..Homer::default()
         };
         let (mut pos, mut sw_mm) = (start_mm, switch);
         let mut cycles = 0;
