@@ -255,6 +255,69 @@ mod tests {
     }
 
     #[test]
+    fn homing_and_fault_reaction_keys_reach_the_master() {
+        let c = Config::parse(
+            "[[axes]]\nname = 'X'\nnode_id = 1\nincrements_per_mm = 1000\nreference_mm = -2.5\n\
+             homing_speed_mm_min = 600\nhoming_accel_mm_s2 = 50\n\
+             [[axes]]\nname = 'Y'\nnode_id = 2\nhoming_direction = 1\ncan_homing_method = 37\n\
+             [bus]\nkind = 'can'\ninterface = 'vcan0'\nfault_reaction = 'disable_voltage'\n\
+             homing_timeout_ms = 9000\n",
+            Path::new("m.toml"),
+        )
+        .unwrap();
+        let BusConfig::Can(can) = &c.bus else {
+            panic!()
+        };
+        let m = can_config(can, &c.axes);
+        assert_eq!(m.fault_reaction, FaultReaction::DisableVoltage);
+        assert_eq!(m.homing_timeout_ms, 9000);
+        // 10 mm/s, a tenth of it leaving the switch, 50 mm/s², at 1000 increments/mm.
+        assert_eq!(
+            m.nodes[0].homing,
+            Some(HomingParams {
+                method: 21,
+                offset_increments: -2500,
+                search_speed: 10_000,
+                zero_speed: 1000,
+                accel: 50_000,
+            })
+        );
+        assert_eq!(m.nodes[1].homing.map(|h| h.method), Some(37));
+        let d = Config::parse(
+            "[bus]\nkind = 'can'\ninterface = 'vcan0'\n",
+            Path::new("m.toml"),
+        )
+        .unwrap();
+        let BusConfig::Can(can) = &d.bus else {
+            panic!()
+        };
+        let m = can_config(can, &d.axes);
+        assert_eq!(m.fault_reaction, FaultReaction::QuickStop);
+        assert_eq!(m.nodes[0].homing.map(|h| h.method), Some(21));
+        for (bad, key) in [
+            (
+                "[bus]\nkind = 'can'\ninterface = 'v'\nhoming_timeout_ms = 0",
+                "bus.homing_timeout_ms",
+            ),
+            (
+                "[bus]\nkind = 'can'\ninterface = 'v'\nfault_reaction = 'coast'",
+                "coast",
+            ),
+            (
+                "[[axes]]\nname = 'X'\nhoming_accel_mm_s2 = -1",
+                "axes[0].homing_accel_mm_s2",
+            ),
+            (
+                "[[axes]]\nname = 'X'\nhoming_zero_speed_mm_min = 0",
+                "axes[0].homing_zero_speed_mm_min",
+            ),
+        ] {
+            let e = Config::parse(bad, Path::new("m.toml")).unwrap_err();
+            assert!(e.to_string().contains(key), "{bad}: {e}");
+        }
+    }
+
+    #[test]
     fn serial_section_parses() {
         let c = Config::parse(
             "[bus]\nkind = 'serial'\nport = '/dev/ttyUSB0'\n",
