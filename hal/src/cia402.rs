@@ -9,6 +9,8 @@ pub mod cw {
     /// Active low: 0 requests a quick stop.
     pub const QUICK_STOP: u16 = 1 << 2;
     pub const ENABLE_OPERATION: u16 = 1 << 3;
+    /// Homing mode (6): a rising edge starts the reference run, 0 interrupts it.
+    pub const HOMING_START: u16 = 1 << 4;
     /// Rising edge resets a fault.
     pub const FAULT_RESET: u16 = 1 << 7;
 
@@ -32,6 +34,13 @@ pub mod sw {
     pub const SWITCH_ON_DISABLED: u16 = 1 << 6;
     pub const WARNING: u16 = 1 << 7;
     pub const REMOTE: u16 = 1 << 9;
+    /// Target reached; in homing mode (6): the drive stands (reference run ended or
+    /// interrupted).
+    pub const TARGET_REACHED: u16 = 1 << 10;
+    /// In homing mode (6): homing attained (the reference run found its home position).
+    pub const HOMING_ATTAINED: u16 = 1 << 12;
+    /// In homing mode (6): homing error.
+    pub const HOMING_ERROR: u16 = 1 << 13;
     /// In CSP mode: the drive follows the target position.
     pub const TARGET_FOLLOWED: u16 = 1 << 12;
     /// In CSP mode: following error beyond 0x6065.
@@ -95,8 +104,12 @@ pub fn controlword_toward_enabled(state: PowerState, previous: u16) -> u16 {
                 cw::FAULT_RESET
             }
         }
-        PowerState::FaultReactionActive | PowerState::NotReadyToSwitchOn => cw::DISABLE_VOLTAGE,
-        PowerState::SwitchOnDisabled | PowerState::QuickStopActive => cw::SHUTDOWN,
+        // From Quick Stop Active only disable voltage leads back (transition 12); 06h there
+        // is not a transition of CiA 402 and a drive would stay.
+        PowerState::FaultReactionActive
+        | PowerState::NotReadyToSwitchOn
+        | PowerState::QuickStopActive => cw::DISABLE_VOLTAGE,
+        PowerState::SwitchOnDisabled => cw::SHUTDOWN,
         PowerState::ReadyToSwitchOn => cw::SWITCH_ON_CMD,
         PowerState::SwitchedOn | PowerState::OperationEnabled => cw::ENABLE_OPERATION_CMD,
     }

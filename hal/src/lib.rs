@@ -92,6 +92,11 @@ pub enum FaultReason {
     LinkDown,
     /// Replies arrived but were corrupt (CRC or framing errors).
     CorruptFrames,
+    /// The drive's own reference run (CiA 402 homing mode) ended with its homing error bit
+    /// (statusword bit 13): switch not found, limit switch hit, or the method is unsupported.
+    HomingError { statusword: u16 },
+    /// The drive's reference run did not end within the configured time.
+    HomingTimeout,
 }
 
 impl fmt::Display for FaultReason {
@@ -165,6 +170,14 @@ impl fmt::Display for FaultReason {
                 f,
                 "serial replies corrupt (check the cable, shielding and baud rate)"
             ),
+            FaultReason::HomingError { statusword } => write!(
+                f,
+                "reference run failed in the drive (statusword {statusword:04X}h: home switch not found, limit switch, or homing method not supported)"
+            ),
+            FaultReason::HomingTimeout => write!(
+                f,
+                "reference run did not end in time (home switch not reached? see homing_timeout_ms)"
+            ),
         }
     }
 }
@@ -199,6 +212,22 @@ pub struct CycleFeedback {
     pub spindle_rpm: f64,
     /// State of the spindle drive; stays `Disabled` on a bus without one.
     pub spindle_state: DriveState,
+}
+
+/// Where a reference run done by the drive itself stands ([`DriveBus::drive_homes`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum HomingState {
+    /// No reference run since power-on (or since the last one was reported).
+    #[default]
+    Idle,
+    /// Under way; the drive moves on its own, the setpoints of the axis are not used.
+    Running,
+    /// Done: the drive's position is referenced and it follows setpoints again, starting
+    /// from where it stands (no jump).
+    Done,
+    /// Stopped before its end ([`DriveBus::stop_homing`], or a fault elsewhere on the bus):
+    /// the drive stands and follows setpoints again; the axis is not referenced.
+    Aborted,
 }
 
 /// A bus that serves a fixed set of axes.
@@ -249,10 +278,31 @@ pub trait DriveBus: Send {
     /// Default: nothing (the bus has no such command; its drives hold their last setpoint).
     fn safe_state(&mut self) {}
 
-    /// Whether this bus can run a reference run (homing) of its axes: [`DriveBus::home_switch`]
-    /// reports the switch and [`DriveBus::set_home`] redefines a drive's position.
+    /// Whether this bus can run a reference run (homing) of its axes: either the controller
+    /// searches the switch ([`DriveBus::home_switch`] reports it and [`DriveBus::set_home`]
+    /// redefines a drive's position), or the drive homes itself ([`DriveBus::drive_homes`]).
     fn supports_homing(&self) -> bool {
         false
+    }
+
+    /// The drives run the reference run themselves (CiA 402 homing mode 6): the controller
+    /// starts it with [`DriveBus::start_homing`], watches [`DriveBus::homing_state`], and
+    /// takes the axis's position from the feedback once it is done.
+    fn drive_homes(&self) -> bool {
+        false
+    }
+
+    /// Starts the drive's reference run of `axis` (the drive must be operational). Its
+    /// failures are faults of [`DriveBus::cycle`] naming the axis.
+    fn start_homing(&mut self, _axis: usize) {}
+
+    /// Interrupts the drive's reference run of `axis`: the drive stops, and the state ends
+    /// as [`HomingState::Aborted`].
+    fn stop_homing(&mut self, _axis: usize) {}
+
+    /// The drive's reference run of `axis`.
+    fn homing_state(&self, _axis: usize) -> HomingState {
+        HomingState::Idle
     }
 
     /// The home switch of `axis` is pressed (last cycle).

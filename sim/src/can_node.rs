@@ -1,8 +1,10 @@
 //! A simulated CANopen CiA 402 drive node: NMT slave, expedited SDO server for the objects a
 //! CSP (axis) or CSV (spindle) master configures, synchronous PDOs, EMCY, heartbeat producer
 //! and consumer, and fault injection. The mode of operation (0x6060 = 8 or 9) and the PDO
-//! mapping the master writes decide whether the node is a position or a velocity drive. No I/O: the caller feeds frames and the time, and sends what comes out (the
-//! `sim-can` binary does that on a SocketCAN interface; tests do it in memory).
+//! mapping the master writes decide whether the node is a position or a velocity drive;
+//! 0x6060 = 6 is homing mode ([`crate::homing`]: a home switch, objects 0x6098, 0x607C,
+//! 0x6099, 0x609A). No I/O: the caller feeds frames and the time, and sends what comes out
+//! (the `sim-can` binary does that on a SocketCAN interface; tests do it in memory).
 
 use hal::canopen::emcy::Emcy;
 use hal::canopen::pdo::{OpMode, Rpdo, Tpdo};
@@ -41,6 +43,8 @@ struct CommObjects {
 }
 
 const DISABLED: u32 = 0x8000_0000;
+/// Modes of operation value of homing mode (CiA 402).
+const HOMING_MODE: u8 = 6;
 
 impl CommObjects {
     /// Power-on values: PDOs unmapped and disabled, so an unconfigured drive stays quiet.
@@ -144,6 +148,7 @@ impl CanNode {
 
     fn boot(&mut self, now_ms: u64, out: &mut Vec<Frame>) {
         self.od = CommObjects::defaults(self.id);
+        self.drive.set_homing_mode(false);
         self.nmt = nmt::state::PRE_OPERATIONAL;
         self.latched = None;
         self.master_heartbeat_ms = None;
@@ -270,7 +275,11 @@ impl CanNode {
             // The mode of operation picks the loop; a target mapped for the other mode is
             // not a target of this one (the drive holds: position where it is, speed 0).
             let layout = self.od.layout(true);
-            let e = if OpMode::from_code(u32::from(self.od.mode)) == Some(OpMode::Csv) {
+            self.drive.set_homing_mode(self.od.mode == HOMING_MODE);
+            let e = if self.od.mode == HOMING_MODE {
+                // Homing mode: the drive moves on its own; the target is not used.
+                self.drive.cycle_homing(cw, dt)
+            } else if OpMode::from_code(u32::from(self.od.mode)) == Some(OpMode::Csv) {
                 let target = if layout == Some(OpMode::Csv) {
                     value
                 } else {
@@ -407,7 +416,16 @@ impl CanNode {
                 }
                 map[i] = v;
             }
-            (0x6060, 0) if OpMode::from_code(v).is_some() => od.mode = v as u8,
+            (0x6060, 0) if OpMode::from_code(v).is_some() || v == u32::from(HOMING_MODE) => {
+                od.mode = v as u8;
+                self.drive.set_homing_mode(od.mode == HOMING_MODE);
+            }
+            // The homing objects (crate::homing).
+            (0x6098, 0) if v <= 0xFF => self.drive.homer.objects.method = v as u8 as i8,
+            (0x607C, 0) => self.drive.homer.objects.offset = v as i32,
+            (0x6099, 1) => self.drive.homer.objects.search_speed = v,
+            (0x6099, 2) => self.drive.homer.objects.zero_speed = v,
+            (0x609A, 0) => self.drive.homer.objects.accel = v,
             (0x6060, 0) => return Err(abort::VALUE_RANGE),
             (0x60C2, 1) if v <= 255 => od.interp_period.0 = v as u8,
             (0x60C2, 2) if v <= 255 => od.interp_period.1 = v as u8 as i8,
@@ -420,7 +438,7 @@ impl CanNode {
             }
             (
                 0x1400 | 0x1800 | 0x1600 | 0x1A00 | 0x60C2 | 0x1017 | 0x1016 | 0x6060 | 0x1006
-                | 0x6065,
+                | 0x6065 | 0x6098 | 0x607C | 0x6099 | 0x609A,
                 _,
             ) => {
                 return Err(abort::NO_SUBINDEX);
@@ -447,6 +465,11 @@ impl CanNode {
             (0x606C, 0) => (self.drive.velocity_units() as u32, 4),
             (0x6065, 0) => (self.drive.window_increments(), 4),
             (0x603F, 0) => (u32::from(self.drive.error_code()), 2),
+            (0x6098, 0) => (u32::from(self.drive.homer.objects.method as u8), 1),
+            (0x607C, 0) => (self.drive.homer.objects.offset as u32, 4),
+            (0x6099, 1) => (self.drive.homer.objects.search_speed, 4),
+            (0x6099, 2) => (self.drive.homer.objects.zero_speed, 4),
+            (0x609A, 0) => (self.drive.homer.objects.accel, 4),
             _ => return Err(abort::NO_OBJECT),
         })
     }

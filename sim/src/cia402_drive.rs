@@ -7,6 +7,7 @@
 use hal::cia402::{self, PowerState, sw};
 
 use crate::drive::{SimDriveParams, follow};
+use crate::homing::{Axis, Homer};
 
 /// What a cycle changed that the bus must announce (CANopen: an EMCY message).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -36,6 +37,12 @@ pub struct Cia402Drive {
     pub velocity_ramp_units_s2: f64,
     /// Safe torque off: the power stage cannot be switched on (stays Switch On Disabled).
     pub sto: bool,
+    /// Edge of the home switch in the drive's coordinates, mm (`None`: no switch); which
+    /// side is active depends on the homing method ([`crate::homing`]).
+    pub home_switch_mm: Option<f64>,
+    /// Homing mode (6): objects and the reference run.
+    pub homer: Homer,
+    homing_mode: bool,
 }
 
 impl Cia402Drive {
@@ -51,7 +58,36 @@ impl Cia402Drive {
             velocity_units: 0.0,
             velocity_ramp_units_s2: 0.0,
             sto: false,
+            home_switch_mm: None,
+            homer: Homer::default(),
+            homing_mode: false,
         }
+    }
+
+    /// The mode of operation is homing (6) or not: entering it starts with no run.
+    pub fn set_homing_mode(&mut self, on: bool) {
+        if on != self.homing_mode {
+            self.homer.reset();
+        }
+        self.homing_mode = on;
+    }
+
+    /// One cycle in homing mode: apply the controlword; enabled, bit 4 runs the reference
+    /// run (the target position is not used).
+    pub fn cycle_homing(&mut self, controlword: u16, dt_s: f64) -> Option<Event> {
+        let event = self.apply(controlword);
+        if self.state != PowerState::OperationEnabled {
+            self.homer.reset();
+            return event;
+        }
+        let mut axis = Axis {
+            position_mm: &mut self.position_mm,
+            switch_mm: &mut self.home_switch_mm,
+            increments_per_mm: self.increments_per_mm,
+        };
+        let start = controlword & hal::cia402::cw::HOMING_START != 0;
+        self.homer.cycle(start, &mut axis, dt_s);
+        event
     }
 
     /// Actual velocity (0x606C), drive units.
@@ -88,6 +124,10 @@ impl Cia402Drive {
 
     pub fn statusword(&self) -> u16 {
         let mut s = self.state.statusword_bits() | sw::REMOTE;
+        if self.homing_mode {
+            // Bits 10, 12, 13 are the homing handshake in mode 6.
+            return s | self.homer.status_bits();
+        }
         if self.state == PowerState::OperationEnabled {
             s |= sw::TARGET_FOLLOWED;
         }

@@ -115,11 +115,14 @@ pub struct SimArgs {
     pub ramp_rpm_s: f64,
     /// The serial unit has a spindle drive (protocol version 2).
     pub spindle: bool,
+    /// Edge of the home switch of each drive in its power-on coordinates, mm (CiA 402 homing
+    /// mode, [`crate::homing`]); `None`: no switch.
+    pub home_switch_mm: Option<f64>,
 }
 
 pub const USAGE: &str = "options: --iface IF --node N (repeatable) | --link PATH --axes N \
     [--spindle]; --increments-per-mm F --start-mm F --kv F --v-max-mm-s F --window-mm F \
-    --units-per-rpm F --ramp-rpm-s F";
+    --units-per-rpm F --ramp-rpm-s F --home-switch-mm F";
 
 impl SimArgs {
     pub fn parse(args: impl Iterator<Item = String>) -> Result<SimArgs, String> {
@@ -134,6 +137,7 @@ impl SimArgs {
             units_per_rpm: 1.0,
             ramp_rpm_s: 2000.0,
             spindle: false,
+            home_switch_mm: None,
         };
         let mut it = args;
         while let Some(k) = it.next() {
@@ -166,6 +170,7 @@ impl SimArgs {
                 "--units-per-rpm" => a.units_per_rpm = num(v()?)?,
                 "--ramp-rpm-s" => a.ramp_rpm_s = num(v()?)?,
                 "--spindle" => a.spindle = true,
+                "--home-switch-mm" => a.home_switch_mm = Some(num(v()?)?),
                 "-h" | "--help" => return Err(USAGE.into()),
                 _ => return Err(format!("unknown option '{k}'; {USAGE}")),
             }
@@ -186,6 +191,7 @@ impl SimArgs {
             self.start_mm,
         );
         d.velocity_ramp_units_s2 = self.ramp_rpm_s * self.units_per_rpm;
+        d.home_switch_mm = self.home_switch_mm;
         d
     }
 }

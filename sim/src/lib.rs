@@ -7,6 +7,7 @@ pub mod can_node;
 pub mod cia402_drive;
 pub mod control;
 pub mod drive;
+pub mod homing;
 pub mod serial_drive;
 
 pub use bus::{SimBus, SpindleLoad};

@@ -104,6 +104,7 @@ impl Rig {
                     increments_per_mm: INC_PER_MM,
                     following_window_increments: Some(10_000),
                     max_velocity_mm_s: 200.0,
+                    homing: None,
                 })
                 .collect(),
         );
@@ -328,6 +329,7 @@ fn spindle_node_follows_the_speed_setpoint_on_its_ramp() {
         increments_per_mm: INC_PER_MM,
         following_window_increments: Some(10_000),
         max_velocity_mm_s: 200.0,
+        homing: None,
     }]);
     cfg.spindle = Some(hal::canopen::SpindleNodeConfig {
         node_id: 5,

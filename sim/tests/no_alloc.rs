@@ -56,6 +56,7 @@ fn can_master_cycle_does_not_allocate() {
                 increments_per_mm: 1000.0,
                 following_window_increments: Some(10_000),
                 max_velocity_mm_s: 200.0,
+                homing: None,
             })
             .collect(),
     );

@@ -12,8 +12,10 @@ use std::sync::{Arc, Mutex};
 use daemon::runtime::buses::{BusConfig, can_config};
 use daemon::runtime::clock::SimClock;
 use daemon::runtime::config::Config;
-use daemon::runtime::harness::{Harness, JobEnd};
-use daemon::runtime::rt::MachineState;
+use daemon::runtime::controller::ControlError;
+use daemon::runtime::harness::{Harness, HarnessError, JobEnd};
+use daemon::runtime::homing;
+use daemon::runtime::rt::{MachineState, RtCommand};
 use hal::FaultReason;
 use hal::canopen::pdo::Rpdo;
 use hal::canopen::{CanOpenMaster, CanPort, Frame, PortError, RxEvent, nmt};
@@ -78,11 +80,23 @@ impl CanPort for Port {
 
 /// A daemon with axes X, Y, Z on CAN nodes 1..3 whose drives stand at `start_mm`.
 fn daemon(start_mm: [f64; 3], silent: Option<usize>, bus_keys: &str) -> (Harness, Arc<Mutex<Bus>>) {
+    daemon_with(start_mm, silent, bus_keys, ["", "", ""], [None; 3])
+}
+
+/// As [`daemon`], with more keys per axis and the drives' home switches (drive coordinates).
+fn daemon_with(
+    start_mm: [f64; 3],
+    silent: Option<usize>,
+    bus_keys: &str,
+    axis_keys: [&str; 3],
+    switches: [Option<f64>; 3],
+) -> (Harness, Arc<Mutex<Bus>>) {
     let mut toml = String::new();
     for (i, name) in ['X', 'Y', 'Z'].iter().enumerate() {
         toml.push_str(&format!(
-            "[[axes]]\nname = '{name}'\nnode_id = {}\nincrements_per_mm = {INC_PER_MM}\n\n",
-            i + 1
+            "[[axes]]\nname = '{name}'\nnode_id = {}\nincrements_per_mm = {INC_PER_MM}\n{}\n\n",
+            i + 1,
+            axis_keys[i]
         ));
     }
     toml.push_str("[bus]\nkind = 'can'\ninterface = 'mem0'\nfollowing_window_mm = 5\n");
@@ -99,7 +113,8 @@ fn daemon(start_mm: [f64; 3], silent: Option<usize>, bus_keys: &str) -> (Harness
         .iter()
         .enumerate()
         .map(|(i, &mm)| {
-            let drive = Cia402Drive::new(SimDriveParams::default(), INC_PER_MM, mm);
+            let mut drive = Cia402Drive::new(SimDriveParams::default(), INC_PER_MM, mm);
+            drive.home_switch_mm = switches[i];
             CanNode::new(i as u8 + 1, drive)
         })
         .collect();
@@ -194,4 +209,243 @@ fn a_drive_that_never_boots_is_named_in_the_alarm() {
         (f.axis, f.node, f.reason),
         (Some(1), Some(2), FaultReason::NoBootUp)
     );
+}
+
+/// The 1-byte expedited SDO downloads of 0x6060 (modes of operation) to `node`, with the
+/// index of the frame in `sent`.
+fn mode_writes(sent: &[Frame], node: u8) -> Vec<(usize, u8)> {
+    sent.iter()
+        .enumerate()
+        .filter(|(_, f)| {
+            f.id == 0x600 + u16::from(node) && f.data[0] == 0x2F && f.data[1..4] == [0x60, 0x60, 0]
+        })
+        .map(|(k, f)| (k, f.data[4]))
+        .collect()
+}
+
+/// Z (method 19, switch above) and X (method 21, switch below) need homing, Z first; Y has
+/// an absolute encoder.
+const HOMING_AXES: [&str; 3] = [
+    "homing = 'required'\nhome_order = 2\nhoming_direction = -1\nreference_mm = 10\n\
+     homing_speed_mm_min = 600\nhoming_zero_speed_mm_min = 60",
+    "",
+    "homing = 'required'\nhome_order = 1\nhoming_direction = 1\nreference_mm = -2\n\
+     homing_speed_mm_min = 600\nhoming_zero_speed_mm_min = 60",
+];
+
+/// Issue #15 on CANopen: `home` runs each drive's own reference run (CiA 402 homing mode 6) in
+/// the configured order; programs are refused before; the home offset is the reference; the
+/// return to CSP has no target jump and the commanded position is re-based on the homed one.
+#[test]
+fn can_drives_home_in_order_and_return_to_csp_without_a_jump() {
+    let (mut h, bus) = daemon_with(
+        [0.0, 4.0, 0.0],
+        None,
+        "homing_timeout_ms = 20000\n",
+        HOMING_AXES,
+        [Some(-5.0), None, Some(3.0)],
+    );
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    let e = h.start_program("G90 G1 X1 F1000\n").unwrap_err();
+    assert!(
+        matches!(e, HarnessError::Control(ControlError::WrongState(_))),
+        "{e:?}"
+    );
+    let before = h.snapshot();
+    assert!(!homing::axis_homed(h.config(), &before, 0));
+
+    assert_eq!(h.home("", 100_000).unwrap(), "ZX");
+    let s = h.step();
+    assert_eq!(s.homed & 0b101, 0b101);
+    assert!((0..3).all(|i| homing::axis_homed(h.config(), &s, i)));
+    // The switch edge became the reference (offset 0x607C); the drive stands just past it
+    // (braking from 1 mm/s at 800 mm/s²), and the commanded position is where it stands.
+    assert!((s.actual[0] - 10.0).abs() < 0.01, "{s:?}");
+    assert!((s.actual[2] + 2.0).abs() < 0.01, "{s:?}");
+    for i in [0, 2] {
+        assert!((s.commanded[i] - s.actual[i]).abs() < 1e-3, "{s:?}");
+    }
+    assert_eq!(s.commanded[1], 4.0, "Y did not move");
+
+    let max_step = 200.0 * 0.004 * INC_PER_MM;
+    {
+        let b = bus.lock().unwrap();
+        let (z, x) = (mode_writes(&b.sent, 3), mode_writes(&b.sent, 1));
+        // Z: 8 at start-up, 6, back to 8; then X the same: the configured order.
+        let modes = |w: &[(usize, u8)]| w.iter().map(|&(_, m)| m).collect::<Vec<_>>();
+        assert_eq!((modes(&z), modes(&x)), (vec![8, 6, 8], vec![8, 6, 8]));
+        assert!(
+            z[2].0 < x[1].0,
+            "Z returned to CSP before X entered homing mode"
+        );
+        for (node, w) in [(1u8, &x), (3, &z)] {
+            // In CSP again: the first target is the drive's homed position, then no step
+            // beyond one tick's travel at the axis limit.
+            let back = w[2].0;
+            let targets: Vec<i32> = b.sent[back..]
+                .iter()
+                .filter(|f| f.id == 0x200 + u16::from(node))
+                .map(|f| Rpdo::decode(f.payload()).unwrap().target_increments)
+                .collect();
+            let homed = if node == 1 { 10.0 } else { -2.0 };
+            assert!(
+                (f64::from(targets[0]) / INC_PER_MM - homed).abs() < 0.01,
+                "node {node}: {}",
+                targets[0]
+            );
+            let step = targets
+                .windows(2)
+                .map(|p| (p[1] - p[0]).abs())
+                .max()
+                .unwrap();
+            assert!(f64::from(step) <= max_step, "node {node}: step {step}");
+            // The handshake: bit 4 started it, the drive answered bits 12 + 10.
+            let cws: Vec<u16> = b.sent[w[1].0..back]
+                .iter()
+                .filter(|f| f.id == 0x200 + u16::from(node))
+                .map(|f| Rpdo::decode(f.payload()).unwrap().controlword)
+                .collect();
+            assert!(cws.contains(&0x1F), "node {node}: {cws:X?}");
+        }
+    }
+
+    // Homed: a program runs, in the homed coordinates.
+    let end = h.run_program("G90 G1 X12 Z-1 F3000\n", 100_000).unwrap();
+    assert_eq!(end, JobEnd::Finished);
+    h.run_until(1000, |s| (s.actual[0] - 12.0).abs() < 1e-3)
+        .unwrap();
+    let b = bus.lock().unwrap();
+    assert!((b.nodes[0].drive.position_mm() - 12.0).abs() < 1e-3);
+    assert!((b.nodes[2].drive.position_mm() + 1.0).abs() < 1e-2);
+}
+
+/// A drive without a home switch ends its run with the homing error bit: a typed fault naming
+/// axis and node, the run ABORTED, the axis not homed.
+#[test]
+fn a_homing_error_of_the_drive_is_a_fault_naming_axis_and_node() {
+    let (mut h, _bus) = daemon_with(
+        [0.0; 3],
+        None,
+        "",
+        ["", "homing = 'required'", ""],
+        [None; 3],
+    );
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    let e = h.home("Y", 100_000).unwrap_err();
+    assert!(
+        matches!(e, HarnessError::Control(ControlError::Aborted(_))),
+        "{e:?}"
+    );
+    let s = h.snapshot();
+    let f = s.fault.unwrap();
+    assert_eq!((f.axis, f.node), (Some(1), Some(2)));
+    assert!(
+        matches!(f.reason, FaultReason::HomingError { statusword } if statusword & 0x2000 != 0),
+        "{f:?}"
+    );
+    assert_eq!(s.homed & 0b010, 0);
+}
+
+/// Issue #15: after a drive fault the healthy axes brake to rest, then their drives go to the
+/// configured safe state: quick stop (default) or disable voltage; a reset enables them again.
+#[test]
+fn after_a_fault_the_healthy_drives_go_to_the_configured_safe_state() {
+    for (keys, want) in [
+        ("", PowerState::QuickStopActive),
+        (
+            "fault_reaction = 'disable_voltage'\n",
+            PowerState::SwitchOnDisabled,
+        ),
+        ("fault_reaction = 'hold'\n", PowerState::OperationEnabled),
+    ] {
+        let (mut h, bus) = daemon([0.0; 3], None, keys);
+        h.wait_state(MachineState::Idle, 10_000).unwrap();
+        let job = h.start_program("G90 G1 X100 Y50 Z20 F3000\n").unwrap();
+        h.run_until(10_000, |s| s.commanded[0] > 5.0).unwrap();
+        {
+            let mut b = bus.lock().unwrap();
+            let mut out = Vec::new();
+            b.nodes[1].force_fault(0x2310, &mut out);
+            b.to_master.extend(out);
+        }
+        assert_eq!(h.finish_job(job, 10_000).unwrap(), JobEnd::Aborted);
+        let f = h.snapshot().fault.unwrap();
+        assert_eq!((f.axis, f.node), (Some(1), Some(2)));
+        // At rest, then the safe state (bounded: the settle timeout is 1 s).
+        for _ in 0..1000 {
+            h.step();
+        }
+        let b = bus.lock().unwrap();
+        for k in [0, 2] {
+            assert_eq!(b.nodes[k].drive.state(), want, "{keys}: node {}", k + 1);
+        }
+        assert_eq!(b.nodes[1].drive.state(), PowerState::Fault);
+        let x = b.nodes[0].drive.position_mm();
+        drop(b);
+        assert!((h.snapshot().actual[0] - x).abs() < 1e-3);
+        // Reset walks every drive up again from its state.
+        h.send(RtCommand::Reset).unwrap();
+        h.wait_state(MachineState::Idle, 10_000).unwrap();
+        let b = bus.lock().unwrap();
+        for n in &b.nodes {
+            assert_eq!(
+                n.drive.state(),
+                PowerState::OperationEnabled,
+                "{keys}: node {}",
+                n.id
+            );
+        }
+    }
+}
+
+/// A stop during a drive's reference run interrupts it: the drive stops, returns to CSP, the
+/// run ends not homed and the commanded position is where the drive stands. A run longer
+/// than `homing_timeout_ms` is a typed fault; reset restarts the drive (its configuration
+/// sets CSP again) and the machine is idle again.
+#[test]
+fn a_stop_interrupts_a_drive_homing_and_a_timeout_is_a_fault() {
+    let keys = "homing = 'required'\nhoming_speed_mm_min = 600";
+    let (mut h, bus) = daemon_with(
+        [0.0; 3],
+        None,
+        "homing_timeout_ms = 2000\n",
+        [keys, "", ""],
+        [Some(-100.0), None, None],
+    );
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    h.send(RtCommand::Home(homing::home_request(h.config(), 0)))
+        .unwrap();
+    h.run_until(10_000, |s| s.actual[0] < -1.0).unwrap();
+    h.send(RtCommand::Stop).unwrap();
+    let s = h
+        .run_until(10_000, |s| s.state != MachineState::Homing)
+        .unwrap();
+    assert_eq!(s.state, MachineState::Idle);
+    assert_eq!((s.homed & 1, s.homing_failed & 1), (0, 1));
+    assert!(s.fault.is_none());
+    let s = h.run_until(100, |_| true).unwrap();
+    assert!((s.commanded[0] - s.actual[0]).abs() < 1e-3, "{s:?}");
+    {
+        let b = bus.lock().unwrap();
+        let modes: Vec<u8> = mode_writes(&b.sent, 1).iter().map(|&(_, m)| m).collect();
+        assert_eq!(modes, [8, 6, 8]);
+        assert_eq!(b.nodes[0].drive.state(), PowerState::OperationEnabled);
+    }
+
+    // The switch is 100 mm away at 10 mm/s: the 2 s timeout ends the run.
+    let e = h.home("X", 10_000).unwrap_err();
+    assert!(
+        matches!(e, HarnessError::Control(ControlError::Aborted(_))),
+        "{e:?}"
+    );
+    let f = h.snapshot().fault.unwrap();
+    assert_eq!(
+        (f.axis, f.node, f.reason),
+        (Some(0), Some(1), FaultReason::HomingTimeout)
+    );
+    h.send(RtCommand::Reset).unwrap();
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    let b = bus.lock().unwrap();
+    let modes: Vec<u8> = mode_writes(&b.sent, 1).iter().map(|&(_, m)| m).collect();
+    assert_eq!(modes, [8, 6, 8, 6, 8], "the restart wrote CSP again");
 }

@@ -51,6 +51,7 @@ impl Rig {
                     increments_per_mm: INC_PER_MM,
                     following_window_increments: Some((10.0 * INC_PER_MM) as u32),
                     max_velocity_mm_s: 200.0,
+                    homing: None,
                 })
                 .collect(),
         );

@@ -1,6 +1,7 @@
 //! `cncd` on vcan0 with `sim-can` drive processes, driven by `cncctl`: a program end to end,
 //! the recorded traffic, a killed drive process (controlled stop, alarm naming axis and node),
-//! reset and resume. Skipped where there is no vcan0; `tests/vcan/run.sh` runs it in a VM.
+//! reset and resume; homing in the drives' homing mode 6. Skipped where there is no vcan0;
+//! `tests/vcan/run.sh` runs it in a VM.
 
 mod vcan_support;
 
@@ -255,4 +256,106 @@ fn daemon_enables_without_a_jump_and_sigterm_switches_the_drives_off() {
             "{line}"
         );
     }
+}
+
+/// The 6-byte PDOs of `cob_id` in a candump log: (line index, control/status word).
+fn pdo_words(log: &str, cob_id: u16) -> Vec<(usize, u16)> {
+    let id = format!(" {cob_id:03X}#");
+    log.lines()
+        .enumerate()
+        .filter(|(_, l)| l.contains(&id))
+        .filter_map(|(k, l)| {
+            let data = l.split('#').nth(1)?;
+            (data.len() == 12).then(|| {
+                let b = |i: usize| u16::from_str_radix(&data[2 * i..2 * i + 2], 16).unwrap();
+                (k, b(0) | b(1) << 8)
+            })
+        })
+        .collect()
+}
+
+/// Line indices of the SDO writes 0x6060 = `mode` to `node` in a candump log.
+fn mode_writes(log: &str, node: u16, mode: u8) -> Vec<usize> {
+    let frame = format!(" {:03X}#2F606000{mode:02X}", 0x600 + node);
+    log.lines()
+        .enumerate()
+        .filter(|(_, l)| l.contains(&frame))
+        .map(|(k, _)| k)
+        .collect()
+}
+
+/// Issue #15 on vcan0: `cncctl home` runs the sim-can drives' own reference run (CiA 402
+/// homing mode 6) in the configured order (Z, then X); programs are refused before. The
+/// trace shows, per drive, 0x6060 = 6, controlword bit 4, the statusword handshake (bits 12
+/// homing attained + 10 target reached), then 0x6060 = 8; the drives stand at their
+/// reference.
+#[test]
+fn daemon_homes_can_drives_in_homing_mode_6() {
+    let _bus = vcan_lock();
+    if !vcan_ready("daemon_homes_can_drives_in_homing_mode_6") {
+        return;
+    }
+    let _x = sim_can(&[58], &["--home-switch-mm", "-3"]);
+    let _y = sim_can(&[59], &[]);
+    let _z = sim_can(&[60], &["--start-mm", "1", "--home-switch-mm", "2"]);
+    let dir = vcan_support::temp_dir("vcan-daemon-homing");
+    let record = dir.join("can.log");
+    let bus = BUS.replace("RECORD", record.to_str().unwrap());
+    let speeds = "homing_speed_mm_min = 600\nhoming_zero_speed_mm_min = 60";
+    let x_keys = format!(
+        "homing = 'required'\nhome_order = 2\nhoming_direction = -1\nreference_mm = 10\n{speeds}"
+    );
+    let z_keys = format!(
+        "homing = 'required'\nhome_order = 1\nhoming_direction = 1\nreference_mm = -2\n{speeds}"
+    );
+    let d = Daemon::start_with(
+        "vcan-daemon-homing",
+        &bus,
+        [58, 59, 60],
+        [&x_keys, "", &z_keys],
+    );
+    let prog = d.program("p.nc", "N10 G90 G1 X12 Z-1 F1000\n");
+    let (ok, out) = d.cncctl(&["run", "--quiet", &prog], Duration::from_secs(60));
+    assert!(!ok, "refused before homing: {out}");
+
+    let (ok, out) = d.cncctl(&["home"], Duration::from_secs(180));
+    assert!(ok, "cncctl home failed: {out}");
+    let (ok, out) = d.cncctl(&["run", "--quiet", &prog], Duration::from_secs(120));
+    assert!(ok, "cncctl run after homing failed: {out}");
+    let s = d.wait_state("idle", Duration::from_secs(30));
+    assert!(s.contains("X12.000") && s.contains("Z-1.000"), "{s}");
+    std::thread::sleep(Duration::from_millis(500)); // the recorder's flush
+    let log = std::fs::read_to_string(&record).unwrap();
+    let lines: Vec<&str> = log.lines().collect();
+    let mut back_to_csp = Vec::new();
+    for node in [60u16, 58] {
+        let six = mode_writes(&log, node, 6);
+        let eight = mode_writes(&log, node, 8);
+        assert_eq!(six.len(), 1, "node {node}: one reference run");
+        let back = *eight
+            .iter()
+            .find(|&&k| k > six[0])
+            .expect("0x6060 = 8 after 6");
+        let started = pdo_words(&log, 0x200 + node)
+            .into_iter()
+            .find(|&(k, cw)| k > six[0] && cw & 0x10 != 0)
+            .expect("controlword bit 4")
+            .0;
+        let attained = pdo_words(&log, 0x180 + node)
+            .into_iter()
+            .find(|&(k, sw)| k > started && sw & 0x1400 == 0x1400)
+            .expect("statusword bits 12 + 10")
+            .0;
+        assert!(
+            six[0] < started && started < attained && attained < back,
+            "node {node}"
+        );
+        println!("node {node}: the trace of its reference run");
+        for k in [six[0], started, attained, back] {
+            println!("  {}", lines[k]);
+        }
+        back_to_csp.push(back);
+    }
+    let x_enters = mode_writes(&log, 58, 6)[0];
+    assert!(back_to_csp[0] < x_enters, "Z homed before X");
 }

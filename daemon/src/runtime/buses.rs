@@ -11,12 +11,13 @@
 //! Every key is listed in `docs/buses.md`.
 
 use hal::canopen::{
-    CanOpenConfig, CanOpenMaster, NodeConfig, ShutdownMode, SocketCanPort, SpindleNodeConfig,
+    CanOpenConfig, CanOpenMaster, FaultReaction, HomingParams, NodeConfig, ShutdownMode,
+    SocketCanPort, SpindleNodeConfig,
 };
 use hal::serial::{SerialAxis, SerialBus, SerialConfig, SerialSpindle};
 
 use super::config::{AxisConfig, SimConfig};
-pub use super::config::{BusConfig, CanBusConfig, SerialBusConfig, ShutdownKey};
+pub use super::config::{BusConfig, CanBusConfig, FaultReactionKey, SerialBusConfig, ShutdownKey};
 
 /// The master settings for `axes` (validated: every axis has a node id).
 pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
@@ -30,6 +31,7 @@ pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
                 .following_window_mm
                 .map(|mm| (mm * a.increments_per_mm).round().min(f64::from(u32::MAX)) as u32),
             max_velocity_mm_s: a.max_velocity_mm_min / 60.0,
+            homing: Some(homing_params(a)),
         })
         .collect();
     CanOpenConfig {
@@ -49,11 +51,39 @@ pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
             ShutdownKey::Disable => ShutdownMode::Disable,
             ShutdownKey::QuickStop => ShutdownMode::QuickStop,
         },
+        fault_reaction: match c.fault_reaction {
+            FaultReactionKey::QuickStop => FaultReaction::QuickStop,
+            FaultReactionKey::DisableVoltage => FaultReaction::DisableVoltage,
+            FaultReactionKey::Hold => FaultReaction::Hold,
+        },
+        homing_timeout_ms: c.homing_timeout_ms,
         spindle: c.spindle_node.map(|node_id| SpindleNodeConfig {
             node_id,
             units_per_rpm: c.spindle_units_per_rpm,
         }),
         ..CanOpenConfig::new(nodes)
+    }
+}
+
+/// The drive's homing settings of axis `a` in drive units (docs/buses.md#homing): the home
+/// offset 0x607C is `reference_mm`, the position the axis has at its home position.
+pub fn homing_params(a: &AxisConfig) -> HomingParams {
+    let inc = a.increments_per_mm;
+    let units = |v: f64| (v * inc).round().clamp(1.0, f64::from(u32::MAX)) as u32;
+    let search_mm_s = a.homing_speed_mm_s();
+    let zero_mm_s = a
+        .homing_zero_speed_mm_min
+        .map_or(search_mm_s / 10.0, |v| v / 60.0);
+    HomingParams {
+        method: a
+            .can_homing_method
+            .unwrap_or(if a.homing_direction < 0 { 21 } else { 19 }),
+        offset_increments: (a.reference_mm * inc)
+            .round()
+            .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32,
+        search_speed: units(search_mm_s),
+        zero_speed: units(zero_mm_s),
+        accel: units(a.homing_accel_mm_s2.unwrap_or(a.max_accel_mm_s2)),
     }
 }
 
@@ -220,6 +250,69 @@ mod tests {
                 Path::new("m.toml"),
             )
             .unwrap_err();
+            assert!(e.to_string().contains(key), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn homing_and_fault_reaction_keys_reach_the_master() {
+        let c = Config::parse(
+            "[[axes]]\nname = 'X'\nnode_id = 1\nincrements_per_mm = 1000\nreference_mm = -2.5\n\
+             homing_speed_mm_min = 600\nhoming_accel_mm_s2 = 50\n\
+             [[axes]]\nname = 'Y'\nnode_id = 2\nhoming_direction = 1\ncan_homing_method = 37\n\
+             [bus]\nkind = 'can'\ninterface = 'vcan0'\nfault_reaction = 'disable_voltage'\n\
+             homing_timeout_ms = 9000\n",
+            Path::new("m.toml"),
+        )
+        .unwrap();
+        let BusConfig::Can(can) = &c.bus else {
+            panic!()
+        };
+        let m = can_config(can, &c.axes);
+        assert_eq!(m.fault_reaction, FaultReaction::DisableVoltage);
+        assert_eq!(m.homing_timeout_ms, 9000);
+        // 10 mm/s, a tenth of it leaving the switch, 50 mm/s², at 1000 increments/mm.
+        assert_eq!(
+            m.nodes[0].homing,
+            Some(HomingParams {
+                method: 21,
+                offset_increments: -2500,
+                search_speed: 10_000,
+                zero_speed: 1000,
+                accel: 50_000,
+            })
+        );
+        assert_eq!(m.nodes[1].homing.map(|h| h.method), Some(37));
+        let d = Config::parse(
+            "[bus]\nkind = 'can'\ninterface = 'vcan0'\n",
+            Path::new("m.toml"),
+        )
+        .unwrap();
+        let BusConfig::Can(can) = &d.bus else {
+            panic!()
+        };
+        let m = can_config(can, &d.axes);
+        assert_eq!(m.fault_reaction, FaultReaction::QuickStop);
+        assert_eq!(m.nodes[0].homing.map(|h| h.method), Some(21));
+        for (bad, key) in [
+            (
+                "[bus]\nkind = 'can'\ninterface = 'v'\nhoming_timeout_ms = 0",
+                "bus.homing_timeout_ms",
+            ),
+            (
+                "[bus]\nkind = 'can'\ninterface = 'v'\nfault_reaction = 'coast'",
+                "coast",
+            ),
+            (
+                "[[axes]]\nname = 'X'\nhoming_accel_mm_s2 = -1",
+                "axes[0].homing_accel_mm_s2",
+            ),
+            (
+                "[[axes]]\nname = 'X'\nhoming_zero_speed_mm_min = 0",
+                "axes[0].homing_zero_speed_mm_min",
+            ),
+        ] {
+            let e = Config::parse(bad, Path::new("m.toml")).unwrap_err();
             assert!(e.to_string().contains(key), "{bad}: {e}");
         }
     }

@@ -239,6 +239,19 @@ pub struct AxisConfig {
     /// only rotary axes is in thousands of these pulses per minute. Unset: a linear axis.
     #[serde(default)]
     pub rotary_pulses_per_rev: Option<f64>,
+    /// CANopen: homing method of the drive's reference run (0x6098, CiA 402). Unset: 21
+    /// (home switch on the negative side) with `homing_direction = -1`, 19 (positive side)
+    /// with +1; docs/buses.md#homing.
+    #[serde(default)]
+    pub can_homing_method: Option<i8>,
+    /// CANopen: speed of the second homing phase, leaving the switch for the home position
+    /// (0x6099:2), mm/min. Unset: a tenth of the search speed.
+    #[serde(default)]
+    pub homing_zero_speed_mm_min: Option<f64>,
+    /// CANopen: acceleration of the drive's reference run (0x609A), mm/s². Unset:
+    /// `max_accel_mm_s2`.
+    #[serde(default)]
+    pub homing_accel_mm_s2: Option<f64>,
 }
 
 /// Reference run of an axis.
@@ -290,7 +303,17 @@ impl AxisConfig {
             home_order: None,
             sim_home_switch_mm: None,
             rotary_pulses_per_rev: None,
+            can_homing_method: None,
+            homing_zero_speed_mm_min: None,
+            homing_accel_mm_s2: None,
         }
+    }
+
+    /// Search speed of the reference run, mm/s.
+    pub fn homing_speed_mm_s(&self) -> f64 {
+        self.homing_speed_mm_min
+            .unwrap_or(0.1 * self.max_velocity_mm_min)
+            / 60.0
     }
 }
 
@@ -744,6 +767,20 @@ fn validate_axis_safety(i: usize, a: &AxisConfig) -> Result<(), String> {
             "axes[{i}].homing_speed_mm_min: {v} must be above 0 and at most max_velocity_mm_min"
         ));
     }
+    if let Some(v) = a.homing_zero_speed_mm_min
+        && !(v.is_finite() && v > 0.0 && v <= a.max_velocity_mm_min)
+    {
+        return Err(format!(
+            "axes[{i}].homing_zero_speed_mm_min: {v} must be above 0 and at most max_velocity_mm_min"
+        ));
+    }
+    if let Some(v) = a.homing_accel_mm_s2
+        && !(v.is_finite() && v > 0.0)
+    {
+        return Err(format!(
+            "axes[{i}].homing_accel_mm_s2: {v} must be a positive number"
+        ));
+    }
     if let Some(d) = a.stop_decel_mm_s2
         && !(d.is_finite() && d > 0.0)
     {
@@ -823,6 +860,14 @@ pub struct CanBusConfig {
     /// `quick_stop` (02h, 00h).
     #[serde(default)]
     pub shutdown: ShutdownKey,
+    /// What the drives do after a fault stop, once the healthy axes are at rest:
+    /// `quick_stop` (02h, default), `disable_voltage` (00h) or `hold` (stay enabled on the
+    /// last setpoint). docs/operator.md.
+    #[serde(default)]
+    pub fault_reaction: FaultReactionKey,
+    /// Time allowed for a drive's reference run (homing mode 6), ms.
+    #[serde(default = "default_homing_timeout_ms")]
+    pub homing_timeout_ms: u32,
     /// Node id of the spindle drive (CiA 402, cyclic synchronous velocity); unset: no spindle
     /// drive on this bus.
     #[serde(default)]
@@ -843,6 +888,20 @@ pub enum ShutdownKey {
 
 fn default_cycle_ms() -> u32 {
     4
+}
+
+/// `[bus] fault_reaction` of the CAN bus.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum FaultReactionKey {
+    #[default]
+    QuickStop,
+    DisableVoltage,
+    Hold,
+}
+
+fn default_homing_timeout_ms() -> u32 {
+    60_000
 }
 
 fn default_units_per_rpm() -> f64 {
@@ -981,6 +1040,9 @@ impl BusConfig {
                     {
                         return Err(format!("bus.{key}: {v} must be a positive number"));
                     }
+                }
+                if c.homing_timeout_ms == 0 {
+                    return Err("bus.homing_timeout_ms must be above 0".into());
                 }
                 if c.tpdo_missing_ticks == 0 || c.heartbeat_timeout_ms == 0 {
                     return Err(

@@ -21,12 +21,12 @@ use kernel::plc::{PlcError, PlcWrite};
 
 use super::buses::open_bus;
 use super::clock::{Clock, MonotonicClock};
-use super::config::{Config, HomingMode, RadiusInputConfig};
+use super::config::{Config, RadiusInputConfig};
+use super::homing;
 use super::job::{self, JobLink, JobSpec};
 use super::logging::BlockNo;
 use super::pipeline::Execution;
 use super::rt::{self, JobMachine, MachineState, RtCommand, RtCoreConfig, RtParts, Snapshot};
-use super::rt_core::HomeRequest;
 use super::storage::{self, OffsetStore, StorageError};
 
 /// Segment ring capacity (planner → RT).
@@ -36,8 +36,6 @@ const COMMAND_RING: usize = 64;
 /// A continuous jog stops by itself unless renewed within this many ticks (0.5 s): the
 /// dead-man of a client that goes away without a word (the API renews it every 100 ms).
 pub const JOG_LEASE_TICKS: u32 = 125;
-/// Longest switch search of an axis without both soft limits, mm.
-const HOMING_MAX_TRAVEL_MM: f64 = 2000.0;
 
 /// Which clock drives the tick loop of the RT thread. Simulated time is not a clock of the
 /// threaded daemon: tests that need it step the RT core in the single-threaded harness
@@ -364,43 +362,12 @@ impl Controller {
 
     /// Whether axis `i` is referenced: homed since power-on, or needing no reference run.
     pub fn axis_homed(&self, snap: &Snapshot, i: usize) -> bool {
-        self.config.axes[i].homing == HomingMode::None || snap.homed & (1 << i) != 0
+        homing::axis_homed(&self.config, snap, i)
     }
 
     /// FAILED_PRECONDITION while an axis that needs a reference run has not had one.
     fn require_homed(&self, what: &str) -> Result<(), ControlError> {
-        let snap = self.snapshot();
-        let missing: String = (0..self.config.axes.len())
-            .filter(|&i| !self.axis_homed(&snap, i))
-            .map(|i| self.config.axes[i].name)
-            .collect();
-        if missing.is_empty() {
-            return Ok(());
-        }
-        Err(ControlError::WrongState(format!(
-            "{what} needs homed axes: home {missing} first (cncctl home)"
-        )))
-    }
-
-    /// The axes named in `axes` (when empty: those with `homing = "required"`), in their
-    /// configured homing order.
-    fn homing_order(&self, axes: &str) -> Result<Vec<usize>, ControlError> {
-        let mut list: Vec<usize> = if axes.trim().is_empty() {
-            (0..self.config.axes.len())
-                .filter(|&i| self.config.axes[i].homing == HomingMode::Required)
-                .collect()
-        } else {
-            let mut v = Vec::new();
-            for c in axes.chars().filter(|c| !c.is_whitespace() && *c != ',') {
-                let i = self.axis_index(&c.to_string())?;
-                if !v.contains(&i) {
-                    v.push(i);
-                }
-            }
-            v
-        };
-        list.sort_by_key(|&i| (self.config.axes[i].home_order.unwrap_or(u8::MAX), i));
-        Ok(list)
+        homing::require_homed(&self.config, &self.snapshot(), what)
     }
 
     /// Reference run of `axes` (all when empty), one axis after the other in the configured
@@ -409,11 +376,11 @@ impl Controller {
         if !self.can_home {
             return Err(ControlError::WrongState(
                 "this bus cannot run a reference run yet (homing is built for the simulated \
-                 machine; CANopen mode 6 and serial homing are not done)"
+                 machine and CANopen drives (homing mode 6); serial homing is not done)"
                     .into(),
             ));
         }
-        let order = self.homing_order(axes)?;
+        let order = homing::homing_order(&self.config, axes)?;
         let mut done = String::new();
         for i in order {
             self.home_axis(i).await?;
@@ -423,7 +390,6 @@ impl Controller {
     }
 
     async fn home_axis(&self, i: usize) -> Result<(), ControlError> {
-        let a = &self.config.axes[i];
         let snap = self.snapshot();
         if snap.state != MachineState::Idle {
             return Err(ControlError::WrongState(format!(
@@ -431,18 +397,7 @@ impl Controller {
                 snap.state
             )));
         }
-        let travel = match (a.soft_min_mm, a.soft_max_mm) {
-            (Some(lo), Some(hi)) => 1.5 * (hi - lo),
-            _ => HOMING_MAX_TRAVEL_MM,
-        };
-        self.send(RtCommand::Home(HomeRequest {
-            axis: i,
-            direction: f64::from(a.homing_direction),
-            speed_mm_s: a.homing_speed_mm_min.unwrap_or(0.1 * a.max_velocity_mm_min) / 60.0,
-            accel_mm_s2: a.max_accel_mm_s2,
-            reference_mm: a.reference_mm,
-            max_travel_mm: travel,
-        }))?;
+        self.send(RtCommand::Home(homing::home_request(&self.config, i)))?;
         // Commands are taken at the start of a tick: two snapshots later it has been seen.
         let mut rx = self.subscribe();
         let bit = 1u8 << i;
@@ -452,15 +407,7 @@ impl Controller {
                 if s.homed & bit != 0 {
                     return Ok(());
                 }
-                return Err(ControlError::Aborted(format!(
-                    "homing of {} failed: {}",
-                    a.name,
-                    if s.homing_failed & bit != 0 {
-                        "home switch not found, or stopped"
-                    } else {
-                        "the machine was not idle"
-                    }
-                )));
+                return Err(homing::failure(&self.config, &s, i));
             }
             rx.changed().await.map_err(|_| ControlError::RtGone)?;
         }
@@ -623,18 +570,7 @@ impl Controller {
 
     /// Axis index of letter `axis`, or INVALID_ARGUMENT.
     fn axis_index(&self, axis: &str) -> Result<usize, ControlError> {
-        let mut chars = axis.trim().chars();
-        let letter = chars.next().map(|c| c.to_ascii_uppercase());
-        self.config
-            .axes
-            .iter()
-            .position(|a| Some(a.name) == letter && chars.next().is_none())
-            .ok_or_else(|| {
-                ControlError::Invalid(format!(
-                    "no axis {axis:?}: the machine has {}",
-                    self.config.axis_names().iter().collect::<String>()
-                ))
-            })
+        homing::axis_index(&self.config, axis)
     }
 
     /// Jog speed in mm/s: the asked speed within the axis's maximum; 0 asks for 10 % of it.

@@ -25,6 +25,7 @@ use tokio::sync::watch;
 use super::clock::SimClock;
 use super::config::Config;
 use super::controller::{Pump, load_storage, machine_config, rt_core_config};
+use super::homing;
 use super::job::{JobSpec, plan_into};
 use super::rt_core::{JobMachine, MachineState, RtCommand, RtCore, RtRings, Snapshot};
 use super::storage::OffsetStore;
@@ -46,6 +47,9 @@ pub enum HarnessError {
     CommandRingFull,
     #[error("not reached within {ticks} ticks: {snapshot:?}")]
     Timeout { ticks: u64, snapshot: Box<Snapshot> },
+    /// Refused or failed as the controller refuses it (e.g. a program before homing).
+    #[error("{0}")]
+    Control(#[from] super::controller::ControlError),
 }
 
 /// How a job ended.
@@ -121,6 +125,11 @@ impl Harness {
             setpoint_hash: Fnv::new(),
             timeline_hash: Fnv::new(),
         })
+    }
+
+    /// The daemon's configuration.
+    pub fn config(&self) -> &Config {
+        &self.config
     }
 
     /// The RT core (deadline grid, state).
@@ -288,6 +297,7 @@ impl Harness {
     /// As [`Harness::start_program`]; with `stop_at_blocks` every block ends at rest (the
     /// single-block runs of the API).
     pub fn start_job(&mut self, text: &str, stop_at_blocks: bool) -> Result<u32, HarnessError> {
+        homing::require_homed(&self.config, &self.snapshot(), "a program")?;
         let setup = self.machine_setup().map_err(HarnessError::Setup)?;
         let job = self.next_job;
         let opts = Options {
@@ -351,6 +361,26 @@ impl Harness {
         self.wait_state(MachineState::Idle, max_ticks)?;
         let job = self.start_program(text)?;
         self.finish_job(job, max_ticks)
+    }
+}
+
+impl Harness {
+    /// Reference run of `axes` (all that need one when empty) as `cncctl home` runs it: in
+    /// the configured order, one axis after the other, each started on an idle machine.
+    /// Returns the letters homed; a failed run is the controller's error (ABORTED).
+    pub fn home(&mut self, axes: &str, max_ticks: u64) -> Result<String, HarnessError> {
+        let mut done = String::new();
+        for i in homing::homing_order(&self.config, axes)? {
+            self.wait_state(MachineState::Idle, max_ticks)?;
+            self.send(RtCommand::Home(homing::home_request(&self.config, i)))?;
+            self.step();
+            let s = self.run_until(max_ticks, |s| s.state != MachineState::Homing)?;
+            if s.homed & (1 << i) == 0 {
+                return Err(homing::failure(&self.config, &s, i).into());
+            }
+            done.push(self.config.axes[i].name);
+        }
+        Ok(done)
     }
 }
 

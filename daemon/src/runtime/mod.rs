@@ -6,6 +6,7 @@ pub mod config;
 pub mod controller;
 pub mod fault_inject;
 pub mod harness;
+pub mod homing;
 pub mod job;
 pub mod logging;
 pub mod pipeline;

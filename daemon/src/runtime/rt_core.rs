@@ -12,7 +12,7 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU32, Ordering};
 
-use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState};
+use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, HomingState};
 use kernel::block::SpindleDir;
 use kernel::estop::AxisBrake;
 use kernel::interp::{InterpState, Interpolator, TickOut};
@@ -76,6 +76,8 @@ struct HomingRun {
     reference_mm: f64,
     /// Drive position where the switch was found.
     trigger_mm: Option<f64>,
+    /// The drive runs it itself (CiA 402 homing mode): no switch search here.
+    by_drive: bool,
 }
 
 /// What the RT side reads of a job's machine setup (issue #14): taken with the job's start, so
@@ -443,11 +445,12 @@ impl RtCore {
                 }
                 RtCommand::Stop => {
                     self.jog.stop();
+                    self.stop_drive_homing(bus);
                     self.abort();
                 }
                 RtCommand::Jog(r) => self.jog_request(r),
                 RtCommand::JogStop => self.jog.stop(),
-                RtCommand::Home(r) => self.home_request(r),
+                RtCommand::Home(r) => self.home_request(r, bus),
                 RtCommand::Hold => self.interp.hold(),
                 RtCommand::Resume => self.interp.resume(),
                 RtCommand::Override(pct) => {
@@ -479,6 +482,7 @@ impl RtCore {
                 }
                 RtCommand::Shutdown => {
                     self.jog.stop();
+                    self.stop_drive_homing(bus);
                     self.shutting_down = true;
                     self.abort();
                 }
@@ -582,7 +586,7 @@ impl RtCore {
 
     /// Starts a reference run: the axis moves toward its switch like a jog (no lease: the
     /// operator started it and Stop ends it), at most `max_travel_mm`.
-    fn home_request(&mut self, r: HomeRequest) {
+    fn home_request(&mut self, r: HomeRequest, bus: &mut dyn DriveBus) {
         let free = self.snap.state == MachineState::Idle
             && self.active_job == 0
             && !self.shutting_down
@@ -593,6 +597,19 @@ impl RtCore {
         let bit = 1u8 << r.axis;
         self.snap.homed &= !bit;
         self.snap.homing_failed &= !bit;
+        if bus.drive_homes() {
+            // The drive moves on its own (its settings are the bus's); the axis's setpoint
+            // is not used until the run ends.
+            bus.start_homing(r.axis);
+            self.homing = Some(HomingRun {
+                axis: r.axis,
+                reference_mm: r.reference_mm,
+                trigger_mm: None,
+                by_drive: true,
+            });
+            self.snap.state = MachineState::Homing;
+            return;
+        }
         let here = self.cmd.positions_mm[r.axis];
         let jog = JogRequest {
             axis: r.axis,
@@ -606,6 +623,7 @@ impl RtCore {
                 axis: r.axis,
                 reference_mm: r.reference_mm,
                 trigger_mm: None,
+                by_drive: false,
             });
             self.snap.state = MachineState::Homing;
         }
@@ -615,6 +633,9 @@ impl RtCore {
     /// switch position becomes the reference (drive and setpoint shift together: no jump).
     fn homing_step(&mut self, bus: &mut dyn DriveBus) {
         let Some(mut h) = self.homing else { return };
+        if h.by_drive {
+            return self.drive_homing_step(h.axis, bus);
+        }
         if h.trigger_mm.is_none() && bus.home_switch(h.axis) {
             h.trigger_mm = Some(self.fb.axes[h.axis].position_mm);
             self.jog.stop();
@@ -639,6 +660,30 @@ impl RtCore {
         self.homing = None;
     }
 
+    /// A reference run by the drive: once it ends the drive follows setpoints again from where
+    /// it stands, so the axis's commanded position is re-based on the drive's (homed)
+    /// position: the first setpoint equals it, no jump.
+    fn drive_homing_step(&mut self, axis: usize, bus: &mut dyn DriveBus) {
+        let bit = 1u8 << axis;
+        match bus.homing_state(axis) {
+            HomingState::Idle | HomingState::Running => return,
+            HomingState::Done => self.snap.homed |= bit,
+            HomingState::Aborted => self.snap.homing_failed |= bit,
+        }
+        let here = self.fb.axes[axis].position_mm;
+        self.cmd.positions_mm[axis] = here;
+        self.prev_setpoint[axis] = here;
+        self.homing = None;
+    }
+
+    /// Stop or shutdown during a reference run by the drive: the drive stops it; the run
+    /// ends (aborted) when the drive stands.
+    fn stop_drive_homing(&mut self, bus: &mut dyn DriveBus) {
+        if let Some(h) = self.homing.filter(|h| h.by_drive) {
+            bus.stop_homing(h.axis);
+        }
+    }
+
     /// Fault reaction (issue #15): a faulted axis no longer follows, so braking along the path
     /// would pull the tool off it. Every healthy axis brakes on its own at its stop
     /// deceleration from the speed of its last setpoints; a faulted axis keeps its setpoint
@@ -646,12 +691,18 @@ impl RtCore {
     fn start_fault_stop(&mut self, fault: BusFault) {
         // The brake takes over from the jog's last setpoints.
         self.jog.cancel();
-        if let Some(h) = self.homing.take() {
+        let homing = self.homing.take();
+        if let Some(h) = homing {
             self.snap.homing_failed |= 1 << h.axis;
         }
         let now = AxesMm(self.cmd.positions_mm);
         self.brake
             .start(&self.prev_setpoint, &now, self.interp.current_path());
+        // A drive homing on its own is not where its setpoint is: it stops where it stands.
+        if let Some(h) = homing.filter(|h| h.by_drive) {
+            self.brake
+                .hold_axis(h.axis, self.fb.axes[h.axis].position_mm);
+        }
         if let Some(a) = fault.axis.map(usize::from).filter(|&a| a < self.axes) {
             self.brake.hold_axis(a, self.fb.axes[a].position_mm);
         }

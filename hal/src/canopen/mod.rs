@@ -9,7 +9,10 @@ pub mod pdo;
 pub mod sdo;
 pub mod socket;
 
-pub use master::{CanOpenConfig, CanOpenMaster, NodeConfig, ShutdownMode, SpindleNodeConfig};
+pub use master::{
+    CanOpenConfig, CanOpenMaster, FaultReaction, HomingParams, NodeConfig, ShutdownMode,
+    SpindleNodeConfig,
+};
 pub use socket::SocketCanPort;
 
 /// Function codes of the predefined connection set (CiA 301): COB-ID = code + node id.

@@ -339,6 +339,16 @@ pub fn run_with_timeout(cmd: &mut Command, timeout: Duration) -> (bool, String) 
 impl Daemon {
     /// Starts cncd with `bus_section` (TOML of `[bus]`) and axes X Y Z with `node_ids`.
     pub fn start(test: &str, bus_section: &str, node_ids: [u8; 3]) -> Daemon {
+        Self::start_with(test, bus_section, node_ids, ["", "", ""])
+    }
+
+    /// As [`Daemon::start`], with more TOML keys for each axis.
+    pub fn start_with(
+        test: &str,
+        bus_section: &str,
+        node_ids: [u8; 3],
+        axis_keys: [&str; 3],
+    ) -> Daemon {
         let dir = temp_dir(test);
         let port = std::net::TcpListener::bind("127.0.0.1:0")
             .unwrap()
@@ -346,9 +356,9 @@ impl Daemon {
             .unwrap()
             .port();
         let mut cfg = String::new();
-        for (name, id) in ['X', 'Y', 'Z'].iter().zip(node_ids) {
+        for ((name, id), keys) in ['X', 'Y', 'Z'].iter().zip(node_ids).zip(axis_keys) {
             cfg.push_str(&format!(
-                "[[axes]]\nname = '{name}'\nnode_id = {id}\nincrements_per_mm = 10000\n\n"
+                "[[axes]]\nname = '{name}'\nnode_id = {id}\nincrements_per_mm = 10000\n{keys}\n\n"
             ));
         }
         cfg.push_str(bus_section);

@@ -1,0 +1,356 @@
+//! The drive's own reference run (CiA 402 homing mode 6), started by the controller, and the
+//! safe state after a fault stop. A child of `master`: it works on the master's nodes.
+//!
+//! A reference run of one node, every step on the tick without blocking (SDO requests go out
+//! and their answers are taken when they arrive, with the start-up's timeout and retry):
+//! 1. the target holds at the actual position; SDO writes 0x6098 method, 0x607C home offset,
+//!    0x6099:1/2 speeds, 0x609A acceleration, 0x6060 = 6, then 0x6061 is read until it
+//!    shows 6;
+//! 2. controlword bit 4 starts the run; statusword bit 13 (homing error) is a fault naming
+//!    the node, bits 12 + 10 (homing attained, target reached) end it;
+//! 3. 0x6060 = 8, 0x6061 read until 8, then the node follows setpoints again from the new
+//!    position actual: its target holds there until the commanded position (re-based on the
+//!    homed position by the controller) takes over within one tick's travel.
+//!
+//! The whole run is bounded by `homing_timeout_ms`.
+
+use super::*;
+
+/// The drive's homing settings, written before each reference run (drive units).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct HomingParams {
+    /// 0x6098 homing method (CiA 402), e.g. 19/21: home switch without index pulse, 37:
+    /// the current position.
+    pub method: i8,
+    /// 0x607C home offset, increments: the position actual value at the home position.
+    pub offset_increments: i32,
+    /// 0x6099:1 speed during the search for the switch, increments/s.
+    pub search_speed: u32,
+    /// 0x6099:2 speed during the search for zero (leaving the switch), increments/s.
+    pub zero_speed: u32,
+    /// 0x609A homing acceleration, increments/s².
+    pub accel: u32,
+}
+
+/// Where a node's reference run is.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Home {
+    /// SDO steps: entering homing mode (`leaving: None`), or returning to CSP ending the run
+    /// with the given state.
+    Sdo {
+        leaving: Option<HomingState>,
+        step: usize,
+        sent_at: u64,
+        retried: bool,
+    },
+    /// Controlword bit 4 set since `since`: waiting for statusword bits 12 + 10.
+    Running { since: u64 },
+    /// Bit 4 cleared (stop asked, or a fault elsewhere): waiting for the drive to stand.
+    Halting { since: u64 },
+}
+
+/// The SDO steps that return to CSP.
+const LEAVE: [Step; 2] = [
+    Step::Write {
+        index: 0x6060,
+        subindex: 0,
+        value: 8,
+        size: 1,
+    },
+    Step::CheckMode(8),
+];
+
+fn enter_step(p: &HomingParams, step: usize) -> Option<Step> {
+    let w = |index, subindex, value, size| Step::Write {
+        index,
+        subindex,
+        value,
+        size,
+    };
+    Some(match step {
+        0 => w(0x6098, 0, u32::from(p.method as u8), 1),
+        1 => w(0x607C, 0, p.offset_increments as u32, 4),
+        2 => w(0x6099, 1, p.search_speed, 4),
+        3 => w(0x6099, 2, p.zero_speed, 4),
+        4 => w(0x609A, 0, p.accel, 4),
+        5 => w(0x6060, 0, 6, 1),
+        6 => Step::CheckMode(6),
+        _ => return None,
+    })
+}
+
+/// Ticks between sending a controlword and reading the drive's answer to it: the RPDO is
+/// latched at the next SYNC, and the TPDO of that SYNC arrives in the tick after.
+const ANSWER_TICKS: u64 = 2;
+
+impl<P: CanPort> CanOpenMaster<P> {
+    /// Step `step` of the entering (`leaving: None`) or returning SDO plan of node `i`.
+    fn homing_step_of(&self, i: usize, leaving: Option<HomingState>, step: usize) -> Option<Step> {
+        match leaving {
+            None => self.nodes[i]
+                .cfg
+                .homing
+                .as_ref()
+                .and_then(|p| enter_step(p, step)),
+            Some(_) => LEAVE.get(step).copied(),
+        }
+    }
+
+    /// Starts the reference run of an operational node; any other node reports it aborted.
+    pub(super) fn start_homing_node(&mut self, i: usize) {
+        let tick = self.tick;
+        let n = &mut self.nodes[i];
+        if n.phase != Phase::Operational || n.cfg.homing.is_none() {
+            n.homing = HomingState::Aborted;
+            return;
+        }
+        n.homing = HomingState::Running;
+        n.home_since = tick;
+        n.mode_changed = true;
+        n.taken_over = false;
+        n.target_increments = n.hold_target();
+        self.send_homing_step(i, None, 0, false);
+    }
+
+    /// Interrupts the reference run of node `i`: the drive stops, then returns to CSP.
+    pub(super) fn stop_homing_node(&mut self, i: usize) {
+        let tick = self.tick;
+        match self.nodes[i].phase {
+            Phase::Homing(Home::Running { .. }) => {
+                self.nodes[i].phase = Phase::Homing(Home::Halting { since: tick });
+            }
+            Phase::Homing(Home::Sdo { leaving: None, .. }) => {
+                self.send_homing_step(i, Some(HomingState::Aborted), 0, false);
+            }
+            _ => {}
+        }
+    }
+
+    /// A fault anywhere on the bus interrupts every reference run: the machine stops.
+    pub(super) fn interrupt_homing_on_fault(&mut self) {
+        if self.first_fault().is_ok() {
+            return;
+        }
+        for i in 0..self.axes {
+            if matches!(self.nodes[i].phase, Phase::Homing(Home::Running { .. })) {
+                self.stop_homing_node(i);
+            }
+        }
+    }
+
+    fn send_homing_step(
+        &mut self,
+        i: usize,
+        leaving: Option<HomingState>,
+        step: usize,
+        retried: bool,
+    ) {
+        let Some(s) = self.homing_step_of(i, leaving, step) else {
+            return;
+        };
+        self.nodes[i].phase = Phase::Homing(Home::Sdo {
+            leaving,
+            step,
+            sent_at: self.tick,
+            retried,
+        });
+        self.send_sdo(i, s);
+    }
+
+    /// An SDO answer while entering or leaving homing mode.
+    pub(super) fn on_homing_sdo(
+        &mut self,
+        i: usize,
+        leaving: Option<HomingState>,
+        step: usize,
+        r: Response,
+    ) {
+        let Some(expected) = self.homing_step_of(i, leaving, step) else {
+            return;
+        };
+        if r.object() != step_object(expected) {
+            return; // a late answer to an earlier, retried request
+        }
+        match r {
+            Response::Abort { code, .. } => {
+                let (index, subindex) = r.object();
+                self.fault(
+                    i,
+                    FaultReason::SdoAbort {
+                        index,
+                        subindex,
+                        abort_code: code,
+                    },
+                );
+            }
+            // The drive has not switched its mode yet: ask again.
+            Response::UploadOk { value, .. } if matches!(expected, Step::CheckMode(m) if value as u8 != m) =>
+            {
+                self.send_homing_step(i, leaving, step, false);
+            }
+            Response::UploadOk { .. } | Response::DownloadOk { .. } => {
+                if self.homing_step_of(i, leaving, step + 1).is_some() {
+                    self.send_homing_step(i, leaving, step + 1, false);
+                } else {
+                    self.homing_plan_done(i, leaving);
+                }
+            }
+        }
+    }
+
+    fn homing_plan_done(&mut self, i: usize, leaving: Option<HomingState>) {
+        let tick = self.tick;
+        let n = &mut self.nodes[i];
+        match leaving {
+            None => n.phase = Phase::Homing(Home::Running { since: tick }),
+            Some(outcome) => {
+                // Back in CSP: hold at the new position actual until the commanded position
+                // (re-based on it) takes over.
+                n.phase = Phase::Operational;
+                n.homing = outcome;
+                n.mode_changed = false;
+                n.taken_over = false;
+                n.controlword = cw::ENABLE_OPERATION_CMD;
+                n.target_increments = n.hold_target();
+            }
+        }
+    }
+
+    /// One tick of a reference run: the target holds at the actual position; the drive
+    /// must stay enabled; bounded by the homing timeout.
+    pub(super) fn update_homing(&mut self, i: usize, h: Home) {
+        let timeout = self.ticks(self.cfg.homing_timeout_ms);
+        let tick = self.tick;
+        let n = &mut self.nodes[i];
+        n.target_increments = n.hold_target();
+        let s = n.statusword;
+        match PowerState::from_statusword(s) {
+            PowerState::OperationEnabled => {}
+            PowerState::Fault | PowerState::FaultReactionActive => {
+                let code = n.emcy_code.unwrap_or(0);
+                return self.fault(i, FaultReason::DriveFault { code });
+            }
+            _ => return self.fault(i, FaultReason::DriveDisabled { statusword: s }),
+        }
+        if tick - n.home_since > timeout {
+            return self.fault(i, FaultReason::HomingTimeout);
+        }
+        let seen = n.tpdo_seen;
+        // A statusword that answers the controlword sent at `since`.
+        let fresh = |since: u64| seen && tick >= since + ANSWER_TICKS;
+        match h {
+            Home::Sdo {
+                leaving,
+                step,
+                sent_at,
+                retried,
+            } => {
+                n.controlword = cw::ENABLE_OPERATION_CMD;
+                if tick - sent_at <= self.ticks(self.cfg.sdo_timeout_ms) {
+                    return;
+                }
+                if retried {
+                    let Some(st) = self.homing_step_of(i, leaving, step) else {
+                        return;
+                    };
+                    let (index, subindex) = step_object(st);
+                    self.fault(i, FaultReason::SdoTimeout { index, subindex });
+                } else {
+                    self.send_homing_step(i, leaving, step, true);
+                }
+            }
+            Home::Running { since } => {
+                n.controlword = cw::ENABLE_OPERATION_CMD | cw::HOMING_START;
+                if !fresh(since) {
+                } else if s & sw::HOMING_ERROR != 0 {
+                    self.fault(i, FaultReason::HomingError { statusword: s });
+                } else if s & (sw::HOMING_ATTAINED | sw::TARGET_REACHED)
+                    == sw::HOMING_ATTAINED | sw::TARGET_REACHED
+                {
+                    self.send_homing_step(i, Some(HomingState::Done), 0, false);
+                }
+            }
+            Home::Halting { since } => {
+                n.controlword = cw::ENABLE_OPERATION_CMD;
+                if fresh(since) && s & sw::TARGET_REACHED != 0 {
+                    self.send_homing_step(i, Some(HomingState::Aborted), 0, false);
+                }
+            }
+        }
+    }
+
+    /// After a fault stop with the healthy axes at rest: every drive still enabled goes to
+    /// the configured safe state (its target holds where it stands).
+    pub(super) fn enter_safe_state(&mut self) {
+        let controlword = match self.cfg.fault_reaction {
+            FaultReaction::Hold => return,
+            FaultReaction::QuickStop => cw::QUICK_STOP_CMD,
+            FaultReaction::DisableVoltage => cw::DISABLE_VOLTAGE,
+        };
+        for n in &mut self.nodes {
+            if matches!(
+                n.phase,
+                Phase::Starting { .. }
+                    | Phase::Enabling { .. }
+                    | Phase::Operational
+                    | Phase::Homing(_)
+            ) {
+                if n.homing == HomingState::Running {
+                    n.homing = HomingState::Aborted;
+                }
+                n.phase = Phase::Stopped;
+                n.controlword = controlword;
+                n.target_increments = n.hold_target();
+                n.taken_over = false;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn enter_plan_writes_the_homing_objects_then_mode_6() {
+        let p = HomingParams {
+            method: -3,
+            offset_increments: -20,
+            search_speed: 1000,
+            zero_speed: 100,
+            accel: 5000,
+        };
+        let objects: Vec<(u16, u8)> = (0..7)
+            .map(|k| step_object(enter_step(&p, k).unwrap()))
+            .collect();
+        assert_eq!(
+            objects,
+            [
+                (0x6098, 0),
+                (0x607C, 0),
+                (0x6099, 1),
+                (0x6099, 2),
+                (0x609A, 0),
+                (0x6060, 0),
+                (0x6061, 0)
+            ]
+        );
+        assert_eq!(enter_step(&p, 7), None);
+        assert!(matches!(
+            enter_step(&p, 0),
+            Some(Step::Write {
+                value: 0xFD,
+                size: 1,
+                ..
+            })
+        ));
+        assert!(matches!(
+            enter_step(&p, 1),
+            Some(Step::Write {
+                value: 0xFFFF_FFEC,
+                size: 4,
+                ..
+            })
+        ));
+    }
+}

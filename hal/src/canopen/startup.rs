@@ -1,0 +1,122 @@
+//! The start-up SDO plan of a node (PDO mapping, modes, timing, heartbeats, the first
+//! position read) and the checks of the master's settings. A child of `master`.
+
+use super::*;
+
+/// One start-up configuration step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Step {
+    Write {
+        index: u16,
+        subindex: u8,
+        value: u32,
+        size: u8,
+    },
+    /// Reads 0x6064 so the target can start at the actual position (CSP only).
+    ReadPosition,
+    /// Reads the modes of operation display 0x6061 until it shows this mode.
+    CheckMode(u8),
+}
+
+pub(super) fn ticks(ms: u32, cycle_us: u32) -> u64 {
+    (u64::from(ms) * 1000).div_ceil(u64::from(cycle_us.max(1)))
+}
+
+pub(super) fn startup_steps(c: &CanOpenConfig, n: &NodeConfig, mode: OpMode) -> Vec<Step> {
+    let w = |index, subindex, value, size| Step::Write {
+        index,
+        subindex,
+        value,
+        size,
+    };
+    let mut steps: Vec<Step> = pdo::mapping_writes(n.node_id, mode)
+        .iter()
+        .map(|&(i, s, v, z)| w(i, s, v, z))
+        .collect();
+    // Modes of operation: cyclic synchronous position (8) or velocity (9).
+    steps.push(w(0x6060, 0, u32::from(mode.code()), 1));
+    steps.push(w(0x60C2, 1, (c.cycle_us / 1000).max(1), 1)); // interpolation period...
+    steps.push(w(0x60C2, 2, (-3i8) as u8 as u32, 1)); // ...in 10^-3 s
+    steps.push(w(0x1006, 0, c.cycle_us, 4)); // communication cycle period, µs
+    steps.push(w(0x1017, 0, u32::from(c.drive_heartbeat_ms), 2));
+    let consumer_ms = if c.master_heartbeat_ms == 0 {
+        0
+    } else {
+        c.drive_consumer_timeout_ms
+    };
+    steps.push(w(
+        0x1016,
+        1,
+        (u32::from(c.master_node_id) << 16) | u32::from(consumer_ms),
+        4,
+    ));
+    if let Some(window) = n.following_window_increments {
+        steps.push(w(0x6065, 0, window, 4));
+    }
+    if mode == OpMode::Csp {
+        steps.push(Step::ReadPosition);
+    }
+    steps
+}
+
+pub(super) fn step_object(s: Step) -> (u16, u8) {
+    match s {
+        Step::Write {
+            index, subindex, ..
+        } => (index, subindex),
+        Step::ReadPosition => (0x6064, 0),
+        Step::CheckMode(_) => (0x6061, 0),
+    }
+}
+
+/// Checks the settings the master cannot run with.
+pub(super) fn check_config(cfg: &CanOpenConfig) -> Result<(), String> {
+    if cfg.nodes.is_empty() || cfg.nodes.len() > MAX_AXES {
+        return Err(format!(
+            "{} drives configured, 1..={MAX_AXES} are supported",
+            cfg.nodes.len()
+        ));
+    }
+    if !(1000..=10_000).contains(&cfg.cycle_us) || !cfg.cycle_us.is_multiple_of(1000) {
+        return Err(format!(
+            "cycle time {} µs: 1 to 10 ms in whole ms are supported",
+            cfg.cycle_us
+        ));
+    }
+    for (i, n) in cfg.nodes.iter().enumerate() {
+        if !(1..=127).contains(&n.node_id) || n.node_id == cfg.master_node_id {
+            return Err(format!(
+                "node id {} of axis {i} is outside 1..127 or equals the master's",
+                n.node_id
+            ));
+        }
+        if cfg.nodes[..i].iter().any(|m| m.node_id == n.node_id) {
+            return Err(format!("node id {} is used twice", n.node_id));
+        }
+        if !(n.increments_per_mm.is_finite() && n.increments_per_mm > 0.0) {
+            return Err(format!("increments per mm of axis {i} must be positive"));
+        }
+        if !(n.max_velocity_mm_s.is_finite() && n.max_velocity_mm_s > 0.0) {
+            return Err(format!("maximum speed of axis {i} must be positive"));
+        }
+    }
+    let Some(sp) = &cfg.spindle else {
+        return Ok(());
+    };
+    if !(1..=127).contains(&sp.node_id) || sp.node_id == cfg.master_node_id {
+        return Err(format!(
+            "node id {} of the spindle is outside 1..127 or equals the master's",
+            sp.node_id
+        ));
+    }
+    if cfg.nodes.iter().any(|m| m.node_id == sp.node_id) {
+        return Err(format!(
+            "node id {} of the spindle is used by an axis",
+            sp.node_id
+        ));
+    }
+    if !(sp.units_per_rpm.is_finite() && sp.units_per_rpm > 0.0) {
+        return Err("velocity units per rpm of the spindle must be positive".into());
+    }
+    Ok(())
+}
