@@ -9,6 +9,7 @@ pub mod harness;
 pub mod job;
 pub mod logging;
 pub mod pipeline;
+pub mod resample;
 pub mod rt;
 pub mod rt_core;
 pub mod server;
