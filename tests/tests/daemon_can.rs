@@ -222,7 +222,8 @@ fn a_2ms_bus_cycle_reaches_the_drives_and_they_follow() {
         .run_program("G90 G1 X27 Y-38 Z8 F3000\nG0 X20 Y-30 Z0\n", 200_000)
         .unwrap();
     assert_eq!(end, JobEnd::Finished);
-    for _ in 0..50 {
+    // The drives settle (1 s).
+    for _ in 0..500 {
         h.step();
     }
     let s = h.snapshot();
