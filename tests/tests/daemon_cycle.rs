@@ -336,11 +336,82 @@ fn jog_and_its_lease_count_time_at_every_bus_period() {
         h.wait_state(MachineState::Jog, 100).unwrap();
         let s = h.wait_state(MachineState::Idle, 100_000).unwrap();
         let travel = s.commanded[0];
+        // The jog ends where the axis stands: no setpoint goes back (the path resumes there).
+        for _ in 0..20 {
+            let t = h.step();
+            assert!((t.commanded[0] - travel).abs() < 0.01, "{ms} ms: {t:?}");
+        }
         // 0.5 s of lease at ≤ 50 mm/s plus the braking: about 25 mm whatever the period.
-        assert!((20.0..=27.0).contains(&travel), "{ms} ms: {travel}");
+        assert!((20.0..=27.0).contains(&travel), "{ms} ms: {travel} {s:?}");
         let p = points.lock().unwrap()[from..].to_vec();
         let (v, acc) = rates(&p, 1, ms as f64 * 1e-3)[0];
         assert!(v <= 50.0 * (1.0 + 1e-6), "{ms} ms: v {v}");
         assert!(acc <= a.max_accel_mm_s2 * (1.0 + 1e-6), "{ms} ms: a {acc}");
     }
+}
+
+/// Through the door: the threaded daemon (controller, RT thread on the monotonic clock, gRPC)
+/// configured with `[bus] kind = "sim"`, `cycle_ms = 2` runs a program over the API to its
+/// exact end; the status reports the 2 ms tick; the whole bus setpoint stream, at 2 ms, stays
+/// within the axis limits. No timing is asserted (trajectory time is one bus period per
+/// executed tick, whatever the machine's load).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_program_runs_through_grpc_at_a_2ms_bus_period() {
+    use daemon::runtime::controller::{ClockKind, Controller};
+    use daemon::runtime::server;
+    use proto::v1 as pb;
+    use proto::v1::machine_client::MachineClient;
+
+    let cfg = config(2);
+    let limits: Vec<(f64, f64)> = cfg
+        .axes
+        .iter()
+        .map(|a| (a.max_velocity_mm_min / 60.0, a.max_accel_mm_s2))
+        .collect();
+    let points = Points::default();
+    let bus = Recorded {
+        inner: open_bus(&cfg.bus, &cfg.axes, &cfg.sim).unwrap(),
+        points: points.clone(),
+    };
+    let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));
+    let mut client = MachineClient::connect(format!("http://{addr}"))
+        .await
+        .unwrap();
+    tests::wait_state(&ctl, MachineState::Idle).await;
+    client
+        .load_program(pb::LoadProgramRequest {
+            name: "part.nc".into(),
+            text: PART.into(),
+        })
+        .await
+        .unwrap();
+    let from = points.lock().unwrap().len();
+    let job = client
+        .start(pb::StartRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+        .job;
+    tests::wait_job_finished(&ctl, job).await;
+    let status = client
+        .stream_status(pb::StatusRequest { rate_hz: 50 })
+        .await
+        .unwrap()
+        .into_inner()
+        .message()
+        .await
+        .unwrap()
+        .unwrap();
+    assert_eq!(status.ticks.unwrap().cycle_us, 2000);
+    assert_eq!(ctl.snapshot().commanded.0[..3], [0.0, 0.0, 5.0]);
+    let p = points.lock().unwrap()[from..].to_vec();
+    for (i, ((v, a), (v_lim, a_lim))) in rates(&p, 3, 0.002).into_iter().zip(&limits).enumerate() {
+        assert!(v <= v_lim * (1.0 + 1e-6), "axis {i}: v {v} > {v_lim}");
+        assert!(a <= a_lim * (1.0 + 1e-6), "axis {i}: a {a} > {a_lim}");
+        assert!(v > 0.0);
+    }
+    ctl.shutdown();
 }

@@ -119,6 +119,12 @@ impl Resampler {
         }
     }
 
+    /// The bus setpoint has arrived where the interpolator's is (at rest after a move, the
+    /// smoothing lags by up to one period): a job ends only then.
+    pub fn settled(&self) -> bool {
+        !self.smooth || (self.points[0] == self.points[2] && self.points[1] == self.points[2])
+    }
+
     /// The setpoint of `axes` axes at `phase` ∈ (0, 1] of the last interpolation period.
     pub fn sample(&self, axes: usize, phase: f64, out: &mut [f64; MAX_AXES]) {
         let [a, b, c] = &self.points;

@@ -829,10 +829,13 @@ impl RtCore {
                 }
             }
             MachineState::Running | MachineState::Hold | MachineState::Stopping => {
+                // The bus setpoint must have arrived at the end too (the smoothing of a bus
+                // period other than 4 ms lags: `resample`).
                 let job_done = self.active_job != 0
                     && planned_job == self.active_job
                     && ring_empty
-                    && is == InterpState::Idle;
+                    && is == InterpState::Idle
+                    && self.resampler.settled();
                 if job_done {
                     s.finished_job = self.active_job;
                     self.active_job = 0;
