@@ -415,3 +415,89 @@ async fn a_program_runs_through_grpc_at_a_2ms_bus_period() {
     }
     ctl.shutdown();
 }
+
+/// A bus whose drives never become operational, with its own enable deadline of 500 of its
+/// ticks.
+struct NeverEnabled;
+
+impl DriveBus for NeverEnabled {
+    fn name(&self) -> &str {
+        "never"
+    }
+    fn axes(&self) -> usize {
+        3
+    }
+    fn cycle(&mut self, _cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
+        for a in &mut fb.axes[..3] {
+            a.state = hal::DriveState::Enabling;
+        }
+        Ok(())
+    }
+    fn enable(&mut self) {}
+    fn reset(&mut self) {}
+    fn enable_timeout_ticks(&self) -> u32 {
+        500
+    }
+}
+
+/// The enabling window is time: the bus's deadline (500 of its ticks) at its period plus 1 s,
+/// whatever the period.
+#[test]
+fn the_enabling_window_is_the_bus_deadline_in_time_plus_one_second() {
+    for ms in [1, 2, 4, 10] {
+        let mut h = Harness::new(config(ms), Box::new(NeverEnabled), SimClock::exact()).unwrap();
+        let s = h.wait_state(MachineState::Fault, 100_000).unwrap();
+        assert_eq!(s.fault.unwrap().reason, hal::FaultReason::Timeout);
+        let window_ms = 500 * ms + 1000;
+        let at_ms = s.time_ns / 1_000_000;
+        assert!(
+            at_ms > window_ms && at_ms <= window_ms + 2 * 4 + ms,
+            "{ms} ms: alarm at {at_ms} ms, window {window_ms} ms"
+        );
+    }
+}
+
+/// A drive fault mid-motion at 2 ms: the machine stops, the healthy axes brake within their
+/// stop deceleration measured at the bus period, the faulted axis holds, and a reset brings
+/// the machine back to idle from where the drives stand.
+#[test]
+fn a_drive_fault_at_2ms_brakes_within_the_limits_and_resets() {
+    let cfg = config(2);
+    let sim = sim::SimBus::new(sim::SimDriveParams::default(), &[0.0; 3]).with_cycle_s(0.002);
+    let (faultable, fault_axis) = tests::FaultableBus::new(sim);
+    let points = Points::default();
+    let bus = Recorded {
+        inner: Box::new(faultable),
+        points: points.clone(),
+    };
+    let mut h = Harness::new(cfg.clone(), Box::new(bus), SimClock::exact()).unwrap();
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    let job = h.start_program("G1 X200 Y100 F6000").unwrap();
+    h.run_until(100_000, |s| s.path_v_mm_s > 50.0).unwrap();
+    let from = points.lock().unwrap().len();
+    fault_axis.store(1, std::sync::atomic::Ordering::Relaxed);
+    let s = h.wait_state(MachineState::Fault, 10).unwrap();
+    assert_eq!(s.fault.unwrap().axis, Some(1));
+    // 0.5 s: the brake ends at rest.
+    for _ in 0..250 {
+        h.step();
+    }
+    assert_eq!(h.snapshot().aborted_job, job);
+    let p = points.lock().unwrap()[from.saturating_sub(2)..].to_vec();
+    let (v, a) = rates(&p, 1, 0.002)[0];
+    let decel = cfg.axes[0].stop_decel();
+    assert!(a <= decel * (1.0 + 1e-6), "X: a {a} > {decel}");
+    assert!(v > 0.0);
+    let last = p.last().unwrap();
+    assert!(
+        p[p.len() - 20..].iter().all(|q| q[0] == last[0]),
+        "X at rest: {:?}",
+        &p[p.len() - 20..]
+    );
+    h.send(RtCommand::Reset).unwrap();
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    assert_eq!(
+        h.run_program("G0 X0 Y0", 100_000).unwrap(),
+        JobEnd::Finished
+    );
+}
