@@ -64,6 +64,18 @@ impl DriveBus for Recorded {
     fn reset(&mut self) {
         self.inner.reset()
     }
+    fn safe_state(&mut self) {
+        self.inner.safe_state()
+    }
+    fn supports_homing(&self) -> bool {
+        self.inner.supports_homing()
+    }
+    fn home_switch(&self, axis: usize) -> bool {
+        self.inner.home_switch(axis)
+    }
+    fn set_home(&mut self, axis: usize, trigger_mm: f64, reference_mm: f64) {
+        self.inner.set_home(axis, trigger_mm, reference_mm)
+    }
 }
 
 fn config(cycle_ms: u64) -> Config {
@@ -500,4 +512,57 @@ fn a_drive_fault_at_2ms_brakes_within_the_limits_and_resets() {
         h.run_program("G0 X0 Y0", 100_000).unwrap(),
         JobEnd::Finished
     );
+}
+
+/// A reference run at 1 and 10 ms on the simulated bus's home switch: the axis is homed, its
+/// setpoint becomes the reference without a jump, and the bus setpoints stay within the axis
+/// limits at the bus period.
+#[test]
+fn homing_at_1ms_and_10ms_takes_the_reference_without_a_jump() {
+    use daemon::runtime::rt_core::HomeRequest;
+    for ms in [1, 10] {
+        let mut cfg = config(ms);
+        cfg.axes[0].sim_home_switch_mm = Some(-12.0);
+        cfg.axes[0].reference_mm = 100.0;
+        let points = Points::default();
+        let bus = Recorded {
+            inner: open_bus(&cfg.bus, &cfg.axes, &cfg.sim).unwrap(),
+            points: points.clone(),
+        };
+        let mut h = Harness::new(cfg.clone(), Box::new(bus), SimClock::exact()).unwrap();
+        h.wait_state(MachineState::Idle, 100_000).unwrap();
+        let from = points.lock().unwrap().len();
+        let a = &cfg.axes[0];
+        h.send(RtCommand::Home(HomeRequest {
+            axis: 0,
+            direction: -1.0,
+            speed_mm_s: 20.0,
+            accel_mm_s2: a.max_accel_mm_s2,
+            reference_mm: 100.0,
+            max_travel_mm: 50.0,
+        }))
+        .unwrap();
+        h.wait_state(MachineState::Homing, 100).unwrap();
+        let s = h.wait_state(MachineState::Idle, 100_000).unwrap();
+        assert_eq!(s.homed & 1, 1, "{ms} ms: {s:?}");
+        // The setpoint shifted with the drive's position: the axis stands at about the
+        // reference (the braking distance past the switch at 20 mm/s).
+        for _ in 0..(100 / ms) {
+            h.step();
+        }
+        let s = h.snapshot();
+        assert!((s.commanded[0] - 100.0).abs() < 1.0, "{ms} ms: {s:?}");
+        assert!(
+            (s.commanded[0] - s.actual[0]).abs() < 0.05,
+            "{ms} ms: {s:?}"
+        );
+        // Within the limits up to the shift (the shift moves drive and setpoint together).
+        let p = points.lock().unwrap()[from..].to_vec();
+        let shift_at = p.iter().position(|q| q[0] > 50.0).unwrap();
+        let (v, acc) = rates(&p[..shift_at], 1, ms as f64 * 1e-3)[0];
+        assert!(v <= 20.0 * (1.0 + 1e-6), "{ms} ms: v {v}");
+        assert!(acc <= a.max_accel_mm_s2 * (1.0 + 1e-6), "{ms} ms: a {acc}");
+        let (v, _) = rates(&p[shift_at..], 1, ms as f64 * 1e-3)[0];
+        assert!(v <= 20.0 * (1.0 + 1e-6), "{ms} ms: after the shift v {v}");
+    }
 }
