@@ -7,7 +7,7 @@ use hal::{AxisFeedback, BusFault, CycleCommand, CycleFeedback, DriveBus, DriveSt
 
 use crate::drive::{SimDrive, SimDriveParams};
 
-/// Cycle time of the simulated drives, s (the controller's Ts).
+/// Default cycle time of the simulated drives, s (the controller's default bus period).
 const CYCLE_S: f64 = 0.004;
 
 pub struct SimBus {
@@ -21,6 +21,8 @@ pub struct SimBus {
     spindle_ramp_rpm_s: f64,
     spindle_rpm: f64,
     spindle_load: SpindleLoad,
+    /// Time the drives advance per cycle, s (the bus period).
+    cycle_s: f64,
 }
 
 /// Test knob of the simulated spindle: the share (0..1) of its speed lost to cutting load.
@@ -54,7 +56,14 @@ impl SimBus {
             spindle_ramp_rpm_s: 0.0,
             spindle_rpm: 0.0,
             spindle_load: SpindleLoad::default(),
+            cycle_s: CYCLE_S,
         }
+    }
+
+    /// The drives advance `cycle_s` per cycle (the daemon's `[bus] cycle_ms`).
+    pub fn with_cycle_s(mut self, cycle_s: f64) -> Self {
+        self.cycle_s = cycle_s;
+        self
     }
 
     /// Home switch model (issue #15): axis `axis` has a switch at `at_mm` (power-on
@@ -79,7 +88,7 @@ impl SimBus {
     fn step_spindle(&mut self, set_rpm: f64) -> f64 {
         let target = set_rpm * (1.0 - self.spindle_load.get());
         self.spindle_rpm = if self.spindle_ramp_rpm_s > 0.0 {
-            let dv = self.spindle_ramp_rpm_s * CYCLE_S;
+            let dv = self.spindle_ramp_rpm_s * self.cycle_s;
             self.spindle_rpm + (target - self.spindle_rpm).clamp(-dv, dv)
         } else {
             target
@@ -116,7 +125,7 @@ impl DriveBus for SimBus {
             .zip(cmd.positions_mm.iter().zip(feedback.axes.iter_mut()))
             .enumerate()
         {
-            d.step(*sp, CYCLE_S);
+            d.step(*sp, self.cycle_s);
             *fb = AxisFeedback {
                 position_mm: d.position_mm(),
                 state: d.state(),

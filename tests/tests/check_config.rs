@@ -284,3 +284,43 @@ fn the_daemon_refuses_a_bad_file_with_status_2_too() {
     assert!(err.contains("rt.priority: 0 is outside 1..99"), "{err}");
     assert_eq!(err.matches("rt.priority").count(), 1, "said twice:\n{err}");
 }
+
+/// `[bus] cycle_ms` (issue #23): whole milliseconds from 1 to 10, on every bus kind; the
+/// serial protocol's 4 ms only.
+#[test]
+fn bus_cycle_outside_1_to_10_ms_or_fractional_is_refused() {
+    for (case, v) in [("cycle-0", "0"), ("cycle-11", "11"), ("cycle-3.5", "3.5")] {
+        assert_refused(
+            case,
+            &format!("[bus]\nkind = \"sim\"\ncycle_ms = {v}\n"),
+            &[
+                "bus.cycle_ms",
+                v,
+                "whole number of milliseconds from 1 to 10",
+            ],
+        );
+        assert_refused(
+            &format!("{case}-can"),
+            &format!(
+                "{AXIS}node_id = 1\n[bus]\nkind = \"can\"\ninterface = \"can0\"\ncycle_ms = {v}\n"
+            ),
+            &["bus.cycle_ms", v],
+        );
+    }
+    assert_refused(
+        "cycle-serial",
+        "[bus]\nkind = \"serial\"\nport = \"/dev/ttyUSB0\"\ncycle_ms = 2\n",
+        &["bus.cycle_ms", "serial protocol's cycle is 4 ms"],
+    );
+    for ms in [1, 2, 5, 10] {
+        let out = check_text(
+            &format!("cycle-ok-{ms}"),
+            &format!("[bus]\nkind = \"sim\"\ncycle_ms = {ms}\n"),
+        );
+        assert!(
+            out.status.success(),
+            "{ms} ms: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}

@@ -36,12 +36,15 @@ struct Bus {
     sent: Vec<Frame>,
     /// Every frame the drives sent.
     received: Vec<Frame>,
+    /// The bus period `[bus] cycle_ms` (0: the default 4 ms).
+    cycle_ms: u64,
 }
 
 impl Bus {
-    /// The drives see 4 ms pass (heartbeats, their watch on the master's).
+    /// The drives see one bus period pass (4 ms by default; heartbeats, their watch on the
+    /// master's).
     fn pass_4ms(&mut self) {
-        self.now_ms += 4;
+        self.now_ms += if self.cycle_ms == 0 { 4 } else { self.cycle_ms };
         let mut out = Vec::new();
         for n in &mut self.nodes {
             n.poll(self.now_ms, &mut out);
@@ -123,6 +126,7 @@ fn daemon_with(
     }
     let bus = Arc::new(Mutex::new(Bus {
         nodes,
+        cycle_ms: cfg.bus.cycle_ms() as u64,
         ..Bus::default()
     }));
     let master = CanOpenMaster::new(Port(bus.clone()), "mem0", master_cfg).unwrap();
@@ -448,4 +452,77 @@ fn a_stop_interrupts_a_drive_homing_and_a_timeout_is_a_fault() {
     let b = bus.lock().unwrap();
     let modes: Vec<u8> = mode_writes(&b.sent, 1).iter().map(|&(_, m)| m).collect();
     assert_eq!(modes, [8, 6, 8, 6, 8], "the restart wrote CSP again");
+}
+
+/// Values the master wrote to `index`:`sub` of `node` by expedited SDO download.
+fn sdo_writes(sent: &[Frame], node: u8, index: u16, sub: u8) -> Vec<u32> {
+    sent.iter()
+        .filter(|f| f.id == 0x600 + u16::from(node) && f.data[0] & 0xE0 == 0x20)
+        .filter(|f| u16::from_le_bytes([f.data[1], f.data[2]]) == index && f.data[3] == sub)
+        .map(|f| u32::from_le_bytes([f.data[4], f.data[5], f.data[6], f.data[7]]))
+        .collect()
+}
+
+/// `[bus] cycle_ms = 2`: the drives are told 0x60C2 = 2 × 10⁻³ s and 0x1006 = 2000 µs, one
+/// SYNC goes out per 2 ms tick, the drives (away from 0) follow a program to its end with no
+/// target step beyond one 2 ms period's travel at the axis limit, and shut down switched off.
+#[test]
+fn a_2ms_bus_cycle_reaches_the_drives_and_they_follow() {
+    let start = [25.0, -40.0, 7.5];
+    let (mut h, bus) = daemon(start, None, "cycle_ms = 2\n");
+    h.wait_state(MachineState::Idle, 20_000).unwrap();
+    assert_eq!(h.snapshot().cycle_ns, 2_000_000);
+    let end = h
+        .run_program("G90 G1 X27 Y-38 Z8 F3000\nG0 X20 Y-30 Z0\n", 200_000)
+        .unwrap();
+    assert_eq!(end, JobEnd::Finished);
+    // The drives settle (1 s).
+    for _ in 0..500 {
+        h.step();
+    }
+    let s = h.snapshot();
+    for (i, want) in [20.0, -30.0, 0.0].into_iter().enumerate() {
+        assert!((s.actual[i] - want).abs() < 1e-3, "{:?}", s.actual);
+    }
+    {
+        let b = bus.lock().unwrap();
+        for node in 1..=3u8 {
+            // 0x60C2: 2 × 10^-3 s (sub 1 the value, sub 2 the exponent -3); 0x1006 in µs.
+            for (index, sub, want) in [
+                (0x60C2, 1, 2),
+                (0x60C2, 2, u32::from((-3i8) as u8)),
+                (0x1006, 0, 2000),
+            ] {
+                let v = sdo_writes(&b.sent, node, index, sub);
+                assert!(
+                    !v.is_empty() && v.iter().all(|&x| x == want),
+                    "node {node} {index:04X}:{sub}: {v:?}"
+                );
+            }
+            // One 2 ms period's travel at the axis limit (12000 mm/min).
+            let max_step = 200.0 * 0.002 * INC_PER_MM;
+            let t = rpdo_targets(&b.sent, node);
+            let step = t.windows(2).map(|w| (w[1] - w[0]).abs()).max().unwrap();
+            assert!(f64::from(step) <= max_step, "node {node}: step {step}");
+            assert!(step > 0);
+        }
+        // One SYNC per tick: the drives' time (2 ms per tick) and the SYNC count agree.
+        let syncs = b.sent.iter().filter(|f| f.id == 0x080).count() as u64;
+        assert!(
+            syncs > 0 && syncs <= b.now_ms / 2,
+            "{syncs} SYNCs in {} ms",
+            b.now_ms
+        );
+    }
+    h.shut_down(100_000).unwrap();
+    let b = bus.lock().unwrap();
+    for n in &b.nodes {
+        assert_eq!(
+            n.drive.state(),
+            PowerState::SwitchOnDisabled,
+            "node {}",
+            n.id
+        );
+        assert_eq!(n.drive.error_code(), 0, "node {}", n.id);
+    }
 }

@@ -39,9 +39,25 @@ N140 M5
 
 #[test]
 fn the_assembled_tick_does_not_allocate() {
+    assembled_tick(4);
+}
+
+/// At bus periods beside the 4 ms interpolation period (issue #23): several bus ticks per
+/// interpolator step (1 ms), several steps per bus tick (10 ms).
+#[test]
+fn the_assembled_tick_does_not_allocate_at_1ms_and_10ms() {
+    assembled_tick(1);
+    assembled_tick(10);
+}
+
+fn assembled_tick(cycle_ms: u64) {
     let mut cfg = tests::test_config();
     cfg.axes[0].home_mm = -30.0;
-    let sim = sim::SimBus::new(sim::SimDriveParams::default(), &[-30.0, 0.0, 0.0]);
+    cfg.bus = daemon::runtime::buses::BusConfig::Sim {
+        cycle_ms: cycle_ms as f64,
+    };
+    let sim = sim::SimBus::new(sim::SimDriveParams::default(), &[-30.0, 0.0, 0.0])
+        .with_cycle_s(cycle_ms as f64 * 1e-3);
     let (bus, fault_axis) = FaultableBus::new(sim);
     let mut h = Harness::new(cfg, Box::new(bus), SimClock::seeded(11, 1_500_000, 40)).unwrap();
 
@@ -88,8 +104,8 @@ fn the_assembled_tick_does_not_allocate() {
         let moving = h.run_until(100_000, |s| s.path_v_mm_s > 50.0).is_ok();
         fault_axis.store(1, Ordering::Relaxed);
         let fault = h.wait_state(MachineState::Fault, 10).is_ok();
-        // Reset acts once the path has braked to rest.
-        for _ in 0..100 {
+        // Reset acts once the path has braked to rest (400 ms).
+        for _ in 0..400 / cycle_ms {
             h.step();
         }
         let _ = h.send(RtCommand::Reset);

@@ -46,7 +46,7 @@ pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
         enable_timeout_ms: c.enable_timeout_ms,
         following_error_limit_mm: c.following_error_limit_mm,
         error_frame_limit: c.error_frame_limit,
-        cycle_us: c.cycle_ms * 1000,
+        cycle_us: (c.cycle_ms * 1000.0).round() as u32,
         shutdown: match c.shutdown {
             ShutdownKey::Disable => ShutdownMode::Disable,
             ShutdownKey::QuickStop => ShutdownMode::QuickStop,
@@ -94,15 +94,16 @@ pub fn open_bus(
     sim: &SimConfig,
 ) -> Result<Box<dyn hal::DriveBus>, String> {
     match bus {
-        BusConfig::Sim {} => {
+        BusConfig::Sim { cycle_ms } => {
             let params = sim::SimDriveParams {
                 kv_per_s: sim.kv_per_s,
                 following_window_mm: sim.following_window_mm,
                 ..Default::default()
             };
             let start: Vec<f64> = axes.iter().map(|a| a.home_mm).collect();
-            let mut bus =
-                sim::SimBus::new(params, &start).with_spindle_ramp(sim.spindle_ramp_rpm_s);
+            let mut bus = sim::SimBus::new(params, &start)
+                .with_spindle_ramp(sim.spindle_ramp_rpm_s)
+                .with_cycle_s(cycle_ms * 1e-3);
             for (i, a) in axes.iter().enumerate() {
                 if let Some(at) = a.sim_home_switch_mm {
                     bus = bus.with_home_switch(i, at, f64::from(a.homing_direction));
@@ -180,21 +181,39 @@ mod tests {
             panic!()
         };
         assert_eq!(can_config(can, &c.axes).shutdown, ShutdownMode::QuickStop);
-        for (ms, what) in [
-            (0, "outside 1..10"),
-            (11, "outside 1..10"),
-            (2, "real-time tick"),
-        ] {
-            let e = Config::parse(
-                &format!("[bus]\nkind = 'can'\ninterface = 'vcan0'\ncycle_ms = {ms}\n"),
-                Path::new("m.toml"),
-            )
-            .unwrap_err();
-            assert!(
-                e.to_string().contains("bus.cycle_ms") && e.to_string().contains(what),
-                "{e}"
-            );
+        // Every bus kind takes cycle_ms: whole ms from 1 to 10 (the serial protocol: 4 only).
+        for kind in ["kind = 'can'\ninterface = 'vcan0'", "kind = 'sim'"] {
+            for ms in ["0", "11", "3.5", "-4", "nan"] {
+                let e = Config::parse(
+                    &format!("[bus]\n{kind}\ncycle_ms = {ms}\n"),
+                    Path::new("m.toml"),
+                )
+                .unwrap_err();
+                assert!(
+                    e.to_string().contains("bus.cycle_ms")
+                        && e.to_string()
+                            .contains("whole number of milliseconds from 1 to 10"),
+                    "{e}"
+                );
+            }
+            for ms in 1..=10u64 {
+                let c = Config::parse(
+                    &format!("[bus]\n{kind}\ncycle_ms = {ms}\n"),
+                    Path::new("m.toml"),
+                )
+                .unwrap();
+                assert_eq!(c.bus.cycle_ns(), ms * 1_000_000);
+                if let BusConfig::Can(can) = &c.bus {
+                    assert_eq!(can_config(can, &c.axes).cycle_us, ms as u32 * 1000);
+                }
+            }
         }
+        let serial = "[bus]\nkind = 'serial'\nport = '/dev/null'\ncycle_ms = 2\n";
+        let e = Config::parse(serial, Path::new("m.toml")).unwrap_err();
+        assert!(
+            e.to_string().contains("serial protocol's cycle is 4 ms"),
+            "{e}"
+        );
 
         let e = Config::parse(
             "[bus]\nkind = 'can'\ninterface = 'vcan0'\ntpdo_timeout = 3\n",
@@ -330,6 +349,7 @@ mod tests {
                 port: "/dev/ttyUSB0".into(),
                 baud: 460_800,
                 reply_timeout_ticks: 25,
+                cycle_ms: 4.0,
                 enable_timeout_ticks: 500,
                 spindle_node: None,
                 spindle_units_per_rpm: 1.0,

@@ -63,6 +63,9 @@ pub struct SimClock {
     /// One wake-up in this many is late by one to `late_max_periods` whole periods (0: never).
     pub late_one_in: u64,
     pub late_max_periods: u64,
+    /// The period late wake-ups are late by whole multiples of, ns (the tick's period; the
+    /// harness sets the configuration's bus period).
+    pub period_ns: u64,
     /// Exact lateness for given wake-ups, counted from 0: (wake-up, lateness ns), any order.
     pub forced: Vec<(u64, u64)>,
     wakeups: u64,
@@ -82,6 +85,7 @@ impl SimClock {
             jitter_ns,
             late_one_in,
             late_max_periods: 3,
+            period_ns: TS_NS,
             forced: Vec::new(),
             wakeups: 0,
             now_ns: 0,
@@ -115,7 +119,7 @@ impl SimClock {
             late = self.next() % (self.jitter_ns + 1);
         }
         if self.late_one_in > 0 && self.next().is_multiple_of(self.late_one_in) {
-            late += (1 + self.next() % self.late_max_periods.max(1)) * TS_NS;
+            late += (1 + self.next() % self.late_max_periods.max(1)) * self.period_ns;
         }
         late
     }

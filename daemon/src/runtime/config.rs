@@ -799,14 +799,18 @@ fn validate_axis_safety(i: usize, a: &AxisConfig) -> Result<(), String> {
 pub enum BusConfig {
     /// The built-in simulated machine (default). A struct variant, so that serde rejects
     /// unknown keys next to `kind = "sim"` (a unit variant would ignore them).
-    Sim {},
+    Sim {
+        /// Bus period, ms (1..10): the real-time tick and the simulated drives' cycle.
+        #[serde(default = "default_cycle_ms")]
+        cycle_ms: f64,
+    },
     /// CANopen CiA 402 drives on a SocketCAN interface; node ids from `axes[i].node_id`.
     Can(CanBusConfig),
     /// One drive unit on a serial port (`hal/SERIAL_PROTOCOL.md`).
     Serial(SerialBusConfig),
 }
 
-/// `[bus] kind = "can"`. Times in ms are converted to 4 ms ticks.
+/// `[bus] kind = "can"`. Times in ms are converted to ticks of `cycle_ms`.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct CanBusConfig {
@@ -818,7 +822,7 @@ pub struct CanBusConfig {
     /// The controller's own node id (its heartbeat is watched by the drives).
     #[serde(default = "default_master_node_id")]
     pub master_node_id: u8,
-    /// Consecutive ticks without a drive's TPDO before it is a fault.
+    /// Consecutive bus cycles (SYNCs) without a drive's TPDO before it is a fault.
     #[serde(default = "default_tpdo_missing_ticks")]
     pub tpdo_missing_ticks: u32,
     /// Heartbeat period the drives are told to produce (0x1017).
@@ -851,11 +855,12 @@ pub struct CanBusConfig {
     /// Error frames tolerated (decaying by one per 40 ms) before a fault.
     #[serde(default = "default_error_frame_limit")]
     pub error_frame_limit: u32,
-    /// Bus cycle (SYNC period), ms; the drives' interpolation period 0x60C2 and
-    /// communication cycle 0x1006 follow it. 1..=10 for the master; the daemon's real-time
-    /// tick is 4 ms, so the daemon accepts 4 only (checked in `validate`).
+    /// Bus cycle (SYNC period), whole ms 1..10; the drives' interpolation period 0x60C2 and
+    /// communication cycle 0x1006 follow it, and the real-time thread ticks at it (the
+    /// interpolator keeps 4 ms: `runtime::resample`). Read as a number so that 3.5 gets a
+    /// clear message from `validate`.
     #[serde(default = "default_cycle_ms")]
-    pub cycle_ms: u32,
+    pub cycle_ms: f64,
     /// How the drives are switched off when the daemon ends: `disable` (07h, 06h, 00h) or
     /// `quick_stop` (02h, 00h).
     #[serde(default)]
@@ -886,8 +891,8 @@ pub enum ShutdownKey {
     QuickStop,
 }
 
-fn default_cycle_ms() -> u32 {
-    4
+fn default_cycle_ms() -> f64 {
+    4.0
 }
 
 /// `[bus] fault_reaction` of the CAN bus.
@@ -972,10 +977,14 @@ pub struct SerialBusConfig {
     pub port: String,
     #[serde(default = "default_baud")]
     pub baud: u32,
-    /// Consecutive ticks without a valid reply before it is a fault.
+    /// Consecutive ticks (bus cycles) without a valid reply before it is a fault.
     #[serde(default = "default_tpdo_missing_ticks")]
     pub reply_timeout_ticks: u32,
-    /// Ticks allowed for the CiA 402 enable sequence.
+    /// Bus cycle, ms. The serial protocol fixes it at 4 ms (the drive unit advances its
+    /// position loop by 4 ms per request), so 4 is the only value accepted.
+    #[serde(default = "default_cycle_ms")]
+    pub cycle_ms: f64,
+    /// Ticks (bus cycles) allowed for the CiA 402 enable sequence.
     #[serde(default = "default_enable_timeout_ticks")]
     pub enable_timeout_ticks: u32,
     /// Address of the unit's spindle drive (named in alarms); set: the unit has a spindle and
@@ -996,15 +1005,50 @@ fn default_enable_timeout_ticks() -> u32 {
 
 impl Default for BusConfig {
     fn default() -> Self {
-        BusConfig::Sim {}
+        BusConfig::Sim {
+            cycle_ms: default_cycle_ms(),
+        }
     }
 }
 
+/// `[bus] cycle_ms` must be a whole number of ms in 1..10 (the CANopen interpolation period
+/// 0x60C2 is whole ms; the deadline grid is exact in ns).
+fn validate_cycle_ms(ms: f64) -> Result<(), String> {
+    let range = super::resample::CYCLE_MS_RANGE;
+    let (lo, hi) = (f64::from(*range.start()), f64::from(*range.end()));
+    if !(ms.is_finite() && ms.fract() == 0.0 && (lo..=hi).contains(&ms)) {
+        return Err(format!(
+            "bus.cycle_ms: {ms} is not a whole number of milliseconds from {lo} to {hi}"
+        ));
+    }
+    Ok(())
+}
+
 impl BusConfig {
+    /// `[bus] cycle_ms`: the bus period, ms (validated: whole, 1..10).
+    pub fn cycle_ms(&self) -> f64 {
+        match self {
+            BusConfig::Sim { cycle_ms } => *cycle_ms,
+            BusConfig::Can(c) => c.cycle_ms,
+            BusConfig::Serial(s) => s.cycle_ms,
+        }
+    }
+
+    /// The bus period, ns: the tick of the real-time thread.
+    pub fn cycle_ns(&self) -> u64 {
+        (self.cycle_ms() * 1e6).round() as u64
+    }
+
+    /// The bus period.
+    pub fn cycle(&self) -> std::time::Duration {
+        std::time::Duration::from_nanos(self.cycle_ns())
+    }
+
     /// Checks the bus settings against the axes; the message names the key.
     pub fn validate(&self, axes: &[AxisConfig]) -> Result<(), String> {
+        validate_cycle_ms(self.cycle_ms())?;
         match self {
-            BusConfig::Sim {} => Ok(()),
+            BusConfig::Sim { .. } => Ok(()),
             BusConfig::Can(c) => {
                 if c.interface.is_empty() {
                     return Err("bus.interface: give the CAN interface, e.g. \"can0\"".into());
@@ -1050,16 +1094,6 @@ impl BusConfig {
                             .into(),
                     );
                 }
-                if !(1..=10).contains(&c.cycle_ms) {
-                    return Err(format!("bus.cycle_ms: {} is outside 1..10 ms", c.cycle_ms));
-                }
-                let tick_ms = kernel::units::TS_NS / 1_000_000;
-                if u64::from(c.cycle_ms) != tick_ms {
-                    return Err(format!(
-                        "bus.cycle_ms: {} ms differs from the controller's real-time tick of {tick_ms} ms (the SYNC goes out once per tick)",
-                        c.cycle_ms
-                    ));
-                }
                 if c.spindle_node == Some(c.master_node_id) {
                     return Err(format!(
                         "bus.spindle_node: {} equals bus.master_node_id",
@@ -1074,6 +1108,12 @@ impl BusConfig {
                 }
                 if s.reply_timeout_ticks == 0 {
                     return Err("bus.reply_timeout_ticks must be above 0".into());
+                }
+                if s.cycle_ms != 4.0 {
+                    return Err(format!(
+                        "bus.cycle_ms: {} ms on a serial bus; the serial protocol's cycle is 4 ms (hal/SERIAL_PROTOCOL.md)",
+                        s.cycle_ms
+                    ));
                 }
                 validate_spindle(s.spindle_node, s.spindle_units_per_rpm, axes)
             }

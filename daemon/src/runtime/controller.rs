@@ -932,6 +932,7 @@ pub(crate) fn rt_core_config(
         kr: Kr::new(setup.kr().cloned().expect("the daemon's setup has KŘR")),
         in_position_mm: setup.in_position_mm(),
         stop_decel_mm_s2: stop_decel(config),
+        cycle_ns: config.bus.cycle_ns(),
     })
 }
 

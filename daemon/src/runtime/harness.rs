@@ -90,8 +90,10 @@ impl Harness {
     pub fn new(
         config: Config,
         mut bus: Box<dyn DriveBus>,
-        clock: SimClock,
+        mut clock: SimClock,
     ) -> Result<Self, String> {
+        // Late wake-ups are late by whole ticks of the configured bus period.
+        clock.period_ns = config.bus.cycle_ns();
         let (constants, offsets) = load_storage(&config)?;
         let axis_names = config.axis_names();
         let cfg = rt_core_config(&config, &constants, offsets.memory())?;
@@ -152,7 +154,8 @@ impl Harness {
     }
 
     /// Hash of every setpoint (positions and spindle speed) sent so far: the same for the same
-    /// program whatever the clock did (the trajectory advances one Ts per executed tick).
+    /// program whatever the clock did (the trajectory advances one bus period per executed
+    /// tick).
     pub fn setpoint_hash(&self) -> u64 {
         self.setpoint_hash.0
     }

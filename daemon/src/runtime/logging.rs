@@ -148,6 +148,7 @@ pub async fn rt_health(
         if since_summary >= summary_every {
             since_summary = Duration::ZERO;
             tracing::info!(
+                cycle_us = s.cycle_ns / 1000,
                 ticks = t.ticks,
                 overruns = t.overruns,
                 lateness_p50_us = t.lateness_p50_us,

@@ -10,6 +10,7 @@ pub mod homing;
 pub mod job;
 pub mod logging;
 pub mod pipeline;
+pub mod resample;
 pub mod rt;
 pub mod rt_core;
 pub mod server;

@@ -1,4 +1,5 @@
-//! The real-time thread: a thin loop around [`RtCore`] on an absolute 4 ms deadline grid.
+//! The real-time thread: a thin loop around [`RtCore`] on an absolute deadline grid of the bus
+//! period (`[bus] cycle_ms`, 1..10 ms; the interpolator inside keeps 4 ms).
 //!
 //! Each turn: sleep until the core's next deadline, read the clock, run one tick of the core
 //! (commands, segments, interpolation, KŘR, PLC, bus exchange, state machine, tick statistics),

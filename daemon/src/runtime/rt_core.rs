@@ -1,13 +1,17 @@
-//! The real-time core: the whole 4 ms tick as a pure state machine driven by its caller, in the
+//! The real-time core: the whole bus tick as a pure state machine driven by its caller, in the
 //! style of quinn-proto's `Connection`. The caller owns the clock, the sleeping, the rings and
 //! the bus; it calls [`RtCore::tick`] once per wake-up with the time it woke and gets the
 //! snapshot to publish. The core keeps the deadline grid and accounts lateness and overruns
 //! against it, so the same code runs on the RT thread ([`super::rt::run`]) and in the
 //! single-threaded simulation harness of the tests, where the clock is seeded, jittery and late.
 //!
-//! One tick, in phases (one method each): timing → commands → PLC → segments → motion
-//! (interpolator, in-position, spindle ready) → KŘR/spindle → single block → bus exchange →
-//! state machine → snapshot. After [`RtCore::new`] no phase allocates, locks or logs.
+//! The tick runs at the bus period (`[bus] cycle_ms`, 1..10 ms); the kernel's interpolator
+//! keeps its 4 ms period and steps as bus time advances ([`super::resample`]).
+//!
+//! One bus tick, in phases (one method each): timing → commands → PLC → the 4 ms steps due
+//! (segments → motion (interpolator, in-position, spindle ready) → KŘR/spindle → single block
+//! → setpoint) → bus exchange of the resampled setpoint → fault reaction, homing, state
+//! machine → snapshot. After [`RtCore::new`] no phase allocates, locks or logs.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -22,6 +26,7 @@ use kernel::plan::Segment;
 use kernel::plc::{PlcArea, PlcWrite};
 use kernel::units::{AxesMm, MAX_AXES, TS_NS};
 
+use super::resample::{BusClock, Resampler};
 use super::stats::{TickStats, TickSummary};
 
 /// Commands from the non-RT side.
@@ -112,8 +117,10 @@ pub enum MachineState {
 /// What the RT thread publishes every tick. `Copy`, fixed size: written without allocation.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Snapshot {
-    /// Increases by one per tick.
+    /// Increases by one per tick (bus period).
     pub sequence: u64,
+    /// The tick's period: the bus period `[bus] cycle_ms`, ns (0 before the core exists).
+    pub cycle_ns: u64,
     /// Clock time of the tick, ns.
     pub time_ns: u64,
     pub state: MachineState,
@@ -171,12 +178,18 @@ impl Snapshot {
     }
 }
 
-/// Ticks the drives get to become operational beyond the bus's own enable deadline
-/// ([`hal::DriveBus::enable_timeout_ticks`]): the bus names the drive that is late, so its
-/// alarm must come first.
-const ENABLE_MARGIN_TICKS: u32 = 250;
-/// After shutdown braking: ticks to let the drives settle before the thread ends.
-const SETTLE_TICKS: u32 = 250;
+/// 4 ms interpolator steps in `ms` (the counters below count steps, whatever the bus period).
+const fn steps_in_ms(ms: u64) -> u32 {
+    (ms * 1_000_000 / TS_NS) as u32
+}
+
+/// Time the drives get to become operational beyond the bus's own enable deadline
+/// ([`hal::DriveBus::enable_timeout_ticks`]), in interpolator steps (1 s): the bus names the
+/// drive that is late, so its alarm must come first.
+const ENABLE_MARGIN_TICKS: u32 = steps_in_ms(1000);
+/// After shutdown braking: interpolator steps to let the drives settle before the thread ends
+/// (1 s); also the settle timeout of the fault reaction.
+const SETTLE_TICKS: u32 = steps_in_ms(1000);
 /// Following error under which an axis counts as settled, mm.
 const SETTLED_MM: f64 = 0.001;
 /// The spindle counts as at speed within this share of its setpoint (or `SPINDLE_AT_SPEED_RPM`).
@@ -203,7 +216,7 @@ fn spindle_feed_rpm(set_rpm: f64, actual_rpm: f64) -> f64 {
     }
 }
 
-/// Refresh the lateness percentiles every this many ticks (a histogram walk).
+/// Refresh the lateness percentiles every this many bus ticks (a histogram walk).
 const STATS_REFRESH_TICKS: u64 = 50;
 
 /// The RT side of the links to the rest of the daemon: two bounded lock-free SPSC rings in and
@@ -225,6 +238,9 @@ pub struct RtCoreConfig {
     pub in_position_mm: AxesMm,
     /// Stop deceleration of each axis for the fault reaction, mm/s² (issue #15).
     pub stop_decel_mm_s2: [f64; MAX_AXES],
+    /// Bus period (`[bus] cycle_ms`), ns: the tick of the RT thread. The interpolator keeps
+    /// its 4 ms period ([`super::resample`]).
+    pub cycle_ns: u64,
 }
 
 /// The real-time core. Everything the tick owns; the caller owns time, rings and bus.
@@ -235,14 +251,24 @@ pub struct RtCore {
     interp: Interpolator,
     stats: TickStats,
     snap: Snapshot,
+    /// The interpolator's (4 ms) setpoints and spindle speed.
     cmd: CycleCommand,
+    /// What the bus gets this bus tick: `cmd` resampled at the bus tick's time.
+    bus_cmd: CycleCommand,
     fb: CycleFeedback,
+    /// Interpolator steps against bus ticks.
+    bus_clock: BusClock,
+    /// The bus setpoint from the last interpolator setpoints.
+    resampler: Resampler,
+    /// The interpolator's output of its last step.
+    out: TickOut,
     /// Next deadline of the absolute grid, ns of the caller's clock.
     deadline_ns: u64,
     /// Job whose segments are accepted (0: none).
     active_job: u32,
+    /// Interpolator steps (4 ms) spent enabling.
     enable_ticks: u32,
-    /// Enabling window: the bus's deadline plus a margin.
+    /// Enabling window in interpolator steps: the bus's deadline plus a margin.
     enable_window_ticks: u32,
     shutting_down: bool,
     settle_ticks: u32,
@@ -275,20 +301,30 @@ impl RtCore {
         let mut cmd = CycleCommand::default();
         cmd.positions_mm[..cfg.axes].copy_from_slice(&cfg.start.0[..cfg.axes]);
         let has_spindle = bus.has_spindle();
-        let enable_window_ticks = bus
-            .enable_timeout_ticks()
+        let bus_clock = BusClock::new(cfg.cycle_ns);
+        // The bus counts its deadline in its own ticks; the window counts 4 ms steps.
+        let bus_window = bus_clock.steps_in(u64::from(bus.enable_timeout_ticks()));
+        let enable_window_ticks = u32::try_from(bus_window)
+            .unwrap_or(u32::MAX)
             .saturating_add(ENABLE_MARGIN_TICKS);
         bus.enable();
         RtCore {
             axes: cfg.axes,
             interp: Interpolator::new(cfg.axes, cfg.start),
-            snap: Snapshot::initial(cfg.axes, cfg.start),
+            snap: Snapshot {
+                cycle_ns: cfg.cycle_ns,
+                ..Snapshot::initial(cfg.axes, cfg.start)
+            },
             kr: cfg.kr,
             in_position_mm: cfg.in_position_mm,
             stats: TickStats::new(),
             cmd,
+            bus_cmd: cmd,
             fb: CycleFeedback::default(),
-            deadline_ns: now_ns + TS_NS,
+            bus_clock,
+            resampler: Resampler::new(cfg.cycle_ns, cfg.start),
+            out: TickOut::default(),
+            deadline_ns: now_ns + cfg.cycle_ns,
             active_job: 0,
             enable_ticks: 0,
             enable_window_ticks,
@@ -313,9 +349,10 @@ impl RtCore {
     /// deadline. Bounded by the bus's own step timeouts.
     pub fn shut_down_bus(&mut self, bus: &mut dyn DriveBus, mut sleep_until_ns: impl FnMut(u64)) {
         let mut deadline = self.deadline_ns;
-        hal::shut_down(bus, &self.cmd, &mut self.fb, || {
+        let cycle_ns = self.bus_clock.cycle_ns();
+        hal::shut_down(bus, &self.bus_cmd, &mut self.fb, || {
             sleep_until_ns(deadline);
-            deadline += TS_NS;
+            deadline += cycle_ns;
         });
         self.deadline_ns = deadline;
     }
@@ -337,30 +374,57 @@ impl RtCore {
 
     /// One tick at `now_ns` (the time the caller woke, at or after [`RtCore::next_deadline_ns`]).
     /// Never allocates, locks or blocks.
+    ///
+    /// The tick is a bus tick. The 4 ms interpolator steps due by its time run first (none,
+    /// one, or several: [`super::resample`]); each step's after-feedback phases (fault
+    /// reaction, homing, state machine) run after the next step's feedback is in, the last
+    /// one after this tick's exchange. At a 4 ms bus that is one step per tick, as before.
     pub fn tick(&mut self, now_ns: u64, rings: &mut RtRings, bus: &mut dyn DriveBus) -> &Snapshot {
         self.timing(now_ns);
         self.commands(&mut rings.commands, bus);
         // PLC writes staged since the last tick take effect now.
         self.plc.begin_tick();
-        self.feed_segments(&mut rings.segments);
+        let steps = self.bus_clock.begin_tick();
+        for k in 0..steps {
+            if k > 0 {
+                self.after_feedback(rings, bus);
+            }
+            self.interpolator_step(&mut rings.segments);
+        }
+        self.exchange(bus);
+        if steps > 0 {
+            self.after_feedback(rings, bus);
+        }
+        self.publish(now_ns)
+    }
+
+    /// One 4 ms step of the kernel: segments, interpolator, KŘR, single block, and the axes'
+    /// setpoint (path, jog or fault brake) handed to the resampler.
+    fn interpolator_step(&mut self, segments: &mut rtrb::Consumer<Segment>) {
+        self.feed_segments(segments);
         let out = self.motion();
         self.spindle(&out);
         self.single_block_check(out.seq, out.path_v_mm_s);
-        self.exchange(&out, bus);
+        self.setpoint(&out);
+        self.out = out;
+    }
+
+    /// What follows a step once feedback is in: fault reaction, homing, the state machine.
+    fn after_feedback(&mut self, rings: &RtRings, bus: &mut dyn DriveBus) {
         self.fault_reaction(bus);
         self.homing_step(bus);
         let planned = rings.planned_job.load(Ordering::Acquire);
         self.update_state(planned, rings.segments.is_empty());
-        self.publish(now_ns, &out)
     }
 
-    /// Deadline grid: a tick that woke after the next deadline skips the missed ones and stays
-    /// on the grid (no drift). The trajectory advances one Ts per executed tick, so no setpoint
-    /// jumps either.
+    /// Deadline grid of the bus period: a tick that woke after the next deadline skips the
+    /// missed ones and stays on the grid (no drift). The trajectory advances one bus period per
+    /// executed tick, so no setpoint jumps either.
     fn timing(&mut self, now_ns: u64) {
+        let cycle_ns = self.bus_clock.cycle_ns();
         let lateness_ns = now_ns.saturating_sub(self.deadline_ns);
-        let missed = lateness_ns / TS_NS;
-        self.deadline_ns += (missed + 1) * TS_NS;
+        let missed = lateness_ns / cycle_ns;
+        self.deadline_ns += (missed + 1) * cycle_ns;
         self.stats.record(lateness_ns, missed);
         if self.snap.sequence.is_multiple_of(STATS_REFRESH_TICKS) {
             self.stats.refresh();
@@ -388,8 +452,8 @@ impl RtCore {
         self.interp.tick()
     }
 
-    /// Setpoints out, feedback in; a bus fault stops the machine.
-    fn exchange(&mut self, out: &TickOut, bus: &mut dyn DriveBus) {
+    /// The axes' 4 ms setpoint of this step: the path, a jog, or the fault brake.
+    fn setpoint(&mut self, out: &TickOut) {
         let axes = self.axes;
         self.prev_setpoint = AxesMm(self.cmd.positions_mm);
         // After a fault the brake, not the path, commands the axes.
@@ -403,7 +467,17 @@ impl RtCore {
             out.position
         };
         self.cmd.positions_mm[..axes].copy_from_slice(&setpoint.0[..axes]);
-        let result = bus.cycle(&self.cmd, &mut self.fb);
+        self.resampler.push(AxesMm(self.cmd.positions_mm));
+    }
+
+    /// Setpoints out (resampled at the bus tick's time), feedback in; a bus fault stops the
+    /// machine.
+    fn exchange(&mut self, bus: &mut dyn DriveBus) {
+        let axes = self.axes;
+        self.bus_cmd.spindle_rpm = self.cmd.spindle_rpm;
+        self.resampler
+            .sample(axes, self.bus_clock.phase(), &mut self.bus_cmd.positions_mm);
+        let result = bus.cycle(&self.bus_cmd, &mut self.fb);
         for i in 0..axes {
             self.snap.actual[i] = self.fb.axes[i].position_mm;
         }
@@ -412,11 +486,13 @@ impl RtCore {
         }
     }
 
-    fn publish(&mut self, now_ns: u64, out: &TickOut) -> &Snapshot {
+    fn publish(&mut self, now_ns: u64) -> &Snapshot {
+        let out = &self.out;
         let s = &mut self.snap;
         s.sequence += 1;
         s.time_ns = now_ns;
-        s.commanded = AxesMm(self.cmd.positions_mm);
+        // What the drives were sent: following error and in-position compare against it.
+        s.commanded = AxesMm(self.bus_cmd.positions_mm);
         s.path_v_mm_s = out.path_v_mm_s;
         s.block_seq = out.seq;
         s.block_n = out.n;
@@ -651,6 +727,8 @@ impl RtCore {
                 // Setpoint and this tick's feedback shift with the drive's position.
                 let shift = h.reference_mm - t;
                 self.cmd.positions_mm[h.axis] += shift;
+                self.bus_cmd.positions_mm[h.axis] += shift;
+                self.resampler.shift(h.axis, shift);
                 self.fb.axes[h.axis].position_mm += shift;
                 self.snap.actual[h.axis] += shift;
                 self.snap.homed |= bit;
@@ -786,6 +864,10 @@ impl RtCore {
                     if self.interp.set_position(here) {
                         s.commanded = here;
                         self.cmd.positions_mm[..self.axes].copy_from_slice(&here.0[..self.axes]);
+                        self.bus_cmd.positions_mm[..self.axes]
+                            .copy_from_slice(&here.0[..self.axes]);
+                        // Taken over from the drives: a step on purpose, not smoothed.
+                        self.resampler.reset(here);
                     }
                     s.state = MachineState::Idle;
                 } else if self.enable_ticks > self.enable_window_ticks {
@@ -798,10 +880,13 @@ impl RtCore {
                 }
             }
             MachineState::Running | MachineState::Hold | MachineState::Stopping => {
+                // The bus setpoint must have arrived at the end too (the smoothing of a bus
+                // period other than 4 ms lags: `resample`).
                 let job_done = self.active_job != 0
                     && planned_job == self.active_job
                     && ring_empty
-                    && is == InterpState::Idle;
+                    && is == InterpState::Idle
+                    && self.resampler.settled();
                 if job_done {
                     s.finished_job = self.active_job;
                     self.active_job = 0;

@@ -7,7 +7,8 @@
 //!   A drive fault during start-up is logged with its axis, node and block and shown as
 //!   `STATUS=`, and no `READY=1` is sent: systemd's `TimeoutStartSec=` acts (an operator reset
 //!   through the API before that still completes the start).
-//! - **Watchdog**: every half `WATCHDOG_USEC` the snapshot `sequence` (one per 4 ms tick) is
+//! - **Watchdog**: every half `WATCHDOG_USEC` the snapshot `sequence` (one per tick of the bus
+//!   period `cycle_ns` the snapshot carries) is
 //!   compared with the previous look. `WATCHDOG=1` is sent only if the real-time thread made at
 //!   least [`MIN_TICK_FRACTION`] of the ticks the elapsed time allows; a stalled real-time thread
 //!   (a blocking bus `cycle()`, a dead status pump, a wedged runtime) stops the pings and
@@ -134,10 +135,11 @@ pub enum Progress {
     Stalled { ticks: u64, expected: u64 },
 }
 
-/// Judges the real-time thread from two snapshot sequence numbers taken `elapsed` apart.
-pub fn judge(previous_sequence: u64, sequence: u64, elapsed: Duration) -> Progress {
+/// Judges the real-time thread from two snapshot sequence numbers taken `elapsed` apart, with
+/// one tick due every `tick` (the bus period).
+pub fn judge(previous_sequence: u64, sequence: u64, elapsed: Duration, tick: Duration) -> Progress {
     let ticks = sequence.saturating_sub(previous_sequence);
-    let expected = (elapsed.as_nanos() / u128::from(TS_NS)) as u64;
+    let expected = (elapsed.as_nanos() / tick.as_nanos().max(1)) as u64;
     let needed = ((expected as f64 * MIN_TICK_FRACTION).floor() as u64).max(1);
     if ticks >= needed {
         Progress::Ticking { ticks }
@@ -213,7 +215,9 @@ pub async fn watchdog(
         ticker.tick().await;
         let s = *status.borrow();
         let now = Instant::now();
-        match judge(last_seq, s.sequence, now - last_at) {
+        // A snapshot from before the core existed carries no period: the default 4 ms.
+        let tick = Duration::from_nanos(if s.cycle_ns == 0 { TS_NS } else { s.cycle_ns });
+        match judge(last_seq, s.sequence, now - last_at, tick) {
             Progress::Ticking { ticks } => {
                 if stalled {
                     stalled = false;
@@ -317,21 +321,39 @@ mod tests {
     #[test]
     fn judge_asks_for_half_the_due_ticks() {
         let ms = Duration::from_millis;
+        let ts = ms(4);
         // 1 s is 250 ticks: 125 are enough, 124 are not.
         assert_eq!(
-            judge(1000, 1125, ms(1000)),
+            judge(1000, 1125, ms(1000), ts),
             Progress::Ticking { ticks: 125 }
         );
         assert_eq!(
-            judge(1000, 1124, ms(1000)),
+            judge(1000, 1124, ms(1000), ts),
             Progress::Stalled {
                 ticks: 124,
                 expected: 250
             }
         );
+        // At a 1 ms bus period 1 s is 1000 ticks: 250 are a stall, 500 are enough.
+        assert_eq!(
+            judge(0, 250, ms(1000), ms(1)),
+            Progress::Stalled {
+                ticks: 250,
+                expected: 1000
+            }
+        );
+        assert_eq!(
+            judge(0, 500, ms(1000), ms(1)),
+            Progress::Ticking { ticks: 500 }
+        );
+        // At 10 ms, 50 of 100.
+        assert_eq!(
+            judge(0, 50, ms(1000), ms(10)),
+            Progress::Ticking { ticks: 50 }
+        );
         // No progress at all is a stall even over a very short look.
         assert_eq!(
-            judge(7, 7, ms(1)),
+            judge(7, 7, ms(1), ts),
             Progress::Stalled {
                 ticks: 0,
                 expected: 0
@@ -339,7 +361,7 @@ mod tests {
         );
         // A virtual clock may run ahead of wall time: still ticking.
         assert_eq!(
-            judge(0, 100_000, ms(10)),
+            judge(0, 100_000, ms(10), ts),
             Progress::Ticking { ticks: 100_000 }
         );
         assert_eq!(ping_interval(Duration::from_secs(3)), ms(1500));

@@ -269,6 +269,7 @@ impl ApiState {
                 lateness_p50_us: s.ticks.lateness_p50_us,
                 lateness_p99_us: s.ticks.lateness_p99_us,
                 lateness_max_us: s.ticks.lateness_max_us,
+                cycle_us: (s.cycle_ns / 1000) as u32,
             }),
             sequence: s.sequence,
             job: s.job,
