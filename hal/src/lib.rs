@@ -92,6 +92,14 @@ pub enum FaultReason {
     LinkDown,
     /// Replies arrived but were corrupt (CRC or framing errors).
     CorruptFrames,
+    /// The drive refused to take the reference position at the end of a reference run
+    /// (serial protocol version 3).
+    HomingRefused,
+    /// The drive did not acknowledge the reference position in time.
+    HomingTimeout,
+    /// The drive unit answers an older protocol version than the configuration needs
+    /// (serial: homing needs version 3).
+    ProtocolVersion { drive: u8, needed: u8 },
 }
 
 impl fmt::Display for FaultReason {
@@ -164,6 +172,19 @@ impl fmt::Display for FaultReason {
             FaultReason::CorruptFrames => write!(
                 f,
                 "serial replies corrupt (check the cable, shielding and baud rate)"
+            ),
+            FaultReason::HomingRefused => write!(
+                f,
+                "drive refused the reference position of the reference run (home again)"
+            ),
+            FaultReason::HomingTimeout => write!(
+                f,
+                "drive did not confirm the reference position of the reference run in time"
+            ),
+            FaultReason::ProtocolVersion { drive, needed } => write!(
+                f,
+                "drive unit speaks serial protocol version {drive}, homing needs version \
+                 {needed} (update the unit, or set homing = \"none\")"
             ),
         }
     }

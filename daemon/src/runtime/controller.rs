@@ -404,8 +404,9 @@ impl Controller {
     pub async fn home(&self, axes: &str) -> Result<String, ControlError> {
         if !self.can_home {
             return Err(ControlError::WrongState(
-                "this bus cannot run a reference run yet (homing is built for the simulated \
-                 machine; CANopen mode 6 and serial homing are not done)"
+                "this bus cannot run a reference run (serial: it needs an axis with \
+                 homing = \"required\", which switches the link to protocol version 3; \
+                 CANopen mode 6 is not done)"
                     .into(),
             ));
         }

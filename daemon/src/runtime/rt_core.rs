@@ -556,6 +556,7 @@ impl RtCore {
     }
 
     fn fault(&mut self, fault: BusFault) {
+        self.forget_reference(fault);
         if self.snap.fault.is_none() {
             self.snap.fault = Some(fault);
             self.start_fault_stop(fault);
@@ -637,6 +638,18 @@ impl RtCore {
             None => self.snap.homing_failed |= bit,
         }
         self.homing = None;
+    }
+
+    /// A drive that refused or did not confirm the reference of a reference run: the axis
+    /// was marked homed when the run ended, but it is not.
+    fn forget_reference(&mut self, fault: BusFault) {
+        use hal::FaultReason::{HomingRefused, HomingTimeout};
+        if let (Some(a), HomingRefused | HomingTimeout) = (fault.axis, fault.reason)
+            && usize::from(a) < self.axes
+        {
+            self.snap.homed &= !(1 << a);
+            self.snap.homing_failed |= 1 << a;
+        }
     }
 
     /// Fault reaction (issue #15): a faulted axis no longer follows, so braking along the path
