@@ -248,15 +248,15 @@ mod tests {
         unit.drives[0] = Cia402Drive::new(SimDriveParams::default(), 100.0, -1.2);
         let y = exchange(&mut unit, &request(2, -120, none)).unwrap();
         assert_eq!(y.home.unwrap().switches, 1);
-        let set = Some(HomeCommand {
+        let cmd = HomeCommand {
             action: HomeAction::SetReference,
             id: 1,
             axis: 0,
             shift_increments: 120,
-        });
+        };
         // The target comes in the new reference (0 = where it stands): no motion.
         for seq in 3..6 {
-            let y = exchange(&mut unit, &request(seq, 0, set)).unwrap();
+            let y = exchange(&mut unit, &request(seq, 0, Some(cmd))).unwrap();
             assert_eq!(y.axis[0].position_increments, 0, "applied once");
             assert_eq!(y.home.unwrap().id, 1);
             assert_eq!(y.home.unwrap().result, HomeResult::Applied);
@@ -265,7 +265,7 @@ mod tests {
         let bad = Some(HomeCommand {
             id: 2,
             axis: 4,
-            ..set.unwrap()
+            ..cmd
         });
         let y = exchange(&mut unit, &request(6, 0, bad)).unwrap();
         assert_eq!(y.home.unwrap().result, HomeResult::Refused);

@@ -732,7 +732,10 @@ async fn m0_just_before_the_program_end_stops_until_resume() {
         let seq = s.sequence;
         wait_for(&d.ctl, "time passes", |s| s.sequence > seq + 100).await;
         let s = d.ctl.snapshot();
-        assert!(s.state == MachineState::Hold && s.finished_job != job, "{text}: {s:?}");
+        assert!(
+            s.state == MachineState::Hold && s.finished_job != job,
+            "{text}: {s:?}"
+        );
         d.c.resume(pb::ResumeRequest {}).await.unwrap();
         wait_job_finished(&d.ctl, job).await;
         wait_state(&d.ctl, MachineState::Idle).await;

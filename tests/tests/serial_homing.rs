@@ -141,7 +141,9 @@ fn serial_homing_in_order_with_refusals_before_it() {
     assert!(out.contains("homed ZX"), "configured order: {out}");
     let st = wait_for(&d, "homed and settled", |s| {
         is(s, pb::MachineState::Idle)
-            && s.axes.iter().all(|a| a.homed && a.following_error_mm.abs() < 1e-3)
+            && s.axes
+                .iter()
+                .all(|a| a.homed && a.following_error_mm.abs() < 1e-3)
     });
     // Each axis stands at the reference plus its overshoot in the search direction (the lag
     // when the switch was met, 10 mm/s at kv 30/s, and the braking distance).
@@ -171,10 +173,15 @@ fn serial_homing_refuses_an_old_drive_unit_at_start_up() {
     let link_s = link.to_str().unwrap();
     let _sim = sim_serial(link_s, &["--protocol", "2"]);
     let req = "homing = 'required'\n";
-    let d = start_daemon("serial-old-unit", link_s, &[("X", req), ("Y", ""), ("Z", "")]);
+    let d = start_daemon(
+        "serial-old-unit",
+        link_s,
+        &[("X", req), ("Y", ""), ("Z", "")],
+    );
     let st = wait_for(&d, "fault", |s| is(s, pb::MachineState::Fault));
     assert!(
-        st.alarm.contains("protocol version 1, homing needs version 3"),
+        st.alarm
+            .contains("protocol version 1, homing needs version 3"),
         "{}",
         st.alarm
     );

@@ -22,7 +22,9 @@ use std::time::Duration;
 use serialport::TTYPort;
 
 use super::frame::{self, Decoder, FrameError};
-use super::message::{AxisRequest, HomeAction, HomeCommand, HomeResult, HomeStatus, Reply, Request};
+use super::message::{
+    AxisRequest, HomeAction, HomeCommand, HomeResult, HomeStatus, Reply, Request,
+};
 use crate::cia402::{self, PowerState, cw, sw};
 use crate::{
     AxisFeedback, BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason,
@@ -753,7 +755,10 @@ mod tests {
 
     impl Drive {
         /// Reads one request and answers what `reply` makes of it (nothing on `None`).
-        fn answer_with(&mut self, reply: impl FnOnce(&Request) -> Option<Reply>) -> Option<Request> {
+        fn answer_with(
+            &mut self,
+            reply: impl FnOnce(&Request) -> Option<Reply>,
+        ) -> Option<Request> {
             let mut buf = [0u8; 256];
             let mut got = None;
             std::thread::sleep(Duration::from_millis(5));
@@ -915,7 +920,11 @@ mod tests {
         let again = drive.answer_with(|r| v3_reply(r, -200, acked)).unwrap();
         assert_eq!(again.home, Some(first));
         assert_eq!(
-            (first.action, first.shift_increments, again.axis[0].target_increments),
+            (
+                first.action,
+                first.shift_increments,
+                again.axis[0].target_increments
+            ),
             (HomeAction::SetReference, -300, -200)
         );
         bus.cycle(&cmd, &mut fb).unwrap();

@@ -184,15 +184,14 @@ fn layout(p: &[u8], types: [u8; 3], per_axis: usize, trailer: usize) -> Option<L
     let spindle = flags & FLAG_SPINDLE != 0;
     let records = usize::from(axes) + usize::from(spindle);
     let len = HEADER_V3 + per_axis * records + trailer;
-    ((1..=MAX_AXES as u8).contains(&axes) && flags & !FLAG_SPINDLE == 0 && p.len() == len).then_some(
-        Layout {
+    ((1..=MAX_AXES as u8).contains(&axes) && flags & !FLAG_SPINDLE == 0 && p.len() == len)
+        .then_some(Layout {
             seq,
             axes,
             spindle,
             start: HEADER_V3,
             v3: true,
-        },
-    )
+        })
 }
 
 fn put_home_command(out: &mut [u8], h: &HomeCommand) {

@@ -76,9 +76,9 @@ fn homing_args(args: impl Iterator<Item = String>) -> Result<HomingArgs, String>
     let mut it = args;
     while let Some(k) = it.next() {
         match k.as_str() {
-            "--home-switch" => h
-                .switches
-                .push(home_switch(&it.next().ok_or("--home-switch needs a value")?)?),
+            "--home-switch" => h.switches.push(home_switch(
+                &it.next().ok_or("--home-switch needs a value")?,
+            )?),
             "--protocol" => {
                 let v = it.next().ok_or("--protocol needs a value")?;
                 h.max_version = v
@@ -112,7 +112,11 @@ fn main() {
     }
     for (axis, at, side) in homing.switches {
         if axis >= args.axes {
-            fail(&format!("--home-switch of axis {}: the unit has {}", axis + 1, args.axes));
+            fail(&format!(
+                "--home-switch of axis {}: the unit has {}",
+                axis + 1,
+                args.axes
+            ));
         }
         unit = unit.with_home_switch(axis, at, side);
     }
