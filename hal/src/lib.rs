@@ -95,8 +95,15 @@ pub enum FaultReason {
     /// The drive's own reference run (CiA 402 homing mode) ended with its homing error bit
     /// (statusword bit 13): switch not found, limit switch hit, or the method is unsupported.
     HomingError { statusword: u16 },
-    /// The drive's reference run did not end within the configured time.
+    /// The reference run did not end in time: a CANopen drive's run took longer than
+    /// `homing_timeout_ms`, or a serial drive did not acknowledge the reference position.
     HomingTimeout,
+    /// The drive refused to take the reference position at the end of a reference run
+    /// (serial protocol version 3).
+    HomingRefused,
+    /// The drive unit answers an older protocol version than the configuration needs
+    /// (serial: homing needs version 3).
+    ProtocolVersion { drive: u8, needed: u8 },
 }
 
 impl fmt::Display for FaultReason {
@@ -176,7 +183,16 @@ impl fmt::Display for FaultReason {
             ),
             FaultReason::HomingTimeout => write!(
                 f,
-                "reference run did not end in time (home switch not reached? see homing_timeout_ms)"
+                "reference run did not end in time (home switch not reached, or the drive did not confirm the reference position; see homing_timeout_ms)"
+            ),
+            FaultReason::HomingRefused => write!(
+                f,
+                "drive refused the reference position of the reference run (home again)"
+            ),
+            FaultReason::ProtocolVersion { drive, needed } => write!(
+                f,
+                "drive unit speaks serial protocol version {drive}, homing needs version \
+                 {needed} (update the unit, or set homing = \"none\")"
             ),
         }
     }

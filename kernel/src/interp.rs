@@ -260,6 +260,24 @@ impl Interpolator {
         true
     }
 
+    /// At rest at the end of the last buffered segment: holds if a program stop is due after
+    /// it. The segment stays buffered until Resume, so the job does not end at the stop.
+    fn program_stop_after_last(&mut self) {
+        let here = self.idx(self.rk);
+        if self.state != InterpState::Running || !self.stops_here(self.buf[here].program_stop) {
+            return;
+        }
+        self.buf[here].program_stop = ProgramStop::None;
+        self.state = InterpState::Holding;
+        self.at_program_stop = true;
+    }
+
+    /// The last buffered segment may be dropped once the raw position rests at its end: not
+    /// while a program stop after it is due or held (a plain feed hold lets it go as before).
+    fn last_may_leave(&self, seg: &Segment) -> bool {
+        !self.at_program_stop && !self.stops_here(seg.program_stop)
+    }
+
     pub fn axes(&self) -> usize {
         self.axes
     }
@@ -728,6 +746,11 @@ impl Interpolator {
             let here = *self.seg(self.rk);
             if self.rk + 1 >= self.len || self.state != InterpState::Running {
                 self.v_mm_s = 0.0;
+                // An M0/M1 after the last segment buffered (the program's end, or the next
+                // segment not planned yet) holds here too.
+                if self.settled() && self.still > 0 {
+                    self.program_stop_after_last();
+                }
                 return idle;
             }
             // One tick at rest (and the filter settled) before leaving: the direction may
@@ -918,7 +941,11 @@ impl Interpolator {
             let i = self.idx(0);
             let seg = self.buf[i];
             let end = self.s0[i] + seg.length_mm;
-            let raw_done = self.rk > 0 || (self.raw_at_stop && self.len == 1 && self.settled());
+            let raw_done = self.rk > 0
+                || (self.raw_at_stop
+                    && self.len == 1
+                    && self.settled()
+                    && self.last_may_leave(&seg));
             if s_f >= end - ARRIVE_EPS_MM && raw_done {
                 self.path_pos = seg.path.end();
                 self.last_seq = seg.seq;

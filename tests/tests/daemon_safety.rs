@@ -705,3 +705,39 @@ async fn homing_in_order_and_refusals_before_it() {
     assert_eq!(run.await.unwrap().unwrap_err().code(), Code::Aborted);
     ctl.shutdown();
 }
+
+/// An M0 in the last block(s) of a program (issue #15 leftover): the program stops there until
+/// Resume and only then ends; alone, before M30, with the motion, before or after a technology
+/// block. (A program of M0 without any motion is not covered: it does not stop yet.)
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn m0_just_before_the_program_end_stops_until_resume() {
+    let mut d = daemon(tests::test_config()).await;
+    let programs = [
+        ("N10 G1 X10 F3000\nN20 M0\n", 10.0),
+        ("N10 G1 X20 F3000 M0\n", 20.0),
+        ("N10 G1 X30 F3000\nN20 M0\nN30 M30\n", 30.0),
+        ("N10 G1 X40 F3000\nN20 M0\nN30 M5\n", 40.0),
+        ("N10 G1 X35 F3000\nN20 M5\nN30 M0\n", 35.0),
+    ];
+    for (text, x) in programs {
+        load(&mut d.c, text).await.unwrap();
+        let job = start(&mut d.c).await;
+        wait_for(&d.ctl, text, |s| {
+            s.state == MachineState::Hold && s.program_stop
+        })
+        .await;
+        let s = d.ctl.snapshot();
+        assert!((s.commanded[0] - x).abs() < 1e-9, "{text}: {s:?}");
+        // It stays at the stop: the job has not ended.
+        let seq = s.sequence;
+        wait_for(&d.ctl, "time passes", |s| s.sequence > seq + 100).await;
+        let s = d.ctl.snapshot();
+        assert!(
+            s.state == MachineState::Hold && s.finished_job != job,
+            "{text}: {s:?}"
+        );
+        d.c.resume(pb::ResumeRequest {}).await.unwrap();
+        wait_job_finished(&d.ctl, job).await;
+        wait_state(&d.ctl, MachineState::Idle).await;
+    }
+}

@@ -13,7 +13,12 @@ fn daemon_runs_a_program_over_serial_and_recovers_after_replug() {
     let dir = vcan_support::temp_dir("serial-daemon-link");
     let link = dir.join("drive.tty");
     let link_s = link.to_str().unwrap();
-    let mut sim = Proc::spawn("sim-serial", &["--link", link_s, "--axes", "3"]);
+    // A long watchdog: on a loaded machine the daemon's ticks may come late (the watchdog
+    // itself is tested in serial_link.rs).
+    let mut sim = Proc::spawn(
+        "sim-serial",
+        &["--link", link_s, "--axes", "3", "--watchdog-ms", "5000"],
+    );
     sim.expect_line(" -> /dev/pts", Duration::from_secs(10));
     let bus = format!("[bus]\nkind = 'serial'\nport = '{link_s}'\nreply_timeout_ticks = 100\n");
     let d = Daemon::start("serial-daemon", &bus, [1, 2, 3]);
@@ -75,6 +80,8 @@ fn daemon_runs_the_spindle_over_serial() {
             link_s,
             "--axes",
             "3",
+            "--watchdog-ms",
+            "5000",
             "--spindle",
             // The spindle runs up in 0.2 s: the cut waits for it (spindle at speed).
             "--ramp-rpm-s",

@@ -16,7 +16,7 @@ use hal::canopen::{
 };
 use hal::serial::{SerialAxis, SerialBus, SerialConfig, SerialSpindle};
 
-use super::config::{AxisConfig, SimConfig};
+use super::config::{AxisConfig, HomingMode, SimConfig};
 pub use super::config::{BusConfig, CanBusConfig, FaultReactionKey, SerialBusConfig, ShutdownKey};
 
 /// The master settings for `axes` (validated: every axis has a node id).
@@ -126,6 +126,9 @@ pub fn open_bus(
                 baud: s.baud,
                 reply_timeout_ticks: s.reply_timeout_ticks,
                 enable_timeout_ticks: s.enable_timeout_ticks,
+                // Reference runs need protocol version 3; without them the link stays on the
+                // version older units speak.
+                homing: axes.iter().any(|a| a.homing == HomingMode::Required),
                 spindle: s.spindle_node.map(|node_id| SerialSpindle {
                     node_id,
                     units_per_rpm: s.spindle_units_per_rpm,

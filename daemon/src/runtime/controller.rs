@@ -375,8 +375,8 @@ impl Controller {
     pub async fn home(&self, axes: &str) -> Result<String, ControlError> {
         if !self.can_home {
             return Err(ControlError::WrongState(
-                "this bus cannot run a reference run yet (homing is built for the simulated \
-                 machine and CANopen drives (homing mode 6); serial homing is not done)"
+                "this bus cannot run a reference run (serial: it needs an axis with \
+                 homing = \"required\", which switches the link to protocol version 3)"
                     .into(),
             ));
         }

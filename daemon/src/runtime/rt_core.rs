@@ -636,6 +636,7 @@ impl RtCore {
     }
 
     fn fault(&mut self, fault: BusFault) {
+        self.forget_reference(fault);
         if self.snap.fault.is_none() {
             self.snap.fault = Some(fault);
             self.start_fault_stop(fault);
@@ -759,6 +760,18 @@ impl RtCore {
     fn stop_drive_homing(&mut self, bus: &mut dyn DriveBus) {
         if let Some(h) = self.homing.filter(|h| h.by_drive) {
             bus.stop_homing(h.axis);
+        }
+    }
+
+    /// A drive that refused or did not confirm the reference of a reference run: the axis
+    /// was marked homed when the run ended, but it is not.
+    fn forget_reference(&mut self, fault: BusFault) {
+        use hal::FaultReason::{HomingRefused, HomingTimeout};
+        if let (Some(a), HomingRefused | HomingTimeout) = (fault.axis, fault.reason)
+            && usize::from(a) < self.axes
+        {
+            self.snap.homed &= !(1 << a);
+            self.snap.homing_failed |= 1 << a;
         }
     }
 

@@ -10,6 +10,11 @@
 //! the spindle's controlword and target velocity, each reply its statusword and actual
 //! velocity. The spindle goes through the same CiA 402 enable sequence and fault handling as
 //! the axes. Without one it speaks version 1, as drive units without a spindle expect.
+//!
+//! With homing configured it speaks version 3: each reply carries the home switch inputs and
+//! each request a reference command, by which the end of a reference run shifts the drive's
+//! position (see [`Homing`]). A unit that answers only older versions is refused at start-up
+//! with [`FaultReason::ProtocolVersion`].
 
 use std::io::{self, Read, Write};
 use std::time::Duration;
@@ -17,7 +22,9 @@ use std::time::Duration;
 use serialport::TTYPort;
 
 use super::frame::{self, Decoder, FrameError};
-use super::message::{AxisRequest, Reply, Request};
+use super::message::{
+    AxisRequest, HomeAction, HomeCommand, HomeResult, HomeStatus, Reply, Request,
+};
 use crate::cia402::{self, PowerState, cw, sw};
 use crate::{
     AxisFeedback, BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason,
@@ -52,6 +59,8 @@ pub struct SerialConfig {
     pub reply_timeout_ticks: u32,
     /// Ticks allowed for the enable sequence.
     pub enable_timeout_ticks: u32,
+    /// The unit takes part in reference runs: speak protocol version 3.
+    pub homing: bool,
 }
 
 impl SerialConfig {
@@ -63,6 +72,7 @@ impl SerialConfig {
             spindle: None,
             reply_timeout_ticks: 25,
             enable_timeout_ticks: 500,
+            homing: false,
         }
     }
 }
@@ -103,6 +113,43 @@ pub struct SerialBus {
     have_feedback: bool,
     link_fault: Option<FaultReason>,
     rx: [u8; 256],
+    homing: Homing,
+}
+
+/// Without a version 3 reply, every this many ticks of silence the request goes out in the
+/// older version, to tell an old unit (which answers it) from a silent one.
+const PROBE_EVERY_TICKS: u32 = 3;
+/// Probes answered by a unit that never answered version 3: it is an old unit.
+const PROBE_ANSWERS: u32 = 3;
+/// Ticks the drive has to acknowledge a reference command.
+pub const HOME_ACK_TIMEOUT_TICKS: u64 = 50;
+
+/// A reference command sent until the drive acknowledges it.
+#[derive(Clone, Copy, Debug)]
+struct PendingHome {
+    id: u8,
+    axis: usize,
+    shift_increments: i32,
+    since_tick: u64,
+}
+
+/// Protocol version 3 state. The reference command is idempotent by its id: the controller
+/// repeats it in every request until a reply carries the id, so a lost frame neither loses
+/// nor doubles the shift. Replies without the id still report positions in the old reference;
+/// they are shifted here, so the controller sees one consistent position (no jump).
+#[derive(Clone, Copy, Debug, Default)]
+struct Homing {
+    /// Some reply arrived in version 3.
+    v3_seen: bool,
+    /// Older-version replies to probes while no version 3 reply arrived.
+    probe_answers: u32,
+    /// The last request went out in the older version.
+    probing: bool,
+    /// Home switch inputs of the last reply.
+    switches: u8,
+    /// The id the drive acknowledged last.
+    acked_id: u8,
+    pending: Option<PendingHome>,
 }
 
 enum Ready {
@@ -194,6 +241,7 @@ impl SerialBus {
             have_feedback: false,
             link_fault: None,
             rx: [0; 256],
+            homing: Homing::default(),
         })
     }
 
@@ -256,14 +304,23 @@ impl SerialBus {
             // A reply must have our axes and, exactly when we have one, the spindle.
             let spindle = self.axes.len() > self.n_axes;
             if let Some(y) = reply
+                && self.cfg.homing
+                && y.home.is_none()
+            {
+                self.probe_answered(&y);
+            } else if let Some(y) = reply
                 && usize::from(y.axes) == self.n_axes
                 && y.spindle.is_some() == spindle
+                && y.home.is_some() == self.cfg.homing
             {
                 let records = y.axis[..self.n_axes].iter().chain(y.spindle.as_ref());
                 for (a, r) in self.axes.iter_mut().zip(records) {
                     a.statusword = r.statusword;
                     a.position_increments = r.position_increments;
                     a.error_code = r.error_code;
+                }
+                if let Some(h) = y.home {
+                    self.home_status(h);
                 }
                 self.awaiting = false;
                 self.missing = 0;
@@ -319,27 +376,39 @@ impl SerialBus {
     }
 
     fn send_request(&mut self) {
-        let Some(port) = self.port.as_mut() else {
+        if self.port.is_none() {
             return;
-        };
+        }
         self.seq = self.seq.wrapping_add(1);
         let record = |a: &Axis| AxisRequest {
             controlword: a.controlword,
             target_increments: a.target_increments,
         };
+        let probe = self.probe_due();
+        self.homing.probing = probe;
         let mut req = Request {
             seq: self.seq,
             axes: self.n_axes as u8,
             axis: [AxisRequest::default(); MAX_AXES],
             spindle: self.axes.get(self.n_axes).map(record),
+            home: (self.cfg.homing && !probe).then(|| self.home_command()),
         };
         for (r, a) in req.axis.iter_mut().zip(&self.axes[..self.n_axes]) {
             *r = record(a);
+        }
+        if probe {
+            // The probe must not switch anything on in a unit we are about to refuse.
+            for r in req.axis.iter_mut().chain(req.spindle.as_mut()) {
+                r.controlword = cw::DISABLE_VOLTAGE;
+            }
         }
         let mut payload = [0u8; 64];
         let n = req.encode(&mut payload);
         let mut out = [0u8; frame::MAX_FRAME];
         let len = frame::encode(&payload[..n], &mut out);
+        let Some(port) = self.port.as_mut() else {
+            return;
+        };
         // A frame is far smaller than any tty buffer; a short write means the line is stuck.
         match port.write(&out[..len]) {
             Ok(w) if w == len => self.awaiting = true,
@@ -353,6 +422,84 @@ impl SerialBus {
                 self.awaiting = true
             }
             Err(_) => self.link_down(),
+        }
+    }
+
+    /// Whether this request goes out in the older version (see [`PROBE_EVERY_TICKS`]).
+    fn probe_due(&self) -> bool {
+        self.cfg.homing
+            && !self.homing.v3_seen
+            && self.missing > 0
+            && self.missing.is_multiple_of(PROBE_EVERY_TICKS)
+    }
+
+    /// An older-version reply while homing needs version 3: the answer to a probe. A unit
+    /// that answers probes but never version 3 is an old unit: refused, clearly.
+    fn probe_answered(&mut self, y: &Reply) {
+        if !self.homing.probing {
+            return;
+        }
+        self.awaiting = false;
+        self.missing = 0;
+        self.corrupt_since_reply = 0;
+        self.homing.probe_answers += 1;
+        if !self.homing.v3_seen && self.homing.probe_answers >= PROBE_ANSWERS {
+            self.link_fault = Some(FaultReason::ProtocolVersion {
+                drive: y.version(),
+                needed: 3,
+            });
+        }
+    }
+
+    /// The reference command of this request: the pending one, or none (with the id the drive
+    /// acknowledged last, so it changes nothing).
+    fn home_command(&self) -> HomeCommand {
+        match self.homing.pending {
+            Some(p) => HomeCommand {
+                action: HomeAction::SetReference,
+                id: p.id,
+                axis: p.axis as u8,
+                shift_increments: p.shift_increments,
+            },
+            None => HomeCommand {
+                id: self.homing.acked_id,
+                ..HomeCommand::default()
+            },
+        }
+    }
+
+    /// Switches and acknowledgement of a version 3 reply (its positions already stored).
+    fn home_status(&mut self, h: HomeStatus) {
+        let first = !self.homing.v3_seen;
+        self.homing.v3_seen = true;
+        self.homing.switches = h.switches;
+        let Some(p) = self.homing.pending else {
+            if first {
+                // Continue from the drive's last id (it keeps it over a controller restart).
+                self.homing.acked_id = h.id;
+            }
+            return;
+        };
+        if h.id != p.id {
+            // Sent before the drive took the new reference: shift it here.
+            let a = &mut self.axes[p.axis];
+            a.position_increments = a.position_increments.saturating_add(p.shift_increments);
+            return;
+        }
+        self.homing.acked_id = h.id;
+        self.homing.pending = None;
+        if h.result == HomeResult::Refused {
+            self.axes[p.axis].phase = Phase::Faulted(FaultReason::HomingRefused);
+        }
+    }
+
+    /// A reference command not acknowledged in time faults its axis.
+    fn check_home_ack(&mut self) {
+        if let Some(p) = self.homing.pending
+            && self.tick - p.since_tick > HOME_ACK_TIMEOUT_TICKS
+        {
+            self.homing.pending = None;
+            self.axes[p.axis].phase = Phase::Faulted(FaultReason::HomingTimeout);
         }
     }
 
@@ -409,6 +556,7 @@ impl DriveBus for SerialBus {
                 });
             }
         }
+        self.check_home_ack();
         for i in 0..self.axes.len() {
             let units = match self.cfg.axes.get(i) {
                 Some(c) => cmd.positions_mm[i] * c.increments_per_mm,
@@ -491,6 +639,44 @@ impl DriveBus for SerialBus {
         }
     }
 
+    fn supports_homing(&self) -> bool {
+        self.cfg.homing
+    }
+
+    fn home_switch(&self, axis: usize) -> bool {
+        self.cfg.homing && axis < self.n_axes && self.homing.switches & (1 << axis) != 0
+    }
+
+    /// Sends the reference command: the drive's position shifts by `reference − trigger`
+    /// (rounded to increments) from the next request on, repeated until acknowledged. One
+    /// command at a time: a second one before the first is acknowledged is refused.
+    fn set_home(&mut self, axis: usize, trigger_mm: f64, reference_mm: f64) {
+        let Some(c) = self.cfg.axes.get(axis).filter(|_| self.cfg.homing) else {
+            return;
+        };
+        if self.homing.pending.is_some() {
+            self.axes[axis].phase = Phase::Faulted(FaultReason::HomingRefused);
+            return;
+        }
+        let inc = |mm: f64| {
+            (mm * c.increments_per_mm)
+                .round()
+                .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i64
+        };
+        let shift = (inc(reference_mm) - inc(trigger_mm))
+            .clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+        let id = match self.homing.acked_id.wrapping_add(1) {
+            0 => 1,
+            n => n,
+        };
+        self.homing.pending = Some(PendingHome {
+            id,
+            axis,
+            shift_increments: shift,
+            since_tick: self.tick,
+        });
+    }
+
     fn reset(&mut self) {
         if self.port.is_none() {
             // Reopening allocates and may take a moment; it happens only on the operator's
@@ -505,6 +691,12 @@ impl DriveBus for SerialBus {
         self.awaiting = false;
         self.missing = 0;
         self.corrupt_since_reply = 0;
+        // The unit may have been swapped: find out its version again. A reference command
+        // still pending is dropped (its axis is no longer homed: the fault cleared that).
+        self.homing = Homing {
+            acked_id: self.homing.acked_id,
+            ..Homing::default()
+        };
         let tick = self.tick;
         // Every axis goes through the enable sequence again: a drive that lost its link has
         // switched itself off, one that did not is confirmed enabled on the first reply.
@@ -545,6 +737,7 @@ mod tests {
                 axes: 1,
                 axis: [AxisReply::default(); MAX_AXES],
                 spindle: None,
+                home: None,
             };
             y.axis[0] = AxisReply {
                 statusword,
@@ -560,17 +753,69 @@ mod tests {
         }
     }
 
+    impl Drive {
+        /// Reads one request and answers what `reply` makes of it (nothing on `None`).
+        fn answer_with(
+            &mut self,
+            reply: impl FnOnce(&Request) -> Option<Reply>,
+        ) -> Option<Request> {
+            let mut buf = [0u8; 256];
+            let mut got = None;
+            std::thread::sleep(Duration::from_millis(5));
+            if let Ok(n) = self.port.read(&mut buf) {
+                self.decoder.feed(&buf[..n], |r| {
+                    if let Ok(p) = r {
+                        got = Request::decode(p);
+                    }
+                });
+            }
+            let req = got?;
+            if let Some(y) = reply(&req) {
+                let mut p = [0u8; 64];
+                let n = y.encode(&mut p);
+                let mut f = [0u8; frame::MAX_FRAME];
+                let len = frame::encode(&p[..n], &mut f);
+                self.port.write_all(&f[..len]).unwrap();
+            }
+            Some(req)
+        }
+    }
+
+    /// A version 3 reply of one enabled axis at `position`.
+    fn v3_reply(req: &Request, position: i32, home: HomeStatus) -> Option<Reply> {
+        let mut y = Reply {
+            seq: req.seq,
+            axes: 1,
+            axis: [AxisReply::default(); MAX_AXES],
+            spindle: None,
+            home: Some(home),
+        };
+        y.axis[0] = AxisReply {
+            statusword: PowerState::OperationEnabled.statusword_bits(),
+            position_increments: position,
+            error_code: 0,
+        };
+        Some(y)
+    }
+
     fn setup() -> (SerialBus, Drive) {
+        setup_with(false)
+    }
+
+    fn setup_with(homing: bool) -> (SerialBus, Drive) {
         let (mut master, slave) = TTYPort::pair().unwrap();
         master.set_timeout(Duration::from_millis(50)).unwrap();
         let path = slave.name().unwrap();
-        let bus = SerialBus::open(SerialConfig::new(
-            &path,
-            vec![SerialAxis {
-                node_id: 4,
-                increments_per_mm: 100.0,
-            }],
-        ))
+        let bus = SerialBus::open(SerialConfig {
+            homing,
+            ..SerialConfig::new(
+                &path,
+                vec![SerialAxis {
+                    node_id: 4,
+                    increments_per_mm: 100.0,
+                }],
+            )
+        })
         .unwrap();
         // Keep the slave fd open in the test so the pty stays alive.
         std::mem::forget(slave);
@@ -632,5 +877,137 @@ mod tests {
         }
         assert_eq!(last.unwrap_err().reason, FaultReason::LinkDown);
         assert_eq!(fb.axes[0].state, DriveState::Fault);
+    }
+
+    /// Version 3: the switch input reaches `home_switch`; the reference command shifts the
+    /// reported position at once (replies still in the old reference are shifted by the
+    /// controller) and is repeated until acknowledged; a refusal faults the axis.
+    #[test]
+    fn reference_command_is_repeated_until_acknowledged_and_a_refusal_faults_the_axis() {
+        let (mut bus, mut drive) = setup_with(true);
+        bus.enable();
+        let mut fb = CycleFeedback::default();
+        let mut cmd = CycleCommand::default();
+        cmd.positions_mm[0] = 1.0;
+        let pressed = HomeStatus {
+            switches: 1,
+            ..HomeStatus::default()
+        };
+        for _ in 0..3 {
+            bus.cycle(&cmd, &mut fb).unwrap();
+            let req = drive.answer_with(|r| v3_reply(r, 100, pressed)).unwrap();
+            assert_eq!(req.version(), 3);
+        }
+        bus.cycle(&cmd, &mut fb).unwrap();
+        assert_eq!(fb.axes[0].state, DriveState::Operational);
+        assert!(bus.home_switch(0) && !bus.home_switch(1));
+        // The switch was met at 1 mm; it becomes -2 mm: the drive shifts by -300 increments.
+        bus.set_home(0, 1.0, -2.0);
+        cmd.positions_mm[0] = -2.0;
+        // The drive has not seen the command yet (its reply is in the old reference).
+        let req = drive.answer_with(|r| v3_reply(r, 100, pressed)).unwrap();
+        assert_eq!(req.home.unwrap().action, HomeAction::None);
+        bus.cycle(&cmd, &mut fb).unwrap();
+        assert!((fb.axes[0].position_mm + 2.0).abs() < 1e-9, "{fb:?}");
+        // Its reply is lost: the command comes again with the same id.
+        let first = drive.answer_with(|_| None).unwrap().home.unwrap();
+        bus.cycle(&cmd, &mut fb).unwrap();
+        assert!((fb.axes[0].position_mm + 2.0).abs() < 1e-9, "{fb:?}");
+        let acked = HomeStatus {
+            id: first.id,
+            ..pressed
+        };
+        let again = drive.answer_with(|r| v3_reply(r, -200, acked)).unwrap();
+        assert_eq!(again.home, Some(first));
+        assert_eq!(
+            (
+                first.action,
+                first.shift_increments,
+                again.axis[0].target_increments
+            ),
+            (HomeAction::SetReference, -300, -200)
+        );
+        bus.cycle(&cmd, &mut fb).unwrap();
+        assert!((fb.axes[0].position_mm + 2.0).abs() < 1e-9, "{fb:?}");
+        let idle = drive.answer_with(|r| v3_reply(r, -200, acked)).unwrap();
+        assert_eq!(idle.home.unwrap().action, HomeAction::None);
+
+        // The next command is refused: a fault naming the axis.
+        bus.cycle(&cmd, &mut fb).unwrap();
+        bus.set_home(0, -2.0, 0.0);
+        drive.answer_with(|r| v3_reply(r, -200, acked));
+        bus.cycle(&cmd, &mut fb).unwrap();
+        let refused = HomeStatus {
+            id: first.id.wrapping_add(1),
+            result: HomeResult::Refused,
+            ..pressed
+        };
+        drive.answer_with(|r| v3_reply(r, 0, refused));
+        let e = bus.cycle(&cmd, &mut fb).unwrap_err();
+        assert_eq!(
+            (e.reason, e.axis, e.node),
+            (FaultReason::HomingRefused, Some(0), Some(4))
+        );
+    }
+
+    #[test]
+    fn an_unacknowledged_reference_command_times_out() {
+        let (mut bus, mut drive) = setup_with(true);
+        bus.enable();
+        let mut fb = CycleFeedback::default();
+        let cmd = CycleCommand::default();
+        for _ in 0..4 {
+            bus.cycle(&cmd, &mut fb).unwrap();
+            drive.answer_with(|r| v3_reply(r, 0, HomeStatus::default()));
+        }
+        bus.set_home(0, 0.0, 1.0);
+        let mut ticks = 0;
+        let e = loop {
+            ticks += 1;
+            match bus.cycle(&cmd, &mut fb) {
+                Ok(()) => drive.answer_with(|r| v3_reply(r, 0, HomeStatus::default())),
+                Err(e) => break e,
+            };
+        };
+        assert_eq!(ticks, HOME_ACK_TIMEOUT_TICKS + 1);
+        assert_eq!(
+            (e.reason, e.axis, e.node),
+            (FaultReason::HomingTimeout, Some(0), Some(4))
+        );
+    }
+
+    /// A unit of an older version answers only the probes: refused at start-up, clearly.
+    #[test]
+    fn an_old_unit_is_refused_when_homing_needs_version_3() {
+        let (mut bus, mut drive) = setup_with(true);
+        bus.enable();
+        let mut fb = CycleFeedback::default();
+        let cmd = CycleCommand::default();
+        let mut probes = 0;
+        let e = loop {
+            if let Err(e) = bus.cycle(&cmd, &mut fb) {
+                break e;
+            }
+            let req = drive
+                .answer_with(|r| {
+                    let mut y = v3_reply(r, 0, HomeStatus::default())?;
+                    y.home = None;
+                    (r.version() == 1).then_some(y)
+                })
+                .unwrap();
+            if req.version() == 1 {
+                probes += 1;
+                assert_eq!(req.axis[0].controlword, cw::DISABLE_VOLTAGE);
+            }
+        };
+        assert_eq!(probes, PROBE_ANSWERS);
+        assert_eq!(
+            e.reason,
+            FaultReason::ProtocolVersion {
+                drive: 1,
+                needed: 3
+            }
+        );
+        assert!(e.to_string().contains("version 1, homing needs version 3"));
     }
 }

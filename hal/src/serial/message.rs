@@ -6,6 +6,12 @@
 //! the spindle drive: its controlword and target velocity, and its statusword, actual
 //! velocity and error code. The controller speaks version 2 only when a spindle is configured,
 //! so drive units of version 1 keep working unchanged.
+//!
+//! Version 3 (types 03h/83h, issue #15) adds homing: a flags byte after the axis count says
+//! whether the spindle record is present; the request ends with a reference command (set the
+//! drive's position reference, idempotent by id), the reply with the home switch inputs and
+//! the acknowledgement of the last reference command. The controller speaks version 3 only
+//! when homing is configured on the link.
 
 use crate::MAX_AXES;
 
@@ -17,7 +23,16 @@ pub const REPLY: u8 = 0x81;
 pub const REQUEST_V2: u8 = 0x02;
 /// Version 2 reply: axes, then the spindle.
 pub const REPLY_V2: u8 = 0x82;
+/// Version 3 request: flags, axes, the spindle if flagged, the reference command.
+pub const REQUEST_V3: u8 = 0x03;
+/// Version 3 reply: flags, axes, the spindle if flagged, switches and acknowledgement.
+pub const REPLY_V3: u8 = 0x83;
+/// Version 3 flags bit 0: the spindle record is present.
+const FLAG_SPINDLE: u8 = 0x01;
 const HEADER: usize = 3;
+const HEADER_V3: usize = 4;
+const HOME_COMMAND: usize = 7;
+const HOME_STATUS: usize = 3;
 const REQUEST_AXIS: usize = 6;
 const REPLY_AXIS: usize = 8;
 
@@ -39,13 +54,55 @@ pub struct AxisReply {
     pub error_code: u16,
 }
 
+/// What a version 3 request asks of the drive's position reference.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum HomeAction {
+    /// Nothing (the id is the last one the drive acknowledged).
+    #[default]
+    None,
+    /// Add `shift_increments` to the axis's position (actual and target) once per `id`.
+    SetReference,
+}
+
+/// The reference command of a version 3 request.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct HomeCommand {
+    pub action: HomeAction,
+    /// Applied once: the drive ignores a command whose id it already acknowledged.
+    pub id: u8,
+    pub axis: u8,
+    /// Shift of the axis's position, increments: new position = old position + shift.
+    pub shift_increments: i32,
+}
+
+/// Result of the last reference command (version 3 reply).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum HomeResult {
+    #[default]
+    Applied,
+    /// Not applied: the axis does not exist, or the drive cannot redefine its position now.
+    Refused,
+}
+
+/// Home switches and acknowledgement of a version 3 reply.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct HomeStatus {
+    /// Bit i: the home switch input of axis i is active.
+    pub switches: u8,
+    /// Id of the last reference command the drive handled (0 after power-on).
+    pub id: u8,
+    pub result: HomeResult,
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Request {
     pub seq: u8,
     pub axes: u8,
     pub axis: [AxisRequest; MAX_AXES],
-    /// The spindle record: present in version 2 only.
+    /// The spindle record: present in versions 2 and 3 only.
     pub spindle: Option<AxisRequest>,
+    /// The reference command: present in version 3 only.
+    pub home: Option<HomeCommand>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -54,8 +111,32 @@ pub struct Reply {
     pub seq: u8,
     pub axes: u8,
     pub axis: [AxisReply; MAX_AXES],
-    /// The spindle record: present in version 2 only.
+    /// The spindle record: present in versions 2 and 3 only.
     pub spindle: Option<AxisReply>,
+    /// Switches and acknowledgement: present in version 3 only.
+    pub home: Option<HomeStatus>,
+}
+
+impl Request {
+    /// The protocol version of this request (1, 2 or 3).
+    pub fn version(&self) -> u8 {
+        match (self.home, self.spindle) {
+            (Some(_), _) => 3,
+            (None, Some(_)) => 2,
+            (None, None) => 1,
+        }
+    }
+}
+
+impl Reply {
+    /// The protocol version of this reply (1, 2 or 3).
+    pub fn version(&self) -> u8 {
+        match (self.home, self.spindle) {
+            (Some(_), _) => 3,
+            (None, Some(_)) => 2,
+            (None, None) => 1,
+        }
+    }
 }
 
 /// Sequence number, axis count and whether a spindle record follows (version 2), if `p` is a
@@ -72,6 +153,106 @@ fn header(p: &[u8], v1: u8, v2: u8, per_axis: usize) -> Option<(u8, u8, bool)> {
     let records = usize::from(axes) + usize::from(spindle);
     ((1..=MAX_AXES as u8).contains(&axes) && rest.len() == per_axis * records)
         .then_some((seq, axes, spindle))
+}
+
+/// Layout of a message: sequence number, axis count, whether the spindle record is present,
+/// where the records start and whether it is version 3.
+struct Layout {
+    seq: u8,
+    axes: u8,
+    spindle: bool,
+    start: usize,
+    v3: bool,
+}
+
+/// The layout of `p` if it is a message of type `v1`, `v2` or `v3` of exactly the right
+/// length (`trailer`: the version 3 bytes after the records).
+fn layout(p: &[u8], types: [u8; 3], per_axis: usize, trailer: usize) -> Option<Layout> {
+    if p.first() != Some(&types[2]) {
+        let (seq, axes, spindle) = header(p, types[0], types[1], per_axis)?;
+        return Some(Layout {
+            seq,
+            axes,
+            spindle,
+            start: HEADER,
+            v3: false,
+        });
+    }
+    let [_, seq, axes, flags] = *p.get(..HEADER_V3)? else {
+        return None;
+    };
+    let spindle = flags & FLAG_SPINDLE != 0;
+    let records = usize::from(axes) + usize::from(spindle);
+    let len = HEADER_V3 + per_axis * records + trailer;
+    ((1..=MAX_AXES as u8).contains(&axes) && flags & !FLAG_SPINDLE == 0 && p.len() == len)
+        .then_some(Layout {
+            seq,
+            axes,
+            spindle,
+            start: HEADER_V3,
+            v3: true,
+        })
+}
+
+fn put_home_command(out: &mut [u8], h: &HomeCommand) {
+    out[0] = match h.action {
+        HomeAction::None => 0,
+        HomeAction::SetReference => 1,
+    };
+    out[1] = h.id;
+    out[2] = h.axis;
+    out[3..7].copy_from_slice(&h.shift_increments.to_le_bytes());
+}
+
+fn get_home_command(b: &[u8]) -> Option<HomeCommand> {
+    let action = match b[0] {
+        0 => HomeAction::None,
+        1 => HomeAction::SetReference,
+        _ => return None,
+    };
+    Some(HomeCommand {
+        action,
+        id: b[1],
+        axis: b[2],
+        shift_increments: i32::from_le_bytes([b[3], b[4], b[5], b[6]]),
+    })
+}
+
+fn put_home_status(out: &mut [u8], h: &HomeStatus) {
+    out[0] = h.switches;
+    out[1] = h.id;
+    out[2] = match h.result {
+        HomeResult::Applied => 0,
+        HomeResult::Refused => 1,
+    };
+}
+
+fn get_home_status(b: &[u8]) -> Option<HomeStatus> {
+    let result = match b[2] {
+        0 => HomeResult::Applied,
+        1 => HomeResult::Refused,
+        _ => return None,
+    };
+    Some(HomeStatus {
+        switches: b[0],
+        id: b[1],
+        result,
+    })
+}
+
+/// Writes the header of a message of version `version` (types `types` of versions 1, 2, 3);
+/// returns where the records start.
+fn put_header(out: &mut [u8], types: [u8; 3], version: u8, seq: u8, n: u8, spindle: bool) -> usize {
+    match version {
+        3 => {
+            out[..HEADER_V3].copy_from_slice(&[types[2], seq, n, u8::from(spindle) * FLAG_SPINDLE]);
+            HEADER_V3
+        }
+        v => {
+            out[..HEADER].copy_from_slice(&[types[usize::from(v) - 1], seq, n]);
+            HEADER
+        }
+    }
 }
 
 fn put_request(out: &mut [u8], a: &AxisRequest) {
@@ -104,35 +285,50 @@ impl Request {
     /// Writes the payload into `out`; returns its length.
     pub fn encode(&self, out: &mut [u8; 64]) -> usize {
         let n = usize::from(self.axes.min(MAX_AXES as u8));
-        let kind = if self.spindle.is_some() {
-            REQUEST_V2
-        } else {
-            REQUEST
-        };
-        out[..HEADER].copy_from_slice(&[kind, self.seq, n as u8]);
+        let types = [REQUEST, REQUEST_V2, REQUEST_V3];
+        let start = put_header(
+            out,
+            types,
+            self.version(),
+            self.seq,
+            n as u8,
+            self.spindle.is_some(),
+        );
         for (i, a) in self.axis[..n].iter().enumerate() {
-            put_request(&mut out[HEADER + i * REQUEST_AXIS..], a);
+            put_request(&mut out[start + i * REQUEST_AXIS..], a);
         }
-        let mut len = HEADER + n * REQUEST_AXIS;
+        let mut len = start + n * REQUEST_AXIS;
         if let Some(s) = &self.spindle {
             put_request(&mut out[len..], s);
             len += REQUEST_AXIS;
+        }
+        if let Some(h) = &self.home {
+            put_home_command(&mut out[len..], h);
+            len += HOME_COMMAND;
         }
         len
     }
 
     pub fn decode(p: &[u8]) -> Option<Request> {
-        let (seq, axes, spindle) = header(p, REQUEST, REQUEST_V2, REQUEST_AXIS)?;
+        let types = [REQUEST, REQUEST_V2, REQUEST_V3];
+        let l = layout(p, types, REQUEST_AXIS, HOME_COMMAND)?;
         let mut axis = [AxisRequest::default(); MAX_AXES];
-        for (i, a) in axis[..usize::from(axes)].iter_mut().enumerate() {
-            *a = get_request(&p[HEADER + i * REQUEST_AXIS..]);
+        for (i, a) in axis[..usize::from(l.axes)].iter_mut().enumerate() {
+            *a = get_request(&p[l.start + i * REQUEST_AXIS..]);
         }
-        let spindle = spindle.then(|| get_request(&p[HEADER + usize::from(axes) * REQUEST_AXIS..]));
+        let end = l.start + usize::from(l.axes) * REQUEST_AXIS;
+        let spindle = l.spindle.then(|| get_request(&p[end..]));
+        let home = if l.v3 {
+            Some(get_home_command(&p[p.len() - HOME_COMMAND..])?)
+        } else {
+            None
+        };
         Some(Request {
-            seq,
-            axes,
+            seq: l.seq,
+            axes: l.axes,
             axis,
             spindle,
+            home,
         })
     }
 }
@@ -140,35 +336,50 @@ impl Request {
 impl Reply {
     pub fn encode(&self, out: &mut [u8; 64]) -> usize {
         let n = usize::from(self.axes.min(MAX_AXES as u8));
-        let kind = if self.spindle.is_some() {
-            REPLY_V2
-        } else {
-            REPLY
-        };
-        out[..HEADER].copy_from_slice(&[kind, self.seq, n as u8]);
+        let types = [REPLY, REPLY_V2, REPLY_V3];
+        let start = put_header(
+            out,
+            types,
+            self.version(),
+            self.seq,
+            n as u8,
+            self.spindle.is_some(),
+        );
         for (i, a) in self.axis[..n].iter().enumerate() {
-            put_reply(&mut out[HEADER + i * REPLY_AXIS..], a);
+            put_reply(&mut out[start + i * REPLY_AXIS..], a);
         }
-        let mut len = HEADER + n * REPLY_AXIS;
+        let mut len = start + n * REPLY_AXIS;
         if let Some(s) = &self.spindle {
             put_reply(&mut out[len..], s);
             len += REPLY_AXIS;
+        }
+        if let Some(h) = &self.home {
+            put_home_status(&mut out[len..], h);
+            len += HOME_STATUS;
         }
         len
     }
 
     pub fn decode(p: &[u8]) -> Option<Reply> {
-        let (seq, axes, spindle) = header(p, REPLY, REPLY_V2, REPLY_AXIS)?;
+        let types = [REPLY, REPLY_V2, REPLY_V3];
+        let l = layout(p, types, REPLY_AXIS, HOME_STATUS)?;
         let mut axis = [AxisReply::default(); MAX_AXES];
-        for (i, a) in axis[..usize::from(axes)].iter_mut().enumerate() {
-            *a = get_reply(&p[HEADER + i * REPLY_AXIS..]);
+        for (i, a) in axis[..usize::from(l.axes)].iter_mut().enumerate() {
+            *a = get_reply(&p[l.start + i * REPLY_AXIS..]);
         }
-        let spindle = spindle.then(|| get_reply(&p[HEADER + usize::from(axes) * REPLY_AXIS..]));
+        let end = l.start + usize::from(l.axes) * REPLY_AXIS;
+        let spindle = l.spindle.then(|| get_reply(&p[end..]));
+        let home = if l.v3 {
+            Some(get_home_status(&p[p.len() - HOME_STATUS..])?)
+        } else {
+            None
+        };
         Some(Reply {
-            seq,
-            axes,
+            seq: l.seq,
+            axes: l.axes,
             axis,
             spindle,
+            home,
         })
     }
 }
@@ -184,6 +395,7 @@ mod tests {
             axes: 2,
             axis: [AxisRequest::default(); MAX_AXES],
             spindle: None,
+            home: None,
         };
         r.axis[1] = AxisRequest {
             controlword: 0x000F,
@@ -204,6 +416,7 @@ mod tests {
             axes: 1,
             axis: [AxisReply::default(); MAX_AXES],
             spindle: None,
+            home: None,
         };
         y.axis[0] = AxisReply {
             statusword: 0x1237,
@@ -225,6 +438,7 @@ mod tests {
                 controlword: 0x000F,
                 target_increments: -12_000,
             }),
+            home: None,
         };
         let mut b = [0u8; 64];
         let n = r.encode(&mut b);
@@ -248,6 +462,7 @@ mod tests {
                 position_increments: 11_990,
                 error_code: 0,
             }),
+            home: None,
         };
         y.axis[5].position_increments = 5;
         let n = y.encode(&mut b);
@@ -255,5 +470,56 @@ mod tests {
         assert_eq!(Reply::decode(&b[..n]), Some(y));
         r.axes = 6;
         assert_eq!(r.encode(&mut b), 3 + 7 * 6);
+    }
+
+    #[test]
+    fn version_3_carries_the_reference_command_and_the_switches() {
+        let mut r = Request {
+            seq: 4,
+            axes: 2,
+            axis: [AxisRequest::default(); MAX_AXES],
+            spindle: None,
+            home: Some(HomeCommand {
+                action: HomeAction::SetReference,
+                id: 7,
+                axis: 1,
+                shift_increments: -3,
+            }),
+        };
+        let mut b = [0u8; 64];
+        let n = r.encode(&mut b);
+        assert_eq!(&b[..4], &[REQUEST_V3, 4, 2, 0]);
+        assert_eq!(&b[n - 7..n], &[1, 7, 1, 0xFD, 0xFF, 0xFF, 0xFF]);
+        assert_eq!(Request::decode(&b[..n]), Some(r));
+        assert_eq!(Request::decode(&b[..n - 1]), None);
+        let mut bad = b;
+        bad[n - 7] = 9;
+        assert_eq!(Request::decode(&bad[..n]), None, "unknown action");
+        r.spindle = Some(AxisRequest::default());
+        let n = r.encode(&mut b);
+        assert_eq!(b[3], FLAG_SPINDLE);
+        assert_eq!(Request::decode(&b[..n]), Some(r));
+
+        // Six axes, the spindle and the trailer still fit 64 bytes.
+        let y = Reply {
+            seq: 4,
+            axes: 6,
+            axis: [AxisReply::default(); MAX_AXES],
+            spindle: Some(AxisReply::default()),
+            home: Some(HomeStatus {
+                switches: 0b10_0001,
+                id: 7,
+                result: HomeResult::Refused,
+            }),
+        };
+        let n = y.encode(&mut b);
+        assert_eq!((b[0], n), (REPLY_V3, 4 + 7 * 8 + 3));
+        assert_eq!(Reply::decode(&b[..n]), Some(y));
+        assert_eq!(y.version(), 3);
+        // Versions 1 and 2 decode as before: no home record.
+        let v2 = Reply { home: None, ..y };
+        let n = v2.encode(&mut b);
+        assert_eq!(b[0], REPLY_V2);
+        assert_eq!(Reply::decode(&b[..n]).unwrap().home, None);
     }
 }

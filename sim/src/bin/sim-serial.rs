@@ -3,6 +3,11 @@
 //! ramping at `--ramp-rpm-s` with `--units-per-rpm`). The controller opens `--link`, a symlink to the pty; `unplug`
 //! on stdin closes the pty (the controller sees a hang-up), `plug` creates a new one behind
 //! the same link. Other fault injection: see `sim::control`.
+//!
+//! Homing (protocol version 3): `--home-switch AXIS:MM:SIDE` (repeatable) gives axis AXIS
+//! (1-based) a home switch at MM (power-on coordinates) pressed on side SIDE (-1: at and
+//! below, 1: at and above); `--protocol 2` (or 1) plays an old unit that does not answer
+//! version 3 requests. `--watchdog-ms MS` sets the communication watchdog (default 100).
 
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
@@ -37,14 +42,84 @@ fn plug(link: &str) -> Line {
     }
 }
 
+/// A home switch option: (axis index, position mm, side).
+fn home_switch(v: &str) -> Result<(usize, f64, f64), String> {
+    let bad = || format!("bad --home-switch '{v}': give AXIS:MM:SIDE, e.g. 1:-5:-1");
+    let mut w = v.split(':');
+    let (Some(a), Some(mm), Some(side), None) = (w.next(), w.next(), w.next(), w.next()) else {
+        return Err(bad());
+    };
+    let axis: usize = a.parse().map_err(|_| bad())?;
+    let mm: f64 = mm.parse().map_err(|_| bad())?;
+    let side: f64 = side.parse().map_err(|_| bad())?;
+    if axis == 0 || !mm.is_finite() || (side != 1.0 && side != -1.0) {
+        return Err(bad());
+    }
+    Ok((axis - 1, mm, side))
+}
+
+/// The homing options of this binary; the rest goes to [`SimArgs::parse`].
+struct HomingArgs {
+    switches: Vec<(usize, f64, f64)>,
+    max_version: u8,
+    watchdog_ms: Option<u64>,
+    rest: Vec<String>,
+}
+
+fn homing_args(args: impl Iterator<Item = String>) -> Result<HomingArgs, String> {
+    let mut h = HomingArgs {
+        switches: Vec::new(),
+        max_version: 3,
+        watchdog_ms: None,
+        rest: Vec::new(),
+    };
+    let mut it = args;
+    while let Some(k) = it.next() {
+        match k.as_str() {
+            "--home-switch" => h.switches.push(home_switch(
+                &it.next().ok_or("--home-switch needs a value")?,
+            )?),
+            "--protocol" => {
+                let v = it.next().ok_or("--protocol needs a value")?;
+                h.max_version = v
+                    .parse()
+                    .ok()
+                    .filter(|n| (1..=3).contains(n))
+                    .ok_or(format!("bad --protocol '{v}': 1, 2 or 3"))?;
+            }
+            "--watchdog-ms" => {
+                let v = it.next().ok_or("--watchdog-ms needs a value")?;
+                h.watchdog_ms = Some(v.parse().map_err(|_| format!("bad --watchdog-ms '{v}'"))?);
+            }
+            _ => h.rest.push(k),
+        }
+    }
+    Ok(h)
+}
+
 fn main() {
-    let args = match SimArgs::parse(std::env::args().skip(1)) {
+    let homing = homing_args(std::env::args().skip(1)).unwrap_or_else(|e| fail(&e));
+    let args = match SimArgs::parse(homing.rest.into_iter()) {
         Ok(a) if !a.link.is_empty() => a,
         Ok(_) => fail("give --link PATH"),
         Err(e) => fail(&e),
     };
     let drives = (0..args.axes).map(|_| args.drive()).collect();
     let mut unit = SerialDriveUnit::new(drives);
+    unit.max_version = homing.max_version;
+    if let Some(ms) = homing.watchdog_ms {
+        unit.watchdog_ms = ms;
+    }
+    for (axis, at, side) in homing.switches {
+        if axis >= args.axes {
+            fail(&format!(
+                "--home-switch of axis {}: the unit has {}",
+                axis + 1,
+                args.axes
+            ));
+        }
+        unit = unit.with_home_switch(axis, at, side);
+    }
     if args.spindle {
         unit.spindle = Some(args.drive());
     }
