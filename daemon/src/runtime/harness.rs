@@ -26,6 +26,7 @@ use super::clock::SimClock;
 use super::config::Config;
 use super::controller::{Pump, load_storage, machine_config, rt_core_config};
 use super::job::{JobSpec, plan_into};
+use super::library::ProgramText;
 use super::rt_core::{JobMachine, MachineState, RtCommand, RtCore, RtRings, Snapshot};
 use super::storage::OffsetStore;
 
@@ -307,7 +308,7 @@ impl Harness {
         };
         self.send(RtCommand::Start { job, machine })?;
         let spec = JobSpec {
-            text: Arc::from(text),
+            text: ProgramText::Memory(Arc::from(text)),
             setup,
             opts,
             execution: self.pump.execution.clone(),

@@ -7,6 +7,7 @@ pub mod controller;
 pub mod fault_inject;
 pub mod harness;
 pub mod job;
+pub mod library;
 pub mod logging;
 pub mod pipeline;
 pub mod rt;
