@@ -97,7 +97,7 @@ struct Pass<F> {
 impl<F: FnMut(u32)> Observer for Pass<F> {
     fn programmed(&mut self, _b: &Block, _modal: &Modal) {
         self.blocks += 1;
-        if self.blocks % PROGRESS_BLOCKS == 0 {
+        if self.blocks.is_multiple_of(PROGRESS_BLOCKS) {
             (self.progress)(self.blocks);
         }
     }
