@@ -11,6 +11,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let fds = protox::compile(protos, ["proto"])?;
     let out = std::path::PathBuf::from(std::env::var("OUT_DIR")?);
     std::fs::write(out.join("cnc_descriptor.bin"), fds.encode_to_vec())?;
-    tonic_prost_build::configure().compile_fds(fds)?;
+    // Our codec: undecodable requests (text that is not UTF-8) are INVALID_ARGUMENT with a
+    // location, not INTERNAL.
+    tonic_prost_build::configure()
+        .codec_path("crate::codec::CncCodec")
+        .compile_fds(fds)?;
     Ok(())
 }

@@ -24,7 +24,6 @@ use proto::v1 as pb;
 use proto::v1::machine_client::MachineClient;
 use proto::v1::offsets_client::OffsetsClient;
 use proto::v1::plc_client::PlcClient;
-use tonic::transport::Channel;
 
 const STREAMS: usize = 32;
 const STREAM_HZ: u32 = 250;
@@ -140,15 +139,23 @@ async fn bench(secs: u64) {
     cfg.storage.dir = std::env::temp_dir().join(format!("cnc-bench-{}", std::process::id()));
     cfg.api.max_streams = 64;
     let ctl = Controller::start(cfg, ClockKind::Monotonic).expect("controller");
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));
+    // The Unix socket, as the shop's HMI reaches cncd (loopback TCP is observer-only).
+    let sock = ctl.config().storage.dir.join("cncd.sock");
+    let listeners = server::Listeners {
+        unix: Some(server::bind_unix(&sock, 0o600, None).expect("API socket")),
+        ..server::Listeners::default()
+    };
+    tokio::spawn(server::serve_listeners(
+        ctl.clone(),
+        listeners,
+        std::future::pending(),
+    ));
     let t0 = Instant::now();
     while ctl.snapshot().state != MachineState::Idle {
         assert!(t0.elapsed() < Duration::from_secs(10), "drives not enabled");
         tokio::time::sleep(Duration::from_millis(5)).await;
     }
-    let ch = Channel::from_shared(format!("http://{addr}"))
+    let ch = tonic::transport::Endpoint::from_shared(format!("unix:{}", sock.display()))
         .unwrap()
         .connect()
         .await

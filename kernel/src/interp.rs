@@ -141,6 +141,8 @@ pub struct Interpolator {
     position: AxesMm,
     state: InterpState,
     override_factor: f64,
+    /// Rapid override (0..1) on G0 segments, on top of the feed override.
+    rapid_factor: f64,
     /// Actual spindle speed for feed per revolution, rpm (∞: no spindle feedback, planned
     /// feed), see [`Interpolator::set_spindle_feed_rpm`].
     spindle_feed_rpm: f64,
@@ -195,6 +197,7 @@ impl Interpolator {
             position,
             state: InterpState::Idle,
             override_factor: 1.0,
+            rapid_factor: 1.0,
             spindle_feed_rpm: f64::INFINITY,
             in_position: true,
             spindle_ready: true,
@@ -350,6 +353,14 @@ impl Interpolator {
         self.override_factor = p.clamp(0.0, 150.0) / 100.0;
     }
 
+    /// Rapid override in percent, clamped to 0..=100: scales the speed of G0 segments (on top
+    /// of the feed override). Like the feed override it is a soft limit of the path speed,
+    /// approached within the acceleration limit: the path and the axis limits hold, no step.
+    pub fn set_rapid_override(&mut self, percent: f64) {
+        let p = if percent.is_finite() { percent } else { 0.0 };
+        self.rapid_factor = p.clamp(0.0, 100.0) / 100.0;
+    }
+
     /// Actual spindle speed (rpm, ≥ 0) that feed per revolution follows (SPEC §5: V = n·β).
     /// The daemon calls this every tick with the drive's feedback (0 when the spindle is below
     /// its hold threshold or turns the wrong way; ∞ without spindle feedback). A per-rev
@@ -461,9 +472,12 @@ impl Interpolator {
         (self.feed_of(seg) * self.override_factor).min(seg.v_max_mm_s)
     }
 
-    /// Programmed feed of a segment now: feed per revolution follows the actual spindle speed.
+    /// Programmed feed of a segment now: feed per revolution follows the actual spindle speed;
+    /// a rapid runs at its rapid override's share of the speed the axes allow on it.
     fn feed_of(&self, seg: &Segment) -> f64 {
-        if seg.per_rev_nominal_rpm > 0.0 {
+        if seg.rapid {
+            seg.feed_mm_s.min(seg.v_max_mm_s) * self.rapid_factor
+        } else if seg.per_rev_nominal_rpm > 0.0 {
             seg.feed_mm_s * (self.spindle_feed_rpm / seg.per_rev_nominal_rpm).min(1.0)
         } else {
             seg.feed_mm_s

@@ -13,8 +13,8 @@ pub mod s_word;
 
 pub use config::{Gear, KrConfig, KrConfigError, KrConstants, KrVersion, RadiusInput};
 pub use machine::{
-    ControllingAxis, Kr, KrFault, KrInput, KrOutput, Motion, ProgramSpindle, output_value,
-    speed_for,
+    ControllingAxis, Kr, KrFault, KrInput, KrOutput, Motion, ProgramSpindle, SPINDLE_OVERRIDE_PCT,
+    output_value, speed_for,
 };
 pub use per_rev::{feed_rate_mm_min, max_feed_mm_rev, max_spindle_rpm};
 pub use s_word::{CssCode, FeedBasis, SWordMode};

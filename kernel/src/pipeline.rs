@@ -253,9 +253,20 @@ impl Pipeline {
 
 /// Streams `text` through the stages with `setup` into `obs`.
 pub fn run(text: &str, setup: &MachineSetup, opts: Options, obs: &mut impl Observer) -> Summary {
-    let mut stream = program::stream(text, setup.program());
+    run_lines(program::StrLines::new(text), setup, opts, obs)
+}
+
+/// As [`run`], from lines the caller reads (a program file of any size, issue #19): the same
+/// pass, memory bounded by the windows whatever the length.
+pub fn run_lines<L: program::Lines>(
+    lines: L,
+    setup: &MachineSetup,
+    opts: Options,
+    obs: &mut impl Observer,
+) -> Summary {
+    let mut stream = program::stream_lines(lines, setup.program());
     let mut p = Pipeline::new(setup, opts);
-    let notes = |stream: &mut program::Stream, p: &mut Pipeline, obs: &mut _| {
+    let notes = |stream: &mut program::Stream<L>, p: &mut Pipeline, obs: &mut _| {
         for d in stream.take_notes() {
             if p.report(d, obs) == Flow::Stop {
                 return Flow::Stop;
@@ -387,8 +398,18 @@ pub fn validate_into(
     opts: Options,
     inner: &mut impl Observer,
 ) -> Validation {
+    validate_lines_into(program::StrLines::new(text), setup, opts, inner)
+}
+
+/// As [`validate_into`], from lines the caller reads (a program file of any size).
+pub fn validate_lines_into<L: program::Lines>(
+    lines: L,
+    setup: &MachineSetup,
+    opts: Options,
+    inner: &mut impl Observer,
+) -> Validation {
     let mut v = Validating::new(inner);
-    let s = run(text, setup, opts, &mut v);
+    let s = run_lines(lines, setup, opts, &mut v);
     v.validation.close(s);
     v.validation
 }

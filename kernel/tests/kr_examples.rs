@@ -393,3 +393,28 @@ fn direction_and_faults() {
         "speed after the gear fault was 0 and stays"
     );
 }
+
+/// Spindle override (issue #19): scales the commanded speed, 50..120 %, never above the gear
+/// range's P; the program's speed is kept, so 100 % gives it back exactly.
+#[test]
+fn spindle_override_scales_within_the_gear_range() {
+    let mut r = Run::new(lathe(0.001, 0.001));
+    let s = block(false, 1000.0);
+    assert_eq!(r.tick(s, Motion::Feed, 100.0).spindle_rpm, 1000.0);
+    r.kr.set_override(50.0);
+    let o = r.tick(s, Motion::Feed, 100.0);
+    assert_eq!((o.spindle_rpm, o.speed_rpm), (500.0, 500.0));
+    assert_eq!(r.act(CellId::AkrrActS), 500_000);
+    r.kr.set_override(20.0); // below the range: 50 %
+    assert_eq!(r.tick(s, Motion::Feed, 100.0).spindle_rpm, 500.0);
+    r.kr.set_override(120.0);
+    assert_eq!(r.tick(s, Motion::Feed, 100.0).spindle_rpm, 1200.0);
+    // S1900 at 120 % would be 2280 rpm: gear M44 stops at P = 2000 rpm.
+    assert_eq!(
+        r.tick(block(false, 1900.0), Motion::Feed, 100.0)
+            .spindle_rpm,
+        2000.0
+    );
+    r.kr.set_override(100.0);
+    assert_eq!(r.tick(s, Motion::Feed, 100.0).spindle_rpm, 1000.0);
+}

@@ -1,4 +1,6 @@
-//! Generated gRPC/protobuf code of the controller API, package `cnc.v1`.
+//! Generated gRPC/protobuf code of the controller API, package `cnc.v1`, with its codec
+//! ([`codec::CncCodec`]).
+pub mod codec;
 pub mod cnc {
     pub mod v1 {
         tonic::include_proto!("cnc.v1");

@@ -1,7 +1,8 @@
 """A client in another language: Python grpcio with stubs generated from proto/ (issue #8).
 
 Runs a program to its end, edits an offset and reads it back, reads AKRR cells, and checks
-the role boundary and a validation error. Prints "N passed, M failed" last; exit status 1 on
+the role boundary and a validation error; the library upload in chunks, reflection v1alpha,
+distance to go, spindle and rapid override, homed and soft-limit state (issue #19). Prints "N passed, M failed" last; exit status 1 on
 any failure. Environment: CNC_ADDR (host:port), CNC_TOKEN (an operator token).
 """
 
@@ -29,6 +30,7 @@ channel = grpc.insecure_channel(ADDR)
 machine = rpc.MachineStub(channel)
 offsets = rpc.OffsetsStub(channel)
 plc = rpc.PlcStub(channel)
+programs = rpc.ProgramsStub(channel)
 
 TESTS = []
 
@@ -51,6 +53,14 @@ def wait_for_daemon():
         if time.time() > deadline:
             raise RuntimeError(f"cncd at {ADDR} did not become idle")
         time.sleep(0.2)
+
+
+def wait_idle():
+    deadline = time.time() + 60
+    for s in machine.StreamStatus(pb.StatusRequest(rate_hz=25), timeout=90):
+        if s.state == pb.MACHINE_STATE_IDLE:
+            return
+        assert time.time() < deadline, "machine not idle"
 
 
 @test
@@ -143,6 +153,88 @@ def validation_reports_blocks_and_lines():
     assert not r.valid
     errors = [d for d in r.diagnostics if d.severity == pb.SEVERITY_ERROR]
     assert errors and errors[0].block == 20 and errors[0].line == 2, errors
+
+
+@test
+def reflection_v1alpha_lists_the_services():
+    # grpcio-reflection and many tools speak only v1alpha; a raw call keeps the test free of
+    # that package: ServerReflectionRequest { list_services: "" } is field 7, empty.
+    info = channel.stream_stream(
+        "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo",
+        request_serializer=lambda b: b,
+        response_deserializer=lambda b: b,
+    )
+    answer = next(iter(info(iter([b"\x3a\x00"]), timeout=10)))
+    for name in [b"cnc.v1.Machine", b"cnc.v1.Programs", b"grpc.health.v1.Health"]:
+        assert name in answer, answer
+
+
+@test
+def upload_in_chunks_list_and_download():
+    text = PROGRAM.encode()
+
+    def chunks():
+        yield pb.ProgramChunk(name="chunked.nc", data=text[:10], total_bytes=len(text))
+        yield pb.ProgramChunk(data=text[10:])
+
+    replies = list(programs.Upload(chunks(), metadata=AUTH, timeout=60))
+    done = replies[-1].done
+    assert done.program.name == "chunked.nc", done
+    assert done.program.blocks == 4 and done.program.valid, done
+    assert done.program.size_bytes == len(text), done
+    lib = programs.List(pb.LibraryListRequest())
+    assert "chunked.nc" in [p.name for p in lib.programs], lib
+    back = b"".join(
+        c.data for c in programs.Download(pb.ProgramName(name="chunked.nc"), timeout=30)
+    )
+    assert back == text, back
+
+
+@test
+def distance_to_go_while_moving():
+    job = machine.Mdi(pb.MdiRequest(block="G1 X60 F900"), metadata=AUTH).job
+    checked = False
+    deadline = time.time() + 60
+    for s in machine.StreamStatus(pb.StatusRequest(rate_hz=50), timeout=90):
+        x = [a for a in s.axes if a.name == "X"][0]
+        if s.job == job and s.state == pb.MACHINE_STATE_RUNNING and x.distance_to_go_mm > 1.0:
+            assert abs(60.0 - x.commanded_mm - x.distance_to_go_mm) < 1e-6, x
+            checked = True
+            break
+        assert time.time() < deadline, "never saw the move"
+    machine.Stop(pb.StopRequest(), metadata=AUTH)
+    assert checked
+
+
+@test
+def spindle_and_rapid_override_homed_and_soft_limits():
+    machine.SetSpindleOverride(pb.SetSpindleOverrideRequest(percent=80), metadata=AUTH)
+    machine.SetRapidOverride(pb.SetRapidOverrideRequest(percent=25), metadata=AUTH)
+    for call, pct in ((machine.SetSpindleOverride, 130), (machine.SetRapidOverride, 101)):
+        req = (pb.SetSpindleOverrideRequest if call == machine.SetSpindleOverride
+               else pb.SetRapidOverrideRequest)(percent=pct)
+        try:
+            call(req, metadata=AUTH)
+            raise AssertionError(f"{pct} % accepted")
+        except grpc.RpcError as e:
+            assert e.code() == grpc.StatusCode.INVALID_ARGUMENT, e
+    # S1000 at 80 %: the spindle runs at 800 rpm.
+    wait_idle()
+    machine.Mdi(pb.MdiRequest(block="S1000 M3"), metadata=AUTH)
+    deadline = time.time() + 60
+    for s in machine.StreamStatus(pb.StatusRequest(rate_hz=25), timeout=90):
+        if s.spindle_override_percent == 80 and abs(s.spindle_rpm - 800.0) < 1.0:
+            assert s.rapid_override_percent == 25, s
+            for a in s.axes:
+                # No reference run configured: every axis counts as homed; no soft limits.
+                assert a.homed and not a.homing_required, a
+                assert a.at_soft_limit == 0 and not a.HasField("soft_max_mm"), a
+            break
+        assert time.time() < deadline, f"spindle at {s.spindle_rpm} rpm"
+    wait_idle()
+    machine.Mdi(pb.MdiRequest(block="M5"), metadata=AUTH)
+    machine.SetSpindleOverride(pb.SetSpindleOverrideRequest(percent=100), metadata=AUTH)
+    machine.SetRapidOverride(pb.SetRapidOverrideRequest(percent=100), metadata=AUTH)
 
 
 def main():

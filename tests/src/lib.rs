@@ -154,6 +154,26 @@ pub fn worst_accel_at(points: &[[f64; hal::MAX_AXES]], axis: usize, ts_s: f64) -
 
 /// The default (simulated mill) configuration with its data files in a fresh temporary
 /// directory, so tests never touch the working tree or each other.
+/// Serves the API of `ctl` on a Unix socket in its data directory, the way the shop's own
+/// tools reach cncd (callers without a token get `api.local_role`, admin by default; loopback
+/// TCP gives only `api.loopback_role`, observer). Returns the address for tonic and cncctl,
+/// `unix:/path`.
+pub async fn serve_unix(ctl: &Arc<daemon::runtime::controller::Controller>) -> String {
+    use daemon::runtime::server;
+    let path = ctl.config().storage.dir.join("cncd.sock");
+    let unix = server::bind_unix(&path, 0o600, None).expect("bind the API socket");
+    let listeners = server::Listeners {
+        unix: Some(unix),
+        ..server::Listeners::default()
+    };
+    tokio::spawn(server::serve_listeners(
+        ctl.clone(),
+        listeners,
+        std::future::pending(),
+    ));
+    format!("unix:{}", path.display())
+}
+
 pub fn test_config() -> daemon::runtime::config::Config {
     use std::sync::atomic::{AtomicU32, Ordering};
     static N: AtomicU32 = AtomicU32::new(0);

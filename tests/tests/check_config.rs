@@ -264,6 +264,24 @@ fn bad_simulation_and_api_settings_are_named() {
 }
 
 #[test]
+fn tls_files_are_loaded_by_the_check() {
+    // Files that do not exist, and a file that is not PEM, fail the check (not the next start).
+    assert_refused(
+        "tls-missing",
+        "[api]\ntls_cert = \"/nonexistent/cert.pem\"\ntls_key = \"/nonexistent/key.pem\"\n",
+        &["api.tls_cert", "/nonexistent/cert.pem"],
+    );
+    let junk = std::env::temp_dir().join(format!("cncd-check-junk-{}.pem", std::process::id()));
+    std::fs::write(&junk, "not a certificate\n").unwrap();
+    assert_refused(
+        "tls-junk",
+        &format!("[api]\ntls_cert = {junk:?}\ntls_key = {junk:?}\n"),
+        &["api.tls_cert"],
+    );
+    let _ = std::fs::remove_file(&junk);
+}
+
+#[test]
 fn the_daemon_refuses_a_bad_file_with_status_2_too() {
     // Not only --check-config: starting on a bad file exits 2, which the unit does not restart
     // (RestartPreventExitStatus=2).

@@ -8,7 +8,6 @@ use std::time::{Duration, Instant};
 use daemon::runtime::config::Config;
 use daemon::runtime::controller::{ClockKind, Controller};
 use daemon::runtime::rt::{MachineState, Snapshot};
-use daemon::runtime::server;
 use proto::v1 as pb;
 use proto::v1::machine_client::MachineClient;
 use tests::{Recording, RecordingBus, SpindleRecording, wait_job_finished, wait_state};
@@ -32,12 +31,9 @@ async fn daemon(cfg: Config) -> Daemon {
     let start: Vec<f64> = cfg.axes.iter().map(|a| a.home_mm).collect();
     let (bus, record, spindle) = RecordingBus::with_spindle(sim::SimBus::new(params, &start));
     let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));
-    let c = MachineClient::connect(format!("http://{addr}"))
-        .await
-        .unwrap();
+    // The Unix socket: tokenless loopback TCP is observer-only.
+    let addr = tests::serve_unix(&ctl).await;
+    let c = MachineClient::connect(addr.clone()).await.unwrap();
     wait_state(&ctl, MachineState::Idle).await;
     Daemon {
         c,
@@ -346,12 +342,9 @@ async fn fault_stops_every_axis_on_its_own_and_reports_the_path_deviation() {
         states: states.clone(),
     };
     let ctl = Controller::start_with_bus(cfg.clone(), ClockKind::Monotonic, Box::new(bus)).unwrap();
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));
-    let mut c = MachineClient::connect(format!("http://{addr}"))
-        .await
-        .unwrap();
+    // The Unix socket: tokenless loopback TCP is observer-only.
+    let addr = tests::serve_unix(&ctl).await;
+    let mut c = MachineClient::connect(addr.clone()).await.unwrap();
     wait_state(&ctl, MachineState::Idle).await;
     load(&mut c, "N10 S1000 M3\nN20 G1 X1000 Y200 F12000\n")
         .await
@@ -562,19 +555,11 @@ async fn cncctl_jog_killed_mid_jog_leaves_the_axis_at_rest() {
     ));
     let ctl = Controller::start_with_bus(tests::test_config(), ClockKind::Monotonic, Box::new(bus))
         .unwrap();
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));
+    // The Unix socket: tokenless loopback TCP is observer-only.
+    let addr = tests::serve_unix(&ctl).await;
     wait_state(&ctl, MachineState::Idle).await;
     let mut child = std::process::Command::new(&cncctl)
-        .args([
-            "--addr",
-            &format!("http://{addr}"),
-            "jog",
-            "Y+",
-            "--speed",
-            "1000",
-        ])
+        .args(["--addr", &addr, "jog", "Y+", "--speed", "1000"])
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
         .spawn()
@@ -616,12 +601,9 @@ async fn homing_in_order_and_refusals_before_it() {
         a.reference_mm = 0.0;
     }
     let ctl = Controller::start(cfg, ClockKind::Monotonic).unwrap();
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));
-    let mut c = MachineClient::connect(format!("http://{addr}"))
-        .await
-        .unwrap();
+    // The Unix socket: tokenless loopback TCP is observer-only.
+    let addr = tests::serve_unix(&ctl).await;
+    let mut c = MachineClient::connect(addr.clone()).await.unwrap();
     wait_state(&ctl, MachineState::Idle).await;
 
     // Not homed: programs, MDI and continuous jogs are refused; steps are allowed.

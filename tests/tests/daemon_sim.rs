@@ -7,7 +7,6 @@ use std::time::{Duration, Instant};
 use daemon::runtime::config::Config;
 use daemon::runtime::controller::{ClockKind, Controller};
 use daemon::runtime::rt::MachineState;
-use daemon::runtime::server;
 use prost::Message;
 use proto::v1 as pb;
 use proto::v1::machine_client::MachineClient;
@@ -20,19 +19,16 @@ fn sim_bus(cfg: &Config) -> sim::SimBus {
     sim::SimBus::new(sim::SimDriveParams::default(), &vec![0.0; cfg.axes.len()])
 }
 
-/// A daemon on an ephemeral loopback port; returns the client and the controller.
+/// A daemon on a Unix socket in its data directory; returns the client and the controller.
 async fn daemon(
     cfg: Config,
     clock: ClockKind,
 ) -> (MachineClient<Channel>, Arc<Controller>, Recording) {
     let (bus, record) = RecordingBus::new(sim_bus(&cfg));
     let ctl = Controller::start_with_bus(cfg, clock, Box::new(bus)).unwrap();
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));
-    let client = MachineClient::connect(format!("http://{addr}"))
-        .await
-        .unwrap();
+    // The Unix socket: tokenless loopback TCP is observer-only.
+    let addr = tests::serve_unix(&ctl).await;
+    let client = MachineClient::connect(addr.clone()).await.unwrap();
     wait_state(&ctl, MachineState::Idle).await;
     (client, ctl, record)
 }

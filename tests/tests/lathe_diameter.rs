@@ -283,7 +283,7 @@ async fn diameter_axis_is_shown_as_a_diameter_in_the_status() {
     )
     .unwrap();
     tests::wait_state(&ctl, MachineState::Idle).await;
-    let api = daemon::runtime::api::ApiState::new(ctl.clone());
+    let api = daemon::runtime::api::ApiState::new(ctl.clone()).unwrap();
     let status = api.status(&ctl.snapshot());
     let (x, z) = (&status.axes[0], &status.axes[1]);
     assert!(x.diameter && !z.diameter);

@@ -138,6 +138,7 @@ struct Doors {
     m: MachineClient<Channel>,
     p: PreviewClient<Channel>,
     k: ConstantsClient<Channel>,
+    g: proto::v1::programs_client::ProgramsClient<Channel>,
 }
 
 impl Doors {
@@ -145,7 +146,51 @@ impl Doors {
         Doors {
             m: MachineClient::new(ch.clone()),
             p: PreviewClient::new(ch.clone()),
-            k: ConstantsClient::new(ch),
+            k: ConstantsClient::new(ch.clone()),
+            g: proto::v1::programs_client::ProgramsClient::new(ch),
+        }
+    }
+
+    /// The library's chunked upload (`Programs.Upload`, issue #19): 7-byte chunks (lines and
+    /// characters split across them), validated streaming from the stored file.
+    async fn upload_chunks(&mut self, text: &str) -> Verdict {
+        let chunks: Vec<pb::ProgramChunk> = text
+            .as_bytes()
+            .chunks(7)
+            .enumerate()
+            .map(|(i, c)| pb::ProgramChunk {
+                name: if i == 0 {
+                    "chunked.nc".into()
+                } else {
+                    String::new()
+                },
+                data: c.to_vec(),
+                ..Default::default()
+            })
+            .collect();
+        let chunks = if chunks.is_empty() {
+            vec![pb::ProgramChunk {
+                name: "chunked.nc".into(),
+                ..Default::default()
+            }]
+        } else {
+            chunks
+        };
+        let r = self.g.upload(tokio_stream::iter(chunks)).await;
+        let mut replies = match r {
+            Ok(r) => r.into_inner(),
+            Err(e) => return from_refusal(e),
+        };
+        loop {
+            match replies.message().await {
+                Ok(Some(p)) => {
+                    if let Some(done) = p.done {
+                        return from_reply(done.diagnostics);
+                    }
+                }
+                Ok(None) => panic!("upload ended without an answer"),
+                Err(e) => return from_refusal(e),
+            }
         }
     }
 
@@ -230,6 +275,11 @@ impl Doors {
     async fn same_everywhere(&mut self, d: &Daemon, name: &str, text: &str) -> bool {
         let (v, _) = self.validate(text).await;
         assert_eq!(self.upload(text).await, v, "{name}: upload ≠ validate");
+        assert_eq!(
+            self.upload_chunks(text).await,
+            v,
+            "{name}: chunked library upload ≠ validate"
+        );
         assert_eq!(self.load(text).await, v, "{name}: load ≠ validate");
         assert_eq!(
             self.preview(text).await,
@@ -377,7 +427,7 @@ async fn kr_status_while_running(d: &Daemon, m: &mut MachineClient<Channel>) -> 
         s.job == job && s.block_n == Some(30) && s.kr.spindle_rpm > 0.0
     })
     .await;
-    let state = daemon::runtime::api::ApiState::new(d.ctl.clone());
+    let state = daemon::runtime::api::ApiState::new(d.ctl.clone()).unwrap();
     let kr = state.status(&d.ctl.snapshot()).kr.unwrap();
     m.stop(pb::StopRequest {}).await.unwrap();
     wait_state(&d.ctl, MachineState::Idle).await;
@@ -529,7 +579,10 @@ async fn g92_changes_the_memory_table_when_it_executes() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_refused_load_selects_nothing() {
-    let d = start(config(Role::Admin)).await;
+    // A library bounded to 64 programs of 11 bytes (issue #19: bounded by bytes on disk).
+    let mut cfg = config(Role::Admin);
+    cfg.storage.programs_max_bytes = 64 * 11;
+    let d = start(cfg).await;
     let mut m = MachineClient::new(d.channel().await);
     for i in 0..64 {
         m.upload_program(pb::LoadProgramRequest {
@@ -729,34 +782,21 @@ impl hal::DriveBus for LaggingBus {
     }
 }
 
-/// A daemon on [`LaggingBus`], served on loopback (local trust, admin).
+/// A daemon on [`LaggingBus`], served on its Unix socket (local trust, admin).
 async fn lagging_daemon() -> (
     std::sync::Arc<daemon::runtime::controller::Controller>,
     Channel,
 ) {
     use daemon::runtime::controller::{ClockKind, Controller};
-    use daemon::runtime::server::{Listeners, serve_listeners_with};
     let cfg = config(Role::Admin);
     let bus = LaggingBus(sim::SimBus::new(
         sim::SimDriveParams::default(),
         &vec![0.0; cfg.axes.len()],
     ));
     let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
-    let local = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = local.local_addr().unwrap();
-    let listeners = Listeners {
-        local_tcp: vec![local],
-        remote_tcp: Vec::new(),
-        unix: None,
-    };
-    tokio::spawn(serve_listeners_with(
-        ctl.clone(),
-        listeners,
-        None,
-        std::future::pending(),
-    ));
+    let addr = tests::serve_unix(&ctl).await;
     wait_state(&ctl, MachineState::Idle).await;
-    let ch = Channel::from_shared(format!("http://{addr}"))
+    let ch = tonic::transport::Endpoint::from_shared(addr)
         .unwrap()
         .connect()
         .await

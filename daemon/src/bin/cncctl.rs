@@ -15,6 +15,7 @@ use proto::v1::machine_client::MachineClient;
 use proto::v1::offsets_client::OffsetsClient;
 use proto::v1::plc_client::PlcClient;
 use proto::v1::preview_client::PreviewClient;
+use proto::v1::programs_client::ProgramsClient;
 use proto::v1::trajectory_client::TrajectoryClient;
 use serde_json::{Value, json};
 use tonic::metadata::{Ascii, MetadataValue};
@@ -26,7 +27,9 @@ use tonic::transport::{Certificate, Channel, ClientTlsConfig};
 #[command(name = "cncctl", version, about = "Command-line client of cncd")]
 struct Args {
     /// Address of the daemon: http://HOST:PORT, https://HOST:PORT (TLS) or unix:/PATH
-    /// [default: $CNCCTL_ADDR, else http://127.0.0.1:50051].
+    /// [default: $CNCCTL_ADDR, else the first Unix socket of /run/cncd/cncd.sock,
+    /// ./cncd-data/cncd.sock, /var/lib/cncd/cncd.sock this user may open, else
+    /// http://127.0.0.1:50051 (observer only unless the daemon allows more)].
     #[arg(long, global = true)]
     addr: Option<String>,
     /// Bearer token (needed on remote listeners, or for a role above api.local_role)
@@ -70,8 +73,18 @@ enum Cmd {
     },
     /// Select a stored program.
     Select { name: String },
-    /// List the stored programs.
+    /// List the program library: size, blocks, time stored, verdict.
     Programs,
+    /// Write a stored program to FILE (or standard output).
+    Download {
+        name: String,
+        #[arg(short = 'o', long)]
+        out: Option<PathBuf>,
+    },
+    /// Delete a stored program.
+    Delete { name: String },
+    /// Rename a stored program.
+    Rename { from: String, to: String },
     /// Start the selected program.
     Start,
     /// Stop motion (brake on the path) and drop the rest of the program.
@@ -82,6 +95,11 @@ enum Cmd {
     Resume,
     /// Set the feed override, 0..150 %.
     Override { percent: f64 },
+    /// Set the spindle override, 50..120 % (scales the commanded spindle speed within the
+    /// gear range).
+    SpindleOverride { percent: f64 },
+    /// Set the rapid override, 0..100 % (scales G0 moves).
+    RapidOverride { percent: f64 },
     /// Clear a drive or bus fault.
     Reset,
     /// Single-block mode on or off.
@@ -135,7 +153,9 @@ enum Cmd {
         #[arg(long)]
         all: bool,
     },
-    /// Operator edit of one offset entry (file and memory).
+    /// Operator edit of one offset entry (file and memory); negative values as they are:
+    /// `offset-set 6 --radius -5`.
+    #[command(allow_negative_numbers = true)]
     OffsetSet {
         entry: u32,
         #[arg(long)]
@@ -243,6 +263,7 @@ type Svc = InterceptedService<Channel, Token>;
 
 struct Clients {
     m: MachineClient<Svc>,
+    g: ProgramsClient<Svc>,
     o: OffsetsClient<Svc>,
     p: PlcClient<Svc>,
     k: ConstantsClient<Svc>,
@@ -287,6 +308,11 @@ fn diag_line(i: &pb::Diagnostic) -> String {
         })
         .unwrap_or_default();
     let block = i.block.map(|n| format!(" block N{n}")).unwrap_or_default();
+    // Line 0: the value did not come from a text (an offset or constant set by its name,
+    // which the message names).
+    if i.line == 0 {
+        return format!("{sev}{block}: {}", i.message);
+    }
     format!("{sev}: line {}:{}{block}: {}", i.line, i.column, i.message)
 }
 
@@ -300,7 +326,7 @@ async fn connect(args: &Args) -> Result<Clients, String> {
         .addr
         .clone()
         .or_else(|| std::env::var("CNCCTL_ADDR").ok())
-        .unwrap_or_else(|| "http://127.0.0.1:50051".into());
+        .unwrap_or_else(default_addr);
     let token_text = args
         .token
         .clone()
@@ -335,6 +361,7 @@ async fn connect(args: &Args) -> Result<Clients, String> {
     let svc = || InterceptedService::new(ch.clone(), token.clone());
     Ok(Clients {
         m: MachineClient::new(svc()),
+        g: ProgramsClient::new(svc()),
         o: OffsetsClient::new(svc()),
         p: PlcClient::new(svc()),
         k: ConstantsClient::new(svc()),
@@ -343,6 +370,27 @@ async fn connect(args: &Args) -> Result<Clients, String> {
         ch: ch.clone(),
         token: token.clone(),
     })
+}
+
+/// Unix sockets tried when no address is given: the systemd unit's, the data directory of a
+/// `cncd` started in this directory, the unit's state directory.
+const DEFAULT_SOCKETS: [&str; 3] = [
+    "/run/cncd/cncd.sock",
+    "cncd-data/cncd.sock",
+    "/var/lib/cncd/cncd.sock",
+];
+
+/// The first default socket this user can connect to (the socket's mode and group grant
+/// control), else loopback TCP (where callers without a token are observers by default).
+fn default_addr() -> String {
+    for p in DEFAULT_SOCKETS {
+        let path = std::path::Path::new(p);
+        if std::os::unix::net::UnixStream::connect(path).is_ok() {
+            let abs = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+            return format!("unix:{}", abs.display());
+        }
+    }
+    "http://127.0.0.1:50051".into()
 }
 
 fn read_text(file: &PathBuf) -> Result<(String, String), String> {
@@ -380,7 +428,12 @@ fn status_line(s: &pb::Status) -> String {
         .iter()
         .map(|a| {
             let unhomed = if a.homed { "" } else { "(not homed)" };
-            format!("{}{unhomed}", dro(a))
+            let limit = match a.at_soft_limit {
+                -1 => "(at soft min)",
+                1 => "(at soft max)",
+                _ => "",
+            };
+            format!("{}{unhomed}{limit}", dro(a))
         })
         .collect();
     let block = s
@@ -389,7 +442,7 @@ fn status_line(s: &pb::Status) -> String {
         .unwrap_or_else(|| "-".into());
     let t = s.ticks.unwrap_or_default();
     let mut line = format!(
-        "{:<9}{} block {block:<6} line {:<5} {:>5.1}%  {}  F {:.1} mm/s ovr {:.0}%  {}  ticks p50/p99/max {}/{}/{} us, overruns {}",
+        "{:<9}{} block {block:<6} line {:<5} {:>5.1}%  {}  F {:.1} mm/s ovr {:.0}% spindle {:.0}% rapid {:.0}%  {}  ticks p50/p99/max {}/{}/{} us, overruns {}",
         state_name(s.state),
         if s.single_block { " [SB]" } else { "" },
         s.line,
@@ -397,12 +450,22 @@ fn status_line(s: &pb::Status) -> String {
         pos.join(" "),
         s.path_velocity_mm_s,
         s.override_percent,
+        s.spindle_override_percent,
+        s.rapid_override_percent,
         s.modal_g_codes.join(" "),
         t.lateness_p50_us,
         t.lateness_p99_us,
         t.lateness_max_us,
         t.overruns
     );
+    if s.axes.iter().any(|a| a.distance_to_go_mm != 0.0) {
+        let togo: Vec<String> = s
+            .axes
+            .iter()
+            .map(|a| format!("{}{:.3}", a.name, a.distance_to_go_mm))
+            .collect();
+        line.push_str(&format!("  to go {}", togo.join(" ")));
+    }
     if s.waiting_for_spindle {
         line.push_str("  waiting for the spindle to reach its speed");
     }
@@ -434,12 +497,16 @@ fn status_json(s: &pb::Status) -> Value {
         "block_index": s.block_index, "blocks_total": s.blocks_total, "percent": s.percent,
         "axes": s.axes.iter().map(|a| json!({"name": a.name, "commanded_mm": a.commanded_mm,
             "actual_mm": a.actual_mm, "following_error_mm": a.following_error_mm,
+            "distance_to_go_mm": a.distance_to_go_mm,
             "soft_min_mm": a.soft_min_mm, "soft_max_mm": a.soft_max_mm,
             "homed": a.homed, "homing_required": a.homing_required,
-            "diameter": a.diameter, "display_mm": a.display_mm})).collect::<Vec<_>>(),
+            "diameter": a.diameter, "display_mm": a.display_mm,
+            "at_soft_limit": a.at_soft_limit})).collect::<Vec<_>>(),
         "path_velocity_mm_s": s.path_velocity_mm_s,
         "feed_programmed": s.feed_programmed, "feed_mode": s.feed_mode,
         "override_percent": s.override_percent, "spindle_rpm": s.spindle_rpm,
+        "spindle_override_percent": s.spindle_override_percent,
+        "rapid_override_percent": s.rapid_override_percent,
         "modal_g_codes": s.modal_g_codes,
         "compensation": s.compensation.as_ref().map(|c| json!({"code": c.code, "entry": c.entry, "radius_mm": c.radius_mm})),
         "junction": pb::JunctionClass::try_from(s.junction).map(|j| j.as_str_name()).unwrap_or("?"),
@@ -513,13 +580,8 @@ async fn run(args: Args) -> Result<ExitCode, String> {
     match args.cmd {
         Cmd::HashToken { .. } => unreachable!("handled above"),
         Cmd::Run { file, quiet } => {
-            let (name, text) = read_text(&file)?;
-            let r =
-                c.m.load_program(pb::LoadProgramRequest { name, text })
-                    .await
-                    .map_err(explain)?
-                    .into_inner();
-            for d in &r.diagnostics {
+            let done = upload(&mut c.g, &file, None, true, quiet || j).await?;
+            for d in &done.diagnostics {
                 eprintln!("{}", diag_line(d));
             }
             let job =
@@ -531,18 +593,14 @@ async fn run(args: Args) -> Result<ExitCode, String> {
             follow(&mut c.m, job, quiet || j, j).await
         }
         Cmd::Load { file } => {
-            let (name, text) = read_text(&file)?;
-            let r =
-                c.m.load_program(pb::LoadProgramRequest { name, text })
-                    .await
-                    .map_err(explain)?
-                    .into_inner();
+            let done = upload(&mut c.g, &file, None, true, j).await?;
+            let blocks = done.program.as_ref().map_or(0, |p| p.blocks);
             print(
                 j,
-                json!({"blocks": r.blocks, "diagnostics": r.diagnostics.iter().map(diag_json).collect::<Vec<_>>()}),
+                json!({"blocks": blocks, "diagnostics": done.diagnostics.iter().map(diag_json).collect::<Vec<_>>()}),
                 || {
-                    let mut s = format!("loaded {} ({} blocks)", file.display(), r.blocks);
-                    for d in &r.diagnostics {
+                    let mut s = format!("loaded {} ({blocks} blocks)", file.display());
+                    for d in &done.diagnostics {
                         s.push_str(&format!("\n  {}", diag_line(d)));
                     }
                     s
@@ -598,19 +656,18 @@ async fn run(args: Args) -> Result<ExitCode, String> {
             })
         }
         Cmd::Upload { file, name } => {
-            let (fname, text) = read_text(&file)?;
-            let name = name.unwrap_or(fname);
-            let r =
-                c.m.upload_program(pb::LoadProgramRequest {
-                    name: name.clone(),
-                    text,
-                })
-                .await
-                .map_err(explain)?
-                .into_inner();
-            print(j, json!({"name": name, "blocks": r.blocks}), || {
-                format!("stored {name} ({} blocks)", r.blocks)
-            });
+            let done = upload(&mut c.g, &file, name, false, j).await?;
+            let p = done.program.unwrap_or_default();
+            print(
+                j,
+                json!({"name": p.name, "blocks": p.blocks, "size_bytes": p.size_bytes}),
+                || {
+                    format!(
+                        "stored {} ({} blocks, {} bytes)",
+                        p.name, p.blocks, p.size_bytes
+                    )
+                },
+            );
             Ok(ExitCode::SUCCESS)
         }
         Cmd::Select { name } => {
@@ -626,30 +683,42 @@ async fn run(args: Args) -> Result<ExitCode, String> {
         }
         Cmd::Programs => {
             let r =
-                c.m.list_programs(pb::ListProgramsRequest {})
+                c.g.list(pb::LibraryListRequest {})
                     .await
                     .map_err(explain)?
                     .into_inner();
             print(
                 j,
-                json!({"selected": r.selected, "programs": r.programs.iter().map(|p| json!({"name": p.name, "blocks": p.blocks, "size_bytes": p.size_bytes})).collect::<Vec<_>>()}),
-                || {
-                    r.programs
-                        .iter()
-                        .map(|p| {
-                            format!(
-                                "{} {:<30} {:>8} blocks {:>10} bytes",
-                                if p.name == r.selected { "*" } else { " " },
-                                p.name,
-                                p.blocks,
-                                p.size_bytes
-                            )
-                        })
-                        .collect::<Vec<_>>()
-                        .join("\n")
-                },
+                json!({"selected": r.selected, "used_bytes": r.used_bytes, "max_bytes": r.max_bytes,
+                    "programs": r.programs.iter().map(|p| json!({"name": p.name, "blocks": p.blocks,
+                    "size_bytes": p.size_bytes, "modified_unix_ms": p.modified_unix_ms, "valid": p.valid,
+                    "errors": p.errors, "warnings": p.warnings, "first_error": p.first_error})).collect::<Vec<_>>()}),
+                || library_text(&r),
             );
             Ok(ExitCode::SUCCESS)
+        }
+        Cmd::Download { name, out } => {
+            let mut s =
+                c.g.download(pb::ProgramName { name: name.clone() })
+                    .await
+                    .map_err(explain)?
+                    .into_inner();
+            let mut sink: Box<dyn std::io::Write> = match &out {
+                Some(p) => Box::new(
+                    std::fs::File::create(p)
+                        .map_err(|e| format!("cannot write {}: {e}", p.display()))?,
+                ),
+                None => Box::new(std::io::stdout()),
+            };
+            while let Some(m) = s.message().await.map_err(explain)? {
+                sink.write_all(&m.data).map_err(|e| e.to_string())?;
+            }
+            sink.flush().map_err(|e| e.to_string())?;
+            Ok(ExitCode::SUCCESS)
+        }
+        Cmd::Delete { name } => done(j, c.g.delete(pb::ProgramName { name }).await),
+        Cmd::Rename { from, to } => {
+            done(j, c.g.rename(pb::RenameProgramRequest { from, to }).await)
         }
         Cmd::Start => {
             let job =
@@ -668,6 +737,16 @@ async fn run(args: Args) -> Result<ExitCode, String> {
         Cmd::Override { percent } => done(
             j,
             c.m.set_override(pb::SetOverrideRequest { percent }).await,
+        ),
+        Cmd::SpindleOverride { percent } => done(
+            j,
+            c.m.set_spindle_override(pb::SetSpindleOverrideRequest { percent })
+                .await,
+        ),
+        Cmd::RapidOverride { percent } => done(
+            j,
+            c.m.set_rapid_override(pb::SetRapidOverrideRequest { percent })
+                .await,
         ),
         Cmd::SingleBlock { mode } => done(
             j,
@@ -1271,6 +1350,119 @@ fn done<T>(j: bool, r: Result<tonic::Response<T>, tonic::Status>) -> Result<Exit
     r.map_err(explain)?;
     print(j, json!({"ok": true}), String::new);
     Ok(ExitCode::SUCCESS)
+}
+
+/// The library listing for people: `*` marks the selected program.
+fn library_text(r: &pb::LibraryList) -> String {
+    let mut out = format!(
+        "{} programs, {} of {} bytes",
+        r.programs.len(),
+        r.used_bytes,
+        r.max_bytes
+    );
+    for p in &r.programs {
+        let when = p.modified_unix_ms / 1000;
+        let verdict = if p.valid {
+            format!("valid, {} warnings", p.warnings)
+        } else {
+            format!("{} errors: {}", p.errors, p.first_error)
+        };
+        out.push_str(&format!(
+            "\n{} {:<30} {:>9} blocks {:>11} bytes  stored at {when} (Unix s)  {verdict}",
+            if p.name == r.selected { "*" } else { " " },
+            p.name,
+            p.blocks,
+            p.size_bytes,
+        ));
+    }
+    out
+}
+
+/// Upload chunk size: well below the 4 MiB message limit.
+const UPLOAD_CHUNK_BYTES: usize = 1 << 20;
+
+/// Uploads `file` through Programs.Upload in chunks, read as it is sent (any size), with a
+/// progress bar for the upload and then the validation; selects it when `select`.
+async fn upload(
+    g: &mut ProgramsClient<Svc>,
+    file: &PathBuf,
+    name: Option<String>,
+    select: bool,
+    quiet: bool,
+) -> Result<pb::UploadDone, String> {
+    use std::io::Read;
+    let mut f =
+        std::fs::File::open(file).map_err(|e| format!("cannot read {}: {e}", file.display()))?;
+    let total = f.metadata().map(|m| m.len()).unwrap_or(0);
+    let name = name.unwrap_or_else(|| {
+        file.file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    });
+    let bar = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(total)
+    };
+    bar.set_style(
+        ProgressStyle::with_template("{msg:>10} [{bar:30}] {bytes}/{total_bytes} {bytes_per_sec}")
+            .expect("static template"),
+    );
+    bar.set_message("upload");
+    let (tx, rx) = tokio::sync::mpsc::channel::<pb::ProgramChunk>(4);
+    let b = bar.clone();
+    let reader = tokio::task::spawn_blocking(move || -> Result<(), String> {
+        let mut first = Some((name, select, total));
+        loop {
+            let mut buf = vec![0u8; UPLOAD_CHUNK_BYTES];
+            let n = f.read(&mut buf).map_err(|e| e.to_string())?;
+            buf.truncate(n);
+            let mut msg = pb::ProgramChunk {
+                data: buf,
+                ..Default::default()
+            };
+            if let Some((name, select, total)) = first.take() {
+                msg.name = name;
+                msg.select = select;
+                msg.total_bytes = total;
+            } else if n == 0 {
+                return Ok(());
+            }
+            b.inc(n as u64);
+            if tx.blocking_send(msg).is_err() {
+                return Ok(()); // the server ended the call: its status says why
+            }
+        }
+    });
+    let mut replies = g
+        .upload(tokio_stream::wrappers::ReceiverStream::new(rx))
+        .await
+        .map_err(explain)?
+        .into_inner();
+    let mut validating = false;
+    while let Some(p) = replies.message().await.map_err(|e| {
+        bar.abandon();
+        explain(e)
+    })? {
+        if let Some(done) = p.done {
+            bar.finish_and_clear();
+            reader.await.map_err(|e| e.to_string())??;
+            return Ok(done);
+        }
+        if p.blocks_validated > 0 {
+            if !validating {
+                validating = true;
+                bar.set_style(
+                    ProgressStyle::with_template("{msg:>10} {pos} blocks {per_sec}")
+                        .expect("static template"),
+                );
+                bar.set_message("validate");
+                bar.set_position(0);
+            }
+            bar.set_position(p.blocks_validated.into());
+        }
+    }
+    Err("the daemon ended the upload without an answer".into())
 }
 
 /// Follows job `job` to its end. Exit code 0 when it ran to its end.

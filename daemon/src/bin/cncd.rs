@@ -85,7 +85,14 @@ fn check_config(path: Option<&std::path::Path>) -> ExitCode {
         eprintln!("cncd: --check-config needs the file: cncd --check-config --config FILE.toml");
         return ExitCode::from(EXIT_CONFIG);
     };
-    match Config::load(path) {
+    // The TLS files are loaded too: a missing or broken certificate must fail here, not at
+    // the next start.
+    let checked = Config::load(path).map_err(|e| e.to_string()).and_then(|c| {
+        server::check_tls(&c.api)
+            .map(|()| c)
+            .map_err(|e| format!("{}: {e}", path.display()))
+    });
+    match checked {
         Ok(c) => {
             let names: String = c.axis_names().iter().collect();
             println!(

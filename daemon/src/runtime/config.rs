@@ -89,6 +89,12 @@ pub struct StorageConfig {
     /// missing file means every constant at its default.
     #[serde(default = "default_constants_file")]
     pub constants_file: PathBuf,
+    /// Program library directory (stored programs, survive restarts), relative to `dir`.
+    #[serde(default = "default_programs_dir")]
+    pub programs_dir: PathBuf,
+    /// Most bytes the program library may hold (RESOURCE_EXHAUSTED beyond).
+    #[serde(default = "default_programs_max_bytes")]
+    pub programs_max_bytes: u64,
 }
 
 fn default_storage_dir() -> PathBuf {
@@ -100,6 +106,12 @@ fn default_offsets_file() -> PathBuf {
 fn default_constants_file() -> PathBuf {
     PathBuf::from("TAB0.REK")
 }
+fn default_programs_dir() -> PathBuf {
+    PathBuf::from("programs")
+}
+fn default_programs_max_bytes() -> u64 {
+    2 << 30
+}
 
 impl Default for StorageConfig {
     fn default() -> Self {
@@ -107,6 +119,8 @@ impl Default for StorageConfig {
             dir: default_storage_dir(),
             offsets_file: default_offsets_file(),
             constants_file: default_constants_file(),
+            programs_dir: default_programs_dir(),
+            programs_max_bytes: default_programs_max_bytes(),
         }
     }
 }
@@ -117,6 +131,9 @@ impl StorageConfig {
     }
     pub fn constants_path(&self) -> PathBuf {
         self.dir.join(&self.constants_file)
+    }
+    pub fn programs_path(&self) -> PathBuf {
+        self.dir.join(&self.programs_dir)
     }
 }
 
@@ -330,8 +347,9 @@ fn default_axes() -> Vec<AxisConfig> {
 
 /// `[api]`: listeners and access control of the gRPC API (docs/api.md).
 ///
-/// Local listeners (the Unix socket and loopback TCP) serve callers without a token with
-/// `local_role`; any other address needs TLS and a bearer token from `tokens`.
+/// Callers without a token get `local_role` on the Unix socket (its mode and group decide who
+/// may connect) and `loopback_role` on loopback TCP (every local account can connect there, so
+/// the default is observer); any other address needs TLS and a bearer token from `tokens`.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ApiConfig {
@@ -356,15 +374,24 @@ pub struct ApiConfig {
     pub tls_cert: Option<PathBuf>,
     #[serde(default)]
     pub tls_key: Option<PathBuf>,
-    /// Role of local callers (Unix socket, loopback TCP) that send no token.
-    #[serde(default = "default_local_role")]
+    /// Role of callers on the Unix socket that send no token (the socket's mode and group
+    /// decide who may connect). Also accepted as `socket_role`.
+    #[serde(default = "default_local_role", alias = "socket_role")]
     pub local_role: Role,
+    /// Role of callers on loopback TCP that send no token. Any local account can open a
+    /// loopback port, so the default is `observer`: control needs the Unix socket or a token.
+    #[serde(default = "default_loopback_role")]
+    pub loopback_role: Role,
     /// Bearer tokens, stored as SHA-256 hashes (`cncctl hash-token` prints one).
     #[serde(default)]
     pub tokens: Vec<TokenConfig>,
     /// Most status and alarm streams open at once (RESOURCE_EXHAUSTED beyond).
     #[serde(default = "default_max_streams")]
     pub max_streams: u32,
+    /// Of `max_streams`, how many only operator and admin callers may take: observers cannot
+    /// lock the operator's status out by opening every stream.
+    #[serde(default = "default_reserved_streams")]
+    pub reserved_streams: u32,
     /// Alarms kept for `StreamAlarms` history.
     #[serde(default = "default_alarm_history")]
     pub alarm_history: u32,
@@ -415,8 +442,14 @@ fn default_socket_mode() -> u32 {
 fn default_local_role() -> Role {
     Role::Admin
 }
+fn default_loopback_role() -> Role {
+    Role::Observer
+}
 fn default_max_streams() -> u32 {
     64
+}
+fn default_reserved_streams() -> u32 {
+    8
 }
 fn default_alarm_history() -> u32 {
     256
@@ -433,8 +466,10 @@ impl Default for ApiConfig {
             tls_cert: None,
             tls_key: None,
             local_role: default_local_role(),
+            loopback_role: default_loopback_role(),
             tokens: Vec::new(),
             max_streams: default_max_streams(),
+            reserved_streams: default_reserved_streams(),
             alarm_history: default_alarm_history(),
         }
     }
@@ -501,6 +536,13 @@ impl ApiConfig {
         }
         if self.max_streams == 0 {
             return Err("api.max_streams: must be at least 1".into());
+        }
+        if self.reserved_streams >= self.max_streams {
+            return Err(format!(
+                "api.reserved_streams: {} must be below api.max_streams ({}): observers need at \
+                 least one stream",
+                self.reserved_streams, self.max_streams
+            ));
         }
         Ok(())
     }

@@ -24,6 +24,7 @@ use super::clock::{Clock, MonotonicClock};
 use super::config::{Config, RadiusInputConfig};
 use super::homing;
 use super::job::{self, JobLink, JobSpec};
+use super::library::ProgramText;
 use super::logging::BlockNo;
 use super::pipeline::Execution;
 use super::rt::{self, JobMachine, MachineState, RtCommand, RtCoreConfig, RtParts, Snapshot};
@@ -45,11 +46,12 @@ pub enum ClockKind {
     Monotonic,
 }
 
-/// A program that passed validation. Only its text is kept: blocks are streamed again when it
-/// runs (a 1,000,000-block program needs no memory for its blocks).
+/// A program that passed validation. Only its text is kept (in memory, or the open file of a
+/// stored program): blocks are streamed again when it runs, so a program of any size needs no
+/// memory for its blocks.
 pub struct LoadedProgram {
     pub name: String,
-    pub text: Arc<str>,
+    pub text: ProgramText,
     /// Number of blocks.
     pub block_count: u32,
     pub warnings: Vec<Diagnostic>,
@@ -288,28 +290,50 @@ impl Controller {
         modal: Option<kernel::program::Modal>,
         obs: &mut impl Observer,
     ) -> Result<(Validation, MachineSetup, u64), ControlError> {
+        self.validate_by(modal, |setup| {
+            pipeline::validate_into(text, setup, opts, obs)
+        })
+    }
+
+    /// As [`Controller::validate_with`] for a text in memory or a stored program's file
+    /// (streamed line by line: memory bounded whatever its size).
+    pub fn validate_program_with(
+        &self,
+        text: &ProgramText,
+        opts: Options,
+        obs: &mut impl Observer,
+    ) -> Result<(Validation, MachineSetup, u64), ControlError> {
+        self.validate_by(None, |setup| text.validate_into(setup, opts, obs))
+    }
+
+    /// The setup in force (with `modal`) and its generation, and `pass`'s verdict with it.
+    fn validate_by(
+        &self,
+        modal: Option<kernel::program::Modal>,
+        pass: impl FnOnce(&MachineSetup) -> Validation,
+    ) -> Result<(Validation, MachineSetup, u64), ControlError> {
         let generation = self.generation.load(Ordering::Acquire);
         let setup = self.machine_setup()?.with_modal(modal);
         self.validation_passes.fetch_add(1, Ordering::Relaxed);
-        let v = pipeline::validate_into(text, &setup, opts, obs);
+        let v = pass(&setup);
         Ok((v, setup, generation))
     }
 
-    /// Validates `text` (see [`Controller::validate_with`]) into a program that may be
-    /// selected; `obs` sees the pass. Errors: the program's diagnostics.
+    /// Validates `text` (see [`Controller::validate_program_with`]) into a program that may
+    /// be selected; `obs` sees the pass. Errors: the program's diagnostics.
     pub fn prepare_program(
         &self,
         name: &str,
-        text: &str,
+        text: ProgramText,
         obs: &mut impl Observer,
     ) -> Result<Arc<LoadedProgram>, ControlError> {
-        let (v, setup, generation) = self.validate_with(text, Options::default(), None, obs)?;
+        let (v, setup, generation) = self.validate_program_with(&text, Options::default(), obs)?;
         if v.has_errors() {
             return Err(ControlError::InvalidProgram(v.diagnostics));
         }
         Ok(Arc::new(LoadedProgram {
             name: name.to_owned(),
-            text: Arc::from(text),
+            text,
             block_count: v.blocks,
             warnings: v.diagnostics,
             start: setup.program().start,
@@ -335,6 +359,7 @@ impl Controller {
     /// Validates `text` and makes it the selected program. Nothing moves; on error the
     /// previously selected program stays selected.
     pub fn load_program(&self, name: &str, text: &str) -> Result<Arc<LoadedProgram>, ControlError> {
+        let text = ProgramText::Memory(Arc::from(text));
         let loaded = self.prepare_program(name, text, &mut NoObserver)?;
         self.select(loaded.clone())?;
         Ok(loaded)
@@ -446,7 +471,9 @@ impl Controller {
         // Validated with another setup (the axes moved by MDI or another job, constants or
         // offsets changed): validate again with this one, so the run cannot fail half-way.
         if !self.validated_as_now(&program, &snap) {
-            let v = pipeline::validate(&program.text, &setup, Options::default());
+            let v = program
+                .text
+                .validate_into(&setup, Options::default(), &mut NoObserver);
             if v.has_errors() {
                 return Err(ControlError::InvalidProgram(v.diagnostics));
             }
@@ -687,6 +714,30 @@ impl Controller {
         self.send(RtCommand::Override(percent))
     }
 
+    /// Spindle override, 50..120 % (issue #19): the RT core scales the commanded spindle
+    /// speed within the gear range from the next tick.
+    pub fn set_spindle_override(&self, percent: f64) -> Result<(), ControlError> {
+        let range = kernel::kr::SPINDLE_OVERRIDE_PCT;
+        if !range.contains(&percent) {
+            return Err(ControlError::Invalid(format!(
+                "spindle override {percent} % is outside {}..{} %",
+                range.start(),
+                range.end()
+            )));
+        }
+        self.send(RtCommand::SpindleOverride(percent))
+    }
+
+    /// Rapid override, 0..100 % (issue #19): G0 moves run at this share of their speed.
+    pub fn set_rapid_override(&self, percent: f64) -> Result<(), ControlError> {
+        if !(0.0..=100.0).contains(&percent) {
+            return Err(ControlError::Invalid(format!(
+                "rapid override {percent} % is outside 0..100 %"
+            )));
+        }
+        self.send(RtCommand::RapidOverride(percent))
+    }
+
     /// Clears a fault and re-enables the drives.
     pub fn reset(&self) -> Result<(), ControlError> {
         if self.snapshot().state != MachineState::Fault {
@@ -850,7 +901,7 @@ impl Controller {
             return Err(ControlError::InvalidProgram(v.diagnostics));
         }
         let spec = JobSpec {
-            text: Arc::from(text),
+            text: ProgramText::Memory(Arc::from(text)),
             setup,
             opts,
             execution: self.execution.clone(),

@@ -27,6 +27,7 @@ use super::config::Config;
 use super::controller::{Pump, load_storage, machine_config, rt_core_config};
 use super::homing;
 use super::job::{JobSpec, plan_into};
+use super::library::ProgramText;
 use super::rt_core::{JobMachine, MachineState, RtCommand, RtCore, RtRings, Snapshot};
 use super::storage::OffsetStore;
 
@@ -320,7 +321,7 @@ impl Harness {
         };
         self.send(RtCommand::Start { job, machine })?;
         let spec = JobSpec {
-            text: Arc::from(text),
+            text: ProgramText::Memory(Arc::from(text)),
             setup,
             opts,
             execution: self.pump.execution.clone(),

@@ -11,15 +11,17 @@ use kernel::Diagnostic;
 use kernel::block::Block;
 use kernel::machine::MachineSetup;
 use kernel::offsets::TableEdit;
-use kernel::pipeline::{self, Flow, Observer, Options};
+use kernel::pipeline::{Flow, Observer, Options};
 use kernel::plan::Segment;
 use kernel::program::Modal;
 
+use super::library::ProgramText;
 use super::pipeline::{Execution, PendingWrite};
 
 /// What a run needs.
 pub struct JobSpec {
-    pub text: Arc<str>,
+    /// In memory, or the open file of a stored program (streamed line by line).
+    pub text: ProgramText,
     /// The job's snapshot of the machine setup: every stage reads it.
     pub setup: MachineSetup,
     pub opts: Options,
@@ -106,7 +108,7 @@ pub(crate) fn plan_into(
         sink,
         error: None,
     };
-    pipeline::run(&spec.text, &spec.setup, spec.opts, &mut runner);
+    spec.text.run(&spec.setup, spec.opts, &mut runner);
     runner.error.map_or(Ok(()), Err)
 }
 

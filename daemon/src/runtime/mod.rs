@@ -8,6 +8,7 @@ pub mod fault_inject;
 pub mod harness;
 pub mod homing;
 pub mod job;
+pub mod library;
 pub mod logging;
 pub mod pipeline;
 pub mod resample;

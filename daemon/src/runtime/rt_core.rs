@@ -42,6 +42,10 @@ pub enum RtCommand {
     Resume,
     /// Feed override in percent (0..150).
     Override(f64),
+    /// Spindle override in percent (50..120, issue #19).
+    SpindleOverride(f64),
+    /// Rapid override in percent (0..100, issue #19).
+    RapidOverride(f64),
     /// Clear a fault and re-enable the drives.
     Reset,
     /// Bring the axes to rest and end the thread.
@@ -141,6 +145,10 @@ pub struct Snapshot {
     pub ticks: TickSummary,
     pub fault: Option<BusFault>,
     pub override_pct: f64,
+    /// Spindle override in force, percent (issue #19).
+    pub spindle_override_pct: f64,
+    /// Rapid override in force, percent (issue #19).
+    pub rapid_override_pct: f64,
     pub spindle_rpm: f64,
     /// PLC memory area 1 as in force this tick.
     pub plc: PlcArea,
@@ -173,6 +181,8 @@ impl Snapshot {
             commanded: start,
             actual: start,
             override_pct: 100.0,
+            spindle_override_pct: 100.0,
+            rapid_override_pct: 100.0,
             ..Snapshot::default()
         }
     }
@@ -533,6 +543,11 @@ impl RtCore {
                     self.interp.set_override(pct);
                     self.snap.override_pct = pct.clamp(0.0, 150.0);
                 }
+                RtCommand::SpindleOverride(pct) => self.spindle_override(pct),
+                RtCommand::RapidOverride(pct) => {
+                    self.interp.set_rapid_override(pct);
+                    self.snap.rapid_override_pct = pct.clamp(0.0, 100.0);
+                }
                 RtCommand::Reset => {
                     if self.snap.state == MachineState::Fault
                         && self.interp.state() == InterpState::Idle
@@ -564,6 +579,17 @@ impl RtCore {
                 }
             }
         }
+    }
+
+    /// Spindle override: KŘR scales the commanded speed from the next tick, within the gear
+    /// range (the per-rev feed follows the actual spindle speed already).
+    fn spindle_override(&mut self, pct: f64) {
+        self.kr.set_override(pct);
+        let (lo, hi) = (
+            *kernel::kr::SPINDLE_OVERRIDE_PCT.start(),
+            *kernel::kr::SPINDLE_OVERRIDE_PCT.end(),
+        );
+        self.snap.spindle_override_pct = pct.clamp(lo, hi);
     }
 
     /// Constant cutting speed and the spindle setpoint (SPEC §6): computed from the spindle

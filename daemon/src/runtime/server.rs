@@ -1,14 +1,17 @@
 //! Serving the API: used by `cncd` and by the in-process integration tests.
 //!
 //! Listeners (docs/api.md):
-//! - the Unix socket `api.unix_socket` (mode `api.socket_mode`, group `api.socket_group`) and
-//!   loopback TCP addresses are **local**: callers without a token get `api.local_role`;
+//! - the Unix socket `api.unix_socket` (mode `api.socket_mode`, group `api.socket_group`):
+//!   callers without a token get `api.local_role` (default admin: the socket's permissions are
+//!   the gate);
+//! - loopback TCP addresses: callers without a token get `api.loopback_role` (default
+//!   observer, since every local account can connect);
 //! - any other TCP address is **remote**: TLS (`api.tls_cert`, `api.tls_key`) and a bearer
 //!   token are required.
 //!
 //! Every listener serves the same services: `cnc.v1.Machine`, `Offsets`, `Plc`, `Constants`,
-//! `Preview`, `Trajectory`, `grpc.health.v1.Health` (NOT_SERVING while the machine is faulted) and server
-//! reflection (`grpc.reflection.v1`).
+//! `Preview`, `Trajectory`, `grpc.health.v1.Health` (NOT_SERVING while the machine is faulted)
+//! and server reflection (`grpc.reflection.v1` and `grpc.reflection.v1alpha`).
 
 use std::future::Future;
 use std::path::Path;
@@ -20,6 +23,7 @@ use proto::v1::machine_server::MachineServer;
 use proto::v1::offsets_server::OffsetsServer;
 use proto::v1::plc_server::PlcServer;
 use proto::v1::preview_server::PreviewServer;
+use proto::v1::programs_server::ProgramsServer;
 use proto::v1::trajectory_server::TrajectoryServer;
 use tokio::net::{TcpListener, UnixListener};
 use tokio_stream::wrappers::UnixListenerStream;
@@ -31,9 +35,9 @@ use tonic_health::server::HealthReporter;
 
 use super::api::auth::{Auth, Trust};
 use super::api::{
-    ApiState, ConstantsSvc, MachineSvc, OffsetsSvc, PlcSvc, PreviewSvc, TrajectorySvc,
+    ApiState, ConstantsSvc, MachineSvc, OffsetsSvc, PlcSvc, PreviewSvc, ProgramsSvc, TrajectorySvc,
 };
-use super::config::ApiConfig;
+use super::config::{ApiConfig, Role};
 use super::controller::Controller;
 use super::rt::MachineState;
 
@@ -163,6 +167,51 @@ pub fn tls_config(api: &ApiConfig) -> Result<Option<ServerTlsConfig>, String> {
     }
 }
 
+/// Reads and parses the TLS certificate and key when configured (`--check-config` and
+/// start-up): a missing or unreadable file, or PEM without a certificate or key, is refused
+/// with the key's name.
+pub fn check_tls(api: &ApiConfig) -> Result<(), String> {
+    if let Some(t) = tls_config(api)? {
+        Server::builder()
+            .tls_config(t)
+            .map_err(|e| format!("api.tls_cert/api.tls_key: {e}"))?;
+    }
+    Ok(())
+}
+
+/// Largest unary request message, bytes (the gRPC default, stated). Programs of any size go
+/// through the client-streaming `Programs.Upload` in chunks below this.
+pub const MAX_MESSAGE_BYTES: usize = 4 << 20;
+
+/// tonic refuses an oversized message with OUT_OF_RANGE and a transport-level text; clients
+/// get RESOURCE_EXHAUSTED with the limit and what to use instead.
+fn size_refusal(mut r: http::Response<tonic::body::Body>) -> http::Response<tonic::body::Body> {
+    let h = r.headers_mut();
+    let too_large = h.get("grpc-status").is_some_and(|v| v == "11")
+        && h.get("grpc-message").is_some_and(|m| {
+            String::from_utf8_lossy(m.as_bytes())
+                .replace("%20", " ")
+                .contains("message length too large")
+        });
+    if too_large {
+        let msg = format!(
+            "the request is larger than {} MiB, the limit of one message (docs/api.md): upload \
+             programs with Programs.Upload (cncctl load/upload/run do)",
+            MAX_MESSAGE_BYTES >> 20
+        );
+        h.insert("grpc-status", http::HeaderValue::from_static("8"));
+        if let Ok(v) = http::HeaderValue::from_str(&msg.replace('%', "%25")) {
+            h.insert("grpc-message", v);
+        }
+    }
+    r
+}
+
+type SizeLayer = tower::util::MapResponseLayer<
+    fn(http::Response<tonic::body::Body>) -> http::Response<tonic::body::Body>,
+>;
+type ApiRouter = Router<tower::layer::util::Stack<SizeLayer, tower::layer::util::Identity>>;
+
 fn router(
     st: &Arc<ApiState>,
     auth: &Arc<Auth>,
@@ -171,7 +220,7 @@ fn router(
     health: &tonic_health::pb::health_server::HealthServer<
         impl tonic_health::pb::health_server::Health,
     >,
-) -> Result<Router, String> {
+) -> Result<ApiRouter, String> {
     let mut b = Server::builder();
     if let Some(t) = tls {
         b = b
@@ -179,34 +228,57 @@ fn router(
             .map_err(|e| format!("api.tls_cert/api.tls_key: {e}"))?;
     }
     let i = auth.interceptor(trust);
-    let reflection = tonic_reflection::server::Builder::configure()
-        .register_encoded_file_descriptor_set(proto::FILE_DESCRIPTOR_SET)
-        .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
+    // Both reflection versions: grpcurl speaks v1, Python's grpcio-reflection and many older
+    // tools only v1alpha.
+    let reflection_builder = || {
+        tonic_reflection::server::Builder::configure()
+            .register_encoded_file_descriptor_set(proto::FILE_DESCRIPTOR_SET)
+            .register_encoded_file_descriptor_set(tonic_health::pb::FILE_DESCRIPTOR_SET)
+            .register_encoded_file_descriptor_set(tonic_reflection::pb::v1::FILE_DESCRIPTOR_SET)
+            .register_encoded_file_descriptor_set(
+                tonic_reflection::pb::v1alpha::FILE_DESCRIPTOR_SET,
+            )
+    };
+    let reflection = reflection_builder()
         .build_v1()
         .map_err(|e| format!("reflection: {e}"))?;
-    Ok(b.add_service(MachineServer::with_interceptor(
-        MachineSvc(st.clone()),
-        i.clone(),
-    ))
-    .add_service(OffsetsServer::with_interceptor(
-        OffsetsSvc(st.clone()),
-        i.clone(),
-    ))
-    .add_service(PlcServer::with_interceptor(PlcSvc(st.clone()), i.clone()))
-    .add_service(ConstantsServer::with_interceptor(
-        ConstantsSvc(st.clone()),
-        i.clone(),
-    ))
-    .add_service(PreviewServer::with_interceptor(
-        PreviewSvc(st.clone()),
-        i.clone(),
-    ))
-    .add_service(TrajectoryServer::with_interceptor(
-        TrajectorySvc(st.clone()),
-        i.clone(),
-    ))
-    .add_service(InterceptedService::new(health.clone(), i.clone()))
-    .add_service(InterceptedService::new(reflection, i)))
+    let reflection_alpha = reflection_builder()
+        .build_v1alpha()
+        .map_err(|e| format!("reflection: {e}"))?;
+    let m = MAX_MESSAGE_BYTES;
+    let layer: SizeLayer = tower::util::MapResponseLayer::new(size_refusal);
+    Ok(b.layer(layer)
+        .add_service(InterceptedService::new(
+            MachineServer::new(MachineSvc(st.clone())).max_decoding_message_size(m),
+            i.clone(),
+        ))
+        .add_service(InterceptedService::new(
+            OffsetsServer::new(OffsetsSvc(st.clone())).max_decoding_message_size(m),
+            i.clone(),
+        ))
+        .add_service(InterceptedService::new(
+            PlcServer::new(PlcSvc(st.clone())).max_decoding_message_size(m),
+            i.clone(),
+        ))
+        .add_service(InterceptedService::new(
+            ConstantsServer::new(ConstantsSvc(st.clone())).max_decoding_message_size(m),
+            i.clone(),
+        ))
+        .add_service(InterceptedService::new(
+            PreviewServer::new(PreviewSvc(st.clone())).max_decoding_message_size(m),
+            i.clone(),
+        ))
+        .add_service(InterceptedService::new(
+            TrajectoryServer::new(TrajectorySvc(st.clone())).max_decoding_message_size(m),
+            i.clone(),
+        ))
+        .add_service(InterceptedService::new(
+            ProgramsServer::new(ProgramsSvc(st.clone())).max_decoding_message_size(m),
+            i.clone(),
+        ))
+        .add_service(InterceptedService::new(health.clone(), i.clone()))
+        .add_service(InterceptedService::new(reflection, i.clone()))
+        .add_service(InterceptedService::new(reflection_alpha, i)))
 }
 
 /// Serves every listener until `shutdown` resolves. Remote listeners use TLS from the
@@ -230,8 +302,16 @@ pub async fn serve_listeners_with(
     if !listeners.remote_tcp.is_empty() && tls.is_none() {
         return Err("a non-loopback listener needs api.tls_cert and api.tls_key".into());
     }
-    let st = ApiState::new(ctl.clone());
-    let auth = Auth::from_config(&ctl.config().api);
+    let api = &ctl.config().api;
+    if !listeners.local_tcp.is_empty() && api.loopback_role > Role::Observer {
+        tracing::warn!(
+            role = api.loopback_role.name(),
+            "api.loopback_role: every local account can connect to loopback TCP and gets this \
+             role without a token"
+        );
+    }
+    let st = ApiState::new(ctl.clone())?;
+    let auth = Auth::from_config(api);
     let (reporter, health) = tonic_health::server::health_reporter();
     let health_task = tokio::spawn(health_watch(ctl.clone(), reporter));
     let (stop_tx, stop_rx) = tokio::sync::watch::channel(false);
@@ -243,7 +323,7 @@ pub async fn serve_listeners_with(
     };
     let mut tasks = tokio::task::JoinSet::new();
     for l in listeners.local_tcp {
-        let r = router(&st, &auth, Trust::Local, None, &health)?;
+        let r = router(&st, &auth, Trust::Loopback, None, &health)?;
         let inc = TcpIncoming::from(l).with_nodelay(Some(true));
         tasks.spawn(r.serve_with_incoming_shutdown(inc, stopped()));
     }
@@ -253,7 +333,7 @@ pub async fn serve_listeners_with(
         tasks.spawn(r.serve_with_incoming_shutdown(inc, stopped()));
     }
     if let Some(u) = listeners.unix {
-        let r = router(&st, &auth, Trust::Local, None, &health)?;
+        let r = router(&st, &auth, Trust::Socket, None, &health)?;
         tasks.spawn(r.serve_with_incoming_shutdown(UnixListenerStream::new(u), stopped()));
     }
     let mut first_err = None;
@@ -300,6 +380,7 @@ async fn health_watch(ctl: Arc<Controller>, reporter: HealthReporter) {
         "cnc.v1.Constants",
         "cnc.v1.Preview",
         "cnc.v1.Trajectory",
+        "cnc.v1.Programs",
     ];
     let mut last = None;
     let mut every = tokio::time::interval(Duration::from_millis(20));

@@ -135,7 +135,12 @@ pub struct Kr {
     held_rpm: Option<f64>,
     /// Last cutting speed programmed with G96/G97, mm/min.
     program_v_mm_min: f64,
+    /// Spindle override (operator, 50..120 %) as a factor on the commanded speed.
+    override_factor: f64,
 }
+
+/// Spindle override range, percent (the operator's knob).
+pub const SPINDLE_OVERRIDE_PCT: std::ops::RangeInclusive<f64> = 50.0..=120.0;
 
 impl Kr {
     pub fn new(cfg: KrConfig) -> Self {
@@ -145,7 +150,17 @@ impl Kr {
             speed_rpm: 0.0,
             held_rpm: None,
             program_v_mm_min: 0.0,
+            override_factor: 1.0,
         }
+    }
+
+    /// Spindle override in percent, clamped to [`SPINDLE_OVERRIDE_PCT`]: scales the commanded
+    /// speed from the next tick, never above the gear range's maximum P (or the G76 /
+    /// AKRR_SMAX limit under KŘR). Kept across jobs and resets, like the feed override.
+    pub fn set_override(&mut self, percent: f64) {
+        let p = if percent.is_finite() { percent } else { 100.0 };
+        let (lo, hi) = (*SPINDLE_OVERRIDE_PCT.start(), *SPINDLE_OVERRIDE_PCT.end());
+        self.override_factor = p.clamp(lo, hi) / 100.0;
     }
 
     pub fn config(&self) -> &KrConfig {
@@ -254,7 +269,11 @@ impl Kr {
         } else {
             p.s_word.max(0.0).min(gear.max_rpm)
         };
+        // The program's speed is kept (held speed, old KŘR at rest); the override scales what
+        // the spindle is commanded, within the range's limit.
         self.speed_rpm = speed_rpm;
+        let cap = if active { cap_rpm } else { gear.max_rpm };
+        let speed_rpm = (speed_rpm * self.override_factor).min(cap.max(speed_rpm));
         let output = output_value(speed_rpm, &gear);
 
         plc.set_act(

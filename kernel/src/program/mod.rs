@@ -264,32 +264,77 @@ fn with_e_word(line: &str, e: f64, at: Option<usize>) -> String {
     format!("{code} {word}{gap}{}", tail.trim_start_matches([' ', '\t']))
 }
 
+/// Where a program's lines come from: a string in memory ([`StrLines`]) or a file the caller
+/// reads (the kernel does no IO). Lines are given without their `\n`; the text after the last
+/// `\n` (possibly empty) is the last line.
+pub trait Lines {
+    /// The next line, `None` after the last. `Err`: a line that cannot be read as text (not
+    /// UTF-8 ...): reported as that line's error, and the stream goes on with the next line.
+    fn next_line(&mut self, line_no: u32) -> Option<Result<&str, Diagnostic>>;
+}
+
+/// The lines of a text in memory.
+pub struct StrLines<'a> {
+    rest: &'a str,
+    done: bool,
+}
+
+impl<'a> StrLines<'a> {
+    pub fn new(text: &'a str) -> Self {
+        StrLines {
+            rest: text,
+            done: false,
+        }
+    }
+}
+
+impl Lines for StrLines<'_> {
+    fn next_line(&mut self, _line_no: u32) -> Option<Result<&str, Diagnostic>> {
+        if self.done {
+            return None;
+        }
+        let (line, rest) = match self.rest.find('\n') {
+            Some(k) => (&self.rest[..k], &self.rest[k + 1..]),
+            None => {
+                self.done = true;
+                (self.rest, "")
+            }
+        };
+        self.rest = rest;
+        Some(Ok(line))
+    }
+}
+
 /// Streams the blocks of a program for execution: `Ok(block)` in order, `Err(error)` for a
 /// block that is wrong (its state change is dropped and streaming continues, so a validating
 /// caller sees every error; an executing caller stops at the first). Warnings and information
 /// are not errors: collect them with [`Stream::take_notes`]. Memory stays constant.
-pub fn stream<'a>(text: &'a str, setup: &Setup) -> Stream<'a> {
+pub fn stream<'a>(text: &'a str, setup: &Setup) -> Stream<StrLines<'a>> {
+    stream_lines(StrLines::new(text), setup)
+}
+
+/// As [`stream`], from lines read by the caller (a program file of any size).
+pub fn stream_lines<L: Lines>(lines: L, setup: &Setup) -> Stream<L> {
     let interp = Interpreter::new(setup);
     Stream {
         pending_setup_error: interp.setup_error(),
         interp,
-        // A UTF-8 byte order mark (some PC editors write one) is not part of the program.
-        rest: text.strip_prefix('\u{FEFF}').unwrap_or(text),
+        lines,
         line_no: 0,
         done: false,
     }
 }
 
 /// Iterator of a program's blocks, see [`stream`].
-pub struct Stream<'a> {
+pub struct Stream<L> {
     interp: Interpreter,
-    rest: &'a str,
+    lines: L,
     line_no: u32,
     pending_setup_error: Option<Diagnostic>,
     done: bool,
 }
 
-impl Stream<'_> {
+impl<L> Stream<L> {
     /// Warnings and information produced so far and not yet taken.
     pub fn take_notes(&mut self) -> Vec<Diagnostic> {
         self.interp.take_notes()
@@ -301,16 +346,23 @@ impl Stream<'_> {
     }
 }
 
-impl Stream<'_> {
+impl<L: Lines> Stream<L> {
     /// M2/M30 end the program: what follows is neither interpreted nor run; a note says so
     /// when there is something.
     fn end_program(&mut self, b: &Block) {
         self.done = true;
-        let rest = self
-            .rest
-            .lines()
-            .map(|l| l.split(';').next().unwrap_or("").trim())
-            .any(|l| !l.is_empty() && l != "%");
+        let mut rest = false;
+        let mut n = self.line_no;
+        while let Some(l) = self.lines.next_line(n + 1) {
+            n += 1;
+            if let Ok(l) = l {
+                let code = l.split(';').next().unwrap_or("").trim();
+                if !code.is_empty() && code != "%" {
+                    rest = true;
+                    break;
+                }
+            }
+        }
         if rest {
             self.interp.note(Diagnostic::info(
                 b.n,
@@ -322,11 +374,10 @@ impl Stream<'_> {
                 ),
             ));
         }
-        self.rest = "";
     }
 }
 
-impl Iterator for Stream<'_> {
+impl<L: Lines> Iterator for Stream<L> {
     type Item = Result<Block, Diagnostic>;
 
     fn next(&mut self) -> Option<Self::Item> {
@@ -335,15 +386,21 @@ impl Iterator for Stream<'_> {
             return Some(Err(e));
         }
         while !self.done {
-            let (line, rest) = match self.rest.find('\n') {
-                Some(k) => (&self.rest[..k], &self.rest[k + 1..]),
+            self.line_no += 1;
+            let line = match self.lines.next_line(self.line_no) {
+                Some(Ok(l)) => l,
+                Some(Err(d)) => return Some(Err(d)),
                 None => {
                     self.done = true;
-                    (self.rest, "")
+                    break;
                 }
             };
-            self.rest = rest;
-            self.line_no += 1;
+            // A UTF-8 byte order mark (some PC editors write one) is not part of the program.
+            let line = if self.line_no == 1 {
+                line.strip_prefix('\u{FEFF}').unwrap_or(line)
+            } else {
+                line
+            };
             match self.interp.line(self.line_no, line) {
                 Ok(Some(b)) => {
                     if crate::block::ends_program(&b.m) {

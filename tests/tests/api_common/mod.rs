@@ -1,6 +1,7 @@
 //! Shared harness of the API tests: an in-process daemon on the simulated machine, served on a
-//! loopback port (local trust), a "remote" loopback port (TLS + token required) and a Unix
-//! socket in the test's temporary data directory.
+//! Unix socket in the test's temporary data directory (local trust: `api.local_role`, what
+//! [`Daemon::channel`] gives), a loopback port (`api.loopback_role`, observer by default) and a
+//! "remote" loopback port (TLS + token required).
 #![allow(dead_code)]
 
 use std::sync::Arc;
@@ -57,7 +58,7 @@ impl DriveBus for FaultBus {
 
 pub struct Daemon {
     pub ctl: Arc<Controller>,
-    /// Loopback, local trust.
+    /// Loopback TCP (`api.loopback_role` without a token).
     pub local: String,
     /// Loopback served as a remote listener: TLS and a token required.
     pub remote: String,
@@ -127,7 +128,18 @@ pub async fn start(cfg: Config) -> Daemon {
 }
 
 impl Daemon {
+    /// The tests' local channel: the Unix socket (tokenless callers get `api.local_role`).
     pub async fn channel(&self) -> Channel {
+        self.unix_channel().await
+    }
+
+    /// The Unix socket's address for cncctl and tonic (`unix:/path`).
+    pub fn socket(&self) -> String {
+        format!("unix:{}", self.unix.display())
+    }
+
+    /// Loopback TCP: tokenless callers get `api.loopback_role` (observer by default).
+    pub async fn loopback_channel(&self) -> Channel {
         Channel::from_shared(self.local.clone())
             .unwrap()
             .connect()

@@ -355,6 +355,8 @@ impl Daemon {
             .local_addr()
             .unwrap()
             .port();
+        // Control over the Unix socket: tokenless loopback TCP is observer-only.
+        let socket = dir.join("cncd.sock");
         let mut cfg = String::new();
         for ((name, id), keys) in ['X', 'Y', 'Z'].iter().zip(node_ids).zip(axis_keys) {
             cfg.push_str(&format!(
@@ -363,8 +365,9 @@ impl Daemon {
         }
         cfg.push_str(bus_section);
         cfg.push_str(&format!(
-            "\n[api]\nlisten = '127.0.0.1:{port}'\nunix_socket = ''\n\n[rt]\nlock_memory = false\n\n\
+            "\n[api]\nlisten = '127.0.0.1:{port}'\nunix_socket = '{}'\n\n[rt]\nlock_memory = false\n\n\
              [storage]\ndir = '{}'\n",
+            socket.display(),
             dir.join("data").display()
         ));
         let path = dir.join("cncd.toml");
@@ -372,7 +375,7 @@ impl Daemon {
         let proc = Proc::spawn("cncd", &["--config", path.to_str().unwrap()]);
         let d = Daemon {
             proc,
-            addr: format!("http://127.0.0.1:{port}"),
+            addr: format!("unix:{}", socket.display()),
             dir,
         };
         d.wait_state("idle", Duration::from_secs(90));

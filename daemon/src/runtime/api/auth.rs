@@ -5,8 +5,10 @@
 //! call and puts a [`Caller`] into the request's extensions:
 //! - a request with `authorization: Bearer <token>` gets the role of that token (tokens are kept
 //!   as SHA-256 hashes only); an unknown token is UNAUTHENTICATED on every listener;
-//! - without a token, a local listener (Unix socket, loopback TCP) gives `api.local_role`; a
-//!   remote listener (TLS) refuses the call with UNAUTHENTICATED.
+//! - without a token, the Unix socket gives `api.local_role` (the socket's mode and group decide
+//!   who can connect), loopback TCP gives `api.loopback_role` (default observer: every local
+//!   account can open a loopback port), and a remote listener (TLS) refuses the call with
+//!   UNAUTHENTICATED.
 //!
 //! Each RPC then calls [`require`] with the least role it needs (PERMISSION_DENIED below it).
 //! Every refusal is logged with the peer and the method.
@@ -22,8 +24,10 @@ use crate::runtime::config::{ApiConfig, Role};
 /// Which kind of listener a call came in on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Trust {
-    /// Unix socket or loopback TCP: callers without a token get `local_role`.
-    Local,
+    /// The Unix socket: callers without a token get `local_role`.
+    Socket,
+    /// Loopback TCP: callers without a token get `loopback_role`.
+    Loopback,
     /// Any other address (TLS): a valid token is required.
     Remote,
 }
@@ -42,6 +46,7 @@ pub struct Caller {
 pub struct Auth {
     tokens: HashMap<[u8; 32], (String, Role)>,
     local_role: Role,
+    loopback_role: Role,
 }
 
 /// SHA-256 of a token, lower-case hex (what `api.tokens[].sha256` holds).
@@ -75,6 +80,7 @@ impl Auth {
         Arc::new(Auth {
             tokens,
             local_role: api.local_role,
+            loopback_role: api.loopback_role,
         })
     }
 
@@ -103,9 +109,14 @@ impl Auth {
                 }
             }
             None => match trust {
-                Trust::Local => Ok(Caller {
+                Trust::Socket => Ok(Caller {
                     role: self.local_role,
                     who: "local".into(),
+                    peer,
+                }),
+                Trust::Loopback => Ok(Caller {
+                    role: self.loopback_role,
+                    who: "loopback".into(),
                     peer,
                 }),
                 Trust::Remote => {

@@ -14,15 +14,15 @@ use super::auth::require;
 use kernel::pipeline::{self, Flow};
 use kernel::plan::Segment;
 
+use super::programs::{check_name, select_stored, store_text};
 use super::{
-    ApiState, DEFAULT_STATUS_HZ, JUNCTION_CLASSIFY_MAX_BLOCKS, MAX_STATUS_HZ, PlanInfo, RunInfo,
-    RunMode, Stored, blocking, diagnostic_to_pb, invalid_with_diagnostics, status_of,
+    ApiState, DEFAULT_STATUS_HZ, JUNCTION_CLASSIFY_MAX_BLOCKS, MAX_STATUS_HZ, RunInfo, RunMode,
+    blocking, diagnostic_to_pb, status_of,
 };
 use crate::runtime::config::Role::{Observer, Operator};
-use crate::runtime::controller::LoadedProgram;
 
-/// Largest program text accepted, bytes (the gRPC message limit is 4 MiB by default).
-const MAX_STORED_PROGRAMS: usize = 64;
+/// Largest program run in single-block mode (its blocks are kept in memory), bytes.
+const SINGLE_BLOCK_MAX_BYTES: u64 = 16 << 20;
 
 #[derive(Clone)]
 pub struct MachineSvc(pub Arc<ApiState>);
@@ -30,71 +30,25 @@ pub struct MachineSvc(pub Arc<ApiState>);
 type Stream_<T> = Pin<Box<dyn Stream<Item = Result<T, Status>> + Send>>;
 
 impl MachineSvc {
-    /// Validates `text` (the whole pipeline, collecting the junction classes for status on the
-    /// same pass); then, only if it is valid, `keep` runs (storing it) and the program is
-    /// selected. The last step has no await point: a call cancelled by its deadline before it
-    /// stops before it, and a refusal (e.g. RESOURCE_EXHAUSTED from `keep`) changes nothing.
-    async fn select(
-        &self,
-        name: String,
-        text: Arc<str>,
-        keep: impl FnOnce(&LoadedProgram) -> Result<(), Status>,
-    ) -> Result<pb::LoadProgramReply, Status> {
-        let st = self.0.clone();
-        let (loaded, junctions, pass) = blocking(move || {
-            // One pass: the junction classes for status and the outputs the previews of the
-            // selected program read (instead of making a pass of their own).
-            let record = ::preview::pipeline::Recorder::new(super::preview::RECORD_MAX_OUTPUTS);
-            let mut obs = (Junctions::default(), record);
-            let loaded = st
-                .ctl
-                .prepare_program(&name, &text, &mut obs)
-                .map_err(status_of)?;
-            let pass = obs
-                .1
-                .finish(loaded.block_count, loaded.warnings.clone())
-                .map(Arc::new);
-            Ok::<_, Status>((loaded, obs.0.classes, pass))
-        })
-        .await??;
-        keep(&loaded)?;
-        self.0.ctl.select(loaded.clone()).map_err(status_of)?;
-        *self.0.plan_info.lock().unwrap() = Some(PlanInfo {
-            program: Arc::as_ptr(&loaded) as *const () as usize,
-            junctions,
-            pass,
-        });
-        Ok(pb::LoadProgramReply {
-            blocks: loaded.block_count,
-            diagnostics: loaded.warnings.iter().map(diagnostic_to_pb).collect(),
-        })
-    }
-
-    /// Stores `text` under `name`, or RESOURCE_EXHAUSTED (nothing stored) when the library is
-    /// full.
-    fn store(&self, name: &str, text: Arc<str>, blocks: u32) -> Result<(), Status> {
-        let mut lib = self.0.library.lock().unwrap();
-        if !lib.contains_key(name) && lib.len() >= MAX_STORED_PROGRAMS {
-            return Err(Status::resource_exhausted(format!(
-                "{MAX_STORED_PROGRAMS} programs are stored; the oldest is not dropped silently"
-            )));
-        }
-        lib.insert(name.to_string(), Stored { text, blocks });
-        Ok(())
-    }
-
-    /// The whole pipeline's verdict on `text` (validate and upload).
+    /// The whole pipeline's verdict on `text` (validate).
     async fn validate(&self, text: String) -> Result<kernel::pipeline::Validation, Status> {
         let st = self.0.clone();
         blocking(move || st.ctl.validate_text(&text).map_err(status_of)).await?
     }
 }
 
+fn reply_of(done: pb::UploadDone) -> pb::LoadProgramReply {
+    pb::LoadProgramReply {
+        blocks: done.program.map_or(0, |p| p.blocks),
+        diagnostics: done.diagnostics,
+    }
+}
+
 /// Junction class per block index, from the validation pass (SPEC §7.5); left empty for very
 /// large programs (status then says UNSPECIFIED).
 #[derive(Default)]
-struct Junctions {
-    classes: Vec<pb::JunctionClass>,
+pub(super) struct Junctions {
+    pub(super) classes: Vec<pb::JunctionClass>,
 }
 
 impl pipeline::Observer for Junctions {
@@ -108,15 +62,6 @@ impl pipeline::Observer for Junctions {
         }
         Flow::Go
     }
-}
-
-fn check_name(name: &str) -> Result<(), Status> {
-    if name.is_empty() || name.len() > 255 || name.chars().any(|c| c.is_control()) {
-        return Err(Status::invalid_argument(
-            "program name must be 1..255 printable characters",
-        ));
-    }
-    Ok(())
 }
 
 #[tonic::async_trait]
@@ -133,11 +78,8 @@ impl Machine for MachineSvc {
             r.name
         };
         check_name(&name)?;
-        let text: Arc<str> = r.text.into();
-        let stored = text.clone();
-        let keep = |p: &LoadedProgram| self.store(&p.name, stored, p.block_count);
-        let reply = self.select(name, text, keep).await?;
-        Ok(Response::new(reply))
+        let done = store_text(&self.0, name, r.text, true).await?;
+        Ok(Response::new(reply_of(done)))
     }
 
     async fn validate_program(
@@ -170,16 +112,8 @@ impl Machine for MachineSvc {
         require(&req, Operator, "UploadProgram")?;
         let r = req.into_inner();
         check_name(&r.name)?;
-        let text: Arc<str> = r.text.into();
-        let v = self.validate(text.to_string()).await?;
-        if v.has_errors() {
-            return Err(invalid_with_diagnostics("program", &v.diagnostics));
-        }
-        self.store(&r.name, text, v.blocks)?;
-        Ok(Response::new(pb::LoadProgramReply {
-            blocks: v.blocks,
-            diagnostics: v.diagnostics.iter().map(diagnostic_to_pb).collect(),
-        }))
+        let done = store_text(&self.0, r.name, r.text, false).await?;
+        Ok(Response::new(reply_of(done)))
     }
 
     async fn select_program(
@@ -188,15 +122,12 @@ impl Machine for MachineSvc {
     ) -> Result<Response<pb::LoadProgramReply>, Status> {
         require(&req, Operator, "SelectProgram")?;
         let name = req.into_inner().name;
-        let text = self
-            .0
-            .library
-            .lock()
-            .unwrap()
-            .get(&name)
-            .map(|s| s.text.clone())
-            .ok_or_else(|| Status::not_found(format!("no stored program is called {name:?}")))?;
-        Ok(Response::new(self.select(name, text, |_| Ok(())).await?))
+        let st = self.0.clone();
+        let loaded = blocking(move || select_stored(&st, &name)).await??;
+        Ok(Response::new(pb::LoadProgramReply {
+            blocks: loaded.block_count,
+            diagnostics: loaded.warnings.iter().map(diagnostic_to_pb).collect(),
+        }))
     }
 
     async fn list_programs(
@@ -207,13 +138,12 @@ impl Machine for MachineSvc {
         let programs = self
             .0
             .library
-            .lock()
-            .unwrap()
+            .list()
             .iter()
-            .map(|(n, s)| pb::StoredProgram {
-                name: n.clone(),
-                blocks: s.blocks,
-                size_bytes: s.text.len() as u64,
+            .map(|e| pb::StoredProgram {
+                name: e.name.clone(),
+                blocks: e.blocks,
+                size_bytes: e.size_bytes,
             })
             .collect();
         Ok(Response::new(pb::ListProgramsReply {
@@ -245,9 +175,21 @@ impl Machine for MachineSvc {
                     .ctl
                     .program()
                     .ok_or_else(|| Status::failed_precondition("no program is loaded"))?;
+                // Single block keeps every block in memory (the holds need them).
+                if p.text.len() > SINGLE_BLOCK_MAX_BYTES {
+                    return Err(Status::failed_precondition(format!(
+                        "single-block runs keep the whole program in memory: programs over \
+                         {} MiB run only continuously",
+                        SINGLE_BLOCK_MAX_BYTES >> 20
+                    )));
+                }
+                let text = p
+                    .text
+                    .read_all()
+                    .map_err(|e| Status::internal(e.to_string()))?;
                 let (job, blocks) = st
                     .ctl
-                    .start_text(&p.name, &p.text, true, false)
+                    .start_text(&p.name, &text, true, false)
                     .map_err(status_of)?;
                 *st.run.lock().unwrap() = Some(RunInfo {
                     job,
@@ -299,6 +241,26 @@ impl Machine for MachineSvc {
             )));
         }
         self.0.ctl.set_override(pct).map_err(status_of)?;
+        Ok(Response::new(pb::SetOverrideReply {}))
+    }
+
+    async fn set_spindle_override(
+        &self,
+        req: Request<pb::SetSpindleOverrideRequest>,
+    ) -> Result<Response<pb::SetOverrideReply>, Status> {
+        require(&req, Operator, "SetSpindleOverride")?;
+        let pct = req.into_inner().percent;
+        self.0.ctl.set_spindle_override(pct).map_err(status_of)?;
+        Ok(Response::new(pb::SetOverrideReply {}))
+    }
+
+    async fn set_rapid_override(
+        &self,
+        req: Request<pb::SetRapidOverrideRequest>,
+    ) -> Result<Response<pb::SetOverrideReply>, Status> {
+        require(&req, Operator, "SetRapidOverride")?;
+        let pct = req.into_inner().percent;
+        self.0.ctl.set_rapid_override(pct).map_err(status_of)?;
         Ok(Response::new(pb::SetOverrideReply {}))
     }
 
@@ -410,7 +372,7 @@ impl Machine for MachineSvc {
         &self,
         req: Request<pb::StatusRequest>,
     ) -> Result<Response<Self::StreamStatusStream>, Status> {
-        require(&req, Observer, "StreamStatus")?;
+        let caller = require(&req, Observer, "StreamStatus")?;
         let hz = match req.into_inner().rate_hz {
             0 => DEFAULT_STATUS_HZ,
             r if r <= MAX_STATUS_HZ => r,
@@ -420,7 +382,7 @@ impl Machine for MachineSvc {
                 )));
             }
         };
-        let slot = self.0.stream_slot()?;
+        let slot = self.0.stream_slot(caller.role)?;
         let (tx, rx) = tokio::sync::mpsc::channel(16);
         let st = self.0.clone();
         let watch = st.ctl.subscribe();
@@ -461,9 +423,9 @@ impl Machine for MachineSvc {
         &self,
         req: Request<pb::StreamAlarmsRequest>,
     ) -> Result<Response<Self::StreamAlarmsStream>, Status> {
-        require(&req, Observer, "StreamAlarms")?;
+        let caller = require(&req, Observer, "StreamAlarms")?;
         let skip_history = req.into_inner().skip_history;
-        let slot = self.0.stream_slot()?;
+        let slot = self.0.stream_slot(caller.role)?;
         let (history, mut live) = self.0.alarms.subscribe(!skip_history);
         let (tx, rx) = tokio::sync::mpsc::channel(64);
         let closing = self.0.closing();
@@ -518,6 +480,8 @@ impl Machine for MachineSvc {
                     Status::failed_precondition("no program is selected and no text was given")
                 })?
                 .text
+                .read_all()
+                .map_err(|e| Status::internal(format!("cannot read the selected program: {e}")))?
                 .to_string()
         } else {
             text

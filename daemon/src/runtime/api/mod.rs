@@ -9,10 +9,10 @@ pub mod alarms;
 pub mod auth;
 mod machine;
 pub mod preview;
+mod programs;
 mod tables;
 mod trajectory;
 
-use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -24,11 +24,14 @@ use kernel::block::{ArcDir, Block, BlockKind, Comp, Continuity, Feed, Path, Plan
 use kernel::plc::CellId;
 use kernel::{Diagnostic, Severity};
 
+use super::config::Role;
 use super::controller::{ControlError, Controller};
+use super::library::Library;
 use super::rt::{MachineState, Snapshot};
 
 pub use machine::MachineSvc;
 pub use preview::PreviewSvc;
+pub use programs::ProgramsSvc;
 pub use tables::{ConstantsSvc, OffsetsSvc, PlcSvc};
 pub use trajectory::TrajectorySvc;
 
@@ -52,12 +55,6 @@ struct RunInfo {
     mode: RunMode,
 }
 
-/// A program stored by UploadProgram / LoadProgram.
-struct Stored {
-    text: Arc<str>,
-    blocks: u32,
-}
-
 /// Junction class per block index of the selected program.
 struct PlanInfo {
     /// `Arc::as_ptr` of the `LoadedProgram` it belongs to.
@@ -71,7 +68,7 @@ struct PlanInfo {
 /// State shared by every service.
 pub struct ApiState {
     pub ctl: Arc<Controller>,
-    library: Mutex<BTreeMap<String, Stored>>,
+    library: Arc<Library>,
     plan_info: Mutex<Option<PlanInfo>>,
     run: Mutex<Option<RunInfo>>,
     single_block: AtomicBool,
@@ -79,49 +76,82 @@ pub struct ApiState {
     /// start must wait until the first is seen in the snapshot.
     start_lock: tokio::sync::Mutex<()>,
     streams: Arc<AtomicUsize>,
+    observer_streams: Arc<AtomicUsize>,
     max_streams: usize,
     /// Set once the daemon shuts down: every open stream sends its last message and ends.
     closing: tokio::sync::watch::Sender<bool>,
+    reserved_streams: usize,
     pub alarms: Arc<alarms::AlarmLog>,
 }
 
 impl ApiState {
     /// Builds the state and starts the alarm watcher (needs a tokio runtime).
-    pub fn new(ctl: Arc<Controller>) -> Arc<ApiState> {
+    pub fn new(ctl: Arc<Controller>) -> Result<Arc<ApiState>, String> {
         let api = &ctl.config().api;
+        let st = &ctl.config().storage;
+        let library = Library::open(&st.programs_path(), st.programs_max_bytes).map_err(|e| {
+            format!(
+                "storage.programs_dir: cannot open {}: {e}",
+                st.programs_path().display()
+            )
+        })?;
         let alarms = Arc::new(alarms::AlarmLog::new(api.alarm_history as usize));
         let state = Arc::new(ApiState {
             max_streams: api.max_streams as usize,
+            reserved_streams: (api.reserved_streams as usize).min(api.max_streams as usize - 1),
             ctl,
-            library: Mutex::new(BTreeMap::new()),
+            library: Arc::new(library),
             plan_info: Mutex::new(None),
             run: Mutex::new(None),
             single_block: AtomicBool::new(false),
             start_lock: tokio::sync::Mutex::new(()),
             streams: Arc::new(AtomicUsize::new(0)),
             closing: tokio::sync::watch::Sender::new(false),
+            observer_streams: Arc::new(AtomicUsize::new(0)),
             alarms,
         });
         alarms::spawn_watcher(state.ctl.clone(), state.alarms.clone());
-        state
+        // The program selected before the restart is selected again (validated, not started).
+        let st = state.clone();
+        tokio::task::spawn_blocking(move || programs::restore_selection(&st));
+        Ok(state)
     }
 
-    /// Takes one stream slot, or RESOURCE_EXHAUSTED.
-    fn stream_slot(&self) -> Result<StreamSlot, Status> {
-        let n = self.streams.fetch_add(1, Ordering::AcqRel);
-        if n >= self.max_streams {
-            self.streams.fetch_sub(1, Ordering::AcqRel);
-            tracing::warn!(
-                open = n,
-                max = self.max_streams,
-                "stream refused: limit reached"
-            );
-            return Err(Status::resource_exhausted(format!(
-                "{n} streams are open, the limit is {} (api.max_streams)",
+    /// Takes one stream slot for a caller of `role`, or RESOURCE_EXHAUSTED. Observers
+    /// (tokenless loopback clients, dashboards) hold at most `max_streams - reserved_streams`
+    /// streams, so they cannot lock the operator's status out; operators and admins may use
+    /// every slot.
+    fn stream_slot(&self, role: Role) -> Result<StreamSlot, Status> {
+        let observer = role < Role::Operator;
+        let total = self.streams.fetch_add(1, Ordering::AcqRel);
+        let observers = if observer {
+            self.observer_streams.fetch_add(1, Ordering::AcqRel)
+        } else {
+            0
+        };
+        let observer_limit = self.max_streams - self.reserved_streams;
+        let slot = StreamSlot {
+            total: self.streams.clone(),
+            observers: observer.then(|| self.observer_streams.clone()),
+        };
+        let refusal = if total >= self.max_streams {
+            format!(
+                "{total} streams are open, the limit is {} (api.max_streams)",
                 self.max_streams
-            )));
-        }
-        Ok(StreamSlot(self.streams.clone()))
+            )
+        } else if observer && observers >= observer_limit {
+            format!(
+                "{observers} observer streams are open, the limit for observers is \
+                 {observer_limit}: {} of api.max_streams ({}) are reserved for operator and \
+                 admin callers (api.reserved_streams)",
+                self.reserved_streams, self.max_streams
+            )
+        } else {
+            return Ok(slot);
+        };
+        drop(slot);
+        tracing::warn!(role = role.name(), "stream refused: {refusal}");
+        Err(Status::resource_exhausted(refusal))
     }
 
     /// Waits until the RT thread has taken job `job` (at most a few ticks).
@@ -189,6 +219,17 @@ impl ApiState {
         } else {
             0.0
         };
+        let alarm = alarm_text(ctl, s).unwrap_or_default();
+        let block: Option<Block> = match (&run_blocks, &program) {
+            (Some(b), _) => b.get(s.block_seq as usize).copied(),
+            (None, Some(_)) if s.job != 0 => ctl.block_at(s.job, s.block_seq),
+            _ => None,
+        };
+        // Distance to go: only while a block moves (its end point is where the path goes).
+        let target = block
+            .filter(|_| running)
+            .and_then(|b| b.motion())
+            .map(|(_, end, _)| end);
         let names = ctl.config().axis_names();
         let diameter_axis = ctl.diameter_axis();
         let axes = (0..s.axes)
@@ -204,14 +245,10 @@ impl ApiState {
                 homed: ctl.axis_homed(s, i),
                 homing_required: ctl.config().axes[i].homing
                     == crate::runtime::config::HomingMode::Required,
+                distance_to_go_mm: target.map_or(0.0, |e| e[i] - s.commanded[i]),
+                at_soft_limit: at_soft_limit(ctl.config().axes.get(i), s.commanded[i]),
             })
             .collect();
-        let alarm = alarm_text(ctl, s).unwrap_or_default();
-        let block: Option<Block> = match (&run_blocks, &program) {
-            (Some(b), _) => b.get(s.block_seq as usize).copied(),
-            (None, Some(_)) if s.job != 0 => ctl.block_at(s.job, s.block_seq),
-            _ => None,
-        };
         let junction = match (&run_blocks, &program) {
             (None, Some(p)) if s.job != 0 => {
                 self.junction_of(Arc::as_ptr(p) as *const () as usize, s.block_seq)
@@ -277,6 +314,8 @@ impl ApiState {
             finished_job: s.finished_job,
             aborted_job: s.aborted_job,
             override_percent: s.override_pct,
+            spindle_override_percent: s.spindle_override_pct,
+            rapid_override_percent: s.rapid_override_pct,
             spindle_rpm: s.spindle_rpm,
             mode: match mode {
                 RunMode::Auto => pb::Mode::Auto,
@@ -299,12 +338,32 @@ impl ApiState {
     }
 }
 
+/// Whether `pos_mm` is at a soft limit of `axis` (within 1 µm): -1 lower, +1 upper, 0 not.
+fn at_soft_limit(axis: Option<&crate::runtime::config::AxisConfig>, pos_mm: f64) -> i32 {
+    const AT_MM: f64 = 1e-3;
+    let Some(a) = axis else { return 0 };
+    if a.soft_min_mm.is_some_and(|m| pos_mm <= m + AT_MM) {
+        -1
+    } else if a.soft_max_mm.is_some_and(|m| pos_mm >= m - AT_MM) {
+        1
+    } else {
+        0
+    }
+}
+
 /// Releases a stream slot when the stream task ends.
-struct StreamSlot(Arc<AtomicUsize>);
+struct StreamSlot {
+    total: Arc<AtomicUsize>,
+    /// Set for an observer's stream.
+    observers: Option<Arc<AtomicUsize>>,
+}
 
 impl Drop for StreamSlot {
     fn drop(&mut self) {
-        self.0.fetch_sub(1, Ordering::AcqRel);
+        self.total.fetch_sub(1, Ordering::AcqRel);
+        if let Some(o) = &self.observers {
+            o.fetch_sub(1, Ordering::AcqRel);
+        }
     }
 }
 

@@ -19,6 +19,7 @@ use super::auth::require;
 use super::{ApiState, blocking, diagnostic_to_pb, invalid_with_diagnostics, plane_code};
 use crate::runtime::config::Role::Observer;
 use crate::runtime::controller::Controller;
+use crate::runtime::library::ProgramText;
 
 /// Most junctions listed by the preview service (larger programs: paths only after these).
 const PREVIEW_MAX_JUNCTIONS: usize = 1_000_000;
@@ -163,7 +164,8 @@ pub fn preview_data(
     text: &str,
     with_junctions: bool,
 ) -> Result<pb::PreviewData, Status> {
-    let text: Arc<str> = if text.is_empty() {
+    // The selected program streams from its file (a library program of any size).
+    let text = if text.is_empty() {
         ctl.program()
             .ok_or_else(|| {
                 Status::failed_precondition("no program is selected and no text was given")
@@ -171,11 +173,11 @@ pub fn preview_data(
             .text
             .clone()
     } else {
-        Arc::from(text)
+        ProgramText::Memory(Arc::from(text))
     };
     let mut c = Collect::new(ctl, with_junctions);
     let (v, _, _) = ctl
-        .validate_with(&text, Options::default(), None, &mut c)
+        .validate_program_with(&text, Options::default(), &mut c)
         .map_err(super::status_of)?;
     if v.has_errors() {
         return Err(invalid_with_diagnostics("program", &v.diagnostics));
@@ -240,6 +242,8 @@ pub fn render_preview(
                 Status::failed_precondition("no program is selected and no text was given")
             })?
             .text
+            .read_all()
+            .map_err(|e| Status::internal(format!("cannot read the selected program: {e}")))?
             .to_string()
     } else {
         r.text.clone()

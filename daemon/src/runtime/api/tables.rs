@@ -101,6 +101,22 @@ impl Offsets for OffsetsSvc {
                 "give at least one value (radius_mm, length1_mm..length4_mm)",
             ));
         }
+        let names = self.0.ctl.config().axis_names();
+        for (k, v) in edit.values.iter().enumerate() {
+            if let Some(v) = v {
+                let field = if k == 0 {
+                    format!("D{entry:02} radius (R)")
+                } else {
+                    format!("D{entry:02} length {}", offsets::label(k, &names))
+                };
+                check_value(
+                    &field,
+                    *v,
+                    offsets::MAX_VALUE_MM,
+                    offsets::MAX_DECIMALS as u32,
+                )?;
+            }
+        }
         let st = self.0.clone();
         blocking(move || st.ctl.edit_offset(&edit))
             .await?
@@ -233,6 +249,32 @@ impl Plc for PlcSvc {
     }
 }
 
+/// A value given over the API: within ±`max` and with at most `decimals` decimals. Values
+/// that would need rounding are refused with the precision allowed, never rounded silently
+/// (the file keeps `decimals`; memory must hold what the file holds). The refusal names the
+/// field (`R52`, `D06 radius (R)`) in its message and in a `Diagnostics` detail.
+fn check_value(field: &str, v: f64, max: f64, decimals: u32) -> Result<(), Status> {
+    let refuse = |m: String| {
+        let d = kernel::Diagnostic::error(None, 0, 0, m);
+        invalid_with_diagnostics(field, std::slice::from_ref(&d))
+    };
+    if !(v.is_finite() && v.abs() <= max) {
+        return Err(refuse(format!("{field} = {v} is outside ±{max}")));
+    }
+    let d = decimals as usize;
+    let kept: f64 = format!("{v:.d$}").parse().unwrap_or(f64::NAN);
+    if kept != v {
+        let step = 10f64.powi(-(decimals as i32));
+        let lo = (v / step).floor() * step;
+        return Err(refuse(format!(
+            "{field} = {v} has more than {decimals} decimals: the value is kept to {step:.d$}; \
+             write {lo:.d$} or {:.d$}",
+            lo + step
+        )));
+    }
+    Ok(())
+}
+
 fn constant_pb(c: &Constants, r: u16) -> pb::Constant {
     let is_default = !c.iter().any(|(n, _)| n == r);
     pb::Constant {
@@ -298,12 +340,7 @@ impl ConstantsRpc for ConstantsSvc {
                         v.number
                     ))
                 })?;
-            if !(v.value.is_finite() && v.value.abs() <= 99_999.999) {
-                return Err(Status::invalid_argument(format!(
-                    "R{r} = {} is outside ±99999.999",
-                    v.value
-                )));
-            }
+            check_value(&format!("R{r}"), v.value, 99_999.999, 3)?;
             parsed.push((r, v.value));
         }
         // Check the combination before anything is saved: all or nothing.

@@ -48,7 +48,10 @@ impl Trajectory for TrajectorySvc {
             let p = ctl.program().ok_or_else(|| {
                 Status::failed_precondition("no program is selected and no text was given")
             })?;
-            p.text.to_string()
+            p.text
+                .read_all()
+                .map_err(|e| Status::internal(format!("cannot read the selected program: {e}")))?
+                .to_string()
         } else {
             text
         };

@@ -1,0 +1,453 @@
+//! Service `cnc.v1.Programs`: the program library on disk (see `runtime/library.rs`), and the
+//! store-validate-select path every program upload takes (also Machine.LoadProgram,
+//! UploadProgram and SelectProgram).
+
+use std::fs::File;
+use std::pin::Pin;
+use std::sync::Arc;
+
+use proto::v1 as pb;
+use proto::v1::programs_server::Programs;
+use tokio_stream::{Stream, StreamExt};
+use tonic::{Request, Response, Status, Streaming};
+
+use kernel::block::Block;
+use kernel::pipeline::{Flow, Observer};
+use kernel::plan::Segment;
+use kernel::program::Modal;
+
+use super::auth::require;
+use super::machine::Junctions;
+use super::{ApiState, PlanInfo, blocking, diagnostic_to_pb, status_of};
+use crate::runtime::config::Role;
+use crate::runtime::controller::{ControlError, LoadedProgram};
+use crate::runtime::library::{Entry, LibraryError, ProgramText, Upload, Verdict};
+
+/// Download chunk size, bytes.
+const CHUNK_BYTES: usize = 1 << 20;
+
+/// Upload progress is reported every this many blocks validated.
+const PROGRESS_BLOCKS: u32 = 65_536;
+
+#[derive(Clone)]
+pub struct ProgramsSvc(pub Arc<ApiState>);
+
+type Stream_<T> = Pin<Box<dyn Stream<Item = Result<T, Status>> + Send>>;
+
+pub fn library_status(e: LibraryError) -> Status {
+    match e {
+        LibraryError::NotFound(_) => Status::not_found(e.to_string()),
+        LibraryError::Exists(_) => Status::already_exists(e.to_string()),
+        LibraryError::Full { .. } => Status::resource_exhausted(e.to_string()),
+        LibraryError::Io(_) => Status::internal(e.to_string()),
+    }
+}
+
+pub fn entry_pb(e: &Entry) -> pb::LibraryProgram {
+    pb::LibraryProgram {
+        name: e.name.clone(),
+        size_bytes: e.size_bytes,
+        blocks: e.blocks,
+        modified_unix_ms: e.modified_unix_ms,
+        valid: e.verdict.valid,
+        errors: e.verdict.errors,
+        warnings: e.verdict.warnings,
+        first_error: e.verdict.first_error.clone(),
+    }
+}
+
+pub fn check_name(name: &str) -> Result<(), Status> {
+    if name.is_empty() || name.len() > 255 || name.chars().any(|c| c.is_control()) {
+        return Err(Status::invalid_argument(
+            "program name must be 1..255 printable characters",
+        ));
+    }
+    Ok(())
+}
+
+fn running(st: &ApiState) -> bool {
+    use crate::runtime::rt::MachineState::{Hold, Running, Stopping};
+    matches!(st.ctl.snapshot().state, Running | Hold | Stopping)
+}
+
+fn selected_name(st: &ApiState) -> Option<String> {
+    st.ctl.program().map(|p| p.name.clone())
+}
+
+/// The selected program may not be deleted or renamed (a new text under its name may be
+/// stored: the selection keeps the version it validated, its open file).
+fn refuse_if_selected(st: &ApiState, name: &str, what: &str) -> Result<(), Status> {
+    if selected_name(st).as_deref() == Some(name) {
+        return Err(Status::failed_precondition(format!(
+            "{name:?} is the selected program: {what} it after selecting another one (or \
+             load the new text, which selects it)"
+        )));
+    }
+    Ok(())
+}
+
+/// What an upload's or a selection's validation pass keeps: the junction classes for status
+/// and a progress count of the blocks.
+struct Pass<F> {
+    junctions: Junctions,
+    blocks: u32,
+    progress: F,
+}
+
+impl<F: FnMut(u32)> Observer for Pass<F> {
+    fn programmed(&mut self, _b: &Block, _modal: &Modal) {
+        self.blocks += 1;
+        if self.blocks.is_multiple_of(PROGRESS_BLOCKS) {
+            (self.progress)(self.blocks);
+        }
+    }
+
+    fn segment(&mut self, s: Segment) -> Flow {
+        self.junctions.segment(s)
+    }
+}
+
+/// Validates `text` through the one pipeline (`Controller::prepare_program`, streaming a
+/// file line by line) into a program that may be selected, with its junction classes.
+fn prepare(
+    st: &ApiState,
+    name: &str,
+    text: ProgramText,
+    progress: impl FnMut(u32),
+) -> Result<Prepared, ControlError> {
+    let pass = Pass {
+        junctions: Junctions::default(),
+        blocks: 0,
+        progress,
+    };
+    // The same pass records what the previews of the selected program read (instead of
+    // making a pass of their own).
+    let record = ::preview::pipeline::Recorder::new(super::preview::RECORD_MAX_OUTPUTS);
+    let mut obs = (pass, record);
+    let loaded = st.ctl.prepare_program(name, text, &mut obs)?;
+    let recording = obs
+        .1
+        .finish(loaded.block_count, loaded.warnings.clone())
+        .map(Arc::new);
+    Ok(Prepared {
+        loaded,
+        junctions: obs.0.junctions.classes,
+        recording,
+    })
+}
+
+/// A program validated by one pass, with what that pass left for status and the previews.
+pub struct Prepared {
+    loaded: Arc<LoadedProgram>,
+    junctions: Vec<pb::JunctionClass>,
+    recording: Option<Arc<::preview::pipeline::Recording>>,
+}
+
+/// An upload validated and not yet stored.
+pub struct Validated {
+    name: String,
+    up: Upload,
+    prepared: Prepared,
+}
+
+/// Validates a finished upload from its temporary file through the one pipeline. Blocking.
+/// `progress` sees the blocks validated so far.
+pub fn validate_upload(
+    st: &ApiState,
+    name: &str,
+    up: Upload,
+    progress: impl FnMut(u32),
+) -> Result<Validated, Status> {
+    // The temporary file is renamed into place by the commit: this handle stays the program.
+    let file = Arc::new(up.reopen().map_err(|e| Status::internal(e.to_string()))?);
+    let prepared = prepare(st, name, ProgramText::File(file), progress).map_err(status_of)?;
+    Ok(Validated {
+        name: name.to_owned(),
+        up,
+        prepared,
+    })
+}
+
+/// Stores a validated upload and selects it when asked. No await point: callers run it after
+/// the validation's, so a call cancelled by its deadline while validating stores and selects
+/// nothing, and a refusal (RESOURCE_EXHAUSTED, a running program) changes nothing.
+pub fn commit_upload(st: &ApiState, v: Validated, select: bool) -> Result<pb::UploadDone, Status> {
+    let Validated { name, up, prepared } = v;
+    let loaded = prepared.loaded.clone();
+    let warnings: Vec<pb::Diagnostic> = loaded.warnings.iter().map(diagnostic_to_pb).collect();
+    if select && running(st) {
+        return Err(Status::failed_precondition(
+            "a program is running: stop it before loading another",
+        ));
+    }
+    let (entry, _) = st
+        .library
+        .commit(&name, up, loaded.block_count, Verdict::of(&loaded.warnings))
+        .map_err(library_status)?;
+    if select {
+        st.ctl.select(loaded.clone()).map_err(status_of)?;
+        after_select(st, prepared);
+    }
+    Ok(pb::UploadDone {
+        program: Some(entry_pb(&entry)),
+        diagnostics: warnings,
+        selected: select,
+    })
+}
+
+/// Stores `text` (a unary upload: LoadProgram, UploadProgram) and selects it when asked:
+/// written and validated on a blocking thread, stored and selected after that.
+pub async fn store_text(
+    st: &Arc<ApiState>,
+    name: String,
+    text: String,
+    select: bool,
+) -> Result<pb::UploadDone, Status> {
+    let s = st.clone();
+    let v = blocking(move || {
+        let mut up = s.library.begin_upload(&name).map_err(library_status)?;
+        up.write(text.as_bytes()).map_err(library_status)?;
+        validate_upload(&s, &name, up, |_| {})
+    })
+    .await??;
+    commit_upload(st, v, select)
+}
+
+/// Selects a stored program, validating it again (streaming its file) against the machine
+/// as it is now; the verdict is recorded. Blocking.
+pub fn select_stored(st: &ApiState, name: &str) -> Result<Arc<LoadedProgram>, Status> {
+    let (file, _) = st.library.open_program(name).map_err(library_status)?;
+    let r = prepare(st, name, ProgramText::File(file), |_| {});
+    let (blocks, verdict) = match &r {
+        Ok(p) => (p.loaded.block_count, Verdict::of(&p.loaded.warnings)),
+        Err(ControlError::InvalidProgram(d)) => (0, Verdict::of(d)),
+        Err(_) => (0, Verdict::default()),
+    };
+    if matches!(r, Ok(_) | Err(ControlError::InvalidProgram(_)))
+        && let Err(e) = st.library.set_verdict(name, blocks, verdict)
+    {
+        tracing::warn!(program = name, "cannot record the verdict: {e}");
+    }
+    let prepared = r.map_err(status_of)?;
+    let loaded = prepared.loaded.clone();
+    st.ctl.select(loaded.clone()).map_err(status_of)?;
+    after_select(st, prepared);
+    Ok(loaded)
+}
+
+/// After a selection: remember it across restarts; junction classes for status and the pass
+/// for the previews.
+fn after_select(st: &ApiState, p: Prepared) {
+    if let Err(e) = st.library.save_selected(&p.loaded.name) {
+        tracing::warn!("cannot remember the selected program: {e}");
+    }
+    *st.plan_info.lock().unwrap() = Some(PlanInfo {
+        program: Arc::as_ptr(&p.loaded) as *const () as usize,
+        junctions: p.junctions,
+        pass: p.recording,
+    });
+}
+
+/// At start-up: selects the program selected before the restart (not started). A program
+/// that no longer validates stays stored, unselected, with its verdict.
+pub fn restore_selection(st: &ApiState) {
+    let Some(name) = st.library.saved_selected() else {
+        return;
+    };
+    match select_stored(st, &name) {
+        Ok(p) => tracing::info!(program = %name, blocks = p.block_count, "selected again"),
+        Err(e) => tracing::warn!(program = %name, "not selected again: {}", e.message()),
+    }
+}
+
+/// Receives an upload into its temporary file, sending progress; returns the upload.
+async fn receive(
+    st: &Arc<ApiState>,
+    mut input: Streaming<pb::ProgramChunk>,
+    first: pb::ProgramChunk,
+    tx: &tokio::sync::mpsc::Sender<Result<pb::UploadProgress, Status>>,
+) -> Result<Upload, Status> {
+    let lib = st.library.clone();
+    let name = first.name.clone();
+    let mut up = blocking(move || lib.begin_upload(&name))
+        .await?
+        .map_err(library_status)?;
+    let mut chunk = first.data;
+    let mut last_report = 0u64;
+    loop {
+        if !chunk.is_empty() {
+            let data = std::mem::take(&mut chunk);
+            up = blocking(move || up.write(&data).map(|()| up))
+                .await?
+                .map_err(library_status)?;
+            if up.written() - last_report >= 8 << 20 {
+                last_report = up.written();
+                let _ = tx
+                    .send(Ok(pb::UploadProgress {
+                        bytes_stored: up.written(),
+                        ..Default::default()
+                    }))
+                    .await;
+            }
+        }
+        match input.next().await {
+            Some(m) => chunk = m?.data,
+            None => return Ok(up),
+        }
+    }
+}
+
+#[tonic::async_trait]
+impl Programs for ProgramsSvc {
+    type UploadStream = Stream_<pb::UploadProgress>;
+
+    async fn upload(
+        &self,
+        req: Request<Streaming<pb::ProgramChunk>>,
+    ) -> Result<Response<Self::UploadStream>, Status> {
+        require(&req, Role::Operator, "Upload")?;
+        let mut input = req.into_inner();
+        let first = input
+            .next()
+            .await
+            .ok_or_else(|| Status::invalid_argument("an upload needs at least one message"))??;
+        check_name(&first.name)?;
+        let (tx, rx) = tokio::sync::mpsc::channel(16);
+        let st = self.0.clone();
+        tokio::spawn(async move {
+            let (name, select) = (first.name.clone(), first.select);
+            let up = match receive(&st, input, first, &tx).await {
+                Ok(up) => up,
+                Err(e) => {
+                    let _ = tx.send(Err(e)).await;
+                    return;
+                }
+            };
+            let bytes = up.written();
+            let t = tx.clone();
+            let s = st.clone();
+            let r = blocking(move || {
+                validate_upload(&s, &name, up, |n| {
+                    let _ = t.blocking_send(Ok(pb::UploadProgress {
+                        bytes_stored: bytes,
+                        blocks_validated: n,
+                        done: None,
+                    }));
+                })
+            })
+            .await
+            .and_then(|r| r)
+            .and_then(|v| {
+                // The client left while it validated: nothing is stored or selected.
+                if tx.is_closed() {
+                    return Err(Status::cancelled("the client ended the upload"));
+                }
+                commit_upload(&st, v, select)
+            });
+            let _ = tx
+                .send(r.map(|done| pb::UploadProgress {
+                    bytes_stored: bytes,
+                    blocks_validated: done.program.as_ref().map_or(0, |p| p.blocks),
+                    done: Some(done),
+                }))
+                .await;
+        });
+        Ok(Response::new(Box::pin(
+            tokio_stream::wrappers::ReceiverStream::new(rx),
+        )))
+    }
+
+    type DownloadStream = Stream_<pb::ProgramChunk>;
+
+    async fn download(
+        &self,
+        req: Request<pb::ProgramName>,
+    ) -> Result<Response<Self::DownloadStream>, Status> {
+        require(&req, Role::Observer, "Download")?;
+        let name = req.into_inner().name;
+        let (file, _) = self.0.library.open_program(&name).map_err(library_status)?;
+        let (tx, rx) = tokio::sync::mpsc::channel(4);
+        tokio::task::spawn_blocking(move || send_file(&file, &name, &tx));
+        Ok(Response::new(Box::pin(
+            tokio_stream::wrappers::ReceiverStream::new(rx),
+        )))
+    }
+
+    async fn list(
+        &self,
+        req: Request<pb::LibraryListRequest>,
+    ) -> Result<Response<pb::LibraryList>, Status> {
+        require(&req, Role::Observer, "List")?;
+        let lib = &self.0.library;
+        Ok(Response::new(pb::LibraryList {
+            programs: lib.list().iter().map(entry_pb).collect(),
+            selected: selected_name(&self.0).unwrap_or_default(),
+            used_bytes: lib.used_bytes(),
+            max_bytes: lib.max_bytes(),
+        }))
+    }
+
+    async fn delete(
+        &self,
+        req: Request<pb::ProgramName>,
+    ) -> Result<Response<pb::DeleteProgramReply>, Status> {
+        require(&req, Role::Operator, "Delete")?;
+        let name = req.into_inner().name;
+        refuse_if_selected(&self.0, &name, "delete")?;
+        let lib = self.0.library.clone();
+        blocking(move || lib.delete(&name))
+            .await?
+            .map_err(library_status)?;
+        Ok(Response::new(pb::DeleteProgramReply {}))
+    }
+
+    async fn rename(
+        &self,
+        req: Request<pb::RenameProgramRequest>,
+    ) -> Result<Response<pb::LibraryProgram>, Status> {
+        require(&req, Role::Operator, "Rename")?;
+        let r = req.into_inner();
+        check_name(&r.to)?;
+        refuse_if_selected(&self.0, &r.from, "rename")?;
+        let lib = self.0.library.clone();
+        let e = blocking(move || lib.rename(&r.from, &r.to))
+            .await?
+            .map_err(library_status)?;
+        Ok(Response::new(entry_pb(&e)))
+    }
+}
+
+/// Sends a stored file in chunks (blocking thread).
+fn send_file(
+    file: &File,
+    name: &str,
+    tx: &tokio::sync::mpsc::Sender<Result<pb::ProgramChunk, Status>>,
+) {
+    use std::os::unix::fs::FileExt;
+    let mut pos = 0u64;
+    let mut first = true;
+    loop {
+        let mut buf = vec![0u8; CHUNK_BYTES];
+        let n = match file.read_at(&mut buf, pos) {
+            Ok(n) => n,
+            Err(e) => {
+                let _ = tx.blocking_send(Err(Status::internal(e.to_string())));
+                return;
+            }
+        };
+        if n == 0 && !first {
+            return;
+        }
+        buf.truncate(n);
+        pos += n as u64;
+        let msg = pb::ProgramChunk {
+            name: if first { name.into() } else { String::new() },
+            data: buf,
+            ..Default::default()
+        };
+        first = false;
+        if tx.blocking_send(Ok(msg)).is_err() || n == 0 {
+            return;
+        }
+    }
+}
