@@ -86,8 +86,35 @@ check "systemd-networkd brings vcan0 up from deploy/network/80-vcan0.*" \
     wait_until 30 bash -c 'ip link show vcan0 2>/dev/null | grep -q "[<,]UP[,>]"'
 info "$(ip -details link show vcan0 | head -n 3 | tr -s ' ' | tr '\n' ' ')"
 
+# --- how late this VM wakes a 4 ms real-time thread: the bus timeouts' allowance -------------
+# Emulation on a loaded host wakes periodic threads late, and cncd and sim-can both run here:
+# the production bus timeouts (25 ticks, 500 ms) would see faults that no real bus has. The
+# allowance is derived from a measurement, not guessed: cyclictest (SCHED_FIFO 80, the 4 ms
+# period, 10 s) gives the worst wake-up lateness L of this VM now. A frame's gap as seen by the
+# receiver is at most one period plus the sender's and the receiver's lateness (4 ms + 2 L);
+# the 10 s probe samples a fraction of the run, so each per-frame timeout is 10 times that
+# gap (never below the production default), and the sequences of several frames (boot-up,
+# enable) get 4 such timeouts.
+probe=$(cyclictest -q -m -p 80 -i 4000 -D 10 2>&1)
+late_us=$(sed -n 's/.*Max: *\([0-9]*\).*/\1/p' <<<"$probe" | sort -n | tail -n 1)
+check "cyclictest measured this VM's wake-up lateness (${late_us:-?} us)" [ -n "$late_us" ]
+late_us=${late_us:-1000000}
+gap_ms=$((4 + 2 * ((late_us + 999) / 1000)))
+allow_ms=$((10 * gap_ms))
+at_least() { echo $(($1 > $2 ? $1 : $2)); }
+hb_ms=$(at_least "$allow_ms" 500)
+consumer_ms=$(at_least "$allow_ms" 500)
+[ "$consumer_ms" -gt 65535 ] && consumer_ms=65535
+tpdo_ticks=$(at_least $(((allow_ms + 3) / 4)) 25)
+sdo_ms=$(at_least "$allow_ms" 200)
+boot_ms=$(at_least $((4 * allow_ms)) 3000)
+enable_ms=$(at_least $((4 * allow_ms)) 2000)
+info "VM wake-up lateness of a 4 ms SCHED_FIFO thread (cyclictest 10 s): max ${late_us} us;" \
+    "bus allowance 10 x (4 ms + 2 x max) = ${allow_ms} ms: tpdo_missing_ticks ${tpdo_ticks}," \
+    "heartbeat/consumer ${hb_ms}/${consumer_ms} ms, sdo ${sdo_ms} ms, boot/enable ${boot_ms}/${enable_ms} ms"
+
 # The admin's configuration: three CiA 402 drives on vcan0 (the conffile, edited).
-cat >/etc/cncd/cncd.toml <<'EOF'
+cat >/etc/cncd/cncd.toml <<CONF
 # edited by the systemd VM suite
 [[axes]]
 name = "X"
@@ -104,13 +131,13 @@ increments_per_mm = 10000
 [bus]
 kind = "can"
 interface = "vcan0"
-# The emulated VM runs late ticks: bus timeouts with room for that.
-tpdo_missing_ticks = 250
-heartbeat_timeout_ms = 5000
-drive_consumer_timeout_ms = 5000
-boot_timeout_ms = 20000
-enable_timeout_ms = 20000
-sdo_timeout_ms = 2000
+# The allowance for this emulated VM, measured above.
+tpdo_missing_ticks = $tpdo_ticks
+heartbeat_timeout_ms = $hb_ms
+drive_consumer_timeout_ms = $consumer_ms
+boot_timeout_ms = $boot_ms
+enable_timeout_ms = $enable_ms
+sdo_timeout_ms = $sdo_ms
 [api]
 listen = "127.0.0.1:50051"
 unix_socket = "/run/cncd/cncd.sock"
@@ -119,13 +146,17 @@ dir = "/var/lib/cncd"
 [rt]
 priority = 80
 lock_memory = true
-EOF
+CONF
 check "the vcan configuration passes --check-config" \
     cncd --check-config --config /etc/cncd/cncd.toml
 
-# Software emulation on a shared host cannot hold the 4 ms period: cncd judges itself stalled
-# (fewer than half the ticks due) and the watchdog restarts it again and again. So the VM runs
-# without the watchdog, except in the watchdog check below, which restores the unit's value.
+# The watchdog is off in this VM except in its own check below. Why: cncd pings WATCHDOG=1 every
+# 1.5 s only if the real-time thread made at least half of the 4 ms ticks due in that time
+# (daemon/src/runtime/systemd.rs); a tick that wakes more than a period late skips its deadline.
+# Software emulation on a loaded host runs the vCPUs in bursts (the cyclictest probe above
+# shows wake-ups late by tens to hundreds of ms), so cncd could rightly judge itself stalled
+# and systemd would restart it in the middle of the other checks. A drop-in WatchdogSec=0
+# turns it off; the watchdog check removes the drop-in, i.e. runs with the unit's 3 s.
 mkdir -p /etc/systemd/system/cncd.service.d
 printf '[Service]\nWatchdogSec=0\n' >/etc/systemd/system/cncd.service.d/50-vm.conf
 systemctl daemon-reload
@@ -184,7 +215,10 @@ systemctl stop cncd
 t1=$(mono_us)
 stop_ms=$(((t1 - t0) / 1000))
 info "systemctl stop with a status stream open: ${stop_ms} ms (TimeoutStopSec=$(prop TimeoutStopUSec))"
-check "systemctl stop ends within the unit's timeout" [ "$stop_ms" -lt 30000 ]
+# The unit's own TimeoutStopSec (systemd prints it as a time span), not a guess.
+stop_limit_us=$(systemd-analyze timespan "$(prop TimeoutStopUSec)" 2>/dev/null | sed -n 's/.*μs: *\([0-9]*\).*/\1/p')
+check "systemctl stop ends within the unit's TimeoutStopSec (${stop_limit_us:-?} us)" \
+    [ -n "$stop_limit_us" ] && [ "$((stop_ms * 1000))" -lt "${stop_limit_us:-0}" ]
 check "cncd exited by itself with status 0 (Result=success)" \
     bash -c '[ "$(systemctl show -P Result cncd)" = success ] &&
              [ "$(systemctl show -P ExecMainStatus cncd)" = 0 ]'
@@ -202,9 +236,13 @@ rest_exit=$(journal_since "$t0" | awk '
     { ts = $0; sub(/^\[ */, "", ts); sub(/\].*/, "", ts) }
     /axis at rest/ { rest = ts }
     /cncd stopped/ { if (rest) printf "%d", (ts - rest) * 1000 }')
-info "from the axes at rest to 'cncd stopped': ${rest_exit:-?} ms"
-check "cncd stopped within 1 s after the axes were at rest" \
-    [ -n "$rest_exit" ] && [ "${rest_exit:-9999}" -le 1000 ]
+info "from the axes at rest to 'cncd stopped': ${rest_exit:-?} ms (emulated; the API drains 500 ms at most)"
+# What the stop must show, without a timing: cncd exits after the axes are at rest, and the
+# open stream ended because SIGTERM ended it, not because the API cut it at the drain time.
+check "cncd stopped after every axis was at rest" \
+    bash -c "journal_since $t0 | awk '/axis at rest/ && !stopped { n++ } /cncd stopped/ { stopped = 1 } END { exit !(stopped && n >= 3) }'"
+check "no API call was still open at the drain time (the stream ended on SIGTERM)" \
+    bash -c "journal_since $t0 | grep -q 'cncd stopped' && ! journal_since $t0 | grep -q 'API calls still open after the drain time'"
 
 # --- structured journal fields --------------------------------------------------------------
 fields=$(journalctl -u cncd CNC_AXIS=X -o verbose --no-pager 2>&1)
@@ -248,6 +286,15 @@ check "/tmp of the service is private (not the system's /tmp)" \
     bash -c "touch /tmp/.host-side && ! nsenter -t $pid -m test -e /tmp/.host-side; rc=\$?; rm -f /tmp/.host-side; exit \$rc"
 
 # --- watchdog: a stalled real-time thread makes systemd restart cncd -------------------------
+# What this proves: with the unit's WatchdogSec=3s, a real-time thread that stops ticking
+# (the fault injection knob blocks it inside the bus cycle after 1000 ticks, as a wedged bus
+# driver would) makes cncd withhold its pings and say why in the journal, systemd's watchdog
+# aborts the process, Restart=on-failure starts it again, and the machine runs a program again.
+# What it cannot prove here: that a machine holding its 4 ms period keeps the pings going
+# (emulation cannot hold 4 ms; the ping rule is unit-tested without a clock, `judge` in
+# daemon/src/runtime/systemd.rs, and the pings against a fake NOTIFY_SOCKET on the host in
+# tests/tests/systemd_notify.rs). If emulation falls below half the ticks before the knob fires, the pings
+# stop for the same rule and the same path runs; the "# watchdog:" line tells which happened.
 restarts0=$(prop NRestarts)
 mkdir -p /run/systemd/system/cncd.service.d
 # The unit's WatchdogSec=3s again, and the stall 1000 ticks after the start (after READY=1 in
