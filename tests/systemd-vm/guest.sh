@@ -34,6 +34,9 @@ wait_until() {
     done
 }
 prop() { systemctl show -P "$1" cncd.service; }
+# A time span property of the unit (e.g. TimeoutStartUSec, printed as "1min") in µs.
+# (The µs line reads "μs:" or "us:" depending on the locale.)
+prop_us() { systemd-analyze timespan "$(prop "$1")" 2>/dev/null | sed -n 's/^ *[^ ]*s: *\([0-9][0-9]*\)$/\1/p'; }
 is_state() { [ "$(prop ActiveState)" = "$1" ]; }
 mono_us() { awk '{printf "%d\n", $1 * 1000000}' /proc/uptime; }
 ctl() { timeout 120 cncctl --addr "$SOCK" "$@"; }
@@ -83,7 +86,7 @@ cp /usr/share/doc/cncd/examples/network/80-vcan0.netdev \
     /usr/share/doc/cncd/examples/network/80-vcan0.network /etc/systemd/network/
 systemctl restart systemd-networkd
 check "systemd-networkd brings vcan0 up from deploy/network/80-vcan0.*" \
-    wait_until 30 bash -c 'ip link show vcan0 2>/dev/null | grep -q "[<,]UP[,>]"'
+    wait_until 120 bash -c 'ip link show vcan0 2>/dev/null | grep -q "[<,]UP[,>]"'
 info "$(ip -details link show vcan0 | head -n 3 | tr -s ' ' | tr '\n' ' ')"
 
 # --- how late this VM wakes a 4 ms real-time thread: the bus timeouts' allowance -------------
@@ -162,9 +165,13 @@ printf '[Service]\nWatchdogSec=0\n' >/etc/systemd/system/cncd.service.d/50-vm.co
 systemctl daemon-reload
 
 # --- start: active only after READY=1, i.e. once the drives are operational ----------------
+# Waits for a start are bounded by the unit's own TimeoutStartSec: beyond it systemd gives up.
+start_us=$(prop_us TimeoutStartUSec)
+start_s=$((${start_us:-60000000} / 1000000))
+info "the unit's TimeoutStartSec: ${start_s} s"
 systemctl start --no-block cncd
 check "without drives on the bus cncd stays activating, status 'enabling drives'" \
-    wait_until 60 bash -c '[ "$(systemctl show -P StatusText cncd)" = "enabling drives" ] &&
+    wait_until "$start_s" bash -c '[ "$(systemctl show -P StatusText cncd)" = "enabling drives" ] &&
                            [ "$(systemctl show -P ActiveState cncd)" = activating ]'
 sleep 2
 check "still activating 2 s later (no READY=1 without operational drives)" is_state activating
@@ -172,7 +179,7 @@ systemd-run --quiet --unit=sim-can --property=Type=exec \
     "$S/sim-can" --iface vcan0 --node 1 --node 2 --node 3
 sim_at=$(systemctl show -P ExecMainStartTimestampMonotonic sim-can.service)
 check "cncd becomes active (running) once sim-can's drives are operational" \
-    wait_until 60 is_state active
+    wait_until "$start_s" is_state active
 active_at=$(prop ActiveEnterTimestampMonotonic)
 check "active only after the drives appeared (active at ${active_at} us > sim-can start ${sim_at} us)" \
     [ "$active_at" -gt "$sim_at" ]
@@ -209,14 +216,14 @@ check "the machine is idle afterwards" bash -c "cncctl --addr $SOCK status | gre
 # --- stop with a status stream open ---------------------------------------------------------
 cncctl --addr "$SOCK" --json status --watch --rate 10 >/root/watch.jsonl 2>/root/watch.err &
 watch_pid=$!
-wait_until 30 test -s /root/watch.jsonl
+wait_until 120 test -s /root/watch.jsonl
 t0=$(mono_us)
 systemctl stop cncd
 t1=$(mono_us)
 stop_ms=$(((t1 - t0) / 1000))
 info "systemctl stop with a status stream open: ${stop_ms} ms (TimeoutStopSec=$(prop TimeoutStopUSec))"
 # The unit's own TimeoutStopSec (systemd prints it as a time span), not a guess.
-stop_limit_us=$(systemd-analyze timespan "$(prop TimeoutStopUSec)" 2>/dev/null | sed -n 's/.*μs: *\([0-9]*\).*/\1/p')
+stop_limit_us=$(prop_us TimeoutStopUSec)
 check "systemctl stop ends within the unit's TimeoutStopSec (${stop_limit_us:-?} us)" \
     [ -n "$stop_limit_us" ] && [ "$((stop_ms * 1000))" -lt "${stop_limit_us:-0}" ]
 check "cncd exited by itself with status 0 (Result=success)" \
@@ -227,7 +234,7 @@ check "the journal of the stop is there (Stopping ... Stopped)" \
 check "no SIGKILL and no stop timeout in the journal" \
     bash -c "! journal_since $t0 | grep -Ei 'sigkill|timed out|killing'"
 check "the open status stream ended with the stop" \
-    wait_until 10 bash -c "! kill -0 $watch_pid 2>/dev/null"
+    wait_until 120 bash -c "! kill -0 $watch_pid 2>/dev/null"
 wait "$watch_pid"
 watch_rc=$?
 info "cncctl status --watch: exit $watch_rc, $(wc -l </root/watch.jsonl) status lines, stderr: $(head -c 300 /root/watch.err)"
@@ -254,7 +261,7 @@ check "events carry the block number (CNC_BLOCK) and job (CNC_JOB)" \
 
 # --- hardening ------------------------------------------------------------------------------
 systemctl start cncd
-wait_until 60 is_state active
+wait_until "$start_s" is_state active
 pid=$(prop MainPID)
 info "hardening checks on cncd pid $pid"
 sec=$(systemd-analyze security cncd.service --no-pager 2>&1)

@@ -4,10 +4,12 @@
 # service manager (tests/systemd-vm/guest.sh lists the checks).
 #
 # - Installs what it needs when missing (qemu-system-x86, mmdebstrap, e2fsprogs).
-# - Builds the package (deploy/build-deb.sh, release build) and the drive simulator sim-can.
+# - Builds the package (deploy/build-deb.sh, release build) and the drive simulator sim-can
+#   (the vcan suite's dev build, reused).
 # - Builds the VM's root filesystem once from Debian's packages (mmdebstrap: bookworm, systemd,
-#   the Debian kernel linux-image-amd64 and its initramfs) and caches it in
-#   target/systemd-vm/; a change of the recipe below builds a new one.
+#   the Debian kernel linux-image-amd64 and its initramfs, rt-tests) in the background while
+#   the release build runs, and caches it in target/systemd-vm/ under a hash of its recipe
+#   (the variables below): a change of the recipe builds a new one, nothing else does.
 # - Boots it with QEMU (software emulation; CNC_VM_KVM=1 uses KVM when /dev/kvm works), the
 #   disk as a throw-away snapshot; the guest mounts this run's work directory over 9p, runs
 #   guest.sh, writes its results there and powers off.
@@ -139,12 +141,13 @@ if [ "${CNC_VM_ONLY_IMAGE:-0}" = 1 ]; then
 fi
 
 # --- the package and the simulator ---------------------------------------------------------
-# sim-can is the dev build the vcan suite (and cargo test) already made: nothing to compile
-# when it runs first. The package is the release build a machine gets.
+# sim-can is the dev build the vcan suite already made: the same cargo invocation as there
+# (the same packages, so the same unified features), nothing to compile when it ran first.
+# The package is the release build a machine gets.
 T1=$(date +%s)
 log "building the Debian package (${CNC_DEB_PROFILE:-release}) and sim-can"
 DEB=$(deploy/build-deb.sh | tail -n 1)
-cargo build --locked -q -p sim --bin sim-can
+cargo build --locked -q -p sim -p daemon --bins
 T_BUILD=$(($(date +%s) - T1))
 wait_image
 T_IMAGE=$(($(date +%s) - T0))
