@@ -224,8 +224,8 @@ stop_ms=$(((t1 - t0) / 1000))
 info "systemctl stop with a status stream open: ${stop_ms} ms (TimeoutStopSec=$(prop TimeoutStopUSec))"
 # The unit's own TimeoutStopSec (systemd prints it as a time span), not a guess.
 stop_limit_us=$(prop_us TimeoutStopUSec)
-check "systemctl stop ends within the unit's TimeoutStopSec (${stop_limit_us:-?} us)" \
-    [ -n "$stop_limit_us" ] && [ "$((stop_ms * 1000))" -lt "${stop_limit_us:-0}" ]
+stop_within_limit() { [ -n "$stop_limit_us" ] && [ "$((stop_ms * 1000))" -lt "$stop_limit_us" ]; }
+check "systemctl stop ends within the unit's TimeoutStopSec (${stop_limit_us:-?} us)" stop_within_limit
 check "cncd exited by itself with status 0 (Result=success)" \
     bash -c '[ "$(systemctl show -P Result cncd)" = success ] &&
              [ "$(systemctl show -P ExecMainStatus cncd)" = 0 ]'
