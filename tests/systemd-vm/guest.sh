@@ -89,35 +89,18 @@ check "systemd-networkd brings vcan0 up from deploy/network/80-vcan0.*" \
     wait_until 120 bash -c 'ip link show vcan0 2>/dev/null | grep -q "[<,]UP[,>]"'
 info "$(ip -details link show vcan0 | head -n 3 | tr -s ' ' | tr '\n' ' ')"
 
-# --- how late this VM wakes a 4 ms real-time thread: the bus timeouts' allowance -------------
-# Emulation on a loaded host wakes periodic threads late, and cncd and sim-can both run here:
-# the production bus timeouts (25 ticks, 500 ms) would see faults that no real bus has. The
-# allowance is derived from a measurement, not guessed: cyclictest (SCHED_FIFO 80, the 4 ms
-# period, 10 s) gives the worst wake-up lateness L of this VM now. A frame's gap as seen by the
-# receiver is at most one period plus the sender's and the receiver's lateness (4 ms + 2 L);
-# the 10 s probe samples a fraction of the run, so each per-frame timeout is 10 times that
-# gap (never below the production default), and the sequences of several frames (boot-up,
-# enable) get 4 such timeouts.
+# --- how late this VM wakes a 4 ms real-time thread (a figure for the results) -------------
+# Emulation on a loaded host wakes periodic threads late, and cncd and sim-can both run here.
+# A first version derived the bus timeouts from this probe (10 x (4 ms + 2 x max)); under a
+# load of 18 on the 2-core host a 31 ms probe maximum gave 680 ms, and a later stall faulted
+# the drives: a 10 s sample does not bound the stalls of a 5-minute run. So this suite takes
+# the bus timeouts out of play instead (below) and only reports the probe.
 probe=$(cyclictest -q -m -p 80 -i 4000 -D 10 2>&1)
 late_us=$(sed -n 's/.*Max: *\([0-9]*\).*/\1/p' <<<"$probe" | sort -n | tail -n 1)
-check "cyclictest measured this VM's wake-up lateness (${late_us:-?} us)" [ -n "$late_us" ]
-late_us=${late_us:-1000000}
-gap_ms=$((4 + 2 * ((late_us + 999) / 1000)))
-allow_ms=$((10 * gap_ms))
-at_least() { echo $(($1 > $2 ? $1 : $2)); }
-hb_ms=$(at_least "$allow_ms" 500)
-consumer_ms=$(at_least "$allow_ms" 500)
-[ "$consumer_ms" -gt 65535 ] && consumer_ms=65535
-tpdo_ticks=$(at_least $(((allow_ms + 3) / 4)) 25)
-sdo_ms=$(at_least "$allow_ms" 200)
-boot_ms=$(at_least $((4 * allow_ms)) 3000)
-enable_ms=$(at_least $((4 * allow_ms)) 2000)
-info "VM wake-up lateness of a 4 ms SCHED_FIFO thread (cyclictest 10 s): max ${late_us} us;" \
-    "bus allowance 10 x (4 ms + 2 x max) = ${allow_ms} ms: tpdo_missing_ticks ${tpdo_ticks}," \
-    "heartbeat/consumer ${hb_ms}/${consumer_ms} ms, sdo ${sdo_ms} ms, boot/enable ${boot_ms}/${enable_ms} ms"
+info "VM wake-up lateness of a 4 ms SCHED_FIFO thread (cyclictest 10 s): max ${late_us:-?} us"
 
 # The admin's configuration: three CiA 402 drives on vcan0 (the conffile, edited).
-cat >/etc/cncd/cncd.toml <<CONF
+cat >/etc/cncd/cncd.toml <<'CONF'
 # edited by the systemd VM suite
 [[axes]]
 name = "X"
@@ -134,13 +117,15 @@ increments_per_mm = 10000
 [bus]
 kind = "can"
 interface = "vcan0"
-# The allowance for this emulated VM, measured above.
-tpdo_missing_ticks = $tpdo_ticks
-heartbeat_timeout_ms = $hb_ms
-drive_consumer_timeout_ms = $consumer_ms
-boot_timeout_ms = $boot_ms
-enable_timeout_ms = $enable_ms
-sdo_timeout_ms = $sdo_ms
+# Bus fault detection is the vcan suite's subject, not this one's: here the bus timeouts are
+# set beyond any stall the emulation shows (60 s, the most the drives' 16-bit consumer time
+# holds rounded down), so no check depends on how late the emulated threads run.
+tpdo_missing_ticks = 15000
+heartbeat_timeout_ms = 60000
+drive_consumer_timeout_ms = 60000
+boot_timeout_ms = 60000
+enable_timeout_ms = 60000
+sdo_timeout_ms = 60000
 [api]
 listen = "127.0.0.1:50051"
 unix_socket = "/run/cncd/cncd.sock"
@@ -161,11 +146,14 @@ check "the vcan configuration passes --check-config" \
 # and systemd would restart it in the middle of the other checks. A drop-in WatchdogSec=0
 # turns it off; the watchdog check removes the drop-in, i.e. runs with the unit's 3 s.
 mkdir -p /etc/systemd/system/cncd.service.d
-printf '[Service]\nWatchdogSec=0\n' >/etc/systemd/system/cncd.service.d/50-vm.conf
+# The start-up of three drives over the emulated bus took 54 s once under load: the VM gives
+# the start 5 minutes instead of the unit's 60 s (the same drop-in).
+vm_dropin() { printf '[Service]\nWatchdogSec=0\nTimeoutStartSec=300\n' >/etc/systemd/system/cncd.service.d/50-vm.conf; }
+vm_dropin
 systemctl daemon-reload
 
 # --- start: active only after READY=1, i.e. once the drives are operational ----------------
-# Waits for a start are bounded by the unit's own TimeoutStartSec: beyond it systemd gives up.
+# Waits for a start are bounded by the unit's TimeoutStartSec (the VM's): beyond it systemd gives up.
 start_us=$(prop_us TimeoutStartUSec)
 start_s=$((${start_us:-60000000} / 1000000))
 info "the unit's TimeoutStartSec: ${start_s} s"
@@ -304,9 +292,10 @@ check "/tmp of the service is private (not the system's /tmp)" \
 # stop for the same rule and the same path runs; the "# watchdog:" line tells which happened.
 restarts0=$(prop NRestarts)
 mkdir -p /run/systemd/system/cncd.service.d
-# The unit's WatchdogSec=3s again, and the stall 1000 ticks after the start (after READY=1 in
+# The unit's WatchdogSec=3s again (the VM keeps only its longer start time), and the stall
+# 1000 ticks after the start (after READY=1 in
 # a fast machine; here emulation may stall it first: the journal line below tells).
-rm /etc/systemd/system/cncd.service.d/50-vm.conf
+printf '[Service]\nTimeoutStartSec=300\n' >/etc/systemd/system/cncd.service.d/50-vm.conf
 printf '[Service]\nEnvironment=CNCD_FAULT_STALL_RT_AFTER_TICKS=1000\n' \
     >/run/systemd/system/cncd.service.d/50-stall.conf
 systemctl daemon-reload
@@ -316,7 +305,7 @@ check "with the RT thread stalled systemd's watchdog fires" \
     wait_until 120 bash -c "journal_since $t0 | grep -q 'Watchdog timeout'"
 # Before the restart (RestartSec=5s): no knob, and the VM's watchdog setting again.
 rm /run/systemd/system/cncd.service.d/50-stall.conf
-printf '[Service]\nWatchdogSec=0\n' >/etc/systemd/system/cncd.service.d/50-vm.conf
+vm_dropin
 systemctl daemon-reload
 check "cncd said why first: 'real-time thread stalled'" \
     bash -c "journal_since $t0 | grep -B1000 'Watchdog timeout' | grep -q 'real-time thread stalled'"
