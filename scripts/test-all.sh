@@ -15,8 +15,8 @@ if [ -x tests/vcan/run.sh ]; then
 fi
 
 # After the vcan suite: its dev build of sim-can is reused, and its VM tools (qemu) are there.
-# On a fresh machine about 25 minutes (release build and root filesystem in parallel, then the
-# emulated VM); with the root filesystem cached in target/systemd-vm/ about 9 (deploy/README.md).
+# With the root filesystem and release build cached about 8-10 minutes; on a fresh machine
+# longer by the release build (the root filesystem is made in parallel); deploy/README.md.
 if [ "${CNC_SYSTEMD_VM:-1}" != 0 ] && [ -x tests/systemd-vm/run.sh ]; then
   echo "== systemd VM suite (the Debian package under a real systemd)"
   tests/systemd-vm/run.sh

@@ -144,7 +144,7 @@ check "the vcan configuration passes --check-config" \
 # Software emulation on a loaded host runs the vCPUs in bursts (the cyclictest probe above
 # shows wake-ups late by tens to hundreds of ms), so cncd could rightly judge itself stalled
 # and systemd would restart it in the middle of the other checks. A drop-in WatchdogSec=0
-# turns it off; the watchdog check removes the drop-in, i.e. runs with the unit's 3 s.
+# turns it off; the watchdog check drops that line, i.e. runs with the unit's 3 s.
 mkdir -p /etc/systemd/system/cncd.service.d
 # The start-up of three drives over the emulated bus took 54 s once under load: the VM gives
 # the start 5 minutes instead of the unit's 60 s (the same drop-in).
