@@ -149,8 +149,10 @@ log "building the Debian package (${CNC_DEB_PROFILE:-release}) and sim-can"
 DEB=$(deploy/build-deb.sh | tail -n 1)
 cargo build --locked -q -p sim -p daemon --bins
 T_BUILD=$(($(date +%s) - T1))
+IMAGE_BUILT=${IMAGE_PID:+built}
 wait_image
 T_IMAGE=$(($(date +%s) - T0))
+[ -n "$IMAGE_BUILT" ] && IMAGE_NOTE="image built in parallel, ready after $T_IMAGE s" || IMAGE_NOTE="image cached"
 WORK=$(mktemp -d /tmp/cnc-systemd-vm.XXXXXX)
 cp "$DEB" "$WORK/cncd-a.deb"
 # A second package with a higher version: the guest upgrades to it and rolls back.
@@ -191,7 +193,7 @@ grep -E '^(ok|not ok|#)' "$RESULTS" 2>/dev/null || true
 passed=$(grep -c '^ok ' "$RESULTS" 2>/dev/null || true)
 failed=$(grep -c '^not ok ' "$RESULTS" 2>/dev/null || true)
 T_ALL=$(($(date +%s) - T_START))
-log "image ready after $T_IMAGE s (package $T_BUILD s, in parallel), VM $T_VM s, total $T_ALL s"
+log "$IMAGE_NOTE; package $T_BUILD s, VM $T_VM s, total $T_ALL s"
 if ! grep -q '^GUEST-DONE' "$RESULTS" 2>/dev/null; then
     log "the guest did not finish; last console lines:"
     tail -n 40 "$CONSOLE" 2>/dev/null || true
