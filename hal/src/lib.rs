@@ -12,8 +12,9 @@ pub mod canopen;
 pub mod cia402;
 pub mod serial;
 
-/// Most axes a bus serves.
-pub const MAX_AXES: usize = 6;
+/// Most axes a bus serves: the kernel's axis count ([`kernel::MAX_AXES`]), defined once there
+/// because the setpoints a bus carries are the kernel's [`kernel::AxesMm`].
+pub use kernel::MAX_AXES;
 
 /// [`BusFault::axis`] of a fault of the spindle drive: faults name the spindle the way they
 /// name an axis (alarm texts say "spindle" where they say "axis X").

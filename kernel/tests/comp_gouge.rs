@@ -5,9 +5,9 @@
 //! blocks. Distances here are computed independently of the kernel (dense samples of the tool
 //! path against the exact programmed lines and arcs).
 
-mod comp_helpers;
+mod comp_common;
 
-use comp_helpers::*;
+use comp_common::*;
 use kernel::Severity;
 use kernel::block::{Block, Path, Plane};
 use kernel::comp::geom::V2;

@@ -5,12 +5,11 @@
 //! both neighbours. And a fuzzer: random, also invalid, block sequences never panic and never
 //! produce a NaN.
 
-#[path = "comp_helpers.rs"]
-mod helpers;
+mod comp_common;
 
 use std::f64::consts::{PI, TAU};
 
-use helpers::*;
+use comp_common::*;
 use kernel::Severity;
 use kernel::block::{ArcDir, Block, BlockKind, Comp, Continuity, Feed, Path, Plane, Spindle};
 use kernel::comp::geom::V2;

@@ -1,9 +1,8 @@
 //! One test per rule of SPEC §4 (radius compensation), on hand-built canonical blocks.
 
-#[path = "comp_helpers.rs"]
-mod helpers;
+mod comp_common;
 
-use helpers::*;
+use comp_common::*;
 use kernel::Severity;
 use kernel::block::{BlockKind, Path, Plane};
 use kernel::comp::geom::V2;

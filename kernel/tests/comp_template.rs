@@ -4,10 +4,9 @@
 //! point (mode R339 = 1: the guide says arcs are always inserted) and by the independent
 //! path checker (mode R339 = 0, intersections).
 
-#[path = "comp_helpers.rs"]
-mod helpers;
+mod comp_common;
 
-use helpers::*;
+use comp_common::*;
 use kernel::Severity;
 use kernel::block::{Block, Plane};
 use kernel::comp::geom::V2;

@@ -2,9 +2,10 @@
 
 use kernel::block::SpindleDir;
 use kernel::constants::Constants;
+use kernel::kr::config::gear_for_m_code;
 use kernel::kr::{
-    ControllingAxis, Gear, Kr, KrConfig, KrFault, KrInput, KrOutput, Motion, ProgramSpindle,
-    RadiusInput,
+    ControllingAxis, Gear, Kr, KrConfig, KrConfigError, KrFault, KrInput, KrOutput, KrVersion,
+    Motion, ProgramSpindle, RadiusInput,
 };
 use kernel::plc::{CellId, PlcArea, cntr};
 
@@ -24,16 +25,85 @@ fn gears() -> Vec<Gear> {
     ]
 }
 
-/// A lathe: X (axis 1, diameter) controls KŘR, Z is axis 2.
+/// A lathe: X (axis 1, diameter) controls KŘR (R67 = 1), Z is axis 2.
 fn lathe(r329: f64, r580: f64) -> Kr {
+    Kr::new(config(&lathe_constants(1.0, r329, r580), gears()).unwrap())
+}
+
+/// The lathe's constants: R0 = 1 (X), R1 = 3 (Z), R2 = 0 (no third axis).
+fn lathe_constants(r67: f64, r329: f64, r580: f64) -> Constants {
     let mut c = Constants::new();
-    c.set(0, 1.0); // R0: X
-    c.set(1, 3.0); // R1: Z
-    c.set(2, 0.0); // no third axis
-    c.set(67, 1.0); // X controls KŘR
+    c.set(0, 1.0);
+    c.set(1, 3.0);
+    c.set(2, 0.0);
+    c.set(67, r67);
     c.set(329, r329);
     c.set(580, r580);
-    Kr::new(KrConfig::from_constants(&c, RadiusInput::Diameter, gears()).unwrap())
+    c
+}
+
+fn config(c: &Constants, gears: Vec<Gear>) -> Result<KrConfig, KrConfigError> {
+    KrConfig::from_constants(c, RadiusInput::Diameter, gears)
+}
+
+#[test]
+fn config_reads_the_constants_and_the_gears() {
+    let k = config(&lathe_constants(1.0, 0.3, 0.001), gears()).unwrap();
+    assert_eq!(k.controlling_axis, 0);
+    assert_eq!(k.version, KrVersion::V2);
+    assert!(k.s_word.swap_g96_g97 && k.s_word.s_in_m_min);
+    assert_eq!(k.gear_for_m(44), Some(2));
+    assert_eq!(k.gear_for_m(42), None);
+    // Without a table the convention M41..M44 = ranges 1..4 holds.
+    assert_eq!(gear_for_m_code(&[], 43), Some(3));
+    assert_eq!(gear_for_m_code(&[], 45), None);
+    assert_eq!(k.gear(0).unwrap().max_rpm, 500.0);
+    assert!(k.gear(3).is_none());
+    // Z (code 3) is the second axis of this lathe.
+    assert_eq!(
+        config(&lathe_constants(3.0, 0.0, 0.0), gears())
+            .unwrap()
+            .controlling_axis,
+        1
+    );
+}
+
+#[test]
+fn config_refuses_bad_r67() {
+    let bad = |r67| config(&lathe_constants(r67, 0.0, 0.0), gears());
+    assert_eq!(bad(0.0), Err(KrConfigError::R67(0.0)));
+    // Y (code 2) is not an axis of this lathe.
+    assert_eq!(bad(2.0), Err(KrConfigError::R67(2.0)));
+    assert_eq!(bad(1.5), Err(KrConfigError::R67(1.5)));
+    assert_eq!(bad(10.0), Err(KrConfigError::R67(10.0)));
+}
+
+#[test]
+fn config_refuses_bad_gears() {
+    let c = lathe_constants(3.0, 0.0, 0.0);
+    let mut g = gears();
+    g[1].m_code = Some(41);
+    assert_eq!(
+        config(&c, g),
+        Err(KrConfigError::GearMCode {
+            first: 1,
+            second: 2,
+            m_code: 41
+        })
+    );
+    let mut g = gears();
+    g[0].output_range = 0x8000;
+    assert!(matches!(
+        config(&c, g),
+        Err(KrConfigError::GearOutputRange { gear: 1, .. })
+    ));
+    let mut g = gears();
+    g[1].max_rpm = 0.0;
+    assert!(matches!(
+        config(&c, g),
+        Err(KrConfigError::GearMaxRpm { gear: 2, .. })
+    ));
+    assert_eq!(config(&c, vec![]), Err(KrConfigError::NoGears));
 }
 
 struct Run {

@@ -34,6 +34,9 @@ wait_until() {
     done
 }
 prop() { systemctl show -P "$1" cncd.service; }
+# A time span property of the unit (e.g. TimeoutStartUSec, printed as "1min") in µs.
+# (The µs line reads "μs:" or "us:" depending on the locale.)
+prop_us() { systemd-analyze timespan "$(prop "$1")" 2>/dev/null | sed -n 's/^ *[^ ]*s: *\([0-9][0-9]*\)$/\1/p'; }
 is_state() { [ "$(prop ActiveState)" = "$1" ]; }
 mono_us() { awk '{printf "%d\n", $1 * 1000000}' /proc/uptime; }
 ctl() { timeout 120 cncctl --addr "$SOCK" "$@"; }
@@ -83,11 +86,21 @@ cp /usr/share/doc/cncd/examples/network/80-vcan0.netdev \
     /usr/share/doc/cncd/examples/network/80-vcan0.network /etc/systemd/network/
 systemctl restart systemd-networkd
 check "systemd-networkd brings vcan0 up from deploy/network/80-vcan0.*" \
-    wait_until 30 bash -c 'ip link show vcan0 2>/dev/null | grep -q "[<,]UP[,>]"'
+    wait_until 120 bash -c 'ip link show vcan0 2>/dev/null | grep -q "[<,]UP[,>]"'
 info "$(ip -details link show vcan0 | head -n 3 | tr -s ' ' | tr '\n' ' ')"
 
+# --- how late this VM wakes a 4 ms real-time thread (a figure for the results) -------------
+# Emulation on a loaded host wakes periodic threads late, and cncd and sim-can both run here.
+# A first version derived the bus timeouts from this probe (10 x (4 ms + 2 x max)); under a
+# load of 18 on the 2-core host a 31 ms probe maximum gave 680 ms, and a later stall faulted
+# the drives: a 10 s sample does not bound the stalls of a 5-minute run. So this suite takes
+# the bus timeouts out of play instead (below) and only reports the probe.
+probe=$(cyclictest -q -m -p 80 -i 4000 -D 10 2>&1)
+late_us=$(sed -n 's/.*Max: *\([0-9]*\).*/\1/p' <<<"$probe" | sort -n | tail -n 1)
+info "VM wake-up lateness of a 4 ms SCHED_FIFO thread (cyclictest 10 s): max ${late_us:-?} us"
+
 # The admin's configuration: three CiA 402 drives on vcan0 (the conffile, edited).
-cat >/etc/cncd/cncd.toml <<'EOF'
+cat >/etc/cncd/cncd.toml <<'CONF'
 # edited by the systemd VM suite
 [[axes]]
 name = "X"
@@ -104,13 +117,15 @@ increments_per_mm = 10000
 [bus]
 kind = "can"
 interface = "vcan0"
-# The emulated VM runs late ticks: bus timeouts with room for that.
-tpdo_missing_ticks = 250
-heartbeat_timeout_ms = 5000
-drive_consumer_timeout_ms = 5000
-boot_timeout_ms = 20000
-enable_timeout_ms = 20000
-sdo_timeout_ms = 2000
+# Bus fault detection is the vcan suite's subject, not this one's: here the bus timeouts are
+# set beyond any stall the emulation shows (60 s, the most the drives' 16-bit consumer time
+# holds rounded down), so no check depends on how late the emulated threads run.
+tpdo_missing_ticks = 15000
+heartbeat_timeout_ms = 60000
+drive_consumer_timeout_ms = 60000
+boot_timeout_ms = 60000
+enable_timeout_ms = 60000
+sdo_timeout_ms = 60000
 [api]
 listen = "127.0.0.1:50051"
 unix_socket = "/run/cncd/cncd.sock"
@@ -119,21 +134,32 @@ dir = "/var/lib/cncd"
 [rt]
 priority = 80
 lock_memory = true
-EOF
+CONF
 check "the vcan configuration passes --check-config" \
     cncd --check-config --config /etc/cncd/cncd.toml
 
-# Software emulation on a shared host cannot hold the 4 ms period: cncd judges itself stalled
-# (fewer than half the ticks due) and the watchdog restarts it again and again. So the VM runs
-# without the watchdog, except in the watchdog check below, which restores the unit's value.
+# The watchdog is off in this VM except in its own check below. Why: cncd pings WATCHDOG=1 every
+# 1.5 s only if the real-time thread made at least half of the 4 ms ticks due in that time
+# (daemon/src/runtime/systemd.rs); a tick that wakes more than a period late skips its deadline.
+# Software emulation on a loaded host runs the vCPUs in bursts (the cyclictest probe above
+# shows wake-ups late by tens to hundreds of ms), so cncd could rightly judge itself stalled
+# and systemd would restart it in the middle of the other checks. A drop-in WatchdogSec=0
+# turns it off; the watchdog check drops that line, i.e. runs with the unit's 3 s.
 mkdir -p /etc/systemd/system/cncd.service.d
-printf '[Service]\nWatchdogSec=0\n' >/etc/systemd/system/cncd.service.d/50-vm.conf
+# The start-up of three drives over the emulated bus took 54 s once under load: the VM gives
+# the start 5 minutes instead of the unit's 60 s (the same drop-in).
+vm_dropin() { printf '[Service]\nWatchdogSec=0\nTimeoutStartSec=300\n' >/etc/systemd/system/cncd.service.d/50-vm.conf; }
+vm_dropin
 systemctl daemon-reload
 
 # --- start: active only after READY=1, i.e. once the drives are operational ----------------
+# Waits for a start are bounded by the unit's TimeoutStartSec (the VM's): beyond it systemd gives up.
+start_us=$(prop_us TimeoutStartUSec)
+start_s=$((${start_us:-60000000} / 1000000))
+info "the unit's TimeoutStartSec: ${start_s} s"
 systemctl start --no-block cncd
 check "without drives on the bus cncd stays activating, status 'enabling drives'" \
-    wait_until 60 bash -c '[ "$(systemctl show -P StatusText cncd)" = "enabling drives" ] &&
+    wait_until "$start_s" bash -c '[ "$(systemctl show -P StatusText cncd)" = "enabling drives" ] &&
                            [ "$(systemctl show -P ActiveState cncd)" = activating ]'
 sleep 2
 check "still activating 2 s later (no READY=1 without operational drives)" is_state activating
@@ -141,7 +167,7 @@ systemd-run --quiet --unit=sim-can --property=Type=exec \
     "$S/sim-can" --iface vcan0 --node 1 --node 2 --node 3
 sim_at=$(systemctl show -P ExecMainStartTimestampMonotonic sim-can.service)
 check "cncd becomes active (running) once sim-can's drives are operational" \
-    wait_until 60 is_state active
+    wait_until "$start_s" is_state active
 active_at=$(prop ActiveEnterTimestampMonotonic)
 check "active only after the drives appeared (active at ${active_at} us > sim-can start ${sim_at} us)" \
     [ "$active_at" -gt "$sim_at" ]
@@ -178,13 +204,16 @@ check "the machine is idle afterwards" bash -c "cncctl --addr $SOCK status | gre
 # --- stop with a status stream open ---------------------------------------------------------
 cncctl --addr "$SOCK" --json status --watch --rate 10 >/root/watch.jsonl 2>/root/watch.err &
 watch_pid=$!
-wait_until 30 test -s /root/watch.jsonl
+wait_until 120 test -s /root/watch.jsonl
 t0=$(mono_us)
 systemctl stop cncd
 t1=$(mono_us)
 stop_ms=$(((t1 - t0) / 1000))
 info "systemctl stop with a status stream open: ${stop_ms} ms (TimeoutStopSec=$(prop TimeoutStopUSec))"
-check "systemctl stop ends within the unit's timeout" [ "$stop_ms" -lt 30000 ]
+# The unit's own TimeoutStopSec (systemd prints it as a time span), not a guess.
+stop_limit_us=$(prop_us TimeoutStopUSec)
+stop_within_limit() { [ -n "$stop_limit_us" ] && [ "$((stop_ms * 1000))" -lt "$stop_limit_us" ]; }
+check "systemctl stop ends within the unit's TimeoutStopSec (${stop_limit_us:-?} us)" stop_within_limit
 check "cncd exited by itself with status 0 (Result=success)" \
     bash -c '[ "$(systemctl show -P Result cncd)" = success ] &&
              [ "$(systemctl show -P ExecMainStatus cncd)" = 0 ]'
@@ -193,7 +222,7 @@ check "the journal of the stop is there (Stopping ... Stopped)" \
 check "no SIGKILL and no stop timeout in the journal" \
     bash -c "! journal_since $t0 | grep -Ei 'sigkill|timed out|killing'"
 check "the open status stream ended with the stop" \
-    wait_until 10 bash -c "! kill -0 $watch_pid 2>/dev/null"
+    wait_until 120 bash -c "! kill -0 $watch_pid 2>/dev/null"
 wait "$watch_pid"
 watch_rc=$?
 info "cncctl status --watch: exit $watch_rc, $(wc -l </root/watch.jsonl) status lines, stderr: $(head -c 300 /root/watch.err)"
@@ -202,9 +231,13 @@ rest_exit=$(journal_since "$t0" | awk '
     { ts = $0; sub(/^\[ */, "", ts); sub(/\].*/, "", ts) }
     /axis at rest/ { rest = ts }
     /cncd stopped/ { if (rest) printf "%d", (ts - rest) * 1000 }')
-info "from the axes at rest to 'cncd stopped': ${rest_exit:-?} ms"
-check "cncd stopped within 1 s after the axes were at rest" \
-    [ -n "$rest_exit" ] && [ "${rest_exit:-9999}" -le 1000 ]
+info "from the axes at rest to 'cncd stopped': ${rest_exit:-?} ms (emulated; the API drains 500 ms at most)"
+# What the stop must show, without a timing: cncd exits after the axes are at rest, and the
+# open stream ended because SIGTERM ended it, not because the API cut it at the drain time.
+check "cncd stopped after every axis was at rest" \
+    bash -c "journal_since $t0 | awk '/axis at rest/ && !stopped { n++ } /cncd stopped/ { stopped = 1 } END { exit !(stopped && n >= 3) }'"
+check "no API call was still open at the drain time (the stream ended on SIGTERM)" \
+    bash -c "journal_since $t0 | grep -q 'cncd stopped' && ! journal_since $t0 | grep -q 'API calls still open after the drain time'"
 
 # --- structured journal fields --------------------------------------------------------------
 fields=$(journalctl -u cncd CNC_AXIS=X -o verbose --no-pager 2>&1)
@@ -216,7 +249,7 @@ check "events carry the block number (CNC_BLOCK) and job (CNC_JOB)" \
 
 # --- hardening ------------------------------------------------------------------------------
 systemctl start cncd
-wait_until 60 is_state active
+wait_until "$start_s" is_state active
 pid=$(prop MainPID)
 info "hardening checks on cncd pid $pid"
 sec=$(systemd-analyze security cncd.service --no-pager 2>&1)
@@ -248,11 +281,21 @@ check "/tmp of the service is private (not the system's /tmp)" \
     bash -c "touch /tmp/.host-side && ! nsenter -t $pid -m test -e /tmp/.host-side; rc=\$?; rm -f /tmp/.host-side; exit \$rc"
 
 # --- watchdog: a stalled real-time thread makes systemd restart cncd -------------------------
+# What this proves: with the unit's WatchdogSec=3s, a real-time thread that stops ticking
+# (the fault injection knob blocks it inside the bus cycle after 1000 ticks, as a wedged bus
+# driver would) makes cncd withhold its pings and say why in the journal, systemd's watchdog
+# aborts the process, Restart=on-failure starts it again, and the machine runs a program again.
+# What it cannot prove here: that a machine holding its 4 ms period keeps the pings going
+# (emulation cannot hold 4 ms; the ping rule is unit-tested without a clock, `judge` in
+# daemon/src/runtime/systemd.rs, and the pings against a fake NOTIFY_SOCKET on the host in
+# tests/tests/systemd_notify.rs). If emulation falls below half the ticks before the knob fires, the pings
+# stop for the same rule and the same path runs; the "# watchdog:" line tells which happened.
 restarts0=$(prop NRestarts)
 mkdir -p /run/systemd/system/cncd.service.d
-# The unit's WatchdogSec=3s again, and the stall 1000 ticks after the start (after READY=1 in
+# The unit's WatchdogSec=3s again (the VM keeps only its longer start time), and the stall
+# 1000 ticks after the start (after READY=1 in
 # a fast machine; here emulation may stall it first: the journal line below tells).
-rm /etc/systemd/system/cncd.service.d/50-vm.conf
+printf '[Service]\nTimeoutStartSec=300\n' >/etc/systemd/system/cncd.service.d/50-vm.conf
 printf '[Service]\nEnvironment=CNCD_FAULT_STALL_RT_AFTER_TICKS=1000\n' \
     >/run/systemd/system/cncd.service.d/50-stall.conf
 systemctl daemon-reload
@@ -262,7 +305,7 @@ check "with the RT thread stalled systemd's watchdog fires" \
     wait_until 120 bash -c "journal_since $t0 | grep -q 'Watchdog timeout'"
 # Before the restart (RestartSec=5s): no knob, and the VM's watchdog setting again.
 rm /run/systemd/system/cncd.service.d/50-stall.conf
-printf '[Service]\nWatchdogSec=0\n' >/etc/systemd/system/cncd.service.d/50-vm.conf
+vm_dropin
 systemctl daemon-reload
 check "cncd said why first: 'real-time thread stalled'" \
     bash -c "journal_since $t0 | grep -B1000 'Watchdog timeout' | grep -q 'real-time thread stalled'"

@@ -236,104 +236,21 @@ fn version_of(c: &Constants) -> Result<KrVersion, KrConfigError> {
 mod tests {
     use super::*;
 
-    fn gears() -> Vec<Gear> {
-        vec![
-            Gear {
-                max_rpm: 500.0,
-                output_range: 0x7FFF,
-                m_code: Some(41),
-            },
-            Gear {
-                max_rpm: 2000.0,
-                output_range: 0x6000,
-                m_code: Some(44),
-            },
-        ]
-    }
-
-    /// A lathe: R0 = 1 (X), R1 = 3 (Z), R2 = 0 (no third axis).
-    fn consts(r67: f64, r329: f64, r580: f64) -> Constants {
+    // The configuration read through the public API (with the manual's gear example) is
+    // tested in kernel/tests/kr_examples.rs; here only what is private.
+    fn consts_r580(r580: f64) -> Constants {
         let mut c = Constants::new();
-        c.set(0, 1.0);
-        c.set(1, 3.0);
-        c.set(2, 0.0);
-        c.set(67, r67);
-        c.set(329, r329);
         c.set(580, r580);
         c
     }
 
-    fn cfg(c: &Constants, gears: Vec<Gear>) -> Result<KrConfig, KrConfigError> {
-        KrConfig::from_constants(c, RadiusInput::Diameter, gears)
-    }
-
-    #[test]
-    fn reads_constants() {
-        let k = cfg(&consts(1.0, 0.3, 0.001), gears()).unwrap();
-        assert_eq!(k.controlling_axis, 0);
-        assert_eq!(k.version, KrVersion::V2);
-        assert!(k.s_word.swap_g96_g97 && k.s_word.s_in_m_min);
-        assert_eq!(k.gear_for_m(44), Some(2));
-        assert_eq!(k.gear_for_m(42), None);
-        // Without a table the convention M41..M44 = ranges 1..4 holds.
-        assert_eq!(gear_for_m_code(&[], 43), Some(3));
-        assert_eq!(gear_for_m_code(&[], 45), None);
-        assert_eq!(k.gear(0).unwrap().max_rpm, 500.0);
-        assert!(k.gear(3).is_none());
-        // Z (code 3) is the second axis of this lathe.
-        assert_eq!(
-            cfg(&consts(3.0, 0.0, 0.0), gears())
-                .unwrap()
-                .controlling_axis,
-            1
-        );
-    }
-
     #[test]
     fn r580_versions() {
-        let v = |r580| version_of(&consts(1.0, 0.0, r580));
+        let v = |r580| version_of(&consts_r580(r580));
         assert_eq!(v(0.0), Ok(KrVersion::Old));
         assert_eq!(v(0.001), Ok(KrVersion::V2));
         assert_eq!(v(1.0), Ok(KrVersion::V2));
         assert_eq!(v(0.002), Err(KrConfigError::R580(0.002)));
         assert_eq!(v(10.0), Err(KrConfigError::R580(10.0)));
-    }
-
-    #[test]
-    fn refuses_bad_r67() {
-        let bad = |r67| cfg(&consts(r67, 0.0, 0.0), gears());
-        assert_eq!(bad(0.0), Err(KrConfigError::R67(0.0)));
-        // Y (code 2) is not an axis of this lathe.
-        assert_eq!(bad(2.0), Err(KrConfigError::R67(2.0)));
-        assert_eq!(bad(1.5), Err(KrConfigError::R67(1.5)));
-        assert_eq!(bad(10.0), Err(KrConfigError::R67(10.0)));
-    }
-
-    #[test]
-    fn refuses_bad_gears() {
-        let c = consts(3.0, 0.0, 0.0);
-        let mut g = gears();
-        g[1].m_code = Some(41);
-        assert_eq!(
-            cfg(&c, g),
-            Err(KrConfigError::GearMCode {
-                first: 1,
-                second: 2,
-                m_code: 41
-            })
-        );
-        let mut g = gears();
-        g[0].output_range = 0x8000;
-        assert!(matches!(
-            cfg(&c, g),
-            Err(KrConfigError::GearOutputRange { gear: 1, .. })
-        ));
-        let mut g = gears();
-        g[1].max_rpm = 0.0;
-        assert!(matches!(
-            cfg(&c, g),
-            Err(KrConfigError::GearMaxRpm { gear: 2, .. })
-        ));
-        assert_eq!(cfg(&c, vec![]), Err(KrConfigError::NoGears));
     }
 }

@@ -1,4 +1,5 @@
-//! Shared helpers of the `comp_*` tests: a builder of canonical blocks (the interpreter's
+//! Shared helpers of the `comp_*` tests (a module of each, not a test binary of its own: the
+//! `plan_common/` pattern): a builder of canonical blocks (the interpreter's
 //! output) and an independent checker of the tool-centre path.
 #![allow(dead_code)]
 
@@ -327,23 +328,65 @@ pub fn check_continuous(out: &[CompBlock]) -> Result<(), String> {
     Ok(())
 }
 
-/// Distance from `q` to a programmed line or arc (plane G17).
-pub fn dist_to_block(q: V2, b: &Block, plane: Plane) -> f64 {
+/// Signed sweep (rad) of an arc from angle `from` to angle `to` in its direction; an arc
+/// whose ends meet sweeps a full turn when `closed_is_full_turn`, else nothing.
+fn arc_sweep(from: f64, to: f64, ccw: bool, closed_is_full_turn: bool) -> f64 {
+    let mut sweep = to - from;
+    let full = closed_is_full_turn;
+    while ccw && (sweep < 0.0 || (full && sweep == 0.0)) {
+        sweep += std::f64::consts::TAU;
+    }
+    while !ccw && (sweep > 0.0 || (full && sweep == 0.0)) {
+        sweep -= std::f64::consts::TAU;
+    }
+    sweep
+}
+
+/// An arc in a plane: centre, radius, start angle and signed sweep (rad).
+struct PlaneArc {
+    c: V2,
+    rho: f64,
+    a0: f64,
+    sweep: f64,
+    ccw: bool,
+}
+
+/// A motion's ends in `plane`, and its arc if it is one (see [`arc_sweep`] for
+/// `closed_is_full_turn`).
+fn plane_motion(b: &Block, plane: Plane, closed_is_full_turn: bool) -> (V2, V2, Option<PlaneArc>) {
     let (s, e, path) = b.motion().expect("motion");
     let (a, bb) = (V2::of(&s, plane), V2::of(&e, plane));
-    match path {
-        Path::Arc { dir, center, .. } => {
-            let c = V2::of(&center, plane);
-            let rho = a.dist(c);
-            let a0 = (a - c).angle();
-            let mut sweep = (bb - c).angle() - a0;
-            let ccw = dir == ArcDir::Ccw;
-            while ccw && sweep <= 0.0 {
-                sweep += std::f64::consts::TAU;
-            }
-            while !ccw && sweep >= 0.0 {
-                sweep -= std::f64::consts::TAU;
-            }
+    let Path::Arc { dir, center, .. } = path else {
+        return (a, bb, None);
+    };
+    let c = V2::of(&center, plane);
+    let a0 = (a - c).angle();
+    let ccw = dir == ArcDir::Ccw;
+    let sweep = arc_sweep(a0, (bb - c).angle(), ccw, closed_is_full_turn);
+    let arc = PlaneArc {
+        c,
+        rho: a.dist(c),
+        a0,
+        sweep,
+        ccw,
+    };
+    (a, bb, Some(arc))
+}
+
+/// Distance from `q` to a programmed line or arc (plane G17).
+pub fn dist_to_block(q: V2, b: &Block, plane: Plane) -> f64 {
+    match plane_motion(b, plane, true) {
+        (
+            a,
+            bb,
+            Some(PlaneArc {
+                c,
+                rho,
+                a0,
+                sweep,
+                ccw,
+            }),
+        ) => {
             let mut t = (q - c).angle() - a0;
             // Angle of q measured along the arc's direction, in [0, 2π).
             if !ccw {
@@ -356,7 +399,7 @@ pub fn dist_to_block(q: V2, b: &Block, plane: Plane) -> f64 {
                 q.dist(a).min(q.dist(bb))
             }
         }
-        _ => {
+        (a, bb, None) => {
             let d = bb - a;
             let t = ((q - a).dot(d) / d.dot(d)).clamp(0.0, 1.0);
             q.dist(a + d * t)
@@ -366,27 +409,20 @@ pub fn dist_to_block(q: V2, b: &Block, plane: Plane) -> f64 {
 
 /// Points along an output motion, at most `step_mm` apart.
 pub fn samples(b: &Block, step_mm: f64, plane: Plane) -> Vec<V2> {
-    let (s, e, path) = b.motion().expect("motion");
-    let (a, bb) = (V2::of(&s, plane), V2::of(&e, plane));
-    match path {
-        Path::Arc { dir, center, .. } => {
-            let c = V2::of(&center, plane);
-            let rho = a.dist(c);
-            let a0 = (a - c).angle();
-            let mut sweep = (bb - c).angle() - a0;
-            let ccw = dir == ArcDir::Ccw;
-            while ccw && sweep < 0.0 {
-                sweep += std::f64::consts::TAU;
-            }
-            while !ccw && sweep > 0.0 {
-                sweep -= std::f64::consts::TAU;
-            }
+    match plane_motion(b, plane, false) {
+        (
+            _,
+            _,
+            Some(PlaneArc {
+                c, rho, a0, sweep, ..
+            }),
+        ) => {
             let n = ((sweep.abs() * rho / step_mm).ceil() as usize).max(1);
             (0..=n)
                 .map(|k| c + V2::from_angle(a0 + sweep * k as f64 / n as f64) * rho)
                 .collect()
         }
-        _ => {
+        (a, bb, None) => {
             let n = ((a.dist(bb) / step_mm).ceil() as usize).max(1);
             (0..=n)
                 .map(|k| a + (bb - a) * (k as f64 / n as f64))
