@@ -206,6 +206,13 @@ impl Constants {
         let mut bad = |r: u16, msg: String| {
             out.push(Diagnostic::error(None, 0, 0, format!("R{r}: {msg}")));
         };
+        self.check_axes(&mut bad);
+        self.check_modes(&mut bad);
+        out
+    }
+
+    /// R0..R5 (axis codes) and R67 (controlling axis of constant cutting speed).
+    fn check_axes(&self, bad: &mut impl FnMut(u16, String)) {
         // R0..R5: axis codes, no gaps, no repeats.
         let mut seen = Vec::new();
         let mut ended = false;
@@ -242,6 +249,11 @@ impl Constants {
                 ),
             ),
         }
+    }
+
+    /// Tolerances, acceleration and the mode decades (R52, R55, R97, R325, R329, R338, R339,
+    /// R580): one check per constant, in the manual's order.
+    fn check_modes(&self, bad: &mut impl FnMut(u16, String)) {
         if self.milli_of(55) < 0 {
             bad(55, "arc tolerance cannot be negative".into());
         }
@@ -299,7 +311,6 @@ impl Constants {
                 ),
             );
         }
-        out
     }
 
     // ---- the constants file -------------------------------------------------------------------
