@@ -411,8 +411,30 @@ fn first_char(t: &str) -> char {
     t.chars().next().unwrap_or(' ')
 }
 
+/// Why a constant's value is not `±xxxxx.xxx` (the text as written is kept for the message).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum FixedValueError {
+    #[error("'{0}' is not a number of the form ±xxxxx.xxx")]
+    NotANumber(String),
+    #[error("'{0}' has more than 5 digits before the decimal point")]
+    TooManyDigits(String),
+    #[error("'{0}' has more than 3 decimals (constants are ±xxxxx.xxx)")]
+    TooManyDecimals(String),
+}
+
+impl FixedValueError {
+    /// Stable code (tests and HMIs match it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            FixedValueError::NotANumber(_) => "constant_not_a_number",
+            FixedValueError::TooManyDigits(_) => "constant_too_many_digits",
+            FixedValueError::TooManyDecimals(_) => "constant_too_many_decimals",
+        }
+    }
+}
+
 /// Parses `±xxxxx.xxx` exactly into thousandths (no floating point on the way).
-pub fn parse_fixed_milli(v: &str) -> Result<i64, String> {
+pub fn parse_fixed_milli(v: &str) -> Result<i64, FixedValueError> {
     let (neg, body) = match v.as_bytes().first() {
         Some(b'-') => (true, &v[1..]),
         Some(b'+') => (false, &v[1..]),
@@ -424,17 +446,13 @@ pub fn parse_fixed_milli(v: &str) -> Result<i64, String> {
     };
     let digits_ok = |s: &str| s.bytes().all(|c| c.is_ascii_digit());
     if int.is_empty() && frac.is_empty() || !digits_ok(int) || !digits_ok(frac) {
-        return Err(format!("'{v}' is not a number of the form ±xxxxx.xxx"));
+        return Err(FixedValueError::NotANumber(v.to_string()));
     }
     if int.len() > 5 && int.trim_start_matches('0').len() > 5 {
-        return Err(format!(
-            "'{v}' has more than 5 digits before the decimal point"
-        ));
+        return Err(FixedValueError::TooManyDigits(v.to_string()));
     }
     if frac.len() > 3 {
-        return Err(format!(
-            "'{v}' has more than 3 decimals (constants are ±xxxxx.xxx)"
-        ));
+        return Err(FixedValueError::TooManyDecimals(v.to_string()));
     }
     let int_v: i64 = if int.is_empty() {
         0

@@ -41,7 +41,7 @@ fn main() {
     let args = match SimArgs::parse(std::env::args().skip(1)) {
         Ok(a) if !a.link.is_empty() => a,
         Ok(_) => fail("give --link PATH"),
-        Err(e) => fail(&e),
+        Err(e) => fail(&e.to_string()),
     };
     let drives = (0..args.axes).map(|_| args.drive()).collect();
     let mut unit = SerialDriveUnit::new(drives);
