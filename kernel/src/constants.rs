@@ -206,6 +206,13 @@ impl Constants {
         let mut bad = |r: u16, msg: String| {
             out.push(Diagnostic::error(None, 0, 0, format!("R{r}: {msg}")));
         };
+        self.check_axes(&mut bad);
+        self.check_modes(&mut bad);
+        out
+    }
+
+    /// R0..R5 (axis codes) and R67 (controlling axis of constant cutting speed).
+    fn check_axes(&self, bad: &mut impl FnMut(u16, String)) {
         // R0..R5: axis codes, no gaps, no repeats.
         let mut seen = Vec::new();
         let mut ended = false;
@@ -242,6 +249,11 @@ impl Constants {
                 ),
             ),
         }
+    }
+
+    /// Tolerances, acceleration and the mode decades (R52, R55, R97, R325, R329, R338, R339,
+    /// R580): one check per constant, in the manual's order.
+    fn check_modes(&self, bad: &mut impl FnMut(u16, String)) {
         if self.milli_of(55) < 0 {
             bad(55, "arc tolerance cannot be negative".into());
         }
@@ -299,7 +311,6 @@ impl Constants {
                 ),
             );
         }
-        out
     }
 
     // ---- the constants file -------------------------------------------------------------------
@@ -400,8 +411,30 @@ fn first_char(t: &str) -> char {
     t.chars().next().unwrap_or(' ')
 }
 
+/// Why a constant's value is not `±xxxxx.xxx` (the text as written is kept for the message).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum FixedValueError {
+    #[error("'{0}' is not a number of the form ±xxxxx.xxx")]
+    NotANumber(String),
+    #[error("'{0}' has more than 5 digits before the decimal point")]
+    TooManyDigits(String),
+    #[error("'{0}' has more than 3 decimals (constants are ±xxxxx.xxx)")]
+    TooManyDecimals(String),
+}
+
+impl FixedValueError {
+    /// Stable code (tests and HMIs match it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            FixedValueError::NotANumber(_) => "constant_not_a_number",
+            FixedValueError::TooManyDigits(_) => "constant_too_many_digits",
+            FixedValueError::TooManyDecimals(_) => "constant_too_many_decimals",
+        }
+    }
+}
+
 /// Parses `±xxxxx.xxx` exactly into thousandths (no floating point on the way).
-pub fn parse_fixed_milli(v: &str) -> Result<i64, String> {
+pub fn parse_fixed_milli(v: &str) -> Result<i64, FixedValueError> {
     let (neg, body) = match v.as_bytes().first() {
         Some(b'-') => (true, &v[1..]),
         Some(b'+') => (false, &v[1..]),
@@ -413,17 +446,13 @@ pub fn parse_fixed_milli(v: &str) -> Result<i64, String> {
     };
     let digits_ok = |s: &str| s.bytes().all(|c| c.is_ascii_digit());
     if int.is_empty() && frac.is_empty() || !digits_ok(int) || !digits_ok(frac) {
-        return Err(format!("'{v}' is not a number of the form ±xxxxx.xxx"));
+        return Err(FixedValueError::NotANumber(v.to_string()));
     }
     if int.len() > 5 && int.trim_start_matches('0').len() > 5 {
-        return Err(format!(
-            "'{v}' has more than 5 digits before the decimal point"
-        ));
+        return Err(FixedValueError::TooManyDigits(v.to_string()));
     }
     if frac.len() > 3 {
-        return Err(format!(
-            "'{v}' has more than 3 decimals (constants are ±xxxxx.xxx)"
-        ));
+        return Err(FixedValueError::TooManyDecimals(v.to_string()));
     }
     let int_v: i64 = if int.is_empty() {
         0

@@ -83,7 +83,7 @@ impl OffsetTable {
     }
 
     /// Replaces the whole entry `n`.
-    pub fn set_entry(&mut self, n: u8, e: OffsetEntry) -> Result<(), String> {
+    pub fn set_entry(&mut self, n: u8, e: OffsetEntry) -> Result<(), OffsetError> {
         check_entry(n)?;
         for v in e.values() {
             check_value(v)?;
@@ -94,7 +94,7 @@ impl OffsetTable {
 
     /// Applies an edit: the values present overwrite, the others stay. All-or-nothing: a bad
     /// entry number or value leaves the table unchanged.
-    pub fn apply(&mut self, edit: &TableEdit) -> Result<(), String> {
+    pub fn apply(&mut self, edit: &TableEdit) -> Result<(), OffsetError> {
         check_entry(edit.entry)?;
         for v in edit.values.iter().flatten() {
             check_value(*v)?;
@@ -118,21 +118,38 @@ impl OffsetTable {
     }
 }
 
-fn check_entry(n: u8) -> Result<(), String> {
-    if (1..=ENTRIES).contains(&n) {
-        Ok(())
-    } else {
-        Err(format!(
-            "offset entry {n} does not exist: entries are 01..99"
-        ))
+/// Why an edit of the offset table was refused (the table is left unchanged).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum OffsetError {
+    #[error("offset entry {0} does not exist: entries are 01..99")]
+    NoEntry(u8),
+    #[error("offset value {0} is outside ±{max} mm", max = MAX_VALUE_MM)]
+    ValueOutOfRange(f64),
+}
+
+impl OffsetError {
+    /// Stable code (tests and HMIs match it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            OffsetError::NoEntry(_) => "offset_no_entry",
+            OffsetError::ValueOutOfRange(_) => "offset_value_out_of_range",
+        }
     }
 }
 
-fn check_value(v: f64) -> Result<(), String> {
+fn check_entry(n: u8) -> Result<(), OffsetError> {
+    if (1..=ENTRIES).contains(&n) {
+        Ok(())
+    } else {
+        Err(OffsetError::NoEntry(n))
+    }
+}
+
+fn check_value(v: f64) -> Result<(), OffsetError> {
     if v.is_finite() && v.abs() <= MAX_VALUE_MM {
         Ok(())
     } else {
-        Err(format!("offset value {v} is outside ±{MAX_VALUE_MM} mm"))
+        Err(OffsetError::ValueOutOfRange(v))
     }
 }
 
@@ -397,7 +414,7 @@ fn parse_value(v: &str) -> Result<f64, String> {
         return Err(format!("beyond ±{MAX_VALUE_MM} mm"));
     }
     let x: f64 = v.parse().map_err(|_| "not a number".to_string())?;
-    check_value(x)?;
+    check_value(x).map_err(|e| e.to_string())?;
     Ok(x)
 }
 

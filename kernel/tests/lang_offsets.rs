@@ -119,11 +119,14 @@ fn edits_change_only_the_values_present_and_bad_edits_nothing() {
         entry: 100,
         values: [Some(1.0); 5],
     };
-    assert!(t2.apply(&bad).is_err());
+    let refused = t2.apply(&bad).unwrap_err();
+    assert_eq!(refused, offsets::OffsetError::NoEntry(100));
+    assert_eq!(refused.code(), "offset_no_entry");
     let bad = TableEdit {
         entry: 1,
         values: [Some(1.0), Some(f64::NAN), None, None, None],
     };
-    assert!(t2.apply(&bad).is_err());
+    let refused = t2.apply(&bad).unwrap_err();
+    assert_eq!(refused.code(), "offset_value_out_of_range");
     assert_eq!(t2, before, "a refused edit changes nothing");
 }

@@ -35,20 +35,45 @@ pub enum Command {
     Quit,
 }
 
-fn on_off(w: Option<&str>) -> Result<bool, String> {
-    match w {
-        Some("on") => Ok(true),
-        Some("off") => Ok(false),
-        _ => Err("expected on or off".into()),
+/// Why a fault-injection line was not understood.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum CommandError {
+    #[error("expected on or off")]
+    ExpectedOnOff,
+    #[error("bad node '{0}'")]
+    BadNode(String),
+    #[error("expected a hex error code")]
+    ExpectedHexCode,
+    #[error("unknown command '{0}'")]
+    Unknown(String),
+}
+
+impl CommandError {
+    /// Stable code (tests match it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            CommandError::ExpectedOnOff => "sim_expected_on_off",
+            CommandError::BadNode(_) => "sim_bad_node",
+            CommandError::ExpectedHexCode => "sim_expected_hex_code",
+            CommandError::Unknown(_) => "sim_unknown_command",
+        }
     }
 }
 
-fn node(w: Option<&str>) -> Result<Option<u8>, String> {
-    w.map(|s| s.parse().map_err(|_| format!("bad node '{s}'")))
+fn on_off(w: Option<&str>) -> Result<bool, CommandError> {
+    match w {
+        Some("on") => Ok(true),
+        Some("off") => Ok(false),
+        _ => Err(CommandError::ExpectedOnOff),
+    }
+}
+
+fn node(w: Option<&str>) -> Result<Option<u8>, CommandError> {
+    w.map(|s| s.parse().map_err(|_| CommandError::BadNode(s.to_string())))
         .transpose()
 }
 
-pub fn parse(line: &str) -> Result<Command, String> {
+pub fn parse(line: &str) -> Result<Command, CommandError> {
     let mut w = line.split_whitespace();
     let cmd = w.next().unwrap_or("");
     let a = w.next();
@@ -60,14 +85,14 @@ pub fn parse(line: &str) -> Result<Command, String> {
         "fault" => {
             let code = a
                 .and_then(|s| u16::from_str_radix(s.trim_end_matches('h'), 16).ok())
-                .ok_or("expected a hex error code")?;
+                .ok_or(CommandError::ExpectedHexCode)?;
             Command::Fault(code, node(b)?)
         }
         "unplug" => Command::Unplug,
         "plug" => Command::Plug,
         "state" => Command::State,
         "quit" => Command::Quit,
-        _ => return Err(format!("unknown command '{cmd}'")),
+        _ => return Err(CommandError::Unknown(cmd.to_string())),
     })
 }
 
@@ -124,8 +149,46 @@ pub const USAGE: &str = "options: --iface IF --node N (repeatable) | --link PATH
     [--spindle]; --increments-per-mm F --start-mm F --kv F --v-max-mm-s F --window-mm F \
     --units-per-rpm F --ramp-rpm-s F --home-switch-mm F";
 
+/// Why the simulator's command line was refused (each message ends the simulator).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ArgsError {
+    #[error("{0} needs a value")]
+    MissingValue(String),
+    #[error("bad number '{0}'")]
+    BadNumber(String),
+    #[error("bad node id '{0}'")]
+    BadNodeId(String),
+    #[error("node id {0} outside 1..127")]
+    NodeIdRange(u8),
+    #[error("bad axis count '{0}'")]
+    BadAxisCount(String),
+    /// `-h`/`--help`: the message is the usage.
+    #[error("{}", USAGE)]
+    Help,
+    #[error("unknown option '{0}'; {usage}", usage = USAGE)]
+    UnknownOption(String),
+    #[error("--units-per-rpm must be positive and --ramp-rpm-s not negative")]
+    SpindleRange,
+}
+
+impl ArgsError {
+    /// Stable code (tests match it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            ArgsError::MissingValue(_) => "sim_missing_value",
+            ArgsError::BadNumber(_) => "sim_bad_number",
+            ArgsError::BadNodeId(_) => "sim_bad_node_id",
+            ArgsError::NodeIdRange(_) => "sim_node_id_range",
+            ArgsError::BadAxisCount(_) => "sim_bad_axis_count",
+            ArgsError::Help => "sim_help",
+            ArgsError::UnknownOption(_) => "sim_unknown_option",
+            ArgsError::SpindleRange => "sim_spindle_range",
+        }
+    }
+}
+
 impl SimArgs {
-    pub fn parse(args: impl Iterator<Item = String>) -> Result<SimArgs, String> {
+    pub fn parse(args: impl Iterator<Item = String>) -> Result<SimArgs, ArgsError> {
         let mut a = SimArgs {
             iface: "vcan0".into(),
             nodes: Vec::new(),
@@ -141,15 +204,15 @@ impl SimArgs {
         };
         let mut it = args;
         while let Some(k) = it.next() {
-            let mut v = || it.next().ok_or(format!("{k} needs a value"));
-            let num = |s: String| s.parse::<f64>().map_err(|_| format!("bad number '{s}'"));
+            let mut v = || it.next().ok_or_else(|| ArgsError::MissingValue(k.clone()));
+            let num = |s: String| s.parse::<f64>().map_err(|_| ArgsError::BadNumber(s));
             match k.as_str() {
                 "--iface" => a.iface = v()?,
                 "--node" => {
                     let s = v()?;
-                    let n: u8 = s.parse().map_err(|_| format!("bad node id '{s}'"))?;
+                    let n: u8 = s.parse().map_err(|_| ArgsError::BadNodeId(s))?;
                     if !(1..=127).contains(&n) {
-                        return Err(format!("node id {n} outside 1..127"));
+                        return Err(ArgsError::NodeIdRange(n));
                     }
                     a.nodes.push(n);
                 }
@@ -160,7 +223,7 @@ impl SimArgs {
                         .parse()
                         .ok()
                         .filter(|n| (1..=hal::MAX_AXES).contains(n))
-                        .ok_or(format!("bad axis count '{s}'"))?;
+                        .ok_or(ArgsError::BadAxisCount(s))?;
                 }
                 "--increments-per-mm" => a.increments_per_mm = num(v()?)?,
                 "--start-mm" => a.start_mm = num(v()?)?,
@@ -171,14 +234,14 @@ impl SimArgs {
                 "--ramp-rpm-s" => a.ramp_rpm_s = num(v()?)?,
                 "--spindle" => a.spindle = true,
                 "--home-switch-mm" => a.home_switch_mm = Some(num(v()?)?),
-                "-h" | "--help" => return Err(USAGE.into()),
-                _ => return Err(format!("unknown option '{k}'; {USAGE}")),
+                "-h" | "--help" => return Err(ArgsError::Help),
+                _ => return Err(ArgsError::UnknownOption(k.clone())),
             }
         }
         let units_ok = a.units_per_rpm.is_finite() && a.units_per_rpm > 0.0;
         let ramp_ok = a.ramp_rpm_s.is_finite() && a.ramp_rpm_s >= 0.0;
         if !(units_ok && ramp_ok) {
-            return Err("--units-per-rpm must be positive and --ramp-rpm-s not negative".into());
+            return Err(ArgsError::SpindleRange);
         }
         Ok(a)
     }
@@ -208,8 +271,9 @@ mod tests {
         );
         assert_eq!(parse("fault 2310"), Ok(Command::Fault(0x2310, None)));
         assert_eq!(parse(" silent on "), Ok(Command::Silent(true, None)));
-        assert!(parse("fault xyz").is_err());
-        assert!(parse("jump").is_err());
+        assert_eq!(parse("fault xyz"), Err(CommandError::ExpectedHexCode));
+        assert_eq!(parse("jump").unwrap_err().code(), "sim_unknown_command");
+        assert_eq!(parse("heartbeat maybe"), Err(CommandError::ExpectedOnOff));
     }
 
     #[test]
@@ -230,8 +294,14 @@ mod tests {
         .unwrap();
         assert!(s.spindle);
         assert_eq!(s.drive().velocity_ramp_units_s2, 5000.0);
-        assert!(SimArgs::parse(["--units-per-rpm", "0"].into_iter().map(String::from)).is_err());
+        assert_eq!(
+            SimArgs::parse(["--units-per-rpm", "0"].into_iter().map(String::from)),
+            Err(ArgsError::SpindleRange)
+        );
         assert_eq!(a.params.following_window_mm, 5.0);
-        assert!(SimArgs::parse(["--node", "200"].into_iter().map(String::from)).is_err());
+        assert_eq!(
+            SimArgs::parse(["--node", "200"].into_iter().map(String::from)),
+            Err(ArgsError::NodeIdRange(200))
+        );
     }
 }

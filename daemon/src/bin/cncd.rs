@@ -23,6 +23,39 @@ use daemon::runtime::systemd::{self, Notifier, NotifyState};
 /// Exit code of a configuration mistake (`RestartPreventExitStatus=2` in the unit).
 const EXIT_CONFIG: u8 = 2;
 
+/// Why `cncd` stopped with an error (logged with its code before the exit).
+#[derive(Debug, thiserror::Error)]
+enum CncdError {
+    #[error("cannot handle {signal}: {source}")]
+    Signal {
+        signal: &'static str,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Api(#[from] server::ServerError),
+    /// The controller did not start (bus, storage, configuration: the message says which).
+    #[error("{0}")]
+    Start(String),
+    #[error("shutdown: {0}")]
+    Shutdown(#[source] tokio::task::JoinError),
+    #[error("stopped after the API failure above")]
+    AfterApiFailure,
+}
+
+impl CncdError {
+    /// Stable code (logged beside the message).
+    fn code(&self) -> &'static str {
+        match self {
+            CncdError::Signal { .. } => "cncd_signal",
+            CncdError::Api(e) => e.code(),
+            CncdError::Start(_) => "cncd_start",
+            CncdError::Shutdown(_) => "cncd_shutdown",
+            CncdError::AfterApiFailure => "cncd_after_api_failure",
+        }
+    }
+}
+
 #[derive(Parser)]
 #[command(name = "cncd", version, about = "CNC motion controller daemon")]
 struct Args {
@@ -73,7 +106,7 @@ fn main() -> ExitCode {
     match rt.block_on(run(config)) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            tracing::error!("{e}");
+            tracing::error!(code = e.code(), "{e}");
             ExitCode::FAILURE
         }
     }
@@ -120,7 +153,7 @@ fn bus_label(c: &Config) -> String {
     }
 }
 
-async fn run(config: Config) -> Result<(), String> {
+async fn run(config: Config) -> Result<(), CncdError> {
     let notifier = match Notifier::from_env() {
         Ok(n) => n.map(Arc::new),
         Err(e) => {
@@ -135,8 +168,14 @@ async fn run(config: Config) -> Result<(), String> {
     let listen = config.api.listen;
     let listener = tokio::net::TcpListener::bind(listen)
         .await
-        .map_err(|e| format!("api.listen: cannot listen on {listen}: {e}"))?;
-    let local = listener.local_addr().map_err(|e| e.to_string())?;
+        .map_err(|source| server::ServerError::Listen {
+            key: "api.listen",
+            addr: listen,
+            source,
+        })?;
+    let local = listener
+        .local_addr()
+        .map_err(server::ServerError::LocalAddr)?;
     let mut api_on = vec![local.to_string()];
     if let Some(p) = config.api.unix_socket_path(&config.storage.dir) {
         api_on.push(p.display().to_string());
@@ -146,7 +185,7 @@ async fn run(config: Config) -> Result<(), String> {
     let bus = bus_label(&config);
     let axis_names = config.axis_names();
     // The controller creates the storage directory, where the Unix socket may live.
-    let ctl = start_controller(config)?;
+    let ctl = start_controller(config).map_err(CncdError::Start)?;
     tracing::info!("cncd started: axes {names} on bus {bus}, API on {api_on}; enabling drives");
     let cfg = ctl.config();
     let mut listeners = match server::bind_extra(&cfg.api, &cfg.storage.dir).await {
@@ -154,7 +193,7 @@ async fn run(config: Config) -> Result<(), String> {
         Err(e) => {
             let c = ctl.clone();
             let _ = tokio::task::spawn_blocking(move || c.shutdown()).await;
-            return Err(e);
+            return Err(e.into());
         }
     };
     if local.ip().is_loopback() {
@@ -202,7 +241,7 @@ async fn run(config: Config) -> Result<(), String> {
     let c = ctl.clone();
     tokio::task::spawn_blocking(move || c.shutdown())
         .await
-        .map_err(|e| e.to_string())?;
+        .map_err(CncdError::Shutdown)?;
     supervision.stop();
     health.abort();
     let s = ctl.snapshot();
@@ -222,7 +261,7 @@ async fn run(config: Config) -> Result<(), String> {
     tracing::info!("cncd stopped");
     match api_failure {
         None => Ok(()),
-        Some(_) => Err("stopped after the API failure above".into()),
+        Some(_) => Err(CncdError::AfterApiFailure),
     }
 }
 
@@ -255,13 +294,17 @@ struct Signals {
 }
 
 impl Signals {
-    fn install() -> Result<Signals, String> {
+    fn install() -> Result<Signals, CncdError> {
         use tokio::signal::unix::{SignalKind, signal};
+        let handle = |kind: SignalKind, name: &'static str| {
+            signal(kind).map_err(|source| CncdError::Signal {
+                signal: name,
+                source,
+            })
+        };
         Ok(Signals {
-            term: signal(SignalKind::terminate())
-                .map_err(|e| format!("cannot handle SIGTERM: {e}"))?,
-            int: signal(SignalKind::interrupt())
-                .map_err(|e| format!("cannot handle SIGINT: {e}"))?,
+            term: handle(SignalKind::terminate(), "SIGTERM")?,
+            int: handle(SignalKind::interrupt(), "SIGINT")?,
         })
     }
 

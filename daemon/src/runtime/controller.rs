@@ -148,14 +148,7 @@ impl Controller {
     ) -> Result<Arc<Controller>, String> {
         let axes = config.axes.len();
         let can_home = bus.supports_homing();
-        if !bus.has_spindle() {
-            // Said once here: the RT thread keeps computing the speed (KŘR, the PLC cells),
-            // but the setpoint has no drive to go to (issue #7).
-            tracing::warn!(
-                bus = bus.name(),
-                "no spindle drive configured on the bus: the spindle speed is computed but not sent to any drive"
-            );
-        }
+        warn_without_spindle(bus.as_ref());
         let (constants, offsets) = load_storage(&config)?;
         let core = rt_core_config(&config, &constants, offsets.memory())?;
         let machine = machine_config(&config);
@@ -176,14 +169,7 @@ impl Controller {
             planned_job: planned_job.clone(),
             core,
         };
-        let rt_cfg = config.rt.clone();
-        let rt_thread = std::thread::Builder::new()
-            .name("cnc-rt".into())
-            .spawn(move || {
-                prepare_rt_thread(rt_cfg.priority, rt_cfg.lock_memory);
-                rt::run(parts);
-            })
-            .map_err(|e| format!("cannot start the real-time thread: {e}"))?;
+        let rt_thread = spawn_rt_thread(config.rt.priority, config.rt.lock_memory, parts)?;
 
         let (status_tx, status_rx) = watch::channel(initial);
         let pump_stop = Arc::new(AtomicBool::new(false));
@@ -202,7 +188,6 @@ impl Controller {
             .name("cnc-status".into())
             .spawn(move || pump.run(&mut snap_out, &status_tx, &stop))
             .map_err(|e| format!("cannot start the status thread: {e}"))?;
-
         Ok(Arc::new(Controller {
             config,
             commands: Mutex::new(cmd_tx),
@@ -1093,6 +1078,32 @@ pub(crate) fn load_storage(config: &Config) -> Result<((Constants, bool), Offset
 }
 
 /// Start-up of the RT thread: real-time priority and locked memory where permitted.
+/// Said once at start-up: the RT thread keeps computing the spindle speed (KŘR, the PLC
+/// cells), but the setpoint has no drive to go to (issue #7).
+fn warn_without_spindle(bus: &dyn hal::DriveBus) {
+    if !bus.has_spindle() {
+        tracing::warn!(
+            bus = bus.name(),
+            "no spindle drive configured on the bus: the spindle speed is computed but not sent to any drive"
+        );
+    }
+}
+
+/// Starts the real-time thread on `parts` (priority and memory locking first).
+fn spawn_rt_thread(
+    priority: i32,
+    lock_memory: bool,
+    parts: RtParts,
+) -> Result<JoinHandle<()>, String> {
+    std::thread::Builder::new()
+        .name("cnc-rt".into())
+        .spawn(move || {
+            prepare_rt_thread(priority, lock_memory);
+            rt::run(parts);
+        })
+        .map_err(|e| format!("cannot start the real-time thread: {e}"))
+}
+
 fn prepare_rt_thread(priority: i32, lock: bool) {
     match rt::set_realtime_priority(priority) {
         Ok(()) => tracing::info!(priority, "real-time thread runs SCHED_FIFO"),

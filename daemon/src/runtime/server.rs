@@ -46,6 +46,70 @@ use super::rt::MachineState;
 /// `TimeoutStopSec=`.
 pub const SHUTDOWN_DRAIN: Duration = Duration::from_millis(500);
 
+/// Why the API could not be served (each message names the configuration key concerned).
+#[derive(Debug, thiserror::Error)]
+pub enum ServerError {
+    /// A TCP address could not be bound (`key` is `api.listen` or `api.extra_listen`).
+    #[error("{key}: cannot listen on {addr}: {source}")]
+    Listen {
+        key: &'static str,
+        addr: std::net::SocketAddr,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("cannot read the listener's address: {0}")]
+    LocalAddr(#[source] std::io::Error),
+    #[error("api.unix_socket: {}: {source}", path.display())]
+    UnixSocket {
+        path: std::path::PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("api.unix_socket: {}: exists and is not a socket", path.display())]
+    NotASocket { path: std::path::PathBuf },
+    #[error("api.socket_group: no group named {0:?}")]
+    NoGroup(String),
+    /// `key` is `api.tls_cert` or `api.tls_key`.
+    #[error("{key}: {}: {source}", path.display())]
+    TlsFile {
+        key: &'static str,
+        path: std::path::PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("api.tls_cert/api.tls_key: {0}")]
+    Tls(String),
+    #[error("a non-loopback listener needs api.tls_cert and api.tls_key")]
+    TlsRequired,
+    #[error("reflection: {0}")]
+    Reflection(String),
+    /// A listener failed while serving.
+    #[error("{0}")]
+    Serve(String),
+    /// The program library could not be opened (`storage.programs_dir`).
+    #[error("{0}")]
+    Library(String),
+}
+
+impl ServerError {
+    /// Stable code (tests and logs match it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            ServerError::Listen { .. } => "api_listen",
+            ServerError::LocalAddr(_) => "api_local_addr",
+            ServerError::UnixSocket { .. } => "api_unix_socket",
+            ServerError::NotASocket { .. } => "api_not_a_socket",
+            ServerError::NoGroup(_) => "api_no_group",
+            ServerError::TlsFile { .. } => "api_tls_file",
+            ServerError::Tls(_) => "api_tls",
+            ServerError::TlsRequired => "api_tls_required",
+            ServerError::Reflection(_) => "api_reflection",
+            ServerError::Serve(_) => "api_serve",
+            ServerError::Library(_) => "api_library",
+        }
+    }
+}
+
 /// Sockets to serve on, already bound.
 #[derive(Default)]
 pub struct Listeners {
@@ -62,7 +126,7 @@ pub async fn serve(
     ctl: Arc<Controller>,
     listener: TcpListener,
     shutdown: impl Future<Output = ()> + Send,
-) -> Result<(), String> {
+) -> Result<(), ServerError> {
     let l = Listeners {
         local_tcp: vec![listener],
         ..Listeners::default()
@@ -76,10 +140,10 @@ pub async fn serve_all(
     ctl: Arc<Controller>,
     listener: TcpListener,
     shutdown: impl Future<Output = ()> + Send,
-) -> Result<(), String> {
+) -> Result<(), ServerError> {
     let api = ctl.config().api.clone();
     let mut l = bind_extra(&api, &ctl.config().storage.dir).await?;
-    let addr = listener.local_addr().map_err(|e| e.to_string())?;
+    let addr = listener.local_addr().map_err(ServerError::LocalAddr)?;
     if addr.ip().is_loopback() {
         l.local_tcp.insert(0, listener);
     } else {
@@ -93,12 +157,16 @@ pub async fn serve_all(
 }
 
 /// Binds `api.extra_listen` and the Unix socket.
-pub async fn bind_extra(api: &ApiConfig, storage_dir: &Path) -> Result<Listeners, String> {
+pub async fn bind_extra(api: &ApiConfig, storage_dir: &Path) -> Result<Listeners, ServerError> {
     let mut l = Listeners::default();
     for a in &api.extra_listen {
         let t = TcpListener::bind(a)
             .await
-            .map_err(|e| format!("api.extra_listen: cannot listen on {a}: {e}"))?;
+            .map_err(|source| ServerError::Listen {
+                key: "api.extra_listen",
+                addr: *a,
+                source,
+            })?;
         if a.ip().is_loopback() {
             l.local_tcp.push(t);
         } else {
@@ -117,25 +185,29 @@ pub async fn bind_extra(api: &ApiConfig, storage_dir: &Path) -> Result<Listeners
 
 /// Binds the Unix socket: a stale socket file is replaced; mode and group are set before the
 /// first connection can be accepted.
-pub fn bind_unix(path: &Path, mode: u32, group: Option<&str>) -> Result<UnixListener, String> {
+pub fn bind_unix(path: &Path, mode: u32, group: Option<&str>) -> Result<UnixListener, ServerError> {
     use std::os::unix::fs::{FileTypeExt, PermissionsExt};
-    let err = |e: String| format!("api.unix_socket: {}: {e}", path.display());
+    let err = |source| ServerError::UnixSocket {
+        path: path.to_path_buf(),
+        source,
+    };
     if let Ok(m) = std::fs::symlink_metadata(path) {
         if m.file_type().is_socket() {
-            std::fs::remove_file(path).map_err(|e| err(e.to_string()))?;
+            std::fs::remove_file(path).map_err(err)?;
         } else {
-            return Err(err("exists and is not a socket".into()));
+            return Err(ServerError::NotASocket {
+                path: path.to_path_buf(),
+            });
         }
     }
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| err(e.to_string()))?;
+        std::fs::create_dir_all(dir).map_err(err)?;
     }
-    let l = UnixListener::bind(path).map_err(|e| err(e.to_string()))?;
-    std::fs::set_permissions(path, std::fs::Permissions::from_mode(mode))
-        .map_err(|e| err(e.to_string()))?;
+    let l = UnixListener::bind(path).map_err(err)?;
+    std::fs::set_permissions(path, std::fs::Permissions::from_mode(mode)).map_err(err)?;
     if let Some(g) = group {
-        let gid = group_id(g).ok_or_else(|| format!("api.socket_group: no group named {g:?}"))?;
-        std::os::unix::fs::chown(path, None, Some(gid)).map_err(|e| err(e.to_string()))?;
+        let gid = group_id(g).ok_or_else(|| ServerError::NoGroup(g.to_string()))?;
+        std::os::unix::fs::chown(path, None, Some(gid)).map_err(err)?;
     }
     Ok(l)
 }
@@ -153,12 +225,18 @@ fn group_id(name: &str) -> Option<u32> {
 }
 
 /// TLS settings of remote listeners, when configured.
-pub fn tls_config(api: &ApiConfig) -> Result<Option<ServerTlsConfig>, String> {
+pub fn tls_config(api: &ApiConfig) -> Result<Option<ServerTlsConfig>, ServerError> {
+    let read = |key: &'static str, path: &Path| {
+        std::fs::read(path).map_err(|source| ServerError::TlsFile {
+            key,
+            path: path.to_path_buf(),
+            source,
+        })
+    };
     match (&api.tls_cert, &api.tls_key) {
         (Some(c), Some(k)) => {
-            let cert =
-                std::fs::read(c).map_err(|e| format!("api.tls_cert: {}: {e}", c.display()))?;
-            let key = std::fs::read(k).map_err(|e| format!("api.tls_key: {}: {e}", k.display()))?;
+            let cert = read("api.tls_cert", c)?;
+            let key = read("api.tls_key", k)?;
             Ok(Some(
                 ServerTlsConfig::new().identity(Identity::from_pem(cert, key)),
             ))
@@ -170,11 +248,11 @@ pub fn tls_config(api: &ApiConfig) -> Result<Option<ServerTlsConfig>, String> {
 /// Reads and parses the TLS certificate and key when configured (`--check-config` and
 /// start-up): a missing or unreadable file, or PEM without a certificate or key, is refused
 /// with the key's name.
-pub fn check_tls(api: &ApiConfig) -> Result<(), String> {
+pub fn check_tls(api: &ApiConfig) -> Result<(), ServerError> {
     if let Some(t) = tls_config(api)? {
         Server::builder()
             .tls_config(t)
-            .map_err(|e| format!("api.tls_cert/api.tls_key: {e}"))?;
+            .map_err(|e| ServerError::Tls(e.to_string()))?;
     }
     Ok(())
 }
@@ -220,12 +298,12 @@ fn router(
     health: &tonic_health::pb::health_server::HealthServer<
         impl tonic_health::pb::health_server::Health,
     >,
-) -> Result<ApiRouter, String> {
+) -> Result<ApiRouter, ServerError> {
     let mut b = Server::builder();
     if let Some(t) = tls {
         b = b
             .tls_config(t)
-            .map_err(|e| format!("api.tls_cert/api.tls_key: {e}"))?;
+            .map_err(|e| ServerError::Tls(e.to_string()))?;
     }
     let i = auth.interceptor(trust);
     // Both reflection versions: grpcurl speaks v1, Python's grpcio-reflection and many older
@@ -241,10 +319,10 @@ fn router(
     };
     let reflection = reflection_builder()
         .build_v1()
-        .map_err(|e| format!("reflection: {e}"))?;
+        .map_err(|e| ServerError::Reflection(e.to_string()))?;
     let reflection_alpha = reflection_builder()
         .build_v1alpha()
-        .map_err(|e| format!("reflection: {e}"))?;
+        .map_err(|e| ServerError::Reflection(e.to_string()))?;
     let m = MAX_MESSAGE_BYTES;
     let layer: SizeLayer = tower::util::MapResponseLayer::new(size_refusal);
     Ok(b.layer(layer)
@@ -287,7 +365,7 @@ pub async fn serve_listeners(
     ctl: Arc<Controller>,
     listeners: Listeners,
     shutdown: impl Future<Output = ()> + Send,
-) -> Result<(), String> {
+) -> Result<(), ServerError> {
     let tls = tls_config(&ctl.config().api)?;
     serve_listeners_with(ctl, listeners, tls, shutdown).await
 }
@@ -298,9 +376,9 @@ pub async fn serve_listeners_with(
     listeners: Listeners,
     tls: Option<ServerTlsConfig>,
     shutdown: impl Future<Output = ()> + Send,
-) -> Result<(), String> {
+) -> Result<(), ServerError> {
     if !listeners.remote_tcp.is_empty() && tls.is_none() {
-        return Err("a non-loopback listener needs api.tls_cert and api.tls_key".into());
+        return Err(ServerError::TlsRequired);
     }
     let api = &ctl.config().api;
     if !listeners.local_tcp.is_empty() && api.loopback_role > Role::Observer {
@@ -310,7 +388,7 @@ pub async fn serve_listeners_with(
              role without a token"
         );
     }
-    let st = ApiState::new(ctl.clone())?;
+    let st = ApiState::new(ctl.clone()).map_err(ServerError::Library)?;
     let auth = Auth::from_config(api);
     let (reporter, health) = tonic_health::server::health_reporter();
     let health_task = tokio::spawn(health_watch(ctl.clone(), reporter));
@@ -364,7 +442,7 @@ pub async fn serve_listeners_with(
     }
     health_task.abort();
     match first_err {
-        Some(e) => Err(e),
+        Some(e) => Err(ServerError::Serve(e)),
         None => Ok(()),
     }
 }

@@ -35,6 +35,16 @@ pub enum StorageError {
     },
 }
 
+impl StorageError {
+    /// Stable code (tests and HMIs match it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            StorageError::Io { .. } => "storage_io",
+            StorageError::Invalid { .. } => "storage_invalid",
+        }
+    }
+}
+
 fn join(d: &[Diagnostic]) -> String {
     d.iter()
         .map(ToString::to_string)
@@ -206,9 +216,9 @@ impl OffsetStore {
 
     /// (b) Operator edit of one entry: the values present change in the file and in memory.
     pub fn operator_edit(&mut self, edit: &TableEdit) -> Result<(), StorageError> {
-        let refuse = |m: String| StorageError::Invalid {
+        let refuse = |e: offsets::OffsetError| StorageError::Invalid {
             path: self.path.clone(),
-            diagnostics: vec![Diagnostic::error(None, 0, 0, m)],
+            diagnostics: vec![Diagnostic::error(None, 0, 0, e.to_string())],
         };
         let mut file = self.file.clone();
         file.table.apply(edit).map_err(refuse)?;
@@ -232,7 +242,7 @@ impl OffsetStore {
     }
 
     /// (c) `G92 D<n> R0..R4` executed (a `BlockKind::TableWrite`): memory only.
-    pub fn program_write(&mut self, edit: &TableEdit) -> Result<(), String> {
+    pub fn program_write(&mut self, edit: &TableEdit) -> Result<(), offsets::OffsetError> {
         self.memory.apply(edit)
     }
 }

@@ -195,71 +195,29 @@ impl Kr {
         let v2 = self.cfg.version == KrVersion::V2;
         // Old KŘR has no PLC control (SPEC §6, R580 = 00).
         let bits = if v2 { plc.cntr() } else { 0 };
-        let on = |bit: u32| bits & bit != 0;
         let p = input.program;
-
-        if p.css {
-            self.program_v_mm_min = self.cfg.s_word.cutting_speed_mm_min(p.s_word);
-        }
-        let active = on(cntr::EXT_AKRR_REQ) || p.css;
-        // SPEC §6: when KŘR ends, the last reached speed is kept; it becomes S while the
-        // program has no new S (the interpreter writes S = 0 when KŘR ends without S).
-        if self.active && !active {
-            self.held_rpm = Some(self.speed_rpm);
-        }
-        if active || p.s_word > 0.0 {
-            self.held_rpm = None;
-        }
-        self.active = active;
-
+        let active = self.update_active(&p, bits & cntr::EXT_AKRR_REQ != 0);
         let Some(gear) = self.cfg.gear(p.gear).copied() else {
             return self.fault(KrFault::UnknownGear(p.gear), p.dir, plc);
         };
-
-        // Limit: G76 or AKRR_SMAX (version 2 only), 0 = none; never above the gear maximum P.
-        let limit_rpm = if !v2 {
-            0.0
-        } else if on(cntr::EXT_AKRR_SMAX) {
-            f64::from(plc.input(CellId::AkrrSmax)) / MILLI_RPM_PER_RPM
-        } else {
-            p.limit_rpm.max(0.0)
-        };
-        let cap_rpm = if limit_rpm > 0.0 {
-            gear.max_rpm.min(limit_rpm)
+        let ext = self.external_inputs(v2, bits, &p, plc);
+        let cap_rpm = if ext.limit_rpm > 0.0 {
+            gear.max_rpm.min(ext.limit_rpm)
         } else {
             gear.max_rpm
         };
-
-        let dist_raw = if on(cntr::EXT_AKRR_DIST) {
-            plc.input(CellId::AkrrDist)
-        } else {
-            0
-        };
-        let vcorr_mm_min = if on(cntr::EXT_AKRR_VCORR) {
-            plc.input(CellId::AkrrVcorr)
-        } else {
-            0
-        };
-        let v_mm_min = if on(cntr::EXT_AKRR_V) {
-            f64::from(plc.input(CellId::AkrrV))
-        } else {
-            self.program_v_mm_min
-        };
-
-        let a = input.axis;
-        let x_mm = if on(cntr::EXT_AKRR_SUPORT) {
-            a.carriage_mm
-        } else {
-            a.carriage_mm - a.origin_shift_mm - a.length_offset_mm
-        };
-        if !x_mm.is_finite() {
+        let Some(x_mm) = controlling_x_mm(&input.axis, bits & cntr::EXT_AKRR_SUPORT != 0) else {
             return self.fault(KrFault::BadPosition, p.dir, plc);
-        }
-        let radius_mm = (self.radius_of(x_mm) + f64::from(dist_raw) / EIGHTH_UM_PER_MM).max(0.0);
-
+        };
+        let radius_mm =
+            (self.radius_of(x_mm) + f64::from(ext.dist_raw) / EIGHTH_UM_PER_MM).max(0.0);
         let speed_rpm = if active {
             if v2 || input.motion != Motion::Stationary {
-                speed_for(v_mm_min + f64::from(vcorr_mm_min), radius_mm, cap_rpm)
+                speed_for(
+                    ext.v_mm_min + f64::from(ext.vcorr_mm_min),
+                    radius_mm,
+                    cap_rpm,
+                )
             } else {
                 // Old KŘR outside motion blocks: the speed stays.
                 self.speed_rpm.min(gear.max_rpm)
@@ -275,32 +233,61 @@ impl Kr {
         let cap = if active { cap_rpm } else { gear.max_rpm };
         let speed_rpm = (speed_rpm * self.override_factor).min(cap.max(speed_rpm));
         let output = output_value(speed_rpm, &gear);
-
-        plc.set_act(
-            CellId::AkrrActV,
-            if active { round_i32(v_mm_min) } else { 0 },
-        );
-        plc.set_act(
-            CellId::AkrrActSmax,
-            round_i32(limit_rpm * MILLI_RPM_PER_RPM),
-        );
-        plc.set_act(CellId::AkrrActDist, dist_raw);
-        plc.set_act(CellId::AkrrActVcorr, vcorr_mm_min);
-        plc.set_act(CellId::AkrrActR, round_i32(radius_mm * EIGHTH_UM_PER_MM));
-        plc.set_act(
-            CellId::AkrrActP,
-            round_i32(gear.max_rpm * MILLI_RPM_PER_RPM),
-        );
-        plc.set_act(CellId::AkrrActU, i32::from(gear.output_range));
-        plc.set_act(CellId::AkrrActS, round_i32(speed_rpm * MILLI_RPM_PER_RPM));
-        plc.set_act(CellId::AkrrActOut, i32::from(output));
-
+        publish_actuals(plc, &ext, active, radius_mm, &gear, speed_rpm, output);
         KrOutput {
             spindle_rpm: signed(p.dir, speed_rpm),
             speed_rpm,
             output,
             active,
             fault: None,
+        }
+    }
+
+    /// Whether KŘR is on this tick (G96 or AKRR_REQ), keeping the speed KŘR ends at (SPEC
+    /// §6: when KŘR ends, the last reached speed is kept; it becomes S while the program has
+    /// no new S, the interpreter writes S = 0 when KŘR ends without S).
+    fn update_active(&mut self, p: &ProgramSpindle, plc_request: bool) -> bool {
+        if p.css {
+            self.program_v_mm_min = self.cfg.s_word.cutting_speed_mm_min(p.s_word);
+        }
+        let active = plc_request || p.css;
+        if self.active && !active {
+            self.held_rpm = Some(self.speed_rpm);
+        }
+        if active || p.s_word > 0.0 {
+            self.held_rpm = None;
+        }
+        self.active = active;
+        active
+    }
+
+    /// The PLC's inputs where its control bits select them, else the program's values.
+    fn external_inputs(
+        &self,
+        v2: bool,
+        bits: u32,
+        p: &ProgramSpindle,
+        plc: &PlcArea,
+    ) -> ExternalInputs {
+        let on = |bit: u32| bits & bit != 0;
+        let cell = |bit: u32, id: CellId| if on(bit) { plc.input(id) } else { 0 };
+        // Limit: G76 or AKRR_SMAX (version 2 only), 0 = none; never above the gear maximum P.
+        let limit_rpm = if !v2 {
+            0.0
+        } else if on(cntr::EXT_AKRR_SMAX) {
+            f64::from(plc.input(CellId::AkrrSmax)) / MILLI_RPM_PER_RPM
+        } else {
+            p.limit_rpm.max(0.0)
+        };
+        ExternalInputs {
+            limit_rpm,
+            dist_raw: cell(cntr::EXT_AKRR_DIST, CellId::AkrrDist),
+            vcorr_mm_min: cell(cntr::EXT_AKRR_VCORR, CellId::AkrrVcorr),
+            v_mm_min: if on(cntr::EXT_AKRR_V) {
+                f64::from(plc.input(CellId::AkrrV))
+            } else {
+                self.program_v_mm_min
+            },
         }
     }
 
@@ -372,4 +359,56 @@ fn signed(dir: SpindleDir, rpm: f64) -> f64 {
 fn round_i32(v: f64) -> i32 {
     // `as` saturates at the i32 range and maps NaN to 0.
     v.round() as i32
+}
+
+/// Values KŘR works with this tick, from the PLC where its control bits say so (SPEC §6).
+struct ExternalInputs {
+    /// Speed limit (G76 or AKRR_SMAX), rpm; 0 = none.
+    limit_rpm: f64,
+    /// Distance added to the radius (AKRR_DIST), 1/8 µm.
+    dist_raw: i32,
+    /// Cutting speed correction (AKRR_VCORR), mm/min.
+    vcorr_mm_min: i32,
+    /// Cutting speed, mm/min.
+    v_mm_min: f64,
+}
+
+/// Position of the controlling axis KŘR takes the radius from: the carriage itself with
+/// AKRR_SUPORT, else the tool tip (carriage minus origin shift and length offset). `None`
+/// when it is not a number.
+fn controlling_x_mm(a: &ControllingAxis, carriage: bool) -> Option<f64> {
+    let x_mm = if carriage {
+        a.carriage_mm
+    } else {
+        a.carriage_mm - a.origin_shift_mm - a.length_offset_mm
+    };
+    x_mm.is_finite().then_some(x_mm)
+}
+
+/// Writes the AKRR_ACT_* cells the PLC reads back (SPEC §6).
+fn publish_actuals(
+    plc: &mut PlcArea,
+    ext: &ExternalInputs,
+    active: bool,
+    radius_mm: f64,
+    gear: &Gear,
+    speed_rpm: f64,
+    output: u16,
+) {
+    let v_mm_min = if active { round_i32(ext.v_mm_min) } else { 0 };
+    plc.set_act(CellId::AkrrActV, v_mm_min);
+    plc.set_act(
+        CellId::AkrrActSmax,
+        round_i32(ext.limit_rpm * MILLI_RPM_PER_RPM),
+    );
+    plc.set_act(CellId::AkrrActDist, ext.dist_raw);
+    plc.set_act(CellId::AkrrActVcorr, ext.vcorr_mm_min);
+    plc.set_act(CellId::AkrrActR, round_i32(radius_mm * EIGHTH_UM_PER_MM));
+    plc.set_act(
+        CellId::AkrrActP,
+        round_i32(gear.max_rpm * MILLI_RPM_PER_RPM),
+    );
+    plc.set_act(CellId::AkrrActU, i32::from(gear.output_range));
+    plc.set_act(CellId::AkrrActS, round_i32(speed_rpm * MILLI_RPM_PER_RPM));
+    plc.set_act(CellId::AkrrActOut, i32::from(output));
 }

@@ -15,7 +15,7 @@ fn main() {
     let args = match SimArgs::parse(std::env::args().skip(1)) {
         Ok(a) if !a.nodes.is_empty() => a,
         Ok(_) => fail("give at least one --node"),
-        Err(e) => fail(&e),
+        Err(e) => fail(&e.to_string()),
     };
     let mut port = SocketCanPort::open(&args.iface).unwrap_or_else(|e| fail(&e));
     let mut nodes: Vec<CanNode> = args

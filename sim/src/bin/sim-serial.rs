@@ -102,7 +102,7 @@ fn main() {
     let args = match SimArgs::parse(homing.rest.into_iter()) {
         Ok(a) if !a.link.is_empty() => a,
         Ok(_) => fail("give --link PATH"),
-        Err(e) => fail(&e),
+        Err(e) => fail(&e.to_string()),
     };
     let drives = (0..args.axes).map(|_| args.drive()).collect();
     let mut unit = SerialDriveUnit::new(drives);

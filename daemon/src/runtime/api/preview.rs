@@ -256,7 +256,21 @@ pub fn render_preview(
         }
     };
     let setup = ctl.machine_setup().map_err(super::status_of)?;
-    let mut opts = ::preview::PreviewOptions::from_machine(&setup);
+    let opts = preview_options(&setup, r)?;
+    let png = r.format == pb::ImageFormat::Png as i32;
+    if r.velocity {
+        velocity_reply(source, &opts, png)
+    } else {
+        picture_reply(source, &opts, png)
+    }
+}
+
+/// The machine's preview options with the request's plane, page and size.
+fn preview_options(
+    setup: &kernel::machine::MachineSetup,
+    r: &pb::GetPreviewRequest,
+) -> Result<::preview::PreviewOptions, Status> {
+    let mut opts = ::preview::PreviewOptions::from_machine(setup);
     opts.plane = if r.plane.is_empty() {
         ::preview::ViewPlane::Xy
     } else {
@@ -271,51 +285,64 @@ pub fn render_preview(
     if r.height_px > 0 {
         opts.height_px = r.height_px.clamp(200, 8000);
     }
-    let png = r.format == pb::ImageFormat::Png as i32;
-    let encode =
-        |svg: String, png_bytes: Option<Result<Vec<u8>, ::preview::RenderError>>| match png_bytes {
-            Some(b) => b.map_err(|e| Status::internal(format!("PNG: {e}"))),
-            None => Ok(svg.into_bytes()),
-        };
-    let fmt = if png {
-        pb::ImageFormat::Png
+    Ok(opts)
+}
+
+/// The image bytes (PNG or SVG) and their format code.
+fn encode_image(
+    png: bool,
+    to_svg: impl FnOnce() -> String,
+    to_png: impl FnOnce() -> Result<Vec<u8>, ::preview::RenderError>,
+) -> Result<(Vec<u8>, i32), Status> {
+    if png {
+        let bytes = to_png().map_err(|e| Status::internal(format!("PNG: {e}")))?;
+        Ok((bytes, pb::ImageFormat::Png as i32))
     } else {
-        pb::ImageFormat::Svg
-    };
-    let refuse = |d: Vec<Diagnostic>| invalid_with_diagnostics("program", &d);
-    if r.velocity {
-        let v = ::preview::velocity_plot_source(source, &opts, true).map_err(refuse)?;
-        if opts.page > v.pages {
-            return Err(no_page(opts.page, v.pages));
-        }
-        let image = if png {
-            encode(String::new(), Some(v.to_png()))?
-        } else {
-            encode(v.to_svg(), None)?
-        };
-        return Ok(pb::GetPreviewReply {
-            image,
-            format: fmt as i32,
-            page: v.page,
-            pages: v.pages,
-            red: Vec::new(),
-            red_junctions: 0,
-            smooth_junctions: 0,
-            diagnostics: v.warnings.iter().map(diagnostic_to_pb).collect(),
-        });
+        Ok((to_svg().into_bytes(), pb::ImageFormat::Svg as i32))
     }
-    let p = ::preview::render_source(source, &opts).map_err(refuse)?;
+}
+
+fn refuse(d: Vec<Diagnostic>) -> Status {
+    invalid_with_diagnostics("program", &d)
+}
+
+/// The velocity plot page asked for.
+fn velocity_reply(
+    source: ::preview::pipeline::Source<'_>,
+    opts: &::preview::PreviewOptions,
+    png: bool,
+) -> Result<pb::GetPreviewReply, Status> {
+    let v = ::preview::velocity_plot_source(source, opts, true).map_err(refuse)?;
+    if opts.page > v.pages {
+        return Err(no_page(opts.page, v.pages));
+    }
+    let (image, format) = encode_image(png, || v.to_svg(), || v.to_png())?;
+    Ok(pb::GetPreviewReply {
+        image,
+        format,
+        page: v.page,
+        pages: v.pages,
+        red: Vec::new(),
+        red_junctions: 0,
+        smooth_junctions: 0,
+        diagnostics: v.warnings.iter().map(diagnostic_to_pb).collect(),
+    })
+}
+
+/// The picture page asked for, with the junctions that slow the path down (red).
+fn picture_reply(
+    source: ::preview::pipeline::Source<'_>,
+    opts: &::preview::PreviewOptions,
+    png: bool,
+) -> Result<pb::GetPreviewReply, Status> {
+    let p = ::preview::render_source(source, opts).map_err(refuse)?;
     if opts.page > p.pages {
         return Err(no_page(opts.page, p.pages));
     }
-    let image = if png {
-        encode(String::new(), Some(p.to_png()))?
-    } else {
-        encode(p.to_svg(), None)?
-    };
+    let (image, format) = encode_image(png, || p.to_svg(), || p.to_png())?;
     Ok(pb::GetPreviewReply {
         image,
-        format: fmt as i32,
+        format,
         page: p.page,
         pages: p.pages,
         red: p

@@ -1,0 +1,128 @@
+//! Stage 2, jerk filter (parabolic profile, SPEC §7.3): the commanded arc length is the mean
+//! of the last `m` raw arc lengths, so a raw acceleration step of 2a becomes jerk ≤ 2a/(m·Ts).
+
+use super::{ARRIVE_EPS_MM, FILTER_MAX_TICKS, Interpolator};
+use crate::units::TS_S;
+
+impl Interpolator {
+    /// Pushes this tick's raw arc length and local caps into the filter history.
+    pub(super) fn record(&mut self, cap: f64, feed: f64) {
+        let s = self.raw_s();
+        let prev = self.hist_raw_s_mm[self.hist_newest];
+        self.hist_newest = (self.hist_newest + 1) % FILTER_MAX_TICKS;
+        self.hist_raw_s_mm[self.hist_newest] = s;
+        self.hist_cap_mm_s[self.hist_newest] = cap;
+        self.hist_feed_mm_s[self.hist_newest] = feed;
+        if s == prev {
+            self.still_ticks = (self.still_ticks + 1).min(FILTER_MAX_TICKS);
+        } else {
+            self.still_ticks = 0;
+        }
+    }
+
+    /// Ticks before and after a speed cap during which the raw speed stays within it (0: only
+    /// at the cap). The jerk filter averages raw speeds over `m` ticks, so its speed at a
+    /// point is within a cap if the raw speed was over the `m + 1` ticks around it; the axis
+    /// filter takes path speeds from 2n ticks before to 2n ticks after a turn, and the
+    /// planner's corner limits count on all of them being within the junction speed.
+    pub(super) fn cap_zone_ticks(&self) -> usize {
+        if self.jerk_filter_ticks <= 1 && self.axis_window_ticks <= 1 {
+            return 0;
+        }
+        let axis = if self.axis_window_ticks > 1 {
+            2 * self.axis_window_ticks
+        } else {
+            0
+        };
+        self.jerk_filter_ticks + 1 + axis
+    }
+
+    /// Smallest cap (hard, feed) recorded over the last `cap_zone_ticks` ticks.
+    pub(super) fn behind_caps(&self) -> (f64, f64) {
+        let zone = self.cap_zone_ticks();
+        if zone == 0 {
+            return (f64::INFINITY, f64::INFINITY);
+        }
+        let mut cap = f64::INFINITY;
+        let mut feed = f64::INFINITY;
+        for j in 0..zone {
+            let i = (self.hist_newest + FILTER_MAX_TICKS - j) % FILTER_MAX_TICKS;
+            cap = cap.min(self.hist_cap_mm_s[i]);
+            feed = feed.min(self.hist_feed_mm_s[i]);
+        }
+        (cap, feed)
+    }
+
+    /// Filter stage: the commanded arc length is the mean of the last `m` raw arc lengths.
+    /// Returns whether the program's last segment was completed.
+    pub(super) fn follow(&mut self) -> bool {
+        let s_raw = self.hist_raw_s_mm[self.hist_newest];
+        let mut lag_sum = 0.0;
+        for j in 0..self.jerk_filter_ticks {
+            let i = (self.hist_newest + FILTER_MAX_TICKS - j) % FILTER_MAX_TICKS;
+            lag_sum += s_raw - self.hist_raw_s_mm[i];
+        }
+        let s_f = (s_raw - lag_sum / self.jerk_filter_ticks as f64).max(self.filtered_s_mm);
+        self.filtered_v_mm_s = (s_f - self.filtered_s_mm) / TS_S;
+        self.filtered_s_mm = s_f;
+        let mut program_end = false;
+        // Drop segments the commanded position has left (never the raw one).
+        while self.len > 0 {
+            let i = self.idx(0);
+            let seg = self.buf[i];
+            let end = self.seg_start_s_mm[i] + seg.length_mm;
+            let raw_done = self.raw_seg > 0
+                || (self.raw_at_stop
+                    && self.len == 1
+                    && self.settled()
+                    && self.last_may_leave(&seg));
+            if s_f >= end - ARRIVE_EPS_MM && raw_done {
+                self.path_pos = seg.path.end();
+                self.last_seq = seg.seq;
+                self.last_n = seg.n;
+                self.last_line = seg.line;
+                self.last_spindle = seg.spindle_after.unwrap_or(seg.spindle);
+                self.last_rapid = seg.rapid;
+                program_end |= seg.last;
+                self.head = (self.head + 1) % self.buf.len();
+                // Rescan only when the last segment at a floor value leaves (a uniform dense
+                // path never rescans).
+                let a_left = self
+                    .floor_accel_mm_s2
+                    .remove(seg.accel_mm_s2.min(seg.stop_accel_mm_s2));
+                let j_left = self.floor_jerk_mm_s3.remove(seg.jerk_mm_s3);
+                self.floor_dirty |= a_left || j_left;
+                self.len -= 1;
+                self.raw_seg = self.raw_seg.saturating_sub(1);
+                if self.len == 0 {
+                    self.raw_in_seg_mm = 0.0;
+                }
+                continue;
+            }
+            let local = s_f - self.seg_start_s_mm[i];
+            self.path_pos = if local >= seg.length_mm - ARRIVE_EPS_MM {
+                seg.path.end()
+            } else {
+                seg.path.point_at((local / seg.length_mm).max(0.0))
+            };
+            self.last_seq = seg.seq;
+            self.last_n = seg.n;
+            self.last_line = seg.line;
+            // At rest at a stop point (from the tick after the arrival): the spindle state of
+            // what comes next is in force, so the spindle runs up (or stops) before the next
+            // move, not with it.
+            let at_stop = self.raw_at_stop
+                && self.raw_seg == 0
+                && self.filtered_v_mm_s == 0.0
+                && local >= seg.length_mm - ARRIVE_EPS_MM;
+            self.last_spindle = match (at_stop, seg.spindle_after) {
+                (false, _) => seg.spindle,
+                (true, _) if self.len > 1 => self.buf[self.idx(1)].spindle,
+                (true, after) => after.unwrap_or(seg.spindle),
+            };
+            self.last_rapid = seg.rapid;
+            break;
+        }
+        program_end
+    }
+}

@@ -1,0 +1,438 @@
+//! Stage 1, raw path speed: chosen online each tick from the limits the planner attached to
+//! each segment (acceleration-limited; SPEC §7.2), the raw arc length advancing by `v·Ts`.
+
+use super::{
+    ARRIVE_EPS_MM, AXIS_FILTER_MAX_TICKS, FILTER_MAX_TICKS, FILTER_SCAN_SEGMENTS, Floor,
+    InterpState, Interpolator,
+};
+use crate::block::ProgramStop;
+use crate::plan::Segment;
+use crate::units::TS_S;
+
+/// Speed limits of one tick, mm/s, and the distance to the next stop point (∞: none in reach).
+#[derive(Clone, Copy, Debug)]
+struct SpeedLimits {
+    soft_mm_s: f64,
+    hard_mm_s: f64,
+    stop_dist_mm: f64,
+}
+
+impl Interpolator {
+    pub(super) fn stops_here(&self, stop: ProgramStop) -> bool {
+        match stop {
+            ProgramStop::None => false,
+            ProgramStop::Always => true,
+            ProgramStop::Optional => self.optional_stop,
+        }
+    }
+
+    /// At rest between segment `raw_seg` and the next: holds if a program stop (M0/M1) is due
+    /// there. Each stop is honoured once (cleared in the buffer).
+    pub(super) fn program_stop_at(&mut self, before_next: bool) -> bool {
+        if self.state != InterpState::Running {
+            return false;
+        }
+        let here = self.idx(self.raw_seg);
+        let due_after = before_next && self.stops_here(self.buf[here].program_stop);
+        let next = if before_next {
+            self.idx(self.raw_seg + 1)
+        } else {
+            here
+        };
+        let due_before = self.stops_here(self.buf[next].program_stop_before);
+        if !(due_after || due_before) {
+            return false;
+        }
+        if before_next {
+            self.buf[here].program_stop = ProgramStop::None;
+        }
+        self.buf[next].program_stop_before = ProgramStop::None;
+        self.state = InterpState::Holding;
+        self.at_program_stop = true;
+        true
+    }
+
+    /// At rest at the end of the last buffered segment: holds if a program stop is due after
+    /// it. The segment stays buffered until Resume, so the job does not end at the stop.
+    fn program_stop_after_last(&mut self) {
+        let here = self.idx(self.raw_seg);
+        if self.state != InterpState::Running || !self.stops_here(self.buf[here].program_stop) {
+            return;
+        }
+        self.buf[here].program_stop = ProgramStop::None;
+        self.state = InterpState::Holding;
+        self.at_program_stop = true;
+    }
+
+    /// The last buffered segment may be dropped once the raw position rests at its end: not
+    /// while a program stop after it is due or held (a plain feed hold lets it go as before).
+    pub(super) fn last_may_leave(&self, seg: &Segment) -> bool {
+        !self.at_program_stop && !self.stops_here(seg.program_stop)
+    }
+
+    pub(super) fn raw_s(&self) -> f64 {
+        if self.len == 0 {
+            return self.buffered_end_s_mm;
+        }
+        self.seg_start_s_mm[self.idx(self.raw_seg)] + self.raw_in_seg_mm
+    }
+
+    /// Filter length for the motion that starts at rest on segment `raw_seg`: the raw acceleration
+    /// steps by at most 2a, so the jerk of the average is ≤ 2a/(m·Ts) ≤ J. A motion that
+    /// cannot reach `a` before its speed (the highest programmed speed up to the next stop,
+    /// at 100 % override) is a pure parabola: it needs only a = √(v·J), so the filter is sized
+    /// for that (the ramp to F takes 3·√(F/J) instead of 2a/J + F/a; the manual's
+    /// T = 1.478·√(F/P) is 2·√(F/J)).
+    pub(super) fn filter_for(&self) -> usize {
+        let seg = self.seg(self.raw_seg);
+        let a = seg.accel_mm_s2.max(seg.stop_accel_mm_s2);
+        let j = seg.jerk_mm_s3;
+        if !j.is_finite() || j <= 0.0 {
+            return 1;
+        }
+        // (Segments that arrive later are followed at the acceleration this filter allows:
+        // slower, never above the jerk.)
+        let mut v = f64::INFINITY;
+        let mut top = 0.0f64;
+        for k in self.raw_seg..self.len.min(self.raw_seg + FILTER_SCAN_SEGMENTS) {
+            let s = self.seg(k);
+            top = top.max(s.feed_mm_s.min(s.v_max_mm_s));
+            if s.v_end_mm_s == 0.0 || k + 1 == self.len {
+                v = top;
+                break;
+            }
+        }
+        let a = a.min((v * j).sqrt());
+        ((2.0 * a / (j * TS_S)).ceil() as usize)
+            .clamp(1, FILTER_MAX_TICKS - 2 * AXIS_FILTER_MAX_TICKS - 2)
+    }
+
+    /// Acceleration the raw stage may use with the current filter (jerk ≤ J needs a ≤ J·m·Ts/2).
+    /// Lower bound of the raw acceleration on every buffered segment: a cap whose braking
+    /// distance at this bound is out of reach cannot constrain this tick. (Judging the reach
+    /// with the accelerations seen so far missed a stop behind a segment of lower
+    /// acceleration and made the speed saw between braking harder than allowed and
+    /// accelerating again.)
+    pub(super) fn accel_floor(&mut self) -> f64 {
+        if self.floor_dirty {
+            self.floor_accel_mm_s2 = Floor::default();
+            self.floor_jerk_mm_s3 = Floor::default();
+            for k in 0..self.len {
+                let seg = &self.buf[(self.head + k) % self.buf.len()];
+                self.floor_accel_mm_s2
+                    .add(seg.accel_mm_s2.min(seg.stop_accel_mm_s2));
+                self.floor_jerk_mm_s3.add(seg.jerk_mm_s3);
+            }
+            self.floor_dirty = false;
+        }
+        let (floor_a, floor_j) = (self.floor_accel_mm_s2.value, self.floor_jerk_mm_s3.value);
+        let a = if floor_j.is_finite() {
+            floor_a.min(floor_j * self.jerk_filter_ticks as f64 * TS_S / 2.0)
+        } else {
+            floor_a
+        };
+        a.max(1e-6)
+    }
+
+    pub(super) fn raw_accel(&self, a: f64, seg: &Segment) -> f64 {
+        let a = if seg.jerk_mm_s3.is_finite() {
+            a.min(seg.jerk_mm_s3 * self.jerk_filter_ticks as f64 * TS_S / 2.0)
+        } else {
+            a
+        };
+        a.max(1e-6)
+    }
+
+    /// Highest speed for this tick from which the per-tick speeds, falling by u = a·Ts per
+    /// tick, are down to `v_cap` when the path reaches the cap point `d` ahead. Exact in
+    /// discrete time: the speeds before the point are v_cap + r + j·u (j = J..0, 0 < r ≤ u),
+    /// covering Ts·((J+1)·(v_cap + r) + u·J(J+1)/2) ≤ d − v_cap·Ts. For a stop (v_cap = 0) they end exactly on it, so braking runs at the full
+    /// deceleration and the last tick is the only one rounded (the continuous bound
+    /// (v² − v_cap²)/(2a) ≤ d − v·Ts started braking half a tick early and crept at the end).
+    pub(super) fn v_brake(d: f64, v_cap: f64, a: f64) -> f64 {
+        let u = a * TS_S;
+        // The last tick before the point runs at v_cap and ends on it (the tick after the point
+        // is held to the cap too, see `entry_cap_mm_s`): the faster ticks end one v_cap·Ts
+        // earlier. Distances in speed·ticks.
+        let dd = d.max(0.0) / TS_S - v_cap;
+        // Distance of the J+1 ticks faster than v_cap with r = 0.
+        let lower = |j: f64| (j + 1.0) * v_cap + u * j * (j + 1.0) / 2.0;
+        if dd <= v_cap {
+            return dd.max(0.0);
+        }
+        let b = v_cap + u / 2.0;
+        let root = (-b + (b * b + 2.0 * u * (dd - v_cap)).sqrt()) / u;
+        let mut j = (root.ceil() - 1.0).max(0.0);
+        while j > 0.0 && lower(j) >= dd {
+            j -= 1.0;
+        }
+        while lower(j + 1.0) < dd {
+            j += 1.0;
+        }
+        let r = ((dd - lower(j)) / (j + 1.0)).min(u);
+        v_cap + r + j * u
+    }
+
+    /// Raw stage of one tick (SPEC §7.2, §7.3): leave a stop point or wait at rest, re-size
+    /// the filters at rest, find this tick's speed limits and advance the raw position.
+    /// Returns the caps (hard, feed) met during this tick, mm/s.
+    pub(super) fn raw_step(&mut self) -> (f64, f64) {
+        const IDLE: (f64, f64) = (f64::INFINITY, f64::INFINITY);
+        if self.raw_at_stop && !self.leave_stop_point() {
+            return IDLE;
+        }
+        if self.waits_before_motion() {
+            return IDLE;
+        }
+        if self.raw_v_mm_s == 0.0 && self.settled() {
+            self.resize_filters_at_rest();
+        }
+        let head = *self.seg(self.raw_seg);
+        let braking = matches!(self.state, InterpState::Holding | InterpState::Stopping);
+        let accel_mm_s2 = if braking {
+            self.raw_accel(head.stop_accel_mm_s2, &head)
+        } else {
+            self.raw_accel(head.accel_mm_s2, &head)
+        };
+        if head.per_rev_nominal_rpm > 0.0 && self.spindle_feed_rpm <= 0.0 {
+            // Feed per revolution with a standing spindle: the feed holds (status says why).
+            self.spindle_wait = true;
+        }
+        let limits = self.speed_limits(&head, accel_mm_s2, braking);
+        self.advance_raw(&head, accel_mm_s2, limits)
+    }
+
+    /// At rest at the end of segment `raw_seg` (a stop point): moves on to the next segment
+    /// when everything due there is done (settled filters, dwell, G24 in position, M0/M1).
+    /// Returns whether the raw position may move this tick.
+    fn leave_stop_point(&mut self) -> bool {
+        let here = *self.seg(self.raw_seg);
+        if self.raw_seg + 1 >= self.len || self.state != InterpState::Running {
+            self.raw_v_mm_s = 0.0;
+            // An M0/M1 after the last segment buffered (the program's end, or the next
+            // segment not planned yet) holds here too.
+            if self.settled() && self.still_ticks > 0 {
+                self.program_stop_after_last();
+            }
+            return false;
+        }
+        // One tick at rest (and the filter settled) before leaving: the direction may
+        // reverse here, and the arrival step must not add to the departure step.
+        if !self.settled() || self.still_ticks == 0 {
+            return false;
+        }
+        if self.dwell_ticks > 0 {
+            self.dwell_ticks -= 1;
+            return false;
+        }
+        if here.wait_in_position && !self.in_position {
+            return false;
+        }
+        if self.program_stop_at(true) {
+            return false;
+        }
+        self.raw_at_stop = false;
+        self.raw_seg += 1;
+        self.raw_in_seg_mm = 0.0;
+        true
+    }
+
+    /// Before the first motion from rest: a program stop, a leading dwell or (for a cut) a
+    /// spindle not yet at speed keeps the raw position where it is this tick.
+    fn waits_before_motion(&mut self) -> bool {
+        let at_rest = self.raw_v_mm_s == 0.0;
+        if self.raw_in_seg_mm == 0.0 && at_rest && self.settled() && self.program_stop_at(false) {
+            // M0/M1 before the first motion.
+            return true;
+        }
+        if self.dwell_ticks > 0 && at_rest && self.settled() {
+            // Leading dwell (before the first motion).
+            self.dwell_ticks -= 1;
+            return true;
+        }
+        let spindle_ok = self.spindle_ready && self.last_spindle == self.reported_spindle;
+        if at_rest && self.raw_in_seg_mm == 0.0 && !spindle_ok && !self.seg(self.raw_seg).rapid {
+            // A cut starts from rest only with the spindle at speed, judged by the daemon on a
+            // spindle state it has already been given.
+            self.spindle_wait = true;
+            return true;
+        }
+        false
+    }
+
+    /// At rest (the commanded position equals the raw one): both filters may be re-sized for
+    /// the dynamics of what comes next; their history is all this one point.
+    fn resize_filters_at_rest(&mut self) {
+        let n =
+            usize::from(self.seg(self.raw_seg).axis_filter_ticks).clamp(1, AXIS_FILTER_MAX_TICKS);
+        if n != self.axis_window_ticks {
+            self.axis_hist_in.fill(self.path_pos);
+            self.axis_hist_mid.fill(self.path_pos);
+            self.axis_window_ticks = n;
+        }
+        let m = self.filter_for();
+        if m != self.jerk_filter_ticks {
+            let s = self.raw_s();
+            self.hist_raw_s_mm.fill(s);
+            self.hist_cap_mm_s.fill(f64::INFINITY);
+            self.hist_feed_mm_s.fill(f64::INFINITY);
+            self.still_ticks = FILTER_MAX_TICKS;
+            self.jerk_filter_ticks = m;
+        }
+    }
+
+    /// This tick's speed limits (SPEC §7.2: the envelope speed never exceeds a junction's
+    /// speed; §7.3: with the filters, the caps hold `cap_zone_ticks` early and late):
+    /// - hard: segment ceiling, caps of the last ticks, and for each cap ahead at distance d
+    ///   the highest speed still able to brake to it, `max(v_cap, v_brake(d − v_cap·lag))`;
+    /// - soft: feed × override, braked for the same way.
+    ///
+    /// The look-ahead stops at the first stop point, or once the remaining distance exceeds
+    /// the braking reach `v²/(2a) + 2v·Ts + v·lag` (no cap beyond can bind this tick).
+    fn speed_limits(&mut self, head: &Segment, accel_mm_s2: f64, braking: bool) -> SpeedLimits {
+        let a_floor = self.accel_floor();
+        let lag_s = self.cap_zone_ticks() as f64 * TS_S;
+        let (behind_cap, behind_feed) = self.behind_caps();
+        // Soft limits: feed × override of this and later segments, approached at `a`.
+        let mut soft = if braking {
+            0.0
+        } else {
+            self.ceiling(head).min(behind_feed * self.override_factor)
+        };
+        // Hard limits: geometric ceilings, planned end speeds, end of the buffer.
+        let mut hard = head.v_max_mm_s.min(behind_cap).min(self.entry_cap_mm_s);
+        let v_up = self.raw_v_mm_s + accel_mm_s2 * TS_S;
+        // Caps farther than this cannot constrain this tick (braking distance at `a_walk`).
+        let reach = |a_walk: f64| v_up * v_up / (2.0 * a_walk) + 2.0 * v_up * TS_S + v_up * lag_s;
+        let mut d = head.length_mm - self.raw_in_seg_mm;
+        let mut stop_dist_mm = f64::INFINITY;
+        let mut a_walk = accel_mm_s2;
+        for k in self.raw_seg..self.len {
+            let seg = *self.seg(k);
+            if k > self.raw_seg {
+                let ak = if braking {
+                    seg.stop_accel_mm_s2
+                } else {
+                    seg.accel_mm_s2
+                };
+                a_walk = a_walk.min(self.raw_accel(ak, &seg));
+            }
+            let next = (k + 1 < self.len).then(|| *self.seg(k + 1));
+            let (hard_cap, soft_cap, lead) = match next {
+                Some(n) if seg.v_end_mm_s > 0.0 => {
+                    (seg.v_end_mm_s.min(n.v_max_mm_s), self.ceiling(&n), lag_s)
+                }
+                _ => (0.0, 0.0, 0.0),
+            };
+            // Any speed up to the cap itself is safe for that cap; above it, we must still be
+            // able to brake to it (later caps are checked on their own).
+            hard = hard.min(hard_cap.max(Self::v_brake(d - hard_cap * lead, hard_cap, a_walk)));
+            soft = soft.min(soft_cap.max(Self::v_brake(d - soft_cap * lead, soft_cap, a_walk)));
+            if hard_cap == 0.0 {
+                stop_dist_mm = d;
+                break;
+            }
+            if d > reach(a_floor.min(a_walk)) {
+                break;
+            }
+            d += next.map_or(0.0, |n| n.length_mm);
+        }
+        SpeedLimits {
+            soft_mm_s: soft,
+            hard_mm_s: hard,
+            stop_dist_mm,
+        }
+    }
+
+    /// Smallest raw acceleration of the segments the next tick covers at speeds up to `v_up`,
+    /// starting with `a` (the raw segment's): the velocity change of a tick is along the
+    /// chord of that tick, and the planner gives each segment the tangential acceleration
+    /// the turns near it leave (a segment next to a turn may have less than its neighbour).
+    fn accel_over_next_tick(&self, a: f64, v_up: f64, braking: bool) -> f64 {
+        let mut a = a;
+        let mut d = self.seg(self.raw_seg).length_mm - self.raw_in_seg_mm;
+        let reach = v_up * TS_S;
+        let mut k = self.raw_seg + 1;
+        while d < reach && k < self.len {
+            if self.seg(k - 1).v_end_mm_s == 0.0 {
+                // A stop point: the tick ends there.
+                break;
+            }
+            let seg = self.seg(k);
+            let ak = if braking {
+                seg.stop_accel_mm_s2
+            } else {
+                seg.accel_mm_s2
+            };
+            a = a.min(self.raw_accel(ak, seg));
+            d += seg.length_mm;
+            k += 1;
+        }
+        a
+    }
+
+    /// Next raw speed `v' = max(0, min(hard, max(v − a·Ts, min(soft, v + a·Ts))))`: toward
+    /// the soft limit within ±a·Ts, never above the hard one (SPEC §7.2). The raw position
+    /// then moves `v'·Ts`, or exactly onto a stop point once that step fits within the
+    /// deceleration. Returns the caps (hard, feed) met, mm/s.
+    fn advance_raw(&mut self, head: &Segment, accel_mm_s2: f64, limits: SpeedLimits) -> (f64, f64) {
+        let v = self.raw_v_mm_s;
+        let braking = matches!(self.state, InterpState::Holding | InterpState::Stopping);
+        let a_up = self.accel_over_next_tick(accel_mm_s2, v + accel_mm_s2 * TS_S, braking);
+        let mut v_next = (v + a_up * TS_S)
+            .min(limits.soft_mm_s)
+            .max(v - accel_mm_s2 * TS_S)
+            .min(limits.hard_mm_s)
+            .max(0.0);
+        // Arrive exactly at a stop point once the last step fits inside the deceleration limit.
+        let stop_dist = limits.stop_dist_mm;
+        let mut ds = v_next * TS_S;
+        if stop_dist <= (accel_mm_s2 * TS_S * TS_S).max(ARRIVE_EPS_MM)
+            && stop_dist <= ds.max(ARRIVE_EPS_MM)
+        {
+            ds = stop_dist;
+            v_next = ds / TS_S;
+        }
+        if v_next <= 0.0 && stop_dist > ARRIVE_EPS_MM {
+            self.raw_v_mm_s = 0.0;
+            return (head.v_max_mm_s, self.feed_of(head));
+        }
+        self.raw_v_mm_s = v_next;
+        self.move_raw(ds)
+    }
+
+    /// Moves the raw position `ds` along the buffered path. Returns the smallest hard cap and
+    /// feed met on the way (segment ceilings and junction speeds).
+    pub(super) fn move_raw(&mut self, mut ds: f64) -> (f64, f64) {
+        let first = *self.seg(self.raw_seg);
+        let mut cap = first.v_max_mm_s;
+        let mut feed = self.feed_of(&first);
+        self.entry_cap_mm_s = f64::INFINITY;
+        loop {
+            let seg = *self.seg(self.raw_seg);
+            let rest = seg.length_mm - self.raw_in_seg_mm;
+            if ds < rest - ARRIVE_EPS_MM {
+                if self.raw_in_seg_mm == 0.0 && ds <= ARRIVE_EPS_MM {
+                    // Ended on the junction just crossed.
+                    self.entry_cap_mm_s = cap;
+                }
+                self.raw_in_seg_mm += ds;
+                return (cap, feed);
+            }
+            ds -= rest;
+            self.raw_in_seg_mm = seg.length_mm;
+            if seg.v_end_mm_s == 0.0 || self.raw_seg + 1 >= self.len {
+                // A stop point: never carry distance past it.
+                self.raw_at_stop = true;
+                self.raw_v_mm_s = 0.0;
+                self.dwell_ticks = (seg.dwell_s / TS_S).round().max(0.0) as u32;
+                return (cap, feed);
+            }
+            let next = *self.seg(self.raw_seg + 1);
+            cap = cap.min(seg.v_end_mm_s).min(next.v_max_mm_s);
+            feed = feed.min(self.feed_of(&next));
+            self.raw_seg += 1;
+            self.raw_in_seg_mm = 0.0;
+        }
+    }
+}

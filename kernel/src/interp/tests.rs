@@ -1,0 +1,227 @@
+use super::*;
+use crate::plan::SegPath;
+
+fn line(seq: u32, from: [f64; 3], to: [f64; 3], feed: f64, v_end: f64) -> Segment {
+    let mut s = AxesMm::ZERO;
+    let mut e = AxesMm::ZERO;
+    s.0[..3].copy_from_slice(&from);
+    e.0[..3].copy_from_slice(&to);
+    let path = SegPath::Line { start: s, end: e };
+    Segment {
+        seq,
+        path,
+        length_mm: path.length(3),
+        feed_mm_s: feed,
+        v_max_mm_s: 1000.0,
+        v_end_mm_s: v_end,
+        accel_mm_s2: 500.0,
+        jerk_mm_s3: f64::INFINITY,
+        stop_accel_mm_s2: 500.0,
+        ..Segment::default()
+    }
+}
+
+fn run(ip: &mut Interpolator, max_ticks: usize) -> Vec<TickOut> {
+    let mut out = vec![];
+    for _ in 0..max_ticks {
+        let t = ip.tick();
+        out.push(t);
+        if t.state == InterpState::Idle {
+            break;
+        }
+    }
+    out
+}
+
+fn check_limits(trace: &[TickOut], v_max: f64, a_max: f64) {
+    let mut prev_v = 0.0;
+    for w in trace.windows(2) {
+        let v = (w[1].position - w[0].position).norm(3) / TS_S;
+        assert!(v <= v_max * (1.0 + 1e-9) + 1e-9, "speed {v} > {v_max}");
+        let a = (v - prev_v).abs() / TS_S;
+        assert!(a <= a_max * (1.0 + 1e-6) + 1e-6, "accel {a} > {a_max}");
+        prev_v = v;
+    }
+}
+
+#[test]
+fn single_line_ends_exactly_within_limits() {
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    ip.push(line(0, [0.0; 3], [10.0, 5.0, 0.0], 50.0, 0.0))
+        .unwrap();
+    let mut trace = vec![TickOut::default()];
+    trace.extend(run(&mut ip, 10_000));
+    let end = trace.last().unwrap().position;
+    assert_eq!(&end.0[..3], &[10.0, 5.0, 0.0]);
+    check_limits(&trace, 50.0, 500.0);
+}
+
+#[test]
+fn smooth_junction_does_not_stop() {
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    ip.push(line(0, [0.0; 3], [10.0, 0.0, 0.0], 50.0, 50.0))
+        .unwrap();
+    ip.push(line(1, [10.0, 0.0, 0.0], [20.0, 0.0, 0.0], 50.0, 0.0))
+        .unwrap();
+    let trace = run(&mut ip, 10_000);
+    let min_mid = trace
+        .iter()
+        .filter(|t| (5.0..15.0).contains(&t.position[0]))
+        .map(|t| t.path_v_mm_s)
+        .fold(f64::INFINITY, f64::min);
+    assert!(min_mid > 49.0, "slowed to {min_mid}");
+    assert_eq!(trace.last().unwrap().position[0], 20.0);
+}
+
+#[test]
+fn hold_brakes_and_resume_finishes() {
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    ip.push(line(0, [0.0; 3], [100.0, 0.0, 0.0], 50.0, 0.0))
+        .unwrap();
+    let mut trace = vec![TickOut::default()];
+    for _ in 0..100 {
+        trace.push(ip.tick());
+    }
+    ip.hold();
+    for _ in 0..100 {
+        trace.push(ip.tick());
+    }
+    assert_eq!(ip.state(), InterpState::Held);
+    ip.resume();
+    trace.extend(run(&mut ip, 10_000));
+    check_limits(&trace, 50.0, 500.0);
+    assert_eq!(trace.last().unwrap().position[0], 100.0);
+}
+
+#[test]
+fn stop_brakes_then_drops_the_rest() {
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    ip.push(line(0, [0.0; 3], [100.0, 0.0, 0.0], 50.0, 0.0))
+        .unwrap();
+    let mut trace = vec![TickOut::default()];
+    for _ in 0..100 {
+        trace.push(ip.tick());
+    }
+    ip.stop();
+    trace.extend(run(&mut ip, 1000));
+    check_limits(&trace, 50.0, 500.0);
+    assert_eq!(ip.state(), InterpState::Idle);
+    assert!(ip.position()[0] < 100.0);
+}
+
+#[test]
+fn jerk_filter_limits_jerk_and_arrives_exactly() {
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    let mut seg = line(0, [0.0; 3], [30.0, 0.0, 0.0], 80.0, 0.0);
+    seg.jerk_mm_s3 = 20_000.0;
+    ip.push(seg).unwrap();
+    let mut trace = vec![TickOut::default()];
+    trace.extend(run(&mut ip, 10_000));
+    assert!(ip.filter_ticks() > 1);
+    assert_eq!(trace.last().unwrap().position[0], 30.0);
+    let v: Vec<f64> = trace
+        .windows(2)
+        .map(|w| (w[1].position - w[0].position).norm(3) / TS_S)
+        .collect();
+    let a: Vec<f64> = v.windows(2).map(|w| (w[1] - w[0]) / TS_S).collect();
+    for w in a.windows(2) {
+        let j = (w[1] - w[0]).abs() / TS_S;
+        assert!(j <= 20_000.0 * 1.001 + 1e-3, "jerk {j}");
+    }
+    assert!(a.iter().all(|x| x.abs() <= 500.0 * 1.001));
+}
+
+#[test]
+fn axis_filter_rounds_a_smooth_corner_and_settles_exactly() {
+    // Two lines with a smooth 30° corner at speed 5 mm/s, axis filter 3 ticks.
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    let (c, s) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+    let mut a = line(0, [0.0; 3], [2.0, 0.0, 0.0], 20.0, 5.0);
+    let mut b = line(1, [2.0, 0.0, 0.0], [2.0 + 2.0 * c, 2.0 * s, 0.0], 20.0, 0.0);
+    a.axis_filter_ticks = 3;
+    b.axis_filter_ticks = 3;
+    b.last = true;
+    ip.push(a).unwrap();
+    ip.push(b).unwrap();
+    let mut trace = vec![TickOut::default()];
+    trace.extend(run(&mut ip, 10_000));
+    assert_eq!(ip.axis_filter_ticks(), 3);
+    let last = trace.last().unwrap();
+    assert_eq!(&last.position.0[..3], &[2.0 + 2.0 * c, 2.0 * s, 0.0]);
+    assert!(last.program_end);
+    // The corner is cut (a setpoint off both lines), by much less than the raw tick.
+    let off = trace
+        .iter()
+        .map(|t| t.position[1] - (t.position[0] - 2.0).max(0.0) * s / c)
+        .fold(0.0f64, |m, d| m.max(d.abs()));
+    assert!(off > 1e-6 && off < 5.0 * TS_S, "{off}");
+    // Per-axis velocity of the Y axis starts over several ticks, not in one.
+    let vy: Vec<f64> = trace
+        .windows(2)
+        .map(|w| (w[1].position[1] - w[0].position[1]) / TS_S)
+        .collect();
+    let first = vy.iter().position(|v| *v > 0.0).unwrap();
+    assert!(vy[first] < 0.5 * 5.0 * s, "{:?}", &vy[first..first + 6]);
+}
+
+#[test]
+fn a_cut_waits_for_the_spindle_a_rapid_does_not() {
+    use crate::block::SpindleDir;
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    let mut cut = line(0, [0.0; 3], [1.0, 0.0, 0.0], 50.0, 0.0);
+    cut.spindle.dir = SpindleDir::Cw;
+    cut.spindle.s = 1000.0;
+    ip.set_spindle_ready(false);
+    ip.push(cut).unwrap();
+    // The spindle state is in force at once, the axes wait.
+    for _ in 0..50 {
+        let t = ip.tick();
+        assert_eq!(t.spindle.dir, SpindleDir::Cw);
+        assert_eq!(t.position[0], 0.0);
+        assert!(ip.waiting_for_spindle());
+    }
+    ip.set_spindle_ready(true);
+    ip.tick();
+    assert!(!ip.waiting_for_spindle());
+    run(&mut ip, 1000);
+    assert_eq!(ip.position()[0], 1.0);
+    let mut rapid = line(1, [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], 50.0, 0.0);
+    rapid.rapid = true;
+    ip.set_spindle_ready(false);
+    ip.push(rapid).unwrap();
+    run(&mut ip, 1000);
+    assert_eq!(ip.position()[0], 2.0);
+}
+
+#[test]
+fn floor_asks_for_a_rescan_only_when_its_last_holder_leaves() {
+    let mut f = Floor::default();
+    for v in [5.0, 3.0, 3.0, 4.0] {
+        f.add(v);
+    }
+    assert_eq!((f.value, f.count), (3.0, 2));
+    assert!(!f.remove(5.0));
+    assert!(!f.remove(3.0));
+    assert!(f.remove(3.0));
+    let mut inf = Floor::default();
+    inf.add(f64::INFINITY);
+    assert!(inf.remove(f64::INFINITY));
+}
+
+#[test]
+fn g24_waits_for_in_position() {
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    let mut a = line(0, [0.0; 3], [1.0, 0.0, 0.0], 50.0, 0.0);
+    a.wait_in_position = true;
+    ip.push(a).unwrap();
+    ip.push(line(1, [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], 50.0, 0.0))
+        .unwrap();
+    ip.set_in_position(false);
+    for _ in 0..500 {
+        ip.tick();
+    }
+    assert_eq!(ip.position()[0], 1.0);
+    ip.set_in_position(true);
+    run(&mut ip, 1000);
+    assert_eq!(ip.position()[0], 2.0);
+}
