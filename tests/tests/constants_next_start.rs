@@ -314,6 +314,16 @@ const RAPID: &str = "N10 G0 X80\nN20 X0\n";
 const ZIGZAG: &str = "N10 G23 {I} G1 X2 Y0.1 F6000\nN20 X4 Y0\nN30 X6 Y0.1\nN40 X8 Y0\nN50 X10 Y0.1\nN60 X12 Y0\nN70 X14 Y0.1\nN80 X16 Y0\nN90 G24 X0\n";
 /// Very short blocks, nearly collinear, under G23.
 const SHORT_BLOCKS: &str = "N10 G23 {I} G1 X0.3 Y0.001 F6000\nN20 X0.6 Y0\nN30 X0.9 Y0.001\nN40 X1.2 Y0\nN50 X1.5 Y0.001\nN60 X1.8 Y0\nN70 X2.1 Y0.001\nN80 X20 Y0\nN90 G24 X0\n";
+/// Forty 0.3 mm blocks in a shallow zig-zag: many corners that merging (R383) removes.
+fn zigzag_blocks() -> String {
+    let mut p = String::from("N10 G23 {I} G1 X0.3 Y0.01 F6000\n");
+    for k in 2..=40 {
+        let y = if k % 2 == 0 { 0.0 } else { 0.01 };
+        p.push_str(&format!("N{} X{:.1} Y{y}\n", k * 10, 0.3 * k as f64));
+    }
+    p.push_str("N500 X20 Y0\nN510 G24 X0\n");
+    p
+}
 /// A fast arc under G23.
 const ARC: &str = "N10 G23 {I} G1 X10 Y0 F6000\nN20 G3 X10 Y20 I0 J10\nN30 G1 X0 Y20\nN40 G24 Y0\n";
 
@@ -359,7 +369,7 @@ fn plan_cases() -> Vec<PlanCase> {
             "R383 merge length 1 mm",
             &[],
             &[(383, 1.0)],
-            &p(SHORT_BLOCKS),
+            &p(&zigzag_blocks()),
         ),
         case("R384 d1..4 accuracy 1 um", &[], &[(384, 0.001)], &p(ARC)),
         case(
@@ -706,12 +716,12 @@ impl hal::DriveBus for LaggingBus {
     }
 }
 
-/// A daemon with axes X, Y, Z, U on [`LaggingBus`], served on loopback (local trust, admin).
+/// A daemon with axes X, Y, Z, U on [`LaggingBus`], served on a Unix socket (local trust,
+/// admin; loopback TCP only observes).
 async fn four_axis_lagging_daemon() -> (std::sync::Arc<daemon::runtime::controller::Controller>, Api)
 {
     use daemon::runtime::config::AxisConfig;
     use daemon::runtime::controller::{ClockKind, Controller};
-    use daemon::runtime::server::{Listeners, serve_listeners_with};
     let mut cfg = config(Role::Admin);
     cfg.axes.push(AxisConfig {
         node_id: Some(4),
@@ -722,21 +732,9 @@ async fn four_axis_lagging_daemon() -> (std::sync::Arc<daemon::runtime::controll
         &vec![0.0; cfg.axes.len()],
     ));
     let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
-    let local = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = local.local_addr().unwrap();
-    let listeners = Listeners {
-        local_tcp: vec![local],
-        remote_tcp: Vec::new(),
-        unix: None,
-    };
-    tokio::spawn(serve_listeners_with(
-        ctl.clone(),
-        listeners,
-        None,
-        std::future::pending(),
-    ));
+    let socket = tests::serve_unix(&ctl).await;
     wait_state(&ctl, MachineState::Idle).await;
-    let ch = Channel::from_shared(format!("http://{addr}"))
+    let ch = tonic::transport::Endpoint::from_shared(socket)
         .unwrap()
         .connect()
         .await
