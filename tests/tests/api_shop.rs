@@ -419,7 +419,7 @@ async fn status_shows_the_distance_to_go() {
     let mut m = MachineClient::new(d.channel().await);
     m.load_program(pb::LoadProgramRequest {
         name: "slow.nc".into(),
-        text: "N10 G1 X40 Y-20 F600\n".into(),
+        text: "N10 G1 X40 Y-20 F60\n".into(),
     })
     .await
     .unwrap();
