@@ -370,7 +370,6 @@ fn jog_and_its_lease_count_time_at_every_bus_period() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_program_runs_through_grpc_at_a_2ms_bus_period() {
     use daemon::runtime::controller::{ClockKind, Controller};
-    use daemon::runtime::server;
     use proto::v1 as pb;
     use proto::v1::machine_client::MachineClient;
 
@@ -386,12 +385,14 @@ async fn a_program_runs_through_grpc_at_a_2ms_bus_period() {
         points: points.clone(),
     };
     let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
-    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-    let addr = listener.local_addr().unwrap();
-    tokio::spawn(server::serve(ctl.clone(), listener, std::future::pending()));
-    let mut client = MachineClient::connect(format!("http://{addr}"))
+    // The Unix socket gives local control (loopback TCP only observes).
+    let socket = tests::serve_unix(&ctl).await;
+    let channel = tonic::transport::Endpoint::from_shared(socket)
+        .unwrap()
+        .connect()
         .await
         .unwrap();
+    let mut client = MachineClient::new(channel);
     tests::wait_state(&ctl, MachineState::Idle).await;
     client
         .load_program(pb::LoadProgramRequest {
