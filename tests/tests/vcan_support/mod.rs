@@ -336,6 +336,24 @@ pub fn run_with_timeout(cmd: &mut Command, timeout: Duration) -> (bool, String) 
     (status.success(), text)
 }
 
+/// A directory where a Unix socket can be bound. In the VM the test directory is a host
+/// folder shared into it (9p), where binding a socket fails with ENXIO: use the first
+/// VM-local tmpfs that takes one.
+fn socket_dir(test: &str) -> PathBuf {
+    let name = format!("cnc-vcan-{}-{test}", std::process::id());
+    for base in ["/run", "/dev/shm", "/tmp"] {
+        let d = std::path::Path::new(base).join(&name);
+        let probe = d.join("probe.sock");
+        if std::fs::create_dir_all(&d).is_ok()
+            && std::os::unix::net::UnixListener::bind(&probe).is_ok()
+        {
+            let _ = std::fs::remove_file(&probe);
+            return d;
+        }
+    }
+    temp_dir(&format!("{test}-socket"))
+}
+
 impl Daemon {
     /// Starts cncd with `bus_section` (TOML of `[bus]`) and axes X Y Z with `node_ids`.
     pub fn start(test: &str, bus_section: &str, node_ids: [u8; 3]) -> Daemon {
@@ -356,7 +374,7 @@ impl Daemon {
             .unwrap()
             .port();
         // Control over the Unix socket: tokenless loopback TCP is observer-only.
-        let socket = dir.join("cncd.sock");
+        let socket = socket_dir(test).join("cncd.sock");
         let mut cfg = String::new();
         for ((name, id), keys) in ['X', 'Y', 'Z'].iter().zip(node_ids).zip(axis_keys) {
             cfg.push_str(&format!(
