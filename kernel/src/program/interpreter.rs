@@ -116,7 +116,47 @@ impl Modal {
     }
 }
 
+impl Rules {
+    fn of(setup: &Setup) -> Self {
+        let c = &setup.constants;
+        Rules {
+            arc_tolerance_mm: c.arc_tolerance_mm(),
+            bad_arc_becomes_line: c.bad_arc_becomes_line(),
+            side_switch_allowed: c.comp_side_switch_allowed(),
+            g40_without_motion: c.g40_without_motion_allowed(),
+            refinement: if setup.preprocessor {
+                c.refinement()
+            } else {
+                Refinement::Off
+            },
+            css_swapped: c.css_g96_g97_swapped(),
+            ij: setup.ij,
+        }
+    }
+}
+
 impl State {
+    /// The power-on modal state at position `start`.
+    fn power_on(start: AxesMm) -> Self {
+        State {
+            prog: start,
+            machine: start,
+            motion: Motion::Rapid,
+            plane: Plane::G17,
+            absolute: true,
+            feed_mode: FeedMode::G94,
+            feed: None,
+            m37: false,
+            continuity: Continuity::G98,
+            dyn_set: 1,
+            comp: CompMode::Off,
+            d: 0,
+            amp: 0,
+            spindle: Spindle::default(),
+            speed_from_css: false,
+        }
+    }
+
     fn modal(&self) -> Modal {
         Modal {
             motion: self.motion,
@@ -234,29 +274,7 @@ impl Interpreter {
 
     pub fn new(setup: &Setup) -> Self {
         let c = &setup.constants;
-        let mut axis_letters = [0u8; MAX_AXES];
-        let mut setup_error = None;
-        if setup.axis_names.is_empty() || setup.axis_names.len() > MAX_AXES {
-            setup_error = Some(format!(
-                "the machine must have 1..{MAX_AXES} axes, not {}",
-                setup.axis_names.len()
-            ));
-        }
-        for (k, &a) in setup.axis_names.iter().take(MAX_AXES).enumerate() {
-            let up = a.to_ascii_uppercase();
-            if !up.is_ascii_alphabetic() || RESERVED_LETTERS.contains(up) {
-                setup_error = Some(format!(
-                    "axis name '{a}' cannot be used: axes are letters other than {RESERVED_LETTERS}"
-                ));
-            } else if setup.axis_names[..k]
-                .iter()
-                .any(|b| b.to_ascii_uppercase() == up)
-            {
-                setup_error = Some(format!("axis name '{a}' is configured twice"));
-            }
-            axis_letters[k] = up as u8;
-        }
-        let start = setup.start;
+        let (axis_letters, setup_error) = axis_letters(&setup.axis_names);
         let kr_axis = crate::kr::config::controlling_axis_letter(c).and_then(|l| {
             setup
                 .axis_names
@@ -272,37 +290,9 @@ impl Interpreter {
             max_feed_mm_min: setup.max_feed_mm_min,
             axis_letters,
             n_axes: setup.axis_names.len().min(MAX_AXES),
-            rules: Rules {
-                arc_tolerance_mm: c.arc_tolerance_mm(),
-                bad_arc_becomes_line: c.bad_arc_becomes_line(),
-                side_switch_allowed: c.comp_side_switch_allowed(),
-                g40_without_motion: c.g40_without_motion_allowed(),
-                refinement: if setup.preprocessor {
-                    c.refinement()
-                } else {
-                    Refinement::Off
-                },
-                css_swapped: c.css_g96_g97_swapped(),
-                ij: setup.ij,
-            },
+            rules: Rules::of(setup),
             table: setup.offsets.clone(),
-            state: State {
-                prog: start,
-                machine: start,
-                motion: Motion::Rapid,
-                plane: Plane::G17,
-                absolute: true,
-                feed_mode: FeedMode::G94,
-                feed: None,
-                m37: false,
-                continuity: Continuity::G98,
-                dyn_set: 1,
-                comp: CompMode::Off,
-                d: 0,
-                amp: 0,
-                spindle: Spindle::default(),
-                speed_from_css: false,
-            },
+            state: State::power_on(setup.start),
             params: [None; MAX_PARAM as usize + 1],
             seq: 0,
             notes: Vec::new(),
@@ -517,12 +507,18 @@ impl Interpreter {
             *slot = Some((v, at));
             Ok(())
         }
+        const MOTION: &str = "motion (G0..G3)";
+        const PLANE: &str = "plane (G17..G19)";
+        const CONTINUITY: &str = "continuity (G23/G24/G98)";
+        const COMP: &str = "radius compensation (G40..G42)";
+        const DISTANCE: &str = "G90/G91";
+        const FEED: &str = "feed (G94..G97)";
         let g = int(num, "G", 0, 999).map_err(|m| Fail { at, message: m })?;
         match g {
-            0 => group(&mut w.motion, Motion::Rapid, at, "motion (G0..G3)"),
-            1 => group(&mut w.motion, Motion::Line, at, "motion (G0..G3)"),
-            2 => group(&mut w.motion, Motion::Cw, at, "motion (G0..G3)"),
-            3 => group(&mut w.motion, Motion::Ccw, at, "motion (G0..G3)"),
+            0 => group(&mut w.motion, Motion::Rapid, at, MOTION),
+            1 => group(&mut w.motion, Motion::Line, at, MOTION),
+            2 => group(&mut w.motion, Motion::Cw, at, MOTION),
+            3 => group(&mut w.motion, Motion::Ccw, at, MOTION),
             17..=19 => {
                 let p = [Plane::G17, Plane::G18, Plane::G19][g as usize - 17];
                 let (a, b) = p.axes();
@@ -532,50 +528,20 @@ impl Interpreter {
                         format!("G{g} needs a third axis; this machine has {}", self.n_axes),
                     );
                 }
-                group(&mut w.plane, p, at, "plane (G17..G19)")
+                group(&mut w.plane, p, at, PLANE)
             }
-            23 => group(
-                &mut w.continuity,
-                Continuity::G23,
-                at,
-                "continuity (G23/G24/G98)",
-            ),
-            24 => group(
-                &mut w.continuity,
-                Continuity::G24,
-                at,
-                "continuity (G23/G24/G98)",
-            ),
-            98 => group(
-                &mut w.continuity,
-                Continuity::G98,
-                at,
-                "continuity (G23/G24/G98)",
-            ),
-            40 => group(
-                &mut w.comp,
-                CompMode::Off,
-                at,
-                "radius compensation (G40..G42)",
-            ),
-            41 => group(
-                &mut w.comp,
-                CompMode::Left,
-                at,
-                "radius compensation (G40..G42)",
-            ),
-            42 => group(
-                &mut w.comp,
-                CompMode::Right,
-                at,
-                "radius compensation (G40..G42)",
-            ),
-            90 => group(&mut w.absolute, true, at, "G90/G91"),
-            91 => group(&mut w.absolute, false, at, "G90/G91"),
-            94 => group(&mut w.feed_mode, FeedMode::G94, at, "feed (G94..G97)"),
-            95 => group(&mut w.feed_mode, FeedMode::G95, at, "feed (G94..G97)"),
-            96 => group(&mut w.feed_mode, FeedMode::G96, at, "feed (G94..G97)"),
-            97 => group(&mut w.feed_mode, FeedMode::G97, at, "feed (G94..G97)"),
+            23 => group(&mut w.continuity, Continuity::G23, at, CONTINUITY),
+            24 => group(&mut w.continuity, Continuity::G24, at, CONTINUITY),
+            98 => group(&mut w.continuity, Continuity::G98, at, CONTINUITY),
+            40 => group(&mut w.comp, CompMode::Off, at, COMP),
+            41 => group(&mut w.comp, CompMode::Left, at, COMP),
+            42 => group(&mut w.comp, CompMode::Right, at, COMP),
+            90 => group(&mut w.absolute, true, at, DISTANCE),
+            91 => group(&mut w.absolute, false, at, DISTANCE),
+            94 => group(&mut w.feed_mode, FeedMode::G94, at, FEED),
+            95 => group(&mut w.feed_mode, FeedMode::G95, at, FEED),
+            96 => group(&mut w.feed_mode, FeedMode::G96, at, FEED),
+            97 => group(&mut w.feed_mode, FeedMode::G97, at, FEED),
             76 => {
                 if w.g76.is_some() {
                     return fail(at, "G76 is written twice in this block");
@@ -640,45 +606,56 @@ impl Interpreter {
         )
     }
 
+    /// One block, in the order the modal groups depend on each other: the simple modal words,
+    /// dynamic set, plane, M functions, feed and S, G92/D/&, compensation, positions, then the
+    /// block's kind (motion checks). Every step works on the copy `st`; [`Self::commit`] is the
+    /// only one that changes the interpreter.
     fn interpret(&mut self, w: &Words, line_no: u32, text: &str) -> Result<Block, Fail> {
         let old = self.state;
         let mut st = old;
-        let rules = self.rules;
-        if let Some((m, _)) = w.motion {
-            st.motion = m;
-        }
-        if let Some((a, _)) = w.absolute {
-            st.absolute = a;
-        }
-        if let Some((c, _)) = w.continuity {
-            st.continuity = c;
-        }
+        apply_simple_modals(w, &mut st);
         let motion_words = w.axes[..self.n_axes].iter().any(Option::is_some);
         let arc_block = st.motion.is_arc() && w.g92.is_none();
-
-        // G23/G24/G98 I1..I4: I selects the dynamic set (SPEC §7.4) unless the block is an arc
-        // that moves (G2/G3 mode with an axis word or J), where I is the centre.
-        let mut i_is_centre = true;
-        if let (Some(_), Some((i, at))) = (w.continuity, w.i)
-            && (!arc_block || (w.j.is_none() && !motion_words))
-        {
-            let set = int(i, "I (dynamic set)", 1, 4).map_err(|m| Fail { at, message: m })?;
-            st.dyn_set = set as u8;
-            i_is_centre = false;
+        let i_is_centre = dynamic_set(w, &mut st, arc_block, motion_words)?;
+        plane(w, old, &mut st)?;
+        let m_codes = self.m_functions(w, &mut st)?;
+        let per_rev = self.feed_and_speed(w, old, &mut st)?;
+        let edit = self.table_write_or_d(w, &mut st, line_no, text)?;
+        if let Some((a, _)) = w.amp {
+            st.amp = a;
         }
-
-        // Plane (SPEC §4.1: no change under compensation).
-        if let Some((p, at)) = w.plane {
-            if old.comp != CompMode::Off && p != old.plane {
-                return fail(
-                    at,
-                    "the plane cannot change while radius compensation G41/G42 is active: program G40 first",
-                );
-            }
-            st.plane = p;
+        let comp = self.compensation(w, old, &mut st, edit.as_ref(), arc_block, motion_words)?;
+        let offset = self.positions(w, old, &mut st, edit.as_ref());
+        let start = old.machine;
+        let end = st.prog + offset;
+        check_arc_words(w, arc_block, i_is_centre)?;
+        let moves =
+            motion_words || (arc_block && ((w.i.is_some() && i_is_centre) || w.j.is_some()));
+        let mut out = Outcome {
+            kind: BlockKind::Technology,
+            warn: None,
+            refined: None,
+        };
+        if let Some(ed) = edit {
+            out.kind = BlockKind::TableWrite {
+                entry: ed.entry,
+                values: ed.values,
+            };
+        } else if moves {
+            out = self.motion(w, &st, old, (start, end, offset), arc_block, per_rev)?;
         }
+        let checked = Checked {
+            st,
+            edit,
+            comp,
+            m_codes,
+            out,
+        };
+        Ok(self.commit(w, line_no, text, checked))
+    }
 
-        // M functions: spindle, feed scale, gear.
+    /// M functions: spindle direction, feed scale, gear range (one of each per block).
+    fn m_functions(&self, w: &Words, st: &mut State) -> Result<MCodes, Fail> {
         let mut m_codes: MCodes = [None; 4];
         let (mut dir_at, mut scale_at, mut gear_at) = (None, None, None);
         for (k, (m, at)) in w.m.iter().flatten().enumerate() {
@@ -717,19 +694,23 @@ impl Interpreter {
             // power-on modal state anyway, docs/language.md).
             st.spindle.dir = SpindleDir::Stopped;
         }
-
         // P of the range in force (gear 0, none selected yet, is range 1), for feed per rev.
         st.spindle.gear_max_rpm = self
             .gears
             .get(usize::from(st.spindle.gear.max(1)) - 1)
             .map_or(0.0, |g| g.max_rpm);
+        Ok(m_codes)
+    }
 
-        // Feed group and constant cutting speed (SPEC §5, §6).
+    /// Feed group, F, and S / G76 S / constant cutting speed (SPEC §5, §6). Returns whether
+    /// the feed is per revolution.
+    fn feed_and_speed(&self, w: &Words, old: State, st: &mut State) -> Result<bool, Fail> {
+        let css_swapped = self.rules.css_swapped;
         if let Some((fm, _)) = w.feed_mode {
             st.feed_mode = fm;
         }
-        let per_rev = st.feed_mode.per_rev(rules.css_swapped);
-        if per_rev != old.feed_mode.per_rev(rules.css_swapped) {
+        let per_rev = st.feed_mode.per_rev(css_swapped);
+        if per_rev != old.feed_mode.per_rev(css_swapped) {
             // F is not carried over between per minute and per revolution (seed 002 §6.1).
             st.feed = None;
         }
@@ -759,55 +740,77 @@ impl Interpreter {
             st.spindle.s = 0.0;
             st.speed_from_css = true;
         }
+        Ok(per_rev)
+    }
 
-        // G92 D<n> R0..R4: table write (SPEC §3 (c)).
-        let mut edit = None;
-        if let Some(at) = w.g92 {
-            if let Some(ax) = w.axes.iter().flatten().next() {
-                return fail(
-                    ax.1,
-                    "G92 fills the offset table; it cannot be in a block with axis motion",
-                );
+    /// G92 D<n> R0..R4: the table write the block makes (SPEC §3 (c)); without G92, D selects
+    /// the offset entry.
+    fn table_write_or_d(
+        &mut self,
+        w: &Words,
+        st: &mut State,
+        line_no: u32,
+        text: &str,
+    ) -> Result<Option<TableEdit>, Fail> {
+        let Some(at) = w.g92 else {
+            if let Some((d, _)) = w.d {
+                st.d = d;
             }
-            let Some((entry, d_at)) = w.d else {
-                return fail(at, "G92 needs D<entry> (01..99): the offset entry to fill");
-            };
-            if entry == 0 {
-                return fail(d_at, "G92 D0: offset entries are 01..99");
-            }
-            let mut values = [None; 5];
-            for (index, num) in w.assigns.iter().flatten() {
-                if (*index as usize) < 5 {
-                    if !num.value.is_finite() || num.value.abs() > offsets::MAX_VALUE_MM {
-                        return fail(
-                            at,
-                            format!(
-                                "R{index}={} is outside ±{} mm",
-                                num.value,
-                                offsets::MAX_VALUE_MM
-                            ),
-                        );
-                    }
-                    values[*index as usize] = Some(num.value);
+            return Ok(None);
+        };
+        if let Some(ax) = w.axes.iter().flatten().next() {
+            return fail(
+                ax.1,
+                "G92 fills the offset table; it cannot be in a block with axis motion",
+            );
+        }
+        let Some((entry, d_at)) = w.d else {
+            return fail(at, "G92 needs D<entry> (01..99): the offset entry to fill");
+        };
+        if entry == 0 {
+            return fail(d_at, "G92 D0: offset entries are 01..99");
+        }
+        let mut values = [None; 5];
+        for (index, num) in w.assigns.iter().flatten() {
+            if (*index as usize) < 5 {
+                if !num.value.is_finite() || num.value.abs() > offsets::MAX_VALUE_MM {
+                    return fail(
+                        at,
+                        format!(
+                            "R{index}={} is outside ±{} mm",
+                            num.value,
+                            offsets::MAX_VALUE_MM
+                        ),
+                    );
                 }
+                values[*index as usize] = Some(num.value);
             }
-            if values.iter().all(Option::is_none) {
-                self.notes.push(Diagnostic::warning(
-                    w.n,
-                    line_no,
-                    column(text, at),
-                    format!("G92 D{entry} writes nothing: program R0 (radius) .. R4 (lengths) in the block"),
-                ));
-            }
-            edit = Some(TableEdit { entry, values });
-        } else if let Some((d, _)) = w.d {
-            st.d = d;
         }
-        if let Some((a, _)) = w.amp {
-            st.amp = a;
+        if values.iter().all(Option::is_none) {
+            self.notes.push(Diagnostic::warning(
+                w.n,
+                line_no,
+                column(text, at),
+                format!(
+                    "G92 D{entry} writes nothing: program R0 (radius) .. R4 (lengths) in the block"
+                ),
+            ));
         }
+        Ok(Some(TableEdit { entry, values }))
+    }
 
-        // Radius compensation (SPEC §4.1, §4.2).
+    /// Radius compensation G40/G41/G42 (SPEC §4.1, §4.2): the side and radius in force, and
+    /// the checks on starting, switching and cancelling it.
+    fn compensation(
+        &self,
+        w: &Words,
+        old: State,
+        st: &mut State,
+        edit: Option<&TableEdit>,
+        arc_block: bool,
+        motion_words: bool,
+    ) -> Result<Comp, Fail> {
+        let rules = self.rules;
         if let Some((c, _)) = w.comp {
             st.comp = c;
         }
@@ -815,7 +818,7 @@ impl Interpreter {
         let comp = match st.comp {
             CompMode::Off => Comp::Off,
             side => {
-                let Some(radius_mm) = self.radius_of(st.d, edit.as_ref()) else {
+                let Some(radius_mm) = self.radius_of(st.d, edit) else {
                     return fail(
                         comp_at,
                         "radius compensation needs a tool: select an offset entry with D before G41/G42",
@@ -828,36 +831,39 @@ impl Interpreter {
                 }
             }
         };
-        if st.comp != old.comp {
-            if arc_block && motion_words {
-                return fail(
-                    comp_at,
-                    "radius compensation can be started or cancelled only in a linear block, not on an arc",
-                );
-            }
-            if old.comp != CompMode::Off && st.comp != CompMode::Off && !rules.side_switch_allowed {
-                return fail(
-                    comp_at,
-                    "G41 and G42 cannot follow each other directly: program G40 between them (or set 6.R397 = 1)",
-                );
-            }
-            let (a, b) = st.plane.axes();
-            if st.comp == CompMode::Off
-                && !rules.g40_without_motion
-                && w.axes[a].is_none()
-                && w.axes[b].is_none()
-            {
-                return fail(
-                    comp_at,
-                    "G40 must be in a block that moves in the compensation plane (or set 7.R339 = 1)",
-                );
-            }
+        if st.comp == old.comp {
+            return Ok(comp);
         }
+        if arc_block && motion_words {
+            return fail(
+                comp_at,
+                "radius compensation can be started or cancelled only in a linear block, not on an arc",
+            );
+        }
+        if old.comp != CompMode::Off && st.comp != CompMode::Off && !rules.side_switch_allowed {
+            return fail(
+                comp_at,
+                "G41 and G42 cannot follow each other directly: program G40 between them (or set 6.R397 = 1)",
+            );
+        }
+        let (a, b) = st.plane.axes();
+        if st.comp == CompMode::Off
+            && !rules.g40_without_motion
+            && w.axes[a].is_none()
+            && w.axes[b].is_none()
+        {
+            return fail(
+                comp_at,
+                "G40 must be in a block that moves in the compensation plane (or set 7.R339 = 1)",
+            );
+        }
+        Ok(comp)
+    }
 
-        // Positions.
-        let offset = self.length_offset(st.amp, edit.as_ref());
-        // KŘR version 2 computes at the tool tip with the offset in force from this block on,
-        // also in blocks without motion (SPEC §6).
+    /// The programmed position after the block and the length offset in force (which KŘR
+    /// version 2 also uses, from this block on, SPEC §6).
+    fn positions(&self, w: &Words, old: State, st: &mut State, edit: Option<&TableEdit>) -> AxesMm {
+        let offset = self.length_offset(st.amp, edit);
         st.spindle.length_offset_mm = self.kr_axis.map_or(0.0, |k| offset[k]);
         for (k, v) in w.axes[..self.n_axes].iter().enumerate() {
             if let Some((v, _)) = v {
@@ -865,90 +871,68 @@ impl Interpreter {
                 st.prog[k] = if st.absolute { v } else { old.prog[k] + v };
             }
         }
-        let start = old.machine;
-        let end = st.prog + offset;
+        offset
+    }
 
-        // I, J, E belong to arcs.
-        let ij_present = (w.i.is_some() && i_is_centre) || w.j.is_some();
-        if !arc_block {
-            if let Some((_, at)) = w.i.filter(|_| i_is_centre).or(w.j) {
-                return fail(at, "I and J are arc centre words: they need G2 or G3");
-            }
-            if let Some((_, at)) = w.e {
-                return fail(at, "E refines an arc centre: it needs G2 or G3");
-            }
+    /// A block that moves: its path (rapid, line or a checked arc) and the feed it needs.
+    /// `ends` is (start, end, length offset) in machine coordinates.
+    fn motion(
+        &self,
+        w: &Words,
+        st: &State,
+        old: State,
+        ends: (AxesMm, AxesMm, AxesMm),
+        arc_block: bool,
+        per_rev: bool,
+    ) -> Result<Outcome, Fail> {
+        let (start, end, offset) = ends;
+        let (mut warn, mut refined) = (None, None);
+        if arc_block && let Some(k) = self.moving_rotary_axis(start, end) {
+            return fail(
+                w.axes[k].map_or(w.first, |a| a.1),
+                format!(
+                    "{} is a rotary axis: it moves in linear blocks (G0, G1), not in an arc",
+                    self.axis_letters[k] as char
+                ),
+            );
         }
-        let moves = motion_words || (arc_block && ij_present);
-        let mut kind = BlockKind::Technology;
-        let mut warn: Option<(usize, String)> = None;
-        let mut refined = None;
-        if let Some(ed) = edit {
-            kind = BlockKind::TableWrite {
-                entry: ed.entry,
-                values: ed.values,
-            };
-        } else if moves {
-            if arc_block && let Some(k) = self.moving_rotary_axis(start, end) {
-                return fail(
-                    w.axes[k].map_or(w.first, |a| a.1),
-                    format!(
-                        "{} is a rotary axis: it moves in linear blocks (G0, G1), not in an arc",
-                        self.axis_letters[k] as char
-                    ),
-                );
-            }
-            let path = if arc_block {
-                match self.arc(w, &st, old, start, end, offset)? {
-                    Ok((p, r)) => {
-                        refined = r;
-                        p
-                    }
-                    Err(msg) => {
-                        warn = Some((w.first, msg));
-                        Path::Line
-                    }
+        let path = if arc_block {
+            match self.arc(w, st, old, start, end, offset)? {
+                Ok((p, r)) => {
+                    refined = r;
+                    p
                 }
-            } else if st.motion == Motion::Rapid {
-                Path::Rapid
-            } else {
-                Path::Line
-            };
-            if path != Path::Rapid {
-                match st.feed {
-                    Some(f) if feed_value(f) > 0.0 => {}
-                    Some(_) => {
-                        return fail(
-                            w.f.map_or(w.first, |f| f.1),
-                            "feed F is zero: a feed move needs F > 0",
-                        );
-                    }
-                    None if old.feed.is_some() => {
-                        return fail(
-                            w.first,
-                            "the feed changed between per minute and per revolution: program F again",
-                        );
-                    }
-                    None => {
-                        return fail(
-                            w.first,
-                            "no feed: program F before the first feed move (G1/G2/G3)",
-                        );
-                    }
-                }
-                if per_rev
-                    && (st.spindle.dir == SpindleDir::Stopped
-                        || (st.spindle.s <= 0.0 && !st.speed_from_css))
-                {
-                    return fail(
-                        w.first,
-                        "feed per revolution needs a turning spindle: program S and M3 or M4 first",
-                    );
+                Err(msg) => {
+                    warn = Some((w.first, msg));
+                    Path::Line
                 }
             }
-            kind = BlockKind::Motion { start, end, path };
+        } else if st.motion == Motion::Rapid {
+            Path::Rapid
+        } else {
+            Path::Line
+        };
+        if path != Path::Rapid {
+            check_feed(w, st, old, per_rev)?;
         }
+        Ok(Outcome {
+            kind: BlockKind::Motion { start, end, path },
+            warn,
+            refined,
+        })
+    }
 
-        // Everything checked: commit.
+    /// Everything checked: the block's feed, the table write, the parameters, the notes and
+    /// the new modal state take effect together.
+    fn commit(&mut self, w: &Words, line_no: u32, text: &str, checked: Checked) -> Block {
+        let Checked {
+            mut st,
+            edit,
+            comp,
+            m_codes,
+            out,
+        } = checked;
+        let kind = out.kind;
         let mut feed_out = st.feed.unwrap_or_default();
         if st.m37 {
             feed_out = match feed_out {
@@ -967,7 +951,7 @@ impl Interpreter {
         for (index, num) in w.assigns.iter().flatten() {
             self.params[*index as usize] = Some(*num);
         }
-        if let Some((at, msg)) = warn {
+        if let Some((at, msg)) = out.warn {
             self.notes
                 .push(Diagnostic::warning(w.n, line_no, column(text, at), msg));
         }
@@ -982,10 +966,10 @@ impl Interpreter {
                 msg,
             ));
         }
-        if let Some(r) = refined {
+        if let Some(r) = out.refined {
             self.note_refinement(w, line_no, r);
         }
-        if matches!(kind, BlockKind::Motion { .. }) {
+        if let BlockKind::Motion { end, .. } = kind {
             st.machine = end;
         }
         self.state = st;
@@ -1003,7 +987,7 @@ impl Interpreter {
             m: m_codes,
         };
         self.seq += 1;
-        Ok(block)
+        block
     }
 
     /// The first rotary axis that moves between `start` and `end`.
@@ -1163,6 +1147,142 @@ impl Interpreter {
             refined,
         )))
     }
+}
+
+/// What a checked block makes, before the commit: its kind, a warning to give (an arc
+/// replaced by a line, 7.R397) and the R325 refinement applied to its arc.
+struct Outcome {
+    kind: BlockKind,
+    warn: Option<(usize, String)>,
+    refined: Option<ERefinement>,
+}
+
+/// A block that passed every check: the new modal state and what the commit applies.
+struct Checked {
+    st: State,
+    edit: Option<TableEdit>,
+    comp: Comp,
+    m_codes: MCodes,
+    out: Outcome,
+}
+
+/// The machine's axis letters (upper case) and, if they cannot be used, why.
+fn axis_letters(names: &[char]) -> ([u8; MAX_AXES], Option<String>) {
+    let mut letters = [0u8; MAX_AXES];
+    let mut error = None;
+    if names.is_empty() || names.len() > MAX_AXES {
+        error = Some(format!(
+            "the machine must have 1..{MAX_AXES} axes, not {}",
+            names.len()
+        ));
+    }
+    for (k, &a) in names.iter().take(MAX_AXES).enumerate() {
+        let up = a.to_ascii_uppercase();
+        if !up.is_ascii_alphabetic() || RESERVED_LETTERS.contains(up) {
+            error = Some(format!(
+                "axis name '{a}' cannot be used: axes are letters other than {RESERVED_LETTERS}"
+            ));
+        } else if names[..k].iter().any(|b| b.to_ascii_uppercase() == up) {
+            error = Some(format!("axis name '{a}' is configured twice"));
+        }
+        letters[k] = up as u8;
+    }
+    (letters, error)
+}
+
+/// Motion (G0..G3), G90/G91 and continuity (G23/G24/G98): modal words without checks.
+fn apply_simple_modals(w: &Words, st: &mut State) {
+    if let Some((m, _)) = w.motion {
+        st.motion = m;
+    }
+    if let Some((a, _)) = w.absolute {
+        st.absolute = a;
+    }
+    if let Some((c, _)) = w.continuity {
+        st.continuity = c;
+    }
+}
+
+/// G23/G24/G98 I1..I4: I selects the dynamic set (SPEC §7.4) unless the block is an arc that
+/// moves (G2/G3 mode with an axis word or J), where I is the centre. Returns whether I is the
+/// arc centre.
+fn dynamic_set(
+    w: &Words,
+    st: &mut State,
+    arc_block: bool,
+    motion_words: bool,
+) -> Result<bool, Fail> {
+    if let (Some(_), Some((i, at))) = (w.continuity, w.i)
+        && (!arc_block || (w.j.is_none() && !motion_words))
+    {
+        let set = int(i, "I (dynamic set)", 1, 4).map_err(|m| Fail { at, message: m })?;
+        st.dyn_set = set as u8;
+        return Ok(false);
+    }
+    Ok(true)
+}
+
+/// Plane G17..G19 (SPEC §4.1: no change under compensation).
+fn plane(w: &Words, old: State, st: &mut State) -> Result<(), Fail> {
+    if let Some((p, at)) = w.plane {
+        if old.comp != CompMode::Off && p != old.plane {
+            return fail(
+                at,
+                "the plane cannot change while radius compensation G41/G42 is active: program G40 first",
+            );
+        }
+        st.plane = p;
+    }
+    Ok(())
+}
+
+/// I, J, E belong to arcs.
+fn check_arc_words(w: &Words, arc_block: bool, i_is_centre: bool) -> Result<(), Fail> {
+    if arc_block {
+        return Ok(());
+    }
+    if let Some((_, at)) = w.i.filter(|_| i_is_centre).or(w.j) {
+        return fail(at, "I and J are arc centre words: they need G2 or G3");
+    }
+    if let Some((_, at)) = w.e {
+        return fail(at, "E refines an arc centre: it needs G2 or G3");
+    }
+    Ok(())
+}
+
+/// A feed move needs F > 0 in the feed mode in force, and feed per revolution a turning
+/// spindle (SPEC §5).
+fn check_feed(w: &Words, st: &State, old: State, per_rev: bool) -> Result<(), Fail> {
+    match st.feed {
+        Some(f) if feed_value(f) > 0.0 => {}
+        Some(_) => {
+            return fail(
+                w.f.map_or(w.first, |f| f.1),
+                "feed F is zero: a feed move needs F > 0",
+            );
+        }
+        None if old.feed.is_some() => {
+            return fail(
+                w.first,
+                "the feed changed between per minute and per revolution: program F again",
+            );
+        }
+        None => {
+            return fail(
+                w.first,
+                "no feed: program F before the first feed move (G1/G2/G3)",
+            );
+        }
+    }
+    if per_rev
+        && (st.spindle.dir == SpindleDir::Stopped || (st.spindle.s <= 0.0 && !st.speed_from_css))
+    {
+        return fail(
+            w.first,
+            "feed per revolution needs a turning spindle: program S and M3 or M4 first",
+        );
+    }
+    Ok(())
 }
 
 fn feed_value(f: Feed) -> f64 {

@@ -201,112 +201,135 @@ pub fn check_path(
         }
     }
     for (i, c) in mv.iter().enumerate() {
-        let (s, e, path) = c.block.motion().unwrap();
+        let (s, e, _) = c.block.motion().unwrap();
         for p in [s, e] {
             if p.0.iter().any(|v| !v.is_finite()) {
                 return Err(format!("non-finite output {c:?}"));
             }
         }
-        let (ps, pe) = (V2::of(&s, plane), V2::of(&e, plane));
-        let r = c.offset_mm;
         match c.role {
             Role::Equidistant => {
                 pieces += 1;
-                let b = src[&c.block.seq];
-                let (bs, be, bpath) = b.motion().unwrap();
-                let (a, bb) = (V2::of(&bs, plane), V2::of(&be, plane));
-                match bpath {
-                    Path::Arc { dir, center, .. } => {
-                        let cc = V2::of(&center, plane);
-                        let rho = a.dist(cc);
-                        let want = if dir == ArcDir::Ccw { rho - r } else { rho + r };
-                        for q in [ps, pe] {
-                            if (q.dist(cc) - want).abs() > tol {
-                                return Err(format!(
-                                    "arc piece of seq {} at {:?}: distance {} from centre, want {want}",
-                                    b.seq,
-                                    q,
-                                    q.dist(cc)
-                                ));
-                            }
-                        }
-                        let Path::Arc {
-                            dir: odir,
-                            center: oc,
-                            ..
-                        } = path
-                        else {
-                            // A piece shorter than 1e-9 mm may be written as a line.
-                            if ps.dist(pe) > 1e-6 {
-                                return Err(format!("arc seq {} came out as a line", b.seq));
-                            }
-                            continue;
-                        };
-                        if odir != dir || !close(V2::of(&oc, plane), cc, 1e-9) {
-                            return Err(format!(
-                                "arc piece of seq {} changed centre/direction",
-                                b.seq
-                            ));
-                        }
-                    }
-                    _ => {
-                        let d = (bb - a).unit();
-                        for q in [ps, pe] {
-                            let off = d.cross(q - a);
-                            if (off - r).abs() > tol {
-                                return Err(format!(
-                                    "line piece of seq {} at {q:?}: offset {off}, want {r}",
-                                    b.seq
-                                ));
-                            }
-                        }
-                        if (pe - ps).dot(d) < -1e-9 {
-                            return Err(format!("line piece of seq {} runs backwards", b.seq));
-                        }
-                    }
-                }
+                check_equidistant(c, src[&c.block.seq], plane, tol)?;
             }
             Role::CornerArc => {
                 arcs += 1;
-                let b = src[&c.block.seq];
-                let corner = V2::of(&b.motion().unwrap().0, plane);
-                let Path::Arc { center, .. } = path else {
-                    return Err("corner arc is not an arc".into());
-                };
-                if !close(V2::of(&center, plane), corner, 1e-9) {
-                    return Err(format!(
-                        "corner arc of seq {} not centred on the corner",
-                        b.seq
-                    ));
-                }
-                for q in [ps, pe] {
-                    if (q.dist(corner) - r.abs()).abs() > tol {
-                        return Err(format!("corner arc of seq {} radius != |r|", b.seq));
-                    }
-                }
-                // Neighbours moving in the plane (bridged Z moves stand between).
-                let moves = |c: &CompBlock| {
-                    let (a, b) = ends(&c.block, plane);
-                    a.dist(b) > 1e-9
-                };
-                let Some(before) = mv[..i].iter().rev().find(|c| moves(c)) else {
-                    return Err("corner arc without a motion before it".into());
-                };
-                let Some(after) = mv[i + 1..].iter().find(|c| moves(c)) else {
-                    return Err("corner arc without a motion after it".into());
-                };
-                let t_in = tangent(&before.block, plane, true);
-                let t_out = tangent(&after.block, plane, false);
-                if tangent(&c.block, plane, false).dot(t_in) < 1.0 - 1e-9
-                    || tangent(&c.block, plane, true).dot(t_out) < 1.0 - 1e-9
-                {
-                    return Err(format!("corner arc of seq {} not tangent", b.seq));
-                }
+                check_corner_arc(&mv, i, src[&c.block.seq], plane, tol)?;
             }
             _ => {}
         }
     }
     Ok((pieces, arcs))
+}
+
+/// An equidistant piece `c` of source block `b`: at distance `c.offset_mm` from its path,
+/// an arc stays an arc about the same centre, a line does not run backwards.
+fn check_equidistant(c: &CompBlock, b: &Block, plane: Plane, tol: f64) -> Result<(), String> {
+    let (s, e, path) = c.block.motion().unwrap();
+    let (ps, pe) = (V2::of(&s, plane), V2::of(&e, plane));
+    let r = c.offset_mm;
+    let (bs, be, bpath) = b.motion().unwrap();
+    let (a, bb) = (V2::of(&bs, plane), V2::of(&be, plane));
+    match bpath {
+        Path::Arc { dir, center, .. } => {
+            let cc = V2::of(&center, plane);
+            let rho = a.dist(cc);
+            let want = if dir == ArcDir::Ccw { rho - r } else { rho + r };
+            for q in [ps, pe] {
+                if (q.dist(cc) - want).abs() > tol {
+                    return Err(format!(
+                        "arc piece of seq {} at {:?}: distance {} from centre, want {want}",
+                        b.seq,
+                        q,
+                        q.dist(cc)
+                    ));
+                }
+            }
+            let Path::Arc {
+                dir: odir,
+                center: oc,
+                ..
+            } = path
+            else {
+                // A piece shorter than 1e-9 mm may be written as a line.
+                if ps.dist(pe) > 1e-6 {
+                    return Err(format!("arc seq {} came out as a line", b.seq));
+                }
+                return Ok(());
+            };
+            if odir != dir || !close(V2::of(&oc, plane), cc, 1e-9) {
+                return Err(format!(
+                    "arc piece of seq {} changed centre/direction",
+                    b.seq
+                ));
+            }
+        }
+        _ => {
+            let d = (bb - a).unit();
+            for q in [ps, pe] {
+                let off = d.cross(q - a);
+                if (off - r).abs() > tol {
+                    return Err(format!(
+                        "line piece of seq {} at {q:?}: offset {off}, want {r}",
+                        b.seq
+                    ));
+                }
+            }
+            if (pe - ps).dot(d) < -1e-9 {
+                return Err(format!("line piece of seq {} runs backwards", b.seq));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The corner arc `mv[i]` inserted at the start of source block `b`: centred on the corner,
+/// of radius |offset|, tangent to the motions before and after it.
+fn check_corner_arc(
+    mv: &[CompBlock],
+    i: usize,
+    b: &Block,
+    plane: Plane,
+    tol: f64,
+) -> Result<(), String> {
+    let c = &mv[i];
+    let (s, e, path) = c.block.motion().unwrap();
+    let (ps, pe) = (V2::of(&s, plane), V2::of(&e, plane));
+    let r = c.offset_mm;
+    let corner = V2::of(&b.motion().unwrap().0, plane);
+    let Path::Arc { center, .. } = path else {
+        return Err("corner arc is not an arc".into());
+    };
+    if !close(V2::of(&center, plane), corner, 1e-9) {
+        return Err(format!(
+            "corner arc of seq {} not centred on the corner",
+            b.seq
+        ));
+    }
+    for q in [ps, pe] {
+        if (q.dist(corner) - r.abs()).abs() > tol {
+            return Err(format!("corner arc of seq {} radius != |r|", b.seq));
+        }
+    }
+    // Neighbours moving in the plane (bridged Z moves stand between).
+    let moves = |c: &CompBlock| {
+        let (a, b) = ends(&c.block, plane);
+        a.dist(b) > 1e-9
+    };
+    let Some(before) = mv[..i].iter().rev().find(|c| moves(c)) else {
+        return Err("corner arc without a motion before it".into());
+    };
+    let Some(after) = mv[i + 1..].iter().find(|c| moves(c)) else {
+        return Err("corner arc without a motion after it".into());
+    };
+    let t_in = tangent(&before.block, plane, true);
+    let t_out = tangent(&after.block, plane, false);
+    if tangent(&c.block, plane, false).dot(t_in) < 1.0 - 1e-9
+        || tangent(&c.block, plane, true).dot(t_out) < 1.0 - 1e-9
+    {
+        return Err(format!("corner arc of seq {} not tangent", b.seq));
+    }
+    Ok(())
 }
 
 /// Continuity and finiteness only (for contours where loops are allowed).
