@@ -1,5 +1,6 @@
 //! TAB0.KOR parsing and writing (SPEC §3), with the manual's example.
 
+use kernel::DiagCode;
 use kernel::offsets::{self, OffsetEntry, OffsetTable, TableEdit, parse, parse_edit, write};
 
 const MILL: [char; 4] = ['X', 'Y', 'Z', 'U'];
@@ -121,12 +122,12 @@ fn edits_change_only_the_values_present_and_bad_edits_nothing() {
     };
     let refused = t2.apply(&bad).unwrap_err();
     assert_eq!(refused, offsets::OffsetError::NoEntry(100));
-    assert_eq!(refused.code(), "offset_no_entry");
+    assert_eq!(refused.code(), DiagCode::OffsetNoEntry);
     let bad = TableEdit {
         entry: 1,
         values: [Some(1.0), Some(f64::NAN), None, None, None],
     };
     let refused = t2.apply(&bad).unwrap_err();
-    assert_eq!(refused.code(), "offset_value_out_of_range");
+    assert_eq!(refused.code(), DiagCode::OffsetValueOutOfRange);
     assert_eq!(t2, before, "a refused edit changes nothing");
 }

@@ -12,7 +12,7 @@ use crate::block::{
     ArcDir, Block, BlockKind, Comp, Continuity, Feed, MCodes, Path, Plane, Spindle, SpindleDir,
 };
 use crate::constants::Refinement;
-use crate::diag::Diagnostic;
+use crate::diag::{DiagCode, Diagnostic};
 use crate::offsets::{self, OffsetTable, TableEdit};
 use crate::units::{AxesMm, MAX_AXES};
 
@@ -214,23 +214,32 @@ struct Words {
     any: bool,
 }
 
-/// An error inside a block: byte offset in the line and message.
+/// An error inside a block: byte offset in the line, code and message.
 struct Fail {
     at: usize,
+    code: DiagCode,
     message: String,
 }
 
-fn fail<T>(at: usize, message: impl Into<String>) -> Result<T, Fail> {
-    Err(Fail {
-        at,
-        message: message.into(),
-    })
+impl Fail {
+    fn new(at: usize, code: DiagCode, message: impl ToString) -> Self {
+        Fail {
+            at,
+            code,
+            message: message.to_string(),
+        }
+    }
+}
+
+fn fail<T>(at: usize, code: DiagCode, message: impl ToString) -> Result<T, Fail> {
+    Err(Fail::new(at, code, message))
 }
 
 impl From<LexError> for Fail {
     fn from(e: LexError) -> Self {
         Fail {
             at: e.at,
+            code: e.code,
             message: e.message,
         }
     }
@@ -309,7 +318,7 @@ impl Interpreter {
     pub fn setup_error(&self) -> Option<Diagnostic> {
         self.setup_error
             .as_ref()
-            .map(|m| Diagnostic::error(None, 0, 0, m.clone()))
+            .map(|m| Diagnostic::error(DiagCode::AxisNamesInvalid, None, 0, 0, m.clone()))
     }
 
     /// Warnings and information produced since the last call (arc replaced by a line, ...).
@@ -362,8 +371,9 @@ impl Interpreter {
     /// remark-only lines make none). On error the modal state is unchanged.
     pub fn line(&mut self, line_no: u32, text: &str) -> Result<Option<Block>, Diagnostic> {
         let mut w = Words::default();
-        let located =
-            |n: Option<u32>, f: Fail| Diagnostic::error(n, line_no, column(text, f.at), f.message);
+        let located = |n: Option<u32>, f: Fail| {
+            Diagnostic::error(f.code, n, line_no, column(text, f.at), f.message)
+        };
         if let Err(f) = self.collect(text, &mut w) {
             return Err(located(w.n, f));
         }
@@ -392,6 +402,7 @@ impl Interpreter {
             }),
             None => fail(
                 at,
+                DiagCode::ParamUnassigned,
                 format!("parameter R{index} is used before it was assigned"),
             ),
         }
@@ -410,7 +421,11 @@ impl Interpreter {
                 Token::Assign { index, value } => {
                     let num = self.resolve(w, value, at)?;
                     let Some(slot) = w.assigns.iter_mut().find(|s| s.is_none()) else {
-                        return fail(at, "more than 16 parameter assignments in one block");
+                        return fail(
+                            at,
+                            DiagCode::TooManyAssignments,
+                            "more than 16 parameter assignments in one block",
+                        );
                     };
                     *slot = Some((index, num));
                 }
@@ -440,7 +455,11 @@ impl Interpreter {
     ) -> Result<(), Fail> {
         fn once<T>(slot: &mut Option<(T, usize)>, v: T, at: usize, what: &str) -> Result<(), Fail> {
             if slot.is_some() {
-                return fail(at, format!("{what} is written twice in this block"));
+                return fail(
+                    at,
+                    DiagCode::WordTwice,
+                    format!("{what} is written twice in this block"),
+                );
             }
             *slot = Some((v, at));
             Ok(())
@@ -459,9 +478,13 @@ impl Interpreter {
         match letter {
             b'N' => {
                 if !first {
-                    return fail(at, "the block number N must be the first word of the block");
+                    return fail(
+                        at,
+                        DiagCode::BlockNumberNotFirst,
+                        "the block number N must be the first word of the block",
+                    );
                 }
-                w.n = Some(int(num, "N", 0, 999_999).map_err(|m| Fail { at, message: m })?);
+                w.n = Some(int(num, "N", 0, 999_999).map_err(|e| Fail::new(at, e.code(), e))?);
             }
             b'G' => self.g_word(w, num, at)?,
             b'I' => once(&mut w.i, num, at, "I")?,
@@ -470,22 +493,30 @@ impl Interpreter {
             b'F' => once(&mut w.f, num, at, "F")?,
             b'S' => once(&mut w.s, num, at, "S")?,
             b'D' => {
-                let d = int(num, "D", 0, 99).map_err(|m| Fail { at, message: m })?;
+                let d = int(num, "D", 0, 99).map_err(|e| Fail::new(at, e.code(), e))?;
                 once(&mut w.d, d as u8, at, "D")?
             }
             b'&' => {
-                let d = int(num, "&", 0, 99).map_err(|m| Fail { at, message: m })?;
+                let d = int(num, "&", 0, 99).map_err(|e| Fail::new(at, e.code(), e))?;
                 once(&mut w.amp, d as u8, at, "&")?
             }
             b'M' => {
-                let m = int(num, "M", 0, 999).map_err(|m| Fail { at, message: m })? as u16;
+                let m = int(num, "M", 0, 999).map_err(|e| Fail::new(at, e.code(), e))? as u16;
                 let Some(slot) = w.m.iter_mut().find(|s| s.is_none()) else {
-                    return fail(at, "more than 4 M functions in one block");
+                    return fail(
+                        at,
+                        DiagCode::TooManyMFunctions,
+                        "more than 4 M functions in one block",
+                    );
                 };
                 *slot = Some((m, at));
             }
             _ => {
-                return fail(at, format!("unknown address {}", letter as char));
+                return fail(
+                    at,
+                    DiagCode::UnknownAddress,
+                    format!("unknown address {}", letter as char),
+                );
             }
         }
         Ok(())
@@ -501,6 +532,7 @@ impl Interpreter {
             if slot.is_some() {
                 return fail(
                     at,
+                    DiagCode::GGroupConflict,
                     format!("two G functions of the {what} group in one block"),
                 );
             }
@@ -513,7 +545,7 @@ impl Interpreter {
         const COMP: &str = "radius compensation (G40..G42)";
         const DISTANCE: &str = "G90/G91";
         const FEED: &str = "feed (G94..G97)";
-        let g = int(num, "G", 0, 999).map_err(|m| Fail { at, message: m })?;
+        let g = int(num, "G", 0, 999).map_err(|e| Fail::new(at, e.code(), e))?;
         match g {
             0 => group(&mut w.motion, Motion::Rapid, at, MOTION),
             1 => group(&mut w.motion, Motion::Line, at, MOTION),
@@ -525,6 +557,7 @@ impl Interpreter {
                 if a >= self.n_axes || b >= self.n_axes {
                     return fail(
                         at,
+                        DiagCode::PlaneNeedsAxis,
                         format!("G{g} needs a third axis; this machine has {}", self.n_axes),
                     );
                 }
@@ -544,23 +577,36 @@ impl Interpreter {
             97 => group(&mut w.feed_mode, FeedMode::G97, at, FEED),
             76 => {
                 if w.g76.is_some() {
-                    return fail(at, "G76 is written twice in this block");
+                    return fail(
+                        at,
+                        DiagCode::WordTwice,
+                        "G76 is written twice in this block",
+                    );
                 }
                 w.g76 = Some(at);
                 Ok(())
             }
             92 => {
                 if w.g92.is_some() {
-                    return fail(at, "G92 is written twice in this block");
+                    return fail(
+                        at,
+                        DiagCode::WordTwice,
+                        "G92 is written twice in this block",
+                    );
                 }
                 w.g92 = Some(at);
                 Ok(())
             }
             4 => fail(
                 at,
+                DiagCode::DwellNotSupported,
                 "G4 (dwell) is not a function of this controller's dialect",
             ),
-            _ => fail(at, format!("G{g} is not a function of this controller")),
+            _ => fail(
+                at,
+                DiagCode::UnknownGFunction,
+                format!("G{g} is not a function of this controller"),
+            ),
         }
     }
 
@@ -668,6 +714,7 @@ impl Interpreter {
                 41..=44 => {
                     return fail(
                         *at,
+                        DiagCode::GearNotConfigured,
                         format!(
                             "M{m} selects no gear range: the machine's [kr.gears] table has no \
                              range with m_code = {m}"
@@ -677,7 +724,11 @@ impl Interpreter {
                 _ => continue,
             };
             if slot.is_some() {
-                return fail(*at, format!("two M functions for the {what} in one block"));
+                return fail(
+                    *at,
+                    DiagCode::MGroupConflict,
+                    format!("two M functions for the {what} in one block"),
+                );
             }
             *slot = Some(*m);
             match m {
@@ -715,23 +766,28 @@ impl Interpreter {
             st.feed = None;
         }
         if let Some((f, at)) = w.f {
-            st.feed = Some(feed::convert(f, per_rev).map_err(|m| Fail { at, message: m })?);
+            st.feed = Some(feed::convert(f, per_rev).map_err(|e| Fail::new(at, e.code(), e))?);
         }
         st.spindle.css = st.feed_mode.css();
         if let Some(at) = w.g76 {
             let Some((s, s_at)) = w.s else {
                 return fail(
                     at,
+                    DiagCode::G76NeedsS,
                     "G76 needs S: the spindle speed limit in rpm (G76 S2000)",
                 );
             };
             if s.value < 0.0 {
-                return fail(s_at, "the spindle speed limit cannot be negative");
+                return fail(
+                    s_at,
+                    DiagCode::NegativeSpeed,
+                    "the spindle speed limit cannot be negative",
+                );
             }
             st.spindle.limit_rpm = s.value;
         } else if let Some((s, at)) = w.s {
             if s.value < 0.0 {
-                return fail(at, "S cannot be negative");
+                return fail(at, DiagCode::NegativeSpeed, "S cannot be negative");
             }
             st.spindle.s = s.value;
             st.speed_from_css = false;
@@ -761,14 +817,23 @@ impl Interpreter {
         if let Some(ax) = w.axes.iter().flatten().next() {
             return fail(
                 ax.1,
+                DiagCode::G92WithMotion,
                 "G92 fills the offset table; it cannot be in a block with axis motion",
             );
         }
         let Some((entry, d_at)) = w.d else {
-            return fail(at, "G92 needs D<entry> (01..99): the offset entry to fill");
+            return fail(
+                at,
+                DiagCode::G92NeedsEntry,
+                "G92 needs D<entry> (01..99): the offset entry to fill",
+            );
         };
         if entry == 0 {
-            return fail(d_at, "G92 D0: offset entries are 01..99");
+            return fail(
+                d_at,
+                DiagCode::G92NeedsEntry,
+                "G92 D0: offset entries are 01..99",
+            );
         }
         let mut values = [None; 5];
         for (index, num) in w.assigns.iter().flatten() {
@@ -776,6 +841,7 @@ impl Interpreter {
                 if !num.value.is_finite() || num.value.abs() > offsets::MAX_VALUE_MM {
                     return fail(
                         at,
+                        DiagCode::OffsetValueOutOfRange,
                         format!(
                             "R{index}={} is outside ±{} mm",
                             num.value,
@@ -788,6 +854,7 @@ impl Interpreter {
         }
         if values.iter().all(Option::is_none) {
             self.notes.push(Diagnostic::warning(
+                DiagCode::G92WritesNothing,
                 w.n,
                 line_no,
                 column(text, at),
@@ -821,6 +888,7 @@ impl Interpreter {
                 let Some(radius_mm) = self.radius_of(st.d, edit) else {
                     return fail(
                         comp_at,
+                        DiagCode::CompWithoutTool,
                         "radius compensation needs a tool: select an offset entry with D before G41/G42",
                     );
                 };
@@ -837,12 +905,14 @@ impl Interpreter {
         if arc_block && motion_words {
             return fail(
                 comp_at,
+                DiagCode::CompChangeOnArc,
                 "radius compensation can be started or cancelled only in a linear block, not on an arc",
             );
         }
         if old.comp != CompMode::Off && st.comp != CompMode::Off && !rules.side_switch_allowed {
             return fail(
                 comp_at,
+                DiagCode::CompSideSwitch,
                 "G41 and G42 cannot follow each other directly: program G40 between them (or set 6.R397 = 1)",
             );
         }
@@ -854,6 +924,7 @@ impl Interpreter {
         {
             return fail(
                 comp_at,
+                DiagCode::G40WithoutMotion,
                 "G40 must be in a block that moves in the compensation plane (or set 7.R339 = 1)",
             );
         }
@@ -890,6 +961,7 @@ impl Interpreter {
         if arc_block && let Some(k) = self.moving_rotary_axis(start, end) {
             return fail(
                 w.axes[k].map_or(w.first, |a| a.1),
+                DiagCode::RotaryAxisInArc,
                 format!(
                     "{} is a rotary axis: it moves in linear blocks (G0, G1), not in an arc",
                     self.axis_letters[k] as char
@@ -952,14 +1024,20 @@ impl Interpreter {
             self.params[*index as usize] = Some(*num);
         }
         if let Some((at, msg)) = out.warn {
-            self.notes
-                .push(Diagnostic::warning(w.n, line_no, column(text, at), msg));
+            self.notes.push(Diagnostic::warning(
+                DiagCode::ArcReplacedByLine,
+                w.n,
+                line_no,
+                column(text, at),
+                msg,
+            ));
         }
         if let (BlockKind::Motion { path, .. }, Feed::MmPerRev(beta)) = (kind, feed_out)
             && path != Path::Rapid
             && let Some(msg) = self.beta_max_warning(beta, &st.spindle)
         {
             self.notes.push(Diagnostic::warning(
+                DiagCode::FeedAboveBetaMax,
                 w.n,
                 line_no,
                 column(text, w.first),
@@ -1043,6 +1121,7 @@ impl Interpreter {
         let coord = if r.which == Corrected::I { 'I' } else { 'J' };
         let shown = word.unwrap_or(r);
         self.notes.push(Diagnostic::info(
+            DiagCode::ArcRefined,
             w.n,
             line_no,
             0,
@@ -1081,6 +1160,7 @@ impl Interpreter {
         let (Some((i, _)), Some((j, _))) = (w.i, w.j) else {
             return fail(
                 w.i.or(w.j).map_or(w.first, |x| x.1),
+                DiagCode::ArcNeedsCentre,
                 "an arc needs both centre words I and J",
             );
         };
@@ -1088,6 +1168,7 @@ impl Interpreter {
         if (0..MAX_AXES).any(|k| (offset[k] - old_offset[k]).abs() > 1e-12) {
             return fail(
                 w.amp.map_or(w.first, |x| x.1),
+                DiagCode::ArcAfterOffsetChange,
                 "the length offset changed (& or G92) since the last motion: move in a line first, an arc cannot take it up",
             );
         }
@@ -1098,7 +1179,7 @@ impl Interpreter {
             ij = (self.to_radius(a, ij.0), self.to_radius(b, ij.1));
         }
         if let Some((e, at)) = w.e {
-            let r = ERefinement::decode(e.value).map_err(|m| Fail { at, message: m })?;
+            let r = ERefinement::decode(e.value).map_err(|e| Fail::new(at, e.code(), e))?;
             ij = r.apply(ij);
         }
         let (s2, e2) = ((start[a], start[b]), (end[a], end[b]));
@@ -1116,6 +1197,7 @@ impl Interpreter {
         if rs < 1e-9 {
             return fail(
                 w.first,
+                DiagCode::ArcRadiusZero,
                 "the arc radius is zero: the centre I J is at the start point",
             );
         }
@@ -1129,7 +1211,7 @@ impl Interpreter {
             if rules.bad_arc_becomes_line {
                 return Ok(Err(format!("{msg}; replaced by a line (7.R397 = 1)")));
             }
-            return fail(w.first, msg);
+            return fail(w.first, DiagCode::ArcEndOffCircle, msg);
         }
         let mut center = start;
         center[a] = c2.0;
@@ -1215,7 +1297,7 @@ fn dynamic_set(
     if let (Some(_), Some((i, at))) = (w.continuity, w.i)
         && (!arc_block || (w.j.is_none() && !motion_words))
     {
-        let set = int(i, "I (dynamic set)", 1, 4).map_err(|m| Fail { at, message: m })?;
+        let set = int(i, "I (dynamic set)", 1, 4).map_err(|e| Fail::new(at, e.code(), e))?;
         st.dyn_set = set as u8;
         return Ok(false);
     }
@@ -1228,6 +1310,7 @@ fn plane(w: &Words, old: State, st: &mut State) -> Result<(), Fail> {
         if old.comp != CompMode::Off && p != old.plane {
             return fail(
                 at,
+                DiagCode::PlaneChangeUnderComp,
                 "the plane cannot change while radius compensation G41/G42 is active: program G40 first",
             );
         }
@@ -1242,10 +1325,18 @@ fn check_arc_words(w: &Words, arc_block: bool, i_is_centre: bool) -> Result<(), 
         return Ok(());
     }
     if let Some((_, at)) = w.i.filter(|_| i_is_centre).or(w.j) {
-        return fail(at, "I and J are arc centre words: they need G2 or G3");
+        return fail(
+            at,
+            DiagCode::ArcWordWithoutArc,
+            "I and J are arc centre words: they need G2 or G3",
+        );
     }
     if let Some((_, at)) = w.e {
-        return fail(at, "E refines an arc centre: it needs G2 or G3");
+        return fail(
+            at,
+            DiagCode::ArcWordWithoutArc,
+            "E refines an arc centre: it needs G2 or G3",
+        );
     }
     Ok(())
 }
@@ -1258,18 +1349,21 @@ fn check_feed(w: &Words, st: &State, old: State, per_rev: bool) -> Result<(), Fa
         Some(_) => {
             return fail(
                 w.f.map_or(w.first, |f| f.1),
+                DiagCode::FeedZero,
                 "feed F is zero: a feed move needs F > 0",
             );
         }
         None if old.feed.is_some() => {
             return fail(
                 w.first,
+                DiagCode::FeedModeChanged,
                 "the feed changed between per minute and per revolution: program F again",
             );
         }
         None => {
             return fail(
                 w.first,
+                DiagCode::NoFeed,
                 "no feed: program F before the first feed move (G1/G2/G3)",
             );
         }
@@ -1279,6 +1373,7 @@ fn check_feed(w: &Words, st: &State, old: State, per_rev: bool) -> Result<(), Fa
     {
         return fail(
             w.first,
+            DiagCode::FeedPerRevWithoutSpindle,
             "feed per revolution needs a turning spindle: program S and M3 or M4 first",
         );
     }
@@ -1291,15 +1386,45 @@ fn feed_value(f: Feed) -> f64 {
     }
 }
 
+/// Why a word that takes a whole number in a range is refused.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+enum WordError {
+    #[error("{what} takes a whole number, not {value}")]
+    NotWhole { what: &'static str, value: f64 },
+    #[error("{what}{value} is outside {lo}..{hi}")]
+    OutOfRange {
+        what: &'static str,
+        value: f64,
+        lo: u32,
+        hi: u32,
+    },
+}
+
+impl WordError {
+    /// Stable code (tests and HMIs match it; the message may improve).
+    fn code(&self) -> DiagCode {
+        match self {
+            WordError::NotWhole { .. } => DiagCode::WordNotWhole,
+            WordError::OutOfRange { .. } => DiagCode::WordOutOfRange,
+        }
+    }
+}
+
 /// An integer word without a decimal point in `lo..=hi`.
-fn int(n: Num, what: &str, lo: u32, hi: u32) -> Result<u32, String> {
-    if n.point || n.value.fract() != 0.0 {
-        return Err(format!("{what} takes a whole number, not {}", n.value));
+fn int(n: Num, what: &'static str, lo: u32, hi: u32) -> Result<u32, WordError> {
+    let value = n.value;
+    if n.point || value.fract() != 0.0 {
+        return Err(WordError::NotWhole { what, value });
     }
-    if n.value < lo as f64 || n.value > hi as f64 {
-        return Err(format!("{what}{} is outside {lo}..{hi}", n.value));
+    if value < lo as f64 || value > hi as f64 {
+        return Err(WordError::OutOfRange {
+            what,
+            value,
+            lo,
+            hi,
+        });
     }
-    Ok(n.value as u32)
+    Ok(value as u32)
 }
 
 /// 1-based character column of byte offset `at` in `text`.
