@@ -169,8 +169,10 @@ diag_codes! {
     EquidistantBackward = "equidistant_backward",
     /// The equidistant of an arc runs backwards; arc replaced by a line (R397 d5, warning).
     EquidistantArcBackward = "equidistant_arc_backward",
-    /// An equidistant loop removed by the 3- or 4-block optimisation (information).
-    EquidistantLoopRemoved = "equidistant_loop_removed",
+    /// An equidistant loop removed by the 3-block optimisation (R397 d3, information).
+    LoopRemoved3Blocks = "loop_removed_3_blocks",
+    /// An equidistant loop removed by the 4-block optimisation (R397 d4, information).
+    LoopRemoved4Blocks = "loop_removed_4_blocks",
     /// On the exit from the contour the tool centre moves backwards (R764).
     ExitBackward = "exit_backward",
     /// The exit from the contour optimised, the backward move left out (R764, information).

@@ -564,6 +564,9 @@ mod tests {
             .collect();
         assert_eq!(errs.len(), 1);
         assert_eq!((errs[0].line, errs[0].column), (2, 5));
+        assert_eq!(errs[0].code, DiagCode::TextNotUtf8, "{}", errs[0]);
+        // The byte offset in the file (line 2 starts at 11, the bad byte is its 5th) is data
+        // the machinist needs to find the byte in an editor.
         assert!(errs[0].message.contains("byte offset 15"), "{}", errs[0]);
     }
 }

@@ -125,7 +125,7 @@ impl Compensator {
                 name(&src)
             );
             self.notes.push(Diagnostic::info(
-                DiagCode::EquidistantLoopRemoved,
+                DiagCode::LoopRemoved4Blocks,
                 src.n,
                 src.line,
                 0,
@@ -138,7 +138,7 @@ impl Compensator {
             && bypass(elems, m - 1, m + 1, s)
         {
             self.notes.push(Diagnostic::info(
-                DiagCode::EquidistantLoopRemoved,
+                DiagCode::LoopRemoved3Blocks,
                 src.n,
                 src.line,
                 0,

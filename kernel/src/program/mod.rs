@@ -489,9 +489,9 @@ mod tests {
         assert_eq!(c.diagnostics.len(), 2);
         assert_eq!(c.diagnostics[0].block, Some(20));
         assert_eq!((c.diagnostics[0].line, c.diagnostics[0].column), (2, 5));
-        assert!(c.diagnostics[0].message.contains("unknown address Q"));
+        assert_eq!(c.diagnostics[0].code, DiagCode::UnknownAddress);
         assert_eq!(c.diagnostics[1].block, Some(30));
-        assert!(c.diagnostics[1].message.contains("no value"));
+        assert_eq!(c.diagnostics[1].code, DiagCode::WordWithoutValue);
     }
 
     #[test]

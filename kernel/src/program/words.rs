@@ -280,10 +280,10 @@ impl Iterator for Lexer<'_> {
                 self.i += 1;
                 let index = match self.param_index(at) {
                     Ok(i) => i,
-                    Err(_) => {
+                    Err(e) => {
                         return self.err(
                             at,
-                            DiagCode::ParamAssignmentSyntax,
+                            e.code,
                             "R is a program parameter assignment R0..R94: R<n>=<value>".into(),
                         );
                     }
@@ -414,11 +414,16 @@ mod tests {
     #[test]
     fn errors_are_located() {
         let e = Lexer::new("X1 Y").find_map(Result::err).unwrap();
-        assert_eq!((e.at, e.message.as_str()), (3, "address Y has no value"));
+        assert_eq!(
+            (e.at, e.code),
+            (3, DiagCode::WordWithoutValue),
+            "{}",
+            e.message
+        );
         let e = Lexer::new("X1.2.3").find_map(Result::err).unwrap();
         assert_eq!(e.at, 4);
         let e = Lexer::new("R95=1").find_map(Result::err).unwrap();
-        assert!(e.message.contains("R0..R94"), "{}", e.message);
+        assert_eq!(e.code, DiagCode::ParamOutOfRange, "{}", e.message);
     }
 
     #[test]
