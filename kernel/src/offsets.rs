@@ -197,44 +197,8 @@ pub fn parse(text: &str, axis_names: &[char]) -> Result<KorFile, Vec<Diagnostic>
         if code.trim().is_empty() {
             continue;
         }
-        if code.trim_start().starts_with("$KOR") {
-            errors.push(Diagnostic::error(
-                DiagCode::OffsetFileSyntax,
-                None,
-                line_no,
-                col_of(line, line.len() - line.trim_start().len()),
-                "a second $KOR: a file holds one table",
-            ));
-            continue;
-        }
-        match parse_entry_line(code, axis_names) {
-            Ok(edit) => {
-                let k = edit.entry as usize - 1;
-                if seen[k] {
-                    errors.push(Diagnostic::error(
-                        DiagCode::OffsetEntryTwice,
-                        None,
-                        line_no,
-                        col_of(line, line.len() - line.trim_start().len()),
-                        format!("entry {:02} is listed twice", edit.entry),
-                    ));
-                    continue;
-                }
-                seen[k] = true;
-                // Values not listed are zero (SPEC §3): the entry starts from zero.
-                let mut e = OffsetEntry::default();
-                for (k, v) in edit.values.iter().enumerate() {
-                    e.set(k, v.unwrap_or(0.0));
-                }
-                file.table.entries[k] = e;
-            }
-            Err((byte, e)) => errors.push(Diagnostic::error(
-                e.code(),
-                None,
-                line_no,
-                col_of(line, byte),
-                e.to_string(),
-            )),
+        if let Err(d) = table_line(code, line, line_no, axis_names, &mut seen, &mut file.table) {
+            errors.push(d);
         }
     }
     if !in_table {
@@ -251,6 +215,49 @@ pub fn parse(text: &str, axis_names: &[char]) -> Result<KorFile, Vec<Diagnostic>
     } else {
         Err(errors)
     }
+}
+
+/// One line of the table after `$KOR` (its code, without the remark): the entry it sets, which
+/// must not be set before (`seen`).
+fn table_line(
+    code: &str,
+    line: &str,
+    line_no: u32,
+    axis_names: &[char],
+    seen: &mut [bool; ENTRIES as usize],
+    table: &mut OffsetTable,
+) -> Result<(), Diagnostic> {
+    let lead_col = col_of(line, line.len() - line.trim_start().len());
+    if code.trim_start().starts_with("$KOR") {
+        return Err(Diagnostic::error(
+            DiagCode::OffsetFileSyntax,
+            None,
+            line_no,
+            lead_col,
+            "a second $KOR: a file holds one table",
+        ));
+    }
+    let edit = parse_entry_line(code, axis_names).map_err(|(byte, e)| {
+        Diagnostic::error(e.code(), None, line_no, col_of(line, byte), e.to_string())
+    })?;
+    let k = edit.entry as usize - 1;
+    if seen[k] {
+        return Err(Diagnostic::error(
+            DiagCode::OffsetEntryTwice,
+            None,
+            line_no,
+            lead_col,
+            format!("entry {:02} is listed twice", edit.entry),
+        ));
+    }
+    seen[k] = true;
+    // Values not listed are zero (SPEC §3): the entry starts from zero.
+    let mut e = OffsetEntry::default();
+    for (slot, v) in edit.values.iter().enumerate() {
+        e.set(slot, v.unwrap_or(0.0));
+    }
+    table.entries[k] = e;
+    Ok(())
 }
 
 /// Parses one operator edit written like a file line, e.g. `12: R=5.0 Z=-3` (only the values

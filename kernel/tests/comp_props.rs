@@ -136,8 +136,9 @@ fn check_in(
     );
     let r = out.iter().map(|c| c.offset_mm.abs()).fold(0.0, f64::max);
     gouge_invariant(&p.blocks, &out, &diags, r, cfg.gouge_tolerance_mm(r), plane)
-        .map_err(TestCaseError::fail)?;
-    let (pieces, arcs) = check_path(&p.blocks, &out, plane, 1e-6).map_err(TestCaseError::fail)?;
+        .map_err(|e| TestCaseError::fail(e.to_string()))?;
+    let (pieces, arcs) =
+        check_path(&p.blocks, &out, plane, 1e-6).map_err(|e| TestCaseError::fail(e.to_string()))?;
     // Every programmed element appears (an arc over 180° as two halves).
     prop_assert!(pieces >= expect_pieces, "{pieces} < {expect_pieces}");
     let infos = with_severity(&diags, Severity::Info).len();
@@ -179,7 +180,7 @@ proptest! {
         let (out, diags) = p.run(&cfg);
         let errs = errors(&diags);
         if errs.is_empty() {
-            check_continuous(&out).map_err(TestCaseError::fail)?;
+            check_continuous(&out).map_err(|e| TestCaseError::fail(e.to_string()))?;
         } else {
             for e in errs {
                 prop_assert!(e.block.is_some());

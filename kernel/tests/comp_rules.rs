@@ -627,7 +627,8 @@ fn four_block_optimisation_removes_a_double_loop() {
     assert!(with_severity(&without_gouges(&d), Severity::Warning).is_empty());
     assert!(!gouges(&d).is_empty());
     // d3 alone cannot fix it: a backward piece stays.
-    assert!(check_path(&pr.blocks, &out, Plane::G17, 1e-9).is_err());
+    let e = check_path(&pr.blocks, &out, Plane::G17, 1e-9).unwrap_err();
+    assert_eq!(e.code(), "path_backwards", "{e}");
     c.set(397, 1.110); // + d4
     let (out, d) = pr.run(&CompConfig::from_constants(&c));
     assert!(

@@ -522,23 +522,8 @@ impl Interpreter {
         Ok(())
     }
 
+    // A match over the dialect's G words: it reads better whole than split.
     fn g_word(&self, w: &mut Words, num: Num, at: usize) -> Result<(), Fail> {
-        fn group<T>(
-            slot: &mut Option<(T, usize)>,
-            v: T,
-            at: usize,
-            what: &str,
-        ) -> Result<(), Fail> {
-            if slot.is_some() {
-                return fail(
-                    at,
-                    DiagCode::GGroupConflict,
-                    format!("two G functions of the {what} group in one block"),
-                );
-            }
-            *slot = Some((v, at));
-            Ok(())
-        }
         const MOTION: &str = "motion (G0..G3)";
         const PLANE: &str = "plane (G17..G19)";
         const CONTINUITY: &str = "continuity (G23/G24/G98)";
@@ -974,8 +959,8 @@ impl Interpreter {
                     refined = r;
                     p
                 }
-                Err(msg) => {
-                    warn = Some((w.first, msg));
+                Err(off) => {
+                    warn = Some((w.first, format!("{off}; replaced by a line (7.R397 = 1)")));
                     Path::Line
                 }
             }
@@ -1143,8 +1128,30 @@ impl Interpreter {
         }
     }
 
-    /// Builds and checks an arc. `Ok(Err(msg))`: the end point misses the circle and 7.R397
-    /// turns the arc into a line (the message becomes a warning). `Ok(Ok((path, E)))`: E is
+    /// The arc centre words I, J as the machine reads them (radius units), with a programmed
+    /// E refinement applied (SPEC §4.6).
+    fn centre_words(
+        &self,
+        (i, j): (Num, Num),
+        w: &Words,
+        plane: Plane,
+    ) -> Result<(f64, f64), Fail> {
+        let (a, b) = plane.axes();
+        let mut ij = (i.value, j.value);
+        if self.rules.ij == IjMode::Absolute {
+            // An absolute centre is a coordinate: a diameter on the diameter axis. A relative
+            // one is a distance from the start: always a radius (docs/lathe.md).
+            ij = (self.to_radius(a, ij.0), self.to_radius(b, ij.1));
+        }
+        if let Some((e, at)) = w.e {
+            let r = ERefinement::decode(e.value).map_err(|e| Fail::new(at, e.code(), e))?;
+            ij = r.apply(ij);
+        }
+        Ok(ij)
+    }
+
+    /// Builds and checks an arc. `Ok(Err(off))`: the end point misses the circle and 7.R397
+    /// turns the arc into a line (a warning). `Ok(Ok((path, E)))`: E is
     /// the R325 refinement the preprocessor applied, if any.
     fn arc(
         &self,
@@ -1154,7 +1161,7 @@ impl Interpreter {
         start: AxesMm,
         end: AxesMm,
         offset: AxesMm,
-    ) -> Result<Result<(Path, Option<ERefinement>), String>, Fail> {
+    ) -> Result<Result<(Path, Option<ERefinement>), OffCircle>, Fail> {
         let rules = self.rules;
         let (a, b) = st.plane.axes();
         let (Some((i, _)), Some((j, _))) = (w.i, w.j) else {
@@ -1172,16 +1179,7 @@ impl Interpreter {
                 "the length offset changed (& or G92) since the last motion: move in a line first, an arc cannot take it up",
             );
         }
-        let mut ij = (i.value, j.value);
-        if rules.ij == IjMode::Absolute {
-            // An absolute centre is a coordinate: a diameter on the diameter axis. A relative
-            // one is a distance from the start: always a radius (docs/lathe.md).
-            ij = (self.to_radius(a, ij.0), self.to_radius(b, ij.1));
-        }
-        if let Some((e, at)) = w.e {
-            let r = ERefinement::decode(e.value).map_err(|e| Fail::new(at, e.code(), e))?;
-            ij = r.apply(ij);
-        }
+        let mut ij = self.centre_words((i, j), w, st.plane)?;
         let (s2, e2) = ((start[a], start[b]), (end[a], end[b]));
         let centre_of = |ij: (f64, f64)| match rules.ij {
             IjMode::RelativeToStart => (start[a] + ij.0, start[b] + ij.1),
@@ -1203,15 +1201,16 @@ impl Interpreter {
         }
         let miss = (rs - re).abs();
         if miss > rules.arc_tolerance_mm {
-            let msg = format!(
-                "the arc end point is not on the circle: start radius {rs:.4} mm, end radius {re:.4} mm, \
-                 difference {miss:.4} mm is more than the tolerance R55 = {:.3} mm",
-                rules.arc_tolerance_mm
-            );
+            let off = OffCircle {
+                start_mm: rs,
+                end_mm: re,
+                miss_mm: miss,
+                tolerance_mm: rules.arc_tolerance_mm,
+            };
             if rules.bad_arc_becomes_line {
-                return Ok(Err(format!("{msg}; replaced by a line (7.R397 = 1)")));
+                return Ok(Err(off));
             }
-            return fail(w.first, DiagCode::ArcEndOffCircle, msg);
+            return fail(w.first, DiagCode::ArcEndOffCircle, off);
         }
         let mut center = start;
         center[a] = c2.0;
@@ -1229,6 +1228,21 @@ impl Interpreter {
             refined,
         )))
     }
+}
+
+/// The arc end point is not on the circle (SPEC §4.6: the radii at start and end differ by
+/// more than R55).
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[error(
+    "the arc end point is not on the circle: start radius {start_mm:.4} mm, end radius \
+     {end_mm:.4} mm, difference {miss_mm:.4} mm is more than the tolerance R55 = \
+     {tolerance_mm:.3} mm"
+)]
+struct OffCircle {
+    start_mm: f64,
+    end_mm: f64,
+    miss_mm: f64,
+    tolerance_mm: f64,
 }
 
 /// What a checked block makes, before the commit: its kind, a warning to give (an arc
@@ -1384,6 +1398,19 @@ fn feed_value(f: Feed) -> f64 {
     match f {
         Feed::MmPerMin(v) | Feed::MmPerRev(v) => v,
     }
+}
+
+/// Puts G function `v` of modal group `what` (written at `at`) in its slot: one per block.
+fn group<T>(slot: &mut Option<(T, usize)>, v: T, at: usize, what: &str) -> Result<(), Fail> {
+    if slot.is_some() {
+        return fail(
+            at,
+            DiagCode::GGroupConflict,
+            format!("two G functions of the {what} group in one block"),
+        );
+    }
+    *slot = Some((v, at));
+    Ok(())
 }
 
 /// Why a word that takes a whole number in a range is refused.
