@@ -454,15 +454,10 @@ impl Interpreter {
         first: bool,
     ) -> Result<(), Fail> {
         fn once<T>(slot: &mut Option<(T, usize)>, v: T, at: usize, what: &str) -> Result<(), Fail> {
-            if slot.is_some() {
-                return fail(
-                    at,
-                    DiagCode::WordTwice,
-                    format!("{what} is written twice in this block"),
-                );
-            }
-            *slot = Some((v, at));
-            Ok(())
+            put_once(slot, v, at, || {
+                let message = format!("{what} is written twice in this block");
+                (DiagCode::WordTwice, message)
+            })
         }
         if let Some(ax) = self.axis_letters[..self.n_axes]
             .iter()
@@ -1402,12 +1397,23 @@ fn feed_value(f: Feed) -> f64 {
 
 /// Puts G function `v` of modal group `what` (written at `at`) in its slot: one per block.
 fn group<T>(slot: &mut Option<(T, usize)>, v: T, at: usize, what: &str) -> Result<(), Fail> {
+    put_once(slot, v, at, || {
+        let message = format!("two G functions of the {what} group in one block");
+        (DiagCode::GGroupConflict, message)
+    })
+}
+
+/// Puts `v` (written at `at`) in its slot of the block's words; if the slot is taken, the
+/// error `twice` makes (built only then: words are read a million times a second).
+fn put_once<T>(
+    slot: &mut Option<(T, usize)>,
+    v: T,
+    at: usize,
+    twice: impl FnOnce() -> (DiagCode, String),
+) -> Result<(), Fail> {
     if slot.is_some() {
-        return fail(
-            at,
-            DiagCode::GGroupConflict,
-            format!("two G functions of the {what} group in one block"),
-        );
+        let (code, message) = twice();
+        return fail(at, code, message);
     }
     *slot = Some((v, at));
     Ok(())
