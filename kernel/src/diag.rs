@@ -1,4 +1,5 @@
-//! Diagnostics: every error and warning the kernel produces, with where it comes from.
+//! Diagnostics: every error and warning the kernel produces, with where it comes from and a
+//! stable code ([`DiagCode`]) saying what it is about.
 
 use std::fmt;
 
