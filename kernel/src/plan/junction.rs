@@ -2,10 +2,19 @@
 //! between passing a corner and stopping there, the block's acceleration budget and its R395
 //! ceiling. `Planner::finalize` runs these steps in order; each is a function of its own.
 
+use super::budget::LineBudget;
 use super::{
     NORMAL_SHARE, OVERRIDE_MAX, Pending, Planner, Profile, SegPath, Segment, criteria, junction_of,
 };
 use crate::units::{MAX_AXES, TS_S};
+
+/// How much of the axes' path acceleration a block may use along the path.
+enum Share {
+    /// A fixed fraction of `a_axes`.
+    Fixed(f64),
+    /// A line between turning junctions passed at these caps: a [`LineBudget`].
+    Line { start_cap: f64, end_cap: f64 },
+}
 
 /// What the curvature window of a junction is checked against (SPEC §7.2 criteria applied to
 /// the turn within one tick, and in the parabolic profile the axis filter's corner budgets).
@@ -78,6 +87,9 @@ impl Planner {
         p.crit = crit;
         p.cap = if planned_stop { 0.0 } else { criteria_cap };
         p.seg.junction_cap_mm_s = criteria_cap;
+        if planned_stop {
+            self.rebudget_before(i);
+        }
         self.set_accelerations(i, last);
         self.apply_rise_limit(i);
         let p = &mut self.win[i];
@@ -171,7 +183,9 @@ impl Planner {
     /// Acceleration of block `i` (feed, and stop/hold): R52 without continuity, R236 (or the
     /// set's A) during continuity, R237 for rapids, capped by the axes it moves. Where the
     /// path turns, part of every axis's acceleration is taken by the normal acceleration;
-    /// see [`Planner::tangential_share`].
+    /// see [`Planner::tangential_share`]. A line between turning junctions (linear profile)
+    /// keeps its [`LineBudget`]: the backward pass and the commit give it the acceleration of
+    /// the speeds it actually runs at.
     fn set_accelerations(&mut self, i: usize, last: bool) {
         let env = &self.cfg.envelope;
         let prev_smooth = i > 0 && self.win[i - 1].smooth;
@@ -184,10 +198,21 @@ impl Planner {
         } else {
             env.accel_stop_mm_s2.min(set_a)
         };
-        let share = self.tangential_share(i, last);
-        let (a_axes, j_axes) = (p.a_axes, p.j_axes);
         let rapid_a = env.rapid_accel_mm_s2;
+        let (a_axes, j_axes) = (p.a_axes, p.j_axes);
+        let (share, budget) = match self.tangential_share(i, last) {
+            Share::Fixed(share) => (share, None),
+            Share::Line { start_cap, end_cap } => {
+                let b = self.line_budget(i, start_cap, end_cap, base);
+                (1.0, Some(b))
+            }
+        };
         let p = &mut self.win[i];
+        p.budget = budget;
+        if let Some(b) = budget {
+            p.apply_budget(&b, f64::INFINITY, rapid_a);
+            return;
+        }
         p.seg.accel_mm_s2 = base.min(a_axes * share);
         if share < 1.0 && p.seg.axis_filter_ticks > 1 {
             // The rest of the axis jerk is for the turns the axis filter smooths.
@@ -199,13 +224,44 @@ impl Planner {
         }
     }
 
+    /// Junction `i` has just become a stop: the budgets of the lines before it measured their
+    /// turns across it (as if it were passed) and are measured again.
+    fn rebudget_before(&mut self, i: usize) {
+        let mut dist = 0.0;
+        let mut k = i;
+        while k > self.emitted {
+            k -= 1;
+            dist += self.win[k + 1].seg.length_mm;
+            let Some(b) = self.win[k].budget else { break };
+            if dist > b.reach_of_turns_mm() {
+                break;
+            }
+            let start_cap = if k > 0 && self.win[k - 1].smooth {
+                self.win[k - 1].cap
+            } else {
+                0.0
+            };
+            let end_cap = if self.win[k].smooth {
+                self.win[k].cap
+            } else {
+                0.0
+            };
+            let b = self.line_budget(k, start_cap, end_cap, b.base_mm_s2());
+            let rapid_a = self.cfg.envelope.rapid_accel_mm_s2;
+            let p = &mut self.win[k];
+            p.budget = Some(b);
+            p.apply_budget(&b, f64::INFINITY, rapid_a);
+        }
+    }
+
     /// Fraction of the path acceleration of the axes (`a_axes`) block `i` may use along the
     /// path. 1 where the path does not turn at a smooth junction of the block. On arcs, next
     /// to arcs and in the parabolic profile: 1 − NORMAL_SHARE (the normal acceleration takes
     /// at most NORMAL_SHARE of the smallest axis acceleration, **decided**). On lines between
     /// turning junctions in the linear profile, per axis what the normal acceleration of the
-    /// turns leaves ([`Planner::line_tangential_mm_s2`]), never less than that split.
-    fn tangential_share(&self, i: usize, last: bool) -> f64 {
+    /// turns leaves at the speed the line runs ([`Planner::line_budget`]), never less than
+    /// that split.
+    fn tangential_share(&self, i: usize, last: bool) -> Share {
         let is_arc = |q: &Pending| matches!(q.seg.path, SegPath::Arc { .. });
         let prev_smooth = i > 0 && self.win[i - 1].smooth;
         let p = &self.win[i];
@@ -216,11 +272,11 @@ impl Planner {
         let turning =
             (prev_smooth && self.win[i - 1].turn > 1e-9) || (next_smooth && p.turn > 1e-9);
         if !arcs && !turning {
-            return 1.0;
+            return Share::Fixed(1.0);
         }
         let split = 1.0 - NORMAL_SHARE;
         if arcs || self.cfg.envelope.profile != Profile::Linear || !p.a_axes.is_finite() {
-            return split;
+            return Share::Fixed(split);
         }
         let start_cap = if prev_smooth {
             self.win[i - 1].cap
@@ -228,18 +284,23 @@ impl Planner {
             0.0
         };
         let end_cap = if next_smooth { p.cap } else { 0.0 };
-        let a_t = self.line_tangential_mm_s2(i, start_cap, end_cap);
-        (a_t / p.a_axes).clamp(split, 1.0)
+        Share::Line { start_cap, end_cap }
     }
 
-    /// Largest tangential acceleration on line block `i` that keeps every axis within its limit
-    /// on top of the normal acceleration of the turns at its junctions, passed at their caps
-    /// (0 = not passed: a stop). Per axis k: a_t·|u_k| + N_k ≤ a_k, with u the tangents the
-    /// ticks near the block move along and N_k = v·|t(+h) − t(−h)|_k/Ts the velocity turn per
-    /// tick within the tick window (h = v·Ts/2) of each junction at the highest speed a tick
-    /// touching it runs, v = cap + a·Ts. This is the per-axis form of the local curvature
-    /// criterion that bounds the junction speed (|N| ≤ NORMAL_SHARE·a_iso at the cap).
-    pub(super) fn line_tangential_mm_s2(&self, i: usize, start_cap: f64, end_cap: f64) -> f64 {
+    /// Tangential acceleration on line block `i` as a function of its highest speed
+    /// ([`LineBudget`]): per axis k, a_t·|u_k| + N_k(v) ≤ a_k, with u the tangents the ticks
+    /// near the block move along and N_k(v) = min(v, v_ref)·|t(+h) − t(−h)|_k/Ts the velocity
+    /// turn per tick within the tick window (h = v_ref·Ts/2) of each junction passed at its cap
+    /// (0 = not passed: a stop), v_ref = cap + A·Ts the fastest a tick touching it runs. This
+    /// is the per-axis form of the local curvature criterion that bounds the junction speed
+    /// (|N| ≤ NORMAL_SHARE·a_iso at the cap). `base`: the constants' path acceleration.
+    pub(super) fn line_budget(
+        &self,
+        i: usize,
+        start_cap: f64,
+        end_cap: f64,
+        base: f64,
+    ) -> LineBudget {
         let axes = self.cfg.axes;
         let p = &self.win[i];
         let mut normal = [0.0f64; MAX_AXES];
@@ -247,29 +308,39 @@ impl Planner {
         for (k, d) in dir.iter_mut().enumerate().take(axes) {
             *d = p.t_start[k].abs().max(p.t_end[k].abs());
         }
+        let mut v_ref = 0.0f64;
         for (j, cap) in [(i.wrapping_sub(1), start_cap), (i, end_cap)] {
             if cap <= 0.0 {
                 continue;
             }
             let v = cap + p.a_axes * TS_S;
+            v_ref = v_ref.max(v);
             let h = v * TS_S / 2.0;
-            let t0 = self.tangent_near(j, -h);
+            // The velocity change of a tick weighs the turns within ±v·Ts of it by
+            // 1 − |x|/(v·Ts): the mean of the turns within ±h/2 and ±3h/2.
+            let (ti0, ti1) = (
+                self.tangent_near(j, -h / 2.0),
+                self.tangent_near(j, h / 2.0),
+            );
+            let (to0, to1) = (
+                self.tangent_near(j, -1.5 * h),
+                self.tangent_near(j, 1.5 * h),
+            );
             let t1 = self.tangent_near(j, h);
             let t2 = self.tangent_near(j, 3.0 * h);
             let tm = self.tangent_near(j, -3.0 * h);
             for k in 0..axes {
-                normal[k] = normal[k].max(v * (t1[k] - t0[k]).abs() / TS_S);
+                let turn = 0.5 * ((ti1[k] - ti0[k]).abs() + (to1[k] - to0[k]).abs());
+                normal[k] = normal[k].max(turn / TS_S);
                 dir[k] = dir[k].max(t1[k].abs()).max(t2[k].abs()).max(tm[k].abs());
             }
         }
-        let mut a_t = f64::INFINITY;
+        let split = 1.0 - NORMAL_SHARE;
+        let mut b = LineBudget::new(v_ref, p.a_axes, split * p.a_axes, base);
         for k in 0..axes {
-            if dir[k] > 1e-12 {
-                let left = (self.cfg.axis_a_max_mm_s2[k] - normal[k]).max(0.0);
-                a_t = a_t.min(left / dir[k]);
-            }
+            b.add_axis(self.cfg.axis_a_max_mm_s2[k], normal[k], dir[k]);
         }
-        a_t
+        b
     }
 
     /// R395: keep the junction speeds through a short block unless rising pays off. Only
@@ -343,9 +414,8 @@ impl Planner {
                 } else {
                     (cap, 0.0)
                 };
-                self.line_tangential_mm_s2(side, c0, c1)
-                    .clamp(split * q.a_axes, q.a_axes)
-                    .min(aq)
+                let b = self.line_budget(side, c0, c1, aq);
+                b.accel_at(f64::INFINITY)
             } else {
                 split * aq
             };

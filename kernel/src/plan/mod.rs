@@ -23,6 +23,7 @@
 //! is false while the window is full, so memory is bounded by the look-ahead, and execution of
 //! a long program starts after the first junctions are final, not after the whole program.
 
+mod budget;
 mod config;
 pub mod criteria;
 mod junction;
@@ -161,6 +162,22 @@ struct Pending {
     crit: f64,
     /// Hard cap at the end junction (0 when not smooth).
     cap: f64,
+    /// A line between turning junctions: its acceleration as a function of its speed.
+    budget: Option<budget::LineBudget>,
+}
+
+impl Pending {
+    /// Gives the segment the acceleration of its budget for speeds up to `v` (feed moves: the
+    /// constants' path acceleration; hold and stop: the stop set's `rapid_a`).
+    fn apply_budget(&mut self, b: &budget::LineBudget, v: f64, rapid_a: f64) {
+        self.seg.accel_mm_s2 = b.accel_at(v);
+        let stop = rapid_a.min(b.tangential_at(v));
+        self.seg.stop_accel_mm_s2 = if stop > 0.0 && stop.is_finite() {
+            stop
+        } else {
+            self.seg.accel_mm_s2
+        };
+    }
 }
 
 /// Streaming planner: push blocks, poll committed segments.
@@ -189,6 +206,8 @@ pub struct Planner {
     window_guess_mm_s: f64,
     /// Junctions finalized since the last backward pass.
     pending_backward: usize,
+    /// End speed of the last committed segment, mm/s (the start speed of the next).
+    committed_end_mm_s: f64,
     /// A spindle change in a technology block before any motion (`M3 S..` at the top of a
     /// program, or a program of technology blocks only); the first motion segment carries it
     /// (its state is in force from when it reaches the interpolator), else `finish` hands it
@@ -216,6 +235,7 @@ impl Planner {
             spindle_state: Spindle::default(),
             window_guess_mm_s: 0.0,
             pending_backward: 0,
+            committed_end_mm_s: 0.0,
             leading_spindle: None,
             tech_out: None,
         }
@@ -389,6 +409,7 @@ impl Planner {
         if !(settled || full || self.finished) {
             return None;
         }
+        self.commit_budget(i);
         let seg = self.win[i].seg;
         self.emitted += 1;
         while self.emitted > HISTORY_BLOCKS {
@@ -593,6 +614,7 @@ impl Planner {
             turn: 0.0,
             crit: 0.0,
             cap: 0.0,
+            budget: None,
         };
         self.link_previous(&mut p);
         p.seg.wait_in_position = false;
@@ -728,10 +750,7 @@ impl Planner {
         let mut k = i;
         loop {
             let v = if k + 1 < self.win.len() {
-                let n = &self.win[k + 1].seg;
-                (v_next_end * v_next_end + 2.0 * n.accel_mm_s2 * n.length_mm)
-                    .sqrt()
-                    .min(n.v_max_mm_s)
+                self.braking_start_mm_s(k + 1, v_next_end)
             } else {
                 0.0
             };
@@ -755,6 +774,46 @@ impl Planner {
             }
             k -= 1;
             v_next_end = v;
+        }
+    }
+}
+
+impl Planner {
+    /// Highest speed at the start of block `k` from which it can brake to `v_end` at its end,
+    /// within its ceiling. A line with a [`budget::LineBudget`] takes the acceleration of
+    /// that speed (the speeds on it stay below it, see `commit_budget`).
+    fn braking_start_mm_s(&mut self, k: usize, v_end: f64) -> f64 {
+        let rapid_a = self.cfg.envelope.rapid_accel_mm_s2;
+        let n = &mut self.win[k];
+        match n.budget {
+            Some(b) => {
+                let v = b.reach_mm_s(v_end, n.seg.length_mm).min(n.seg.v_max_mm_s);
+                n.apply_budget(&b, v, rapid_a);
+                v
+            }
+            None => (v_end * v_end + 2.0 * n.seg.accel_mm_s2 * n.seg.length_mm)
+                .sqrt()
+                .min(n.seg.v_max_mm_s),
+        }
+    }
+
+    /// At the commit of block `i` with a budget: its highest speed is bounded by braking to
+    /// its final end speed and by accelerating from the end speed of the block before
+    /// (committed); its ceiling becomes that speed and its acceleration the one of it.
+    fn commit_budget(&mut self, i: usize) {
+        let rapid_a = self.cfg.envelope.rapid_accel_mm_s2;
+        let v_from = self.committed_end_mm_s;
+        let p = &mut self.win[i];
+        if let Some(b) = p.budget {
+            let len = p.seg.length_mm;
+            let v = b
+                .reach_mm_s(p.seg.v_end_mm_s, len)
+                .min(b.reach_mm_s(v_from, len))
+                .min(p.seg.v_max_mm_s);
+            p.apply_budget(&b, v, rapid_a);
+            self.committed_end_mm_s = p.seg.v_end_mm_s.min(v);
+        } else {
+            self.committed_end_mm_s = p.seg.v_end_mm_s;
         }
     }
 }
