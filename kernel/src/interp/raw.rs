@@ -217,8 +217,13 @@ impl Interpolator {
             return false;
         }
         // One tick at rest (and the filter settled) before leaving: the direction may
-        // reverse here, and the arrival step must not add to the departure step.
-        if !self.settled() || self.still_ticks == 0 {
+        // reverse here, and the arrival step must not add to the departure step. A plain
+        // stop of the linear profile is left at once, with the departure step within what
+        // the arrival step left of the tick (`departure_cap_mm_s`).
+        if self.still_ticks > 0 {
+            self.entry_cap_mm_s = f64::INFINITY;
+        }
+        if !self.settled() || (self.still_ticks == 0 && !self.entry_cap_mm_s.is_finite()) {
             return false;
         }
         if self.dwell_ticks > 0 {
@@ -398,7 +403,38 @@ impl Interpolator {
             return (head.v_max_mm_s, self.feed_of(head));
         }
         self.raw_v_mm_s = v_next;
-        self.move_raw(ds)
+        let caps = self.move_raw(ds);
+        if self.raw_at_stop {
+            self.entry_cap_mm_s = self.departure_cap_mm_s(v_next, accel_mm_s2);
+        }
+        caps
+    }
+
+    /// Arrived at a stop point in this tick at `v_arrive`: the highest speed of the first
+    /// tick that leaves it in the next tick (∞: not allowed, the raw position rests a tick).
+    /// Only for a plain stop (no dwell, G24, program stop or spindle change there) of the
+    /// linear profile (no filter to settle). Per axis k the velocity changes by
+    /// |v_d·u_out,k − v_a·u_in,k| ≤ v_d·|u_out,k| + v_a·|u_in,k| ≤ a_k·(v_d/a_out + v_a/a_in)
+    /// (a segment's path acceleration is within a_k/|u_k| of every axis it moves), so
+    /// v_d ≤ a_out·(Ts − v_a/a_in) keeps every axis within its limit, whatever the turn.
+    fn departure_cap_mm_s(&self, v_arrive: f64, a_head: f64) -> f64 {
+        if self.raw_seg + 1 >= self.len || self.jerk_filter_ticks > 1 || self.axis_window_ticks > 1
+        {
+            return f64::INFINITY;
+        }
+        let (here, next) = (self.seg(self.raw_seg), self.seg(self.raw_seg + 1));
+        let plain = here.dwell_s <= 0.0
+            && !here.wait_in_position
+            && here.spindle_after.is_none()
+            && !self.stops_here(here.program_stop)
+            && !self.stops_here(next.program_stop_before)
+            && next.dwell_before_s <= 0.0;
+        if !plain {
+            return f64::INFINITY;
+        }
+        let a_in = a_head.min(self.raw_accel(here.accel_mm_s2, here));
+        let a_out = self.raw_accel(next.accel_mm_s2.min(next.stop_accel_mm_s2), next);
+        (a_out * (TS_S - v_arrive / a_in)).max(0.0)
     }
 
     /// Moves the raw position `ds` along the buffered path. Returns the smallest hard cap and
