@@ -356,10 +356,16 @@ proptest! {
         prop_assume!(smooth.iter().any(|b| b.motion().is_some()));
         let cfg = PlannerConfig::for_machine(&[kernel::plan::DEFAULT_AXIS_LIMITS; 3], 0.0, None);
         let (ts, tg) = (run(cfg.clone(), &smooth).time_s(), run(cfg, &stops).time_s());
-        // Tolerance: two ticks of rounding (the profiles land on different tick boundaries)
-        // and 2 % (the stop-or-pass choice at a corner is an estimate, see
-        // `Planner::corner_is_a_stop`; it errs on paths of a few ticks).
-        prop_assert!(ts <= tg * 1.02 + 2.0 * kernel::TS_S + 1e-9, "G23 {ts} s, G98 {tg} s");
+        // Tolerance: one tick per junction, no percentage. A junction passed lands the
+        // profile on other tick boundaries than a stop there (each stop is rounded to whole
+        // ticks on its own), and the pass-or-stop choice next to an arc is an estimate
+        // (`Planner::corner_is_a_stop`). Measured over 4000 random paths: at most 0.67 tick
+        // per junction (13 ticks on a path of 37 junctions, 0.3 %).
+        let junctions = smooth.len().saturating_sub(1) as f64;
+        prop_assert!(
+            ts <= tg + junctions * kernel::TS_S + 1e-9,
+            "G23 {ts} s, G98 {tg} s, {junctions} junctions"
+        );
     }
 }
 

@@ -434,7 +434,14 @@ impl Interpolator {
         }
         let a_in = a_head.min(self.raw_accel(here.accel_mm_s2, here));
         let a_out = self.raw_accel(next.accel_mm_s2.min(next.stop_accel_mm_s2), next);
-        (a_out * (TS_S - v_arrive / a_in)).max(0.0)
+        let cap = a_out * (TS_S - v_arrive / a_in);
+        // An arrival at the full step leaves nothing of the tick: rest it (a cap of 0 would
+        // hold the raw position without ever moving on).
+        if cap > 1e-6 * a_out * TS_S {
+            cap
+        } else {
+            f64::INFINITY
+        }
     }
 
     /// Moves the raw position `ds` along the buffered path. Returns the smallest hard cap and

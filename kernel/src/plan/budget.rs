@@ -13,6 +13,18 @@
 
 use crate::units::{MAX_AXES, TS_S};
 
+/// The turns near a junction passed at its cap, as the lines on either side see them.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct JunctionTurns {
+    /// Per axis: the turn of the tangent per tick within the tick window, 1/s (N_k(v) ≤
+    /// normal_k·min(v, v_ref)).
+    pub(super) normal_per_s: [f64; MAX_AXES],
+    /// Per axis: the largest tangent component the ticks near the junction move along.
+    pub(super) dir: [f64; MAX_AXES],
+    /// The fastest a tick touching the junction runs, mm/s.
+    pub(super) v_ref_mm_s: f64,
+}
+
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct LineBudget {
     /// Per moving axis: (a_k/d_k, q_k/d_k) in mm/s² and 1/s.
@@ -68,11 +80,6 @@ impl LineBudget {
     /// Path acceleration of the constants it was built with, mm/s².
     pub(super) fn base_mm_s2(&self) -> f64 {
         self.base_mm_s2
-    }
-
-    /// Half the tick window of the turns it was measured over, mm.
-    pub(super) fn reach_of_turns_mm(&self) -> f64 {
-        3.0 * self.v_ref_mm_s * TS_S / 2.0
     }
 
     /// Path acceleration for feed moves at speeds up to `v`.

@@ -2,18 +2,18 @@
 //! between passing a corner and stopping there, the block's acceleration budget and its R395
 //! ceiling. `Planner::finalize` runs these steps in order; each is a function of its own.
 
-use super::budget::LineBudget;
+use super::budget::{JunctionTurns, LineBudget};
 use super::{
     NORMAL_SHARE, OVERRIDE_MAX, Pending, Planner, Profile, SegPath, Segment, criteria, junction_of,
 };
-use crate::units::{MAX_AXES, TS_S};
+use crate::units::{AxesMm, MAX_AXES, TS_S};
 
 /// How much of the axes' path acceleration a block may use along the path.
 enum Share {
     /// A fixed fraction of `a_axes`.
     Fixed(f64),
-    /// A line between turning junctions passed at these caps: a [`LineBudget`].
-    Line { start_cap: f64, end_cap: f64 },
+    /// A line between turning junctions: a [`LineBudget`].
+    Line,
 }
 
 /// What the curvature window of a junction is checked against (SPEC §7.2 criteria applied to
@@ -36,26 +36,32 @@ struct WindowLimits {
 /// it first, since neighbouring junctions of a dense path have similar limits. `v` itself when
 /// it is within its bound. Returns the speed and whether a search ran.
 fn largest_within(v: f64, guess: f64, bound: impl Fn(f64) -> f64) -> (f64, bool) {
-    if bound(v) >= v * (1.0 - 1e-12) {
-        return (v, false);
-    }
     let (mut lo, mut hi) = (0.0, v);
-    for w in [0.001, 0.03] {
-        if !(guess > 0.0 && guess < v) || hi - lo <= 0.002 * hi {
-            break;
-        }
-        let (gl, gh) = ((1.0 - w) * guess, ((1.0 + w) * guess).min(v));
-        if gl <= lo || gh >= hi {
-            continue;
-        }
-        if bound(gl) >= gl {
-            lo = gl;
-            if bound(gh) < gh {
-                hi = gh;
+    if guess > 0.0 && guess < v {
+        // Bracket around the guess, ±0.1 % then ±3 %, from both sides.
+        for w in [0.001, 0.03] {
+            let (gl, gh) = ((1.0 - w) * guess, ((1.0 + w) * guess).min(v));
+            if gl > lo && gl < hi {
+                if bound(gl) >= gl {
+                    lo = gl;
+                } else {
+                    hi = gl;
+                }
             }
-        } else {
-            hi = gl;
+            if gh > lo && gh < hi {
+                if bound(gh) >= gh {
+                    lo = gh;
+                } else {
+                    hi = gh;
+                }
+            }
+            if hi - lo <= 0.002 * hi {
+                break;
+            }
         }
+    }
+    if hi == v && bound(v) >= v * (1.0 - 1e-12) {
+        return (v, false);
     }
     let mut steps = 0;
     while hi - lo > 0.002 * hi && steps < 64 {
@@ -79,11 +85,15 @@ impl Planner {
         } else {
             self.junction_speed(i)
         };
-        let planned_stop = !last && self.corner_is_a_stop(i, criteria_cap);
+        let passed = !last && self.win[i].smooth && criteria_cap > 0.0;
+        let turns = (passed && self.cfg.envelope.profile == Profile::Linear)
+            .then(|| self.junction_turns(i, criteria_cap));
+        let planned_stop = !last && self.corner_is_a_stop(i, criteria_cap, turns.as_ref());
         let p = &mut self.win[i];
         if planned_stop {
             p.smooth = false;
         }
+        p.turns = if planned_stop { None } else { turns };
         p.crit = crit;
         p.cap = if planned_stop { 0.0 } else { criteria_cap };
         p.seg.junction_cap_mm_s = criteria_cap;
@@ -202,10 +212,7 @@ impl Planner {
         let (a_axes, j_axes) = (p.a_axes, p.j_axes);
         let (share, budget) = match self.tangential_share(i, last) {
             Share::Fixed(share) => (share, None),
-            Share::Line { start_cap, end_cap } => {
-                let b = self.line_budget(i, start_cap, end_cap, base);
-                (1.0, Some(b))
-            }
+            Share::Line => (1.0, Some(self.line_budget(i, base))),
         };
         let p = &mut self.win[i];
         p.budget = budget;
@@ -224,30 +231,30 @@ impl Planner {
         }
     }
 
-    /// Junction `i` has just become a stop: the budgets of the lines before it measured their
-    /// turns across it (as if it were passed) and are measured again.
+    /// Junction `i` has just become a stop: the junctions before it measured their turns
+    /// across it (as if it were passed); they and the budgets of their lines are measured
+    /// again.
     fn rebudget_before(&mut self, i: usize) {
+        let mut first = i;
         let mut dist = 0.0;
-        let mut k = i;
-        while k > self.emitted {
-            k -= 1;
+        while first > self.emitted {
+            let k = first - 1;
             dist += self.win[k + 1].seg.length_mm;
-            let Some(b) = self.win[k].budget else { break };
-            if dist > b.reach_of_turns_mm() {
+            let Some(t) = self.win[k].turns else { break };
+            // Tangents were looked up to 3h = 1.5·v_ref·Ts past the junction.
+            if dist > 1.5 * t.v_ref_mm_s * TS_S {
                 break;
             }
-            let start_cap = if k > 0 && self.win[k - 1].smooth {
-                self.win[k - 1].cap
-            } else {
-                0.0
+            let cap = self.win[k].cap;
+            self.win[k].turns = Some(self.junction_turns(k, cap));
+            first = k;
+        }
+        let rapid_a = self.cfg.envelope.rapid_accel_mm_s2;
+        for k in first..i {
+            let Some(b) = self.win[k].budget else {
+                continue;
             };
-            let end_cap = if self.win[k].smooth {
-                self.win[k].cap
-            } else {
-                0.0
-            };
-            let b = self.line_budget(k, start_cap, end_cap, b.base_mm_s2());
-            let rapid_a = self.cfg.envelope.rapid_accel_mm_s2;
+            let b = self.line_budget(k, b.base_mm_s2());
             let p = &mut self.win[k];
             p.budget = Some(b);
             p.apply_budget(&b, f64::INFINITY, rapid_a);
@@ -278,27 +285,32 @@ impl Planner {
         if arcs || self.cfg.envelope.profile != Profile::Linear || !p.a_axes.is_finite() {
             return Share::Fixed(split);
         }
-        let start_cap = if prev_smooth {
-            self.win[i - 1].cap
-        } else {
-            0.0
-        };
-        let end_cap = if next_smooth { p.cap } else { 0.0 };
-        Share::Line { start_cap, end_cap }
+        Share::Line
     }
 
     /// Tangential acceleration on line block `i` as a function of its highest speed
-    /// ([`LineBudget`]): per axis k, a_t·|u_k| + N_k(v) ≤ a_k, with u the tangents the ticks
-    /// near the block move along and N_k(v) = min(v, v_ref)·|t(+h) − t(−h)|_k/Ts the velocity
-    /// turn per tick within the tick window (h = v_ref·Ts/2) of each junction passed at its cap
-    /// (0 = not passed: a stop), v_ref = cap + A·Ts the fastest a tick touching it runs. This
-    /// is the per-axis form of the local curvature criterion that bounds the junction speed
-    /// (|N| ≤ NORMAL_SHARE·a_iso at the cap). `base`: the constants' path acceleration.
-    pub(super) fn line_budget(
+    /// ([`LineBudget`]): per axis k, a_t·|u_k| + N_k(v) ≤ a_k over the turns of the junctions
+    /// it passes (`Pending::turns`, [`Planner::junction_turns`]). This is the per-axis form of
+    /// the local curvature criterion that bounds the junction speed (|N| ≤ NORMAL_SHARE·a_iso
+    /// at the cap). `base`: the constants' path acceleration.
+    pub(super) fn line_budget(&self, i: usize, base: f64) -> LineBudget {
+        let start = (i > 0 && self.win[i - 1].smooth)
+            .then(|| self.win[i - 1].turns)
+            .flatten();
+        let end = if self.win[i].smooth {
+            self.win[i].turns
+        } else {
+            None
+        };
+        self.budget_between(i, start.as_ref(), end.as_ref(), base)
+    }
+
+    /// The budget of line block `i` between junctions with these turns (None: a stop).
+    fn budget_between(
         &self,
         i: usize,
-        start_cap: f64,
-        end_cap: f64,
+        start: Option<&JunctionTurns>,
+        end: Option<&JunctionTurns>,
         base: f64,
     ) -> LineBudget {
         let axes = self.cfg.axes;
@@ -309,30 +321,11 @@ impl Planner {
             *d = p.t_start[k].abs().max(p.t_end[k].abs());
         }
         let mut v_ref = 0.0f64;
-        for (j, cap) in [(i.wrapping_sub(1), start_cap), (i, end_cap)] {
-            if cap <= 0.0 {
-                continue;
-            }
-            let v = cap + p.a_axes * TS_S;
-            v_ref = v_ref.max(v);
-            let h = v * TS_S / 2.0;
-            // The velocity change of a tick weighs the turns within ±v·Ts of it by
-            // 1 − |x|/(v·Ts): the mean of the turns within ±h/2 and ±3h/2.
-            let (ti0, ti1) = (
-                self.tangent_near(j, -h / 2.0),
-                self.tangent_near(j, h / 2.0),
-            );
-            let (to0, to1) = (
-                self.tangent_near(j, -1.5 * h),
-                self.tangent_near(j, 1.5 * h),
-            );
-            let t1 = self.tangent_near(j, h);
-            let t2 = self.tangent_near(j, 3.0 * h);
-            let tm = self.tangent_near(j, -3.0 * h);
+        for t in [start, end].into_iter().flatten() {
+            v_ref = v_ref.max(t.v_ref_mm_s);
             for k in 0..axes {
-                let turn = 0.5 * ((ti1[k] - ti0[k]).abs() + (to1[k] - to0[k]).abs());
-                normal[k] = normal[k].max(turn / TS_S);
-                dir[k] = dir[k].max(t1[k].abs()).max(t2[k].abs()).max(tm[k].abs());
+                normal[k] = normal[k].max(t.normal_per_s[k]);
+                dir[k] = dir[k].max(t.dir[k]);
             }
         }
         let split = 1.0 - NORMAL_SHARE;
@@ -341,6 +334,41 @@ impl Planner {
             b.add_axis(self.cfg.axis_a_max_mm_s2[k], normal[k], dir[k]);
         }
         b
+    }
+
+    /// The turns near junction `j` passed at `cap`, per axis: N_k(v) = min(v, v_ref)·T_k/Ts
+    /// with T_k the turn of the tangent within the tick window (h = v_ref·Ts/2) and v_ref =
+    /// cap + A·Ts the fastest a tick touching the junction runs (A the larger path
+    /// acceleration of the two blocks); and the tangent components the ticks near it move
+    /// along. Looked up once per junction for the lines on both sides.
+    pub(super) fn junction_turns(&self, j: usize, cap: f64) -> JunctionTurns {
+        let axes = self.cfg.axes;
+        let (a0, a1) = (self.win[j].a_axes, self.win[j + 1].a_axes);
+        let a = if a0.is_finite() && a1.is_finite() {
+            a0.max(a1)
+        } else {
+            a0.min(a1)
+        };
+        let v = cap + if a.is_finite() { a * TS_S } else { 0.0 };
+        let h = v * TS_S / 2.0;
+        let mut t = JunctionTurns {
+            v_ref_mm_s: v,
+            ..JunctionTurns::default()
+        };
+        // The velocity change of a tick weighs the turns within ±v·Ts of it by
+        // 1 − |x|/(v·Ts): the mean of the turns within ±h/2 and ±3h/2.
+        let mut ahead = [AxesMm::ZERO; 4];
+        let mut behind = [AxesMm::ZERO; 3];
+        self.tangents_near(j, true, &[h / 2.0, h, 1.5 * h, 3.0 * h], &mut ahead);
+        self.tangents_near(j, false, &[h / 2.0, 1.5 * h, 3.0 * h], &mut behind);
+        let [ti1, t1, to1, t2] = ahead;
+        let [ti0, to0, tm] = behind;
+        for k in 0..axes {
+            let turn = 0.5 * ((ti1[k] - ti0[k]).abs() + (to1[k] - to0[k]).abs());
+            t.normal_per_s[k] = turn / TS_S;
+            t.dir[k] = t1[k].abs().max(t2[k].abs()).max(tm[k].abs());
+        }
+        t
     }
 
     /// R395: keep the junction speeds through a short block unless rising pays off. Only
@@ -369,7 +397,12 @@ impl Planner {
     /// passed at is below one tick's acceleration step, or when the time the line sides lose
     /// by ramping at the acceleration the turn leaves them exceeds what passing at that speed
     /// gains over stopping.
-    pub(super) fn corner_is_a_stop(&self, i: usize, cap: f64) -> bool {
+    pub(super) fn corner_is_a_stop(
+        &self,
+        i: usize,
+        cap: f64,
+        turns: Option<&JunctionTurns>,
+    ) -> bool {
         let (p, n) = (&self.win[i], &self.win[i + 1]);
         let is_arc = |q: &Pending| matches!(q.seg.path, SegPath::Arc { .. });
         let shares = p.turn > 1e-9 || is_arc(p) || is_arc(n);
@@ -385,11 +418,9 @@ impl Planner {
         if cap < a(p).min(a(n)) * TS_S {
             return true;
         }
-        let start_cap = if i > 0 && self.win[i - 1].smooth {
-            self.win[i - 1].cap
-        } else {
-            0.0
-        };
+        let start = (i > 0 && self.win[i - 1].smooth)
+            .then(|| self.win[i - 1].turns)
+            .flatten();
         let split = 1.0 - NORMAL_SHARE;
         let linear = self.cfg.envelope.profile == Profile::Linear;
         // Per side, with V the speed the block reaches from the cap: passing at the cap
@@ -409,12 +440,12 @@ impl Planner {
                 continue;
             }
             let b = if linear && q.a_axes.is_finite() && !is_arc(p) && !is_arc(n) {
-                let (c0, c1) = if side == i {
-                    (start_cap, cap)
+                let (t0, t1) = if side == i {
+                    (start.as_ref(), turns)
                 } else {
-                    (cap, 0.0)
+                    (turns, None)
                 };
-                let b = self.line_budget(side, c0, c1, aq);
+                let b = self.budget_between(side, t0, t1, aq);
                 b.accel_at(f64::INFINITY)
             } else {
                 split * aq
