@@ -324,9 +324,11 @@ impl Interpolator {
             }
             let next = (k + 1 < self.len).then(|| *self.seg(k + 1));
             let (hard_cap, soft_cap, lead) = match next {
-                Some(n) if seg.v_end_mm_s > 0.0 => {
-                    (seg.v_end_mm_s.min(n.v_max_mm_s), self.ceiling(&n), lag_s)
-                }
+                Some(n) if seg.v_end_mm_s > 0.0 => (
+                    self.end_cap_mm_s(&seg).min(n.v_max_mm_s),
+                    self.ceiling(&n),
+                    lag_s,
+                ),
                 _ => (0.0, 0.0, 0.0),
             };
             // Any speed up to the cap itself is safe for that cap; above it, we must still be
@@ -347,6 +349,21 @@ impl Interpolator {
             hard_mm_s: hard,
             stop_dist_mm,
         }
+    }
+
+    /// Hard cap at the end of a segment that is not a stop point. Its planned end speed is
+    /// the junction's criteria cap or lower where the planner brakes there for later caps
+    /// (continuous time, per-segment accelerations). In the linear profile the look-ahead of
+    /// `speed_limits` brakes for those later caps itself, exactly in discrete time, with the
+    /// smallest acceleration on the way, and the end of the buffer is a stop: the junction's
+    /// own cap is enough. (Capping every tick at the braking curve's junction speeds made
+    /// each junction of a braking zone cost part of a tick: the tick before a cap runs at the
+    /// cap.) The parabolic filters keep the planned end speeds.
+    fn end_cap_mm_s(&self, seg: &Segment) -> f64 {
+        if self.jerk_filter_ticks > 1 || self.axis_window_ticks > 1 {
+            return seg.v_end_mm_s;
+        }
+        seg.v_end_mm_s.max(seg.junction_cap_mm_s)
     }
 
     /// Smallest raw acceleration of the segments the next tick covers at speeds up to `v_up`,
@@ -472,7 +489,7 @@ impl Interpolator {
                 return (cap, feed);
             }
             let next = *self.seg(self.raw_seg + 1);
-            cap = cap.min(seg.v_end_mm_s).min(next.v_max_mm_s);
+            cap = cap.min(self.end_cap_mm_s(&seg)).min(next.v_max_mm_s);
             feed = feed.min(self.feed_of(&next));
             self.raw_seg += 1;
             self.raw_in_seg_mm = 0.0;
