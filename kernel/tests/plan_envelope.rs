@@ -619,14 +619,41 @@ fn spindle_runs_up_at_the_stop_before_the_next_cut() {
     assert_eq!(r.ticks.last().unwrap().position[0], 10.0);
 }
 
-/// Issue #16: stops where the path turns and reverses (G98, axis-parallel moves) are left in
-/// the tick after the arrival without breaking an axis limit (the departure step takes what
-/// the arrival step left of the tick), and still land within one tick of the closed form
-/// per stop.
-#[test]
-fn stops_with_turns_and_reversals_keep_the_axis_limits_and_the_closed_form_time() {
+/// Stop-to-stop moves (G98) by (dx, dy) on the daemon's configuration, within the limits
+/// (`assert_within`) and within one tick per stop of their closed-form time (ramps at a,
+/// cruise at F; axis-parallel moves have the axis acceleration as path acceleration).
+fn stop_to_stop(name: &str, moves: &[(f64, f64)]) -> Run {
     let cfg = PlannerConfig::for_machine(&[kernel::plan::DEFAULT_AXIS_LIMITS; 3], 0.0, None);
     let (f, a) = (100.0, 800.0);
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), f * 60.0, Continuity::G98);
+    let mut ideal = 0.0;
+    for &(dx, dy) in moves {
+        let end = p.pos + p3(dx, dy, 0.0);
+        p.g1(end);
+        let l: f64 = f64::hypot(dx, dy);
+        let v = f.min((a * l).sqrt());
+        ideal += l / v + v / a;
+    }
+    let r = assert_within(name, &cfg, &p.blocks);
+    let n = moves.len() as f64;
+    let t = r.time_s();
+    assert!(
+        t >= ideal - n * kernel::TS_S,
+        "{name}: {t} s, ideal {ideal} s"
+    );
+    assert!(
+        t <= ideal + n * kernel::TS_S,
+        "{name}: {t} s, ideal {ideal} s"
+    );
+    println!("{name}: {t:.3} s, closed form {ideal:.3} s, {n} stops");
+    r
+}
+
+/// Issue #16: stops where the path turns and reverses are left in the tick after the arrival
+/// without breaking an axis limit (the departure step takes what the arrival step left of the
+/// tick), and still land within one tick of the closed form per stop.
+#[test]
+fn stops_with_turns_and_reversals_keep_the_axis_limits_and_the_closed_form_time() {
     let moves = [
         (10.0, 0.0),
         (-3.0, 0.0),
@@ -636,20 +663,7 @@ fn stops_with_turns_and_reversals_keep_the_axis_limits_and_the_closed_form_time(
         (-0.4, 0.0),
         (0.0, 12.0),
     ];
-    let mut p = Prog::new(p3(0.0, 0.0, 0.0), f * 60.0, Continuity::G98);
-    let mut ideal = 0.0;
-    for (dx, dy) in moves {
-        let end = p.pos + p3(dx, dy, 0.0);
-        p.g1(end);
-        let l: f64 = f64::hypot(dx, dy);
-        let v = f.min((a * l).sqrt());
-        ideal += l / v + v / a;
-    }
-    let r = assert_within("turning stops", &cfg, &p.blocks);
-    let n = moves.len() as f64;
-    let t = r.time_s();
-    assert!(t >= ideal - n * kernel::TS_S, "{t} s, ideal {ideal} s");
-    assert!(t <= ideal + n * kernel::TS_S, "{t} s, ideal {ideal} s");
+    let r = stop_to_stop("turning stops", &moves);
     // No tick at rest between two moves: the departure follows the arrival at once.
     let rests = r
         .ticks
@@ -660,26 +674,10 @@ fn stops_with_turns_and_reversals_keep_the_axis_limits_and_the_closed_form_time(
 }
 
 /// Issue #16: stops land on the continuous profile. Stop-to-stop moves take their closed-form
-/// time (ramps at a, cruise at F) to within one tick each (rounding together with the
-/// departure, which takes what the arrival step left of its tick).
+/// time to within one tick each (rounding together with the departure, which takes what the
+/// arrival step left of its tick).
 #[test]
 fn stops_land_on_the_continuous_profile() {
-    let cfg = PlannerConfig::for_machine(&[kernel::plan::DEFAULT_AXIS_LIMITS; 3], 0.0, None);
-    let (f, a) = (100.0, 800.0);
     let lengths = [100.0, 3.0, 0.5, 37.0, 12.5, 0.02];
-    let mut p = Prog::new(p3(0.0, 0.0, 0.0), f * 60.0, Continuity::G98);
-    let mut x = 0.0;
-    let mut ideal = 0.0;
-    for l in lengths {
-        x += l;
-        p.g1(p3(x, 0.0, 0.0));
-        let v = f.min((a * l).sqrt());
-        ideal += l / v + v / a;
-    }
-    let r = assert_within("stops", &cfg, &p.blocks);
-    let n = lengths.len() as f64;
-    let t = r.time_s();
-    assert!(t >= ideal - n * kernel::TS_S, "{t} s, ideal {ideal} s");
-    assert!(t <= ideal + n * kernel::TS_S, "{t} s, ideal {ideal} s");
-    println!("stops: {t:.3} s, closed form {ideal:.3} s, {n} stops");
+    stop_to_stop("stops", &lengths.map(|l| (l, 0.0)));
 }
