@@ -11,6 +11,7 @@ pub mod candump;
 pub mod canopen;
 pub mod cia402;
 pub mod serial;
+pub mod units;
 
 /// Most axes a bus serves: the kernel's axis count ([`kernel::MAX_AXES`]), defined once there
 /// because the setpoints a bus carries are the kernel's [`kernel::AxesMm`].

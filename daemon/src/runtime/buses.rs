@@ -144,7 +144,7 @@ pub fn open_bus(
                         .collect(),
                 )
             };
-            Ok(Box::new(SerialBus::open(cfg)?))
+            Ok(Box::new(SerialBus::open(cfg).map_err(|e| e.to_string())?))
         }
     }
 }

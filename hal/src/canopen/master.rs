@@ -30,6 +30,7 @@ use super::pdo::{self, OpMode, Rpdo, Tpdo};
 use super::sdo::{self, Response};
 use super::{CanPort, Frame, PortError, RxEvent, cob, err_class, nmt};
 use crate::cia402::{self, PowerState, cw, sw};
+use crate::units::to_units;
 
 #[path = "homing.rs"]
 mod homing;
@@ -607,13 +608,6 @@ impl<P: CanPort> CanOpenMaster<P> {
 /// Largest number of received frames handled per tick, so a babbling node cannot stall the
 /// tick (the rest waits in the socket buffer for the next tick).
 const MAX_RX_PER_TICK: usize = 256;
-
-/// A value in drive units, rounded and saturated to the 32-bit PDO field.
-fn to_units(value: f64, units_per: f64) -> i32 {
-    (value * units_per)
-        .round()
-        .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
-}
 
 impl<P: CanPort> DriveBus for CanOpenMaster<P> {
     fn name(&self) -> &str {
