@@ -11,31 +11,42 @@
 //! Every key is listed in `docs/buses.md`.
 
 use hal::canopen::{
-    CanOpenConfig, CanOpenMaster, FaultReaction, HomingParams, NodeConfig, ShutdownMode,
-    SocketCanPort, SpindleNodeConfig,
+    CanOpenConfig, CanOpenError, CanOpenMaster, FaultReaction, HomingParams, NodeConfig, NodeId,
+    ShutdownMode, SocketCanPort, SpindleNodeConfig,
 };
 use hal::serial::{SerialAxis, SerialBus, SerialConfig, SerialSpindle};
 
 use super::config::{AxisConfig, HomingMode, SimConfig};
 pub use super::config::{BusConfig, CanBusConfig, FaultReactionKey, SerialBusConfig, ShutdownKey};
 
-/// The master settings for `axes` (validated: every axis has a node id).
-pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
+/// The master settings for `axes` (validated: every axis has a node id in 1..=127).
+pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> Result<CanOpenConfig, CanOpenError> {
     let nodes = axes
         .iter()
         .enumerate()
-        .map(|(i, a)| NodeConfig {
-            node_id: a.node_id.unwrap_or(i as u8 + 1),
-            increments_per_mm: a.increments_per_mm,
-            following_window_increments: c
-                .following_window_mm
-                .map(|mm| (mm * a.increments_per_mm).round().min(f64::from(u32::MAX)) as u32),
-            max_velocity_mm_s: a.max_velocity_mm_min / 60.0,
-            homing: Some(homing_params(a)),
+        .map(|(i, a)| {
+            Ok(NodeConfig {
+                following_window_increments: c
+                    .following_window_mm
+                    .map(|mm| (mm * a.increments_per_mm).round().min(f64::from(u32::MAX)) as u32),
+                max_velocity_mm_s: a.max_velocity_mm_min / 60.0,
+                homing: Some(homing_params(a)),
+                ..NodeConfig::new(
+                    NodeId::new(a.node_id.unwrap_or(i as u8 + 1))?,
+                    a.increments_per_mm,
+                )
+            })
         })
-        .collect();
-    CanOpenConfig {
-        master_node_id: c.master_node_id,
+        .collect::<Result<_, CanOpenError>>()?;
+    let spindle = match c.spindle_node {
+        Some(id) => Some(SpindleNodeConfig {
+            node_id: NodeId::new(id)?,
+            units_per_rpm: c.spindle_units_per_rpm,
+        }),
+        None => None,
+    };
+    Ok(CanOpenConfig {
+        master_node_id: NodeId::new(c.master_node_id)?,
         tpdo_missing_ticks: c.tpdo_missing_ticks,
         drive_heartbeat_ms: c.drive_heartbeat_ms,
         heartbeat_timeout_ms: c.heartbeat_timeout_ms,
@@ -57,12 +68,9 @@ pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
             FaultReactionKey::Hold => FaultReaction::Hold,
         },
         homing_timeout_ms: c.homing_timeout_ms,
-        spindle: c.spindle_node.map(|node_id| SpindleNodeConfig {
-            node_id,
-            units_per_rpm: c.spindle_units_per_rpm,
-        }),
+        spindle,
         ..CanOpenConfig::new(nodes)
-    }
+    })
 }
 
 /// The drive's homing settings of axis `a` in drive units (docs/buses.md#homing): the home
@@ -112,13 +120,15 @@ pub fn open_bus(
             Ok(Box::new(bus))
         }
         BusConfig::Can(c) => {
-            let mut port = SocketCanPort::open(&c.interface)?;
+            let mut port = SocketCanPort::open(&c.interface).map_err(|e| e.to_string())?;
             if let Some(path) = &c.record {
                 // The writer thread ends when the bus (and its tap) is dropped.
                 let (tap, _writer) = hal::candump::start(path, &c.interface)?;
                 port = port.with_recording(tap);
             }
-            let master = CanOpenMaster::new(port, &c.interface, can_config(c, axes))?;
+            let master = can_config(c, axes)
+                .and_then(|cfg| CanOpenMaster::new(port, &c.interface, cfg))
+                .map_err(|e| e.to_string())?;
             Ok(Box::new(master))
         }
         BusConfig::Serial(s) => {
@@ -167,9 +177,9 @@ mod tests {
             panic!("{:?}", c.bus)
         };
         assert_eq!(can.tpdo_missing_ticks, 25);
-        let m = can_config(can, &c.axes);
+        let m = can_config(can, &c.axes).unwrap();
         assert_eq!(m.nodes.len(), 3);
-        assert_eq!(m.nodes[2].node_id, 3);
+        assert_eq!(m.nodes[2].node_id.get(), 3);
         assert_eq!(m.nodes[0].following_window_increments, Some(50_000));
         // The axis speed limit bounds the hand-over step at enable; the cycle is 4 ms.
         assert_eq!(m.nodes[0].max_velocity_mm_s, 200.0);
@@ -183,7 +193,10 @@ mod tests {
         let BusConfig::Can(can) = &c.bus else {
             panic!()
         };
-        assert_eq!(can_config(can, &c.axes).shutdown, ShutdownMode::QuickStop);
+        assert_eq!(
+            can_config(can, &c.axes).unwrap().shutdown,
+            ShutdownMode::QuickStop
+        );
         // Every bus kind takes cycle_ms: whole ms from 1 to 10 (the serial protocol: 4 only).
         for kind in ["kind = 'can'\ninterface = 'vcan0'", "kind = 'sim'"] {
             for ms in ["0", "11", "3.5", "-4", "nan"] {
@@ -207,7 +220,7 @@ mod tests {
                 .unwrap();
                 assert_eq!(c.bus.cycle_ns(), ms * 1_000_000);
                 if let BusConfig::Can(can) = &c.bus {
-                    assert_eq!(can_config(can, &c.axes).cycle_us, ms as u32 * 1000);
+                    assert_eq!(can_config(can, &c.axes).unwrap().cycle_us, ms as u32 * 1000);
                 }
             }
         }
@@ -241,9 +254,9 @@ mod tests {
             panic!()
         };
         assert_eq!(
-            can_config(can, &c.axes).spindle,
+            can_config(can, &c.axes).unwrap().spindle,
             Some(SpindleNodeConfig {
-                node_id: 10,
+                node_id: NodeId::new(10).unwrap(),
                 units_per_rpm: 10.0
             })
         );
@@ -255,6 +268,7 @@ mod tests {
                 },
                 &c.axes
             )
+            .unwrap()
             .spindle,
             None
         );
@@ -290,7 +304,7 @@ mod tests {
         let BusConfig::Can(can) = &c.bus else {
             panic!()
         };
-        let m = can_config(can, &c.axes);
+        let m = can_config(can, &c.axes).unwrap();
         assert_eq!(m.fault_reaction, FaultReaction::DisableVoltage);
         assert_eq!(m.homing_timeout_ms, 9000);
         // 10 mm/s, a tenth of it leaving the switch, 50 mm/s², at 1000 increments/mm.
@@ -313,7 +327,7 @@ mod tests {
         let BusConfig::Can(can) = &d.bus else {
             panic!()
         };
-        let m = can_config(can, &d.axes);
+        let m = can_config(can, &d.axes).unwrap();
         assert_eq!(m.fault_reaction, FaultReaction::QuickStop);
         assert_eq!(m.nodes[0].homing.map(|h| h.method), Some(21));
         for (bad, key) in [

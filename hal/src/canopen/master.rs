@@ -28,7 +28,7 @@ use crate::{
 use super::emcy::{self, Emcy};
 use super::pdo::{self, OpMode, Rpdo, Tpdo};
 use super::sdo::{self, Response};
-use super::{CanPort, Frame, PortError, RxEvent, cob, err_class, nmt};
+use super::{CanOpenError, CanPort, Frame, NodeId, PortError, RxEvent, cob, err_class, nmt};
 use crate::cia402::{self, PowerState, cw, sw};
 use crate::units::to_units;
 
@@ -46,8 +46,7 @@ use startup::{Step, check_config, startup_steps, step_object, ticks};
 /// One drive on the bus (one axis).
 #[derive(Clone, Debug, PartialEq)]
 pub struct NodeConfig {
-    /// CANopen node id, 1..=127.
-    pub node_id: u8,
+    pub node_id: NodeId,
     /// Drive position units (0x607A, 0x6064) per mm or degree.
     pub increments_per_mm: f64,
     /// Following-error window written to 0x6065 at start-up, increments; `None` keeps the
@@ -64,7 +63,7 @@ pub struct NodeConfig {
 
 impl NodeConfig {
     /// A drive with its own following window, a speed limit of 200 mm/s and no homing.
-    pub fn new(node_id: u8, increments_per_mm: f64) -> NodeConfig {
+    pub fn new(node_id: NodeId, increments_per_mm: f64) -> NodeConfig {
         NodeConfig {
             node_id,
             increments_per_mm,
@@ -78,8 +77,8 @@ impl NodeConfig {
 /// The spindle drive (CiA 402 in cyclic synchronous velocity mode).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SpindleNodeConfig {
-    /// CANopen node id, 1..=127, not used by an axis.
-    pub node_id: u8,
+    /// Not used by an axis.
+    pub node_id: NodeId,
     /// Drive velocity units (0x60FF, 0x606C) per rpm, e.g. 1 for a drive in rpm, 10 for
     /// 0.1 rpm, or encoder increments per second per rpm (increments per revolution / 60).
     pub units_per_rpm: f64,
@@ -119,7 +118,7 @@ pub struct CanOpenConfig {
     /// The spindle drive, if the spindle is on this bus.
     pub spindle: Option<SpindleNodeConfig>,
     /// The master's own node id: it produces a heartbeat the drives consume (0x1016).
-    pub master_node_id: u8,
+    pub master_node_id: NodeId,
     /// Tick period, µs, 1000..=10000 in whole ms (0x1006 and 0x60C2 of the drives follow it;
     /// the caller must call `cycle` at this period).
     pub cycle_us: u32,
@@ -158,7 +157,7 @@ impl CanOpenConfig {
         CanOpenConfig {
             nodes,
             spindle: None,
-            master_node_id: 127,
+            master_node_id: NodeId::MASTER_DEFAULT,
             cycle_us: 4000,
             tpdo_missing_ticks: 25,
             drive_heartbeat_ms: 100,
@@ -208,7 +207,7 @@ fn is_drive_level(r: FaultReason) -> bool {
 impl<P: CanPort> CanOpenMaster<P> {
     /// A master for `cfg.nodes` (one per axis, in axis order) on `port`; `name` is the
     /// interface name for logs. Nothing is sent before [`DriveBus::enable`].
-    pub fn new(port: P, name: &str, cfg: CanOpenConfig) -> Result<Self, String> {
+    pub fn new(port: P, name: &str, cfg: CanOpenConfig) -> Result<Self, CanOpenError> {
         check_config(&cfg)?;
         let mut nodes: Vec<Node> = cfg
             .nodes
@@ -252,8 +251,11 @@ impl<P: CanPort> CanOpenMaster<P> {
         }
     }
 
+    /// The node of a frame's node id.
     fn node_index(&self, node_id: u8) -> Option<usize> {
-        self.nodes.iter().position(|n| n.cfg.node_id == node_id)
+        self.nodes
+            .iter()
+            .position(|n| n.cfg.node_id.get() == node_id)
     }
 
     /// The axis a fault of node `i` names: its index, or the spindle.
@@ -285,7 +287,7 @@ impl<P: CanPort> CanOpenMaster<P> {
 
     /// The SDO request of one step.
     fn send_sdo(&mut self, i: usize, s: Step) {
-        let id = self.nodes[i].cfg.node_id;
+        let id = self.nodes[i].cfg.node_id.get();
         let f = match s {
             Step::Write {
                 index,
@@ -470,7 +472,7 @@ impl<P: CanPort> CanOpenMaster<P> {
             n.nmt_state = nmt::state::OPERATIONAL;
             n.target_increments = n.hold_target();
             n.controlword = cw::DISABLE_VOLTAGE;
-            let id = n.cfg.node_id;
+            let id = n.cfg.node_id.get();
             self.send(&nmt::command(nmt::Command::Start, id));
         }
     }
@@ -536,13 +538,13 @@ impl<P: CanPort> CanOpenMaster<P> {
                     controlword: n.controlword,
                     target_increments: n.target_increments,
                 }
-                .encode(n.cfg.node_id);
+                .encode(n.cfg.node_id.get());
                 self.send(&f);
             }
         }
         let hb = self.ticks(u32::from(self.cfg.master_heartbeat_ms));
         if hb > 0 && self.tick.is_multiple_of(hb) {
-            let id = self.cfg.master_node_id;
+            let id = self.cfg.master_node_id.get();
             self.send(&nmt::heartbeat(id, nmt::state::OPERATIONAL));
         }
     }
@@ -596,7 +598,7 @@ impl<P: CanPort> CanOpenMaster<P> {
             if let Phase::Faulted(reason) = n.phase {
                 return Err(BusFault {
                     axis: Some(self.axis_of(i)),
-                    node: Some(n.cfg.node_id),
+                    node: Some(n.cfg.node_id.get()),
                     reason,
                 });
             }

@@ -199,7 +199,7 @@ impl<P: CanPort> CanOpenMaster<P> {
                     since: tick,
                     command,
                 };
-                let id = n.cfg.node_id;
+                let id = n.cfg.node_id.get();
                 self.send(&nmt::command(command, id));
             }
             Phase::Booting { since, command } => self.boot(i, since, command),
@@ -250,7 +250,7 @@ impl<P: CanPort> CanOpenMaster<P> {
         } else if (tick - since).is_multiple_of(boot_ticks / 3 + 1) {
             // The reset may have been lost (a drive busy or not yet listening): ask again,
             // twice, before giving up.
-            let id = n.cfg.node_id;
+            let id = n.cfg.node_id.get();
             self.send(&nmt::command(command, id));
         }
     }
@@ -378,7 +378,7 @@ impl<P: CanPort> CanOpenMaster<P> {
             sent_at: self.tick,
             retried,
         });
-        let id = self.nodes[i].cfg.node_id;
+        let id = self.nodes[i].cfg.node_id.get();
         self.send(&sdo::download(id, 0x1016, 1, 0, 4));
     }
 
@@ -398,7 +398,7 @@ impl<P: CanPort> CanOpenMaster<P> {
         let n = &mut self.nodes[i];
         n.phase = Phase::ShuttingDown(Off::Done);
         n.nmt_state = nmt::state::PRE_OPERATIONAL;
-        let id = n.cfg.node_id;
+        let id = n.cfg.node_id.get();
         self.send(&nmt::command(nmt::Command::EnterPreOperational, id));
     }
 }

@@ -29,7 +29,7 @@ pub(super) fn startup_steps(c: &CanOpenConfig, n: &NodeConfig, mode: OpMode) -> 
         value,
         size,
     };
-    let mut steps: Vec<Step> = pdo::mapping_writes(n.node_id, mode)
+    let mut steps: Vec<Step> = pdo::mapping_writes(n.node_id.get(), mode)
         .iter()
         .map(|&(i, s, v, z)| w(i, s, v, z))
         .collect();
@@ -47,7 +47,7 @@ pub(super) fn startup_steps(c: &CanOpenConfig, n: &NodeConfig, mode: OpMode) -> 
     steps.push(w(
         0x1016,
         1,
-        (u32::from(c.master_node_id) << 16) | u32::from(consumer_ms),
+        (u32::from(c.master_node_id.get()) << 16) | u32::from(consumer_ms),
         4,
     ));
     if let Some(window) = n.following_window_increments {
@@ -70,53 +70,45 @@ pub(super) fn step_object(s: Step) -> (u16, u8) {
 }
 
 /// Checks the settings the master cannot run with.
-pub(super) fn check_config(cfg: &CanOpenConfig) -> Result<(), String> {
+pub(super) fn check_config(cfg: &CanOpenConfig) -> Result<(), CanOpenError> {
     if cfg.nodes.is_empty() || cfg.nodes.len() > MAX_AXES {
-        return Err(format!(
-            "{} drives configured, 1..={MAX_AXES} are supported",
-            cfg.nodes.len()
-        ));
+        return Err(CanOpenError::DriveCount {
+            count: cfg.nodes.len(),
+        });
     }
     if !(1000..=10_000).contains(&cfg.cycle_us) || !cfg.cycle_us.is_multiple_of(1000) {
-        return Err(format!(
-            "cycle time {} µs: 1 to 10 ms in whole ms are supported",
-            cfg.cycle_us
-        ));
+        return Err(CanOpenError::CycleTime {
+            cycle_us: u128::from(cfg.cycle_us),
+        });
     }
-    for (i, n) in cfg.nodes.iter().enumerate() {
-        if !(1..=127).contains(&n.node_id) || n.node_id == cfg.master_node_id {
-            return Err(format!(
-                "node id {} of axis {i} is outside 1..127 or equals the master's",
-                n.node_id
-            ));
+    for (axis, n) in cfg.nodes.iter().enumerate() {
+        if n.node_id == cfg.master_node_id {
+            return Err(CanOpenError::AxisNodeIsMaster {
+                axis,
+                node: n.node_id,
+            });
         }
-        if cfg.nodes[..i].iter().any(|m| m.node_id == n.node_id) {
-            return Err(format!("node id {} is used twice", n.node_id));
+        if cfg.nodes[..axis].iter().any(|m| m.node_id == n.node_id) {
+            return Err(CanOpenError::NodeUsedTwice { node: n.node_id });
         }
         if !(n.increments_per_mm.is_finite() && n.increments_per_mm > 0.0) {
-            return Err(format!("increments per mm of axis {i} must be positive"));
+            return Err(CanOpenError::AxisScale { axis });
         }
         if !(n.max_velocity_mm_s.is_finite() && n.max_velocity_mm_s > 0.0) {
-            return Err(format!("maximum speed of axis {i} must be positive"));
+            return Err(CanOpenError::AxisSpeed { axis });
         }
     }
     let Some(sp) = &cfg.spindle else {
         return Ok(());
     };
-    if !(1..=127).contains(&sp.node_id) || sp.node_id == cfg.master_node_id {
-        return Err(format!(
-            "node id {} of the spindle is outside 1..127 or equals the master's",
-            sp.node_id
-        ));
+    if sp.node_id == cfg.master_node_id {
+        return Err(CanOpenError::SpindleNodeIsMaster { node: sp.node_id });
     }
     if cfg.nodes.iter().any(|m| m.node_id == sp.node_id) {
-        return Err(format!(
-            "node id {} of the spindle is used by an axis",
-            sp.node_id
-        ));
+        return Err(CanOpenError::SpindleNodeUsed { node: sp.node_id });
     }
     if !(sp.units_per_rpm.is_finite() && sp.units_per_rpm > 0.0) {
-        return Err("velocity units per rpm of the spindle must be positive".into());
+        return Err(CanOpenError::SpindleScale);
     }
     Ok(())
 }
