@@ -109,7 +109,7 @@ impl Rig {
                 })
                 .collect(),
         );
-        cfg.cycle_us = cycle_ms * 1000;
+        cfg.cycle = std::time::Duration::from_millis(u64::from(cycle_ms));
         cfg.shutdown = shutdown;
         let mut m = CanOpenMaster::new(net, "mem", cfg).unwrap();
         m.enable();
@@ -825,7 +825,7 @@ fn the_cycle_time_is_configurable() {
     assert_eq!(e.reason, FaultReason::HeartbeatLost);
     assert!((200..=320).contains(&t), "{t}");
     let cfg = CanOpenConfig {
-        cycle_us: 500,
+        cycle: std::time::Duration::from_micros(500),
         ..CanOpenConfig::new(vec![NodeConfig::new(NodeId::new(1).unwrap(), 1000.0)])
     };
     assert!(CanOpenMaster::new(Net::new(vec![]), "mem", cfg).is_err());

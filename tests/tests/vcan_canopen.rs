@@ -58,10 +58,11 @@ impl Rig {
                 .collect(),
         );
         // Margins for an emulated VM, where a process may sleep for tens of ms.
-        cfg.tpdo_missing_ticks = 50;
-        cfg.heartbeat_timeout_ms = 1000;
-        cfg.drive_consumer_timeout_ms = 2000;
-        cfg.sdo_timeout_ms = 500;
+        let ms = std::time::Duration::from_millis;
+        cfg.tpdo_timeout = ms(200);
+        cfg.heartbeat_timeout = ms(1000);
+        cfg.drive_consumer_timeout = ms(2000);
+        cfg.sdo_timeout = ms(500);
         cfg.spindle = spindle.map(|(node_id, units_per_rpm)| SpindleNodeConfig {
             node_id: NodeId::new(node_id).unwrap(),
             units_per_rpm,

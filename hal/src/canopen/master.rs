@@ -20,6 +20,8 @@
 //! `node.rs` (a node's phases and its advance by one tick), `homing.rs` (the drive's reference
 //! run in homing mode 6, the safe state after a fault stop), `master_tests.rs`.
 
+use std::time::Duration;
+
 use crate::{
     AxisFeedback, BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason,
     HomingState, MAX_AXES,
@@ -110,7 +112,8 @@ pub enum FaultReaction {
     Hold,
 }
 
-/// Bus-wide settings. Times are converted to ticks of `cycle_us`.
+/// Bus-wide settings. Times are counted in ticks of `cycle` (rounded up), so a late tick
+/// never causes a false alarm.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CanOpenConfig {
     /// Axis drives, in axis order.
@@ -119,25 +122,27 @@ pub struct CanOpenConfig {
     pub spindle: Option<SpindleNodeConfig>,
     /// The master's own node id: it produces a heartbeat the drives consume (0x1016).
     pub master_node_id: NodeId,
-    /// Tick period, µs, 1000..=10000 in whole ms (0x1006 and 0x60C2 of the drives follow it;
-    /// the caller must call `cycle` at this period).
-    pub cycle_us: u32,
-    /// Consecutive ticks without a TPDO before a drive counts as silent.
-    pub tpdo_missing_ticks: u32,
-    /// Heartbeat period the drives produce (0x1017), ms.
-    pub drive_heartbeat_ms: u16,
-    /// Master side: a drive heartbeat older than this is lost, ms.
-    pub heartbeat_timeout_ms: u32,
-    /// Period of the master's heartbeat, ms (0: none, and the drives do not watch it).
-    pub master_heartbeat_ms: u16,
-    /// Drive side: the master heartbeat older than this is lost (0x1016), ms.
-    pub drive_consumer_timeout_ms: u16,
-    /// Answer time allowed for each SDO request, ms (one retry follows).
-    pub sdo_timeout_ms: u32,
-    /// Time allowed from NMT reset to boot-up, and from NMT start to the first TPDO, ms.
-    pub boot_timeout_ms: u32,
-    /// Time allowed for the enable sequence (and for the disable walk at shutdown), ms.
-    pub enable_timeout_ms: u32,
+    /// Tick period, 1..=10 ms in whole ms (0x1006 and 0x60C2 of the drives follow it; the
+    /// caller must call `cycle` at this period).
+    pub cycle: Duration,
+    /// Time without a TPDO before a drive counts as silent (also bounds a transmit queue
+    /// that stays full).
+    pub tpdo_timeout: Duration,
+    /// Heartbeat period the drives produce (0x1017, whole ms up to 65535).
+    pub drive_heartbeat: Duration,
+    /// Master side: a drive heartbeat older than this is lost.
+    pub heartbeat_timeout: Duration,
+    /// Period of the master's heartbeat (zero: none, and the drives do not watch it).
+    pub master_heartbeat: Duration,
+    /// Drive side: the master heartbeat older than this is lost (0x1016, whole ms up to
+    /// 65535).
+    pub drive_consumer_timeout: Duration,
+    /// Answer time allowed for each SDO request (one retry follows).
+    pub sdo_timeout: Duration,
+    /// Time allowed from NMT reset to boot-up, and from NMT start to the first TPDO.
+    pub boot_timeout: Duration,
+    /// Time allowed for the enable sequence (and for the disable walk at shutdown).
+    pub enable_timeout: Duration,
     /// Master-side following-error check (setpoint minus actual), mm; `None`: only the
     /// drive's own check (statusword bit 13, EMCY 8611h).
     pub following_error_limit_mm: Option<f64>,
@@ -147,31 +152,32 @@ pub struct CanOpenConfig {
     pub shutdown: ShutdownMode,
     /// What the drives do after a fault stop.
     pub fault_reaction: FaultReaction,
-    /// Time allowed for a drive's reference run, from its start to the return to CSP, ms.
-    pub homing_timeout_ms: u32,
+    /// Time allowed for a drive's reference run, from its start to the return to CSP.
+    pub homing_timeout: Duration,
 }
 
 impl CanOpenConfig {
     /// Defaults with margins for a loaded Linux machine (see docs/buses.md).
     pub fn new(nodes: Vec<NodeConfig>) -> CanOpenConfig {
+        let ms = Duration::from_millis;
         CanOpenConfig {
             nodes,
             spindle: None,
             master_node_id: NodeId::MASTER_DEFAULT,
-            cycle_us: 4000,
-            tpdo_missing_ticks: 25,
-            drive_heartbeat_ms: 100,
-            heartbeat_timeout_ms: 500,
-            master_heartbeat_ms: 100,
-            drive_consumer_timeout_ms: 500,
-            sdo_timeout_ms: 200,
-            boot_timeout_ms: 3000,
-            enable_timeout_ms: 2000,
+            cycle: ms(4),
+            tpdo_timeout: ms(100),
+            drive_heartbeat: ms(100),
+            heartbeat_timeout: ms(500),
+            master_heartbeat: ms(100),
+            drive_consumer_timeout: ms(500),
+            sdo_timeout: ms(200),
+            boot_timeout: ms(3000),
+            enable_timeout: ms(2000),
             following_error_limit_mm: None,
             error_frame_limit: 20,
             shutdown: ShutdownMode::Disable,
             fault_reaction: FaultReaction::QuickStop,
-            homing_timeout_ms: 60_000,
+            homing_timeout: ms(60_000),
         }
     }
 }
@@ -494,8 +500,9 @@ impl<P: CanPort> CanOpenMaster<P> {
         }
     }
 
-    fn ticks(&self, ms: u32) -> u64 {
-        ticks(ms, self.cfg.cycle_us)
+    /// `d` in ticks, rounded up.
+    fn ticks(&self, d: Duration) -> u64 {
+        ticks(d, self.cfg.cycle)
     }
 
     /// The spindle node, if configured.
@@ -542,7 +549,7 @@ impl<P: CanPort> CanOpenMaster<P> {
                 self.send(&f);
             }
         }
-        let hb = self.ticks(u32::from(self.cfg.master_heartbeat_ms));
+        let hb = self.ticks(self.cfg.master_heartbeat);
         if hb > 0 && self.tick.is_multiple_of(hb) {
             let id = self.cfg.master_node_id.get();
             self.send(&nmt::heartbeat(id, nmt::state::OPERATIONAL));
@@ -644,7 +651,7 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
         // A transmit queue that stays full (nobody acknowledges, bus jammed) is a bus fault.
         if self.tx_blocked_ticks == blocked_before {
             self.tx_blocked_ticks = 0;
-        } else if self.tx_blocked_ticks > self.cfg.tpdo_missing_ticks {
+        } else if u64::from(self.tx_blocked_ticks) > self.ticks(self.cfg.tpdo_timeout) {
             self.bus_fault.get_or_insert(FaultReason::BusError);
         }
         self.fill_feedback(feedback);
@@ -674,7 +681,7 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
         self.error_score = 0;
         self.tx_blocked_ticks = 0;
         let tick = self.tick;
-        let hb_ticks = self.ticks(self.cfg.heartbeat_timeout_ms);
+        let hb_ticks = self.ticks(self.cfg.heartbeat_timeout);
         let restart = Phase::ResetPending {
             command: nmt::Command::ResetCommunication,
         };
@@ -713,9 +720,9 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
         // timeouts: boot-up, every SDO with its retry, NMT start to the first TPDO, enable.
         let c = &self.cfg;
         let steps = self.nodes.iter().map(|n| n.steps.len()).max().unwrap_or(0) as u64;
-        let boot = self.ticks(c.boot_timeout_ms) + 1;
-        let sdo = 2 * (self.ticks(c.sdo_timeout_ms) + 1);
-        let total = 2 * boot + steps * sdo + self.ticks(c.enable_timeout_ms) + 2;
+        let boot = self.ticks(c.boot_timeout) + 1;
+        let sdo = 2 * (self.ticks(c.sdo_timeout) + 1);
+        let total = 2 * boot + steps * sdo + self.ticks(c.enable_timeout) + 2;
         u32::try_from(total).unwrap_or(u32::MAX)
     }
 

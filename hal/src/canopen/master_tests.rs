@@ -3,6 +3,7 @@
 use std::collections::VecDeque;
 
 use super::*;
+use std::time::Duration;
 
 /// A port fed by the test: `rx` is what the master will receive, `tx` what it sent.
 #[derive(Default)]
@@ -326,7 +327,7 @@ fn short_tpdo_is_a_pdo_length_fault() {
 #[test]
 fn enable_deadline_covers_the_node_timeouts() {
     let m = master(&[3]);
-    let per_node = ticks(3000, 4000) * 2 + 2000 / 4;
+    let per_node = ticks(Duration::from_millis(3000), Duration::from_millis(4)) * 2 + 2000 / 4;
     assert!(u64::from(m.enable_timeout_ticks()) > per_node);
 }
 

@@ -93,7 +93,7 @@ pub(super) struct Node {
 
 impl Node {
     pub(super) fn new(c: &CanOpenConfig, cfg: NodeConfig, mode: OpMode) -> Node {
-        let step = cfg.max_velocity_mm_s * cfg.increments_per_mm * f64::from(c.cycle_us) * 1e-6;
+        let step = cfg.max_velocity_mm_s * cfg.increments_per_mm * c.cycle.as_secs_f64();
         Node {
             steps: startup_steps(c, &cfg, mode),
             max_step_increments: (step.floor() as i64).max(1),
@@ -162,8 +162,8 @@ impl Node {
 impl<P: CanPort> CanOpenMaster<P> {
     /// Watchdogs of a started node: a TPDO every SYNC, the heartbeat.
     pub(super) fn watch(&mut self, i: usize) {
-        let hb_ticks = self.ticks(self.cfg.heartbeat_timeout_ms);
-        let missing_limit = self.cfg.tpdo_missing_ticks;
+        let hb_ticks = self.ticks(self.cfg.heartbeat_timeout);
+        let missing_limit = self.ticks(self.cfg.tpdo_timeout);
         let tick = self.tick;
         let n = &mut self.nodes[i];
         if !matches!(
@@ -177,7 +177,7 @@ impl<P: CanPort> CanOpenMaster<P> {
         } else {
             n.tpdo_missing += 1;
         }
-        if n.tpdo_missing > missing_limit {
+        if u64::from(n.tpdo_missing) > missing_limit {
             self.fault(i, FaultReason::Timeout);
         } else if tick - n.last_heartbeat > hb_ticks {
             self.fault(i, FaultReason::HeartbeatLost);
@@ -235,7 +235,7 @@ impl<P: CanPort> CanOpenMaster<P> {
     }
 
     pub(super) fn boot(&mut self, i: usize, since: u64, command: nmt::Command) {
-        let boot_ticks = self.ticks(self.cfg.boot_timeout_ms);
+        let boot_ticks = self.ticks(self.cfg.boot_timeout);
         let tick = self.tick;
         let n = &mut self.nodes[i];
         if n.booted {
@@ -256,7 +256,7 @@ impl<P: CanPort> CanOpenMaster<P> {
     }
 
     pub(super) fn configure(&mut self, i: usize, step: usize, sent_at: u64, retried: bool) {
-        if self.tick - sent_at <= self.ticks(self.cfg.sdo_timeout_ms) {
+        if self.tick - sent_at <= self.ticks(self.cfg.sdo_timeout) {
             return;
         }
         if retried {
@@ -273,7 +273,7 @@ impl<P: CanPort> CanOpenMaster<P> {
     }
 
     pub(super) fn start(&mut self, i: usize, since: u64) {
-        let boot_ticks = self.ticks(self.cfg.boot_timeout_ms);
+        let boot_ticks = self.ticks(self.cfg.boot_timeout);
         let tick = self.tick;
         let n = &mut self.nodes[i];
         n.target_increments = n.hold_target();
@@ -289,7 +289,7 @@ impl<P: CanPort> CanOpenMaster<P> {
     /// The CiA 402 enable sequence. It acts only on a statusword that arrived this tick: after
     /// a reset the last one known may be stale (the drive faulted or switched off since).
     pub(super) fn enable_step(&mut self, i: usize, since: u64) {
-        let enable_ticks = self.ticks(self.cfg.enable_timeout_ms);
+        let enable_ticks = self.ticks(self.cfg.enable_timeout);
         let tick = self.tick;
         let n = &mut self.nodes[i];
         // The target follows the actual position (a spindle: stands) until enabled.
@@ -347,7 +347,7 @@ impl<P: CanPort> CanOpenMaster<P> {
     /// Shutdown: walk the power stage down (07h → 06h → 00h, or 02h → 00h) on fresh
     /// statuswords.
     pub(super) fn power_down(&mut self, i: usize, since: u64) {
-        let enable_ticks = self.ticks(self.cfg.enable_timeout_ms);
+        let enable_ticks = self.ticks(self.cfg.enable_timeout);
         let toward_off = match self.cfg.shutdown {
             ShutdownMode::Disable => cia402::controlword_toward_disabled,
             ShutdownMode::QuickStop => cia402::controlword_toward_disabled_by_quick_stop,
@@ -383,7 +383,7 @@ impl<P: CanPort> CanOpenMaster<P> {
     }
 
     pub(super) fn clear_consumer(&mut self, i: usize, sent_at: u64, retried: bool) {
-        if self.tick - sent_at <= self.ticks(self.cfg.sdo_timeout_ms) {
+        if self.tick - sent_at <= self.ticks(self.cfg.sdo_timeout) {
             return;
         }
         if retried {

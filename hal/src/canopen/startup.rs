@@ -18,8 +18,15 @@ pub(super) enum Step {
     CheckMode(u8),
 }
 
-pub(super) fn ticks(ms: u32, cycle_us: u32) -> u64 {
-    (u64::from(ms) * 1000).div_ceil(u64::from(cycle_us.max(1)))
+/// `d` in ticks of `cycle`, rounded up.
+pub(super) fn ticks(d: Duration, cycle: Duration) -> u64 {
+    let n = d.as_nanos().div_ceil(cycle.as_nanos().max(1));
+    u64::try_from(n).unwrap_or(u64::MAX)
+}
+
+/// `d` in whole ms for a 16-bit object (0x1016, 0x1017), saturated.
+fn ms_u16(d: Duration) -> u16 {
+    u16::try_from(d.as_millis()).unwrap_or(u16::MAX)
 }
 
 pub(super) fn startup_steps(c: &CanOpenConfig, n: &NodeConfig, mode: OpMode) -> Vec<Step> {
@@ -35,14 +42,16 @@ pub(super) fn startup_steps(c: &CanOpenConfig, n: &NodeConfig, mode: OpMode) -> 
         .collect();
     // Modes of operation: cyclic synchronous position (8) or velocity (9).
     steps.push(w(0x6060, 0, u32::from(mode.code()), 1));
-    steps.push(w(0x60C2, 1, (c.cycle_us / 1000).max(1), 1)); // interpolation period...
+    let cycle_ms = u32::try_from(c.cycle.as_millis()).unwrap_or(u32::MAX);
+    let cycle_us = u32::try_from(c.cycle.as_micros()).unwrap_or(u32::MAX);
+    steps.push(w(0x60C2, 1, cycle_ms.max(1), 1)); // interpolation period...
     steps.push(w(0x60C2, 2, (-3i8) as u8 as u32, 1)); // ...in 10^-3 s
-    steps.push(w(0x1006, 0, c.cycle_us, 4)); // communication cycle period, µs
-    steps.push(w(0x1017, 0, u32::from(c.drive_heartbeat_ms), 2));
-    let consumer_ms = if c.master_heartbeat_ms == 0 {
+    steps.push(w(0x1006, 0, cycle_us, 4)); // communication cycle period, µs
+    steps.push(w(0x1017, 0, u32::from(ms_u16(c.drive_heartbeat)), 2));
+    let consumer_ms = if c.master_heartbeat.is_zero() {
         0
     } else {
-        c.drive_consumer_timeout_ms
+        ms_u16(c.drive_consumer_timeout)
     };
     steps.push(w(
         0x1016,
@@ -76,9 +85,10 @@ pub(super) fn check_config(cfg: &CanOpenConfig) -> Result<(), CanOpenError> {
             count: cfg.nodes.len(),
         });
     }
-    if !(1000..=10_000).contains(&cfg.cycle_us) || !cfg.cycle_us.is_multiple_of(1000) {
+    let cycle_ns = cfg.cycle.as_nanos();
+    if !(1_000_000..=10_000_000).contains(&cycle_ns) || !cycle_ns.is_multiple_of(1_000_000) {
         return Err(CanOpenError::CycleTime {
-            cycle_us: u128::from(cfg.cycle_us),
+            cycle_us: cfg.cycle.as_micros(),
         });
     }
     for (axis, n) in cfg.nodes.iter().enumerate() {
