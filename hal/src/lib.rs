@@ -109,6 +109,8 @@ pub enum FaultReason {
 }
 
 impl fmt::Display for FaultReason {
+    // One arm per fault, each the machinist's message: a match over the variants that reads
+    // better whole than split (issue #22's exception for tables and matches).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             FaultReason::DriveFault { code } => match canopen::emcy::describe(*code) {
