@@ -210,20 +210,25 @@ pub fn apply_controlword(state: PowerState, previous: u16, c: u16) -> PowerState
 mod tests {
     use super::*;
 
-    /// The shutdown walk goes through Switched On and Ready to Switch On, never a jump.
-    #[test]
-    fn orderly_disable_walks_down_step_by_step() {
+    /// The states an enabled drive passes through under the controlwords of `toward`.
+    fn walk_down(toward: fn(PowerState) -> u16) -> Vec<PowerState> {
         let mut state = PowerState::OperationEnabled;
         let mut last_cw = cw::ENABLE_OPERATION_CMD;
         let mut seen = vec![state];
         while state != PowerState::SwitchOnDisabled && seen.len() < 10 {
-            let c = controlword_toward_disabled(state);
+            let c = toward(state);
             state = apply_controlword(state, last_cw, c);
             last_cw = c;
             seen.push(state);
         }
+        seen
+    }
+
+    /// The shutdown walk goes through Switched On and Ready to Switch On, never a jump.
+    #[test]
+    fn orderly_disable_walks_down_step_by_step() {
         assert_eq!(
-            seen,
+            walk_down(controlword_toward_disabled),
             [
                 PowerState::OperationEnabled,
                 PowerState::SwitchedOn,
@@ -232,17 +237,8 @@ mod tests {
             ]
         );
         // Through a quick stop: Quick Stop Active, then Switch On Disabled.
-        let mut state = PowerState::OperationEnabled;
-        let mut last_cw = cw::ENABLE_OPERATION_CMD;
-        let mut seen = vec![state];
-        while state != PowerState::SwitchOnDisabled && seen.len() < 10 {
-            let c = controlword_toward_disabled_by_quick_stop(state);
-            state = apply_controlword(state, last_cw, c);
-            last_cw = c;
-            seen.push(state);
-        }
         assert_eq!(
-            seen,
+            walk_down(controlword_toward_disabled_by_quick_stop),
             [
                 PowerState::OperationEnabled,
                 PowerState::QuickStopActive,

@@ -288,13 +288,8 @@ impl<P: CanPort> CanOpenMaster<P> {
             FaultReaction::DisableVoltage => cw::DISABLE_VOLTAGE,
         };
         for n in &mut self.nodes {
-            if matches!(
-                n.phase,
-                Phase::Starting { .. }
-                    | Phase::Enabling { .. }
-                    | Phase::Operational
-                    | Phase::Homing(_)
-            ) {
+            // A stopped node is in its safe state already.
+            if n.phase.is_started() && n.phase != Phase::Stopped {
                 if n.homing == HomingState::Running {
                     n.homing = HomingState::Aborted;
                 }

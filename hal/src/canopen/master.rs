@@ -375,14 +375,7 @@ impl<P: CanPort> CanOpenMaster<P> {
         if state == nmt::state::BOOT_UP {
             n.booted = true;
             n.nmt_state = nmt::state::PRE_OPERATIONAL;
-            if matches!(
-                n.phase,
-                Phase::Starting { .. }
-                    | Phase::Enabling { .. }
-                    | Phase::Operational
-                    | Phase::Homing(_)
-                    | Phase::Stopped
-            ) {
+            if n.phase.is_started() {
                 self.fault(i, FaultReason::NmtStateChanged { state });
             }
             return;

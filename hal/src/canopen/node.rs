@@ -57,6 +57,21 @@ pub(super) enum Phase {
     ShuttingDown(Off),
 }
 
+impl Phase {
+    /// NMT start sent and not yet stopped by a fault or the shutdown: the node runs its PDOs
+    /// and its power stage may be on.
+    pub(super) fn is_started(self) -> bool {
+        matches!(
+            self,
+            Phase::Starting { .. }
+                | Phase::Enabling { .. }
+                | Phase::Operational
+                | Phase::Homing(_)
+                | Phase::Stopped
+        )
+    }
+}
+
 pub(super) struct Node {
     /// For the spindle node `increments_per_mm` holds its velocity units per rpm.
     pub(super) cfg: NodeConfig,
