@@ -3,6 +3,7 @@
 //! shutdown. A child of `master`.
 
 use super::*;
+use crate::cia402::EnableStep;
 
 /// The orderly shutdown of one node, in this order.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -309,18 +310,20 @@ impl<P: CanPort> CanOpenMaster<P> {
         let n = &mut self.nodes[i];
         // The target follows the actual position (a spindle: stands) until enabled.
         n.target_increments = n.hold_target();
-        let state = PowerState::from_statusword(n.statusword);
         if tick - since > enable_ticks {
             let statusword = n.statusword;
             self.fault(i, FaultReason::EnableTimeout { statusword });
         } else if !n.tpdo_seen {
             // Keep the last controlword until the drive reports again.
-        } else if state == PowerState::OperationEnabled {
-            n.phase = Phase::Operational;
-            n.controlword = cw::ENABLE_OPERATION_CMD;
-            n.taken_over = n.mode == OpMode::Csv;
         } else {
-            n.controlword = cia402::controlword_toward_enabled(state, n.controlword);
+            match cia402::enable_step(n.statusword, n.controlword) {
+                EnableStep::Enabled => {
+                    n.phase = Phase::Operational;
+                    n.controlword = cw::ENABLE_OPERATION_CMD;
+                    n.taken_over = n.mode == OpMode::Csv;
+                }
+                EnableStep::Toward(c) => n.controlword = c,
+            }
         }
     }
 
@@ -332,16 +335,9 @@ impl<P: CanPort> CanOpenMaster<P> {
             .filter(|_| self.nodes[i].mode == OpMode::Csp)
             .map(|mm| mm * self.nodes[i].cfg.increments_per_mm);
         let n = &mut self.nodes[i];
-        let s = n.statusword;
-        let state = PowerState::from_statusword(s);
         let lag = f64::from(n.target_increments) - f64::from(n.position_increments);
-        if s & sw::FOLLOWING_ERROR != 0 {
-            self.fault(i, FaultReason::FollowingError);
-        } else if matches!(state, PowerState::Fault | PowerState::FaultReactionActive) {
-            let code = n.emcy_code.unwrap_or(0);
-            self.fault(i, FaultReason::DriveFault { code });
-        } else if state != PowerState::OperationEnabled {
-            self.fault(i, FaultReason::DriveDisabled { statusword: s });
+        if let Some(reason) = cia402::operating_fault(n.statusword, n.emcy_code.unwrap_or(0)) {
+            self.fault(i, reason);
         } else if fe_limit.is_some_and(|l| lag.abs() > l) {
             self.fault(i, FaultReason::FollowingError);
         } else if n.taken_over {

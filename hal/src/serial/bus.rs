@@ -22,7 +22,7 @@ use super::message::{
     AxisRequest, HomeAction, HomeCommand, HomeResult, HomeStatus, Reply, Request,
 };
 use super::port::{LinkDown, SerialPort, TtyPort};
-use crate::cia402::{self, PowerState, cw, sw};
+use crate::cia402::{self, EnableStep, cw};
 use crate::units::to_units;
 use crate::{
     AxisFeedback, BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason,
@@ -349,7 +349,6 @@ impl<P: SerialPort> SerialBus<P> {
         let tick = self.tick;
         let limit = u64::from(self.cfg.enable_timeout_ticks);
         let a = &mut self.axes[i];
-        let state = PowerState::from_statusword(a.statusword);
         match a.phase {
             Phase::Idle => {
                 a.controlword = cw::DISABLE_VOLTAGE;
@@ -359,29 +358,25 @@ impl<P: SerialPort> SerialBus<P> {
                 a.target_increments = a.hold_target();
                 if !fresh {
                     // Wait for a reply before stepping the state machine.
-                } else if state == PowerState::OperationEnabled {
-                    a.phase = Phase::Operational;
-                    a.controlword = cw::ENABLE_OPERATION_CMD;
-                } else if tick - since > limit {
-                    a.phase = Phase::Faulted(FaultReason::EnableTimeout {
-                        statusword: a.statusword,
-                    });
-                } else {
-                    a.controlword = cia402::controlword_toward_enabled(state, a.controlword);
+                    return;
+                }
+                match cia402::enable_step(a.statusword, a.controlword) {
+                    EnableStep::Enabled => {
+                        a.phase = Phase::Operational;
+                        a.controlword = cw::ENABLE_OPERATION_CMD;
+                    }
+                    EnableStep::Toward(_) if tick - since > limit => {
+                        a.phase = Phase::Faulted(FaultReason::EnableTimeout {
+                            statusword: a.statusword,
+                        });
+                    }
+                    EnableStep::Toward(c) => a.controlword = c,
                 }
             }
-            Phase::Operational => {
-                let s = a.statusword;
-                if s & sw::FOLLOWING_ERROR != 0 {
-                    a.phase = Phase::Faulted(FaultReason::FollowingError);
-                } else if matches!(state, PowerState::Fault | PowerState::FaultReactionActive) {
-                    a.phase = Phase::Faulted(FaultReason::DriveFault { code: a.error_code });
-                } else if state != PowerState::OperationEnabled {
-                    a.phase = Phase::Faulted(FaultReason::DriveDisabled { statusword: s });
-                } else {
-                    a.target_increments = target;
-                }
-            }
+            Phase::Operational => match cia402::operating_fault(a.statusword, a.error_code) {
+                Some(reason) => a.phase = Phase::Faulted(reason),
+                None => a.target_increments = target,
+            },
             Phase::Faulted(_) => {}
         }
         if matches!(a.phase, Phase::Faulted(_)) {
@@ -691,6 +686,7 @@ impl<P: SerialPort> DriveBus for SerialBus<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cia402::PowerState;
     use crate::serial::message::AxisReply;
     use std::sync::{Arc, Mutex};
 
