@@ -1,7 +1,9 @@
-//! [`DriveBus`] over one serial port serving up to [`MAX_AXES`] axes of one drive unit.
+//! [`DriveBus`] over one serial port serving up to [`MAX_AXES`] axes of one drive unit. The
+//! bus talks to the line only through [`SerialPort`] ([`TtyPort`] for a real tty or pty).
 //!
-//! Each tick: read what arrived (the reply to the previous tick's request), advance each
-//! axis's CiA 402 enable sequence, then write this tick's request. The port is non-blocking
+//! Each tick ([`DriveBus::cycle`], in this order): read what arrived (the reply to the
+//! previous tick's request), count a missing reply, watch the reference command, advance each
+//! axis's CiA 402 enable sequence, write this tick's request, report. The port is non-blocking
 //! (zero timeout), so a tick never waits for the drive; a reply missing for
 //! `reply_timeout_ticks` consecutive ticks is a fault. A port that reports hang-up or an I/O
 //! error is closed; [`DriveBus::reset`] opens it again (the operator's reset after replugging).
