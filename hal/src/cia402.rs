@@ -206,24 +206,86 @@ pub fn apply_controlword(state: PowerState, previous: u16, c: u16) -> PowerState
     }
 }
 
+/// One step of the master's enable sequence on a fresh statusword (the same for every bus).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EnableStep {
+    /// Operation Enabled: the drive follows setpoints from now on (controlword
+    /// [`cw::ENABLE_OPERATION_CMD`]).
+    Enabled,
+    /// Not there yet: send this controlword.
+    Toward(u16),
+}
+
+/// The enable step for a drive reporting `statusword`, `previous` the controlword sent last.
+pub fn enable_step(statusword: u16, previous: u16) -> EnableStep {
+    match PowerState::from_statusword(statusword) {
+        PowerState::OperationEnabled => EnableStep::Enabled,
+        state => EnableStep::Toward(controlword_toward_enabled(state, previous)),
+    }
+}
+
+/// Why an operating drive must stop, by its statusword (`error_code`: the drive's error code,
+/// reported with a fault), or `None` while it follows. The same watch for every bus.
+pub fn operating_fault(statusword: u16, error_code: u16) -> Option<crate::FaultReason> {
+    use crate::FaultReason;
+    let state = PowerState::from_statusword(statusword);
+    if statusword & sw::FOLLOWING_ERROR != 0 {
+        Some(FaultReason::FollowingError)
+    } else if matches!(state, PowerState::Fault | PowerState::FaultReactionActive) {
+        Some(FaultReason::DriveFault { code: error_code })
+    } else if state != PowerState::OperationEnabled {
+        Some(FaultReason::DriveDisabled { statusword })
+    } else {
+        None
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// The shutdown walk goes through Switched On and Ready to Switch On, never a jump.
-    #[test]
-    fn orderly_disable_walks_down_step_by_step() {
+    /// The states an enabled drive passes through under the controlwords of `toward`.
+    fn walk_down(toward: fn(PowerState) -> u16) -> Vec<PowerState> {
         let mut state = PowerState::OperationEnabled;
         let mut last_cw = cw::ENABLE_OPERATION_CMD;
         let mut seen = vec![state];
         while state != PowerState::SwitchOnDisabled && seen.len() < 10 {
-            let c = controlword_toward_disabled(state);
+            let c = toward(state);
             state = apply_controlword(state, last_cw, c);
             last_cw = c;
             seen.push(state);
         }
+        seen
+    }
+
+    #[test]
+    fn operating_fault_names_following_error_fault_and_switch_off() {
+        use crate::FaultReason;
+        let enabled = PowerState::OperationEnabled.statusword_bits();
+        assert_eq!(operating_fault(enabled, 0), None);
         assert_eq!(
-            seen,
+            operating_fault(enabled | sw::FOLLOWING_ERROR, 0),
+            Some(FaultReason::FollowingError)
+        );
+        let fault = PowerState::Fault.statusword_bits();
+        assert_eq!(
+            operating_fault(fault, 0x2310),
+            Some(FaultReason::DriveFault { code: 0x2310 })
+        );
+        let off = PowerState::SwitchOnDisabled.statusword_bits();
+        assert_eq!(
+            operating_fault(off, 0),
+            Some(FaultReason::DriveDisabled { statusword: off })
+        );
+        assert_eq!(enable_step(enabled, cw::SWITCH_ON_CMD), EnableStep::Enabled);
+        assert_eq!(enable_step(off, 0), EnableStep::Toward(cw::SHUTDOWN));
+    }
+
+    /// The shutdown walk goes through Switched On and Ready to Switch On, never a jump.
+    #[test]
+    fn orderly_disable_walks_down_step_by_step() {
+        assert_eq!(
+            walk_down(controlword_toward_disabled),
             [
                 PowerState::OperationEnabled,
                 PowerState::SwitchedOn,
@@ -232,17 +294,8 @@ mod tests {
             ]
         );
         // Through a quick stop: Quick Stop Active, then Switch On Disabled.
-        let mut state = PowerState::OperationEnabled;
-        let mut last_cw = cw::ENABLE_OPERATION_CMD;
-        let mut seen = vec![state];
-        while state != PowerState::SwitchOnDisabled && seen.len() < 10 {
-            let c = controlword_toward_disabled_by_quick_stop(state);
-            state = apply_controlword(state, last_cw, c);
-            last_cw = c;
-            seen.push(state);
-        }
         assert_eq!(
-            seen,
+            walk_down(controlword_toward_disabled_by_quick_stop),
             [
                 PowerState::OperationEnabled,
                 PowerState::QuickStopActive,

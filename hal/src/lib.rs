@@ -11,6 +11,7 @@ pub mod candump;
 pub mod canopen;
 pub mod cia402;
 pub mod serial;
+pub mod units;
 
 /// Most axes a bus serves: the kernel's axis count ([`kernel::MAX_AXES`]), defined once there
 /// because the setpoints a bus carries are the kernel's [`kernel::AxesMm`].
@@ -108,6 +109,8 @@ pub enum FaultReason {
 }
 
 impl fmt::Display for FaultReason {
+    // One arm per fault, each the machinist's message: a match over the variants that reads
+    // better whole than split (issue #22's exception for tables and matches).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             FaultReason::DriveFault { code } => match canopen::emcy::describe(*code) {

@@ -7,9 +7,6 @@ use hal::{AxisFeedback, BusFault, CycleCommand, CycleFeedback, DriveBus, DriveSt
 
 use crate::drive::{SimDrive, SimDriveParams};
 
-/// Default cycle time of the simulated drives, s (the controller's default bus period).
-const CYCLE_S: f64 = 0.004;
-
 pub struct SimBus {
     drives: Vec<SimDrive>,
     /// Home switch per axis: (where it is in the drive's power-on coordinates, the side it
@@ -56,7 +53,8 @@ impl SimBus {
             spindle_ramp_rpm_s: 0.0,
             spindle_rpm: 0.0,
             spindle_load: SpindleLoad::default(),
-            cycle_s: CYCLE_S,
+            // The interpolation period, which is also the daemon's default bus period.
+            cycle_s: kernel::units::TS_S,
         }
     }
 

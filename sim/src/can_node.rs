@@ -364,6 +364,48 @@ impl CanNode {
         )
     }
 
+    /// 0x1600:0 / 0x1A00:0, the number of mapped entries of the RPDO (`rpdo`) or TPDO.
+    fn write_map_count(&mut self, rpdo: bool, v: u32) -> Result<(), u32> {
+        let od = &mut self.od;
+        let (cob_id, map, count) = if rpdo {
+            (od.rpdo_cob, od.rpdo_map, &mut od.rpdo_count)
+        } else {
+            (od.tpdo_cob, od.tpdo_map, &mut od.tpdo_count)
+        };
+        if cob_id & DISABLED == 0 {
+            return Err(abort::DEVICE_STATE);
+        }
+        let known = layouts(rpdo).contains(&map);
+        match v {
+            0 => *count = 0,
+            2 if known => *count = 2,
+            2 => return Err(abort::CANNOT_MAP),
+            _ => return Err(abort::VALUE_RANGE),
+        }
+        Ok(())
+    }
+
+    /// 0x1600:1..2 / 0x1A00:1..2, mapping entry `i` of the RPDO (`rpdo`) or TPDO.
+    fn write_map_entry(&mut self, rpdo: bool, i: usize, v: u32) -> Result<(), u32> {
+        let od = &mut self.od;
+        let (count, map) = if rpdo {
+            (od.rpdo_count, &mut od.rpdo_map)
+        } else {
+            (od.tpdo_count, &mut od.tpdo_map)
+        };
+        // Mapping entries change only with the PDO invalid and its count at 0.
+        let cob_id = if rpdo { od.rpdo_cob } else { od.tpdo_cob };
+        if count != 0 || cob_id & DISABLED == 0 {
+            return Err(abort::DEVICE_STATE);
+        }
+        // This drive supports only the CSP and CSV layouts; say so instead of misbehaving.
+        if !layouts(rpdo).iter().any(|want| v == want[i]) {
+            return Err(abort::CANNOT_MAP);
+        }
+        map[i] = v;
+        Ok(())
+    }
+
     fn write(&mut self, index: u16, sub: u8, v: u32) -> Result<(), u32> {
         let od = &mut self.od;
         match (index, sub) {
@@ -378,43 +420,9 @@ impl CanNode {
             (0x1400, 2) if v <= 255 => od.rpdo_type = v as u8,
             (0x1800, 1) => od.tpdo_cob = v,
             (0x1800, 2) if v <= 255 => od.tpdo_type = v as u8,
-            (0x1600 | 0x1A00, 0) => {
-                let rpdo = index == 0x1600;
-                let (cob_id, map, count) = if rpdo {
-                    (od.rpdo_cob, od.rpdo_map, &mut od.rpdo_count)
-                } else {
-                    (od.tpdo_cob, od.tpdo_map, &mut od.tpdo_count)
-                };
-                if cob_id & DISABLED == 0 {
-                    return Err(abort::DEVICE_STATE);
-                }
-                let known = layouts(rpdo).contains(&map);
-                match v {
-                    0 => *count = 0,
-                    2 if known => *count = 2,
-                    2 => return Err(abort::CANNOT_MAP),
-                    _ => return Err(abort::VALUE_RANGE),
-                }
-            }
+            (0x1600 | 0x1A00, 0) => self.write_map_count(index == 0x1600, v)?,
             (0x1600 | 0x1A00, 1 | 2) => {
-                let i = usize::from(sub - 1);
-                let rpdo = index == 0x1600;
-                let (count, map) = if rpdo {
-                    (od.rpdo_count, &mut od.rpdo_map)
-                } else {
-                    (od.tpdo_count, &mut od.tpdo_map)
-                };
-                // Mapping entries change only with the PDO invalid and its count at 0.
-                let cob_id = if rpdo { od.rpdo_cob } else { od.tpdo_cob };
-                if count != 0 || cob_id & DISABLED == 0 {
-                    return Err(abort::DEVICE_STATE);
-                }
-                // This drive supports only the CSP and CSV layouts; say so instead of
-                // misbehaving.
-                if !layouts(rpdo).iter().any(|want| v == want[i]) {
-                    return Err(abort::CANNOT_MAP);
-                }
-                map[i] = v;
+                self.write_map_entry(index == 0x1600, usize::from(sub - 1), v)?
             }
             (0x6060, 0) if OpMode::from_code(v).is_some() || v == u32::from(HOMING_MODE) => {
                 od.mode = v as u8;

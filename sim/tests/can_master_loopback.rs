@@ -6,7 +6,8 @@ use std::collections::VecDeque;
 
 use hal::canopen::pdo::Rpdo;
 use hal::canopen::{
-    CanOpenConfig, CanOpenMaster, CanPort, Frame, NodeConfig, PortError, RxEvent, ShutdownMode,
+    CanOpenConfig, CanOpenMaster, CanPort, Frame, NodeConfig, NodeId, PortError, RxEvent,
+    ShutdownMode,
 };
 use hal::cia402::PowerState;
 use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason};
@@ -100,7 +101,7 @@ impl Rig {
         let mut cfg = CanOpenConfig::new(
             ids.iter()
                 .map(|&node_id| NodeConfig {
-                    node_id,
+                    node_id: NodeId::new(node_id).unwrap(),
                     increments_per_mm: INC_PER_MM,
                     following_window_increments: Some(10_000),
                     max_velocity_mm_s: 200.0,
@@ -108,7 +109,7 @@ impl Rig {
                 })
                 .collect(),
         );
-        cfg.cycle_us = cycle_ms * 1000;
+        cfg.cycle = std::time::Duration::from_millis(u64::from(cycle_ms));
         cfg.shutdown = shutdown;
         let mut m = CanOpenMaster::new(net, "mem", cfg).unwrap();
         m.enable();
@@ -325,14 +326,14 @@ fn spindle_node_follows_the_speed_setpoint_on_its_ramp() {
     spindle_drive.velocity_ramp_units_s2 = 1000.0 * UNITS_PER_RPM;
     let net = Net::new(vec![axis, CanNode::new(5, spindle_drive)]);
     let mut cfg = CanOpenConfig::new(vec![NodeConfig {
-        node_id: 1,
+        node_id: NodeId::new(1).unwrap(),
         increments_per_mm: INC_PER_MM,
         following_window_increments: Some(10_000),
         max_velocity_mm_s: 200.0,
         homing: None,
     }]);
     cfg.spindle = Some(hal::canopen::SpindleNodeConfig {
-        node_id: 5,
+        node_id: NodeId::new(5).unwrap(),
         units_per_rpm: UNITS_PER_RPM,
     });
     let mut m = CanOpenMaster::new(net, "mem", cfg).unwrap();
@@ -824,8 +825,8 @@ fn the_cycle_time_is_configurable() {
     assert_eq!(e.reason, FaultReason::HeartbeatLost);
     assert!((200..=320).contains(&t), "{t}");
     let cfg = CanOpenConfig {
-        cycle_us: 500,
-        ..CanOpenConfig::new(vec![NodeConfig::new(1, 1000.0)])
+        cycle: std::time::Duration::from_micros(500),
+        ..CanOpenConfig::new(vec![NodeConfig::new(NodeId::new(1).unwrap(), 1000.0)])
     };
     assert!(CanOpenMaster::new(Net::new(vec![]), "mem", cfg).is_err());
 }

@@ -5,7 +5,9 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use hal::canopen::{CanOpenConfig, CanOpenMaster, CanPort, Frame, NodeConfig, PortError, RxEvent};
+use hal::canopen::{
+    CanOpenConfig, CanOpenMaster, CanPort, Frame, NodeConfig, NodeId, PortError, RxEvent,
+};
 use hal::serial::{SerialAxis, SerialBus, SerialConfig};
 use hal::{CycleCommand, CycleFeedback, DriveBus, DriveState};
 use sim::SimDriveParams;
@@ -52,7 +54,7 @@ fn can_master_cycle_does_not_allocate() {
     let cfg = CanOpenConfig::new(
         (1..=3)
             .map(|node_id| NodeConfig {
-                node_id,
+                node_id: NodeId::new(node_id).unwrap(),
                 increments_per_mm: 1000.0,
                 following_window_increments: Some(10_000),
                 max_velocity_mm_s: 200.0,

@@ -111,7 +111,7 @@ fn daemon_with(
     let BusConfig::Can(can) = &cfg.bus else {
         panic!("{:?}", cfg.bus)
     };
-    let master_cfg = can_config(can, &cfg.axes);
+    let master_cfg = can_config(can, &cfg.axes).unwrap();
     let mut nodes: Vec<CanNode> = start_mm
         .iter()
         .enumerate()

@@ -95,7 +95,7 @@ fn lathe() -> Harness {
     let BusConfig::Can(can) = &cfg.bus else {
         panic!("{:?}", cfg.bus)
     };
-    let master_cfg = can_config(can, &cfg.axes);
+    let master_cfg = can_config(can, &cfg.axes).unwrap();
     let mut spindle = Cia402Drive::new(SimDriveParams::default(), 1.0, 0.0);
     spindle.velocity_ramp_units_s2 = 1000.0; // rpm/s
     let nodes = vec![

@@ -9,7 +9,9 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use hal::canopen::pdo::{Rpdo, Tpdo};
-use hal::canopen::{CanOpenConfig, CanOpenMaster, NodeConfig, SocketCanPort, SpindleNodeConfig};
+use hal::canopen::{
+    CanOpenConfig, CanOpenMaster, NodeConfig, NodeId, SocketCanPort, SpindleNodeConfig,
+};
 use hal::cia402::PowerState;
 use hal::{BusFault, DriveBus, DriveState, FaultReason};
 use vcan_support::{Cycler, IFACE, Proc, sim_can, temp_dir, vcan_lock, vcan_ready};
@@ -47,7 +49,7 @@ impl Rig {
             nodes
                 .iter()
                 .map(|&node_id| NodeConfig {
-                    node_id,
+                    node_id: NodeId::new(node_id).unwrap(),
                     increments_per_mm: INC_PER_MM,
                     following_window_increments: Some((10.0 * INC_PER_MM) as u32),
                     max_velocity_mm_s: 200.0,
@@ -56,12 +58,13 @@ impl Rig {
                 .collect(),
         );
         // Margins for an emulated VM, where a process may sleep for tens of ms.
-        cfg.tpdo_missing_ticks = 50;
-        cfg.heartbeat_timeout_ms = 1000;
-        cfg.drive_consumer_timeout_ms = 2000;
-        cfg.sdo_timeout_ms = 500;
+        let ms = std::time::Duration::from_millis;
+        cfg.tpdo_timeout = ms(200);
+        cfg.heartbeat_timeout = ms(1000);
+        cfg.drive_consumer_timeout = ms(2000);
+        cfg.sdo_timeout = ms(500);
         cfg.spindle = spindle.map(|(node_id, units_per_rpm)| SpindleNodeConfig {
-            node_id,
+            node_id: NodeId::new(node_id).unwrap(),
             units_per_rpm,
         });
         let mut port = SocketCanPort::open(IFACE).unwrap();

@@ -11,42 +11,58 @@
 //! Every key is listed in `docs/buses.md`.
 
 use hal::canopen::{
-    CanOpenConfig, CanOpenMaster, FaultReaction, HomingParams, NodeConfig, ShutdownMode,
-    SocketCanPort, SpindleNodeConfig,
+    CanOpenConfig, CanOpenError, CanOpenMaster, FaultReaction, HomingParams, NodeConfig, NodeId,
+    ShutdownMode, SocketCanPort, SpindleNodeConfig,
 };
+use std::time::Duration;
+
 use hal::serial::{SerialAxis, SerialBus, SerialConfig, SerialSpindle};
 
 use super::config::{AxisConfig, HomingMode, SimConfig};
 pub use super::config::{BusConfig, CanBusConfig, FaultReactionKey, SerialBusConfig, ShutdownKey};
 
-/// The master settings for `axes` (validated: every axis has a node id).
-pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
+/// The master settings for `axes` (validated: every axis has a node id in 1..=127).
+pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> Result<CanOpenConfig, CanOpenError> {
     let nodes = axes
         .iter()
         .enumerate()
-        .map(|(i, a)| NodeConfig {
-            node_id: a.node_id.unwrap_or(i as u8 + 1),
-            increments_per_mm: a.increments_per_mm,
-            following_window_increments: c
-                .following_window_mm
-                .map(|mm| (mm * a.increments_per_mm).round().min(f64::from(u32::MAX)) as u32),
-            max_velocity_mm_s: a.max_velocity_mm_min / 60.0,
-            homing: Some(homing_params(a)),
+        .map(|(i, a)| {
+            Ok(NodeConfig {
+                following_window_increments: c
+                    .following_window_mm
+                    .map(|mm| (mm * a.increments_per_mm).round().min(f64::from(u32::MAX)) as u32),
+                max_velocity_mm_s: a.max_velocity_mm_min / 60.0,
+                homing: Some(homing_params(a)),
+                ..NodeConfig::new(
+                    NodeId::new(a.node_id.unwrap_or(i as u8 + 1))?,
+                    a.increments_per_mm,
+                )
+            })
         })
-        .collect();
-    CanOpenConfig {
-        master_node_id: c.master_node_id,
-        tpdo_missing_ticks: c.tpdo_missing_ticks,
-        drive_heartbeat_ms: c.drive_heartbeat_ms,
-        heartbeat_timeout_ms: c.heartbeat_timeout_ms,
-        master_heartbeat_ms: c.master_heartbeat_ms,
-        drive_consumer_timeout_ms: c.drive_consumer_timeout_ms,
-        sdo_timeout_ms: c.sdo_timeout_ms,
-        boot_timeout_ms: c.boot_timeout_ms,
-        enable_timeout_ms: c.enable_timeout_ms,
+        .collect::<Result<_, CanOpenError>>()?;
+    let spindle = match c.spindle_node {
+        Some(id) => Some(SpindleNodeConfig {
+            node_id: NodeId::new(id)?,
+            units_per_rpm: c.spindle_units_per_rpm,
+        }),
+        None => None,
+    };
+    // The [bus] keys count ms (and bus cycles for the TPDO watch); the master takes Durations.
+    let ms = |v: u32| Duration::from_millis(u64::from(v));
+    let cycle = Duration::from_micros((c.cycle_ms * 1000.0).round() as u64);
+    Ok(CanOpenConfig {
+        master_node_id: NodeId::new(c.master_node_id)?,
+        tpdo_timeout: cycle * c.tpdo_missing_ticks,
+        drive_heartbeat: ms(u32::from(c.drive_heartbeat_ms)),
+        heartbeat_timeout: ms(c.heartbeat_timeout_ms),
+        master_heartbeat: ms(u32::from(c.master_heartbeat_ms)),
+        drive_consumer_timeout: ms(u32::from(c.drive_consumer_timeout_ms)),
+        sdo_timeout: ms(c.sdo_timeout_ms),
+        boot_timeout: ms(c.boot_timeout_ms),
+        enable_timeout: ms(c.enable_timeout_ms),
         following_error_limit_mm: c.following_error_limit_mm,
         error_frame_limit: c.error_frame_limit,
-        cycle_us: (c.cycle_ms * 1000.0).round() as u32,
+        cycle,
         shutdown: match c.shutdown {
             ShutdownKey::Disable => ShutdownMode::Disable,
             ShutdownKey::QuickStop => ShutdownMode::QuickStop,
@@ -56,13 +72,10 @@ pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> CanOpenConfig {
             FaultReactionKey::DisableVoltage => FaultReaction::DisableVoltage,
             FaultReactionKey::Hold => FaultReaction::Hold,
         },
-        homing_timeout_ms: c.homing_timeout_ms,
-        spindle: c.spindle_node.map(|node_id| SpindleNodeConfig {
-            node_id,
-            units_per_rpm: c.spindle_units_per_rpm,
-        }),
+        homing_timeout: ms(c.homing_timeout_ms),
+        spindle,
         ..CanOpenConfig::new(nodes)
-    }
+    })
 }
 
 /// The drive's homing settings of axis `a` in drive units (docs/buses.md#homing): the home
@@ -112,13 +125,15 @@ pub fn open_bus(
             Ok(Box::new(bus))
         }
         BusConfig::Can(c) => {
-            let mut port = SocketCanPort::open(&c.interface)?;
+            let mut port = SocketCanPort::open(&c.interface).map_err(|e| e.to_string())?;
             if let Some(path) = &c.record {
                 // The writer thread ends when the bus (and its tap) is dropped.
                 let (tap, _writer) = hal::candump::start(path, &c.interface)?;
                 port = port.with_recording(tap);
             }
-            let master = CanOpenMaster::new(port, &c.interface, can_config(c, axes))?;
+            let master = can_config(c, axes)
+                .and_then(|cfg| CanOpenMaster::new(port, &c.interface, cfg))
+                .map_err(|e| e.to_string())?;
             Ok(Box::new(master))
         }
         BusConfig::Serial(s) => {
@@ -144,7 +159,7 @@ pub fn open_bus(
                         .collect(),
                 )
             };
-            Ok(Box::new(SerialBus::open(cfg)?))
+            Ok(Box::new(SerialBus::open(cfg).map_err(|e| e.to_string())?))
         }
     }
 }
@@ -156,46 +171,85 @@ mod tests {
     use super::super::config::Config;
     use super::*;
 
-    #[test]
-    fn can_section_parses_with_defaults_and_names_bad_keys() {
+    /// The CAN section of `toml` (after `[bus]\nkind = 'can'\ninterface = 'vcan0'\n`).
+    fn can_section(extra: &str) -> (CanBusConfig, Vec<AxisConfig>) {
         let c = Config::parse(
-            "[bus]\nkind = 'can'\ninterface = 'vcan0'\nrecord = '/tmp/c.log'\nfollowing_window_mm = 5\n",
+            &format!("[bus]\nkind = 'can'\ninterface = 'vcan0'\n{extra}\n"),
             Path::new("m.toml"),
         )
         .unwrap();
-        let BusConfig::Can(can) = &c.bus else {
+        let BusConfig::Can(can) = c.bus else {
             panic!("{:?}", c.bus)
         };
+        (can, c.axes)
+    }
+
+    /// The message of the configuration error of `toml`.
+    fn config_error(toml: &str) -> String {
+        Config::parse(toml, Path::new("m.toml"))
+            .unwrap_err()
+            .to_string()
+    }
+
+    #[test]
+    fn can_section_defaults_reach_the_master() {
+        let (can, axes) = can_section("record = '/tmp/c.log'\nfollowing_window_mm = 5");
         assert_eq!(can.tpdo_missing_ticks, 25);
-        let m = can_config(can, &c.axes);
+        let m = can_config(&can, &axes).unwrap();
         assert_eq!(m.nodes.len(), 3);
-        assert_eq!(m.nodes[2].node_id, 3);
+        assert_eq!(m.nodes[2].node_id.get(), 3);
         assert_eq!(m.nodes[0].following_window_increments, Some(50_000));
         // The axis speed limit bounds the hand-over step at enable; the cycle is 4 ms.
         assert_eq!(m.nodes[0].max_velocity_mm_s, 200.0);
-        assert_eq!(m.cycle_us, 4000);
+        assert_eq!(m.cycle, Duration::from_millis(4));
         assert_eq!(m.shutdown, ShutdownMode::Disable);
-        let c = Config::parse(
-            "[bus]\nkind = 'can'\ninterface = 'vcan0'\nshutdown = 'quick_stop'\n",
-            Path::new("m.toml"),
-        )
-        .unwrap();
-        let BusConfig::Can(can) = &c.bus else {
-            panic!()
-        };
-        assert_eq!(can_config(can, &c.axes).shutdown, ShutdownMode::QuickStop);
-        // Every bus kind takes cycle_ms: whole ms from 1 to 10 (the serial protocol: 4 only).
+        let (can, axes) = can_section("shutdown = 'quick_stop'");
+        assert_eq!(
+            can_config(&can, &axes).unwrap().shutdown,
+            ShutdownMode::QuickStop
+        );
+    }
+
+    /// The documented keys (docs/buses.md) keep their units: ms, and bus cycles for the
+    /// TPDO watch; the master gets them as Durations.
+    #[test]
+    fn can_timeout_keys_in_ms_and_cycles_become_durations() {
+        let (can, axes) = can_section(
+            "cycle_ms = 2\ntpdo_missing_ticks = 50\ndrive_heartbeat_ms = 150\n\
+             heartbeat_timeout_ms = 1000\nmaster_heartbeat_ms = 0\n\
+             drive_consumer_timeout_ms = 2000\nsdo_timeout_ms = 500\nboot_timeout_ms = 4000\n\
+             enable_timeout_ms = 3000\nhoming_timeout_ms = 9000",
+        );
+        let m = can_config(&can, &axes).unwrap();
+        let ms = Duration::from_millis;
+        assert_eq!(
+            (
+                m.cycle,
+                m.tpdo_timeout,
+                m.drive_heartbeat,
+                m.heartbeat_timeout
+            ),
+            (ms(2), ms(100), ms(150), ms(1000))
+        );
+        assert_eq!(
+            (m.master_heartbeat, m.drive_consumer_timeout, m.sdo_timeout),
+            (Duration::ZERO, ms(2000), ms(500))
+        );
+        assert_eq!(
+            (m.boot_timeout, m.enable_timeout, m.homing_timeout),
+            (ms(4000), ms(3000), ms(9000))
+        );
+    }
+
+    /// Every bus kind takes cycle_ms: whole ms from 1 to 10 (the serial protocol: 4 only).
+    #[test]
+    fn cycle_ms_is_whole_ms_from_1_to_10() {
         for kind in ["kind = 'can'\ninterface = 'vcan0'", "kind = 'sim'"] {
             for ms in ["0", "11", "3.5", "-4", "nan"] {
-                let e = Config::parse(
-                    &format!("[bus]\n{kind}\ncycle_ms = {ms}\n"),
-                    Path::new("m.toml"),
-                )
-                .unwrap_err();
+                let e = config_error(&format!("[bus]\n{kind}\ncycle_ms = {ms}\n"));
                 assert!(
-                    e.to_string().contains("bus.cycle_ms")
-                        && e.to_string()
-                            .contains("whole number of milliseconds from 1 to 10"),
+                    e.contains("bus.cycle_ms")
+                        && e.contains("whole number of milliseconds from 1 to 10"),
                     "{e}"
                 );
             }
@@ -207,57 +261,39 @@ mod tests {
                 .unwrap();
                 assert_eq!(c.bus.cycle_ns(), ms * 1_000_000);
                 if let BusConfig::Can(can) = &c.bus {
-                    assert_eq!(can_config(can, &c.axes).cycle_us, ms as u32 * 1000);
+                    let m = can_config(can, &c.axes).unwrap();
+                    assert_eq!(m.cycle, Duration::from_millis(ms));
                 }
             }
         }
-        let serial = "[bus]\nkind = 'serial'\nport = '/dev/null'\ncycle_ms = 2\n";
-        let e = Config::parse(serial, Path::new("m.toml")).unwrap_err();
-        assert!(
-            e.to_string().contains("serial protocol's cycle is 4 ms"),
-            "{e}"
-        );
+        let e = config_error("[bus]\nkind = 'serial'\nport = '/dev/null'\ncycle_ms = 2\n");
+        assert!(e.contains("serial protocol's cycle is 4 ms"), "{e}");
+    }
 
-        let e = Config::parse(
-            "[bus]\nkind = 'can'\ninterface = 'vcan0'\ntpdo_timeout = 3\n",
-            Path::new("m.toml"),
-        )
-        .unwrap_err();
-        assert!(e.to_string().contains("tpdo_timeout"), "{e}");
-        let e = Config::parse(
-            "[[axes]]\nname = 'X'\n[bus]\nkind = 'can'\ninterface = 'vcan0'\n",
-            Path::new("m.toml"),
-        )
-        .unwrap_err();
-        assert!(e.to_string().contains("axes[0].node_id"), "{e}");
+    #[test]
+    fn can_section_names_unknown_keys_and_missing_node_ids() {
+        let e = config_error("[bus]\nkind = 'can'\ninterface = 'vcan0'\ntpdo_timeout = 3\n");
+        assert!(e.contains("tpdo_timeout"), "{e}");
+        let e = config_error("[[axes]]\nname = 'X'\n[bus]\nkind = 'can'\ninterface = 'vcan0'\n");
+        assert!(e.contains("axes[0].node_id"), "{e}");
+    }
 
-        // The spindle drive: node id and scaling reach the master; bad values name the key.
-        let c = Config::parse(
-            "[bus]\nkind = 'can'\ninterface = 'vcan0'\nspindle_node = 10\nspindle_units_per_rpm = 10\n",
-            Path::new("m.toml"),
-        )
-        .unwrap();
-        let BusConfig::Can(can) = &c.bus else {
-            panic!()
-        };
+    /// The spindle drive: node id and scaling reach the master; bad values name the key.
+    #[test]
+    fn can_spindle_keys_reach_the_master_and_bad_ones_are_named() {
+        let (can, axes) = can_section("spindle_node = 10\nspindle_units_per_rpm = 10");
         assert_eq!(
-            can_config(can, &c.axes).spindle,
+            can_config(&can, &axes).unwrap().spindle,
             Some(SpindleNodeConfig {
-                node_id: 10,
+                node_id: NodeId::new(10).unwrap(),
                 units_per_rpm: 10.0
             })
         );
-        assert_eq!(
-            can_config(
-                &CanBusConfig {
-                    spindle_node: None,
-                    ..can.clone()
-                },
-                &c.axes
-            )
-            .spindle,
-            None
-        );
+        let without = CanBusConfig {
+            spindle_node: None,
+            ..can
+        };
+        assert_eq!(can_config(&without, &axes).unwrap().spindle, None);
         for (bad, key) in [
             ("spindle_node = 3", "node 3 is the drive of axis Z"),
             ("spindle_node = 127", "equals bus.master_node_id"),
@@ -267,12 +303,10 @@ mod tests {
                 "bus.spindle_units_per_rpm",
             ),
         ] {
-            let e = Config::parse(
-                &format!("[bus]\nkind = 'can'\ninterface = 'vcan0'\n{bad}\n"),
-                Path::new("m.toml"),
-            )
-            .unwrap_err();
-            assert!(e.to_string().contains(key), "{bad}: {e}");
+            let e = config_error(&format!(
+                "[bus]\nkind = 'can'\ninterface = 'vcan0'\n{bad}\n"
+            ));
+            assert!(e.contains(key), "{bad}: {e}");
         }
     }
 
@@ -290,9 +324,9 @@ mod tests {
         let BusConfig::Can(can) = &c.bus else {
             panic!()
         };
-        let m = can_config(can, &c.axes);
+        let m = can_config(can, &c.axes).unwrap();
         assert_eq!(m.fault_reaction, FaultReaction::DisableVoltage);
-        assert_eq!(m.homing_timeout_ms, 9000);
+        assert_eq!(m.homing_timeout, Duration::from_millis(9000));
         // 10 mm/s, a tenth of it leaving the switch, 50 mm/s², at 1000 increments/mm.
         assert_eq!(
             m.nodes[0].homing,
@@ -313,7 +347,7 @@ mod tests {
         let BusConfig::Can(can) = &d.bus else {
             panic!()
         };
-        let m = can_config(can, &d.axes);
+        let m = can_config(can, &d.axes).unwrap();
         assert_eq!(m.fault_reaction, FaultReaction::QuickStop);
         assert_eq!(m.nodes[0].homing.map(|h| h.method), Some(21));
         for (bad, key) in [

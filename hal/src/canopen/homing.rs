@@ -12,7 +12,7 @@
 //!    position actual: its target holds there until the commanded position (re-based on the
 //!    homed position by the controller) takes over within one tick's travel.
 //!
-//! The whole run is bounded by `homing_timeout_ms`.
+//! The whole run is bounded by `homing_timeout`.
 
 use super::*;
 
@@ -219,7 +219,7 @@ impl<P: CanPort> CanOpenMaster<P> {
     /// One tick of a reference run: the target holds at the actual position; the drive
     /// must stay enabled; bounded by the homing timeout.
     pub(super) fn update_homing(&mut self, i: usize, h: Home) {
-        let timeout = self.ticks(self.cfg.homing_timeout_ms);
+        let timeout = self.ticks(self.cfg.homing_timeout);
         let tick = self.tick;
         let n = &mut self.nodes[i];
         n.target_increments = n.hold_target();
@@ -246,7 +246,7 @@ impl<P: CanPort> CanOpenMaster<P> {
                 retried,
             } => {
                 n.controlword = cw::ENABLE_OPERATION_CMD;
-                if tick - sent_at <= self.ticks(self.cfg.sdo_timeout_ms) {
+                if tick - sent_at <= self.ticks(self.cfg.sdo_timeout) {
                     return;
                 }
                 if retried {
@@ -288,13 +288,8 @@ impl<P: CanPort> CanOpenMaster<P> {
             FaultReaction::DisableVoltage => cw::DISABLE_VOLTAGE,
         };
         for n in &mut self.nodes {
-            if matches!(
-                n.phase,
-                Phase::Starting { .. }
-                    | Phase::Enabling { .. }
-                    | Phase::Operational
-                    | Phase::Homing(_)
-            ) {
+            // A stopped node is in its safe state already.
+            if n.phase.is_started() && n.phase != Phase::Stopped {
                 if n.homing == HomingState::Running {
                     n.homing = HomingState::Aborted;
                 }

@@ -20,6 +20,8 @@
 //! `node.rs` (a node's phases and its advance by one tick), `homing.rs` (the drive's reference
 //! run in homing mode 6, the safe state after a fault stop), `master_tests.rs`.
 
+use std::time::Duration;
+
 use crate::{
     AxisFeedback, BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason,
     HomingState, MAX_AXES,
@@ -28,8 +30,9 @@ use crate::{
 use super::emcy::{self, Emcy};
 use super::pdo::{self, OpMode, Rpdo, Tpdo};
 use super::sdo::{self, Response};
-use super::{CanPort, Frame, PortError, RxEvent, cob, err_class, nmt};
+use super::{CanOpenError, CanPort, Frame, NodeId, PortError, RxEvent, cob, err_class, nmt};
 use crate::cia402::{self, PowerState, cw, sw};
+use crate::units::to_units;
 
 #[path = "homing.rs"]
 mod homing;
@@ -45,8 +48,7 @@ use startup::{Step, check_config, startup_steps, step_object, ticks};
 /// One drive on the bus (one axis).
 #[derive(Clone, Debug, PartialEq)]
 pub struct NodeConfig {
-    /// CANopen node id, 1..=127.
-    pub node_id: u8,
+    pub node_id: NodeId,
     /// Drive position units (0x607A, 0x6064) per mm or degree.
     pub increments_per_mm: f64,
     /// Following-error window written to 0x6065 at start-up, increments; `None` keeps the
@@ -63,7 +65,7 @@ pub struct NodeConfig {
 
 impl NodeConfig {
     /// A drive with its own following window, a speed limit of 200 mm/s and no homing.
-    pub fn new(node_id: u8, increments_per_mm: f64) -> NodeConfig {
+    pub fn new(node_id: NodeId, increments_per_mm: f64) -> NodeConfig {
         NodeConfig {
             node_id,
             increments_per_mm,
@@ -77,8 +79,8 @@ impl NodeConfig {
 /// The spindle drive (CiA 402 in cyclic synchronous velocity mode).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SpindleNodeConfig {
-    /// CANopen node id, 1..=127, not used by an axis.
-    pub node_id: u8,
+    /// Not used by an axis.
+    pub node_id: NodeId,
     /// Drive velocity units (0x60FF, 0x606C) per rpm, e.g. 1 for a drive in rpm, 10 for
     /// 0.1 rpm, or encoder increments per second per rpm (increments per revolution / 60).
     pub units_per_rpm: f64,
@@ -110,7 +112,8 @@ pub enum FaultReaction {
     Hold,
 }
 
-/// Bus-wide settings. Times are converted to ticks of `cycle_us`.
+/// Bus-wide settings. Times are counted in ticks of `cycle` (rounded up), so a late tick
+/// never causes a false alarm.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CanOpenConfig {
     /// Axis drives, in axis order.
@@ -118,26 +121,28 @@ pub struct CanOpenConfig {
     /// The spindle drive, if the spindle is on this bus.
     pub spindle: Option<SpindleNodeConfig>,
     /// The master's own node id: it produces a heartbeat the drives consume (0x1016).
-    pub master_node_id: u8,
-    /// Tick period, µs, 1000..=10000 in whole ms (0x1006 and 0x60C2 of the drives follow it;
-    /// the caller must call `cycle` at this period).
-    pub cycle_us: u32,
-    /// Consecutive ticks without a TPDO before a drive counts as silent.
-    pub tpdo_missing_ticks: u32,
-    /// Heartbeat period the drives produce (0x1017), ms.
-    pub drive_heartbeat_ms: u16,
-    /// Master side: a drive heartbeat older than this is lost, ms.
-    pub heartbeat_timeout_ms: u32,
-    /// Period of the master's heartbeat, ms (0: none, and the drives do not watch it).
-    pub master_heartbeat_ms: u16,
-    /// Drive side: the master heartbeat older than this is lost (0x1016), ms.
-    pub drive_consumer_timeout_ms: u16,
-    /// Answer time allowed for each SDO request, ms (one retry follows).
-    pub sdo_timeout_ms: u32,
-    /// Time allowed from NMT reset to boot-up, and from NMT start to the first TPDO, ms.
-    pub boot_timeout_ms: u32,
-    /// Time allowed for the enable sequence (and for the disable walk at shutdown), ms.
-    pub enable_timeout_ms: u32,
+    pub master_node_id: NodeId,
+    /// Tick period, 1..=10 ms in whole ms (0x1006 and 0x60C2 of the drives follow it; the
+    /// caller must call `cycle` at this period).
+    pub cycle: Duration,
+    /// Time without a TPDO before a drive counts as silent (also bounds a transmit queue
+    /// that stays full).
+    pub tpdo_timeout: Duration,
+    /// Heartbeat period the drives produce (0x1017, whole ms up to 65535).
+    pub drive_heartbeat: Duration,
+    /// Master side: a drive heartbeat older than this is lost.
+    pub heartbeat_timeout: Duration,
+    /// Period of the master's heartbeat (zero: none, and the drives do not watch it).
+    pub master_heartbeat: Duration,
+    /// Drive side: the master heartbeat older than this is lost (0x1016, whole ms up to
+    /// 65535).
+    pub drive_consumer_timeout: Duration,
+    /// Answer time allowed for each SDO request (one retry follows).
+    pub sdo_timeout: Duration,
+    /// Time allowed from NMT reset to boot-up, and from NMT start to the first TPDO.
+    pub boot_timeout: Duration,
+    /// Time allowed for the enable sequence (and for the disable walk at shutdown).
+    pub enable_timeout: Duration,
     /// Master-side following-error check (setpoint minus actual), mm; `None`: only the
     /// drive's own check (statusword bit 13, EMCY 8611h).
     pub following_error_limit_mm: Option<f64>,
@@ -147,31 +152,32 @@ pub struct CanOpenConfig {
     pub shutdown: ShutdownMode,
     /// What the drives do after a fault stop.
     pub fault_reaction: FaultReaction,
-    /// Time allowed for a drive's reference run, from its start to the return to CSP, ms.
-    pub homing_timeout_ms: u32,
+    /// Time allowed for a drive's reference run, from its start to the return to CSP.
+    pub homing_timeout: Duration,
 }
 
 impl CanOpenConfig {
     /// Defaults with margins for a loaded Linux machine (see docs/buses.md).
     pub fn new(nodes: Vec<NodeConfig>) -> CanOpenConfig {
+        let ms = Duration::from_millis;
         CanOpenConfig {
             nodes,
             spindle: None,
-            master_node_id: 127,
-            cycle_us: 4000,
-            tpdo_missing_ticks: 25,
-            drive_heartbeat_ms: 100,
-            heartbeat_timeout_ms: 500,
-            master_heartbeat_ms: 100,
-            drive_consumer_timeout_ms: 500,
-            sdo_timeout_ms: 200,
-            boot_timeout_ms: 3000,
-            enable_timeout_ms: 2000,
+            master_node_id: NodeId::MASTER_DEFAULT,
+            cycle: ms(4),
+            tpdo_timeout: ms(100),
+            drive_heartbeat: ms(100),
+            heartbeat_timeout: ms(500),
+            master_heartbeat: ms(100),
+            drive_consumer_timeout: ms(500),
+            sdo_timeout: ms(200),
+            boot_timeout: ms(3000),
+            enable_timeout: ms(2000),
             following_error_limit_mm: None,
             error_frame_limit: 20,
             shutdown: ShutdownMode::Disable,
             fault_reaction: FaultReaction::QuickStop,
-            homing_timeout_ms: 60_000,
+            homing_timeout: ms(60_000),
         }
     }
 }
@@ -207,7 +213,7 @@ fn is_drive_level(r: FaultReason) -> bool {
 impl<P: CanPort> CanOpenMaster<P> {
     /// A master for `cfg.nodes` (one per axis, in axis order) on `port`; `name` is the
     /// interface name for logs. Nothing is sent before [`DriveBus::enable`].
-    pub fn new(port: P, name: &str, cfg: CanOpenConfig) -> Result<Self, String> {
+    pub fn new(port: P, name: &str, cfg: CanOpenConfig) -> Result<Self, CanOpenError> {
         check_config(&cfg)?;
         let mut nodes: Vec<Node> = cfg
             .nodes
@@ -251,8 +257,11 @@ impl<P: CanPort> CanOpenMaster<P> {
         }
     }
 
+    /// The node of a frame's node id.
     fn node_index(&self, node_id: u8) -> Option<usize> {
-        self.nodes.iter().position(|n| n.cfg.node_id == node_id)
+        self.nodes
+            .iter()
+            .position(|n| n.cfg.node_id.get() == node_id)
     }
 
     /// The axis a fault of node `i` names: its index, or the spindle.
@@ -284,7 +293,7 @@ impl<P: CanPort> CanOpenMaster<P> {
 
     /// The SDO request of one step.
     fn send_sdo(&mut self, i: usize, s: Step) {
-        let id = self.nodes[i].cfg.node_id;
+        let id = self.nodes[i].cfg.node_id.get();
         let f = match s {
             Step::Write {
                 index,
@@ -366,14 +375,7 @@ impl<P: CanPort> CanOpenMaster<P> {
         if state == nmt::state::BOOT_UP {
             n.booted = true;
             n.nmt_state = nmt::state::PRE_OPERATIONAL;
-            if matches!(
-                n.phase,
-                Phase::Starting { .. }
-                    | Phase::Enabling { .. }
-                    | Phase::Operational
-                    | Phase::Homing(_)
-                    | Phase::Stopped
-            ) {
+            if n.phase.is_started() {
                 self.fault(i, FaultReason::NmtStateChanged { state });
             }
             return;
@@ -469,7 +471,7 @@ impl<P: CanPort> CanOpenMaster<P> {
             n.nmt_state = nmt::state::OPERATIONAL;
             n.target_increments = n.hold_target();
             n.controlword = cw::DISABLE_VOLTAGE;
-            let id = n.cfg.node_id;
+            let id = n.cfg.node_id.get();
             self.send(&nmt::command(nmt::Command::Start, id));
         }
     }
@@ -491,8 +493,9 @@ impl<P: CanPort> CanOpenMaster<P> {
         }
     }
 
-    fn ticks(&self, ms: u32) -> u64 {
-        ticks(ms, self.cfg.cycle_us)
+    /// `d` in ticks, rounded up.
+    fn ticks(&self, d: Duration) -> u64 {
+        ticks(d, self.cfg.cycle)
     }
 
     /// The spindle node, if configured.
@@ -535,13 +538,13 @@ impl<P: CanPort> CanOpenMaster<P> {
                     controlword: n.controlword,
                     target_increments: n.target_increments,
                 }
-                .encode(n.cfg.node_id);
+                .encode(n.cfg.node_id.get());
                 self.send(&f);
             }
         }
-        let hb = self.ticks(u32::from(self.cfg.master_heartbeat_ms));
+        let hb = self.ticks(self.cfg.master_heartbeat);
         if hb > 0 && self.tick.is_multiple_of(hb) {
-            let id = self.cfg.master_node_id;
+            let id = self.cfg.master_node_id.get();
             self.send(&nmt::heartbeat(id, nmt::state::OPERATIONAL));
         }
     }
@@ -595,7 +598,7 @@ impl<P: CanPort> CanOpenMaster<P> {
             if let Phase::Faulted(reason) = n.phase {
                 return Err(BusFault {
                     axis: Some(self.axis_of(i)),
-                    node: Some(n.cfg.node_id),
+                    node: Some(n.cfg.node_id.get()),
                     reason,
                 });
             }
@@ -607,13 +610,6 @@ impl<P: CanPort> CanOpenMaster<P> {
 /// Largest number of received frames handled per tick, so a babbling node cannot stall the
 /// tick (the rest waits in the socket buffer for the next tick).
 const MAX_RX_PER_TICK: usize = 256;
-
-/// A value in drive units, rounded and saturated to the 32-bit PDO field.
-fn to_units(value: f64, units_per: f64) -> i32 {
-    (value * units_per)
-        .round()
-        .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
-}
 
 impl<P: CanPort> DriveBus for CanOpenMaster<P> {
     fn name(&self) -> &str {
@@ -648,7 +644,7 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
         // A transmit queue that stays full (nobody acknowledges, bus jammed) is a bus fault.
         if self.tx_blocked_ticks == blocked_before {
             self.tx_blocked_ticks = 0;
-        } else if self.tx_blocked_ticks > self.cfg.tpdo_missing_ticks {
+        } else if u64::from(self.tx_blocked_ticks) > self.ticks(self.cfg.tpdo_timeout) {
             self.bus_fault.get_or_insert(FaultReason::BusError);
         }
         self.fill_feedback(feedback);
@@ -678,7 +674,7 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
         self.error_score = 0;
         self.tx_blocked_ticks = 0;
         let tick = self.tick;
-        let hb_ticks = self.ticks(self.cfg.heartbeat_timeout_ms);
+        let hb_ticks = self.ticks(self.cfg.heartbeat_timeout);
         let restart = Phase::ResetPending {
             command: nmt::Command::ResetCommunication,
         };
@@ -717,9 +713,9 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
         // timeouts: boot-up, every SDO with its retry, NMT start to the first TPDO, enable.
         let c = &self.cfg;
         let steps = self.nodes.iter().map(|n| n.steps.len()).max().unwrap_or(0) as u64;
-        let boot = self.ticks(c.boot_timeout_ms) + 1;
-        let sdo = 2 * (self.ticks(c.sdo_timeout_ms) + 1);
-        let total = 2 * boot + steps * sdo + self.ticks(c.enable_timeout_ms) + 2;
+        let boot = self.ticks(c.boot_timeout) + 1;
+        let sdo = 2 * (self.ticks(c.sdo_timeout) + 1);
+        let total = 2 * boot + steps * sdo + self.ticks(c.enable_timeout) + 2;
         u32::try_from(total).unwrap_or(u32::MAX)
     }
 

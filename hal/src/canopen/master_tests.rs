@@ -3,6 +3,7 @@
 use std::collections::VecDeque;
 
 use super::*;
+use std::time::Duration;
 
 /// A port fed by the test: `rx` is what the master will receive, `tx` what it sent.
 #[derive(Default)]
@@ -21,15 +22,18 @@ impl CanPort for FakePort {
     }
 }
 
+/// The node id `n` (valid in every test).
+fn id(n: u8) -> NodeId {
+    NodeId::new(n).unwrap()
+}
+
 fn master(nodes: &[u8]) -> CanOpenMaster<FakePort> {
     let cfg = CanOpenConfig::new(
         nodes
             .iter()
-            .map(|&node_id| NodeConfig {
-                node_id,
-                increments_per_mm: 1000.0,
+            .map(|&n| NodeConfig {
                 following_window_increments: Some(5000),
-                ..NodeConfig::new(node_id, 1000.0)
+                ..NodeConfig::new(id(n), 1000.0)
             })
             .collect(),
     );
@@ -323,7 +327,7 @@ fn short_tpdo_is_a_pdo_length_fault() {
 #[test]
 fn enable_deadline_covers_the_node_timeouts() {
     let m = master(&[3]);
-    let per_node = ticks(3000, 4000) * 2 + 2000 / 4;
+    let per_node = ticks(Duration::from_millis(3000), Duration::from_millis(4)) * 2 + 2000 / 4;
     assert!(u64::from(m.enable_timeout_ticks()) > per_node);
 }
 
@@ -440,13 +444,11 @@ fn sdo_abort_and_silence_are_reported_with_the_object() {
 /// Axis node 3 and spindle node 9 (10 velocity units per rpm).
 fn master_with_spindle() -> CanOpenMaster<FakePort> {
     let mut cfg = CanOpenConfig::new(vec![NodeConfig {
-        node_id: 3,
-        increments_per_mm: 1000.0,
         following_window_increments: Some(5000),
-        ..NodeConfig::new(3, 1000.0)
+        ..NodeConfig::new(id(3), 1000.0)
     }]);
     cfg.spindle = Some(SpindleNodeConfig {
-        node_id: 9,
+        node_id: id(9),
         units_per_rpm: 10.0,
     });
     CanOpenMaster::new(FakePort::default(), "fake", cfg).unwrap()
@@ -641,24 +643,26 @@ fn spindle_faults_name_the_spindle_and_reset_like_an_axis() {
 
 #[test]
 fn spindle_node_ids_are_checked() {
-    let cfg = |id: u8, units: f64| {
-        let mut c = CanOpenConfig::new(vec![NodeConfig {
-            node_id: 3,
-            increments_per_mm: 1000.0,
-            following_window_increments: None,
-            ..NodeConfig::new(3, 1000.0)
-        }]);
+    let cfg = |node: u8, units: f64| {
+        let mut c = CanOpenConfig::new(vec![NodeConfig::new(id(3), 1000.0)]);
         c.spindle = Some(SpindleNodeConfig {
-            node_id: id,
+            node_id: id(node),
             units_per_rpm: units,
         });
-        CanOpenMaster::new(FakePort::default(), "fake", c).err()
+        CanOpenMaster::new(FakePort::default(), "fake", c)
+            .err()
+            .map(|e| e.code())
     };
-    assert!(cfg(3, 1.0).unwrap().contains("used by an axis"));
-    assert!(cfg(127, 1.0).unwrap().contains("equals the master"));
-    assert!(cfg(0, 1.0).is_some());
-    assert!(cfg(9, 0.0).unwrap().contains("units per rpm"));
-    assert!(cfg(9, 1.0).is_none());
+    assert_eq!(cfg(3, 1.0), Some("can_spindle_node_used"));
+    assert_eq!(cfg(127, 1.0), Some("can_spindle_node_is_master"));
+    assert_eq!(cfg(9, 0.0), Some("can_spindle_scale"));
+    assert_eq!(cfg(9, 1.0), None);
+    assert_eq!(NodeId::new(0).unwrap_err().code(), "can_node_id_range");
+    assert_eq!(
+        NodeId::try_from(128).unwrap_err().code(),
+        "can_node_id_range"
+    );
+    assert_eq!(NodeId::try_from(127).map(NodeId::get), Ok(127));
     // Without a spindle node the bus says so.
     assert!(!master(&[3]).has_spindle());
 }

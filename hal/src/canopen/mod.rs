@@ -15,6 +15,91 @@ pub use master::{
 };
 pub use socket::SocketCanPort;
 
+/// A CANopen node id, 1..=127 (CiA 301: 0 addresses every node in NMT and is no node's id).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct NodeId(u8);
+
+impl NodeId {
+    /// The master's own id unless configured: the highest, out of the drives' usual range.
+    pub const MASTER_DEFAULT: NodeId = NodeId(127);
+
+    /// `id` if it is a node id.
+    pub const fn new(id: u8) -> Result<NodeId, CanOpenError> {
+        if id >= 1 && id <= 127 {
+            Ok(NodeId(id))
+        } else {
+            Err(CanOpenError::NodeIdRange { id })
+        }
+    }
+
+    /// The 7-bit value the frames carry.
+    pub const fn get(self) -> u8 {
+        self.0
+    }
+}
+
+impl TryFrom<u8> for NodeId {
+    type Error = CanOpenError;
+    fn try_from(id: u8) -> Result<NodeId, CanOpenError> {
+        NodeId::new(id)
+    }
+}
+
+impl std::fmt::Display for NodeId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.fmt(f)
+    }
+}
+
+/// Why a CANopen master cannot be set up.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum CanOpenError {
+    #[error("node id {id} is outside 1..127")]
+    NodeIdRange { id: u8 },
+    #[error("{count} drives configured, 1..={} are supported", crate::MAX_AXES)]
+    DriveCount { count: usize },
+    #[error("cycle time {cycle_us} µs: 1 to 10 ms in whole ms are supported")]
+    CycleTime { cycle_us: u128 },
+    #[error("node id {node} of axis {axis} equals the master's")]
+    AxisNodeIsMaster { axis: usize, node: NodeId },
+    #[error("node id {node} is used twice")]
+    NodeUsedTwice { node: NodeId },
+    #[error("increments per mm of axis {axis} must be positive")]
+    AxisScale { axis: usize },
+    #[error("maximum speed of axis {axis} must be positive")]
+    AxisSpeed { axis: usize },
+    #[error("node id {node} of the spindle equals the master's")]
+    SpindleNodeIsMaster { node: NodeId },
+    #[error("node id {node} of the spindle is used by an axis")]
+    SpindleNodeUsed { node: NodeId },
+    #[error("velocity units per rpm of the spindle must be positive")]
+    SpindleScale,
+    #[error("cannot open CAN interface {iface}: {reason} (does it exist and is it up?)")]
+    Open { iface: String, reason: String },
+    #[error("cannot configure CAN interface {iface}: {reason}")]
+    Configure { iface: String, reason: String },
+}
+
+impl CanOpenError {
+    /// Stable code (tests and HMIs match it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            CanOpenError::NodeIdRange { .. } => "can_node_id_range",
+            CanOpenError::DriveCount { .. } => "can_drive_count",
+            CanOpenError::CycleTime { .. } => "can_cycle_time",
+            CanOpenError::AxisNodeIsMaster { .. } => "can_axis_node_is_master",
+            CanOpenError::NodeUsedTwice { .. } => "can_node_used_twice",
+            CanOpenError::AxisScale { .. } => "can_axis_scale",
+            CanOpenError::AxisSpeed { .. } => "can_axis_speed",
+            CanOpenError::SpindleNodeIsMaster { .. } => "can_spindle_node_is_master",
+            CanOpenError::SpindleNodeUsed { .. } => "can_spindle_node_used",
+            CanOpenError::SpindleScale => "can_spindle_scale",
+            CanOpenError::Open { .. } => "can_open",
+            CanOpenError::Configure { .. } => "can_configure",
+        }
+    }
+}
+
 /// Function codes of the predefined connection set (CiA 301): COB-ID = code + node id.
 pub mod cob {
     pub const NMT: u16 = 0x000;

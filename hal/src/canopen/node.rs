@@ -3,6 +3,7 @@
 //! shutdown. A child of `master`.
 
 use super::*;
+use crate::cia402::EnableStep;
 
 /// The orderly shutdown of one node, in this order.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -57,6 +58,21 @@ pub(super) enum Phase {
     ShuttingDown(Off),
 }
 
+impl Phase {
+    /// NMT start sent and not yet stopped by a fault or the shutdown: the node runs its PDOs
+    /// and its power stage may be on.
+    pub(super) fn is_started(self) -> bool {
+        matches!(
+            self,
+            Phase::Starting { .. }
+                | Phase::Enabling { .. }
+                | Phase::Operational
+                | Phase::Homing(_)
+                | Phase::Stopped
+        )
+    }
+}
+
 pub(super) struct Node {
     /// For the spindle node `increments_per_mm` holds its velocity units per rpm.
     pub(super) cfg: NodeConfig,
@@ -93,7 +109,7 @@ pub(super) struct Node {
 
 impl Node {
     pub(super) fn new(c: &CanOpenConfig, cfg: NodeConfig, mode: OpMode) -> Node {
-        let step = cfg.max_velocity_mm_s * cfg.increments_per_mm * f64::from(c.cycle_us) * 1e-6;
+        let step = cfg.max_velocity_mm_s * cfg.increments_per_mm * c.cycle.as_secs_f64();
         Node {
             steps: startup_steps(c, &cfg, mode),
             max_step_increments: (step.floor() as i64).max(1),
@@ -162,8 +178,8 @@ impl Node {
 impl<P: CanPort> CanOpenMaster<P> {
     /// Watchdogs of a started node: a TPDO every SYNC, the heartbeat.
     pub(super) fn watch(&mut self, i: usize) {
-        let hb_ticks = self.ticks(self.cfg.heartbeat_timeout_ms);
-        let missing_limit = self.cfg.tpdo_missing_ticks;
+        let hb_ticks = self.ticks(self.cfg.heartbeat_timeout);
+        let missing_limit = self.ticks(self.cfg.tpdo_timeout);
         let tick = self.tick;
         let n = &mut self.nodes[i];
         if !matches!(
@@ -177,7 +193,7 @@ impl<P: CanPort> CanOpenMaster<P> {
         } else {
             n.tpdo_missing += 1;
         }
-        if n.tpdo_missing > missing_limit {
+        if u64::from(n.tpdo_missing) > missing_limit {
             self.fault(i, FaultReason::Timeout);
         } else if tick - n.last_heartbeat > hb_ticks {
             self.fault(i, FaultReason::HeartbeatLost);
@@ -199,7 +215,7 @@ impl<P: CanPort> CanOpenMaster<P> {
                     since: tick,
                     command,
                 };
-                let id = n.cfg.node_id;
+                let id = n.cfg.node_id.get();
                 self.send(&nmt::command(command, id));
             }
             Phase::Booting { since, command } => self.boot(i, since, command),
@@ -235,7 +251,7 @@ impl<P: CanPort> CanOpenMaster<P> {
     }
 
     pub(super) fn boot(&mut self, i: usize, since: u64, command: nmt::Command) {
-        let boot_ticks = self.ticks(self.cfg.boot_timeout_ms);
+        let boot_ticks = self.ticks(self.cfg.boot_timeout);
         let tick = self.tick;
         let n = &mut self.nodes[i];
         if n.booted {
@@ -250,13 +266,13 @@ impl<P: CanPort> CanOpenMaster<P> {
         } else if (tick - since).is_multiple_of(boot_ticks / 3 + 1) {
             // The reset may have been lost (a drive busy or not yet listening): ask again,
             // twice, before giving up.
-            let id = n.cfg.node_id;
+            let id = n.cfg.node_id.get();
             self.send(&nmt::command(command, id));
         }
     }
 
     pub(super) fn configure(&mut self, i: usize, step: usize, sent_at: u64, retried: bool) {
-        if self.tick - sent_at <= self.ticks(self.cfg.sdo_timeout_ms) {
+        if self.tick - sent_at <= self.ticks(self.cfg.sdo_timeout) {
             return;
         }
         if retried {
@@ -273,7 +289,7 @@ impl<P: CanPort> CanOpenMaster<P> {
     }
 
     pub(super) fn start(&mut self, i: usize, since: u64) {
-        let boot_ticks = self.ticks(self.cfg.boot_timeout_ms);
+        let boot_ticks = self.ticks(self.cfg.boot_timeout);
         let tick = self.tick;
         let n = &mut self.nodes[i];
         n.target_increments = n.hold_target();
@@ -289,23 +305,25 @@ impl<P: CanPort> CanOpenMaster<P> {
     /// The CiA 402 enable sequence. It acts only on a statusword that arrived this tick: after
     /// a reset the last one known may be stale (the drive faulted or switched off since).
     pub(super) fn enable_step(&mut self, i: usize, since: u64) {
-        let enable_ticks = self.ticks(self.cfg.enable_timeout_ms);
+        let enable_ticks = self.ticks(self.cfg.enable_timeout);
         let tick = self.tick;
         let n = &mut self.nodes[i];
         // The target follows the actual position (a spindle: stands) until enabled.
         n.target_increments = n.hold_target();
-        let state = PowerState::from_statusword(n.statusword);
         if tick - since > enable_ticks {
             let statusword = n.statusword;
             self.fault(i, FaultReason::EnableTimeout { statusword });
         } else if !n.tpdo_seen {
             // Keep the last controlword until the drive reports again.
-        } else if state == PowerState::OperationEnabled {
-            n.phase = Phase::Operational;
-            n.controlword = cw::ENABLE_OPERATION_CMD;
-            n.taken_over = n.mode == OpMode::Csv;
         } else {
-            n.controlword = cia402::controlword_toward_enabled(state, n.controlword);
+            match cia402::enable_step(n.statusword, n.controlword) {
+                EnableStep::Enabled => {
+                    n.phase = Phase::Operational;
+                    n.controlword = cw::ENABLE_OPERATION_CMD;
+                    n.taken_over = n.mode == OpMode::Csv;
+                }
+                EnableStep::Toward(c) => n.controlword = c,
+            }
         }
     }
 
@@ -317,16 +335,9 @@ impl<P: CanPort> CanOpenMaster<P> {
             .filter(|_| self.nodes[i].mode == OpMode::Csp)
             .map(|mm| mm * self.nodes[i].cfg.increments_per_mm);
         let n = &mut self.nodes[i];
-        let s = n.statusword;
-        let state = PowerState::from_statusword(s);
         let lag = f64::from(n.target_increments) - f64::from(n.position_increments);
-        if s & sw::FOLLOWING_ERROR != 0 {
-            self.fault(i, FaultReason::FollowingError);
-        } else if matches!(state, PowerState::Fault | PowerState::FaultReactionActive) {
-            let code = n.emcy_code.unwrap_or(0);
-            self.fault(i, FaultReason::DriveFault { code });
-        } else if state != PowerState::OperationEnabled {
-            self.fault(i, FaultReason::DriveDisabled { statusword: s });
+        if let Some(reason) = cia402::operating_fault(n.statusword, n.emcy_code.unwrap_or(0)) {
+            self.fault(i, reason);
         } else if fe_limit.is_some_and(|l| lag.abs() > l) {
             self.fault(i, FaultReason::FollowingError);
         } else if n.taken_over {
@@ -347,7 +358,7 @@ impl<P: CanPort> CanOpenMaster<P> {
     /// Shutdown: walk the power stage down (07h → 06h → 00h, or 02h → 00h) on fresh
     /// statuswords.
     pub(super) fn power_down(&mut self, i: usize, since: u64) {
-        let enable_ticks = self.ticks(self.cfg.enable_timeout_ms);
+        let enable_ticks = self.ticks(self.cfg.enable_timeout);
         let toward_off = match self.cfg.shutdown {
             ShutdownMode::Disable => cia402::controlword_toward_disabled,
             ShutdownMode::QuickStop => cia402::controlword_toward_disabled_by_quick_stop,
@@ -378,12 +389,12 @@ impl<P: CanPort> CanOpenMaster<P> {
             sent_at: self.tick,
             retried,
         });
-        let id = self.nodes[i].cfg.node_id;
+        let id = self.nodes[i].cfg.node_id.get();
         self.send(&sdo::download(id, 0x1016, 1, 0, 4));
     }
 
     pub(super) fn clear_consumer(&mut self, i: usize, sent_at: u64, retried: bool) {
-        if self.tick - sent_at <= self.ticks(self.cfg.sdo_timeout_ms) {
+        if self.tick - sent_at <= self.ticks(self.cfg.sdo_timeout) {
             return;
         }
         if retried {
@@ -398,7 +409,7 @@ impl<P: CanPort> CanOpenMaster<P> {
         let n = &mut self.nodes[i];
         n.phase = Phase::ShuttingDown(Off::Done);
         n.nmt_state = nmt::state::PRE_OPERATIONAL;
-        let id = n.cfg.node_id;
+        let id = n.cfg.node_id.get();
         self.send(&nmt::command(nmt::Command::EnterPreOperational, id));
     }
 }

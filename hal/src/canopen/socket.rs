@@ -8,7 +8,7 @@ use socketcan::{
     CanDataFrame, CanFrame, CanSocket, EmbeddedFrame, Frame as _, Socket, SocketOptions, StandardId,
 };
 
-use super::{CanPort, Frame, PortError, RxEvent};
+use super::{CanOpenError, CanPort, Frame, PortError, RxEvent};
 use crate::candump::RecordTap;
 
 pub struct SocketCanPort {
@@ -18,14 +18,18 @@ pub struct SocketCanPort {
 
 impl SocketCanPort {
     /// Opens `iface`. The message says what to check when it fails.
-    pub fn open(iface: &str) -> Result<SocketCanPort, String> {
-        let socket = CanSocket::open(iface).map_err(|e| {
-            format!("cannot open CAN interface {iface}: {e} (does it exist and is it up?)")
+    pub fn open(iface: &str) -> Result<SocketCanPort, CanOpenError> {
+        let socket = CanSocket::open(iface).map_err(|e| CanOpenError::Open {
+            iface: iface.to_owned(),
+            reason: e.to_string(),
         })?;
         socket
             .set_nonblocking(true)
             .and_then(|()| socket.set_error_filter_accept_all())
-            .map_err(|e| format!("cannot configure CAN interface {iface}: {e}"))?;
+            .map_err(|e| CanOpenError::Configure {
+                iface: iface.to_owned(),
+                reason: e.to_string(),
+            })?;
         Ok(SocketCanPort { socket, tap: None })
     }
 

@@ -18,8 +18,15 @@ pub(super) enum Step {
     CheckMode(u8),
 }
 
-pub(super) fn ticks(ms: u32, cycle_us: u32) -> u64 {
-    (u64::from(ms) * 1000).div_ceil(u64::from(cycle_us.max(1)))
+/// `d` in ticks of `cycle`, rounded up.
+pub(super) fn ticks(d: Duration, cycle: Duration) -> u64 {
+    let n = d.as_nanos().div_ceil(cycle.as_nanos().max(1));
+    u64::try_from(n).unwrap_or(u64::MAX)
+}
+
+/// `d` in whole ms for a 16-bit object (0x1016, 0x1017), saturated.
+fn ms_u16(d: Duration) -> u16 {
+    u16::try_from(d.as_millis()).unwrap_or(u16::MAX)
 }
 
 pub(super) fn startup_steps(c: &CanOpenConfig, n: &NodeConfig, mode: OpMode) -> Vec<Step> {
@@ -29,25 +36,27 @@ pub(super) fn startup_steps(c: &CanOpenConfig, n: &NodeConfig, mode: OpMode) -> 
         value,
         size,
     };
-    let mut steps: Vec<Step> = pdo::mapping_writes(n.node_id, mode)
+    let mut steps: Vec<Step> = pdo::mapping_writes(n.node_id.get(), mode)
         .iter()
         .map(|&(i, s, v, z)| w(i, s, v, z))
         .collect();
     // Modes of operation: cyclic synchronous position (8) or velocity (9).
     steps.push(w(0x6060, 0, u32::from(mode.code()), 1));
-    steps.push(w(0x60C2, 1, (c.cycle_us / 1000).max(1), 1)); // interpolation period...
+    let cycle_ms = u32::try_from(c.cycle.as_millis()).unwrap_or(u32::MAX);
+    let cycle_us = u32::try_from(c.cycle.as_micros()).unwrap_or(u32::MAX);
+    steps.push(w(0x60C2, 1, cycle_ms.max(1), 1)); // interpolation period...
     steps.push(w(0x60C2, 2, (-3i8) as u8 as u32, 1)); // ...in 10^-3 s
-    steps.push(w(0x1006, 0, c.cycle_us, 4)); // communication cycle period, µs
-    steps.push(w(0x1017, 0, u32::from(c.drive_heartbeat_ms), 2));
-    let consumer_ms = if c.master_heartbeat_ms == 0 {
+    steps.push(w(0x1006, 0, cycle_us, 4)); // communication cycle period, µs
+    steps.push(w(0x1017, 0, u32::from(ms_u16(c.drive_heartbeat)), 2));
+    let consumer_ms = if c.master_heartbeat.is_zero() {
         0
     } else {
-        c.drive_consumer_timeout_ms
+        ms_u16(c.drive_consumer_timeout)
     };
     steps.push(w(
         0x1016,
         1,
-        (u32::from(c.master_node_id) << 16) | u32::from(consumer_ms),
+        (u32::from(c.master_node_id.get()) << 16) | u32::from(consumer_ms),
         4,
     ));
     if let Some(window) = n.following_window_increments {
@@ -70,53 +79,46 @@ pub(super) fn step_object(s: Step) -> (u16, u8) {
 }
 
 /// Checks the settings the master cannot run with.
-pub(super) fn check_config(cfg: &CanOpenConfig) -> Result<(), String> {
+pub(super) fn check_config(cfg: &CanOpenConfig) -> Result<(), CanOpenError> {
     if cfg.nodes.is_empty() || cfg.nodes.len() > MAX_AXES {
-        return Err(format!(
-            "{} drives configured, 1..={MAX_AXES} are supported",
-            cfg.nodes.len()
-        ));
+        return Err(CanOpenError::DriveCount {
+            count: cfg.nodes.len(),
+        });
     }
-    if !(1000..=10_000).contains(&cfg.cycle_us) || !cfg.cycle_us.is_multiple_of(1000) {
-        return Err(format!(
-            "cycle time {} µs: 1 to 10 ms in whole ms are supported",
-            cfg.cycle_us
-        ));
+    let cycle_ns = cfg.cycle.as_nanos();
+    if !(1_000_000..=10_000_000).contains(&cycle_ns) || !cycle_ns.is_multiple_of(1_000_000) {
+        return Err(CanOpenError::CycleTime {
+            cycle_us: cfg.cycle.as_micros(),
+        });
     }
-    for (i, n) in cfg.nodes.iter().enumerate() {
-        if !(1..=127).contains(&n.node_id) || n.node_id == cfg.master_node_id {
-            return Err(format!(
-                "node id {} of axis {i} is outside 1..127 or equals the master's",
-                n.node_id
-            ));
+    for (axis, n) in cfg.nodes.iter().enumerate() {
+        if n.node_id == cfg.master_node_id {
+            return Err(CanOpenError::AxisNodeIsMaster {
+                axis,
+                node: n.node_id,
+            });
         }
-        if cfg.nodes[..i].iter().any(|m| m.node_id == n.node_id) {
-            return Err(format!("node id {} is used twice", n.node_id));
+        if cfg.nodes[..axis].iter().any(|m| m.node_id == n.node_id) {
+            return Err(CanOpenError::NodeUsedTwice { node: n.node_id });
         }
         if !(n.increments_per_mm.is_finite() && n.increments_per_mm > 0.0) {
-            return Err(format!("increments per mm of axis {i} must be positive"));
+            return Err(CanOpenError::AxisScale { axis });
         }
         if !(n.max_velocity_mm_s.is_finite() && n.max_velocity_mm_s > 0.0) {
-            return Err(format!("maximum speed of axis {i} must be positive"));
+            return Err(CanOpenError::AxisSpeed { axis });
         }
     }
     let Some(sp) = &cfg.spindle else {
         return Ok(());
     };
-    if !(1..=127).contains(&sp.node_id) || sp.node_id == cfg.master_node_id {
-        return Err(format!(
-            "node id {} of the spindle is outside 1..127 or equals the master's",
-            sp.node_id
-        ));
+    if sp.node_id == cfg.master_node_id {
+        return Err(CanOpenError::SpindleNodeIsMaster { node: sp.node_id });
     }
     if cfg.nodes.iter().any(|m| m.node_id == sp.node_id) {
-        return Err(format!(
-            "node id {} of the spindle is used by an axis",
-            sp.node_id
-        ));
+        return Err(CanOpenError::SpindleNodeUsed { node: sp.node_id });
     }
     if !(sp.units_per_rpm.is_finite() && sp.units_per_rpm > 0.0) {
-        return Err("velocity units per rpm of the spindle must be positive".into());
+        return Err(CanOpenError::SpindleScale);
     }
     Ok(())
 }

@@ -1,7 +1,9 @@
-//! [`DriveBus`] over one serial port serving up to [`MAX_AXES`] axes of one drive unit.
+//! [`DriveBus`] over one serial port serving up to [`MAX_AXES`] axes of one drive unit. The
+//! bus talks to the line only through [`SerialPort`] ([`TtyPort`] for a real tty or pty).
 //!
-//! Each tick: read what arrived (the reply to the previous tick's request), advance each
-//! axis's CiA 402 enable sequence, then write this tick's request. The port is non-blocking
+//! Each tick ([`DriveBus::cycle`], in this order): read what arrived (the reply to the
+//! previous tick's request), count a missing reply, watch the reference command, advance each
+//! axis's CiA 402 enable sequence, write this tick's request, report. The port is non-blocking
 //! (zero timeout), so a tick never waits for the drive; a reply missing for
 //! `reply_timeout_ticks` consecutive ticks is a fault. A port that reports hang-up or an I/O
 //! error is closed; [`DriveBus::reset`] opens it again (the operator's reset after replugging).
@@ -16,16 +18,14 @@
 //! position (see [`Homing`]). A unit that answers only older versions is refused at start-up
 //! with [`FaultReason::ProtocolVersion`].
 
-use std::io::{self, Read, Write};
-use std::time::Duration;
-
-use serialport::TTYPort;
-
+use super::SerialError;
 use super::frame::{self, Decoder, FrameError};
 use super::message::{
     AxisRequest, HomeAction, HomeCommand, HomeResult, HomeStatus, Reply, Request,
 };
-use crate::cia402::{self, PowerState, cw, sw};
+use super::port::{LinkDown, SerialPort, TtyPort};
+use crate::cia402::{self, EnableStep, cw};
+use crate::units::to_units;
 use crate::{
     AxisFeedback, BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason,
     MAX_AXES,
@@ -97,9 +97,13 @@ struct Axis {
     target_increments: i32,
 }
 
-pub struct SerialBus {
+/// The master of one drive unit over a [`SerialPort`] (a [`TtyPort`] unless a test supplies
+/// its own).
+pub struct SerialBus<P: SerialPort = TtyPort> {
     cfg: SerialConfig,
-    port: Option<TTYPort>,
+    port: P,
+    /// False after a [`LinkDown`] until the operator's reset opens the port again.
+    port_open: bool,
     decoder: Decoder,
     /// The axes (`[..n_axes]`), then the spindle if configured.
     axes: Vec<Axis>,
@@ -152,65 +156,46 @@ struct Homing {
     pending: Option<PendingHome>,
 }
 
-enum Ready {
-    Nothing,
-    Data,
-    HungUp,
-}
-
-/// Whether the port has bytes (or an end-of-file) to read, without waiting.
-fn readiness(port: &TTYPort) -> Ready {
-    use std::os::fd::AsRawFd;
-    let mut fd = libc::pollfd {
-        fd: port.as_raw_fd(),
-        events: libc::POLLIN,
-        revents: 0,
-    };
-    // SAFETY: one valid pollfd, zero timeout.
-    let n = unsafe { libc::poll(&mut fd, 1, 0) };
-    if n < 0 {
-        // EINTR: try again next tick.
-        return Ready::Nothing;
-    }
-    if fd.revents & libc::POLLIN != 0 {
-        Ready::Data
-    } else if fd.revents & (libc::POLLHUP | libc::POLLERR | libc::POLLNVAL) != 0 {
-        Ready::HungUp
-    } else {
-        Ready::Nothing
+impl SerialBus<TtyPort> {
+    /// Opens the tty of `cfg.path`. Nothing is sent before the first cycle.
+    pub fn open(cfg: SerialConfig) -> Result<SerialBus<TtyPort>, SerialError> {
+        check_config(&cfg)?;
+        let port = TtyPort::open(&cfg.path, cfg.baud)?;
+        Ok(SerialBus::with_port(port, cfg))
     }
 }
 
-fn open_port(cfg: &SerialConfig) -> Result<TTYPort, String> {
-    serialport::new(&cfg.path, cfg.baud)
-        .timeout(Duration::ZERO)
-        .open_native()
-        .map_err(|e| format!("cannot open serial port {}: {e}", cfg.path))
+/// Checks the settings the bus cannot run with.
+fn check_config(cfg: &SerialConfig) -> Result<(), SerialError> {
+    if cfg.axes.is_empty() || cfg.axes.len() > MAX_AXES {
+        return Err(SerialError::AxisCount {
+            count: cfg.axes.len(),
+            path: cfg.path.clone(),
+        });
+    }
+    if let Some(axis) = cfg
+        .axes
+        .iter()
+        .position(|a| !(a.increments_per_mm.is_finite() && a.increments_per_mm > 0.0))
+    {
+        return Err(SerialError::AxisScale { axis });
+    }
+    if let Some(sp) = &cfg.spindle
+        && !(sp.units_per_rpm.is_finite() && sp.units_per_rpm > 0.0)
+    {
+        return Err(SerialError::SpindleScale);
+    }
+    Ok(())
 }
 
-impl SerialBus {
-    /// Opens the port. Nothing is sent before the first cycle.
-    pub fn open(cfg: SerialConfig) -> Result<SerialBus, String> {
-        if cfg.axes.is_empty() || cfg.axes.len() > MAX_AXES {
-            return Err(format!(
-                "{} axes on serial link {}, 1..={MAX_AXES} are supported",
-                cfg.axes.len(),
-                cfg.path
-            ));
-        }
-        if let Some(i) = cfg
-            .axes
-            .iter()
-            .position(|a| !(a.increments_per_mm.is_finite() && a.increments_per_mm > 0.0))
-        {
-            return Err(format!("increments per mm of axis {i} must be positive"));
-        }
-        if let Some(sp) = &cfg.spindle
-            && !(sp.units_per_rpm.is_finite() && sp.units_per_rpm > 0.0)
-        {
-            return Err("velocity units per rpm of the spindle must be positive".into());
-        }
-        let port = open_port(&cfg)?;
+impl<P: SerialPort> SerialBus<P> {
+    /// The bus over an open `port` (`cfg.path` and `cfg.baud` only name it).
+    pub fn new(port: P, cfg: SerialConfig) -> Result<SerialBus<P>, SerialError> {
+        check_config(&cfg)?;
+        Ok(SerialBus::with_port(port, cfg))
+    }
+
+    fn with_port(port: P, cfg: SerialConfig) -> SerialBus<P> {
         let axis = Axis {
             velocity: false,
             phase: Phase::Idle,
@@ -227,11 +212,12 @@ impl SerialBus {
                 ..axis
             });
         }
-        Ok(SerialBus {
+        SerialBus {
             n_axes: cfg.axes.len(),
             axes,
             cfg,
-            port: Some(port),
+            port,
+            port_open: true,
             decoder: Decoder::default(),
             tick: 0,
             seq: 0,
@@ -242,11 +228,12 @@ impl SerialBus {
             link_fault: None,
             rx: [0; 256],
             homing: Homing::default(),
-        })
+        }
     }
 
     fn link_down(&mut self) {
-        self.port = None;
+        self.port.close();
+        self.port_open = false;
         self.link_fault = Some(FaultReason::LinkDown);
     }
 
@@ -254,78 +241,108 @@ impl SerialBus {
     fn receive(&mut self) {
         // Bounded: a babbling line cannot hold the tick.
         for _ in 0..8 {
-            let Some(port) = self.port.as_mut() else {
+            if !self.port_open {
                 return;
-            };
-            // Poll first: serialport reports "nothing to read" as an allocated error, which
-            // `cycle` must not cause every tick.
-            match readiness(port) {
-                Ready::Nothing => return,
-                Ready::HungUp => {
-                    self.link_down();
-                    return;
-                }
-                Ready::Data => {}
             }
-            let n = match port.read(&mut self.rx) {
-                Ok(0) => {
-                    // Readable but end of file: the other side hung up.
+            match self.port.try_read(&mut self.rx) {
+                Ok(0) => return,
+                Ok(n) => self.on_bytes(n),
+                Err(LinkDown) => {
                     self.link_down();
                     return;
                 }
-                Ok(n) => n,
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock
-                    ) =>
-                {
-                    return;
-                }
-                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
-                Err(_) => {
-                    self.link_down();
-                    return;
-                }
-            };
-            let mut reply = None;
-            let mut corrupt = 0;
-            let seq = self.seq;
-            self.decoder.feed(&self.rx[..n], |r| match r {
-                Ok(p) => match Reply::decode(p) {
-                    Some(y) if y.seq == seq => reply = Some(y),
-                    // A late reply to an earlier request, or a malformed one.
-                    Some(_) => {}
-                    None => corrupt += 1,
-                },
-                Err(FrameError::Crc | FrameError::Encoding | FrameError::TooLong) => corrupt += 1,
+            }
+        }
+    }
+
+    /// Decodes the `n` bytes read into `rx`: the reply to this request, corrupt frames.
+    fn on_bytes(&mut self, n: usize) {
+        let mut reply = None;
+        let mut corrupt = 0;
+        let seq = self.seq;
+        self.decoder.feed(&self.rx[..n], |r| match r {
+            Ok(p) => match Reply::decode(p) {
+                Some(y) if y.seq == seq => reply = Some(y),
+                // A late reply to an earlier request, or a malformed one.
+                Some(_) => {}
+                None => corrupt += 1,
+            },
+            Err(FrameError::Crc | FrameError::Encoding | FrameError::TooLong) => corrupt += 1,
+        });
+        self.corrupt_since_reply += corrupt;
+        if let Some(y) = reply {
+            self.on_reply(&y);
+        }
+    }
+
+    /// The reply to this tick's request: an older version answering a probe, or the feedback
+    /// when it has our axes and, exactly when we have one, the spindle.
+    fn on_reply(&mut self, y: &Reply) {
+        let spindle = self.axes.len() > self.n_axes;
+        if self.cfg.homing && y.home.is_none() {
+            self.probe_answered(y);
+        } else if usize::from(y.axes) == self.n_axes
+            && y.spindle.is_some() == spindle
+            && y.home.is_some() == self.cfg.homing
+        {
+            let records = y.axis[..self.n_axes].iter().chain(y.spindle.as_ref());
+            for (a, r) in self.axes.iter_mut().zip(records) {
+                a.statusword = r.statusword;
+                a.position_increments = r.position_increments;
+                a.error_code = r.error_code;
+            }
+            if let Some(h) = y.home {
+                self.home_status(h);
+            }
+            self.awaiting = false;
+            self.missing = 0;
+            self.corrupt_since_reply = 0;
+            self.have_feedback = true;
+        }
+    }
+
+    /// Counts a tick without the awaited reply; too many make the link silent (or corrupt).
+    fn count_missing_reply(&mut self) {
+        if !self.awaiting {
+            return;
+        }
+        self.missing += 1;
+        if self.missing > self.cfg.reply_timeout_ticks && self.link_fault.is_none() {
+            self.link_fault = Some(if self.corrupt_since_reply > 0 {
+                FaultReason::CorruptFrames
+            } else {
+                FaultReason::Timeout
             });
-            self.corrupt_since_reply += corrupt;
-            // A reply must have our axes and, exactly when we have one, the spindle.
-            let spindle = self.axes.len() > self.n_axes;
-            if let Some(y) = reply
-                && self.cfg.homing
-                && y.home.is_none()
-            {
-                self.probe_answered(&y);
-            } else if let Some(y) = reply
-                && usize::from(y.axes) == self.n_axes
-                && y.spindle.is_some() == spindle
-                && y.home.is_some() == self.cfg.homing
-            {
-                let records = y.axis[..self.n_axes].iter().chain(y.spindle.as_ref());
-                for (a, r) in self.axes.iter_mut().zip(records) {
-                    a.statusword = r.statusword;
-                    a.position_increments = r.position_increments;
-                    a.error_code = r.error_code;
-                }
-                if let Some(h) = y.home {
-                    self.home_status(h);
-                }
-                self.awaiting = false;
-                self.missing = 0;
-                self.corrupt_since_reply = 0;
-                self.have_feedback = true;
+        }
+    }
+
+    /// This tick's setpoint of drive `i` in drive units: an axis position, or the spindle
+    /// speed (a setpoint that is not a number stops the spindle).
+    fn target_of(&self, i: usize, cmd: &CycleCommand) -> i32 {
+        match self.cfg.axes.get(i) {
+            Some(c) => to_units(cmd.positions_mm[i], c.increments_per_mm),
+            None => {
+                let rpm = if cmd.spindle_rpm.is_finite() {
+                    cmd.spindle_rpm
+                } else {
+                    0.0
+                };
+                to_units(rpm, self.spindle_units_per_rpm())
+            }
+        }
+    }
+
+    /// Advances every drive by one tick; `fresh`: this tick's reply arrived.
+    fn update_drives(&mut self, cmd: &CycleCommand, fresh: bool) {
+        for i in 0..self.axes.len() {
+            let target = self.target_of(i, cmd);
+            if self.link_fault.is_some() && !matches!(self.axes[i].phase, Phase::Idle) {
+                // The drive is unreachable or unreliable: hold, and ask it to switch off.
+                let a = &mut self.axes[i];
+                a.controlword = cw::DISABLE_VOLTAGE;
+                a.target_increments = a.hold_target();
+            } else {
+                self.update_axis(i, target, fresh);
             }
         }
     }
@@ -334,7 +351,6 @@ impl SerialBus {
         let tick = self.tick;
         let limit = u64::from(self.cfg.enable_timeout_ticks);
         let a = &mut self.axes[i];
-        let state = PowerState::from_statusword(a.statusword);
         match a.phase {
             Phase::Idle => {
                 a.controlword = cw::DISABLE_VOLTAGE;
@@ -344,29 +360,25 @@ impl SerialBus {
                 a.target_increments = a.hold_target();
                 if !fresh {
                     // Wait for a reply before stepping the state machine.
-                } else if state == PowerState::OperationEnabled {
-                    a.phase = Phase::Operational;
-                    a.controlword = cw::ENABLE_OPERATION_CMD;
-                } else if tick - since > limit {
-                    a.phase = Phase::Faulted(FaultReason::EnableTimeout {
-                        statusword: a.statusword,
-                    });
-                } else {
-                    a.controlword = cia402::controlword_toward_enabled(state, a.controlword);
+                    return;
+                }
+                match cia402::enable_step(a.statusword, a.controlword) {
+                    EnableStep::Enabled => {
+                        a.phase = Phase::Operational;
+                        a.controlword = cw::ENABLE_OPERATION_CMD;
+                    }
+                    EnableStep::Toward(_) if tick - since > limit => {
+                        a.phase = Phase::Faulted(FaultReason::EnableTimeout {
+                            statusword: a.statusword,
+                        });
+                    }
+                    EnableStep::Toward(c) => a.controlword = c,
                 }
             }
-            Phase::Operational => {
-                let s = a.statusword;
-                if s & sw::FOLLOWING_ERROR != 0 {
-                    a.phase = Phase::Faulted(FaultReason::FollowingError);
-                } else if matches!(state, PowerState::Fault | PowerState::FaultReactionActive) {
-                    a.phase = Phase::Faulted(FaultReason::DriveFault { code: a.error_code });
-                } else if state != PowerState::OperationEnabled {
-                    a.phase = Phase::Faulted(FaultReason::DriveDisabled { statusword: s });
-                } else {
-                    a.target_increments = target;
-                }
-            }
+            Phase::Operational => match cia402::operating_fault(a.statusword, a.error_code) {
+                Some(reason) => a.phase = Phase::Faulted(reason),
+                None => a.target_increments = target,
+            },
             Phase::Faulted(_) => {}
         }
         if matches!(a.phase, Phase::Faulted(_)) {
@@ -376,7 +388,7 @@ impl SerialBus {
     }
 
     fn send_request(&mut self) {
-        if self.port.is_none() {
+        if !self.port_open {
             return;
         }
         self.seq = self.seq.wrapping_add(1);
@@ -406,22 +418,9 @@ impl SerialBus {
         let n = req.encode(&mut payload);
         let mut out = [0u8; frame::MAX_FRAME];
         let len = frame::encode(&payload[..n], &mut out);
-        let Some(port) = self.port.as_mut() else {
-            return;
-        };
-        // A frame is far smaller than any tty buffer; a short write means the line is stuck.
-        match port.write(&out[..len]) {
-            Ok(w) if w == len => self.awaiting = true,
-            Ok(_) => self.awaiting = true,
-            Err(e)
-                if matches!(
-                    e.kind(),
-                    io::ErrorKind::TimedOut | io::ErrorKind::WouldBlock
-                ) =>
-            {
-                self.awaiting = true
-            }
-            Err(_) => self.link_down(),
+        match self.port.write(&out[..len]) {
+            Ok(()) => self.awaiting = true,
+            Err(LinkDown) => self.link_down(),
         }
     }
 
@@ -515,91 +514,27 @@ impl SerialBus {
             (None, None)
         }
     }
-}
 
-impl Axis {
-    /// The target that holds the drive still: where it is, or speed 0 for the spindle.
-    fn hold_target(&self) -> i32 {
-        if self.velocity {
-            0
-        } else {
-            self.position_increments
-        }
-    }
-}
-
-impl DriveBus for SerialBus {
-    fn name(&self) -> &str {
-        &self.cfg.path
-    }
-
-    fn axes(&self) -> usize {
-        self.n_axes
-    }
-
-    fn has_spindle(&self) -> bool {
-        self.axes.len() > self.n_axes
-    }
-
-    fn cycle(&mut self, cmd: &CycleCommand, feedback: &mut CycleFeedback) -> Result<(), BusFault> {
-        self.tick += 1;
-        let was_awaiting = self.awaiting;
-        self.receive();
-        let fresh = was_awaiting && !self.awaiting;
-        if self.awaiting {
-            self.missing += 1;
-            if self.missing > self.cfg.reply_timeout_ticks && self.link_fault.is_none() {
-                self.link_fault = Some(if self.corrupt_since_reply > 0 {
-                    FaultReason::CorruptFrames
-                } else {
-                    FaultReason::Timeout
-                });
-            }
-        }
-        self.check_home_ack();
-        for i in 0..self.axes.len() {
-            let units = match self.cfg.axes.get(i) {
-                Some(c) => cmd.positions_mm[i] * c.increments_per_mm,
-                None => {
-                    // The spindle; a setpoint that is not a number stops it.
-                    let rpm = if cmd.spindle_rpm.is_finite() {
-                        cmd.spindle_rpm
-                    } else {
-                        0.0
-                    };
-                    rpm * self.spindle_units_per_rpm()
-                }
-            };
-            let target = units
-                .round()
-                .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32;
-            if self.link_fault.is_some() && !matches!(self.axes[i].phase, Phase::Idle) {
-                // The drive is unreachable or unreliable: hold, and ask it to switch off.
-                let a = &mut self.axes[i];
-                a.controlword = cw::DISABLE_VOLTAGE;
-                a.target_increments = a.hold_target();
-            } else {
-                self.update_axis(i, target, fresh);
-            }
-        }
-        self.send_request();
-
-        let state_of = |a: &Axis| match a.phase {
+    fn state_of(&self, a: &Axis) -> DriveState {
+        match a.phase {
             _ if self.link_fault.is_some() => DriveState::Fault,
             Phase::Idle => DriveState::Disabled,
             Phase::Enabling { .. } => DriveState::Enabling,
             Phase::Operational => DriveState::Operational,
             Phase::Faulted(_) => DriveState::Fault,
-        };
+        }
+    }
+
+    fn fill_feedback(&self, feedback: &mut CycleFeedback) {
         for ((fb, a), c) in feedback.axes.iter_mut().zip(&self.axes).zip(&self.cfg.axes) {
             *fb = AxisFeedback {
                 position_mm: f64::from(a.position_increments) / c.increments_per_mm,
-                state: state_of(a),
+                state: self.state_of(a),
             };
         }
         (feedback.spindle_rpm, feedback.spindle_state) = match self.axes.get(self.n_axes) {
             Some(a) => {
-                let state = state_of(a);
+                let state = self.state_of(a);
                 let rpm = if state == DriveState::Operational {
                     f64::from(a.position_increments) / self.spindle_units_per_rpm()
                 } else {
@@ -609,6 +544,10 @@ impl DriveBus for SerialBus {
             }
             None => (0.0, DriveState::Disabled),
         };
+    }
+
+    /// The fault to report this tick: the link's, else the first faulted drive's.
+    fn first_fault(&self) -> Result<(), BusFault> {
         if let Some(reason) = self.link_fault {
             let (axis, node) = self.link_scope();
             return Err(BusFault { axis, node, reason });
@@ -628,6 +567,46 @@ impl DriveBus for SerialBus {
             }
         }
         Ok(())
+    }
+}
+
+impl Axis {
+    /// The target that holds the drive still: where it is, or speed 0 for the spindle.
+    fn hold_target(&self) -> i32 {
+        if self.velocity {
+            0
+        } else {
+            self.position_increments
+        }
+    }
+}
+
+impl<P: SerialPort> DriveBus for SerialBus<P> {
+    fn name(&self) -> &str {
+        &self.cfg.path
+    }
+
+    fn axes(&self) -> usize {
+        self.n_axes
+    }
+
+    fn has_spindle(&self) -> bool {
+        self.axes.len() > self.n_axes
+    }
+
+    /// Receive the reply, count a missing one, watch the reference command, advance the
+    /// drives, send this tick's request, report.
+    fn cycle(&mut self, cmd: &CycleCommand, feedback: &mut CycleFeedback) -> Result<(), BusFault> {
+        self.tick += 1;
+        let was_awaiting = self.awaiting;
+        self.receive();
+        let fresh = was_awaiting && !self.awaiting;
+        self.count_missing_reply();
+        self.check_home_ack();
+        self.update_drives(cmd, fresh);
+        self.send_request();
+        self.fill_feedback(feedback);
+        self.first_fault()
     }
 
     fn enable(&mut self) {
@@ -678,13 +657,13 @@ impl DriveBus for SerialBus {
     }
 
     fn reset(&mut self) {
-        if self.port.is_none() {
+        if !self.port_open {
             // Reopening allocates and may take a moment; it happens only on the operator's
             // reset, never in `cycle`. If the port is still missing the fault stays.
-            match open_port(&self.cfg) {
-                Ok(p) => self.port = Some(p),
-                Err(_) => return,
+            if self.port.reopen().is_err() {
+                return;
             }
+            self.port_open = true;
         }
         self.decoder.clear();
         self.link_fault = None;
@@ -709,123 +688,178 @@ impl DriveBus for SerialBus {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cia402::PowerState;
     use crate::serial::message::AxisReply;
-    use serialport::SerialPort;
+    use std::sync::{Arc, Mutex};
 
-    /// The test plays the drive on the master side of a pty pair: it answers requests by
-    /// hand with the statusword it is given.
+    /// Both directions of an in-memory line, and whether it hung up.
+    #[derive(Default)]
+    struct Line {
+        to_drive: Vec<u8>,
+        to_master: Vec<u8>,
+        hung_up: bool,
+    }
+
+    /// The master's end of the in-memory line.
+    #[derive(Clone, Default)]
+    struct MemPort(Arc<Mutex<Line>>);
+
+    impl SerialPort for MemPort {
+        fn try_read(&mut self, buf: &mut [u8]) -> Result<usize, LinkDown> {
+            let mut line = self.0.lock().unwrap();
+            if line.hung_up {
+                return Err(LinkDown);
+            }
+            let n = line.to_master.len().min(buf.len());
+            buf[..n].copy_from_slice(&line.to_master[..n]);
+            line.to_master.drain(..n);
+            Ok(n)
+        }
+
+        fn write(&mut self, frame: &[u8]) -> Result<(), LinkDown> {
+            let mut line = self.0.lock().unwrap();
+            if line.hung_up {
+                return Err(LinkDown);
+            }
+            line.to_drive.extend_from_slice(frame);
+            Ok(())
+        }
+
+        fn close(&mut self) {}
+
+        fn reopen(&mut self) -> Result<(), SerialError> {
+            if self.0.lock().unwrap().hung_up {
+                return Err(SerialError::Open {
+                    path: "mem".into(),
+                    reason: "unplugged".into(),
+                });
+            }
+            Ok(())
+        }
+    }
+
+    /// The test plays the drive at the other end of the line: it answers requests by hand.
     struct Drive {
-        port: TTYPort,
+        line: MemPort,
         decoder: Decoder,
     }
 
     impl Drive {
-        fn answer(&mut self, statusword: u16, position: i32) -> Option<Request> {
-            let mut buf = [0u8; 256];
-            let mut got = None;
-            std::thread::sleep(Duration::from_millis(5));
-            if let Ok(n) = self.port.read(&mut buf) {
-                self.decoder.feed(&buf[..n], |r| {
-                    if let Ok(p) = r {
-                        got = Request::decode(p);
-                    }
-                });
-            }
-            let req = got?;
-            let mut y = Reply {
-                seq: req.seq,
-                axes: 1,
-                axis: [AxisReply::default(); MAX_AXES],
-                spindle: None,
-                home: None,
-            };
-            y.axis[0] = AxisReply {
-                statusword,
-                position_increments: position,
-                error_code: 0,
-            };
-            let mut p = [0u8; 64];
-            let n = y.encode(&mut p);
-            let mut f = [0u8; frame::MAX_FRAME];
-            let len = frame::encode(&p[..n], &mut f);
-            self.port.write_all(&f[..len]).unwrap();
-            Some(req)
-        }
-    }
-
-    impl Drive {
-        /// Reads one request and answers what `reply` makes of it (nothing on `None`).
+        /// Reads the last request sent and answers what `reply` makes of it (nothing on
+        /// `None`).
         fn answer_with(
             &mut self,
             reply: impl FnOnce(&Request) -> Option<Reply>,
         ) -> Option<Request> {
-            let mut buf = [0u8; 256];
+            let bytes = std::mem::take(&mut self.line.0.lock().unwrap().to_drive);
             let mut got = None;
-            std::thread::sleep(Duration::from_millis(5));
-            if let Ok(n) = self.port.read(&mut buf) {
-                self.decoder.feed(&buf[..n], |r| {
-                    if let Ok(p) = r {
-                        got = Request::decode(p);
-                    }
-                });
-            }
+            self.decoder.feed(&bytes, |r| {
+                if let Ok(p) = r {
+                    got = Request::decode(p);
+                }
+            });
             let req = got?;
             if let Some(y) = reply(&req) {
                 let mut p = [0u8; 64];
                 let n = y.encode(&mut p);
                 let mut f = [0u8; frame::MAX_FRAME];
                 let len = frame::encode(&p[..n], &mut f);
-                self.port.write_all(&f[..len]).unwrap();
+                self.line
+                    .0
+                    .lock()
+                    .unwrap()
+                    .to_master
+                    .extend_from_slice(&f[..len]);
             }
             Some(req)
         }
+
+        /// Answers the last request for one axis with `statusword` at `position`.
+        fn answer(&mut self, statusword: u16, position: i32) -> Option<Request> {
+            self.answer_with(|req| {
+                let mut y = v1_reply(req, position);
+                y.axis[0].statusword = statusword;
+                Some(y)
+            })
+        }
+
+        fn hang_up(&self, hung_up: bool) {
+            self.line.0.lock().unwrap().hung_up = hung_up;
+        }
     }
 
-    /// A version 3 reply of one enabled axis at `position`.
-    fn v3_reply(req: &Request, position: i32, home: HomeStatus) -> Option<Reply> {
+    /// A version 1 reply of one enabled axis at `position`.
+    fn v1_reply(req: &Request, position: i32) -> Reply {
         let mut y = Reply {
             seq: req.seq,
             axes: 1,
             axis: [AxisReply::default(); MAX_AXES],
             spindle: None,
-            home: Some(home),
+            home: None,
         };
         y.axis[0] = AxisReply {
             statusword: PowerState::OperationEnabled.statusword_bits(),
             position_increments: position,
             error_code: 0,
         };
-        Some(y)
+        y
     }
 
-    fn setup() -> (SerialBus, Drive) {
+    /// A version 3 reply of one enabled axis at `position`.
+    fn v3_reply(req: &Request, position: i32, home: HomeStatus) -> Option<Reply> {
+        Some(Reply {
+            home: Some(home),
+            ..v1_reply(req, position)
+        })
+    }
+
+    fn setup() -> (SerialBus<MemPort>, Drive) {
         setup_with(false)
     }
 
-    fn setup_with(homing: bool) -> (SerialBus, Drive) {
-        let (mut master, slave) = TTYPort::pair().unwrap();
-        master.set_timeout(Duration::from_millis(50)).unwrap();
-        let path = slave.name().unwrap();
-        let bus = SerialBus::open(SerialConfig {
+    fn setup_with(homing: bool) -> (SerialBus<MemPort>, Drive) {
+        let line = MemPort::default();
+        let cfg = SerialConfig {
             homing,
             ..SerialConfig::new(
-                &path,
+                "mem",
                 vec![SerialAxis {
                     node_id: 4,
                     increments_per_mm: 100.0,
                 }],
             )
-        })
-        .unwrap();
-        // Keep the slave fd open in the test so the pty stays alive.
-        std::mem::forget(slave);
-        (
-            bus,
-            Drive {
-                port: master,
-                decoder: Decoder::default(),
-            },
-        )
+        };
+        let bus = SerialBus::new(line.clone(), cfg).unwrap();
+        let drive = Drive {
+            line,
+            decoder: Decoder::default(),
+        };
+        (bus, drive)
+    }
+
+    #[test]
+    fn a_bad_configuration_is_refused_with_its_code() {
+        let axis = |increments_per_mm| SerialAxis {
+            node_id: 1,
+            increments_per_mm,
+        };
+        let open = |axes: Vec<SerialAxis>| {
+            SerialBus::new(MemPort::default(), SerialConfig::new("mem", axes))
+                .err()
+                .map(|e| e.code())
+        };
+        assert_eq!(open(vec![]), Some("serial_axis_count"));
+        assert_eq!(open(vec![axis(1.0), axis(0.0)]), Some("serial_axis_scale"));
+        assert_eq!(open(vec![axis(1.0)]), None);
+        let cfg = SerialConfig {
+            spindle: Some(SerialSpindle {
+                node_id: 2,
+                units_per_rpm: f64::NAN,
+            }),
+            ..SerialConfig::new("mem", vec![axis(1.0)])
+        };
+        let e = SerialBus::new(MemPort::default(), cfg).err().unwrap();
+        assert_eq!(e.code(), "serial_spindle_scale");
     }
 
     #[test]
@@ -866,17 +900,31 @@ mod tests {
 
     #[test]
     fn hang_up_is_link_down_and_reset_keeps_it_until_the_port_returns() {
-        let (mut bus, drive) = setup();
+        let (mut bus, mut drive) = setup();
         bus.enable();
-        drop(drive); // closes the pty master: the line hangs up
+        drive.hang_up(true);
         let mut fb = CycleFeedback::default();
         let cmd = CycleCommand::default();
-        let mut last = Ok(());
-        for _ in 0..3 {
-            last = bus.cycle(&cmd, &mut fb);
-        }
-        assert_eq!(last.unwrap_err().reason, FaultReason::LinkDown);
+        let e = bus.cycle(&cmd, &mut fb).unwrap_err();
+        assert_eq!(e.reason, FaultReason::LinkDown);
         assert_eq!(fb.axes[0].state, DriveState::Fault);
+        // Still unplugged: the reset cannot reopen the port, the fault stays.
+        bus.reset();
+        let e = bus.cycle(&cmd, &mut fb).unwrap_err();
+        assert_eq!(e.reason, FaultReason::LinkDown);
+        assert!(
+            drive.answer(0, 0).is_none(),
+            "nothing is sent on a closed port"
+        );
+        // Plugged in again: the reset reopens it and the drive is enabled again.
+        drive.hang_up(false);
+        bus.reset();
+        bus.cycle(&cmd, &mut fb).unwrap();
+        assert_eq!(fb.axes[0].state, DriveState::Enabling);
+        drive.answer(PowerState::SwitchOnDisabled.statusword_bits(), 0);
+        bus.cycle(&cmd, &mut fb).unwrap();
+        let req = drive.answer(0, 0).unwrap();
+        assert_eq!(req.axis[0].controlword, cw::SHUTDOWN);
     }
 
     /// Version 3: the switch input reaches `home_switch`; the reference command shifts the

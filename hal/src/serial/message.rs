@@ -31,10 +31,6 @@ pub const REPLY_V3: u8 = 0x83;
 const FLAG_SPINDLE: u8 = 0x01;
 const HEADER: usize = 3;
 const HEADER_V3: usize = 4;
-const HOME_COMMAND: usize = 7;
-const HOME_STATUS: usize = 3;
-const REQUEST_AXIS: usize = 6;
-const REPLY_AXIS: usize = 8;
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct AxisRequest {
@@ -94,48 +90,97 @@ pub struct HomeStatus {
     pub result: HomeResult,
 }
 
+/// One message: the request (records of [`AxisRequest`], a [`HomeCommand`]) or the reply
+/// (records of [`AxisReply`], a [`HomeStatus`]); both have the same layout.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Request {
+pub struct Message<R, H> {
+    /// The request's sequence number; the reply echoes it.
     pub seq: u8,
     pub axes: u8,
-    pub axis: [AxisRequest; MAX_AXES],
+    pub axis: [R; MAX_AXES],
     /// The spindle record: present in versions 2 and 3 only.
-    pub spindle: Option<AxisRequest>,
-    /// The reference command: present in version 3 only.
-    pub home: Option<HomeCommand>,
+    pub spindle: Option<R>,
+    /// Version 3 only: the reference command (request), the switches and acknowledgement
+    /// (reply).
+    pub home: Option<H>,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Reply {
-    /// Echo of the request's sequence number.
-    pub seq: u8,
-    pub axes: u8,
-    pub axis: [AxisReply; MAX_AXES],
-    /// The spindle record: present in versions 2 and 3 only.
-    pub spindle: Option<AxisReply>,
-    /// Switches and acknowledgement: present in version 3 only.
-    pub home: Option<HomeStatus>,
+/// The controller's request.
+pub type Request = Message<AxisRequest, HomeCommand>;
+/// The drive unit's reply.
+pub type Reply = Message<AxisReply, HomeStatus>;
+
+/// A fixed-length part of a message, little endian.
+pub trait Field: Copy + Default {
+    /// Bytes on the wire.
+    const LEN: usize;
+    fn put(&self, out: &mut [u8]);
+    /// `None` for a value the protocol does not define.
+    fn get(b: &[u8]) -> Option<Self>;
 }
 
-impl Request {
-    /// The protocol version of this request (1, 2 or 3).
+/// The per-axis record of a message kind, and the kind's message types of versions 1, 2, 3.
+pub trait Record: Field {
+    const TYPES: [u8; 3];
+}
+
+impl<R: Record, H: Field> Message<R, H> {
+    /// The protocol version of this message (1, 2 or 3).
     pub fn version(&self) -> u8 {
-        match (self.home, self.spindle) {
-            (Some(_), _) => 3,
-            (None, Some(_)) => 2,
-            (None, None) => 1,
+        match (self.home.is_some(), self.spindle.is_some()) {
+            (true, _) => 3,
+            (false, true) => 2,
+            (false, false) => 1,
         }
     }
-}
 
-impl Reply {
-    /// The protocol version of this reply (1, 2 or 3).
-    pub fn version(&self) -> u8 {
-        match (self.home, self.spindle) {
-            (Some(_), _) => 3,
-            (None, Some(_)) => 2,
-            (None, None) => 1,
+    /// Writes the payload into `out`; returns its length.
+    pub fn encode(&self, out: &mut [u8; 64]) -> usize {
+        let n = usize::from(self.axes.min(MAX_AXES as u8));
+        let start = put_header(
+            out,
+            R::TYPES,
+            self.version(),
+            self.seq,
+            n as u8,
+            self.spindle.is_some(),
+        );
+        let mut len = start;
+        for r in self.axis[..n].iter().chain(self.spindle.as_ref()) {
+            r.put(&mut out[len..]);
+            len += R::LEN;
         }
+        if let Some(h) = &self.home {
+            h.put(&mut out[len..]);
+            len += H::LEN;
+        }
+        len
+    }
+
+    pub fn decode(p: &[u8]) -> Option<Self> {
+        let l = layout(p, R::TYPES, R::LEN, H::LEN)?;
+        let mut axis = [R::default(); MAX_AXES];
+        for (i, a) in axis[..usize::from(l.axes)].iter_mut().enumerate() {
+            *a = R::get(&p[l.start + i * R::LEN..])?;
+        }
+        let end = l.start + usize::from(l.axes) * R::LEN;
+        let spindle = if l.spindle {
+            Some(R::get(&p[end..])?)
+        } else {
+            None
+        };
+        let home = if l.v3 {
+            Some(H::get(&p[p.len() - H::LEN..])?)
+        } else {
+            None
+        };
+        Some(Message {
+            seq: l.seq,
+            axes: l.axes,
+            axis,
+            spindle,
+            home,
+        })
     }
 }
 
@@ -194,50 +239,58 @@ fn layout(p: &[u8], types: [u8; 3], per_axis: usize, trailer: usize) -> Option<L
         })
 }
 
-fn put_home_command(out: &mut [u8], h: &HomeCommand) {
-    out[0] = match h.action {
-        HomeAction::None => 0,
-        HomeAction::SetReference => 1,
-    };
-    out[1] = h.id;
-    out[2] = h.axis;
-    out[3..7].copy_from_slice(&h.shift_increments.to_le_bytes());
+impl Field for HomeCommand {
+    const LEN: usize = 7;
+
+    fn put(&self, out: &mut [u8]) {
+        out[0] = match self.action {
+            HomeAction::None => 0,
+            HomeAction::SetReference => 1,
+        };
+        out[1] = self.id;
+        out[2] = self.axis;
+        out[3..7].copy_from_slice(&self.shift_increments.to_le_bytes());
+    }
+
+    fn get(b: &[u8]) -> Option<HomeCommand> {
+        let action = match b[0] {
+            0 => HomeAction::None,
+            1 => HomeAction::SetReference,
+            _ => return None,
+        };
+        Some(HomeCommand {
+            action,
+            id: b[1],
+            axis: b[2],
+            shift_increments: i32::from_le_bytes([b[3], b[4], b[5], b[6]]),
+        })
+    }
 }
 
-fn get_home_command(b: &[u8]) -> Option<HomeCommand> {
-    let action = match b[0] {
-        0 => HomeAction::None,
-        1 => HomeAction::SetReference,
-        _ => return None,
-    };
-    Some(HomeCommand {
-        action,
-        id: b[1],
-        axis: b[2],
-        shift_increments: i32::from_le_bytes([b[3], b[4], b[5], b[6]]),
-    })
-}
+impl Field for HomeStatus {
+    const LEN: usize = 3;
 
-fn put_home_status(out: &mut [u8], h: &HomeStatus) {
-    out[0] = h.switches;
-    out[1] = h.id;
-    out[2] = match h.result {
-        HomeResult::Applied => 0,
-        HomeResult::Refused => 1,
-    };
-}
+    fn put(&self, out: &mut [u8]) {
+        out[0] = self.switches;
+        out[1] = self.id;
+        out[2] = match self.result {
+            HomeResult::Applied => 0,
+            HomeResult::Refused => 1,
+        };
+    }
 
-fn get_home_status(b: &[u8]) -> Option<HomeStatus> {
-    let result = match b[2] {
-        0 => HomeResult::Applied,
-        1 => HomeResult::Refused,
-        _ => return None,
-    };
-    Some(HomeStatus {
-        switches: b[0],
-        id: b[1],
-        result,
-    })
+    fn get(b: &[u8]) -> Option<HomeStatus> {
+        let result = match b[2] {
+            0 => HomeResult::Applied,
+            1 => HomeResult::Refused,
+            _ => return None,
+        };
+        Some(HomeStatus {
+            switches: b[0],
+            id: b[1],
+            result,
+        })
+    }
 }
 
 /// Writes the header of a message of version `version` (types `types` of versions 1, 2, 3);
@@ -255,133 +308,46 @@ fn put_header(out: &mut [u8], types: [u8; 3], version: u8, seq: u8, n: u8, spind
     }
 }
 
-fn put_request(out: &mut [u8], a: &AxisRequest) {
-    out[..2].copy_from_slice(&a.controlword.to_le_bytes());
-    out[2..6].copy_from_slice(&a.target_increments.to_le_bytes());
-}
+impl Field for AxisRequest {
+    const LEN: usize = 6;
 
-fn get_request(b: &[u8]) -> AxisRequest {
-    AxisRequest {
-        controlword: u16::from_le_bytes([b[0], b[1]]),
-        target_increments: i32::from_le_bytes([b[2], b[3], b[4], b[5]]),
-    }
-}
-
-fn put_reply(out: &mut [u8], a: &AxisReply) {
-    out[..2].copy_from_slice(&a.statusword.to_le_bytes());
-    out[2..6].copy_from_slice(&a.position_increments.to_le_bytes());
-    out[6..8].copy_from_slice(&a.error_code.to_le_bytes());
-}
-
-fn get_reply(b: &[u8]) -> AxisReply {
-    AxisReply {
-        statusword: u16::from_le_bytes([b[0], b[1]]),
-        position_increments: i32::from_le_bytes([b[2], b[3], b[4], b[5]]),
-        error_code: u16::from_le_bytes([b[6], b[7]]),
-    }
-}
-
-impl Request {
-    /// Writes the payload into `out`; returns its length.
-    pub fn encode(&self, out: &mut [u8; 64]) -> usize {
-        let n = usize::from(self.axes.min(MAX_AXES as u8));
-        let types = [REQUEST, REQUEST_V2, REQUEST_V3];
-        let start = put_header(
-            out,
-            types,
-            self.version(),
-            self.seq,
-            n as u8,
-            self.spindle.is_some(),
-        );
-        for (i, a) in self.axis[..n].iter().enumerate() {
-            put_request(&mut out[start + i * REQUEST_AXIS..], a);
-        }
-        let mut len = start + n * REQUEST_AXIS;
-        if let Some(s) = &self.spindle {
-            put_request(&mut out[len..], s);
-            len += REQUEST_AXIS;
-        }
-        if let Some(h) = &self.home {
-            put_home_command(&mut out[len..], h);
-            len += HOME_COMMAND;
-        }
-        len
+    fn put(&self, out: &mut [u8]) {
+        out[..2].copy_from_slice(&self.controlword.to_le_bytes());
+        out[2..6].copy_from_slice(&self.target_increments.to_le_bytes());
     }
 
-    pub fn decode(p: &[u8]) -> Option<Request> {
-        let types = [REQUEST, REQUEST_V2, REQUEST_V3];
-        let l = layout(p, types, REQUEST_AXIS, HOME_COMMAND)?;
-        let mut axis = [AxisRequest::default(); MAX_AXES];
-        for (i, a) in axis[..usize::from(l.axes)].iter_mut().enumerate() {
-            *a = get_request(&p[l.start + i * REQUEST_AXIS..]);
-        }
-        let end = l.start + usize::from(l.axes) * REQUEST_AXIS;
-        let spindle = l.spindle.then(|| get_request(&p[end..]));
-        let home = if l.v3 {
-            Some(get_home_command(&p[p.len() - HOME_COMMAND..])?)
-        } else {
-            None
-        };
-        Some(Request {
-            seq: l.seq,
-            axes: l.axes,
-            axis,
-            spindle,
-            home,
+    fn get(b: &[u8]) -> Option<AxisRequest> {
+        Some(AxisRequest {
+            controlword: u16::from_le_bytes([b[0], b[1]]),
+            target_increments: i32::from_le_bytes([b[2], b[3], b[4], b[5]]),
         })
     }
 }
 
-impl Reply {
-    pub fn encode(&self, out: &mut [u8; 64]) -> usize {
-        let n = usize::from(self.axes.min(MAX_AXES as u8));
-        let types = [REPLY, REPLY_V2, REPLY_V3];
-        let start = put_header(
-            out,
-            types,
-            self.version(),
-            self.seq,
-            n as u8,
-            self.spindle.is_some(),
-        );
-        for (i, a) in self.axis[..n].iter().enumerate() {
-            put_reply(&mut out[start + i * REPLY_AXIS..], a);
-        }
-        let mut len = start + n * REPLY_AXIS;
-        if let Some(s) = &self.spindle {
-            put_reply(&mut out[len..], s);
-            len += REPLY_AXIS;
-        }
-        if let Some(h) = &self.home {
-            put_home_status(&mut out[len..], h);
-            len += HOME_STATUS;
-        }
-        len
+impl Record for AxisRequest {
+    const TYPES: [u8; 3] = [REQUEST, REQUEST_V2, REQUEST_V3];
+}
+
+impl Field for AxisReply {
+    const LEN: usize = 8;
+
+    fn put(&self, out: &mut [u8]) {
+        out[..2].copy_from_slice(&self.statusword.to_le_bytes());
+        out[2..6].copy_from_slice(&self.position_increments.to_le_bytes());
+        out[6..8].copy_from_slice(&self.error_code.to_le_bytes());
     }
 
-    pub fn decode(p: &[u8]) -> Option<Reply> {
-        let types = [REPLY, REPLY_V2, REPLY_V3];
-        let l = layout(p, types, REPLY_AXIS, HOME_STATUS)?;
-        let mut axis = [AxisReply::default(); MAX_AXES];
-        for (i, a) in axis[..usize::from(l.axes)].iter_mut().enumerate() {
-            *a = get_reply(&p[l.start + i * REPLY_AXIS..]);
-        }
-        let end = l.start + usize::from(l.axes) * REPLY_AXIS;
-        let spindle = l.spindle.then(|| get_reply(&p[end..]));
-        let home = if l.v3 {
-            Some(get_home_status(&p[p.len() - HOME_STATUS..])?)
-        } else {
-            None
-        };
-        Some(Reply {
-            seq: l.seq,
-            axes: l.axes,
-            axis,
-            spindle,
-            home,
+    fn get(b: &[u8]) -> Option<AxisReply> {
+        Some(AxisReply {
+            statusword: u16::from_le_bytes([b[0], b[1]]),
+            position_increments: i32::from_le_bytes([b[2], b[3], b[4], b[5]]),
+            error_code: u16::from_le_bytes([b[6], b[7]]),
         })
     }
+}
+
+impl Record for AxisReply {
+    const TYPES: [u8; 3] = [REPLY, REPLY_V2, REPLY_V3];
 }
 
 #[cfg(test)]

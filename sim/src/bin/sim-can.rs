@@ -17,7 +17,7 @@ fn main() {
         Ok(_) => fail("give at least one --node"),
         Err(e) => fail(&e.to_string()),
     };
-    let mut port = SocketCanPort::open(&args.iface).unwrap_or_else(|e| fail(&e));
+    let mut port = SocketCanPort::open(&args.iface).unwrap_or_else(|e| fail(&e.to_string()));
     let mut nodes: Vec<CanNode> = args
         .nodes
         .iter()

@@ -42,9 +42,34 @@ fn plug(link: &str) -> Line {
     }
 }
 
+/// Why the homing options were refused (each message ends the simulator).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+enum HomingArgsError {
+    #[error("{0} needs a value")]
+    MissingValue(&'static str),
+    #[error("bad --home-switch '{0}': give AXIS:MM:SIDE, e.g. 1:-5:-1")]
+    BadHomeSwitch(String),
+    #[error("bad --protocol '{0}': 1, 2 or 3")]
+    BadProtocol(String),
+    #[error("bad --watchdog-ms '{0}'")]
+    BadWatchdog(String),
+}
+
+impl HomingArgsError {
+    /// Stable code (tests match it; the message may improve).
+    fn code(&self) -> &'static str {
+        match self {
+            HomingArgsError::MissingValue(_) => "sim_missing_value",
+            HomingArgsError::BadHomeSwitch(_) => "sim_bad_home_switch",
+            HomingArgsError::BadProtocol(_) => "sim_bad_protocol",
+            HomingArgsError::BadWatchdog(_) => "sim_bad_watchdog",
+        }
+    }
+}
+
 /// A home switch option: (axis index, position mm, side).
-fn home_switch(v: &str) -> Result<(usize, f64, f64), String> {
-    let bad = || format!("bad --home-switch '{v}': give AXIS:MM:SIDE, e.g. 1:-5:-1");
+fn home_switch(v: &str) -> Result<(usize, f64, f64), HomingArgsError> {
+    let bad = || HomingArgsError::BadHomeSwitch(v.to_owned());
     let mut w = v.split(':');
     let (Some(a), Some(mm), Some(side), None) = (w.next(), w.next(), w.next(), w.next()) else {
         return Err(bad());
@@ -66,7 +91,7 @@ struct HomingArgs {
     rest: Vec<String>,
 }
 
-fn homing_args(args: impl Iterator<Item = String>) -> Result<HomingArgs, String> {
+fn homing_args(args: impl Iterator<Item = String>) -> Result<HomingArgs, HomingArgsError> {
     let mut h = HomingArgs {
         switches: Vec::new(),
         max_version: 3,
@@ -74,22 +99,25 @@ fn homing_args(args: impl Iterator<Item = String>) -> Result<HomingArgs, String>
         rest: Vec::new(),
     };
     let mut it = args;
+    let value = |key: &'static str, it: &mut dyn Iterator<Item = String>| {
+        it.next().ok_or(HomingArgsError::MissingValue(key))
+    };
     while let Some(k) = it.next() {
         match k.as_str() {
-            "--home-switch" => h.switches.push(home_switch(
-                &it.next().ok_or("--home-switch needs a value")?,
-            )?),
+            "--home-switch" => h
+                .switches
+                .push(home_switch(&value("--home-switch", &mut it)?)?),
             "--protocol" => {
-                let v = it.next().ok_or("--protocol needs a value")?;
+                let v = value("--protocol", &mut it)?;
                 h.max_version = v
                     .parse()
                     .ok()
                     .filter(|n| (1..=3).contains(n))
-                    .ok_or(format!("bad --protocol '{v}': 1, 2 or 3"))?;
+                    .ok_or(HomingArgsError::BadProtocol(v))?;
             }
             "--watchdog-ms" => {
-                let v = it.next().ok_or("--watchdog-ms needs a value")?;
-                h.watchdog_ms = Some(v.parse().map_err(|_| format!("bad --watchdog-ms '{v}'"))?);
+                let v = value("--watchdog-ms", &mut it)?;
+                h.watchdog_ms = Some(v.parse().map_err(|_| HomingArgsError::BadWatchdog(v))?);
             }
             _ => h.rest.push(k),
         }
@@ -97,20 +125,15 @@ fn homing_args(args: impl Iterator<Item = String>) -> Result<HomingArgs, String>
     Ok(h)
 }
 
-fn main() {
-    let homing = homing_args(std::env::args().skip(1)).unwrap_or_else(|e| fail(&e));
-    let args = match SimArgs::parse(homing.rest.into_iter()) {
-        Ok(a) if !a.link.is_empty() => a,
-        Ok(_) => fail("give --link PATH"),
-        Err(e) => fail(&e.to_string()),
-    };
+/// The drive unit the options describe.
+fn drive_unit(args: &SimArgs, homing: &HomingArgs) -> SerialDriveUnit {
     let drives = (0..args.axes).map(|_| args.drive()).collect();
     let mut unit = SerialDriveUnit::new(drives);
     unit.max_version = homing.max_version;
     if let Some(ms) = homing.watchdog_ms {
         unit.watchdog_ms = ms;
     }
-    for (axis, at, side) in homing.switches {
+    for &(axis, at, side) in &homing.switches {
         if axis >= args.axes {
             fail(&format!(
                 "--home-switch of axis {}: the unit has {}",
@@ -123,6 +146,49 @@ fn main() {
     if args.spindle {
         unit.spindle = Some(args.drive());
     }
+    unit
+}
+
+/// Applies one stdin command; `false` on `quit`.
+fn apply(c: Command, unit: &mut SerialDriveUnit, line: &mut Option<Line>, link: &str) -> bool {
+    eprintln!("sim-serial: {c:?}");
+    match c {
+        Command::Silent(on, _) => unit.inject.silent = on,
+        Command::Corrupt(on, _) => unit.inject.corrupt = on,
+        Command::Fault(code, which) => {
+            // The spindle is the drive after the axes (`fault CODE <axes + 1>`).
+            let all = unit.drives.iter_mut().chain(unit.spindle.as_mut());
+            for (i, d) in all.enumerate() {
+                if which.is_none_or(|w| usize::from(w) == i + 1) {
+                    d.fault(code);
+                }
+            }
+        }
+        Command::Unplug => {
+            *line = None;
+            let _ = std::fs::remove_file(link);
+            println!("sim-serial unplugged");
+            let _ = std::io::stdout().flush();
+        }
+        Command::Plug if line.is_none() => {
+            unit.reconnect();
+            *line = Some(plug(link));
+        }
+        Command::Quit => return false,
+        _ => {}
+    }
+    true
+}
+
+fn main() {
+    let homing = homing_args(std::env::args().skip(1))
+        .unwrap_or_else(|e| fail(&format!("{e} [{}]", e.code())));
+    let args = match SimArgs::parse(homing.rest.iter().cloned()) {
+        Ok(a) if !a.link.is_empty() => a,
+        Ok(_) => fail("give --link PATH"),
+        Err(e) => fail(&e.to_string()),
+    };
+    let mut unit = drive_unit(&args, &homing);
     let mut line = Some(plug(&args.link));
     let commands = control::stdin_commands();
     let start = Instant::now();
@@ -131,31 +197,8 @@ fn main() {
     loop {
         let now_ms = start.elapsed().as_millis() as u64;
         while let Ok(c) = commands.try_recv() {
-            eprintln!("sim-serial: {c:?}");
-            match c {
-                Command::Silent(on, _) => unit.inject.silent = on,
-                Command::Corrupt(on, _) => unit.inject.corrupt = on,
-                Command::Fault(code, which) => {
-                    // The spindle is the drive after the axes (`fault CODE <axes + 1>`).
-                    let all = unit.drives.iter_mut().chain(unit.spindle.as_mut());
-                    for (i, d) in all.enumerate() {
-                        if which.is_none_or(|w| usize::from(w) == i + 1) {
-                            d.fault(code);
-                        }
-                    }
-                }
-                Command::Unplug => {
-                    line = None;
-                    let _ = std::fs::remove_file(&args.link);
-                    println!("sim-serial unplugged");
-                    let _ = std::io::stdout().flush();
-                }
-                Command::Plug if line.is_none() => {
-                    unit.reconnect();
-                    line = Some(plug(&args.link));
-                }
-                Command::Quit => return,
-                _ => {}
+            if !apply(c, &mut unit, &mut line, &args.link) {
+                return;
             }
         }
         let Some(l) = line.as_mut() else {
@@ -185,4 +228,34 @@ fn main() {
 fn fail(msg: &str) -> ! {
     eprintln!("sim-serial: {msg}");
     std::process::exit(2)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(args: &[&str]) -> Result<HomingArgs, HomingArgsError> {
+        homing_args(args.iter().map(|a| a.to_string()))
+    }
+
+    #[test]
+    fn homing_options_parse_and_bad_ones_are_refused_by_code() {
+        let h = parse(&["--home-switch", "2:-5:-1", "--protocol", "2", "--axes", "3"]).unwrap();
+        assert_eq!(h.switches, vec![(1, -5.0, -1.0)]);
+        assert_eq!((h.max_version, h.watchdog_ms), (2, None));
+        assert_eq!(h.rest, vec!["--axes", "3"]);
+        let code = |args: &[&str]| parse(args).err().map(|e| e.code());
+        assert_eq!(code(&["--home-switch"]), Some("sim_missing_value"));
+        assert_eq!(
+            code(&["--home-switch", "0:1:1"]),
+            Some("sim_bad_home_switch")
+        );
+        assert_eq!(
+            code(&["--home-switch", "1:1:0"]),
+            Some("sim_bad_home_switch")
+        );
+        assert_eq!(code(&["--protocol", "4"]), Some("sim_bad_protocol"));
+        assert_eq!(code(&["--watchdog-ms", "x"]), Some("sim_bad_watchdog"));
+        assert_eq!(code(&["--watchdog-ms", "50"]), None);
+    }
 }
