@@ -89,18 +89,10 @@ fn main() {
     );
 
     // 1. validate: messages only (the daemon's check before running).
-    let mut best = f64::MAX;
-    let mut peak = 0;
-    for _ in 0..3 {
-        let base = mark();
-        let t = Instant::now();
+    let (best, peak) = best_of_3(|| {
         let d = validate(black_box(&text), &setup);
-        let dt = t.elapsed().as_secs_f64();
         assert!(d.is_empty(), "{:?}", &d[..d.len().min(3)]);
-        peak = peak.max(alloc_count::peak_bytes() - base);
-        best = best.min(dt);
-        drop(d);
-    }
+    });
     row(
         "validate (diagnostics only)",
         best,
@@ -110,11 +102,7 @@ fn main() {
     );
 
     // 2. stream: blocks one at a time (execution).
-    let mut best = f64::MAX;
-    let mut peak = 0;
-    for _ in 0..3 {
-        let base = mark();
-        let t = Instant::now();
+    let (best, peak) = best_of_3(|| {
         let mut count = 0usize;
         let mut sum = 0.0;
         for b in stream(black_box(&text), &setup) {
@@ -124,12 +112,9 @@ fn main() {
             }
             count += 1;
         }
-        let dt = t.elapsed().as_secs_f64();
         black_box(sum);
         assert_eq!(count, blocks);
-        peak = peak.max(alloc_count::peak_bytes() - base);
-        best = best.min(dt);
-    }
+    });
     row(
         "stream (one block at a time)",
         best,
@@ -155,6 +140,22 @@ fn main() {
     if let Ok(l) = std::fs::read_to_string("/proc/loadavg") {
         println!("load average while measuring: {}", l.trim());
     }
+}
+
+/// Runs `pass` three times: the best time in seconds and the highest peak of bytes allocated
+/// above the level before each run (what the pass holds, its results included until dropped).
+fn best_of_3(mut pass: impl FnMut()) -> (f64, usize) {
+    let mut best = f64::MAX;
+    let mut peak = 0;
+    for _ in 0..3 {
+        let base = mark();
+        let t = Instant::now();
+        pass();
+        let dt = t.elapsed().as_secs_f64();
+        peak = peak.max(alloc_count::peak_bytes() - base);
+        best = best.min(dt);
+    }
+    (best, peak)
 }
 
 fn row(name: &str, secs: f64, blocks: usize, peak: usize, text: usize) {

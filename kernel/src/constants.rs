@@ -6,7 +6,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::diag::Diagnostic;
+use crate::diag::{DiagCode, Diagnostic};
 
 /// Highest constant number.
 pub const MAX_R: u16 = 999;
@@ -204,7 +204,13 @@ impl Constants {
     pub fn validate(&self) -> Vec<Diagnostic> {
         let mut out = Vec::new();
         let mut bad = |r: u16, msg: String| {
-            out.push(Diagnostic::error(None, 0, 0, format!("R{r}: {msg}")));
+            out.push(Diagnostic::error(
+                DiagCode::ConstantOutOfRange,
+                None,
+                0,
+                0,
+                format!("R{r}: {msg}"),
+            ));
         };
         self.check_axes(&mut bad);
         self.check_modes(&mut bad);
@@ -333,6 +339,7 @@ impl Constants {
                 Ok((r, m)) => {
                     if c.milli.insert(r, m).is_some() {
                         errors.push(Diagnostic::error(
+                            DiagCode::ConstantSetTwice,
                             None,
                             line_no,
                             col,
@@ -340,9 +347,13 @@ impl Constants {
                         ));
                     }
                 }
-                Err((off, msg)) => {
-                    errors.push(Diagnostic::error(None, line_no, col + off as u32, msg))
-                }
+                Err((off, e)) => errors.push(Diagnostic::error(
+                    e.code(),
+                    None,
+                    line_no,
+                    col + off as u32,
+                    e.to_string(),
+                )),
             }
         }
         if errors.is_empty() {
@@ -377,34 +388,62 @@ fn axis_letter(m: i64) -> Option<char> {
     Some(AXIS_CODES[(m / 1000 - 1) as usize])
 }
 
+/// Why a line of a constants file is refused.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ConstantLineError {
+    #[error("expected Rnnn=value, found '{0}'")]
+    NotR(char),
+    #[error("expected a constant number 0..999 after R")]
+    NoNumber,
+    #[error("R{0} does not exist (R0..R{MAX_R})")]
+    Unknown(String),
+    #[error("R{0}: expected '=' after the constant number")]
+    NoEquals(u16),
+    #[error("R{0}: {1}")]
+    Value(u16, FixedValueError),
+}
+
+impl ConstantLineError {
+    /// Stable code (tests and HMIs match it; the message may improve).
+    pub fn code(&self) -> DiagCode {
+        match self {
+            ConstantLineError::NotR(_)
+            | ConstantLineError::NoNumber
+            | ConstantLineError::NoEquals(_) => DiagCode::ConstantSyntax,
+            ConstantLineError::Unknown(_) => DiagCode::ConstantUnknown,
+            ConstantLineError::Value(_, e) => e.code(),
+        }
+    }
+}
+
 /// One `Rnnn=value` line (already trimmed). Errors carry a byte offset into the line.
-fn parse_line(t: &str) -> Result<(u16, i64), (usize, String)> {
+fn parse_line(t: &str) -> Result<(u16, i64), (usize, ConstantLineError)> {
     let b = t.as_bytes();
     if !matches!(b[0], b'R' | b'r') {
-        return Err((0, format!("expected Rnnn=value, found '{}'", first_char(t))));
+        return Err((0, ConstantLineError::NotR(first_char(t))));
     }
     let mut i = 1;
     while i < b.len() && b[i].is_ascii_digit() {
         i += 1;
     }
     if i == 1 {
-        return Err((1, "expected a constant number 0..999 after R".into()));
+        return Err((1, ConstantLineError::NoNumber));
     }
     let r: u32 = t[1..i].parse().unwrap_or(u32::MAX);
     if r > u32::from(MAX_R) {
-        return Err((1, format!("R{} does not exist (R0..R{MAX_R})", &t[1..i])));
+        return Err((1, ConstantLineError::Unknown(t[1..i].into())));
     }
     let r = r as u16;
     let rest = &t[i..];
     let eq = rest.trim_start();
     if !eq.starts_with('=') {
-        return Err((i, format!("R{r}: expected '=' after the constant number")));
+        return Err((i, ConstantLineError::NoEquals(r)));
     }
     let v = eq[1..].trim();
     let voff = t.len() - eq[1..].trim_start().len();
     parse_fixed_milli(v)
         .map(|m| (r, m))
-        .map_err(|msg| (voff, format!("R{r}: {msg}")))
+        .map_err(|e| (voff, ConstantLineError::Value(r, e)))
 }
 
 fn first_char(t: &str) -> char {
@@ -424,11 +463,11 @@ pub enum FixedValueError {
 
 impl FixedValueError {
     /// Stable code (tests and HMIs match it; the message may improve).
-    pub fn code(&self) -> &'static str {
+    pub fn code(&self) -> DiagCode {
         match self {
-            FixedValueError::NotANumber(_) => "constant_not_a_number",
-            FixedValueError::TooManyDigits(_) => "constant_too_many_digits",
-            FixedValueError::TooManyDecimals(_) => "constant_too_many_decimals",
+            FixedValueError::NotANumber(_) => DiagCode::ConstantNotANumber,
+            FixedValueError::TooManyDigits(_) => DiagCode::ConstantTooManyDigits,
+            FixedValueError::TooManyDecimals(_) => DiagCode::ConstantTooManyDecimals,
         }
     }
 }

@@ -1,4 +1,5 @@
-//! Diagnostics: every error and warning the kernel produces, with where it comes from.
+//! Diagnostics: every error and warning the kernel produces, with where it comes from and a
+//! stable code ([`DiagCode`]) saying what it is about.
 
 use std::fmt;
 
@@ -12,11 +13,237 @@ pub enum Severity {
     Error,
 }
 
+/// Declares [`DiagCode`] and its string table in one place, so a variant cannot lack its
+/// stable string.
+macro_rules! diag_codes {
+    ($($(#[$doc:meta])* $name:ident = $s:literal,)*) => {
+        /// What a [`Diagnostic`] is about, as a stable code: tests and HMIs match the code,
+        /// the message stays free to improve. The string form ([`DiagCode::as_str`],
+        /// `lower_snake_case`) is part of the API (`Diagnostic.code` in cnc.proto) and is
+        /// listed in docs/api.md ("Diagnostic codes"): a code is never renamed or reused.
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum DiagCode {
+            $($(#[$doc])* $name,)*
+        }
+
+        impl DiagCode {
+            /// Every code, in declaration order.
+            pub const ALL: &'static [DiagCode] = &[$(DiagCode::$name,)*];
+
+            /// The stable string form.
+            pub const fn as_str(self) -> &'static str {
+                match self {
+                    $(DiagCode::$name => $s,)*
+                }
+            }
+        }
+    };
+}
+
+// A table: one line per code reads better whole than split.
+diag_codes! {
+    // ---- program text: words (SPEC §2) ----
+    /// A number with too many digits or decimals.
+    NumberMalformed = "number_malformed",
+    /// A character the language does not have here.
+    UnexpectedCharacter = "unexpected_character",
+    /// An address letter without its value.
+    WordWithoutValue = "word_without_value",
+    /// An address the language does not have.
+    UnknownAddress = "unknown_address",
+    /// A word taking a whole number written with a fraction or decimal point.
+    WordNotWhole = "word_not_whole",
+    /// A word's value outside its range (G, M, D, &, N, I of the dynamic set).
+    WordOutOfRange = "word_out_of_range",
+    /// The same word twice in one block.
+    WordTwice = "word_twice",
+    /// N that is not the first word of the block.
+    BlockNumberNotFirst = "block_number_not_first",
+    /// Two G functions of one modal group in one block.
+    GGroupConflict = "g_group_conflict",
+    /// Two M functions of one group (spindle, feed scale, gear) in one block.
+    MGroupConflict = "m_group_conflict",
+    /// More than 4 M functions in one block.
+    TooManyMFunctions = "too_many_m_functions",
+    /// A G function this controller does not have.
+    UnknownGFunction = "unknown_g_function",
+    /// G4 (dwell): not a function of this dialect.
+    DwellNotSupported = "dwell_not_supported",
+    /// G18/G19 on a machine without the third axis.
+    PlaneNeedsAxis = "plane_needs_axis",
+    // ---- program parameters R0..R94 ----
+    /// A parameter number outside R0..R94.
+    ParamOutOfRange = "param_out_of_range",
+    /// An `R<n>=value` assignment written wrong.
+    ParamAssignmentSyntax = "param_assignment_syntax",
+    /// A parameter used before it was assigned.
+    ParamUnassigned = "param_unassigned",
+    /// More than 16 parameter assignments in one block.
+    TooManyAssignments = "too_many_assignments",
+    // ---- feed and spindle (SPEC §5, §6) ----
+    /// F out of its range (negative, above the per-minute or per-revolution maximum).
+    FeedOutOfRange = "feed_out_of_range",
+    /// A feed move with F = 0.
+    FeedZero = "feed_zero",
+    /// A feed move before any F.
+    NoFeed = "no_feed",
+    /// A feed move after the feed changed between per minute and per revolution, without F.
+    FeedModeChanged = "feed_mode_changed",
+    /// Feed per revolution without a turning spindle with a speed.
+    FeedPerRevWithoutSpindle = "feed_per_rev_without_spindle",
+    /// A feed per revolution above βmax = Vmax/S (warning).
+    FeedAboveBetaMax = "feed_above_beta_max",
+    /// G76 without S.
+    G76NeedsS = "g76_needs_s",
+    /// A negative S or spindle speed limit.
+    NegativeSpeed = "negative_speed",
+    /// A gear range (M41..M44) the machine does not have.
+    GearNotConfigured = "gear_not_configured",
+    // ---- arcs (SPEC §4.6) ----
+    /// I, J or E in a block that is not an arc.
+    ArcWordWithoutArc = "arc_word_without_arc",
+    /// An arc without both centre words I and J.
+    ArcNeedsCentre = "arc_needs_centre",
+    /// An arc with zero radius.
+    ArcRadiusZero = "arc_radius_zero",
+    /// The arc end point misses the circle by more than R55.
+    ArcEndOffCircle = "arc_end_off_circle",
+    /// An arc replaced by a line (end point off the circle, 7.R397 = 1 or R397 d7; warning).
+    ArcReplacedByLine = "arc_replaced_by_line",
+    /// An E word that does not decode (SPEC §4.6).
+    ERefinementInvalid = "e_refinement_invalid",
+    /// The circle refinement R325 corrected a centre (information).
+    ArcRefined = "arc_refined",
+    /// An arc right after the length offset changed.
+    ArcAfterOffsetChange = "arc_after_offset_change",
+    /// A rotary axis moving in an arc.
+    RotaryAxisInArc = "rotary_axis_in_arc",
+    // ---- offsets and G92 (SPEC §3) ----
+    /// G92 in a block with axis motion.
+    G92WithMotion = "g92_with_motion",
+    /// G92 without D, or with D0.
+    G92NeedsEntry = "g92_needs_entry",
+    /// G92 D<n> without any R0..R4 (warning).
+    G92WritesNothing = "g92_writes_nothing",
+    /// An offset entry outside 01..99.
+    OffsetNoEntry = "offset_no_entry",
+    /// An offset value outside ±99999.999 mm.
+    OffsetValueOutOfRange = "offset_value_out_of_range",
+    /// A TAB0.KOR line written wrong (text after `$KOR`, a second `$KOR`, not `NN: KEY=value`).
+    OffsetFileSyntax = "offset_file_syntax",
+    /// No `$KOR` line in a TAB0.KOR file.
+    OffsetKorMissing = "offset_kor_missing",
+    /// An entry listed twice in a TAB0.KOR file.
+    OffsetEntryTwice = "offset_entry_twice",
+    /// An entry number not written with two digits (`1:` for `01:`).
+    OffsetEntryNotTwoDigits = "offset_entry_not_two_digits",
+    /// A key that is not R, an axis name of this machine or an axis number 1..4.
+    OffsetUnknownKey = "offset_unknown_key",
+    /// A standard axis name used for another axis: the length is written by its number (SPEC §3).
+    OffsetAxisByOrdinal = "offset_axis_by_ordinal",
+    /// A key twice in one entry.
+    OffsetKeyTwice = "offset_key_twice",
+    /// An offset value that is missing, not a number, or has too many decimals.
+    OffsetValueSyntax = "offset_value_syntax",
+    // ---- radius compensation (SPEC §4) ----
+    /// G41/G42 while 8.R95 = 0.
+    CompDisabled = "comp_disabled",
+    /// G41/G42 without a tool (D).
+    CompWithoutTool = "comp_without_tool",
+    /// Compensation started, changed or cancelled on an arc.
+    CompChangeOnArc = "comp_change_on_arc",
+    /// G41 directly after G42 or back (6.R397 = 0).
+    CompSideSwitch = "comp_side_switch",
+    /// G40 without motion in the compensation plane (7.R339 = 0).
+    G40WithoutMotion = "g40_without_motion",
+    /// The plane changed while compensation is active.
+    PlaneChangeUnderComp = "plane_change_under_comp",
+    /// An arc in another plane than the compensation plane.
+    CompArcOtherPlane = "comp_arc_other_plane",
+    /// Too many blocks without motion in the compensation plane.
+    CompTooManyBridged = "comp_too_many_bridged",
+    /// The tool radius is larger than an inside arc.
+    ToolLargerThanArc = "tool_larger_than_arc",
+    /// No intersection of equidistants (error; a warning when the arc is replaced, R397 d8).
+    NoIntersection = "no_intersection",
+    /// The equidistant runs backwards: the tool is too large for the detail (R397).
+    EquidistantBackward = "equidistant_backward",
+    /// The equidistant of an arc runs backwards; arc replaced by a line (R397 d5, warning).
+    EquidistantArcBackward = "equidistant_arc_backward",
+    /// An equidistant loop removed by the 3-block optimisation (R397 d3, information).
+    LoopRemoved3Blocks = "loop_removed_3_blocks",
+    /// An equidistant loop removed by the 4-block optimisation (R397 d4, information).
+    LoopRemoved4Blocks = "loop_removed_4_blocks",
+    /// On the exit from the contour the tool centre moves backwards (R764).
+    ExitBackward = "exit_backward",
+    /// The exit from the contour optimised, the backward move left out (R764, information).
+    ExitOptimised = "exit_optimised",
+    /// The equidistant lies far from the programmed corner (R765, warning).
+    CornerFarFromEquidistant = "corner_far_from_equidistant",
+    /// An arc of tool radius inserted at a corner (R339, information).
+    CornerArcInserted = "corner_arc_inserted",
+    /// The tool cuts into the contour (the gouge check).
+    Gouge = "gouge",
+    /// The gouge check stopped covering a long contour (information).
+    GougeCheckLimited = "gouge_check_limited",
+    // ---- the run ----
+    /// A position beyond a soft limit (the diagnostic carries `limit`).
+    SoftLimit = "soft_limit",
+    /// A coordinate or radius that is not a finite number.
+    NonFiniteCoordinate = "non_finite_coordinate",
+    /// Lines after M2/M30 are not run (information).
+    LinesAfterEnd = "lines_after_end",
+    /// Too many errors: checking stopped.
+    TooManyErrors = "too_many_errors",
+    /// More messages than are listed (information).
+    MessagesNotListed = "messages_not_listed",
+    /// A defect of the controller, not of the program.
+    Internal = "internal",
+    // ---- machine setup and constants ----
+    /// The machine's axis names cannot be used.
+    AxisNamesInvalid = "axis_names_invalid",
+    /// A constants line written wrong (not `Rnnn=value`).
+    ConstantSyntax = "constant_syntax",
+    /// A constant number that does not exist.
+    ConstantUnknown = "constant_unknown",
+    /// A constant set twice in one file.
+    ConstantSetTwice = "constant_set_twice",
+    /// A constant value that is not a number.
+    ConstantNotANumber = "constant_not_a_number",
+    /// A constant value with more than 5 digits before the point.
+    ConstantTooManyDigits = "constant_too_many_digits",
+    /// A constant value with more than 3 decimals.
+    ConstantTooManyDecimals = "constant_too_many_decimals",
+    /// A constant whose value has no meaning (validation).
+    ConstantOutOfRange = "constant_out_of_range",
+    // ---- files, API, preview ----
+    /// A value given over the API outside its range.
+    ValueOutOfRange = "value_out_of_range",
+    /// A value given over the API with more decimals than the file keeps.
+    ValueTooPrecise = "value_too_precise",
+    /// A program file that cannot be read.
+    ProgramUnreadable = "program_unreadable",
+    /// Text (a program, a file sent over the API) that is not UTF-8.
+    TextNotUtf8 = "text_not_utf8",
+    /// A preview page that does not exist.
+    PreviewNoSuchPage = "preview_no_such_page",
+    /// A preview plane naming an axis the machine does not have.
+    PreviewAxisMissing = "preview_axis_missing",
+}
+
+impl fmt::Display for DiagCode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 /// One message about a program, a table file or a configuration, located for a machinist:
 /// block number `N` when the block has one, and always the 1-based source line and column.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Diagnostic {
     pub severity: Severity,
+    /// What the message is about, stable for tests and HMIs.
+    pub code: DiagCode,
     /// The `N` number of the block, if it was programmed.
     pub block: Option<u32>,
     /// 1-based line in the source text (0 when not tied to a line).
@@ -29,9 +256,16 @@ pub struct Diagnostic {
 }
 
 impl Diagnostic {
-    pub fn error(block: Option<u32>, line: u32, column: u32, message: impl Into<String>) -> Self {
+    pub fn error(
+        code: DiagCode,
+        block: Option<u32>,
+        line: u32,
+        column: u32,
+        message: impl Into<String>,
+    ) -> Self {
         Diagnostic {
             severity: Severity::Error,
+            code,
             block,
             line,
             column,
@@ -40,17 +274,29 @@ impl Diagnostic {
         }
     }
 
-    pub fn warning(block: Option<u32>, line: u32, column: u32, message: impl Into<String>) -> Self {
+    pub fn warning(
+        code: DiagCode,
+        block: Option<u32>,
+        line: u32,
+        column: u32,
+        message: impl Into<String>,
+    ) -> Self {
         Diagnostic {
             severity: Severity::Warning,
-            ..Self::error(block, line, column, message)
+            ..Self::error(code, block, line, column, message)
         }
     }
 
-    pub fn info(block: Option<u32>, line: u32, column: u32, message: impl Into<String>) -> Self {
+    pub fn info(
+        code: DiagCode,
+        block: Option<u32>,
+        line: u32,
+        column: u32,
+        message: impl Into<String>,
+    ) -> Self {
         Diagnostic {
             severity: Severity::Info,
-            ..Self::error(block, line, column, message)
+            ..Self::error(code, block, line, column, message)
         }
     }
 
@@ -74,5 +320,26 @@ impl fmt::Display for Diagnostic {
             write!(f, " (line {}, column {})", self.line, self.column)?;
         }
         write!(f, ": {}", self.message)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::DiagCode;
+
+    #[test]
+    fn codes_are_unique_snake_case_and_documented() {
+        let doc = include_str!("../../docs/api.md");
+        let mut seen = std::collections::HashSet::new();
+        for c in DiagCode::ALL {
+            let s = c.as_str();
+            assert!(seen.insert(s), "{s} twice");
+            assert!(
+                s.bytes()
+                    .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_'),
+                "{s}"
+            );
+            assert!(doc.contains(&format!("`{s}`")), "{s} is not in docs/api.md");
+        }
     }
 }

@@ -6,7 +6,7 @@
 //! An axis without limits (`min`/`max` not configured) is not checked on that side.
 
 use crate::block::Plane;
-use crate::diag::Diagnostic;
+use crate::diag::{DiagCode, Diagnostic};
 use crate::plan::{SegPath, Segment};
 use crate::units::{AxesMm, MAX_AXES};
 
@@ -106,6 +106,7 @@ impl LimitHit {
         let name = axis_names.get(self.axis).copied().unwrap_or('?');
         let side = if self.upper { "upper" } else { "lower" };
         let mut d = Diagnostic::error(
+            DiagCode::SoftLimit,
             seg.n,
             seg.line,
             0,

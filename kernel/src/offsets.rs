@@ -5,7 +5,7 @@
 //! (one entry's values, as written by an operator edit or by `G92 D<n> R0..R4`). Which copy an
 //! edit reaches (file, memory or both) is decided by the daemon's storage (SPEC §3 (a)-(c)).
 
-use crate::diag::Diagnostic;
+use crate::diag::{DiagCode, Diagnostic};
 
 /// Entries 1..=99 (SPEC §3).
 pub const ENTRIES: u8 = 99;
@@ -129,10 +129,10 @@ pub enum OffsetError {
 
 impl OffsetError {
     /// Stable code (tests and HMIs match it; the message may improve).
-    pub fn code(&self) -> &'static str {
+    pub fn code(&self) -> DiagCode {
         match self {
-            OffsetError::NoEntry(_) => "offset_no_entry",
-            OffsetError::ValueOutOfRange(_) => "offset_value_out_of_range",
+            OffsetError::NoEntry(_) => DiagCode::OffsetNoEntry,
+            OffsetError::ValueOutOfRange(_) => DiagCode::OffsetValueOutOfRange,
         }
     }
 }
@@ -181,6 +181,7 @@ pub fn parse(text: &str, axis_names: &[char]) -> Result<KorFile, Vec<Diagnostic>
                 let rest = line.trim_start()["$KOR".len()..].trim();
                 if !rest.is_empty() && !rest.starts_with(';') {
                     errors.push(Diagnostic::error(
+                        DiagCode::OffsetFileSyntax,
                         None,
                         line_no,
                         col_of(line, line.len() - line.trim_start().len() + 4),
@@ -196,42 +197,13 @@ pub fn parse(text: &str, axis_names: &[char]) -> Result<KorFile, Vec<Diagnostic>
         if code.trim().is_empty() {
             continue;
         }
-        if code.trim_start().starts_with("$KOR") {
-            errors.push(Diagnostic::error(
-                None,
-                line_no,
-                col_of(line, line.len() - line.trim_start().len()),
-                "a second $KOR: a file holds one table",
-            ));
-            continue;
-        }
-        match parse_entry_line(code, axis_names) {
-            Ok(edit) => {
-                let k = edit.entry as usize - 1;
-                if seen[k] {
-                    errors.push(Diagnostic::error(
-                        None,
-                        line_no,
-                        col_of(line, line.len() - line.trim_start().len()),
-                        format!("entry {:02} is listed twice", edit.entry),
-                    ));
-                    continue;
-                }
-                seen[k] = true;
-                // Values not listed are zero (SPEC §3): the entry starts from zero.
-                let mut e = OffsetEntry::default();
-                for (k, v) in edit.values.iter().enumerate() {
-                    e.set(k, v.unwrap_or(0.0));
-                }
-                file.table.entries[k] = e;
-            }
-            Err((byte, msg)) => {
-                errors.push(Diagnostic::error(None, line_no, col_of(line, byte), msg))
-            }
+        if let Err(d) = table_line(code, line, line_no, axis_names, &mut seen, &mut file.table) {
+            errors.push(d);
         }
     }
     if !in_table {
         errors.push(Diagnostic::error(
+            DiagCode::OffsetKorMissing,
             None,
             text.lines().count().max(1) as u32,
             1,
@@ -245,12 +217,55 @@ pub fn parse(text: &str, axis_names: &[char]) -> Result<KorFile, Vec<Diagnostic>
     }
 }
 
+/// One line of the table after `$KOR` (its code, without the remark): the entry it sets, which
+/// must not be set before (`seen`).
+fn table_line(
+    code: &str,
+    line: &str,
+    line_no: u32,
+    axis_names: &[char],
+    seen: &mut [bool; ENTRIES as usize],
+    table: &mut OffsetTable,
+) -> Result<(), Diagnostic> {
+    let lead_col = col_of(line, line.len() - line.trim_start().len());
+    if code.trim_start().starts_with("$KOR") {
+        return Err(Diagnostic::error(
+            DiagCode::OffsetFileSyntax,
+            None,
+            line_no,
+            lead_col,
+            "a second $KOR: a file holds one table",
+        ));
+    }
+    let edit = parse_entry_line(code, axis_names).map_err(|(byte, e)| {
+        Diagnostic::error(e.code(), None, line_no, col_of(line, byte), e.to_string())
+    })?;
+    let k = edit.entry as usize - 1;
+    if seen[k] {
+        return Err(Diagnostic::error(
+            DiagCode::OffsetEntryTwice,
+            None,
+            line_no,
+            lead_col,
+            format!("entry {:02} is listed twice", edit.entry),
+        ));
+    }
+    seen[k] = true;
+    // Values not listed are zero (SPEC §3): the entry starts from zero.
+    let mut e = OffsetEntry::default();
+    for (slot, v) in edit.values.iter().enumerate() {
+        e.set(slot, v.unwrap_or(0.0));
+    }
+    table.entries[k] = e;
+    Ok(())
+}
+
 /// Parses one operator edit written like a file line, e.g. `12: R=5.0 Z=-3` (only the values
 /// written change, see [`OffsetTable::apply`]).
 pub fn parse_edit(line: &str, axis_names: &[char]) -> Result<TableEdit, Diagnostic> {
     let code = line.split(';').next().unwrap_or("");
     parse_entry_line(code, axis_names)
-        .map_err(|(b, m)| Diagnostic::error(None, 1, col_of(line, b), m))
+        .map_err(|(b, e)| Diagnostic::error(e.code(), None, 1, col_of(line, b), e.to_string()))
 }
 
 /// Writes the file: the comment, `$KOR`, then one line per non-zero entry with all five values,
@@ -301,40 +316,92 @@ fn col_of(line: &str, byte: usize) -> u32 {
     line[..b].chars().count() as u32 + 1
 }
 
+/// Why a line of a TAB0.KOR table (or an operator edit written like one) is refused.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum KorLineError {
+    #[error("expected an entry line 'NN: R=.. X=..', found '{0}'")]
+    NotAnEntryLine(String),
+    #[error("'{0}' is not an entry number (01..99)")]
+    NotAnEntryNumber(String),
+    #[error("entry number '{written}' must have two digits (write {entry:02})")]
+    EntryNotTwoDigits { written: String, entry: u64 },
+    #[error("entry {0} does not exist: entries are 01..99")]
+    NoEntry(String),
+    #[error("'{0}' is not KEY=value (e.g. R=10.0 or X=20.0)")]
+    NotKeyValue(String),
+    #[error("'{0}' is not R, an axis name or an axis number 1..4")]
+    KeyNotOneLetter(String),
+    #[error("'{0}' is not R, an axis name (X Y Z U) or an axis number 1..4")]
+    UnknownKey(String),
+    #[error(
+        "axis {name} is axis {ordinal} on this machine: write its length as {ordinal}= (names \
+         X Y Z U are only for axes 1..4 in that order)"
+    )]
+    AxisByOrdinal { name: char, ordinal: usize },
+    #[error("this machine has no axis {0}")]
+    NoSuchAxis(char),
+    #[error("{0}= appears twice in entry {1:02}")]
+    KeyTwice(String, u8),
+    #[error("{key}={value}: {why}")]
+    Value {
+        key: String,
+        value: String,
+        why: ValueError,
+    },
+}
+
+/// Why the value of `KEY=value` is refused.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ValueError {
+    #[error("no value after '='")]
+    Missing,
+    #[error("not a number")]
+    NotANumber,
+    #[error("more than {MAX_DECIMALS} decimals")]
+    TooManyDecimals,
+    #[error("beyond ±{MAX_VALUE_MM} mm")]
+    OutOfRange,
+    #[error(transparent)]
+    Table(OffsetError),
+}
+
+impl KorLineError {
+    /// Stable code (tests and HMIs match it; the message may improve).
+    pub fn code(&self) -> DiagCode {
+        match self {
+            KorLineError::NotAnEntryLine(_)
+            | KorLineError::NotAnEntryNumber(_)
+            | KorLineError::NotKeyValue(_) => DiagCode::OffsetFileSyntax,
+            KorLineError::EntryNotTwoDigits { .. } => DiagCode::OffsetEntryNotTwoDigits,
+            KorLineError::NoEntry(_) => DiagCode::OffsetNoEntry,
+            KorLineError::KeyNotOneLetter(_)
+            | KorLineError::UnknownKey(_)
+            | KorLineError::NoSuchAxis(_) => DiagCode::OffsetUnknownKey,
+            KorLineError::AxisByOrdinal { .. } => DiagCode::OffsetAxisByOrdinal,
+            KorLineError::KeyTwice(..) => DiagCode::OffsetKeyTwice,
+            KorLineError::Value { why, .. } => why.code(),
+        }
+    }
+}
+
+impl ValueError {
+    /// Stable code (tests and HMIs match it; the message may improve).
+    pub fn code(&self) -> DiagCode {
+        match self {
+            ValueError::OutOfRange | ValueError::Table(_) => DiagCode::OffsetValueOutOfRange,
+            _ => DiagCode::OffsetValueSyntax,
+        }
+    }
+}
+
 /// `NN: KEY=value ...`; errors carry the byte offset of the offending text.
-fn parse_entry_line(code: &str, axis_names: &[char]) -> Result<TableEdit, (usize, String)> {
+fn parse_entry_line(code: &str, axis_names: &[char]) -> Result<TableEdit, (usize, KorLineError)> {
     let lead = code.len() - code.trim_start().len();
     let t = code.trim_start();
     let Some(colon) = t.find(':') else {
-        return Err((
-            lead,
-            format!(
-                "expected an entry line 'NN: R=.. X=..', found '{}'",
-                t.trim_end()
-            ),
-        ));
+        return Err((lead, KorLineError::NotAnEntryLine(t.trim_end().into())));
     };
-    let num = t[..colon].trim_end();
-    if num.is_empty() || !num.bytes().all(|c| c.is_ascii_digit()) {
-        return Err((lead, format!("'{num}' is not an entry number (01..99)")));
-    }
-    if num.len() != 2 {
-        let n: u64 = num.parse().unwrap_or(u64::MAX);
-        return Err((
-            lead,
-            if (1..=99).contains(&n) {
-                format!("entry number '{num}' must have two digits (write {n:02})")
-            } else {
-                format!("entry {num} does not exist: entries are 01..99")
-            },
-        ));
-    }
-    let entry: u8 = num
-        .parse()
-        .map_err(|_| (lead, "bad entry number".to_string()))?;
-    if entry == 0 {
-        return Err((lead, "entry 00 does not exist: entries are 01..99".into()));
-    }
+    let entry = entry_number(t[..colon].trim_end()).map_err(|e| (lead, e))?;
     let mut values = [None; 5];
     let body = &t[colon + 1..];
     let mut pos = lead + colon + 1;
@@ -346,28 +413,52 @@ fn parse_entry_line(code: &str, axis_names: &[char]) -> Result<TableEdit, (usize
             continue;
         }
         let Some((key, val)) = tok.split_once('=') else {
-            return Err((
-                at,
-                format!("'{tok}' is not KEY=value (e.g. R=10.0 or X=20.0)"),
-            ));
+            return Err((at, KorLineError::NotKeyValue(tok.into())));
         };
-        let k = key_slot(key, axis_names).map_err(|m| (at, m))?;
+        let k = key_slot(key, axis_names).map_err(|e| (at, e))?;
         if values[k].is_some() {
-            return Err((at, format!("{key}= appears twice in entry {entry:02}")));
+            return Err((at, KorLineError::KeyTwice(key.into(), entry)));
         }
-        let v = parse_value(val).map_err(|m| (at + key.len() + 1, format!("{key}={val}: {m}")))?;
+        let v = parse_value(val).map_err(|why| {
+            let e = KorLineError::Value {
+                key: key.into(),
+                value: val.into(),
+                why,
+            };
+            (at + key.len() + 1, e)
+        })?;
         values[k] = Some(v);
     }
     Ok(TableEdit { entry, values })
 }
 
+/// The entry number `NN` of an entry line: two digits, 01..99.
+fn entry_number(num: &str) -> Result<u8, KorLineError> {
+    if num.is_empty() || !num.bytes().all(|c| c.is_ascii_digit()) {
+        return Err(KorLineError::NotAnEntryNumber(num.into()));
+    }
+    let n: u64 = num.parse().unwrap_or(u64::MAX);
+    if num.len() != 2 {
+        return Err(if (1..=99).contains(&n) {
+            KorLineError::EntryNotTwoDigits {
+                written: num.into(),
+                entry: n,
+            }
+        } else {
+            KorLineError::NoEntry(num.into())
+        });
+    }
+    if n == 0 {
+        return Err(KorLineError::NoEntry(num.into()));
+    }
+    Ok(n as u8)
+}
+
 /// Slot of a key: `R` → 0, ordinal `1`..`4` or a standard axis name → 1..4.
-fn key_slot(key: &str, axis_names: &[char]) -> Result<usize, String> {
+fn key_slot(key: &str, axis_names: &[char]) -> Result<usize, KorLineError> {
     let mut cs = key.chars();
     let (Some(c), None) = (cs.next(), cs.next()) else {
-        return Err(format!(
-            "'{key}' is not R, an axis name or an axis number 1..4"
-        ));
+        return Err(KorLineError::KeyNotOneLetter(key.into()));
     };
     let c = c.to_ascii_uppercase();
     match c {
@@ -375,46 +466,41 @@ fn key_slot(key: &str, axis_names: &[char]) -> Result<usize, String> {
         '1'..='4' => Ok(c as usize - '0' as usize),
         _ => {
             let Some(k) = STANDARD_NAMES.iter().position(|&s| s == c) else {
-                return Err(format!(
-                    "'{key}' is not R, an axis name (X Y Z U) or an axis number 1..4"
-                ));
+                return Err(KorLineError::UnknownKey(key.into()));
             };
             if axis_names.get(k) == Some(&c) {
                 return Ok(k + 1);
             }
             match axis_names.iter().position(|&a| a == c) {
-                Some(p) => Err(format!(
-                    "axis {c} is axis {} on this machine: write its length as {}= (names X Y Z U \
-                     are only for axes 1..4 in that order)",
-                    p + 1,
-                    p + 1
-                )),
-                None => Err(format!("this machine has no axis {c}")),
+                Some(p) => Err(KorLineError::AxisByOrdinal {
+                    name: c,
+                    ordinal: p + 1,
+                }),
+                None => Err(KorLineError::NoSuchAxis(c)),
             }
         }
     }
 }
 
 /// A decimal number: optional sign, digits, optional point and up to 6 decimals. No exponent.
-fn parse_value(v: &str) -> Result<f64, String> {
+fn parse_value(v: &str) -> Result<f64, ValueError> {
     let body = v.strip_prefix(['+', '-']).unwrap_or(v);
     let (int, frac) = body.split_once('.').unwrap_or((body, ""));
     let digits = |s: &str| s.bytes().all(|c| c.is_ascii_digit());
-    if v.is_empty() || (int.is_empty() && frac.is_empty()) || !digits(int) || !digits(frac) {
-        return Err(if v.is_empty() {
-            "no value after '='".into()
-        } else {
-            "not a number".into()
-        });
+    if v.is_empty() {
+        return Err(ValueError::Missing);
+    }
+    if (int.is_empty() && frac.is_empty()) || !digits(int) || !digits(frac) {
+        return Err(ValueError::NotANumber);
     }
     if frac.len() > MAX_DECIMALS {
-        return Err(format!("more than {MAX_DECIMALS} decimals"));
+        return Err(ValueError::TooManyDecimals);
     }
     if int.trim_start_matches('0').len() > 5 {
-        return Err(format!("beyond ±{MAX_VALUE_MM} mm"));
+        return Err(ValueError::OutOfRange);
     }
-    let x: f64 = v.parse().map_err(|_| "not a number".to_string())?;
-    check_value(x).map_err(|e| e.to_string())?;
+    let x: f64 = v.parse().map_err(|_| ValueError::NotANumber)?;
+    check_value(x).map_err(ValueError::Table)?;
     Ok(x)
 }
 

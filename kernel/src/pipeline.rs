@@ -16,7 +16,7 @@
 
 use crate::block::{Block, BlockKind, Continuity};
 use crate::comp::{CompBlock, Compensator};
-use crate::diag::Diagnostic;
+use crate::diag::{DiagCode, Diagnostic};
 use crate::machine::MachineSetup;
 use crate::offsets::TableEdit;
 use crate::plan::{Planner, Segment};
@@ -188,6 +188,7 @@ impl Pipeline {
     fn check_machine(&self, b: &Block) -> Result<(), Diagnostic> {
         match self.gears {
             Some(n) if usize::from(b.spindle.gear) > n => Err(Diagnostic::error(
+                DiagCode::GearNotConfigured,
                 b.n,
                 b.line,
                 0,
@@ -329,6 +330,7 @@ impl Validation {
         self.blocks = s.blocks;
         if self.unlisted > 0 {
             self.diagnostics.push(Diagnostic::info(
+                DiagCode::MessagesNotListed,
                 None,
                 0,
                 0,

@@ -14,7 +14,7 @@ use kernel::comp::geom::V2;
 use kernel::comp::{CompBlock, CompConfig, CornerMode, Role};
 
 /// Every equidistant piece runs in the programmed direction.
-fn never_backwards(input: &[Block], out: &[CompBlock]) -> Result<(), String> {
+fn never_backwards(input: &[Block], out: &[CompBlock]) -> Result<(), PathError> {
     for c in motions(out) {
         if c.role != Role::Equidistant {
             continue;
@@ -25,10 +25,10 @@ fn never_backwards(input: &[Block], out: &[CompBlock]) -> Result<(), String> {
         let (a, bb) = (V2::of(&s, Plane::G17), V2::of(&e, Plane::G17));
         match (path, c.block.motion().unwrap().2) {
             (Path::Arc { dir, .. }, Path::Arc { dir: od, .. }) if dir != od => {
-                return Err(format!("arc piece of seq {} reversed", b.seq));
+                return Err(PathError::ArcReversed(b.seq));
             }
             (Path::Line, _) if (pe - ps).dot(bb - a) < -1e-9 => {
-                return Err(format!("line piece of seq {} runs backwards", b.seq));
+                return Err(PathError::Backwards(b.seq));
             }
             _ => {}
         }

@@ -136,8 +136,9 @@ fn check_in(
     );
     let r = out.iter().map(|c| c.offset_mm.abs()).fold(0.0, f64::max);
     gouge_invariant(&p.blocks, &out, &diags, r, cfg.gouge_tolerance_mm(r), plane)
-        .map_err(TestCaseError::fail)?;
-    let (pieces, arcs) = check_path(&p.blocks, &out, plane, 1e-6).map_err(TestCaseError::fail)?;
+        .map_err(|e| TestCaseError::fail(e.to_string()))?;
+    let (pieces, arcs) =
+        check_path(&p.blocks, &out, plane, 1e-6).map_err(|e| TestCaseError::fail(e.to_string()))?;
     // Every programmed element appears (an arc over 180° as two halves).
     prop_assert!(pieces >= expect_pieces, "{pieces} < {expect_pieces}");
     let infos = with_severity(&diags, Severity::Info).len();
@@ -179,7 +180,7 @@ proptest! {
         let (out, diags) = p.run(&cfg);
         let errs = errors(&diags);
         if errs.is_empty() {
-            check_continuous(&out).map_err(TestCaseError::fail)?;
+            check_continuous(&out).map_err(|e| TestCaseError::fail(e.to_string()))?;
         } else {
             for e in errs {
                 prop_assert!(e.block.is_some());
@@ -294,6 +295,67 @@ fn any_cfg() -> impl Strategy<Value = CompConfig> {
     })
 }
 
+/// The block kind `op` makes from `start` in `plane`, and its end point.
+fn op_kind(op: &Op, start: AxesMm, plane: Plane) -> (BlockKind, AxesMm) {
+    let (a, b) = plane.axes();
+    let mut end = start;
+    let kind = match *op {
+        Op::Line(x, y) | Op::Rapid(x, y) => {
+            end[a] = x;
+            end[b] = y;
+            let path = if matches!(op, Op::Line(..)) {
+                Path::Line
+            } else {
+                Path::Rapid
+            };
+            BlockKind::Motion { start, end, path }
+        }
+        Op::Arc(cw, x, y, i, j) => {
+            end[a] = x;
+            end[b] = y;
+            let mut center = start;
+            center[a] += i;
+            center[b] += j;
+            let dir = if cw { ArcDir::Cw } else { ArcDir::Ccw };
+            BlockKind::Motion {
+                start,
+                end,
+                path: Path::Arc { dir, center, plane },
+            }
+        }
+        Op::Z(z) => {
+            end[3 - a - b] = z;
+            BlockKind::Motion {
+                start,
+                end,
+                path: Path::Line,
+            }
+        }
+        Op::Tech => BlockKind::Technology,
+        Op::Dwell => BlockKind::Dwell { seconds: 0.5 },
+        Op::Jump(x, y) => {
+            // Discontinuous input: a start that is not the previous end.
+            let mut s = start;
+            s[a] = x;
+            end[a] = y;
+            BlockKind::Motion {
+                start: s,
+                end,
+                path: Path::Line,
+            }
+        }
+        Op::Nan => {
+            end[a] = f64::NAN;
+            BlockKind::Motion {
+                start,
+                end,
+                path: Path::Line,
+            }
+        }
+    };
+    (kind, end)
+}
+
 fn fuzz_blocks(ops: &[(Op, Comp, u8)]) -> Vec<Block> {
     let mut pos = AxesMm::ZERO;
     let mut out = Vec::new();
@@ -304,62 +366,7 @@ fn fuzz_blocks(ops: &[(Op, Comp, u8)]) -> Vec<Block> {
             _ => Plane::G17,
         };
         let start = pos;
-        let mut end = pos;
-        let (a, b) = plane.axes();
-        let kind = match *op {
-            Op::Line(x, y) | Op::Rapid(x, y) => {
-                end[a] = x;
-                end[b] = y;
-                let path = if matches!(op, Op::Line(..)) {
-                    Path::Line
-                } else {
-                    Path::Rapid
-                };
-                BlockKind::Motion { start, end, path }
-            }
-            Op::Arc(cw, x, y, i, j) => {
-                end[a] = x;
-                end[b] = y;
-                let mut center = start;
-                center[a] += i;
-                center[b] += j;
-                let dir = if cw { ArcDir::Cw } else { ArcDir::Ccw };
-                BlockKind::Motion {
-                    start,
-                    end,
-                    path: Path::Arc { dir, center, plane },
-                }
-            }
-            Op::Z(z) => {
-                end[3 - a - b] = z;
-                BlockKind::Motion {
-                    start,
-                    end,
-                    path: Path::Line,
-                }
-            }
-            Op::Tech => BlockKind::Technology,
-            Op::Dwell => BlockKind::Dwell { seconds: 0.5 },
-            Op::Jump(x, y) => {
-                // Discontinuous input: a start that is not the previous end.
-                let mut s = start;
-                s[a] = x;
-                end[a] = y;
-                BlockKind::Motion {
-                    start: s,
-                    end,
-                    path: Path::Line,
-                }
-            }
-            Op::Nan => {
-                end[a] = f64::NAN;
-                BlockKind::Motion {
-                    start,
-                    end,
-                    path: Path::Line,
-                }
-            }
-        };
+        let (kind, end) = op_kind(op, start, plane);
         if !matches!(op, Op::Nan) {
             pos = end;
         }

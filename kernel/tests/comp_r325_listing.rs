@@ -2,9 +2,9 @@
 //! refinement as address E, and the listing writes E into the program the way the manual
 //! shows. The listing is faithful: read back without refinement, it gives the same blocks.
 
-use kernel::Severity;
 use kernel::program::arc::Corrected;
 use kernel::program::{Setup, compile, refinement_listing};
+use kernel::{DiagCode, Severity};
 
 fn mill(refine: bool) -> Setup {
     let mut s = Setup::new(&['X', 'Y', 'Z']);
@@ -31,23 +31,12 @@ fn refinements_are_reported_and_written_as_e() {
     assert_eq!(refined[0].refinement.which, Corrected::I);
     assert_eq!(refined[1].refinement.which, Corrected::J);
     // Validation reports each refinement on its block.
-    let infos: Vec<_> = diags
+    let refined_blocks: Vec<_> = diags
         .iter()
-        .filter(|d| d.severity == Severity::Info)
-        .map(|d| (d.block, d.message.clone()))
+        .filter(|d| d.severity == Severity::Info && d.code == DiagCode::ArcRefined)
+        .map(|d| d.block)
         .collect();
-    assert!(
-        infos
-            .iter()
-            .any(|(b, m)| *b == Some(20) && m.contains("E-3.000")),
-        "{infos:?}"
-    );
-    assert!(
-        infos
-            .iter()
-            .any(|(b, m)| *b == Some(40) && m.contains("E-10006.992")),
-        "{infos:?}"
-    );
+    assert_eq!(refined_blocks, [Some(20), Some(40)], "{diags:?}");
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines[1], "N20 G3 X10 Y10 I0.003 J10 E-3.000 ; fillet");
     assert_eq!(lines[3], "N40 G3 X20 Y30 I-10 J10.006992 E-10006.992");

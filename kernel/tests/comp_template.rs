@@ -7,12 +7,12 @@
 mod comp_common;
 
 use comp_common::*;
-use kernel::Severity;
 use kernel::block::{Block, Plane};
 use kernel::comp::geom::V2;
 use kernel::comp::{CompConfig, CornerMode, Role, compensate_all_traced};
 use kernel::constants::Constants;
 use kernel::program::{Setup, compile};
+use kernel::{DiagCode, Severity};
 
 fn template_blocks() -> Vec<Block> {
     let text = std::fs::read_to_string(concat!(
@@ -100,7 +100,7 @@ fn template_with_intersections_and_machine_constants() {
     let warn = with_severity(&diags, Severity::Warning);
     assert!(
         warn.iter()
-            .any(|d| d.block == Some(110) && d.message.contains("R765")),
+            .any(|d| d.block == Some(110) && d.code == DiagCode::CornerFarFromEquidistant),
         "{diags:?}"
     );
     assert!(

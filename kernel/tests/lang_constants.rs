@@ -1,5 +1,6 @@
 //! Machine constants file, decades and validation (SPEC §1, §4.6).
 
+use kernel::DiagCode;
 use kernel::constants::{Constants, Refinement, default_of, fmt_milli};
 
 #[test]
@@ -21,15 +22,15 @@ fn file_round_trips_and_reads_the_manual_values() {
 #[test]
 fn fixed_format_is_enforced() {
     let cases = [
-        ("R1=123456.0", 1, 4, "more than 5 digits"),
-        ("R1=1.2345", 1, 4, "more than 3 decimals"),
-        ("R1000=1", 1, 2, "R1000 does not exist"),
-        ("R1 1", 1, 3, "expected '='"),
-        ("X1=1", 1, 1, "expected Rnnn=value"),
-        ("R5=1\nR5=2", 2, 1, "set twice"),
-        ("R5=abc", 1, 4, "not a number"),
+        ("R1=123456.0", 1, 4, DiagCode::ConstantTooManyDigits),
+        ("R1=1.2345", 1, 4, DiagCode::ConstantTooManyDecimals),
+        ("R1000=1", 1, 2, DiagCode::ConstantUnknown),
+        ("R1 1", 1, 3, DiagCode::ConstantSyntax),
+        ("X1=1", 1, 1, DiagCode::ConstantSyntax),
+        ("R5=1\nR5=2", 2, 1, DiagCode::ConstantSetTwice),
+        ("R5=abc", 1, 4, DiagCode::ConstantNotANumber),
     ];
-    for (text, line, col, msg) in cases {
+    for (text, line, col, code) in cases {
         let e = Constants::parse(text).unwrap_err();
         assert_eq!(
             (e[0].line, e[0].column),
@@ -37,19 +38,20 @@ fn fixed_format_is_enforced() {
             "{text}: {}",
             e[0].message
         );
-        assert!(e[0].message.contains(msg), "{text}: {}", e[0].message);
+        assert_eq!(e[0].code, code, "{text}: {}", e[0].message);
     }
 }
 
 #[test]
 fn validation_refuses_out_of_range_settings() {
-    let check = |r: u16, v: f64, what: &str| {
+    // Each refusal names its constant first ("R325: ..."); `_why` says what the case checks.
+    let check = |r: u16, v: f64, _why: &str| {
         let mut c = Constants::new();
         c.set(r, v);
         let errs = c.validate();
         assert!(
-            errs.iter()
-                .any(|d| d.message.starts_with(&format!("R{r}:")) && d.message.contains(what)),
+            errs.iter().any(|d| d.code == DiagCode::ConstantOutOfRange
+                && d.message.starts_with(&format!("R{r}:"))),
             "R{r}={v}: {errs:?}"
         );
     };

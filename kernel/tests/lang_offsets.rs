@@ -1,5 +1,6 @@
 //! TAB0.KOR parsing and writing (SPEC §3), with the manual's example.
 
+use kernel::DiagCode;
 use kernel::offsets::{self, OffsetEntry, OffsetTable, TableEdit, parse, parse_edit, write};
 
 const MILL: [char; 4] = ['X', 'Y', 'Z', 'U'];
@@ -39,8 +40,9 @@ fn lathe_rule_axis_two_must_be_written_2() {
     assert_eq!(t.entry(2), Some(&e(0.8, [1.0, 2.0, 0.0, 0.0])));
     let errs = parse("$KOR\n02: R=0.8 X=1.0 Z=2.0\n", &LATHE).unwrap_err();
     assert_eq!((errs[0].line, errs[0].column), (2, 17));
-    assert!(
-        errs[0].message.contains("write its length as 2="),
+    assert_eq!(
+        errs[0].code,
+        DiagCode::OffsetAxisByOrdinal,
         "{}",
         errs[0].message
     );
@@ -71,22 +73,18 @@ fn writer_uses_names_only_where_allowed() {
 
 #[test]
 fn rejected_files_name_line_and_column() {
-    let cases: [(&str, u32, u32, &str); 6] = [
-        ("$KOR\n00: R=1\n", 2, 1, "entry 00 does not exist"),
-        ("$KOR\n100: R=1\n", 2, 1, "entry 100 does not exist"),
-        ("$KOR\n01: R=abc\n", 2, 7, "not a number"),
-        ("$KOR\n1: R=1\n", 2, 1, "two digits"),
-        ("01: R=1\n", 1, 1, "$KOR not found"),
-        ("$KOR\n01: R=1\n01: R=2\n", 3, 1, "listed twice"),
+    let cases: [(&str, u32, u32, DiagCode); 6] = [
+        ("$KOR\n00: R=1\n", 2, 1, DiagCode::OffsetNoEntry),
+        ("$KOR\n100: R=1\n", 2, 1, DiagCode::OffsetNoEntry),
+        ("$KOR\n01: R=abc\n", 2, 7, DiagCode::OffsetValueSyntax),
+        ("$KOR\n1: R=1\n", 2, 1, DiagCode::OffsetEntryNotTwoDigits),
+        ("01: R=1\n", 1, 1, DiagCode::OffsetKorMissing),
+        ("$KOR\n01: R=1\n01: R=2\n", 3, 1, DiagCode::OffsetEntryTwice),
     ];
-    for (text, line, col, msg) in cases {
+    for (text, line, col, code) in cases {
         let errs = parse(text, &MILL).unwrap_err();
         assert_eq!((errs[0].line, errs[0].column), (line, col), "{text:?}");
-        assert!(
-            errs[0].message.contains(msg),
-            "{text:?}: {}",
-            errs[0].message
-        );
+        assert_eq!(errs[0].code, code, "{text:?}: {}", errs[0].message);
     }
 }
 
@@ -121,12 +119,12 @@ fn edits_change_only_the_values_present_and_bad_edits_nothing() {
     };
     let refused = t2.apply(&bad).unwrap_err();
     assert_eq!(refused, offsets::OffsetError::NoEntry(100));
-    assert_eq!(refused.code(), "offset_no_entry");
+    assert_eq!(refused.code(), DiagCode::OffsetNoEntry);
     let bad = TableEdit {
         entry: 1,
         values: [Some(1.0), Some(f64::NAN), None, None, None],
     };
     let refused = t2.apply(&bad).unwrap_err();
-    assert_eq!(refused.code(), "offset_value_out_of_range");
+    assert_eq!(refused.code(), DiagCode::OffsetValueOutOfRange);
     assert_eq!(t2, before, "a refused edit changes nothing");
 }

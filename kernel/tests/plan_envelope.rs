@@ -503,7 +503,7 @@ fn feed_per_revolution_uses_the_programmed_spindle_speed() {
     let mut pl = kernel::plan::Planner::new(cfg(1), 1);
     let e = pl.push(&b).unwrap_err();
     assert_eq!(e.block, Some(0));
-    assert!(e.message.contains("spindle"));
+    assert_eq!(e.code, kernel::DiagCode::FeedPerRevWithoutSpindle);
     pl.finish();
     assert!(pl.poll().is_none() && pl.is_done());
 }

@@ -54,10 +54,10 @@ pub mod velocity;
 
 use std::ops::Range;
 
-use kernel::Diagnostic;
 use kernel::comp::CompConfig;
 use kernel::plan::PlannerConfig;
 use kernel::program::Setup;
+use kernel::{DiagCode, Diagnostic};
 
 pub use paging::{Page, blocks_per_page};
 pub use plane::ViewPlane;
@@ -213,6 +213,7 @@ impl Preview {
 
 fn page_error(page: u32, pages: u32) -> Vec<Diagnostic> {
     vec![Diagnostic::error(
+        DiagCode::PreviewNoSuchPage,
         None,
         0,
         0,

@@ -2,9 +2,9 @@
 //! projection of lines and arcs onto it.
 
 use kernel::AxesMm;
-use kernel::Diagnostic;
 use kernel::block::{Block, Path};
 use kernel::plan::SegPath;
+use kernel::{DiagCode, Diagnostic};
 
 /// Plane of the preview: horizontal axis first.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -57,6 +57,7 @@ impl Projection {
         let find = |c: char| {
             axis_names.iter().position(|&a| a == c).ok_or_else(|| {
                 Diagnostic::error(
+                    DiagCode::PreviewAxisMissing,
                     None,
                     0,
                     0,

@@ -117,6 +117,8 @@ fn refusal(e: &prost::DecodeError, raw: &[u8]) -> Status {
             line: at.line,
             column: at.column,
             message: msg.clone(),
+            // kernel::DiagCode::TextNotUtf8 (this crate does not depend on the kernel).
+            code: "text_not_utf8".into(),
             ..Default::default()
         }],
     }

@@ -46,7 +46,7 @@ async fn refinements_are_returned_and_written_as_e() {
     assert!(
         v.diagnostics
             .iter()
-            .any(|d| d.block == Some(20) && d.message.contains("E-10006.992"))
+            .any(|d| d.block == Some(20) && d.code == "arc_refined")
     );
 
     let l = c
@@ -112,7 +112,8 @@ async fn validate_program_reports_gouges() {
     assert!(
         v.diagnostics.iter().any(|g| g.block == Some(50)
             && g.severity == pb::Severity::Warning as i32
-            && g.message.starts_with(kernel::comp::gouge::MESSAGE_PREFIX)
+            && g.code == "gouge"
+            // The warning names the other block of the pair (docs/compensation.md).
             && g.message.contains("N40")),
         "{:?}",
         v.diagnostics

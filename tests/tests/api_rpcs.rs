@@ -73,6 +73,7 @@ async fn programs_validate_upload_select_list_start_and_status() {
     let diags = diagnostics(&e);
     assert_eq!(diags[0].block, Some(20));
     assert_eq!(diags[0].line, 2);
+    assert_eq!(diags[0].code, "unknown_g_function");
     assert!(
         e.message().contains("N20") || e.message().contains("line 2"),
         "{}",

@@ -150,6 +150,7 @@ async fn text_that_is_not_utf8_is_invalid_argument_with_its_location() {
     assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
     assert!(e.message().contains("byte offset 15"), "{}", e.message());
     let diags = diagnostics(&e);
+    assert_eq!(diags[0].code, "text_not_utf8", "{diags:?}");
     assert_eq!((diags[0].line, diags[0].column), (2, 6), "{diags:?}");
     // Nothing was selected.
     assert!(d.ctl.program().is_none());
@@ -173,7 +174,10 @@ async fn values_needing_rounding_are_refused_and_negative_options_parse() {
     let d = start(config(Role::Admin)).await;
     let (ok, out) = cncctl(&d.socket(), &["constants", "set", "R52=1.2345"]).await;
     assert!(!ok, "{out}");
-    assert!(out.contains("R52") && out.contains("3 decimals"), "{out}");
+    assert!(
+        out.contains("R52") && out.contains("[value_too_precise]"),
+        "{out}"
+    );
     assert!(!out.contains("line 0"), "{out}");
     assert_eq!(
         d.ctl.constants().get(52),
@@ -185,7 +189,7 @@ async fn values_needing_rounding_are_refused_and_negative_options_parse() {
     let (ok, out) = cncctl(&d.socket(), &["offset-set", "6", "--radius", "1.1234567"]).await;
     assert!(!ok, "{out}");
     assert!(
-        out.contains("D06 radius") && out.contains("6 decimals"),
+        out.contains("D06 radius") && out.contains("[value_too_precise]"),
         "{out}"
     );
     assert!(!out.contains("line 0"), "{out}");
@@ -199,7 +203,9 @@ async fn values_needing_rounding_are_refused_and_negative_options_parse() {
     assert_eq!((e.radius_mm, e.length_mm[2]), (-5.0, -0.5));
     let (ok, out) = cncctl(&d.socket(), &["offset-set", "6", "--radius", "100000"]).await;
     assert!(
-        !ok && out.contains("D06 radius") && !out.contains("line 0"),
+        !ok && out.contains("D06 radius")
+            && out.contains("[value_out_of_range]")
+            && !out.contains("line 0"),
         "{out}"
     );
 }
@@ -364,6 +370,10 @@ async fn the_library_is_bounded_and_refusals_store_nothing() {
     let bad = program_file(&d, "bad.nc", "G1 X1 F100\nG1 Q7\n");
     let (ok, out) = cncctl(&d.socket(), &["upload", &bad]).await;
     assert!(!ok && out.contains("line 2"), "{out}");
+    assert!(
+        out.contains("[unknown_address]"),
+        "cncctl prints the code: {out}"
+    );
     let l = library(&d).await;
     let names: Vec<_> = l.programs.iter().map(|p| p.name.as_str()).collect();
     assert_eq!(names, ["small.nc"]);

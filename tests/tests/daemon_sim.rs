@@ -163,9 +163,9 @@ async fn program_runs_through_grpc_within_limits_and_ends_exactly() {
 async fn bad_program_is_rejected_with_block_number_and_nothing_moves() {
     let (mut client, ctl, record) = daemon(tests::test_config(), ClockKind::Monotonic).await;
     let before = ctl.snapshot().commanded;
-    for (text, block, needle) in [
-        ("N10 G1 X5 F100\nN20 Q7\n", 20, "Q"),
-        ("N10 G1 X5 F100\nN20 X\n", 20, "X"),
+    for (text, block, code) in [
+        ("N10 G1 X5 F100\nN20 Q7\n", 20, "unknown_address"),
+        ("N10 G1 X5 F100\nN20 X\n", 20, "word_without_value"),
     ] {
         let err = client
             .load_program(pb::LoadProgramRequest {
@@ -184,7 +184,7 @@ async fn bad_program_is_rejected_with_block_number_and_nothing_moves() {
         let first = &details.items[0];
         assert_eq!(first.block, Some(block));
         assert_eq!(first.line, 2);
-        assert!(first.message.contains(needle), "{}", first.message);
+        assert_eq!(first.code, code, "{}", first.message);
     }
     // No program is selected, so start is refused; nothing moved; the daemon still serves.
     let err = client.start(pb::StartRequest {}).await.unwrap_err();

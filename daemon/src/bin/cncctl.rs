@@ -307,6 +307,11 @@ fn diag_line(i: &pb::Diagnostic) -> String {
                 .to_lowercase()
         })
         .unwrap_or_default();
+    let sev = if i.code.is_empty() {
+        sev
+    } else {
+        format!("{sev} [{}]", i.code)
+    };
     let block = i.block.map(|n| format!(" block N{n}")).unwrap_or_default();
     // Line 0: the value did not come from a text (an offset or constant set by its name,
     // which the message names).
@@ -318,7 +323,7 @@ fn diag_line(i: &pb::Diagnostic) -> String {
 
 fn diag_json(i: &pb::Diagnostic) -> Value {
     json!({"severity": pb::Severity::try_from(i.severity).map(|s| s.as_str_name()).unwrap_or("?"),
-        "block": i.block, "line": i.line, "column": i.column, "message": i.message})
+        "block": i.block, "line": i.line, "column": i.column, "code": i.code, "message": i.message})
 }
 
 async fn connect(args: &Args) -> Result<Clients, String> {

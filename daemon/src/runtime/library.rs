@@ -21,10 +21,10 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use kernel::Diagnostic;
 use kernel::machine::MachineSetup;
 use kernel::pipeline::{self, Observer, Options, Summary, Validation};
 use kernel::program::Lines;
+use kernel::{DiagCode, Diagnostic};
 use sha2::{Digest, Sha256};
 
 use super::storage::write_atomic;
@@ -153,7 +153,13 @@ impl<R: BufRead> Lines for FileLines<R> {
         if let Err(e) = self.reader.read_until(b'\n', &mut self.line) {
             self.done = true;
             let msg = format!("cannot read the program file: {e}");
-            return Some(Err(Diagnostic::error(None, line_no, 0, msg)));
+            return Some(Err(Diagnostic::error(
+                DiagCode::ProgramUnreadable,
+                None,
+                line_no,
+                0,
+                msg,
+            )));
         }
         if self.line.last() == Some(&b'\n') {
             self.line.pop();
@@ -167,6 +173,7 @@ impl<R: BufRead> Lines for FileLines<R> {
             Err(_) => {
                 let at = proto::codec::locate_bad_utf8(&self.line).expect("not UTF-8");
                 Some(Err(Diagnostic::error(
+                    DiagCode::TextNotUtf8,
                     None,
                     line_no,
                     at.column,
@@ -557,6 +564,9 @@ mod tests {
             .collect();
         assert_eq!(errs.len(), 1);
         assert_eq!((errs[0].line, errs[0].column), (2, 5));
+        assert_eq!(errs[0].code, DiagCode::TextNotUtf8, "{}", errs[0]);
+        // The byte offset in the file (line 2 starts at 11, the bad byte is its 5th) is data
+        // the machinist needs to find the byte in an editor.
         assert!(errs[0].message.contains("byte offset 15"), "{}", errs[0]);
     }
 }

@@ -218,7 +218,7 @@ impl OffsetStore {
     pub fn operator_edit(&mut self, edit: &TableEdit) -> Result<(), StorageError> {
         let refuse = |e: offsets::OffsetError| StorageError::Invalid {
             path: self.path.clone(),
-            diagnostics: vec![Diagnostic::error(None, 0, 0, e.to_string())],
+            diagnostics: vec![Diagnostic::error(e.code(), None, 0, 0, e.to_string())],
         };
         let mut file = self.file.clone();
         file.table.apply(edit).map_err(refuse)?;

@@ -12,7 +12,7 @@ use super::{
     source_name, with_plane,
 };
 use crate::block::{ArcDir, Block, BlockKind, Path, Plane};
-use crate::diag::Diagnostic;
+use crate::diag::{DiagCode, Diagnostic};
 use crate::units::AxesMm;
 
 impl Compensator {
@@ -43,13 +43,13 @@ impl Compensator {
                 source_name(c.n, c.line)
             );
             self.notes.push(if self.cfg.refuse_gouges {
-                Diagnostic::error(t.n, t.line, 0, msg)
+                Diagnostic::error(DiagCode::Gouge, t.n, t.line, 0, msg)
             } else {
-                Diagnostic::warning(t.n, t.line, 0, msg)
+                Diagnostic::warning(DiagCode::Gouge, t.n, t.line, 0, msg)
             });
         }
         if let Some(t) = skipped {
-            self.notes.push(Diagnostic::info(
+            self.notes.push(Diagnostic::info( DiagCode::GougeCheckLimited,
                 t.n,
                 t.line,
                 0,
@@ -177,7 +177,7 @@ impl Compensator {
             FarCorner::Intersection { distance_mm } => (distance_mm, "check the corner (R765)"),
         };
         let pct = self.cfg.position.percent;
-        self.notes.push(Diagnostic::warning(
+        self.notes.push(Diagnostic::warning( DiagCode::CornerFarFromEquidistant,
             src.n,
             src.line,
             0,
@@ -207,6 +207,7 @@ impl Compensator {
         // SPEC §4.3: R339 sign `-`, an information message per inserted arc.
         if self.cfg.report_inserted_arcs {
             self.notes.push(Diagnostic::info(
+                DiagCode::CornerArcInserted,
                 src.n,
                 src.line,
                 0,

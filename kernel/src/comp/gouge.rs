@@ -15,7 +15,7 @@
 use std::f64::consts::PI;
 
 use crate::block::{ArcDir, Block, BlockKind, Path, Plane};
-use crate::diag::Diagnostic;
+use crate::diag::{DiagCode, Diagnostic};
 
 use super::geom::{Geo, V2};
 
@@ -28,12 +28,13 @@ pub const MAX_CHECKED_ELEMENTS: usize = 200_000;
 /// noise of intersections is ~1e-9 mm; SPEC §4.4's perpendicular point adds its own error).
 pub const GOUGE_TOLERANCE_MM: f64 = 0.001;
 
-/// Every gouge message starts with this (tests and clients tell gouges from other warnings).
+/// Every gouge message starts with this, for the machinist reading a list of warnings
+/// (programs and clients tell gouges apart by the code [`DiagCode::Gouge`]).
 pub const MESSAGE_PREFIX: &str = "gouge:";
 
 /// Whether `d` is a gouge found by this check.
 pub fn is_gouge(d: &Diagnostic) -> bool {
-    d.message.starts_with(MESSAGE_PREFIX)
+    d.code == DiagCode::Gouge
 }
 
 /// A line segment or a circular arc in the compensation plane. Arcs keep their end points and

@@ -12,7 +12,7 @@ use super::{
     err, name, side_of, signed_offset,
 };
 use crate::block::{ArcDir, Block, BlockKind, Comp, Path, Plane};
-use crate::diag::Diagnostic;
+use crate::diag::{DiagCode, Diagnostic};
 use crate::units::AxesMm;
 
 /// Why a run of compensated elements ends.
@@ -69,13 +69,14 @@ fn classify(b: &Block, plane: Plane) -> Result<Class, Diagnostic> {
                     return Ok(Class::Other);
                 }
                 return Err(err(
+                    DiagCode::CompArcOtherPlane,
                     b,
                     "arc in another plane than the radius compensation plane",
                 ));
             }
             let c = V2::of(&center, plane);
             if a.dist(c) <= EPS_MM {
-                return Err(err(b, "arc with zero radius"));
+                return Err(err(DiagCode::ArcRadiusZero, b, "arc with zero radius"));
             }
             Ok(Class::InPlane {
                 geo: Geo::arc(a, e, c, dir == ArcDir::Ccw),
@@ -100,6 +101,7 @@ impl Compensator {
                 // SPEC §4.2: start only in a block with linear interpolation.
                 if geo.is_arc() {
                     return Err(err(
+                        DiagCode::CompChangeOnArc,
                         b,
                         "radius compensation can only start in a linear block (G0/G1), not on an arc",
                     ));
@@ -108,6 +110,7 @@ impl Compensator {
                 Ok(())
             }
             Class::InPlane { geo, .. } if geo.is_arc() && reconcile => Err(err(
+                DiagCode::CompChangeOnArc,
                 b,
                 "after G40 without motion the first motion in the plane must be linear",
             )),
@@ -135,6 +138,7 @@ impl Compensator {
     ) -> Result<(), Diagnostic> {
         if b.comp != Comp::Off && b.plane != plane {
             return Err(err(
+                DiagCode::PlaneChangeUnderComp,
                 b,
                 "the plane (G17/G18/G19) must not change while radius compensation is active",
             ));
@@ -154,6 +158,7 @@ impl Compensator {
             Class::InPlane { geo, rapid: false } if b.comp == Comp::Off => {
                 if geo.is_arc() {
                     return Err(err(
+                        DiagCode::CompChangeOnArc,
                         b,
                         "G40 can only be programmed in a linear block, not on an arc",
                     ));
@@ -174,6 +179,7 @@ impl Compensator {
             // SPEC §4.2: G40 without motion in the plane only with 7.R339 = 1.
             if !self.cfg.g40_without_motion {
                 return Err(err(
+                    DiagCode::G40WithoutMotion,
                     b,
                     "G40 must be programmed in a block with motion in the compensation plane (or set 7.R339 = 1)",
                 ));
@@ -186,6 +192,7 @@ impl Compensator {
         let back = run.elems.back_mut().expect("a run has an element");
         if back.trailer.len() >= MAX_BRIDGED {
             return Err(err(
+                DiagCode::CompTooManyBridged,
                 b,
                 format!("more than {MAX_BRIDGED} blocks without motion in the compensation plane"),
             ));
@@ -199,12 +206,14 @@ impl Compensator {
         let side_changed = side_of(b.comp).map(|s| s.0) != side_of(comp).map(|s| s.0);
         if side_changed && !self.cfg.check.allow_side_change {
             return Err(err(
+                DiagCode::CompSideSwitch,
                 b,
                 "direct change between G41 and G42 is not allowed (program G40 first, or set 6.R397 = 1)",
             ));
         }
         if geo.is_arc() {
             return Err(err(
+                DiagCode::CompChangeOnArc,
                 b,
                 "radius compensation can only change in a linear block, not on an arc",
             ));
@@ -237,6 +246,7 @@ impl Compensator {
             && r < -EPS_MM
         {
             return Err(err(
+                DiagCode::ToolLargerThanArc,
                 b,
                 format!(
                     "tool radius {:.3} mm is larger than the inside arc radius {:.3} mm",
@@ -269,6 +279,7 @@ impl Compensator {
             return (geo, Shape::AsProgrammed, None);
         }
         let warning = Diagnostic::warning(
+            DiagCode::ArcReplacedByLine,
             b.n,
             b.line,
             0,
@@ -304,6 +315,7 @@ impl Compensator {
                         .any(|i| super::optimise::try_chord(&mut elems, i, s, &cfg));
                 if !fixed {
                     return Err(err(
+                        DiagCode::NoIntersection,
                         &src,
                         format!(
                             "intersection of equidistants not found (NENALEZEN PRUSEČÍK EKVIDISTANT) between blocks {} and {}",
@@ -318,6 +330,7 @@ impl Compensator {
                     .filter(|&(i, before)| elems[i].shape == Shape::Chord && before != Shape::Chord)
                     .map(|(i, _)| {
                         Diagnostic::warning(
+                            DiagCode::NoIntersection,
                             elems[i].src.n,
                             elems[i].src.line,
                             0,

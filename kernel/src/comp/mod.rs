@@ -36,7 +36,7 @@ mod optimise;
 use std::collections::VecDeque;
 
 use crate::block::{Block, Comp, Plane};
-use crate::diag::Diagnostic;
+use crate::diag::{DiagCode, Diagnostic};
 use crate::units::AxesMm;
 
 pub use config::{CompConfig, CornerMode, EquidistantCheck, PercentRule};
@@ -252,6 +252,7 @@ impl Notes {
         if self.dropped > 0 {
             let n = std::mem::take(&mut self.dropped);
             self.list.push(Diagnostic::info(
+                DiagCode::MessagesNotListed,
                 None,
                 0,
                 0,
@@ -262,8 +263,8 @@ impl Notes {
     }
 }
 
-fn err(b: &Block, msg: impl Into<String>) -> Diagnostic {
-    Diagnostic::error(b.n, b.line, 0, msg)
+fn err(code: DiagCode, b: &Block, msg: impl Into<String>) -> Diagnostic {
+    Diagnostic::error(code, b.n, b.line, 0, msg)
 }
 
 fn name(b: &Block) -> String {
@@ -352,18 +353,24 @@ impl Compensator {
     /// Takes one programmed block. On `Err` nothing has changed and the block is not taken.
     pub fn push(&mut self, b: &Block) -> Result<(), Diagnostic> {
         if !all_finite(b) {
-            return Err(err(b, "coordinate or radius is not a finite number"));
+            return Err(err(
+                DiagCode::NonFiniteCoordinate,
+                b,
+                "coordinate or radius is not a finite number",
+            ));
         }
         if let Some((_, d, _)) = side_of(b.comp) {
             // SPEC §4: only with 8.R95 = 1; §4.1: the tool must be selected.
             if !self.cfg.enabled {
                 return Err(err(
+                    DiagCode::CompDisabled,
                     b,
                     "radius compensation G41/G42 is not enabled (machine constant 8.R95 = 0)",
                 ));
             }
             if d == 0 {
                 return Err(err(
+                    DiagCode::CompWithoutTool,
                     b,
                     "G41/G42 without a tool: select the offset table entry with D first",
                 ));

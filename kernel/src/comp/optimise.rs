@@ -12,7 +12,7 @@ use super::geom::{self, EPS_MM, Geo, V2, intersect, wrap_pi};
 use super::lifecycle::{apply_join, join};
 use super::{CompConfig, Compensator, CornerArc, Elem, Equidistant, Shape, name};
 use crate::block::Block;
-use crate::diag::Diagnostic;
+use crate::diag::{DiagCode, Diagnostic};
 
 /// Signed sweep of the equidistant of an arc element between tool-centre points `start` and
 /// `end`: the programmed sweep corrected by how far the junctions moved each end. A result
@@ -84,6 +84,7 @@ impl Compensator {
             if try_chord(&mut trial, m, s, &cfg) && !runs_backwards(&trial[m], s) {
                 *elems = trial;
                 self.notes.push(Diagnostic::warning(
+                    DiagCode::EquidistantArcBackward,
                     src.n,
                     src.line,
                     0,
@@ -123,7 +124,13 @@ impl Compensator {
                 name(&elems[m - 1].src),
                 name(&src)
             );
-            self.notes.push(Diagnostic::info(src.n, src.line, 0, msg));
+            self.notes.push(Diagnostic::info(
+                DiagCode::LoopRemoved4Blocks,
+                src.n,
+                src.line,
+                0,
+                msg,
+            ));
             return;
         }
         if cfg.check.optimise_3_blocks
@@ -131,6 +138,7 @@ impl Compensator {
             && bypass(elems, m - 1, m + 1, s)
         {
             self.notes.push(Diagnostic::info(
+                DiagCode::LoopRemoved3Blocks,
                 src.n,
                 src.line,
                 0,
@@ -157,6 +165,7 @@ impl Compensator {
             e.state = Equidistant::Collapsed;
             if rule.report {
                 self.notes.push(Diagnostic::info(
+                    DiagCode::ExitOptimised,
                     b.n,
                     b.line,
                     0,
@@ -165,6 +174,7 @@ impl Compensator {
             }
         } else {
             self.notes.push(Diagnostic::warning(
+                DiagCode::ExitBackward,
                 b.n,
                 b.line,
                 0,
@@ -201,6 +211,7 @@ pub(super) fn try_chord(elems: &mut VecDeque<Elem>, i: usize, s: f64, cfg: &Comp
 /// The R397 warning: the equidistant of `src` runs backwards (SPEC §4.5).
 fn backward_warning(src: &Block) -> Diagnostic {
     Diagnostic::warning(
+        DiagCode::EquidistantBackward,
         src.n,
         src.line,
         0,

@@ -40,7 +40,7 @@ pub use config::{
 pub use path::SegPath;
 
 use crate::block::{Block, BlockKind, Continuity, Feed, Path, ProgramStop, Spindle};
-use crate::diag::Diagnostic;
+use crate::diag::{DiagCode, Diagnostic};
 use crate::units::{AxesMm, TS_S, mm_min_to_mm_s};
 
 /// Share of the isotropic axis acceleration given to acceleration normal to the path
@@ -285,6 +285,7 @@ impl Planner {
     pub fn push(&mut self, block: &Block) -> Result<(), Diagnostic> {
         if self.finished {
             return Err(Diagnostic::error(
+                DiagCode::Internal,
                 block.n,
                 block.line,
                 0,
@@ -308,6 +309,7 @@ impl Planner {
         let axes = self.cfg.axes;
         if (0..axes).any(|i| !start[i].is_finite() || !end[i].is_finite()) {
             return Err(Diagnostic::error(
+                DiagCode::NonFiniteCoordinate,
                 block.n,
                 block.line,
                 0,
@@ -908,6 +910,7 @@ fn feed_mm_min(block: &Block) -> Result<f64, Diagnostic> {
     match block.feed {
         Feed::MmPerMin(f) if f.is_finite() && f > 0.0 => Ok(f),
         Feed::MmPerMin(_) => Err(Diagnostic::error(
+            DiagCode::NoFeed,
             block.n,
             block.line,
             0,
@@ -920,6 +923,7 @@ fn feed_mm_min(block: &Block) -> Result<f64, Diagnostic> {
             match block.spindle.per_rev_nominal_rpm() {
                 Some(n) => Ok(f * n),
                 None => Err(Diagnostic::error(
+                    DiagCode::FeedPerRevWithoutSpindle,
                     block.n,
                     block.line,
                     0,
@@ -928,6 +932,7 @@ fn feed_mm_min(block: &Block) -> Result<f64, Diagnostic> {
             }
         }
         Feed::MmPerRev(_) => Err(Diagnostic::error(
+            DiagCode::FeedPerRevWithoutSpindle,
             block.n,
             block.line,
             0,

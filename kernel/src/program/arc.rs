@@ -24,13 +24,29 @@ pub struct ERefinement {
     pub delta_mm: f64,
 }
 
+/// Why an E word does not decode.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum EWordError {
+    #[error("E{0} is outside ±99999.999")]
+    OutOfRange(f64),
+    #[error("decade 8 of E must be 0 (correct I) or 1 (correct J), not {0}")]
+    BadDecade8(u64),
+}
+
+impl EWordError {
+    /// Stable code (tests and HMIs match it; the message may improve).
+    pub fn code(&self) -> crate::diag::DiagCode {
+        crate::diag::DiagCode::ERefinementInvalid
+    }
+}
+
 impl ERefinement {
     /// Decodes E as written: decade 8 (the 10⁴ digit of the integer part) selects I or J,
     /// decades 1..7 are the correction in µm with 0.001 µm resolution, the sign applies to it.
     /// `E2.054` → I + 0.002054 mm; `E-10006.992` → J − 0.006992 mm.
-    pub fn decode(e: f64) -> Result<ERefinement, String> {
+    pub fn decode(e: f64) -> Result<ERefinement, EWordError> {
         if !e.is_finite() || e.abs() >= 100_000.0 {
-            return Err(format!("E{e} is outside ±99999.999"));
+            return Err(EWordError::OutOfRange(e));
         }
         // Thousandths of a µm, exact for the ±xxxxx.xxx format.
         let milli = (e.abs() * 1000.0).round() as u64;
@@ -38,9 +54,7 @@ impl ERefinement {
             0 => Corrected::I,
             1 => Corrected::J,
             d => {
-                return Err(format!(
-                    "decade 8 of E must be 0 (correct I) or 1 (correct J), not {d}"
-                ));
+                return Err(EWordError::BadDecade8(d));
             }
         };
         let um = (milli % 10_000_000) as f64 / 1000.0;

@@ -2,6 +2,7 @@
 
 use super::words::Num;
 use crate::block::Feed;
+use crate::diag::DiagCode;
 
 /// Feed limit under G94/G96 (SPEC §5).
 pub const MAX_FEED_MM_MIN: f64 = 90_000.0;
@@ -40,20 +41,41 @@ impl FeedMode {
     }
 }
 
+/// Why an F word is refused.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum FeedError {
+    #[error("feed F cannot be negative")]
+    Negative,
+    #[error(
+        "feed {0} mm/rev is above the limit {MAX_FEED_MM_REV} mm/rev \
+         (G95: F without a decimal point is µm/rev, with a point mm/rev)"
+    )]
+    AbovePerRevLimit(f64),
+    #[error(
+        "feed {0} mm/min is above the limit {MAX_FEED_MM_MIN} mm/min \
+         (G94: F without a decimal point is mm/min, with a point m/min)"
+    )]
+    AbovePerMinLimit(f64),
+}
+
+impl FeedError {
+    /// Stable code (tests and HMIs match it; the message may improve).
+    pub fn code(&self) -> DiagCode {
+        DiagCode::FeedOutOfRange
+    }
+}
+
 /// Converts an F word to a feed (SPEC §5). Per minute: no point = mm/min, point = m/min.
 /// Per revolution: no point = µm/rev, point = mm/rev. Limits 90000 mm/min and 99.999 mm/rev.
-pub fn convert(f: Num, per_rev: bool) -> Result<Feed, String> {
+pub fn convert(f: Num, per_rev: bool) -> Result<Feed, FeedError> {
     if f.value < 0.0 {
-        return Err("feed F cannot be negative".into());
+        return Err(FeedError::Negative);
     }
     if per_rev {
         let mm_rev = if f.point { f.value } else { f.value / 1000.0 };
         // Compare in µm/rev so that F99.999 and F99999 are both exactly at the limit.
         if (mm_rev * 1000.0).round() > MAX_FEED_MM_REV * 1000.0 || mm_rev > MAX_FEED_MM_REV + 1e-9 {
-            return Err(format!(
-                "feed {mm_rev} mm/rev is above the limit {MAX_FEED_MM_REV} mm/rev \
-                 (G95: F without a decimal point is µm/rev, with a point mm/rev)"
-            ));
+            return Err(FeedError::AbovePerRevLimit(mm_rev));
         }
         Ok(Feed::MmPerRev(mm_rev))
     } else {
@@ -65,10 +87,7 @@ pub fn convert(f: Num, per_rev: bool) -> Result<Feed, String> {
             f.value
         };
         if mm_min > MAX_FEED_MM_MIN {
-            return Err(format!(
-                "feed {mm_min} mm/min is above the limit {MAX_FEED_MM_MIN} mm/min \
-                 (G94: F without a decimal point is mm/min, with a point m/min)"
-            ));
+            return Err(FeedError::AbovePerMinLimit(mm_min));
         }
         Ok(Feed::MmPerMin(mm_min))
     }

@@ -12,7 +12,7 @@ use crate::block::{
     ArcDir, Block, BlockKind, Comp, Continuity, Feed, MCodes, Path, Plane, Spindle, SpindleDir,
 };
 use crate::constants::Refinement;
-use crate::diag::Diagnostic;
+use crate::diag::{DiagCode, Diagnostic};
 use crate::offsets::{self, OffsetTable, TableEdit};
 use crate::units::{AxesMm, MAX_AXES};
 
@@ -116,7 +116,47 @@ impl Modal {
     }
 }
 
+impl Rules {
+    fn of(setup: &Setup) -> Self {
+        let c = &setup.constants;
+        Rules {
+            arc_tolerance_mm: c.arc_tolerance_mm(),
+            bad_arc_becomes_line: c.bad_arc_becomes_line(),
+            side_switch_allowed: c.comp_side_switch_allowed(),
+            g40_without_motion: c.g40_without_motion_allowed(),
+            refinement: if setup.preprocessor {
+                c.refinement()
+            } else {
+                Refinement::Off
+            },
+            css_swapped: c.css_g96_g97_swapped(),
+            ij: setup.ij,
+        }
+    }
+}
+
 impl State {
+    /// The power-on modal state at position `start`.
+    fn power_on(start: AxesMm) -> Self {
+        State {
+            prog: start,
+            machine: start,
+            motion: Motion::Rapid,
+            plane: Plane::G17,
+            absolute: true,
+            feed_mode: FeedMode::G94,
+            feed: None,
+            m37: false,
+            continuity: Continuity::G98,
+            dyn_set: 1,
+            comp: CompMode::Off,
+            d: 0,
+            amp: 0,
+            spindle: Spindle::default(),
+            speed_from_css: false,
+        }
+    }
+
     fn modal(&self) -> Modal {
         Modal {
             motion: self.motion,
@@ -174,23 +214,32 @@ struct Words {
     any: bool,
 }
 
-/// An error inside a block: byte offset in the line and message.
+/// An error inside a block: byte offset in the line, code and message.
 struct Fail {
     at: usize,
+    code: DiagCode,
     message: String,
 }
 
-fn fail<T>(at: usize, message: impl Into<String>) -> Result<T, Fail> {
-    Err(Fail {
-        at,
-        message: message.into(),
-    })
+impl Fail {
+    fn new(at: usize, code: DiagCode, message: impl ToString) -> Self {
+        Fail {
+            at,
+            code,
+            message: message.to_string(),
+        }
+    }
+}
+
+fn fail<T>(at: usize, code: DiagCode, message: impl ToString) -> Result<T, Fail> {
+    Err(Fail::new(at, code, message))
 }
 
 impl From<LexError> for Fail {
     fn from(e: LexError) -> Self {
         Fail {
             at: e.at,
+            code: e.code,
             message: e.message,
         }
     }
@@ -234,29 +283,7 @@ impl Interpreter {
 
     pub fn new(setup: &Setup) -> Self {
         let c = &setup.constants;
-        let mut axis_letters = [0u8; MAX_AXES];
-        let mut setup_error = None;
-        if setup.axis_names.is_empty() || setup.axis_names.len() > MAX_AXES {
-            setup_error = Some(format!(
-                "the machine must have 1..{MAX_AXES} axes, not {}",
-                setup.axis_names.len()
-            ));
-        }
-        for (k, &a) in setup.axis_names.iter().take(MAX_AXES).enumerate() {
-            let up = a.to_ascii_uppercase();
-            if !up.is_ascii_alphabetic() || RESERVED_LETTERS.contains(up) {
-                setup_error = Some(format!(
-                    "axis name '{a}' cannot be used: axes are letters other than {RESERVED_LETTERS}"
-                ));
-            } else if setup.axis_names[..k]
-                .iter()
-                .any(|b| b.to_ascii_uppercase() == up)
-            {
-                setup_error = Some(format!("axis name '{a}' is configured twice"));
-            }
-            axis_letters[k] = up as u8;
-        }
-        let start = setup.start;
+        let (axis_letters, setup_error) = axis_letters(&setup.axis_names);
         let kr_axis = crate::kr::config::controlling_axis_letter(c).and_then(|l| {
             setup
                 .axis_names
@@ -272,37 +299,9 @@ impl Interpreter {
             max_feed_mm_min: setup.max_feed_mm_min,
             axis_letters,
             n_axes: setup.axis_names.len().min(MAX_AXES),
-            rules: Rules {
-                arc_tolerance_mm: c.arc_tolerance_mm(),
-                bad_arc_becomes_line: c.bad_arc_becomes_line(),
-                side_switch_allowed: c.comp_side_switch_allowed(),
-                g40_without_motion: c.g40_without_motion_allowed(),
-                refinement: if setup.preprocessor {
-                    c.refinement()
-                } else {
-                    Refinement::Off
-                },
-                css_swapped: c.css_g96_g97_swapped(),
-                ij: setup.ij,
-            },
+            rules: Rules::of(setup),
             table: setup.offsets.clone(),
-            state: State {
-                prog: start,
-                machine: start,
-                motion: Motion::Rapid,
-                plane: Plane::G17,
-                absolute: true,
-                feed_mode: FeedMode::G94,
-                feed: None,
-                m37: false,
-                continuity: Continuity::G98,
-                dyn_set: 1,
-                comp: CompMode::Off,
-                d: 0,
-                amp: 0,
-                spindle: Spindle::default(),
-                speed_from_css: false,
-            },
+            state: State::power_on(setup.start),
             params: [None; MAX_PARAM as usize + 1],
             seq: 0,
             notes: Vec::new(),
@@ -319,7 +318,7 @@ impl Interpreter {
     pub fn setup_error(&self) -> Option<Diagnostic> {
         self.setup_error
             .as_ref()
-            .map(|m| Diagnostic::error(None, 0, 0, m.clone()))
+            .map(|m| Diagnostic::error(DiagCode::AxisNamesInvalid, None, 0, 0, m.clone()))
     }
 
     /// Warnings and information produced since the last call (arc replaced by a line, ...).
@@ -372,8 +371,9 @@ impl Interpreter {
     /// remark-only lines make none). On error the modal state is unchanged.
     pub fn line(&mut self, line_no: u32, text: &str) -> Result<Option<Block>, Diagnostic> {
         let mut w = Words::default();
-        let located =
-            |n: Option<u32>, f: Fail| Diagnostic::error(n, line_no, column(text, f.at), f.message);
+        let located = |n: Option<u32>, f: Fail| {
+            Diagnostic::error(f.code, n, line_no, column(text, f.at), f.message)
+        };
         if let Err(f) = self.collect(text, &mut w) {
             return Err(located(w.n, f));
         }
@@ -402,6 +402,7 @@ impl Interpreter {
             }),
             None => fail(
                 at,
+                DiagCode::ParamUnassigned,
                 format!("parameter R{index} is used before it was assigned"),
             ),
         }
@@ -420,7 +421,11 @@ impl Interpreter {
                 Token::Assign { index, value } => {
                     let num = self.resolve(w, value, at)?;
                     let Some(slot) = w.assigns.iter_mut().find(|s| s.is_none()) else {
-                        return fail(at, "more than 16 parameter assignments in one block");
+                        return fail(
+                            at,
+                            DiagCode::TooManyAssignments,
+                            "more than 16 parameter assignments in one block",
+                        );
                     };
                     *slot = Some((index, num));
                 }
@@ -449,11 +454,10 @@ impl Interpreter {
         first: bool,
     ) -> Result<(), Fail> {
         fn once<T>(slot: &mut Option<(T, usize)>, v: T, at: usize, what: &str) -> Result<(), Fail> {
-            if slot.is_some() {
-                return fail(at, format!("{what} is written twice in this block"));
-            }
-            *slot = Some((v, at));
-            Ok(())
+            put_once(slot, v, at, || {
+                let message = format!("{what} is written twice in this block");
+                (DiagCode::WordTwice, message)
+            })
         }
         if let Some(ax) = self.axis_letters[..self.n_axes]
             .iter()
@@ -469,9 +473,13 @@ impl Interpreter {
         match letter {
             b'N' => {
                 if !first {
-                    return fail(at, "the block number N must be the first word of the block");
+                    return fail(
+                        at,
+                        DiagCode::BlockNumberNotFirst,
+                        "the block number N must be the first word of the block",
+                    );
                 }
-                w.n = Some(int(num, "N", 0, 999_999).map_err(|m| Fail { at, message: m })?);
+                w.n = Some(int(num, "N", 0, 999_999).map_err(|e| Fail::new(at, e.code(), e))?);
             }
             b'G' => self.g_word(w, num, at)?,
             b'I' => once(&mut w.i, num, at, "I")?,
@@ -480,121 +488,105 @@ impl Interpreter {
             b'F' => once(&mut w.f, num, at, "F")?,
             b'S' => once(&mut w.s, num, at, "S")?,
             b'D' => {
-                let d = int(num, "D", 0, 99).map_err(|m| Fail { at, message: m })?;
+                let d = int(num, "D", 0, 99).map_err(|e| Fail::new(at, e.code(), e))?;
                 once(&mut w.d, d as u8, at, "D")?
             }
             b'&' => {
-                let d = int(num, "&", 0, 99).map_err(|m| Fail { at, message: m })?;
+                let d = int(num, "&", 0, 99).map_err(|e| Fail::new(at, e.code(), e))?;
                 once(&mut w.amp, d as u8, at, "&")?
             }
             b'M' => {
-                let m = int(num, "M", 0, 999).map_err(|m| Fail { at, message: m })? as u16;
+                let m = int(num, "M", 0, 999).map_err(|e| Fail::new(at, e.code(), e))? as u16;
                 let Some(slot) = w.m.iter_mut().find(|s| s.is_none()) else {
-                    return fail(at, "more than 4 M functions in one block");
+                    return fail(
+                        at,
+                        DiagCode::TooManyMFunctions,
+                        "more than 4 M functions in one block",
+                    );
                 };
                 *slot = Some((m, at));
             }
             _ => {
-                return fail(at, format!("unknown address {}", letter as char));
+                return fail(
+                    at,
+                    DiagCode::UnknownAddress,
+                    format!("unknown address {}", letter as char),
+                );
             }
         }
         Ok(())
     }
 
+    // A match over the dialect's G words: it reads better whole than split.
     fn g_word(&self, w: &mut Words, num: Num, at: usize) -> Result<(), Fail> {
-        fn group<T>(
-            slot: &mut Option<(T, usize)>,
-            v: T,
-            at: usize,
-            what: &str,
-        ) -> Result<(), Fail> {
-            if slot.is_some() {
-                return fail(
-                    at,
-                    format!("two G functions of the {what} group in one block"),
-                );
-            }
-            *slot = Some((v, at));
-            Ok(())
-        }
-        let g = int(num, "G", 0, 999).map_err(|m| Fail { at, message: m })?;
+        const MOTION: &str = "motion (G0..G3)";
+        const PLANE: &str = "plane (G17..G19)";
+        const CONTINUITY: &str = "continuity (G23/G24/G98)";
+        const COMP: &str = "radius compensation (G40..G42)";
+        const DISTANCE: &str = "G90/G91";
+        const FEED: &str = "feed (G94..G97)";
+        let g = int(num, "G", 0, 999).map_err(|e| Fail::new(at, e.code(), e))?;
         match g {
-            0 => group(&mut w.motion, Motion::Rapid, at, "motion (G0..G3)"),
-            1 => group(&mut w.motion, Motion::Line, at, "motion (G0..G3)"),
-            2 => group(&mut w.motion, Motion::Cw, at, "motion (G0..G3)"),
-            3 => group(&mut w.motion, Motion::Ccw, at, "motion (G0..G3)"),
+            0 => group(&mut w.motion, Motion::Rapid, at, MOTION),
+            1 => group(&mut w.motion, Motion::Line, at, MOTION),
+            2 => group(&mut w.motion, Motion::Cw, at, MOTION),
+            3 => group(&mut w.motion, Motion::Ccw, at, MOTION),
             17..=19 => {
                 let p = [Plane::G17, Plane::G18, Plane::G19][g as usize - 17];
                 let (a, b) = p.axes();
                 if a >= self.n_axes || b >= self.n_axes {
                     return fail(
                         at,
+                        DiagCode::PlaneNeedsAxis,
                         format!("G{g} needs a third axis; this machine has {}", self.n_axes),
                     );
                 }
-                group(&mut w.plane, p, at, "plane (G17..G19)")
+                group(&mut w.plane, p, at, PLANE)
             }
-            23 => group(
-                &mut w.continuity,
-                Continuity::G23,
-                at,
-                "continuity (G23/G24/G98)",
-            ),
-            24 => group(
-                &mut w.continuity,
-                Continuity::G24,
-                at,
-                "continuity (G23/G24/G98)",
-            ),
-            98 => group(
-                &mut w.continuity,
-                Continuity::G98,
-                at,
-                "continuity (G23/G24/G98)",
-            ),
-            40 => group(
-                &mut w.comp,
-                CompMode::Off,
-                at,
-                "radius compensation (G40..G42)",
-            ),
-            41 => group(
-                &mut w.comp,
-                CompMode::Left,
-                at,
-                "radius compensation (G40..G42)",
-            ),
-            42 => group(
-                &mut w.comp,
-                CompMode::Right,
-                at,
-                "radius compensation (G40..G42)",
-            ),
-            90 => group(&mut w.absolute, true, at, "G90/G91"),
-            91 => group(&mut w.absolute, false, at, "G90/G91"),
-            94 => group(&mut w.feed_mode, FeedMode::G94, at, "feed (G94..G97)"),
-            95 => group(&mut w.feed_mode, FeedMode::G95, at, "feed (G94..G97)"),
-            96 => group(&mut w.feed_mode, FeedMode::G96, at, "feed (G94..G97)"),
-            97 => group(&mut w.feed_mode, FeedMode::G97, at, "feed (G94..G97)"),
+            23 => group(&mut w.continuity, Continuity::G23, at, CONTINUITY),
+            24 => group(&mut w.continuity, Continuity::G24, at, CONTINUITY),
+            98 => group(&mut w.continuity, Continuity::G98, at, CONTINUITY),
+            40 => group(&mut w.comp, CompMode::Off, at, COMP),
+            41 => group(&mut w.comp, CompMode::Left, at, COMP),
+            42 => group(&mut w.comp, CompMode::Right, at, COMP),
+            90 => group(&mut w.absolute, true, at, DISTANCE),
+            91 => group(&mut w.absolute, false, at, DISTANCE),
+            94 => group(&mut w.feed_mode, FeedMode::G94, at, FEED),
+            95 => group(&mut w.feed_mode, FeedMode::G95, at, FEED),
+            96 => group(&mut w.feed_mode, FeedMode::G96, at, FEED),
+            97 => group(&mut w.feed_mode, FeedMode::G97, at, FEED),
             76 => {
                 if w.g76.is_some() {
-                    return fail(at, "G76 is written twice in this block");
+                    return fail(
+                        at,
+                        DiagCode::WordTwice,
+                        "G76 is written twice in this block",
+                    );
                 }
                 w.g76 = Some(at);
                 Ok(())
             }
             92 => {
                 if w.g92.is_some() {
-                    return fail(at, "G92 is written twice in this block");
+                    return fail(
+                        at,
+                        DiagCode::WordTwice,
+                        "G92 is written twice in this block",
+                    );
                 }
                 w.g92 = Some(at);
                 Ok(())
             }
             4 => fail(
                 at,
+                DiagCode::DwellNotSupported,
                 "G4 (dwell) is not a function of this controller's dialect",
             ),
-            _ => fail(at, format!("G{g} is not a function of this controller")),
+            _ => fail(
+                at,
+                DiagCode::UnknownGFunction,
+                format!("G{g} is not a function of this controller"),
+            ),
         }
     }
 
@@ -640,45 +632,56 @@ impl Interpreter {
         )
     }
 
+    /// One block, in the order the modal groups depend on each other: the simple modal words,
+    /// dynamic set, plane, M functions, feed and S, G92/D/&, compensation, positions, then the
+    /// block's kind (motion checks). Every step works on the copy `st`; [`Self::commit`] is the
+    /// only one that changes the interpreter.
     fn interpret(&mut self, w: &Words, line_no: u32, text: &str) -> Result<Block, Fail> {
         let old = self.state;
         let mut st = old;
-        let rules = self.rules;
-        if let Some((m, _)) = w.motion {
-            st.motion = m;
-        }
-        if let Some((a, _)) = w.absolute {
-            st.absolute = a;
-        }
-        if let Some((c, _)) = w.continuity {
-            st.continuity = c;
-        }
+        apply_simple_modals(w, &mut st);
         let motion_words = w.axes[..self.n_axes].iter().any(Option::is_some);
         let arc_block = st.motion.is_arc() && w.g92.is_none();
-
-        // G23/G24/G98 I1..I4: I selects the dynamic set (SPEC §7.4) unless the block is an arc
-        // that moves (G2/G3 mode with an axis word or J), where I is the centre.
-        let mut i_is_centre = true;
-        if let (Some(_), Some((i, at))) = (w.continuity, w.i)
-            && (!arc_block || (w.j.is_none() && !motion_words))
-        {
-            let set = int(i, "I (dynamic set)", 1, 4).map_err(|m| Fail { at, message: m })?;
-            st.dyn_set = set as u8;
-            i_is_centre = false;
+        let i_is_centre = dynamic_set(w, &mut st, arc_block, motion_words)?;
+        plane(w, &old, &mut st)?;
+        let m_codes = self.m_functions(w, &mut st)?;
+        let per_rev = self.feed_and_speed(w, &old, &mut st)?;
+        let edit = self.table_write_or_d(w, &mut st, line_no, text)?;
+        if let Some((a, _)) = w.amp {
+            st.amp = a;
         }
-
-        // Plane (SPEC §4.1: no change under compensation).
-        if let Some((p, at)) = w.plane {
-            if old.comp != CompMode::Off && p != old.plane {
-                return fail(
-                    at,
-                    "the plane cannot change while radius compensation G41/G42 is active: program G40 first",
-                );
-            }
-            st.plane = p;
+        let comp = self.compensation(w, &old, &mut st, edit.as_ref(), arc_block, motion_words)?;
+        let offset = self.positions(w, &old, &mut st, edit.as_ref());
+        let start = old.machine;
+        let end = st.prog + offset;
+        check_arc_words(w, arc_block, i_is_centre)?;
+        let moves =
+            motion_words || (arc_block && ((w.i.is_some() && i_is_centre) || w.j.is_some()));
+        let mut out = Outcome {
+            kind: BlockKind::Technology,
+            warn: None,
+            refined: None,
+        };
+        if let Some(ed) = edit {
+            out.kind = BlockKind::TableWrite {
+                entry: ed.entry,
+                values: ed.values,
+            };
+        } else if moves {
+            out = self.motion(w, &st, &old, (start, end, offset), arc_block, per_rev)?;
         }
+        let checked = Checked {
+            st,
+            edit,
+            comp,
+            m_codes,
+            out,
+        };
+        Ok(self.commit(w, line_no, text, checked))
+    }
 
-        // M functions: spindle, feed scale, gear.
+    /// M functions: spindle direction, feed scale, gear range (one of each per block).
+    fn m_functions(&self, w: &Words, st: &mut State) -> Result<MCodes, Fail> {
         let mut m_codes: MCodes = [None; 4];
         let (mut dir_at, mut scale_at, mut gear_at) = (None, None, None);
         for (k, (m, at)) in w.m.iter().flatten().enumerate() {
@@ -691,6 +694,7 @@ impl Interpreter {
                 41..=44 => {
                     return fail(
                         *at,
+                        DiagCode::GearNotConfigured,
                         format!(
                             "M{m} selects no gear range: the machine's [kr.gears] table has no \
                              range with m_code = {m}"
@@ -700,7 +704,11 @@ impl Interpreter {
                 _ => continue,
             };
             if slot.is_some() {
-                return fail(*at, format!("two M functions for the {what} in one block"));
+                return fail(
+                    *at,
+                    DiagCode::MGroupConflict,
+                    format!("two M functions for the {what} in one block"),
+                );
             }
             *slot = Some(*m);
             match m {
@@ -717,40 +725,49 @@ impl Interpreter {
             // power-on modal state anyway, docs/language.md).
             st.spindle.dir = SpindleDir::Stopped;
         }
-
         // P of the range in force (gear 0, none selected yet, is range 1), for feed per rev.
         st.spindle.gear_max_rpm = self
             .gears
             .get(usize::from(st.spindle.gear.max(1)) - 1)
             .map_or(0.0, |g| g.max_rpm);
+        Ok(m_codes)
+    }
 
-        // Feed group and constant cutting speed (SPEC §5, §6).
+    /// Feed group, F, and S / G76 S / constant cutting speed (SPEC §5, §6). Returns whether
+    /// the feed is per revolution.
+    fn feed_and_speed(&self, w: &Words, old: &State, st: &mut State) -> Result<bool, Fail> {
+        let css_swapped = self.rules.css_swapped;
         if let Some((fm, _)) = w.feed_mode {
             st.feed_mode = fm;
         }
-        let per_rev = st.feed_mode.per_rev(rules.css_swapped);
-        if per_rev != old.feed_mode.per_rev(rules.css_swapped) {
+        let per_rev = st.feed_mode.per_rev(css_swapped);
+        if per_rev != old.feed_mode.per_rev(css_swapped) {
             // F is not carried over between per minute and per revolution (seed 002 §6.1).
             st.feed = None;
         }
         if let Some((f, at)) = w.f {
-            st.feed = Some(feed::convert(f, per_rev).map_err(|m| Fail { at, message: m })?);
+            st.feed = Some(feed::convert(f, per_rev).map_err(|e| Fail::new(at, e.code(), e))?);
         }
         st.spindle.css = st.feed_mode.css();
         if let Some(at) = w.g76 {
             let Some((s, s_at)) = w.s else {
                 return fail(
                     at,
+                    DiagCode::G76NeedsS,
                     "G76 needs S: the spindle speed limit in rpm (G76 S2000)",
                 );
             };
             if s.value < 0.0 {
-                return fail(s_at, "the spindle speed limit cannot be negative");
+                return fail(
+                    s_at,
+                    DiagCode::NegativeSpeed,
+                    "the spindle speed limit cannot be negative",
+                );
             }
             st.spindle.limit_rpm = s.value;
         } else if let Some((s, at)) = w.s {
             if s.value < 0.0 {
-                return fail(at, "S cannot be negative");
+                return fail(at, DiagCode::NegativeSpeed, "S cannot be negative");
             }
             st.spindle.s = s.value;
             st.speed_from_css = false;
@@ -759,55 +776,88 @@ impl Interpreter {
             st.spindle.s = 0.0;
             st.speed_from_css = true;
         }
+        Ok(per_rev)
+    }
 
-        // G92 D<n> R0..R4: table write (SPEC §3 (c)).
-        let mut edit = None;
-        if let Some(at) = w.g92 {
-            if let Some(ax) = w.axes.iter().flatten().next() {
-                return fail(
-                    ax.1,
-                    "G92 fills the offset table; it cannot be in a block with axis motion",
-                );
+    /// G92 D<n> R0..R4: the table write the block makes (SPEC §3 (c)); without G92, D selects
+    /// the offset entry.
+    fn table_write_or_d(
+        &mut self,
+        w: &Words,
+        st: &mut State,
+        line_no: u32,
+        text: &str,
+    ) -> Result<Option<TableEdit>, Fail> {
+        let Some(at) = w.g92 else {
+            if let Some((d, _)) = w.d {
+                st.d = d;
             }
-            let Some((entry, d_at)) = w.d else {
-                return fail(at, "G92 needs D<entry> (01..99): the offset entry to fill");
-            };
-            if entry == 0 {
-                return fail(d_at, "G92 D0: offset entries are 01..99");
-            }
-            let mut values = [None; 5];
-            for (index, num) in w.assigns.iter().flatten() {
-                if (*index as usize) < 5 {
-                    if !num.value.is_finite() || num.value.abs() > offsets::MAX_VALUE_MM {
-                        return fail(
-                            at,
-                            format!(
-                                "R{index}={} is outside ±{} mm",
-                                num.value,
-                                offsets::MAX_VALUE_MM
-                            ),
-                        );
-                    }
-                    values[*index as usize] = Some(num.value);
+            return Ok(None);
+        };
+        if let Some(ax) = w.axes.iter().flatten().next() {
+            return fail(
+                ax.1,
+                DiagCode::G92WithMotion,
+                "G92 fills the offset table; it cannot be in a block with axis motion",
+            );
+        }
+        let Some((entry, d_at)) = w.d else {
+            return fail(
+                at,
+                DiagCode::G92NeedsEntry,
+                "G92 needs D<entry> (01..99): the offset entry to fill",
+            );
+        };
+        if entry == 0 {
+            return fail(
+                d_at,
+                DiagCode::G92NeedsEntry,
+                "G92 D0: offset entries are 01..99",
+            );
+        }
+        let mut values = [None; 5];
+        for (index, num) in w.assigns.iter().flatten() {
+            if (*index as usize) < 5 {
+                if !num.value.is_finite() || num.value.abs() > offsets::MAX_VALUE_MM {
+                    return fail(
+                        at,
+                        DiagCode::OffsetValueOutOfRange,
+                        format!(
+                            "R{index}={} is outside ±{} mm",
+                            num.value,
+                            offsets::MAX_VALUE_MM
+                        ),
+                    );
                 }
+                values[*index as usize] = Some(num.value);
             }
-            if values.iter().all(Option::is_none) {
-                self.notes.push(Diagnostic::warning(
-                    w.n,
-                    line_no,
-                    column(text, at),
-                    format!("G92 D{entry} writes nothing: program R0 (radius) .. R4 (lengths) in the block"),
-                ));
-            }
-            edit = Some(TableEdit { entry, values });
-        } else if let Some((d, _)) = w.d {
-            st.d = d;
         }
-        if let Some((a, _)) = w.amp {
-            st.amp = a;
+        if values.iter().all(Option::is_none) {
+            self.notes.push(Diagnostic::warning(
+                DiagCode::G92WritesNothing,
+                w.n,
+                line_no,
+                column(text, at),
+                format!(
+                    "G92 D{entry} writes nothing: program R0 (radius) .. R4 (lengths) in the block"
+                ),
+            ));
         }
+        Ok(Some(TableEdit { entry, values }))
+    }
 
-        // Radius compensation (SPEC §4.1, §4.2).
+    /// Radius compensation G40/G41/G42 (SPEC §4.1, §4.2): the side and radius in force, and
+    /// the checks on starting, switching and cancelling it.
+    fn compensation(
+        &self,
+        w: &Words,
+        old: &State,
+        st: &mut State,
+        edit: Option<&TableEdit>,
+        arc_block: bool,
+        motion_words: bool,
+    ) -> Result<Comp, Fail> {
+        let rules = self.rules;
         if let Some((c, _)) = w.comp {
             st.comp = c;
         }
@@ -815,9 +865,10 @@ impl Interpreter {
         let comp = match st.comp {
             CompMode::Off => Comp::Off,
             side => {
-                let Some(radius_mm) = self.radius_of(st.d, edit.as_ref()) else {
+                let Some(radius_mm) = self.radius_of(st.d, edit) else {
                     return fail(
                         comp_at,
+                        DiagCode::CompWithoutTool,
                         "radius compensation needs a tool: select an offset entry with D before G41/G42",
                     );
                 };
@@ -828,36 +879,48 @@ impl Interpreter {
                 }
             }
         };
-        if st.comp != old.comp {
-            if arc_block && motion_words {
-                return fail(
-                    comp_at,
-                    "radius compensation can be started or cancelled only in a linear block, not on an arc",
-                );
-            }
-            if old.comp != CompMode::Off && st.comp != CompMode::Off && !rules.side_switch_allowed {
-                return fail(
-                    comp_at,
-                    "G41 and G42 cannot follow each other directly: program G40 between them (or set 6.R397 = 1)",
-                );
-            }
-            let (a, b) = st.plane.axes();
-            if st.comp == CompMode::Off
-                && !rules.g40_without_motion
-                && w.axes[a].is_none()
-                && w.axes[b].is_none()
-            {
-                return fail(
-                    comp_at,
-                    "G40 must be in a block that moves in the compensation plane (or set 7.R339 = 1)",
-                );
-            }
+        if st.comp == old.comp {
+            return Ok(comp);
         }
+        if arc_block && motion_words {
+            return fail(
+                comp_at,
+                DiagCode::CompChangeOnArc,
+                "radius compensation can be started or cancelled only in a linear block, not on an arc",
+            );
+        }
+        if old.comp != CompMode::Off && st.comp != CompMode::Off && !rules.side_switch_allowed {
+            return fail(
+                comp_at,
+                DiagCode::CompSideSwitch,
+                "G41 and G42 cannot follow each other directly: program G40 between them (or set 6.R397 = 1)",
+            );
+        }
+        let (a, b) = st.plane.axes();
+        if st.comp == CompMode::Off
+            && !rules.g40_without_motion
+            && w.axes[a].is_none()
+            && w.axes[b].is_none()
+        {
+            return fail(
+                comp_at,
+                DiagCode::G40WithoutMotion,
+                "G40 must be in a block that moves in the compensation plane (or set 7.R339 = 1)",
+            );
+        }
+        Ok(comp)
+    }
 
-        // Positions.
-        let offset = self.length_offset(st.amp, edit.as_ref());
-        // KŘR version 2 computes at the tool tip with the offset in force from this block on,
-        // also in blocks without motion (SPEC §6).
+    /// The programmed position after the block and the length offset in force (which KŘR
+    /// version 2 also uses, from this block on, SPEC §6).
+    fn positions(
+        &self,
+        w: &Words,
+        old: &State,
+        st: &mut State,
+        edit: Option<&TableEdit>,
+    ) -> AxesMm {
+        let offset = self.length_offset(st.amp, edit);
         st.spindle.length_offset_mm = self.kr_axis.map_or(0.0, |k| offset[k]);
         for (k, v) in w.axes[..self.n_axes].iter().enumerate() {
             if let Some((v, _)) = v {
@@ -865,90 +928,73 @@ impl Interpreter {
                 st.prog[k] = if st.absolute { v } else { old.prog[k] + v };
             }
         }
-        let start = old.machine;
-        let end = st.prog + offset;
+        offset
+    }
 
-        // I, J, E belong to arcs.
-        let ij_present = (w.i.is_some() && i_is_centre) || w.j.is_some();
-        if !arc_block {
-            if let Some((_, at)) = w.i.filter(|_| i_is_centre).or(w.j) {
-                return fail(at, "I and J are arc centre words: they need G2 or G3");
-            }
-            if let Some((_, at)) = w.e {
-                return fail(at, "E refines an arc centre: it needs G2 or G3");
-            }
+    /// A block that moves: its path (rapid, line or a checked arc) and the feed it needs.
+    /// `ends` is (start, end, length offset) in machine coordinates.
+    #[inline(always)]
+    fn motion(
+        &self,
+        w: &Words,
+        st: &State,
+        old: &State,
+        ends: (AxesMm, AxesMm, AxesMm),
+        arc_block: bool,
+        per_rev: bool,
+    ) -> Result<Outcome, Fail> {
+        let (start, end, offset) = ends;
+        let (mut warn, mut refined) = (None, None);
+        if arc_block && let Some(k) = self.moving_rotary_axis(start, end) {
+            return fail(
+                w.axes[k].map_or(w.first, |a| a.1),
+                DiagCode::RotaryAxisInArc,
+                format!(
+                    "{} is a rotary axis: it moves in linear blocks (G0, G1), not in an arc",
+                    self.axis_letters[k] as char
+                ),
+            );
         }
-        let moves = motion_words || (arc_block && ij_present);
-        let mut kind = BlockKind::Technology;
-        let mut warn: Option<(usize, String)> = None;
-        let mut refined = None;
-        if let Some(ed) = edit {
-            kind = BlockKind::TableWrite {
-                entry: ed.entry,
-                values: ed.values,
-            };
-        } else if moves {
-            if arc_block && let Some(k) = self.moving_rotary_axis(start, end) {
-                return fail(
-                    w.axes[k].map_or(w.first, |a| a.1),
-                    format!(
-                        "{} is a rotary axis: it moves in linear blocks (G0, G1), not in an arc",
-                        self.axis_letters[k] as char
-                    ),
-                );
-            }
-            let path = if arc_block {
-                match self.arc(w, &st, old, start, end, offset)? {
-                    Ok((p, r)) => {
-                        refined = r;
-                        p
-                    }
-                    Err(msg) => {
-                        warn = Some((w.first, msg));
-                        Path::Line
-                    }
+        let path = if arc_block {
+            match self.arc(w, st, old, start, end, offset)? {
+                Ok((p, r)) => {
+                    refined = r;
+                    p
                 }
-            } else if st.motion == Motion::Rapid {
-                Path::Rapid
-            } else {
-                Path::Line
-            };
-            if path != Path::Rapid {
-                match st.feed {
-                    Some(f) if feed_value(f) > 0.0 => {}
-                    Some(_) => {
-                        return fail(
-                            w.f.map_or(w.first, |f| f.1),
-                            "feed F is zero: a feed move needs F > 0",
-                        );
-                    }
-                    None if old.feed.is_some() => {
-                        return fail(
-                            w.first,
-                            "the feed changed between per minute and per revolution: program F again",
-                        );
-                    }
-                    None => {
-                        return fail(
-                            w.first,
-                            "no feed: program F before the first feed move (G1/G2/G3)",
-                        );
-                    }
-                }
-                if per_rev
-                    && (st.spindle.dir == SpindleDir::Stopped
-                        || (st.spindle.s <= 0.0 && !st.speed_from_css))
-                {
-                    return fail(
-                        w.first,
-                        "feed per revolution needs a turning spindle: program S and M3 or M4 first",
-                    );
+                Err(off) => {
+                    warn = Some((w.first, format!("{off}; replaced by a line (7.R397 = 1)")));
+                    Path::Line
                 }
             }
-            kind = BlockKind::Motion { start, end, path };
+        } else if st.motion == Motion::Rapid {
+            Path::Rapid
+        } else {
+            Path::Line
+        };
+        if path != Path::Rapid {
+            check_feed(w, st, old, per_rev)?;
         }
+        Ok(Outcome {
+            kind: BlockKind::Motion { start, end, path },
+            warn,
+            refined,
+        })
+    }
 
-        // Everything checked: commit.
+    /// Everything checked: the block's feed, the table write, the parameters, the notes and
+    /// the new modal state take effect together.
+    // Inlined into `interpret` (its only caller): the block is then built in place, not
+    // copied out (the parse bench lost ~10 % without it).
+    #[inline(always)]
+    fn commit(&mut self, w: &Words, line_no: u32, text: &str, checked: Checked) -> Block {
+        let Checked {
+            mut st,
+            edit,
+            comp,
+            m_codes,
+            out,
+        } = checked;
+        let kind = out.kind;
         let mut feed_out = st.feed.unwrap_or_default();
         if st.m37 {
             feed_out = match feed_out {
@@ -967,25 +1013,31 @@ impl Interpreter {
         for (index, num) in w.assigns.iter().flatten() {
             self.params[*index as usize] = Some(*num);
         }
-        if let Some((at, msg)) = warn {
-            self.notes
-                .push(Diagnostic::warning(w.n, line_no, column(text, at), msg));
+        if let Some((at, msg)) = out.warn {
+            self.notes.push(Diagnostic::warning(
+                DiagCode::ArcReplacedByLine,
+                w.n,
+                line_no,
+                column(text, at),
+                msg,
+            ));
         }
         if let (BlockKind::Motion { path, .. }, Feed::MmPerRev(beta)) = (kind, feed_out)
             && path != Path::Rapid
             && let Some(msg) = self.beta_max_warning(beta, &st.spindle)
         {
             self.notes.push(Diagnostic::warning(
+                DiagCode::FeedAboveBetaMax,
                 w.n,
                 line_no,
                 column(text, w.first),
                 msg,
             ));
         }
-        if let Some(r) = refined {
+        if let Some(r) = out.refined {
             self.note_refinement(w, line_no, r);
         }
-        if matches!(kind, BlockKind::Motion { .. }) {
+        if let BlockKind::Motion { end, .. } = kind {
             st.machine = end;
         }
         self.state = st;
@@ -1003,7 +1055,7 @@ impl Interpreter {
             m: m_codes,
         };
         self.seq += 1;
-        Ok(block)
+        block
     }
 
     /// The first rotary axis that moves between `start` and `end`.
@@ -1059,6 +1111,7 @@ impl Interpreter {
         let coord = if r.which == Corrected::I { 'I' } else { 'J' };
         let shown = word.unwrap_or(r);
         self.notes.push(Diagnostic::info(
+            DiagCode::ArcRefined,
             w.n,
             line_no,
             0,
@@ -1080,23 +1133,46 @@ impl Interpreter {
         }
     }
 
-    /// Builds and checks an arc. `Ok(Err(msg))`: the end point misses the circle and 7.R397
-    /// turns the arc into a line (the message becomes a warning). `Ok(Ok((path, E)))`: E is
+    /// The arc centre words I, J as the machine reads them (radius units), with a programmed
+    /// E refinement applied (SPEC §4.6).
+    fn centre_words(
+        &self,
+        (i, j): (Num, Num),
+        w: &Words,
+        plane: Plane,
+    ) -> Result<(f64, f64), Fail> {
+        let (a, b) = plane.axes();
+        let mut ij = (i.value, j.value);
+        if self.rules.ij == IjMode::Absolute {
+            // An absolute centre is a coordinate: a diameter on the diameter axis. A relative
+            // one is a distance from the start: always a radius (docs/lathe.md).
+            ij = (self.to_radius(a, ij.0), self.to_radius(b, ij.1));
+        }
+        if let Some((e, at)) = w.e {
+            let r = ERefinement::decode(e.value).map_err(|e| Fail::new(at, e.code(), e))?;
+            ij = r.apply(ij);
+        }
+        Ok(ij)
+    }
+
+    /// Builds and checks an arc. `Ok(Err(off))`: the end point misses the circle and 7.R397
+    /// turns the arc into a line (a warning). `Ok(Ok((path, E)))`: E is
     /// the R325 refinement the preprocessor applied, if any.
     fn arc(
         &self,
         w: &Words,
         st: &State,
-        old: State,
+        old: &State,
         start: AxesMm,
         end: AxesMm,
         offset: AxesMm,
-    ) -> Result<Result<(Path, Option<ERefinement>), String>, Fail> {
+    ) -> Result<Result<(Path, Option<ERefinement>), OffCircle>, Fail> {
         let rules = self.rules;
         let (a, b) = st.plane.axes();
         let (Some((i, _)), Some((j, _))) = (w.i, w.j) else {
             return fail(
                 w.i.or(w.j).map_or(w.first, |x| x.1),
+                DiagCode::ArcNeedsCentre,
                 "an arc needs both centre words I and J",
             );
         };
@@ -1104,19 +1180,11 @@ impl Interpreter {
         if (0..MAX_AXES).any(|k| (offset[k] - old_offset[k]).abs() > 1e-12) {
             return fail(
                 w.amp.map_or(w.first, |x| x.1),
+                DiagCode::ArcAfterOffsetChange,
                 "the length offset changed (& or G92) since the last motion: move in a line first, an arc cannot take it up",
             );
         }
-        let mut ij = (i.value, j.value);
-        if rules.ij == IjMode::Absolute {
-            // An absolute centre is a coordinate: a diameter on the diameter axis. A relative
-            // one is a distance from the start: always a radius (docs/lathe.md).
-            ij = (self.to_radius(a, ij.0), self.to_radius(b, ij.1));
-        }
-        if let Some((e, at)) = w.e {
-            let r = ERefinement::decode(e.value).map_err(|m| Fail { at, message: m })?;
-            ij = r.apply(ij);
-        }
+        let mut ij = self.centre_words((i, j), w, st.plane)?;
         let (s2, e2) = ((start[a], start[b]), (end[a], end[b]));
         let centre_of = |ij: (f64, f64)| match rules.ij {
             IjMode::RelativeToStart => (start[a] + ij.0, start[b] + ij.1),
@@ -1132,20 +1200,22 @@ impl Interpreter {
         if rs < 1e-9 {
             return fail(
                 w.first,
+                DiagCode::ArcRadiusZero,
                 "the arc radius is zero: the centre I J is at the start point",
             );
         }
         let miss = (rs - re).abs();
         if miss > rules.arc_tolerance_mm {
-            let msg = format!(
-                "the arc end point is not on the circle: start radius {rs:.4} mm, end radius {re:.4} mm, \
-                 difference {miss:.4} mm is more than the tolerance R55 = {:.3} mm",
-                rules.arc_tolerance_mm
-            );
+            let off = OffCircle {
+                start_mm: rs,
+                end_mm: re,
+                miss_mm: miss,
+                tolerance_mm: rules.arc_tolerance_mm,
+            };
             if rules.bad_arc_becomes_line {
-                return Ok(Err(format!("{msg}; replaced by a line (7.R397 = 1)")));
+                return Ok(Err(off));
             }
-            return fail(w.first, msg);
+            return fail(w.first, DiagCode::ArcEndOffCircle, off);
         }
         let mut center = start;
         center[a] = c2.0;
@@ -1165,21 +1235,240 @@ impl Interpreter {
     }
 }
 
+/// The arc end point is not on the circle (SPEC §4.6: the radii at start and end differ by
+/// more than R55).
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[error(
+    "the arc end point is not on the circle: start radius {start_mm:.4} mm, end radius \
+     {end_mm:.4} mm, difference {miss_mm:.4} mm is more than the tolerance R55 = \
+     {tolerance_mm:.3} mm"
+)]
+struct OffCircle {
+    start_mm: f64,
+    end_mm: f64,
+    miss_mm: f64,
+    tolerance_mm: f64,
+}
+
+/// What a checked block makes, before the commit: its kind, a warning to give (an arc
+/// replaced by a line, 7.R397) and the R325 refinement applied to its arc.
+struct Outcome {
+    kind: BlockKind,
+    warn: Option<(usize, String)>,
+    refined: Option<ERefinement>,
+}
+
+/// A block that passed every check: the new modal state and what the commit applies.
+struct Checked {
+    st: State,
+    edit: Option<TableEdit>,
+    comp: Comp,
+    m_codes: MCodes,
+    out: Outcome,
+}
+
+/// The machine's axis letters (upper case) and, if they cannot be used, why.
+fn axis_letters(names: &[char]) -> ([u8; MAX_AXES], Option<String>) {
+    let mut letters = [0u8; MAX_AXES];
+    let mut error = None;
+    if names.is_empty() || names.len() > MAX_AXES {
+        error = Some(format!(
+            "the machine must have 1..{MAX_AXES} axes, not {}",
+            names.len()
+        ));
+    }
+    for (k, &a) in names.iter().take(MAX_AXES).enumerate() {
+        let up = a.to_ascii_uppercase();
+        if !up.is_ascii_alphabetic() || RESERVED_LETTERS.contains(up) {
+            error = Some(format!(
+                "axis name '{a}' cannot be used: axes are letters other than {RESERVED_LETTERS}"
+            ));
+        } else if names[..k].iter().any(|b| b.to_ascii_uppercase() == up) {
+            error = Some(format!("axis name '{a}' is configured twice"));
+        }
+        letters[k] = up as u8;
+    }
+    (letters, error)
+}
+
+/// Motion (G0..G3), G90/G91 and continuity (G23/G24/G98): modal words without checks.
+fn apply_simple_modals(w: &Words, st: &mut State) {
+    if let Some((m, _)) = w.motion {
+        st.motion = m;
+    }
+    if let Some((a, _)) = w.absolute {
+        st.absolute = a;
+    }
+    if let Some((c, _)) = w.continuity {
+        st.continuity = c;
+    }
+}
+
+/// G23/G24/G98 I1..I4: I selects the dynamic set (SPEC §7.4) unless the block is an arc that
+/// moves (G2/G3 mode with an axis word or J), where I is the centre. Returns whether I is the
+/// arc centre.
+fn dynamic_set(
+    w: &Words,
+    st: &mut State,
+    arc_block: bool,
+    motion_words: bool,
+) -> Result<bool, Fail> {
+    if let (Some(_), Some((i, at))) = (w.continuity, w.i)
+        && (!arc_block || (w.j.is_none() && !motion_words))
+    {
+        let set = int(i, "I (dynamic set)", 1, 4).map_err(|e| Fail::new(at, e.code(), e))?;
+        st.dyn_set = set as u8;
+        return Ok(false);
+    }
+    Ok(true)
+}
+
+/// Plane G17..G19 (SPEC §4.1: no change under compensation).
+fn plane(w: &Words, old: &State, st: &mut State) -> Result<(), Fail> {
+    if let Some((p, at)) = w.plane {
+        if old.comp != CompMode::Off && p != old.plane {
+            return fail(
+                at,
+                DiagCode::PlaneChangeUnderComp,
+                "the plane cannot change while radius compensation G41/G42 is active: program G40 first",
+            );
+        }
+        st.plane = p;
+    }
+    Ok(())
+}
+
+/// I, J, E belong to arcs.
+fn check_arc_words(w: &Words, arc_block: bool, i_is_centre: bool) -> Result<(), Fail> {
+    if arc_block {
+        return Ok(());
+    }
+    if let Some((_, at)) = w.i.filter(|_| i_is_centre).or(w.j) {
+        return fail(
+            at,
+            DiagCode::ArcWordWithoutArc,
+            "I and J are arc centre words: they need G2 or G3",
+        );
+    }
+    if let Some((_, at)) = w.e {
+        return fail(
+            at,
+            DiagCode::ArcWordWithoutArc,
+            "E refines an arc centre: it needs G2 or G3",
+        );
+    }
+    Ok(())
+}
+
+/// A feed move needs F > 0 in the feed mode in force, and feed per revolution a turning
+/// spindle (SPEC §5).
+fn check_feed(w: &Words, st: &State, old: &State, per_rev: bool) -> Result<(), Fail> {
+    match st.feed {
+        Some(f) if feed_value(f) > 0.0 => {}
+        Some(_) => {
+            return fail(
+                w.f.map_or(w.first, |f| f.1),
+                DiagCode::FeedZero,
+                "feed F is zero: a feed move needs F > 0",
+            );
+        }
+        None if old.feed.is_some() => {
+            return fail(
+                w.first,
+                DiagCode::FeedModeChanged,
+                "the feed changed between per minute and per revolution: program F again",
+            );
+        }
+        None => {
+            return fail(
+                w.first,
+                DiagCode::NoFeed,
+                "no feed: program F before the first feed move (G1/G2/G3)",
+            );
+        }
+    }
+    if per_rev
+        && (st.spindle.dir == SpindleDir::Stopped || (st.spindle.s <= 0.0 && !st.speed_from_css))
+    {
+        return fail(
+            w.first,
+            DiagCode::FeedPerRevWithoutSpindle,
+            "feed per revolution needs a turning spindle: program S and M3 or M4 first",
+        );
+    }
+    Ok(())
+}
+
 fn feed_value(f: Feed) -> f64 {
     match f {
         Feed::MmPerMin(v) | Feed::MmPerRev(v) => v,
     }
 }
 
+/// Puts G function `v` of modal group `what` (written at `at`) in its slot: one per block.
+fn group<T>(slot: &mut Option<(T, usize)>, v: T, at: usize, what: &str) -> Result<(), Fail> {
+    put_once(slot, v, at, || {
+        let message = format!("two G functions of the {what} group in one block");
+        (DiagCode::GGroupConflict, message)
+    })
+}
+
+/// Puts `v` (written at `at`) in its slot of the block's words; if the slot is taken, the
+/// error `twice` makes (built only then: words are read a million times a second).
+#[inline]
+fn put_once<T>(
+    slot: &mut Option<(T, usize)>,
+    v: T,
+    at: usize,
+    twice: impl FnOnce() -> (DiagCode, String),
+) -> Result<(), Fail> {
+    if slot.is_some() {
+        let (code, message) = twice();
+        return fail(at, code, message);
+    }
+    *slot = Some((v, at));
+    Ok(())
+}
+
+/// Why a word that takes a whole number in a range is refused.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+enum WordError {
+    #[error("{what} takes a whole number, not {value}")]
+    NotWhole { what: &'static str, value: f64 },
+    #[error("{what}{value} is outside {lo}..{hi}")]
+    OutOfRange {
+        what: &'static str,
+        value: f64,
+        lo: u32,
+        hi: u32,
+    },
+}
+
+impl WordError {
+    /// Stable code (tests and HMIs match it; the message may improve).
+    fn code(&self) -> DiagCode {
+        match self {
+            WordError::NotWhole { .. } => DiagCode::WordNotWhole,
+            WordError::OutOfRange { .. } => DiagCode::WordOutOfRange,
+        }
+    }
+}
+
 /// An integer word without a decimal point in `lo..=hi`.
-fn int(n: Num, what: &str, lo: u32, hi: u32) -> Result<u32, String> {
-    if n.point || n.value.fract() != 0.0 {
-        return Err(format!("{what} takes a whole number, not {}", n.value));
+fn int(n: Num, what: &'static str, lo: u32, hi: u32) -> Result<u32, WordError> {
+    let value = n.value;
+    if n.point || value.fract() != 0.0 {
+        return Err(WordError::NotWhole { what, value });
     }
-    if n.value < lo as f64 || n.value > hi as f64 {
-        return Err(format!("{what}{} is outside {lo}..{hi}", n.value));
+    if value < lo as f64 || value > hi as f64 {
+        return Err(WordError::OutOfRange {
+            what,
+            value,
+            lo,
+            hi,
+        });
     }
-    Ok(n.value as u32)
+    Ok(value as u32)
 }
 
 /// 1-based character column of byte offset `at` in `text`.

@@ -24,7 +24,7 @@ pub use interpreter::{Interpreter, Modal};
 
 use crate::block::Block;
 use crate::constants::Constants;
-use crate::diag::Diagnostic;
+use crate::diag::{DiagCode, Diagnostic};
 use crate::offsets::OffsetTable;
 use crate::units::AxesMm;
 
@@ -169,6 +169,7 @@ fn run(text: &str, setup: &Setup, mut sink: impl FnMut(Block), diags: &mut Vec<D
                 // The program cannot run anyway: stop before the list becomes useless.
                 if errors >= MAX_DIAGNOSTICS {
                     diags.push(Diagnostic::error(
+                        DiagCode::TooManyErrors,
                         None,
                         s.line_no,
                         0,
@@ -184,6 +185,7 @@ fn run(text: &str, setup: &Setup, mut sink: impl FnMut(Block), diags: &mut Vec<D
     // cap they are only counted.
     if dropped_notes > 0 {
         diags.push(Diagnostic::info(
+            DiagCode::MessagesNotListed,
             None,
             0,
             0,
@@ -365,6 +367,7 @@ impl<L: Lines> Stream<L> {
         }
         if rest {
             self.interp.note(Diagnostic::info(
+                DiagCode::LinesAfterEnd,
                 b.n,
                 b.line,
                 0,
@@ -486,9 +489,9 @@ mod tests {
         assert_eq!(c.diagnostics.len(), 2);
         assert_eq!(c.diagnostics[0].block, Some(20));
         assert_eq!((c.diagnostics[0].line, c.diagnostics[0].column), (2, 5));
-        assert!(c.diagnostics[0].message.contains("unknown address Q"));
+        assert_eq!(c.diagnostics[0].code, DiagCode::UnknownAddress);
         assert_eq!(c.diagnostics[1].block, Some(30));
-        assert!(c.diagnostics[1].message.contains("no value"));
+        assert_eq!(c.diagnostics[1].code, DiagCode::WordWithoutValue);
     }
 
     #[test]

@@ -6,6 +6,8 @@
 //! end of the line. Numbers remember whether a decimal point was written: F depends on it (§5).
 //! Nothing here allocates except the message of an error.
 
+use crate::diag::DiagCode;
+
 /// A number as written: its value and whether it had a decimal point.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Num {
@@ -40,6 +42,7 @@ pub struct Lexed {
 #[derive(Clone, Debug, PartialEq)]
 pub struct LexError {
     pub at: usize,
+    pub code: DiagCode,
     pub message: String,
 }
 
@@ -92,9 +95,14 @@ impl<'a> Lexer<'a> {
         }
     }
 
-    fn err(&mut self, at: usize, message: String) -> Option<Result<Lexed, LexError>> {
+    fn err(
+        &mut self,
+        at: usize,
+        code: DiagCode,
+        message: String,
+    ) -> Option<Result<Lexed, LexError>> {
         self.done = true;
-        Some(Err(LexError { at, message }))
+        Some(Err(LexError { at, code, message }))
     }
 
     /// A decimal number at the cursor, or `Ok(None)` if there is none.
@@ -127,6 +135,7 @@ impl<'a> Lexer<'a> {
                         if sig > MAX_DIGITS {
                             return Err(LexError {
                                 at: start,
+                                code: DiagCode::NumberMalformed,
                                 message: format!(
                                     "number has more than {MAX_DIGITS} significant digits"
                                 ),
@@ -149,6 +158,7 @@ impl<'a> Lexer<'a> {
         if frac >= POW10.len() {
             return Err(LexError {
                 at: start,
+                code: DiagCode::NumberMalformed,
                 message: "number has too many decimals".into(),
             });
         }
@@ -177,6 +187,7 @@ impl<'a> Lexer<'a> {
             Some(n) if n <= MAX_PARAM => Ok(n),
             _ => Err(LexError {
                 at,
+                code: DiagCode::ParamOutOfRange,
                 message: format!("program parameters are R0..R{MAX_PARAM}"),
             }),
         }
@@ -212,6 +223,7 @@ impl<'a> Lexer<'a> {
             Some(n) => Ok(Value::Num(n)),
             None => Err(LexError {
                 at,
+                code: DiagCode::WordWithoutValue,
                 message: format!("address {} has no value", letter as char),
             }),
         }
@@ -223,6 +235,7 @@ impl<'a> Lexer<'a> {
             Some(c) if c.is_ascii_alphabetic() => Ok(()),
             Some(_) => Err(LexError {
                 at: self.i,
+                code: DiagCode::UnexpectedCharacter,
                 message: format!("unexpected character '{}' after a number", self.char_at()),
             }),
         }
@@ -260,16 +273,17 @@ impl Iterator for Lexer<'_> {
                         letter: b'&',
                         value,
                     },
-                    Err(e) => return self.err(e.at, e.message),
+                    Err(e) => return self.err(e.at, e.code, e.message),
                 }
             }
             b'R' | b'r' => {
                 self.i += 1;
                 let index = match self.param_index(at) {
                     Ok(i) => i,
-                    Err(_) => {
+                    Err(e) => {
                         return self.err(
                             at,
+                            e.code,
                             "R is a program parameter assignment R0..R94: R<n>=<value>".into(),
                         );
                     }
@@ -278,13 +292,14 @@ impl Iterator for Lexer<'_> {
                 if self.peek() != Some(b'=') {
                     return self.err(
                         at,
+                        DiagCode::ParamAssignmentSyntax,
                         format!("parameter R{index} needs '=' and a value (R{index}=10.0)"),
                     );
                 }
                 self.i += 1;
                 match self.value(b'=', at) {
                     Ok(value) => Token::Assign { index, value },
-                    Err(e) => return self.err(e.at, format!("R{index}=: {}", e.message)),
+                    Err(e) => return self.err(e.at, e.code, format!("R{index}=: {}", e.message)),
                 }
             }
             c if c.is_ascii_alphabetic() => {
@@ -292,16 +307,20 @@ impl Iterator for Lexer<'_> {
                 let letter = c.to_ascii_uppercase();
                 match self.value(letter, at) {
                     Ok(value) => Token::Word { letter, value },
-                    Err(e) => return self.err(e.at, e.message),
+                    Err(e) => return self.err(e.at, e.code, e.message),
                 }
             }
             _ => {
                 let ch = self.char_at();
-                return self.err(at, format!("unexpected character '{ch}'"));
+                return self.err(
+                    at,
+                    DiagCode::UnexpectedCharacter,
+                    format!("unexpected character '{ch}'"),
+                );
             }
         };
         if let Err(e) = self.check_separator() {
-            return self.err(e.at, e.message);
+            return self.err(e.at, e.code, e.message);
         }
         Some(Ok(Lexed { token, at }))
     }
@@ -395,11 +414,16 @@ mod tests {
     #[test]
     fn errors_are_located() {
         let e = Lexer::new("X1 Y").find_map(Result::err).unwrap();
-        assert_eq!((e.at, e.message.as_str()), (3, "address Y has no value"));
+        assert_eq!(
+            (e.at, e.code),
+            (3, DiagCode::WordWithoutValue),
+            "{}",
+            e.message
+        );
         let e = Lexer::new("X1.2.3").find_map(Result::err).unwrap();
         assert_eq!(e.at, 4);
         let e = Lexer::new("R95=1").find_map(Result::err).unwrap();
-        assert!(e.message.contains("R0..R94"), "{}", e.message);
+        assert_eq!(e.code, DiagCode::ParamOutOfRange, "{}", e.message);
     }
 
     #[test]

@@ -179,6 +179,88 @@ pub fn tangent(b: &Block, plane: Plane, at_end: bool) -> V2 {
     }
 }
 
+/// Why a compensated path breaks a rule of SPEC §4 (what [`check_path`] and its friends find).
+#[derive(Debug, thiserror::Error)]
+pub enum PathError {
+    #[error("gap between {before:?} and {after:?}")]
+    Gap {
+        before: Box<CompBlock>,
+        after: Box<CompBlock>,
+    },
+    #[error("non-finite output {0:?}")]
+    NonFinite(Box<CompBlock>),
+    #[error("arc piece of seq {seq} at {at:?}: distance {distance} from centre, want {want}")]
+    ArcPieceRadius {
+        seq: u32,
+        at: V2,
+        distance: f64,
+        want: f64,
+    },
+    #[error("arc seq {0} came out as a line")]
+    ArcBecameLine(u32),
+    #[error("arc piece of seq {0} changed centre/direction")]
+    ArcPieceMoved(u32),
+    #[error("arc piece of seq {0} reversed")]
+    ArcReversed(u32),
+    #[error("line piece of seq {seq} at {at:?}: offset {offset}, want {want}")]
+    LinePieceOffset {
+        seq: u32,
+        at: V2,
+        offset: f64,
+        want: f64,
+    },
+    #[error("line piece of seq {0} runs backwards")]
+    Backwards(u32),
+    #[error("corner arc is not an arc")]
+    CornerArcNotArc,
+    #[error("corner arc of seq {0} not centred on the corner")]
+    CornerArcOffCentre(u32),
+    #[error("corner arc of seq {0} radius != |r|")]
+    CornerArcRadius(u32),
+    #[error("corner arc without a motion {0} it")]
+    CornerArcAlone(&'static str),
+    #[error("corner arc of seq {0} not tangent")]
+    CornerArcNotTangent(u32),
+    #[error(
+        "tool centre of seq {seq} is {distance_mm:.4} mm from the contour (r = {r}) and no \
+         warning names it: {diags}"
+    )]
+    UnreportedGouge {
+        seq: u32,
+        distance_mm: f64,
+        r: f64,
+        diags: String,
+    },
+    #[error("gouge warning for {block:?} is not real: {clearances}")]
+    FalseGouge {
+        block: Option<u32>,
+        clearances: String,
+    },
+}
+
+impl PathError {
+    /// Stable code (tests match it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            PathError::Gap { .. } => "path_gap",
+            PathError::NonFinite(_) => "path_non_finite",
+            PathError::ArcPieceRadius { .. } => "path_arc_piece_radius",
+            PathError::ArcBecameLine(_) => "path_arc_became_line",
+            PathError::ArcPieceMoved(_) => "path_arc_piece_moved",
+            PathError::ArcReversed(_) => "path_arc_reversed",
+            PathError::LinePieceOffset { .. } => "path_line_piece_offset",
+            PathError::Backwards(_) => "path_backwards",
+            PathError::CornerArcNotArc => "path_corner_arc_not_arc",
+            PathError::CornerArcOffCentre(_) => "path_corner_arc_off_centre",
+            PathError::CornerArcRadius(_) => "path_corner_arc_radius",
+            PathError::CornerArcAlone(_) => "path_corner_arc_alone",
+            PathError::CornerArcNotTangent(_) => "path_corner_arc_not_tangent",
+            PathError::UnreportedGouge { .. } => "path_unreported_gouge",
+            PathError::FalseGouge { .. } => "path_false_gouge",
+        }
+    }
+}
+
 /// Independent check of a compensated path against its programmed blocks (SPEC §4.3):
 /// continuity, every equidistant piece at exactly |r| on the right side and running
 /// forwards, every inserted arc centred on the programmed corner with radius |r| and tangent
@@ -188,7 +270,7 @@ pub fn check_path(
     out: &[CompBlock],
     plane: Plane,
     tol: f64,
-) -> Result<(usize, usize), String> {
+) -> Result<(usize, usize), PathError> {
     let src: HashMap<u32, &Block> = input.iter().map(|b| (b.seq, b)).collect();
     let mv = motions(out);
     let mut pieces = 0;
@@ -197,111 +279,27 @@ pub fn check_path(
         let (_, e0, _) = w[0].block.motion().unwrap();
         let (s1, _, _) = w[1].block.motion().unwrap();
         if (e0 - s1).max_abs(6) > 1e-9 {
-            return Err(format!("gap between {:?} and {:?}", w[0], w[1]));
+            return Err(PathError::Gap {
+                before: Box::new(w[0]),
+                after: Box::new(w[1]),
+            });
         }
     }
     for (i, c) in mv.iter().enumerate() {
-        let (s, e, path) = c.block.motion().unwrap();
+        let (s, e, _) = c.block.motion().unwrap();
         for p in [s, e] {
             if p.0.iter().any(|v| !v.is_finite()) {
-                return Err(format!("non-finite output {c:?}"));
+                return Err(PathError::NonFinite(Box::new(*c)));
             }
         }
-        let (ps, pe) = (V2::of(&s, plane), V2::of(&e, plane));
-        let r = c.offset_mm;
         match c.role {
             Role::Equidistant => {
                 pieces += 1;
-                let b = src[&c.block.seq];
-                let (bs, be, bpath) = b.motion().unwrap();
-                let (a, bb) = (V2::of(&bs, plane), V2::of(&be, plane));
-                match bpath {
-                    Path::Arc { dir, center, .. } => {
-                        let cc = V2::of(&center, plane);
-                        let rho = a.dist(cc);
-                        let want = if dir == ArcDir::Ccw { rho - r } else { rho + r };
-                        for q in [ps, pe] {
-                            if (q.dist(cc) - want).abs() > tol {
-                                return Err(format!(
-                                    "arc piece of seq {} at {:?}: distance {} from centre, want {want}",
-                                    b.seq,
-                                    q,
-                                    q.dist(cc)
-                                ));
-                            }
-                        }
-                        let Path::Arc {
-                            dir: odir,
-                            center: oc,
-                            ..
-                        } = path
-                        else {
-                            // A piece shorter than 1e-9 mm may be written as a line.
-                            if ps.dist(pe) > 1e-6 {
-                                return Err(format!("arc seq {} came out as a line", b.seq));
-                            }
-                            continue;
-                        };
-                        if odir != dir || !close(V2::of(&oc, plane), cc, 1e-9) {
-                            return Err(format!(
-                                "arc piece of seq {} changed centre/direction",
-                                b.seq
-                            ));
-                        }
-                    }
-                    _ => {
-                        let d = (bb - a).unit();
-                        for q in [ps, pe] {
-                            let off = d.cross(q - a);
-                            if (off - r).abs() > tol {
-                                return Err(format!(
-                                    "line piece of seq {} at {q:?}: offset {off}, want {r}",
-                                    b.seq
-                                ));
-                            }
-                        }
-                        if (pe - ps).dot(d) < -1e-9 {
-                            return Err(format!("line piece of seq {} runs backwards", b.seq));
-                        }
-                    }
-                }
+                check_equidistant(c, src[&c.block.seq], plane, tol)?;
             }
             Role::CornerArc => {
                 arcs += 1;
-                let b = src[&c.block.seq];
-                let corner = V2::of(&b.motion().unwrap().0, plane);
-                let Path::Arc { center, .. } = path else {
-                    return Err("corner arc is not an arc".into());
-                };
-                if !close(V2::of(&center, plane), corner, 1e-9) {
-                    return Err(format!(
-                        "corner arc of seq {} not centred on the corner",
-                        b.seq
-                    ));
-                }
-                for q in [ps, pe] {
-                    if (q.dist(corner) - r.abs()).abs() > tol {
-                        return Err(format!("corner arc of seq {} radius != |r|", b.seq));
-                    }
-                }
-                // Neighbours moving in the plane (bridged Z moves stand between).
-                let moves = |c: &CompBlock| {
-                    let (a, b) = ends(&c.block, plane);
-                    a.dist(b) > 1e-9
-                };
-                let Some(before) = mv[..i].iter().rev().find(|c| moves(c)) else {
-                    return Err("corner arc without a motion before it".into());
-                };
-                let Some(after) = mv[i + 1..].iter().find(|c| moves(c)) else {
-                    return Err("corner arc without a motion after it".into());
-                };
-                let t_in = tangent(&before.block, plane, true);
-                let t_out = tangent(&after.block, plane, false);
-                if tangent(&c.block, plane, false).dot(t_in) < 1.0 - 1e-9
-                    || tangent(&c.block, plane, true).dot(t_out) < 1.0 - 1e-9
-                {
-                    return Err(format!("corner arc of seq {} not tangent", b.seq));
-                }
+                check_corner_arc(&mv, i, src[&c.block.seq], plane, tol)?;
             }
             _ => {}
         }
@@ -309,20 +307,129 @@ pub fn check_path(
     Ok((pieces, arcs))
 }
 
+/// An equidistant piece `c` of source block `b`: at distance `c.offset_mm` from its path,
+/// an arc stays an arc about the same centre, a line does not run backwards.
+fn check_equidistant(c: &CompBlock, b: &Block, plane: Plane, tol: f64) -> Result<(), PathError> {
+    let (s, e, path) = c.block.motion().unwrap();
+    let (ps, pe) = (V2::of(&s, plane), V2::of(&e, plane));
+    let r = c.offset_mm;
+    let (bs, be, bpath) = b.motion().unwrap();
+    let (a, bb) = (V2::of(&bs, plane), V2::of(&be, plane));
+    match bpath {
+        Path::Arc { dir, center, .. } => {
+            let cc = V2::of(&center, plane);
+            let rho = a.dist(cc);
+            let want = if dir == ArcDir::Ccw { rho - r } else { rho + r };
+            for q in [ps, pe] {
+                if (q.dist(cc) - want).abs() > tol {
+                    return Err(PathError::ArcPieceRadius {
+                        seq: b.seq,
+                        at: q,
+                        distance: q.dist(cc),
+                        want,
+                    });
+                }
+            }
+            let Path::Arc {
+                dir: odir,
+                center: oc,
+                ..
+            } = path
+            else {
+                // A piece shorter than 1e-9 mm may be written as a line.
+                if ps.dist(pe) > 1e-6 {
+                    return Err(PathError::ArcBecameLine(b.seq));
+                }
+                return Ok(());
+            };
+            if odir != dir || !close(V2::of(&oc, plane), cc, 1e-9) {
+                return Err(PathError::ArcPieceMoved(b.seq));
+            }
+        }
+        _ => {
+            let d = (bb - a).unit();
+            for q in [ps, pe] {
+                let off = d.cross(q - a);
+                if (off - r).abs() > tol {
+                    return Err(PathError::LinePieceOffset {
+                        seq: b.seq,
+                        at: q,
+                        offset: off,
+                        want: r,
+                    });
+                }
+            }
+            if (pe - ps).dot(d) < -1e-9 {
+                return Err(PathError::Backwards(b.seq));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The corner arc `mv[i]` inserted at the start of source block `b`: centred on the corner,
+/// of radius |offset|, tangent to the motions before and after it.
+fn check_corner_arc(
+    mv: &[CompBlock],
+    i: usize,
+    b: &Block,
+    plane: Plane,
+    tol: f64,
+) -> Result<(), PathError> {
+    let c = &mv[i];
+    let (s, e, path) = c.block.motion().unwrap();
+    let (ps, pe) = (V2::of(&s, plane), V2::of(&e, plane));
+    let r = c.offset_mm;
+    let corner = V2::of(&b.motion().unwrap().0, plane);
+    let Path::Arc { center, .. } = path else {
+        return Err(PathError::CornerArcNotArc);
+    };
+    if !close(V2::of(&center, plane), corner, 1e-9) {
+        return Err(PathError::CornerArcOffCentre(b.seq));
+    }
+    for q in [ps, pe] {
+        if (q.dist(corner) - r.abs()).abs() > tol {
+            return Err(PathError::CornerArcRadius(b.seq));
+        }
+    }
+    // Neighbours moving in the plane (bridged Z moves stand between).
+    let moves = |c: &CompBlock| {
+        let (a, b) = ends(&c.block, plane);
+        a.dist(b) > 1e-9
+    };
+    let Some(before) = mv[..i].iter().rev().find(|c| moves(c)) else {
+        return Err(PathError::CornerArcAlone("before"));
+    };
+    let Some(after) = mv[i + 1..].iter().find(|c| moves(c)) else {
+        return Err(PathError::CornerArcAlone("after"));
+    };
+    let t_in = tangent(&before.block, plane, true);
+    let t_out = tangent(&after.block, plane, false);
+    if tangent(&c.block, plane, false).dot(t_in) < 1.0 - 1e-9
+        || tangent(&c.block, plane, true).dot(t_out) < 1.0 - 1e-9
+    {
+        return Err(PathError::CornerArcNotTangent(b.seq));
+    }
+    Ok(())
+}
+
 /// Continuity and finiteness only (for contours where loops are allowed).
-pub fn check_continuous(out: &[CompBlock]) -> Result<(), String> {
+pub fn check_continuous(out: &[CompBlock]) -> Result<(), PathError> {
     let mv = motions(out);
     for c in &mv {
         let (s, e, _) = c.block.motion().unwrap();
         if s.0.iter().chain(e.0.iter()).any(|v| !v.is_finite()) {
-            return Err(format!("non-finite output {c:?}"));
+            return Err(PathError::NonFinite(Box::new(*c)));
         }
     }
     for w in mv.windows(2) {
         let (_, e0, _) = w[0].block.motion().unwrap();
         let (s1, _, _) = w[1].block.motion().unwrap();
         if (e0 - s1).max_abs(6) > 1e-9 {
-            return Err(format!("gap between {:?} and {:?}", w[0], w[1]));
+            return Err(PathError::Gap {
+                before: Box::new(w[0]),
+                after: Box::new(w[1]),
+            });
         }
     }
     Ok(())
@@ -537,7 +644,7 @@ pub fn gouge_invariant(
     r: f64,
     tol: f64,
     plane: Plane,
-) -> Result<(), String> {
+) -> Result<(), PathError> {
     let named: Vec<Option<u32>> = diags
         .iter()
         .filter(|d| kernel::comp::gouge::is_gouge(d))
@@ -547,9 +654,12 @@ pub fn gouge_invariant(
     let per = clearance_per_tool_block(input, out, plane);
     for (&seq, &d) in &per {
         if d < r - tol && !named.contains(&n_of(seq)) {
-            return Err(format!(
-                "tool centre of seq {seq} is {d:.4} mm from the contour (r = {r}) and no warning names it: {diags:?}"
-            ));
+            return Err(PathError::UnreportedGouge {
+                seq,
+                distance_mm: d,
+                r,
+                diags: format!("{diags:?}"),
+            });
         }
     }
     for n in named {
@@ -557,7 +667,10 @@ pub fn gouge_invariant(
             .iter()
             .any(|(seq, d)| n_of(*seq) == n && *d < r - tol + SAMPLE_MM);
         if !real {
-            return Err(format!("gouge warning for {n:?} is not real: {per:?}"));
+            return Err(PathError::FalseGouge {
+                block: n,
+                clearances: format!("{per:?}"),
+            });
         }
     }
     Ok(())

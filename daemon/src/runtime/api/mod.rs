@@ -455,6 +455,7 @@ pub fn diagnostic_to_pb(d: &Diagnostic) -> pb::Diagnostic {
         line: d.line,
         column: d.column,
         message: d.message.clone(),
+        code: d.code.as_str().to_string(),
         soft_limit: d.limit.map(|h| pb::SoftLimitHit {
             axis: h.axis_name.to_string(),
             position_mm: h.position_mm,

@@ -254,23 +254,29 @@ impl Plc for PlcSvc {
 /// (the file keeps `decimals`; memory must hold what the file holds). The refusal names the
 /// field (`R52`, `D06 radius (R)`) in its message and in a `Diagnostics` detail.
 fn check_value(field: &str, v: f64, max: f64, decimals: u32) -> Result<(), Status> {
-    let refuse = |m: String| {
-        let d = kernel::Diagnostic::error(None, 0, 0, m);
+    let refuse = |code: kernel::DiagCode, m: String| {
+        let d = kernel::Diagnostic::error(code, None, 0, 0, m);
         invalid_with_diagnostics(field, std::slice::from_ref(&d))
     };
     if !(v.is_finite() && v.abs() <= max) {
-        return Err(refuse(format!("{field} = {v} is outside ±{max}")));
+        return Err(refuse(
+            kernel::DiagCode::ValueOutOfRange,
+            format!("{field} = {v} is outside ±{max}"),
+        ));
     }
     let d = decimals as usize;
     let kept: f64 = format!("{v:.d$}").parse().unwrap_or(f64::NAN);
     if kept != v {
         let step = 10f64.powi(-(decimals as i32));
         let lo = (v / step).floor() * step;
-        return Err(refuse(format!(
-            "{field} = {v} has more than {decimals} decimals: the value is kept to {step:.d$}; \
+        return Err(refuse(
+            kernel::DiagCode::ValueTooPrecise,
+            format!(
+                "{field} = {v} has more than {decimals} decimals: the value is kept to {step:.d$}; \
              write {lo:.d$} or {:.d$}",
-            lo + step
-        )));
+                lo + step
+            ),
+        ));
     }
     Ok(())
 }
