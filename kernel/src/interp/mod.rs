@@ -136,6 +136,8 @@ pub struct Interpolator {
     hist_newest: usize,
     /// Consecutive ticks without raw motion.
     still_ticks: usize,
+    /// Ticks since the last tick whose raw acceleration was positive (0: the newest).
+    ticks_since_accel: usize,
     /// Smallest path acceleration (feed or stop) and jerk of the buffered segments, for the
     /// look-ahead reach; recomputed when the last segment at a floor value leaves.
     floor_accel_mm_s2: Floor,
@@ -200,6 +202,7 @@ impl Interpolator {
             hist_feed_mm_s: vec![f64::INFINITY; FILTER_MAX_TICKS].into_boxed_slice(),
             hist_newest: 0,
             still_ticks: FILTER_MAX_TICKS,
+            ticks_since_accel: FILTER_MAX_TICKS,
             floor_accel_mm_s2: Floor::default(),
             floor_jerk_mm_s3: Floor::default(),
             floor_dirty: false,
@@ -420,6 +423,7 @@ impl Interpolator {
         self.hist_cap_mm_s.fill(f64::INFINITY);
         self.hist_feed_mm_s.fill(f64::INFINITY);
         self.still_ticks = FILTER_MAX_TICKS;
+        self.ticks_since_accel = FILTER_MAX_TICKS;
         self.filtered_s_mm = 0.0;
         self.filtered_v_mm_s = 0.0;
     }

@@ -225,3 +225,93 @@ fn g24_waits_for_in_position() {
     run(&mut ip, 1000);
     assert_eq!(ip.position()[0], 2.0);
 }
+
+/// Time of the ideal jerk-limited (7-phase S-curve) move of `l` mm from rest to rest with
+/// speed `v`, acceleration `a` and jerk `j`, computed in closed form (bisection on the peak
+/// speed when `v` is not reached).
+fn s_curve_time_s(l: f64, v: f64, a: f64, j: f64) -> f64 {
+    // Time and distance of a ramp from rest to `vp`.
+    let ramp = |vp: f64| {
+        let t = if vp >= a * a / j {
+            vp / a + a / j
+        } else {
+            2.0 * (vp / j).sqrt()
+        };
+        (t, vp * t / 2.0)
+    };
+    let (t_v, d_v) = ramp(v);
+    if 2.0 * d_v <= l {
+        return 2.0 * t_v + (l - 2.0 * d_v) / v;
+    }
+    let (mut lo, mut hi) = (0.0, v);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if 2.0 * ramp(mid).1 <= l {
+            lo = mid
+        } else {
+            hi = mid
+        }
+    }
+    2.0 * ramp(lo).0
+}
+
+/// Setpoint speeds, accelerations and jerks (finite differences along X) of one move.
+fn parabolic_move(l: f64, feed: f64, a: f64, j: f64) -> (usize, f64, f64, Vec<f64>) {
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    let mut seg = line(0, [0.0; 3], [l, 0.0, 0.0], feed, 0.0);
+    seg.accel_mm_s2 = a;
+    seg.stop_accel_mm_s2 = a;
+    seg.jerk_mm_s3 = j;
+    ip.push(seg).unwrap();
+    let mut x = vec![0.0];
+    loop {
+        let t = ip.tick();
+        x.push(t.position[0]);
+        if t.state == InterpState::Idle {
+            break;
+        }
+        assert!(x.len() < 100_000);
+    }
+    assert_eq!(*x.last().unwrap(), l);
+    let moving = x.iter().rposition(|p| *p < l).unwrap() + 1;
+    let v: Vec<f64> = x.windows(2).map(|w| (w[1] - w[0]) / TS_S).collect();
+    let acc: Vec<f64> = v.windows(2).map(|w| (w[1] - w[0]) / TS_S).collect();
+    let jerk = acc
+        .windows(2)
+        .map(|w| ((w[1] - w[0]) / TS_S).abs())
+        .fold(0.0, f64::max);
+    let a_max = acc.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    (moving, a_max, jerk, v)
+}
+
+#[test]
+fn parabolic_move_takes_the_ideal_jerk_limited_time() {
+    // (length, feed, a, J): a reached; pure parabola (manual's F300, P = 50000); short move.
+    for (l, feed, a, j) in [
+        (100.0, 50.0, 500.0, 20_000.0),
+        (30.0, 80.0, 500.0, 20_000.0),
+        (5.0, 5.0, 500.0, crate::plan::jerk_from_p_mm_s3(50_000.0)),
+        (2.0, 100.0, 800.0, 40_000.0),
+    ] {
+        let (ticks, a_max, jerk, _) = parabolic_move(l, feed, a, j);
+        let t = ticks as f64 * TS_S;
+        let ideal = s_curve_time_s(l, feed, a, j);
+        assert!(
+            t <= ideal * 1.03 + 2.0 * TS_S,
+            "{l} mm F{feed}: {t} s vs {ideal} s"
+        );
+        assert!(a_max <= a * (1.0 + 1e-6), "accel {a_max} > {a}");
+        assert!(jerk <= j * (1.0 + 1e-6) + 1e-6, "jerk {jerk} > {j}");
+    }
+}
+
+#[test]
+fn pure_parabola_ramp_matches_the_manual() {
+    // F300 mm/min, P = 50000: T = 1.478·√(F/P) from rest to F.
+    let j = crate::plan::jerk_from_p_mm_s3(50_000.0);
+    let (_, _, _, v) = parabolic_move(20.0, 5.0, 500.0, j);
+    let reached = v.iter().position(|x| *x >= 5.0 * (1.0 - 1e-9)).unwrap() + 1;
+    let manual = 1.478 * (300.0f64 / 50_000.0).sqrt();
+    let t = reached as f64 * TS_S;
+    assert!((t - manual).abs() <= 0.05 * manual, "{t} s vs {manual} s");
+}
