@@ -37,11 +37,13 @@ fn machine(rek: &str) -> Machine {
     Machine { h, record }
 }
 
-/// Constants file: parabolic profile, set 1 in use with ramp `p` (digit reading, SPEC §7.3)
-/// and acceleration `a_mm_s2`.
+/// Constants file: parabolic profile, accuracy Lm = 8 µm (R384, as the bench's
+/// `parabolic.rek`), set 1 in use with ramp `p` (digit reading, SPEC §7.3) and acceleration
+/// `a_mm_s2`. Lm sets the axis smoothing filter to n = 2 ticks per stage, which adds 2(n−1)
+/// ticks to every ramp (without Lm n = 4: 6 ticks, docs/planner.md).
 fn parabolic_rek(p: f64, a_mm_s2: f64) -> String {
     format!(
-        "R338=0.020\nR406=0.001\nR407={:.3}\nR408={:.3}\n",
+        "R338=0.020\nR384=0.008\nR406=0.001\nR407={:.3}\nR408={:.3}\n",
         p / 1000.0,
         a_mm_s2 / 1000.0
     )
@@ -84,7 +86,10 @@ fn check_axis_limits(what: &str, x: &[f64]) {
     let a_max = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     let j_max = j.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     let j_lim = kernel::plan::AXIS_JERK_PER_ACCEL_PER_S * AXIS_A_MM_S2;
-    assert!(a_max <= AXIS_A_MM_S2 * (1.0 + 1e-6), "{what}: accel {a_max}");
+    assert!(
+        a_max <= AXIS_A_MM_S2 * (1.0 + 1e-6),
+        "{what}: accel {a_max}"
+    );
     assert!(j_max <= j_lim * (1.0 + 1e-6), "{what}: jerk {j_max}");
 }
 

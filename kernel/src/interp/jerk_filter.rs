@@ -135,13 +135,9 @@ impl Interpolator {
                 self.last_rapid = seg.rapid;
                 program_end |= seg.last;
                 self.head = (self.head + 1) % self.buf.len();
-                // Rescan only when the last segment at a floor value leaves (a uniform dense
-                // path never rescans).
-                let a_left = self
-                    .floor_accel_mm_s2
+                self.floor_accel_mm_s2
                     .remove(seg.accel_mm_s2.min(seg.stop_accel_mm_s2));
-                let j_left = self.floor_jerk_mm_s3.remove(seg.jerk_mm_s3);
-                self.floor_dirty |= a_left || j_left;
+                self.floor_jerk_mm_s3.remove(seg.jerk_mm_s3);
                 self.len -= 1;
                 self.raw_seg = self.raw_seg.saturating_sub(1);
                 if self.len == 0 {

@@ -139,10 +139,9 @@ pub struct Interpolator {
     /// Ticks since the last tick whose raw acceleration was positive (0: the newest).
     ticks_since_accel: usize,
     /// Smallest path acceleration (feed or stop) and jerk of the buffered segments, for the
-    /// look-ahead reach; recomputed when the last segment at a floor value leaves.
+    /// look-ahead reach (sliding-window minima: O(1) per segment, no rescan of the buffer).
     floor_accel_mm_s2: Floor,
     floor_jerk_mm_s3: Floor,
-    floor_dirty: bool,
     /// Commanded (filtered) arc length, mm, and its speed over the last tick, mm/s.
     filtered_s_mm: f64,
     filtered_v_mm_s: f64,
@@ -203,9 +202,8 @@ impl Interpolator {
             hist_newest: 0,
             still_ticks: FILTER_MAX_TICKS,
             ticks_since_accel: FILTER_MAX_TICKS,
-            floor_accel_mm_s2: Floor::default(),
-            floor_jerk_mm_s3: Floor::default(),
-            floor_dirty: false,
+            floor_accel_mm_s2: Floor::new(BUFFER_SEGMENTS),
+            floor_jerk_mm_s3: Floor::new(BUFFER_SEGMENTS),
             filtered_s_mm: 0.0,
             filtered_v_mm_s: 0.0,
             path_pos: position,
@@ -405,7 +403,8 @@ impl Interpolator {
     fn clear(&mut self) {
         self.at_program_stop = false;
         self.len = 0;
-        self.floor_dirty = true;
+        self.floor_accel_mm_s2.clear();
+        self.floor_jerk_mm_s3.clear();
         self.reset_arc_length();
         self.state = InterpState::Idle;
     }
@@ -506,38 +505,69 @@ impl Interpolator {
     }
 }
 
-/// Smallest value over the buffered segments and how many of them have it.
-#[derive(Clone, Copy, Debug)]
+/// Smallest value over the buffered segments (a FIFO window: segments enter at the back and
+/// leave at the front), as a monotonic queue of (value, how many segments of the window with
+/// that value no smaller later one has replaced). Entering is amortized O(1) (at most the
+/// queue's length once), leaving O(1): the tick never rescans the buffer (the rescan of all
+/// buffered segments each time the last holder of the floor left cost up to 4096 steps in
+/// one tick). Fixed capacity, allocated in `new`.
+#[derive(Clone, Debug)]
 struct Floor {
-    value: f64,
-    count: usize,
-}
-
-impl Default for Floor {
-    fn default() -> Self {
-        Floor {
-            value: f64::INFINITY,
-            count: 0,
-        }
-    }
+    runs: Box<[(f64, usize)]>,
+    front: usize,
+    len: usize,
 }
 
 impl Floor {
-    fn add(&mut self, v: f64) {
-        if v < self.value {
-            self.value = v;
-            self.count = 1;
-        } else if v == self.value {
-            self.count += 1;
+    fn new(capacity: usize) -> Self {
+        Floor {
+            runs: vec![(f64::INFINITY, 0); capacity].into_boxed_slice(),
+            front: 0,
+            len: 0,
         }
     }
 
-    /// Takes a leaving segment's value out; true when the floor must be recomputed.
-    fn remove(&mut self, v: f64) -> bool {
-        if v <= self.value && self.count > 0 {
-            self.count -= 1;
+    fn slot(&self, k: usize) -> usize {
+        (self.front + k) % self.runs.len()
+    }
+
+    fn value(&self) -> f64 {
+        if self.len == 0 {
+            f64::INFINITY
+        } else {
+            self.runs[self.front].0
         }
-        v <= self.value && self.count == 0
+    }
+
+    /// A segment of value `v` enters the window.
+    fn add(&mut self, v: f64) {
+        while self.len > 0 && self.runs[self.slot(self.len - 1)].0 > v {
+            self.len -= 1;
+        }
+        if self.len > 0 && self.runs[self.slot(self.len - 1)].0 == v {
+            let last = self.slot(self.len - 1);
+            self.runs[last].1 += 1;
+        } else if self.len < self.runs.len() {
+            let next = self.slot(self.len);
+            self.runs[next] = (v, 1);
+            self.len += 1;
+        }
+    }
+
+    /// The oldest segment of the window, of value `v`, leaves it.
+    fn remove(&mut self, v: f64) {
+        if self.len > 0 && self.runs[self.front].0 == v {
+            self.runs[self.front].1 -= 1;
+            if self.runs[self.front].1 == 0 {
+                self.front = self.slot(1);
+                self.len -= 1;
+            }
+        }
+    }
+
+    fn clear(&mut self) {
+        self.front = 0;
+        self.len = 0;
     }
 }
 

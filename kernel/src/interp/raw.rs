@@ -2,8 +2,8 @@
 //! each segment (acceleration-limited; SPEC §7.2), the raw arc length advancing by `v·Ts`.
 
 use super::{
-    ARRIVE_EPS_MM, AXIS_FILTER_MAX_TICKS, FILTER_MAX_TICKS, FILTER_SCAN_SEGMENTS, Floor,
-    InterpState, Interpolator,
+    ARRIVE_EPS_MM, AXIS_FILTER_MAX_TICKS, FILTER_MAX_TICKS, FILTER_SCAN_SEGMENTS, InterpState,
+    Interpolator,
 };
 use crate::block::ProgramStop;
 use crate::plan::Segment;
@@ -118,19 +118,11 @@ impl Interpolator {
     /// with the accelerations seen so far missed a stop behind a segment of lower
     /// acceleration and made the speed saw between braking harder than allowed and
     /// accelerating again.)
-    pub(super) fn accel_floor(&mut self) -> f64 {
-        if self.floor_dirty {
-            self.floor_accel_mm_s2 = Floor::default();
-            self.floor_jerk_mm_s3 = Floor::default();
-            for k in 0..self.len {
-                let seg = &self.buf[(self.head + k) % self.buf.len()];
-                self.floor_accel_mm_s2
-                    .add(seg.accel_mm_s2.min(seg.stop_accel_mm_s2));
-                self.floor_jerk_mm_s3.add(seg.jerk_mm_s3);
-            }
-            self.floor_dirty = false;
-        }
-        let (floor_a, floor_j) = (self.floor_accel_mm_s2.value, self.floor_jerk_mm_s3.value);
+    pub(super) fn accel_floor(&self) -> f64 {
+        let (floor_a, floor_j) = (
+            self.floor_accel_mm_s2.value(),
+            self.floor_jerk_mm_s3.value(),
+        );
         let a = if floor_j.is_finite() {
             floor_a.min(floor_j * self.jerk_filter_ticks as f64 * TS_S)
         } else {
@@ -321,20 +313,22 @@ impl Interpolator {
         let mut d = head.length_mm - self.raw_in_seg_mm;
         let mut stop_dist_mm = f64::INFINITY;
         let mut a_walk = accel_mm_s2;
+        // (Segments by reference: copying two of them per step dominated the tick on dense
+        // paths.)
         for k in self.raw_seg..self.len {
-            let seg = *self.seg(k);
+            let seg = self.seg(k);
             if k > self.raw_seg {
                 let ak = if braking {
                     seg.stop_accel_mm_s2
                 } else {
                     seg.accel_mm_s2
                 };
-                a_walk = a_walk.min(self.raw_accel(ak, &seg));
+                a_walk = a_walk.min(self.raw_accel(ak, seg));
             }
-            let next = (k + 1 < self.len).then(|| *self.seg(k + 1));
+            let next = (k + 1 < self.len).then(|| self.seg(k + 1));
             let (hard_cap, soft_cap, lead) = match next {
                 Some(n) if seg.v_end_mm_s > 0.0 => {
-                    (seg.v_end_mm_s.min(n.v_max_mm_s), self.ceiling(&n), lag_s)
+                    (seg.v_end_mm_s.min(n.v_max_mm_s), self.ceiling(n), lag_s)
                 }
                 _ => (0.0, 0.0, 0.0),
             };

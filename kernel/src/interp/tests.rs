@@ -194,18 +194,40 @@ fn a_cut_waits_for_the_spindle_a_rapid_does_not() {
 }
 
 #[test]
-fn floor_asks_for_a_rescan_only_when_its_last_holder_leaves() {
-    let mut f = Floor::default();
-    for v in [5.0, 3.0, 3.0, 4.0] {
-        f.add(v);
+fn floor_is_the_minimum_of_the_window() {
+    // Against the minimum of a plain FIFO, on a sequence with repeats, rises and falls.
+    let vals = [
+        5.0,
+        3.0,
+        3.0,
+        4.0,
+        7.0,
+        3.0,
+        2.0,
+        9.0,
+        9.0,
+        1.0,
+        6.0,
+        f64::INFINITY,
+    ];
+    let mut f = Floor::new(8);
+    let mut fifo = std::collections::VecDeque::new();
+    for (i, v) in vals.iter().enumerate() {
+        f.add(*v);
+        fifo.push_back(*v);
+        if i % 3 == 2 {
+            let out = fifo.pop_front().unwrap();
+            f.remove(out);
+        }
+        let want = fifo.iter().copied().fold(f64::INFINITY, f64::min);
+        assert_eq!(f.value(), want, "after {i}");
     }
-    assert_eq!((f.value, f.count), (3.0, 2));
-    assert!(!f.remove(5.0));
-    assert!(!f.remove(3.0));
-    assert!(f.remove(3.0));
-    let mut inf = Floor::default();
-    inf.add(f64::INFINITY);
-    assert!(inf.remove(f64::INFINITY));
+    while let Some(out) = fifo.pop_front() {
+        f.remove(out);
+        let want = fifo.iter().copied().fold(f64::INFINITY, f64::min);
+        assert_eq!(f.value(), want);
+    }
+    assert_eq!(f.value(), f64::INFINITY);
 }
 
 #[test]
