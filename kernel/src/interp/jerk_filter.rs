@@ -134,7 +134,7 @@ impl Interpolator {
                 self.last_spindle = seg.spindle_after.unwrap_or(seg.spindle);
                 self.last_rapid = seg.rapid;
                 program_end |= seg.last;
-                self.head = (self.head + 1) % self.buf.len();
+                self.head = (self.head + 1) % super::BUFFER_SEGMENTS;
                 self.floor_accel_mm_s2
                     .remove(seg.accel_mm_s2.min(seg.stop_accel_mm_s2));
                 self.floor_jerk_mm_s3.remove(seg.jerk_mm_s3);

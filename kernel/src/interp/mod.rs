@@ -50,6 +50,7 @@ mod raw;
 /// How many segments the interpolator holds (its own look-ahead for braking, plus the
 /// segments the filtered position has not yet left).
 pub const BUFFER_SEGMENTS: usize = 4096;
+const _: () = assert!(BUFFER_SEGMENTS.is_power_of_two());
 
 /// Longest jerk filter, ticks (1.024 s: a/J up to 0.5 s).
 pub const FILTER_MAX_TICKS: usize = 256;
@@ -286,12 +287,12 @@ impl Interpolator {
             if self.len == 0 {
                 self.last_spindle = seg.spindle;
             } else {
-                let i = (self.head + self.len - 1) % self.buf.len();
+                let i = (self.head + self.len - 1) % BUFFER_SEGMENTS;
                 self.buf[i].spindle_after = Some(seg.spindle);
             }
             return Ok(());
         }
-        let i = (self.head + self.len) % self.buf.len();
+        let i = (self.head + self.len) % BUFFER_SEGMENTS;
         if self.len == 0 {
             // The raw position starts at this segment: wait its leading dwell there.
             self.dwell_ticks = (seg.dwell_before_s / TS_S).round().max(0.0) as u32;
@@ -428,7 +429,9 @@ impl Interpolator {
     }
 
     fn idx(&self, k: usize) -> usize {
-        (self.head + k) % self.buf.len()
+        // (A constant power of two: the look-ahead calls this for every segment it walks,
+        // and a division by the slice length was a tenth of the tick.)
+        (self.head + k) % BUFFER_SEGMENTS
     }
 
     fn seg(&self, k: usize) -> &Segment {

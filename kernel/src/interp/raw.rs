@@ -313,6 +313,7 @@ impl Interpolator {
         let mut d = head.length_mm - self.raw_in_seg_mm;
         let mut stop_dist_mm = f64::INFINITY;
         let mut a_walk = accel_mm_s2;
+        let mut reach_mm = reach(a_floor.min(a_walk));
         // (Segments by reference: copying two of them per step dominated the tick on dense
         // paths.)
         for k in self.raw_seg..self.len {
@@ -323,7 +324,11 @@ impl Interpolator {
                 } else {
                     seg.accel_mm_s2
                 };
-                a_walk = a_walk.min(self.raw_accel(ak, seg));
+                let a_seg = self.raw_accel(ak, seg);
+                if a_seg < a_walk {
+                    a_walk = a_seg;
+                    reach_mm = reach(a_floor.min(a_walk));
+                }
             }
             let next = (k + 1 < self.len).then(|| self.seg(k + 1));
             let (hard_cap, soft_cap, lead) = match next {
@@ -349,7 +354,7 @@ impl Interpolator {
                 stop_dist_mm = d;
                 break;
             }
-            if d > reach(a_floor.min(a_walk)) {
+            if d > reach_mm {
                 break;
             }
             d += next.map_or(0.0, |n| n.length_mm);
