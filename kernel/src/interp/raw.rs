@@ -348,8 +348,10 @@ impl Interpolator {
             };
             limit(&mut hard, hard_cap, coast);
             limit(&mut soft, soft_cap, coast);
-            limit(&mut hard_acc, hard_cap, coast_accel);
-            limit(&mut soft_acc, soft_cap, coast_accel);
+            if coast_accel != coast {
+                limit(&mut hard_acc, hard_cap, coast_accel);
+                limit(&mut soft_acc, soft_cap, coast_accel);
+            }
             if hard_cap == 0.0 {
                 stop_dist_mm = d;
                 break;
@@ -358,6 +360,10 @@ impl Interpolator {
                 break;
             }
             d += next.map_or(0.0, |n| n.length_mm);
+        }
+        if coast_accel == coast {
+            // (Linear profile: no gap, the same limits; not computed twice.)
+            (soft_acc, hard_acc) = (soft, hard);
         }
         SpeedLimits {
             soft_mm_s: soft,
