@@ -15,8 +15,9 @@
 //!    as many segments as that distance covers (several short blocks per tick).
 //! 2. **Jerk filter** (parabolic profile, SPEC §7.3): the commanded arc length is the moving
 //!    average of the last `m` raw arc lengths. The average of an acceleration-limited motion
-//!    over `m` ticks has acceleration ≤ a and jerk ≤ 2a/(m·Ts), so `m = ⌈2a/(J·Ts)⌉` gives a
-//!    jerk-limited (S-shaped) speed. Filtering the *arc length* (not the axes) keeps every
+//!    over `m` ticks has acceleration ≤ a and jerk (a(n) − a(n−m))/(m·Ts); the raw stage keeps
+//!    a coast gap of `m` ticks between accelerating and braking (`jerk_filter`), so
+//!    `m = ⌈a/(J·Ts)⌉` gives the ideal jerk-limited (S-shaped) speed. Filtering the *arc length* (not the axes) keeps every
 //!    setpoint exactly on the programmed path, and because arc length never decreases the
 //!    filtered position never passes the raw one: stop points are reached exactly, at rest.
 //!    The filtered speed is an average of raw speeds of the last `m` ticks, so the raw speed
