@@ -6,14 +6,13 @@
 //! - The ramp from rest to F in the pure-parabola regime takes the manual's
 //!   T = 1.478·√(F/P) (F in mm/min) within 5 %.
 //! - A move from rest to F and back to rest takes the ideal jerk-limited (7-phase S-curve)
-//!   time for the same J and A within 3 %, computed here in closed form.
+//!   time for the same J and A within 3 % (`kernel::interp::ideal_jerk_limited_move_s`, the
+//!   closed form, independent of the interpolator).
 //! - No axis exceeds its acceleration or jerk limit.
 
-use daemon::runtime::clock::SimClock;
 use daemon::runtime::config::Config;
 use daemon::runtime::harness::{Harness, JobEnd};
-use daemon::runtime::rt::MachineState;
-use tests::{Recording, RecordingBus};
+use tests::Recording;
 
 const TS_S: f64 = 0.004;
 /// The daemon's default axes (`DEFAULT_AXIS_LIMITS`): 800 mm/s², jerk 50·a.
@@ -29,11 +28,7 @@ fn machine(rek: &str) -> Machine {
     let cfg: Config = tests::test_config();
     std::fs::create_dir_all(&cfg.storage.dir).unwrap();
     std::fs::write(cfg.storage.constants_path(), rek).unwrap();
-    let sim = sim::SimBus::new(sim::SimDriveParams::default(), &[0.0; 3]);
-    let (bus, record) = RecordingBus::new(sim);
-    let mut h = Harness::new(cfg, Box::new(bus), SimClock::exact()).unwrap();
-    h.wait_state(MachineState::Idle, 10_000).unwrap();
-    h.step();
+    let (h, record) = tests::recorded_harness(cfg, &[0.0; 3]);
     Machine { h, record }
 }
 
@@ -62,21 +57,6 @@ fn run_x(m: &mut Machine, text: &str) -> Vec<f64> {
 
 fn diffs(x: &[f64]) -> Vec<f64> {
     x.windows(2).map(|w| (w[1] - w[0]) / TS_S).collect()
-}
-
-/// Ideal jerk-limited move of `l` mm from rest to rest (speed v, acceleration a, jerk j).
-fn s_curve_time_s(l: f64, v: f64, a: f64, j: f64) -> f64 {
-    let ramp = |vp: f64| {
-        let t = if vp >= a * a / j {
-            vp / a + a / j
-        } else {
-            2.0 * (vp / j).sqrt()
-        };
-        (t, vp * t / 2.0)
-    };
-    let (t_v, d_v) = ramp(v);
-    assert!(2.0 * d_v <= l, "the move must reach its feed");
-    2.0 * t_v + (l - 2.0 * d_v) / v
 }
 
 fn check_axis_limits(what: &str, x: &[f64]) {
@@ -109,7 +89,7 @@ fn pure_parabola_ramp_takes_the_manuals_time() {
     );
     // The whole move: the same ramp down, the rest at F.
     let j = kernel::plan::jerk_from_p_mm_s3(50_000.0);
-    let ideal = s_curve_time_s(20.0, f_mm_s, 600.0, j);
+    let ideal = kernel::interp::ideal_jerk_limited_move_s(20.0, f_mm_s, 600.0, j);
     let total = (x.len() - 1) as f64 * TS_S;
     assert!(total <= ideal * 1.03, "move {total} s, ideal {ideal} s");
     check_axis_limits("F300", &x);
@@ -122,7 +102,7 @@ fn move_reaching_the_acceleration_takes_the_ideal_jerk_limited_time() {
     let mut m = machine(&parabolic_rek(150_000.0, 100.0));
     let x = run_x(&mut m, "G90 G1 X100 F3000");
     let j = kernel::plan::jerk_from_p_mm_s3(150_000.0);
-    let ideal = s_curve_time_s(100.0, 50.0, 100.0, j);
+    let ideal = kernel::interp::ideal_jerk_limited_move_s(100.0, 50.0, 100.0, j);
     let total = (x.len() - 1) as f64 * TS_S;
     assert!(
         total <= ideal * 1.03 && total >= ideal * 0.97,

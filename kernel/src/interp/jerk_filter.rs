@@ -172,3 +172,33 @@ impl Interpolator {
         program_end
     }
 }
+
+/// Time of the ideal jerk-limited (7-phase S-curve) move of `l_mm` from rest to rest with
+/// speed `v`, acceleration `a` and jerk `j`, s: the closed form, with the peak speed found by
+/// bisection when `v` is not reached. Not used by the interpolator: the reference its tests
+/// (kernel and daemon level) compare the filtered profile against.
+pub fn ideal_jerk_limited_move_s(l_mm: f64, v_mm_s: f64, a_mm_s2: f64, j_mm_s3: f64) -> f64 {
+    // Time and distance of a ramp from rest to `vp`.
+    let ramp = |vp: f64| {
+        let t = if vp >= a_mm_s2 * a_mm_s2 / j_mm_s3 {
+            vp / a_mm_s2 + a_mm_s2 / j_mm_s3
+        } else {
+            2.0 * (vp / j_mm_s3).sqrt()
+        };
+        (t, vp * t / 2.0)
+    };
+    let (t_v, d_v) = ramp(v_mm_s);
+    if 2.0 * d_v <= l_mm {
+        return 2.0 * t_v + (l_mm - 2.0 * d_v) / v_mm_s;
+    }
+    let (mut lo, mut hi) = (0.0, v_mm_s);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if 2.0 * ramp(mid).1 <= l_mm {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    2.0 * ramp(lo).0
+}

@@ -48,6 +48,8 @@ mod axis_filter;
 mod jerk_filter;
 mod raw;
 
+pub use jerk_filter::ideal_jerk_limited_move_s;
+
 /// How many segments the interpolator holds (its own look-ahead for braking, plus the
 /// segments the filtered position has not yet left).
 pub const BUFFER_SEGMENTS: usize = 4096;

@@ -248,35 +248,6 @@ fn g24_waits_for_in_position() {
     assert_eq!(ip.position()[0], 2.0);
 }
 
-/// Time of the ideal jerk-limited (7-phase S-curve) move of `l` mm from rest to rest with
-/// speed `v`, acceleration `a` and jerk `j`, computed in closed form (bisection on the peak
-/// speed when `v` is not reached).
-fn s_curve_time_s(l: f64, v: f64, a: f64, j: f64) -> f64 {
-    // Time and distance of a ramp from rest to `vp`.
-    let ramp = |vp: f64| {
-        let t = if vp >= a * a / j {
-            vp / a + a / j
-        } else {
-            2.0 * (vp / j).sqrt()
-        };
-        (t, vp * t / 2.0)
-    };
-    let (t_v, d_v) = ramp(v);
-    if 2.0 * d_v <= l {
-        return 2.0 * t_v + (l - 2.0 * d_v) / v;
-    }
-    let (mut lo, mut hi) = (0.0, v);
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if 2.0 * ramp(mid).1 <= l {
-            lo = mid
-        } else {
-            hi = mid
-        }
-    }
-    2.0 * ramp(lo).0
-}
-
 /// Setpoint speeds, accelerations and jerks (finite differences along X) of one move.
 fn parabolic_move(l: f64, feed: f64, a: f64, j: f64) -> (usize, f64, f64, Vec<f64>) {
     let mut ip = Interpolator::new(3, AxesMm::ZERO);
@@ -317,7 +288,7 @@ fn parabolic_move_takes_the_ideal_jerk_limited_time() {
     ] {
         let (ticks, a_max, jerk, _) = parabolic_move(l, feed, a, j);
         let t = ticks as f64 * TS_S;
-        let ideal = s_curve_time_s(l, feed, a, j);
+        let ideal = ideal_jerk_limited_move_s(l, feed, a, j);
         assert!(
             t <= ideal * 1.03 + 2.0 * TS_S,
             "{l} mm F{feed}: {t} s vs {ideal} s"
