@@ -224,6 +224,62 @@ fn machining_times() {
     }
 }
 
+/// Parabolic single moves from rest to rest (issue #16) on the daemon's configuration: time
+/// against the ideal jerk-limited (7-phase) move for the segment's own J and A
+/// (`ideal_jerk_limited_move_s`, closed form), and the ramp from rest to F against the
+/// manual's T = 1.478·√(F/P) where the set gives P.
+fn parabolic_moves() {
+    println!("## Parabolic single moves against the ideal jerk-limited move\n");
+    println!(
+        "| constants | move | J mm/s³ | A mm/s² | time s | ideal s | ratio | ramp to F s | 1.478·√(F/P) s |"
+    );
+    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|");
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/plan");
+    let base = std::fs::read_to_string(format!("{dir}/parabolic.rek")).unwrap();
+    let with_p = format!("{base}\nR406=0.001\nR407=50.000\nR408=0.600\n");
+    let runs = [
+        ("parabolic.rek", base.as_str(), None),
+        (
+            "parabolic.rek + set 1 P = 50000, A = 600",
+            with_p.as_str(),
+            Some(50_000.0),
+        ),
+    ];
+    for (title, text, p) in runs {
+        let c = Constants::parse(text).unwrap();
+        let cfg = daemon_config(&default_axes(), Some(&c));
+        for (x, f) in [(100.0, 6000.0), (20.0, 300.0), (2.0, 6000.0)] {
+            let mut prog = Prog::new(p3(0.0, 0.0, 0.0), f, Continuity::G98);
+            prog.g1(p3(x, 0.0, 0.0));
+            let r = run(cfg.clone(), &prog.blocks);
+            let seg = r.segments[0];
+            let v = seg.feed_mm_s.min(seg.v_max_mm_s);
+            let (a, j) = (seg.accel_mm_s2, seg.jerk_mm_s3);
+            let ideal = kernel::interp::ideal_jerk_limited_move_s(x, v, a, j);
+            let t = r.time_s();
+            let speeds: Vec<f64> = r
+                .ticks
+                .windows(2)
+                .map(|w| (w[1].position[0] - w[0].position[0]) / kernel::TS_S)
+                .collect();
+            let reached = speeds.iter().position(|s| *s >= v * (1.0 - 1e-9));
+            let ramp = reached.map_or("-".to_string(), |k| {
+                format!("{:.3}", (k + 1) as f64 * kernel::TS_S)
+            });
+            // (The manual's T is the ramp to F: only for moves that reach F.)
+            let manual = match (p, reached) {
+                (Some(p), Some(_)) => format!("{:.4}", 1.478 * (v * 60.0 / p).sqrt()),
+                _ => "-".to_string(),
+            };
+            println!(
+                "| {title} | X{x} F{f} | {j:.0} | {a:.0} | {t:.3} | {ideal:.3} | {:.3} | {ramp} | {manual} |",
+                t / ideal
+            );
+        }
+    }
+    println!();
+}
+
 /// The configuration of the throughput and tick-cost figures: the daemon's, with the bench's
 /// constants file of the given profile (1 linear, 2 parabolic).
 fn ours(profile: u8) -> PlannerConfig {
@@ -381,6 +437,7 @@ fn tick_cost() {
 
 fn main() {
     machining_times();
+    parabolic_moves();
     throughput();
     tick_cost();
 }
