@@ -356,10 +356,16 @@ proptest! {
         prop_assume!(smooth.iter().any(|b| b.motion().is_some()));
         let cfg = PlannerConfig::for_machine(&[kernel::plan::DEFAULT_AXIS_LIMITS; 3], 0.0, None);
         let (ts, tg) = (run(cfg.clone(), &smooth).time_s(), run(cfg, &stops).time_s());
-        // Tolerance: two ticks of rounding (the profiles land on different tick boundaries)
-        // and 2 % (the stop-or-pass choice at a corner is an estimate, see
-        // `Planner::corner_is_a_stop`; it errs on paths of a few ticks).
-        prop_assert!(ts <= tg * 1.02 + 2.0 * kernel::TS_S + 1e-9, "G23 {ts} s, G98 {tg} s");
+        // Tolerance: one tick per junction, no percentage. A junction passed lands the
+        // profile on other tick boundaries than a stop there (each stop is rounded to whole
+        // ticks on its own), and the pass-or-stop choice next to an arc is an estimate
+        // (`Planner::corner_is_a_stop`). Measured over 4500 random paths: at most 0.67 tick
+        // per junction (8 ticks on a path of 38 junctions, 0.14 %).
+        let junctions = smooth.len().saturating_sub(1) as f64;
+        prop_assert!(
+            ts <= tg + junctions * kernel::TS_S + 1e-9,
+            "G23 {ts} s, G98 {tg} s, {junctions} junctions"
+        );
     }
 }
 
@@ -613,27 +619,65 @@ fn spindle_runs_up_at_the_stop_before_the_next_cut() {
     assert_eq!(r.ticks.last().unwrap().position[0], 10.0);
 }
 
-/// Issue #16: stops land on the continuous profile. Stop-to-stop moves take their closed-form
-/// time (ramps at a, cruise at F) to within one tick each (rounding and the tick the
-/// interpolator rests at a stop point before it leaves it together).
-#[test]
-fn stops_land_on_the_continuous_profile() {
+/// Stop-to-stop moves (G98) by (dx, dy) on the daemon's configuration, within the limits
+/// (`assert_within`) and within one tick per stop of their closed-form time (ramps at a,
+/// cruise at F; axis-parallel moves have the axis acceleration as path acceleration).
+fn stop_to_stop(name: &str, moves: &[(f64, f64)]) -> Run {
     let cfg = PlannerConfig::for_machine(&[kernel::plan::DEFAULT_AXIS_LIMITS; 3], 0.0, None);
     let (f, a) = (100.0, 800.0);
-    let lengths = [100.0, 3.0, 0.5, 37.0, 12.5, 0.02];
     let mut p = Prog::new(p3(0.0, 0.0, 0.0), f * 60.0, Continuity::G98);
-    let mut x = 0.0;
     let mut ideal = 0.0;
-    for l in lengths {
-        x += l;
-        p.g1(p3(x, 0.0, 0.0));
+    for &(dx, dy) in moves {
+        let end = p.pos + p3(dx, dy, 0.0);
+        p.g1(end);
+        let l: f64 = f64::hypot(dx, dy);
         let v = f.min((a * l).sqrt());
         ideal += l / v + v / a;
     }
-    let r = assert_within("stops", &cfg, &p.blocks);
-    let n = lengths.len() as f64;
+    let r = assert_within(name, &cfg, &p.blocks);
+    let n = moves.len() as f64;
     let t = r.time_s();
-    assert!(t >= ideal - n * kernel::TS_S, "{t} s, ideal {ideal} s");
-    assert!(t <= ideal + n * kernel::TS_S, "{t} s, ideal {ideal} s");
-    println!("stops: {t:.3} s, closed form {ideal:.3} s, {n} stops");
+    assert!(
+        t >= ideal - n * kernel::TS_S,
+        "{name}: {t} s, ideal {ideal} s"
+    );
+    assert!(
+        t <= ideal + n * kernel::TS_S,
+        "{name}: {t} s, ideal {ideal} s"
+    );
+    println!("{name}: {t:.3} s, closed form {ideal:.3} s, {n} stops");
+    r
+}
+
+/// Issue #16: stops where the path turns and reverses are left in the tick after the arrival
+/// without breaking an axis limit (the departure step takes what the arrival step left of the
+/// tick), and still land within one tick of the closed form per stop.
+#[test]
+fn stops_with_turns_and_reversals_keep_the_axis_limits_and_the_closed_form_time() {
+    let moves = [
+        (10.0, 0.0),
+        (-3.0, 0.0),
+        (0.0, 0.7),
+        (0.0, -0.05),
+        (25.0, 0.0),
+        (-0.4, 0.0),
+        (0.0, 12.0),
+    ];
+    let r = stop_to_stop("turning stops", &moves);
+    // No tick at rest between two moves: the departure follows the arrival at once.
+    let rests = r
+        .ticks
+        .windows(3)
+        .filter(|w| w[1].path_v_mm_s == 0.0)
+        .count();
+    assert!(rests <= 1, "{rests} ticks at rest");
+}
+
+/// Issue #16: stops land on the continuous profile. Stop-to-stop moves take their closed-form
+/// time to within one tick each (rounding together with the departure, which takes what the
+/// arrival step left of its tick).
+#[test]
+fn stops_land_on_the_continuous_profile() {
+    let lengths = [100.0, 3.0, 0.5, 37.0, 12.5, 0.02];
+    stop_to_stop("stops", &lengths.map(|l| (l, 0.0)));
 }

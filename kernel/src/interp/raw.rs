@@ -228,8 +228,13 @@ impl Interpolator {
             return false;
         }
         // One tick at rest (and the filter settled) before leaving: the direction may
-        // reverse here, and the arrival step must not add to the departure step.
-        if !self.settled() || self.still_ticks == 0 {
+        // reverse here, and the arrival step must not add to the departure step. A plain
+        // stop of the linear profile is left at once, with the departure step within what
+        // the arrival step left of the tick (`departure_cap_mm_s`).
+        if self.still_ticks > 0 {
+            self.entry_cap_mm_s = f64::INFINITY;
+        }
+        if !self.settled() || (self.still_ticks == 0 && !self.entry_cap_mm_s.is_finite()) {
             return false;
         }
         if self.dwell_ticks > 0 {
@@ -342,9 +347,11 @@ impl Interpolator {
             }
             let next = (k + 1 < self.len).then(|| self.seg(k + 1));
             let (hard_cap, soft_cap, lead) = match next {
-                Some(n) if seg.v_end_mm_s > 0.0 => {
-                    (seg.v_end_mm_s.min(n.v_max_mm_s), self.ceiling(n), lag_s)
-                }
+                Some(n) if seg.v_end_mm_s > 0.0 => (
+                    self.end_cap_mm_s(seg).min(n.v_max_mm_s),
+                    self.ceiling(n),
+                    lag_s,
+                ),
                 _ => (0.0, 0.0, 0.0),
             };
             // Any speed up to the cap itself is safe for that cap; above it, we must still be
@@ -382,6 +389,21 @@ impl Interpolator {
             hard_accel_mm_s: hard_acc.min(hard),
             stop_dist_mm,
         }
+    }
+
+    /// Hard cap at the end of a segment that is not a stop point. Its planned end speed is
+    /// the junction's criteria cap or lower where the planner brakes there for later caps
+    /// (continuous time, per-segment accelerations). In the linear profile the look-ahead of
+    /// `speed_limits` brakes for those later caps itself, exactly in discrete time, with the
+    /// smallest acceleration on the way, and the end of the buffer is a stop: the junction's
+    /// own cap is enough. (Capping every tick at the braking curve's junction speeds made
+    /// each junction of a braking zone cost part of a tick: the tick before a cap runs at the
+    /// cap.) The parabolic filters keep the planned end speeds.
+    fn end_cap_mm_s(&self, seg: &Segment) -> f64 {
+        if self.jerk_filter_ticks > 1 || self.axis_window_ticks > 1 {
+            return seg.v_end_mm_s;
+        }
+        seg.v_end_mm_s.max(seg.junction_cap_mm_s)
     }
 
     /// Smallest raw acceleration of the segments the next tick covers at speeds up to `v_up`,
@@ -450,7 +472,45 @@ impl Interpolator {
             return (head.v_max_mm_s, self.feed_of(head));
         }
         self.raw_v_mm_s = v_next;
-        self.move_raw(ds)
+        let caps = self.move_raw(ds);
+        if self.raw_at_stop {
+            self.entry_cap_mm_s = self.departure_cap_mm_s(v_next, accel_mm_s2);
+        }
+        caps
+    }
+
+    /// Arrived at a stop point in this tick at `v_arrive`: the highest speed of the first
+    /// tick that leaves it in the next tick (∞: not allowed, the raw position rests a tick).
+    /// Only for a plain stop (no dwell, G24, program stop or spindle change there) of the
+    /// linear profile (no filter to settle). Per axis k the velocity changes by
+    /// |v_d·u_out,k − v_a·u_in,k| ≤ v_d·|u_out,k| + v_a·|u_in,k| ≤ a_k·(v_d/a_out + v_a/a_in)
+    /// (a segment's path acceleration is within a_k/|u_k| of every axis it moves), so
+    /// v_d ≤ a_out·(Ts − v_a/a_in) keeps every axis within its limit, whatever the turn.
+    fn departure_cap_mm_s(&self, v_arrive: f64, a_head: f64) -> f64 {
+        if self.raw_seg + 1 >= self.len || self.jerk_filter_ticks > 1 || self.axis_window_ticks > 1
+        {
+            return f64::INFINITY;
+        }
+        let (here, next) = (self.seg(self.raw_seg), self.seg(self.raw_seg + 1));
+        let plain = here.dwell_s <= 0.0
+            && !here.wait_in_position
+            && here.spindle_after.is_none()
+            && !self.stops_here(here.program_stop)
+            && !self.stops_here(next.program_stop_before)
+            && next.dwell_before_s <= 0.0;
+        if !plain {
+            return f64::INFINITY;
+        }
+        let a_in = a_head.min(self.raw_accel(here.accel_mm_s2, here));
+        let a_out = self.raw_accel(next.accel_mm_s2.min(next.stop_accel_mm_s2), next);
+        let cap = a_out * (TS_S - v_arrive / a_in);
+        // An arrival at the full step leaves nothing of the tick: rest it (a cap of 0 would
+        // hold the raw position without ever moving on).
+        if cap > 1e-6 * a_out * TS_S {
+            cap
+        } else {
+            f64::INFINITY
+        }
     }
 
     /// Moves the raw position `ds` along the buffered path. Returns the smallest hard cap and
@@ -481,7 +541,7 @@ impl Interpolator {
                 return (cap, feed);
             }
             let next = *self.seg(self.raw_seg + 1);
-            cap = cap.min(seg.v_end_mm_s).min(next.v_max_mm_s);
+            cap = cap.min(self.end_cap_mm_s(&seg)).min(next.v_max_mm_s);
             feed = feed.min(self.feed_of(&next));
             self.raw_seg += 1;
             self.raw_in_seg_mm = 0.0;

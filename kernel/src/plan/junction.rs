@@ -2,10 +2,19 @@
 //! between passing a corner and stopping there, the block's acceleration budget and its R395
 //! ceiling. `Planner::finalize` runs these steps in order; each is a function of its own.
 
+use super::budget::{JunctionTurns, LineBudget};
 use super::{
     NORMAL_SHARE, OVERRIDE_MAX, Pending, Planner, Profile, SegPath, Segment, criteria, junction_of,
 };
-use crate::units::{MAX_AXES, TS_S};
+use crate::units::{AxesMm, MAX_AXES, TS_S};
+
+/// How much of the axes' path acceleration a block may use along the path.
+enum Share {
+    /// A fixed fraction of `a_axes`.
+    Fixed(f64),
+    /// A line between turning junctions: a [`LineBudget`].
+    Line,
+}
 
 /// What the curvature window of a junction is checked against (SPEC §7.2 criteria applied to
 /// the turn within one tick, and in the parabolic profile the axis filter's corner budgets).
@@ -27,26 +36,32 @@ struct WindowLimits {
 /// it first, since neighbouring junctions of a dense path have similar limits. `v` itself when
 /// it is within its bound. Returns the speed and whether a search ran.
 fn largest_within(v: f64, guess: f64, bound: impl Fn(f64) -> f64) -> (f64, bool) {
-    if bound(v) >= v * (1.0 - 1e-12) {
-        return (v, false);
-    }
     let (mut lo, mut hi) = (0.0, v);
-    for w in [0.001, 0.03] {
-        if !(guess > 0.0 && guess < v) || hi - lo <= 0.002 * hi {
-            break;
-        }
-        let (gl, gh) = ((1.0 - w) * guess, ((1.0 + w) * guess).min(v));
-        if gl <= lo || gh >= hi {
-            continue;
-        }
-        if bound(gl) >= gl {
-            lo = gl;
-            if bound(gh) < gh {
-                hi = gh;
+    if guess > 0.0 && guess < v {
+        // Bracket around the guess, ±0.1 % then ±3 %, from both sides.
+        for w in [0.001, 0.03] {
+            let (gl, gh) = ((1.0 - w) * guess, ((1.0 + w) * guess).min(v));
+            if gl > lo && gl < hi {
+                if bound(gl) >= gl {
+                    lo = gl;
+                } else {
+                    hi = gl;
+                }
             }
-        } else {
-            hi = gl;
+            if gh > lo && gh < hi {
+                if bound(gh) >= gh {
+                    lo = gh;
+                } else {
+                    hi = gh;
+                }
+            }
+            if hi - lo <= 0.002 * hi {
+                break;
+            }
         }
+    }
+    if hi == v && bound(v) >= v * (1.0 - 1e-12) {
+        return (v, false);
     }
     let mut steps = 0;
     while hi - lo > 0.002 * hi && steps < 64 {
@@ -70,14 +85,21 @@ impl Planner {
         } else {
             self.junction_speed(i)
         };
-        let planned_stop = !last && self.corner_is_a_stop(i, criteria_cap);
+        let passed = !last && self.win[i].smooth && criteria_cap > 0.0;
+        let turns = (passed && self.cfg.envelope.profile == Profile::Linear)
+            .then(|| self.junction_turns(i, criteria_cap));
+        let planned_stop = !last && self.corner_is_a_stop(i, criteria_cap, turns.as_ref());
         let p = &mut self.win[i];
         if planned_stop {
             p.smooth = false;
         }
+        p.turns = if planned_stop { None } else { turns };
         p.crit = crit;
         p.cap = if planned_stop { 0.0 } else { criteria_cap };
         p.seg.junction_cap_mm_s = criteria_cap;
+        if planned_stop {
+            self.rebudget_before(i);
+        }
         self.set_accelerations(i, last);
         self.apply_rise_limit(i);
         let p = &mut self.win[i];
@@ -171,7 +193,9 @@ impl Planner {
     /// Acceleration of block `i` (feed, and stop/hold): R52 without continuity, R236 (or the
     /// set's A) during continuity, R237 for rapids, capped by the axes it moves. Where the
     /// path turns, part of every axis's acceleration is taken by the normal acceleration;
-    /// see [`Planner::tangential_share`].
+    /// see [`Planner::tangential_share`]. A line between turning junctions (linear profile)
+    /// keeps its [`LineBudget`]: the backward pass and the commit give it the acceleration of
+    /// the speeds it actually runs at.
     fn set_accelerations(&mut self, i: usize, last: bool) {
         let env = &self.cfg.envelope;
         let prev_smooth = i > 0 && self.win[i - 1].smooth;
@@ -184,10 +208,18 @@ impl Planner {
         } else {
             env.accel_stop_mm_s2.min(set_a)
         };
-        let share = self.tangential_share(i, last);
-        let (a_axes, j_axes) = (p.a_axes, p.j_axes);
         let rapid_a = env.rapid_accel_mm_s2;
+        let (a_axes, j_axes) = (p.a_axes, p.j_axes);
+        let (share, budget) = match self.tangential_share(i, last) {
+            Share::Fixed(share) => (share, None),
+            Share::Line => (1.0, Some(self.line_budget(i, base))),
+        };
         let p = &mut self.win[i];
+        p.budget = budget;
+        if let Some(b) = budget {
+            p.apply_budget(&b, f64::INFINITY, rapid_a);
+            return;
+        }
         p.seg.accel_mm_s2 = base.min(a_axes * share);
         if share < 1.0 && p.seg.axis_filter_ticks > 1 {
             // The rest of the axis jerk is for the turns the axis filter smooths.
@@ -199,13 +231,44 @@ impl Planner {
         }
     }
 
+    /// Junction `i` has just become a stop: the junctions before it measured their turns
+    /// across it (as if it were passed); they and the budgets of their lines are measured
+    /// again.
+    fn rebudget_before(&mut self, i: usize) {
+        let mut first = i;
+        let mut dist = 0.0;
+        while first > self.emitted {
+            let k = first - 1;
+            dist += self.win[k + 1].seg.length_mm;
+            let Some(t) = self.win[k].turns else { break };
+            // Tangents were looked up to 3h = 1.5·v_ref·Ts past the junction.
+            if dist > 1.5 * t.v_ref_mm_s * TS_S {
+                break;
+            }
+            let cap = self.win[k].cap;
+            self.win[k].turns = Some(self.junction_turns(k, cap));
+            first = k;
+        }
+        let rapid_a = self.cfg.envelope.rapid_accel_mm_s2;
+        for k in first..i {
+            let Some(b) = self.win[k].budget else {
+                continue;
+            };
+            let b = self.line_budget(k, b.base_mm_s2());
+            let p = &mut self.win[k];
+            p.budget = Some(b);
+            p.apply_budget(&b, f64::INFINITY, rapid_a);
+        }
+    }
+
     /// Fraction of the path acceleration of the axes (`a_axes`) block `i` may use along the
     /// path. 1 where the path does not turn at a smooth junction of the block. On arcs, next
     /// to arcs and in the parabolic profile: 1 − NORMAL_SHARE (the normal acceleration takes
     /// at most NORMAL_SHARE of the smallest axis acceleration, **decided**). On lines between
     /// turning junctions in the linear profile, per axis what the normal acceleration of the
-    /// turns leaves ([`Planner::line_tangential_mm_s2`]), never less than that split.
-    fn tangential_share(&self, i: usize, last: bool) -> f64 {
+    /// turns leaves at the speed the line runs ([`Planner::line_budget`]), never less than
+    /// that split.
+    fn tangential_share(&self, i: usize, last: bool) -> Share {
         let is_arc = |q: &Pending| matches!(q.seg.path, SegPath::Arc { .. });
         let prev_smooth = i > 0 && self.win[i - 1].smooth;
         let p = &self.win[i];
@@ -216,30 +279,40 @@ impl Planner {
         let turning =
             (prev_smooth && self.win[i - 1].turn > 1e-9) || (next_smooth && p.turn > 1e-9);
         if !arcs && !turning {
-            return 1.0;
+            return Share::Fixed(1.0);
         }
         let split = 1.0 - NORMAL_SHARE;
         if arcs || self.cfg.envelope.profile != Profile::Linear || !p.a_axes.is_finite() {
-            return split;
+            return Share::Fixed(split);
         }
-        let start_cap = if prev_smooth {
-            self.win[i - 1].cap
-        } else {
-            0.0
-        };
-        let end_cap = if next_smooth { p.cap } else { 0.0 };
-        let a_t = self.line_tangential_mm_s2(i, start_cap, end_cap);
-        (a_t / p.a_axes).clamp(split, 1.0)
+        Share::Line
     }
 
-    /// Largest tangential acceleration on line block `i` that keeps every axis within its limit
-    /// on top of the normal acceleration of the turns at its junctions, passed at their caps
-    /// (0 = not passed: a stop). Per axis k: a_t·|u_k| + N_k ≤ a_k, with u the tangents the
-    /// ticks near the block move along and N_k = v·|t(+h) − t(−h)|_k/Ts the velocity turn per
-    /// tick within the tick window (h = v·Ts/2) of each junction at the highest speed a tick
-    /// touching it runs, v = cap + a·Ts. This is the per-axis form of the local curvature
-    /// criterion that bounds the junction speed (|N| ≤ NORMAL_SHARE·a_iso at the cap).
-    pub(super) fn line_tangential_mm_s2(&self, i: usize, start_cap: f64, end_cap: f64) -> f64 {
+    /// Tangential acceleration on line block `i` as a function of its highest speed
+    /// ([`LineBudget`]): per axis k, a_t·|u_k| + N_k(v) ≤ a_k over the turns of the junctions
+    /// it passes (`Pending::turns`, [`Planner::junction_turns`]). This is the per-axis form of
+    /// the local curvature criterion that bounds the junction speed (|N| ≤ NORMAL_SHARE·a_iso
+    /// at the cap). `base`: the constants' path acceleration.
+    pub(super) fn line_budget(&self, i: usize, base: f64) -> LineBudget {
+        let start = (i > 0 && self.win[i - 1].smooth)
+            .then(|| self.win[i - 1].turns)
+            .flatten();
+        let end = if self.win[i].smooth {
+            self.win[i].turns
+        } else {
+            None
+        };
+        self.budget_between(i, start.as_ref(), end.as_ref(), base)
+    }
+
+    /// The budget of line block `i` between junctions with these turns (None: a stop).
+    fn budget_between(
+        &self,
+        i: usize,
+        start: Option<&JunctionTurns>,
+        end: Option<&JunctionTurns>,
+        base: f64,
+    ) -> LineBudget {
         let axes = self.cfg.axes;
         let p = &self.win[i];
         let mut normal = [0.0f64; MAX_AXES];
@@ -247,29 +320,55 @@ impl Planner {
         for (k, d) in dir.iter_mut().enumerate().take(axes) {
             *d = p.t_start[k].abs().max(p.t_end[k].abs());
         }
-        for (j, cap) in [(i.wrapping_sub(1), start_cap), (i, end_cap)] {
-            if cap <= 0.0 {
-                continue;
-            }
-            let v = cap + p.a_axes * TS_S;
-            let h = v * TS_S / 2.0;
-            let t0 = self.tangent_near(j, -h);
-            let t1 = self.tangent_near(j, h);
-            let t2 = self.tangent_near(j, 3.0 * h);
-            let tm = self.tangent_near(j, -3.0 * h);
+        let mut v_ref = 0.0f64;
+        for t in [start, end].into_iter().flatten() {
+            v_ref = v_ref.max(t.v_ref_mm_s);
             for k in 0..axes {
-                normal[k] = normal[k].max(v * (t1[k] - t0[k]).abs() / TS_S);
-                dir[k] = dir[k].max(t1[k].abs()).max(t2[k].abs()).max(tm[k].abs());
+                normal[k] = normal[k].max(t.normal_per_s[k]);
+                dir[k] = dir[k].max(t.dir[k]);
             }
         }
-        let mut a_t = f64::INFINITY;
+        let split = 1.0 - NORMAL_SHARE;
+        let mut b = LineBudget::new(v_ref, p.a_axes, split * p.a_axes, base);
         for k in 0..axes {
-            if dir[k] > 1e-12 {
-                let left = (self.cfg.axis_a_max_mm_s2[k] - normal[k]).max(0.0);
-                a_t = a_t.min(left / dir[k]);
-            }
+            b.add_axis(self.cfg.axis_a_max_mm_s2[k], normal[k], dir[k]);
         }
-        a_t
+        b
+    }
+
+    /// The turns near junction `j` passed at `cap`, per axis: N_k(v) = min(v, v_ref)·T_k/Ts
+    /// with T_k the turn of the tangent within the tick window (h = v_ref·Ts/2) and v_ref =
+    /// cap + A·Ts the fastest a tick touching the junction runs (A the larger path
+    /// acceleration of the two blocks); and the tangent components the ticks near it move
+    /// along. Looked up once per junction for the lines on both sides.
+    pub(super) fn junction_turns(&self, j: usize, cap: f64) -> JunctionTurns {
+        let axes = self.cfg.axes;
+        let (a0, a1) = (self.win[j].a_axes, self.win[j + 1].a_axes);
+        let a = if a0.is_finite() && a1.is_finite() {
+            a0.max(a1)
+        } else {
+            a0.min(a1)
+        };
+        let v = cap + if a.is_finite() { a * TS_S } else { 0.0 };
+        let h = v * TS_S / 2.0;
+        let mut t = JunctionTurns {
+            v_ref_mm_s: v,
+            ..JunctionTurns::default()
+        };
+        // The velocity change of a tick weighs the turns within ±v·Ts of it by
+        // 1 − |x|/(v·Ts): the mean of the turns within ±h/2 and ±3h/2.
+        let mut ahead = [AxesMm::ZERO; 4];
+        let mut behind = [AxesMm::ZERO; 3];
+        self.tangents_near(j, true, &[h / 2.0, h, 1.5 * h, 3.0 * h], &mut ahead);
+        self.tangents_near(j, false, &[h / 2.0, 1.5 * h, 3.0 * h], &mut behind);
+        let [ti1, t1, to1, t2] = ahead;
+        let [ti0, to0, tm] = behind;
+        for k in 0..axes {
+            let turn = 0.5 * ((ti1[k] - ti0[k]).abs() + (to1[k] - to0[k]).abs());
+            t.normal_per_s[k] = turn / TS_S;
+            t.dir[k] = t1[k].abs().max(t2[k].abs()).max(tm[k].abs());
+        }
+        t
     }
 
     /// R395: keep the junction speeds through a short block unless rising pays off. Only
@@ -298,7 +397,12 @@ impl Planner {
     /// passed at is below one tick's acceleration step, or when the time the line sides lose
     /// by ramping at the acceleration the turn leaves them exceeds what passing at that speed
     /// gains over stopping.
-    pub(super) fn corner_is_a_stop(&self, i: usize, cap: f64) -> bool {
+    pub(super) fn corner_is_a_stop(
+        &self,
+        i: usize,
+        cap: f64,
+        turns: Option<&JunctionTurns>,
+    ) -> bool {
         let (p, n) = (&self.win[i], &self.win[i + 1]);
         let is_arc = |q: &Pending| matches!(q.seg.path, SegPath::Arc { .. });
         let shares = p.turn > 1e-9 || is_arc(p) || is_arc(n);
@@ -314,11 +418,9 @@ impl Planner {
         if cap < a(p).min(a(n)) * TS_S {
             return true;
         }
-        let start_cap = if i > 0 && self.win[i - 1].smooth {
-            self.win[i - 1].cap
-        } else {
-            0.0
-        };
+        let start = (i > 0 && self.win[i - 1].smooth)
+            .then(|| self.win[i - 1].turns)
+            .flatten();
         let split = 1.0 - NORMAL_SHARE;
         let linear = self.cfg.envelope.profile == Profile::Linear;
         // Per side, with V the speed the block reaches from the cap: passing at the cap
@@ -338,14 +440,13 @@ impl Planner {
                 continue;
             }
             let b = if linear && q.a_axes.is_finite() && !is_arc(p) && !is_arc(n) {
-                let (c0, c1) = if side == i {
-                    (start_cap, cap)
+                let (t0, t1) = if side == i {
+                    (start.as_ref(), turns)
                 } else {
-                    (cap, 0.0)
+                    (turns, None)
                 };
-                self.line_tangential_mm_s2(side, c0, c1)
-                    .clamp(split * q.a_axes, q.a_axes)
-                    .min(aq)
+                let b = self.budget_between(side, t0, t1, aq);
+                b.accel_at(f64::INFINITY)
             } else {
                 split * aq
             };

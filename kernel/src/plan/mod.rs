@@ -23,6 +23,7 @@
 //! is false while the window is full, so memory is bounded by the look-ahead, and execution of
 //! a long program starts after the first junctions are final, not after the whole program.
 
+mod budget;
 mod config;
 pub mod criteria;
 mod junction;
@@ -137,6 +138,14 @@ pub struct Segment {
     pub per_rev_nominal_rpm: f64,
 }
 
+/// Limits of a new segment from the axes and the criteria of its block alone.
+struct SegLimits {
+    v_max_mm_s: f64,
+    feed_mm_s: f64,
+    jerk_mm_s3: f64,
+    a_axes_mm_s2: f64,
+}
+
 /// A block in the look-ahead window.
 #[derive(Clone, Debug)]
 struct Pending {
@@ -161,6 +170,32 @@ struct Pending {
     crit: f64,
     /// Hard cap at the end junction (0 when not smooth).
     cap: f64,
+    /// A line between turning junctions: its acceleration as a function of its speed.
+    budget: Option<budget::LineBudget>,
+    /// The turns near the end junction when it is passed (linear profile).
+    turns: Option<budget::JunctionTurns>,
+}
+
+impl Pending {
+    /// Unit tangent at fraction `t` of the block (a line's is the one computed on entry).
+    fn tangent_at_fraction(&self, t: f64, axes: usize) -> AxesMm {
+        match self.seg.path {
+            SegPath::Line { .. } => self.t_start,
+            SegPath::Arc { .. } => self.seg.path.tangent_at(t, axes),
+        }
+    }
+
+    /// Gives the segment the acceleration of its budget for speeds up to `v` (feed moves: the
+    /// constants' path acceleration; hold and stop: the stop set's `rapid_a`).
+    fn apply_budget(&mut self, b: &budget::LineBudget, v: f64, rapid_a: f64) {
+        self.seg.accel_mm_s2 = b.accel_at(v);
+        let stop = rapid_a.min(b.tangential_at(v));
+        self.seg.stop_accel_mm_s2 = if stop > 0.0 && stop.is_finite() {
+            stop
+        } else {
+            self.seg.accel_mm_s2
+        };
+    }
 }
 
 /// Streaming planner: push blocks, poll committed segments.
@@ -189,6 +224,8 @@ pub struct Planner {
     window_guess_mm_s: f64,
     /// Junctions finalized since the last backward pass.
     pending_backward: usize,
+    /// End speed of the last committed segment, mm/s (the start speed of the next).
+    committed_end_mm_s: f64,
     /// A spindle change in a technology block before any motion (`M3 S..` at the top of a
     /// program, or a program of technology blocks only); the first motion segment carries it
     /// (its state is in force from when it reaches the interpolator), else `finish` hands it
@@ -216,6 +253,7 @@ impl Planner {
             spindle_state: Spindle::default(),
             window_guess_mm_s: 0.0,
             pending_backward: 0,
+            committed_end_mm_s: 0.0,
             leading_spindle: None,
             tech_out: None,
         }
@@ -389,6 +427,7 @@ impl Planner {
         if !(settled || full || self.finished) {
             return None;
         }
+        self.commit_budget(i);
         let seg = self.win[i].seg;
         self.emitted += 1;
         while self.emitted > HISTORY_BLOCKS {
@@ -515,6 +554,8 @@ impl Planner {
         dir
     }
 
+    /// Appends a motion block to the window: its limits from the axes, the arc criteria and
+    /// the minimum block duration (SPEC §7.2), and the junction to the block before.
     fn append(
         &mut self,
         block: &Block,
@@ -527,7 +568,6 @@ impl Planner {
         // The motion segment carries the spindle state of the blocks before it.
         self.leading_spindle = None;
         let axes = self.cfg.axes;
-        let env = &self.cfg.envelope;
         let t_start = path.tangent_at(0.0, axes);
         let t_end = path.tangent_at(1.0, axes);
         let dir = Self::limit_direction(&path, t_start, length_mm);
@@ -546,25 +586,64 @@ impl Planner {
         } else {
             mm_min_to_mm_s(feed_mm_min)
         };
-        let jerk = self.path_jerk_of(rapid, set, j_axes);
-        // Conservative acceleration until the junctions are known (final in `finalize`).
-        let a_plan = a_axes
+        let limits = SegLimits {
+            v_max_mm_s: v_max,
+            feed_mm_s,
+            jerk_mm_s3: self.path_jerk_of(rapid, set, j_axes),
+            a_axes_mm_s2: a_axes,
+        };
+        let seg = self.new_segment(block, path, length_mm, rapid, set, &limits);
+        let mut p = Pending {
+            seg,
+            continuity: block.continuity,
+            t_start,
+            t_end,
+            set,
+            a_axes,
+            j_axes,
+            stop_after: false,
+            smooth: false,
+            turn: 0.0,
+            crit: 0.0,
+            cap: 0.0,
+            budget: None,
+            turns: None,
+        };
+        self.link_previous(&mut p);
+        p.seg.wait_in_position = false;
+        self.win.push_back(p);
+    }
+
+    /// The segment of a new block, with a conservative acceleration until its junctions are
+    /// known (final in `finalize`).
+    fn new_segment(
+        &self,
+        block: &Block,
+        path: SegPath,
+        length_mm: f64,
+        rapid: bool,
+        set: usize,
+        l: &SegLimits,
+    ) -> Segment {
+        let env = &self.cfg.envelope;
+        let a_plan = l
+            .a_axes_mm_s2
             .min(env.accel_stop_mm_s2)
             .min(env.sets[set].accel_mm_s2)
             * NORMAL_SHARE.min(1.0 - NORMAL_SHARE);
-        let seg = Segment {
+        Segment {
             job: self.job,
             seq: block.seq,
             n: block.n,
             line: block.line,
             path,
             length_mm,
-            feed_mm_s,
-            v_max_mm_s: v_max,
+            feed_mm_s: l.feed_mm_s,
+            v_max_mm_s: l.v_max_mm_s,
             v_end_mm_s: 0.0,
             junction_cap_mm_s: 0.0,
             accel_mm_s2: a_plan,
-            jerk_mm_s3: jerk,
+            jerk_mm_s3: l.jerk_mm_s3,
             stop_accel_mm_s2: a_plan,
             rapid,
             last: false,
@@ -579,24 +658,7 @@ impl Planner {
             program_stop_before: ProgramStop::None,
             axis_filter_ticks: self.cfg.axis_filter_ticks as u16,
             per_rev_nominal_rpm: per_rev_nominal_rpm(block, rapid),
-        };
-        let mut p = Pending {
-            seg,
-            continuity: block.continuity,
-            t_start,
-            t_end,
-            set,
-            a_axes,
-            j_axes,
-            stop_after: false,
-            smooth: false,
-            turn: 0.0,
-            crit: 0.0,
-            cap: 0.0,
-        };
-        self.link_previous(&mut p);
-        p.seg.wait_in_position = false;
-        self.win.push_back(p);
+        }
     }
 
     /// Junction rule of SPEC §7.1 between `prev` and `next`.
@@ -635,7 +697,10 @@ impl Planner {
             if last && !self.finished {
                 break;
             }
-            if !last && self.win[i].smooth && !self.finished && !full && !self.ahead_known(i) {
+            // A full window finalizes without the look-ahead only a junction that holds up
+            // every commit (blocks shorter than the tick window throughout the window).
+            let forced = full && i == self.emitted;
+            if !last && self.win[i].smooth && !self.finished && !forced && !self.ahead_known(i) {
                 break;
             }
             self.finalize(i, last);
@@ -664,9 +729,17 @@ impl Planner {
         v * TS_S * (2 * self.cfg.axis_filter_ticks).max(1) as f64
     }
 
-    /// Whether the blocks after junction `i` cover half the curvature window (or end in a stop).
+    /// Whether the blocks after junction `i` cover half the curvature window, and in the
+    /// linear profile the window of its turns (`junction_turns`: 3h = 1.5·v_ref·Ts), or end
+    /// in a stop.
     fn ahead_known(&self, i: usize) -> bool {
-        let need = self.window_len_mm(i) / 2.0;
+        let mut need = self.window_len_mm(i) / 2.0;
+        if self.cfg.envelope.profile == Profile::Linear {
+            // window_len_mm is v·Ts here; v_ref ≤ v + A·Ts.
+            let a = self.win[i].a_axes.max(self.win[i + 1].a_axes);
+            let a_ts = if a.is_finite() { a * TS_S } else { 0.0 };
+            need = need.max(1.5 * (need * 2.0 + a_ts * TS_S));
+        }
         let mut have = 0.0;
         for k in i + 1..self.win.len() {
             have += self.win[k].seg.length_mm;
@@ -680,6 +753,40 @@ impl Planner {
         false
     }
 
+    /// Unit tangents at the distances `ds` (ascending, > 0) after (`ahead`) or before the end
+    /// of block `i`, as [`Planner::tangent_near`] gives them, in one walk.
+    fn tangents_near(&self, i: usize, ahead: bool, ds: &[f64], out: &mut [AxesMm]) {
+        let axes = self.cfg.axes;
+        let mut k = if ahead { i + 1 } else { i };
+        let mut walked = 0.0;
+        let mut n = 0;
+        while n < ds.len() {
+            let p = &self.win[k];
+            let rest = ds[n] - walked;
+            if rest <= p.seg.length_mm {
+                let f = rest / p.seg.length_mm;
+                out[n] = p.tangent_at_fraction(if ahead { f } else { 1.0 - f }, axes);
+                n += 1;
+                continue;
+            }
+            let last = if ahead {
+                k + 1 >= self.win.len() || !p.smooth
+            } else {
+                k == 0 || !self.win[k - 1].smooth
+            };
+            if last {
+                out[n..ds.len()].fill(if ahead { p.t_end } else { p.t_start });
+                return;
+            }
+            walked += p.seg.length_mm;
+            if ahead {
+                k += 1;
+            } else {
+                k -= 1;
+            }
+        }
+    }
+
     /// Unit tangent at distance `d` before (negative) or after the end of block `i`, not
     /// crossing a stop and not leaving the window.
     fn tangent_near(&self, i: usize, d: f64) -> AxesMm {
@@ -690,7 +797,7 @@ impl Planner {
             loop {
                 let p = &self.win[k];
                 if rest <= p.seg.length_mm {
-                    return p.seg.path.tangent_at(1.0 - rest / p.seg.length_mm, axes);
+                    return p.tangent_at_fraction(1.0 - rest / p.seg.length_mm, axes);
                 }
                 rest -= p.seg.length_mm;
                 if k == 0 || !self.win[k - 1].smooth {
@@ -704,7 +811,7 @@ impl Planner {
             loop {
                 let p = &self.win[k];
                 if rest <= p.seg.length_mm {
-                    return p.seg.path.tangent_at(rest / p.seg.length_mm, axes);
+                    return p.tangent_at_fraction(rest / p.seg.length_mm, axes);
                 }
                 rest -= p.seg.length_mm;
                 if k + 1 >= self.win.len() || !p.smooth {
@@ -728,10 +835,7 @@ impl Planner {
         let mut k = i;
         loop {
             let v = if k + 1 < self.win.len() {
-                let n = &self.win[k + 1].seg;
-                (v_next_end * v_next_end + 2.0 * n.accel_mm_s2 * n.length_mm)
-                    .sqrt()
-                    .min(n.v_max_mm_s)
+                self.braking_start_mm_s(k + 1, v_next_end)
             } else {
                 0.0
             };
@@ -755,6 +859,46 @@ impl Planner {
             }
             k -= 1;
             v_next_end = v;
+        }
+    }
+}
+
+impl Planner {
+    /// Highest speed at the start of block `k` from which it can brake to `v_end` at its end,
+    /// within its ceiling. A line with a [`budget::LineBudget`] takes the acceleration of
+    /// that speed (the speeds on it stay below it, see `commit_budget`).
+    fn braking_start_mm_s(&mut self, k: usize, v_end: f64) -> f64 {
+        let rapid_a = self.cfg.envelope.rapid_accel_mm_s2;
+        let n = &mut self.win[k];
+        match n.budget {
+            Some(b) => {
+                let v = b.reach_mm_s(v_end, n.seg.length_mm).min(n.seg.v_max_mm_s);
+                n.apply_budget(&b, v, rapid_a);
+                v
+            }
+            None => (v_end * v_end + 2.0 * n.seg.accel_mm_s2 * n.seg.length_mm)
+                .sqrt()
+                .min(n.seg.v_max_mm_s),
+        }
+    }
+
+    /// At the commit of block `i` with a budget: its highest speed is bounded by braking to
+    /// its final end speed and by accelerating from the end speed of the block before
+    /// (committed); its ceiling becomes that speed and its acceleration the one of it.
+    fn commit_budget(&mut self, i: usize) {
+        let rapid_a = self.cfg.envelope.rapid_accel_mm_s2;
+        let v_from = self.committed_end_mm_s;
+        let p = &mut self.win[i];
+        if let Some(b) = p.budget {
+            let len = p.seg.length_mm;
+            let v = b
+                .reach_mm_s(p.seg.v_end_mm_s, len)
+                .min(b.reach_mm_s(v_from, len))
+                .min(p.seg.v_max_mm_s);
+            p.apply_budget(&b, v, rapid_a);
+            self.committed_end_mm_s = p.seg.v_end_mm_s.min(v);
+        } else {
+            self.committed_end_mm_s = p.seg.v_end_mm_s;
         }
     }
 }

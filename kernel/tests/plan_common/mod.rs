@@ -276,78 +276,113 @@ pub fn run_stream(
         Some((s, _, _)) => s,
         None => AxesMm::ZERO,
     };
-    let mut exhausted = false;
     let axes = cfg.axes;
-    let mut planner = kernel::plan::Planner::new(cfg, 1);
+    let mut feed = Feeder {
+        blocks,
+        exhausted: false,
+        planner: kernel::plan::Planner::new(cfg, 1),
+        next: 0,
+        held: None,
+        segments: vec![],
+        max_window: 0,
+    };
     let mut ip = Interpolator::new(axes, start);
-    let mut next = 0usize;
-    let mut held: Option<Segment> = None;
-    let mut segments = vec![];
     let mut ticks = vec![TickOut {
         position: start,
         ..TickOut::default()
     }];
-    let mut max_window = 0;
     let mut pushed_before_motion = 0;
     for t in 0..max_ticks {
-        loop {
-            while planner.wants_input() && !exhausted {
-                match blocks.next() {
-                    Some(b) => {
-                        planner.push(&b).expect("valid block");
-                        next += 1;
-                    }
-                    None => exhausted = true,
-                }
-            }
-            if exhausted {
-                planner.finish();
-            }
-            let mut progressed = false;
-            loop {
-                let seg = match held.take() {
-                    Some(s) => s,
-                    None => match planner.poll() {
-                        Some(s) => {
-                            segments.push(s);
-                            s
-                        }
-                        None => break,
-                    },
-                };
-                if let Err(s) = ip.push(seg) {
-                    held = Some(s);
-                    break;
-                }
-                progressed = true;
-            }
-            max_window = max_window.max(next.saturating_sub(segments.len()));
-            // Motion starts with the first segment; after that the planner runs ahead until
-            // the interpolator's buffer is full, like the daemon's planner thread (feeding one
-            // block per tick starved dense paths whose window is full of unsettled blocks).
-            if (ip.buffered() > 0 && t == 0) || planner.is_done() || held.is_some() {
-                break;
-            }
-            // Nothing committed yet: the planner needs more input (or the program is over).
-            if !progressed && (!planner.wants_input() || exhausted) {
-                break;
-            }
-        }
+        feed.feed(&mut ip, t == 0);
         each_tick(t, &mut ip);
         let out = ip.tick();
         if pushed_before_motion == 0 && out.path_v_mm_s > 0.0 {
-            pushed_before_motion = next;
+            pushed_before_motion = feed.next;
         }
         ticks.push(out);
-        if planner.is_done() && held.is_none() && ip.state() == InterpState::Idle {
+        if feed.planner.is_done() && feed.held.is_none() && ip.state() == InterpState::Idle {
             break;
         }
     }
     Run {
         ticks,
-        segments,
-        max_window,
+        segments: feed.segments,
+        max_window: feed.max_window,
         pushed_before_motion,
+    }
+}
+
+/// The planner side of a run: blocks into the planner, segments into the interpolator.
+struct Feeder<I: Iterator<Item = Block>> {
+    blocks: I,
+    exhausted: bool,
+    planner: kernel::plan::Planner,
+    /// Blocks pushed so far.
+    next: usize,
+    /// A segment the interpolator had no room for.
+    held: Option<Segment>,
+    segments: Vec<Segment>,
+    max_window: usize,
+}
+
+impl<I: Iterator<Item = Block>> Feeder<I> {
+    /// Before a tick: motion starts with the first segment; after that the planner runs
+    /// ahead until the interpolator's buffer is full, like the daemon's planner thread
+    /// (feeding one block per tick starved dense paths whose window is full of unsettled
+    /// blocks).
+    fn feed(&mut self, ip: &mut Interpolator, first_tick: bool) {
+        loop {
+            self.push_blocks();
+            let progressed = self.hand_out(ip);
+            self.max_window = self
+                .max_window
+                .max(self.next.saturating_sub(self.segments.len()));
+            if (ip.buffered() > 0 && first_tick) || self.planner.is_done() || self.held.is_some() {
+                break;
+            }
+            // Nothing committed yet: the planner needs more input (or the program is over).
+            if !progressed && (!self.planner.wants_input() || self.exhausted) {
+                break;
+            }
+        }
+    }
+
+    fn push_blocks(&mut self) {
+        while self.planner.wants_input() && !self.exhausted {
+            match self.blocks.next() {
+                Some(b) => {
+                    self.planner.push(&b).expect("valid block");
+                    self.next += 1;
+                }
+                None => self.exhausted = true,
+            }
+        }
+        if self.exhausted {
+            self.planner.finish();
+        }
+    }
+
+    /// Committed segments into the interpolator while it has room; whether any went in.
+    fn hand_out(&mut self, ip: &mut Interpolator) -> bool {
+        let mut progressed = false;
+        loop {
+            let seg = match self.held.take() {
+                Some(s) => s,
+                None => match self.planner.poll() {
+                    Some(s) => {
+                        self.segments.push(s);
+                        s
+                    }
+                    None => break,
+                },
+            };
+            if let Err(s) = ip.push(seg) {
+                self.held = Some(s);
+                break;
+            }
+            progressed = true;
+        }
+        progressed
     }
 }
 
@@ -401,16 +436,21 @@ fn dist_to_path(p: &AxesMm, seg: &Segment, axes: usize) -> f64 {
 
 /// Measures a run against the limits (finite differences of the setpoints).
 pub fn measure(cfg: &PlannerConfig, r: &Run, lm_um: f64) -> Worst {
+    let mut w = Worst::default();
+    measure_dynamics(cfg, r, &mut w);
+    measure_off_path(cfg.axes, r, &mut w);
+    w.missed_stops = missed_stops(cfg.axes, r);
+    if lm_um > 0.0 {
+        w.corner_dev = corner_deviation(cfg.axes, r, lm_um);
+    }
+    w
+}
+
+/// Axis and path velocity, acceleration and jerk of the setpoints against their limits.
+fn measure_dynamics(cfg: &PlannerConfig, r: &Run, w: &mut Worst) {
     let axes = cfg.axes;
     let by_seq: std::collections::HashMap<u32, Segment> =
         r.segments.iter().map(|s| (s.seq, *s)).collect();
-    let index_of: std::collections::HashMap<u32, usize> = r
-        .segments
-        .iter()
-        .enumerate()
-        .map(|(i, s)| (s.seq, i))
-        .collect();
-    let mut w = Worst::default();
     let a_path = r
         .segments
         .iter()
@@ -451,61 +491,83 @@ pub fn measure(cfg: &PlannerConfig, r: &Run, lm_um: f64) -> Worst {
                 w.path_j = w.path_j.max(((a - a0) / TS_S).abs() / j_path);
             }
         }
-        if let Some(&i) = index_of.get(&t[k].seq) {
+    }
+}
+
+/// Largest distance of a setpoint from its segment or the 64 before it (the axis filter
+/// lags the path position).
+fn measure_off_path(axes: usize, r: &Run, w: &mut Worst) {
+    let index_of: std::collections::HashMap<u32, usize> = r
+        .segments
+        .iter()
+        .enumerate()
+        .map(|(i, s)| (s.seq, i))
+        .collect();
+    for o in &r.ticks[1..] {
+        if let Some(&i) = index_of.get(&o.seq) {
             let d = r.segments[i.saturating_sub(64)..(i + 2).min(r.segments.len())]
                 .iter()
-                .map(|s| dist_to_path(&t[k].position, s, axes))
+                .map(|s| dist_to_path(&o.position, s, axes))
                 .fold(f64::INFINITY, f64::min);
             w.off_path_mm = w.off_path_mm.max(d);
         }
     }
-    // Stop points and the end are hit exactly.
-    for s in &r.segments {
-        if s.junction == kernel::plan::Junction::Stop || s.last {
+}
+
+/// Stop points and the program end not hit exactly by a setpoint.
+fn missed_stops(axes: usize, r: &Run) -> usize {
+    r.segments
+        .iter()
+        .filter(|s| s.junction == kernel::plan::Junction::Stop || s.last)
+        .filter(|s| {
             let end = s.path.end();
-            if !t.iter().any(|o| o.position.0[..axes] == end.0[..axes]) {
-                w.missed_stops += 1;
-            }
-        }
-    }
-    // Smooth corners: distance of the corner from the chord of the tick that crosses it.
-    if lm_um > 0.0 {
-        let mut k = 1;
-        for (idx, s) in r.segments.iter().enumerate() {
-            if s.junction == kernel::plan::Junction::Stop || idx + 1 >= r.segments.len() {
-                continue;
-            }
-            let nx = &r.segments[idx + 1];
-            let turn = s
-                .path
-                .tangent_at(1.0, axes)
-                .0
+            !r.ticks
                 .iter()
-                .zip(nx.path.tangent_at(0.0, axes).0.iter())
-                .map(|(a, b)| a * b)
-                .sum::<f64>();
-            if turn > 1.0 - 1e-12 {
-                continue;
-            }
-            while k < t.len() && t[k].seq <= s.seq {
-                k += 1;
-            }
-            if k >= t.len() {
-                break;
-            }
-            // The axis filter lags and spreads the corner over 2n ticks: the nearest chord.
-            let n = usize::from(s.axis_filter_ticks.max(1));
-            let (lo, hi) = (
-                k.saturating_sub(2 * n + 3).max(1),
-                (k + 2 * n + 3).min(t.len()),
-            );
-            let d = (lo..hi)
-                .map(|j| dist_to_chord(&s.path.end(), &t[j - 1].position, &t[j].position, axes))
-                .fold(f64::INFINITY, f64::min);
-            w.corner_dev = w.corner_dev.max(d / (lm_um * 1e-3));
+                .any(|o| o.position.0[..axes] == end.0[..axes])
+        })
+        .count()
+}
+
+/// Smooth corners: largest distance of the corner from the chord of the tick that crosses
+/// it, relative to Lm.
+fn corner_deviation(axes: usize, r: &Run, lm_um: f64) -> f64 {
+    let t = &r.ticks;
+    let mut worst = 0.0f64;
+    let mut k = 1;
+    for (idx, s) in r.segments.iter().enumerate() {
+        if s.junction == kernel::plan::Junction::Stop || idx + 1 >= r.segments.len() {
+            continue;
         }
+        let nx = &r.segments[idx + 1];
+        let turn = s
+            .path
+            .tangent_at(1.0, axes)
+            .0
+            .iter()
+            .zip(nx.path.tangent_at(0.0, axes).0.iter())
+            .map(|(a, b)| a * b)
+            .sum::<f64>();
+        if turn > 1.0 - 1e-12 {
+            continue;
+        }
+        while k < t.len() && t[k].seq <= s.seq {
+            k += 1;
+        }
+        if k >= t.len() {
+            break;
+        }
+        // The axis filter lags and spreads the corner over 2n ticks: the nearest chord.
+        let n = usize::from(s.axis_filter_ticks.max(1));
+        let (lo, hi) = (
+            k.saturating_sub(2 * n + 3).max(1),
+            (k + 2 * n + 3).min(t.len()),
+        );
+        let d = (lo..hi)
+            .map(|j| dist_to_chord(&s.path.end(), &t[j - 1].position, &t[j].position, axes))
+            .fold(f64::INFINITY, f64::min);
+        worst = worst.max(d / (lm_um * 1e-3));
     }
-    w
+    worst
 }
 
 /// A random program from generated steps (kind, angles, length, feed, continuity).
