@@ -228,3 +228,21 @@ pub async fn wait_job_finished(ctl: &daemon::runtime::controller::Controller, jo
         tokio::time::sleep(std::time::Duration::from_millis(5)).await;
     }
 }
+
+/// The daemon's pipeline and RT core in the single-threaded harness (deterministic, virtual
+/// time) on the simulated bus with the axes at `at_mm`, every commanded setpoint recorded;
+/// idle and stepped once, ready for a program.
+pub fn recorded_harness(
+    cfg: daemon::runtime::config::Config,
+    at_mm: &[f64],
+) -> (daemon::runtime::harness::Harness, Recording) {
+    use daemon::runtime::clock::SimClock;
+    use daemon::runtime::harness::Harness;
+    use daemon::runtime::rt::MachineState;
+    let sim = sim::SimBus::new(sim::SimDriveParams::default(), at_mm);
+    let (bus, record) = RecordingBus::new(sim);
+    let mut h = Harness::new(cfg, Box::new(bus), SimClock::exact()).unwrap();
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    h.step();
+    (h, record)
+}

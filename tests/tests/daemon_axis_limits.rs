@@ -5,11 +5,10 @@
 //! from them must reach A = min over moving axes of a_i/|u_i| (and never exceed it), in the
 //! linear and the parabolic profile, for feed moves, rapids and a stop.
 
-use daemon::runtime::clock::SimClock;
 use daemon::runtime::config::{AxisConfig, Config};
 use daemon::runtime::harness::{Harness, JobEnd};
 use daemon::runtime::rt::{MachineState, RtCommand};
-use tests::{Recording, RecordingBus};
+use tests::Recording;
 
 const TS_S: f64 = 0.004;
 const A_MM_S2: [f64; 3] = [800.0, 800.0, 500.0];
@@ -36,11 +35,7 @@ fn machine() -> Machine {
             ..AxisConfig::new(*n)
         })
         .collect();
-    let sim = sim::SimBus::new(sim::SimDriveParams::default(), &[0.0; 3]);
-    let (bus, record) = RecordingBus::new(sim);
-    let mut h = Harness::new(cfg, Box::new(bus), SimClock::exact()).unwrap();
-    h.wait_state(MachineState::Idle, 10_000).unwrap();
-    h.step();
+    let (h, record) = tests::recorded_harness(cfg, &[0.0; 3]);
     Machine { h, record }
 }
 

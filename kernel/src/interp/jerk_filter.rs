@@ -1,7 +1,13 @@
 //! Stage 2, jerk filter (parabolic profile, SPEC §7.3): the commanded arc length is the mean
-//! of the last `m` raw arc lengths, so a raw acceleration step of 2a becomes jerk ≤ 2a/(m·Ts).
+//! of the last `m` raw arc lengths. Its jerk is exactly (a(n) − a(n−m))/(m·Ts), a(n) the raw
+//! acceleration of tick n; the raw stage keeps |a(n) − a(n−m)| ≤ J·m·Ts (the *coast gap*:
+//! after a tick that accelerates it brakes only `m` ticks later, and after braking it
+//! accelerates only `m` ticks later), so m = ⌈a/(J·Ts)⌉ suffices and a filtered trapezoid is
+//! the ideal jerk-limited (7-phase) profile. Without the gap a raw step from +a to −a would
+//! need m = 2a/(J·Ts), which made every ramp 50 % longer (issue #16).
 
 use super::{ARRIVE_EPS_MM, FILTER_MAX_TICKS, Interpolator};
+use crate::plan::Segment;
 use crate::units::TS_S;
 
 impl Interpolator {
@@ -18,6 +24,50 @@ impl Interpolator {
         } else {
             self.still_ticks = 0;
         }
+        // Rounding of the arc lengths (a few ulp of s per difference) is not an acceleration.
+        let noise_mm_s2 = 1e-6 + 16.0 * f64::EPSILON * s.abs() / (TS_S * TS_S);
+        if self.raw_accel_back(0) > noise_mm_s2 {
+            self.ticks_since_accel = 0;
+        } else {
+            self.ticks_since_accel = (self.ticks_since_accel + 1).min(FILTER_MAX_TICKS);
+        }
+    }
+
+    /// Raw acceleration of the tick `back` ticks before the newest recorded one, mm/s²
+    /// (second difference of the raw arc lengths, what the filter averages).
+    fn raw_accel_back(&self, back: usize) -> f64 {
+        let s = |j: usize| {
+            self.hist_raw_s_mm[(self.hist_newest + 2 * FILTER_MAX_TICKS - j) % FILTER_MAX_TICKS]
+        };
+        (s(back) - 2.0 * s(back + 1) + s(back + 2)) / (TS_S * TS_S)
+    }
+
+    /// Range of the raw acceleration of the next tick on `head`, as (largest deceleration,
+    /// largest acceleration), mm/s², within `a`: the filtered jerk (a(n) − a(n−m))/(m·Ts)
+    /// stays ≤ J. Linear profile (no jerk limit): ±a.
+    pub(super) fn jerk_accel_window(&self, a: f64, head: &Segment) -> (f64, f64) {
+        let j = head.jerk_mm_s3;
+        if !j.is_finite() {
+            return (a, f64::INFINITY);
+        }
+        let m = self.jerk_filter_ticks;
+        let a_m = j * m as f64 * TS_S;
+        let a_old = self.raw_accel_back(m - 1);
+        ((a_m - a_old).clamp(0.0, a), (a_m + a_old).max(0.0))
+    }
+
+    /// Coast gap for the braking model of the raw stage, ticks after the next one during which
+    /// it may not brake at full deceleration: (if the next tick does not accelerate, if it
+    /// does). A tick that accelerates forbids full braking `m` ticks later
+    /// (`jerk_accel_window`), so a speed is safe when coasting through the gap and braking
+    /// after it meets every cap (`Interpolator::v_brake` with `coast`). Linear: no gap.
+    pub(super) fn coast_gaps(&self, head: &Segment) -> (f64, f64) {
+        if !head.jerk_mm_s3.is_finite() {
+            return (0.0, 0.0);
+        }
+        let m = self.jerk_filter_ticks;
+        let now = (m - 1).saturating_sub(self.ticks_since_accel);
+        (now as f64, m as f64)
     }
 
     /// Ticks before and after a speed cap during which the raw speed stays within it (0: only
@@ -84,14 +134,10 @@ impl Interpolator {
                 self.last_spindle = seg.spindle_after.unwrap_or(seg.spindle);
                 self.last_rapid = seg.rapid;
                 program_end |= seg.last;
-                self.head = (self.head + 1) % self.buf.len();
-                // Rescan only when the last segment at a floor value leaves (a uniform dense
-                // path never rescans).
-                let a_left = self
-                    .floor_accel_mm_s2
+                self.head = (self.head + 1) % super::BUFFER_SEGMENTS;
+                self.floor_accel_mm_s2
                     .remove(seg.accel_mm_s2.min(seg.stop_accel_mm_s2));
-                let j_left = self.floor_jerk_mm_s3.remove(seg.jerk_mm_s3);
-                self.floor_dirty |= a_left || j_left;
+                self.floor_jerk_mm_s3.remove(seg.jerk_mm_s3);
                 self.len -= 1;
                 self.raw_seg = self.raw_seg.saturating_sub(1);
                 if self.len == 0 {
@@ -125,4 +171,34 @@ impl Interpolator {
         }
         program_end
     }
+}
+
+/// Time of the ideal jerk-limited (7-phase S-curve) move of `l_mm` from rest to rest with
+/// speed `v`, acceleration `a` and jerk `j`, s: the closed form, with the peak speed found by
+/// bisection when `v` is not reached. Not used by the interpolator: the reference its tests
+/// (kernel and daemon level) compare the filtered profile against.
+pub fn ideal_jerk_limited_move_s(l_mm: f64, v_mm_s: f64, a_mm_s2: f64, j_mm_s3: f64) -> f64 {
+    // Time and distance of a ramp from rest to `vp`.
+    let ramp = |vp: f64| {
+        let t = if vp >= a_mm_s2 * a_mm_s2 / j_mm_s3 {
+            vp / a_mm_s2 + a_mm_s2 / j_mm_s3
+        } else {
+            2.0 * (vp / j_mm_s3).sqrt()
+        };
+        (t, vp * t / 2.0)
+    };
+    let (t_v, d_v) = ramp(v_mm_s);
+    if 2.0 * d_v <= l_mm {
+        return 2.0 * t_v + (l_mm - 2.0 * d_v) / v_mm_s;
+    }
+    let (mut lo, mut hi) = (0.0, v_mm_s);
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if 2.0 * ramp(mid).1 <= l_mm {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    2.0 * ramp(lo).0
 }

@@ -15,8 +15,9 @@
 //!    as many segments as that distance covers (several short blocks per tick).
 //! 2. **Jerk filter** (parabolic profile, SPEC §7.3): the commanded arc length is the moving
 //!    average of the last `m` raw arc lengths. The average of an acceleration-limited motion
-//!    over `m` ticks has acceleration ≤ a and jerk ≤ 2a/(m·Ts), so `m = ⌈2a/(J·Ts)⌉` gives a
-//!    jerk-limited (S-shaped) speed. Filtering the *arc length* (not the axes) keeps every
+//!    over `m` ticks has acceleration ≤ a and jerk (a(n) − a(n−m))/(m·Ts); the raw stage keeps
+//!    a coast gap of `m` ticks between accelerating and braking (`jerk_filter`), so
+//!    `m = ⌈a/(J·Ts)⌉` gives the ideal jerk-limited (S-shaped) speed. Filtering the *arc length* (not the axes) keeps every
 //!    setpoint exactly on the programmed path, and because arc length never decreases the
 //!    filtered position never passes the raw one: stop points are reached exactly, at rest.
 //!    The filtered speed is an average of raw speeds of the last `m` ticks, so the raw speed
@@ -47,9 +48,12 @@ mod axis_filter;
 mod jerk_filter;
 mod raw;
 
+pub use jerk_filter::ideal_jerk_limited_move_s;
+
 /// How many segments the interpolator holds (its own look-ahead for braking, plus the
 /// segments the filtered position has not yet left).
 pub const BUFFER_SEGMENTS: usize = 4096;
+const _: () = assert!(BUFFER_SEGMENTS.is_power_of_two());
 
 /// Longest jerk filter, ticks (1.024 s: a/J up to 0.5 s).
 pub const FILTER_MAX_TICKS: usize = 256;
@@ -136,11 +140,12 @@ pub struct Interpolator {
     hist_newest: usize,
     /// Consecutive ticks without raw motion.
     still_ticks: usize,
+    /// Ticks since the last tick whose raw acceleration was positive (0: the newest).
+    ticks_since_accel: usize,
     /// Smallest path acceleration (feed or stop) and jerk of the buffered segments, for the
-    /// look-ahead reach; recomputed when the last segment at a floor value leaves.
+    /// look-ahead reach (sliding-window minima: O(1) per segment, no rescan of the buffer).
     floor_accel_mm_s2: Floor,
     floor_jerk_mm_s3: Floor,
-    floor_dirty: bool,
     /// Commanded (filtered) arc length, mm, and its speed over the last tick, mm/s.
     filtered_s_mm: f64,
     filtered_v_mm_s: f64,
@@ -200,9 +205,9 @@ impl Interpolator {
             hist_feed_mm_s: vec![f64::INFINITY; FILTER_MAX_TICKS].into_boxed_slice(),
             hist_newest: 0,
             still_ticks: FILTER_MAX_TICKS,
-            floor_accel_mm_s2: Floor::default(),
-            floor_jerk_mm_s3: Floor::default(),
-            floor_dirty: false,
+            ticks_since_accel: FILTER_MAX_TICKS,
+            floor_accel_mm_s2: Floor::new(BUFFER_SEGMENTS),
+            floor_jerk_mm_s3: Floor::new(BUFFER_SEGMENTS),
             filtered_s_mm: 0.0,
             filtered_v_mm_s: 0.0,
             path_pos: position,
@@ -285,12 +290,12 @@ impl Interpolator {
             if self.len == 0 {
                 self.last_spindle = seg.spindle;
             } else {
-                let i = (self.head + self.len - 1) % self.buf.len();
+                let i = (self.head + self.len - 1) % BUFFER_SEGMENTS;
                 self.buf[i].spindle_after = Some(seg.spindle);
             }
             return Ok(());
         }
-        let i = (self.head + self.len) % self.buf.len();
+        let i = (self.head + self.len) % BUFFER_SEGMENTS;
         if self.len == 0 {
             // The raw position starts at this segment: wait its leading dwell there.
             self.dwell_ticks = (seg.dwell_before_s / TS_S).round().max(0.0) as u32;
@@ -402,7 +407,8 @@ impl Interpolator {
     fn clear(&mut self) {
         self.at_program_stop = false;
         self.len = 0;
-        self.floor_dirty = true;
+        self.floor_accel_mm_s2.clear();
+        self.floor_jerk_mm_s3.clear();
         self.reset_arc_length();
         self.state = InterpState::Idle;
     }
@@ -420,12 +426,15 @@ impl Interpolator {
         self.hist_cap_mm_s.fill(f64::INFINITY);
         self.hist_feed_mm_s.fill(f64::INFINITY);
         self.still_ticks = FILTER_MAX_TICKS;
+        self.ticks_since_accel = FILTER_MAX_TICKS;
         self.filtered_s_mm = 0.0;
         self.filtered_v_mm_s = 0.0;
     }
 
     fn idx(&self, k: usize) -> usize {
-        (self.head + k) % self.buf.len()
+        // (A constant power of two: the look-ahead calls this for every segment it walks,
+        // and a division by the slice length was a tenth of the tick.)
+        (self.head + k) % BUFFER_SEGMENTS
     }
 
     fn seg(&self, k: usize) -> &Segment {
@@ -502,38 +511,69 @@ impl Interpolator {
     }
 }
 
-/// Smallest value over the buffered segments and how many of them have it.
-#[derive(Clone, Copy, Debug)]
+/// Smallest value over the buffered segments (a FIFO window: segments enter at the back and
+/// leave at the front), as a monotonic queue of (value, how many segments of the window with
+/// that value no smaller later one has replaced). Entering is amortized O(1) (at most the
+/// queue's length once), leaving O(1): the tick never rescans the buffer (the rescan of all
+/// buffered segments each time the last holder of the floor left cost up to 4096 steps in
+/// one tick). Fixed capacity, allocated in `new`.
+#[derive(Clone, Debug)]
 struct Floor {
-    value: f64,
-    count: usize,
-}
-
-impl Default for Floor {
-    fn default() -> Self {
-        Floor {
-            value: f64::INFINITY,
-            count: 0,
-        }
-    }
+    runs: Box<[(f64, usize)]>,
+    front: usize,
+    len: usize,
 }
 
 impl Floor {
-    fn add(&mut self, v: f64) {
-        if v < self.value {
-            self.value = v;
-            self.count = 1;
-        } else if v == self.value {
-            self.count += 1;
+    fn new(capacity: usize) -> Self {
+        Floor {
+            runs: vec![(f64::INFINITY, 0); capacity].into_boxed_slice(),
+            front: 0,
+            len: 0,
         }
     }
 
-    /// Takes a leaving segment's value out; true when the floor must be recomputed.
-    fn remove(&mut self, v: f64) -> bool {
-        if v <= self.value && self.count > 0 {
-            self.count -= 1;
+    fn slot(&self, k: usize) -> usize {
+        (self.front + k) % self.runs.len()
+    }
+
+    fn value(&self) -> f64 {
+        if self.len == 0 {
+            f64::INFINITY
+        } else {
+            self.runs[self.front].0
         }
-        v <= self.value && self.count == 0
+    }
+
+    /// A segment of value `v` enters the window.
+    fn add(&mut self, v: f64) {
+        while self.len > 0 && self.runs[self.slot(self.len - 1)].0 > v {
+            self.len -= 1;
+        }
+        if self.len > 0 && self.runs[self.slot(self.len - 1)].0 == v {
+            let last = self.slot(self.len - 1);
+            self.runs[last].1 += 1;
+        } else if self.len < self.runs.len() {
+            let next = self.slot(self.len);
+            self.runs[next] = (v, 1);
+            self.len += 1;
+        }
+    }
+
+    /// The oldest segment of the window, of value `v`, leaves it.
+    fn remove(&mut self, v: f64) {
+        if self.len > 0 && self.runs[self.front].0 == v {
+            self.runs[self.front].1 -= 1;
+            if self.runs[self.front].1 == 0 {
+                self.front = self.slot(1);
+                self.len -= 1;
+            }
+        }
+    }
+
+    fn clear(&mut self) {
+        self.front = 0;
+        self.len = 0;
     }
 }
 

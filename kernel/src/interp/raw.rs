@@ -2,18 +2,23 @@
 //! each segment (acceleration-limited; SPEC §7.2), the raw arc length advancing by `v·Ts`.
 
 use super::{
-    ARRIVE_EPS_MM, AXIS_FILTER_MAX_TICKS, FILTER_MAX_TICKS, FILTER_SCAN_SEGMENTS, Floor,
-    InterpState, Interpolator,
+    ARRIVE_EPS_MM, AXIS_FILTER_MAX_TICKS, FILTER_MAX_TICKS, FILTER_SCAN_SEGMENTS, InterpState,
+    Interpolator,
 };
 use crate::block::ProgramStop;
 use crate::plan::Segment;
 use crate::units::TS_S;
 
 /// Speed limits of one tick, mm/s, and the distance to the next stop point (∞: none in reach).
+/// `soft_mm_s`/`hard_mm_s` hold when this tick does not accelerate; `*_accel_mm_s` when it
+/// does (parabolic profile: braking then starts only after a coast gap of `m` ticks; equal to
+/// the others in the linear profile).
 #[derive(Clone, Copy, Debug)]
 struct SpeedLimits {
     soft_mm_s: f64,
     hard_mm_s: f64,
+    soft_accel_mm_s: f64,
+    hard_accel_mm_s: f64,
     stop_dist_mm: f64,
 }
 
@@ -77,12 +82,13 @@ impl Interpolator {
         self.seg_start_s_mm[self.idx(self.raw_seg)] + self.raw_in_seg_mm
     }
 
-    /// Filter length for the motion that starts at rest on segment `raw_seg`: the raw acceleration
-    /// steps by at most 2a, so the jerk of the average is ≤ 2a/(m·Ts) ≤ J. A motion that
-    /// cannot reach `a` before its speed (the highest programmed speed up to the next stop,
-    /// at 100 % override) is a pure parabola: it needs only a = √(v·J), so the filter is sized
-    /// for that (the ramp to F takes 3·√(F/J) instead of 2a/J + F/a; the manual's
-    /// T = 1.478·√(F/P) is 2·√(F/J)).
+    /// Filter length for the motion that starts at rest on segment `raw_seg`: the raw
+    /// acceleration never differs by more than a from the one `m` ticks before (the coast
+    /// gap, `jerk_filter::jerk_accel_window`), so the jerk of the average is ≤ a/(m·Ts) ≤ J
+    /// with m = ⌈a/(J·Ts)⌉. A motion that cannot reach `a` before its speed (the highest
+    /// programmed speed up to the next stop, at 100 % override) is a pure parabola: it needs
+    /// only a = √(v·J), and the ramp to F takes 2·√(F/J), the manual's T = 1.478·√(F/P).
+    /// A move to a stop too short to reach its speed is sized for the peak it can reach.
     pub(super) fn filter_for(&self) -> usize {
         let seg = self.seg(self.raw_seg);
         let a = seg.accel_mm_s2.max(seg.stop_accel_mm_s2);
@@ -94,40 +100,41 @@ impl Interpolator {
         // slower, never above the jerk.)
         let mut v = f64::INFINITY;
         let mut top = 0.0f64;
+        let mut dist_mm = -self.raw_in_seg_mm;
         for k in self.raw_seg..self.len.min(self.raw_seg + FILTER_SCAN_SEGMENTS) {
             let s = self.seg(k);
             top = top.max(s.feed_mm_s.min(s.v_max_mm_s));
-            if s.v_end_mm_s == 0.0 || k + 1 == self.len {
+            dist_mm += s.length_mm;
+            if s.v_end_mm_s == 0.0 {
+                // A move too short for its speed peaks at v with 2·v·√(v/J) = d (two
+                // pure-parabola ramps): the filter is sized for that peak (a 2 mm move at
+                // F6000 with P = 50000 took 1.6 × the ideal time with the filter of F).
+                v = top.min((dist_mm * dist_mm * j / 4.0).cbrt());
+                break;
+            }
+            if k + 1 == self.len {
                 v = top;
                 break;
             }
         }
         let a = a.min((v * j).sqrt());
-        ((2.0 * a / (j * TS_S)).ceil() as usize)
+        ((a / (j * TS_S)).ceil() as usize)
             .clamp(1, FILTER_MAX_TICKS - 2 * AXIS_FILTER_MAX_TICKS - 2)
     }
 
-    /// Acceleration the raw stage may use with the current filter (jerk ≤ J needs a ≤ J·m·Ts/2).
+    /// Acceleration the raw stage may use with the current filter (jerk ≤ J needs a ≤ J·m·Ts).
     /// Lower bound of the raw acceleration on every buffered segment: a cap whose braking
     /// distance at this bound is out of reach cannot constrain this tick. (Judging the reach
     /// with the accelerations seen so far missed a stop behind a segment of lower
     /// acceleration and made the speed saw between braking harder than allowed and
     /// accelerating again.)
-    pub(super) fn accel_floor(&mut self) -> f64 {
-        if self.floor_dirty {
-            self.floor_accel_mm_s2 = Floor::default();
-            self.floor_jerk_mm_s3 = Floor::default();
-            for k in 0..self.len {
-                let seg = &self.buf[(self.head + k) % self.buf.len()];
-                self.floor_accel_mm_s2
-                    .add(seg.accel_mm_s2.min(seg.stop_accel_mm_s2));
-                self.floor_jerk_mm_s3.add(seg.jerk_mm_s3);
-            }
-            self.floor_dirty = false;
-        }
-        let (floor_a, floor_j) = (self.floor_accel_mm_s2.value, self.floor_jerk_mm_s3.value);
+    pub(super) fn accel_floor(&self) -> f64 {
+        let (floor_a, floor_j) = (
+            self.floor_accel_mm_s2.value(),
+            self.floor_jerk_mm_s3.value(),
+        );
         let a = if floor_j.is_finite() {
-            floor_a.min(floor_j * self.jerk_filter_ticks as f64 * TS_S / 2.0)
+            floor_a.min(floor_j * self.jerk_filter_ticks as f64 * TS_S)
         } else {
             floor_a
         };
@@ -136,7 +143,7 @@ impl Interpolator {
 
     pub(super) fn raw_accel(&self, a: f64, seg: &Segment) -> f64 {
         let a = if seg.jerk_mm_s3.is_finite() {
-            a.min(seg.jerk_mm_s3 * self.jerk_filter_ticks as f64 * TS_S / 2.0)
+            a.min(seg.jerk_mm_s3 * self.jerk_filter_ticks as f64 * TS_S)
         } else {
             a
         };
@@ -149,19 +156,23 @@ impl Interpolator {
     /// covering Ts·((J+1)·(v_cap + r) + u·J(J+1)/2) ≤ d − v_cap·Ts. For a stop (v_cap = 0) they end exactly on it, so braking runs at the full
     /// deceleration and the last tick is the only one rounded (the continuous bound
     /// (v² − v_cap²)/(2a) ≤ d − v·Ts started braking half a tick early and crept at the end).
-    pub(super) fn v_brake(d: f64, v_cap: f64, a: f64) -> f64 {
+    ///
+    /// With `coast` > 0 (parabolic profile, `jerk_filter::coast_gaps`) the braking starts only
+    /// after `coast` more ticks at this tick's speed: the ticks faster than v_cap are then
+    /// J+1+coast, covering Ts·((J+1+coast)·(v_cap + r) + u·J(J+1)/2 + coast·J·u).
+    pub(super) fn v_brake(d: f64, v_cap: f64, a: f64, coast: f64) -> f64 {
         let u = a * TS_S;
         // The last tick before the point runs at v_cap and ends on it (the tick after the point
         // is held to the cap too, see `entry_cap_mm_s`): the faster ticks end one v_cap·Ts
         // earlier. Distances in speed·ticks.
         let dd = d.max(0.0) / TS_S - v_cap;
-        // Distance of the J+1 ticks faster than v_cap with r = 0.
-        let lower = |j: f64| (j + 1.0) * v_cap + u * j * (j + 1.0) / 2.0;
-        if dd <= v_cap {
-            return dd.max(0.0);
+        // Distance of the J+1+coast ticks faster than v_cap with r = 0.
+        let lower = |j: f64| (j + 1.0 + coast) * v_cap + u * j * (j + 1.0) / 2.0 + coast * j * u;
+        if dd <= (1.0 + coast) * v_cap {
+            return (dd / (1.0 + coast)).max(0.0);
         }
-        let b = v_cap + u / 2.0;
-        let root = (-b + (b * b + 2.0 * u * (dd - v_cap)).sqrt()) / u;
+        let b = v_cap + u / 2.0 + coast * u;
+        let root = (-b + (b * b + 2.0 * u * (dd - (1.0 + coast) * v_cap)).sqrt()) / u;
         let mut j = (root.ceil() - 1.0).max(0.0);
         while j > 0.0 && lower(j) >= dd {
             j -= 1.0;
@@ -169,7 +180,7 @@ impl Interpolator {
         while lower(j + 1.0) < dd {
             j += 1.0;
         }
-        let r = ((dd - lower(j)) / (j + 1.0)).min(u);
+        let r = ((dd - lower(j)) / (j + 1.0 + coast)).min(u);
         v_cap + r + j * u
     }
 
@@ -282,6 +293,7 @@ impl Interpolator {
             self.hist_cap_mm_s.fill(f64::INFINITY);
             self.hist_feed_mm_s.fill(f64::INFINITY);
             self.still_ticks = FILTER_MAX_TICKS;
+            self.ticks_since_accel = FILTER_MAX_TICKS;
             self.jerk_filter_ticks = m;
         }
     }
@@ -307,46 +319,74 @@ impl Interpolator {
         // Hard limits: geometric ceilings, planned end speeds, end of the buffer.
         let mut hard = head.v_max_mm_s.min(behind_cap).min(self.entry_cap_mm_s);
         let v_up = self.raw_v_mm_s + accel_mm_s2 * TS_S;
+        let (coast, coast_accel) = self.coast_gaps(head);
+        let (mut soft_acc, mut hard_acc) = (soft, hard);
         // Caps farther than this cannot constrain this tick (braking distance at `a_walk`).
-        let reach = |a_walk: f64| v_up * v_up / (2.0 * a_walk) + 2.0 * v_up * TS_S + v_up * lag_s;
+        let reach = |a_walk: f64| {
+            v_up * v_up / (2.0 * a_walk) + (2.0 + coast_accel) * v_up * TS_S + v_up * lag_s
+        };
         let mut d = head.length_mm - self.raw_in_seg_mm;
         let mut stop_dist_mm = f64::INFINITY;
         let mut a_walk = accel_mm_s2;
+        let mut reach_mm = reach(a_floor.min(a_walk));
+        // (Segments by reference: copying two of them per step dominated the tick on dense
+        // paths.)
         for k in self.raw_seg..self.len {
-            let seg = *self.seg(k);
+            let seg = self.seg(k);
             if k > self.raw_seg {
                 let ak = if braking {
                     seg.stop_accel_mm_s2
                 } else {
                     seg.accel_mm_s2
                 };
-                a_walk = a_walk.min(self.raw_accel(ak, &seg));
+                let a_seg = self.raw_accel(ak, seg);
+                if a_seg < a_walk {
+                    a_walk = a_seg;
+                    reach_mm = reach(a_floor.min(a_walk));
+                }
             }
-            let next = (k + 1 < self.len).then(|| *self.seg(k + 1));
+            let next = (k + 1 < self.len).then(|| self.seg(k + 1));
             let (hard_cap, soft_cap, lead) = match next {
                 Some(n) if seg.v_end_mm_s > 0.0 => (
-                    self.end_cap_mm_s(&seg).min(n.v_max_mm_s),
-                    self.ceiling(&n),
+                    self.end_cap_mm_s(seg).min(n.v_max_mm_s),
+                    self.ceiling(n),
                     lag_s,
                 ),
                 _ => (0.0, 0.0, 0.0),
             };
             // Any speed up to the cap itself is safe for that cap; above it, we must still be
-            // able to brake to it (later caps are checked on their own).
-            hard = hard.min(hard_cap.max(Self::v_brake(d - hard_cap * lead, hard_cap, a_walk)));
-            soft = soft.min(soft_cap.max(Self::v_brake(d - soft_cap * lead, soft_cap, a_walk)));
+            // able to brake to it (later caps are checked on their own). A cap at or above
+            // the limit so far cannot lower it (skipped: no square root on a dense path at
+            // its cap speed).
+            let limit = |cur: &mut f64, cap: f64, gap: f64| {
+                if cap < *cur {
+                    *cur = cur.min(cap.max(Self::v_brake(d - cap * lead, cap, a_walk, gap)));
+                }
+            };
+            limit(&mut hard, hard_cap, coast);
+            limit(&mut soft, soft_cap, coast);
+            if coast_accel != coast {
+                limit(&mut hard_acc, hard_cap, coast_accel);
+                limit(&mut soft_acc, soft_cap, coast_accel);
+            }
             if hard_cap == 0.0 {
                 stop_dist_mm = d;
                 break;
             }
-            if d > reach(a_floor.min(a_walk)) {
+            if d > reach_mm {
                 break;
             }
             d += next.map_or(0.0, |n| n.length_mm);
         }
+        if coast_accel == coast {
+            // (Linear profile: no gap, the same limits; not computed twice.)
+            (soft_acc, hard_acc) = (soft, hard);
+        }
         SpeedLimits {
             soft_mm_s: soft,
             hard_mm_s: hard,
+            soft_accel_mm_s: soft_acc.min(soft),
+            hard_accel_mm_s: hard_acc.min(hard),
             stop_dist_mm,
         }
     }
@@ -394,18 +434,30 @@ impl Interpolator {
     }
 
     /// Next raw speed `v' = max(0, min(hard, max(v − a·Ts, min(soft, v + a·Ts))))`: toward
-    /// the soft limit within ±a·Ts, never above the hard one (SPEC §7.2). The raw position
+    /// the soft limit within ±a·Ts, never above the hard one (SPEC §7.2); a tick that
+    /// accelerates also keeps the limits with the coast gap after it (parabolic). The raw position
     /// then moves `v'·Ts`, or exactly onto a stop point once that step fits within the
     /// deceleration. Returns the caps (hard, feed) met, mm/s.
     fn advance_raw(&mut self, head: &Segment, accel_mm_s2: f64, limits: SpeedLimits) -> (f64, f64) {
         let v = self.raw_v_mm_s;
         let braking = matches!(self.state, InterpState::Holding | InterpState::Stopping);
-        let a_up = self.accel_over_next_tick(accel_mm_s2, v + accel_mm_s2 * TS_S, braking);
-        let mut v_next = (v + a_up * TS_S)
-            .min(limits.soft_mm_s)
-            .max(v - accel_mm_s2 * TS_S)
-            .min(limits.hard_mm_s)
-            .max(0.0);
+        // Parabolic profile: the acceleration may differ by at most J·m·Ts from the one m
+        // ticks before (`jerk_filter`); linear: ±a.
+        let (down_mm_s2, up_mm_s2) = self.jerk_accel_window(accel_mm_s2, head);
+        let a_up = self
+            .accel_over_next_tick(accel_mm_s2, v + accel_mm_s2 * TS_S, braking)
+            .min(up_mm_s2);
+        let up = (v + a_up * TS_S)
+            .min(limits.soft_accel_mm_s)
+            .min(limits.hard_accel_mm_s);
+        let mut v_next = if up > v {
+            up
+        } else {
+            v.min(limits.soft_mm_s)
+                .max(v - down_mm_s2 * TS_S)
+                .min(limits.hard_mm_s)
+                .max(0.0)
+        };
         // Arrive exactly at a stop point once the last step fits inside the deceleration limit.
         let stop_dist = limits.stop_dist_mm;
         let mut ds = v_next * TS_S;

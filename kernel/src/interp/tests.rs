@@ -194,18 +194,40 @@ fn a_cut_waits_for_the_spindle_a_rapid_does_not() {
 }
 
 #[test]
-fn floor_asks_for_a_rescan_only_when_its_last_holder_leaves() {
-    let mut f = Floor::default();
-    for v in [5.0, 3.0, 3.0, 4.0] {
-        f.add(v);
+fn floor_is_the_minimum_of_the_window() {
+    // Against the minimum of a plain FIFO, on a sequence with repeats, rises and falls.
+    let vals = [
+        5.0,
+        3.0,
+        3.0,
+        4.0,
+        7.0,
+        3.0,
+        2.0,
+        9.0,
+        9.0,
+        1.0,
+        6.0,
+        f64::INFINITY,
+    ];
+    let mut f = Floor::new(8);
+    let mut fifo = std::collections::VecDeque::new();
+    for (i, v) in vals.iter().enumerate() {
+        f.add(*v);
+        fifo.push_back(*v);
+        if i % 3 == 2 {
+            let out = fifo.pop_front().unwrap();
+            f.remove(out);
+        }
+        let want = fifo.iter().copied().fold(f64::INFINITY, f64::min);
+        assert_eq!(f.value(), want, "after {i}");
     }
-    assert_eq!((f.value, f.count), (3.0, 2));
-    assert!(!f.remove(5.0));
-    assert!(!f.remove(3.0));
-    assert!(f.remove(3.0));
-    let mut inf = Floor::default();
-    inf.add(f64::INFINITY);
-    assert!(inf.remove(f64::INFINITY));
+    while let Some(out) = fifo.pop_front() {
+        f.remove(out);
+        let want = fifo.iter().copied().fold(f64::INFINITY, f64::min);
+        assert_eq!(f.value(), want);
+    }
+    assert_eq!(f.value(), f64::INFINITY);
 }
 
 #[test]
@@ -224,4 +246,67 @@ fn g24_waits_for_in_position() {
     ip.set_in_position(true);
     run(&mut ip, 1000);
     assert_eq!(ip.position()[0], 2.0);
+}
+
+/// Setpoint speeds, accelerations and jerks (finite differences along X) of one move.
+fn parabolic_move(l: f64, feed: f64, a: f64, j: f64) -> (usize, f64, f64, Vec<f64>) {
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    let mut seg = line(0, [0.0; 3], [l, 0.0, 0.0], feed, 0.0);
+    seg.accel_mm_s2 = a;
+    seg.stop_accel_mm_s2 = a;
+    seg.jerk_mm_s3 = j;
+    ip.push(seg).unwrap();
+    let mut x = vec![0.0];
+    loop {
+        let t = ip.tick();
+        x.push(t.position[0]);
+        if t.state == InterpState::Idle {
+            break;
+        }
+        assert!(x.len() < 100_000);
+    }
+    assert_eq!(*x.last().unwrap(), l);
+    let moving = x.iter().rposition(|p| *p < l).unwrap() + 1;
+    let v: Vec<f64> = x.windows(2).map(|w| (w[1] - w[0]) / TS_S).collect();
+    let acc: Vec<f64> = v.windows(2).map(|w| (w[1] - w[0]) / TS_S).collect();
+    let jerk = acc
+        .windows(2)
+        .map(|w| ((w[1] - w[0]) / TS_S).abs())
+        .fold(0.0, f64::max);
+    let a_max = acc.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    (moving, a_max, jerk, v)
+}
+
+#[test]
+fn parabolic_move_takes_the_ideal_jerk_limited_time() {
+    // (length, feed, a, J): a reached; pure parabola (manual's F300, P = 50000); short moves.
+    for (l, feed, a, j) in [
+        (100.0, 50.0, 500.0, 20_000.0),
+        (30.0, 80.0, 500.0, 20_000.0),
+        (5.0, 5.0, 500.0, crate::plan::jerk_from_p_mm_s3(50_000.0)),
+        (2.0, 100.0, 800.0, 40_000.0),
+        // Too short for F: the filter is sized for the peak the move reaches.
+        (2.0, 100.0, 600.0, crate::plan::jerk_from_p_mm_s3(50_000.0)),
+    ] {
+        let (ticks, a_max, jerk, _) = parabolic_move(l, feed, a, j);
+        let t = ticks as f64 * TS_S;
+        let ideal = ideal_jerk_limited_move_s(l, feed, a, j);
+        assert!(
+            t <= ideal * 1.03 + 2.0 * TS_S,
+            "{l} mm F{feed}: {t} s vs {ideal} s"
+        );
+        assert!(a_max <= a * (1.0 + 1e-6), "accel {a_max} > {a}");
+        assert!(jerk <= j * (1.0 + 1e-6) + 1e-6, "jerk {jerk} > {j}");
+    }
+}
+
+#[test]
+fn pure_parabola_ramp_matches_the_manual() {
+    // F300 mm/min, P = 50000: T = 1.478·√(F/P) from rest to F.
+    let j = crate::plan::jerk_from_p_mm_s3(50_000.0);
+    let (_, _, _, v) = parabolic_move(20.0, 5.0, 500.0, j);
+    let reached = v.iter().position(|x| *x >= 5.0 * (1.0 - 1e-9)).unwrap() + 1;
+    let manual = 1.478 * (300.0f64 / 50_000.0).sqrt();
+    let t = reached as f64 * TS_S;
+    assert!((t - manual).abs() <= 0.05 * manual, "{t} s vs {manual} s");
 }
