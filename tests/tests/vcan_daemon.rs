@@ -9,8 +9,13 @@ use std::time::Duration;
 
 use vcan_support::{Daemon, sim_can, vcan_lock, vcan_ready, wait_spindle_rpm};
 
+/// Bus watch times are wide (10 s without feedback or heartbeat, 20 s at the drives): in the
+/// emulated VM on a loaded host every process, cncd and sim-can alike, stalls for up to a
+/// second (measured: 908 ms tick lateness), which tight times turn into false drive faults.
+/// Fault detection within the product's times is vcan_canopen's and daemon_can's subject;
+/// here a killed drive is still found, within 10 s.
 const BUS: &str = "[bus]\nkind = 'can'\ninterface = 'vcan0'\nrecord = 'RECORD'\n\
-    tpdo_missing_ticks = 50\nheartbeat_timeout_ms = 1000\ndrive_consumer_timeout_ms = 2000\n\
+    tpdo_missing_ticks = 2500\nheartbeat_timeout_ms = 10000\ndrive_consumer_timeout_ms = 20000\n\
     following_window_mm = 20\n";
 
 const PROGRAM: &str = "\
@@ -104,7 +109,7 @@ fn daemon_runs_a_program_on_vcan_and_recovers_from_a_killed_drive() {
     y.kill();
     let (ok, out) = runner.join().unwrap();
     assert!(!ok, "cncctl run must fail on a fault: {out}");
-    let s = d.wait_state("fault", Duration::from_secs(30));
+    let s = d.wait_state("fault", Duration::from_secs(90));
     assert!(s.contains("axis Y, node 52"), "{s}");
     assert!(s.contains("no feedback from the drive"), "{s}");
     // Controlled stop: the commanded positions come to rest and stay there.
@@ -187,7 +192,7 @@ fn daemon_sends_the_spindle_speed_to_the_spindle_node() {
     assert_eq!(values(0x180 + 54), [0, 12_000, -3000, 0], "spindle speeds");
 
     spindle.send("fault 2310");
-    let s = d.wait_state("fault", Duration::from_secs(30));
+    let s = d.wait_state("fault", Duration::from_secs(90));
     assert!(s.contains("spindle, node 54"), "{s}");
     assert!(s.contains("overcurrent"), "{s}");
     let (ok, out) = d.cncctl(&["reset"], Duration::from_secs(60));

@@ -82,7 +82,8 @@ pub enum ControlError {
 
 pub struct Controller {
     config: Config,
-    commands: Mutex<rtrb::Producer<RtCommand>>,
+    /// The RT core's command ring, and how many commands were pushed into it.
+    commands: Mutex<(rtrb::Producer<RtCommand>, u64)>,
     link: Arc<JobLink>,
     status: watch::Receiver<Snapshot>,
     program: Mutex<Option<Arc<LoadedProgram>>>,
@@ -190,7 +191,7 @@ impl Controller {
             .map_err(|e| format!("cannot start the status thread: {e}"))?;
         Ok(Arc::new(Controller {
             config,
-            commands: Mutex::new(cmd_tx),
+            commands: Mutex::new((cmd_tx, 0)),
             link: Arc::new(JobLink {
                 segments: Mutex::new(seg_tx),
                 planned_job,
@@ -351,11 +352,16 @@ impl Controller {
     }
 
     fn send(&self, cmd: RtCommand) -> Result<(), ControlError> {
-        self.commands
-            .lock()
-            .unwrap()
-            .push(cmd)
-            .map_err(|_| ControlError::RtGone)
+        self.send_counted(cmd).map(|_| ())
+    }
+
+    /// Sends `cmd`; its number: the core has acted on it once `Snapshot::commands_taken`
+    /// reaches it.
+    fn send_counted(&self, cmd: RtCommand) -> Result<u64, ControlError> {
+        let mut ring = self.commands.lock().unwrap();
+        ring.0.push(cmd).map_err(|_| ControlError::RtGone)?;
+        ring.1 += 1;
+        Ok(ring.1)
     }
 
     /// The latest snapshot if the machine is idle, the refusal to start otherwise.
@@ -407,13 +413,12 @@ impl Controller {
                 snap.state
             )));
         }
-        self.send(RtCommand::Home(homing::home_request(&self.config, i)))?;
-        // Commands are taken at the start of a tick: two snapshots later it has been seen.
+        let sent = self.send_counted(RtCommand::Home(homing::home_request(&self.config, i)))?;
         let mut rx = self.subscribe();
         let bit = 1u8 << i;
         loop {
             let s = *rx.borrow_and_update();
-            if s.sequence >= snap.sequence + 2 && s.state != MachineState::Homing {
+            if s.commands_taken >= sent && s.state != MachineState::Homing {
                 if s.homed & bit != 0 {
                     return Ok(());
                 }

@@ -123,6 +123,10 @@ pub enum MachineState {
 pub struct Snapshot {
     /// Increases by one per tick (bus period).
     pub sequence: u64,
+    /// Commands the core has taken from its ring so far: the controller's n-th command has
+    /// been acted on once this reaches n (the status pump may lag the core by many ticks, so
+    /// a tick count cannot tell).
+    pub commands_taken: u64,
     /// The tick's period: the bus period `[bus] cycle_ms`, ns (0 before the core exists).
     pub cycle_ns: u64,
     /// Clock time of the tick, ns.
@@ -517,6 +521,7 @@ impl RtCore {
 
     fn commands(&mut self, commands: &mut rtrb::Consumer<RtCommand>, bus: &mut dyn DriveBus) {
         while let Ok(c) = commands.pop() {
+            self.snap.commands_taken += 1;
             match c {
                 RtCommand::Start { job, machine } => {
                     if self.snap.state == MachineState::Idle && !self.shutting_down {
