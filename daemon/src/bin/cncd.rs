@@ -165,17 +165,7 @@ async fn run(config: Config) -> Result<(), CncdError> {
     let mut signals = Signals::install()?;
     // Every API listener is bound before READY=1 (sent once the drives are operational), so
     // ready means reachable; a listener that cannot be bound ends the start with an error.
-    let listen = config.api.listen;
-    let listener = tokio::net::TcpListener::bind(listen)
-        .await
-        .map_err(|source| server::ServerError::Listen {
-            key: "api.listen",
-            addr: listen,
-            source,
-        })?;
-    let local = listener
-        .local_addr()
-        .map_err(server::ServerError::LocalAddr)?;
+    let (listener, local) = bind_listen(&config).await?;
     let mut api_on = vec![local.to_string()];
     if let Some(p) = config.api.unix_socket_path(&config.storage.dir) {
         api_on.push(p.display().to_string());
@@ -187,20 +177,7 @@ async fn run(config: Config) -> Result<(), CncdError> {
     // The controller creates the storage directory, where the Unix socket may live.
     let ctl = start_controller(config).map_err(CncdError::Start)?;
     tracing::info!("cncd started: axes {names} on bus {bus}, API on {api_on}; enabling drives");
-    let cfg = ctl.config();
-    let mut listeners = match server::bind_extra(&cfg.api, &cfg.storage.dir).await {
-        Ok(l) => l,
-        Err(e) => {
-            let c = ctl.clone();
-            let _ = tokio::task::spawn_blocking(move || c.shutdown()).await;
-            return Err(e.into());
-        }
-    };
-    if local.ip().is_loopback() {
-        listeners.local_tcp.insert(0, listener);
-    } else {
-        listeners.remote_tcp.insert(0, listener);
-    }
+    let listeners = listeners_beside(&ctl, listener, local).await?;
     let supervision = systemd::supervise(
         ctl.subscribe(),
         notifier.clone(),
@@ -230,20 +207,84 @@ async fn run(config: Config) -> Result<(), CncdError> {
     if let Some(e) = &api_failure {
         tracing::error!("{e}");
     }
+    bring_to_rest(&ctl, notifier.as_deref()).await?;
+    supervision.stop();
+    health.abort();
+    log_rest_positions(&ctl);
+    let _ = tx.send(());
+    if api_failure.is_none() {
+        let _ = serve.await;
+    }
+    tracing::info!("cncd stopped");
+    match api_failure {
+        None => Ok(()),
+        Some(_) => Err(CncdError::AfterApiFailure),
+    }
+}
+
+/// Binds `api.listen` (before the controller starts: a taken port ends the start at once).
+async fn bind_listen(
+    config: &Config,
+) -> Result<(tokio::net::TcpListener, std::net::SocketAddr), CncdError> {
+    let listen = config.api.listen;
+    let listener = tokio::net::TcpListener::bind(listen)
+        .await
+        .map_err(|source| server::ServerError::Listen {
+            key: "api.listen",
+            addr: listen,
+            source,
+        })?;
+    let local = listener
+        .local_addr()
+        .map_err(server::ServerError::LocalAddr)?;
+    Ok((listener, local))
+}
+
+/// The other listeners (extra addresses, the Unix socket) with `listener` first; when one
+/// cannot be bound the controller is shut down before the error returns.
+async fn listeners_beside(
+    ctl: &Arc<Controller>,
+    listener: tokio::net::TcpListener,
+    local: std::net::SocketAddr,
+) -> Result<server::Listeners, CncdError> {
+    let cfg = ctl.config();
+    let mut listeners = match server::bind_extra(&cfg.api, &cfg.storage.dir).await {
+        Ok(l) => l,
+        Err(e) => {
+            let c = ctl.clone();
+            let _ = tokio::task::spawn_blocking(move || c.shutdown()).await;
+            return Err(e.into());
+        }
+    };
+    if local.ip().is_loopback() {
+        listeners.local_tcp.insert(0, listener);
+    } else {
+        listeners.remote_tcp.insert(0, listener);
+    }
+    Ok(listeners)
+}
+
+/// Brakes the axes to rest and stops the real-time thread (systemd hears STOPPING; the
+/// watchdog keeps pinging while the thread brakes).
+async fn bring_to_rest(
+    ctl: &Arc<Controller>,
+    notifier: Option<&Notifier>,
+) -> Result<(), CncdError> {
     tracing::info!("shutting down: bringing the axes to rest");
-    if let Some(n) = &notifier {
+    if let Some(n) = notifier {
         n.send(&[
             NotifyState::Stopping,
             NotifyState::Status("bringing the axes to rest"),
         ]);
     }
-    // The watchdog keeps pinging while the real-time thread brakes.
     let c = ctl.clone();
     tokio::task::spawn_blocking(move || c.shutdown())
         .await
-        .map_err(CncdError::Shutdown)?;
-    supervision.stop();
-    health.abort();
+        .map_err(CncdError::Shutdown)
+}
+
+/// Logs where every axis came to rest (and the block it was in).
+fn log_rest_positions(ctl: &Controller) {
     let s = ctl.snapshot();
     for (i, name) in ctl.config().axis_names().iter().enumerate().take(s.axes) {
         tracing::info!(
@@ -253,15 +294,6 @@ async fn run(config: Config) -> Result<(), CncdError> {
             position_mm = s.commanded[i],
             "axis at rest"
         );
-    }
-    let _ = tx.send(());
-    if api_failure.is_none() {
-        let _ = serve.await;
-    }
-    tracing::info!("cncd stopped");
-    match api_failure {
-        None => Ok(()),
-        Some(_) => Err(CncdError::AfterApiFailure),
     }
 }
 

@@ -657,6 +657,22 @@ impl Config {
 
     /// Checks what serde cannot: counts, ranges, duplicates. The message names the key.
     pub fn validate(&self) -> Result<(), String> {
+        self.validate_axes()?;
+        self.validate_gears()?;
+        self.validate_storage()?;
+        for (i, a) in self.axes.iter().enumerate() {
+            if !a.home_mm.is_finite() {
+                return Err(format!("axes[{i}].home_mm: {} is not a number", a.home_mm));
+            }
+            validate_axis_safety(i, a)?;
+        }
+        self.validate_sim_planner_rt()?;
+        self.api.validate()?;
+        self.bus.validate(&self.axes)
+    }
+
+    /// `[[axes]]`: count, letters (once each) and positive dynamics.
+    fn validate_axes(&self) -> Result<(), String> {
         if self.axes.is_empty() || self.axes.len() > kernel::MAX_AXES {
             return Err(format!(
                 "axes: {} axes configured, between 1 and {} are supported",
@@ -698,6 +714,11 @@ impl Config {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// `[[kr.gears]]`: positive top speed, output within the DAC range.
+    fn validate_gears(&self) -> Result<(), String> {
         for (i, g) in self.kr.gears.iter().enumerate() {
             if !(g.max_rpm.is_finite() && g.max_rpm > 0.0) {
                 return Err(format!(
@@ -712,6 +733,11 @@ impl Config {
                 ));
             }
         }
+        Ok(())
+    }
+
+    /// `[storage]`: a directory and two different files.
+    fn validate_storage(&self) -> Result<(), String> {
         if self.storage.dir.as_os_str().is_empty() {
             return Err("storage.dir: must name a directory".into());
         }
@@ -726,12 +752,11 @@ impl Config {
         if self.storage.offsets_path() == self.storage.constants_path() {
             return Err("storage.constants_file: the same file as storage.offsets_file".into());
         }
-        for (i, a) in self.axes.iter().enumerate() {
-            if !a.home_mm.is_finite() {
-                return Err(format!("axes[{i}].home_mm: {} is not a number", a.home_mm));
-            }
-            validate_axis_safety(i, a)?;
-        }
+        Ok(())
+    }
+
+    /// `[sim]`, `[planner]` and `[rt]` ranges.
+    fn validate_sim_planner_rt(&self) -> Result<(), String> {
         for (key, v) in [
             ("sim.kv_per_s", self.sim.kv_per_s),
             ("sim.following_window_mm", self.sim.following_window_mm),
@@ -758,8 +783,7 @@ impl Config {
                 self.rt.priority
             ));
         }
-        self.api.validate()?;
-        self.bus.validate(&self.axes)
+        Ok(())
     }
 
     pub fn axis_names(&self) -> Vec<char> {
