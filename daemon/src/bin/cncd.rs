@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use clap::Parser;
 use daemon::runtime::config::Config;
-use daemon::runtime::controller::{ClockKind, Controller};
+use daemon::runtime::controller::{ClockKind, Controller, StartError};
 use daemon::runtime::logging::{self, BlockNo, LogTarget};
 use daemon::runtime::server;
 use daemon::runtime::systemd::{self, Notifier, NotifyState};
@@ -35,8 +35,11 @@ enum CncdError {
     #[error(transparent)]
     Api(#[from] server::ServerError),
     /// The controller did not start (bus, storage, configuration: the message says which).
+    #[error(transparent)]
+    Start(#[from] StartError),
+    /// The test-only stall knob has a value that is not a tick count.
     #[error("{0}")]
-    Start(String),
+    FaultInject(String),
     #[error("shutdown: {0}")]
     Shutdown(#[source] tokio::task::JoinError),
     #[error("stopped after the API failure above")]
@@ -49,7 +52,8 @@ impl CncdError {
         match self {
             CncdError::Signal { .. } => "cncd_signal",
             CncdError::Api(e) => e.code(),
-            CncdError::Start(_) => "cncd_start",
+            CncdError::Start(e) => e.code(),
+            CncdError::FaultInject(_) => "cncd_fault_inject",
             CncdError::Shutdown(_) => "cncd_shutdown",
             CncdError::AfterApiFailure => "cncd_after_api_failure",
         }
@@ -175,7 +179,7 @@ async fn run(config: Config) -> Result<(), CncdError> {
     let bus = bus_label(&config);
     let axis_names = config.axis_names();
     // The controller creates the storage directory, where the Unix socket may live.
-    let ctl = start_controller(config).map_err(CncdError::Start)?;
+    let ctl = start_controller(config)?;
     tracing::info!("cncd started: axes {names} on bus {bus}, API on {api_on}; enabling drives");
     let listeners = listeners_beside(&ctl, listener, local).await?;
     let supervision = systemd::supervise(
@@ -299,24 +303,26 @@ fn log_rest_positions(ctl: &Controller) {
 
 /// Opens the bus and starts the controller; with the test-only stall knob set
 /// (`daemon::runtime::fault_inject`), on a bus that wedges the real-time thread.
-fn start_controller(config: Config) -> Result<Arc<Controller>, String> {
+fn start_controller(config: Config) -> Result<Arc<Controller>, CncdError> {
     use daemon::runtime::buses::open_bus;
     use daemon::runtime::fault_inject::{self, STALL_RT_AFTER_TICKS, StallAfter};
     let knob = std::env::var(STALL_RT_AFTER_TICKS).ok();
-    let Some(ticks) = fault_inject::stall_after_ticks(knob.as_deref())? else {
-        return Controller::start(config, ClockKind::Monotonic);
+    let Some(ticks) =
+        fault_inject::stall_after_ticks(knob.as_deref()).map_err(CncdError::FaultInject)?
+    else {
+        return Ok(Controller::start(config, ClockKind::Monotonic)?);
     };
     tracing::warn!(
         ticks,
         "fault injection: the real-time thread will stall after {ticks} ticks \
          ({STALL_RT_AFTER_TICKS}; for tests only)"
     );
-    let bus = open_bus(&config.bus, &config.axes, &config.sim)?;
-    Controller::start_with_bus(
+    let bus = open_bus(&config.bus, &config.axes, &config.sim).map_err(StartError::Bus)?;
+    Ok(Controller::start_with_bus(
         config,
         ClockKind::Monotonic,
         Box::new(StallAfter::new(bus, ticks)),
-    )
+    )?)
 }
 
 /// SIGTERM (systemd stop) and SIGINT (Ctrl-C).
