@@ -45,7 +45,7 @@ async fn run(args: Args) -> Result<ExitCode, CliError> {
     match &args.cmd {
         Cmd::HashToken { token } => {
             println!("{}", daemon::runtime::api::auth::hash_token_hex(token));
-            return Ok(ExitCode::SUCCESS);
+            Ok(ExitCode::SUCCESS)
         }
         Cmd::Preview {
             file,
@@ -53,7 +53,7 @@ async fn run(args: Args) -> Result<ExitCode, CliError> {
             plane,
             page,
             velocity,
-            remote: false,
+            remote,
         } => {
             let a = preview::PreviewArgs {
                 file,
@@ -62,12 +62,17 @@ async fn run(args: Args) -> Result<ExitCode, CliError> {
                 page: *page,
                 velocity: *velocity,
             };
-            return preview::local(&a, args.json);
+            if !*remote {
+                return preview::local(&a, args.json);
+            }
+            let mut c = connect(&args).await?;
+            preview::remote(&mut c.preview, &a, args.json).await
         }
-        _ => {}
+        _ => {
+            let mut c = connect(&args).await?;
+            dispatch(&mut c, args.cmd, args.json).await
+        }
     }
-    let mut c = connect(&args).await?;
-    dispatch(&mut c, args.cmd, args.json).await
 }
 
 /// Routes a command to the module of its gRPC service.
@@ -90,28 +95,11 @@ async fn dispatch(c: &mut Clients, cmd: Cmd, j: bool) -> Result<ExitCode, CliErr
         Cmd::PreviewData { file, junctions } => {
             preview::data(&mut c.preview, &file, junctions, j).await
         }
-        Cmd::Preview {
-            file,
-            out,
-            plane,
-            page,
-            velocity,
-            ..
-        } => {
-            let a = preview::PreviewArgs {
-                file: &file,
-                out: &out,
-                plane: &plane,
-                page,
-                velocity,
-            };
-            preview::remote(&mut c.preview, &a, j).await
-        }
         Cmd::Trajectory { file, out } => {
             trajectory::command(&mut c.trajectory, file.as_deref(), out.as_deref(), j).await
         }
         Cmd::Health => health(c, j).await,
-        Cmd::HashToken { .. } => unreachable!("run answers it without a daemon"),
+        Cmd::HashToken { .. } | Cmd::Preview { .. } => unreachable!("run answers it"),
         other => machine::command(&mut c.machine, other, j).await,
     }
 }
