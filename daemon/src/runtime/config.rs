@@ -1281,32 +1281,35 @@ impl BusConfig {
                 }
                 validate_spindle(c.spindle_node, c.spindle_units_per_rpm, axes)
             }
-            BusConfig::Serial(s) => {
-                if s.port.is_empty() {
-                    return Err(InvalidConfig::Missing {
-                        key: "bus.port".into(),
-                        detail: "give the serial device, e.g. \"/dev/ttyUSB0\"".into(),
-                    });
-                }
-                if s.reply_timeout_ticks == 0 {
-                    return Err(InvalidConfig::BadValue {
-                        key: "bus.reply_timeout_ticks".into(),
-                        detail: "must be above 0".into(),
-                    });
-                }
-                if s.cycle_ms != 4.0 {
-                    return Err(InvalidConfig::BadValue {
-                        key: "bus.cycle_ms".into(),
-                        detail: format!(
-                            "{} ms on a serial bus; the serial protocol's cycle is 4 ms (hal/SERIAL_PROTOCOL.md)",
-                            s.cycle_ms
-                        ),
-                    });
-                }
-                validate_spindle(s.spindle_node, s.spindle_units_per_rpm, axes)
-            }
+            BusConfig::Serial(s) => validate_serial(s, axes),
         }
     }
+}
+
+/// `[bus] kind = "serial"`: a port, a reply timeout, the protocol's 4 ms cycle.
+fn validate_serial(s: &SerialBusConfig, axes: &[AxisConfig]) -> Result<(), InvalidConfig> {
+    if s.port.is_empty() {
+        return Err(InvalidConfig::Missing {
+            key: "bus.port".into(),
+            detail: "give the serial device, e.g. \"/dev/ttyUSB0\"".into(),
+        });
+    }
+    if s.reply_timeout_ticks == 0 {
+        return Err(InvalidConfig::BadValue {
+            key: "bus.reply_timeout_ticks".into(),
+            detail: "must be above 0".into(),
+        });
+    }
+    if s.cycle_ms != 4.0 {
+        return Err(InvalidConfig::BadValue {
+            key: "bus.cycle_ms".into(),
+            detail: format!(
+                "{} ms on a serial bus; the serial protocol's cycle is 4 ms (hal/SERIAL_PROTOCOL.md)",
+                s.cycle_ms
+            ),
+        });
+    }
+    validate_spindle(s.spindle_node, s.spindle_units_per_rpm, axes)
 }
 
 #[cfg(test)]
