@@ -3,6 +3,8 @@
 //! [`RecordingBus`] wraps the simulated bus and records every setpoint the real-time thread
 //! sends, so tests can check the whole setpoint stream, tick by tick.
 
+pub mod can_sim;
+
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -43,15 +45,7 @@ impl<B: DriveBus> RecordingBus<B> {
 }
 
 impl<B: DriveBus> DriveBus for RecordingBus<B> {
-    fn name(&self) -> &str {
-        self.inner.name()
-    }
-    fn axes(&self) -> usize {
-        self.inner.axes()
-    }
-    fn has_spindle(&self) -> bool {
-        self.inner.has_spindle()
-    }
+    daemon::delegate_drive_bus!(inner: name, axes, has_spindle, enable, reset, safe_state);
     fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
         // Both locks at once (always record first), so a reader that takes them in the same
         // order sees both recordings with the same ticks.
@@ -61,15 +55,6 @@ impl<B: DriveBus> DriveBus for RecordingBus<B> {
         spindle.push(cmd.spindle_rpm);
         drop((record, spindle));
         self.inner.cycle(cmd, fb)
-    }
-    fn enable(&mut self) {
-        self.inner.enable()
-    }
-    fn reset(&mut self) {
-        self.inner.reset()
-    }
-    fn safe_state(&mut self) {
-        self.inner.safe_state()
     }
 }
 
@@ -95,14 +80,9 @@ impl FaultableBus {
 }
 
 impl DriveBus for FaultableBus {
+    daemon::delegate_drive_bus!(inner: axes, has_spindle, enable, reset);
     fn name(&self) -> &str {
         "sim"
-    }
-    fn axes(&self) -> usize {
-        self.inner.axes()
-    }
-    fn has_spindle(&self) -> bool {
-        self.inner.has_spindle()
     }
     fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
         let a = self.fault_axis.swap(usize::MAX, Ordering::Relaxed);
@@ -110,12 +90,6 @@ impl DriveBus for FaultableBus {
             self.inner.drive_mut(a).force_fault();
         }
         self.inner.cycle(cmd, fb)
-    }
-    fn enable(&mut self) {
-        self.inner.enable()
-    }
-    fn reset(&mut self) {
-        self.inner.reset()
     }
 }
 
@@ -245,4 +219,38 @@ pub fn recorded_harness(
     h.wait_state(MachineState::Idle, 10_000).unwrap();
     h.step();
     (h, record)
+}
+
+/// The gear table of the lathe tests: M41..M44 up to 250, 500, 1000 and 2000 rpm.
+pub const LATHE_GEARS: [(u16, f64); 4] = [(41, 250.0), (42, 500.0), (43, 1000.0), (44, 2000.0)];
+
+/// [`LATHE_GEARS`] as configuration entries (full output range).
+pub fn lathe_gears() -> Vec<daemon::runtime::config::GearConfig> {
+    LATHE_GEARS
+        .iter()
+        .map(|&(m, p)| daemon::runtime::config::GearConfig {
+            max_rpm: p,
+            output_range: 0x7FFF,
+            m_code: Some(m),
+        })
+        .collect()
+}
+
+/// Saves the lathe's constants in `cfg`'s storage directory: R0 = X, R1 = Z, no other axis,
+/// R67 = 1 (X is the facing axis); with `g96_per_rev`, R329 d3 = 3 (G96 is KŘR with mm/rev,
+/// S in m/min).
+pub fn save_lathe_constants(cfg: &daemon::runtime::config::Config, g96_per_rev: bool) {
+    let mut c = kernel::constants::Constants::new();
+    c.set(0, 1.0); // X
+    c.set(1, 3.0); // Z
+    for r in 2..6 {
+        c.set(r, 0.0);
+    }
+    c.set(67, 1.0);
+    if g96_per_rev {
+        let d3 = f64::from(c.decade(329, 3));
+        c.set(329, c.get(329) + (3.0 - d3) * 0.1);
+    }
+    std::fs::create_dir_all(&cfg.storage.dir).unwrap();
+    daemon::runtime::storage::save_constants(&cfg.storage.constants_path(), &c).unwrap();
 }

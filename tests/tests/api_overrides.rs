@@ -37,15 +37,6 @@ async fn cncctl(addr: &str, args: &[&str]) -> (bool, String) {
     .unwrap()
 }
 
-async fn status(m: &mut MachineClient<tonic::transport::Channel>) -> pb::Status {
-    let mut s = m
-        .stream_status(pb::StatusRequest { rate_hz: 50 })
-        .await
-        .unwrap()
-        .into_inner();
-    s.message().await.unwrap().unwrap()
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn spindle_override_scales_the_spindle_within_the_gear_range() {
     let d = start(config(Role::Admin)).await;
@@ -76,7 +67,7 @@ async fn spindle_override_scales_the_spindle_within_the_gear_range() {
         (d.ctl.snapshot().spindle_rpm - 800.0).abs() < 1.0
     })
     .await;
-    let s = status(&mut m).await;
+    let s = api_common::status_now(&mut m).await;
     assert_eq!(s.spindle_override_percent, 80.0);
     assert!((s.spindle_rpm - 800.0).abs() < 1.0, "{}", s.spindle_rpm);
     // 120 % of S5500 would be 6600 rpm: the gear range (P = 6000 rpm) caps it.
@@ -114,7 +105,7 @@ async fn rapid_override_homed_and_soft_limits_in_status_and_cncctl() {
     .await;
     let mut m = MachineClient::new(d.channel().await);
     // X starts at 0: at its lower soft limit.
-    let s = status(&mut m).await;
+    let s = api_common::status_now(&mut m).await;
     assert_eq!(s.rapid_override_percent, 25.0);
     let x = &s.axes[0];
     assert_eq!(

@@ -684,40 +684,11 @@ async fn a_running_job_keeps_its_constants() {
     wait_job_finished(&d.ctl, job).await;
 }
 
-/// The simulated machine whose axis `LAGGING` always reads `LAG_MM` behind: a following error
-/// that never settles, to see which G24 window a job runs with.
-struct LaggingBus(sim::SimBus);
-
-const LAG_MM: f64 = 0.05;
-/// Axis 4 (U): its window is R7.
+/// Axis 4 (U) lags on [`api_common::LaggingBus`]: its window is R7.
 const LAGGING: usize = 3;
 
-impl hal::DriveBus for LaggingBus {
-    fn name(&self) -> &str {
-        self.0.name()
-    }
-    fn axes(&self) -> usize {
-        self.0.axes()
-    }
-    fn cycle(
-        &mut self,
-        cmd: &hal::CycleCommand,
-        fb: &mut hal::CycleFeedback,
-    ) -> Result<(), hal::BusFault> {
-        let r = self.0.cycle(cmd, fb);
-        fb.axes[LAGGING].position_mm -= LAG_MM;
-        r
-    }
-    fn enable(&mut self) {
-        self.0.enable()
-    }
-    fn reset(&mut self) {
-        self.0.reset()
-    }
-}
-
-/// A daemon with axes X, Y, Z, U on [`LaggingBus`], served on a Unix socket (local trust,
-/// admin; loopback TCP only observes).
+/// A daemon with axes X, Y, Z, U on [`api_common::LaggingBus`] (U lags), served on a Unix
+/// socket (local trust, admin; loopback TCP only observes).
 async fn four_axis_lagging_daemon() -> (std::sync::Arc<daemon::runtime::controller::Controller>, Api)
 {
     use daemon::runtime::config::AxisConfig;
@@ -727,10 +698,7 @@ async fn four_axis_lagging_daemon() -> (std::sync::Arc<daemon::runtime::controll
         node_id: Some(4),
         ..AxisConfig::new('U')
     });
-    let bus = LaggingBus(sim::SimBus::new(
-        sim::SimDriveParams::default(),
-        &vec![0.0; cfg.axes.len()],
-    ));
+    let bus = api_common::LaggingBus::new(cfg.axes.len(), LAGGING);
     let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
     let socket = tests::serve_unix(&ctl).await;
     wait_state(&ctl, MachineState::Idle).await;

@@ -5,7 +5,6 @@
 //! the daemon's enabling window; a program runs and a shutdown (the SIGTERM path) leaves every
 //! drive switched off, unwatched and without a fault.
 
-use std::collections::VecDeque;
 use std::path::Path;
 use std::sync::{Arc, Mutex};
 
@@ -18,68 +17,14 @@ use daemon::runtime::homing;
 use daemon::runtime::rt::{MachineState, RtCommand};
 use hal::FaultReason;
 use hal::canopen::pdo::Rpdo;
-use hal::canopen::{CanOpenMaster, CanPort, Frame, PortError, RxEvent, nmt};
+use hal::canopen::{CanOpenMaster, Frame, nmt};
 use hal::cia402::PowerState;
 use sim::SimDriveParams;
 use sim::can_node::CanNode;
 use sim::cia402_drive::Cia402Drive;
+use tests::can_sim::{Bus, Port};
 
 const INC_PER_MM: f64 = 10_000.0;
-
-/// The simulated drives and what went over the bus; shared with the test.
-#[derive(Default)]
-struct Bus {
-    nodes: Vec<CanNode>,
-    now_ms: u64,
-    to_master: VecDeque<Frame>,
-    /// Every frame the master sent.
-    sent: Vec<Frame>,
-    /// Every frame the drives sent.
-    received: Vec<Frame>,
-    /// The bus period `[bus] cycle_ms` (0: the default 4 ms).
-    cycle_ms: u64,
-}
-
-impl Bus {
-    /// The drives see one bus period pass (4 ms by default; heartbeats, their watch on the
-    /// master's).
-    fn pass_4ms(&mut self) {
-        self.now_ms += if self.cycle_ms == 0 { 4 } else { self.cycle_ms };
-        let mut out = Vec::new();
-        for n in &mut self.nodes {
-            n.poll(self.now_ms, &mut out);
-        }
-        self.received.extend(&out);
-        self.to_master.extend(out);
-    }
-}
-
-/// The master's port: time passes once per tick, when the master has read everything.
-struct Port(Arc<Mutex<Bus>>);
-
-impl CanPort for Port {
-    fn send(&mut self, f: &Frame) -> Result<(), PortError> {
-        let mut b = self.0.lock().unwrap();
-        b.sent.push(*f);
-        let (now, mut out) = (b.now_ms, Vec::new());
-        for n in &mut b.nodes {
-            n.handle(f, now, &mut out);
-        }
-        b.received.extend(&out);
-        b.to_master.extend(out);
-        Ok(())
-    }
-    fn try_recv(&mut self) -> Result<Option<RxEvent>, PortError> {
-        let mut b = self.0.lock().unwrap();
-        match b.to_master.pop_front() {
-            Some(f) => Ok(Some(RxEvent::Frame(f))),
-            None => {
-                b.pass_4ms();
-                Ok(None)
-            }
-        }
-    }
-}
 
 /// A daemon with axes X, Y, Z on CAN nodes 1..3 whose drives stand at `start_mm`.
 fn daemon(start_mm: [f64; 3], silent: Option<usize>, bus_keys: &str) -> (Harness, Arc<Mutex<Bus>>) {

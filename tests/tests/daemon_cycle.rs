@@ -45,36 +45,13 @@ struct Recorded {
 }
 
 impl DriveBus for Recorded {
-    fn name(&self) -> &str {
-        self.inner.name()
-    }
-    fn axes(&self) -> usize {
-        self.inner.axes()
-    }
-    fn has_spindle(&self) -> bool {
-        self.inner.has_spindle()
-    }
+    daemon::delegate_drive_bus!(
+        inner: name, axes, has_spindle, enable, reset, safe_state, supports_homing, home_switch,
+        set_home
+    );
     fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
         self.points.lock().unwrap().push(cmd.positions_mm);
         self.inner.cycle(cmd, fb)
-    }
-    fn enable(&mut self) {
-        self.inner.enable()
-    }
-    fn reset(&mut self) {
-        self.inner.reset()
-    }
-    fn safe_state(&mut self) {
-        self.inner.safe_state()
-    }
-    fn supports_homing(&self) -> bool {
-        self.inner.supports_homing()
-    }
-    fn home_switch(&self, axis: usize) -> bool {
-        self.inner.home_switch(axis)
-    }
-    fn set_home(&mut self, axis: usize, trigger_mm: f64, reference_mm: f64) {
-        self.inner.set_home(axis, trigger_mm, reference_mm)
     }
 }
 

@@ -5,6 +5,8 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+mod api_common;
+
 use daemon::runtime::config::Config;
 use daemon::runtime::controller::{ClockKind, Controller};
 use daemon::runtime::rt::{MachineState, Snapshot};
@@ -71,15 +73,6 @@ async fn start(c: &mut MachineClient<Channel>) -> u32 {
     c.start(pb::StartRequest {}).await.unwrap().into_inner().job
 }
 
-async fn status(c: &mut MachineClient<Channel>) -> pb::Status {
-    let mut s = c
-        .stream_status(pb::StatusRequest { rate_hz: 50 })
-        .await
-        .unwrap()
-        .into_inner();
-    s.message().await.unwrap().unwrap()
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn m30_ends_the_program_and_the_spindle_stops() {
     let mut d = daemon(tests::test_config()).await;
@@ -121,7 +114,7 @@ async fn m0_stops_until_resume_and_m1_only_with_optional_stop() {
         (s.commanded[0] - 10.0).abs() < 1e-9,
         "stopped off the M0 point: {s:?}"
     );
-    let st = status(&mut d.c).await;
+    let st = api_common::status_now(&mut d.c).await;
     assert!(st.program_stop && !st.optional_stop);
     // At rest it stays there.
     let seq = s.sequence;
@@ -144,7 +137,7 @@ async fn m0_stops_until_resume_and_m1_only_with_optional_stop() {
     })
     .await;
     assert!((d.ctl.snapshot().commanded[0] - 10.0).abs() < 1e-9);
-    assert!(status(&mut d.c).await.optional_stop);
+    assert!(api_common::status_now(&mut d.c).await.optional_stop);
     let again = start(&mut d.c).await;
     assert_eq!(again, job, "Start at a program stop continues the job");
     wait_job_finished(&d.ctl, job).await;
@@ -257,7 +250,7 @@ async fn soft_limits_refuse_programs_and_mdi_with_the_offsets_in_force() {
     assert_eq!(d.ctl.snapshot().commanded[0], 0.0);
 
     // Status shows the limits per axis; an axis without limits has none.
-    let st = status(&mut d.c).await;
+    let st = api_common::status_now(&mut d.c).await;
     assert_eq!(st.axes[0].soft_min_mm, Some(-10.0));
     assert_eq!(st.axes[0].soft_max_mm, Some(100.0));
     assert_eq!(st.axes[1].soft_min_mm, None);
@@ -380,7 +373,7 @@ async fn fault_stops_every_axis_on_its_own_and_reports_the_path_deviation() {
         s.fault_path_deviation_mm
     );
     // The alarm names axis, node and reason.
-    let st = status(&mut c).await;
+    let st = api_common::status_now(&mut c).await;
     assert!(
         st.alarm.contains("axis X") && st.alarm.contains("node 1"),
         "{}",
@@ -607,7 +600,7 @@ async fn homing_in_order_and_refusals_before_it() {
     wait_state(&ctl, MachineState::Idle).await;
 
     // Not homed: programs, MDI and continuous jogs are refused; steps are allowed.
-    let st = status(&mut c).await;
+    let st = api_common::status_now(&mut c).await;
     let homed: Vec<bool> = st.axes.iter().map(|a| a.homed).collect();
     assert_eq!(homed, [false, true, false], "Y needs no homing");
     load(&mut c, "N10 G1 X1 F1000\n").await.unwrap();
@@ -672,7 +665,7 @@ async fn homing_in_order_and_refusals_before_it() {
         s.commanded[0] == x && (s.actual[0] - x).abs() < 1e-3
     })
     .await;
-    let st = status(&mut c).await;
+    let st = api_common::status_now(&mut c).await;
     assert!(st.axes.iter().all(|a| a.homed));
 
     // Homed: the program runs.

@@ -4,7 +4,6 @@
 //! whose speed ramps at 1000 rpm/s and comes back over the bus. The feed per revolution
 //! follows the spindle's actual speed as the bus reports it.
 
-use std::collections::VecDeque;
 use std::path::Path;
 use std::sync::{Arc, Mutex};
 
@@ -14,50 +13,13 @@ use daemon::runtime::buses::{BusConfig, can_config};
 use daemon::runtime::clock::SimClock;
 use daemon::runtime::config::Config;
 use daemon::runtime::harness::Harness;
-use hal::canopen::{CanOpenMaster, CanPort, Frame, PortError, RxEvent};
-use kernel::constants::Constants;
+use hal::canopen::CanOpenMaster;
 use sim::SimDriveParams;
 use sim::can_node::CanNode;
 use sim::cia402_drive::Cia402Drive;
+use tests::can_sim::{Bus, Port};
 
 const INC_PER_MM: f64 = 10_000.0;
-
-/// The simulated drives; time passes 4 ms when the master has read everything.
-#[derive(Default)]
-struct Bus {
-    nodes: Vec<CanNode>,
-    now_ms: u64,
-    to_master: VecDeque<Frame>,
-}
-
-struct Port(Arc<Mutex<Bus>>);
-
-impl CanPort for Port {
-    fn send(&mut self, f: &Frame) -> Result<(), PortError> {
-        let mut b = self.0.lock().unwrap();
-        let (now, mut out) = (b.now_ms, Vec::new());
-        for n in &mut b.nodes {
-            n.handle(f, now, &mut out);
-        }
-        b.to_master.extend(out);
-        Ok(())
-    }
-    fn try_recv(&mut self) -> Result<Option<RxEvent>, PortError> {
-        let mut b = self.0.lock().unwrap();
-        match b.to_master.pop_front() {
-            Some(f) => Ok(Some(RxEvent::Frame(f))),
-            None => {
-                b.now_ms += 4;
-                let (now, mut out) = (b.now_ms, Vec::new());
-                for n in &mut b.nodes {
-                    n.poll(now, &mut out);
-                }
-                b.to_master.extend(out);
-                Ok(None)
-            }
-        }
-    }
-}
 
 /// A lathe X (diameter programming; the drive stands at radius 150 = Ø300), Z at 100, gears
 /// M41..M44, R67 = 1, R329 d3 = 3, spindle on node 3 (1 velocity unit per rpm).
@@ -71,7 +33,7 @@ fn lathe() -> Harness {
         ));
     }
     toml.push_str("[kr]\nradius_input = 'diameter'\n");
-    for (m, p) in [(41, 250), (42, 500), (43, 1000), (44, 2000)] {
+    for (m, p) in tests::LATHE_GEARS {
         toml.push_str(&format!("[[kr.gears]]\nmax_rpm = {p}\nm_code = {m}\n"));
     }
     toml.push_str("[bus]\nkind = 'can'\ninterface = 'mem0'\nfollowing_window_mm = 50\n");
@@ -80,17 +42,7 @@ fn lathe() -> Harness {
     let base = tests::test_config();
     cfg.storage = base.storage;
     cfg.rt = base.rt;
-    let mut c = Constants::new();
-    c.set(0, 1.0); // X
-    c.set(1, 3.0); // Z
-    for r in 2..6 {
-        c.set(r, 0.0);
-    }
-    c.set(67, 1.0);
-    let d3 = f64::from(c.decade(329, 3));
-    c.set(329, c.get(329) + (3.0 - d3) * 0.1);
-    std::fs::create_dir_all(&cfg.storage.dir).unwrap();
-    daemon::runtime::storage::save_constants(&cfg.storage.constants_path(), &c).unwrap();
+    tests::save_lathe_constants(&cfg, true);
 
     let BusConfig::Can(can) = &cfg.bus else {
         panic!("{:?}", cfg.bus)

@@ -13,7 +13,6 @@ use daemon::runtime::harness::{Harness, JobEnd};
 use daemon::runtime::rt::MachineState;
 use kernel::block::{Block, BlockKind, Path};
 use kernel::comp::CompBlock;
-use kernel::constants::Constants;
 use kernel::pipeline::{self, Flow, Observer, Options};
 use kernel::plan::Segment;
 
@@ -60,15 +59,7 @@ fn lathe_config(radius_input: RadiusInputConfig) -> Config {
     cfg.axes[0].home_mm = 150.0;
     cfg.axes[1].home_mm = 100.0;
     cfg.kr.radius_input = radius_input;
-    let mut c = Constants::new();
-    c.set(0, 1.0); // X
-    c.set(1, 3.0); // Z
-    for r in 2..6 {
-        c.set(r, 0.0);
-    }
-    c.set(67, 1.0);
-    std::fs::create_dir_all(&cfg.storage.dir).unwrap();
-    daemon::runtime::storage::save_constants(&cfg.storage.constants_path(), &c).unwrap();
+    tests::save_lathe_constants(&cfg, false);
     cfg
 }
 

@@ -4,10 +4,9 @@
 //! ramps and a load knob. Every tick the feed follows the spindle's *actual* speed.
 
 use daemon::runtime::clock::SimClock;
-use daemon::runtime::config::{AxisConfig, Config, GearConfig};
+use daemon::runtime::config::{AxisConfig, Config};
 use daemon::runtime::harness::{Harness, HarnessError};
 use daemon::runtime::rt::{MachineState, Snapshot};
-use kernel::constants::Constants;
 
 /// A bound on the ticks of a run (about 1.1 hours of machining): not a timing.
 const MAX_TICKS: u64 = 1_000_000;
@@ -31,25 +30,8 @@ fn lathe_config() -> Config {
     cfg.kr.radius_input = daemon::runtime::config::RadiusInputConfig::Diameter;
     cfg.axes[0].home_mm = 150.0;
     cfg.axes[1].home_mm = 100.0;
-    cfg.kr.gears = [(41, 250.0), (42, 500.0), (43, 1000.0), (44, 2000.0)]
-        .iter()
-        .map(|&(m, p)| GearConfig {
-            max_rpm: p,
-            output_range: 0x7FFF,
-            m_code: Some(m),
-        })
-        .collect();
-    let mut c = Constants::new();
-    c.set(0, 1.0); // X
-    c.set(1, 3.0); // Z
-    for r in 2..6 {
-        c.set(r, 0.0);
-    }
-    c.set(67, 1.0);
-    let d3 = f64::from(c.decade(329, 3));
-    c.set(329, c.get(329) + (3.0 - d3) * 0.1);
-    std::fs::create_dir_all(&cfg.storage.dir).unwrap();
-    daemon::runtime::storage::save_constants(&cfg.storage.constants_path(), &c).unwrap();
+    cfg.kr.gears = tests::lathe_gears();
+    tests::save_lathe_constants(&cfg, true);
     cfg
 }
 

@@ -11,11 +11,10 @@ use std::io::{Read, Write};
 mod lathe_common;
 
 use daemon::runtime::clock::SimClock;
-use daemon::runtime::config::{AxisConfig, Config, GearConfig, RadiusInputConfig};
+use daemon::runtime::config::{AxisConfig, Config, RadiusInputConfig};
 use daemon::runtime::harness::Harness;
 use hal::serial::{SerialAxis, SerialBus, SerialConfig, SerialSpindle};
 use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus};
-use kernel::constants::Constants;
 use serialport::{SerialPort, TTYPort};
 use sim::SimDriveParams;
 use sim::cia402_drive::Cia402Drive;
@@ -102,25 +101,8 @@ fn lathe() -> Harness {
     cfg.axes[0].home_mm = 150.0;
     cfg.axes[1].home_mm = 100.0;
     cfg.kr.radius_input = RadiusInputConfig::Diameter;
-    cfg.kr.gears = [(41, 250.0), (42, 500.0), (43, 1000.0), (44, 2000.0)]
-        .iter()
-        .map(|&(m, p)| GearConfig {
-            max_rpm: p,
-            output_range: 0x7FFF,
-            m_code: Some(m),
-        })
-        .collect();
-    let mut c = Constants::new();
-    c.set(0, 1.0); // X
-    c.set(1, 3.0); // Z
-    for r in 2..6 {
-        c.set(r, 0.0);
-    }
-    c.set(67, 1.0);
-    let d3 = f64::from(c.decade(329, 3));
-    c.set(329, c.get(329) + (3.0 - d3) * 0.1);
-    std::fs::create_dir_all(&cfg.storage.dir).unwrap();
-    daemon::runtime::storage::save_constants(&cfg.storage.constants_path(), &c).unwrap();
+    cfg.kr.gears = tests::lathe_gears();
+    tests::save_lathe_constants(&cfg, true);
 
     let (master, slave) = TTYPort::pair().unwrap();
     let path = slave.name().unwrap();

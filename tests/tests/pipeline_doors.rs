@@ -752,47 +752,15 @@ async fn planner_and_interpreter_constants_take_effect_at_the_next_pass() {
     assert_eq!(from_refusal(e), doors.validate(switch).await.0);
 }
 
-/// The simulated machine whose axis 1 always reads `LAG_MM` behind: a following error that
-/// never settles, to see which G24 window (R6) a job runs with.
-struct LaggingBus(sim::SimBus);
-
-const LAG_MM: f64 = 0.05;
-
-impl hal::DriveBus for LaggingBus {
-    fn name(&self) -> &str {
-        self.0.name()
-    }
-    fn axes(&self) -> usize {
-        self.0.axes()
-    }
-    fn cycle(
-        &mut self,
-        cmd: &hal::CycleCommand,
-        fb: &mut hal::CycleFeedback,
-    ) -> Result<(), hal::BusFault> {
-        let r = self.0.cycle(cmd, fb);
-        fb.axes[0].position_mm -= LAG_MM;
-        r
-    }
-    fn enable(&mut self) {
-        self.0.enable()
-    }
-    fn reset(&mut self) {
-        self.0.reset()
-    }
-}
-
-/// A daemon on [`LaggingBus`], served on its Unix socket (local trust, admin).
+/// A daemon on [`api_common::LaggingBus`] with axis X lagging (its G24 window is R6), served on
+/// its Unix socket (local trust, admin).
 async fn lagging_daemon() -> (
     std::sync::Arc<daemon::runtime::controller::Controller>,
     Channel,
 ) {
     use daemon::runtime::controller::{ClockKind, Controller};
     let cfg = config(Role::Admin);
-    let bus = LaggingBus(sim::SimBus::new(
-        sim::SimDriveParams::default(),
-        &vec![0.0; cfg.axes.len()],
-    ));
+    let bus = api_common::LaggingBus::new(cfg.axes.len(), 0);
     let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
     let addr = tests::serve_unix(&ctl).await;
     wait_state(&ctl, MachineState::Idle).await;

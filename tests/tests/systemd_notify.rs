@@ -100,23 +100,15 @@ struct StallBus {
 }
 
 impl DriveBus for StallBus {
+    daemon::delegate_drive_bus!(inner: axes, enable, reset);
     fn name(&self) -> &str {
         "stall"
-    }
-    fn axes(&self) -> usize {
-        self.inner.axes()
     }
     fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
         while self.stall.load(Ordering::Acquire) {
             std::thread::sleep(Duration::from_millis(1));
         }
         self.inner.cycle(cmd, fb)
-    }
-    fn enable(&mut self) {
-        self.inner.enable()
-    }
-    fn reset(&mut self) {
-        self.inner.reset()
     }
 }
 
@@ -127,11 +119,9 @@ struct FaultyBus {
 }
 
 impl DriveBus for FaultyBus {
+    daemon::delegate_drive_bus!(inner: axes, enable, reset);
     fn name(&self) -> &str {
         "faulty"
-    }
-    fn axes(&self) -> usize {
-        self.inner.axes()
     }
     fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
         if self.healthy.load(Ordering::Acquire) {
@@ -143,12 +133,6 @@ impl DriveBus for FaultyBus {
                 reason: FaultReason::DriveFault { code: 0x7500 },
             })
         }
-    }
-    fn enable(&mut self) {
-        self.inner.enable()
-    }
-    fn reset(&mut self) {
-        self.inner.reset()
     }
 }
 

@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use clap::Parser;
 use daemon::runtime::config::Config;
-use daemon::runtime::controller::{ClockKind, Controller};
+use daemon::runtime::controller::{ClockKind, Controller, StartError};
 use daemon::runtime::logging::{self, BlockNo, LogTarget};
 use daemon::runtime::server;
 use daemon::runtime::systemd::{self, Notifier, NotifyState};
@@ -35,8 +35,11 @@ enum CncdError {
     #[error(transparent)]
     Api(#[from] server::ServerError),
     /// The controller did not start (bus, storage, configuration: the message says which).
+    #[error(transparent)]
+    Start(#[from] StartError),
+    /// The test-only stall knob has a value that is not a tick count.
     #[error("{0}")]
-    Start(String),
+    FaultInject(String),
     #[error("shutdown: {0}")]
     Shutdown(#[source] tokio::task::JoinError),
     #[error("stopped after the API failure above")]
@@ -49,7 +52,8 @@ impl CncdError {
         match self {
             CncdError::Signal { .. } => "cncd_signal",
             CncdError::Api(e) => e.code(),
-            CncdError::Start(_) => "cncd_start",
+            CncdError::Start(e) => e.code(),
+            CncdError::FaultInject(_) => "cncd_fault_inject",
             CncdError::Shutdown(_) => "cncd_shutdown",
             CncdError::AfterApiFailure => "cncd_after_api_failure",
         }
@@ -165,17 +169,7 @@ async fn run(config: Config) -> Result<(), CncdError> {
     let mut signals = Signals::install()?;
     // Every API listener is bound before READY=1 (sent once the drives are operational), so
     // ready means reachable; a listener that cannot be bound ends the start with an error.
-    let listen = config.api.listen;
-    let listener = tokio::net::TcpListener::bind(listen)
-        .await
-        .map_err(|source| server::ServerError::Listen {
-            key: "api.listen",
-            addr: listen,
-            source,
-        })?;
-    let local = listener
-        .local_addr()
-        .map_err(server::ServerError::LocalAddr)?;
+    let (listener, local) = bind_listen(&config).await?;
     let mut api_on = vec![local.to_string()];
     if let Some(p) = config.api.unix_socket_path(&config.storage.dir) {
         api_on.push(p.display().to_string());
@@ -185,22 +179,9 @@ async fn run(config: Config) -> Result<(), CncdError> {
     let bus = bus_label(&config);
     let axis_names = config.axis_names();
     // The controller creates the storage directory, where the Unix socket may live.
-    let ctl = start_controller(config).map_err(CncdError::Start)?;
+    let ctl = start_controller(config)?;
     tracing::info!("cncd started: axes {names} on bus {bus}, API on {api_on}; enabling drives");
-    let cfg = ctl.config();
-    let mut listeners = match server::bind_extra(&cfg.api, &cfg.storage.dir).await {
-        Ok(l) => l,
-        Err(e) => {
-            let c = ctl.clone();
-            let _ = tokio::task::spawn_blocking(move || c.shutdown()).await;
-            return Err(e.into());
-        }
-    };
-    if local.ip().is_loopback() {
-        listeners.local_tcp.insert(0, listener);
-    } else {
-        listeners.remote_tcp.insert(0, listener);
-    }
+    let listeners = listeners_beside(&ctl, listener, local).await?;
     let supervision = systemd::supervise(
         ctl.subscribe(),
         notifier.clone(),
@@ -230,30 +211,10 @@ async fn run(config: Config) -> Result<(), CncdError> {
     if let Some(e) = &api_failure {
         tracing::error!("{e}");
     }
-    tracing::info!("shutting down: bringing the axes to rest");
-    if let Some(n) = &notifier {
-        n.send(&[
-            NotifyState::Stopping,
-            NotifyState::Status("bringing the axes to rest"),
-        ]);
-    }
-    // The watchdog keeps pinging while the real-time thread brakes.
-    let c = ctl.clone();
-    tokio::task::spawn_blocking(move || c.shutdown())
-        .await
-        .map_err(CncdError::Shutdown)?;
+    bring_to_rest(&ctl, notifier.as_deref()).await?;
     supervision.stop();
     health.abort();
-    let s = ctl.snapshot();
-    for (i, name) in ctl.config().axis_names().iter().enumerate().take(s.axes) {
-        tracing::info!(
-            axis = %name,
-            block = %BlockNo(s.block_n),
-            line = s.line,
-            position_mm = s.commanded[i],
-            "axis at rest"
-        );
-    }
+    log_rest_positions(&ctl);
     let _ = tx.send(());
     if api_failure.is_none() {
         let _ = serve.await;
@@ -265,26 +226,103 @@ async fn run(config: Config) -> Result<(), CncdError> {
     }
 }
 
+/// Binds `api.listen` (before the controller starts: a taken port ends the start at once).
+async fn bind_listen(
+    config: &Config,
+) -> Result<(tokio::net::TcpListener, std::net::SocketAddr), CncdError> {
+    let listen = config.api.listen;
+    let listener = tokio::net::TcpListener::bind(listen)
+        .await
+        .map_err(|source| server::ServerError::Listen {
+            key: "api.listen",
+            addr: listen,
+            source,
+        })?;
+    let local = listener
+        .local_addr()
+        .map_err(server::ServerError::LocalAddr)?;
+    Ok((listener, local))
+}
+
+/// The other listeners (extra addresses, the Unix socket) with `listener` first; when one
+/// cannot be bound the controller is shut down before the error returns.
+async fn listeners_beside(
+    ctl: &Arc<Controller>,
+    listener: tokio::net::TcpListener,
+    local: std::net::SocketAddr,
+) -> Result<server::Listeners, CncdError> {
+    let cfg = ctl.config();
+    let mut listeners = match server::bind_extra(&cfg.api, &cfg.storage.dir).await {
+        Ok(l) => l,
+        Err(e) => {
+            let c = ctl.clone();
+            let _ = tokio::task::spawn_blocking(move || c.shutdown()).await;
+            return Err(e.into());
+        }
+    };
+    if local.ip().is_loopback() {
+        listeners.local_tcp.insert(0, listener);
+    } else {
+        listeners.remote_tcp.insert(0, listener);
+    }
+    Ok(listeners)
+}
+
+/// Brakes the axes to rest and stops the real-time thread (systemd hears STOPPING; the
+/// watchdog keeps pinging while the thread brakes).
+async fn bring_to_rest(
+    ctl: &Arc<Controller>,
+    notifier: Option<&Notifier>,
+) -> Result<(), CncdError> {
+    tracing::info!("shutting down: bringing the axes to rest");
+    if let Some(n) = notifier {
+        n.send(&[
+            NotifyState::Stopping,
+            NotifyState::Status("bringing the axes to rest"),
+        ]);
+    }
+    let c = ctl.clone();
+    tokio::task::spawn_blocking(move || c.shutdown())
+        .await
+        .map_err(CncdError::Shutdown)
+}
+
+/// Logs where every axis came to rest (and the block it was in).
+fn log_rest_positions(ctl: &Controller) {
+    let s = ctl.snapshot();
+    for (i, name) in ctl.config().axis_names().iter().enumerate().take(s.axes) {
+        tracing::info!(
+            axis = %name,
+            block = %BlockNo(s.block_n),
+            line = s.line,
+            position_mm = s.commanded[i],
+            "axis at rest"
+        );
+    }
+}
+
 /// Opens the bus and starts the controller; with the test-only stall knob set
 /// (`daemon::runtime::fault_inject`), on a bus that wedges the real-time thread.
-fn start_controller(config: Config) -> Result<Arc<Controller>, String> {
+fn start_controller(config: Config) -> Result<Arc<Controller>, CncdError> {
     use daemon::runtime::buses::open_bus;
     use daemon::runtime::fault_inject::{self, STALL_RT_AFTER_TICKS, StallAfter};
     let knob = std::env::var(STALL_RT_AFTER_TICKS).ok();
-    let Some(ticks) = fault_inject::stall_after_ticks(knob.as_deref())? else {
-        return Controller::start(config, ClockKind::Monotonic);
+    let Some(ticks) =
+        fault_inject::stall_after_ticks(knob.as_deref()).map_err(CncdError::FaultInject)?
+    else {
+        return Ok(Controller::start(config, ClockKind::Monotonic)?);
     };
     tracing::warn!(
         ticks,
         "fault injection: the real-time thread will stall after {ticks} ticks \
          ({STALL_RT_AFTER_TICKS}; for tests only)"
     );
-    let bus = open_bus(&config.bus, &config.axes, &config.sim)?;
-    Controller::start_with_bus(
+    let bus = open_bus(&config.bus, &config.axes, &config.sim).map_err(StartError::Bus)?;
+    Ok(Controller::start_with_bus(
         config,
         ClockKind::Monotonic,
         Box::new(StallAfter::new(bus, ticks)),
-    )
+    )?)
 }
 
 /// SIGTERM (systemd stop) and SIGINT (Ctrl-C).

@@ -493,56 +493,72 @@ impl ApiConfig {
     }
 
     /// Checks listeners, TLS and tokens; the message names the key.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidConfig> {
         let remote = self
             .tcp_addresses()
             .into_iter()
             .find(|a| !a.ip().is_loopback());
         if let Some(a) = remote {
             if self.tls_cert.is_none() || self.tls_key.is_none() {
-                return Err(format!(
-                    "api.tls_cert, api.tls_key: listening on {a} (not loopback) requires TLS"
-                ));
+                return Err(InvalidConfig::Missing {
+                    key: "api.tls_cert, api.tls_key".into(),
+                    detail: format!("listening on {a} (not loopback) requires TLS"),
+                });
             }
             if self.tokens.is_empty() {
-                return Err(format!(
-                    "api.tokens: listening on {a} (not loopback) requires at least one token"
-                ));
+                return Err(InvalidConfig::Missing {
+                    key: "api.tokens".into(),
+                    detail: format!("listening on {a} (not loopback) requires at least one token"),
+                });
             }
         }
         if self.tls_cert.is_some() != self.tls_key.is_some() {
-            return Err("api.tls_cert, api.tls_key: give both or neither".into());
+            return Err(InvalidConfig::Missing {
+                key: "api.tls_cert, api.tls_key".into(),
+                detail: "give both or neither".into(),
+            });
         }
         if self.socket_mode > 0o777 {
-            return Err(format!(
-                "api.socket_mode: {:o} is not a permission mode (0o000..0o777)",
-                self.socket_mode
-            ));
+            return Err(InvalidConfig::BadValue {
+                key: "api.socket_mode".into(),
+                detail: format!(
+                    "{:o} is not a permission mode (0o000..0o777)",
+                    self.socket_mode
+                ),
+            });
         }
         for (i, t) in self.tokens.iter().enumerate() {
             if t.sha256.len() != 64 || !t.sha256.bytes().all(|b| b.is_ascii_hexdigit()) {
-                return Err(format!(
-                    "api.tokens[{i}].sha256: must be 64 hex digits (the SHA-256 of the token)"
-                ));
+                return Err(InvalidConfig::BadValue {
+                    key: format!("api.tokens[{i}].sha256"),
+                    detail: "must be 64 hex digits (the SHA-256 of the token)".into(),
+                });
             }
             if self.tokens[..i]
                 .iter()
                 .any(|u| u.sha256.eq_ignore_ascii_case(&t.sha256))
             {
-                return Err(format!(
-                    "api.tokens[{i}].sha256: the same token appears twice"
-                ));
+                return Err(InvalidConfig::Duplicate {
+                    key: format!("api.tokens[{i}].sha256"),
+                    detail: "the same token appears twice".into(),
+                });
             }
         }
         if self.max_streams == 0 {
-            return Err("api.max_streams: must be at least 1".into());
+            return Err(InvalidConfig::BadValue {
+                key: "api.max_streams".into(),
+                detail: "must be at least 1".into(),
+            });
         }
         if self.reserved_streams >= self.max_streams {
-            return Err(format!(
-                "api.reserved_streams: {} must be below api.max_streams ({}): observers need at \
+            return Err(InvalidConfig::BadValue {
+                key: "api.reserved_streams".into(),
+                detail: format!(
+                    "{} must be below api.max_streams ({}): observers need at \
                  least one stream",
-                self.reserved_streams, self.max_streams
-            ));
+                    self.reserved_streams, self.max_streams
+                ),
+            });
         }
         Ok(())
     }
@@ -629,8 +645,46 @@ pub enum ConfigError {
     },
     #[error("{path}: {message}")]
     Parse { path: PathBuf, message: String },
-    #[error("{path}: {message}")]
-    Invalid { path: PathBuf, message: String },
+    #[error("{path}: {source}")]
+    Invalid {
+        path: PathBuf,
+        #[source]
+        source: InvalidConfig,
+    },
+}
+
+/// A value the validation refused (after serde accepted the file): the key it names and why.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum InvalidConfig {
+    /// Out of its range, not a number, or not of the form the key takes.
+    #[error("{key}: {detail}")]
+    BadValue { key: String, detail: String },
+    /// A name, node or file given twice (or the same as another key's).
+    #[error("{key}: {detail}")]
+    Duplicate { key: String, detail: String },
+    /// A value required by the others is missing (or only one of a pair is given).
+    #[error("{key}: {detail}")]
+    Missing { key: String, detail: String },
+}
+
+impl InvalidConfig {
+    /// Stable code (tests match it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            InvalidConfig::BadValue { .. } => "config_bad_value",
+            InvalidConfig::Duplicate { .. } => "config_duplicate",
+            InvalidConfig::Missing { .. } => "config_missing",
+        }
+    }
+
+    /// The key the mistake is in, e.g. `axes[0].max_accel_mm_s2`.
+    pub fn key(&self) -> &str {
+        match self {
+            InvalidConfig::BadValue { key, .. }
+            | InvalidConfig::Duplicate { key, .. }
+            | InvalidConfig::Missing { key, .. } => key,
+        }
+    }
 }
 
 impl Config {
@@ -648,38 +702,66 @@ impl Config {
             path: path.to_owned(),
             message: e.to_string(),
         })?;
-        cfg.validate().map_err(|message| ConfigError::Invalid {
+        cfg.validate().map_err(|source| ConfigError::Invalid {
             path: path.to_owned(),
-            message,
+            source,
         })?;
         Ok(cfg)
     }
 
     /// Checks what serde cannot: counts, ranges, duplicates. The message names the key.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InvalidConfig> {
+        self.validate_axes()?;
+        self.validate_gears()?;
+        self.validate_storage()?;
+        for (i, a) in self.axes.iter().enumerate() {
+            if !a.home_mm.is_finite() {
+                return Err(InvalidConfig::BadValue {
+                    key: format!("axes[{i}].home_mm"),
+                    detail: format!("{} is not a number", a.home_mm),
+                });
+            }
+            validate_axis_safety(i, a)?;
+        }
+        self.validate_sim_planner_rt()?;
+        self.api.validate()?;
+        self.bus.validate(&self.axes)
+    }
+
+    /// `[[axes]]`: count, letters (once each) and positive dynamics.
+    fn validate_axes(&self) -> Result<(), InvalidConfig> {
         if self.axes.is_empty() || self.axes.len() > kernel::MAX_AXES {
-            return Err(format!(
-                "axes: {} axes configured, between 1 and {} are supported",
-                self.axes.len(),
-                kernel::MAX_AXES
-            ));
+            return Err(InvalidConfig::BadValue {
+                key: "axes".into(),
+                detail: format!(
+                    "{} axes configured, between 1 and {} are supported",
+                    self.axes.len(),
+                    kernel::MAX_AXES
+                ),
+            });
         }
         for (i, a) in self.axes.iter().enumerate() {
             if !a.name.is_ascii_uppercase() {
-                return Err(format!(
-                    "axes[{i}].name: '{}' is not an axis letter A..Z",
-                    a.name
-                ));
+                return Err(InvalidConfig::BadValue {
+                    key: format!("axes[{i}].name"),
+                    detail: format!("'{}' is not an axis letter A..Z", a.name),
+                });
             }
             if !kernel::constants::AXIS_CODES.contains(&a.name) {
-                return Err(format!(
-                    "axes[{i}].name: '{}' is not one of the controller's axis letters {}",
-                    a.name,
-                    kernel::constants::AXIS_CODES.iter().collect::<String>()
-                ));
+                return Err(InvalidConfig::BadValue {
+                    key: format!("axes[{i}].name"),
+                    detail: format!(
+                        "'{}' is not one of the controller's axis letters {}",
+                        a.name,
+                        kernel::constants::AXIS_CODES.iter().collect::<String>()
+                    ),
+                });
             }
             if self.axes[..i].iter().any(|b| b.name == a.name) {
-                return Err(format!("axes[{i}].name: axis {} appears twice", a.name));
+                return Err(InvalidConfig::Duplicate {
+                    key: format!("axes[{i}].name"),
+                    detail: format!("axis {} appears twice", a.name),
+                });
             }
             for (key, v) in [
                 ("max_velocity_mm_min", a.max_velocity_mm_min),
@@ -687,79 +769,105 @@ impl Config {
                 ("increments_per_mm", a.increments_per_mm),
             ] {
                 if !(v.is_finite() && v > 0.0) {
-                    return Err(format!("axes[{i}].{key}: {v} must be a positive number"));
+                    return Err(InvalidConfig::BadValue {
+                        key: format!("axes[{i}].{key}"),
+                        detail: format!("{v} must be a positive number"),
+                    });
                 }
             }
             if let Some(p) = a.rotary_pulses_per_rev
                 && !(p.is_finite() && p > 0.0)
             {
-                return Err(format!(
-                    "axes[{i}].rotary_pulses_per_rev: {p} must be a positive number of pulses"
-                ));
+                return Err(InvalidConfig::BadValue {
+                    key: format!("axes[{i}].rotary_pulses_per_rev"),
+                    detail: format!("{p} must be a positive number of pulses"),
+                });
             }
         }
+        Ok(())
+    }
+
+    /// `[[kr.gears]]`: positive top speed, output within the DAC range.
+    fn validate_gears(&self) -> Result<(), InvalidConfig> {
         for (i, g) in self.kr.gears.iter().enumerate() {
             if !(g.max_rpm.is_finite() && g.max_rpm > 0.0) {
-                return Err(format!(
-                    "kr.gears[{i}].max_rpm: {} must be a positive speed",
-                    g.max_rpm
-                ));
+                return Err(InvalidConfig::BadValue {
+                    key: format!("kr.gears[{i}].max_rpm"),
+                    detail: format!("{} must be a positive speed", g.max_rpm),
+                });
             }
             if !(1..=0x7FFF).contains(&g.output_range) {
-                return Err(format!(
-                    "kr.gears[{i}].output_range: {} is outside 1..32767",
-                    g.output_range
-                ));
+                return Err(InvalidConfig::BadValue {
+                    key: format!("kr.gears[{i}].output_range"),
+                    detail: format!("{} is outside 1..32767", g.output_range),
+                });
             }
         }
+        Ok(())
+    }
+
+    /// `[storage]`: a directory and two different files.
+    fn validate_storage(&self) -> Result<(), InvalidConfig> {
         if self.storage.dir.as_os_str().is_empty() {
-            return Err("storage.dir: must name a directory".into());
+            return Err(InvalidConfig::Missing {
+                key: "storage.dir".into(),
+                detail: "must name a directory".into(),
+            });
         }
         for (key, f) in [
             ("storage.offsets_file", &self.storage.offsets_file),
             ("storage.constants_file", &self.storage.constants_file),
         ] {
             if f.file_name().is_none() {
-                return Err(format!("{key}: {f:?} must name a file"));
+                return Err(InvalidConfig::Missing {
+                    key: key.to_string(),
+                    detail: format!("{f:?} must name a file"),
+                });
             }
         }
         if self.storage.offsets_path() == self.storage.constants_path() {
-            return Err("storage.constants_file: the same file as storage.offsets_file".into());
+            return Err(InvalidConfig::Duplicate {
+                key: "storage.constants_file".into(),
+                detail: "the same file as storage.offsets_file".into(),
+            });
         }
-        for (i, a) in self.axes.iter().enumerate() {
-            if !a.home_mm.is_finite() {
-                return Err(format!("axes[{i}].home_mm: {} is not a number", a.home_mm));
-            }
-            validate_axis_safety(i, a)?;
-        }
+        Ok(())
+    }
+
+    /// `[sim]`, `[planner]` and `[rt]` ranges.
+    fn validate_sim_planner_rt(&self) -> Result<(), InvalidConfig> {
         for (key, v) in [
             ("sim.kv_per_s", self.sim.kv_per_s),
             ("sim.following_window_mm", self.sim.following_window_mm),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(format!("{key}: {v} must be a positive number"));
+                return Err(InvalidConfig::BadValue {
+                    key: key.to_string(),
+                    detail: format!("{v} must be a positive number"),
+                });
             }
         }
         let ramp = self.sim.spindle_ramp_rpm_s;
         if !(ramp.is_finite() && ramp >= 0.0) {
-            return Err(format!(
-                "sim.spindle_ramp_rpm_s: {ramp} must be 0 (at once) or a positive number"
-            ));
+            return Err(InvalidConfig::BadValue {
+                key: "sim.spindle_ramp_rpm_s".into(),
+                detail: format!("{ramp} must be 0 (at once) or a positive number"),
+            });
         }
         let t = self.planner.min_block_time_ms;
         if !(t.is_finite() && (0.0..=1000.0).contains(&t)) {
-            return Err(format!(
-                "planner.min_block_time_ms: {t} is outside 0..1000 ms"
-            ));
+            return Err(InvalidConfig::BadValue {
+                key: "planner.min_block_time_ms".into(),
+                detail: format!("{t} is outside 0..1000 ms"),
+            });
         }
         if !(1..=99).contains(&self.rt.priority) {
-            return Err(format!(
-                "rt.priority: {} is outside 1..99",
-                self.rt.priority
-            ));
+            return Err(InvalidConfig::BadValue {
+                key: "rt.priority".into(),
+                detail: format!("{} is outside 1..99", self.rt.priority),
+            });
         }
-        self.api.validate()?;
-        self.bus.validate(&self.axes)
+        Ok(())
     }
 
     pub fn axis_names(&self) -> Vec<char> {
@@ -778,7 +886,7 @@ impl Config {
 }
 
 /// Soft limits and the stop deceleration of axis `i`.
-fn validate_axis_safety(i: usize, a: &AxisConfig) -> Result<(), String> {
+fn validate_axis_safety(i: usize, a: &AxisConfig) -> Result<(), InvalidConfig> {
     for (key, v) in [
         ("soft_min_mm", a.soft_min_mm),
         ("soft_max_mm", a.soft_max_mm),
@@ -786,49 +894,57 @@ fn validate_axis_safety(i: usize, a: &AxisConfig) -> Result<(), String> {
         if let Some(v) = v
             && !v.is_finite()
         {
-            return Err(format!("axes[{i}].{key}: {v} is not a number"));
+            return Err(InvalidConfig::BadValue {
+                key: format!("axes[{i}].{key}"),
+                detail: format!("{v} is not a number"),
+            });
         }
     }
     if let (Some(lo), Some(hi)) = (a.soft_min_mm, a.soft_max_mm)
         && lo >= hi
     {
-        return Err(format!(
-            "axes[{i}].soft_max_mm: {hi} must be above soft_min_mm {lo}"
-        ));
+        return Err(InvalidConfig::BadValue {
+            key: format!("axes[{i}].soft_max_mm"),
+            detail: format!("{hi} must be above soft_min_mm {lo}"),
+        });
     }
     if a.homing_direction != 1 && a.homing_direction != -1 {
-        return Err(format!(
-            "axes[{i}].homing_direction: {} must be -1 or 1",
-            a.homing_direction
-        ));
+        return Err(InvalidConfig::BadValue {
+            key: format!("axes[{i}].homing_direction"),
+            detail: format!("{} must be -1 or 1", a.homing_direction),
+        });
     }
     if let Some(v) = a.homing_speed_mm_min
         && !(v.is_finite() && v > 0.0 && v <= a.max_velocity_mm_min)
     {
-        return Err(format!(
-            "axes[{i}].homing_speed_mm_min: {v} must be above 0 and at most max_velocity_mm_min"
-        ));
+        return Err(InvalidConfig::BadValue {
+            key: format!("axes[{i}].homing_speed_mm_min"),
+            detail: format!("{v} must be above 0 and at most max_velocity_mm_min"),
+        });
     }
     if let Some(v) = a.homing_zero_speed_mm_min
         && !(v.is_finite() && v > 0.0 && v <= a.max_velocity_mm_min)
     {
-        return Err(format!(
-            "axes[{i}].homing_zero_speed_mm_min: {v} must be above 0 and at most max_velocity_mm_min"
-        ));
+        return Err(InvalidConfig::BadValue {
+            key: format!("axes[{i}].homing_zero_speed_mm_min"),
+            detail: format!("{v} must be above 0 and at most max_velocity_mm_min"),
+        });
     }
     if let Some(v) = a.homing_accel_mm_s2
         && !(v.is_finite() && v > 0.0)
     {
-        return Err(format!(
-            "axes[{i}].homing_accel_mm_s2: {v} must be a positive number"
-        ));
+        return Err(InvalidConfig::BadValue {
+            key: format!("axes[{i}].homing_accel_mm_s2"),
+            detail: format!("{v} must be a positive number"),
+        });
     }
     if let Some(d) = a.stop_decel_mm_s2
         && !(d.is_finite() && d > 0.0)
     {
-        return Err(format!(
-            "axes[{i}].stop_decel_mm_s2: {d} must be a positive number"
-        ));
+        return Err(InvalidConfig::BadValue {
+            key: format!("axes[{i}].stop_decel_mm_s2"),
+            detail: format!("{d} must be a positive number"),
+        });
     }
     Ok(())
 }
@@ -960,21 +1076,25 @@ fn validate_spindle(
     node: Option<u8>,
     units_per_rpm: f64,
     axes: &[AxisConfig],
-) -> Result<(), String> {
+) -> Result<(), InvalidConfig> {
     if !(units_per_rpm.is_finite() && units_per_rpm > 0.0) {
-        return Err(format!(
-            "bus.spindle_units_per_rpm: {units_per_rpm} must be a positive number"
-        ));
+        return Err(InvalidConfig::BadValue {
+            key: "bus.spindle_units_per_rpm".into(),
+            detail: format!("{units_per_rpm} must be a positive number"),
+        });
     }
     if let Some(id) = node {
         if !(1..=127).contains(&id) {
-            return Err(format!("bus.spindle_node: {id} is outside 1..127"));
+            return Err(InvalidConfig::BadValue {
+                key: "bus.spindle_node".into(),
+                detail: format!("{id} is outside 1..127"),
+            });
         }
         if let Some(a) = axes.iter().find(|a| a.node_id == Some(id)) {
-            return Err(format!(
-                "bus.spindle_node: node {id} is the drive of axis {}",
-                a.name
-            ));
+            return Err(InvalidConfig::Duplicate {
+                key: "bus.spindle_node".into(),
+                detail: format!("node {id} is the drive of axis {}", a.name),
+            });
         }
     }
     Ok(())
@@ -1055,13 +1175,14 @@ impl Default for BusConfig {
 
 /// `[bus] cycle_ms` must be a whole number of ms in 1..10 (the CANopen interpolation period
 /// 0x60C2 is whole ms; the deadline grid is exact in ns).
-fn validate_cycle_ms(ms: f64) -> Result<(), String> {
+fn validate_cycle_ms(ms: f64) -> Result<(), InvalidConfig> {
     let range = super::resample::CYCLE_MS_RANGE;
     let (lo, hi) = (f64::from(*range.start()), f64::from(*range.end()));
     if !(ms.is_finite() && ms.fract() == 0.0 && (lo..=hi).contains(&ms)) {
-        return Err(format!(
-            "bus.cycle_ms: {ms} is not a whole number of milliseconds from {lo} to {hi}"
-        ));
+        return Err(InvalidConfig::BadValue {
+            key: "bus.cycle_ms".into(),
+            detail: format!("{ms} is not a whole number of milliseconds from {lo} to {hi}"),
+        });
     }
     Ok(())
 }
@@ -1087,34 +1208,44 @@ impl BusConfig {
     }
 
     /// Checks the bus settings against the axes; the message names the key.
-    pub fn validate(&self, axes: &[AxisConfig]) -> Result<(), String> {
+    pub fn validate(&self, axes: &[AxisConfig]) -> Result<(), InvalidConfig> {
         validate_cycle_ms(self.cycle_ms())?;
         match self {
             BusConfig::Sim { .. } => Ok(()),
             BusConfig::Can(c) => {
                 if c.interface.is_empty() {
-                    return Err("bus.interface: give the CAN interface, e.g. \"can0\"".into());
+                    return Err(InvalidConfig::Missing {
+                        key: "bus.interface".into(),
+                        detail: "give the CAN interface, e.g. \"can0\"".into(),
+                    });
                 }
                 if !(1..=127).contains(&c.master_node_id) {
-                    return Err(format!(
-                        "bus.master_node_id: {} is outside 1..127",
-                        c.master_node_id
-                    ));
+                    return Err(InvalidConfig::BadValue {
+                        key: "bus.master_node_id".into(),
+                        detail: format!("{} is outside 1..127", c.master_node_id),
+                    });
                 }
                 for (i, a) in axes.iter().enumerate() {
                     let Some(id) = a.node_id else {
-                        return Err(format!(
-                            "axes[{i}].node_id: axis {} needs the CANopen node id of its drive",
-                            a.name
-                        ));
+                        return Err(InvalidConfig::Missing {
+                            key: format!("axes[{i}].node_id"),
+                            detail: format!(
+                                "axis {} needs the CANopen node id of its drive",
+                                a.name
+                            ),
+                        });
                     };
                     if !(1..=127).contains(&id) || id == c.master_node_id {
-                        return Err(format!(
-                            "axes[{i}].node_id: {id} is outside 1..127 or equals bus.master_node_id"
-                        ));
+                        return Err(InvalidConfig::Duplicate {
+                            key: format!("axes[{i}].node_id"),
+                            detail: format!("{id} is outside 1..127 or equals bus.master_node_id"),
+                        });
                     }
                     if axes[..i].iter().any(|b| b.node_id == Some(id)) {
-                        return Err(format!("axes[{i}].node_id: node {id} is used twice"));
+                        return Err(InvalidConfig::Duplicate {
+                            key: format!("axes[{i}].node_id"),
+                            detail: format!("node {id} is used twice"),
+                        });
                     }
                 }
                 for (key, v) in [
@@ -1124,43 +1255,61 @@ impl BusConfig {
                     if let Some(v) = v
                         && !(v.is_finite() && v > 0.0)
                     {
-                        return Err(format!("bus.{key}: {v} must be a positive number"));
+                        return Err(InvalidConfig::BadValue {
+                            key: format!("bus.{key}"),
+                            detail: format!("{v} must be a positive number"),
+                        });
                     }
                 }
                 if c.homing_timeout_ms == 0 {
-                    return Err("bus.homing_timeout_ms must be above 0".into());
+                    return Err(InvalidConfig::BadValue {
+                        key: "bus.homing_timeout_ms".into(),
+                        detail: "must be above 0".into(),
+                    });
                 }
                 if c.tpdo_missing_ticks == 0 || c.heartbeat_timeout_ms == 0 {
-                    return Err(
-                        "bus.tpdo_missing_ticks and bus.heartbeat_timeout_ms must be above 0"
-                            .into(),
-                    );
+                    return Err(InvalidConfig::BadValue {
+                        key: "bus.tpdo_missing_ticks, bus.heartbeat_timeout_ms".into(),
+                        detail: "must be above 0".into(),
+                    });
                 }
                 if c.spindle_node == Some(c.master_node_id) {
-                    return Err(format!(
-                        "bus.spindle_node: {} equals bus.master_node_id",
-                        c.master_node_id
-                    ));
+                    return Err(InvalidConfig::Duplicate {
+                        key: "bus.spindle_node".into(),
+                        detail: format!("{} equals bus.master_node_id", c.master_node_id),
+                    });
                 }
                 validate_spindle(c.spindle_node, c.spindle_units_per_rpm, axes)
             }
-            BusConfig::Serial(s) => {
-                if s.port.is_empty() {
-                    return Err("bus.port: give the serial device, e.g. \"/dev/ttyUSB0\"".into());
-                }
-                if s.reply_timeout_ticks == 0 {
-                    return Err("bus.reply_timeout_ticks must be above 0".into());
-                }
-                if s.cycle_ms != 4.0 {
-                    return Err(format!(
-                        "bus.cycle_ms: {} ms on a serial bus; the serial protocol's cycle is 4 ms (hal/SERIAL_PROTOCOL.md)",
-                        s.cycle_ms
-                    ));
-                }
-                validate_spindle(s.spindle_node, s.spindle_units_per_rpm, axes)
-            }
+            BusConfig::Serial(s) => validate_serial(s, axes),
         }
     }
+}
+
+/// `[bus] kind = "serial"`: a port, a reply timeout, the protocol's 4 ms cycle.
+fn validate_serial(s: &SerialBusConfig, axes: &[AxisConfig]) -> Result<(), InvalidConfig> {
+    if s.port.is_empty() {
+        return Err(InvalidConfig::Missing {
+            key: "bus.port".into(),
+            detail: "give the serial device, e.g. \"/dev/ttyUSB0\"".into(),
+        });
+    }
+    if s.reply_timeout_ticks == 0 {
+        return Err(InvalidConfig::BadValue {
+            key: "bus.reply_timeout_ticks".into(),
+            detail: "must be above 0".into(),
+        });
+    }
+    if s.cycle_ms != 4.0 {
+        return Err(InvalidConfig::BadValue {
+            key: "bus.cycle_ms".into(),
+            detail: format!(
+                "{} ms on a serial bus; the serial protocol's cycle is 4 ms (hal/SERIAL_PROTOCOL.md)",
+                s.cycle_ms
+            ),
+        });
+    }
+    validate_spindle(s.spindle_node, s.spindle_units_per_rpm, axes)
 }
 
 #[cfg(test)]
@@ -1182,6 +1331,21 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().contains("axes[0].max_accel_mm_s2"), "{e}");
+        let ConfigError::Invalid { source, .. } = &e else {
+            panic!("{e}")
+        };
+        assert_eq!(
+            (source.code(), source.key()),
+            ("config_bad_value", "axes[0].max_accel_mm_s2")
+        );
+        let mut twice = Config::default();
+        twice.axes[1].name = twice.axes[0].name;
+        let e = twice.validate().unwrap_err();
+        assert_eq!((e.code(), e.key()), ("config_duplicate", "axes[1].name"));
+        let mut half_tls = Config::default();
+        half_tls.api.tls_cert = Some("cert.pem".into());
+        let e = half_tls.validate().unwrap_err();
+        assert_eq!(e.code(), "config_missing");
         let e = Config::parse("[api]\nlisten = 5\n", Path::new("m.toml")).unwrap_err();
         assert!(e.to_string().contains("listen"), "{e}");
         let e = Config::parse("[rt]\nprio = 5\n", Path::new("m.toml")).unwrap_err();

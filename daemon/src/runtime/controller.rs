@@ -61,6 +61,50 @@ pub struct LoadedProgram {
     generation: u64,
 }
 
+/// Why the controller did not start (the message names the key or file to fix).
+#[derive(Debug, thiserror::Error)]
+pub enum StartError {
+    /// The bus could not be opened (`open_bus`: the message names the interface or port).
+    #[error("{0}")]
+    Bus(String),
+    #[error("storage.dir: cannot create {}: {source}", dir.display())]
+    StorageDir {
+        dir: std::path::PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The constants or offsets file exists but does not load.
+    #[error(transparent)]
+    Storage(#[from] storage::StorageError),
+    #[error("{}: R0..R5 name the axes {named} but the configuration has {configured}", path.display())]
+    AxisNames {
+        path: std::path::PathBuf,
+        named: String,
+        configured: String,
+    },
+    #[error("constant cutting speed: {0}")]
+    Kr(#[from] kernel::kr::KrConfigError),
+    #[error("cannot start the real-time thread: {0}")]
+    RtThread(#[source] std::io::Error),
+    #[error("cannot start the status thread: {0}")]
+    StatusThread(#[source] std::io::Error),
+}
+
+impl StartError {
+    /// Stable code (tests and logs match it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            StartError::Bus(_) => "start_bus",
+            StartError::StorageDir { .. } => "start_storage_dir",
+            StartError::Storage(e) => e.code(),
+            StartError::AxisNames { .. } => "start_axis_names",
+            StartError::Kr(_) => "start_kr",
+            StartError::RtThread(_) => "start_rt_thread",
+            StartError::StatusThread(_) => "start_status_thread",
+        }
+    }
+}
+
 #[derive(Debug, thiserror::Error)]
 pub enum ControlError {
     #[error("the program has errors")]
@@ -135,8 +179,8 @@ struct Run {
 
 impl Controller {
     /// Opens the bus, starts the RT thread and the status pump.
-    pub fn start(config: Config, clock: ClockKind) -> Result<Arc<Controller>, String> {
-        let bus = open_bus(&config.bus, &config.axes, &config.sim)?;
+    pub fn start(config: Config, clock: ClockKind) -> Result<Arc<Controller>, StartError> {
+        let bus = open_bus(&config.bus, &config.axes, &config.sim).map_err(StartError::Bus)?;
         Self::start_with_bus(config, clock, bus)
     }
 
@@ -146,7 +190,7 @@ impl Controller {
         config: Config,
         clock: ClockKind,
         bus: Box<dyn hal::DriveBus>,
-    ) -> Result<Arc<Controller>, String> {
+    ) -> Result<Arc<Controller>, StartError> {
         let axes = config.axes.len();
         let can_home = bus.supports_homing();
         warn_without_spindle(bus.as_ref());
@@ -188,7 +232,7 @@ impl Controller {
         std::thread::Builder::new()
             .name("cnc-status".into())
             .spawn(move || pump.run(&mut snap_out, &status_tx, &stop))
-            .map_err(|e| format!("cannot start the status thread: {e}"))?;
+            .map_err(StartError::StatusThread)?;
         Ok(Arc::new(Controller {
             config,
             commands: Mutex::new((cmd_tx, 0)),
@@ -954,7 +998,7 @@ pub(crate) fn rt_core_config(
     config: &Config,
     constants: &(Constants, bool),
     offsets: &OffsetTable,
-) -> Result<RtCoreConfig, String> {
+) -> Result<RtCoreConfig, StartError> {
     let mut start = AxesMm::ZERO;
     for (i, a) in config.axes.iter().enumerate() {
         start[i] = a.home_mm;
@@ -965,8 +1009,7 @@ pub(crate) fn rt_core_config(
         constants.1,
         offsets,
         start,
-    )
-    .map_err(|e| format!("constant cutting speed: {e}"))?;
+    )?;
     Ok(RtCoreConfig {
         axes: config.axes.len(),
         start,
@@ -1040,23 +1083,26 @@ impl Observer for Blocks {
 
 /// Creates the data directory and loads the constants and the offset table. A file that exists
 /// but does not parse stops the start-up: running with wrong offsets scraps parts.
-pub(crate) fn load_storage(config: &Config) -> Result<((Constants, bool), OffsetStore), String> {
+pub(crate) fn load_storage(
+    config: &Config,
+) -> Result<((Constants, bool), OffsetStore), StartError> {
     let st = &config.storage;
-    std::fs::create_dir_all(&st.dir)
-        .map_err(|e| format!("storage.dir: cannot create {}: {e}", st.dir.display()))?;
+    std::fs::create_dir_all(&st.dir).map_err(|source| StartError::StorageDir {
+        dir: st.dir.clone(),
+        source,
+    })?;
     let cpath = st.constants_path();
     let names = config.axis_names();
     let constants = if cpath.exists() {
-        let c = storage::load_constants(&cpath).map_err(|e| e.to_string())?;
+        let c = storage::load_constants(&cpath)?;
         // R0..R5 name the axes the programs use: they must be the configured ones.
         let named = c.axis_names();
         if named[..] != names[..] {
-            return Err(format!(
-                "{}: R0..R5 name the axes {} but the configuration has {}",
-                cpath.display(),
-                named.iter().collect::<String>(),
-                names.iter().collect::<String>()
-            ));
+            return Err(StartError::AxisNames {
+                path: cpath,
+                named: named.iter().collect(),
+                configured: names.iter().collect(),
+            });
         }
         (c, true)
     } else {
@@ -1071,8 +1117,7 @@ pub(crate) fn load_storage(config: &Config) -> Result<((Constants, bool), Offset
         }
         (c, false)
     };
-    let offsets = OffsetStore::load_or_empty(st.offsets_path(), &config.axis_names())
-        .map_err(|e| e.to_string())?;
+    let offsets = OffsetStore::load_or_empty(st.offsets_path(), &config.axis_names())?;
     tracing::info!(
         constants = %cpath.display(),
         from_file = constants.1,
@@ -1099,14 +1144,14 @@ fn spawn_rt_thread(
     priority: i32,
     lock_memory: bool,
     parts: RtParts,
-) -> Result<JoinHandle<()>, String> {
+) -> Result<JoinHandle<()>, StartError> {
     std::thread::Builder::new()
         .name("cnc-rt".into())
         .spawn(move || {
             prepare_rt_thread(priority, lock_memory);
             rt::run(parts);
         })
-        .map_err(|e| format!("cannot start the real-time thread: {e}"))
+        .map_err(StartError::RtThread)
 }
 
 fn prepare_rt_thread(priority: i32, lock: bool) {
@@ -1189,5 +1234,31 @@ impl Pump {
         if s.state != last.state {
             tracing::info!(state = ?s.state, job = s.job, block = %BlockNo(s.block_n), line = s.line, "machine state");
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A start-up that cannot use its storage says why, with a code per cause.
+    #[test]
+    fn storage_refusals_at_start_have_codes() {
+        let base = std::env::temp_dir().join(format!("cnc-start-{}", std::process::id()));
+        std::fs::create_dir_all(&base).unwrap();
+        let mut config = Config::default();
+        // The data directory is a file: it cannot be created.
+        let file = base.join("plain-file");
+        std::fs::write(&file, "x").unwrap();
+        config.storage.dir = file;
+        let e = load_storage(&config).err().unwrap();
+        assert_eq!(e.code(), "start_storage_dir", "{e}");
+        // An offset table that does not parse stops the start-up.
+        config.storage.dir = base.join("data");
+        std::fs::create_dir_all(&config.storage.dir).unwrap();
+        std::fs::write(config.storage.offsets_path(), "not an offset table\n").unwrap();
+        let e = load_storage(&config).err().unwrap();
+        assert_eq!(e.code(), "storage_invalid", "{e}");
+        std::fs::remove_dir_all(&base).unwrap();
     }
 }

@@ -38,15 +38,7 @@ impl StallAfter {
 }
 
 impl DriveBus for StallAfter {
-    fn name(&self) -> &str {
-        self.inner.name()
-    }
-    fn axes(&self) -> usize {
-        self.inner.axes()
-    }
-    fn has_spindle(&self) -> bool {
-        self.inner.has_spindle()
-    }
+    crate::delegate_drive_bus!(inner: name, axes, has_spindle, enable, reset);
     fn cycle(&mut self, cmd: &CycleCommand, feedback: &mut CycleFeedback) -> Result<(), BusFault> {
         if self.left == 0 {
             tracing::error!(
@@ -58,12 +50,6 @@ impl DriveBus for StallAfter {
         }
         self.left -= 1;
         self.inner.cycle(cmd, feedback)
-    }
-    fn enable(&mut self) {
-        self.inner.enable()
-    }
-    fn reset(&mut self) {
-        self.inner.reset()
     }
 }
 

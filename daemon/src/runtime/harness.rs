@@ -24,7 +24,7 @@ use tokio::sync::watch;
 
 use super::clock::SimClock;
 use super::config::Config;
-use super::controller::{Pump, load_storage, machine_config, rt_core_config};
+use super::controller::{Pump, StartError, load_storage, machine_config, rt_core_config};
 use super::homing;
 use super::job::{JobSpec, plan_into};
 use super::library::ProgramText;
@@ -42,8 +42,8 @@ pub enum HarnessError {
     InvalidProgram(Vec<Diagnostic>),
     #[error("planning failed: {0}")]
     Planning(Diagnostic),
-    #[error("machine setup: {0}")]
-    Setup(String),
+    #[error("machine setup: constant cutting speed: {0}")]
+    Setup(#[source] kernel::kr::KrConfigError),
     #[error("the command ring is full")]
     CommandRingFull,
     #[error("not reached within {ticks} ticks: {snapshot:?}")]
@@ -92,7 +92,7 @@ impl Harness {
         config: Config,
         mut bus: Box<dyn DriveBus>,
         mut clock: SimClock,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, StartError> {
         // Late wake-ups are late by whole ticks of the configured bus period.
         clock.period_ns = config.bus.cycle_ns();
         let (constants, offsets) = load_storage(&config)?;
@@ -279,7 +279,7 @@ impl Harness {
 
     /// The machine setup a job started now takes (as the controller's): configuration,
     /// constants and memory offsets, from where the axes are commanded now.
-    pub fn machine_setup(&self) -> Result<MachineSetup, String> {
+    pub fn machine_setup(&self) -> Result<MachineSetup, kernel::kr::KrConfigError> {
         let offsets = self.pump.offsets.lock().unwrap();
         MachineSetup::new(
             &machine_config(&self.config),
@@ -288,7 +288,6 @@ impl Harness {
             offsets.memory(),
             self.snapshot().commanded,
         )
-        .map_err(|e| format!("constant cutting speed: {e}"))
     }
 
     /// Validates `text` as the controller does at loading, starts it as a job, plans it inline

@@ -4,6 +4,7 @@ pub mod buses;
 pub mod clock;
 pub mod config;
 pub mod controller;
+mod delegate;
 pub mod fault_inject;
 pub mod harness;
 pub mod homing;

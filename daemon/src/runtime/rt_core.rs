@@ -871,76 +871,19 @@ impl RtCore {
     /// complete; `ring_empty`: no segment waits on the ring.
     fn update_state(&mut self, planned_job: u32, ring_empty: bool) {
         let is = self.interp.state();
-        let s = &mut self.snap;
         if self.shutting_down {
-            s.state = MachineState::Shutdown;
-            if is == InterpState::Idle {
-                let settled =
-                    (0..self.axes).all(|i| (s.commanded[i] - s.actual[i]).abs() < SETTLED_MM);
-                self.settle_ticks = if settled {
-                    SETTLE_TICKS
-                } else {
-                    self.settle_ticks + 1
-                };
-            }
+            self.update_shutdown(is);
             return;
         }
+        let s = &mut self.snap;
         if s.fault.is_some() || s.kr_fault.is_some() {
             s.state = MachineState::Fault;
             return;
         }
         match s.state {
-            MachineState::Enabling => {
-                // The spindle drive, where there is one, must be ready too: a program's M3
-                // would otherwise go to a drive that cannot turn yet.
-                let ready = self.fb.axes[..self.axes]
-                    .iter()
-                    .all(|a| a.state == DriveState::Operational)
-                    && (!self.has_spindle || self.fb.spindle_state == DriveState::Operational);
-                self.enable_ticks += 1;
-                if ready {
-                    // Drives report where they are: command from there (after a fault or at
-                    // power-on they may be elsewhere than the last setpoint).
-                    let mut here = s.commanded;
-                    for i in 0..self.axes {
-                        here[i] = self.fb.axes[i].position_mm;
-                    }
-                    if self.interp.set_position(here) {
-                        s.commanded = here;
-                        self.cmd.positions_mm[..self.axes].copy_from_slice(&here.0[..self.axes]);
-                        self.bus_cmd.positions_mm[..self.axes]
-                            .copy_from_slice(&here.0[..self.axes]);
-                        // Taken over from the drives: a step on purpose, not smoothed.
-                        self.resampler.reset(here);
-                    }
-                    s.state = MachineState::Idle;
-                } else if self.enable_ticks > self.enable_window_ticks {
-                    s.fault = Some(BusFault {
-                        axis: None,
-                        node: None,
-                        reason: hal::FaultReason::Timeout,
-                    });
-                    s.state = MachineState::Fault;
-                }
-            }
+            MachineState::Enabling => self.update_enabling(),
             MachineState::Running | MachineState::Hold | MachineState::Stopping => {
-                // The bus setpoint must have arrived at the end too (the smoothing of a bus
-                // period other than 4 ms lags: `resample`).
-                let job_done = self.active_job != 0
-                    && planned_job == self.active_job
-                    && ring_empty
-                    && is == InterpState::Idle
-                    && self.resampler.settled();
-                if job_done {
-                    s.finished_job = self.active_job;
-                    self.active_job = 0;
-                }
-                s.state = match is {
-                    _ if self.active_job == 0 && is == InterpState::Idle => MachineState::Idle,
-                    InterpState::Stopping => MachineState::Stopping,
-                    InterpState::Holding | InterpState::Held => MachineState::Hold,
-                    _ => MachineState::Running,
-                };
+                self.update_running(is, planned_job, ring_empty)
             }
             MachineState::Jog if !self.jog.active() => {
                 // The jog ended at rest: the path continues from where the axis is now.
@@ -961,5 +904,79 @@ impl RtCore {
             | MachineState::Fault
             | MachineState::Shutdown => {}
         }
+    }
+
+    /// Shutting down: count the ticks the axes have been at rest (the drives are disabled
+    /// once they settled).
+    fn update_shutdown(&mut self, is: InterpState) {
+        let s = &mut self.snap;
+        s.state = MachineState::Shutdown;
+        if is == InterpState::Idle {
+            let settled = (0..self.axes).all(|i| (s.commanded[i] - s.actual[i]).abs() < SETTLED_MM);
+            self.settle_ticks = if settled {
+                SETTLE_TICKS
+            } else {
+                self.settle_ticks + 1
+            };
+        }
+    }
+
+    /// Enabling: idle once every drive is operational (commanding from where the drives
+    /// are), a bus fault when the enable window passes first.
+    fn update_enabling(&mut self) {
+        let s = &mut self.snap;
+        // The spindle drive, where there is one, must be ready too: a program's M3
+        // would otherwise go to a drive that cannot turn yet.
+        let ready = self.fb.axes[..self.axes]
+            .iter()
+            .all(|a| a.state == DriveState::Operational)
+            && (!self.has_spindle || self.fb.spindle_state == DriveState::Operational);
+        self.enable_ticks += 1;
+        if ready {
+            // Drives report where they are: command from there (after a fault or at
+            // power-on they may be elsewhere than the last setpoint).
+            let mut here = s.commanded;
+            for i in 0..self.axes {
+                here[i] = self.fb.axes[i].position_mm;
+            }
+            if self.interp.set_position(here) {
+                s.commanded = here;
+                self.cmd.positions_mm[..self.axes].copy_from_slice(&here.0[..self.axes]);
+                self.bus_cmd.positions_mm[..self.axes].copy_from_slice(&here.0[..self.axes]);
+                // Taken over from the drives: a step on purpose, not smoothed.
+                self.resampler.reset(here);
+            }
+            s.state = MachineState::Idle;
+        } else if self.enable_ticks > self.enable_window_ticks {
+            s.fault = Some(BusFault {
+                axis: None,
+                node: None,
+                reason: hal::FaultReason::Timeout,
+            });
+            s.state = MachineState::Fault;
+        }
+    }
+
+    /// Running, holding or stopping: the job finishes when it is planned, drained and at
+    /// rest; otherwise the state follows the interpolator's.
+    fn update_running(&mut self, is: InterpState, planned_job: u32, ring_empty: bool) {
+        let s = &mut self.snap;
+        // The bus setpoint must have arrived at the end too (the smoothing of a bus
+        // period other than 4 ms lags: `resample`).
+        let job_done = self.active_job != 0
+            && planned_job == self.active_job
+            && ring_empty
+            && is == InterpState::Idle
+            && self.resampler.settled();
+        if job_done {
+            s.finished_job = self.active_job;
+            self.active_job = 0;
+        }
+        s.state = match is {
+            _ if self.active_job == 0 && is == InterpState::Idle => MachineState::Idle,
+            InterpState::Stopping => MachineState::Stopping,
+            InterpState::Holding | InterpState::Held => MachineState::Hold,
+            _ => MachineState::Running,
+        };
     }
 }

@@ -30,12 +30,7 @@ pub struct FaultBus {
 }
 
 impl DriveBus for FaultBus {
-    fn name(&self) -> &str {
-        self.inner.name()
-    }
-    fn axes(&self) -> usize {
-        self.inner.axes()
-    }
+    daemon::delegate_drive_bus!(inner: name, axes, enable);
     fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
         let r = self.inner.cycle(cmd, fb);
         if self.fault.load(Ordering::Relaxed) {
@@ -46,9 +41,6 @@ impl DriveBus for FaultBus {
             });
         }
         r
-    }
-    fn enable(&mut self) {
-        self.inner.enable()
     }
     fn reset(&mut self) {
         self.fault.store(false, Ordering::Relaxed);
@@ -193,4 +185,41 @@ pub async fn wait_until(what: &str, mut f: impl FnMut() -> bool) {
 pub fn diagnostics(s: &tonic::Status) -> Vec<pb::Diagnostic> {
     use prost::Message;
     pb::Diagnostics::decode(s.details()).unwrap().items
+}
+
+/// The first status of a fresh status stream (the state now).
+pub async fn status_now(m: &mut pb::machine_client::MachineClient<Channel>) -> pb::Status {
+    let mut s = m
+        .stream_status(pb::StatusRequest { rate_hz: 50 })
+        .await
+        .unwrap()
+        .into_inner();
+    s.message().await.unwrap().unwrap()
+}
+
+/// How far the lagging axis of [`LaggingBus`] reads behind its setpoint, mm.
+pub const LAG_MM: f64 = 0.05;
+
+/// The simulated machine whose axis `axis` always reads [`LAG_MM`] behind: a following error
+/// that never settles, to see which G24 window a job runs with.
+pub struct LaggingBus {
+    inner: sim::SimBus,
+    axis: usize,
+}
+
+impl LaggingBus {
+    /// `axes` simulated drives at 0, axis `axis` lagging.
+    pub fn new(axes: usize, axis: usize) -> LaggingBus {
+        let inner = sim::SimBus::new(sim::SimDriveParams::default(), &vec![0.0; axes]);
+        LaggingBus { inner, axis }
+    }
+}
+
+impl DriveBus for LaggingBus {
+    daemon::delegate_drive_bus!(inner: name, axes, enable, reset);
+    fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
+        let r = self.inner.cycle(cmd, fb);
+        fb.axes[self.axis].position_mm -= LAG_MM;
+        r
+    }
 }

@@ -197,12 +197,7 @@ impl ApiState {
     pub fn status(&self, s: &Snapshot) -> pb::Status {
         let ctl = &self.ctl;
         let program = ctl.program();
-        let run = self.run.lock().unwrap();
-        let (mode, run_blocks) = match &*run {
-            Some(r) if r.job == s.job && s.job != 0 => (r.mode, Some(r.blocks.clone())),
-            _ => (RunMode::Auto, None),
-        };
-        drop(run);
+        let (mode, run_blocks) = self.run_of(s.job);
         let total = match (&run_blocks, &program) {
             (Some(b), _) => b.len() as u32,
             (None, Some(p)) => p.block_count,
@@ -212,14 +207,6 @@ impl ApiState {
             s.state,
             MachineState::Running | MachineState::Hold | MachineState::Stopping
         );
-        let percent = if s.finished_job == s.job && s.job != 0 && !running {
-            100.0
-        } else if total > 0 && s.job != 0 {
-            (s.block_seq as f64 / total as f64 * 100.0).min(100.0)
-        } else {
-            0.0
-        };
-        let alarm = alarm_text(ctl, s).unwrap_or_default();
         let block: Option<Block> = match (&run_blocks, &program) {
             (Some(b), _) => b.get(s.block_seq as usize).copied(),
             (None, Some(_)) if s.job != 0 => ctl.block_at(s.job, s.block_seq),
@@ -230,9 +217,77 @@ impl ApiState {
             .filter(|_| running)
             .and_then(|b| b.motion())
             .map(|(_, end, _)| end);
+        let junction = match (&run_blocks, &program) {
+            (None, Some(p)) if s.job != 0 => {
+                self.junction_of(Arc::as_ptr(p) as *const () as usize, s.block_seq)
+            }
+            _ => pb::JunctionClass::Unspecified,
+        };
+        let (feed_programmed, feed_mode) = feed_of(block.map(|b| b.feed));
+        let plc = &s.plc;
+        pb::Status {
+            state: state_to_pb(s.state) as i32,
+            program: match (mode, &program) {
+                (RunMode::Mdi, _) => "MDI".into(),
+                (_, Some(p)) => p.name.clone(),
+                _ => String::new(),
+            },
+            block: s.block_n,
+            line: s.line,
+            block_index: s.block_seq,
+            blocks_total: total,
+            percent: percent_done(s, total, running),
+            axes: self.axes_status(s, target),
+            path_velocity_mm_s: s.path_v_mm_s,
+            ticks: Some(tick_stats(s)),
+            sequence: s.sequence,
+            job: s.job,
+            alarm: alarm_text(ctl, s).unwrap_or_default(),
+            finished_job: s.finished_job,
+            aborted_job: s.aborted_job,
+            override_percent: s.override_pct,
+            spindle_override_percent: s.spindle_override_pct,
+            rapid_override_percent: s.rapid_override_pct,
+            spindle_rpm: s.spindle_rpm,
+            mode: match mode {
+                RunMode::Auto => pb::Mode::Auto,
+                RunMode::Mdi => pb::Mode::Mdi,
+            } as i32,
+            single_block: s.single_block,
+            feed_programmed,
+            feed_mode: feed_mode.into(),
+            modal_g_codes: block.map(|b| modal_codes(&b)).unwrap_or_default(),
+            compensation: block.map(|b| compensation_of(b.comp)),
+            junction: junction as i32,
+            kr: Some(kr_status(plc)),
+            active_alarms: self.alarms.active(),
+            dynamic_set: plc.dynam_set().into(),
+            waiting_for_spindle: s.waiting_for_spindle,
+            optional_stop: s.optional_stop,
+            program_stop: s.program_stop,
+            fault_path_deviation_mm: s.fault_path_deviation_mm,
+        }
+    }
+
+    /// How job `job` was started, with its blocks when the API started it with its own list
+    /// (MDI, a run from a block list); else automatic with the selected program's blocks.
+    fn run_of(&self, job: u32) -> (RunMode, Option<Arc<Vec<Block>>>) {
+        match &*self.run.lock().unwrap() {
+            Some(r) if r.job == job && job != 0 => (r.mode, Some(r.blocks.clone())),
+            _ => (RunMode::Auto, None),
+        }
+    }
+
+    /// Per-axis status; `target` is the end point of the moving block (distance to go).
+    fn axes_status(
+        &self,
+        s: &Snapshot,
+        target: Option<kernel::units::AxesMm>,
+    ) -> Vec<pb::AxisStatus> {
+        let ctl = &self.ctl;
         let names = ctl.config().axis_names();
         let diameter_axis = ctl.diameter_axis();
-        let axes = (0..s.axes)
+        (0..s.axes)
             .map(|i| pb::AxisStatus {
                 diameter: diameter_axis == Some(i),
                 display_mm: s.commanded[i] * if diameter_axis == Some(i) { 2.0 } else { 1.0 },
@@ -248,93 +303,64 @@ impl ApiState {
                 distance_to_go_mm: target.map_or(0.0, |e| e[i] - s.commanded[i]),
                 at_soft_limit: at_soft_limit(ctl.config().axes.get(i), s.commanded[i]),
             })
-            .collect();
-        let junction = match (&run_blocks, &program) {
-            (None, Some(p)) if s.job != 0 => {
-                self.junction_of(Arc::as_ptr(p) as *const () as usize, s.block_seq)
-            }
-            _ => pb::JunctionClass::Unspecified,
-        };
-        let (feed_programmed, feed_mode) = match block.map(|b| b.feed) {
-            Some(Feed::MmPerMin(f)) => (f, "G94"),
-            Some(Feed::MmPerRev(f)) => (f, "G95"),
-            None => (0.0, ""),
-        };
-        let compensation = block.map(|b| match b.comp {
-            Comp::Off => pb::Compensation {
-                code: "G40".into(),
-                entry: 0,
-                radius_mm: 0.0,
-            },
-            Comp::Left { d, radius_mm } => pb::Compensation {
-                code: "G41".into(),
-                entry: d.into(),
-                radius_mm,
-            },
-            Comp::Right { d, radius_mm } => pb::Compensation {
-                code: "G42".into(),
-                entry: d.into(),
-                radius_mm,
-            },
-        });
-        let plc = &s.plc;
-        let kr = pb::KrStatus {
-            cutting_speed_m_min: plc.input(CellId::AkrrActV) as f64 / 1000.0,
-            speed_limit_rpm: plc.input(CellId::AkrrActSmax) as f64 / 1000.0,
-            radius_mm: plc.input(CellId::AkrrActR) as f64 / 8000.0,
-            spindle_rpm: plc.input(CellId::AkrrActS) as f64 / 1000.0,
-            output: plc.input(CellId::AkrrActOut).max(0) as u32,
-            gear_max_rpm: plc.input(CellId::AkrrActP) as f64 / 1000.0,
-        };
-        pb::Status {
-            state: state_to_pb(s.state) as i32,
-            program: match (mode, &program) {
-                (RunMode::Mdi, _) => "MDI".into(),
-                (_, Some(p)) => p.name.clone(),
-                _ => String::new(),
-            },
-            block: s.block_n,
-            line: s.line,
-            block_index: s.block_seq,
-            blocks_total: total,
-            percent,
-            axes,
-            path_velocity_mm_s: s.path_v_mm_s,
-            ticks: Some(pb::TickStats {
-                ticks: s.ticks.ticks,
-                overruns: s.ticks.overruns,
-                lateness_p50_us: s.ticks.lateness_p50_us,
-                lateness_p99_us: s.ticks.lateness_p99_us,
-                lateness_max_us: s.ticks.lateness_max_us,
-                cycle_us: (s.cycle_ns / 1000) as u32,
-            }),
-            sequence: s.sequence,
-            job: s.job,
-            alarm,
-            finished_job: s.finished_job,
-            aborted_job: s.aborted_job,
-            override_percent: s.override_pct,
-            spindle_override_percent: s.spindle_override_pct,
-            rapid_override_percent: s.rapid_override_pct,
-            spindle_rpm: s.spindle_rpm,
-            mode: match mode {
-                RunMode::Auto => pb::Mode::Auto,
-                RunMode::Mdi => pb::Mode::Mdi,
-            } as i32,
-            single_block: s.single_block,
-            feed_programmed,
-            feed_mode: feed_mode.into(),
-            modal_g_codes: block.map(|b| modal_codes(&b)).unwrap_or_default(),
-            compensation,
-            junction: junction as i32,
-            kr: Some(kr),
-            active_alarms: self.alarms.active(),
-            dynamic_set: plc.dynam_set().into(),
-            waiting_for_spindle: s.waiting_for_spindle,
-            optional_stop: s.optional_stop,
-            program_stop: s.program_stop,
-            fault_path_deviation_mm: s.fault_path_deviation_mm,
-        }
+            .collect()
+    }
+}
+
+/// Progress of the job in per cent of its blocks (100 once it finished).
+fn percent_done(s: &Snapshot, total: u32, running: bool) -> f64 {
+    if s.finished_job == s.job && s.job != 0 && !running {
+        100.0
+    } else if total > 0 && s.job != 0 {
+        (s.block_seq as f64 / total as f64 * 100.0).min(100.0)
+    } else {
+        0.0
+    }
+}
+
+/// Programmed feed and its mode word (G94 mm/min, G95 mm/rev).
+fn feed_of(feed: Option<Feed>) -> (f64, &'static str) {
+    match feed {
+        Some(Feed::MmPerMin(f)) => (f, "G94"),
+        Some(Feed::MmPerRev(f)) => (f, "G95"),
+        None => (0.0, ""),
+    }
+}
+
+fn compensation_of(comp: Comp) -> pb::Compensation {
+    let (code, entry, radius_mm) = match comp {
+        Comp::Off => ("G40", 0, 0.0),
+        Comp::Left { d, radius_mm } => ("G41", d.into(), radius_mm),
+        Comp::Right { d, radius_mm } => ("G42", d.into(), radius_mm),
+    };
+    pb::Compensation {
+        code: code.into(),
+        entry,
+        radius_mm,
+    }
+}
+
+/// The constant cutting speed (KR) cells, in their units (PLC cells hold thousandths; the
+/// radius eighths of a thousandth).
+fn kr_status(plc: &kernel::plc::PlcArea) -> pb::KrStatus {
+    pb::KrStatus {
+        cutting_speed_m_min: plc.input(CellId::AkrrActV) as f64 / 1000.0,
+        speed_limit_rpm: plc.input(CellId::AkrrActSmax) as f64 / 1000.0,
+        radius_mm: plc.input(CellId::AkrrActR) as f64 / 8000.0,
+        spindle_rpm: plc.input(CellId::AkrrActS) as f64 / 1000.0,
+        output: plc.input(CellId::AkrrActOut).max(0) as u32,
+        gear_max_rpm: plc.input(CellId::AkrrActP) as f64 / 1000.0,
+    }
+}
+
+fn tick_stats(s: &Snapshot) -> pb::TickStats {
+    pb::TickStats {
+        ticks: s.ticks.ticks,
+        overruns: s.ticks.overruns,
+        lateness_p50_us: s.ticks.lateness_p50_us,
+        lateness_p99_us: s.ticks.lateness_p99_us,
+        lateness_max_us: s.ticks.lateness_max_us,
+        cycle_us: (s.cycle_ns / 1000) as u32,
     }
 }
 

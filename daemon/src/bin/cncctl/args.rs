@@ -1,0 +1,228 @@
+//! The command line: subcommands and global flags (docs/api.md lists them with examples).
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(name = "cncctl", version, about = "Command-line client of cncd")]
+pub struct Args {
+    /// Address of the daemon: http://HOST:PORT, https://HOST:PORT (TLS) or unix:/PATH
+    /// [default: $CNCCTL_ADDR, else the first Unix socket of /run/cncd/cncd.sock,
+    /// ./cncd-data/cncd.sock, /var/lib/cncd/cncd.sock this user may open, else
+    /// http://127.0.0.1:50051 (observer only unless the daemon allows more)].
+    #[arg(long, global = true)]
+    pub addr: Option<String>,
+    /// Bearer token (needed on remote listeners, or for a role above api.local_role)
+    /// [default: $CNCCTL_TOKEN].
+    #[arg(long, global = true)]
+    pub token: Option<String>,
+    /// CA certificate (PEM) to check the daemon's TLS certificate with.
+    #[arg(long, global = true)]
+    pub ca: Option<PathBuf>,
+    /// Server name to check the TLS certificate against (default: the host of --addr).
+    #[arg(long, global = true)]
+    pub tls_domain: Option<String>,
+    /// Machine-readable JSON output.
+    #[arg(long, global = true)]
+    pub json: bool,
+    #[command(subcommand)]
+    pub cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+pub enum Cmd {
+    /// Load a program, start it, and follow it to its end with a progress bar.
+    Run {
+        file: PathBuf,
+        /// No progress bar (for scripts): print one line at the end.
+        #[arg(long)]
+        quiet: bool,
+    },
+    /// Upload, validate and select a program without starting it.
+    Load { file: PathBuf },
+    /// Validate a program only: every error and warning with block and line.
+    Validate { file: PathBuf },
+    /// The R325 listing: the program with the circle refinements written as address E.
+    Refine { file: PathBuf },
+    /// Store a program on the daemon without selecting it.
+    Upload {
+        file: PathBuf,
+        /// Name to store it under (default: the file name).
+        #[arg(long)]
+        name: Option<String>,
+    },
+    /// Select a stored program.
+    Select { name: String },
+    /// List the program library: size, blocks, time stored, verdict.
+    Programs,
+    /// Write a stored program to FILE (or standard output).
+    Download {
+        name: String,
+        #[arg(short = 'o', long)]
+        out: Option<PathBuf>,
+    },
+    /// Delete a stored program.
+    Delete { name: String },
+    /// Rename a stored program.
+    Rename { from: String, to: String },
+    /// Start the selected program.
+    Start,
+    /// Stop motion (brake on the path) and drop the rest of the program.
+    Stop,
+    /// Feed hold.
+    Hold,
+    /// Resume after a feed hold (next block in single-block mode).
+    Resume,
+    /// Set the feed override, 0..150 %.
+    Override { percent: f64 },
+    /// Set the spindle override, 50..120 % (scales the commanded spindle speed within the
+    /// gear range).
+    SpindleOverride { percent: f64 },
+    /// Set the rapid override, 0..100 % (scales G0 moves).
+    RapidOverride { percent: f64 },
+    /// Clear a drive or bus fault.
+    Reset,
+    /// Single-block mode on or off.
+    SingleBlock {
+        #[arg(value_parser = ["on", "off"])]
+        mode: String,
+    },
+    /// Optional stop on or off: when on, M1 stops the program like M0 (Resume continues).
+    OptionalStop {
+        #[arg(value_parser = ["on", "off"])]
+        mode: String,
+    },
+    /// Jog an axis: `cncctl jog X+ --speed 1000` moves X in + at 1000 mm/min until Ctrl-C
+    /// (the axis brakes to rest when cncctl stops, however it stops); `cncctl jog X --step 0.1`
+    /// (or `X- --step 0.1`) moves by one step. Soft limits are never passed.
+    Jog {
+        /// Axis letter, with `+` or `-` for the direction (required for a continuous jog).
+        axis: String,
+        /// Speed, mm/min (default: 10 % of the axis's maximum).
+        #[arg(long, default_value_t = 0.0)]
+        speed: f64,
+        /// Move by this many mm instead of jogging continuously.
+        #[arg(long, allow_hyphen_values = true)]
+        step: Option<f64>,
+    },
+    /// Reference run (homing): `cncctl home` homes every axis in the configured order,
+    /// `cncctl home Z` or `cncctl home XY` only those. Returns when done.
+    Home {
+        #[arg(default_value = "")]
+        axes: String,
+    },
+    /// Run one block (MDI), e.g. `cncctl mdi "G1 X10 F500"`.
+    Mdi { block: String },
+    /// Show the machine status.
+    Status {
+        /// Refresh in place until interrupted.
+        #[arg(long)]
+        watch: bool,
+        /// Refresh rate for --watch, Hz (1..250).
+        #[arg(long, default_value_t = 10)]
+        rate: u32,
+    },
+    /// Show the alarm history; with --follow keep printing new alarms.
+    Alarms {
+        #[arg(long)]
+        follow: bool,
+    },
+    /// The offset table in memory (entries changed by G92 are marked).
+    Offsets {
+        /// All 99 entries, zero ones included.
+        #[arg(long)]
+        all: bool,
+    },
+    /// Operator edit of one offset entry (file and memory); negative values as they are:
+    /// `offset-set 6 --radius -5`.
+    #[command(allow_negative_numbers = true)]
+    OffsetSet {
+        entry: u32,
+        #[arg(long)]
+        radius: Option<f64>,
+        #[arg(long)]
+        l1: Option<f64>,
+        #[arg(long)]
+        l2: Option<f64>,
+        #[arg(long)]
+        l3: Option<f64>,
+        #[arg(long)]
+        l4: Option<f64>,
+    },
+    /// Print the TAB0.KOR file.
+    OffsetsFile,
+    /// Replace TAB0.KOR with a file (validated; a refused file changes nothing).
+    OffsetsReplace { file: PathBuf },
+    /// Reload the offset table from its file (drops G92 changes).
+    OffsetsReload,
+    /// PLC memory area 1.
+    Plc {
+        #[command(subcommand)]
+        cmd: PlcCmd,
+    },
+    /// Machine constants.
+    Constants {
+        #[command(subcommand)]
+        cmd: ConstCmd,
+    },
+    /// Preview data of a program file (paths and junctions), as a summary or JSON.
+    PreviewData {
+        file: PathBuf,
+        /// Classify junctions (plans the program).
+        #[arg(long)]
+        junctions: bool,
+    },
+    /// Render a program preview to FILE.svg or FILE.png: paths, junction dots, red blocks
+    /// (local rendering with default machine settings, no daemon; --remote renders on the
+    /// daemon with the machine's axes, limits, constants and offsets).
+    Preview {
+        file: PathBuf,
+        /// Output file; .png writes PNG, anything else SVG.
+        #[arg(short = 'o', long)]
+        out: PathBuf,
+        /// View plane.
+        #[arg(long, default_value = "xy", value_parser = ["xy", "xz", "yz"])]
+        plane: String,
+        /// 1-based page (R387 blocks per page).
+        #[arg(long, default_value_t = 1)]
+        page: u32,
+        /// Velocity-over-time plot instead of the path picture.
+        #[arg(long)]
+        velocity: bool,
+        /// Render on the daemon (GetPreview) instead of locally.
+        #[arg(long)]
+        remote: bool,
+    },
+    /// The planned per-tick trajectory of a program file (or of the selected program) on the
+    /// daemon, without moving the machine: total time, and with -o a CSV of every tick
+    /// (time, setpoints, path speed, block) for plotting.
+    Trajectory {
+        file: Option<PathBuf>,
+        /// CSV output file.
+        #[arg(short = 'o', long)]
+        out: Option<PathBuf>,
+    },
+    /// grpc.health.v1 status of the daemon.
+    Health,
+    /// Print the SHA-256 of a token, for `[[api.tokens]] sha256 = ...`.
+    HashToken { token: String },
+}
+
+#[derive(Subcommand)]
+pub enum PlcCmd {
+    /// Every cell with unit, access and value.
+    List,
+    /// Read cells by name (AKRR_V) or address (0xA19C).
+    Read { cells: Vec<String> },
+    /// Write one input cell.
+    Write { cell: String, value: i64 },
+}
+
+#[derive(Subcommand)]
+pub enum ConstCmd {
+    /// Read constants (all set or with a default when none are named), decades decoded.
+    Get { numbers: Vec<u32> },
+    /// Set constants: `R39=45 R384=20.0` (admin role).
+    Set { values: Vec<String> },
+}

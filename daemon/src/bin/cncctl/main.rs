@@ -1,0 +1,137 @@
+//! `cncctl`: command-line client of the controller's gRPC API (docs/api.md).
+//!
+//! Every service is covered, one module each; every answer implements [`render::Render`]:
+//! output is for people by default and JSON with `--json`.
+
+mod args;
+mod connect;
+mod constants;
+mod error;
+mod machine;
+mod offsets;
+mod plc;
+mod preview;
+mod programs;
+mod render;
+mod status;
+mod trajectory;
+
+use std::process::ExitCode;
+
+use clap::Parser;
+use serde_json::{Value, json};
+use tonic_health::pb::HealthCheckRequest;
+use tonic_health::pb::health_check_response::ServingStatus;
+
+use args::{Args, Cmd};
+use connect::{Clients, connect};
+use error::CliError;
+use render::{Render, emit};
+
+#[tokio::main(flavor = "current_thread")]
+async fn main() -> ExitCode {
+    let args = Args::parse();
+    match run(args).await {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("cncctl: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Runs the commands that need no daemon here, the others on the daemon.
+async fn run(args: Args) -> Result<ExitCode, CliError> {
+    match &args.cmd {
+        Cmd::HashToken { token } => {
+            println!("{}", daemon::runtime::api::auth::hash_token_hex(token));
+            Ok(ExitCode::SUCCESS)
+        }
+        Cmd::Preview {
+            file,
+            out,
+            plane,
+            page,
+            velocity,
+            remote,
+        } => {
+            let a = preview::PreviewArgs {
+                file,
+                out,
+                plane,
+                page: *page,
+                velocity: *velocity,
+            };
+            if !*remote {
+                return preview::local(&a, args.json);
+            }
+            let mut c = connect(&args).await?;
+            preview::remote(&mut c.preview, &a, args.json).await
+        }
+        _ => {
+            let mut c = connect(&args).await?;
+            dispatch(&mut c, args.cmd, args.json).await
+        }
+    }
+}
+
+/// Routes a command to the module of its gRPC service.
+async fn dispatch(c: &mut Clients, cmd: Cmd, j: bool) -> Result<ExitCode, CliError> {
+    match cmd {
+        Cmd::Run { .. }
+        | Cmd::Load { .. }
+        | Cmd::Upload { .. }
+        | Cmd::Programs
+        | Cmd::Download { .. }
+        | Cmd::Delete { .. }
+        | Cmd::Rename { .. } => programs::command(c, cmd, j).await,
+        Cmd::Offsets { .. }
+        | Cmd::OffsetSet { .. }
+        | Cmd::OffsetsFile
+        | Cmd::OffsetsReplace { .. }
+        | Cmd::OffsetsReload => offsets::command(&mut c.offsets, cmd, j).await,
+        Cmd::Plc { cmd } => plc::command(&mut c.plc, cmd, j).await,
+        Cmd::Constants { cmd } => constants::command(&mut c.constants, cmd, j).await,
+        Cmd::PreviewData { file, junctions } => {
+            preview::data(&mut c.preview, &file, junctions, j).await
+        }
+        Cmd::Trajectory { file, out } => {
+            trajectory::command(&mut c.trajectory, file.as_deref(), out.as_deref(), j).await
+        }
+        Cmd::Health => health(c, j).await,
+        Cmd::HashToken { .. } | Cmd::Preview { .. } => unreachable!("run answers it"),
+        other => machine::command(&mut c.machine, other, j).await,
+    }
+}
+
+/// The grpc.health.v1 serving status.
+struct Health(&'static str);
+
+impl Render for Health {
+    fn json(&self) -> Value {
+        json!({"status": self.0})
+    }
+    fn human(&self) -> String {
+        self.0.to_string()
+    }
+}
+
+/// Prints the daemon's health; fails unless it is serving.
+async fn health(c: &mut Clients, j: bool) -> Result<ExitCode, CliError> {
+    let r = c
+        .health
+        .check(HealthCheckRequest {
+            service: String::new(),
+        })
+        .await?
+        .into_inner();
+    let name = ServingStatus::try_from(r.status)
+        .map(|s| s.as_str_name())
+        .unwrap_or("UNKNOWN");
+    emit(j, &Health(name));
+    Ok(if name == "SERVING" {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
+}

@@ -1,0 +1,126 @@
+//! Commands of the Offsets service: the offset table (TAB0.KOR) in memory and on file.
+
+use std::path::Path;
+use std::process::ExitCode;
+
+use proto::v1 as pb;
+use proto::v1::offsets_client::OffsetsClient;
+use serde_json::{Value, json};
+
+use crate::args::Cmd;
+use crate::connect::Svc;
+use crate::error::CliError;
+use crate::render::{Render, read_text, show};
+
+type Reply = Result<ExitCode, CliError>;
+
+/// Runs one Offsets command (main routes only these here).
+pub async fn command(o: &mut OffsetsClient<Svc>, cmd: Cmd, j: bool) -> Reply {
+    match cmd {
+        Cmd::Offsets { all } => {
+            let r = o
+                .get_offsets(pb::GetOffsetsRequest { include_zero: all })
+                .await?;
+            show(j, &r.into_inner())
+        }
+        Cmd::OffsetSet {
+            entry,
+            radius,
+            l1,
+            l2,
+            l3,
+            l4,
+        } => {
+            let r = o
+                .set_offset(pb::SetOffsetRequest {
+                    entry,
+                    radius_mm: radius,
+                    length1_mm: l1,
+                    length2_mm: l2,
+                    length3_mm: l3,
+                    length4_mm: l4,
+                })
+                .await?;
+            show(j, &r.into_inner())
+        }
+        Cmd::OffsetsFile => show(
+            j,
+            &o.get_offsets_file(pb::GetOffsetsFileRequest {})
+                .await?
+                .into_inner(),
+        ),
+        Cmd::OffsetsReplace { file } => replace(o, &file, j).await,
+        Cmd::OffsetsReload => {
+            let r = o.reload_offsets(pb::ReloadOffsetsRequest {}).await?;
+            show(j, &Entries("reloaded", r.into_inner().entries))
+        }
+        _ => unreachable!("main routes only Offsets service commands here"),
+    }
+}
+
+async fn replace(o: &mut OffsetsClient<Svc>, file: &Path, j: bool) -> Reply {
+    let text = read_text(file)?;
+    let r = o.replace_offsets_file(pb::OffsetsFile { text }).await?;
+    show(j, &Entries("TAB0.KOR replaced", r.into_inner().entries))
+}
+
+/// The table as people read it: `D`, radius and lengths, G92 changes marked.
+impl Render for pb::GetOffsetsReply {
+    fn json(&self) -> Value {
+        json!({"labels": self.labels, "entries": self.entries.iter().map(|e| json!({"entry": e.entry, "radius_mm": e.radius_mm, "length_mm": e.length_mm, "changed_by_program": e.changed_by_program})).collect::<Vec<_>>()})
+    }
+    fn human(&self) -> String {
+        let mut s = format!(
+            "{:>3} {:>12}",
+            "D",
+            self.labels.first().cloned().unwrap_or_default()
+        );
+        for l in self.labels.iter().skip(1) {
+            s.push_str(&format!(" {l:>12}"));
+        }
+        for e in &self.entries {
+            s.push_str(&format!("\n{:>3} {:>12.4}", e.entry, e.radius_mm));
+            for l in &e.length_mm {
+                s.push_str(&format!(" {l:>12.4}"));
+            }
+            if e.changed_by_program {
+                s.push_str("  (G92, not in file)");
+            }
+        }
+        s
+    }
+}
+
+/// One entry after an operator edit.
+impl Render for pb::OffsetEntry {
+    fn json(&self) -> Value {
+        json!({"entry": self.entry, "radius_mm": self.radius_mm, "length_mm": self.length_mm})
+    }
+    fn human(&self) -> String {
+        format!(
+            "D{}: R={} lengths {:?}",
+            self.entry, self.radius_mm, self.length_mm
+        )
+    }
+}
+
+impl Render for pb::OffsetsFile {
+    fn json(&self) -> Value {
+        json!({"text": self.text})
+    }
+    fn human(&self) -> String {
+        self.text.trim_end().to_string()
+    }
+}
+
+/// The table was replaced or reloaded: what happened, and its non-zero entries.
+struct Entries(&'static str, u32);
+
+impl Render for Entries {
+    fn json(&self) -> Value {
+        json!({"entries": self.1})
+    }
+    fn human(&self) -> String {
+        format!("{}: {} non-zero entries", self.0, self.1)
+    }
+}

@@ -1,0 +1,119 @@
+//! One way to print an answer: every command's result implements [`Render`] (text for people,
+//! one JSON value a line with `--json`). Diagnostics are rendered here only.
+
+use std::path::Path;
+use std::process::ExitCode;
+
+use prost::Message;
+use proto::v1 as pb;
+use serde_json::{Value, json};
+
+use crate::error::CliError;
+
+/// A command's answer, as people read it and as JSON.
+pub trait Render {
+    /// The `--json` form (printed on one line).
+    fn json(&self) -> Value;
+    /// The form for people; empty prints nothing.
+    fn human(&self) -> String;
+}
+
+/// Prints `r` in the chosen form.
+pub fn emit(json_mode: bool, r: &impl Render) {
+    if json_mode {
+        println!("{}", r.json());
+    } else {
+        let h = r.human();
+        if !h.is_empty() {
+            println!("{h}");
+        }
+    }
+}
+
+/// Prints `r` and ends the command successfully.
+pub fn show(json_mode: bool, r: &impl Render) -> Result<ExitCode, CliError> {
+    emit(json_mode, r);
+    Ok(ExitCode::SUCCESS)
+}
+
+/// A call that answers nothing but success: `{"ok": true}`, silent for people.
+pub struct Done;
+
+impl Render for Done {
+    fn json(&self) -> Value {
+        json!({"ok": true})
+    }
+    fn human(&self) -> String {
+        String::new()
+    }
+}
+
+/// Waits for a call that answers nothing and prints [`Done`].
+pub fn done<T>(
+    j: bool,
+    r: Result<tonic::Response<T>, tonic::Status>,
+) -> Result<ExitCode, CliError> {
+    r?;
+    show(j, &Done)
+}
+
+/// Renders a gRPC error for a person, with every diagnostic on its own line.
+pub fn explain(s: &tonic::Status) -> String {
+    match pb::Diagnostics::decode(s.details()) {
+        Ok(d) if !d.items.is_empty() => {
+            format!("{:?}: rejected{}", s.code(), diag_lines(&d.items))
+        }
+        _ => format!("{:?}: {}", s.code(), s.message()),
+    }
+}
+
+/// One diagnostic for people: `error: line 3:5 block N30: message`.
+pub fn diag_line(i: &pb::Diagnostic) -> String {
+    let sev = pb::Severity::try_from(i.severity)
+        .map(|s| {
+            s.as_str_name()
+                .trim_start_matches("SEVERITY_")
+                .to_lowercase()
+        })
+        .unwrap_or_default();
+    let sev = if i.code.is_empty() {
+        sev
+    } else {
+        format!("{sev} [{}]", i.code)
+    };
+    let block = i.block.map(|n| format!(" block N{n}")).unwrap_or_default();
+    // Line 0: the value did not come from a text (an offset or constant set by its name,
+    // which the message names).
+    if i.line == 0 {
+        return format!("{sev}{block}: {}", i.message);
+    }
+    format!("{sev}: line {}:{}{block}: {}", i.line, i.column, i.message)
+}
+
+/// Every diagnostic on its own indented line, each line starting with a newline.
+pub fn diag_lines(items: &[pb::Diagnostic]) -> String {
+    items
+        .iter()
+        .map(|d| format!("\n  {}", diag_line(d)))
+        .collect()
+}
+
+fn diag_json(i: &pb::Diagnostic) -> Value {
+    json!({"severity": pb::Severity::try_from(i.severity).map(|s| s.as_str_name()).unwrap_or("?"),
+        "block": i.block, "line": i.line, "column": i.column, "code": i.code, "message": i.message})
+}
+
+/// Every diagnostic as a JSON array.
+pub fn diags_json(items: &[pb::Diagnostic]) -> Value {
+    Value::Array(items.iter().map(diag_json).collect())
+}
+
+/// `N30`, or `-` for a block without a number.
+pub fn block_name(block: Option<u32>) -> String {
+    block.map(|n| format!("N{n}")).unwrap_or_else(|| "-".into())
+}
+
+/// A program file's text.
+pub fn read_text(file: &Path) -> Result<String, CliError> {
+    std::fs::read_to_string(file).map_err(CliError::read(file))
+}
