@@ -38,8 +38,8 @@ enum CncdError {
     #[error(transparent)]
     Start(#[from] StartError),
     /// The test-only stall knob has a value that is not a tick count.
-    #[error("{0}")]
-    FaultInject(String),
+    #[error(transparent)]
+    FaultInject(#[from] daemon::runtime::fault_inject::FaultKnobError),
     #[error("shutdown: {0}")]
     Shutdown(#[source] tokio::task::JoinError),
     #[error("stopped after the API failure above")]
