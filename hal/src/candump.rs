@@ -61,14 +61,40 @@ pub fn format_line(out: &mut String, micros: u64, iface: &str, frame: &Frame) {
     }
 }
 
+/// Why a CAN recording could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    #[error("cannot open CAN record file {}: {source}", path.display())]
+    Open {
+        path: std::path::PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("cannot start the CAN recorder: {0}")]
+    Thread(#[source] std::io::Error),
+}
+
+impl RecordError {
+    /// Stable code (tests and logs match it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            RecordError::Open { .. } => "can_record_open",
+            RecordError::Thread(_) => "can_record_thread",
+        }
+    }
+}
+
 /// Starts recording to `path` (appending). Returns the tap for the port and the writer thread,
 /// which ends (after flushing) when the tap is dropped.
-pub fn start(path: &Path, iface: &str) -> Result<(RecordTap, JoinHandle<()>), String> {
+pub fn start(path: &Path, iface: &str) -> Result<(RecordTap, JoinHandle<()>), RecordError> {
     let file = std::fs::OpenOptions::new()
         .create(true)
         .append(true)
         .open(path)
-        .map_err(|e| format!("cannot open CAN record file {}: {e}", path.display()))?;
+        .map_err(|source| RecordError::Open {
+            path: path.to_owned(),
+            source,
+        })?;
     // 4096 records = 1.3 s of traffic at 3 axes; the writer drains every 20 ms.
     let (producer, mut consumer) = rtrb::RingBuffer::<Record>::new(4096);
     let dropped = Arc::new(AtomicU64::new(0));
@@ -106,7 +132,7 @@ pub fn start(path: &Path, iface: &str) -> Result<(RecordTap, JoinHandle<()>), St
                 std::thread::sleep(Duration::from_millis(20));
             }
         })
-        .map_err(|e| format!("cannot start the CAN recorder: {e}"))?;
+        .map_err(RecordError::Thread)?;
     Ok((
         RecordTap {
             ring: producer,

@@ -34,8 +34,9 @@ fn check_text(case: &str, text: &str) -> Output {
     out
 }
 
-/// The file is refused with status 2, and the message holds every one of `needles`.
-fn assert_refused(case: &str, text: &str, needles: &[&str]) {
+/// The file is refused with status 2 and the error `code` (printed as `error [code]:`, the
+/// form cncctl gives diagnostics), and the message holds every one of `needles` (the key).
+fn assert_refused(case: &str, text: &str, code: &str, needles: &[&str]) {
     let out = check_text(case, text);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(
@@ -44,6 +45,10 @@ fn assert_refused(case: &str, text: &str, needles: &[&str]) {
         "{case}: expected exit status 2, got {:?}\nstdout: {}\nstderr: {err}",
         out.status,
         String::from_utf8_lossy(&out.stdout)
+    );
+    assert!(
+        err.contains(&format!("error [{code}]: ")),
+        "{case}: expected code {code}:\n{err}"
     );
     for n in needles {
         assert!(err.contains(n), "{case}: message lacks {n:?}:\n{err}");
@@ -85,6 +90,7 @@ fn a_missing_file_or_no_file_is_refused() {
     let out = check(Path::new("/nonexistent/cncd.toml"));
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("error [config_read]: "), "{err}");
     assert!(err.contains("cannot read /nonexistent/cncd.toml"), "{err}");
 
     let out = Command::new(cncd()).arg("--check-config").output().unwrap();
@@ -98,20 +104,37 @@ fn syntax_error_gives_line_and_column() {
     assert_refused(
         "syntax",
         "[[axes]]\nname = \"X\"\nmax_accel_mm_s2 = 800 800\n",
+        "config_parse",
         &["line 3", "column"],
     );
-    assert_refused("unclosed", "[rt\npriority = 80\n", &["line 1"]);
+    assert_refused(
+        "unclosed",
+        "[rt\npriority = 80\n",
+        "config_parse",
+        &["line 1"],
+    );
 }
 
 #[test]
 fn unknown_key_is_named() {
-    assert_refused("unknown-rt", "[rt]\nprio = 80\n", &["prio", "priority"]);
+    assert_refused(
+        "unknown-rt",
+        "[rt]\nprio = 80\n",
+        "config_parse",
+        &["prio", "priority"],
+    );
     assert_refused(
         "unknown-axis",
         &format!("{AXIS}max_accel = 800\n"),
+        "config_parse",
         &["max_accel", "max_accel_mm_s2"],
     );
-    assert_refused("unknown-section", "[rtt]\npriority = 80\n", &["rtt"]);
+    assert_refused(
+        "unknown-section",
+        "[rtt]\npriority = 80\n",
+        "config_parse",
+        &["rtt"],
+    );
 }
 
 #[test]
@@ -119,17 +142,25 @@ fn wrong_type_is_named() {
     assert_refused(
         "type-accel",
         &format!("{AXIS}max_accel_mm_s2 = \"fast\"\n"),
+        "config_parse",
         &["max_accel_mm_s2", "invalid type"],
     );
-    assert_refused("type-listen", "[api]\nlisten = 5\n", &["listen"]);
+    assert_refused(
+        "type-listen",
+        "[api]\nlisten = 5\n",
+        "config_parse",
+        &["listen"],
+    );
     assert_refused(
         "type-lock",
         "[rt]\nlock_memory = \"yes\"\n",
+        "config_parse",
         &["lock_memory", "invalid type"],
     );
     assert_refused(
         "type-name",
         "[[axes]]\nname = \"XY\"\n",
+        "config_parse",
         &["name", "invalid"],
     );
 }
@@ -139,26 +170,31 @@ fn out_of_range_value_is_named() {
     assert_refused(
         "range-accel",
         &format!("{AXIS}[[axes]]\nname = \"Y\"\nmax_accel_mm_s2 = -5\n"),
+        "config_bad_value",
         &["axes[1].max_accel_mm_s2: -5 must be a positive number"],
     );
     assert_refused(
         "range-velocity",
         &format!("{AXIS}max_velocity_mm_min = nan\n"),
+        "config_bad_value",
         &["axes[0].max_velocity_mm_min"],
     );
     assert_refused(
         "range-priority",
         "[rt]\npriority = 120\n",
+        "config_bad_value",
         &["rt.priority: 120 is outside 1..99"],
     );
     assert_refused(
         "range-axes",
         &"[[axes]]\nname = \"A\"\n".repeat(7),
+        "config_bad_value",
         &["axes:"],
     );
     assert_refused(
         "range-letter",
         "[[axes]]\nname = \"x\"\n",
+        "config_bad_value",
         &["axes[0].name"],
     );
 }
@@ -168,6 +204,7 @@ fn duplicate_axis_is_named() {
     assert_refused(
         "duplicate-axis",
         "[[axes]]\nname = \"X\"\n[[axes]]\nname = \"Y\"\n[[axes]]\nname = \"X\"\n",
+        "config_duplicate",
         &["axes[2].name: axis X appears twice"],
     );
 }
@@ -175,61 +212,86 @@ fn duplicate_axis_is_named() {
 #[test]
 fn bad_bus_settings_are_named() {
     let can = "[bus]\nkind = \"can\"\ninterface = \"can0\"\n";
-    assert_refused("bus-kind", "[bus]\nkind = \"usb\"\n", &["usb"]);
+    assert_refused(
+        "bus-kind",
+        "[bus]\nkind = \"usb\"\n",
+        "config_parse",
+        &["usb"],
+    );
     assert_refused(
         "bus-no-interface",
         "[bus]\nkind = \"can\"\n",
+        "config_parse",
         &["interface"],
     );
-    assert_refused("bus-no-node", &format!("{AXIS}{can}"), &["axes[0].node_id"]);
+    assert_refused(
+        "bus-no-node",
+        &format!("{AXIS}{can}"),
+        "config_missing",
+        &["axes[0].node_id"],
+    );
     assert_refused(
         "bus-node-twice",
         &format!("{AXIS}node_id = 4\n[[axes]]\nname = \"Y\"\nnode_id = 4\n{can}"),
+        "config_duplicate",
         &["axes[1].node_id: node 4 is used twice"],
     );
     assert_refused(
         "bus-node-range",
         &format!("{AXIS}node_id = 127\n{can}"),
+        "config_duplicate",
         &["axes[0].node_id"],
     );
     assert_refused(
         "bus-window",
         &format!("{can}following_window_mm = -1\n"),
+        "config_bad_value",
         &["bus.following_window_mm"],
     );
     assert_refused(
         "bus-unknown-key",
         &format!("{can}bitrate = 1000000\n"),
+        "config_parse",
         &["bitrate"],
     );
     assert_refused(
         "bus-serial-port",
         "[bus]\nkind = \"serial\"\nport = \"\"\n",
+        "config_missing",
         &["bus.port"],
     );
 }
 
 #[test]
 fn bad_paths_are_named() {
-    assert_refused("path-dir", "[storage]\ndir = \"\"\n", &["storage.dir"]);
+    assert_refused(
+        "path-dir",
+        "[storage]\ndir = \"\"\n",
+        "config_missing",
+        &["storage.dir"],
+    );
     assert_refused(
         "path-offsets",
         "[storage]\noffsets_file = \"\"\n",
+        "config_missing",
         &["storage.offsets_file", "must name a file"],
     );
     assert_refused(
         "path-dotdot",
         "[storage]\nconstants_file = \"data/..\"\n",
+        "config_missing",
         &["storage.constants_file", "must name a file"],
     );
     assert_refused(
         "path-same",
         "[storage]\noffsets_file = \"TAB0.KOR\"\nconstants_file = \"TAB0.KOR\"\n",
+        "config_duplicate",
         &["storage.constants_file: the same file as storage.offsets_file"],
     );
     assert_refused(
         "path-type",
         "[storage]\ndir = 5\n",
+        "config_parse",
         &["dir", "invalid type"],
     );
 }
@@ -239,26 +301,31 @@ fn bad_simulation_and_api_settings_are_named() {
     assert_refused(
         "sim-kv",
         "[sim]\nkv_per_s = 0\n",
+        "config_bad_value",
         &["sim.kv_per_s: 0 must be a positive number"],
     );
     assert_refused(
         "home-nan",
         &format!("{AXIS}home_mm = nan\n"),
+        "config_bad_value",
         &["axes[0].home_mm"],
     );
     assert_refused(
         "api-remote-no-tls",
         "[api]\nlisten = \"0.0.0.0:50051\"\n",
+        "config_missing",
         &["api.tls_cert", "requires TLS"],
     );
     assert_refused(
         "api-token-hash",
         "[[api.tokens]]\nname = \"hmi\"\nrole = \"operator\"\nsha256 = \"abc\"\n",
+        "config_bad_value",
         &["api.tokens[0].sha256"],
     );
     assert_refused(
         "api-role",
         "[api]\nlocal_role = \"root\"\n",
+        "config_parse",
         &["root", "local_role"],
     );
 }
@@ -269,6 +336,7 @@ fn tls_files_are_loaded_by_the_check() {
     assert_refused(
         "tls-missing",
         "[api]\ntls_cert = \"/nonexistent/cert.pem\"\ntls_key = \"/nonexistent/key.pem\"\n",
+        "api_tls_file",
         &["api.tls_cert", "/nonexistent/cert.pem"],
     );
     let junk = std::env::temp_dir().join(format!("cncd-check-junk-{}.pem", std::process::id()));
@@ -276,6 +344,7 @@ fn tls_files_are_loaded_by_the_check() {
     assert_refused(
         "tls-junk",
         &format!("[api]\ntls_cert = {junk:?}\ntls_key = {junk:?}\n"),
+        "api_tls",
         &["api.tls_cert"],
     );
     let _ = std::fs::remove_file(&junk);
@@ -299,6 +368,7 @@ fn the_daemon_refuses_a_bad_file_with_status_2_too() {
     let _ = std::fs::remove_dir_all(&dir);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("error [config_bad_value]: "), "{err}");
     assert!(err.contains("rt.priority: 0 is outside 1..99"), "{err}");
     assert_eq!(err.matches("rt.priority").count(), 1, "said twice:\n{err}");
 }
@@ -311,6 +381,7 @@ fn bus_cycle_outside_1_to_10_ms_or_fractional_is_refused() {
         assert_refused(
             case,
             &format!("[bus]\nkind = \"sim\"\ncycle_ms = {v}\n"),
+            "config_bad_value",
             &[
                 "bus.cycle_ms",
                 v,
@@ -322,12 +393,14 @@ fn bus_cycle_outside_1_to_10_ms_or_fractional_is_refused() {
             &format!(
                 "{AXIS}node_id = 1\n[bus]\nkind = \"can\"\ninterface = \"can0\"\ncycle_ms = {v}\n"
             ),
+            "config_bad_value",
             &["bus.cycle_ms", v],
         );
     }
     assert_refused(
         "cycle-serial",
         "[bus]\nkind = \"serial\"\nport = \"/dev/ttyUSB0\"\ncycle_ms = 2\n",
+        "config_bad_value",
         &["bus.cycle_ms", "serial protocol's cycle is 4 ms"],
     );
     for ms in [1, 2, 5, 10] {

@@ -38,8 +38,8 @@ enum CncdError {
     #[error(transparent)]
     Start(#[from] StartError),
     /// The test-only stall knob has a value that is not a tick count.
-    #[error("{0}")]
-    FaultInject(String),
+    #[error(transparent)]
+    FaultInject(#[from] daemon::runtime::fault_inject::FaultKnobError),
     #[error("shutdown: {0}")]
     Shutdown(#[source] tokio::task::JoinError),
     #[error("stopped after the API failure above")]
@@ -87,9 +87,9 @@ fn main() -> ExitCode {
             Err(e) => {
                 // Once, where the operator looks: the journal (with a priority) or stderr.
                 if target == LogTarget::Journal {
-                    tracing::error!("configuration: {e}");
+                    tracing::error!(code = e.code(), "configuration: {e}");
                 } else {
-                    eprintln!("cncd: {e}");
+                    eprintln!("cncd: error [{}]: {e}", e.code());
                 }
                 return ExitCode::from(EXIT_CONFIG);
             }
@@ -124,11 +124,13 @@ fn check_config(path: Option<&std::path::Path>) -> ExitCode {
     };
     // The TLS files are loaded too: a missing or broken certificate must fail here, not at
     // the next start.
-    let checked = Config::load(path).map_err(|e| e.to_string()).and_then(|c| {
-        server::check_tls(&c.api)
-            .map(|()| c)
-            .map_err(|e| format!("{}: {e}", path.display()))
-    });
+    let checked = Config::load(path)
+        .map_err(|e| (e.code(), e.to_string()))
+        .and_then(|c| {
+            server::check_tls(&c.api)
+                .map(|()| c)
+                .map_err(|e| (e.code(), format!("{}: {e}", path.display())))
+        });
     match checked {
         Ok(c) => {
             let names: String = c.axis_names().iter().collect();
@@ -140,8 +142,9 @@ fn check_config(path: Option<&std::path::Path>) -> ExitCode {
             );
             ExitCode::SUCCESS
         }
-        Err(e) => {
-            eprintln!("cncd: {e}");
+        Err((code, message)) => {
+            // The form cncctl gives diagnostics: `error [code]: message`.
+            eprintln!("cncd: error [{code}]: {message}");
             ExitCode::from(EXIT_CONFIG)
         }
     }

@@ -100,12 +100,34 @@ pub fn homing_params(a: &AxisConfig) -> HomingParams {
     }
 }
 
+/// Why the configured bus could not be opened (the message names the interface or port).
+#[derive(Debug, thiserror::Error)]
+pub enum OpenBusError {
+    #[error(transparent)]
+    Can(#[from] hal::canopen::CanOpenError),
+    #[error(transparent)]
+    Record(#[from] hal::candump::RecordError),
+    #[error(transparent)]
+    Serial(#[from] hal::serial::SerialError),
+}
+
+impl OpenBusError {
+    /// Stable code of the underlying error (tests and logs match it).
+    pub fn code(&self) -> &'static str {
+        match self {
+            OpenBusError::Can(e) => e.code(),
+            OpenBusError::Record(e) => e.code(),
+            OpenBusError::Serial(e) => e.code(),
+        }
+    }
+}
+
 /// Opens the configured bus for `axes`.
 pub fn open_bus(
     bus: &BusConfig,
     axes: &[AxisConfig],
     sim: &SimConfig,
-) -> Result<Box<dyn hal::DriveBus>, String> {
+) -> Result<Box<dyn hal::DriveBus>, OpenBusError> {
     match bus {
         BusConfig::Sim { cycle_ms } => {
             let params = sim::SimDriveParams {
@@ -125,15 +147,14 @@ pub fn open_bus(
             Ok(Box::new(bus))
         }
         BusConfig::Can(c) => {
-            let mut port = SocketCanPort::open(&c.interface).map_err(|e| e.to_string())?;
+            let mut port = SocketCanPort::open(&c.interface)?;
             if let Some(path) = &c.record {
                 // The writer thread ends when the bus (and its tap) is dropped.
                 let (tap, _writer) = hal::candump::start(path, &c.interface)?;
                 port = port.with_recording(tap);
             }
-            let master = can_config(c, axes)
-                .and_then(|cfg| CanOpenMaster::new(port, &c.interface, cfg))
-                .map_err(|e| e.to_string())?;
+            let master =
+                can_config(c, axes).and_then(|cfg| CanOpenMaster::new(port, &c.interface, cfg))?;
             Ok(Box::new(master))
         }
         BusConfig::Serial(s) => {
@@ -159,7 +180,7 @@ pub fn open_bus(
                         .collect(),
                 )
             };
-            Ok(Box::new(SerialBus::open(cfg).map_err(|e| e.to_string())?))
+            Ok(Box::new(SerialBus::open(cfg)?))
         }
     }
 }

@@ -653,6 +653,17 @@ pub enum ConfigError {
     },
 }
 
+impl ConfigError {
+    /// Stable code (tests and `cncd --check-config` show it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            ConfigError::Read { .. } => "config_read",
+            ConfigError::Parse { .. } => "config_parse",
+            ConfigError::Invalid { source, .. } => source.code(),
+        }
+    }
+}
+
 /// A value the validation refused (after serde accepted the file): the key it names and why.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum InvalidConfig {

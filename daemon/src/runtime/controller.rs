@@ -65,8 +65,8 @@ pub struct LoadedProgram {
 #[derive(Debug, thiserror::Error)]
 pub enum StartError {
     /// The bus could not be opened (`open_bus`: the message names the interface or port).
-    #[error("{0}")]
-    Bus(String),
+    #[error(transparent)]
+    Bus(#[from] super::buses::OpenBusError),
     #[error("storage.dir: cannot create {}: {source}", dir.display())]
     StorageDir {
         dir: std::path::PathBuf,

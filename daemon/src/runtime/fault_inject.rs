@@ -13,14 +13,30 @@ use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus};
 /// The environment variable of the stall knob.
 pub const STALL_RT_AFTER_TICKS: &str = "CNCD_FAULT_STALL_RT_AFTER_TICKS";
 
+/// A fault-injection knob with a value that cannot be used.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum FaultKnobError {
+    #[error("{STALL_RT_AFTER_TICKS}: {value:?} is not a number of ticks (fault injection)")]
+    StallTicks { value: String },
+}
+
+impl FaultKnobError {
+    /// Stable code (tests and logs match it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            FaultKnobError::StallTicks { .. } => "fault_stall_ticks",
+        }
+    }
+}
+
 /// The stall knob's value: `None` when unset, an error naming the variable when it is not a
 /// number of ticks.
-pub fn stall_after_ticks(value: Option<&str>) -> Result<Option<u64>, String> {
+pub fn stall_after_ticks(value: Option<&str>) -> Result<Option<u64>, FaultKnobError> {
     value
         .map(|v| {
-            v.trim().parse().map_err(|_| {
-                format!("{STALL_RT_AFTER_TICKS}: {v:?} is not a number of ticks (fault injection)")
-            })
+            v.trim()
+                .parse()
+                .map_err(|_| FaultKnobError::StallTicks { value: v.into() })
         })
         .transpose()
 }
@@ -62,7 +78,7 @@ mod tests {
         assert_eq!(stall_after_ticks(None), Ok(None));
         assert_eq!(stall_after_ticks(Some("250")), Ok(Some(250)));
         let e = stall_after_ticks(Some("soon")).unwrap_err();
-        assert!(e.starts_with(STALL_RT_AFTER_TICKS), "{e}");
+        assert_eq!(e.code(), "fault_stall_ticks", "{e}");
     }
 
     #[test]

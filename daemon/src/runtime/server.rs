@@ -87,8 +87,8 @@ pub enum ServerError {
     #[error("{0}")]
     Serve(String),
     /// The program library could not be opened (`storage.programs_dir`).
-    #[error("{0}")]
-    Library(String),
+    #[error(transparent)]
+    Library(#[from] super::api::ApiStateError),
 }
 
 impl ServerError {
@@ -105,7 +105,7 @@ impl ServerError {
             ServerError::TlsRequired => "api_tls_required",
             ServerError::Reflection(_) => "api_reflection",
             ServerError::Serve(_) => "api_serve",
-            ServerError::Library(_) => "api_library",
+            ServerError::Library(e) => e.code(),
         }
     }
 }

@@ -22,6 +22,56 @@ struct SpeedLimits {
     stop_dist_mm: f64,
 }
 
+/// The limits of `speed_limits` while it walks the caps ahead: with the coasting gap of a
+/// tick at constant acceleration (`coast`) and of one that accelerates (`coast_accel`; the
+/// parabolic profile's jerk limit makes them differ, the linear one has no gap).
+struct CapWalk {
+    soft: f64,
+    hard: f64,
+    soft_acc: f64,
+    hard_acc: f64,
+    coast: f64,
+    coast_accel: f64,
+}
+
+impl CapWalk {
+    /// Lowers the limits for the caps `d` mm ahead, held `lead_s` early, braked to at
+    /// `a_walk`.
+    fn limit(&mut self, d: f64, hard_cap: f64, soft_cap: f64, lead_s: f64, a_walk: f64) {
+        // Any speed up to the cap itself is safe for that cap; above it, we must still be
+        // able to brake to it (later caps are checked on their own). A cap at or above the
+        // limit so far cannot lower it (skipped: no square root on a dense path at its cap
+        // speed).
+        let limit = |cur: &mut f64, cap: f64, gap: f64| {
+            if cap < *cur {
+                *cur = cur.min(cap.max(Interpolator::v_brake(d - cap * lead_s, cap, a_walk, gap)));
+            }
+        };
+        limit(&mut self.hard, hard_cap, self.coast);
+        limit(&mut self.soft, soft_cap, self.coast);
+        if self.coast_accel != self.coast {
+            limit(&mut self.hard_acc, hard_cap, self.coast_accel);
+            limit(&mut self.soft_acc, soft_cap, self.coast_accel);
+        }
+    }
+
+    fn finish(self, stop_dist_mm: f64) -> SpeedLimits {
+        // (Linear profile: no gap, the same limits; not computed twice.)
+        let (soft_acc, hard_acc) = if self.coast_accel == self.coast {
+            (self.soft, self.hard)
+        } else {
+            (self.soft_acc, self.hard_acc)
+        };
+        SpeedLimits {
+            soft_mm_s: self.soft,
+            hard_mm_s: self.hard,
+            soft_accel_mm_s: soft_acc.min(self.soft),
+            hard_accel_mm_s: hard_acc.min(self.hard),
+            stop_dist_mm,
+        }
+    }
+}
+
 impl Interpolator {
     pub(super) fn stops_here(&self, stop: ProgramStop) -> bool {
         match stop {
@@ -309,18 +359,9 @@ impl Interpolator {
     fn speed_limits(&mut self, head: &Segment, accel_mm_s2: f64, braking: bool) -> SpeedLimits {
         let a_floor = self.accel_floor();
         let lag_s = self.cap_zone_ticks() as f64 * TS_S;
-        let (behind_cap, behind_feed) = self.behind_caps();
-        // Soft limits: feed × override of this and later segments, approached at `a`.
-        let mut soft = if braking {
-            0.0
-        } else {
-            self.ceiling(head).min(behind_feed * self.override_factor)
-        };
-        // Hard limits: geometric ceilings, planned end speeds, end of the buffer.
-        let mut hard = head.v_max_mm_s.min(behind_cap).min(self.entry_cap_mm_s);
+        let mut walk = self.caps_here(head, braking);
         let v_up = self.raw_v_mm_s + accel_mm_s2 * TS_S;
-        let (coast, coast_accel) = self.coast_gaps(head);
-        let (mut soft_acc, mut hard_acc) = (soft, hard);
+        let coast_accel = walk.coast_accel;
         // Caps farther than this cannot constrain this tick (braking distance at `a_walk`).
         let reach = |a_walk: f64| {
             v_up * v_up / (2.0 * a_walk) + (2.0 + coast_accel) * v_up * TS_S + v_up * lag_s
@@ -334,41 +375,15 @@ impl Interpolator {
         for k in self.raw_seg..self.len {
             let seg = self.seg(k);
             if k > self.raw_seg {
-                let ak = if braking {
-                    seg.stop_accel_mm_s2
-                } else {
-                    seg.accel_mm_s2
-                };
-                let a_seg = self.raw_accel(ak, seg);
+                let a_seg = self.walk_accel(seg, braking);
                 if a_seg < a_walk {
                     a_walk = a_seg;
                     reach_mm = reach(a_floor.min(a_walk));
                 }
             }
             let next = (k + 1 < self.len).then(|| self.seg(k + 1));
-            let (hard_cap, soft_cap, lead) = match next {
-                Some(n) if seg.v_end_mm_s > 0.0 => (
-                    self.end_cap_mm_s(seg).min(n.v_max_mm_s),
-                    self.ceiling(n),
-                    lag_s,
-                ),
-                _ => (0.0, 0.0, 0.0),
-            };
-            // Any speed up to the cap itself is safe for that cap; above it, we must still be
-            // able to brake to it (later caps are checked on their own). A cap at or above
-            // the limit so far cannot lower it (skipped: no square root on a dense path at
-            // its cap speed).
-            let limit = |cur: &mut f64, cap: f64, gap: f64| {
-                if cap < *cur {
-                    *cur = cur.min(cap.max(Self::v_brake(d - cap * lead, cap, a_walk, gap)));
-                }
-            };
-            limit(&mut hard, hard_cap, coast);
-            limit(&mut soft, soft_cap, coast);
-            if coast_accel != coast {
-                limit(&mut hard_acc, hard_cap, coast_accel);
-                limit(&mut soft_acc, soft_cap, coast_accel);
-            }
+            let (hard_cap, soft_cap, lead_s) = self.caps_at_end(seg, next, lag_s);
+            walk.limit(d, hard_cap, soft_cap, lead_s, a_walk);
             if hard_cap == 0.0 {
                 stop_dist_mm = d;
                 break;
@@ -378,16 +393,50 @@ impl Interpolator {
             }
             d += next.map_or(0.0, |n| n.length_mm);
         }
-        if coast_accel == coast {
-            // (Linear profile: no gap, the same limits; not computed twice.)
-            (soft_acc, hard_acc) = (soft, hard);
+        walk.finish(stop_dist_mm)
+    }
+
+    /// The limits before any cap ahead: soft, feed × override of this and later segments
+    /// (nothing when braking); hard, geometric ceilings, planned end speeds, end of the buffer.
+    fn caps_here(&self, head: &Segment, braking: bool) -> CapWalk {
+        let (behind_cap, behind_feed) = self.behind_caps();
+        let soft = if braking {
+            0.0
+        } else {
+            self.ceiling(head).min(behind_feed * self.override_factor)
+        };
+        let hard = head.v_max_mm_s.min(behind_cap).min(self.entry_cap_mm_s);
+        let (coast, coast_accel) = self.coast_gaps(head);
+        CapWalk {
+            soft,
+            hard,
+            soft_acc: soft,
+            hard_acc: hard,
+            coast,
+            coast_accel,
         }
-        SpeedLimits {
-            soft_mm_s: soft,
-            hard_mm_s: hard,
-            soft_accel_mm_s: soft_acc.min(soft),
-            hard_accel_mm_s: hard_acc.min(hard),
-            stop_dist_mm,
+    }
+
+    /// The acceleration the look-ahead brakes with on a later segment `seg`.
+    fn walk_accel(&self, seg: &Segment, braking: bool) -> f64 {
+        let a = if braking {
+            seg.stop_accel_mm_s2
+        } else {
+            seg.accel_mm_s2
+        };
+        self.raw_accel(a, seg)
+    }
+
+    /// The caps at the end of `seg` (hard, soft) and how long before them they hold: a stop
+    /// point (0, 0, 0) at the end of the buffer or where the segment ends at rest.
+    fn caps_at_end(&self, seg: &Segment, next: Option<&Segment>, lag_s: f64) -> (f64, f64, f64) {
+        match next {
+            Some(n) if seg.v_end_mm_s > 0.0 => (
+                self.end_cap_mm_s(seg).min(n.v_max_mm_s),
+                self.ceiling(n),
+                lag_s,
+            ),
+            _ => (0.0, 0.0, 0.0),
         }
     }
 

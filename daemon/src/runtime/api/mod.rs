@@ -65,6 +65,26 @@ struct PlanInfo {
     pass: Option<Arc<::preview::pipeline::Recording>>,
 }
 
+/// Why the state shared by the services could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum ApiStateError {
+    #[error("storage.programs_dir: cannot open {}: {source}", dir.display())]
+    Library {
+        dir: std::path::PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+impl ApiStateError {
+    /// Stable code (tests and logs match it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            ApiStateError::Library { .. } => "api_library",
+        }
+    }
+}
+
 /// State shared by every service.
 pub struct ApiState {
     pub ctl: Arc<Controller>,
@@ -86,15 +106,16 @@ pub struct ApiState {
 
 impl ApiState {
     /// Builds the state and starts the alarm watcher (needs a tokio runtime).
-    pub fn new(ctl: Arc<Controller>) -> Result<Arc<ApiState>, String> {
+    pub fn new(ctl: Arc<Controller>) -> Result<Arc<ApiState>, ApiStateError> {
         let api = &ctl.config().api;
         let st = &ctl.config().storage;
-        let library = Library::open(&st.programs_path(), st.programs_max_bytes).map_err(|e| {
-            format!(
-                "storage.programs_dir: cannot open {}: {e}",
-                st.programs_path().display()
-            )
-        })?;
+        let library =
+            Library::open(&st.programs_path(), st.programs_max_bytes).map_err(|source| {
+                ApiStateError::Library {
+                    dir: st.programs_path(),
+                    source,
+                }
+            })?;
         let alarms = Arc::new(alarms::AlarmLog::new(api.alarm_history as usize));
         let state = Arc::new(ApiState {
             max_streams: api.max_streams as usize,
