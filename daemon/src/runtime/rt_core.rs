@@ -542,7 +542,10 @@ impl RtCore {
                 RtCommand::Jog(r) => self.jog_request(r),
                 RtCommand::JogStop => self.jog.stop(),
                 RtCommand::Home(r) => self.home_request(r, bus),
-                RtCommand::Hold => self.interp.hold(),
+                // Only a job is held (the controller's check may have read an older
+                // snapshot: the job may have ended since).
+                RtCommand::Hold if self.active_job != 0 => self.interp.hold(),
+                RtCommand::Hold => {}
                 RtCommand::Resume => self.interp.resume(),
                 RtCommand::Override(pct) => {
                     self.interp.set_override(pct);

@@ -358,9 +358,14 @@ impl Interpolator {
         self.spindle_wait
     }
 
+    /// Feed hold: brakes to rest on the path; or, when no segment has arrived yet (a job just
+    /// started, its first segment still being planned), holds at the start: segments pushed
+    /// meanwhile wait, and the motion begins only on `resume`. A hold is never lost.
     pub fn hold(&mut self) {
-        if self.state == InterpState::Running {
-            self.state = InterpState::Holding;
+        match self.state {
+            InterpState::Running => self.state = InterpState::Holding,
+            InterpState::Idle => self.state = InterpState::Held,
+            _ => {}
         }
     }
 

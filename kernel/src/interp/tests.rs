@@ -94,6 +94,24 @@ fn hold_brakes_and_resume_finishes() {
 }
 
 #[test]
+fn hold_before_the_first_segment_holds_at_the_start() {
+    // The daemon's job starts before the planner has delivered its first segment: a hold
+    // pressed then must hold the job at its start, not be lost.
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    ip.hold();
+    ip.push(line(0, [0.0; 3], [10.0, 0.0, 0.0], 50.0, 0.0))
+        .unwrap();
+    for _ in 0..100 {
+        let t = ip.tick();
+        assert_eq!(t.position[0], 0.0);
+        assert_eq!(t.state, InterpState::Held);
+    }
+    ip.resume();
+    let trace = run(&mut ip, 10_000);
+    assert_eq!(trace.last().unwrap().position[0], 10.0);
+}
+
+#[test]
 fn stop_brakes_then_drops_the_rest() {
     let mut ip = Interpolator::new(3, AxesMm::ZERO);
     ip.push(line(0, [0.0; 3], [100.0, 0.0, 0.0], 50.0, 0.0))
