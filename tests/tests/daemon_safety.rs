@@ -438,10 +438,7 @@ async fn jog_stream(
 /// before the end (each brake still within its distance), and from the fastest tick that
 /// dip would count as braking.
 fn final_braking(points: &[[f64; hal::MAX_AXES]], axis: usize) -> (f64, f64) {
-    let v: Vec<f64> = points
-        .windows(2)
-        .map(|w| ((w[1][axis] - w[0][axis]) / 0.004).abs())
-        .collect();
+    let v: Vec<f64> = speeds(points, axis).collect();
     // Back from the end over the ticks at rest, then up the braking ramp while the speed
     // strictly rises (braking at a takes a·Ts = 3.2 mm/s off per tick).
     let mut k = v.len() - 1;
@@ -457,10 +454,14 @@ fn final_braking(points: &[[f64; hal::MAX_AXES]], axis: usize) -> (f64, f64) {
 
 /// The fastest tick of axis `axis` in the recording (mm/s).
 fn top_speed(points: &[[f64; hal::MAX_AXES]], axis: usize) -> f64 {
+    speeds(points, axis).fold(0.0, f64::max)
+}
+
+/// The speed of axis `axis` over each 4 ms tick of the recording (mm/s).
+fn speeds(points: &[[f64; hal::MAX_AXES]], axis: usize) -> impl Iterator<Item = f64> + '_ {
     points
         .windows(2)
-        .map(|w| ((w[1][axis] - w[0][axis]) / 0.004).abs())
-        .fold(0.0, f64::max)
+        .map(move |w| ((w[1][axis] - w[0][axis]) / 0.004).abs())
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
