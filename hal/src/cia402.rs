@@ -1,6 +1,10 @@
 //! CiA 402 drive profile: the power state machine driven by the controlword (0x6040) and
 //! reported by the statusword (0x6041). Both sides live here, so the master and the simulated
-//! drive share one reading of the standard.
+//! drive share one reading of the standard; [`drive`] is the master's phase machine of one
+//! drive, shared by every bus.
+
+pub mod drive;
+pub use drive::{Drive, DrivePhase, DriveSettings, FaultReaction, Setpoint, ShutdownMode};
 
 /// Controlword bits (0x6040).
 pub mod cw {

@@ -145,10 +145,7 @@ fn serial_bus_cycle_does_not_allocate() {
     let mut cfg = SerialConfig::new(
         &path,
         (1..=2)
-            .map(|node_id| SerialAxis {
-                node_id,
-                increments_per_mm: 1000.0,
-            })
+            .map(|node_id| SerialAxis::new(node_id, 1000.0))
             .collect(),
     );
     // Generous: this test is about allocations, not timing on a loaded machine.

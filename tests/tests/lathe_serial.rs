@@ -107,10 +107,7 @@ fn lathe() -> Harness {
     let (master, slave) = TTYPort::pair().unwrap();
     let path = slave.name().unwrap();
     let axes = (1..=2)
-        .map(|node_id| SerialAxis {
-            node_id,
-            increments_per_mm: INC_PER_MM,
-        })
+        .map(|node_id| SerialAxis::new(node_id, INC_PER_MM))
         .collect();
     let mut scfg = SerialConfig::new(&path, axes);
     scfg.spindle = Some(SerialSpindle {

@@ -31,10 +31,7 @@ fn rig(link: &Path, axes: usize) -> Rig {
     let mut cfg = SerialConfig::new(
         link.to_str().unwrap(),
         (1..=axes as u8)
-            .map(|node_id| SerialAxis {
-                node_id,
-                increments_per_mm: INC_PER_MM,
-            })
+            .map(|node_id| SerialAxis::new(node_id, INC_PER_MM))
             .collect(),
     );
     cfg.reply_timeout_ticks = 50;
@@ -143,10 +140,7 @@ fn spindle_speed_crosses_the_link_both_ways() {
     let mut cfg = SerialConfig::new(
         link.to_str().unwrap(),
         (1..=2)
-            .map(|node_id| SerialAxis {
-                node_id,
-                increments_per_mm: INC_PER_MM,
-            })
+            .map(|node_id| SerialAxis::new(node_id, INC_PER_MM))
             .collect(),
     );
     cfg.reply_timeout_ticks = 50;

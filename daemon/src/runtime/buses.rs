@@ -63,19 +63,29 @@ pub fn can_config(c: &CanBusConfig, axes: &[AxisConfig]) -> Result<CanOpenConfig
         following_error_limit_mm: c.following_error_limit_mm,
         error_frame_limit: c.error_frame_limit,
         cycle,
-        shutdown: match c.shutdown {
-            ShutdownKey::Disable => ShutdownMode::Disable,
-            ShutdownKey::QuickStop => ShutdownMode::QuickStop,
-        },
-        fault_reaction: match c.fault_reaction {
-            FaultReactionKey::QuickStop => FaultReaction::QuickStop,
-            FaultReactionKey::DisableVoltage => FaultReaction::DisableVoltage,
-            FaultReactionKey::Hold => FaultReaction::Hold,
-        },
+        shutdown: shutdown_mode(c.shutdown),
+        fault_reaction: fault_reaction(c.fault_reaction),
         homing_timeout: ms(c.homing_timeout_ms),
         spindle,
         ..CanOpenConfig::new(nodes)
     })
+}
+
+/// The `[bus] shutdown` key as the masters take it.
+fn shutdown_mode(k: ShutdownKey) -> ShutdownMode {
+    match k {
+        ShutdownKey::Disable => ShutdownMode::Disable,
+        ShutdownKey::QuickStop => ShutdownMode::QuickStop,
+    }
+}
+
+/// The `[bus] fault_reaction` key as the masters take it.
+fn fault_reaction(k: FaultReactionKey) -> FaultReaction {
+    match k {
+        FaultReactionKey::QuickStop => FaultReaction::QuickStop,
+        FaultReactionKey::DisableVoltage => FaultReaction::DisableVoltage,
+        FaultReactionKey::Hold => FaultReaction::Hold,
+    }
 }
 
 /// The drive's homing settings of axis `a` in drive units (docs/buses.md#homing): the home
@@ -162,6 +172,9 @@ pub fn open_bus(
                 baud: s.baud,
                 reply_timeout_ticks: s.reply_timeout_ticks,
                 enable_timeout_ticks: s.enable_timeout_ticks,
+                cycle: Duration::from_secs_f64(s.cycle_ms / 1000.0),
+                shutdown: shutdown_mode(s.shutdown),
+                fault_reaction: fault_reaction(s.fault_reaction),
                 // Reference runs need protocol version 3; without them the link stays on the
                 // version older units speak.
                 homing: axes.iter().any(|a| a.homing == HomingMode::Required),
@@ -174,8 +187,8 @@ pub fn open_bus(
                     axes.iter()
                         .enumerate()
                         .map(|(i, a)| SerialAxis {
-                            node_id: a.node_id.unwrap_or(i as u8 + 1),
-                            increments_per_mm: a.increments_per_mm,
+                            max_velocity_mm_s: a.max_velocity_mm_min / 60.0,
+                            ..SerialAxis::new(a.node_id.unwrap_or(i as u8 + 1), a.increments_per_mm)
                         })
                         .collect(),
                 )
@@ -409,6 +422,8 @@ mod tests {
                 reply_timeout_ticks: 25,
                 cycle_ms: 4.0,
                 enable_timeout_ticks: 500,
+                shutdown: ShutdownKey::Disable,
+                fault_reaction: FaultReactionKey::QuickStop,
                 spindle_node: None,
                 spindle_units_per_rpm: 1.0,
             })

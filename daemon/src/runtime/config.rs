@@ -1051,7 +1051,7 @@ pub struct CanBusConfig {
     pub spindle_units_per_rpm: f64,
 }
 
-/// `[bus] shutdown` of the CAN bus.
+/// `[bus] shutdown` of a CAN or serial bus.
 #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
 pub enum ShutdownKey {
@@ -1064,7 +1064,7 @@ fn default_cycle_ms() -> f64 {
     4.0
 }
 
-/// `[bus] fault_reaction` of the CAN bus.
+/// `[bus] fault_reaction` of a CAN or serial bus.
 #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
 pub enum FaultReactionKey {
@@ -1157,9 +1157,16 @@ pub struct SerialBusConfig {
     /// position loop by 4 ms per request), so 4 is the only value accepted.
     #[serde(default = "default_cycle_ms")]
     pub cycle_ms: f64,
-    /// Ticks (bus cycles) allowed for the CiA 402 enable sequence.
+    /// Ticks (bus cycles) allowed for the CiA 402 enable sequence (and for the switch-off
+    /// walk when the daemon ends).
     #[serde(default = "default_enable_timeout_ticks")]
     pub enable_timeout_ticks: u32,
+    /// How the drives are switched off when the daemon ends, as on CAN.
+    #[serde(default)]
+    pub shutdown: ShutdownKey,
+    /// What the drives do after a fault stop, as on CAN.
+    #[serde(default)]
+    pub fault_reaction: FaultReactionKey,
     /// Address of the unit's spindle drive (named in alarms); set: the unit has a spindle and
     /// the link speaks protocol version 2. Unset: no spindle drive, protocol version 1.
     #[serde(default)]

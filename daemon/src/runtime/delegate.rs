@@ -49,6 +49,21 @@ macro_rules! delegate_drive_bus {
             self.$i.home_switch(axis)
         }
     };
+    (@one $i:ident enable_timeout_ticks) => {
+        fn enable_timeout_ticks(&self) -> u32 {
+            self.$i.enable_timeout_ticks()
+        }
+    };
+    (@one $i:ident shutdown) => {
+        fn shutdown(&mut self) {
+            self.$i.shutdown()
+        }
+    };
+    (@one $i:ident is_shut_down) => {
+        fn is_shut_down(&self) -> bool {
+            self.$i.is_shut_down()
+        }
+    };
     (@one $i:ident set_home) => {
         fn set_home(&mut self, axis: usize, trigger_mm: f64, reference_mm: f64) {
             self.$i.set_home(axis, trigger_mm, reference_mm)

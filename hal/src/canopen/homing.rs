@@ -100,15 +100,15 @@ impl<P: CanPort> CanOpenMaster<P> {
     pub(super) fn start_homing_node(&mut self, i: usize) {
         let tick = self.tick;
         let n = &mut self.nodes[i];
-        if n.phase != Phase::Operational || n.cfg.homing.is_none() {
+        let enabled = n.phase == Phase::Running && n.drive.phase() == DrivePhase::Enabled;
+        if !enabled || n.cfg.homing.is_none() {
             n.homing = HomingState::Aborted;
             return;
         }
         n.homing = HomingState::Running;
         n.home_since = tick;
         n.mode_changed = true;
-        n.taken_over = false;
-        n.target_increments = n.hold_target();
+        n.drive.hold(cw::ENABLE_OPERATION_CMD);
         self.send_homing_step(i, None, 0, false);
     }
 
@@ -204,14 +204,12 @@ impl<P: CanPort> CanOpenMaster<P> {
         match leaving {
             None => n.phase = Phase::Homing(Home::Running { since: tick }),
             Some(outcome) => {
-                // Back in CSP: hold at the new position actual until the commanded position
-                // (re-based on it) takes over.
-                n.phase = Phase::Operational;
+                // Back in CSP, enabled: hold at the new position actual until the commanded
+                // position (re-based on it) takes over.
+                n.phase = Phase::Running;
                 n.homing = outcome;
                 n.mode_changed = false;
-                n.taken_over = false;
-                n.controlword = cw::ENABLE_OPERATION_CMD;
-                n.target_increments = n.hold_target();
+                n.drive.hold(cw::ENABLE_OPERATION_CMD);
             }
         }
     }
@@ -222,12 +220,11 @@ impl<P: CanPort> CanOpenMaster<P> {
         let timeout = self.ticks(self.cfg.homing_timeout);
         let tick = self.tick;
         let n = &mut self.nodes[i];
-        n.target_increments = n.hold_target();
-        let s = n.statusword;
+        let s = n.drive.statusword();
         match PowerState::from_statusword(s) {
             PowerState::OperationEnabled => {}
             PowerState::Fault | PowerState::FaultReactionActive => {
-                let code = n.emcy_code.unwrap_or(0);
+                let code = n.drive.error_code();
                 return self.fault(i, FaultReason::DriveFault { code });
             }
             _ => return self.fault(i, FaultReason::DriveDisabled { statusword: s }),
@@ -245,7 +242,7 @@ impl<P: CanPort> CanOpenMaster<P> {
                 sent_at,
                 retried,
             } => {
-                n.controlword = cw::ENABLE_OPERATION_CMD;
+                n.drive.hold(cw::ENABLE_OPERATION_CMD);
                 if tick - sent_at <= self.ticks(self.cfg.sdo_timeout) {
                     return;
                 }
@@ -260,7 +257,7 @@ impl<P: CanPort> CanOpenMaster<P> {
                 }
             }
             Home::Running { since } => {
-                n.controlword = cw::ENABLE_OPERATION_CMD | cw::HOMING_START;
+                n.drive.hold(cw::ENABLE_OPERATION_CMD | cw::HOMING_START);
                 if !fresh(since) {
                 } else if s & sw::HOMING_ERROR != 0 {
                     self.fault(i, FaultReason::HomingError { statusword: s });
@@ -271,7 +268,7 @@ impl<P: CanPort> CanOpenMaster<P> {
                 }
             }
             Home::Halting { since } => {
-                n.controlword = cw::ENABLE_OPERATION_CMD;
+                n.drive.hold(cw::ENABLE_OPERATION_CMD);
                 if fresh(since) && s & sw::TARGET_REACHED != 0 {
                     self.send_homing_step(i, Some(HomingState::Aborted), 0, false);
                 }
@@ -279,24 +276,28 @@ impl<P: CanPort> CanOpenMaster<P> {
         }
     }
 
-    /// After a fault stop with the healthy axes at rest: every drive still enabled goes to
-    /// the configured safe state (its target holds where it stands).
+    /// After a fault stop with the healthy axes at rest: every drive still enabled (or on its
+    /// way) goes to the configured safe state, its target holding where it stands.
     pub(super) fn enter_safe_state(&mut self) {
-        let controlword = match self.cfg.fault_reaction {
-            FaultReaction::Hold => return,
-            FaultReaction::QuickStop => cw::QUICK_STOP_CMD,
-            FaultReaction::DisableVoltage => cw::DISABLE_VOLTAGE,
+        let Some(controlword) = self.cfg.fault_reaction.controlword() else {
+            return;
         };
         for n in &mut self.nodes {
-            // A stopped node is in its safe state already.
-            if n.phase.is_started() && n.phase != Phase::Stopped {
+            let stops = match n.phase {
+                Phase::Starting { .. } | Phase::Homing(_) => true,
+                // Stopped already, or by a fault of its own: in its safe state.
+                Phase::Running => matches!(
+                    n.drive.phase(),
+                    DrivePhase::Enabling { .. } | DrivePhase::Enabled
+                ),
+                _ => false,
+            };
+            if stops {
                 if n.homing == HomingState::Running {
                     n.homing = HomingState::Aborted;
                 }
-                n.phase = Phase::Stopped;
-                n.controlword = controlword;
-                n.target_increments = n.hold_target();
-                n.taken_over = false;
+                n.phase = Phase::Running;
+                n.drive.stop(controlword);
             }
         }
     }

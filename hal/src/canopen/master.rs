@@ -8,8 +8,10 @@
 //! 1. drain the received frames (TPDOs answering the last SYNC, heartbeats, EMCY, SDO
 //!    answers, error frames);
 //! 2. advance each node through its [`Phase`]: NMT reset → boot-up → SDO configuration →
-//!    (all configured) NMT start → CiA 402 enable sequence → operational; watch TPDOs,
-//!    heartbeats, statusword; on shutdown walk the power stage down and leave the bus;
+//!    (all configured) NMT start → running, where the CiA 402 phase machine every bus shares
+//!    ([`crate::cia402::Drive`]) enables the drive, watches its statusword and hands it the
+//!    setpoints; watch TPDOs and heartbeats; on shutdown walk the power stage down and leave
+//!    the bus;
 //! 3. send SYNC (once a node is started), then one RPDO (controlword, target position) per
 //!    node in NMT operational.
 //!
@@ -17,7 +19,7 @@
 //! one tick old. Timeouts are counted in ticks, so a late tick never causes a false alarm.
 //!
 //! Child modules (issue #22): `startup.rs` (the start-up SDO plan, the settings check),
-//! `node.rs` (a node's phases and its advance by one tick), `homing.rs` (the drive's reference
+//! `node.rs` (a node's communication phases and its advance by one tick), `homing.rs` (the drive's reference
 //! run in homing mode 6, the safe state after a fault stop), `master_tests.rs`.
 
 use std::time::Duration;
@@ -31,7 +33,8 @@ use super::emcy::{self, Emcy};
 use super::pdo::{self, OpMode, Rpdo, Tpdo};
 use super::sdo::{self, Response};
 use super::{CanOpenError, CanPort, Frame, NodeId, PortError, RxEvent, cob, err_class, nmt};
-use crate::cia402::{self, PowerState, cw, sw};
+use crate::cia402::{Drive, DrivePhase, PowerState, cw, sw};
+pub use crate::cia402::{FaultReaction, ShutdownMode};
 use crate::units::to_units;
 
 #[path = "homing.rs"]
@@ -84,32 +87,6 @@ pub struct SpindleNodeConfig {
     /// Drive velocity units (0x60FF, 0x606C) per rpm, e.g. 1 for a drive in rpm, 10 for
     /// 0.1 rpm, or encoder increments per second per rpm (increments per revolution / 60).
     pub units_per_rpm: f64,
-}
-
-/// How the orderly shutdown switches an enabled drive off.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum ShutdownMode {
-    /// Disable operation (07h), shutdown (06h), disable voltage (00h).
-    #[default]
-    Disable,
-    /// Quick stop (02h), then disable voltage (00h): the drive stops by its quick stop
-    /// option (0x605A) first.
-    QuickStop,
-}
-
-/// What the drives do after a fault stop, once the healthy axes are at rest
-/// ([`DriveBus::safe_state`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum FaultReaction {
-    /// Quick stop (controlword 02h): the drives end in Quick Stop Active (or Switch On
-    /// Disabled, by their quick stop option 0x605A).
-    #[default]
-    QuickStop,
-    /// Disable voltage (00h): power stage off at once, Switch On Disabled (an axis with a
-    /// holding brake needs it; a vertical axis without one may sag).
-    DisableVoltage,
-    /// The drives stay enabled and hold their last setpoint.
-    Hold,
 }
 
 /// Bus-wide settings. Times are counted in ticks of `cycle` (rounded up), so a late tick
@@ -273,16 +250,22 @@ impl<P: CanPort> CanOpenMaster<P> {
         }
     }
 
+    /// Stops node `i` for `reason`. A fault of the drive itself while it runs stays with its
+    /// CiA 402 machine (a fault reset over the RPDO may clear it); any other stops the node
+    /// (a reset restarts it). The first fault stays: later ones follow from it.
     fn fault(&mut self, i: usize, reason: FaultReason) {
         let n = &mut self.nodes[i];
-        if !matches!(
-            n.phase,
-            Phase::Faulted(_) | Phase::Idle | Phase::ShuttingDown(_)
-        ) {
+        if n.fault_reason().is_some() || matches!(n.phase, Phase::Idle | Phase::ShuttingDown(_)) {
+            return;
+        }
+        if is_drive_level(reason) && matches!(n.phase, Phase::Starting { .. } | Phase::Running) {
+            n.phase = Phase::Running;
+        } else {
             n.phase = Phase::Faulted(reason);
-            if n.homing == HomingState::Running {
-                n.homing = HomingState::Aborted;
-            }
+        }
+        n.drive.fault(reason);
+        if n.homing == HomingState::Running {
+            n.homing = HomingState::Aborted;
         }
     }
 
@@ -323,7 +306,7 @@ impl<P: CanPort> CanOpenMaster<P> {
                 if e.code == 0 || self.nodes[i].phase == Phase::Idle {
                     return;
                 }
-                self.nodes[i].emcy_code = Some(e.code);
+                self.nodes[i].drive.set_error_code(e.code);
                 let reason = if e.code == emcy::FOLLOWING_ERROR {
                     FaultReason::FollowingError
                 } else {
@@ -349,8 +332,7 @@ impl<P: CanPort> CanOpenMaster<P> {
         match Tpdo::decode(f.payload()) {
             Some(t) => {
                 let n = &mut self.nodes[i];
-                n.statusword = t.statusword;
-                n.position_increments = t.position_increments;
+                n.drive.on_status(t.statusword, t.position_increments);
                 n.tpdo_seen = true;
                 // Only a node in NMT operational sends PDOs.
                 n.nmt_state = nmt::state::OPERATIONAL;
@@ -384,11 +366,7 @@ impl<P: CanPort> CanOpenMaster<P> {
         if !matches!(n.phase, Phase::Starting { .. }) {
             n.nmt_state = state;
         }
-        if state != nmt::state::OPERATIONAL
-            && matches!(
-                n.phase,
-                Phase::Enabling { .. } | Phase::Operational | Phase::Homing(_) | Phase::Stopped
-            )
+        if state != nmt::state::OPERATIONAL && matches!(n.phase, Phase::Running | Phase::Homing(_))
         {
             self.fault(i, FaultReason::NmtStateChanged { state });
         }
@@ -413,7 +391,7 @@ impl<P: CanPort> CanOpenMaster<P> {
                     }
                     Response::UploadOk { value, .. } => {
                         if expected == Step::ReadPosition {
-                            self.nodes[i].position_increments = value as i32;
+                            self.nodes[i].drive.set_actual_increments(value as i32);
                         }
                         self.next_step(i, step);
                     }
@@ -469,8 +447,7 @@ impl<P: CanPort> CanOpenMaster<P> {
             n.tpdo_seen = false;
             n.last_heartbeat = tick;
             n.nmt_state = nmt::state::OPERATIONAL;
-            n.target_increments = n.hold_target();
-            n.controlword = cw::DISABLE_VOLTAGE;
+            n.drive.switch_off();
             let id = n.cfg.node_id.get();
             self.send(&nmt::command(nmt::Command::Start, id));
         }
@@ -503,12 +480,20 @@ impl<P: CanPort> CanOpenMaster<P> {
         self.nodes.get(self.axes)
     }
 
-    fn state_of(phase: Phase) -> DriveState {
-        match phase {
-            Phase::Idle | Phase::ShuttingDown(_) | Phase::Stopped => DriveState::Disabled,
+    fn state_of(n: &Node) -> DriveState {
+        match n.phase {
+            Phase::Idle | Phase::ShuttingDown(_) => DriveState::Disabled,
             // The drive homes on its own, enabled: the axis counts as operational.
-            Phase::Operational | Phase::Homing(_) => DriveState::Operational,
+            Phase::Homing(_) => DriveState::Operational,
             Phase::Faulted(_) => DriveState::Fault,
+            Phase::Running => match n.drive.phase() {
+                DrivePhase::Enabled => DriveState::Operational,
+                DrivePhase::Faulted(_) => DriveState::Fault,
+                DrivePhase::Enabling { .. } => DriveState::Enabling,
+                DrivePhase::Off | DrivePhase::Stopped | DrivePhase::PoweringDown { .. } => {
+                    DriveState::Disabled
+                }
+            },
             _ => DriveState::Enabling,
         }
     }
@@ -535,8 +520,8 @@ impl<P: CanPort> CanOpenMaster<P> {
             let n = &self.nodes[i];
             if n.gets_rpdo() {
                 let f = Rpdo {
-                    controlword: n.controlword,
-                    target_increments: n.target_increments,
+                    controlword: n.drive.controlword(),
+                    target_increments: n.drive.target_increments(),
                 }
                 .encode(n.cfg.node_id.get());
                 self.send(&f);
@@ -569,16 +554,16 @@ impl<P: CanPort> CanOpenMaster<P> {
     fn fill_feedback(&self, feedback: &mut CycleFeedback) {
         for (fb, n) in feedback.axes.iter_mut().zip(&self.nodes[..self.axes]) {
             *fb = AxisFeedback {
-                position_mm: f64::from(n.position_increments) / n.cfg.increments_per_mm,
-                state: Self::state_of(n.phase),
+                position_mm: f64::from(n.drive.actual_increments()) / n.cfg.increments_per_mm,
+                state: Self::state_of(n),
             };
         }
         let (spindle_rpm, spindle_state) = match self.spindle() {
-            Some(n) if n.phase == Phase::Operational => (
-                f64::from(n.position_increments) / n.cfg.increments_per_mm,
+            Some(n) if Self::state_of(n) == DriveState::Operational => (
+                f64::from(n.drive.actual_increments()) / n.cfg.increments_per_mm,
                 DriveState::Operational,
             ),
-            Some(n) => (0.0, Self::state_of(n.phase)),
+            Some(n) => (0.0, Self::state_of(n)),
             None => (0.0, DriveState::Disabled),
         };
         feedback.spindle_rpm = spindle_rpm;
@@ -595,7 +580,7 @@ impl<P: CanPort> CanOpenMaster<P> {
             });
         }
         for (i, n) in self.nodes.iter().enumerate() {
-            if let Phase::Faulted(reason) = n.phase {
+            if let Some(reason) = n.fault_reason() {
                 return Err(BusFault {
                     axis: Some(self.axis_of(i)),
                     node: Some(n.cfg.node_id.get()),
@@ -673,38 +658,8 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
         let whole_bus = self.bus_fault.take().is_some();
         self.error_score = 0;
         self.tx_blocked_ticks = 0;
-        let tick = self.tick;
-        let hb_ticks = self.ticks(self.cfg.heartbeat_timeout);
-        let restart = Phase::ResetPending {
-            command: nmt::Command::ResetCommunication,
-        };
-        for n in &mut self.nodes {
-            // Still in NMT operational by its own latest word: a fault reset over the RPDO
-            // is enough. Otherwise (it left operational, or went quiet) the whole start-up.
-            let talking =
-                n.nmt_state == nmt::state::OPERATIONAL && tick - n.last_heartbeat <= hb_ticks;
-            match n.phase {
-                // A reference run that did not return to CSP: restart, so the configuration
-                // sets the mode again.
-                Phase::Faulted(_) | Phase::Stopped if n.mode_changed => n.phase = restart,
-                Phase::Faulted(r) if is_drive_level(r) && !whole_bus && talking => {
-                    n.emcy_code = None;
-                    n.tpdo_missing = 0;
-                    n.phase = Phase::Enabling { since: tick };
-                }
-                Phase::Stopped if !whole_bus => {
-                    n.tpdo_missing = 0;
-                    n.phase = Phase::Enabling { since: tick };
-                }
-                Phase::Faulted(_) | Phase::Stopped => n.phase = restart,
-                Phase::Idle => {
-                    n.phase = Phase::ResetPending {
-                        command: nmt::Command::ResetNode,
-                    }
-                }
-                _ if whole_bus => n.phase = restart,
-                _ => {}
-            }
+        for i in 0..self.nodes.len() {
+            self.reset_node(i, whole_bus);
         }
     }
 
@@ -724,33 +679,8 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
             return;
         }
         self.shutting_down = true;
-        let tick = self.tick;
         for i in 0..self.nodes.len() {
-            let n = &mut self.nodes[i];
-            match n.phase {
-                Phase::Idle
-                | Phase::ResetPending { .. }
-                | Phase::Booting { .. }
-                | Phase::Faulted(FaultReason::NoBootUp) => {
-                    n.phase = Phase::ShuttingDown(Off::Done);
-                }
-                Phase::Starting { .. }
-                | Phase::Enabling { .. }
-                | Phase::Operational
-                | Phase::Homing(_)
-                | Phase::Stopped => {
-                    n.phase = Phase::ShuttingDown(Off::PowerDown { since: tick });
-                }
-                Phase::Faulted(r) if is_drive_level(r) => {
-                    n.phase = Phase::ShuttingDown(Off::PowerDown { since: tick });
-                }
-                // Configured but not started, or communication lost: no power stage to walk
-                // down, but the heartbeat watch may be set.
-                Phase::Configuring { .. } | Phase::Configured | Phase::Faulted(_) => {
-                    self.send_clear_consumer(i, false);
-                }
-                Phase::ShuttingDown(_) => {}
-            }
+            self.shut_down_node(i);
         }
     }
 

@@ -3,7 +3,13 @@
 use std::collections::VecDeque;
 
 use super::*;
+use crate::cia402;
 use std::time::Duration;
+
+/// Node `n` runs with its drive enabled.
+fn enabled(n: &Node) -> bool {
+    n.phase == Phase::Running && n.drive.phase() == DrivePhase::Enabled
+}
 
 /// A port fed by the test: `rx` is what the master will receive, `tx` what it sent.
 #[derive(Default)]
@@ -194,7 +200,7 @@ fn operational(m: &mut CanOpenMaster<FakePort>) {
         let (_, r) = step(m);
         assert!(r.is_ok());
     }
-    assert_eq!(m.nodes[0].phase, Phase::Operational);
+    assert!(enabled(&m.nodes[0]));
 }
 
 #[test]
@@ -266,7 +272,7 @@ fn emcy_and_statusword_faults_then_reset_resumes() {
     step(&mut m).1.unwrap();
     tpdo(&mut m, PowerState::OperationEnabled, 0, 2500);
     step(&mut m).1.unwrap();
-    assert_eq!(m.nodes[0].phase, Phase::Operational);
+    assert!(enabled(&m.nodes[0]));
 
     // Following error bit 13 names the following error.
     tpdo(&mut m, PowerState::Fault, sw::FOLLOWING_ERROR, 2500);
@@ -507,7 +513,7 @@ fn spindle_bring_up(m: &mut CanOpenMaster<FakePort>) -> (Vec<(u16, u8, u32)>, bo
             }
         }
         answer_sdos(m, &sent);
-        if m.nodes.iter().all(|n| n.phase == Phase::Operational) {
+        if m.nodes.iter().all(enabled) {
             return (writes, uploads);
         }
     }

@@ -1,15 +1,16 @@
-//! One node of the master: where it is ([`Phase`]), what the master knows of it
-//! ([`Node`]), and its advance by one tick through start-up, enable, operation and
-//! shutdown. A child of `master`.
+//! One node of the master: where it is on the bus ([`Phase`]), what the master knows of it
+//! ([`Node`]), and its advance by one tick through start-up, running, and shutdown. Once
+//! started, its drive's power stage is run by the CiA 402 phase machine every bus shares
+//! ([`Drive`]). A child of `master`.
 
 use super::*;
-use crate::cia402::EnableStep;
+use crate::cia402::{DriveSettings, Setpoint};
 
 /// The orderly shutdown of one node, in this order.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum Off {
-    /// Power stage walked down by the statusword: 07h → 06h → 00h.
-    PowerDown { since: u64 },
+    /// The drive's power stage walked down by its statusword (07h → 06h → 00h, or 02h → 00h).
+    PowerDown,
     /// SDO write 0x1016:1 = 0: the drive stops watching the master's heartbeat, so the
     /// master may go silent without the drive faulting.
     ClearConsumer { sent_at: u64, retried: bool },
@@ -17,8 +18,9 @@ pub(super) enum Off {
     Done,
 }
 
-/// Where a node is. The order of the variants is the order of a start-up; a reset re-enters
-/// at `ResetPending` (communication lost) or `Enabling` (drive-level fault).
+/// Where a node is on the bus. The order of the variants is the order of a start-up; a reset
+/// re-enters at `ResetPending` (communication lost, or the node stopped) or restarts the
+/// drive's enable sequence while `Running` (a fault of the drive itself).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) enum Phase {
     /// Before `enable()`.
@@ -44,16 +46,13 @@ pub(super) enum Phase {
     Starting {
         since: u64,
     },
-    /// CiA 402 enable sequence, acting on fresh statuswords only.
-    Enabling {
-        since: u64,
-    },
-    Operational,
+    /// NMT operational: the drive's CiA 402 machine has the power stage (enabling, enabled,
+    /// in the safe state, or stopped by a fault of the drive).
+    Running,
     /// The drive's own reference run (homing mode 6), then back to CSP.
     Homing(Home),
-    /// Brought to the safe state after a fault stop ([`FaultReaction`]); a reset enables it
-    /// again.
-    Stopped,
+    /// Stopped by a fault of the communication, the configuration or a reference run: a reset
+    /// restarts the node.
     Faulted(FaultReason),
     ShuttingDown(Off),
 }
@@ -64,11 +63,7 @@ impl Phase {
     pub(super) fn is_started(self) -> bool {
         matches!(
             self,
-            Phase::Starting { .. }
-                | Phase::Enabling { .. }
-                | Phase::Operational
-                | Phase::Homing(_)
-                | Phase::Stopped
+            Phase::Starting { .. } | Phase::Running | Phase::Homing(_)
         )
     }
 }
@@ -76,12 +71,10 @@ impl Phase {
 pub(super) struct Node {
     /// For the spindle node `increments_per_mm` holds its velocity units per rpm.
     pub(super) cfg: NodeConfig,
-    pub(super) mode: OpMode,
     pub(super) steps: Vec<Step>,
     pub(super) phase: Phase,
-    pub(super) statusword: u16,
-    /// The TPDO's value: actual position (CSP) or actual velocity (CSV), drive units.
-    pub(super) position_increments: i32,
+    /// The power stage: statusword, actual value, controlword and target.
+    pub(super) drive: Drive,
     /// A TPDO arrived in this tick (its statusword is fresh).
     pub(super) tpdo_seen: bool,
     pub(super) tpdo_missing: u32,
@@ -90,14 +83,6 @@ pub(super) struct Node {
     /// commanded. RPDOs go only to nodes known operational.
     pub(super) nmt_state: u8,
     pub(super) booted: bool,
-    pub(super) controlword: u16,
-    pub(super) target_increments: i32,
-    pub(super) emcy_code: Option<u16>,
-    /// The commanded positions have been taken over: until then an enabled drive holds its
-    /// own position, so the target never jumps (CSV nodes take the setpoint at once).
-    pub(super) taken_over: bool,
-    /// One tick's travel at the axis's highest speed, increments (at least 1).
-    pub(super) max_step_increments: i64,
     /// The drive's reference run, as reported to the controller.
     pub(super) homing: HomingState,
     /// Tick the reference run started (its timeout counts from there).
@@ -110,47 +95,46 @@ pub(super) struct Node {
 impl Node {
     pub(super) fn new(c: &CanOpenConfig, cfg: NodeConfig, mode: OpMode) -> Node {
         let step = cfg.max_velocity_mm_s * cfg.increments_per_mm * c.cycle.as_secs_f64();
+        let setpoint = match mode {
+            OpMode::Csp => Setpoint::Position,
+            OpMode::Csv => Setpoint::Velocity,
+        };
+        let settings = DriveSettings {
+            // The master's following-error check is a position check.
+            following_error_increments: c
+                .following_error_limit_mm
+                .map(|mm| mm * cfg.increments_per_mm),
+            shutdown: c.shutdown,
+            ..DriveSettings::new(setpoint, step, ticks(c.enable_timeout, c.cycle))
+        };
         Node {
             steps: startup_steps(c, &cfg, mode),
-            max_step_increments: (step.floor() as i64).max(1),
+            drive: Drive::new(settings),
             cfg,
-            mode,
             phase: Phase::Idle,
-            statusword: 0,
-            position_increments: 0,
             tpdo_seen: false,
             tpdo_missing: 0,
             last_heartbeat: 0,
             nmt_state: nmt::state::PRE_OPERATIONAL,
             booted: false,
-            controlword: 0,
-            target_increments: 0,
-            emcy_code: None,
-            taken_over: false,
             homing: HomingState::Idle,
             home_since: 0,
             mode_changed: false,
         }
     }
 
-    /// The target that holds the drive still: where it is (CSP), or speed 0 (CSV).
-    pub(super) fn hold_target(&self) -> i32 {
-        match self.mode {
-            OpMode::Csp => self.position_increments,
-            OpMode::Csv => 0,
+    /// The fault that stops this node: its own, or its running drive's.
+    pub(super) fn fault_reason(&self) -> Option<FaultReason> {
+        match self.phase {
+            Phase::Faulted(r) => Some(r),
+            Phase::Running => self.drive.fault_reason(),
+            _ => None,
         }
     }
 
     /// Phases in which the node sends a TPDO every SYNC.
     pub(super) fn expects_pdo(&self) -> bool {
-        matches!(
-            self.phase,
-            Phase::Starting { .. }
-                | Phase::Enabling { .. }
-                | Phase::Operational
-                | Phase::Homing(_)
-                | Phase::Stopped
-        )
+        self.phase.is_started()
     }
 
     /// Whether the node gets an RPDO this tick: it is known to be in NMT operational and the
@@ -158,11 +142,7 @@ impl Node {
     pub(super) fn gets_rpdo(&self) -> bool {
         self.nmt_state == nmt::state::OPERATIONAL
             && match self.phase {
-                Phase::Starting { .. }
-                | Phase::Enabling { .. }
-                | Phase::Operational
-                | Phase::Homing(_)
-                | Phase::Stopped => true,
+                Phase::Starting { .. } | Phase::Running | Phase::Homing(_) => true,
                 // A silent drive may still listen: controlword 0 switches it off.
                 Phase::Faulted(r) => is_drive_level(r) || r == FaultReason::Timeout,
                 Phase::ShuttingDown(off) => off != Off::Done,
@@ -182,10 +162,7 @@ impl<P: CanPort> CanOpenMaster<P> {
         let missing_limit = self.ticks(self.cfg.tpdo_timeout);
         let tick = self.tick;
         let n = &mut self.nodes[i];
-        if !matches!(
-            n.phase,
-            Phase::Enabling { .. } | Phase::Operational | Phase::Homing(_) | Phase::Stopped
-        ) {
+        if !matches!(n.phase, Phase::Running | Phase::Homing(_)) {
             return;
         }
         if n.tpdo_seen {
@@ -203,51 +180,45 @@ impl<P: CanPort> CanOpenMaster<P> {
     /// Advances node `i` by one tick; `target` is this tick's setpoint in drive units.
     pub(super) fn update_node(&mut self, i: usize, target: i32) {
         self.watch(i);
+        let tick = self.tick;
         match self.nodes[i].phase {
             Phase::Idle | Phase::Configured | Phase::ShuttingDown(Off::Done) => {}
-            Phase::ResetPending { command } => {
-                let tick = self.tick;
-                let n = &mut self.nodes[i];
-                n.booted = false;
-                n.emcy_code = None;
-                n.nmt_state = nmt::state::PRE_OPERATIONAL;
-                n.phase = Phase::Booting {
-                    since: tick,
-                    command,
-                };
-                let id = n.cfg.node_id.get();
-                self.send(&nmt::command(command, id));
-            }
+            Phase::ResetPending { command } => self.send_reset(i, command),
             Phase::Booting { since, command } => self.boot(i, since, command),
             Phase::Configuring {
                 step,
                 sent_at,
                 retried,
             } => self.configure(i, step, sent_at, retried),
-            Phase::Starting { since } => self.start(i, since),
-            Phase::Enabling { since } => self.enable_step(i, since),
-            Phase::Operational => self.operate(i, target),
-            Phase::Homing(h) => self.update_homing(i, h),
-            Phase::Stopped => {
-                // The safe state's controlword stays; the drive holds where it stands.
+            Phase::Starting { since } => self.start(i, since, target),
+            // A node stopped by a fault keeps its power stage off (over the RPDO, where it
+            // still listens), its target where the drive is.
+            Phase::Running | Phase::Faulted(_) => {
                 let n = &mut self.nodes[i];
-                n.target_increments = n.hold_target();
+                n.drive.tick(tick, n.tpdo_seen, target);
             }
-            Phase::Faulted(_) => {}
-            Phase::ShuttingDown(Off::PowerDown { since }) => self.power_down(i, since),
+            Phase::Homing(h) => self.update_homing(i, h),
+            Phase::ShuttingDown(Off::PowerDown) => self.power_down(i),
             Phase::ShuttingDown(Off::ClearConsumer { sent_at, retried }) => {
                 self.clear_consumer(i, sent_at, retried)
             }
         }
-        // A faulted node gets its power stage switched off in this tick's RPDO; its target
-        // stays where the drive is.
+        self.nodes[i].tpdo_seen = false;
+    }
+
+    /// The NMT reset of node `i` goes out; it boots afresh, its power stage off.
+    fn send_reset(&mut self, i: usize, command: nmt::Command) {
+        let tick = self.tick;
         let n = &mut self.nodes[i];
-        if matches!(n.phase, Phase::Faulted(_)) {
-            n.controlword = cw::DISABLE_VOLTAGE;
-            n.target_increments = n.hold_target();
-            n.taken_over = false;
-        }
-        n.tpdo_seen = false;
+        n.booted = false;
+        n.nmt_state = nmt::state::PRE_OPERATIONAL;
+        n.drive.switch_off();
+        n.phase = Phase::Booting {
+            since: tick,
+            command,
+        };
+        let id = n.cfg.node_id.get();
+        self.send(&nmt::command(command, id));
     }
 
     pub(super) fn boot(&mut self, i: usize, since: u64, command: nmt::Command) {
@@ -288,99 +259,103 @@ impl<P: CanPort> CanOpenMaster<P> {
         }
     }
 
-    pub(super) fn start(&mut self, i: usize, since: u64) {
+    /// Waiting for the first TPDO after NMT start; with it the enable sequence begins.
+    pub(super) fn start(&mut self, i: usize, since: u64, target: i32) {
         let boot_ticks = self.ticks(self.cfg.boot_timeout);
         let tick = self.tick;
         let n = &mut self.nodes[i];
-        n.target_increments = n.hold_target();
         if n.tpdo_seen {
             n.tpdo_missing = 0;
-            n.phase = Phase::Enabling { since: tick };
-            self.enable_step(i, tick);
+            n.phase = Phase::Running;
+            n.drive.begin_enable(tick);
         } else if tick - since > boot_ticks {
-            self.fault(i, FaultReason::Timeout);
+            return self.fault(i, FaultReason::Timeout);
         }
+        let n = &mut self.nodes[i];
+        n.drive.tick(tick, n.tpdo_seen, target);
     }
 
-    /// The CiA 402 enable sequence. It acts only on a statusword that arrived this tick: after
-    /// a reset the last one known may be stale (the drive faulted or switched off since).
-    pub(super) fn enable_step(&mut self, i: usize, since: u64) {
-        let enable_ticks = self.ticks(self.cfg.enable_timeout);
+    /// A reset of node `i`: a fault of the drive itself, or the safe state, is cleared over
+    /// the RPDO while the node still talks (CiA 402 fault reset, enable again); anything else
+    /// restarts the node. `whole_bus`: the bus itself had failed, every node restarts.
+    pub(super) fn reset_node(&mut self, i: usize, whole_bus: bool) {
         let tick = self.tick;
+        let hb_ticks = self.ticks(self.cfg.heartbeat_timeout);
         let n = &mut self.nodes[i];
-        // The target follows the actual position (a spindle: stands) until enabled.
-        n.target_increments = n.hold_target();
-        if tick - since > enable_ticks {
-            let statusword = n.statusword;
-            self.fault(i, FaultReason::EnableTimeout { statusword });
-        } else if !n.tpdo_seen {
-            // Keep the last controlword until the drive reports again.
-        } else {
-            match cia402::enable_step(n.statusword, n.controlword) {
-                EnableStep::Enabled => {
-                    n.phase = Phase::Operational;
-                    n.controlword = cw::ENABLE_OPERATION_CMD;
-                    n.taken_over = n.mode == OpMode::Csv;
-                }
-                EnableStep::Toward(c) => n.controlword = c,
-            }
-        }
-    }
-
-    pub(super) fn operate(&mut self, i: usize, target: i32) {
-        // The master's following-error check is a position check: not for a velocity node.
-        let fe_limit = self
-            .cfg
-            .following_error_limit_mm
-            .filter(|_| self.nodes[i].mode == OpMode::Csp)
-            .map(|mm| mm * self.nodes[i].cfg.increments_per_mm);
-        let n = &mut self.nodes[i];
-        let lag = f64::from(n.target_increments) - f64::from(n.position_increments);
-        if let Some(reason) = cia402::operating_fault(n.statusword, n.emcy_code.unwrap_or(0)) {
-            self.fault(i, reason);
-        } else if fe_limit.is_some_and(|l| lag.abs() > l) {
-            self.fault(i, FaultReason::FollowingError);
-        } else if n.taken_over {
-            n.target_increments = target;
-        } else if (i64::from(target) - i64::from(n.target_increments)).abs()
-            <= n.max_step_increments
-        {
-            // The controller commands from where the drive is: from now on it leads.
-            n.taken_over = true;
-            n.target_increments = target;
-        } else {
-            // The controller has not yet taken its commanded position from this drive's
-            // actual position (it does so once every drive is enabled): hold still.
-            n.target_increments = n.hold_target();
-        }
-    }
-
-    /// Shutdown: walk the power stage down (07h → 06h → 00h, or 02h → 00h) on fresh
-    /// statuswords.
-    pub(super) fn power_down(&mut self, i: usize, since: u64) {
-        let enable_ticks = self.ticks(self.cfg.enable_timeout);
-        let toward_off = match self.cfg.shutdown {
-            ShutdownMode::Disable => cia402::controlword_toward_disabled,
-            ShutdownMode::QuickStop => cia402::controlword_toward_disabled_by_quick_stop,
+        // Still in NMT operational by its own latest word: a fault reset over the RPDO is
+        // enough. Otherwise (it left operational, or went quiet) the whole start-up.
+        let talking = n.nmt_state == nmt::state::OPERATIONAL && tick - n.last_heartbeat <= hb_ticks;
+        let restart = Phase::ResetPending {
+            command: nmt::Command::ResetCommunication,
         };
+        let drive = n.drive.phase();
+        n.phase = match n.phase {
+            Phase::Idle => Phase::ResetPending {
+                command: nmt::Command::ResetNode,
+            },
+            Phase::Faulted(_) => restart,
+            // A reference run that did not return to CSP: restart, so the configuration
+            // sets the mode again.
+            Phase::Running if whole_bus || n.mode_changed => restart,
+            Phase::Running => match drive {
+                DrivePhase::Faulted(_) if !talking => restart,
+                DrivePhase::Faulted(_) | DrivePhase::Stopped => {
+                    n.tpdo_missing = 0;
+                    n.drive.begin_enable(tick);
+                    Phase::Running
+                }
+                _ => Phase::Running,
+            },
+            _ if whole_bus => restart,
+            other => other,
+        };
+        if n.phase == restart {
+            n.drive.switch_off();
+        }
+    }
+
+    /// The start of node `i`'s orderly shutdown, by where it is.
+    pub(super) fn shut_down_node(&mut self, i: usize) {
         let tick = self.tick;
         let n = &mut self.nodes[i];
-        let state = PowerState::from_statusword(n.statusword);
-        let off = matches!(
-            state,
-            PowerState::SwitchOnDisabled
-                | PowerState::NotReadyToSwitchOn
-                | PowerState::Fault
-                | PowerState::FaultReactionActive
-        );
-        if (n.tpdo_seen && off)
-            || tick - since > enable_ticks
-            || n.nmt_state != nmt::state::OPERATIONAL
-        {
-            n.controlword = cw::DISABLE_VOLTAGE;
+        match n.phase {
+            Phase::Idle
+            | Phase::ResetPending { .. }
+            | Phase::Booting { .. }
+            | Phase::Faulted(FaultReason::NoBootUp) => {
+                n.phase = Phase::ShuttingDown(Off::Done);
+            }
+            Phase::Starting { .. } | Phase::Running | Phase::Homing(_) => {
+                n.phase = Phase::ShuttingDown(Off::PowerDown);
+                n.drive.begin_power_down(tick);
+            }
+            Phase::Faulted(r) if is_drive_level(r) => {
+                n.phase = Phase::ShuttingDown(Off::PowerDown);
+                n.drive.begin_power_down(tick);
+            }
+            // Configured but not started, or communication lost: no power stage to walk
+            // down, but the heartbeat watch may be set.
+            Phase::Configuring { .. } | Phase::Configured | Phase::Faulted(_) => {
+                self.send_clear_consumer(i, false);
+            }
+            Phase::ShuttingDown(_) => {}
+        }
+    }
+
+    /// Shutdown: the drive's power stage walks down on fresh statuswords (at once if the
+    /// node left NMT operational: it no longer takes the RPDO); then the heartbeat watch is
+    /// cleared.
+    pub(super) fn power_down(&mut self, i: usize) {
+        let tick = self.tick;
+        let n = &mut self.nodes[i];
+        if n.nmt_state == nmt::state::OPERATIONAL {
+            let target = n.drive.target_increments();
+            n.drive.tick(tick, n.tpdo_seen, target);
+        } else {
+            n.drive.switch_off();
+        }
+        if n.drive.phase() == DrivePhase::Off {
             self.send_clear_consumer(i, false);
-        } else if n.tpdo_seen {
-            n.controlword = toward_off(state);
         }
     }
 

@@ -3,7 +3,9 @@
 //!
 //! Each tick ([`DriveBus::cycle`], in this order): read what arrived (the reply to the
 //! previous tick's request), count a missing reply, watch the reference command, advance each
-//! axis's CiA 402 enable sequence, write this tick's request, report. The port is non-blocking
+//! drive's CiA 402 phase machine (the one every bus shares, [`Drive`]: enable sequence,
+//! statusword watch, a target that never jumps, safe state, orderly switch-off), write this
+//! tick's request, report. The port is non-blocking
 //! (zero timeout), so a tick never waits for the drive; a reply missing for
 //! `reply_timeout_ticks` consecutive ticks is a fault. A port that reports hang-up or an I/O
 //! error is closed; [`DriveBus::reset`] opens it again (the operator's reset after replugging).
@@ -18,13 +20,15 @@
 //! position (see [`Homing`]). A unit that answers only older versions is refused at start-up
 //! with [`FaultReason::ProtocolVersion`].
 
+use std::time::Duration;
+
 use super::SerialError;
 use super::frame::{self, Decoder, FrameError};
 use super::message::{
     AxisRequest, HomeAction, HomeCommand, HomeResult, HomeStatus, Reply, Request,
 };
 use super::port::{LinkDown, SerialPort, TtyPort};
-use crate::cia402::{self, EnableStep, cw};
+use crate::cia402::{Drive, DrivePhase, DriveSettings, FaultReaction, Setpoint, ShutdownMode, cw};
 use crate::units::to_units;
 use crate::{
     AxisFeedback, BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason,
@@ -36,6 +40,21 @@ pub struct SerialAxis {
     /// Reported in alarms (the drive unit's axis address).
     pub node_id: u8,
     pub increments_per_mm: f64,
+    /// The axis's highest speed, mm/s. One tick's travel at it is the largest target step
+    /// accepted when an enabled drive is handed from holding its own position over to the
+    /// commanded positions.
+    pub max_velocity_mm_s: f64,
+}
+
+impl SerialAxis {
+    /// An axis with a speed limit of 200 mm/s.
+    pub fn new(node_id: u8, increments_per_mm: f64) -> SerialAxis {
+        SerialAxis {
+            node_id,
+            increments_per_mm,
+            max_velocity_mm_s: 200.0,
+        }
+    }
 }
 
 /// The drive unit's spindle drive (CiA 402 velocity mode, protocol version 2).
@@ -57,8 +76,14 @@ pub struct SerialConfig {
     pub spindle: Option<SerialSpindle>,
     /// Consecutive ticks without a valid reply before the link counts as silent.
     pub reply_timeout_ticks: u32,
-    /// Ticks allowed for the enable sequence.
+    /// Ticks allowed for the enable sequence (and for the switch-off walk at shutdown).
     pub enable_timeout_ticks: u32,
+    /// The tick period the caller calls `cycle` at.
+    pub cycle: Duration,
+    /// How the orderly shutdown switches the drives off.
+    pub shutdown: ShutdownMode,
+    /// What the drives do after a fault stop.
+    pub fault_reaction: FaultReaction,
     /// The unit takes part in reference runs: speak protocol version 3.
     pub homing: bool,
 }
@@ -72,29 +97,12 @@ impl SerialConfig {
             spindle: None,
             reply_timeout_ticks: 25,
             enable_timeout_ticks: 500,
+            cycle: Duration::from_millis(4),
+            shutdown: ShutdownMode::Disable,
+            fault_reaction: FaultReaction::QuickStop,
             homing: false,
         }
     }
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Phase {
-    Idle,
-    Enabling { since: u64 },
-    Operational,
-    Faulted(FaultReason),
-}
-
-#[derive(Clone, Copy)]
-struct Axis {
-    /// The spindle: the target is a velocity, holding still means speed 0.
-    velocity: bool,
-    phase: Phase,
-    statusword: u16,
-    position_increments: i32,
-    error_code: u16,
-    controlword: u16,
-    target_increments: i32,
 }
 
 /// The master of one drive unit over a [`SerialPort`] (a [`TtyPort`] unless a test supplies
@@ -105,8 +113,8 @@ pub struct SerialBus<P: SerialPort = TtyPort> {
     /// False after a [`LinkDown`] until the operator's reset opens the port again.
     port_open: bool,
     decoder: Decoder,
-    /// The axes (`[..n_axes]`), then the spindle if configured.
-    axes: Vec<Axis>,
+    /// The axes' drives (`[..n_axes]`), then the spindle's if configured.
+    axes: Vec<Drive>,
     n_axes: usize,
     tick: u64,
     seq: u8,
@@ -118,6 +126,7 @@ pub struct SerialBus<P: SerialPort = TtyPort> {
     link_fault: Option<FaultReason>,
     rx: [u8; 256],
     homing: Homing,
+    shutting_down: bool,
 }
 
 /// Without a version 3 reply, every this many ticks of silence the request goes out in the
@@ -196,21 +205,25 @@ impl<P: SerialPort> SerialBus<P> {
     }
 
     fn with_port(port: P, cfg: SerialConfig) -> SerialBus<P> {
-        let axis = Axis {
-            velocity: false,
-            phase: Phase::Idle,
-            statusword: 0,
-            position_increments: 0,
-            error_code: 0,
-            controlword: 0,
-            target_increments: 0,
+        let settings = |setpoint, max_step_increments| DriveSettings {
+            shutdown: cfg.shutdown,
+            ..DriveSettings::new(
+                setpoint,
+                max_step_increments,
+                u64::from(cfg.enable_timeout_ticks),
+            )
         };
-        let mut axes = vec![axis; cfg.axes.len()];
+        let tick_s = cfg.cycle.as_secs_f64();
+        let mut axes: Vec<Drive> = cfg
+            .axes
+            .iter()
+            .map(|a| {
+                let step = a.max_velocity_mm_s * a.increments_per_mm * tick_s;
+                Drive::new(settings(Setpoint::Position, step))
+            })
+            .collect();
         if cfg.spindle.is_some() {
-            axes.push(Axis {
-                velocity: true,
-                ..axis
-            });
+            axes.push(Drive::new(settings(Setpoint::Velocity, 1.0)));
         }
         SerialBus {
             n_axes: cfg.axes.len(),
@@ -228,6 +241,7 @@ impl<P: SerialPort> SerialBus<P> {
             link_fault: None,
             rx: [0; 256],
             homing: Homing::default(),
+            shutting_down: false,
         }
     }
 
@@ -286,10 +300,9 @@ impl<P: SerialPort> SerialBus<P> {
             && y.home.is_some() == self.cfg.homing
         {
             let records = y.axis[..self.n_axes].iter().chain(y.spindle.as_ref());
-            for (a, r) in self.axes.iter_mut().zip(records) {
-                a.statusword = r.statusword;
-                a.position_increments = r.position_increments;
-                a.error_code = r.error_code;
+            for (d, r) in self.axes.iter_mut().zip(records) {
+                d.on_status(r.statusword, r.position_increments);
+                d.set_error_code(r.error_code);
             }
             if let Some(h) = y.home {
                 self.home_status(h);
@@ -334,56 +347,18 @@ impl<P: SerialPort> SerialBus<P> {
 
     /// Advances every drive by one tick; `fresh`: this tick's reply arrived.
     fn update_drives(&mut self, cmd: &CycleCommand, fresh: bool) {
+        let tick = self.tick;
         for i in 0..self.axes.len() {
             let target = self.target_of(i, cmd);
-            if self.link_fault.is_some() && !matches!(self.axes[i].phase, Phase::Idle) {
+            let d = &mut self.axes[i];
+            match (self.link_fault, d.phase()) {
+                (None, _) | (Some(_), DrivePhase::Off) => {}
+                // No answer will come: the walk down ends here.
+                (Some(_), DrivePhase::PoweringDown { .. }) => d.switch_off(),
                 // The drive is unreachable or unreliable: hold, and ask it to switch off.
-                let a = &mut self.axes[i];
-                a.controlword = cw::DISABLE_VOLTAGE;
-                a.target_increments = a.hold_target();
-            } else {
-                self.update_axis(i, target, fresh);
+                (Some(reason), _) => d.fault(reason),
             }
-        }
-    }
-
-    fn update_axis(&mut self, i: usize, target: i32, fresh: bool) {
-        let tick = self.tick;
-        let limit = u64::from(self.cfg.enable_timeout_ticks);
-        let a = &mut self.axes[i];
-        match a.phase {
-            Phase::Idle => {
-                a.controlword = cw::DISABLE_VOLTAGE;
-                a.target_increments = a.hold_target();
-            }
-            Phase::Enabling { since } => {
-                a.target_increments = a.hold_target();
-                if !fresh {
-                    // Wait for a reply before stepping the state machine.
-                    return;
-                }
-                match cia402::enable_step(a.statusword, a.controlword) {
-                    EnableStep::Enabled => {
-                        a.phase = Phase::Operational;
-                        a.controlword = cw::ENABLE_OPERATION_CMD;
-                    }
-                    EnableStep::Toward(_) if tick - since > limit => {
-                        a.phase = Phase::Faulted(FaultReason::EnableTimeout {
-                            statusword: a.statusword,
-                        });
-                    }
-                    EnableStep::Toward(c) => a.controlword = c,
-                }
-            }
-            Phase::Operational => match cia402::operating_fault(a.statusword, a.error_code) {
-                Some(reason) => a.phase = Phase::Faulted(reason),
-                None => a.target_increments = target,
-            },
-            Phase::Faulted(_) => {}
-        }
-        if matches!(a.phase, Phase::Faulted(_)) {
-            a.controlword = cw::DISABLE_VOLTAGE;
-            a.target_increments = a.hold_target();
+            d.tick(tick, fresh, target);
         }
     }
 
@@ -392,9 +367,9 @@ impl<P: SerialPort> SerialBus<P> {
             return;
         }
         self.seq = self.seq.wrapping_add(1);
-        let record = |a: &Axis| AxisRequest {
-            controlword: a.controlword,
-            target_increments: a.target_increments,
+        let record = |d: &Drive| AxisRequest {
+            controlword: d.controlword(),
+            target_increments: d.target_increments(),
         };
         let probe = self.probe_due();
         self.homing.probing = probe;
@@ -481,14 +456,14 @@ impl<P: SerialPort> SerialBus<P> {
         };
         if h.id != p.id {
             // Sent before the drive took the new reference: shift it here.
-            let a = &mut self.axes[p.axis];
-            a.position_increments = a.position_increments.saturating_add(p.shift_increments);
+            let d = &mut self.axes[p.axis];
+            d.set_actual_increments(d.actual_increments().saturating_add(p.shift_increments));
             return;
         }
         self.homing.acked_id = h.id;
         self.homing.pending = None;
         if h.result == HomeResult::Refused {
-            self.axes[p.axis].phase = Phase::Faulted(FaultReason::HomingRefused);
+            self.axes[p.axis].fault(FaultReason::HomingRefused);
         }
     }
 
@@ -498,7 +473,7 @@ impl<P: SerialPort> SerialBus<P> {
             && self.tick - p.since_tick > HOME_ACK_TIMEOUT_TICKS
         {
             self.homing.pending = None;
-            self.axes[p.axis].phase = Phase::Faulted(FaultReason::HomingTimeout);
+            self.axes[p.axis].fault(FaultReason::HomingTimeout);
         }
     }
 
@@ -515,20 +490,22 @@ impl<P: SerialPort> SerialBus<P> {
         }
     }
 
-    fn state_of(&self, a: &Axis) -> DriveState {
-        match a.phase {
+    fn state_of(&self, d: &Drive) -> DriveState {
+        match d.phase() {
             _ if self.link_fault.is_some() => DriveState::Fault,
-            Phase::Idle => DriveState::Disabled,
-            Phase::Enabling { .. } => DriveState::Enabling,
-            Phase::Operational => DriveState::Operational,
-            Phase::Faulted(_) => DriveState::Fault,
+            DrivePhase::Off | DrivePhase::Stopped | DrivePhase::PoweringDown { .. } => {
+                DriveState::Disabled
+            }
+            DrivePhase::Enabling { .. } => DriveState::Enabling,
+            DrivePhase::Enabled => DriveState::Operational,
+            DrivePhase::Faulted(_) => DriveState::Fault,
         }
     }
 
     fn fill_feedback(&self, feedback: &mut CycleFeedback) {
         for ((fb, a), c) in feedback.axes.iter_mut().zip(&self.axes).zip(&self.cfg.axes) {
             *fb = AxisFeedback {
-                position_mm: f64::from(a.position_increments) / c.increments_per_mm,
+                position_mm: f64::from(a.actual_increments()) / c.increments_per_mm,
                 state: self.state_of(a),
             };
         }
@@ -536,7 +513,7 @@ impl<P: SerialPort> SerialBus<P> {
             Some(a) => {
                 let state = self.state_of(a);
                 let rpm = if state == DriveState::Operational {
-                    f64::from(a.position_increments) / self.spindle_units_per_rpm()
+                    f64::from(a.actual_increments()) / self.spindle_units_per_rpm()
                 } else {
                     0.0
                 };
@@ -552,8 +529,8 @@ impl<P: SerialPort> SerialBus<P> {
             let (axis, node) = self.link_scope();
             return Err(BusFault { axis, node, reason });
         }
-        for (i, a) in self.axes.iter().enumerate() {
-            if let Phase::Faulted(reason) = a.phase {
+        for (i, d) in self.axes.iter().enumerate() {
+            if let Some(reason) = d.fault_reason() {
                 let (axis, node) = match (&self.cfg.axes.get(i), &self.cfg.spindle) {
                     (Some(c), _) => (i as u8, c.node_id),
                     (None, Some(sp)) => (crate::SPINDLE_AXIS, sp.node_id),
@@ -567,17 +544,6 @@ impl<P: SerialPort> SerialBus<P> {
             }
         }
         Ok(())
-    }
-}
-
-impl Axis {
-    /// The target that holds the drive still: where it is, or speed 0 for the spindle.
-    fn hold_target(&self) -> i32 {
-        if self.velocity {
-            0
-        } else {
-            self.position_increments
-        }
     }
 }
 
@@ -610,10 +576,45 @@ impl<P: SerialPort> DriveBus for SerialBus<P> {
     }
 
     fn enable(&mut self) {
+        if self.shutting_down {
+            return;
+        }
         let tick = self.tick;
-        for a in &mut self.axes {
-            if a.phase == Phase::Idle {
-                a.phase = Phase::Enabling { since: tick };
+        for d in &mut self.axes {
+            if d.phase() == DrivePhase::Off {
+                d.begin_enable(tick);
+            }
+        }
+    }
+
+    /// Every drive still on walks down (07h → 06h → 00h, or 02h → 00h) on the unit's replies;
+    /// a link that is down ends the walk at once (the unit's watchdog switches it off).
+    fn shutdown(&mut self) {
+        if self.shutting_down {
+            return;
+        }
+        self.shutting_down = true;
+        let tick = self.tick;
+        for d in &mut self.axes {
+            if d.phase() != DrivePhase::Off {
+                d.begin_power_down(tick);
+            }
+        }
+    }
+
+    fn is_shut_down(&self) -> bool {
+        self.shutting_down && self.axes.iter().all(|d| d.phase() == DrivePhase::Off)
+    }
+
+    /// After a fault stop with the healthy axes at rest: every drive still enabled (or on its
+    /// way) goes to the configured safe state, its target holding where it stands.
+    fn safe_state(&mut self) {
+        let Some(controlword) = self.cfg.fault_reaction.controlword() else {
+            return;
+        };
+        for d in &mut self.axes {
+            if matches!(d.phase(), DrivePhase::Enabling { .. } | DrivePhase::Enabled) {
+                d.stop(controlword);
             }
         }
     }
@@ -634,7 +635,7 @@ impl<P: SerialPort> DriveBus for SerialBus<P> {
             return;
         };
         if self.homing.pending.is_some() {
-            self.axes[axis].phase = Phase::Faulted(FaultReason::HomingRefused);
+            self.axes[axis].fault(FaultReason::HomingRefused);
             return;
         }
         let inc = |mm: f64| {
@@ -657,6 +658,9 @@ impl<P: SerialPort> DriveBus for SerialBus<P> {
     }
 
     fn reset(&mut self) {
+        if self.shutting_down {
+            return;
+        }
         if !self.port_open {
             // Reopening allocates and may take a moment; it happens only on the operator's
             // reset, never in `cycle`. If the port is still missing the fault stays.
@@ -679,8 +683,8 @@ impl<P: SerialPort> DriveBus for SerialBus<P> {
         let tick = self.tick;
         // Every axis goes through the enable sequence again: a drive that lost its link has
         // switched itself off, one that did not is confirmed enabled on the first reply.
-        for a in &mut self.axes {
-            a.phase = Phase::Enabling { since: tick };
+        for d in &mut self.axes {
+            d.begin_enable(tick);
         }
     }
 }
@@ -688,7 +692,7 @@ impl<P: SerialPort> DriveBus for SerialBus<P> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cia402::PowerState;
+    use crate::cia402::{self, PowerState};
     use crate::serial::message::AxisReply;
     use std::sync::{Arc, Mutex};
 
@@ -739,12 +743,12 @@ mod tests {
     }
 
     /// The test plays the drive at the other end of the line: it answers requests by hand.
-    struct Drive {
+    struct Unit {
         line: MemPort,
         decoder: Decoder,
     }
 
-    impl Drive {
+    impl Unit {
         /// Reads the last request sent and answers what `reply` makes of it (nothing on
         /// `None`).
         fn answer_with(
@@ -813,24 +817,18 @@ mod tests {
         })
     }
 
-    fn setup() -> (SerialBus<MemPort>, Drive) {
+    fn setup() -> (SerialBus<MemPort>, Unit) {
         setup_with(false)
     }
 
-    fn setup_with(homing: bool) -> (SerialBus<MemPort>, Drive) {
+    fn setup_with(homing: bool) -> (SerialBus<MemPort>, Unit) {
         let line = MemPort::default();
         let cfg = SerialConfig {
             homing,
-            ..SerialConfig::new(
-                "mem",
-                vec![SerialAxis {
-                    node_id: 4,
-                    increments_per_mm: 100.0,
-                }],
-            )
+            ..SerialConfig::new("mem", vec![SerialAxis::new(4, 100.0)])
         };
         let bus = SerialBus::new(line.clone(), cfg).unwrap();
-        let drive = Drive {
+        let drive = Unit {
             line,
             decoder: Decoder::default(),
         };
@@ -839,10 +837,7 @@ mod tests {
 
     #[test]
     fn a_bad_configuration_is_refused_with_its_code() {
-        let axis = |increments_per_mm| SerialAxis {
-            node_id: 1,
-            increments_per_mm,
-        };
+        let axis = |increments_per_mm| SerialAxis::new(1, increments_per_mm);
         let open = |axes: Vec<SerialAxis>| {
             SerialBus::new(MemPort::default(), SerialConfig::new("mem", axes))
                 .err()
@@ -1057,5 +1052,140 @@ mod tests {
             }
         );
         assert!(e.to_string().contains("version 1, homing needs version 3"));
+    }
+
+    /// The drive unit's CiA 402 power stage of axis 0, standing at `position`: it answers
+    /// each request with its state, then takes the request's controlword.
+    struct Stage {
+        state: PowerState,
+        last_cw: u16,
+        position: i32,
+    }
+
+    impl Stage {
+        fn new(position: i32) -> Stage {
+            Stage {
+                state: PowerState::SwitchOnDisabled,
+                last_cw: 0,
+                position,
+            }
+        }
+
+        /// One tick of the bus and the unit's answer to its request.
+        fn exchange(
+            &mut self,
+            bus: &mut SerialBus<MemPort>,
+            unit: &mut Unit,
+            cmd: &CycleCommand,
+        ) -> (Result<(), BusFault>, CycleFeedback, AxisRequest) {
+            let mut fb = CycleFeedback::default();
+            let r = bus.cycle(cmd, &mut fb);
+            let req = unit
+                .answer(self.state.statusword_bits(), self.position)
+                .unwrap();
+            let c = req.axis[0].controlword;
+            self.state = cia402::apply_controlword(self.state, self.last_cw, c);
+            self.last_cw = c;
+            (r, fb, req.axis[0])
+        }
+
+        /// Ticks until the drive is enabled (and the bus saw it).
+        fn enable(&mut self, bus: &mut SerialBus<MemPort>, unit: &mut Unit, cmd: &CycleCommand) {
+            for _ in 0..12 {
+                self.exchange(bus, unit, cmd).0.unwrap();
+            }
+            assert_eq!(self.state, PowerState::OperationEnabled);
+        }
+    }
+
+    /// The controller still commands 0 mm while the drive stands at 3 mm (it takes its
+    /// commanded position from the drives once all are enabled): the target holds, no jump.
+    #[test]
+    fn an_enabled_drive_holds_until_the_command_comes_within_one_tick() {
+        let (mut bus, mut unit) = setup();
+        bus.enable();
+        let mut stage = Stage::new(300);
+        let mut cmd = CycleCommand::default();
+        stage.enable(&mut bus, &mut unit, &cmd);
+        let (r, fb, req) = stage.exchange(&mut bus, &mut unit, &cmd);
+        r.unwrap();
+        assert_eq!(fb.axes[0].state, DriveState::Operational);
+        assert_eq!(req.target_increments, 300);
+        // Within one tick at 200 mm/s (80 increments): taken over, then followed.
+        for (mm, increments) in [(3.5, 350), (4.2, 420), (0.0, 0)] {
+            cmd.positions_mm[0] = mm;
+            let (_, _, req) = stage.exchange(&mut bus, &mut unit, &cmd);
+            assert_eq!(req.target_increments, increments);
+        }
+    }
+
+    /// After a fault stop the drive quick-stops and holds; a reset enables it again; the
+    /// shutdown walks it down 07h → 06h → 00h and nothing enables it after that.
+    #[test]
+    fn safe_state_holds_and_shutdown_walks_the_drive_down() {
+        let (mut bus, mut unit) = setup();
+        bus.enable();
+        let mut stage = Stage::new(120);
+        let cmd = CycleCommand::default();
+        stage.enable(&mut bus, &mut unit, &cmd);
+        bus.safe_state();
+        let (r, fb, req) = stage.exchange(&mut bus, &mut unit, &cmd);
+        r.unwrap();
+        assert_eq!(req.controlword, cw::QUICK_STOP_CMD);
+        assert_eq!(req.target_increments, 120);
+        assert_eq!(fb.axes[0].state, DriveState::Disabled);
+        assert_eq!(stage.state, PowerState::QuickStopActive);
+        bus.reset();
+        stage.enable(&mut bus, &mut unit, &cmd);
+
+        bus.shutdown();
+        let mut sent = Vec::new();
+        while !bus.is_shut_down() {
+            assert!(sent.len() < 10, "no end: {sent:X?}");
+            sent.push(stage.exchange(&mut bus, &mut unit, &cmd).1.axes[0].state);
+        }
+        assert_eq!(stage.state, PowerState::SwitchOnDisabled);
+        assert!(sent.iter().all(|s| *s != DriveState::Operational));
+        bus.reset();
+        bus.enable();
+        let (_, fb, req) = stage.exchange(&mut bus, &mut unit, &cmd);
+        assert_eq!(req.controlword, cw::DISABLE_VOLTAGE);
+        assert_eq!(fb.axes[0].state, DriveState::Disabled);
+    }
+
+    #[test]
+    fn shutdown_walk_sends_disable_operation_then_shutdown_then_disable_voltage() {
+        let (mut bus, mut unit) = setup();
+        bus.enable();
+        let mut stage = Stage::new(0);
+        let cmd = CycleCommand::default();
+        stage.enable(&mut bus, &mut unit, &cmd);
+        bus.shutdown();
+        let mut words = Vec::new();
+        while !bus.is_shut_down() {
+            assert!(words.len() < 10, "no end: {words:X?}");
+            words.push(stage.exchange(&mut bus, &mut unit, &cmd).2.controlword);
+        }
+        words.dedup();
+        // The first request after `shutdown` still answers the enabled statusword read
+        // before it: the walk starts there.
+        assert_eq!(
+            words,
+            [cw::SWITCH_ON_CMD, cw::SHUTDOWN, cw::DISABLE_VOLTAGE],
+            "{words:X?}"
+        );
+    }
+
+    #[test]
+    fn a_link_down_ends_the_shutdown_walk_at_once() {
+        let (mut bus, mut unit) = setup();
+        bus.enable();
+        let mut stage = Stage::new(0);
+        stage.enable(&mut bus, &mut unit, &CycleCommand::default());
+        bus.shutdown();
+        unit.hang_up(true);
+        let mut fb = CycleFeedback::default();
+        let _ = bus.cycle(&CycleCommand::default(), &mut fb);
+        assert!(bus.is_shut_down());
     }
 }
