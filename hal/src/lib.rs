@@ -283,8 +283,8 @@ pub trait DriveBus: Send {
     }
 
     /// Orderly switch-off, called once the axes are at rest before the daemon exits: the
-    /// drives go to a safe state (CANopen: power stage disabled step by step, heartbeat
-    /// watch cleared, NMT pre-operational). The caller keeps calling [`DriveBus::cycle`]
+    /// drives go to a safe state (CiA 402 drives, on CAN and serial: power stage disabled step
+    /// by step; CANopen then: heartbeat watch cleared, NMT pre-operational). The caller keeps calling [`DriveBus::cycle`]
     /// (holding the setpoints) until [`DriveBus::is_shut_down`]; the bus bounds that time.
     fn shutdown(&mut self) {}
 
