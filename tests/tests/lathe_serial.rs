@@ -6,89 +6,19 @@
 //! before, as a real unit does. The feed per revolution follows the spindle's actual speed as
 //! the unit reports it.
 
-use std::io::{Read, Write};
-
 mod lathe_common;
+mod serial_common;
 
 use daemon::runtime::clock::SimClock;
 use daemon::runtime::config::{AxisConfig, Config, RadiusInputConfig};
 use daemon::runtime::harness::Harness;
 use hal::serial::{SerialAxis, SerialBus, SerialConfig, SerialSpindle};
-use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus};
-use serialport::{SerialPort, TTYPort};
+use serial_common::{Line, UnitSide};
 use sim::SimDriveParams;
 use sim::cia402_drive::Cia402Drive;
 use sim::serial_drive::SerialDriveUnit;
 
 const INC_PER_MM: f64 = 10_000.0;
-
-/// The serial bus and, on the pty's other end, the drive unit.
-struct Line {
-    bus: SerialBus,
-    master: TTYPort,
-    /// The controller side, kept open to see when a reply has reached it.
-    slave: TTYPort,
-    unit: SerialDriveUnit,
-    now_ms: u64,
-    out: Vec<u8>,
-}
-
-impl Line {
-    /// The unit reads what the controller sent and answers it.
-    fn serve(&mut self) {
-        self.now_ms += 4;
-        let n = self.master.bytes_to_read().unwrap() as usize;
-        let mut bytes = vec![0u8; n];
-        self.master.read_exact(&mut bytes).unwrap();
-        self.out.clear();
-        self.unit.poll(self.now_ms);
-        self.unit.on_bytes(&bytes, self.now_ms, &mut self.out);
-        self.master.write_all(&self.out).unwrap();
-        self.master.flush().unwrap();
-        // The pty hands bytes over asynchronously: wait (a bounded number of yields, not a
-        // time) until the controller's side holds the whole answer, as a wire would.
-        wait_for(|| self.slave.bytes_to_read().unwrap() as usize >= self.out.len());
-    }
-}
-
-impl DriveBus for Line {
-    fn name(&self) -> &str {
-        self.bus.name()
-    }
-    fn axes(&self) -> usize {
-        self.bus.axes()
-    }
-    fn has_spindle(&self) -> bool {
-        self.bus.has_spindle()
-    }
-    fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
-        self.serve();
-        let r = self.bus.cycle(cmd, fb);
-        // The bus sends a request every tick: let it arrive before the next tick.
-        wait_for(|| self.master.bytes_to_read().unwrap() > 0);
-        r
-    }
-    fn enable(&mut self) {
-        self.bus.enable()
-    }
-    fn reset(&mut self) {
-        self.bus.reset()
-    }
-    fn enable_timeout_ticks(&self) -> u32 {
-        self.bus.enable_timeout_ticks()
-    }
-}
-
-/// Yields until `ready` (bounded: a pty that never delivers fails the test).
-fn wait_for(mut ready: impl FnMut() -> bool) {
-    for _ in 0..10_000_000 {
-        if ready() {
-            return;
-        }
-        std::thread::yield_now();
-    }
-    panic!("the pty never delivered");
-}
 
 /// The lathe of `lathe_per_rev.rs` (X as a diameter at Ø300, Z100, gears M41..M44, R67 = 1,
 /// R329 d3 = 3) on the serial line.
@@ -104,17 +34,6 @@ fn lathe() -> Harness {
     cfg.kr.gears = tests::lathe_gears();
     tests::save_lathe_constants(&cfg, true);
 
-    let (master, slave) = TTYPort::pair().unwrap();
-    let path = slave.name().unwrap();
-    let axes = (1..=2)
-        .map(|node_id| SerialAxis::new(node_id, INC_PER_MM))
-        .collect();
-    let mut scfg = SerialConfig::new(&path, axes);
-    scfg.spindle = Some(SerialSpindle {
-        node_id: 3,
-        units_per_rpm: 1.0,
-    });
-    let bus = SerialBus::open(scfg).unwrap();
     let drives = [150.0, 100.0]
         .iter()
         .map(|&mm| Cia402Drive::new(SimDriveParams::default(), INC_PER_MM, mm))
@@ -123,13 +42,18 @@ fn lathe() -> Harness {
     let mut spindle = Cia402Drive::new(SimDriveParams::default(), 1.0, 0.0);
     spindle.velocity_ramp_units_s2 = 1000.0; // rpm/s
     unit.spindle = Some(spindle);
+    let (side, path) = UnitSide::open(unit);
+    let axes = (1..=2)
+        .map(|node_id| SerialAxis::new(node_id, INC_PER_MM))
+        .collect();
+    let mut scfg = SerialConfig::new(&path, axes);
+    scfg.spindle = Some(SerialSpindle {
+        node_id: 3,
+        units_per_rpm: 1.0,
+    });
     let line = Line {
-        bus,
-        master,
-        slave,
-        unit,
-        now_ms: 0,
-        out: Vec::new(),
+        bus: Box::new(SerialBus::open(scfg).unwrap()),
+        side,
     };
     Harness::new(cfg, Box::new(line), SimClock::exact()).unwrap()
 }

@@ -3,6 +3,9 @@
 //! wall clock: each tick the unit answers the request of the tick before, as a real unit
 //! does. For tests that run the daemon in the single-threaded harness over serial.
 
+// Each test binary that includes this module uses part of it.
+#![allow(dead_code)]
+
 use std::io::{Read, Write};
 use std::sync::{Arc, Mutex};
 
