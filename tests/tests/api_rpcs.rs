@@ -436,6 +436,25 @@ async fn alarms_stream_with_history_and_health_follows_faults() {
         assert!(t0.elapsed() < tests::PATIENCE, "health not back");
         tokio::time::sleep(Duration::from_millis(10)).await;
     }
+    // The alarm watcher (a task polling the controller) records the clear a moment after the
+    // reset: once no alarm is active in the status, the history holds it.
+    let mut st = c
+        .stream_status(pb::StatusRequest { rate_hz: 50 })
+        .await
+        .unwrap()
+        .into_inner();
+    let t0 = Instant::now();
+    while !st
+        .message()
+        .await
+        .unwrap()
+        .unwrap()
+        .active_alarms
+        .is_empty()
+    {
+        assert!(t0.elapsed() < tests::PATIENCE, "alarm still active");
+    }
+    drop(st);
     // A stream opened afterwards gets the history: raised, then cleared.
     let mut a = c
         .stream_alarms(pb::StreamAlarmsRequest {
