@@ -1,5 +1,5 @@
 //! The drive's own reference run (CiA 402 homing mode 6), started by the controller, and the
-//! safe state after a fault stop. A child of `master`: it works on the master's nodes.
+//! safe state after a fault stop: steps of a [`Node`]. A child of `master`.
 //!
 //! A reference run of one node, every step on the tick without blocking (SDO requests go out
 //! and their answers are taken when they arrive, with the start-up's timeout and retry):
@@ -83,89 +83,73 @@ fn enter_step(p: &HomingParams, step: usize) -> Option<Step> {
 /// latched at the next SYNC, and the TPDO of that SYNC arrives in the tick after.
 const ANSWER_TICKS: u64 = 2;
 
-impl<P: CanPort> CanOpenMaster<P> {
-    /// Step `step` of the entering (`leaving: None`) or returning SDO plan of node `i`.
-    fn homing_step_of(&self, i: usize, leaving: Option<HomingState>, step: usize) -> Option<Step> {
+impl Node {
+    /// Step `step` of the entering (`leaving: None`) or returning SDO plan.
+    fn homing_step_of(&self, leaving: Option<HomingState>, step: usize) -> Option<Step> {
         match leaving {
-            None => self.nodes[i]
-                .cfg
-                .homing
-                .as_ref()
-                .and_then(|p| enter_step(p, step)),
+            None => self.cfg.homing.as_ref().and_then(|p| enter_step(p, step)),
             Some(_) => LEAVE.get(step).copied(),
         }
     }
 
-    /// Starts the reference run of an operational node; any other node reports it aborted.
-    pub(super) fn start_homing_node(&mut self, i: usize) {
-        let tick = self.tick;
-        let n = &mut self.nodes[i];
-        let enabled = n.phase == Phase::Running && n.drive.phase() == DrivePhase::Enabled;
-        if !enabled || n.cfg.homing.is_none() {
-            n.homing = HomingState::Aborted;
+    /// Starts the reference run of a node whose drive is enabled; any other reports it
+    /// aborted.
+    pub(super) fn start_homing(&mut self, now: u64, out: &mut Outbox) {
+        let enabled = self.phase == Phase::Running && self.drive.phase() == DrivePhase::Enabled;
+        if !enabled || self.cfg.homing.is_none() {
+            self.homing = HomingState::Aborted;
             return;
         }
-        n.homing = HomingState::Running;
-        n.home_since = tick;
-        n.mode_changed = true;
-        n.drive.hold(cw::ENABLE_OPERATION_CMD);
-        self.send_homing_step(i, None, 0, false);
+        self.homing = HomingState::Running;
+        self.home_since = now;
+        self.mode_changed = true;
+        self.drive.hold(cw::ENABLE_OPERATION_CMD);
+        self.send_homing_step(now, None, 0, false, out);
     }
 
-    /// Interrupts the reference run of node `i`: the drive stops, then returns to CSP.
-    pub(super) fn stop_homing_node(&mut self, i: usize) {
-        let tick = self.tick;
-        match self.nodes[i].phase {
+    /// Interrupts the reference run: the drive stops, then returns to CSP.
+    pub(super) fn stop_homing(&mut self, now: u64, out: &mut Outbox) {
+        match self.phase {
             Phase::Homing(Home::Running { .. }) => {
-                self.nodes[i].phase = Phase::Homing(Home::Halting { since: tick });
+                self.phase = Phase::Homing(Home::Halting { since: now });
             }
             Phase::Homing(Home::Sdo { leaving: None, .. }) => {
-                self.send_homing_step(i, Some(HomingState::Aborted), 0, false);
+                self.send_homing_step(now, Some(HomingState::Aborted), 0, false, out);
             }
             _ => {}
         }
     }
 
-    /// A fault anywhere on the bus interrupts every reference run: the machine stops.
-    pub(super) fn interrupt_homing_on_fault(&mut self) {
-        if self.first_fault().is_ok() {
-            return;
-        }
-        for i in 0..self.axes {
-            if matches!(self.nodes[i].phase, Phase::Homing(Home::Running { .. })) {
-                self.stop_homing_node(i);
-            }
-        }
-    }
-
     fn send_homing_step(
         &mut self,
-        i: usize,
+        now: u64,
         leaving: Option<HomingState>,
         step: usize,
         retried: bool,
+        out: &mut Outbox,
     ) {
-        let Some(s) = self.homing_step_of(i, leaving, step) else {
+        let Some(s) = self.homing_step_of(leaving, step) else {
             return;
         };
-        self.nodes[i].phase = Phase::Homing(Home::Sdo {
+        self.phase = Phase::Homing(Home::Sdo {
             leaving,
             step,
-            sent_at: self.tick,
+            sent_at: now,
             retried,
         });
-        self.send_sdo(i, s);
+        out.push(self.sdo_request(s));
     }
 
     /// An SDO answer while entering or leaving homing mode.
     pub(super) fn on_homing_sdo(
         &mut self,
-        i: usize,
+        now: u64,
         leaving: Option<HomingState>,
         step: usize,
         r: Response,
+        out: &mut Outbox,
     ) {
-        let Some(expected) = self.homing_step_of(i, leaving, step) else {
+        let Some(expected) = self.homing_step_of(leaving, step) else {
             return;
         };
         if r.object() != step_object(expected) {
@@ -174,67 +158,56 @@ impl<P: CanPort> CanOpenMaster<P> {
         match r {
             Response::Abort { code, .. } => {
                 let (index, subindex) = r.object();
-                self.fault(
-                    i,
-                    FaultReason::SdoAbort {
-                        index,
-                        subindex,
-                        abort_code: code,
-                    },
-                );
+                self.fault(FaultReason::SdoAbort {
+                    index,
+                    subindex,
+                    abort_code: code,
+                });
             }
             // The drive has not switched its mode yet: ask again.
             Response::UploadOk { value, .. } if matches!(expected, Step::CheckMode(m) if value as u8 != m) =>
             {
-                self.send_homing_step(i, leaving, step, false);
+                self.send_homing_step(now, leaving, step, false, out);
             }
             Response::UploadOk { .. } | Response::DownloadOk { .. } => {
-                if self.homing_step_of(i, leaving, step + 1).is_some() {
-                    self.send_homing_step(i, leaving, step + 1, false);
+                if self.homing_step_of(leaving, step + 1).is_some() {
+                    self.send_homing_step(now, leaving, step + 1, false, out);
                 } else {
-                    self.homing_plan_done(i, leaving);
+                    self.homing_plan_done(now, leaving);
                 }
             }
         }
     }
 
-    fn homing_plan_done(&mut self, i: usize, leaving: Option<HomingState>) {
-        let tick = self.tick;
-        let n = &mut self.nodes[i];
+    fn homing_plan_done(&mut self, now: u64, leaving: Option<HomingState>) {
         match leaving {
-            None => n.phase = Phase::Homing(Home::Running { since: tick }),
+            None => self.phase = Phase::Homing(Home::Running { since: now }),
             Some(outcome) => {
                 // Back in CSP, enabled: hold at the new position actual until the commanded
                 // position (re-based on it) takes over.
-                n.phase = Phase::Running;
-                n.homing = outcome;
-                n.mode_changed = false;
-                n.drive.hold(cw::ENABLE_OPERATION_CMD);
+                self.phase = Phase::Running;
+                self.homing = outcome;
+                self.mode_changed = false;
+                self.drive.hold(cw::ENABLE_OPERATION_CMD);
             }
         }
     }
 
     /// One tick of a reference run: the target holds at the actual position; the drive
     /// must stay enabled; bounded by the homing timeout.
-    pub(super) fn update_homing(&mut self, i: usize, h: Home) {
-        let timeout = self.ticks(self.cfg.homing_timeout);
-        let tick = self.tick;
-        let n = &mut self.nodes[i];
-        let s = n.drive.statusword();
+    pub(super) fn update_homing(&mut self, now: u64, h: Home, t: &Timing, out: &mut Outbox) {
+        let s = self.drive.statusword();
         match PowerState::from_statusword(s) {
             PowerState::OperationEnabled => {}
             PowerState::Fault | PowerState::FaultReactionActive => {
-                let code = n.drive.error_code();
-                return self.fault(i, FaultReason::DriveFault { code });
+                let code = self.drive.error_code();
+                return self.fault(FaultReason::DriveFault { code });
             }
-            _ => return self.fault(i, FaultReason::DriveDisabled { statusword: s }),
+            _ => return self.fault(FaultReason::DriveDisabled { statusword: s }),
         }
-        if tick - n.home_since > timeout {
-            return self.fault(i, FaultReason::HomingTimeout);
+        if now - self.home_since > t.homing {
+            return self.fault(FaultReason::HomingTimeout);
         }
-        let seen = n.tpdo_seen;
-        // A statusword that answers the controlword sent at `since`.
-        let fresh = |since: u64| seen && tick >= since + ANSWER_TICKS;
         match h {
             Home::Sdo {
                 leaving,
@@ -242,63 +215,77 @@ impl<P: CanPort> CanOpenMaster<P> {
                 sent_at,
                 retried,
             } => {
-                n.drive.hold(cw::ENABLE_OPERATION_CMD);
-                if tick - sent_at <= self.ticks(self.cfg.sdo_timeout) {
-                    return;
-                }
-                if retried {
-                    let Some(st) = self.homing_step_of(i, leaving, step) else {
-                        return;
-                    };
-                    let (index, subindex) = step_object(st);
-                    self.fault(i, FaultReason::SdoTimeout { index, subindex });
-                } else {
-                    self.send_homing_step(i, leaving, step, true);
+                self.drive.hold(cw::ENABLE_OPERATION_CMD);
+                if now - sent_at > t.sdo {
+                    self.homing_sdo_timed_out(now, leaving, step, retried, out);
                 }
             }
             Home::Running { since } => {
-                n.drive.hold(cw::ENABLE_OPERATION_CMD | cw::HOMING_START);
-                if !fresh(since) {
-                } else if s & sw::HOMING_ERROR != 0 {
-                    self.fault(i, FaultReason::HomingError { statusword: s });
-                } else if s & (sw::HOMING_ATTAINED | sw::TARGET_REACHED)
-                    == sw::HOMING_ATTAINED | sw::TARGET_REACHED
-                {
-                    self.send_homing_step(i, Some(HomingState::Done), 0, false);
+                self.drive.hold(cw::ENABLE_OPERATION_CMD | cw::HOMING_START);
+                if self.answers(now, since) {
+                    self.on_homing_statusword(now, s, out);
                 }
             }
             Home::Halting { since } => {
-                n.drive.hold(cw::ENABLE_OPERATION_CMD);
-                if fresh(since) && s & sw::TARGET_REACHED != 0 {
-                    self.send_homing_step(i, Some(HomingState::Aborted), 0, false);
+                self.drive.hold(cw::ENABLE_OPERATION_CMD);
+                if self.answers(now, since) && s & sw::TARGET_REACHED != 0 {
+                    self.send_homing_step(now, Some(HomingState::Aborted), 0, false, out);
                 }
             }
         }
     }
 
-    /// After a fault stop with the healthy axes at rest: every drive still enabled (or on its
-    /// way) goes to the configured safe state, its target holding where it stands.
-    pub(super) fn enter_safe_state(&mut self) {
-        let Some(controlword) = self.cfg.fault_reaction.controlword() else {
-            return;
+    /// A statusword arrived this tick that answers the controlword sent at `since`.
+    fn answers(&self, now: u64, since: u64) -> bool {
+        self.tpdo_seen && now >= since + ANSWER_TICKS
+    }
+
+    /// The run's answer: a homing error, or homing attained with the drive standing.
+    fn on_homing_statusword(&mut self, now: u64, s: u16, out: &mut Outbox) {
+        const DONE: u16 = sw::HOMING_ATTAINED | sw::TARGET_REACHED;
+        if s & sw::HOMING_ERROR != 0 {
+            self.fault(FaultReason::HomingError { statusword: s });
+        } else if s & DONE == DONE {
+            self.send_homing_step(now, Some(HomingState::Done), 0, false, out);
+        }
+    }
+
+    /// A homing SDO request was not answered in time: once more, then a fault naming it.
+    fn homing_sdo_timed_out(
+        &mut self,
+        now: u64,
+        leaving: Option<HomingState>,
+        step: usize,
+        retried: bool,
+        out: &mut Outbox,
+    ) {
+        if !retried {
+            return self.send_homing_step(now, leaving, step, true, out);
+        }
+        if let Some(st) = self.homing_step_of(leaving, step) {
+            let (index, subindex) = step_object(st);
+            self.fault(FaultReason::SdoTimeout { index, subindex });
+        }
+    }
+
+    /// After a fault stop with the healthy axes at rest: a drive still enabled (or on its
+    /// way) goes to the safe state `controlword`, its target holding where it stands.
+    pub(super) fn enter_safe_state(&mut self, controlword: u16) {
+        let stops = match self.phase {
+            Phase::Starting { .. } | Phase::Homing(_) => true,
+            // Stopped already, or by a fault of its own: in its safe state.
+            Phase::Running => matches!(
+                self.drive.phase(),
+                DrivePhase::Enabling { .. } | DrivePhase::Enabled
+            ),
+            _ => false,
         };
-        for n in &mut self.nodes {
-            let stops = match n.phase {
-                Phase::Starting { .. } | Phase::Homing(_) => true,
-                // Stopped already, or by a fault of its own: in its safe state.
-                Phase::Running => matches!(
-                    n.drive.phase(),
-                    DrivePhase::Enabling { .. } | DrivePhase::Enabled
-                ),
-                _ => false,
-            };
-            if stops {
-                if n.homing == HomingState::Running {
-                    n.homing = HomingState::Aborted;
-                }
-                n.phase = Phase::Running;
-                n.drive.stop(controlword);
+        if stops {
+            if self.homing == HomingState::Running {
+                self.homing = HomingState::Aborted;
             }
+            self.phase = Phase::Running;
+            self.drive.stop(controlword);
         }
     }
 }

@@ -18,9 +18,12 @@
 //! Drives latch the RPDO at the next SYNC and answer each SYNC with their TPDO, so feedback is
 //! one tick old. Timeouts are counted in ticks, so a late tick never causes a false alarm.
 //!
-//! Child modules (issue #22): `startup.rs` (the start-up SDO plan, the settings check),
-//! `node.rs` (a node's communication phases and its advance by one tick), `homing.rs` (the drive's reference
-//! run in homing mode 6, the safe state after a fault stop), `master_tests.rs`.
+//! The master keeps the bus (the port, SYNC, RPDOs, its heartbeat, error frames) and
+//! dispatches; each node is a state machine driven by it without a port. Child modules
+//! (issue #22): `node.rs` (a node's phases and its advance by one tick, the frames it sends
+//! collected in an outbox), `receive.rs` (what a node makes of its frames), `startup.rs` (the
+//! start-up SDO plan, the settings check), `homing.rs` (the drive's reference run in homing
+//! mode 6, the safe state after a fault stop), `master_tests.rs`.
 
 use std::time::Duration;
 
@@ -41,11 +44,13 @@ use crate::units::to_units;
 mod homing;
 #[path = "node.rs"]
 mod node;
+#[path = "receive.rs"]
+mod receive;
 #[path = "startup.rs"]
 mod startup;
 use homing::Home;
 pub use homing::HomingParams;
-use node::{Node, Off, Phase};
+use node::{Node, Off, Outbox, Phase, Timing};
 use startup::{Step, check_config, startup_steps, step_object, ticks};
 
 /// One drive on the bus (one axis).
@@ -167,6 +172,9 @@ pub struct CanOpenMaster<P: CanPort> {
     /// Axis nodes first (`[..axes]`), then the spindle node if configured.
     nodes: Vec<Node>,
     axes: usize,
+    timing: Timing,
+    /// The frames a node's step sends, emptied onto the bus after each step.
+    outbox: Outbox,
     tick: u64,
     enabled: bool,
     shutting_down: bool,
@@ -208,6 +216,8 @@ impl<P: CanPort> CanOpenMaster<P> {
             port,
             name: name.to_owned(),
             axes: cfg.nodes.len(),
+            timing: Timing::new(&cfg),
+            outbox: Outbox::new(),
             cfg,
             nodes,
             tick: 0,
@@ -234,6 +244,13 @@ impl<P: CanPort> CanOpenMaster<P> {
         }
     }
 
+    /// Sends what the last node step put in the outbox, in order.
+    fn flush(&mut self) {
+        for f in self.outbox.take() {
+            self.send(&f);
+        }
+    }
+
     /// The node of a frame's node id.
     fn node_index(&self, node_id: u8) -> Option<usize> {
         self.nodes
@@ -250,177 +267,28 @@ impl<P: CanPort> CanOpenMaster<P> {
         }
     }
 
-    /// Stops node `i` for `reason`. A fault of the drive itself while it runs stays with its
-    /// CiA 402 machine (a fault reset over the RPDO may clear it); any other stops the node
-    /// (a reset restarts it). The first fault stays: later ones follow from it.
-    fn fault(&mut self, i: usize, reason: FaultReason) {
-        let n = &mut self.nodes[i];
-        if n.fault_reason().is_some() || matches!(n.phase, Phase::Idle | Phase::ShuttingDown(_)) {
-            return;
-        }
-        if is_drive_level(reason) && matches!(n.phase, Phase::Starting { .. } | Phase::Running) {
-            n.phase = Phase::Running;
-        } else {
-            n.phase = Phase::Faulted(reason);
-        }
-        n.drive.fault(reason);
-        if n.homing == HomingState::Running {
-            n.homing = HomingState::Aborted;
-        }
-    }
-
-    fn send_step(&mut self, i: usize, step: usize) {
-        let s = self.nodes[i].steps[step];
-        self.send_sdo(i, s);
-    }
-
-    /// The SDO request of one step.
-    fn send_sdo(&mut self, i: usize, s: Step) {
-        let id = self.nodes[i].cfg.node_id.get();
-        let f = match s {
-            Step::Write {
-                index,
-                subindex,
-                value,
-                size,
-            } => sdo::download(id, index, subindex, value, size),
-            Step::ReadPosition | Step::CheckMode(_) => {
-                let (index, subindex) = step_object(s);
-                sdo::upload(id, index, subindex)
-            }
-        };
-        self.send(&f);
-    }
-
+    /// A received frame, to the node it comes from.
     fn on_frame(&mut self, f: &Frame) {
         let (code, node_id) = cob::split(f.id);
         let Some(i) = self.node_index(node_id) else {
             return;
         };
+        let (now, n) = (self.tick, &mut self.nodes[i]);
         match code {
-            cob::TPDO1 => self.on_tpdo(i, f),
-            cob::EMCY => {
-                let Some(e) = Emcy::decode(f.payload()) else {
-                    return;
-                };
-                if e.code == 0 || self.nodes[i].phase == Phase::Idle {
-                    return;
-                }
-                self.nodes[i].drive.set_error_code(e.code);
-                let reason = if e.code == emcy::FOLLOWING_ERROR {
-                    FaultReason::FollowingError
-                } else {
-                    FaultReason::DriveFault { code: e.code }
-                };
-                self.fault(i, reason);
-            }
+            cob::TPDO1 => n.on_tpdo(f),
+            cob::EMCY => n.on_emcy(f.payload()),
             cob::HEARTBEAT => {
                 if let Some(&state) = f.payload().first() {
-                    self.on_heartbeat(i, state);
+                    n.on_heartbeat(now, state);
                 }
             }
             cob::SDO_TX => {
                 if let Some(r) = sdo::parse_response(f.payload()) {
-                    self.on_sdo_response(i, r);
+                    n.on_sdo_response(now, r, &mut self.outbox);
+                    self.flush();
                 }
             }
             _ => {}
-        }
-    }
-
-    fn on_tpdo(&mut self, i: usize, f: &Frame) {
-        match Tpdo::decode(f.payload()) {
-            Some(t) => {
-                let n = &mut self.nodes[i];
-                n.drive.on_status(t.statusword, t.position_increments);
-                n.tpdo_seen = true;
-                // Only a node in NMT operational sends PDOs.
-                n.nmt_state = nmt::state::OPERATIONAL;
-            }
-            // CAN frames are checked by CRC: a wrong length is a mapping mismatch, not noise.
-            None if self.nodes[i].expects_pdo() => self.fault(
-                i,
-                FaultReason::PdoLength {
-                    cob_id: f.id,
-                    len: f.len,
-                    expected: pdo::LEN as u8,
-                },
-            ),
-            None => {}
-        }
-    }
-
-    fn on_heartbeat(&mut self, i: usize, state: u8) {
-        let tick = self.tick;
-        let n = &mut self.nodes[i];
-        n.last_heartbeat = tick;
-        if state == nmt::state::BOOT_UP {
-            n.booted = true;
-            n.nmt_state = nmt::state::PRE_OPERATIONAL;
-            if n.phase.is_started() {
-                self.fault(i, FaultReason::NmtStateChanged { state });
-            }
-            return;
-        }
-        // A heartbeat sent before our NMT start may still arrive while starting.
-        if !matches!(n.phase, Phase::Starting { .. }) {
-            n.nmt_state = state;
-        }
-        if state != nmt::state::OPERATIONAL && matches!(n.phase, Phase::Running | Phase::Homing(_))
-        {
-            self.fault(i, FaultReason::NmtStateChanged { state });
-        }
-    }
-
-    fn on_sdo_response(&mut self, i: usize, r: Response) {
-        match self.nodes[i].phase {
-            Phase::Configuring { step, .. } => {
-                let expected = self.nodes[i].steps[step];
-                if r.object() != step_object(expected) {
-                    return; // a late answer to an earlier, retried request
-                }
-                match r {
-                    Response::Abort { code, .. } => {
-                        let (index, subindex) = r.object();
-                        let reason = FaultReason::SdoAbort {
-                            index,
-                            subindex,
-                            abort_code: code,
-                        };
-                        self.fault(i, reason);
-                    }
-                    Response::UploadOk { value, .. } => {
-                        if expected == Step::ReadPosition {
-                            self.nodes[i].drive.set_actual_increments(value as i32);
-                        }
-                        self.next_step(i, step);
-                    }
-                    Response::DownloadOk { .. } => self.next_step(i, step),
-                }
-            }
-            // Done either way: a drive that refuses is switched off and told to stop all the
-            // same.
-            Phase::ShuttingDown(Off::ClearConsumer { .. }) if r.object() == (0x1016, 1) => {
-                self.leave_bus(i)
-            }
-            Phase::Homing(Home::Sdo { leaving, step, .. }) => {
-                self.on_homing_sdo(i, leaving, step, r)
-            }
-            _ => {}
-        }
-    }
-
-    fn next_step(&mut self, i: usize, step: usize) {
-        let tick = self.tick;
-        if step + 1 < self.nodes[i].steps.len() {
-            self.nodes[i].phase = Phase::Configuring {
-                step: step + 1,
-                sent_at: tick,
-                retried: false,
-            };
-            self.send_step(i, step + 1);
-        } else {
-            self.nodes[i].phase = Phase::Configured;
         }
     }
 
@@ -437,19 +305,11 @@ impl<P: CanPort> CanOpenMaster<P> {
         {
             return;
         }
-        let tick = self.tick;
         for i in 0..self.nodes.len() {
-            let n = &mut self.nodes[i];
-            if n.phase != Phase::Configured {
-                continue;
+            if self.nodes[i].phase == Phase::Configured {
+                self.nodes[i].nmt_start(self.tick, &mut self.outbox);
+                self.flush();
             }
-            n.phase = Phase::Starting { since: tick };
-            n.tpdo_seen = false;
-            n.last_heartbeat = tick;
-            n.nmt_state = nmt::state::OPERATIONAL;
-            n.drive.switch_off();
-            let id = n.cfg.node_id.get();
-            self.send(&nmt::command(nmt::Command::Start, id));
         }
     }
 
@@ -570,6 +430,19 @@ impl<P: CanPort> CanOpenMaster<P> {
         feedback.spindle_state = spindle_state;
     }
 
+    /// A fault anywhere on the bus interrupts every reference run: the machine stops.
+    fn interrupt_homing_on_fault(&mut self) {
+        if self.first_fault().is_ok() {
+            return;
+        }
+        for i in 0..self.axes {
+            if matches!(self.nodes[i].phase, Phase::Homing(Home::Running { .. })) {
+                self.nodes[i].stop_homing(self.tick, &mut self.outbox);
+                self.flush();
+            }
+        }
+    }
+
     /// The fault to report this tick: the bus's, else the first faulted node's.
     fn first_fault(&self) -> Result<(), BusFault> {
         if let Some(reason) = self.bus_fault {
@@ -615,7 +488,8 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
         let blocked_before = self.tx_blocked_ticks;
         for i in 0..self.nodes.len() {
             let target = self.target_of(i, cmd);
-            self.update_node(i, target);
+            self.nodes[i].tick(self.tick, target, &self.timing, &mut self.outbox);
+            self.flush();
         }
         self.interrupt_homing_on_fault();
         self.start_configured();
@@ -658,19 +532,19 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
         let whole_bus = self.bus_fault.take().is_some();
         self.error_score = 0;
         self.tx_blocked_ticks = 0;
-        for i in 0..self.nodes.len() {
-            self.reset_node(i, whole_bus);
+        for n in &mut self.nodes {
+            n.reset(self.tick, whole_bus, &self.timing);
         }
     }
 
     fn enable_timeout_ticks(&self) -> u32 {
         // The slowest path a node may take before it is operational or faulted by its own
         // timeouts: boot-up, every SDO with its retry, NMT start to the first TPDO, enable.
-        let c = &self.cfg;
+        let t = &self.timing;
         let steps = self.nodes.iter().map(|n| n.steps.len()).max().unwrap_or(0) as u64;
-        let boot = self.ticks(c.boot_timeout) + 1;
-        let sdo = 2 * (self.ticks(c.sdo_timeout) + 1);
-        let total = 2 * boot + steps * sdo + self.ticks(c.enable_timeout) + 2;
+        let boot = t.boot + 1;
+        let sdo = 2 * (t.sdo + 1);
+        let total = 2 * boot + steps * sdo + self.ticks(self.cfg.enable_timeout) + 2;
         u32::try_from(total).unwrap_or(u32::MAX)
     }
 
@@ -680,7 +554,8 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
         }
         self.shutting_down = true;
         for i in 0..self.nodes.len() {
-            self.shut_down_node(i);
+            self.nodes[i].shut_down(self.tick, &mut self.outbox);
+            self.flush();
         }
     }
 
@@ -688,8 +563,14 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
         self.shutting_down && !self.enabled
     }
 
+    /// After a fault stop with the healthy axes at rest: every drive still enabled goes to
+    /// the configured safe state (its target holds where it stands).
     fn safe_state(&mut self) {
-        self.enter_safe_state();
+        if let Some(controlword) = self.cfg.fault_reaction.controlword() {
+            for n in &mut self.nodes {
+                n.enter_safe_state(controlword);
+            }
+        }
     }
 
     fn supports_homing(&self) -> bool {
@@ -704,13 +585,15 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
 
     fn start_homing(&mut self, axis: usize) {
         if axis < self.axes {
-            self.start_homing_node(axis);
+            self.nodes[axis].start_homing(self.tick, &mut self.outbox);
+            self.flush();
         }
     }
 
     fn stop_homing(&mut self, axis: usize) {
         if axis < self.axes {
-            self.stop_homing_node(axis);
+            self.nodes[axis].stop_homing(self.tick, &mut self.outbox);
+            self.flush();
         }
     }
 

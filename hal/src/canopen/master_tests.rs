@@ -672,3 +672,42 @@ fn spindle_node_ids_are_checked() {
     // Without a spindle node the bus says so.
     assert!(!master(&[3]).has_spindle());
 }
+
+/// A node is a state machine driven by its caller, without a port: each step leaves the
+/// frames it sends in the outbox. From reset to NMT start, answered by hand.
+#[test]
+fn a_node_steps_from_reset_to_start_through_its_outbox() {
+    let cfg = CanOpenConfig::new(vec![NodeConfig::new(id(5), 1000.0)]);
+    let t = Timing::new(&cfg);
+    let mut n = Node::new(&cfg, cfg.nodes[0].clone(), OpMode::Csp);
+    let mut out = Outbox::new();
+    n.phase = Phase::ResetPending {
+        command: nmt::Command::ResetNode,
+    };
+    n.tick(1, 0, &t, &mut out);
+    let sent: Vec<Frame> = out.take().collect();
+    assert_eq!(sent, [nmt::command(nmt::Command::ResetNode, 5)]);
+    // Boot-up, then one SDO request per tick or answer, each answered.
+    n.on_heartbeat(2, nmt::state::BOOT_UP);
+    n.tick(2, 0, &t, &mut out);
+    let mut requests = 0;
+    while n.phase != Phase::Configured {
+        let sent: Vec<Frame> = out.take().collect();
+        assert_eq!(sent.len(), 1, "{:?}", n.phase);
+        requests += 1;
+        let answer = match sdo::parse_request(sent[0].payload()).unwrap() {
+            sdo::Request::Download {
+                index, subindex, ..
+            } => sdo::download_ok(5, index, subindex),
+            sdo::Request::Upload { index, subindex } => sdo::upload_ok(5, index, subindex, 777, 4),
+        };
+        let r = sdo::parse_response(answer.payload()).unwrap();
+        n.on_sdo_response(3, r, &mut out);
+    }
+    assert_eq!(requests, n.steps.len());
+    assert_eq!(n.drive.actual_increments(), 777);
+    n.nmt_start(4, &mut out);
+    let sent: Vec<Frame> = out.take().collect();
+    assert_eq!(sent, [nmt::command(nmt::Command::Start, 5)]);
+    assert_eq!(n.drive.target_increments(), 777);
+}

@@ -1,7 +1,10 @@
-//! One node of the master: where it is on the bus ([`Phase`]), what the master knows of it
-//! ([`Node`]), and its advance by one tick through start-up, running, and shutdown. Once
-//! started, its drive's power stage is run by the CiA 402 phase machine every bus shares
-//! ([`Drive`]). A child of `master`.
+//! One node of the master, as a state machine driven by its caller (no port): where it is on
+//! the bus ([`Phase`]), what the master knows of it ([`Node`]), and its advance by one tick
+//! ([`Node::tick`]) through start-up, running and shutdown. The frames a step sends (NMT
+//! commands, SDO requests) go into an [`Outbox`] the master empties onto the bus; the cyclic
+//! SYNC and RPDO are the master's. Once started, the drive's power stage is run by the CiA 402
+//! phase machine every bus shares ([`Drive`]). What the node makes of received frames is in
+//! `receive.rs`, its reference run in `homing.rs`. A child of `master`.
 
 use super::*;
 use crate::cia402::{DriveSettings, Setpoint};
@@ -68,6 +71,63 @@ impl Phase {
     }
 }
 
+/// The bus-wide timeouts in ticks (rounded up, so a late tick never causes a false alarm).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Timing {
+    pub(super) boot: u64,
+    pub(super) sdo: u64,
+    pub(super) heartbeat: u64,
+    pub(super) tpdo: u64,
+    pub(super) homing: u64,
+}
+
+impl Timing {
+    pub(super) fn new(c: &CanOpenConfig) -> Timing {
+        let t = |d| ticks(d, c.cycle);
+        Timing {
+            boot: t(c.boot_timeout),
+            sdo: t(c.sdo_timeout),
+            heartbeat: t(c.heartbeat_timeout),
+            tpdo: t(c.tpdo_timeout),
+            homing: t(c.homing_timeout),
+        }
+    }
+}
+
+/// The frames one step of a node sends, in order. Fixed size, so the tick never allocates: a
+/// step sends at most two (the master empties it after every step).
+pub(super) struct Outbox {
+    frames: [Frame; 4],
+    len: usize,
+}
+
+impl Outbox {
+    pub(super) fn new() -> Outbox {
+        Outbox {
+            frames: [Frame::new(0, &[]); 4],
+            len: 0,
+        }
+    }
+
+    pub(super) fn push(&mut self, f: Frame) {
+        debug_assert!(
+            self.len < self.frames.len(),
+            "a node step sends at most two frames"
+        );
+        if let Some(slot) = self.frames.get_mut(self.len) {
+            *slot = f;
+            self.len += 1;
+        }
+    }
+
+    /// The frames in order (a copy: the caller may send while stepping on); the outbox is
+    /// empty afterwards.
+    pub(super) fn take(&mut self) -> impl Iterator<Item = Frame> + use<> {
+        let n = std::mem::take(&mut self.len);
+        self.frames.into_iter().take(n)
+    }
+}
+
 pub(super) struct Node {
     /// For the spindle node `increments_per_mm` holds its velocity units per rpm.
     pub(super) cfg: NodeConfig,
@@ -123,6 +183,10 @@ impl Node {
         }
     }
 
+    pub(super) fn id(&self) -> u8 {
+        self.cfg.node_id.get()
+    }
+
     /// The fault that stops this node: its own, or its running drive's.
     pub(super) fn fault_reason(&self) -> Option<FaultReason> {
         match self.phase {
@@ -153,155 +217,190 @@ impl Node {
     pub(super) fn is_off(&self) -> bool {
         matches!(self.phase, Phase::Idle | Phase::ShuttingDown(Off::Done))
     }
-}
 
-impl<P: CanPort> CanOpenMaster<P> {
-    /// Watchdogs of a started node: a TPDO every SYNC, the heartbeat.
-    pub(super) fn watch(&mut self, i: usize) {
-        let hb_ticks = self.ticks(self.cfg.heartbeat_timeout);
-        let missing_limit = self.ticks(self.cfg.tpdo_timeout);
-        let tick = self.tick;
-        let n = &mut self.nodes[i];
-        if !matches!(n.phase, Phase::Running | Phase::Homing(_)) {
+    /// Stops the node for `reason`. A fault of the drive itself while it runs stays with its
+    /// CiA 402 machine (a fault reset over the RPDO may clear it); any other stops the node
+    /// (a reset restarts it). The first fault stays: later ones follow from it.
+    pub(super) fn fault(&mut self, reason: FaultReason) {
+        if self.fault_reason().is_some()
+            || matches!(self.phase, Phase::Idle | Phase::ShuttingDown(_))
+        {
             return;
         }
-        if n.tpdo_seen {
-            n.tpdo_missing = 0;
+        let drive_runs = matches!(self.phase, Phase::Starting { .. } | Phase::Running);
+        self.phase = if is_drive_level(reason) && drive_runs {
+            Phase::Running
         } else {
-            n.tpdo_missing += 1;
-        }
-        if u64::from(n.tpdo_missing) > missing_limit {
-            self.fault(i, FaultReason::Timeout);
-        } else if tick - n.last_heartbeat > hb_ticks {
-            self.fault(i, FaultReason::HeartbeatLost);
+            Phase::Faulted(reason)
+        };
+        self.drive.fault(reason);
+        if self.homing == HomingState::Running {
+            self.homing = HomingState::Aborted;
         }
     }
 
-    /// Advances node `i` by one tick; `target` is this tick's setpoint in drive units.
-    pub(super) fn update_node(&mut self, i: usize, target: i32) {
-        self.watch(i);
-        let tick = self.tick;
-        match self.nodes[i].phase {
+    /// One tick at `now`: the watchdogs, then the step of the node's phase. `target` is this
+    /// tick's setpoint in drive units.
+    pub(super) fn tick(&mut self, now: u64, target: i32, t: &Timing, out: &mut Outbox) {
+        self.watch(now, t);
+        match self.phase {
             Phase::Idle | Phase::Configured | Phase::ShuttingDown(Off::Done) => {}
-            Phase::ResetPending { command } => self.send_reset(i, command),
-            Phase::Booting { since, command } => self.boot(i, since, command),
+            Phase::ResetPending { command } => self.send_reset(now, command, out),
+            Phase::Booting { since, command } => self.boot(now, since, command, t, out),
             Phase::Configuring {
                 step,
                 sent_at,
                 retried,
-            } => self.configure(i, step, sent_at, retried),
-            Phase::Starting { since } => self.start(i, since, target),
+            } => self.configure(now, step, sent_at, retried, t, out),
+            Phase::Starting { since } => self.start(now, since, target, t),
             // A node stopped by a fault keeps its power stage off (over the RPDO, where it
             // still listens), its target where the drive is.
-            Phase::Running | Phase::Faulted(_) => {
-                let n = &mut self.nodes[i];
-                n.drive.tick(tick, n.tpdo_seen, target);
-            }
-            Phase::Homing(h) => self.update_homing(i, h),
-            Phase::ShuttingDown(Off::PowerDown) => self.power_down(i),
+            Phase::Running | Phase::Faulted(_) => self.drive.tick(now, self.tpdo_seen, target),
+            Phase::Homing(h) => self.update_homing(now, h, t, out),
+            Phase::ShuttingDown(Off::PowerDown) => self.power_down(now, out),
             Phase::ShuttingDown(Off::ClearConsumer { sent_at, retried }) => {
-                self.clear_consumer(i, sent_at, retried)
+                if now - sent_at > t.sdo {
+                    self.clear_consumer(now, retried, out);
+                }
             }
         }
-        self.nodes[i].tpdo_seen = false;
+        self.tpdo_seen = false;
     }
 
-    /// The NMT reset of node `i` goes out; it boots afresh, its power stage off.
-    fn send_reset(&mut self, i: usize, command: nmt::Command) {
-        let tick = self.tick;
-        let n = &mut self.nodes[i];
-        n.booted = false;
-        n.nmt_state = nmt::state::PRE_OPERATIONAL;
-        n.drive.switch_off();
-        n.phase = Phase::Booting {
-            since: tick,
+    /// Watchdogs of a running node: a TPDO every SYNC, the heartbeat.
+    fn watch(&mut self, now: u64, t: &Timing) {
+        if !matches!(self.phase, Phase::Running | Phase::Homing(_)) {
+            return;
+        }
+        if self.tpdo_seen {
+            self.tpdo_missing = 0;
+        } else {
+            self.tpdo_missing += 1;
+        }
+        if u64::from(self.tpdo_missing) > t.tpdo {
+            self.fault(FaultReason::Timeout);
+        } else if now - self.last_heartbeat > t.heartbeat {
+            self.fault(FaultReason::HeartbeatLost);
+        }
+    }
+
+    /// The NMT reset goes out; the node boots afresh, its power stage off.
+    fn send_reset(&mut self, now: u64, command: nmt::Command, out: &mut Outbox) {
+        self.booted = false;
+        self.nmt_state = nmt::state::PRE_OPERATIONAL;
+        self.drive.switch_off();
+        self.phase = Phase::Booting {
+            since: now,
             command,
         };
-        let id = n.cfg.node_id.get();
-        self.send(&nmt::command(command, id));
+        out.push(nmt::command(command, self.id()));
     }
 
-    pub(super) fn boot(&mut self, i: usize, since: u64, command: nmt::Command) {
-        let boot_ticks = self.ticks(self.cfg.boot_timeout);
-        let tick = self.tick;
-        let n = &mut self.nodes[i];
-        if n.booted {
-            n.phase = Phase::Configuring {
-                step: 0,
-                sent_at: tick,
-                retried: false,
-            };
-            self.send_step(i, 0);
-        } else if tick - since > boot_ticks {
-            self.fault(i, FaultReason::NoBootUp);
-        } else if (tick - since).is_multiple_of(boot_ticks / 3 + 1) {
+    fn boot(&mut self, now: u64, since: u64, command: nmt::Command, t: &Timing, out: &mut Outbox) {
+        if self.booted {
+            self.send_step(now, 0, false, out);
+        } else if now - since > t.boot {
+            self.fault(FaultReason::NoBootUp);
+        } else if (now - since).is_multiple_of(t.boot / 3 + 1) {
             // The reset may have been lost (a drive busy or not yet listening): ask again,
             // twice, before giving up.
-            let id = n.cfg.node_id.get();
-            self.send(&nmt::command(command, id));
+            out.push(nmt::command(command, self.id()));
         }
     }
 
-    pub(super) fn configure(&mut self, i: usize, step: usize, sent_at: u64, retried: bool) {
-        if self.tick - sent_at <= self.ticks(self.cfg.sdo_timeout) {
+    fn configure(
+        &mut self,
+        now: u64,
+        step: usize,
+        sent_at: u64,
+        retried: bool,
+        t: &Timing,
+        out: &mut Outbox,
+    ) {
+        if now - sent_at <= t.sdo {
             return;
         }
         if retried {
-            let (index, subindex) = step_object(self.nodes[i].steps[step]);
-            self.fault(i, FaultReason::SdoTimeout { index, subindex });
+            let (index, subindex) = step_object(self.steps[step]);
+            self.fault(FaultReason::SdoTimeout { index, subindex });
         } else {
-            self.nodes[i].phase = Phase::Configuring {
-                step,
-                sent_at: self.tick,
-                retried: true,
-            };
-            self.send_step(i, step);
+            self.send_step(now, step, true, out);
         }
+    }
+
+    /// Sends start-up step `step` (configuring from now).
+    pub(super) fn send_step(&mut self, now: u64, step: usize, retried: bool, out: &mut Outbox) {
+        self.phase = Phase::Configuring {
+            step,
+            sent_at: now,
+            retried,
+        };
+        out.push(self.sdo_request(self.steps[step]));
+    }
+
+    /// The SDO request of one step.
+    pub(super) fn sdo_request(&self, s: Step) -> Frame {
+        let id = self.id();
+        match s {
+            Step::Write {
+                index,
+                subindex,
+                value,
+                size,
+            } => sdo::download(id, index, subindex, value, size),
+            Step::ReadPosition | Step::CheckMode(_) => {
+                let (index, subindex) = step_object(s);
+                sdo::upload(id, index, subindex)
+            }
+        }
+    }
+
+    /// NMT start of a configured node: from now on it gets SYNC and its RPDO.
+    pub(super) fn nmt_start(&mut self, now: u64, out: &mut Outbox) {
+        self.phase = Phase::Starting { since: now };
+        self.tpdo_seen = false;
+        self.last_heartbeat = now;
+        self.nmt_state = nmt::state::OPERATIONAL;
+        self.drive.switch_off();
+        out.push(nmt::command(nmt::Command::Start, self.id()));
     }
 
     /// Waiting for the first TPDO after NMT start; with it the enable sequence begins.
-    pub(super) fn start(&mut self, i: usize, since: u64, target: i32) {
-        let boot_ticks = self.ticks(self.cfg.boot_timeout);
-        let tick = self.tick;
-        let n = &mut self.nodes[i];
-        if n.tpdo_seen {
-            n.tpdo_missing = 0;
-            n.phase = Phase::Running;
-            n.drive.begin_enable(tick);
-        } else if tick - since > boot_ticks {
-            return self.fault(i, FaultReason::Timeout);
+    fn start(&mut self, now: u64, since: u64, target: i32, t: &Timing) {
+        if self.tpdo_seen {
+            self.tpdo_missing = 0;
+            self.phase = Phase::Running;
+            self.drive.begin_enable(now);
+        } else if now - since > t.boot {
+            return self.fault(FaultReason::Timeout);
         }
-        let n = &mut self.nodes[i];
-        n.drive.tick(tick, n.tpdo_seen, target);
+        self.drive.tick(now, self.tpdo_seen, target);
     }
 
-    /// A reset of node `i`: a fault of the drive itself, or the safe state, is cleared over
-    /// the RPDO while the node still talks (CiA 402 fault reset, enable again); anything else
-    /// restarts the node. `whole_bus`: the bus itself had failed, every node restarts.
-    pub(super) fn reset_node(&mut self, i: usize, whole_bus: bool) {
-        let tick = self.tick;
-        let hb_ticks = self.ticks(self.cfg.heartbeat_timeout);
-        let n = &mut self.nodes[i];
+    /// A reset: a fault of the drive itself, or the safe state, is cleared over the RPDO while
+    /// the node still talks (CiA 402 fault reset, enable again); anything else restarts the
+    /// node. `whole_bus`: the bus itself had failed, every node restarts.
+    pub(super) fn reset(&mut self, now: u64, whole_bus: bool, t: &Timing) {
         // Still in NMT operational by its own latest word: a fault reset over the RPDO is
         // enough. Otherwise (it left operational, or went quiet) the whole start-up.
-        let talking = n.nmt_state == nmt::state::OPERATIONAL && tick - n.last_heartbeat <= hb_ticks;
+        let talking =
+            self.nmt_state == nmt::state::OPERATIONAL && now - self.last_heartbeat <= t.heartbeat;
         let restart = Phase::ResetPending {
             command: nmt::Command::ResetCommunication,
         };
-        let drive = n.drive.phase();
-        n.phase = match n.phase {
+        self.phase = match self.phase {
             Phase::Idle => Phase::ResetPending {
                 command: nmt::Command::ResetNode,
             },
             Phase::Faulted(_) => restart,
             // A reference run that did not return to CSP: restart, so the configuration
             // sets the mode again.
-            Phase::Running if whole_bus || n.mode_changed => restart,
-            Phase::Running => match drive {
+            Phase::Running if whole_bus || self.mode_changed => restart,
+            Phase::Running => match self.drive.phase() {
                 DrivePhase::Faulted(_) if !talking => restart,
                 DrivePhase::Faulted(_) | DrivePhase::Stopped => {
-                    n.tpdo_missing = 0;
-                    n.drive.begin_enable(tick);
+                    self.tpdo_missing = 0;
+                    self.drive.begin_enable(now);
                     Phase::Running
                 }
                 _ => Phase::Running,
@@ -309,34 +408,32 @@ impl<P: CanPort> CanOpenMaster<P> {
             _ if whole_bus => restart,
             other => other,
         };
-        if n.phase == restart {
-            n.drive.switch_off();
+        if self.phase == restart {
+            self.drive.switch_off();
         }
     }
 
-    /// The start of node `i`'s orderly shutdown, by where it is.
-    pub(super) fn shut_down_node(&mut self, i: usize) {
-        let tick = self.tick;
-        let n = &mut self.nodes[i];
-        match n.phase {
+    /// The start of the node's orderly shutdown, by where it is.
+    pub(super) fn shut_down(&mut self, now: u64, out: &mut Outbox) {
+        match self.phase {
             Phase::Idle
             | Phase::ResetPending { .. }
             | Phase::Booting { .. }
             | Phase::Faulted(FaultReason::NoBootUp) => {
-                n.phase = Phase::ShuttingDown(Off::Done);
+                self.phase = Phase::ShuttingDown(Off::Done);
             }
             Phase::Starting { .. } | Phase::Running | Phase::Homing(_) => {
-                n.phase = Phase::ShuttingDown(Off::PowerDown);
-                n.drive.begin_power_down(tick);
+                self.phase = Phase::ShuttingDown(Off::PowerDown);
+                self.drive.begin_power_down(now);
             }
             Phase::Faulted(r) if is_drive_level(r) => {
-                n.phase = Phase::ShuttingDown(Off::PowerDown);
-                n.drive.begin_power_down(tick);
+                self.phase = Phase::ShuttingDown(Off::PowerDown);
+                self.drive.begin_power_down(now);
             }
             // Configured but not started, or communication lost: no power stage to walk
             // down, but the heartbeat watch may be set.
             Phase::Configuring { .. } | Phase::Configured | Phase::Faulted(_) => {
-                self.send_clear_consumer(i, false);
+                self.send_clear_consumer(now, false, out);
             }
             Phase::ShuttingDown(_) => {}
         }
@@ -345,46 +442,39 @@ impl<P: CanPort> CanOpenMaster<P> {
     /// Shutdown: the drive's power stage walks down on fresh statuswords (at once if the
     /// node left NMT operational: it no longer takes the RPDO); then the heartbeat watch is
     /// cleared.
-    pub(super) fn power_down(&mut self, i: usize) {
-        let tick = self.tick;
-        let n = &mut self.nodes[i];
-        if n.nmt_state == nmt::state::OPERATIONAL {
-            let target = n.drive.target_increments();
-            n.drive.tick(tick, n.tpdo_seen, target);
+    fn power_down(&mut self, now: u64, out: &mut Outbox) {
+        if self.nmt_state == nmt::state::OPERATIONAL {
+            let target = self.drive.target_increments();
+            self.drive.tick(now, self.tpdo_seen, target);
         } else {
-            n.drive.switch_off();
+            self.drive.switch_off();
         }
-        if n.drive.phase() == DrivePhase::Off {
-            self.send_clear_consumer(i, false);
+        if self.drive.phase() == DrivePhase::Off {
+            self.send_clear_consumer(now, false, out);
         }
     }
 
-    pub(super) fn send_clear_consumer(&mut self, i: usize, retried: bool) {
-        self.nodes[i].phase = Phase::ShuttingDown(Off::ClearConsumer {
-            sent_at: self.tick,
+    fn send_clear_consumer(&mut self, now: u64, retried: bool, out: &mut Outbox) {
+        self.phase = Phase::ShuttingDown(Off::ClearConsumer {
+            sent_at: now,
             retried,
         });
-        let id = self.nodes[i].cfg.node_id.get();
-        self.send(&sdo::download(id, 0x1016, 1, 0, 4));
+        out.push(sdo::download(self.id(), 0x1016, 1, 0, 4));
     }
 
-    pub(super) fn clear_consumer(&mut self, i: usize, sent_at: u64, retried: bool) {
-        if self.tick - sent_at <= self.ticks(self.cfg.sdo_timeout) {
-            return;
-        }
+    /// The clearing of the heartbeat watch was not answered in time: once more, then leave.
+    fn clear_consumer(&mut self, now: u64, retried: bool, out: &mut Outbox) {
         if retried {
-            self.leave_bus(i);
+            self.leave_bus(out);
         } else {
-            self.send_clear_consumer(i, true);
+            self.send_clear_consumer(now, true, out);
         }
     }
 
     /// Last step of a node's shutdown: NMT pre-operational (PDOs stop, SDO stays possible).
-    pub(super) fn leave_bus(&mut self, i: usize) {
-        let n = &mut self.nodes[i];
-        n.phase = Phase::ShuttingDown(Off::Done);
-        n.nmt_state = nmt::state::PRE_OPERATIONAL;
-        let id = n.cfg.node_id.get();
-        self.send(&nmt::command(nmt::Command::EnterPreOperational, id));
+    pub(super) fn leave_bus(&mut self, out: &mut Outbox) {
+        self.phase = Phase::ShuttingDown(Off::Done);
+        self.nmt_state = nmt::state::PRE_OPERATIONAL;
+        out.push(nmt::command(nmt::Command::EnterPreOperational, self.id()));
     }
 }

@@ -1,0 +1,108 @@
+//! What a node makes of the frames it sends the master: its TPDO (statusword, actual value),
+//! EMCY, heartbeat and SDO answers. The master only dispatches by COB-ID. A child of `master`.
+
+use super::*;
+
+impl Node {
+    pub(super) fn on_tpdo(&mut self, f: &Frame) {
+        match Tpdo::decode(f.payload()) {
+            Some(t) => {
+                self.drive.on_status(t.statusword, t.position_increments);
+                self.tpdo_seen = true;
+                // Only a node in NMT operational sends PDOs.
+                self.nmt_state = nmt::state::OPERATIONAL;
+            }
+            // CAN frames are checked by CRC: a wrong length is a mapping mismatch, not noise.
+            None if self.expects_pdo() => self.fault(FaultReason::PdoLength {
+                cob_id: f.id,
+                len: f.len,
+                expected: pdo::LEN as u8,
+            }),
+            None => {}
+        }
+    }
+
+    pub(super) fn on_emcy(&mut self, payload: &[u8]) {
+        let Some(e) = Emcy::decode(payload) else {
+            return;
+        };
+        if e.code == 0 || self.phase == Phase::Idle {
+            return;
+        }
+        self.drive.set_error_code(e.code);
+        self.fault(if e.code == emcy::FOLLOWING_ERROR {
+            FaultReason::FollowingError
+        } else {
+            FaultReason::DriveFault { code: e.code }
+        });
+    }
+
+    pub(super) fn on_heartbeat(&mut self, now: u64, state: u8) {
+        self.last_heartbeat = now;
+        if state == nmt::state::BOOT_UP {
+            self.booted = true;
+            self.nmt_state = nmt::state::PRE_OPERATIONAL;
+            if self.phase.is_started() {
+                self.fault(FaultReason::NmtStateChanged { state });
+            }
+            return;
+        }
+        // A heartbeat sent before our NMT start may still arrive while starting.
+        if !matches!(self.phase, Phase::Starting { .. }) {
+            self.nmt_state = state;
+        }
+        if state != nmt::state::OPERATIONAL
+            && matches!(self.phase, Phase::Running | Phase::Homing(_))
+        {
+            self.fault(FaultReason::NmtStateChanged { state });
+        }
+    }
+
+    pub(super) fn on_sdo_response(&mut self, now: u64, r: Response, out: &mut Outbox) {
+        match self.phase {
+            Phase::Configuring { step, .. } => self.on_startup_sdo(now, step, r, out),
+            // Done either way: a drive that refuses is switched off and told to stop all the
+            // same.
+            Phase::ShuttingDown(Off::ClearConsumer { .. }) if r.object() == (0x1016, 1) => {
+                self.leave_bus(out)
+            }
+            Phase::Homing(Home::Sdo { leaving, step, .. }) => {
+                self.on_homing_sdo(now, leaving, step, r, out)
+            }
+            _ => {}
+        }
+    }
+
+    /// The answer to start-up step `step`: the next step, or configured after the last.
+    fn on_startup_sdo(&mut self, now: u64, step: usize, r: Response, out: &mut Outbox) {
+        let expected = self.steps[step];
+        if r.object() != step_object(expected) {
+            return; // a late answer to an earlier, retried request
+        }
+        match r {
+            Response::Abort { code, .. } => {
+                let (index, subindex) = r.object();
+                self.fault(FaultReason::SdoAbort {
+                    index,
+                    subindex,
+                    abort_code: code,
+                });
+            }
+            Response::UploadOk { value, .. } => {
+                if expected == Step::ReadPosition {
+                    self.drive.set_actual_increments(value as i32);
+                }
+                self.next_step(now, step, out);
+            }
+            Response::DownloadOk { .. } => self.next_step(now, step, out),
+        }
+    }
+
+    fn next_step(&mut self, now: u64, step: usize, out: &mut Outbox) {
+        if step + 1 < self.steps.len() {
+            self.send_step(now, step + 1, false, out);
+        } else {
+            self.phase = Phase::Configured;
+        }
+    }
+}
