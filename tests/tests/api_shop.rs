@@ -89,26 +89,8 @@ async fn cncctl_uses_the_unix_socket_by_default() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn reflection_v1alpha_beside_v1() {
-    use tonic_reflection::pb::v1alpha::ServerReflectionRequest;
-    use tonic_reflection::pb::v1alpha::server_reflection_client::ServerReflectionClient;
-    use tonic_reflection::pb::v1alpha::server_reflection_request::MessageRequest;
-    use tonic_reflection::pb::v1alpha::server_reflection_response::MessageResponse;
     let d = start(config(Role::Observer)).await;
-    let mut r = ServerReflectionClient::new(d.channel().await);
-    let req = ServerReflectionRequest {
-        host: String::new(),
-        message_request: Some(MessageRequest::ListServices(String::new())),
-    };
-    let mut resp = r
-        .server_reflection_info(tokio_stream::iter(vec![req]))
-        .await
-        .unwrap()
-        .into_inner();
-    let m = resp.message().await.unwrap().unwrap();
-    let Some(MessageResponse::ListServicesResponse(l)) = m.message_response else {
-        panic!("unexpected reflection answer");
-    };
-    let names: Vec<String> = l.service.into_iter().map(|s| s.name).collect();
+    let names = reflected_services!(v1alpha, d.channel().await);
     for s in [
         "cnc.v1.Machine",
         "cnc.v1.Offsets",
