@@ -332,7 +332,7 @@ async fn program_library_on_disk_survives_a_restart() {
     let (ok, out) = cncctl(&d.socket(), &["run", "--quiet", "--json"]).await;
     assert!(!ok, "run needs a file: {out}");
     let mut m = MachineClient::new(d.channel().await);
-    let job = m.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let job = start_job(&mut m).await;
     wait_job_finished(&d.ctl, job).await;
 }
 
@@ -396,7 +396,7 @@ async fn a_program_over_the_message_limit_loads_and_runs_from_its_file() {
         daemon::runtime::library::ProgramText::File(_)
     ));
     let mut m = MachineClient::new(d.channel().await);
-    let job = m.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let job = start_job(&mut m).await;
     wait_until("moving through the program", || {
         let s = d.ctl.snapshot();
         s.job == job && s.block_seq > 10
@@ -409,13 +409,7 @@ async fn a_program_over_the_message_limit_loads_and_runs_from_its_file() {
 async fn status_shows_the_distance_to_go() {
     let d = start(config(Role::Admin)).await;
     let mut m = MachineClient::new(d.channel().await);
-    m.load_program(pb::LoadProgramRequest {
-        name: "slow.nc".into(),
-        text: "N10 G1 X40 Y-20 F60\n".into(),
-    })
-    .await
-    .unwrap();
-    let job = m.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let job = load_and_start(&mut m, "slow.nc", "N10 G1 X40 Y-20 F60\n").await;
     let mut s = m
         .stream_status(pb::StatusRequest { rate_hz: 50 })
         .await

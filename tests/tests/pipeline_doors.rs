@@ -723,22 +723,7 @@ async fn r6_g24_window_reaches_the_rt_thread_at_the_next_start() {
     doors.set(&[(6, 0.01)]).await;
     assert!(doors.load("N10 G24 G1 X15 F3000\nN20 X20\n").await.valid);
     let job = start_job(&mut doors.m).await;
-    let c = ctl.clone();
-    wait_until("at the end of N10", || {
-        let s = c.snapshot();
-        s.job == job && (s.commanded[0] - 15.0).abs() < 1e-9 && s.path_v_mm_s == 0.0
-    })
-    .await;
-    // 250 ticks (1 s of machine time) later it still waits there.
-    let t0 = ctl.snapshot().sequence;
-    let c = ctl.clone();
-    wait_until("250 ticks", || c.snapshot().sequence > t0 + 250).await;
-    let s = ctl.snapshot();
-    assert_eq!(s.block_n, Some(10), "{s:?}");
-    assert_eq!(s.state, MachineState::Running);
-    assert!((s.commanded[0] - 15.0).abs() < 1e-9);
-    doors.m.stop(pb::StopRequest {}).await.unwrap();
-    wait_state(&ctl, MachineState::Idle).await;
+    assert_g24_waits_at_the_end_of_n10(&ctl, &mut doors.m, job, 0, 15.0).await;
 }
 
 /// Arcs of radius 1e-9 mm (issue #14): one verdict and the same diagnostics at every door.

@@ -328,3 +328,29 @@ macro_rules! reflected_services {
             .collect::<Vec<String>>()
     }};
 }
+
+/// Job `job` waits with G24 at the end of N10 for ever: at rest with axis `axis` at `at_mm`,
+/// and still there 250 ticks (1 s of machine time) later, running. Then stops it.
+pub async fn assert_g24_waits_at_the_end_of_n10(
+    ctl: &Arc<Controller>,
+    m: &mut MachineClient<Channel>,
+    job: u32,
+    axis: usize,
+    at_mm: f64,
+) {
+    let c = ctl.clone();
+    wait_until("at the end of N10", || {
+        let s = c.snapshot();
+        s.job == job && (s.commanded[axis] - at_mm).abs() < 1e-9 && s.path_v_mm_s == 0.0
+    })
+    .await;
+    let t0 = ctl.snapshot().sequence;
+    let c = ctl.clone();
+    wait_until("250 ticks", || c.snapshot().sequence > t0 + 250).await;
+    let s = ctl.snapshot();
+    assert_eq!(s.block_n, Some(10), "{s:?}");
+    assert_eq!(s.state, MachineState::Running);
+    assert!((s.commanded[axis] - at_mm).abs() < 1e-9);
+    m.stop(pb::StopRequest {}).await.unwrap();
+    wait_state(ctl, MachineState::Idle).await;
+}
