@@ -221,6 +221,20 @@ pub fn recorded_harness(
     (h, record)
 }
 
+/// A part program with rapids, lines, arcs (G2 and G3), a feed change, G23 continuity and block
+/// ends at rest (G98): the run the harness and bus-cycle tests compare.
+pub const PART: &str = "\
+N10 G0 X10 Y5 Z1
+N20 G1 Z-1 F600
+N30 G23 X40 F3000
+N40 G3 X60 Y25 I0 J20
+N50 G2 X40 Y45 I-20 J0
+N60 G1 X10 F1800
+N70 G98 Y5
+N80 G0 Z5
+N90 X0 Y0
+";
+
 /// The gear table of the lathe tests: M41..M44 up to 250, 500, 1000 and 2000 rpm.
 pub const LATHE_GEARS: [(u16, f64); 4] = [(41, 250.0), (42, 500.0), (43, 1000.0), (44, 2000.0)];
 

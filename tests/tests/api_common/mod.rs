@@ -231,14 +231,20 @@ impl DriveBus for LaggingBus {
 pub async fn lagging_daemon(cfg: Config, axis: usize) -> (Arc<Controller>, Channel) {
     let bus = LaggingBus::new(cfg.axes.len(), axis);
     let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
-    let socket = tests::serve_unix(&ctl).await;
+    let ch = serve_unix_channel(&ctl).await;
     wait_state(&ctl, MachineState::Idle).await;
-    let ch = tonic::transport::Endpoint::from_shared(socket)
+    (ctl, ch)
+}
+
+/// Serves the API of `ctl` on its Unix socket ([`tests::serve_unix`]: local trust) and connects
+/// a channel to it.
+pub async fn serve_unix_channel(ctl: &Arc<Controller>) -> Channel {
+    let socket = tests::serve_unix(ctl).await;
+    tonic::transport::Endpoint::from_shared(socket)
         .unwrap()
         .connect()
         .await
-        .unwrap();
-    (ctl, ch)
+        .unwrap()
 }
 
 /// The request of `LoadProgram` and `UploadProgram`: `text` stored as `name`.
