@@ -473,19 +473,7 @@ impl Machine for MachineSvc {
         require(&req, Observer, "GetRefinedProgram")?;
         let text = req.into_inner().text;
         let st = self.0.clone();
-        let text = if text.is_empty() {
-            st.ctl
-                .program()
-                .ok_or_else(|| {
-                    Status::failed_precondition("no program is selected and no text was given")
-                })?
-                .text
-                .read_all()
-                .map_err(|e| Status::internal(format!("cannot read the selected program: {e}")))?
-                .to_string()
-        } else {
-            text
-        };
+        let text = super::text_or_selected(&st.ctl, text)?;
         let (listing, refined, diags) =
             blocking(move || st.ctl.refinement_listing(&text).map_err(status_of)).await??;
         Ok(Response::new(pb::RefinedProgramReply {
