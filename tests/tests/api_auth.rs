@@ -62,11 +62,7 @@ async fn roles_observer_operator_admin() {
         m.set_override(pb::SetOverrideRequest { percent: 50.0 })
             .await
             .unwrap_err(),
-        m.mdi(pb::MdiRequest {
-            block: "G1 X1 F100".into(),
-        })
-        .await
-        .unwrap_err(),
+        m.mdi(mdi_block("G1 X1 F100")).await.unwrap_err(),
         m.load_program(named_program("a", "G1 X1 F100"))
             .await
             .unwrap_err(),

@@ -194,20 +194,10 @@ async fn mdi_runs_one_block_and_keeps_the_selected_program() {
         .await
         .unwrap();
     for bad in ["", "G1 X1 F100\nG1 X2", "G7 X1"] {
-        let e = c
-            .mdi(pb::MdiRequest { block: bad.into() })
-            .await
-            .unwrap_err();
+        let e = c.mdi(mdi_block(bad)).await.unwrap_err();
         assert_eq!(e.code(), Code::InvalidArgument, "{bad:?}");
     }
-    let job = c
-        .mdi(pb::MdiRequest {
-            block: "G1 X5 Y2 F3000".into(),
-        })
-        .await
-        .unwrap()
-        .into_inner()
-        .job;
+    let job = start_mdi(&mut c, "G1 X5 Y2 F3000").await;
     let mut stream = c
         .stream_status(pb::StatusRequest { rate_hz: 50 })
         .await
@@ -223,12 +213,7 @@ async fn mdi_runs_one_block_and_keeps_the_selected_program() {
     assert_eq!(list.selected, "part.nc");
     // MDI while running is a wrong state.
     c.start(pb::StartRequest {}).await.unwrap();
-    let e = c
-        .mdi(pb::MdiRequest {
-            block: "G1 X1 F100".into(),
-        })
-        .await
-        .unwrap_err();
+    let e = c.mdi(mdi_block("G1 X1 F100")).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition);
 }
 

@@ -43,12 +43,7 @@ async fn loopback_is_observer_by_default_the_socket_controls() {
     // Any local account can open loopback TCP: without a token it only observes.
     let mut tcp = MachineClient::new(d.loopback_channel().await);
     tcp.list_programs(pb::ListProgramsRequest {}).await.unwrap();
-    let e = tcp
-        .mdi(pb::MdiRequest {
-            block: "G1 X1 F500".into(),
-        })
-        .await
-        .unwrap_err();
+    let e = tcp.mdi(mdi_block("G1 X1 F500")).await.unwrap_err();
     assert_eq!(e.code(), Code::PermissionDenied, "{e:?}");
     // A token gives its role on loopback too.
     tcp.set_override(with_token(

@@ -7,7 +7,7 @@ use std::time::{Duration, Instant};
 
 mod api_common;
 
-use api_common::{named_program, start_job};
+use api_common::{mdi_block, named_program, start_job};
 use daemon::runtime::config::Config;
 use daemon::runtime::controller::{ClockKind, Controller};
 use daemon::runtime::rt::{MachineState, Snapshot};
@@ -231,11 +231,9 @@ async fn soft_limits_refuse_programs_and_mdi_with_the_offsets_in_force() {
 
     // MDI is refused the same way and nothing moves.
     let e =
-        d.c.mdi(pb::MdiRequest {
-            block: "G0 X-5000 Y99999 Z-3000".into(),
-        })
-        .await
-        .unwrap_err();
+        d.c.mdi(mdi_block("G0 X-5000 Y99999 Z-3000"))
+            .await
+            .unwrap_err();
     assert_eq!(e.code(), Code::InvalidArgument);
     assert!(diagnostics(&e).iter().any(|d| d.soft_limit.is_some()));
     assert_eq!(d.ctl.snapshot().commanded[0], 0.0);
@@ -619,12 +617,7 @@ async fn homing_in_order_and_refusals_before_it() {
     load(&mut c, "N10 G1 X1 F1000\n").await.unwrap();
     let e = c.start(pb::StartRequest {}).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition);
-    let e = c
-        .mdi(pb::MdiRequest {
-            block: "G1 X1 F1000".into(),
-        })
-        .await
-        .unwrap_err();
+    let e = c.mdi(mdi_block("G1 X1 F1000")).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition);
     let (tx, call) = jog_stream(&c, "X", 1, 600.0).await;
     drop(tx);

@@ -617,14 +617,7 @@ fn gear_config(ranges: u16) -> daemon::runtime::config::Config {
 }
 
 async fn mdi(d: &Daemon, m: &mut MachineClient<Channel>, block: &str) -> u32 {
-    let job = m
-        .mdi(pb::MdiRequest {
-            block: block.into(),
-        })
-        .await
-        .unwrap_or_else(|e| panic!("{block}: {e:?}"))
-        .into_inner()
-        .job;
+    let job = start_mdi(m, block).await;
     wait_job_finished(&d.ctl, job).await;
     job
 }
@@ -846,16 +839,7 @@ async fn picture_of_the_selected_program_reads_the_pass_of_its_load() {
     }
     // Moved by MDI: the load's pass is not the next start's any more; the picture makes a
     // pass from where the machine is now.
-    let job = doors
-        .m
-        .mdi(pb::MdiRequest {
-            block: "G0 X5".into(),
-        })
-        .await
-        .unwrap()
-        .into_inner()
-        .job;
-    wait_job_finished(&d.ctl, job).await;
+    mdi(&d, &mut doors.m, "G0 X5").await;
     let passes = d.ctl.validation_passes();
     picture(&mut doors, "", false).await;
     assert_eq!(d.ctl.validation_passes(), passes + 1);

@@ -360,3 +360,19 @@ pub async fn assert_g24_waits_at_the_end_of_n10(
     m.stop(pb::StopRequest {}).await.unwrap();
     wait_state(ctl, MachineState::Idle).await;
 }
+
+/// The request of `Mdi`: one block.
+pub fn mdi_block(block: &str) -> pb::MdiRequest {
+    pb::MdiRequest {
+        block: block.into(),
+    }
+}
+
+/// `Mdi` of `block`: its job number (panics with the block when it is refused).
+pub async fn start_mdi(m: &mut MachineClient<Channel>, block: &str) -> u32 {
+    m.mdi(mdi_block(block))
+        .await
+        .unwrap_or_else(|e| panic!("{block}: {e:?}"))
+        .into_inner()
+        .job
+}
