@@ -311,6 +311,17 @@ impl Doors {
     }
 }
 
+/// A daemon with the test configuration (local trust: admin), with `table` as its offset
+/// table when given, and its doors.
+async fn daemon(table: Option<&str>) -> (Daemon, Doors) {
+    let d = start(config(Role::Admin)).await;
+    if let Some(t) = table {
+        d.ctl.replace_offsets_file(t).unwrap();
+    }
+    let doors = Doors::new(d.channel().await).await;
+    (d, doors)
+}
+
 fn programs_in(dir: &Path) -> Vec<(String, String)> {
     let mut v: Vec<_> = std::fs::read_dir(dir)
         .unwrap()
@@ -336,9 +347,7 @@ fn corpus() -> Vec<(String, String)> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn every_door_gives_the_verdict_of_validation() {
-    let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(Some(TABLE)).await;
 
     let programs = corpus();
     assert!(programs.len() >= 50, "corpus has {}", programs.len());
@@ -396,9 +405,7 @@ fn fig5() -> String {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn start_refuses_what_the_constants_in_force_refuse() {
-    let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(Some(TABLE)).await;
     // 8.R339 = 4: R339 = 40000.000.
     doors.set(&[(339, 40_000.0)]).await;
     assert!(doors.load(&fig5()).await.valid);
@@ -430,8 +437,7 @@ async fn kr_status_while_running(d: &Daemon, m: &mut MachineClient<Channel>) -> 
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn s_units_r329_reach_kr_and_the_spindle_at_the_next_start() {
-    let d = start(config(Role::Admin)).await;
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(None).await;
     // n = v / (2π r), r from the controlling axis X (about X100).
     let rpm = |kr: &pb::KrStatus, v_m_min: f64| {
         v_m_min * 1000.0 / (2.0 * std::f64::consts::PI * kr.radius_mm)
@@ -455,8 +461,7 @@ async fn s_units_r329_reach_kr_and_the_spindle_at_the_next_start() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn r67_controlling_axis_changes_at_the_next_start() {
-    let d = start(config(Role::Admin)).await;
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(None).await;
     let kr = kr_status_while_running(&d, &mut doors.m).await;
     // A mill (radius_input = "radius", the default): the position is the radius.
     assert!((kr.radius_mm - 100.0).abs() < 0.5, "X100: {kr:?}");
@@ -467,8 +472,7 @@ async fn r67_controlling_axis_changes_at_the_next_start() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn r580_bad_value_is_refused_and_changes_nothing() {
-    let d = start(config(Role::Admin)).await;
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(None).await;
     let e = doors
         .k
         .set_constants(constant_values(&[(580, 7.0)]))
@@ -481,8 +485,7 @@ async fn r580_bad_value_is_refused_and_changes_nothing() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn axis_codes_need_a_restart_and_are_not_used_before() {
-    let d = start(config(Role::Admin)).await;
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(None).await;
     let r = doors.set(&[(2, 0.0), (39, 45.0)]).await;
     assert_eq!(r.restart_required, [2]);
     assert_eq!(d.ctl.constants().get(2), 0.0, "saved");
@@ -495,9 +498,7 @@ async fn axis_codes_need_a_restart_and_are_not_used_before() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn r55_is_one_tolerance_for_interpreter_and_compensation() {
-    let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(Some(TABLE)).await;
     // A compensated arc whose end point is 5 µm off its circle (radially).
     let text =
         "N10 G0 X0 Y0\nN20 D3 G41 G1 X10 Y0 F500\nN30 G3 X30.005 Y0 I10 J0\nN40 G40 G1 X40 Y0\n";
@@ -668,9 +669,7 @@ async fn junction_classes(doors: &mut Doors, text: &str) -> Vec<i32> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn planner_and_interpreter_constants_take_effect_at_the_next_pass() {
-    let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(Some(TABLE)).await;
     let smooth = pb::JunctionClass::Smooth as i32;
     let stop = pb::JunctionClass::Stop as i32;
 
@@ -745,9 +744,7 @@ fn tiny_arcs() -> Vec<(&'static str, &'static str, Option<u32>)> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_1e_9_mm_arc_gets_one_verdict_at_every_door() {
-    let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(Some(TABLE)).await;
     for (name, text, refused_at) in tiny_arcs() {
         let valid = doors.same_everywhere(&d, name, text).await;
         assert_eq!(valid, refused_at.is_none(), "{name}");
@@ -771,9 +768,7 @@ async fn selected_preview(doors: &mut Doors, junctions: bool) -> pb::PreviewData
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn preview_of_the_selected_program_reads_the_pass_of_its_load() {
-    let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(Some(TABLE)).await;
     let smooth = pb::JunctionClass::Smooth as i32;
     let stop = pb::JunctionClass::Stop as i32;
     // Automatic continuity, R39 = 60°: the 16.7° corner after N10 is smooth; compensated.
@@ -824,9 +819,7 @@ async fn picture(doors: &mut Doors, text: &str, velocity: bool) -> pb::GetPrevie
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn picture_of_the_selected_program_reads_the_pass_of_its_load() {
-    let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(Some(TABLE)).await;
     let text = "N5 D1 G41 G1 X0 Y0 F3000\nN10 G23 X10 Y0\nN20 X20 Y3\nN30 G3 X30 Y13 I0 J10\nN40 G40 G1 X40 Y3\n";
     assert!(doors.load(text).await.valid);
     for velocity in [false, true] {
