@@ -221,6 +221,26 @@ pub fn recorded_harness(
     (h, record)
 }
 
+/// Asserts that the harness refuses to start `text`, with an error diagnostic at block
+/// `block` (`what` names the case in the failure).
+pub fn assert_refused_at(
+    h: &mut daemon::runtime::harness::Harness,
+    text: &str,
+    block: u32,
+    what: &str,
+) {
+    use daemon::runtime::harness::HarnessError;
+    match h.start_program(text) {
+        Err(HarnessError::InvalidProgram(d)) => {
+            assert!(
+                d.iter().any(|d| d.is_error() && d.block == Some(block)),
+                "{what}: {d:?}"
+            );
+        }
+        other => panic!("{what} accepted: {other:?}"),
+    }
+}
+
 /// A part program with rapids, lines, arcs (G2 and G3), a feed change, G23 continuity and block
 /// ends at rest (G98): the run the harness and bus-cycle tests compare.
 pub const PART: &str = "\
