@@ -241,6 +241,27 @@ pub fn assert_refused_at(
     }
 }
 
+/// Steps `h` until job `job` has finished, checking every tick's next deadline: on the grid of
+/// `period_ns` (the clock starts at 0, so the grid is the multiples of the period), the first
+/// grid point after the wake-up, so that a late tick skips `lateness / period` grid points.
+/// Returns the largest lateness, ns. Fails after 100 000 ticks (a bound, not a timing).
+pub fn run_on_the_grid(h: &mut daemon::runtime::harness::Harness, job: u32, period_ns: u64) -> u64 {
+    let mut deadline = h.core().next_deadline_ns();
+    let mut max_lateness_ns = 0;
+    while h.snapshot().finished_job != job {
+        let s = h.step();
+        let lateness = s.time_ns - deadline;
+        max_lateness_ns = max_lateness_ns.max(lateness);
+        let next = h.core().next_deadline_ns();
+        assert_eq!(next % period_ns, 0, "{s:?}");
+        assert!(next > s.time_ns && next - s.time_ns <= period_ns, "{s:?}");
+        assert_eq!(next - deadline, (lateness / period_ns + 1) * period_ns);
+        deadline = next;
+        assert!(s.sequence < 100_000, "{s:?}");
+    }
+    max_lateness_ns
+}
+
 /// A part program with rapids, lines, arcs (G2 and G3), a feed change, G23 continuity and block
 /// ends at rest (G98): the run the harness and bus-cycle tests compare.
 pub const PART: &str = "\

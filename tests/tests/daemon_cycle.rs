@@ -272,17 +272,7 @@ fn late_ticks_at_2ms_keep_the_grid_and_count_overruns_exactly() {
     let (mut h, points, _) = machine(2, clock);
     let overruns0 = h.snapshot().ticks.overruns;
     let job = h.start_program(program).unwrap();
-    let mut deadline = h.core().next_deadline_ns();
-    while h.snapshot().finished_job != job {
-        let s = h.step();
-        let lateness = s.time_ns - deadline;
-        let next = h.core().next_deadline_ns();
-        assert_eq!(next % CYCLE_NS, 0, "{s:?}");
-        assert!(next > s.time_ns && next - s.time_ns <= CYCLE_NS, "{s:?}");
-        assert_eq!(next - deadline, (lateness / CYCLE_NS + 1) * CYCLE_NS);
-        deadline = next;
-        assert!(s.sequence < 100_000, "{s:?}");
-    }
+    tests::run_on_the_grid(&mut h, job, CYCLE_NS);
     assert_eq!(h.snapshot().ticks.overruns - overruns0, expected);
     assert!(h.clock().wakeups() > 550);
 

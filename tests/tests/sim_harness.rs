@@ -90,21 +90,7 @@ fn late_ticks_skip_grid_points_counted_exactly_without_setpoint_jump() {
     let (mut h, record, cfg) = recorded(clock);
     h.wait_state(MachineState::Idle, 10_000).unwrap();
     let job = h.start_program("G1 X200 Y100 F6000").unwrap();
-    let mut deadline = h.core().next_deadline_ns();
-    let mut max_lateness_ns = 0;
-    while h.snapshot().finished_job != job {
-        let s = h.step();
-        let lateness = s.time_ns - deadline;
-        max_lateness_ns = max_lateness_ns.max(lateness);
-        let next = h.core().next_deadline_ns();
-        // On the grid (the clock starts at 0, so the grid is the multiples of Ts) ...
-        assert_eq!(next % TS_NS, 0);
-        // ... and the next deadline is the first grid point after the wake-up.
-        assert!(next > s.time_ns && next - s.time_ns <= TS_NS, "{s:?}");
-        assert_eq!(next - deadline, (lateness / TS_NS + 1) * TS_NS);
-        deadline = next;
-        assert!(s.sequence < 100_000, "{s:?}");
-    }
+    let max_lateness_ns = tests::run_on_the_grid(&mut h, job, TS_NS);
     let s = h.snapshot();
     assert!(
         h.clock().wakeups() > 300,
