@@ -165,14 +165,29 @@ const WATCHDOG: Duration = Duration::from_millis(1000);
 /// Half the watchdog period.
 const PING: Duration = Duration::from_millis(500);
 
-/// The daemon on `bus`, supervised with a watchdog of `WATCHDOG` that notifies `path`.
-fn supervised(
-    dir: &Path,
-    path: &Path,
-    bus: Box<dyn DriveBus>,
-) -> (Arc<Controller>, systemd::Supervision) {
-    let ctl = Controller::start_with_bus(config(dir), ClockKind::Monotonic, bus).unwrap();
-    let notifier = Arc::new(Notifier::new(path).unwrap());
+/// The daemon in process on a [`SwitchedBus`], supervised with a watchdog of `WATCHDOG`, and
+/// the fake service manager it notifies.
+struct Supervised {
+    /// The test's directory.
+    dir: PathBuf,
+    mgr: Manager,
+    /// The bus's switch.
+    switch: Arc<AtomicBool>,
+    ctl: Arc<Controller>,
+    sup: systemd::Supervision,
+}
+
+/// [`Supervised`] in a fresh directory `name`, on a bus doing `while_on` while its switch (set
+/// to `on` at start-up) is on.
+fn supervised(name: &str, while_on: WhileOn, on: bool) -> Supervised {
+    cncd_binary();
+    let dir = scratch(name);
+    let path = dir.join("notify.sock");
+    let mgr = Manager::bind(&path);
+    let (bus, switch) = SwitchedBus::new(while_on, on);
+    let ctl =
+        Controller::start_with_bus(config(&dir), ClockKind::Monotonic, Box::new(bus)).unwrap();
+    let notifier = Arc::new(Notifier::new(&path).unwrap());
     let sup = systemd::supervise(
         ctl.subscribe(),
         Some(notifier),
@@ -180,7 +195,13 @@ fn supervised(
         ctl.config().axis_names(),
         "test machine".into(),
     );
-    (ctl, sup)
+    Supervised {
+        dir,
+        mgr,
+        switch,
+        ctl,
+        sup,
+    }
 }
 
 /// Shuts the in-process daemon down (off the async threads: it joins the real-time thread) and
@@ -194,12 +215,13 @@ async fn shut_down(ctl: Arc<Controller>, dir: &Path) {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn ready_after_start_up_pings_while_ticking_and_not_while_the_rt_thread_stalls() {
-    cncd_binary();
-    let dir = scratch("notify-stall");
-    let path = dir.join("notify.sock");
-    let mgr = Manager::bind(&path);
-    let (bus, stall) = SwitchedBus::new(WhileOn::Stall, false);
-    let (ctl, sup) = supervised(&dir, &path, Box::new(bus));
+    let Supervised {
+        dir,
+        mgr,
+        switch: stall,
+        ctl,
+        sup,
+    } = supervised("notify-stall", WhileOn::Stall, false);
 
     // READY=1 after start-up, and only once the drives are operational.
     let before = mgr.wait_for("READY=1", Duration::from_secs(10)).await;
@@ -285,12 +307,13 @@ async fn ready_after_start_up_pings_while_ticking_and_not_while_the_rt_thread_st
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn no_ready_while_the_drives_are_faulted_at_start_up() {
-    cncd_binary();
-    let dir = scratch("notify-fault");
-    let path = dir.join("notify.sock");
-    let mgr = Manager::bind(&path);
-    let (bus, faulted) = SwitchedBus::new(WhileOn::FaultY, true);
-    let (ctl, sup) = supervised(&dir, &path, Box::new(bus));
+    let Supervised {
+        dir,
+        mgr,
+        switch: faulted,
+        ctl,
+        sup,
+    } = supervised("notify-fault", WhileOn::FaultY, true);
 
     let msgs = mgr.collect(Duration::from_secs(3)).await;
     assert_eq!(ctl.snapshot().state, MachineState::Fault);
