@@ -11,6 +11,8 @@
 //! SCHED_FIFO). Goal: RT p99 within 1.5x of cyclictest's, overruns no more than cyclictest's,
 //! every stream at 250 Hz.
 
+mod bench_common;
+
 use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -19,7 +21,6 @@ use std::time::{Duration, Instant};
 use daemon::runtime::config::Config;
 use daemon::runtime::controller::{ClockKind, Controller};
 use daemon::runtime::rt::MachineState;
-use daemon::runtime::server;
 use proto::v1 as pb;
 use proto::v1::machine_client::MachineClient;
 use proto::v1::offsets_client::OffsetsClient;
@@ -122,16 +123,7 @@ fn percentile(v: &mut [f64], p: f64) -> f64 {
 }
 
 fn main() {
-    let secs: u64 = std::env::var("BENCH_SECS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(30);
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .expect("tokio runtime");
-    rt.block_on(bench(secs));
+    bench_common::run(bench(bench_common::env_number("BENCH_SECS", 30)));
 }
 
 async fn bench(secs: u64) {
@@ -140,22 +132,8 @@ async fn bench(secs: u64) {
     cfg.api.max_streams = 64;
     let ctl = Controller::start(cfg, ClockKind::Monotonic).expect("controller");
     // The Unix socket, as the shop's HMI reaches cncd (loopback TCP is observer-only).
-    let sock = ctl.config().storage.dir.join("cncd.sock");
-    let listeners = server::Listeners {
-        unix: Some(server::bind_unix(&sock, 0o600, None).expect("API socket")),
-        ..server::Listeners::default()
-    };
-    tokio::spawn(server::serve_listeners(
-        ctl.clone(),
-        listeners,
-        std::future::pending(),
-    ));
-    let t0 = Instant::now();
-    while ctl.snapshot().state != MachineState::Idle {
-        assert!(t0.elapsed() < Duration::from_secs(10), "drives not enabled");
-        tokio::time::sleep(Duration::from_millis(5)).await;
-    }
-    let ch = tonic::transport::Endpoint::from_shared(format!("unix:{}", sock.display()))
+    let addr = bench_common::serve_unix(&ctl).await;
+    let ch = tonic::transport::Endpoint::from_shared(addr)
         .unwrap()
         .connect()
         .await

@@ -10,13 +10,13 @@
 //!
 //! Run: `cargo bench -p daemon --bench program_upload`.
 
+mod bench_common;
+
 use std::io::Write;
 use std::time::{Duration, Instant};
 
 use daemon::runtime::config::Config;
 use daemon::runtime::controller::{ClockKind, Controller};
-use daemon::runtime::rt::MachineState;
-use daemon::runtime::server;
 use proto::v1 as pb;
 use proto::v1::machine_client::MachineClient;
 use proto::v1::programs_client::ProgramsClient;
@@ -45,16 +45,7 @@ fn write_program(path: &std::path::Path, blocks: u64) -> u64 {
 }
 
 fn main() {
-    let blocks: u64 = std::env::var("BENCH_BLOCKS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(5_000_000);
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .expect("tokio runtime");
-    rt.block_on(bench(blocks));
+    bench_common::run(bench(bench_common::env_number("BENCH_BLOCKS", 5_000_000)));
 }
 
 async fn bench(blocks: u64) {
@@ -68,20 +59,7 @@ async fn bench(blocks: u64) {
     cfg.rt.lock_memory = false;
     let ctl = Controller::start(cfg, ClockKind::Monotonic).expect("controller");
     // The Unix socket, as `cncctl` reaches cncd by default (loopback TCP is observer-only).
-    let sock = ctl.config().storage.dir.join("cncd.sock");
-    let listeners = server::Listeners {
-        unix: Some(server::bind_unix(&sock, 0o600, None).expect("API socket")),
-        ..server::Listeners::default()
-    };
-    tokio::spawn(server::serve_listeners(
-        ctl.clone(),
-        listeners,
-        std::future::pending(),
-    ));
-    let addr = format!("unix:{}", sock.display());
-    while ctl.snapshot().state != MachineState::Idle {
-        tokio::time::sleep(Duration::from_millis(5)).await;
-    }
+    let addr = bench_common::serve_unix(&ctl).await;
     let rss0 = rss_kib("VmRSS:");
     let mut g = ProgramsClient::connect(addr.clone()).await.unwrap();
     let mut m = MachineClient::connect(addr).await.unwrap();

@@ -221,6 +221,61 @@ pub fn recorded_harness(
     (h, record)
 }
 
+/// Asserts that the harness refuses to start `text`, with an error diagnostic at block
+/// `block` (`what` names the case in the failure).
+pub fn assert_refused_at(
+    h: &mut daemon::runtime::harness::Harness,
+    text: &str,
+    block: u32,
+    what: &str,
+) {
+    use daemon::runtime::harness::HarnessError;
+    match h.start_program(text) {
+        Err(HarnessError::InvalidProgram(d)) => {
+            assert!(
+                d.iter().any(|d| d.is_error() && d.block == Some(block)),
+                "{what}: {d:?}"
+            );
+        }
+        other => panic!("{what} accepted: {other:?}"),
+    }
+}
+
+/// Steps `h` until job `job` has finished, checking every tick's next deadline: on the grid of
+/// `period_ns` (the clock starts at 0, so the grid is the multiples of the period), the first
+/// grid point after the wake-up, so that a late tick skips `lateness / period` grid points.
+/// Returns the largest lateness, ns. Fails after 100 000 ticks (a bound, not a timing).
+pub fn run_on_the_grid(h: &mut daemon::runtime::harness::Harness, job: u32, period_ns: u64) -> u64 {
+    let mut deadline = h.core().next_deadline_ns();
+    let mut max_lateness_ns = 0;
+    while h.snapshot().finished_job != job {
+        let s = h.step();
+        let lateness = s.time_ns - deadline;
+        max_lateness_ns = max_lateness_ns.max(lateness);
+        let next = h.core().next_deadline_ns();
+        assert_eq!(next % period_ns, 0, "{s:?}");
+        assert!(next > s.time_ns && next - s.time_ns <= period_ns, "{s:?}");
+        assert_eq!(next - deadline, (lateness / period_ns + 1) * period_ns);
+        deadline = next;
+        assert!(s.sequence < 100_000, "{s:?}");
+    }
+    max_lateness_ns
+}
+
+/// A part program with rapids, lines, arcs (G2 and G3), a feed change, G23 continuity and block
+/// ends at rest (G98): the run the harness and bus-cycle tests compare.
+pub const PART: &str = "\
+N10 G0 X10 Y5 Z1
+N20 G1 Z-1 F600
+N30 G23 X40 F3000
+N40 G3 X60 Y25 I0 J20
+N50 G2 X40 Y45 I-20 J0
+N60 G1 X10 F1800
+N70 G98 Y5
+N80 G0 Z5
+N90 X0 Y0
+";
+
 /// The gear table of the lathe tests: M41..M44 up to 250, 500, 1000 and 2000 rpm.
 pub const LATHE_GEARS: [(u16, f64); 4] = [(41, 250.0), (42, 500.0), (43, 1000.0), (44, 2000.0)];
 

@@ -22,12 +22,7 @@ fn write_dynam(v: i64) -> pb::WriteCellRequest {
 }
 
 fn set_r39(v: f64) -> pb::SetConstantsRequest {
-    pb::SetConstantsRequest {
-        values: vec![pb::ConstantValue {
-            number: 39,
-            value: v,
-        }],
-    }
+    constant_values(&[(39, v)])
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -67,17 +62,10 @@ async fn roles_observer_operator_admin() {
         m.set_override(pb::SetOverrideRequest { percent: 50.0 })
             .await
             .unwrap_err(),
-        m.mdi(pb::MdiRequest {
-            block: "G1 X1 F100".into(),
-        })
-        .await
-        .unwrap_err(),
-        m.load_program(pb::LoadProgramRequest {
-            name: "a".into(),
-            text: "G1 X1 F100".into(),
-        })
-        .await
-        .unwrap_err(),
+        m.mdi(mdi_block("G1 X1 F100")).await.unwrap_err(),
+        m.load_program(named_program("a", "G1 X1 F100"))
+            .await
+            .unwrap_err(),
         o.set_offset(pb::SetOffsetRequest {
             entry: 1,
             radius_mm: Some(1.0),
@@ -102,10 +90,7 @@ async fn roles_observer_operator_admin() {
 
     // Operator token: programs, offsets, PLC; not constants.
     m.load_program(with_token(
-        pb::LoadProgramRequest {
-            name: "a".into(),
-            text: "G1 X1 F3000".into(),
-        },
+        named_program("a", "G1 X1 F3000"),
         OPERATOR_TOKEN,
     ))
     .await

@@ -14,7 +14,6 @@ use daemon::runtime::clock::SimClock;
 use daemon::runtime::config::Role;
 use daemon::runtime::harness::{Harness, JobEnd};
 use daemon::runtime::rt::{MachineState, RtCommand};
-use proto::v1 as pb;
 use proto::v1::machine_client::MachineClient;
 use tests::{RecordingBus, max_rates};
 
@@ -53,11 +52,7 @@ async fn spindle_override_scales_the_spindle_within_the_gear_range() {
         d.ctl.snapshot().spindle_override_pct == 80.0
     })
     .await;
-    m.mdi(pb::MdiRequest {
-        block: "S1000 M3".into(),
-    })
-    .await
-    .unwrap();
+    start_mdi(&mut m, "S1000 M3").await;
     // S1000 at 80 %: the spindle is commanded 800 rpm, and gets there.
     wait_until("800 rpm commanded", || {
         (d.ctl.snapshot().kr.spindle_rpm - 800.0).abs() < 1e-9
@@ -74,11 +69,7 @@ async fn spindle_override_scales_the_spindle_within_the_gear_range() {
     let (ok, out) = cncctl(&addr, &["spindle-override", "120"]).await;
     assert!(ok, "{out}");
     wait_until("idle", || d.ctl.snapshot().state == MachineState::Idle).await;
-    m.mdi(pb::MdiRequest {
-        block: "S5500".into(),
-    })
-    .await
-    .unwrap();
+    start_mdi(&mut m, "S5500").await;
     wait_until("6000 rpm commanded", || {
         (d.ctl.snapshot().kr.spindle_rpm - 6000.0).abs() < 1e-9
     })
@@ -114,11 +105,7 @@ async fn rapid_override_homed_and_soft_limits_in_status_and_cncctl() {
     );
     assert!(x.homed && !x.homing_required, "{x:?}");
     assert_eq!(s.axes[1].at_soft_limit, 0);
-    m.mdi(pb::MdiRequest {
-        block: "G0 X50".into(),
-    })
-    .await
-    .unwrap();
+    start_mdi(&mut m, "G0 X50").await;
     wait_until("idle at X50", || {
         let s = d.ctl.snapshot();
         s.state == MachineState::Idle && s.commanded[0] == 50.0

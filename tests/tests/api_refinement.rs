@@ -19,24 +19,12 @@ async fn refinements_are_returned_and_written_as_e() {
     let mut c = MachineClient::new(d.channel().await);
     // Without R325 the arc misses its circle (R55 = 0.5 µm here).
     d.ctl.set_constants(&[(55, 0.0005)]).unwrap();
-    let v = c
-        .validate_program(pb::ValidateProgramRequest {
-            text: PROGRAM.into(),
-        })
-        .await
-        .unwrap()
-        .into_inner();
+    let v = validate(&mut c, PROGRAM).await;
     assert!(!v.valid);
     assert!(v.refinements.is_empty());
     // 8.R325 = 1, limit 10 µm.
     d.ctl.set_constants(&[(325, 10000.010)]).unwrap();
-    let v = c
-        .validate_program(pb::ValidateProgramRequest {
-            text: PROGRAM.into(),
-        })
-        .await
-        .unwrap()
-        .into_inner();
+    let v = validate(&mut c, PROGRAM).await;
     assert!(v.valid, "{:?}", v.diagnostics);
     assert_eq!(v.refinements.len(), 1, "{:?}", v.refinements);
     let r = &v.refinements[0];
@@ -102,11 +90,7 @@ N40 G1 X20\nN50 G1 Y1\nN60 G1 X0 Y21\nN70 G40 G1 X-10 Y31\n";
 async fn validate_program_reports_gouges() {
     let d = start(config(Role::Admin)).await;
     let mut c = MachineClient::new(d.channel().await);
-    let v = c
-        .validate_program(pb::ValidateProgramRequest { text: LOOP.into() })
-        .await
-        .unwrap()
-        .into_inner();
+    let v = validate(&mut c, LOOP).await;
     assert!(v.valid, "{:?}", v.diagnostics);
     assert_eq!(v.blocks, 8);
     assert!(
@@ -119,11 +103,7 @@ async fn validate_program_reports_gouges() {
         v.diagnostics
     );
     d.ctl.set_constants(&[(765, 100.0)]).unwrap(); // 6.R765 = 1: refuse
-    let v = c
-        .validate_program(pb::ValidateProgramRequest { text: LOOP.into() })
-        .await
-        .unwrap()
-        .into_inner();
+    let v = validate(&mut c, LOOP).await;
     assert!(!v.valid);
     d.ctl.shutdown();
 }

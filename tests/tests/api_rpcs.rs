@@ -34,13 +34,7 @@ async fn programs_validate_upload_select_list_start_and_status() {
     let mut c = MachineClient::new(d.channel().await);
 
     // Validate only: every error with block and line, nothing selected.
-    let v = c
-        .validate_program(pb::ValidateProgramRequest {
-            text: "N10 G1 X10 F100\nN20 G7 X5\nN30 G1 Q5\n".into(),
-        })
-        .await
-        .unwrap()
-        .into_inner();
+    let v = validate(&mut c, "N10 G1 X10 F100\nN20 G7 X5\nN30 G1 Q5\n").await;
     assert!(!v.valid);
     let errors: Vec<_> = v
         .diagnostics
@@ -51,22 +45,13 @@ async fn programs_validate_upload_select_list_start_and_status() {
     assert_eq!(errors[0].block, Some(20));
     assert_eq!(errors[0].line, 2);
     assert_eq!(errors[1].line, 3);
-    let ok = c
-        .validate_program(pb::ValidateProgramRequest {
-            text: PROGRAM.into(),
-        })
-        .await
-        .unwrap()
-        .into_inner();
+    let ok = validate(&mut c, PROGRAM).await;
     assert!(ok.valid);
     assert_eq!(ok.blocks, 4);
 
     // Upload with errors: INVALID_ARGUMENT with the diagnostics in the details.
     let e = c
-        .upload_program(pb::LoadProgramRequest {
-            name: "bad.nc".into(),
-            text: "N10 G1 X10 F100\nN20 G7\n".into(),
-        })
+        .upload_program(named_program("bad.nc", "N10 G1 X10 F100\nN20 G7\n"))
         .await
         .unwrap_err();
     assert_eq!(e.code(), Code::InvalidArgument);
@@ -82,19 +67,12 @@ async fn programs_validate_upload_select_list_start_and_status() {
 
     // Upload stores without selecting; select unknown is NOT_FOUND.
     let up = c
-        .upload_program(pb::LoadProgramRequest {
-            name: "part.nc".into(),
-            text: PROGRAM.into(),
-        })
+        .upload_program(named_program("part.nc", PROGRAM))
         .await
         .unwrap()
         .into_inner();
     assert_eq!(up.blocks, 4);
-    let list = c
-        .list_programs(pb::ListProgramsRequest {})
-        .await
-        .unwrap()
-        .into_inner();
+    let list = list_programs(&mut c).await;
     assert_eq!(list.programs.len(), 1);
     assert_eq!(list.programs[0].name, "part.nc");
     assert_eq!(list.selected, "");
@@ -116,11 +94,7 @@ async fn programs_validate_upload_select_list_start_and_status() {
     })
     .await
     .unwrap();
-    let list = c
-        .list_programs(pb::ListProgramsRequest {})
-        .await
-        .unwrap()
-        .into_inner();
+    let list = list_programs(&mut c).await;
     assert_eq!(list.selected, "part.nc");
 
     // Start and follow the status stream to the end.
@@ -129,14 +103,11 @@ async fn programs_validate_upload_select_list_start_and_status() {
         .await
         .unwrap()
         .into_inner();
-    let job = c.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let job = start_job(&mut c).await;
     let e = c.start(pb::StartRequest {}).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition, "start while running");
     let e = c
-        .load_program(pb::LoadProgramRequest {
-            name: "x".into(),
-            text: PROGRAM.into(),
-        })
+        .load_program(named_program("x", PROGRAM))
         .await
         .unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition, "load while running");
@@ -179,12 +150,9 @@ async fn programs_validate_upload_select_list_start_and_status() {
 async fn hold_resume_stop_override_reset() {
     let d = start(config(Role::Admin)).await;
     let mut c = MachineClient::new(d.channel().await);
-    c.load_program(pb::LoadProgramRequest {
-        name: "long.nc".into(),
-        text: LONG.into(),
-    })
-    .await
-    .unwrap();
+    c.load_program(named_program("long.nc", LONG))
+        .await
+        .unwrap();
     let e = c
         .set_override(pb::SetOverrideRequest { percent: 151.0 })
         .await
@@ -193,7 +161,7 @@ async fn hold_resume_stop_override_reset() {
     let e = c.reset(pb::ResetRequest {}).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition, "reset without a fault");
 
-    let job = c.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let job = start_job(&mut c).await;
     wait_state(&d.ctl, MachineState::Running).await;
     c.set_override(pb::SetOverrideRequest { percent: 50.0 })
         .await
@@ -222,27 +190,14 @@ async fn hold_resume_stop_override_reset() {
 async fn mdi_runs_one_block_and_keeps_the_selected_program() {
     let d = start(config(Role::Admin)).await;
     let mut c = MachineClient::new(d.channel().await);
-    c.load_program(pb::LoadProgramRequest {
-        name: "part.nc".into(),
-        text: PROGRAM.into(),
-    })
-    .await
-    .unwrap();
+    c.load_program(named_program("part.nc", PROGRAM))
+        .await
+        .unwrap();
     for bad in ["", "G1 X1 F100\nG1 X2", "G7 X1"] {
-        let e = c
-            .mdi(pb::MdiRequest { block: bad.into() })
-            .await
-            .unwrap_err();
+        let e = c.mdi(mdi_block(bad)).await.unwrap_err();
         assert_eq!(e.code(), Code::InvalidArgument, "{bad:?}");
     }
-    let job = c
-        .mdi(pb::MdiRequest {
-            block: "G1 X5 Y2 F3000".into(),
-        })
-        .await
-        .unwrap()
-        .into_inner()
-        .job;
+    let job = start_mdi(&mut c, "G1 X5 Y2 F3000").await;
     let mut stream = c
         .stream_status(pb::StatusRequest { rate_hz: 50 })
         .await
@@ -254,20 +209,11 @@ async fn mdi_runs_one_block_and_keeps_the_selected_program() {
     wait_job_finished(&d.ctl, job).await;
     let s = d.ctl.snapshot();
     assert!((s.commanded[0] - 5.0).abs() < 1e-6 && (s.commanded[1] - 2.0).abs() < 1e-6);
-    let list = c
-        .list_programs(pb::ListProgramsRequest {})
-        .await
-        .unwrap()
-        .into_inner();
+    let list = list_programs(&mut c).await;
     assert_eq!(list.selected, "part.nc");
     // MDI while running is a wrong state.
     c.start(pb::StartRequest {}).await.unwrap();
-    let e = c
-        .mdi(pb::MdiRequest {
-            block: "G1 X1 F100".into(),
-        })
-        .await
-        .unwrap_err();
+    let e = c.mdi(mdi_block("G1 X1 F100")).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition);
 }
 
@@ -275,16 +221,16 @@ async fn mdi_runs_one_block_and_keeps_the_selected_program() {
 async fn single_block_holds_at_every_block() {
     let d = start(config(Role::Admin)).await;
     let mut c = MachineClient::new(d.channel().await);
-    c.load_program(pb::LoadProgramRequest {
-        name: "sb.nc".into(),
-        text: "N10 G1 X5 F3000\nN20 G23 X10\nN30 X15\n".into(),
-    })
+    c.load_program(named_program(
+        "sb.nc",
+        "N10 G1 X5 F3000\nN20 G23 X10\nN30 X15\n",
+    ))
     .await
     .unwrap();
     c.set_single_block(pb::SetSingleBlockRequest { enabled: true })
         .await
         .unwrap();
-    let job = c.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let job = start_job(&mut c).await;
     let mut stops = Vec::new();
     for _ in 0..2 {
         wait_until("single-block hold", || {
@@ -480,26 +426,8 @@ async fn alarms_stream_with_history_and_health_follows_faults() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn reflection_lists_the_services() {
-    use tonic_reflection::pb::v1::ServerReflectionRequest;
-    use tonic_reflection::pb::v1::server_reflection_client::ServerReflectionClient;
-    use tonic_reflection::pb::v1::server_reflection_request::MessageRequest;
-    use tonic_reflection::pb::v1::server_reflection_response::MessageResponse;
     let d = start(config(Role::Admin)).await;
-    let mut r = ServerReflectionClient::new(d.channel().await);
-    let req = ServerReflectionRequest {
-        host: String::new(),
-        message_request: Some(MessageRequest::ListServices(String::new())),
-    };
-    let mut resp = r
-        .server_reflection_info(tokio_stream::iter(vec![req]))
-        .await
-        .unwrap()
-        .into_inner();
-    let m = resp.message().await.unwrap().unwrap();
-    let Some(MessageResponse::ListServicesResponse(l)) = m.message_response else {
-        panic!("unexpected reflection answer");
-    };
-    let names: Vec<String> = l.service.into_iter().map(|s| s.name).collect();
+    let names = reflected_services!(v1, d.channel().await);
     for s in [
         "cnc.v1.Machine",
         "cnc.v1.Offsets",
@@ -587,13 +515,7 @@ async fn offsets_read_edit_replace_reload_and_g92_marking() {
     }
 
     // A program's G92 changes memory only: marked as changed by the program.
-    c.load_program(pb::LoadProgramRequest {
-        name: "g92.nc".into(),
-        text: "N10 G92 D12 R0=4.0\nN20 G1 X1 F1000\n".into(),
-    })
-    .await
-    .unwrap();
-    let job = c.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let job = load_and_start(&mut c, "g92.nc", "N10 G92 D12 R0=4.0\nN20 G1 X1 F1000\n").await;
     wait_job_finished(&d.ctl, job).await;
     let t = offsets_in_use(&mut o).await;
     let e12 = t.entries.iter().find(|e| e.entry == 12).expect("entry 12");
@@ -643,13 +565,7 @@ async fn offsets_read_edit_replace_reload_and_g92_marking() {
     assert_eq!(t.entries[0].length_mm[2], 50.0);
 
     // Reload while a program runs: wrong state.
-    c.load_program(pb::LoadProgramRequest {
-        name: "long.nc".into(),
-        text: LONG.into(),
-    })
-    .await
-    .unwrap();
-    c.start(pb::StartRequest {}).await.unwrap();
+    load_and_start(&mut c, "long.nc", LONG).await;
     wait_state(&d.ctl, MachineState::Running).await;
     let e = o
         .reload_offsets(pb::ReloadOffsetsRequest {})
@@ -791,29 +707,13 @@ async fn constants_read_decades_write_and_refusals() {
     assert_eq!(e.code(), Code::InvalidArgument);
     for (n, v) in [(1000, 1.0), (39, 1e6), (39, f64::NAN)] {
         let e = k
-            .set_constants(pb::SetConstantsRequest {
-                values: vec![pb::ConstantValue {
-                    number: n,
-                    value: v,
-                }],
-            })
+            .set_constants(constant_values(&[(n, v)]))
             .await
             .unwrap_err();
         assert_eq!(e.code(), Code::InvalidArgument, "R{n}={v}");
     }
     let r = k
-        .set_constants(pb::SetConstantsRequest {
-            values: vec![
-                pb::ConstantValue {
-                    number: 39,
-                    value: 45.0,
-                },
-                pb::ConstantValue {
-                    number: 2,
-                    value: 3.0,
-                },
-            ],
-        })
+        .set_constants(constant_values(&[(39, 45.0), (2, 3.0)]))
         .await
         .unwrap()
         .into_inner();
@@ -829,21 +729,10 @@ async fn constants_read_decades_write_and_refusals() {
     assert_eq!(r.constants[0].decades[3], 5, "units digit is decade 4");
 
     // Running: FAILED_PRECONDITION, nothing changes.
-    c.load_program(pb::LoadProgramRequest {
-        name: "long.nc".into(),
-        text: LONG.into(),
-    })
-    .await
-    .unwrap();
-    c.start(pb::StartRequest {}).await.unwrap();
+    load_and_start(&mut c, "long.nc", LONG).await;
     wait_state(&d.ctl, MachineState::Running).await;
     let e = k
-        .set_constants(pb::SetConstantsRequest {
-            values: vec![pb::ConstantValue {
-                number: 39,
-                value: 30.0,
-            }],
-        })
+        .set_constants(constant_values(&[(39, 30.0)]))
         .await
         .unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition);
@@ -855,33 +744,16 @@ async fn preview_data_paths_and_junctions() {
     let d = start(config(Role::Admin)).await;
     let ch = d.channel().await;
     let mut p = PreviewClient::new(ch.clone());
-    let e = p
-        .get_preview_data(pb::PreviewDataRequest {
-            text: String::new(),
-            junctions: true,
-        })
-        .await
-        .unwrap_err();
+    let e = preview_data(&mut p, "", true).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition, "nothing selected");
-    let e = p
-        .get_preview_data(pb::PreviewDataRequest {
-            text: "N10 G1 X10 F100\nN20 G7\n".into(),
-            junctions: true,
-        })
+    let e = preview_data(&mut p, "N10 G1 X10 F100\nN20 G7\n", true)
         .await
         .unwrap_err();
     assert_eq!(e.code(), Code::InvalidArgument);
     assert_eq!(diagnostics(&e)[0].block, Some(20));
 
     let text = "N10 G92 D1 R0=2\nN20 G0 X-10 Y0\nN30 G41 D1 G1 X0 Y0 F1000\nN40 Y20\nN50 G23 X20\nN60 Y0\nN70 G40 G0 X30 Y-10\n";
-    let data = p
-        .get_preview_data(pb::PreviewDataRequest {
-            text: text.into(),
-            junctions: true,
-        })
-        .await
-        .unwrap()
-        .into_inner();
+    let data = preview_data(&mut p, text, true).await.unwrap();
     assert_eq!(data.axes, ["X", "Y", "Z"]);
     assert_eq!(data.programmed.len(), 6);
     let n40p = data
@@ -906,14 +778,7 @@ async fn preview_data_paths_and_junctions() {
             .any(|j| j.class == pb::JunctionClass::Stop as i32)
     );
     // Without junctions: paths only.
-    let data = p
-        .get_preview_data(pb::PreviewDataRequest {
-            text: text.into(),
-            junctions: false,
-        })
-        .await
-        .unwrap()
-        .into_inner();
+    let data = preview_data(&mut p, text, false).await.unwrap();
     assert!(data.junctions.is_empty());
 }
 

@@ -43,12 +43,7 @@ async fn loopback_is_observer_by_default_the_socket_controls() {
     // Any local account can open loopback TCP: without a token it only observes.
     let mut tcp = MachineClient::new(d.loopback_channel().await);
     tcp.list_programs(pb::ListProgramsRequest {}).await.unwrap();
-    let e = tcp
-        .mdi(pb::MdiRequest {
-            block: "G1 X1 F500".into(),
-        })
-        .await
-        .unwrap_err();
+    let e = tcp.mdi(mdi_block("G1 X1 F500")).await.unwrap_err();
     assert_eq!(e.code(), Code::PermissionDenied, "{e:?}");
     // A token gives its role on loopback too.
     tcp.set_override(with_token(
@@ -89,26 +84,8 @@ async fn cncctl_uses_the_unix_socket_by_default() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn reflection_v1alpha_beside_v1() {
-    use tonic_reflection::pb::v1alpha::ServerReflectionRequest;
-    use tonic_reflection::pb::v1alpha::server_reflection_client::ServerReflectionClient;
-    use tonic_reflection::pb::v1alpha::server_reflection_request::MessageRequest;
-    use tonic_reflection::pb::v1alpha::server_reflection_response::MessageResponse;
     let d = start(config(Role::Observer)).await;
-    let mut r = ServerReflectionClient::new(d.channel().await);
-    let req = ServerReflectionRequest {
-        host: String::new(),
-        message_request: Some(MessageRequest::ListServices(String::new())),
-    };
-    let mut resp = r
-        .server_reflection_info(tokio_stream::iter(vec![req]))
-        .await
-        .unwrap()
-        .into_inner();
-    let m = resp.message().await.unwrap().unwrap();
-    let Some(MessageResponse::ListServicesResponse(l)) = m.message_response else {
-        panic!("unexpected reflection answer");
-    };
-    let names: Vec<String> = l.service.into_iter().map(|s| s.name).collect();
+    let names = reflected_services!(v1alpha, d.channel().await);
     for s in [
         "cnc.v1.Machine",
         "cnc.v1.Offsets",
@@ -350,7 +327,7 @@ async fn program_library_on_disk_survives_a_restart() {
     let (ok, out) = cncctl(&d.socket(), &["run", "--quiet", "--json"]).await;
     assert!(!ok, "run needs a file: {out}");
     let mut m = MachineClient::new(d.channel().await);
-    let job = m.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let job = start_job(&mut m).await;
     wait_job_finished(&d.ctl, job).await;
 }
 
@@ -414,7 +391,7 @@ async fn a_program_over_the_message_limit_loads_and_runs_from_its_file() {
         daemon::runtime::library::ProgramText::File(_)
     ));
     let mut m = MachineClient::new(d.channel().await);
-    let job = m.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let job = start_job(&mut m).await;
     wait_until("moving through the program", || {
         let s = d.ctl.snapshot();
         s.job == job && s.block_seq > 10
@@ -427,13 +404,7 @@ async fn a_program_over_the_message_limit_loads_and_runs_from_its_file() {
 async fn status_shows_the_distance_to_go() {
     let d = start(config(Role::Admin)).await;
     let mut m = MachineClient::new(d.channel().await);
-    m.load_program(pb::LoadProgramRequest {
-        name: "slow.nc".into(),
-        text: "N10 G1 X40 Y-20 F60\n".into(),
-    })
-    .await
-    .unwrap();
-    let job = m.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let job = load_and_start(&mut m, "slow.nc", "N10 G1 X40 Y-20 F60\n").await;
     let mut s = m
         .stream_status(pb::StatusRequest { rate_hz: 50 })
         .await

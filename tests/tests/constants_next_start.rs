@@ -198,16 +198,9 @@ impl Api {
 
     /// `SetConstants`, as `cncctl constants set R..=..` sends it.
     async fn set(&mut self, values: &[(u16, f64)]) -> Result<pb::SetConstantsReply, tonic::Status> {
+        let values: Vec<(u32, f64)> = values.iter().map(|&(r, v)| (u32::from(r), v)).collect();
         self.k
-            .set_constants(pb::SetConstantsRequest {
-                values: values
-                    .iter()
-                    .map(|&(r, value)| pb::ConstantValue {
-                        number: u32::from(r),
-                        value,
-                    })
-                    .collect(),
-            })
+            .set_constants(constant_values(&values))
             .await
             .map(|r| r.into_inner())
     }
@@ -238,39 +231,16 @@ impl Api {
     }
 
     async fn validate(&mut self, text: &str) -> pb::ValidateProgramReply {
-        self.m
-            .validate_program(pb::ValidateProgramRequest { text: text.into() })
-            .await
-            .unwrap()
-            .into_inner()
+        validate(&mut self.m, text).await
     }
 
     async fn preview(&mut self, text: &str) -> pb::PreviewData {
-        self.p
-            .get_preview_data(pb::PreviewDataRequest {
-                text: text.into(),
-                junctions: true,
-            })
-            .await
-            .unwrap()
-            .into_inner()
+        preview_data(&mut self.p, text, true).await.unwrap()
     }
 
     /// Loads and starts `text`; returns the job.
     async fn start(&mut self, text: &str) -> u32 {
-        self.m
-            .load_program(pb::LoadProgramRequest {
-                name: "c.nc".into(),
-                text: text.into(),
-            })
-            .await
-            .unwrap();
-        self.m
-            .start(pb::StartRequest {})
-            .await
-            .unwrap()
-            .into_inner()
-            .job
+        load_and_start(&mut self.m, "c.nc", text).await
     }
 
     /// Loads, starts and runs `text` to its end without alarm.
@@ -692,21 +662,12 @@ const LAGGING: usize = 3;
 async fn four_axis_lagging_daemon() -> (std::sync::Arc<daemon::runtime::controller::Controller>, Api)
 {
     use daemon::runtime::config::AxisConfig;
-    use daemon::runtime::controller::{ClockKind, Controller};
     let mut cfg = config(Role::Admin);
     cfg.axes.push(AxisConfig {
         node_id: Some(4),
         ..AxisConfig::new('U')
     });
-    let bus = api_common::LaggingBus::new(cfg.axes.len(), LAGGING);
-    let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
-    let socket = tests::serve_unix(&ctl).await;
-    wait_state(&ctl, MachineState::Idle).await;
-    let ch = tonic::transport::Endpoint::from_shared(socket)
-        .unwrap()
-        .connect()
-        .await
-        .unwrap();
+    let (ctl, ch) = lagging_daemon(cfg, LAGGING).await;
     (ctl, Api::new(ch).await)
 }
 
@@ -721,21 +682,7 @@ async fn r7_g24_window_of_axes_4_to_6_at_the_next_start() {
     // R7 = 0.01 mm, in force at the next start: G24 waits at the end of N10 for ever.
     api.set(&[(7, 0.01)]).await.unwrap();
     let job = api.start("N10 G24 G1 U15 F3000\nN20 U20\n").await;
-    let c = ctl.clone();
-    wait_until("at the end of N10", || {
-        let s = c.snapshot();
-        s.job == job && (s.commanded[LAGGING] - 15.0).abs() < 1e-9 && s.path_v_mm_s == 0.0
-    })
-    .await;
-    // 250 ticks (1 s of machine time) later it still waits there.
-    let t0 = ctl.snapshot().sequence;
-    let c = ctl.clone();
-    wait_until("250 ticks", || c.snapshot().sequence > t0 + 250).await;
-    let s = ctl.snapshot();
-    assert_eq!(s.block_n, Some(10), "{s:?}");
-    assert_eq!(s.state, MachineState::Running);
-    api.m.stop(pb::StopRequest {}).await.unwrap();
-    wait_state(&ctl, MachineState::Idle).await;
+    assert_g24_waits_at_the_end_of_n10(&ctl, &mut api.m, job, LAGGING, 15.0).await;
 }
 
 /// Junction classes of `text` in the preview data.

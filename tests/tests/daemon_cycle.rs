@@ -9,6 +9,8 @@
 //! within the axis limits. Late ticks at 2 ms keep the 2 ms grid, count overruns exactly and
 //! change no setpoint.
 
+mod api_common;
+
 use std::sync::{Arc, Mutex};
 
 use daemon::runtime::buses::{BusConfig, open_bus};
@@ -18,23 +20,11 @@ use daemon::runtime::harness::{Harness, JobEnd};
 use daemon::runtime::rt::{MachineState, RtCommand};
 use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, MAX_AXES};
 use kernel::jog::JogRequest;
+use tests::PART;
 
 const TS_NS: u64 = 4_000_000;
 const MAX_TICKS: u64 = 2_000_000;
 const PERIODS_MS: [u64; 5] = [1, 2, 4, 5, 10];
-
-/// Rapids, lines, arcs, a feed change, blocks ending at rest.
-const PART: &str = "\
-N10 G0 X10 Y5 Z1
-N20 G1 Z-1 F600
-N30 G23 X40 F3000
-N40 G3 X60 Y25 I0 J20
-N50 G2 X40 Y45 I-20 J0
-N60 G1 X10 F1800
-N70 G98 Y5
-N80 G0 Z5
-N90 X0 Y0
-";
 
 type Points = Arc<Mutex<Vec<[f64; MAX_AXES]>>>;
 
@@ -282,17 +272,7 @@ fn late_ticks_at_2ms_keep_the_grid_and_count_overruns_exactly() {
     let (mut h, points, _) = machine(2, clock);
     let overruns0 = h.snapshot().ticks.overruns;
     let job = h.start_program(program).unwrap();
-    let mut deadline = h.core().next_deadline_ns();
-    while h.snapshot().finished_job != job {
-        let s = h.step();
-        let lateness = s.time_ns - deadline;
-        let next = h.core().next_deadline_ns();
-        assert_eq!(next % CYCLE_NS, 0, "{s:?}");
-        assert!(next > s.time_ns && next - s.time_ns <= CYCLE_NS, "{s:?}");
-        assert_eq!(next - deadline, (lateness / CYCLE_NS + 1) * CYCLE_NS);
-        deadline = next;
-        assert!(s.sequence < 100_000, "{s:?}");
-    }
+    tests::run_on_the_grid(&mut h, job, CYCLE_NS);
     assert_eq!(h.snapshot().ticks.overruns - overruns0, expected);
     assert!(h.clock().wakeups() > 550);
 
@@ -363,28 +343,14 @@ async fn a_program_runs_through_grpc_at_a_2ms_bus_period() {
     };
     let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
     // The Unix socket gives local control (loopback TCP only observes).
-    let socket = tests::serve_unix(&ctl).await;
-    let channel = tonic::transport::Endpoint::from_shared(socket)
-        .unwrap()
-        .connect()
-        .await
-        .unwrap();
-    let mut client = MachineClient::new(channel);
+    let mut client = MachineClient::new(api_common::serve_unix_channel(&ctl).await);
     tests::wait_state(&ctl, MachineState::Idle).await;
     client
-        .load_program(pb::LoadProgramRequest {
-            name: "part.nc".into(),
-            text: PART.into(),
-        })
+        .load_program(api_common::named_program("part.nc", PART))
         .await
         .unwrap();
     let from = points.lock().unwrap().len();
-    let job = client
-        .start(pb::StartRequest {})
-        .await
-        .unwrap()
-        .into_inner()
-        .job;
+    let job = api_common::start_job(&mut client).await;
     tests::wait_job_finished(&ctl, job).await;
     let status = client
         .stream_status(pb::StatusRequest { rate_hz: 50 })

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 mod api_common;
 
+use api_common::{mdi_block, named_program, start_job};
 use daemon::runtime::config::Config;
 use daemon::runtime::controller::{ClockKind, Controller};
 use daemon::runtime::rt::{MachineState, Snapshot};
@@ -61,16 +62,18 @@ async fn load(
     c: &mut MachineClient<Channel>,
     text: &str,
 ) -> Result<pb::LoadProgramReply, tonic::Status> {
-    c.load_program(pb::LoadProgramRequest {
-        name: "t.nc".into(),
-        text: text.into(),
-    })
-    .await
-    .map(|r| r.into_inner())
+    c.load_program(named_program("t.nc", text))
+        .await
+        .map(|r| r.into_inner())
 }
 
-async fn start(c: &mut MachineClient<Channel>) -> u32 {
-    c.start(pb::StartRequest {}).await.unwrap().into_inner().job
+/// The soft limit `text` passes, from the diagnostics of its refused load.
+async fn soft_limit_refusal(c: &mut MachineClient<Channel>, text: &str) -> pb::SoftLimitHit {
+    let e = load(c, text).await.unwrap_err();
+    diagnostics(&e)
+        .into_iter()
+        .find_map(|d| d.soft_limit)
+        .unwrap()
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -79,7 +82,7 @@ async fn m30_ends_the_program_and_the_spindle_stops() {
     let text = "N10 S1000 M3\nN20 G1 X10 F3000\nN30 M30\nN40 G1 X50\n";
     let loaded = load(&mut d.c, text).await.unwrap();
     assert_eq!(loaded.blocks, 3, "blocks after M30 are not part of the run");
-    let job = start(&mut d.c).await;
+    let job = start_job(&mut d.c).await;
     wait_job_finished(&d.ctl, job).await;
     let s = d.ctl.snapshot();
     assert!((s.commanded[0] - 10.0).abs() < 1e-9, "N40 ran: {s:?}");
@@ -92,7 +95,7 @@ async fn m30_ends_the_program_and_the_spindle_stops() {
     load(&mut d.c, "N10 S500 M3\nN20 G1 X20 F3000\nN30 M2\nN40 X0\n")
         .await
         .unwrap();
-    let job = start(&mut d.c).await;
+    let job = start_job(&mut d.c).await;
     wait_job_finished(&d.ctl, job).await;
     assert!((d.ctl.snapshot().commanded[0] - 20.0).abs() < 1e-9);
     wait_for(&d.ctl, "spindle stopped at M2", |s| s.spindle_rpm == 0.0).await;
@@ -104,7 +107,7 @@ async fn m0_stops_until_resume_and_m1_only_with_optional_stop() {
     let text = "N10 G1 X10 F3000\nN20 M0\nN30 X20\nN40 M1\nN50 X30\n";
     load(&mut d.c, text).await.unwrap();
     // Optional stop off: M0 stops, M1 does not.
-    let job = start(&mut d.c).await;
+    let job = start_job(&mut d.c).await;
     wait_for(&d.ctl, "held at M0", |s| {
         s.state == MachineState::Hold && s.program_stop
     })
@@ -131,14 +134,14 @@ async fn m0_stops_until_resume_and_m1_only_with_optional_stop() {
     load(&mut d.c, "N10 G0 X0\nN20 G1 X10 F3000 M1\nN30 X20\n")
         .await
         .unwrap();
-    let job = start(&mut d.c).await;
+    let job = start_job(&mut d.c).await;
     wait_for(&d.ctl, "held at M1", |s| {
         s.state == MachineState::Hold && s.program_stop
     })
     .await;
     assert!((d.ctl.snapshot().commanded[0] - 10.0).abs() < 1e-9);
     assert!(api_common::status_now(&mut d.c).await.optional_stop);
-    let again = start(&mut d.c).await;
+    let again = start_job(&mut d.c).await;
     assert_eq!(again, job, "Start at a program stop continues the job");
     wait_job_finished(&d.ctl, job).await;
     assert!((d.ctl.snapshot().commanded[0] - 20.0).abs() < 1e-9);
@@ -157,7 +160,7 @@ async fn stop_stops_the_spindle_and_wrong_states_are_refused() {
     load(&mut d.c, "N10 S1000 M3\nN20 G1 X1000000 F600\n")
         .await
         .unwrap();
-    let job = start(&mut d.c).await;
+    let job = start_job(&mut d.c).await;
     wait_for(&d.ctl, "cutting with the spindle on", |s| {
         s.state == MachineState::Running && s.spindle_rpm > 900.0 && s.commanded[0] > 1.0
     })
@@ -213,13 +216,7 @@ async fn soft_limits_refuse_programs_and_mdi_with_the_offsets_in_force() {
     assert_eq!(d20.block, Some(20));
 
     // An arc bulging past the limit between two end points inside it.
-    let e = load(&mut d.c, "N10 G0 X0 Y40\nN20 G3 X0 Y0 I0 J-20 F1000\n")
-        .await
-        .unwrap_err();
-    let hit = diagnostics(&e)
-        .into_iter()
-        .find_map(|d| d.soft_limit)
-        .unwrap();
+    let hit = soft_limit_refusal(&mut d.c, "N10 G0 X0 Y40\nN20 G3 X0 Y0 I0 J-20 F1000\n").await;
     assert!(
         !hit.upper && (hit.position_mm + 20.0).abs() < 1e-6,
         "{hit:?}"
@@ -228,23 +225,15 @@ async fn soft_limits_refuse_programs_and_mdi_with_the_offsets_in_force() {
     // With the length offset of entry 1 (Z +30) in force, Z-25 programmed is Z+5 on the
     // machine: beyond Z max 0. Without the offset it runs.
     load(&mut d.c, "N10 G1 Z-25 F1000\n").await.unwrap();
-    let e = load(&mut d.c, "N5 G92 D1 R3=30\nN10 G1 Z-25 F1000 &1\n")
-        .await
-        .unwrap_err();
-    let hit = diagnostics(&e)
-        .into_iter()
-        .find_map(|d| d.soft_limit)
-        .unwrap();
+    let hit = soft_limit_refusal(&mut d.c, "N5 G92 D1 R3=30\nN10 G1 Z-25 F1000 &1\n").await;
     assert_eq!(hit.axis, "Z");
     assert!((hit.position_mm - 5.0).abs() < 1e-9 && hit.upper);
 
     // MDI is refused the same way and nothing moves.
     let e =
-        d.c.mdi(pb::MdiRequest {
-            block: "G0 X-5000 Y99999 Z-3000".into(),
-        })
-        .await
-        .unwrap_err();
+        d.c.mdi(mdi_block("G0 X-5000 Y99999 Z-3000"))
+            .await
+            .unwrap_err();
     assert_eq!(e.code(), Code::InvalidArgument);
     assert!(diagnostics(&e).iter().any(|d| d.soft_limit.is_some()));
     assert_eq!(d.ctl.snapshot().commanded[0], 0.0);
@@ -342,7 +331,7 @@ async fn fault_stops_every_axis_on_its_own_and_reports_the_path_deviation() {
     load(&mut c, "N10 S1000 M3\nN20 G1 X1000 Y200 F12000\n")
         .await
         .unwrap();
-    let job = start(&mut c).await;
+    let job = start_job(&mut c).await;
     wait_for(&ctl, "fault", |s| s.state == MachineState::Fault).await;
     // Wait until the drives are at rest: 250 ticks without any change of the actual position.
     let t0 = Instant::now();
@@ -504,7 +493,7 @@ async fn jog_steps_and_continuous_jog_rest_on_the_soft_limit() {
     call.await.unwrap().unwrap();
     // Jogging while a program runs is refused.
     load(&mut d.c, "N10 G1 Y1000000 F600\n").await.unwrap();
-    start(&mut d.c).await;
+    start_job(&mut d.c).await;
     wait_for(&d.ctl, "running", |s| s.state == MachineState::Running).await;
     let e = d.c.jog_step(step("X", -0.5)).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition);
@@ -628,12 +617,7 @@ async fn homing_in_order_and_refusals_before_it() {
     load(&mut c, "N10 G1 X1 F1000\n").await.unwrap();
     let e = c.start(pb::StartRequest {}).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition);
-    let e = c
-        .mdi(pb::MdiRequest {
-            block: "G1 X1 F1000".into(),
-        })
-        .await
-        .unwrap_err();
+    let e = c.mdi(mdi_block("G1 X1 F1000")).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition);
     let (tx, call) = jog_stream(&c, "X", 1, 600.0).await;
     drop(tx);
@@ -692,7 +676,7 @@ async fn homing_in_order_and_refusals_before_it() {
 
     // Homed: the program runs.
     load(&mut c, "N10 G1 X1 Z-1 F1000\n").await.unwrap();
-    let job = start(&mut c).await;
+    let job = start_job(&mut c).await;
     wait_job_finished(&ctl, job).await;
     // A reference run stopped by the operator (here Y, which has no switch) is ABORTED.
     let mut c2 = c.clone();
@@ -718,7 +702,7 @@ async fn m0_just_before_the_program_end_stops_until_resume() {
     ];
     for (text, x) in programs {
         load(&mut d.c, text).await.unwrap();
-        let job = start(&mut d.c).await;
+        let job = start_job(&mut d.c).await;
         wait_for(&d.ctl, text, |s| {
             s.state == MachineState::Hold && s.program_stop
         })

@@ -1,9 +1,12 @@
 //! The walking skeleton end to end: daemon in-process on the simulated machine, gRPC client,
 //! program in, ticks, drives move, status out.
 
+mod api_common;
+
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use api_common::{named_program, start_job};
 use daemon::runtime::config::Config;
 use daemon::runtime::controller::{ClockKind, Controller};
 use daemon::runtime::rt::MachineState;
@@ -55,10 +58,7 @@ async fn program_runs_through_grpc_within_limits_and_ends_exactly() {
     let (mut client, ctl, record) = daemon(cfg, ClockKind::Monotonic).await;
 
     let loaded = client
-        .load_program(pb::LoadProgramRequest {
-            name: "skeleton.nc".into(),
-            text: PROGRAM.into(),
-        })
+        .load_program(named_program("skeleton.nc", PROGRAM))
         .await
         .unwrap()
         .into_inner();
@@ -71,12 +71,7 @@ async fn program_runs_through_grpc_within_limits_and_ends_exactly() {
         .unwrap()
         .into_inner();
     record.lock().unwrap().clear();
-    let job = client
-        .start(pb::StartRequest {})
-        .await
-        .unwrap()
-        .into_inner()
-        .job;
+    let job = start_job(&mut client).await;
     let t0 = Instant::now();
     let mut count = 0u32;
     let mut saw_running = false;
@@ -168,10 +163,7 @@ async fn bad_program_is_rejected_with_block_number_and_nothing_moves() {
         ("N10 G1 X5 F100\nN20 X\n", 20, "word_without_value"),
     ] {
         let err = client
-            .load_program(pb::LoadProgramRequest {
-                name: "bad.nc".into(),
-                text: text.into(),
-            })
+            .load_program(named_program("bad.nc", text))
             .await
             .unwrap_err();
         assert_eq!(err.code(), tonic::Code::InvalidArgument);
@@ -198,10 +190,7 @@ async fn bad_program_is_rejected_with_block_number_and_nothing_moves() {
         .any(|p| p[..3] != before.0[..3]);
     assert!(!moved);
     let ok = client
-        .load_program(pb::LoadProgramRequest {
-            name: "good.nc".into(),
-            text: "G1 X1 F600".into(),
-        })
+        .load_program(named_program("good.nc", "G1 X1 F600"))
         .await
         .unwrap();
     assert_eq!(ok.into_inner().blocks, 1);

@@ -5,7 +5,7 @@
 
 use daemon::runtime::clock::SimClock;
 use daemon::runtime::config::{AxisConfig, Config};
-use daemon::runtime::harness::{Harness, HarnessError};
+use daemon::runtime::harness::Harness;
 use daemon::runtime::rt::{MachineState, Snapshot};
 
 /// A bound on the ticks of a run (about 1.1 hours of machining): not a timing.
@@ -162,15 +162,7 @@ fn gears_from_the_configuration() {
     let bus = sim::SimBus::new(sim::SimDriveParams::default(), &[150.0, 100.0]);
     let mut h = Harness::new(cfg, Box::new(bus), SimClock::seeded(1, 0, 0)).unwrap();
     h.wait_state(MachineState::Idle, 10_000).unwrap();
-    match h.start_program("N10 M44 M3 S100\n") {
-        Err(HarnessError::InvalidProgram(d)) => {
-            assert!(
-                d.iter().any(|d| d.is_error() && d.block == Some(10)),
-                "{d:?}"
-            );
-        }
-        other => panic!("M44 without a gear accepted: {other:?}"),
-    }
+    tests::assert_refused_at(&mut h, "N10 M44 M3 S100\n", 10, "M44 without a gear");
     // Gear 2 caps the spindle at 500 rpm: S3000 with 1 mm/rev feeds 500 mm/min, not 3000.
     let mut top = 0.0f64;
     let job = h

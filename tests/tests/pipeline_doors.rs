@@ -134,6 +134,41 @@ fn from_refusal(e: tonic::Status) -> Verdict {
     }
 }
 
+/// A door's answer that carries the pass's diagnostics.
+trait Diagnosed {
+    fn into_diagnostics(self) -> Vec<pb::Diagnostic>;
+}
+
+impl Diagnosed for pb::LoadProgramReply {
+    fn into_diagnostics(self) -> Vec<pb::Diagnostic> {
+        self.diagnostics
+    }
+}
+
+impl Diagnosed for pb::PreviewData {
+    fn into_diagnostics(self) -> Vec<pb::Diagnostic> {
+        self.diagnostics
+    }
+}
+
+impl Diagnosed for pb::GetPreviewReply {
+    fn into_diagnostics(self) -> Vec<pb::Diagnostic> {
+        self.diagnostics
+    }
+}
+
+impl<R: Diagnosed> Diagnosed for tonic::Response<R> {
+    fn into_diagnostics(self) -> Vec<pb::Diagnostic> {
+        self.into_inner().into_diagnostics()
+    }
+}
+
+/// What a door said: its reply's diagnostics, or its refusal's.
+fn verdict(r: Result<impl Diagnosed, tonic::Status>) -> Verdict {
+    r.map(|r| from_reply(r.into_diagnostics()))
+        .unwrap_or_else(from_refusal)
+}
+
 struct Doors {
     m: MachineClient<Channel>,
     p: PreviewClient<Channel>,
@@ -196,24 +231,14 @@ impl Doors {
 
     async fn set(&mut self, values: &[(u32, f64)]) -> pb::SetConstantsReply {
         self.k
-            .set_constants(pb::SetConstantsRequest {
-                values: values
-                    .iter()
-                    .map(|&(number, value)| pb::ConstantValue { number, value })
-                    .collect(),
-            })
+            .set_constants(constant_values(values))
             .await
             .unwrap()
             .into_inner()
     }
 
     async fn validate(&mut self, text: &str) -> (Verdict, u32) {
-        let v = self
-            .m
-            .validate_program(pb::ValidateProgramRequest { text: text.into() })
-            .await
-            .unwrap()
-            .into_inner();
+        let v = validate(&mut self.m, text).await;
         (
             Verdict {
                 valid: v.valid,
@@ -224,51 +249,32 @@ impl Doors {
     }
 
     async fn upload(&mut self, text: &str) -> Verdict {
-        let r = self
-            .m
-            .upload_program(pb::LoadProgramRequest {
-                name: "corpus.nc".into(),
-                text: text.into(),
-            })
-            .await;
-        r.map(|r| from_reply(r.into_inner().diagnostics))
-            .unwrap_or_else(from_refusal)
+        verdict(
+            self.m
+                .upload_program(named_program("corpus.nc", text))
+                .await,
+        )
     }
 
     async fn load(&mut self, text: &str) -> Verdict {
-        let r = self
-            .m
-            .load_program(pb::LoadProgramRequest {
-                name: "corpus.nc".into(),
-                text: text.into(),
-            })
-            .await;
-        r.map(|r| from_reply(r.into_inner().diagnostics))
-            .unwrap_or_else(from_refusal)
+        verdict(self.m.load_program(named_program("corpus.nc", text)).await)
     }
 
     async fn preview(&mut self, text: &str) -> Verdict {
-        let r = self
-            .p
-            .get_preview_data(pb::PreviewDataRequest {
-                text: text.into(),
-                junctions: true,
-            })
-            .await;
-        r.map(|r| from_reply(r.into_inner().diagnostics))
-            .unwrap_or_else(from_refusal)
+        verdict(preview_data(&mut self.p, text, true).await)
     }
 
     async fn picture(&mut self, text: &str) -> Verdict {
-        let r = self
-            .p
-            .get_preview(pb::GetPreviewRequest {
-                text: text.into(),
-                ..Default::default()
-            })
-            .await;
-        r.map(|r| from_reply(r.into_inner().diagnostics))
-            .unwrap_or_else(from_refusal)
+        let req = pb::GetPreviewRequest {
+            text: text.into(),
+            ..Default::default()
+        };
+        verdict(
+            self.p
+                .get_preview(req)
+                .await
+                .map(tonic::Response::into_inner),
+        )
     }
 
     /// Every door on `text`; panics with the door that disagrees with validation.
@@ -290,13 +296,7 @@ impl Doors {
         if v.valid {
             // Start accepts what load accepted (the run is stopped at once: the verdict is
             // what is compared here, the runs are tested elsewhere).
-            let job = self
-                .m
-                .start(pb::StartRequest {})
-                .await
-                .unwrap()
-                .into_inner()
-                .job;
+            let job = start_job(&mut self.m).await;
             assert_ne!(job, 0);
             self.m.stop(pb::StopRequest {}).await.unwrap();
             wait_state(&d.ctl, MachineState::Idle).await;
@@ -309,6 +309,17 @@ impl Doors {
         }
         v.valid
     }
+}
+
+/// A daemon with the test configuration (local trust: admin), with `table` as its offset
+/// table when given, and its doors.
+async fn daemon(table: Option<&str>) -> (Daemon, Doors) {
+    let d = start(config(Role::Admin)).await;
+    if let Some(t) = table {
+        d.ctl.replace_offsets_file(t).unwrap();
+    }
+    let doors = Doors::new(d.channel().await).await;
+    (d, doors)
 }
 
 fn programs_in(dir: &Path) -> Vec<(String, String)> {
@@ -336,9 +347,7 @@ fn corpus() -> Vec<(String, String)> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn every_door_gives_the_verdict_of_validation() {
-    let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(Some(TABLE)).await;
 
     let programs = corpus();
     assert!(programs.len() >= 50, "corpus has {}", programs.len());
@@ -396,9 +405,7 @@ fn fig5() -> String {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn start_refuses_what_the_constants_in_force_refuse() {
-    let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(Some(TABLE)).await;
     // 8.R339 = 4: R339 = 40000.000.
     doors.set(&[(339, 40_000.0)]).await;
     assert!(doors.load(&fig5()).await.valid);
@@ -414,13 +421,7 @@ async fn start_refuses_what_the_constants_in_force_refuse() {
 const KR_PROGRAM: &str = "N10 G0 X100 Y40\nN20 M3 G96 S900\nN30 G1 X99 F6\n";
 
 async fn kr_status_while_running(d: &Daemon, m: &mut MachineClient<Channel>) -> pb::KrStatus {
-    m.load_program(pb::LoadProgramRequest {
-        name: "kr.nc".into(),
-        text: KR_PROGRAM.into(),
-    })
-    .await
-    .unwrap();
-    let job = m.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let job = load_and_start(m, "kr.nc", KR_PROGRAM).await;
     let st = d.ctl.clone();
     wait_until("KŘR in N30", || {
         let s = st.snapshot();
@@ -436,8 +437,7 @@ async fn kr_status_while_running(d: &Daemon, m: &mut MachineClient<Channel>) -> 
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn s_units_r329_reach_kr_and_the_spindle_at_the_next_start() {
-    let d = start(config(Role::Admin)).await;
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(None).await;
     // n = v / (2π r), r from the controlling axis X (about X100).
     let rpm = |kr: &pb::KrStatus, v_m_min: f64| {
         v_m_min * 1000.0 / (2.0 * std::f64::consts::PI * kr.radius_mm)
@@ -461,8 +461,7 @@ async fn s_units_r329_reach_kr_and_the_spindle_at_the_next_start() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn r67_controlling_axis_changes_at_the_next_start() {
-    let d = start(config(Role::Admin)).await;
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(None).await;
     let kr = kr_status_while_running(&d, &mut doors.m).await;
     // A mill (radius_input = "radius", the default): the position is the radius.
     assert!((kr.radius_mm - 100.0).abs() < 0.5, "X100: {kr:?}");
@@ -473,16 +472,10 @@ async fn r67_controlling_axis_changes_at_the_next_start() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn r580_bad_value_is_refused_and_changes_nothing() {
-    let d = start(config(Role::Admin)).await;
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(None).await;
     let e = doors
         .k
-        .set_constants(pb::SetConstantsRequest {
-            values: vec![pb::ConstantValue {
-                number: 580,
-                value: 7.0,
-            }],
-        })
+        .set_constants(constant_values(&[(580, 7.0)]))
         .await
         .unwrap_err();
     assert_eq!(e.code(), Code::InvalidArgument);
@@ -492,8 +485,7 @@ async fn r580_bad_value_is_refused_and_changes_nothing() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn axis_codes_need_a_restart_and_are_not_used_before() {
-    let d = start(config(Role::Admin)).await;
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(None).await;
     let r = doors.set(&[(2, 0.0), (39, 45.0)]).await;
     assert_eq!(r.restart_required, [2]);
     assert_eq!(d.ctl.constants().get(2), 0.0, "saved");
@@ -506,9 +498,7 @@ async fn axis_codes_need_a_restart_and_are_not_used_before() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn r55_is_one_tolerance_for_interpreter_and_compensation() {
-    let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(Some(TABLE)).await;
     // A compensated arc whose end point is 5 µm off its circle (radially).
     let text =
         "N10 G0 X0 Y0\nN20 D3 G41 G1 X10 Y0 F500\nN30 G3 X30.005 Y0 I10 J0\nN40 G40 G1 X40 Y0\n";
@@ -541,15 +531,12 @@ fn radius_7(d: &Daemon) -> Option<f64> {
 async fn g92_changes_the_memory_table_when_it_executes() {
     let d = start(config(Role::Admin)).await;
     let mut m = MachineClient::new(d.channel().await);
-    m.load_program(pb::LoadProgramRequest {
-        name: "g92.nc".into(),
-        text: G92_PROGRAM.into(),
-    })
-    .await
-    .unwrap();
+    m.load_program(named_program("g92.nc", G92_PROGRAM))
+        .await
+        .unwrap();
     let before = radius_7(&d);
     // Stopped in N10: planned past N20, but N20 never executed.
-    let job = m.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let job = start_job(&mut m).await;
     let st = d.ctl.clone();
     wait_until("moving in N10", || {
         let s = st.snapshot();
@@ -566,13 +553,7 @@ async fn g92_changes_the_memory_table_when_it_executes() {
         "a stopped program's unreached G92 changes nothing"
     );
     // Run to the end: the write is in memory.
-    m.load_program(pb::LoadProgramRequest {
-        name: "g92.nc".into(),
-        text: "N20 G92 D7 R0=2.5\nN30 G1 X60 F6000\n".into(),
-    })
-    .await
-    .unwrap();
-    let job = m.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let job = load_and_start(&mut m, "g92.nc", "N20 G92 D7 R0=2.5\nN30 G1 X60 F6000\n").await;
     wait_job_finished(&d.ctl, job).await;
     assert_eq!(radius_7(&d), Some(2.5));
 }
@@ -593,18 +574,11 @@ async fn a_refused_load_selects_nothing() {
         .unwrap();
     }
     let e = m
-        .load_program(pb::LoadProgramRequest {
-            name: "one-too-many.nc".into(),
-            text: "G1 X5 F100\n".into(),
-        })
+        .load_program(named_program("one-too-many.nc", "G1 X5 F100\n"))
         .await
         .unwrap_err();
     assert_eq!(e.code(), Code::ResourceExhausted);
-    let list = m
-        .list_programs(pb::ListProgramsRequest {})
-        .await
-        .unwrap()
-        .into_inner();
+    let list = list_programs(&mut m).await;
     assert_eq!(list.selected, "");
     assert_eq!(list.programs.len(), 64);
     let e = m.start(pb::StartRequest {}).await.unwrap_err();
@@ -630,9 +604,10 @@ async fn a_refused_load_selects_nothing() {
     assert!(d.ctl.program().is_none());
 }
 
-fn gear_config() -> daemon::runtime::config::Config {
+/// The test configuration with `ranges` gear ranges: M41 up to 1000 rpm, M42 up to 2000, ...
+fn gear_config(ranges: u16) -> daemon::runtime::config::Config {
     let mut cfg = config(Role::Admin);
-    cfg.kr.gears = (1..=4)
+    cfg.kr.gears = (1..=ranges)
         .map(|g| GearConfig {
             max_rpm: 1000.0 * g as f64,
             output_range: 0x7FFF,
@@ -643,29 +618,16 @@ fn gear_config() -> daemon::runtime::config::Config {
 }
 
 async fn mdi(d: &Daemon, m: &mut MachineClient<Channel>, block: &str) -> u32 {
-    let job = m
-        .mdi(pb::MdiRequest {
-            block: block.into(),
-        })
-        .await
-        .unwrap_or_else(|e| panic!("{block}: {e:?}"))
-        .into_inner()
-        .job;
+    let job = start_mdi(m, block).await;
     wait_job_finished(&d.ctl, job).await;
     job
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn mdi_inherits_spindle_gear_feed_and_g91() {
-    let d = start(gear_config()).await;
+    let d = start(gear_config(4)).await;
     let mut m = MachineClient::new(d.channel().await);
-    m.load_program(pb::LoadProgramRequest {
-        name: "gear4.nc".into(),
-        text: "N10 M44 M3 S800\nN20 G1 X10 F3000\n".into(),
-    })
-    .await
-    .unwrap();
-    let job = m.start(pb::StartRequest {}).await.unwrap().into_inner().job;
+    let job = load_and_start(&mut m, "gear4.nc", "N10 M44 M3 S800\nN20 G1 X10 F3000\n").await;
     wait_job_finished(&d.ctl, job).await;
     // S800 in gear 4 (P = 4000 rpm): output 800/4000 of 7FFFh.
     let gear4 = (800.0 / 4000.0 * 32767.0) as u16;
@@ -696,15 +658,9 @@ async fn mdi_inherits_spindle_gear_feed_and_g91() {
 
 /// Junction classes of `text` from the preview data.
 async fn junction_classes(doors: &mut Doors, text: &str) -> Vec<i32> {
-    doors
-        .p
-        .get_preview_data(pb::PreviewDataRequest {
-            text: text.into(),
-            junctions: true,
-        })
+    preview_data(&mut doors.p, text, true)
         .await
         .unwrap()
-        .into_inner()
         .junctions
         .iter()
         .map(|j| j.class)
@@ -713,9 +669,7 @@ async fn junction_classes(doors: &mut Doors, text: &str) -> Vec<i32> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn planner_and_interpreter_constants_take_effect_at_the_next_pass() {
-    let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(Some(TABLE)).await;
     let smooth = pb::JunctionClass::Smooth as i32;
     let stop = pb::JunctionClass::Stop as i32;
 
@@ -728,13 +682,7 @@ async fn planner_and_interpreter_constants_take_effect_at_the_next_pass() {
     assert_eq!(junction_classes(&mut doors, corner).await[0], stop);
     // The run takes the same setup: it starts and ends without alarm.
     assert!(doors.load(corner).await.valid);
-    let job = doors
-        .m
-        .start(pb::StartRequest {})
-        .await
-        .unwrap()
-        .into_inner()
-        .job;
+    let job = start_job(&mut doors.m).await;
     wait_job_finished(&d.ctl, job).await;
     assert!(d.ctl.alarm().is_none());
 
@@ -752,68 +700,22 @@ async fn planner_and_interpreter_constants_take_effect_at_the_next_pass() {
     assert_eq!(from_refusal(e), doors.validate(switch).await.0);
 }
 
-/// A daemon on [`api_common::LaggingBus`] with axis X lagging (its G24 window is R6), served on
-/// its Unix socket (local trust, admin).
-async fn lagging_daemon() -> (
-    std::sync::Arc<daemon::runtime::controller::Controller>,
-    Channel,
-) {
-    use daemon::runtime::controller::{ClockKind, Controller};
-    let cfg = config(Role::Admin);
-    let bus = api_common::LaggingBus::new(cfg.axes.len(), 0);
-    let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
-    let addr = tests::serve_unix(&ctl).await;
-    wait_state(&ctl, MachineState::Idle).await;
-    let ch = tonic::transport::Endpoint::from_shared(addr)
-        .unwrap()
-        .connect()
-        .await
-        .unwrap();
-    (ctl, ch)
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn r6_g24_window_reaches_the_rt_thread_at_the_next_start() {
-    let (ctl, ch) = lagging_daemon().await;
+    // Axis X lags (its G24 window is R6).
+    let (ctl, ch) = lagging_daemon(config(Role::Admin), 0).await;
     let mut doors = Doors::new(ch).await;
     let program = "N10 G24 G1 X5 F3000\nN20 X10\n";
     // R6 = 0.1 mm: the 0.05 mm lag counts as arrived; G24 goes on to N20 and the job ends.
     doors.set(&[(6, 0.1)]).await;
     assert!(doors.load(program).await.valid);
-    let job = doors
-        .m
-        .start(pb::StartRequest {})
-        .await
-        .unwrap()
-        .into_inner()
-        .job;
+    let job = start_job(&mut doors.m).await;
     wait_job_finished(&ctl, job).await;
     // R6 = 0.01 mm (in force at the next start): G24 waits at the end of N10 for ever.
     doors.set(&[(6, 0.01)]).await;
     assert!(doors.load("N10 G24 G1 X15 F3000\nN20 X20\n").await.valid);
-    let job = doors
-        .m
-        .start(pb::StartRequest {})
-        .await
-        .unwrap()
-        .into_inner()
-        .job;
-    let c = ctl.clone();
-    wait_until("at the end of N10", || {
-        let s = c.snapshot();
-        s.job == job && (s.commanded[0] - 15.0).abs() < 1e-9 && s.path_v_mm_s == 0.0
-    })
-    .await;
-    // 250 ticks (1 s of machine time) later it still waits there.
-    let t0 = ctl.snapshot().sequence;
-    let c = ctl.clone();
-    wait_until("250 ticks", || c.snapshot().sequence > t0 + 250).await;
-    let s = ctl.snapshot();
-    assert_eq!(s.block_n, Some(10), "{s:?}");
-    assert_eq!(s.state, MachineState::Running);
-    assert!((s.commanded[0] - 15.0).abs() < 1e-9);
-    doors.m.stop(pb::StopRequest {}).await.unwrap();
-    wait_state(&ctl, MachineState::Idle).await;
+    let job = start_job(&mut doors.m).await;
+    assert_g24_waits_at_the_end_of_n10(&ctl, &mut doors.m, job, 0, 15.0).await;
 }
 
 /// Arcs of radius 1e-9 mm (issue #14): one verdict and the same diagnostics at every door.
@@ -842,9 +744,7 @@ fn tiny_arcs() -> Vec<(&'static str, &'static str, Option<u32>)> {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_1e_9_mm_arc_gets_one_verdict_at_every_door() {
-    let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(Some(TABLE)).await;
     for (name, text, refused_at) in tiny_arcs() {
         let valid = doors.same_everywhere(&d, name, text).await;
         assert_eq!(valid, refused_at.is_none(), "{name}");
@@ -863,22 +763,12 @@ async fn a_1e_9_mm_arc_gets_one_verdict_at_every_door() {
 
 /// Preview data of the selected program (empty text).
 async fn selected_preview(doors: &mut Doors, junctions: bool) -> pb::PreviewData {
-    doors
-        .p
-        .get_preview_data(pb::PreviewDataRequest {
-            text: String::new(),
-            junctions,
-        })
-        .await
-        .unwrap()
-        .into_inner()
+    preview_data(&mut doors.p, "", junctions).await.unwrap()
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn preview_of_the_selected_program_reads_the_pass_of_its_load() {
-    let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(Some(TABLE)).await;
     let smooth = pb::JunctionClass::Smooth as i32;
     let stop = pb::JunctionClass::Stop as i32;
     // Automatic continuity, R39 = 60°: the 16.7° corner after N10 is smooth; compensated.
@@ -891,15 +781,7 @@ async fn preview_of_the_selected_program_reads_the_pass_of_its_load() {
     assert!(!recorded.programmed.is_empty() && !recorded.compensated.is_empty());
     assert_eq!(recorded.junctions[1].class, smooth, "{recorded:?}");
     // What a pass of its own over the text gives: the same data.
-    let own = doors
-        .p
-        .get_preview_data(pb::PreviewDataRequest {
-            text: text.into(),
-            junctions: true,
-        })
-        .await
-        .unwrap()
-        .into_inner();
+    let own = preview_data(&mut doors.p, text, true).await.unwrap();
     assert_eq!(d.ctl.validation_passes(), passes + 1);
     assert_eq!(recorded, own);
     let without = selected_preview(&mut doors, false).await;
@@ -937,9 +819,7 @@ async fn picture(doors: &mut Doors, text: &str, velocity: bool) -> pb::GetPrevie
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn picture_of_the_selected_program_reads_the_pass_of_its_load() {
-    let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
-    let mut doors = Doors::new(d.channel().await).await;
+    let (d, mut doors) = daemon(Some(TABLE)).await;
     let text = "N5 D1 G41 G1 X0 Y0 F3000\nN10 G23 X10 Y0\nN20 X20 Y3\nN30 G3 X30 Y13 I0 J10\nN40 G40 G1 X40 Y3\n";
     assert!(doors.load(text).await.valid);
     for velocity in [false, true] {
@@ -952,16 +832,7 @@ async fn picture_of_the_selected_program_reads_the_pass_of_its_load() {
     }
     // Moved by MDI: the load's pass is not the next start's any more; the picture makes a
     // pass from where the machine is now.
-    let job = doors
-        .m
-        .mdi(pb::MdiRequest {
-            block: "G0 X5".into(),
-        })
-        .await
-        .unwrap()
-        .into_inner()
-        .job;
-    wait_job_finished(&d.ctl, job).await;
+    mdi(&d, &mut doors.m, "G0 X5").await;
     let passes = d.ctl.validation_passes();
     picture(&mut doors, "", false).await;
     assert_eq!(d.ctl.validation_passes(), passes + 1);
@@ -971,15 +842,7 @@ async fn picture_of_the_selected_program_reads_the_pass_of_its_load() {
 async fn a_gear_range_the_machine_lacks_is_refused_at_every_door() {
     // Two gear ranges (M41, M42): M44 is refused by the pass with the machine's setup, at
     // every door including the picture (whose pass now takes the whole machine setup).
-    let mut cfg = config(Role::Admin);
-    cfg.kr.gears = (1..=2)
-        .map(|g| GearConfig {
-            max_rpm: 1000.0 * g as f64,
-            output_range: 0x7FFF,
-            m_code: Some(40 + g),
-        })
-        .collect();
-    let d = start(cfg).await;
+    let d = start(gear_config(2)).await;
     let mut doors = Doors::new(d.channel().await).await;
     let text = "N10 M44 M3 S100\nN20 G1 X1 F100\n";
     assert!(!doors.same_everywhere(&d, "M44", text).await);

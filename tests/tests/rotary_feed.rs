@@ -5,7 +5,7 @@
 
 use daemon::runtime::clock::SimClock;
 use daemon::runtime::config::{AxisConfig, Config};
-use daemon::runtime::harness::{Harness, HarnessError, JobEnd};
+use daemon::runtime::harness::{Harness, JobEnd};
 use daemon::runtime::rt::MachineState;
 use kernel::constants::Constants;
 
@@ -90,13 +90,6 @@ fn mixed_move_feeds_the_linear_axes_and_the_rotary_follows() {
 fn rotary_axis_in_an_arc_is_refused_with_the_block() {
     let (mut h, _) = machine();
     h.wait_state(MachineState::Idle, 10_000).unwrap();
-    match h.start_program("N10 G1 X10 F600\nN20 G2 X20 A90 I5 J0\n") {
-        Err(HarnessError::InvalidProgram(d)) => {
-            assert!(
-                d.iter().any(|d| d.is_error() && d.block == Some(20)),
-                "{d:?}"
-            );
-        }
-        other => panic!("accepted: {other:?}"),
-    }
+    let arc = "N10 G1 X10 F600\nN20 G2 X20 A90 I5 J0\n";
+    tests::assert_refused_at(&mut h, arc, 20, "an arc with A");
 }

@@ -10,7 +10,7 @@ use daemon::runtime::config::Config;
 use daemon::runtime::harness::{Harness, JobEnd};
 use daemon::runtime::rt::{MachineState, RtCommand};
 use kernel::units::TS_NS;
-use tests::{FaultableBus, Recording, RecordingBus, max_rates};
+use tests::{FaultableBus, PART, Recording, RecordingBus, max_rates};
 
 const TS_S: f64 = 0.004;
 /// A bound on the ticks of any run here (about 3.3 hours of machining): not a timing.
@@ -26,19 +26,6 @@ fn recorded(clock: SimClock) -> (Harness, Recording, Config) {
     let h = Harness::new(cfg.clone(), Box::new(bus), clock).unwrap();
     (h, record, cfg)
 }
-
-/// A program with rapids, lines, arcs, a feed change and block ends at rest.
-const PART: &str = "\
-N10 G0 X10 Y5 Z1
-N20 G1 Z-1 F600
-N30 G23 X40 F3000
-N40 G3 X60 Y25 I0 J20
-N50 G2 X40 Y45 I-20 J0
-N60 G1 X10 F1800
-N70 G98 Y5
-N80 G0 Z5
-N90 X0 Y0
-";
 
 /// About 3 hours of machining (120 zig-zag passes of 300 mm at 200 mm/min) on a clock that
 /// jitters and misses deadlines: every tick executed, the end exact, the overruns those the
@@ -103,21 +90,7 @@ fn late_ticks_skip_grid_points_counted_exactly_without_setpoint_jump() {
     let (mut h, record, cfg) = recorded(clock);
     h.wait_state(MachineState::Idle, 10_000).unwrap();
     let job = h.start_program("G1 X200 Y100 F6000").unwrap();
-    let mut deadline = h.core().next_deadline_ns();
-    let mut max_lateness_ns = 0;
-    while h.snapshot().finished_job != job {
-        let s = h.step();
-        let lateness = s.time_ns - deadline;
-        max_lateness_ns = max_lateness_ns.max(lateness);
-        let next = h.core().next_deadline_ns();
-        // On the grid (the clock starts at 0, so the grid is the multiples of Ts) ...
-        assert_eq!(next % TS_NS, 0);
-        // ... and the next deadline is the first grid point after the wake-up.
-        assert!(next > s.time_ns && next - s.time_ns <= TS_NS, "{s:?}");
-        assert_eq!(next - deadline, (lateness / TS_NS + 1) * TS_NS);
-        deadline = next;
-        assert!(s.sequence < 100_000, "{s:?}");
-    }
+    let max_lateness_ns = tests::run_on_the_grid(&mut h, job, TS_NS);
     let s = h.snapshot();
     assert!(
         h.clock().wakeups() > 300,

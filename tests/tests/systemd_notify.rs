@@ -93,51 +93,62 @@ fn count(msgs: &[(Instant, String)], line: &str) -> usize {
     msgs.iter().filter(|(_, l)| l == line).count()
 }
 
-/// The simulated bus, but `cycle()` blocks while `stall` is set: a hung bus driver.
-struct StallBus {
-    inner: sim::SimBus,
-    stall: Arc<AtomicBool>,
+/// What a [`SwitchedBus`] does while its switch is on.
+#[derive(Clone, Copy)]
+enum WhileOn {
+    /// `cycle()` blocks: a hung bus driver holding the real-time thread.
+    Stall,
+    /// Axis Y's drive reports a fault.
+    FaultY,
 }
 
-impl DriveBus for StallBus {
+/// The simulated bus, but doing [`WhileOn`] while `on` is set.
+struct SwitchedBus {
+    inner: sim::SimBus,
+    on: Arc<AtomicBool>,
+    while_on: WhileOn,
+}
+
+impl SwitchedBus {
+    /// The bus with its switch set to `on`, and the switch.
+    fn new(while_on: WhileOn, on: bool) -> (SwitchedBus, Arc<AtomicBool>) {
+        let on = Arc::new(AtomicBool::new(on));
+        let inner = sim::SimBus::new(sim::SimDriveParams::default(), &[0.0; 3]);
+        let bus = SwitchedBus {
+            inner,
+            on: on.clone(),
+            while_on,
+        };
+        (bus, on)
+    }
+}
+
+impl DriveBus for SwitchedBus {
     daemon::delegate_drive_bus!(inner: axes, enable, reset);
     fn name(&self) -> &str {
-        "stall"
+        match self.while_on {
+            WhileOn::Stall => "stall",
+            WhileOn::FaultY => "faulty",
+        }
     }
     fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
-        while self.stall.load(Ordering::Acquire) {
-            std::thread::sleep(Duration::from_millis(1));
+        match self.while_on {
+            WhileOn::Stall => {
+                while self.on.load(Ordering::Acquire) {
+                    std::thread::sleep(Duration::from_millis(1));
+                }
+            }
+            WhileOn::FaultY if self.on.load(Ordering::Acquire) => {
+                return Err(BusFault {
+                    axis: Some(1),
+                    node: Some(2),
+                    reason: FaultReason::DriveFault { code: 0x7500 },
+                });
+            }
+            WhileOn::FaultY => {}
         }
         self.inner.cycle(cmd, fb)
     }
-}
-
-/// The simulated bus, but axis Y's drive reports a fault until `healthy` is set.
-struct FaultyBus {
-    inner: sim::SimBus,
-    healthy: Arc<AtomicBool>,
-}
-
-impl DriveBus for FaultyBus {
-    daemon::delegate_drive_bus!(inner: axes, enable, reset);
-    fn name(&self) -> &str {
-        "faulty"
-    }
-    fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
-        if self.healthy.load(Ordering::Acquire) {
-            self.inner.cycle(cmd, fb)
-        } else {
-            Err(BusFault {
-                axis: Some(1),
-                node: Some(2),
-                reason: FaultReason::DriveFault { code: 0x7500 },
-            })
-        }
-    }
-}
-
-fn sim_bus() -> sim::SimBus {
-    sim::SimBus::new(sim::SimDriveParams::default(), &[0.0; 3])
 }
 
 fn config(dir: &Path) -> Config {
@@ -154,14 +165,29 @@ const WATCHDOG: Duration = Duration::from_millis(1000);
 /// Half the watchdog period.
 const PING: Duration = Duration::from_millis(500);
 
-/// The daemon on `bus`, supervised with a watchdog of `WATCHDOG` that notifies `path`.
-fn supervised(
-    dir: &Path,
-    path: &Path,
-    bus: Box<dyn DriveBus>,
-) -> (Arc<Controller>, systemd::Supervision) {
-    let ctl = Controller::start_with_bus(config(dir), ClockKind::Monotonic, bus).unwrap();
-    let notifier = Arc::new(Notifier::new(path).unwrap());
+/// The daemon in process on a [`SwitchedBus`], supervised with a watchdog of `WATCHDOG`, and
+/// the fake service manager it notifies.
+struct Supervised {
+    /// The test's directory.
+    dir: PathBuf,
+    mgr: Manager,
+    /// The bus's switch.
+    switch: Arc<AtomicBool>,
+    ctl: Arc<Controller>,
+    sup: systemd::Supervision,
+}
+
+/// [`Supervised`] in a fresh directory `name`, on a bus doing `while_on` while its switch (set
+/// to `on` at start-up) is on.
+fn supervised(name: &str, while_on: WhileOn, on: bool) -> Supervised {
+    cncd_binary();
+    let dir = scratch(name);
+    let path = dir.join("notify.sock");
+    let mgr = Manager::bind(&path);
+    let (bus, switch) = SwitchedBus::new(while_on, on);
+    let ctl =
+        Controller::start_with_bus(config(&dir), ClockKind::Monotonic, Box::new(bus)).unwrap();
+    let notifier = Arc::new(Notifier::new(&path).unwrap());
     let sup = systemd::supervise(
         ctl.subscribe(),
         Some(notifier),
@@ -169,21 +195,33 @@ fn supervised(
         ctl.config().axis_names(),
         "test machine".into(),
     );
-    (ctl, sup)
+    Supervised {
+        dir,
+        mgr,
+        switch,
+        ctl,
+        sup,
+    }
+}
+
+/// Shuts the in-process daemon down (off the async threads: it joins the real-time thread) and
+/// removes the test's directory.
+async fn shut_down(ctl: Arc<Controller>, dir: &Path) {
+    tokio::task::spawn_blocking(move || ctl.shutdown())
+        .await
+        .unwrap();
+    let _ = std::fs::remove_dir_all(dir);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn ready_after_start_up_pings_while_ticking_and_not_while_the_rt_thread_stalls() {
-    cncd_binary();
-    let dir = scratch("notify-stall");
-    let path = dir.join("notify.sock");
-    let mgr = Manager::bind(&path);
-    let stall = Arc::new(AtomicBool::new(false));
-    let bus = StallBus {
-        inner: sim_bus(),
-        stall: stall.clone(),
-    };
-    let (ctl, sup) = supervised(&dir, &path, Box::new(bus));
+    let Supervised {
+        dir,
+        mgr,
+        switch: stall,
+        ctl,
+        sup,
+    } = supervised("notify-stall", WhileOn::Stall, false);
 
     // READY=1 after start-up, and only once the drives are operational.
     let before = mgr.wait_for("READY=1", Duration::from_secs(10)).await;
@@ -264,25 +302,18 @@ async fn ready_after_start_up_pings_while_ticking_and_not_while_the_rt_thread_st
     );
 
     sup.stop();
-    let c = ctl.clone();
-    tokio::task::spawn_blocking(move || c.shutdown())
-        .await
-        .unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
+    shut_down(ctl, &dir).await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn no_ready_while_the_drives_are_faulted_at_start_up() {
-    cncd_binary();
-    let dir = scratch("notify-fault");
-    let path = dir.join("notify.sock");
-    let mgr = Manager::bind(&path);
-    let healthy = Arc::new(AtomicBool::new(false));
-    let bus = FaultyBus {
-        inner: sim_bus(),
-        healthy: healthy.clone(),
-    };
-    let (ctl, sup) = supervised(&dir, &path, Box::new(bus));
+    let Supervised {
+        dir,
+        mgr,
+        switch: faulted,
+        ctl,
+        sup,
+    } = supervised("notify-fault", WhileOn::FaultY, true);
 
     let msgs = mgr.collect(Duration::from_secs(3)).await;
     assert_eq!(ctl.snapshot().state, MachineState::Fault);
@@ -301,7 +332,7 @@ async fn no_ready_while_the_drives_are_faulted_at_start_up() {
     assert!(count(&msgs, "WATCHDOG=1") >= 4, "{msgs:?}");
 
     // The operator clears the cause and resets before systemd's start timeout: ready.
-    healthy.store(true, Ordering::Release);
+    faulted.store(false, Ordering::Release);
     ctl.reset().unwrap();
     mgr.wait_for("READY=1", Duration::from_secs(10)).await;
     assert_eq!(ctl.snapshot().state, MachineState::Idle);
@@ -311,11 +342,7 @@ async fn no_ready_while_the_drives_are_faulted_at_start_up() {
     );
 
     sup.watchdog.as_ref().unwrap().abort();
-    let c = ctl.clone();
-    tokio::task::spawn_blocking(move || c.shutdown())
-        .await
-        .unwrap();
-    let _ = std::fs::remove_dir_all(&dir);
+    shut_down(ctl, &dir).await;
 }
 
 /// A configuration for a `cncd` child: any free loopback port, data files in `dir`.
@@ -328,25 +355,9 @@ fn test_config(dir: &Path) -> String {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn cncd_binary_notifies_ready_pings_and_stops_on_sigterm() {
-    let bin = cncd_binary();
-    let dir = scratch("notify-bin");
-    let path = dir.join("notify.sock");
-    let cfg = dir.join("cncd.toml");
-    std::fs::write(&cfg, test_config(&dir)).unwrap();
+    let (bin, dir, path, cfg) = cncd_scratch("notify-bin");
     let mgr = Manager::bind(&path);
-    let mut child = Command::new(&bin)
-        .args(["--config"])
-        .arg(&cfg)
-        .args(["--log", "stderr"])
-        .env("NOTIFY_SOCKET", &path)
-        .env("WATCHDOG_USEC", WATCHDOG.as_micros().to_string())
-        .env_remove("WATCHDOG_PID")
-        .env_remove("JOURNAL_STREAM")
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .current_dir(&dir)
-        .spawn()
-        .unwrap();
+    let child = spawn_cncd(&bin, &dir, &cfg, &path, Some(WATCHDOG));
     let pid = child.id() as libc::pid_t;
     // The checks run in a task so that a failed one still lets us reap cncd and show its log.
     let checks = tokio::spawn(async move {
@@ -364,28 +375,7 @@ async fn cncd_binary_notifies_ready_pings_and_stops_on_sigterm() {
         assert_eq!(unsafe { libc::kill(pid, libc::SIGTERM) }, 0);
         mgr.wait_for("STOPPING=1", Duration::from_secs(10)).await;
     });
-    let outcome = checks.await;
-    let deadline = Instant::now() + Duration::from_secs(20);
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break Some(s);
-        }
-        if Instant::now() > deadline {
-            break None;
-        }
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    };
-    if status.is_none() {
-        let _ = child.kill();
-    }
-    let output = child.wait_with_output().unwrap();
-    let log = String::from_utf8_lossy(&output.stderr);
-    if let Err(p) = outcome {
-        eprintln!("cncd log:\n{log}");
-        std::panic::resume_unwind(p.into_panic());
-    }
-    let status = status.unwrap_or_else(|| panic!("cncd did not exit after SIGTERM:\n{log}"));
-    assert!(status.success(), "cncd exit {status}:\n{log}");
+    let ((), log) = reap(child, checks.await).await;
     assert!(log.contains("drives operational"), "{log}");
     assert!(log.contains("axis at rest"), "{log}");
     let _ = std::fs::remove_dir_all(&dir);
@@ -398,11 +388,7 @@ async fn run_with_journal_stream(
     name: &str,
     stream: impl Fn(&std::fs::Metadata) -> String,
 ) -> (u32, String) {
-    let bin = cncd_binary();
-    let dir = scratch(name);
-    let path = dir.join("notify.sock");
-    let cfg = dir.join("cncd.toml");
-    std::fs::write(&cfg, test_config(&dir)).unwrap();
+    let (bin, dir, path, cfg) = cncd_scratch(name);
     let log_path = dir.join("stderr.log");
     let log = std::fs::File::create(&log_path).unwrap();
     let meta = log.metadata().unwrap();
@@ -486,24 +472,9 @@ async fn sigterm_ends_open_streams_and_cncd_exits() {
     use proto::v1 as pb;
     use proto::v1::machine_client::MachineClient;
 
-    let bin = cncd_binary();
-    let dir = scratch("stop-streams");
-    let path = dir.join("notify.sock");
-    let cfg = dir.join("cncd.toml");
-    std::fs::write(&cfg, test_config(&dir)).unwrap();
+    let (bin, dir, path, cfg) = cncd_scratch("stop-streams");
     let mgr = Manager::bind(&path);
-    let mut child = Command::new(&bin)
-        .arg("--config")
-        .arg(&cfg)
-        .args(["--log", "stderr"])
-        .env("NOTIFY_SOCKET", &path)
-        .env_remove("WATCHDOG_USEC")
-        .env_remove("JOURNAL_STREAM")
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .current_dir(&dir)
-        .spawn()
-        .unwrap();
+    let child = spawn_cncd(&bin, &dir, &cfg, &path, None);
     let pid = child.id() as libc::pid_t;
     let socket = dir.join("data/cncd.sock");
     let checks = tokio::spawn(async move {
@@ -541,12 +512,64 @@ async fn sigterm_ends_open_streams_and_cncd_exits() {
         assert!(matches!(alarm_end, Ok(None)), "alarm stream: {alarm_end:?}");
         last.expect("a status after SIGTERM")
     });
-    let outcome = checks.await;
+    let (last, log) = reap(child, checks.await).await;
+    // The last status the HMI saw is the machine at rest, after the brake.
+    assert_eq!(last.path_velocity_mm_s, 0.0, "{last:?}");
+    let rest = log.find("axis at rest").expect("axis at rest logged");
+    let stopped = log.find("cncd stopped").expect("cncd stopped logged");
+    assert!(rest < stopped, "{log}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A scratch directory `name` with a `cncd` configuration in it ([`test_config`]): the cncd
+/// binary, the directory, the fake notify socket's path and the configuration file.
+fn cncd_scratch(name: &str) -> (PathBuf, PathBuf, PathBuf, PathBuf) {
+    let bin = cncd_binary();
+    let dir = scratch(name);
+    let path = dir.join("notify.sock");
+    let cfg = dir.join("cncd.toml");
+    std::fs::write(&cfg, test_config(&dir)).unwrap();
+    (bin, dir, path, cfg)
+}
+
+/// `cncd` on `cfg` in `dir`, notifying `notify`, its log on stderr (piped); with `watchdog`,
+/// supervised by a watchdog of that period.
+fn spawn_cncd(
+    bin: &Path,
+    dir: &Path,
+    cfg: &Path,
+    notify: &Path,
+    watchdog: Option<Duration>,
+) -> std::process::Child {
+    let mut cmd = Command::new(bin);
+    cmd.arg("--config")
+        .arg(cfg)
+        .args(["--log", "stderr"])
+        .env("NOTIFY_SOCKET", notify)
+        .env_remove("WATCHDOG_USEC")
+        .env_remove("WATCHDOG_PID")
+        .env_remove("JOURNAL_STREAM")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .current_dir(dir);
+    if let Some(w) = watchdog {
+        cmd.env("WATCHDOG_USEC", w.as_micros().to_string());
+    }
+    cmd.spawn().unwrap()
+}
+
+/// Reaps `child` after the checks that signalled it ended with `outcome`: waits for its exit
+/// (a hang bound: killed after 30 s), shows its log when a check failed and fails the test
+/// with that check, then asserts exit status 0. Returns what the checks gave and the log.
+async fn reap<T>(
+    mut child: std::process::Child,
+    outcome: Result<T, tokio::task::JoinError>,
+) -> (T, String) {
     let status = wait_exit(&mut child, Duration::from_secs(30)).await;
     let output = child.wait_with_output().unwrap();
-    let log = String::from_utf8_lossy(&output.stderr);
-    let last = match outcome {
-        Ok(last) => last,
+    let log = String::from_utf8_lossy(&output.stderr).into_owned();
+    let checked = match outcome {
+        Ok(checked) => checked,
         Err(p) => {
             eprintln!("cncd log:\n{log}");
             std::panic::resume_unwind(p.into_panic());
@@ -554,12 +577,7 @@ async fn sigterm_ends_open_streams_and_cncd_exits() {
     };
     let status = status.unwrap_or_else(|| panic!("cncd did not exit after SIGTERM:\n{log}"));
     assert!(status.success(), "cncd exit {status}:\n{log}");
-    // The last status the HMI saw is the machine at rest, after the brake.
-    assert_eq!(last.path_velocity_mm_s, 0.0, "{last:?}");
-    let rest = log.find("axis at rest").expect("axis at rest logged");
-    let stopped = log.find("cncd stopped").expect("cncd stopped logged");
-    assert!(rest < stopped, "{log}");
-    let _ = std::fs::remove_dir_all(&dir);
+    (checked, log)
 }
 
 /// Waits up to `limit` for `child` to exit; kills it when it does not (then `None`).

@@ -321,49 +321,30 @@ mod tests {
     #[test]
     fn judge_asks_for_half_the_due_ticks() {
         let ms = Duration::from_millis;
-        let ts = ms(4);
-        // 1 s is 250 ticks: 125 are enough, 124 are not.
-        assert_eq!(
-            judge(1000, 1125, ms(1000), ts),
-            Progress::Ticking { ticks: 125 }
-        );
-        assert_eq!(
-            judge(1000, 1124, ms(1000), ts),
-            Progress::Stalled {
-                ticks: 124,
-                expected: 250
-            }
-        );
-        // At a 1 ms bus period 1 s is 1000 ticks: 250 are a stall, 500 are enough.
-        assert_eq!(
-            judge(0, 250, ms(1000), ms(1)),
-            Progress::Stalled {
-                ticks: 250,
-                expected: 1000
-            }
-        );
-        assert_eq!(
-            judge(0, 500, ms(1000), ms(1)),
-            Progress::Ticking { ticks: 500 }
-        );
-        // At 10 ms, 50 of 100.
-        assert_eq!(
-            judge(0, 50, ms(1000), ms(10)),
-            Progress::Ticking { ticks: 50 }
-        );
-        // No progress at all is a stall even over a very short look.
-        assert_eq!(
-            judge(7, 7, ms(1), ts),
-            Progress::Stalled {
-                ticks: 0,
-                expected: 0
-            }
-        );
-        // A virtual clock may run ahead of wall time: still ticking.
-        assert_eq!(
-            judge(0, 100_000, ms(10), ts),
-            Progress::Ticking { ticks: 100_000 }
-        );
+        let ticking = |ticks| Progress::Ticking { ticks };
+        let stalled = |ticks, expected| Progress::Stalled { ticks, expected };
+        // (sequence at the previous look, sequence now, time between the looks, tick, verdict)
+        let cases = [
+            // 1 s is 250 ticks: 125 are enough, 124 are not.
+            (1000, 1125, ms(1000), ms(4), ticking(125)),
+            (1000, 1124, ms(1000), ms(4), stalled(124, 250)),
+            // At a 1 ms bus period 1 s is 1000 ticks: 250 are a stall, 500 are enough.
+            (0, 250, ms(1000), ms(1), stalled(250, 1000)),
+            (0, 500, ms(1000), ms(1), ticking(500)),
+            // At 10 ms, 50 of 100.
+            (0, 50, ms(1000), ms(10), ticking(50)),
+            // No progress at all is a stall even over a very short look.
+            (7, 7, ms(1), ms(4), stalled(0, 0)),
+            // A virtual clock may run ahead of wall time: still ticking.
+            (0, 100_000, ms(10), ms(4), ticking(100_000)),
+        ];
+        for (previous, now, elapsed, tick, verdict) in cases {
+            assert_eq!(
+                judge(previous, now, elapsed, tick),
+                verdict,
+                "{previous} -> {now} in {elapsed:?}, tick {tick:?}"
+            );
+        }
         assert_eq!(ping_interval(Duration::from_secs(3)), ms(1500));
     }
 

@@ -44,6 +44,19 @@ fn check_limits(trace: &[TickOut], v_max: f64, a_max: f64) {
     }
 }
 
+/// An interpolator on one X line from 0 to `to_x` mm at 50 mm/s, at rest at both ends, after
+/// `ticks` ticks; with its trace so far, from the tick at rest before the first.
+fn on_x_line(to_x: f64, ticks: usize) -> (Interpolator, Vec<TickOut>) {
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    ip.push(line(0, [0.0; 3], [to_x, 0.0, 0.0], 50.0, 0.0))
+        .unwrap();
+    let mut trace = vec![TickOut::default()];
+    for _ in 0..ticks {
+        trace.push(ip.tick());
+    }
+    (ip, trace)
+}
+
 #[test]
 fn single_line_ends_exactly_within_limits() {
     let mut ip = Interpolator::new(3, AxesMm::ZERO);
@@ -75,13 +88,7 @@ fn smooth_junction_does_not_stop() {
 
 #[test]
 fn hold_brakes_and_resume_finishes() {
-    let mut ip = Interpolator::new(3, AxesMm::ZERO);
-    ip.push(line(0, [0.0; 3], [100.0, 0.0, 0.0], 50.0, 0.0))
-        .unwrap();
-    let mut trace = vec![TickOut::default()];
-    for _ in 0..100 {
-        trace.push(ip.tick());
-    }
+    let (mut ip, mut trace) = on_x_line(100.0, 100);
     ip.hold();
     for _ in 0..100 {
         trace.push(ip.tick());
@@ -113,13 +120,7 @@ fn hold_before_the_first_segment_holds_at_the_start() {
 
 #[test]
 fn stop_brakes_then_drops_the_rest() {
-    let mut ip = Interpolator::new(3, AxesMm::ZERO);
-    ip.push(line(0, [0.0; 3], [100.0, 0.0, 0.0], 50.0, 0.0))
-        .unwrap();
-    let mut trace = vec![TickOut::default()];
-    for _ in 0..100 {
-        trace.push(ip.tick());
-    }
+    let (mut ip, mut trace) = on_x_line(100.0, 100);
     ip.stop();
     trace.extend(run(&mut ip, 1000));
     check_limits(&trace, 50.0, 500.0);

@@ -59,26 +59,13 @@ struct State {
     prog: AxesMm,
     /// Where the last motion ended, in machine coordinates (programmed + length offset).
     machine: AxesMm,
-    motion: Motion,
-    plane: Plane,
-    absolute: bool,
-    feed_mode: FeedMode,
-    /// Programmed feed (before M37 scaling); `None` until F is written, or after the feed
-    /// changed between per minute and per revolution.
-    feed: Option<Feed>,
-    /// M37: actual feed = programmed / 100 (SPEC §5).
-    m37: bool,
-    continuity: Continuity,
-    dyn_set: u8,
+    /// What the next MDI inherits.
+    modal: Modal,
     comp: CompMode,
     /// Offset entry selected by D (0 = none).
     d: u8,
     /// Length offset entry selected by & (0 = none).
     amp: u8,
-    spindle: Spindle,
-    /// The spindle speed is known at run time although S is 0: after constant cutting speed
-    /// ends, the last reached speed becomes S (SPEC §6).
-    speed_from_css: bool,
 }
 
 /// The modal state a program or MDI leaves for the next MDI (docs/language.md, "What MDI
@@ -91,11 +78,16 @@ pub struct Modal {
     plane: Plane,
     absolute: bool,
     feed_mode: FeedMode,
+    /// Programmed feed (before M37 scaling); `None` until F is written, or after the feed
+    /// changed between per minute and per revolution.
     feed: Option<Feed>,
+    /// M37: actual feed = programmed / 100 (SPEC §5).
     m37: bool,
     continuity: Continuity,
     dyn_set: u8,
     spindle: Spindle,
+    /// The spindle speed is known at run time although S is 0: after constant cutting speed
+    /// ends, the last reached speed becomes S (SPEC §6).
     speed_from_css: bool,
 }
 
@@ -141,50 +133,28 @@ impl State {
         State {
             prog: start,
             machine: start,
-            motion: Motion::Rapid,
-            plane: Plane::G17,
-            absolute: true,
-            feed_mode: FeedMode::G94,
-            feed: None,
-            m37: false,
-            continuity: Continuity::G98,
-            dyn_set: 1,
+            modal: Modal {
+                motion: Motion::Rapid,
+                plane: Plane::G17,
+                absolute: true,
+                feed_mode: FeedMode::G94,
+                feed: None,
+                m37: false,
+                continuity: Continuity::G98,
+                dyn_set: 1,
+                spindle: Spindle::default(),
+                speed_from_css: false,
+            },
             comp: CompMode::Off,
             d: 0,
             amp: 0,
-            spindle: Spindle::default(),
-            speed_from_css: false,
-        }
-    }
-
-    fn modal(&self) -> Modal {
-        Modal {
-            motion: self.motion,
-            plane: self.plane,
-            absolute: self.absolute,
-            feed_mode: self.feed_mode,
-            feed: self.feed,
-            m37: self.m37,
-            continuity: self.continuity,
-            dyn_set: self.dyn_set,
-            spindle: self.spindle,
-            speed_from_css: self.speed_from_css,
         }
     }
 
     fn inherit(&mut self, m: &Modal) {
-        self.motion = m.motion;
-        self.plane = m.plane;
-        self.absolute = m.absolute;
-        self.feed_mode = m.feed_mode;
-        self.feed = m.feed;
-        self.m37 = m.m37;
-        self.continuity = m.continuity;
-        self.dyn_set = m.dyn_set;
-        self.spindle = m.spindle;
-        self.speed_from_css = m.speed_from_css;
+        self.modal = *m;
         // Offsets are not inherited: the spindle's length offset for KŘR goes with them.
-        self.spindle.length_offset_mm = 0.0;
+        self.modal.spindle.length_offset_mm = 0.0;
     }
 }
 
@@ -350,7 +320,7 @@ impl Interpreter {
 
     /// The modal state after the last block (what an MDI after it inherits).
     pub fn modal(&self) -> Modal {
-        self.state.modal()
+        self.state.modal
     }
 
     /// The interpreter's copy of the offset table (including `G92` writes so far).
@@ -641,7 +611,7 @@ impl Interpreter {
         let mut st = old;
         apply_simple_modals(w, &mut st);
         let motion_words = w.axes[..self.n_axes].iter().any(Option::is_some);
-        let arc_block = st.motion.is_arc() && w.g92.is_none();
+        let arc_block = st.modal.motion.is_arc() && w.g92.is_none();
         let i_is_centre = dynamic_set(w, &mut st, arc_block, motion_words)?;
         plane(w, &old, &mut st)?;
         let m_codes = self.m_functions(w, &mut st)?;
@@ -712,23 +682,23 @@ impl Interpreter {
             }
             *slot = Some(*m);
             match m {
-                3 => st.spindle.dir = SpindleDir::Cw,
-                4 => st.spindle.dir = SpindleDir::Ccw,
-                5 => st.spindle.dir = SpindleDir::Stopped,
-                36 => st.m37 = false,
-                37 => st.m37 = true,
-                _ => st.spindle.gear = gear.unwrap_or(0),
+                3 => st.modal.spindle.dir = SpindleDir::Cw,
+                4 => st.modal.spindle.dir = SpindleDir::Ccw,
+                5 => st.modal.spindle.dir = SpindleDir::Stopped,
+                36 => st.modal.m37 = false,
+                37 => st.modal.m37 = true,
+                _ => st.modal.spindle.gear = gear.unwrap_or(0),
             }
         }
         if crate::block::ends_program(&m_codes) {
             // M2/M30 end the program: the spindle stops with it (the next run starts from the
             // power-on modal state anyway, docs/language.md).
-            st.spindle.dir = SpindleDir::Stopped;
+            st.modal.spindle.dir = SpindleDir::Stopped;
         }
         // P of the range in force (gear 0, none selected yet, is range 1), for feed per rev.
-        st.spindle.gear_max_rpm = self
+        st.modal.spindle.gear_max_rpm = self
             .gears
-            .get(usize::from(st.spindle.gear.max(1)) - 1)
+            .get(usize::from(st.modal.spindle.gear.max(1)) - 1)
             .map_or(0.0, |g| g.max_rpm);
         Ok(m_codes)
     }
@@ -738,17 +708,18 @@ impl Interpreter {
     fn feed_and_speed(&self, w: &Words, old: &State, st: &mut State) -> Result<bool, Fail> {
         let css_swapped = self.rules.css_swapped;
         if let Some((fm, _)) = w.feed_mode {
-            st.feed_mode = fm;
+            st.modal.feed_mode = fm;
         }
-        let per_rev = st.feed_mode.per_rev(css_swapped);
-        if per_rev != old.feed_mode.per_rev(css_swapped) {
+        let per_rev = st.modal.feed_mode.per_rev(css_swapped);
+        if per_rev != old.modal.feed_mode.per_rev(css_swapped) {
             // F is not carried over between per minute and per revolution (seed 002 §6.1).
-            st.feed = None;
+            st.modal.feed = None;
         }
         if let Some((f, at)) = w.f {
-            st.feed = Some(feed::convert(f, per_rev).map_err(|e| Fail::new(at, e.code(), e))?);
+            st.modal.feed =
+                Some(feed::convert(f, per_rev).map_err(|e| Fail::new(at, e.code(), e))?);
         }
-        st.spindle.css = st.feed_mode.css();
+        st.modal.spindle.css = st.modal.feed_mode.css();
         if let Some(at) = w.g76 {
             let Some((s, s_at)) = w.s else {
                 return fail(
@@ -764,17 +735,17 @@ impl Interpreter {
                     "the spindle speed limit cannot be negative",
                 );
             }
-            st.spindle.limit_rpm = s.value;
+            st.modal.spindle.limit_rpm = s.value;
         } else if let Some((s, at)) = w.s {
             if s.value < 0.0 {
                 return fail(at, DiagCode::NegativeSpeed, "S cannot be negative");
             }
-            st.spindle.s = s.value;
-            st.speed_from_css = false;
-        } else if old.spindle.css && !st.spindle.css {
+            st.modal.spindle.s = s.value;
+            st.modal.speed_from_css = false;
+        } else if old.modal.spindle.css && !st.modal.spindle.css {
             // KŘR ends without S: the last reached speed becomes S, known only at run time.
-            st.spindle.s = 0.0;
-            st.speed_from_css = true;
+            st.modal.spindle.s = 0.0;
+            st.modal.speed_from_css = true;
         }
         Ok(per_rev)
     }
@@ -896,7 +867,7 @@ impl Interpreter {
                 "G41 and G42 cannot follow each other directly: program G40 between them (or set 6.R397 = 1)",
             );
         }
-        let (a, b) = st.plane.axes();
+        let (a, b) = st.modal.plane.axes();
         if st.comp == CompMode::Off
             && !rules.g40_without_motion
             && w.axes[a].is_none()
@@ -921,11 +892,15 @@ impl Interpreter {
         edit: Option<&TableEdit>,
     ) -> AxesMm {
         let offset = self.length_offset(st.amp, edit);
-        st.spindle.length_offset_mm = self.kr_axis.map_or(0.0, |k| offset[k]);
+        st.modal.spindle.length_offset_mm = self.kr_axis.map_or(0.0, |k| offset[k]);
         for (k, v) in w.axes[..self.n_axes].iter().enumerate() {
             if let Some((v, _)) = v {
                 let v = self.to_radius(k, *v);
-                st.prog[k] = if st.absolute { v } else { old.prog[k] + v };
+                st.prog[k] = if st.modal.absolute {
+                    v
+                } else {
+                    old.prog[k] + v
+                };
             }
         }
         offset
@@ -966,7 +941,7 @@ impl Interpreter {
                     Path::Line
                 }
             }
-        } else if st.motion == Motion::Rapid {
+        } else if st.modal.motion == Motion::Rapid {
             Path::Rapid
         } else {
             Path::Line
@@ -995,8 +970,8 @@ impl Interpreter {
             out,
         } = checked;
         let kind = out.kind;
-        let mut feed_out = st.feed.unwrap_or_default();
-        if st.m37 {
+        let mut feed_out = st.modal.feed.unwrap_or_default();
+        if st.modal.m37 {
             feed_out = match feed_out {
                 Feed::MmPerMin(f) => Feed::MmPerMin(f / 100.0),
                 Feed::MmPerRev(f) => Feed::MmPerRev(f / 100.0),
@@ -1024,7 +999,7 @@ impl Interpreter {
         }
         if let (BlockKind::Motion { path, .. }, Feed::MmPerRev(beta)) = (kind, feed_out)
             && path != Path::Rapid
-            && let Some(msg) = self.beta_max_warning(beta, &st.spindle)
+            && let Some(msg) = self.beta_max_warning(beta, &st.modal.spindle)
         {
             self.notes.push(Diagnostic::warning(
                 DiagCode::FeedAboveBetaMax,
@@ -1047,11 +1022,11 @@ impl Interpreter {
             line: line_no,
             kind,
             feed: feed_out,
-            plane: st.plane,
+            plane: st.modal.plane,
             comp,
-            continuity: st.continuity,
-            dyn_set: st.dyn_set,
-            spindle: st.spindle,
+            continuity: st.modal.continuity,
+            dyn_set: st.modal.dyn_set,
+            spindle: st.modal.spindle,
             m: m_codes,
         };
         self.seq += 1;
@@ -1168,7 +1143,7 @@ impl Interpreter {
         offset: AxesMm,
     ) -> Result<Result<(Path, Option<ERefinement>), OffCircle>, Fail> {
         let rules = self.rules;
-        let (a, b) = st.plane.axes();
+        let (a, b) = st.modal.plane.axes();
         let (Some((i, _)), Some((j, _))) = (w.i, w.j) else {
             return fail(
                 w.i.or(w.j).map_or(w.first, |x| x.1),
@@ -1184,7 +1159,7 @@ impl Interpreter {
                 "the length offset changed (& or G92) since the last motion: move in a line first, an arc cannot take it up",
             );
         }
-        let mut ij = self.centre_words((i, j), w, st.plane)?;
+        let mut ij = self.centre_words((i, j), w, st.modal.plane)?;
         let (s2, e2) = ((start[a], start[b]), (end[a], end[b]));
         let centre_of = |ij: (f64, f64)| match rules.ij {
             IjMode::RelativeToStart => (start[a] + ij.0, start[b] + ij.1),
@@ -1222,13 +1197,13 @@ impl Interpreter {
         center[b] = c2.1;
         Ok(Ok((
             Path::Arc {
-                dir: if st.motion == Motion::Cw {
+                dir: if st.modal.motion == Motion::Cw {
                     ArcDir::Cw
                 } else {
                     ArcDir::Ccw
                 },
                 center,
-                plane: st.plane,
+                plane: st.modal.plane,
             },
             refined,
         )))
@@ -1294,13 +1269,13 @@ fn axis_letters(names: &[char]) -> ([u8; MAX_AXES], Option<String>) {
 /// Motion (G0..G3), G90/G91 and continuity (G23/G24/G98): modal words without checks.
 fn apply_simple_modals(w: &Words, st: &mut State) {
     if let Some((m, _)) = w.motion {
-        st.motion = m;
+        st.modal.motion = m;
     }
     if let Some((a, _)) = w.absolute {
-        st.absolute = a;
+        st.modal.absolute = a;
     }
     if let Some((c, _)) = w.continuity {
-        st.continuity = c;
+        st.modal.continuity = c;
     }
 }
 
@@ -1317,7 +1292,7 @@ fn dynamic_set(
         && (!arc_block || (w.j.is_none() && !motion_words))
     {
         let set = int(i, "I (dynamic set)", 1, 4).map_err(|e| Fail::new(at, e.code(), e))?;
-        st.dyn_set = set as u8;
+        st.modal.dyn_set = set as u8;
         return Ok(false);
     }
     Ok(true)
@@ -1326,14 +1301,14 @@ fn dynamic_set(
 /// Plane G17..G19 (SPEC §4.1: no change under compensation).
 fn plane(w: &Words, old: &State, st: &mut State) -> Result<(), Fail> {
     if let Some((p, at)) = w.plane {
-        if old.comp != CompMode::Off && p != old.plane {
+        if old.comp != CompMode::Off && p != old.modal.plane {
             return fail(
                 at,
                 DiagCode::PlaneChangeUnderComp,
                 "the plane cannot change while radius compensation G41/G42 is active: program G40 first",
             );
         }
-        st.plane = p;
+        st.modal.plane = p;
     }
     Ok(())
 }
@@ -1363,7 +1338,7 @@ fn check_arc_words(w: &Words, arc_block: bool, i_is_centre: bool) -> Result<(), 
 /// A feed move needs F > 0 in the feed mode in force, and feed per revolution a turning
 /// spindle (SPEC §5).
 fn check_feed(w: &Words, st: &State, old: &State, per_rev: bool) -> Result<(), Fail> {
-    match st.feed {
+    match st.modal.feed {
         Some(f) if feed_value(f) > 0.0 => {}
         Some(_) => {
             return fail(
@@ -1372,7 +1347,7 @@ fn check_feed(w: &Words, st: &State, old: &State, per_rev: bool) -> Result<(), F
                 "feed F is zero: a feed move needs F > 0",
             );
         }
-        None if old.feed.is_some() => {
+        None if old.modal.feed.is_some() => {
             return fail(
                 w.first,
                 DiagCode::FeedModeChanged,
@@ -1388,7 +1363,8 @@ fn check_feed(w: &Words, st: &State, old: &State, per_rev: bool) -> Result<(), F
         }
     }
     if per_rev
-        && (st.spindle.dir == SpindleDir::Stopped || (st.spindle.s <= 0.0 && !st.speed_from_css))
+        && (st.modal.spindle.dir == SpindleDir::Stopped
+            || (st.modal.spindle.s <= 0.0 && !st.modal.speed_from_css))
     {
         return fail(
             w.first,

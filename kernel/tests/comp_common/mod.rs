@@ -275,16 +275,7 @@ pub fn check_path(
     let mv = motions(out);
     let mut pieces = 0;
     let mut arcs = 0;
-    for w in mv.windows(2) {
-        let (_, e0, _) = w[0].block.motion().unwrap();
-        let (s1, _, _) = w[1].block.motion().unwrap();
-        if (e0 - s1).max_abs(6) > 1e-9 {
-            return Err(PathError::Gap {
-                before: Box::new(w[0]),
-                after: Box::new(w[1]),
-            });
-        }
-    }
+    check_gaps(&mv)?;
     for (i, c) in mv.iter().enumerate() {
         let (s, e, _) = c.block.motion().unwrap();
         for p in [s, e] {
@@ -413,15 +404,8 @@ fn check_corner_arc(
     Ok(())
 }
 
-/// Continuity and finiteness only (for contours where loops are allowed).
-pub fn check_continuous(out: &[CompBlock]) -> Result<(), PathError> {
-    let mv = motions(out);
-    for c in &mv {
-        let (s, e, _) = c.block.motion().unwrap();
-        if s.0.iter().chain(e.0.iter()).any(|v| !v.is_finite()) {
-            return Err(PathError::NonFinite(Box::new(*c)));
-        }
-    }
+/// Each motion starts where the one before it ended (1 nm).
+fn check_gaps(mv: &[CompBlock]) -> Result<(), PathError> {
     for w in mv.windows(2) {
         let (_, e0, _) = w[0].block.motion().unwrap();
         let (s1, _, _) = w[1].block.motion().unwrap();
@@ -432,6 +416,19 @@ pub fn check_continuous(out: &[CompBlock]) -> Result<(), PathError> {
             });
         }
     }
+    Ok(())
+}
+
+/// Continuity and finiteness only (for contours where loops are allowed).
+pub fn check_continuous(out: &[CompBlock]) -> Result<(), PathError> {
+    let mv = motions(out);
+    for c in &mv {
+        let (s, e, _) = c.block.motion().unwrap();
+        if s.0.iter().chain(e.0.iter()).any(|v| !v.is_finite()) {
+            return Err(PathError::NonFinite(Box::new(*c)));
+        }
+    }
+    check_gaps(&mv)?;
     Ok(())
 }
 

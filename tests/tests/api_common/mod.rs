@@ -14,6 +14,8 @@ use daemon::runtime::rt::MachineState;
 use daemon::runtime::server::{self, Listeners};
 use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, FaultReason};
 use proto::v1 as pb;
+use proto::v1::machine_client::MachineClient;
+use proto::v1::preview_client::PreviewClient;
 use tonic::transport::{Channel, ServerTlsConfig};
 
 #[allow(unused_imports)] // each test binary uses a different subset
@@ -222,4 +224,155 @@ impl DriveBus for LaggingBus {
         fb.axes[self.axis].position_mm -= LAG_MM;
         r
     }
+}
+
+/// A daemon on [`LaggingBus`] (axis `axis` of `cfg` lagging) served on its Unix socket (local
+/// trust: `cfg.api.local_role`): the controller and a channel to it, the machine idle.
+pub async fn lagging_daemon(cfg: Config, axis: usize) -> (Arc<Controller>, Channel) {
+    let bus = LaggingBus::new(cfg.axes.len(), axis);
+    let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
+    let ch = serve_unix_channel(&ctl).await;
+    wait_state(&ctl, MachineState::Idle).await;
+    (ctl, ch)
+}
+
+/// Serves the API of `ctl` on its Unix socket ([`tests::serve_unix`]: local trust) and connects
+/// a channel to it.
+pub async fn serve_unix_channel(ctl: &Arc<Controller>) -> Channel {
+    let socket = tests::serve_unix(ctl).await;
+    tonic::transport::Endpoint::from_shared(socket)
+        .unwrap()
+        .connect()
+        .await
+        .unwrap()
+}
+
+/// The request of `LoadProgram` and `UploadProgram`: `text` stored as `name`.
+pub fn named_program(name: &str, text: &str) -> pb::LoadProgramRequest {
+    pb::LoadProgramRequest {
+        name: name.into(),
+        text: text.into(),
+    }
+}
+
+/// The request of `SetConstants`: each `(number, value)`, as `cncctl constants set` sends it.
+pub fn constant_values(values: &[(u32, f64)]) -> pb::SetConstantsRequest {
+    pb::SetConstantsRequest {
+        values: values
+            .iter()
+            .map(|&(number, value)| pb::ConstantValue { number, value })
+            .collect(),
+    }
+}
+
+/// `Start` of the selected program: its job number.
+pub async fn start_job(m: &mut MachineClient<Channel>) -> u32 {
+    m.start(pb::StartRequest {}).await.unwrap().into_inner().job
+}
+
+/// `LoadProgram` of `text` as `name`, then `Start`: the job number.
+pub async fn load_and_start(m: &mut MachineClient<Channel>, name: &str, text: &str) -> u32 {
+    m.load_program(named_program(name, text)).await.unwrap();
+    start_job(m).await
+}
+
+/// `ValidateProgram` of `text`.
+pub async fn validate(m: &mut MachineClient<Channel>, text: &str) -> pb::ValidateProgramReply {
+    m.validate_program(pb::ValidateProgramRequest { text: text.into() })
+        .await
+        .unwrap()
+        .into_inner()
+}
+
+/// `ListPrograms`: the library and the selected program.
+pub async fn list_programs(m: &mut MachineClient<Channel>) -> pb::ListProgramsReply {
+    m.list_programs(pb::ListProgramsRequest {})
+        .await
+        .unwrap()
+        .into_inner()
+}
+
+/// `GetPreviewData` of `text` (empty: the selected program), with or without junctions.
+pub async fn preview_data(
+    p: &mut PreviewClient<Channel>,
+    text: &str,
+    junctions: bool,
+) -> Result<pb::PreviewData, tonic::Status> {
+    p.get_preview_data(pb::PreviewDataRequest {
+        text: text.into(),
+        junctions,
+    })
+    .await
+    .map(tonic::Response::into_inner)
+}
+
+/// The service names server reflection lists, in the reflection protocol version `$v` of
+/// `tonic_reflection::pb` (`v1` or `v1alpha`), over channel `$ch`.
+#[macro_export]
+macro_rules! reflected_services {
+    ($v:ident, $ch:expr) => {{
+        use tonic_reflection::pb::$v::ServerReflectionRequest;
+        use tonic_reflection::pb::$v::server_reflection_client::ServerReflectionClient;
+        use tonic_reflection::pb::$v::server_reflection_request::MessageRequest;
+        use tonic_reflection::pb::$v::server_reflection_response::MessageResponse;
+        let req = ServerReflectionRequest {
+            host: String::new(),
+            message_request: Some(MessageRequest::ListServices(String::new())),
+        };
+        let mut resp = ServerReflectionClient::new($ch)
+            .server_reflection_info(tokio_stream::iter(vec![req]))
+            .await
+            .unwrap()
+            .into_inner();
+        let m = resp.message().await.unwrap().unwrap();
+        let Some(MessageResponse::ListServicesResponse(l)) = m.message_response else {
+            panic!("unexpected reflection answer");
+        };
+        l.service
+            .into_iter()
+            .map(|s| s.name)
+            .collect::<Vec<String>>()
+    }};
+}
+
+/// Job `job` waits with G24 at the end of N10 for ever: at rest with axis `axis` at `at_mm`,
+/// and still there 250 ticks (1 s of machine time) later, running. Then stops it.
+pub async fn assert_g24_waits_at_the_end_of_n10(
+    ctl: &Arc<Controller>,
+    m: &mut MachineClient<Channel>,
+    job: u32,
+    axis: usize,
+    at_mm: f64,
+) {
+    let c = ctl.clone();
+    wait_until("at the end of N10", || {
+        let s = c.snapshot();
+        s.job == job && (s.commanded[axis] - at_mm).abs() < 1e-9 && s.path_v_mm_s == 0.0
+    })
+    .await;
+    let t0 = ctl.snapshot().sequence;
+    let c = ctl.clone();
+    wait_until("250 ticks", || c.snapshot().sequence > t0 + 250).await;
+    let s = ctl.snapshot();
+    assert_eq!(s.block_n, Some(10), "{s:?}");
+    assert_eq!(s.state, MachineState::Running);
+    assert!((s.commanded[axis] - at_mm).abs() < 1e-9);
+    m.stop(pb::StopRequest {}).await.unwrap();
+    wait_state(ctl, MachineState::Idle).await;
+}
+
+/// The request of `Mdi`: one block.
+pub fn mdi_block(block: &str) -> pb::MdiRequest {
+    pb::MdiRequest {
+        block: block.into(),
+    }
+}
+
+/// `Mdi` of `block`: its job number (panics with the block when it is refused).
+pub async fn start_mdi(m: &mut MachineClient<Channel>, block: &str) -> u32 {
+    m.mdi(mdi_block(block))
+        .await
+        .unwrap_or_else(|e| panic!("{block}: {e:?}"))
+        .into_inner()
+        .job
 }

@@ -20,6 +20,7 @@ use super::{
     blocking, diagnostic_to_pb, status_of,
 };
 use crate::runtime::config::Role::{Observer, Operator};
+use crate::runtime::controller::{ControlError, Controller};
 
 /// Largest program run in single-block mode (its blocks are kept in memory), bytes.
 const SINGLE_BLOCK_MAX_BYTES: u64 = 16 << 20;
@@ -62,6 +63,19 @@ impl pipeline::Observer for Junctions {
         }
         Flow::Go
     }
+}
+
+/// A machine command of the operator: the caller's role is checked, the request goes to the
+/// controller, and the reply is empty (the controller's refusal is the call's status).
+fn command<Req, Rep: Default>(
+    st: &ApiState,
+    req: Request<Req>,
+    method: &str,
+    run: impl FnOnce(&Controller, Req) -> Result<(), ControlError>,
+) -> Result<Response<Rep>, Status> {
+    require(&req, Operator, method)?;
+    run(&st.ctl, req.into_inner()).map_err(status_of)?;
+    Ok(Response::new(Rep::default()))
 }
 
 #[tonic::async_trait]
@@ -209,24 +223,18 @@ impl Machine for MachineSvc {
     }
 
     async fn stop(&self, req: Request<pb::StopRequest>) -> Result<Response<pb::StopReply>, Status> {
-        require(&req, Operator, "Stop")?;
-        self.0.ctl.stop().map_err(status_of)?;
-        Ok(Response::new(pb::StopReply {}))
+        command(&self.0, req, "Stop", |c, _| c.stop())
     }
 
     async fn hold(&self, req: Request<pb::HoldRequest>) -> Result<Response<pb::HoldReply>, Status> {
-        require(&req, Operator, "Hold")?;
-        self.0.ctl.hold().map_err(status_of)?;
-        Ok(Response::new(pb::HoldReply {}))
+        command(&self.0, req, "Hold", |c, _| c.hold())
     }
 
     async fn resume(
         &self,
         req: Request<pb::ResumeRequest>,
     ) -> Result<Response<pb::ResumeReply>, Status> {
-        require(&req, Operator, "Resume")?;
-        self.0.ctl.resume().map_err(status_of)?;
-        Ok(Response::new(pb::ResumeReply {}))
+        command(&self.0, req, "Resume", |c, _| c.resume())
     }
 
     async fn set_override(
@@ -248,29 +256,25 @@ impl Machine for MachineSvc {
         &self,
         req: Request<pb::SetSpindleOverrideRequest>,
     ) -> Result<Response<pb::SetOverrideReply>, Status> {
-        require(&req, Operator, "SetSpindleOverride")?;
-        let pct = req.into_inner().percent;
-        self.0.ctl.set_spindle_override(pct).map_err(status_of)?;
-        Ok(Response::new(pb::SetOverrideReply {}))
+        command(&self.0, req, "SetSpindleOverride", |c, r| {
+            c.set_spindle_override(r.percent)
+        })
     }
 
     async fn set_rapid_override(
         &self,
         req: Request<pb::SetRapidOverrideRequest>,
     ) -> Result<Response<pb::SetOverrideReply>, Status> {
-        require(&req, Operator, "SetRapidOverride")?;
-        let pct = req.into_inner().percent;
-        self.0.ctl.set_rapid_override(pct).map_err(status_of)?;
-        Ok(Response::new(pb::SetOverrideReply {}))
+        command(&self.0, req, "SetRapidOverride", |c, r| {
+            c.set_rapid_override(r.percent)
+        })
     }
 
     async fn reset(
         &self,
         req: Request<pb::ResetRequest>,
     ) -> Result<Response<pb::ResetReply>, Status> {
-        require(&req, Operator, "Reset")?;
-        self.0.ctl.reset().map_err(status_of)?;
-        Ok(Response::new(pb::ResetReply {}))
+        command(&self.0, req, "Reset", |c, _| c.reset())
     }
 
     async fn set_single_block(
@@ -288,10 +292,9 @@ impl Machine for MachineSvc {
         &self,
         req: Request<pb::SetOptionalStopRequest>,
     ) -> Result<Response<pb::SetOptionalStopReply>, Status> {
-        require(&req, Operator, "SetOptionalStop")?;
-        let on = req.into_inner().on;
-        self.0.ctl.set_optional_stop(on).map_err(status_of)?;
-        Ok(Response::new(pb::SetOptionalStopReply {}))
+        command(&self.0, req, "SetOptionalStop", |c, r| {
+            c.set_optional_stop(r.on)
+        })
     }
 
     async fn jog(
@@ -473,19 +476,7 @@ impl Machine for MachineSvc {
         require(&req, Observer, "GetRefinedProgram")?;
         let text = req.into_inner().text;
         let st = self.0.clone();
-        let text = if text.is_empty() {
-            st.ctl
-                .program()
-                .ok_or_else(|| {
-                    Status::failed_precondition("no program is selected and no text was given")
-                })?
-                .text
-                .read_all()
-                .map_err(|e| Status::internal(format!("cannot read the selected program: {e}")))?
-                .to_string()
-        } else {
-            text
-        };
+        let text = super::text_or_selected(&st.ctl, text)?;
         let (listing, refined, diags) =
             blocking(move || st.ctl.refinement_listing(&text).map_err(status_of)).await??;
         Ok(Response::new(pb::RefinedProgramReply {

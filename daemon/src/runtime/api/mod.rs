@@ -26,7 +26,7 @@ use kernel::{Diagnostic, Severity};
 
 use super::config::Role;
 use super::controller::{ControlError, Controller};
-use super::library::Library;
+use super::library::{Library, ProgramText};
 use super::rt::{MachineState, Snapshot};
 
 pub use machine::MachineSvc;
@@ -560,6 +560,26 @@ fn state_to_pb(s: MachineState) -> pb::MachineState {
         MachineState::Jog => pb::MachineState::Jog,
         MachineState::Homing => pb::MachineState::Homing,
     }
+}
+
+/// The selected program's text: what a request with an empty text means (preview, trajectory,
+/// refined listing). FAILED_PRECONDITION when no program is selected.
+fn selected_text(ctl: &Controller) -> Result<ProgramText, Status> {
+    let p = ctl.program().ok_or_else(|| {
+        Status::failed_precondition("no program is selected and no text was given")
+    })?;
+    Ok(p.text.clone())
+}
+
+/// `text`, or when it is empty the whole text of the selected program, read into memory.
+fn text_or_selected(ctl: &Controller, text: String) -> Result<String, Status> {
+    if !text.is_empty() {
+        return Ok(text);
+    }
+    let all = selected_text(ctl)?
+        .read_all()
+        .map_err(|e| Status::internal(format!("cannot read the selected program: {e}")))?;
+    Ok(all.to_string())
 }
 
 /// Runs blocking work off the async workers.

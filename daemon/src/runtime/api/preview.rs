@@ -166,12 +166,7 @@ pub fn preview_data(
 ) -> Result<pb::PreviewData, Status> {
     // The selected program streams from its file (a library program of any size).
     let text = if text.is_empty() {
-        ctl.program()
-            .ok_or_else(|| {
-                Status::failed_precondition("no program is selected and no text was given")
-            })?
-            .text
-            .clone()
+        super::selected_text(ctl)?
     } else {
         ProgramText::Memory(Arc::from(text))
     };
@@ -236,18 +231,7 @@ pub fn render_preview(
     } else {
         None
     };
-    let text = if r.text.is_empty() {
-        ctl.program()
-            .ok_or_else(|| {
-                Status::failed_precondition("no program is selected and no text was given")
-            })?
-            .text
-            .read_all()
-            .map_err(|e| Status::internal(format!("cannot read the selected program: {e}")))?
-            .to_string()
-    } else {
-        r.text.clone()
-    };
+    let text = super::text_or_selected(ctl, r.text.clone())?;
     let source = match &recorded {
         Some(pass) => ::preview::pipeline::Source::Recorded(pass),
         None => {

@@ -44,17 +44,7 @@ impl Trajectory for TrajectorySvc {
         require(&req, Observer, "GetTrajectory")?;
         let text = req.into_inner().text;
         let ctl = self.0.ctl.clone();
-        let text = if text.is_empty() {
-            let p = ctl.program().ok_or_else(|| {
-                Status::failed_precondition("no program is selected and no text was given")
-            })?;
-            p.text
-                .read_all()
-                .map_err(|e| Status::internal(format!("cannot read the selected program: {e}")))?
-                .to_string()
-        } else {
-            text
-        };
+        let text = super::text_or_selected(&ctl, text)?;
         // The job's machine setup and the one pipeline a run uses (issue #14): the verdict is
         // validation's, the segments are the run's.
         let setup = ctl.machine_setup().map_err(super::status_of)?;
