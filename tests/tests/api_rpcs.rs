@@ -198,11 +198,7 @@ async fn mdi_runs_one_block_and_keeps_the_selected_program() {
         assert_eq!(e.code(), Code::InvalidArgument, "{bad:?}");
     }
     let job = start_mdi(&mut c, "G1 X5 Y2 F3000").await;
-    let mut stream = c
-        .stream_status(pb::StatusRequest { rate_hz: 50 })
-        .await
-        .unwrap()
-        .into_inner();
+    let mut stream = status_stream(&mut c).await;
     let s = stream.message().await.unwrap().unwrap();
     assert_eq!(s.mode, pb::Mode::Mdi as i32);
     assert_eq!(s.program, "MDI");
@@ -355,11 +351,7 @@ async fn alarms_stream_with_history_and_health_follows_faults() {
     }
     // The alarm is in status.
     wait_until("active alarm", || true).await;
-    let mut st = c
-        .stream_status(pb::StatusRequest { rate_hz: 50 })
-        .await
-        .unwrap()
-        .into_inner();
+    let mut st = status_stream(&mut c).await;
     let t0 = Instant::now();
     loop {
         let s = st.message().await.unwrap().unwrap();
@@ -384,11 +376,7 @@ async fn alarms_stream_with_history_and_health_follows_faults() {
     }
     // The alarm watcher (a task polling the controller) records the clear a moment after the
     // reset: once no alarm is active in the status, the history holds it.
-    let mut st = c
-        .stream_status(pb::StatusRequest { rate_hz: 50 })
-        .await
-        .unwrap()
-        .into_inner();
+    let mut st = status_stream(&mut c).await;
     let t0 = Instant::now();
     while !st
         .message()

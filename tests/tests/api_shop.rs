@@ -405,11 +405,7 @@ async fn status_shows_the_distance_to_go() {
     let d = start(config(Role::Admin)).await;
     let mut m = MachineClient::new(d.channel().await);
     let job = load_and_start(&mut m, "slow.nc", "N10 G1 X40 Y-20 F60\n").await;
-    let mut s = m
-        .stream_status(pb::StatusRequest { rate_hz: 50 })
-        .await
-        .unwrap()
-        .into_inner();
+    let mut s = status_stream(&mut m).await;
     loop {
         let st = s.message().await.unwrap().unwrap();
         if st.job == job && st.state == pb::MachineState::Running as i32 {

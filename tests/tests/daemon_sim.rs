@@ -65,11 +65,7 @@ async fn program_runs_through_grpc_within_limits_and_ends_exactly() {
     assert_eq!(loaded.blocks, 6);
 
     // Status stream at 50 Hz while the program runs.
-    let mut stream = client
-        .stream_status(pb::StatusRequest { rate_hz: 50 })
-        .await
-        .unwrap()
-        .into_inner();
+    let mut stream = api_common::status_stream(&mut client).await;
     record.lock().unwrap().clear();
     let job = start_job(&mut client).await;
     let t0 = Instant::now();

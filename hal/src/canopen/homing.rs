@@ -152,30 +152,17 @@ impl Node {
         let Some(expected) = self.homing_step_of(leaving, step) else {
             return;
         };
-        if r.object() != step_object(expected) {
-            return; // a late answer to an earlier, retried request
-        }
-        match r {
-            Response::Abort { code, .. } => {
-                let (index, subindex) = r.object();
-                self.fault(FaultReason::SdoAbort {
-                    index,
-                    subindex,
-                    abort_code: code,
-                });
-            }
+        match self.sdo_answer(expected, r) {
             // The drive has not switched its mode yet: ask again.
-            Response::UploadOk { value, .. } if matches!(expected, Step::CheckMode(m) if value as u8 != m) =>
+            Some(SdoAnswer::Uploaded(value)) if matches!(expected, Step::CheckMode(m) if value as u8 != m) =>
             {
                 self.send_homing_step(now, leaving, step, false, out);
             }
-            Response::UploadOk { .. } | Response::DownloadOk { .. } => {
-                if self.homing_step_of(leaving, step + 1).is_some() {
-                    self.send_homing_step(now, leaving, step + 1, false, out);
-                } else {
-                    self.homing_plan_done(now, leaving);
-                }
+            Some(_) if self.homing_step_of(leaving, step + 1).is_some() => {
+                self.send_homing_step(now, leaving, step + 1, false, out);
             }
+            Some(_) => self.homing_plan_done(now, leaving),
+            None => {}
         }
     }
 

@@ -51,6 +51,7 @@ mod startup;
 use homing::Home;
 pub use homing::HomingParams;
 use node::{Node, Off, Outbox, Phase, Timing};
+use receive::SdoAnswer;
 use startup::{Step, check_config, startup_steps, step_object, ticks};
 
 /// One drive on the bus (one axis).

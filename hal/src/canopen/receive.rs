@@ -3,6 +3,13 @@
 
 use super::*;
 
+/// A drive's answer to a request of the master's SDO plan.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum SdoAnswer {
+    Uploaded(u32),
+    Downloaded,
+}
+
 impl Node {
     pub(super) fn on_tpdo(&mut self, f: &Frame) {
         match Tpdo::decode(f.payload()) {
@@ -76,8 +83,21 @@ impl Node {
     /// The answer to start-up step `step`: the next step, or configured after the last.
     fn on_startup_sdo(&mut self, now: u64, step: usize, r: Response, out: &mut Outbox) {
         let expected = self.steps[step];
+        match self.sdo_answer(expected, r) {
+            Some(SdoAnswer::Uploaded(value)) if expected == Step::ReadPosition => {
+                self.drive.set_actual_increments(value as i32);
+                self.next_step(now, step, out);
+            }
+            Some(_) => self.next_step(now, step, out),
+            None => {}
+        }
+    }
+
+    /// What answer `r` to the request of step `expected` says: `None` for a late answer to an
+    /// earlier, retried request (ignored) or an abort (the node faults, naming the object).
+    pub(super) fn sdo_answer(&mut self, expected: Step, r: Response) -> Option<SdoAnswer> {
         if r.object() != step_object(expected) {
-            return; // a late answer to an earlier, retried request
+            return None;
         }
         match r {
             Response::Abort { code, .. } => {
@@ -87,14 +107,10 @@ impl Node {
                     subindex,
                     abort_code: code,
                 });
+                None
             }
-            Response::UploadOk { value, .. } => {
-                if expected == Step::ReadPosition {
-                    self.drive.set_actual_increments(value as i32);
-                }
-                self.next_step(now, step, out);
-            }
-            Response::DownloadOk { .. } => self.next_step(now, step, out),
+            Response::UploadOk { value, .. } => Some(SdoAnswer::Uploaded(value)),
+            Response::DownloadOk { .. } => Some(SdoAnswer::Downloaded),
         }
     }
 

@@ -189,14 +189,19 @@ pub fn diagnostics(s: &tonic::Status) -> Vec<pb::Diagnostic> {
     pb::Diagnostics::decode(s.details()).unwrap().items
 }
 
-/// The first status of a fresh status stream (the state now).
-pub async fn status_now(m: &mut pb::machine_client::MachineClient<Channel>) -> pb::Status {
-    let mut s = m
-        .stream_status(pb::StatusRequest { rate_hz: 50 })
+/// A status stream at 50 Hz.
+pub async fn status_stream(
+    m: &mut pb::machine_client::MachineClient<Channel>,
+) -> tonic::Streaming<pb::Status> {
+    m.stream_status(pb::StatusRequest { rate_hz: 50 })
         .await
         .unwrap()
-        .into_inner();
-    s.message().await.unwrap().unwrap()
+        .into_inner()
+}
+
+/// The first status of a fresh status stream (the state now).
+pub async fn status_now(m: &mut pb::machine_client::MachineClient<Channel>) -> pb::Status {
+    status_stream(m).await.message().await.unwrap().unwrap()
 }
 
 /// How far the lagging axis of [`LaggingBus`] reads behind its setpoint, mm.
