@@ -189,6 +189,14 @@ fn check_config(cfg: &SerialConfig) -> Result<(), SerialError> {
     {
         return Err(SerialError::AxisScale { axis });
     }
+    // The hand-over's largest step is one tick at this speed.
+    if let Some(axis) = cfg
+        .axes
+        .iter()
+        .position(|a| !(a.max_velocity_mm_s.is_finite() && a.max_velocity_mm_s > 0.0))
+    {
+        return Err(SerialError::AxisSpeed { axis });
+    }
     if let Some(sp) = &cfg.spindle
         && !(sp.units_per_rpm.is_finite() && sp.units_per_rpm > 0.0)
     {

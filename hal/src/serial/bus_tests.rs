@@ -151,6 +151,11 @@ fn a_bad_configuration_is_refused_with_its_code() {
     };
     assert_eq!(open(vec![]), Some("serial_axis_count"));
     assert_eq!(open(vec![axis(1.0), axis(0.0)]), Some("serial_axis_scale"));
+    let stopped = SerialAxis {
+        max_velocity_mm_s: 0.0,
+        ..axis(1.0)
+    };
+    assert_eq!(open(vec![axis(1.0), stopped]), Some("serial_axis_speed"));
     assert_eq!(open(vec![axis(1.0)]), None);
     let cfg = SerialConfig {
         spindle: Some(SerialSpindle {

@@ -21,6 +21,8 @@ pub enum SerialError {
     AxisCount { count: usize, path: String },
     #[error("increments per mm of axis {axis} must be positive")]
     AxisScale { axis: usize },
+    #[error("maximum speed of axis {axis} must be positive")]
+    AxisSpeed { axis: usize },
     #[error("velocity units per rpm of the spindle must be positive")]
     SpindleScale,
 }
@@ -32,6 +34,7 @@ impl SerialError {
             SerialError::Open { .. } => "serial_open",
             SerialError::AxisCount { .. } => "serial_axis_count",
             SerialError::AxisScale { .. } => "serial_axis_scale",
+            SerialError::AxisSpeed { .. } => "serial_axis_speed",
             SerialError::SpindleScale => "serial_spindle_scale",
         }
     }
