@@ -196,15 +196,10 @@ impl Node {
             return self.fault(FaultReason::HomingTimeout);
         }
         match h {
-            Home::Sdo {
-                leaving,
-                step,
-                sent_at,
-                retried,
-            } => {
+            Home::Sdo { sent_at, .. } => {
                 self.drive.hold(cw::ENABLE_OPERATION_CMD);
                 if now - sent_at > t.sdo {
-                    self.homing_sdo_timed_out(now, leaving, step, retried, out);
+                    self.homing_sdo_timed_out(now, h, out);
                 }
             }
             Home::Running { since } => {
@@ -237,15 +232,18 @@ impl Node {
         }
     }
 
-    /// A homing SDO request was not answered in time: once more, then a fault naming it.
-    fn homing_sdo_timed_out(
-        &mut self,
-        now: u64,
-        leaving: Option<HomingState>,
-        step: usize,
-        retried: bool,
-        out: &mut Outbox,
-    ) {
+    /// The homing SDO request `sdo` was not answered in time: once more, then a fault naming
+    /// it.
+    fn homing_sdo_timed_out(&mut self, now: u64, sdo: Home, out: &mut Outbox) {
+        let Home::Sdo {
+            leaving,
+            step,
+            retried,
+            ..
+        } = sdo
+        else {
+            return;
+        };
         if !retried {
             return self.send_homing_step(now, leaving, step, true, out);
         }
