@@ -504,7 +504,7 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
         // A transmit queue that stays full (nobody acknowledges, bus jammed) is a bus fault.
         if self.tx_blocked_ticks == blocked_before {
             self.tx_blocked_ticks = 0;
-        } else if u64::from(self.tx_blocked_ticks) > self.ticks(self.cfg.tpdo_timeout) {
+        } else if u64::from(self.tx_blocked_ticks) > self.timing.tpdo {
             self.bus_fault.get_or_insert(FaultReason::BusError);
         }
         self.fill_feedback(feedback);
