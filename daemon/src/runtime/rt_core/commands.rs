@@ -1,0 +1,174 @@
+//! Phase *commands*: what the non-RT side asks for (from the command ring), taken at the start
+//! of each tick, and the requests that start motion by hand (jog).
+
+use hal::DriveBus;
+use kernel::interp::InterpState;
+use kernel::jog::JogRequest;
+use kernel::plc::PlcWrite;
+use kernel::units::AxesMm;
+
+use super::{MachineState, RtCore};
+
+/// Commands from the non-RT side.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum RtCommand {
+    /// Run the segments of `job` (arriving on the segment ring).
+    Start { job: u32, machine: JobMachine },
+    /// Brake to rest on the path, drop the rest of the job.
+    Stop,
+    /// Feed hold.
+    Hold,
+    /// Continue after a feed hold.
+    Resume,
+    /// Feed override in percent (0..150).
+    Override(f64),
+    /// Spindle override in percent (50..120, issue #19).
+    SpindleOverride(f64),
+    /// Rapid override in percent (0..100, issue #19).
+    RapidOverride(f64),
+    /// Clear a fault and re-enable the drives.
+    Reset,
+    /// Bring the axes to rest and end the thread.
+    Shutdown,
+    /// A validated write of the PLC side, in force from the next tick (SPEC §6).
+    Plc(PlcWrite),
+    /// Single-block mode: hold when the path enters a new block (API, issue #8).
+    SingleBlock(bool),
+    /// Optional stop switch: M1 stops the program while on (issue #15).
+    OptionalStop(bool),
+    /// Start or renew a jog (idle machine only; issue #15).
+    Jog(JogRequest),
+    /// Brake a jog to rest.
+    JogStop,
+    /// Reference run of one axis (idle machine only; issue #15).
+    Home(HomeRequest),
+}
+
+/// A reference run of one axis: search the home switch, then make its position the reference.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HomeRequest {
+    pub axis: usize,
+    /// -1 or +1.
+    pub direction: f64,
+    pub speed_mm_s: f64,
+    pub accel_mm_s2: f64,
+    /// The axis's position at the switch once homed.
+    pub reference_mm: f64,
+    /// Give up (homing failed) after this much travel without the switch.
+    pub max_travel_mm: f64,
+}
+
+/// What the RT side reads of a job's machine setup (issue #14): taken with the job's start, so
+/// KŘR, the spindle and the G24 window use the same constants as the job's planning. `Copy`:
+/// no allocation on the RT thread.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JobMachine {
+    /// R67, R329 d3, R580 (the gear table is the configuration's).
+    pub kr: kernel::kr::KrConstants,
+    /// G24 in-position window per axis (R6, R7), mm.
+    pub in_position_mm: AxesMm,
+}
+
+impl RtCore {
+    pub(super) fn commands(
+        &mut self,
+        commands: &mut rtrb::Consumer<RtCommand>,
+        bus: &mut dyn DriveBus,
+    ) {
+        while let Ok(c) = commands.pop() {
+            self.snap.commands_taken += 1;
+            match c {
+                RtCommand::Start { job, machine } => {
+                    if self.snap.state == MachineState::Idle && !self.lifecycle.shutting_down {
+                        self.logic.kr.set_constants(machine.kr);
+                        self.job.in_position_mm = machine.in_position_mm;
+                        self.job.active = job;
+                        self.snap.job = job;
+                        self.job.sb_seq = u32::MAX;
+                        self.job.spindle_off = false;
+                        self.snap.state = MachineState::Running;
+                    }
+                }
+                RtCommand::Stop => {
+                    self.motion.jog.stop();
+                    self.stop_drive_homing(bus);
+                    self.abort();
+                }
+                RtCommand::Jog(r) => self.jog_request(r),
+                RtCommand::JogStop => self.motion.jog.stop(),
+                RtCommand::Home(r) => self.home_request(r, bus),
+                // Only a job is held (the controller's check may have read an older
+                // snapshot: the job may have ended since).
+                RtCommand::Hold if self.job.active != 0 => self.motion.interp.hold(),
+                RtCommand::Hold => {}
+                RtCommand::Resume => self.motion.interp.resume(),
+                RtCommand::Override(pct) => {
+                    self.motion.interp.set_override(pct);
+                    self.snap.override_pct = pct.clamp(0.0, 150.0);
+                }
+                RtCommand::SpindleOverride(pct) => self.spindle_override(pct),
+                RtCommand::RapidOverride(pct) => {
+                    self.motion.interp.set_rapid_override(pct);
+                    self.snap.rapid_override_pct = pct.clamp(0.0, 100.0);
+                }
+                RtCommand::Reset => {
+                    if self.snap.state == MachineState::Fault
+                        && self.motion.interp.state() == InterpState::Idle
+                    {
+                        self.snap.fault = None;
+                        self.snap.kr_fault = None;
+                        self.fault_stop.brake.clear();
+                        self.fault_stop.safe_state_sent = false;
+                        self.logic.kr.reset();
+                        bus.reset();
+                        self.lifecycle.enable_ticks = 0;
+                        self.snap.state = MachineState::Enabling;
+                    }
+                }
+                RtCommand::Plc(w) => self.logic.plc.stage(w),
+                RtCommand::SingleBlock(on) => {
+                    self.snap.single_block = on;
+                    self.job.sb_seq = u32::MAX;
+                }
+                RtCommand::OptionalStop(on) => {
+                    self.motion.interp.set_optional_stop(on);
+                    self.snap.optional_stop = on;
+                }
+                RtCommand::Shutdown => {
+                    self.motion.jog.stop();
+                    self.stop_drive_homing(bus);
+                    self.lifecycle.shutting_down = true;
+                    self.abort();
+                }
+            }
+        }
+    }
+
+    /// Spindle override: KŘR scales the commanded speed from the next tick, within the gear
+    /// range (the per-rev feed follows the actual spindle speed already).
+    pub(super) fn spindle_override(&mut self, pct: f64) {
+        self.logic.kr.set_override(pct);
+        let (lo, hi) = (
+            *kernel::kr::SPINDLE_OVERRIDE_PCT.start(),
+            *kernel::kr::SPINDLE_OVERRIDE_PCT.end(),
+        );
+        self.snap.spindle_override_pct = pct.clamp(lo, hi);
+    }
+
+    /// A jog starts only on an idle machine (or renews the running jog); its speed is scaled
+    /// by the feed override in force.
+    pub(super) fn jog_request(&mut self, mut r: JogRequest) {
+        let free = matches!(self.snap.state, MachineState::Idle | MachineState::Jog)
+            && self.job.active == 0
+            && !self.lifecycle.shutting_down
+            && r.axis < self.io.axes;
+        if !free {
+            return;
+        }
+        r.speed_mm_s *= self.snap.override_pct / 100.0;
+        let here = self.io.cmd.positions_mm[r.axis];
+        if self.motion.jog.request(r, here) {
+            self.snap.state = MachineState::Jog;
+        }
+    }
+}

@@ -1,0 +1,132 @@
+//! Phase *statistics and snapshot*: the deadline grid and the lateness it accounts at the start
+//! of a tick, and the snapshot published at its end.
+
+use hal::BusFault;
+use kernel::kr::{KrFault, KrOutput};
+use kernel::plc::PlcArea;
+use kernel::units::AxesMm;
+
+use super::super::resample::BusClock;
+use super::super::stats::{TickStats, TickSummary};
+use super::{MachineState, RtCore};
+
+/// What the RT thread publishes every tick. `Copy`, fixed size: written without allocation.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Snapshot {
+    /// Increases by one per tick (bus period).
+    pub sequence: u64,
+    /// Commands the core has taken from its ring so far: the controller's n-th command has
+    /// been acted on once this reaches n (the status pump may lag the core by many ticks, so
+    /// a tick count cannot tell).
+    pub commands_taken: u64,
+    /// The tick's period: the bus period `[bus] cycle_ms`, ns (0 before the core exists).
+    pub cycle_ns: u64,
+    /// Clock time of the tick, ns.
+    pub time_ns: u64,
+    pub state: MachineState,
+    pub axes: usize,
+    pub commanded: AxesMm,
+    pub actual: AxesMm,
+    pub path_v_mm_s: f64,
+    /// Job running, or the last one started.
+    pub job: u32,
+    /// Last job that ran to its end.
+    pub finished_job: u32,
+    /// Last job that was stopped or ended by a fault.
+    pub aborted_job: u32,
+    /// Block being executed: index in the program, `N`, source line.
+    pub block_seq: u32,
+    pub block_n: Option<u32>,
+    pub line: u32,
+    pub ticks: TickSummary,
+    pub fault: Option<BusFault>,
+    pub override_pct: f64,
+    /// Spindle override in force, percent (issue #19).
+    pub spindle_override_pct: f64,
+    /// Rapid override in force, percent (issue #19).
+    pub rapid_override_pct: f64,
+    pub spindle_rpm: f64,
+    /// PLC memory area 1 as in force this tick.
+    pub plc: PlcArea,
+    /// Single-block mode is on.
+    pub single_block: bool,
+    /// A cut waits for the spindle: at rest for it to reach its speed, or a feed per
+    /// revolution held because the spindle is below 1 rpm (stopped, stalled by load).
+    pub waiting_for_spindle: bool,
+    /// Constant cutting speed (KŘR) output this tick (SPEC §6).
+    pub kr: KrOutput,
+    /// A KŘR fault stopped the machine (cleared by Reset).
+    pub kr_fault: Option<KrFault>,
+    /// Optional stop is on: M1 stops the program.
+    pub optional_stop: bool,
+    /// Held at a program stop (M0, or M1 with optional stop on).
+    pub program_stop: bool,
+    /// Largest distance of the tool from the programmed path the last fault stop caused, mm.
+    pub fault_path_deviation_mm: f64,
+    /// Axes homed since power-on (bit i: axis i).
+    pub homed: u8,
+    /// Axes whose last reference run failed (switch not found, stopped, fault).
+    pub homing_failed: u8,
+}
+
+impl Snapshot {
+    /// The snapshot before the first tick: at `start`, override 100 %.
+    pub fn initial(axes: usize, start: AxesMm) -> Snapshot {
+        Snapshot {
+            axes,
+            commanded: start,
+            actual: start,
+            override_pct: 100.0,
+            spindle_override_pct: 100.0,
+            rapid_override_pct: 100.0,
+            ..Snapshot::default()
+        }
+    }
+}
+
+/// The tick's time: the absolute deadline grid, interpolator steps against bus ticks, lateness.
+pub(super) struct Timing {
+    /// Next deadline of the absolute grid, ns of the caller's clock.
+    pub(super) deadline_ns: u64,
+    /// Interpolator steps against bus ticks.
+    pub(super) bus_clock: BusClock,
+    pub(super) stats: TickStats,
+}
+
+/// Refresh the lateness percentiles every this many bus ticks (a histogram walk).
+const STATS_REFRESH_TICKS: u64 = 50;
+
+impl RtCore {
+    /// Deadline grid of the bus period: a tick that woke after the next deadline skips the
+    /// missed ones and stays on the grid (no drift). The trajectory advances one bus period per
+    /// executed tick, so no setpoint jumps either.
+    pub(super) fn advance_deadline(&mut self, now_ns: u64) {
+        let cycle_ns = self.timing.bus_clock.cycle_ns();
+        let lateness_ns = now_ns.saturating_sub(self.timing.deadline_ns);
+        let missed = lateness_ns / cycle_ns;
+        self.timing.deadline_ns += (missed + 1) * cycle_ns;
+        self.timing.stats.record(lateness_ns, missed);
+        if self.snap.sequence.is_multiple_of(STATS_REFRESH_TICKS) {
+            self.timing.stats.refresh();
+        }
+    }
+
+    pub(super) fn publish(&mut self, now_ns: u64) -> &Snapshot {
+        let out = &self.motion.out;
+        let s = &mut self.snap;
+        s.sequence += 1;
+        s.time_ns = now_ns;
+        // What the drives were sent: following error and in-position compare against it.
+        s.commanded = AxesMm(self.io.bus_cmd.positions_mm);
+        s.path_v_mm_s = out.path_v_mm_s;
+        s.block_seq = out.seq;
+        s.block_n = out.n;
+        s.line = out.line;
+        s.ticks = self.timing.stats.summary();
+        s.spindle_rpm = self.io.fb.spindle_rpm;
+        s.waiting_for_spindle = self.motion.interp.waiting_for_spindle();
+        s.program_stop = self.motion.interp.at_program_stop();
+        s.plc = self.logic.plc;
+        &self.snap
+    }
+}
