@@ -27,6 +27,7 @@ use proto::v1::programs_server::ProgramsServer;
 use proto::v1::trajectory_server::TrajectoryServer;
 use tokio::net::{TcpListener, UnixListener};
 use tokio_stream::wrappers::UnixListenerStream;
+use tonic::service::Routes;
 use tonic::service::interceptor::InterceptedService;
 use tonic::transport::server::{Router, TcpIncoming};
 use tonic::transport::{Identity, Server, ServerTlsConfig};
@@ -37,8 +38,9 @@ use super::api::auth::{Auth, Trust};
 use super::api::{
     ApiState, ConstantsSvc, MachineSvc, OffsetsSvc, PlcSvc, PreviewSvc, ProgramsSvc, TrajectorySvc,
 };
-use super::config::{ApiConfig, Role};
+use super::config::{ApiConfig, Config, Role};
 use super::controller::Controller;
+use super::hmi::Assets;
 use super::rt::MachineState;
 
 /// How long the API waits at shutdown for calls in flight (open streams end at once): the
@@ -49,7 +51,8 @@ pub const SHUTDOWN_DRAIN: Duration = Duration::from_millis(500);
 /// Why the API could not be served (each message names the configuration key concerned).
 #[derive(Debug, thiserror::Error)]
 pub enum ServerError {
-    /// A TCP address could not be bound (`key` is `api.listen` or `api.extra_listen`).
+    /// A TCP address could not be bound (`key` is `api.listen`, `api.extra_listen` or
+    /// `hmi.listen`).
     #[error("{key}: cannot listen on {addr}: {source}")]
     Listen {
         key: &'static str,
@@ -69,7 +72,7 @@ pub enum ServerError {
     NotASocket { path: std::path::PathBuf },
     #[error("api.socket_group: no group named {0:?}")]
     NoGroup(String),
-    /// `key` is `api.tls_cert` or `api.tls_key`.
+    /// `key` is `api.tls_cert`, `api.tls_key`, `hmi.tls_cert` or `hmi.tls_key`.
     #[error("{key}: {}: {source}", path.display())]
     TlsFile {
         key: &'static str,
@@ -81,6 +84,11 @@ pub enum ServerError {
     Tls(String),
     #[error("a non-loopback listener needs api.tls_cert and api.tls_key")]
     TlsRequired,
+    #[error(
+        "a non-loopback hmi.listen needs TLS: hmi.tls_cert and hmi.tls_key (or api.tls_cert and \
+         api.tls_key)"
+    )]
+    HmiTlsRequired,
     #[error("reflection: {0}")]
     Reflection(String),
     /// A listener failed while serving.
@@ -103,6 +111,7 @@ impl ServerError {
             ServerError::TlsFile { .. } => "api_tls_file",
             ServerError::Tls(_) => "api_tls",
             ServerError::TlsRequired => "api_tls_required",
+            ServerError::HmiTlsRequired => "hmi_tls_required",
             ServerError::Reflection(_) => "api_reflection",
             ServerError::Serve(_) => "api_serve",
             ServerError::Library(e) => e.code(),
@@ -226,23 +235,40 @@ fn group_id(name: &str) -> Option<u32> {
 
 /// TLS settings of remote listeners, when configured.
 pub fn tls_config(api: &ApiConfig) -> Result<Option<ServerTlsConfig>, ServerError> {
-    let read = |key: &'static str, path: &Path| {
+    match (&api.tls_cert, &api.tls_key) {
+        (Some(c), Some(k)) => tls_from_files(("api.tls_cert", c), ("api.tls_key", k)).map(Some),
+        _ => Ok(None),
+    }
+}
+
+/// TLS settings from a PEM certificate and key file, each with the configuration key it
+/// came from (named when it cannot be read).
+pub fn tls_from_files(
+    cert: (&'static str, &Path),
+    key: (&'static str, &Path),
+) -> Result<ServerTlsConfig, ServerError> {
+    let read = |(key, path): (&'static str, &Path)| {
         std::fs::read(path).map_err(|source| ServerError::TlsFile {
             key,
             path: path.to_path_buf(),
             source,
         })
     };
-    match (&api.tls_cert, &api.tls_key) {
-        (Some(c), Some(k)) => {
-            let cert = read("api.tls_cert", c)?;
-            let key = read("api.tls_key", k)?;
-            Ok(Some(
-                ServerTlsConfig::new().identity(Identity::from_pem(cert, key)),
-            ))
-        }
-        _ => Ok(None),
+    let (cert, key) = (read(cert)?, read(key)?);
+    Ok(ServerTlsConfig::new().identity(Identity::from_pem(cert, key)))
+}
+
+/// TLS of the HMI's listener: on a non-loopback `hmi.listen` the HMI's files, else the
+/// API's; on loopback only when the HMI's own are set (a loopback screen stays plain HTTP
+/// when only the API has a certificate).
+pub fn hmi_tls_config(cfg: &Config) -> Result<Option<ServerTlsConfig>, ServerError> {
+    let hmi = &cfg.hmi;
+    if hmi.listen.ip().is_loopback() && hmi.tls_cert.is_none() {
+        return Ok(None);
     }
+    hmi.tls_files(&cfg.api)
+        .map(|f| tls_from_files(f.cert, f.key))
+        .transpose()
 }
 
 /// Reads and parses the TLS certificate and key when configured (`--check-config` and
@@ -257,13 +283,26 @@ pub fn check_tls(api: &ApiConfig) -> Result<(), ServerError> {
     Ok(())
 }
 
+/// As [`check_tls`] for the HMI's listener when it is enabled.
+pub fn check_hmi_tls(cfg: &Config) -> Result<(), ServerError> {
+    if !cfg.hmi.enabled {
+        return Ok(());
+    }
+    if let Some(t) = hmi_tls_config(cfg)? {
+        Server::builder()
+            .tls_config(t)
+            .map_err(|e| ServerError::Tls(e.to_string()))?;
+    }
+    Ok(())
+}
+
 /// Largest unary request message, bytes (the gRPC default, stated). Programs of any size go
 /// through the client-streaming `Programs.Upload` in chunks below this.
 pub const MAX_MESSAGE_BYTES: usize = 4 << 20;
 
 /// tonic refuses an oversized message with OUT_OF_RANGE and a transport-level text; clients
 /// get RESOURCE_EXHAUSTED with the limit and what to use instead.
-fn size_refusal(mut r: http::Response<tonic::body::Body>) -> http::Response<tonic::body::Body> {
+pub fn size_refusal<B>(mut r: http::Response<B>) -> http::Response<B> {
     let h = r.headers_mut();
     let too_large = h.get("grpc-status").is_some_and(|v| v == "11")
         && h.get("grpc-message").is_some_and(|m| {
@@ -290,14 +329,14 @@ type SizeLayer = tower::util::MapResponseLayer<
 >;
 type ApiRouter = Router<tower::layer::util::Stack<SizeLayer, tower::layer::util::Identity>>;
 
-fn router(
+type Health<H> = tonic_health::pb::health_server::HealthServer<H>;
+
+fn router<H: tonic_health::pb::health_server::Health>(
     st: &Arc<ApiState>,
     auth: &Arc<Auth>,
     trust: Trust,
     tls: Option<ServerTlsConfig>,
-    health: &tonic_health::pb::health_server::HealthServer<
-        impl tonic_health::pb::health_server::Health,
-    >,
+    health: &Health<H>,
 ) -> Result<ApiRouter, ServerError> {
     let mut b = Server::builder();
     if let Some(t) = tls {
@@ -305,6 +344,17 @@ fn router(
             .tls_config(t)
             .map_err(|e| ServerError::Tls(e.to_string()))?;
     }
+    let layer: SizeLayer = tower::util::MapResponseLayer::new(size_refusal);
+    Ok(b.layer(layer).add_routes(routes(st, auth, trust, health)?))
+}
+
+/// Every service of the API behind the interceptor of a listener of kind `trust`.
+fn routes<H: tonic_health::pb::health_server::Health>(
+    st: &Arc<ApiState>,
+    auth: &Arc<Auth>,
+    trust: Trust,
+    health: &Health<H>,
+) -> Result<Routes, ServerError> {
     let i = auth.interceptor(trust);
     // Both reflection versions: grpcurl speaks v1, Python's grpcio-reflection and many older
     // tools only v1alpha.
@@ -324,39 +374,39 @@ fn router(
         .build_v1alpha()
         .map_err(|e| ServerError::Reflection(e.to_string()))?;
     let m = MAX_MESSAGE_BYTES;
-    let layer: SizeLayer = tower::util::MapResponseLayer::new(size_refusal);
-    Ok(b.layer(layer)
-        .add_service(InterceptedService::new(
-            MachineServer::new(MachineSvc(st.clone())).max_decoding_message_size(m),
-            i.clone(),
-        ))
-        .add_service(InterceptedService::new(
-            OffsetsServer::new(OffsetsSvc(st.clone())).max_decoding_message_size(m),
-            i.clone(),
-        ))
-        .add_service(InterceptedService::new(
-            PlcServer::new(PlcSvc(st.clone())).max_decoding_message_size(m),
-            i.clone(),
-        ))
-        .add_service(InterceptedService::new(
-            ConstantsServer::new(ConstantsSvc(st.clone())).max_decoding_message_size(m),
-            i.clone(),
-        ))
-        .add_service(InterceptedService::new(
-            PreviewServer::new(PreviewSvc(st.clone())).max_decoding_message_size(m),
-            i.clone(),
-        ))
-        .add_service(InterceptedService::new(
-            TrajectoryServer::new(TrajectorySvc(st.clone())).max_decoding_message_size(m),
-            i.clone(),
-        ))
-        .add_service(InterceptedService::new(
-            ProgramsServer::new(ProgramsSvc(st.clone())).max_decoding_message_size(m),
-            i.clone(),
-        ))
-        .add_service(InterceptedService::new(health.clone(), i.clone()))
-        .add_service(InterceptedService::new(reflection, i.clone()))
-        .add_service(InterceptedService::new(reflection_alpha, i)))
+    let mut rb = Routes::builder();
+    rb.add_service(InterceptedService::new(
+        MachineServer::new(MachineSvc(st.clone())).max_decoding_message_size(m),
+        i.clone(),
+    ))
+    .add_service(InterceptedService::new(
+        OffsetsServer::new(OffsetsSvc(st.clone())).max_decoding_message_size(m),
+        i.clone(),
+    ))
+    .add_service(InterceptedService::new(
+        PlcServer::new(PlcSvc(st.clone())).max_decoding_message_size(m),
+        i.clone(),
+    ))
+    .add_service(InterceptedService::new(
+        ConstantsServer::new(ConstantsSvc(st.clone())).max_decoding_message_size(m),
+        i.clone(),
+    ))
+    .add_service(InterceptedService::new(
+        PreviewServer::new(PreviewSvc(st.clone())).max_decoding_message_size(m),
+        i.clone(),
+    ))
+    .add_service(InterceptedService::new(
+        TrajectoryServer::new(TrajectorySvc(st.clone())).max_decoding_message_size(m),
+        i.clone(),
+    ))
+    .add_service(InterceptedService::new(
+        ProgramsServer::new(ProgramsSvc(st.clone())).max_decoding_message_size(m),
+        i.clone(),
+    ))
+    .add_service(InterceptedService::new(health.clone(), i.clone()))
+    .add_service(InterceptedService::new(reflection, i.clone()))
+    .add_service(InterceptedService::new(reflection_alpha, i));
+    Ok(rb.routes())
 }
 
 /// Serves every listener until `shutdown` resolves. Remote listeners use TLS from the
@@ -370,6 +420,26 @@ pub async fn serve_listeners(
     serve_listeners_with(ctl, listeners, tls, shutdown).await
 }
 
+/// What `cncd` serves: `listeners` with the API's TLS, and when `[hmi]` is enabled its
+/// listener `hmi` (already bound to `hmi.listen`) with the files embedded in this binary.
+pub async fn serve_with_configured_hmi(
+    ctl: Arc<Controller>,
+    listeners: Listeners,
+    hmi: Option<TcpListener>,
+    shutdown: impl Future<Output = ()> + Send,
+) -> Result<(), ServerError> {
+    let tls = tls_config(&ctl.config().api)?;
+    let hmi = match hmi {
+        Some(listener) => Some(HmiListener {
+            listener,
+            assets: Arc::new(Assets::embedded()),
+            tls: hmi_tls_config(ctl.config())?,
+        }),
+        None => None,
+    };
+    serve_with_hmi(ctl, listeners, tls, hmi, shutdown).await
+}
+
 /// As [`serve_listeners`] with explicit TLS settings for the remote listeners (tests).
 pub async fn serve_listeners_with(
     ctl: Arc<Controller>,
@@ -377,9 +447,34 @@ pub async fn serve_listeners_with(
     tls: Option<ServerTlsConfig>,
     shutdown: impl Future<Output = ()> + Send,
 ) -> Result<(), ServerError> {
+    serve_with_hmi(ctl, listeners, tls, None, shutdown).await
+}
+
+/// The browser HMI's listener (`[hmi] listen`, docs/hmi.md): its static files and every
+/// service over grpc-web on one origin.
+pub struct HmiListener {
+    pub listener: TcpListener,
+    pub assets: Arc<Assets>,
+    /// Required unless the address is loopback.
+    pub tls: Option<ServerTlsConfig>,
+}
+
+/// As [`serve_listeners_with`], and the HMI's listener when given; every listener shares one
+/// API state (stream limits, upload sessions, alarm history).
+pub async fn serve_with_hmi(
+    ctl: Arc<Controller>,
+    listeners: Listeners,
+    tls: Option<ServerTlsConfig>,
+    hmi: Option<HmiListener>,
+    shutdown: impl Future<Output = ()> + Send,
+) -> Result<(), ServerError> {
     if !listeners.remote_tcp.is_empty() && tls.is_none() {
         return Err(ServerError::TlsRequired);
     }
+    let hmi_trust = match &hmi {
+        Some(h) => Some(hmi_trust(h)?),
+        None => None,
+    };
     let api = &ctl.config().api;
     if !listeners.local_tcp.is_empty() && api.loopback_role > Role::Observer {
         tracing::warn!(
@@ -409,6 +504,24 @@ pub async fn serve_listeners_with(
         let r = router(&st, &auth, Trust::Remote, tls.clone(), &health)?;
         let inc = TcpIncoming::from(l).with_nodelay(Some(true));
         tasks.spawn(r.serve_with_incoming_shutdown(inc, stopped()));
+    }
+    if let (Some(h), Some(trust)) = (hmi, hmi_trust) {
+        let app = crate::runtime::hmi::app(
+            routes(&st, &auth, trust, &health)?,
+            tower::util::MapResponseLayer::new(size_refusal::<axum::body::Body>),
+            h.assets,
+        );
+        let mut b = Server::builder().accept_http1(true);
+        if let Some(t) = h.tls {
+            b = b
+                .tls_config(t)
+                .map_err(|e| ServerError::Tls(e.to_string()))?;
+        }
+        let inc = TcpIncoming::from(h.listener).with_nodelay(Some(true));
+        tasks.spawn(
+            b.add_routes(app)
+                .serve_with_incoming_shutdown(inc, stopped()),
+        );
     }
     if let Some(u) = listeners.unix {
         let r = router(&st, &auth, Trust::Socket, None, &health)?;
@@ -444,6 +557,19 @@ pub async fn serve_listeners_with(
     match first_err {
         Some(e) => Err(ServerError::Serve(e)),
         None => Ok(()),
+    }
+}
+
+/// Loopback HMI callers are local (`api.loopback_role` without a token); any other address
+/// is remote: TLS and a token.
+fn hmi_trust(h: &HmiListener) -> Result<Trust, ServerError> {
+    let addr = h.listener.local_addr().map_err(ServerError::LocalAddr)?;
+    if addr.ip().is_loopback() {
+        Ok(Trust::Loopback)
+    } else if h.tls.is_some() {
+        Ok(Trust::Remote)
+    } else {
+        Err(ServerError::HmiTlsRequired)
     }
 }
 

@@ -20,6 +20,7 @@ mod api;
 mod axes;
 mod bus;
 mod error;
+mod hmi;
 mod kr;
 mod planner;
 mod program;
@@ -35,6 +36,7 @@ pub use api::{ApiConfig, Role, TokenConfig};
 pub use axes::{AxisConfig, HomingMode};
 pub use bus::{BusConfig, CanBusConfig, FaultReactionKey, SerialBusConfig, ShutdownKey};
 pub use error::{ConfigError, InvalidConfig};
+pub use hmi::{HmiSection, HmiTlsFiles};
 pub use kr::{GearConfig, KrSection, RadiusInputConfig};
 pub use planner::PlannerSection;
 pub use program::{IjSetting, ProgramSection};
@@ -64,6 +66,8 @@ pub struct Config {
     pub program: ProgramSection,
     #[serde(default)]
     pub planner: PlannerSection,
+    #[serde(default)]
+    pub hmi: HmiSection,
 }
 
 impl Default for Config {
@@ -78,6 +82,7 @@ impl Default for Config {
             kr: KrSection::default(),
             program: ProgramSection::default(),
             planner: PlannerSection::default(),
+            hmi: HmiSection::default(),
         }
     }
 }
@@ -115,7 +120,8 @@ impl Config {
         self.planner.validate()?;
         self.rt.validate()?;
         self.api.validate()?;
-        self.bus.validate(&self.axes)
+        self.bus.validate(&self.axes)?;
+        self.hmi.validate(&self.api)
     }
 
     pub fn axis_names(&self) -> Vec<char> {

@@ -344,6 +344,19 @@ impl Controller {
         self.motion.jog(&self.rt, axis, dir, speed_mm_min)
     }
 
+    /// A continuous jog as [`Controller::jog`] whose lease is `lease_ms` (`Machine.JogLease`,
+    /// the browser's dead-man): the axis brakes to rest unless renewed within it.
+    pub fn jog_leased(
+        &self,
+        axis: &str,
+        dir: i32,
+        speed_mm_min: f64,
+        lease_ms: u32,
+    ) -> Result<f64, ControlError> {
+        self.motion
+            .jog_leased(&self.rt, axis, dir, speed_mm_min, lease_ms)
+    }
+
     /// Incremental jog: `step_mm` on `axis`, clamped to the soft limits. Returns the target.
     pub fn jog_step(
         &self,

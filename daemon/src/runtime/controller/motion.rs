@@ -105,6 +105,32 @@ impl Motion {
         dir: i32,
         speed_mm_min: f64,
     ) -> Result<f64, ControlError> {
+        self.jog_with_lease(rt, axis, dir, speed_mm_min, JOG_LEASE_TICKS)
+    }
+
+    /// A continuous jog as [`Motion::jog`] whose lease is `lease_ms` (the browser's
+    /// dead-man, `Machine.JogLease`): the axis brakes to rest unless renewed within it.
+    pub(super) fn jog_leased(
+        &self,
+        rt: &RtLink,
+        axis: &str,
+        dir: i32,
+        speed_mm_min: f64,
+        lease_ms: u32,
+    ) -> Result<f64, ControlError> {
+        // The jog generator ticks on the interpolator's grid (TS_S), whatever the bus cycle.
+        let ticks = (f64::from(lease_ms) / 1000.0 / kernel::units::TS_S).ceil() as u32;
+        self.jog_with_lease(rt, axis, dir, speed_mm_min, ticks.max(1))
+    }
+
+    fn jog_with_lease(
+        &self,
+        rt: &RtLink,
+        axis: &str,
+        dir: i32,
+        speed_mm_min: f64,
+        lease_ticks: u32,
+    ) -> Result<f64, ControlError> {
         let i = self.axis_index(axis)?;
         if dir == 0 {
             return Err(ControlError::Invalid(
@@ -137,7 +163,7 @@ impl Motion {
             target_mm: target,
             speed_mm_s: speed,
             accel_mm_s2: a.max_accel_mm_s2,
-            lease_ticks: JOG_LEASE_TICKS,
+            lease_ticks,
         }))?;
         Ok(if dir > 0 { hi } else { lo })
     }
