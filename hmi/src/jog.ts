@@ -27,7 +27,7 @@ async function renew(axis: string, direction: number, speed: number): Promise<vo
   } catch (e) {
     // A refused renewal ends the jog here too (the server lets the lease lapse anyway).
     if (active) report(errorText(e));
-    release();
+    release("refused");
   }
 }
 
@@ -41,12 +41,19 @@ export function press(axis: string, direction: number, speed: number): void {
   }, RENEW_MS);
 }
 
+/** Why the last continuous jog ended (integrators' tests read it: `cncHmi.jogEnd()`). */
+let endReason = "";
+export function jogEnd(): string {
+  return endReason;
+}
+
 /** Ends a continuous jog (a no-op when none runs). */
-export function release(): void {
+export function release(reason = "release"): void {
   if (timer !== undefined) window.clearInterval(timer);
   timer = undefined;
   if (!active) return;
   active = undefined;
+  endReason = reason;
   machine.jogStop({}).catch(() => {
     // Connection gone: the lease lapses in cncd.
   });
@@ -63,17 +70,17 @@ export function holdToJog(el: HTMLButtonElement, start: () => boolean): void {
   for (const ev of ["pointerup", "pointercancel", "pointerleave"]) {
     el.addEventListener(ev, () => {
       el.classList.remove("held");
-      if (jogging()) release();
+      if (jogging()) release(`${ev}`);
     });
   }
   el.addEventListener("contextmenu", (ev) => ev.preventDefault());
 }
 
-window.addEventListener("blur", release);
+window.addEventListener("blur", () => release("blur"));
 document.addEventListener("visibilitychange", () => {
-  if (document.visibilityState !== "visible") release();
+  if (document.visibilityState !== "visible") release("hidden");
 });
-window.addEventListener("pagehide", release);
+window.addEventListener("pagehide", () => release("hidden"));
 onConnection((c) => {
-  if (c !== "live") release();
+  if (c !== "live") release("connection");
 });

@@ -6,6 +6,7 @@ import { button, h, setText } from "./dom";
 import { droPanel } from "./dro";
 import { errorText, stateName } from "./format";
 import { adoptFragmentToken, may, onRole, setRole, setToken, role, type Role } from "./session";
+import { jogEnd } from "./jog";
 import { drawn, onConnection, startStatus, subscribe } from "./status";
 import type { Screen } from "./screen";
 import { runScreen } from "./screens/run";
@@ -148,6 +149,15 @@ function shortcuts(): void {
     },
     true,
   );
+  // A focused button would "click" on the space key's release: not here (space is hold).
+  window.addEventListener(
+    "keyup",
+    (e) => {
+      const t = e.target as HTMLElement;
+      if (e.key === " " && !t.matches("input:not([type=range]):not([type=checkbox]), textarea, select")) e.preventDefault();
+    },
+    true,
+  );
 }
 
 function boot(): void {
@@ -196,7 +206,7 @@ function boot(): void {
   startStatus();
   void whoAmI();
   // For integrators' tests and the benchmark: role, and when snapshots reached the screen.
-  (window as unknown as { cncHmi: object }).cncHmi = { drawn, role };
+  (window as unknown as { cncHmi: object }).cncHmi = { drawn, role, jogEnd };
 }
 
 boot();
