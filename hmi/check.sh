@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # The committed browser HMI is what its sources and the proto give (issue #30): installs the
 # locked npm packages, regenerates the TypeScript of proto/proto/cnc/v1/cnc.proto, type-checks,
-# rebuilds dist/ and fails when anything under hmi/ differs from the commit. Needs node and npm
-# (building cncd does not: dist/ is committed and embedded by cargo).
+# rebuilds dist/ and fails when anything under hmi/ differs from the commit. Installs node and
+# npm with apt when missing (building cncd needs neither: dist/ is committed, cargo embeds it).
 set -euo pipefail
 cd "$(dirname "$0")"
 if ! command -v npm >/dev/null; then
-  echo "hmi/check.sh: npm is missing (apt-get install nodejs npm)" >&2
-  exit 1
+  echo "installing nodejs npm"
+  apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq nodejs npm >/dev/null
 fi
 npm ci --no-audit --no-fund --loglevel=error
 npm run --silent generate

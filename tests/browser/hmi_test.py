@@ -11,13 +11,12 @@ import time
 import traceback
 from urllib.parse import urlparse
 
-from selenium import webdriver
-from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.action_chains import ActionChains
 from selenium.webdriver.common.by import By
 from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.support.ui import Select
 
+from chromium import browser
 from proxy import CuttableProxy
 
 PATIENCE_S = 60.0
@@ -40,20 +39,6 @@ N80 X0 Y0
 """
 
 
-def browser() -> webdriver.Chrome:
-    o = webdriver.ChromeOptions()
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-              "--window-size=1280,900", "--force-device-scale-factor=1"):
-        o.add_argument(a)
-    o.binary_location = os.environ.get("CHROMIUM", "/usr/bin/chromium")
-    d = webdriver.Chrome(service=Service(os.environ.get("CHROMEDRIVER", "/usr/bin/chromedriver")),
-                         options=o)
-    # The screen the screenshots show: 1280 x 800, the small end of the HMI's targets.
-    d.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",
-                      {"width": 1280, "height": 800, "deviceScaleFactor": 1, "mobile": False})
-    return d
-
-
 def wait(what, cond, timeout=PATIENCE_S):
     """Polls cond() until it returns a truthy value; fails naming `what`."""
     end = time.monotonic() + timeout
@@ -70,7 +55,7 @@ def wait(what, cond, timeout=PATIENCE_S):
 
 
 class Page:
-    def __init__(self, d: webdriver.Chrome):
+    def __init__(self, d):
         self.d = d
 
     def el(self, tid: str):
