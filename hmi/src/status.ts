@@ -56,10 +56,10 @@ async function run(): Promise<void> {
     } catch {
       // Refused, cut or aborted by the stall watch: reconnect below.
     }
+    // Stays "lost" (not "connecting") until a fresh snapshot arrives: the operator must see it.
     setConn("lost");
     await sleep(backoff);
     backoff = Math.min(backoff * 2, BACKOFF_MAX_MS);
-    if (conn === "lost") setConn("connecting");
   }
 }
 

@@ -217,9 +217,10 @@ def stop_ends_the_program():
 def space_holds_and_escape_stops():
     op.el("cycle-start").click()
     op.wait_state("RUNNING")
-    op.d.find_element(By.TAG_NAME, "body").send_keys(Keys.SPACE)
+    # The focus is on the Cycle start button just clicked: space must hold, not press it.
+    ActionChains(op.d).send_keys(Keys.SPACE).perform()
     op.wait_state("HOLD")
-    op.d.find_element(By.TAG_NAME, "body").send_keys(Keys.ESCAPE)
+    ActionChains(op.d).send_keys(Keys.ESCAPE).perform()
     op.wait_x_at_rest()
 
 

@@ -48,7 +48,7 @@ export function programsScreen(): Screen {
   const usage = h("span", { class: "lbl" });
   let chosen = "";
 
-  const file = h("input", { type: "file", testid: "program-upload", accept: ".nc,.txt,.cnc,*" });
+  const file = h("input", { type: "file", testid: "program-upload" });
   file.dataset.least = "operator";
   const selectAfter = h("input", { type: "checkbox", testid: "upload-select" });
   selectAfter.dataset.least = "operator";

@@ -103,8 +103,10 @@ export function runScreen(): Screen {
 
   let shown = "";
   let sizeOk = true;
-  async function loadListing(name: string): Promise<void> {
-    shown = name;
+  let lastLine = -1;
+  async function loadListing(name: string, key: string): Promise<void> {
+    shown = key;
+    lastLine = -1;
     if (!name) return listing.setText("");
     const lib = await programs.list({});
     const p = lib.programs.find((q) => q.name === name);
@@ -112,10 +114,13 @@ export function runScreen(): Screen {
     listing.setText(sizeOk ? await downloadText(name) : `(${name}: too large to list here)`);
   }
 
-  let lastLine = -1;
   subscribe((s: Status) => {
     setText(program, s.program || "—");
-    if (s.program !== shown) void loadListing(s.program).catch(() => (shown = ""));
+    const key = `${s.program}/${s.blocksTotal}`;
+    if (key !== shown) {
+      // A failed download is tried again after a while, not on every snapshot.
+      void loadListing(s.program, key).catch(() => setTimeout(() => (shown = ""), 5000));
+    }
     setText(block, s.block !== undefined ? `N${s.block}` : "—");
     setText(line, s.line ? String(s.line) : "—");
     setText(pct, `${s.percent.toFixed(1)} %  (${s.blockIndex}/${s.blocksTotal})`);
