@@ -654,6 +654,30 @@ impl Controller {
     /// The real-time thread stops it by itself unless renewed within [`JOG_LEASE_TICKS`]
     /// (the dead-man). Returns the target: the soft limit in that direction.
     pub fn jog(&self, axis: &str, dir: i32, speed_mm_min: f64) -> Result<f64, ControlError> {
+        self.jog_with_lease(axis, dir, speed_mm_min, JOG_LEASE_TICKS)
+    }
+
+    /// A continuous jog as [`Controller::jog`] whose lease is `lease_ms` (the browser's
+    /// dead-man, `Machine.JogLease`): the axis brakes to rest unless renewed within it.
+    pub fn jog_leased(
+        &self,
+        axis: &str,
+        dir: i32,
+        speed_mm_min: f64,
+        lease_ms: u32,
+    ) -> Result<f64, ControlError> {
+        // The jog generator ticks on the interpolator's grid (TS_S), whatever the bus cycle.
+        let ticks = (f64::from(lease_ms) / 1000.0 / kernel::units::TS_S).ceil() as u32;
+        self.jog_with_lease(axis, dir, speed_mm_min, ticks.max(1))
+    }
+
+    fn jog_with_lease(
+        &self,
+        axis: &str,
+        dir: i32,
+        speed_mm_min: f64,
+        lease_ticks: u32,
+    ) -> Result<f64, ControlError> {
         let i = self.axis_index(axis)?;
         if dir == 0 {
             return Err(ControlError::Invalid(
@@ -686,7 +710,7 @@ impl Controller {
             target_mm: target,
             speed_mm_s: speed,
             accel_mm_s2: a.max_accel_mm_s2,
-            lease_ticks: JOG_LEASE_TICKS,
+            lease_ticks,
         }))?;
         Ok(if dir > 0 { hi } else { lo })
     }

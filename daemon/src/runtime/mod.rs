@@ -7,6 +7,7 @@ pub mod controller;
 mod delegate;
 pub mod fault_inject;
 pub mod harness;
+pub mod hmi;
 pub mod homing;
 pub mod job;
 pub mod library;

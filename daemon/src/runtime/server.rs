@@ -27,6 +27,7 @@ use proto::v1::programs_server::ProgramsServer;
 use proto::v1::trajectory_server::TrajectoryServer;
 use tokio::net::{TcpListener, UnixListener};
 use tokio_stream::wrappers::UnixListenerStream;
+use tonic::service::Routes;
 use tonic::service::interceptor::InterceptedService;
 use tonic::transport::server::{Router, TcpIncoming};
 use tonic::transport::{Identity, Server, ServerTlsConfig};
@@ -39,6 +40,7 @@ use super::api::{
 };
 use super::config::{ApiConfig, Role};
 use super::controller::Controller;
+use super::hmi::Assets;
 use super::rt::MachineState;
 
 /// How long the API waits at shutdown for calls in flight (open streams end at once): the
@@ -81,6 +83,11 @@ pub enum ServerError {
     Tls(String),
     #[error("a non-loopback listener needs api.tls_cert and api.tls_key")]
     TlsRequired,
+    #[error(
+        "a non-loopback hmi.listen needs TLS: hmi.tls_cert and hmi.tls_key (or api.tls_cert and \
+         api.tls_key)"
+    )]
+    HmiTlsRequired,
     #[error("reflection: {0}")]
     Reflection(String),
     /// A listener failed while serving.
@@ -103,6 +110,7 @@ impl ServerError {
             ServerError::TlsFile { .. } => "api_tls_file",
             ServerError::Tls(_) => "api_tls",
             ServerError::TlsRequired => "api_tls_required",
+            ServerError::HmiTlsRequired => "hmi_tls_required",
             ServerError::Reflection(_) => "api_reflection",
             ServerError::Serve(_) => "api_serve",
             ServerError::Library(e) => e.code(),
@@ -263,7 +271,7 @@ pub const MAX_MESSAGE_BYTES: usize = 4 << 20;
 
 /// tonic refuses an oversized message with OUT_OF_RANGE and a transport-level text; clients
 /// get RESOURCE_EXHAUSTED with the limit and what to use instead.
-fn size_refusal(mut r: http::Response<tonic::body::Body>) -> http::Response<tonic::body::Body> {
+pub fn size_refusal<B>(mut r: http::Response<B>) -> http::Response<B> {
     let h = r.headers_mut();
     let too_large = h.get("grpc-status").is_some_and(|v| v == "11")
         && h.get("grpc-message").is_some_and(|m| {
@@ -290,14 +298,14 @@ type SizeLayer = tower::util::MapResponseLayer<
 >;
 type ApiRouter = Router<tower::layer::util::Stack<SizeLayer, tower::layer::util::Identity>>;
 
-fn router(
+type Health<H> = tonic_health::pb::health_server::HealthServer<H>;
+
+fn router<H: tonic_health::pb::health_server::Health>(
     st: &Arc<ApiState>,
     auth: &Arc<Auth>,
     trust: Trust,
     tls: Option<ServerTlsConfig>,
-    health: &tonic_health::pb::health_server::HealthServer<
-        impl tonic_health::pb::health_server::Health,
-    >,
+    health: &Health<H>,
 ) -> Result<ApiRouter, ServerError> {
     let mut b = Server::builder();
     if let Some(t) = tls {
@@ -305,6 +313,17 @@ fn router(
             .tls_config(t)
             .map_err(|e| ServerError::Tls(e.to_string()))?;
     }
+    let layer: SizeLayer = tower::util::MapResponseLayer::new(size_refusal);
+    Ok(b.layer(layer).add_routes(routes(st, auth, trust, health)?))
+}
+
+/// Every service of the API behind the interceptor of a listener of kind `trust`.
+fn routes<H: tonic_health::pb::health_server::Health>(
+    st: &Arc<ApiState>,
+    auth: &Arc<Auth>,
+    trust: Trust,
+    health: &Health<H>,
+) -> Result<Routes, ServerError> {
     let i = auth.interceptor(trust);
     // Both reflection versions: grpcurl speaks v1, Python's grpcio-reflection and many older
     // tools only v1alpha.
@@ -324,39 +343,39 @@ fn router(
         .build_v1alpha()
         .map_err(|e| ServerError::Reflection(e.to_string()))?;
     let m = MAX_MESSAGE_BYTES;
-    let layer: SizeLayer = tower::util::MapResponseLayer::new(size_refusal);
-    Ok(b.layer(layer)
-        .add_service(InterceptedService::new(
-            MachineServer::new(MachineSvc(st.clone())).max_decoding_message_size(m),
-            i.clone(),
-        ))
-        .add_service(InterceptedService::new(
-            OffsetsServer::new(OffsetsSvc(st.clone())).max_decoding_message_size(m),
-            i.clone(),
-        ))
-        .add_service(InterceptedService::new(
-            PlcServer::new(PlcSvc(st.clone())).max_decoding_message_size(m),
-            i.clone(),
-        ))
-        .add_service(InterceptedService::new(
-            ConstantsServer::new(ConstantsSvc(st.clone())).max_decoding_message_size(m),
-            i.clone(),
-        ))
-        .add_service(InterceptedService::new(
-            PreviewServer::new(PreviewSvc(st.clone())).max_decoding_message_size(m),
-            i.clone(),
-        ))
-        .add_service(InterceptedService::new(
-            TrajectoryServer::new(TrajectorySvc(st.clone())).max_decoding_message_size(m),
-            i.clone(),
-        ))
-        .add_service(InterceptedService::new(
-            ProgramsServer::new(ProgramsSvc(st.clone())).max_decoding_message_size(m),
-            i.clone(),
-        ))
-        .add_service(InterceptedService::new(health.clone(), i.clone()))
-        .add_service(InterceptedService::new(reflection, i.clone()))
-        .add_service(InterceptedService::new(reflection_alpha, i)))
+    let mut rb = Routes::builder();
+    rb.add_service(InterceptedService::new(
+        MachineServer::new(MachineSvc(st.clone())).max_decoding_message_size(m),
+        i.clone(),
+    ))
+    .add_service(InterceptedService::new(
+        OffsetsServer::new(OffsetsSvc(st.clone())).max_decoding_message_size(m),
+        i.clone(),
+    ))
+    .add_service(InterceptedService::new(
+        PlcServer::new(PlcSvc(st.clone())).max_decoding_message_size(m),
+        i.clone(),
+    ))
+    .add_service(InterceptedService::new(
+        ConstantsServer::new(ConstantsSvc(st.clone())).max_decoding_message_size(m),
+        i.clone(),
+    ))
+    .add_service(InterceptedService::new(
+        PreviewServer::new(PreviewSvc(st.clone())).max_decoding_message_size(m),
+        i.clone(),
+    ))
+    .add_service(InterceptedService::new(
+        TrajectoryServer::new(TrajectorySvc(st.clone())).max_decoding_message_size(m),
+        i.clone(),
+    ))
+    .add_service(InterceptedService::new(
+        ProgramsServer::new(ProgramsSvc(st.clone())).max_decoding_message_size(m),
+        i.clone(),
+    ))
+    .add_service(InterceptedService::new(health.clone(), i.clone()))
+    .add_service(InterceptedService::new(reflection, i.clone()))
+    .add_service(InterceptedService::new(reflection_alpha, i));
+    Ok(rb.routes())
 }
 
 /// Serves every listener until `shutdown` resolves. Remote listeners use TLS from the
@@ -377,9 +396,34 @@ pub async fn serve_listeners_with(
     tls: Option<ServerTlsConfig>,
     shutdown: impl Future<Output = ()> + Send,
 ) -> Result<(), ServerError> {
+    serve_with_hmi(ctl, listeners, tls, None, shutdown).await
+}
+
+/// The browser HMI's listener (`[hmi] listen`, docs/hmi.md): its static files and every
+/// service over grpc-web on one origin.
+pub struct HmiListener {
+    pub listener: TcpListener,
+    pub assets: Arc<Assets>,
+    /// Required unless the address is loopback.
+    pub tls: Option<ServerTlsConfig>,
+}
+
+/// As [`serve_listeners_with`], and the HMI's listener when given; every listener shares one
+/// API state (stream limits, upload sessions, alarm history).
+pub async fn serve_with_hmi(
+    ctl: Arc<Controller>,
+    listeners: Listeners,
+    tls: Option<ServerTlsConfig>,
+    hmi: Option<HmiListener>,
+    shutdown: impl Future<Output = ()> + Send,
+) -> Result<(), ServerError> {
     if !listeners.remote_tcp.is_empty() && tls.is_none() {
         return Err(ServerError::TlsRequired);
     }
+    let hmi_trust = match &hmi {
+        Some(h) => Some(hmi_trust(h)?),
+        None => None,
+    };
     let api = &ctl.config().api;
     if !listeners.local_tcp.is_empty() && api.loopback_role > Role::Observer {
         tracing::warn!(
@@ -409,6 +453,24 @@ pub async fn serve_listeners_with(
         let r = router(&st, &auth, Trust::Remote, tls.clone(), &health)?;
         let inc = TcpIncoming::from(l).with_nodelay(Some(true));
         tasks.spawn(r.serve_with_incoming_shutdown(inc, stopped()));
+    }
+    if let (Some(h), Some(trust)) = (hmi, hmi_trust) {
+        let app = crate::runtime::hmi::app(
+            routes(&st, &auth, trust, &health)?,
+            tower::util::MapResponseLayer::new(size_refusal::<axum::body::Body>),
+            h.assets,
+        );
+        let mut b = Server::builder().accept_http1(true);
+        if let Some(t) = h.tls {
+            b = b
+                .tls_config(t)
+                .map_err(|e| ServerError::Tls(e.to_string()))?;
+        }
+        let inc = TcpIncoming::from(h.listener).with_nodelay(Some(true));
+        tasks.spawn(
+            b.add_routes(app)
+                .serve_with_incoming_shutdown(inc, stopped()),
+        );
     }
     if let Some(u) = listeners.unix {
         let r = router(&st, &auth, Trust::Socket, None, &health)?;
@@ -444,6 +506,19 @@ pub async fn serve_listeners_with(
     match first_err {
         Some(e) => Err(ServerError::Serve(e)),
         None => Ok(()),
+    }
+}
+
+/// Loopback HMI callers are local (`api.loopback_role` without a token); any other address
+/// is remote: TLS and a token.
+fn hmi_trust(h: &HmiListener) -> Result<Trust, ServerError> {
+    let addr = h.listener.local_addr().map_err(ServerError::LocalAddr)?;
+    if addr.ip().is_loopback() {
+        Ok(Trust::Loopback)
+    } else if h.tls.is_some() {
+        Ok(Trust::Remote)
+    } else {
+        Err(ServerError::HmiTlsRequired)
     }
 }
 

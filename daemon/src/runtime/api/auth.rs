@@ -116,7 +116,7 @@ impl Auth {
                 }),
                 Trust::Loopback => Ok(Caller {
                     role: self.loopback_role,
-                    who: "loopback".into(),
+                    who: "local".into(),
                     peer,
                 }),
                 Trust::Remote => {

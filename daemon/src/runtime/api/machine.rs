@@ -21,6 +21,13 @@ use super::{
 };
 use crate::runtime::config::Role::{Observer, Operator};
 use crate::runtime::controller::{ControlError, Controller};
+use crate::runtime::homing;
+use crate::runtime::rt::MachineState;
+
+/// Jog lease of `JogLease` when the request gives none, and its bounds, ms (cnc.proto).
+const DEFAULT_LEASE_MS: u32 = 500;
+const MIN_LEASE_MS: u32 = 100;
+const MAX_LEASE_MS: u32 = 1000;
 
 /// Largest program run in single-block mode (its blocks are kept in memory), bytes.
 const SINGLE_BLOCK_MAX_BYTES: u64 = 16 << 20;
@@ -321,6 +328,40 @@ impl Machine for MachineSvc {
         result.map(|()| Response::new(pb::JogReply { target_mm: target }))
     }
 
+    async fn who_am_i(
+        &self,
+        req: Request<pb::WhoAmIRequest>,
+    ) -> Result<Response<pb::WhoAmIReply>, Status> {
+        let caller = require(&req, Observer, "WhoAmI")?;
+        Ok(Response::new(pb::WhoAmIReply {
+            role: caller.role.name().into(),
+            who: caller.who,
+        }))
+    }
+
+    async fn jog_lease(
+        &self,
+        req: Request<pb::JogLeaseRequest>,
+    ) -> Result<Response<pb::JogReply>, Status> {
+        require(&req, Operator, "JogLease")?;
+        let target_mm = jog_lease(&self.0, req.into_inner())?;
+        Ok(Response::new(pb::JogReply { target_mm }))
+    }
+
+    async fn jog_stop(
+        &self,
+        req: Request<pb::JogStopRequest>,
+    ) -> Result<Response<pb::JogStopReply>, Status> {
+        require(&req, Operator, "JogStop")?;
+        let mut held = self.0.lease_jog.lock().unwrap();
+        *held = None;
+        // Only a jog is braked: the jog generator also moves a reference run (homing).
+        if self.0.ctl.snapshot().state == MachineState::Jog {
+            self.0.ctl.jog_stop().map_err(status_of)?;
+        }
+        Ok(Response::new(pb::JogStopReply {}))
+    }
+
     async fn home(&self, req: Request<pb::HomeRequest>) -> Result<Response<pb::HomeReply>, Status> {
         require(&req, Operator, "Home")?;
         let axes = req.into_inner().axes;
@@ -485,6 +526,65 @@ impl Machine for MachineSvc {
             diagnostics: diags.iter().map(diagnostic_to_pb).collect(),
         }))
     }
+}
+
+/// The continuous jog `JogLease` started: which axis (index) in which direction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct LeasedJog {
+    axis: usize,
+    dir: i32,
+}
+
+/// A lease of `lease_ms` (0: [`DEFAULT_LEASE_MS`]) within 100..1000 ms.
+fn lease_of(lease_ms: u32) -> Result<u32, Status> {
+    match lease_ms {
+        0 => Ok(DEFAULT_LEASE_MS),
+        ms if (MIN_LEASE_MS..=MAX_LEASE_MS).contains(&ms) => Ok(ms),
+        ms => Err(Status::invalid_argument(format!(
+            "jog lease {ms} ms is outside {MIN_LEASE_MS}..{MAX_LEASE_MS} ms (0 means \
+             {DEFAULT_LEASE_MS})"
+        ))),
+    }
+}
+
+/// Starts or renews the leased continuous jog (the browser's dead-man): the same checks as
+/// the streamed `Jog`; another axis or direction while a jog runs is refused, not merged.
+fn jog_lease(st: &ApiState, r: pb::JogLeaseRequest) -> Result<f64, Status> {
+    let lease_ms = lease_of(r.lease_ms)?;
+    if r.direction != 1 && r.direction != -1 {
+        return Err(Status::invalid_argument(format!(
+            "jog direction {} must be +1 or -1",
+            r.direction
+        )));
+    }
+    let axis = homing::axis_index(st.ctl.config(), &r.axis).map_err(status_of)?;
+    let want = LeasedJog {
+        axis,
+        dir: r.direction,
+    };
+    let names = st.ctl.config().axis_names();
+    let mut held = st.lease_jog.lock().unwrap();
+    if st.ctl.snapshot().state == MachineState::Jog && *held != Some(want) {
+        let running = match *held {
+            Some(h) => format!(
+                "a jog of {}{} runs",
+                names[h.axis],
+                if h.dir > 0 { '+' } else { '-' }
+            ),
+            None => "another jog runs (a step or a streamed jog)".into(),
+        };
+        return Err(Status::failed_precondition(format!(
+            "{running}: stop it (JogStop, or let it end) before jogging {}{}",
+            names[axis],
+            if r.direction > 0 { '+' } else { '-' }
+        )));
+    }
+    let target = st
+        .ctl
+        .jog_leased(&r.axis, r.direction, r.speed_mm_min, lease_ms)
+        .map_err(status_of)?;
+    *held = Some(want);
+    Ok(target)
 }
 
 /// One R325 refinement for the API (SPEC §4.6).

@@ -12,6 +12,7 @@ pub mod preview;
 mod programs;
 mod tables;
 mod trajectory;
+pub mod upload_session;
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -102,6 +103,10 @@ pub struct ApiState {
     closing: tokio::sync::watch::Sender<bool>,
     reserved_streams: usize,
     pub alarms: Arc<alarms::AlarmLog>,
+    /// Unary uploads in progress (`Programs.UploadBegin`..`UploadFinish`).
+    pub uploads: Arc<upload_session::UploadSessions>,
+    /// The continuous jog `Machine.JogLease` runs, if any.
+    lease_jog: Mutex<Option<machine::LeasedJog>>,
 }
 
 impl ApiState {
@@ -130,6 +135,8 @@ impl ApiState {
             closing: tokio::sync::watch::Sender::new(false),
             observer_streams: Arc::new(AtomicUsize::new(0)),
             alarms,
+            uploads: upload_session::UploadSessions::start(),
+            lease_jog: Mutex::new(None),
         });
         alarms::spawn_watcher(state.ctl.clone(), state.alarms.clone());
         // The program selected before the restart is selected again (validated, not started).

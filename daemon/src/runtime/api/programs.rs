@@ -18,6 +18,7 @@ use kernel::program::Modal;
 
 use super::auth::require;
 use super::machine::Junctions;
+use super::upload_session;
 use super::{ApiState, PlanInfo, blocking, diagnostic_to_pb, status_of};
 use crate::runtime::config::Role;
 use crate::runtime::controller::{ControlError, LoadedProgram};
@@ -195,6 +196,26 @@ pub fn commit_upload(st: &ApiState, v: Validated, select: bool) -> Result<pb::Up
     })
 }
 
+/// The end of every chunked upload (the streaming `Upload` and `UploadFinish`): validates the
+/// received file on a blocking thread (`progress` sees the blocks validated), then stores and
+/// selects it unless the client went away meanwhile (`cancelled`).
+pub async fn finish_upload(
+    st: &Arc<ApiState>,
+    name: String,
+    up: Upload,
+    select: bool,
+    progress: impl FnMut(u32) + Send + 'static,
+    cancelled: impl FnOnce() -> bool,
+) -> Result<pb::UploadDone, Status> {
+    let s = st.clone();
+    let v = blocking(move || validate_upload(&s, &name, up, progress)).await??;
+    // The client left while it validated: nothing is stored or selected.
+    if cancelled() {
+        return Err(Status::cancelled("the client ended the upload"));
+    }
+    commit_upload(st, v, select)
+}
+
 /// Stores `text` (a unary upload: LoadProgram, UploadProgram) and selects it when asked:
 /// written and validated on a blocking thread, stored and selected after that.
 pub async fn store_text(
@@ -325,25 +346,14 @@ impl Programs for ProgramsSvc {
             };
             let bytes = up.written();
             let t = tx.clone();
-            let s = st.clone();
-            let r = blocking(move || {
-                validate_upload(&s, &name, up, |n| {
-                    let _ = t.blocking_send(Ok(pb::UploadProgress {
-                        bytes_stored: bytes,
-                        blocks_validated: n,
-                        done: None,
-                    }));
-                })
-            })
-            .await
-            .and_then(|r| r)
-            .and_then(|v| {
-                // The client left while it validated: nothing is stored or selected.
-                if tx.is_closed() {
-                    return Err(Status::cancelled("the client ended the upload"));
-                }
-                commit_upload(&st, v, select)
-            });
+            let progress = move |n| {
+                let _ = t.blocking_send(Ok(pb::UploadProgress {
+                    bytes_stored: bytes,
+                    blocks_validated: n,
+                    done: None,
+                }));
+            };
+            let r = finish_upload(&st, name, up, select, progress, || tx.is_closed()).await;
             let _ = tx
                 .send(r.map(|done| pb::UploadProgress {
                     bytes_stored: bytes,
@@ -358,6 +368,34 @@ impl Programs for ProgramsSvc {
     }
 
     type DownloadStream = Stream_<pb::ProgramChunk>;
+
+    async fn upload_begin(
+        &self,
+        req: Request<pb::ProgramChunk>,
+    ) -> Result<Response<pb::UploadSession>, Status> {
+        let caller = require(&req, Role::Operator, "UploadBegin")?;
+        let s = upload_session::begin(&self.0, caller, req.into_inner()).await?;
+        Ok(Response::new(s))
+    }
+
+    async fn upload_part(
+        &self,
+        req: Request<pb::UploadPartRequest>,
+    ) -> Result<Response<pb::UploadProgress>, Status> {
+        let caller = require(&req, Role::Operator, "UploadPart")?;
+        let p = upload_session::part(&self.0, &caller, req.into_inner()).await?;
+        Ok(Response::new(p))
+    }
+
+    async fn upload_finish(
+        &self,
+        req: Request<pb::UploadSession>,
+    ) -> Result<Response<pb::UploadDone>, Status> {
+        let caller = require(&req, Role::Operator, "UploadFinish")?;
+        let id = req.into_inner().id;
+        let done = upload_session::finish(&self.0, &caller, &id).await?;
+        Ok(Response::new(done))
+    }
 
     async fn download(
         &self,
