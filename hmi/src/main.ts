@@ -5,7 +5,7 @@ import { machine } from "./api";
 import { button, h, setText } from "./dom";
 import { droPanel } from "./dro";
 import { errorText, stateName } from "./format";
-import { adoptFragmentToken, may, onRole, setRole, setToken, role, type Role } from "./session";
+import { adoptFragmentToken, may, onRole, role, setRole, setToken, token, type Role } from "./session";
 import { jogEnd } from "./jog";
 import { drawn, onConnection, startStatus, subscribe } from "./status";
 import type { Screen } from "./screen";
@@ -103,9 +103,12 @@ function header(): HTMLElement {
     state.dataset.state = stateName(s.state);
     setText(alarm, s.activeAlarms.length ? `⚠ ${s.activeAlarms[0].message}` : "");
   });
+  const signin = h("span", { class: "signin" }, tokenIn, submit, signOut, who, roleEl);
   onRole((r: Role) => {
     setText(roleEl, r);
     roleEl.dataset.role = r;
+    // Signed in with a token: the field gives way to "Sign out" (the header stays one line).
+    signin.classList.toggle("signed", token() !== "");
   });
   return h(
     "header",
@@ -115,7 +118,7 @@ function header(): HTMLElement {
     state,
     alarm,
     h("span", { class: "grow" }),
-    h("span", { class: "signin" }, tokenIn, submit, signOut, who, roleEl),
+    signin,
     stopBtn,
   );
 }
@@ -205,6 +208,13 @@ function boot(): void {
   show(screens.some((s) => s.id === first) ? first : "run");
   startStatus();
   void whoAmI();
+  // A kiosk may be sent to `#token=…` on an open page (no reload): sign in then too.
+  window.addEventListener("hashchange", () => {
+    if (adoptFragmentToken()) {
+      show("run");
+      void whoAmI();
+    }
+  });
   // For integrators' tests and the benchmark: role, and when snapshots reached the screen.
   (window as unknown as { cncHmi: object }).cncHmi = { drawn, role, jogEnd };
 }

@@ -18,12 +18,14 @@ export function setToken(t: string): void {
   else sessionStorage.removeItem(KEY);
 }
 
-/** Takes `#token=…` from the address, keeps it for this tab and clears it from the bar. */
-export function adoptFragmentToken(): void {
+/** Takes `#token=…` from the address, keeps it for this tab and clears it from the bar;
+ * true when there was one. */
+export function adoptFragmentToken(): boolean {
   const m = /(?:^#|&)token=([^&]*)/.exec(location.hash);
-  if (!m) return;
+  if (!m) return false;
   setToken(decodeURIComponent(m[1]));
   history.replaceState(null, "", location.pathname + location.search);
+  return true;
 }
 
 export function role(): Role {

@@ -14,6 +14,7 @@ def browser(width: int = 1280, height: int = 800) -> webdriver.Chrome:
               "--enable-precise-memory-info"):
         o.add_argument(a)
     o.binary_location = os.environ.get("CHROMIUM", "/usr/bin/chromium")
+    o.set_capability("goog:loggingPrefs", {"browser": "ALL"})
     d = webdriver.Chrome(service=Service(os.environ.get("CHROMEDRIVER", "/usr/bin/chromedriver")),
                          options=o)
     d.execute_cdp_cmd("Emulation.setDeviceMetricsOverride",

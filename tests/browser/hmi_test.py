@@ -26,10 +26,12 @@ target = urlparse(os.environ["CNC_HMI_URL"])
 PROXY = CuttableProxy(target.hostname, target.port)
 URL = f"http://127.0.0.1:{PROXY.port}/"
 
-# Lines with shallow bends (smooth junctions, yellow), two square corners (stops, red) and an
-# arc joined tangentially; about 20 s at F600, long enough to hold, resume and stop.
-PROGRAM = """N10 G0 X0 Y0
-N20 G1 X20 Y1 F600
+# The way back to the start is G1 at 50 mm/s: a rapid would fault over the 5 mm following
+# window (that is the alarm test). A continuous path (G23): lines with shallow bends (smooth junctions, yellow), two square
+# corners (stops, red) and an arc joined tangentially; about 20 s at F600, long enough to
+# hold, resume and stop.
+PROGRAM = """N10 G1 X0 Y0 F3000
+N20 G23 G1 X20 Y1 F600
 N30 X40 Y3
 N40 X60 Y6
 N50 X60 Y30
@@ -51,6 +53,7 @@ def wait(what, cond, timeout=PATIENCE_S):
         except Exception as e:  # element not there yet, stale, ...
             last = e
         time.sleep(0.05)
+    what = what() if callable(what) else what
     raise AssertionError(f"timed out waiting for {what}" + (f" ({last})" if last else ""))
 
 
@@ -62,7 +65,8 @@ class Page:
         return self.d.find_element(By.CSS_SELECTOR, f'[data-testid="{tid}"]')
 
     def text(self, tid: str) -> str:
-        return self.el(tid).text.strip()
+        # textContent: what the page wrote (CSS may upper-case it; hidden screens have text).
+        return (self.el(tid).get_attribute("textContent") or "").strip()
 
     def tab(self, name: str) -> None:
         self.el(f"tab-{name}").click()
@@ -74,7 +78,7 @@ class Page:
         return self.text("machine-state")
 
     def wait_state(self, *states: str, timeout=PATIENCE_S) -> str:
-        return wait(f"machine state in {states} (now {self.state()})",
+        return wait(lambda: f"machine state in {states} (now {self.state()})",
                     lambda: self.state() in states and self.state(), timeout)
 
     def wait_live(self) -> None:

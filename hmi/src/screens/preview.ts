@@ -141,7 +141,10 @@ export function previewScreen(): Screen {
       dots = [];
     } else {
       prog = segments(data.programmed, a, b);
-      comp = data.compensated.length ? segments(data.compensated, a, b) : undefined;
+      // The tool-centre path where it leaves the programmed one (radius compensation on).
+      const same = new Set(data.programmed.map((e) => `${e.startMm}|${e.endMm}`));
+      const moved = data.compensated.filter((e) => !same.has(`${e.startMm}|${e.endMm}`));
+      comp = moved.length ? segments(moved, a, b) : undefined;
       dots = data.junctions.map((j) => ({ x: j.positionMm[a], y: j.positionMm[b], red: j.class !== JunctionClass.SMOOTH }));
     }
     fit();
