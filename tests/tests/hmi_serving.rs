@@ -178,3 +178,56 @@ async fn a_non_loopback_hmi_without_tls_is_refused() {
         .unwrap_err();
     assert_eq!(e.code(), "hmi_tls_required", "{e}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_hmi_listener_serves_over_tls() {
+    use daemon::runtime::server::{self, HmiListener, Listeners};
+    use tonic::transport::{Certificate, ClientTlsConfig, Endpoint, Identity, ServerTlsConfig};
+    let cfg = config(Role::Admin);
+    let bus = sim::SimBus::new(sim::SimDriveParams::default(), &vec![0.0; cfg.axes.len()]);
+    let ctl = daemon::runtime::controller::Controller::start_with_bus(
+        cfg,
+        daemon::runtime::controller::ClockKind::Monotonic,
+        Box::new(bus),
+    )
+    .unwrap();
+    let cert = rcgen::generate_simple_self_signed(vec!["localhost".to_string()]).unwrap();
+    let tls = ServerTlsConfig::new().identity(Identity::from_pem(
+        cert.cert.pem(),
+        cert.signing_key.serialize_pem(),
+    ));
+    // TLS as a non-loopback HMI address has it; bound on loopback to stay on this machine
+    // (a non-loopback address without TLS is refused: the test above).
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let hmi = HmiListener {
+        listener,
+        assets: std::sync::Arc::new(hmi_common::fixture()),
+        tls: Some(tls),
+    };
+    tokio::spawn(server::serve_with_hmi(
+        ctl.clone(),
+        Listeners::default(),
+        None,
+        Some(hmi),
+        std::future::pending(),
+    ));
+    hmi_common::wait_state(&ctl, daemon::runtime::rt::MachineState::Idle).await;
+    let client_tls = ClientTlsConfig::new()
+        .ca_certificate(Certificate::from_pem(cert.cert.pem()))
+        .domain_name("localhost");
+    let channel = Endpoint::from_shared(format!("https://localhost:{port}"))
+        .unwrap()
+        .tls_config(client_tls)
+        .unwrap()
+        .connect()
+        .await
+        .unwrap();
+    let mut m = pb::machine_client::MachineClient::new(channel);
+    let me = m
+        .who_am_i(with_token(pb::WhoAmIRequest {}, OPERATOR_TOKEN))
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!(me.role, "operator");
+}

@@ -51,7 +51,8 @@ pub const SHUTDOWN_DRAIN: Duration = Duration::from_millis(500);
 /// Why the API could not be served (each message names the configuration key concerned).
 #[derive(Debug, thiserror::Error)]
 pub enum ServerError {
-    /// A TCP address could not be bound (`key` is `api.listen` or `api.extra_listen`).
+    /// A TCP address could not be bound (`key` is `api.listen`, `api.extra_listen` or
+    /// `hmi.listen`).
     #[error("{key}: cannot listen on {addr}: {source}")]
     Listen {
         key: &'static str,
@@ -71,7 +72,7 @@ pub enum ServerError {
     NotASocket { path: std::path::PathBuf },
     #[error("api.socket_group: no group named {0:?}")]
     NoGroup(String),
-    /// `key` is `api.tls_cert` or `api.tls_key`.
+    /// `key` is `api.tls_cert`, `api.tls_key`, `hmi.tls_cert` or `hmi.tls_key`.
     #[error("{key}: {}: {source}", path.display())]
     TlsFile {
         key: &'static str,
@@ -234,23 +235,27 @@ fn group_id(name: &str) -> Option<u32> {
 
 /// TLS settings of remote listeners, when configured.
 pub fn tls_config(api: &ApiConfig) -> Result<Option<ServerTlsConfig>, ServerError> {
-    let read = |key: &'static str, path: &Path| {
+    match (&api.tls_cert, &api.tls_key) {
+        (Some(c), Some(k)) => tls_from_files(("api.tls_cert", c), ("api.tls_key", k)).map(Some),
+        _ => Ok(None),
+    }
+}
+
+/// TLS settings from a PEM certificate and key file, each with the configuration key it
+/// came from (named when it cannot be read).
+pub fn tls_from_files(
+    cert: (&'static str, &Path),
+    key: (&'static str, &Path),
+) -> Result<ServerTlsConfig, ServerError> {
+    let read = |(key, path): (&'static str, &Path)| {
         std::fs::read(path).map_err(|source| ServerError::TlsFile {
             key,
             path: path.to_path_buf(),
             source,
         })
     };
-    match (&api.tls_cert, &api.tls_key) {
-        (Some(c), Some(k)) => {
-            let cert = read("api.tls_cert", c)?;
-            let key = read("api.tls_key", k)?;
-            Ok(Some(
-                ServerTlsConfig::new().identity(Identity::from_pem(cert, key)),
-            ))
-        }
-        _ => Ok(None),
-    }
+    let (cert, key) = (read(cert)?, read(key)?);
+    Ok(ServerTlsConfig::new().identity(Identity::from_pem(cert, key)))
 }
 
 /// Reads and parses the TLS certificate and key when configured (`--check-config` and

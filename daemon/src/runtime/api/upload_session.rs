@@ -233,3 +233,47 @@ pub async fn finish(
     let (up, name, select) = st.uploads.take(id, caller, true)?;
     super::programs::finish_upload(st, name, up, select, |_| {}, || false).await
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::runtime::library::Library;
+
+    #[test]
+    fn an_idle_session_is_dropped_with_its_temporary_file() {
+        let dir = std::env::temp_dir().join(format!("cnc-upload-session-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let lib = Library::open(&dir, 1 << 20).unwrap();
+        let mut up = lib.begin_upload("p.nc").unwrap();
+        up.write(b"N10 G1 X1 F100\n").unwrap();
+        let sessions = UploadSessions::default();
+        let t0 = Instant::now();
+        let session = |up| Session {
+            name: "p.nc".into(),
+            select: false,
+            owner: "hmi-op".into(),
+            last_used: t0,
+            up: Some(up),
+        };
+        sessions.insert(session(up)).unwrap();
+        let temporary = || {
+            std::fs::read_dir(&dir)
+                .unwrap()
+                .filter(|e| {
+                    e.as_ref()
+                        .unwrap()
+                        .file_name()
+                        .to_string_lossy()
+                        .contains("upload")
+                })
+                .count()
+        };
+        assert_eq!(temporary(), 1);
+        sessions.drop_idle(t0 + IDLE / 2);
+        assert_eq!(sessions.len(), 1);
+        sessions.drop_idle(t0 + IDLE);
+        assert!(sessions.is_empty());
+        assert_eq!(temporary(), 0);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
