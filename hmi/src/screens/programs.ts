@@ -1,7 +1,7 @@
 // Programs: the library (upload in parts, select, download, rename, delete) and the
 // validation results, each a link to its line in a read-only listing.
-import { ConnectError } from "@connectrpc/connect";
-import { machine, programs } from "../api";
+import { ConnectError, decodeBinaryHeader } from "@connectrpc/connect";
+import { DIAGNOSTICS_HEADER, machine, programs } from "../api";
 import { button, fill, h } from "../dom";
 import { errorText, time } from "../format";
 import { Listing } from "../listing";
@@ -36,8 +36,15 @@ export async function upload(name: string, data: Blob, select: boolean, progress
   return await programs.uploadFinish(session);
 }
 
-function diagnosticsOf(e: unknown): Diagnostic[] {
-  return e instanceof ConnectError ? e.findDetails(DiagnosticsSchema).flatMap((d) => d.items) : [];
+/** The coded diagnostics of a refusal (INVALID_ARGUMENT carries every error with its line). */
+export function diagnosticsOf(e: unknown): Diagnostic[] {
+  const v = e instanceof ConnectError ? e.metadata.get(DIAGNOSTICS_HEADER) : null;
+  if (!v) return [];
+  try {
+    return decodeBinaryHeader(v, DiagnosticsSchema).items;
+  } catch {
+    return [];
+  }
 }
 
 export function programsScreen(): Screen {
@@ -75,13 +82,13 @@ export function programsScreen(): Screen {
       usage.textContent = `${(Number(lib.usedBytes) / 1e6).toFixed(1)} of ${(Number(lib.maxBytes) / 1e6).toFixed(0)} MB`;
       fill(
         list,
-        h("tr", {}, h("th", {}, "name"), h("th", {}, "blocks"), h("th", {}, "size"), h("th", {}, "stored"), h("th", {}, "verdict")),
+        h("tr", {}, h("th", {}, "name"), h("th", {}, "blocks"), h("th", {}, "KiB"), h("th", {}, "verdict")),
         ...lib.programs.map((p) => {
-          const tr = h("tr", { "data-name": p.name, class: [p.name === chosen ? "chosen" : "", p.name === lib.selected ? "selected" : ""].join(" ") },
+          const tr = h("tr", { "data-name": p.name, title: `stored ${time(p.modifiedUnixMs)}`,
+            class: [p.name === chosen ? "chosen" : "", p.name === lib.selected ? "selected" : ""].join(" ") },
             h("td", {}, p.name === lib.selected ? `▶ ${p.name}` : p.name),
             h("td", {}, String(p.blocks)),
-            h("td", {}, `${(Number(p.sizeBytes) / 1024).toFixed(1)} KiB`),
-            h("td", {}, time(p.modifiedUnixMs)),
+            h("td", {}, (Number(p.sizeBytes) / 1024).toFixed(1)),
             h("td", { class: p.valid ? "ok" : "err" }, p.valid ? `valid${p.warnings ? `, ${p.warnings} warnings` : ""}` : p.firstError),
           );
           tr.addEventListener("click", () => void choose(p.name, Number(p.sizeBytes)));
