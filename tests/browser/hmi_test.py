@@ -178,6 +178,22 @@ def upload_select_and_preview_with_junction_dots():
 
 
 @test
+def a_refused_upload_lists_coded_diagnostics_that_link_to_the_line():
+    path = os.path.join(tempfile.mkdtemp(), "hmi_bad.nc")
+    with open(path, "w") as f:
+        f.write("N10 G1 X10 F500\nN20 G1 X20\nN30 G1 X0 Y0 Q7\n")
+    op.tab("programs")
+    op.el("program-upload").send_keys(path)
+    link = wait("a diagnostic", lambda: op.d.find_element(
+        By.CSS_SELECTOR, '[data-testid="diagnostics"] a[data-line="3"]'))
+    assert "[unknown_address] line 3:14" in link.text, link.text
+    link.click()
+    wait("listing at line 3", lambda: op.d.find_element(
+        By.CSS_SELECTOR, '[data-testid="program-listing"] .ln.cur').get_attribute("data-line") == "3")
+    assert not op.d.find_elements(By.CSS_SELECTOR, '[data-testid="program-list"] tr[data-name="hmi_bad.nc"]')
+
+
+@test
 def cycle_start_moves_x_on_the_run_screen():
     op.tab("run")
     x0 = op.wait_x_at_rest()
