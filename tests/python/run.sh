@@ -42,6 +42,9 @@ cat > "$WORK/cncd.toml" <<TOML
 listen = "127.0.0.1:$PORT"
 local_role = "observer"
 
+[hmi]
+listen = "127.0.0.1:0"
+
 [[api.tokens]]
 name = "python-client"
 role = "operator"

@@ -98,3 +98,35 @@ async fn cncd_with_no_configuration_serves_the_api_and_the_hmi() {
     drop(cncd);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn check_config_refuses_a_remote_hmi_without_tls() {
+    let dir = std::env::temp_dir().join(format!("cnc-hmi-check-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("remote-hmi.toml");
+    std::fs::write(&path, "[hmi]\nlisten = \"0.0.0.0:8443\"\n").unwrap();
+    let out = Command::new(systemd_support::cncd_binary())
+        .args(["--check-config", "--config"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("error [config_missing]: "), "{err}");
+    assert!(err.contains("hmi.tls_cert, hmi.tls_key"), "{err}");
+    // Disabled, the same address is not checked.
+    std::fs::write(&path, "[hmi]\nenabled = false\nlisten = \"0.0.0.0:8443\"\n").unwrap();
+    let out = Command::new(systemd_support::cncd_binary())
+        .args(["--check-config", "--config"])
+        .arg(&path)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("HMI disabled"), "{text}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

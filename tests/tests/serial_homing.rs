@@ -27,7 +27,7 @@ fn start_daemon(test: &str, link: &str, axes: &[(&str, &str)]) -> Daemon {
     }
     cfg.push_str(&format!(
         "[bus]\nkind = 'serial'\nport = '{link}'\nreply_timeout_ticks = 100\n\n\
-         [api]\nlisten = '127.0.0.1:{port}'\nunix_socket = ''\nloopback_role = 'admin'\n\n[rt]\nlock_memory = false\n\n\
+         [api]\nlisten = '127.0.0.1:{port}'\nunix_socket = ''\nloopback_role = 'admin'\n\n[hmi]\nlisten = '127.0.0.1:0'\n\n[rt]\nlock_memory = false\n\n\
          [storage]\ndir = '{}'\n",
         dir.join("data").display()
     ));

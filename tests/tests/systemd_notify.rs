@@ -348,7 +348,7 @@ async fn no_ready_while_the_drives_are_faulted_at_start_up() {
 /// A configuration for a `cncd` child: any free loopback port, data files in `dir`.
 fn test_config(dir: &Path) -> String {
     format!(
-        "[api]\nlisten = \"127.0.0.1:0\"\n[rt]\nlock_memory = false\n[storage]\ndir = {:?}\n",
+        "[api]\nlisten = \"127.0.0.1:0\"\n[hmi]\nlisten = \"127.0.0.1:0\"\n[rt]\nlock_memory = false\n[storage]\ndir = {:?}\n",
         dir.join("data")
     )
 }

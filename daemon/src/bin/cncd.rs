@@ -1,7 +1,7 @@
 //! `cncd`: the controller daemon.
 //!
 //! With no configuration it runs the built-in simulated 3-axis machine and serves the gRPC API
-//! on 127.0.0.1:50051. Run by systemd (`deploy/cncd.service`, `Type=notify`) it reports ready
+//! on 127.0.0.1:50051 and the browser HMI on http://127.0.0.1:8080/ (docs/hmi.md). Run by systemd (`deploy/cncd.service`, `Type=notify`) it reports ready
 //! once the drives are operational, pings the watchdog while the real-time thread ticks, and
 //! logs to the journal.
 //!
@@ -128,14 +128,20 @@ fn check_config(path: Option<&std::path::Path>) -> ExitCode {
         .map_err(|e| (e.code(), e.to_string()))
         .and_then(|c| {
             server::check_tls(&c.api)
+                .and_then(|()| server::check_hmi_tls(&c))
                 .map(|()| c)
                 .map_err(|e| (e.code(), format!("{}: {e}", path.display())))
         });
     match checked {
         Ok(c) => {
             let names: String = c.axis_names().iter().collect();
+            let hmi = if c.hmi.enabled {
+                format!("HMI on {}", c.hmi.listen)
+            } else {
+                "HMI disabled".into()
+            };
             println!(
-                "{}: configuration is valid: axes {names}, bus {}, API on {}",
+                "{}: configuration is valid: axes {names}, bus {}, API on {}, {hmi}",
                 path.display(),
                 bus_label(&c),
                 c.api.listen
@@ -173,6 +179,7 @@ async fn run(config: Config) -> Result<(), CncdError> {
     // Every API listener is bound before READY=1 (sent once the drives are operational), so
     // ready means reachable; a listener that cannot be bound ends the start with an error.
     let (listener, local) = bind_listen(&config).await?;
+    let hmi = bind_hmi(&config).await?;
     let mut api_on = vec![local.to_string()];
     if let Some(p) = config.api.unix_socket_path(&config.storage.dir) {
         api_on.push(p.display().to_string());
@@ -184,6 +191,7 @@ async fn run(config: Config) -> Result<(), CncdError> {
     // The controller creates the storage directory, where the Unix socket may live.
     let ctl = start_controller(config)?;
     tracing::info!("cncd started: axes {names} on bus {bus}, API on {api_on}; enabling drives");
+    log_hmi(&ctl, hmi.as_ref());
     let listeners = listeners_beside(&ctl, listener, local).await?;
     let supervision = systemd::supervise(
         ctl.subscribe(),
@@ -198,9 +206,14 @@ async fn run(config: Config) -> Result<(), CncdError> {
         Duration::from_secs(15 * 60),
     ));
     let (tx, rx) = tokio::sync::oneshot::channel::<()>();
-    let mut serve = tokio::spawn(server::serve_listeners(ctl.clone(), listeners, async {
-        let _ = rx.await;
-    }));
+    let mut serve = tokio::spawn(server::serve_with_configured_hmi(
+        ctl.clone(),
+        listeners,
+        hmi,
+        async {
+            let _ = rx.await;
+        },
+    ));
     // Run until a signal, or until the API fails (then stop too: an unreachable controller
     // must not look healthy to systemd).
     let api_failure = tokio::select! {
@@ -245,6 +258,40 @@ async fn bind_listen(
         .local_addr()
         .map_err(server::ServerError::LocalAddr)?;
     Ok((listener, local))
+}
+
+/// Binds `hmi.listen` when the HMI is enabled (before the controller starts, as the API's).
+async fn bind_hmi(config: &Config) -> Result<Option<tokio::net::TcpListener>, CncdError> {
+    if !config.hmi.enabled {
+        return Ok(None);
+    }
+    let listen = config.hmi.listen;
+    let l = tokio::net::TcpListener::bind(listen)
+        .await
+        .map_err(|source| server::ServerError::Listen {
+            key: "hmi.listen",
+            addr: listen,
+            source,
+        })?;
+    Ok(Some(l))
+}
+
+/// Where the HMI is, or why it is not there (docs/hmi.md).
+fn log_hmi(ctl: &Controller, hmi: Option<&tokio::net::TcpListener>) {
+    let Some(addr) = hmi.and_then(|l| l.local_addr().ok()) else {
+        tracing::info!("HMI disabled (hmi.enabled = false)");
+        return;
+    };
+    let tls = ctl.config().hmi.tls_cert.is_some() || !addr.ip().is_loopback();
+    let url = format!("{}://{addr}/", if tls { "https" } else { "http" });
+    if daemon::runtime::hmi::Assets::embedded().is_empty() {
+        tracing::warn!(
+            "HMI on {url}: grpc-web only, this cncd was built without hmi/dist/ (the page says \
+             the assets are missing)"
+        );
+    } else {
+        tracing::info!("HMI on {url}");
+    }
 }
 
 /// The other listeners (extra addresses, the Unix socket) with `listener` first; when one

@@ -38,7 +38,7 @@ use super::api::auth::{Auth, Trust};
 use super::api::{
     ApiState, ConstantsSvc, MachineSvc, OffsetsSvc, PlcSvc, PreviewSvc, ProgramsSvc, TrajectorySvc,
 };
-use super::config::{ApiConfig, Role};
+use super::config::{ApiConfig, Config, Role};
 use super::controller::Controller;
 use super::hmi::Assets;
 use super::rt::MachineState;
@@ -258,11 +258,37 @@ pub fn tls_from_files(
     Ok(ServerTlsConfig::new().identity(Identity::from_pem(cert, key)))
 }
 
+/// TLS of the HMI's listener: on a non-loopback `hmi.listen` the HMI's files, else the
+/// API's; on loopback only when the HMI's own are set (a loopback screen stays plain HTTP
+/// when only the API has a certificate).
+pub fn hmi_tls_config(cfg: &Config) -> Result<Option<ServerTlsConfig>, ServerError> {
+    let hmi = &cfg.hmi;
+    if hmi.listen.ip().is_loopback() && hmi.tls_cert.is_none() {
+        return Ok(None);
+    }
+    hmi.tls_files(&cfg.api)
+        .map(|f| tls_from_files(f.cert, f.key))
+        .transpose()
+}
+
 /// Reads and parses the TLS certificate and key when configured (`--check-config` and
 /// start-up): a missing or unreadable file, or PEM without a certificate or key, is refused
 /// with the key's name.
 pub fn check_tls(api: &ApiConfig) -> Result<(), ServerError> {
     if let Some(t) = tls_config(api)? {
+        Server::builder()
+            .tls_config(t)
+            .map_err(|e| ServerError::Tls(e.to_string()))?;
+    }
+    Ok(())
+}
+
+/// As [`check_tls`] for the HMI's listener when it is enabled.
+pub fn check_hmi_tls(cfg: &Config) -> Result<(), ServerError> {
+    if !cfg.hmi.enabled {
+        return Ok(());
+    }
+    if let Some(t) = hmi_tls_config(cfg)? {
         Server::builder()
             .tls_config(t)
             .map_err(|e| ServerError::Tls(e.to_string()))?;
@@ -392,6 +418,26 @@ pub async fn serve_listeners(
 ) -> Result<(), ServerError> {
     let tls = tls_config(&ctl.config().api)?;
     serve_listeners_with(ctl, listeners, tls, shutdown).await
+}
+
+/// What `cncd` serves: `listeners` with the API's TLS, and when `[hmi]` is enabled its
+/// listener `hmi` (already bound to `hmi.listen`) with the files embedded in this binary.
+pub async fn serve_with_configured_hmi(
+    ctl: Arc<Controller>,
+    listeners: Listeners,
+    hmi: Option<TcpListener>,
+    shutdown: impl Future<Output = ()> + Send,
+) -> Result<(), ServerError> {
+    let tls = tls_config(&ctl.config().api)?;
+    let hmi = match hmi {
+        Some(listener) => Some(HmiListener {
+            listener,
+            assets: Arc::new(Assets::embedded()),
+            tls: hmi_tls_config(ctl.config())?,
+        }),
+        None => None,
+    };
+    serve_with_hmi(ctl, listeners, tls, hmi, shutdown).await
 }
 
 /// As [`serve_listeners`] with explicit TLS settings for the remote listeners (tests).

@@ -383,7 +383,7 @@ impl Daemon {
         }
         cfg.push_str(bus_section);
         cfg.push_str(&format!(
-            "\n[api]\nlisten = '127.0.0.1:{port}'\nunix_socket = '{}'\n\n[rt]\nlock_memory = false\n\n\
+            "\n[api]\nlisten = '127.0.0.1:{port}'\nunix_socket = '{}'\n\n[hmi]\nlisten = '127.0.0.1:0'\n\n[rt]\nlock_memory = false\n\n\
              [storage]\ndir = '{}'\n",
             socket.display(),
             dir.join("data").display()
