@@ -10,6 +10,7 @@
 - browser memory (JS heap, DOM nodes) after CNC_MINUTES of live status with a program running.
 Environment: CNC_HMI_URL, CNC_ADDR (gRPC), CNC_TOKEN, CNC_MINUTES; PYTHONPATH with the stubs."""
 
+import bisect
 import os
 import statistics
 import tempfile
@@ -98,7 +99,6 @@ def dro_rate_and_latency(d, seconds=20.0) -> None:
     native.stream.cancel()
     seqs = sorted(native.seen)
     lat = []
-    import bisect
     for seq, t in drawn:
         i = bisect.bisect_left(seqs, seq)
         if i < len(seqs):
@@ -128,7 +128,7 @@ def preview_big(d, blocks: int) -> None:
     big_program(path, blocks)
     size_mb = os.path.getsize(path) / 1e6
     d.get(URL + "#token=" + TOKEN)
-    wait("operator", lambda: tid(d, "role").text == "operator")
+    wait("operator", lambda: tid(d, "role").get_attribute("textContent") == "operator")
     tid(d, "tab-programs").click()
     t0 = time.time()
     tid(d, "program-upload").send_keys(path)
@@ -143,7 +143,8 @@ def preview_big(d, blocks: int) -> None:
         window.__long = Math.max(window.__long, e.duration); }).observe({type: 'longtask', buffered: false});""")
     t0 = time.time()
     tid(d, "tab-preview").click()
-    wait("drawn", lambda: tid(d, "preview").get_attribute("data-state") == "drawn")
+    wait("drawn", lambda: tid(d, "preview").get_attribute("data-state") == "drawn"
+         and f"cam_{blocks}.nc" in tid(d, "preview-info").get_attribute("textContent"))
     t_pic = time.time() - t0
     mode = tid(d, "preview").get_attribute("data-mode")
     # Responsiveness: a click on another tab is handled at once after the picture.
@@ -186,7 +187,7 @@ def memory_run(d, minutes: float) -> None:
 d = browser()
 page_load(d)
 dro_rate_and_latency(d)
-preview_big(d, 50_000)
-preview_big(d, 1_000_000)
+for n in os.environ.get("CNC_BENCH_BLOCKS", "50000,1000000").split(","):
+    preview_big(d, int(n))
 memory_run(d, MINUTES)
 d.quit()

@@ -14,7 +14,7 @@ import { type Screen, messageLine } from "../screen";
 import { subscribe } from "../status";
 import { ImageFormat, JunctionClass, type PreviewData, type Status } from "../gen/cnc/v1/cnc_pb";
 
-const DATA_MAX_BLOCKS = 100_000;
+const DATA_MAX_BLOCKS = 20_000;
 const COLORS = { path: "#c8c8c8", rapid: "#e08a3c", comp: "#3d8bff", smooth: "#ffd400", red: "#ff3030", tool: "#39ff88" };
 
 interface View { scale: number; ox: number; oy: number }
