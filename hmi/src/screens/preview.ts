@@ -25,7 +25,7 @@ export function previewScreen(): Screen {
   const overlay = h("canvas", { class: "layer" });
   const picture = h("img", { class: "layer picture", hidden: true, alt: "preview picture" });
   const stage = h("div", { class: "stage", testid: "preview", "data-state": "empty" }, base, picture, overlay);
-  const velocity = h("img", { class: "velocity", testid: "velocity-plot", alt: "velocity plot" });
+  const velocity = h("img", { class: "velocity", testid: "velocity-plot", alt: "velocity plot", hidden: true });
   const plane = h("select", { testid: "preview-plane" },
     h("option", { value: "xy" }, "XY"), h("option", { value: "xz" }, "XZ"), h("option", { value: "yz" }, "YZ"), h("option", { value: "zx" }, "ZX (lathe)"));
   const pageLabel = h("span", { class: "lbl" });
@@ -155,6 +155,7 @@ export function previewScreen(): Screen {
   async function loadVelocity(): Promise<void> {
     const r = await preview.getPreview({ velocity: true, format: ImageFormat.SVG, page, widthPx: 1200, heightPx: 300 });
     velocity.src = URL.createObjectURL(new Blob([r.image as BlobPart], { type: "image/svg+xml" }));
+    velocity.hidden = false;
   }
 
   async function loadPicture(): Promise<void> {
@@ -175,6 +176,7 @@ export function previewScreen(): Screen {
     const t0 = performance.now();
     try {
       data = undefined; prog = comp = undefined; dots = [];
+      velocity.hidden = true;
       if (s.blocksTotal <= DATA_MAX_BLOCKS) {
         picture.hidden = true;
         data = await preview.getPreviewData({ text: "", junctions: true });
