@@ -31,4 +31,15 @@ if [ -x tests/python/run.sh ]; then
   echo "== Python gRPC client"
   tests/python/run.sh
 fi
+
+# The browser HMI: its committed build is what hmi/src and cnc.proto give (needs node/npm),
+# then real headless Chromium drives it against cncd (installs chromium and selenium).
+if [ -x hmi/check.sh ]; then
+  echo "== browser HMI assets reproducible"
+  hmi/check.sh
+fi
+if [ -x tests/browser/run.sh ]; then
+  echo "== browser HMI in Chromium"
+  tests/browser/run.sh
+fi
 echo "== all test suites passed"

@@ -1,0 +1,30 @@
+// Homing: the reference run of all axes or of one, and which axes are referenced.
+import { machine } from "../api";
+import { button, h, setText } from "../dom";
+import { errorText } from "../format";
+import { type Screen, messageLine } from "../screen";
+import { subscribe } from "../status";
+
+export function homingScreen(): Screen {
+  const msg = messageLine();
+  const rows = h("div", { class: "home-axes" });
+  const flags = new Map<string, HTMLElement>();
+  const home = (axes: string) => () => {
+    msg.ok(`homing ${axes || "all axes"} …`);
+    machine.home({ axes }, { timeoutMs: 600_000 }).then((r) => msg.ok(`homed ${r.homed}`), (e) => msg.err(errorText(e)));
+  };
+  subscribe((s) => {
+    for (const a of s.axes) {
+      let f = flags.get(a.name);
+      if (!f) {
+        f = h("span", { class: "flag" });
+        flags.set(a.name, f);
+        rows.append(h("div", { class: "row" }, h("span", { class: "axis" }, a.name), f, button(`Home ${a.name}`, `home-${a.name}`, home(a.name))));
+      }
+      setText(f, a.homed ? "referenced" : a.homingRequired ? "NOT REFERENCED (required)" : "not referenced");
+      f.className = a.homed ? "flag ok" : "flag err";
+    }
+  });
+  const el = h("div", { class: "screen homing" }, button("Home all", "home-all", home(""), "start"), rows, msg.el);
+  return { id: "homing", title: "Homing", el };
+}
