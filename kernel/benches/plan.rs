@@ -435,7 +435,41 @@ fn tick_cost() {
     println!();
 }
 
+/// Issue #32: the planner on the paths of the independent reference
+/// (`scripts/planner-reference/`: exact junction bound on the polyline and TOPP-RA on the
+/// smooth curve, per-axis box constraints), on the configuration `cncd` builds for the
+/// issue's machine. `scripts/linuxcnc-compare/` reads this table.
+fn reference_paths_table() {
+    println!("## Dense paths against the independent reference (issue #32)\n");
+    println!(
+        "| path | blocks | exact s | smooth (TOPP-RA) s | limit s | planner s | planner / limit | max axis a / limit | off path mm |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let cfg = reference_config();
+    for p in reference_paths() {
+        let r = run(cfg.clone(), &p.blocks);
+        let w = measure(&cfg, &r, 8.0);
+        println!(
+            "| {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.4} | {:.1e} |",
+            p.name,
+            p.blocks.len(),
+            p.exact_s,
+            p.smooth_s,
+            p.limit_s,
+            r.time_s(),
+            r.time_s() / p.limit_s,
+            w.axis_a,
+            w.off_path_mm
+        );
+    }
+    println!();
+}
+
 fn main() {
+    reference_paths_table();
+    if std::env::args().any(|a| a == "reference") {
+        return;
+    }
     machining_times();
     parabolic_moves();
     throughput();
