@@ -465,7 +465,33 @@ fn reference_paths_table() {
     println!();
 }
 
+/// `cargo bench -p kernel --bench plan -- count`: one planner pass over 20000 circle chords
+/// (linear.rek), for an instruction count under valgrind (load-independent).
+fn count_only() {
+    let blocks = dense_blocks(20_000);
+    let mut pl = Planner::new(ours(1), 1);
+    let mut n = 0usize;
+    for b in &blocks {
+        while !pl.wants_input() {
+            n += usize::from(pl.poll().is_some());
+        }
+        pl.push(b).unwrap();
+        while pl.poll().is_some() {
+            n += 1;
+        }
+    }
+    pl.finish();
+    while pl.poll().is_some() {
+        n += 1;
+    }
+    println!("{n} segments");
+}
+
 fn main() {
+    if std::env::args().any(|a| a == "count") {
+        count_only();
+        return;
+    }
     reference_paths_table();
     if std::env::args().any(|a| a == "reference") {
         return;

@@ -442,7 +442,9 @@ impl Planner {
         // cap (`box_window_bound`; the fixed split leaves more).
         let floor = (0..axes)
             .filter(|&k| dir[k] > 1e-12)
-            .fold(p.a_axes, |f, k| f.min(self.cfg.axis_a_max_mm_s2[k] / dir[k]));
+            .fold(p.a_axes, |f, k| {
+                f.min(self.cfg.axis_a_max_mm_s2[k] / dir[k])
+            });
         let mut b = LineBudget::new(v_ref, p.a_axes, (1.0 - BOX_NORMAL_SHARE) * floor, base);
         for k in 0..axes {
             b.add_axis(self.cfg.axis_a_max_mm_s2[k], normal[k], dir[k]);
