@@ -435,7 +435,67 @@ fn tick_cost() {
     println!();
 }
 
+/// Issue #32: the planner on the paths of the independent reference
+/// (`scripts/planner-reference/`: exact junction bound on the polyline and TOPP-RA on the
+/// smooth curve, per-axis box constraints), on the configuration `cncd` builds for the
+/// issue's machine. `scripts/linuxcnc-compare/` reads this table.
+fn reference_paths_table() {
+    println!("## Dense paths against the independent reference (issue #32)\n");
+    println!(
+        "| path | blocks | exact s | smooth (TOPP-RA) s | limit s | planner s | planner / limit | max axis a / limit | off path mm |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let cfg = reference_config();
+    for p in reference_paths() {
+        let r = run(cfg.clone(), &p.blocks);
+        let w = measure(&cfg, &r, 8.0);
+        println!(
+            "| {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.4} | {:.1e} |",
+            p.name,
+            p.blocks.len(),
+            p.exact_s,
+            p.smooth_s,
+            p.limit_s,
+            r.time_s(),
+            r.time_s() / p.limit_s,
+            w.axis_a,
+            w.off_path_mm
+        );
+    }
+    println!();
+}
+
+/// `cargo bench -p kernel --bench plan -- count`: one planner pass over 20000 circle chords
+/// (linear.rek), for an instruction count under valgrind (load-independent).
+fn count_only() {
+    let blocks = dense_blocks(20_000);
+    let mut pl = Planner::new(ours(1), 1);
+    let mut n = 0usize;
+    for b in &blocks {
+        while !pl.wants_input() {
+            n += usize::from(pl.poll().is_some());
+        }
+        pl.push(b).unwrap();
+        while pl.poll().is_some() {
+            n += 1;
+        }
+    }
+    pl.finish();
+    while pl.poll().is_some() {
+        n += 1;
+    }
+    println!("{n} segments");
+}
+
 fn main() {
+    if std::env::args().any(|a| a == "count") {
+        count_only();
+        return;
+    }
+    reference_paths_table();
+    if std::env::args().any(|a| a == "reference") {
+        return;
+    }
     machining_times();
     parabolic_moves();
     throughput();

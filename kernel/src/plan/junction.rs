@@ -8,6 +8,11 @@ use super::{
 };
 use crate::units::{AxesMm, MAX_AXES, TS_S};
 
+/// Share of each axis's acceleration the normal acceleration of the turns may take at a
+/// junction's cap in the linear profile (issue #32); the rest is the floor of the
+/// tangential acceleration of the lines beside it, so braking never stalls.
+pub(super) const BOX_NORMAL_SHARE: f64 = 0.8;
+
 /// How much of the axes' path acceleration a block may use along the path.
 enum Share {
     /// A fixed fraction of `a_axes`.
@@ -21,6 +26,10 @@ enum Share {
 struct WindowLimits {
     /// Normal share of the smallest axis acceleration of the axes involved, mm/s².
     a_iso: f64,
+    /// Dynamic criterion am (R385), mm/s².
+    am: f64,
+    /// Share of each axis's acceleration the turns may take (box rule).
+    share: f64,
     /// Accuracy criterion Lm, µm (0 = off).
     lm_um: f64,
     /// Axis filter time T (0 without the filter), s.
@@ -80,14 +89,30 @@ impl Planner {
     /// Computes the junction at the end of block `i` (all criteria of SPEC §7.2) and the final
     /// limits of block `i` itself.
     pub(super) fn finalize(&mut self, i: usize, last: bool) {
-        let (crit, criteria_cap) = if last {
+        let (mut crit, mut criteria_cap) = if last {
             (0.0, 0.0)
         } else {
-            self.junction_speed(i)
+            self.junction_speed(i, BOX_NORMAL_SHARE)
         };
         let passed = !last && self.win[i].smooth && criteria_cap > 0.0;
-        let turns = (passed && self.cfg.envelope.profile == Profile::Linear)
+        let mut turns = (passed && self.cfg.envelope.profile == Profile::Linear)
             .then(|| self.junction_turns(i, criteria_cap));
+        if passed && self.box_rule(i) {
+            // The per-axis box lets the turn take nearly all of an axis; the lines beside
+            // it then ramp slowly. Where that loses time (long lines that ramp far from
+            // the turn's speed) the turn takes half of each axis instead (issue #32).
+            let (gain, loss) = self.corner_net_s(i, criteria_cap, turns.as_ref());
+            if loss > 0.05 * gain.max(0.0) {
+                let (c, cap) = self.junction_speed(i, NORMAL_SHARE);
+                if cap > 0.0 {
+                    let t = self.junction_turns(i, cap);
+                    let (g, l) = self.corner_net_s(i, cap, Some(&t));
+                    if g - l > gain - loss {
+                        (crit, criteria_cap, turns) = (c, cap, Some(t));
+                    }
+                }
+            }
+        }
         let planned_stop = !last && self.corner_is_a_stop(i, criteria_cap, turns.as_ref());
         let p = &mut self.win[i];
         if planned_stop {
@@ -110,25 +135,48 @@ impl Planner {
     /// Criteria speed at the end of block `i` as if the junction were smooth, and its hard cap
     /// (0 when it is not smooth): dynamic (R385 with the 8.R385 correction), accuracy (R384),
     /// the ceilings of both blocks, and for a smooth junction the local curvature window.
-    fn junction_speed(&mut self, i: usize) -> (f64, f64) {
+    fn junction_speed(&mut self, i: usize, share: f64) -> (f64, f64) {
         let env = &self.cfg.envelope;
         let (p, n) = (&self.win[i], &self.win[i + 1]);
         let set = &env.sets[n.set];
-        let a_iso = self.cfg.iso_accel(&p.t_end, &n.t_start) * NORMAL_SHARE;
+        // Linear profile: the normal acceleration is checked per axis against the whole
+        // axis limit over the tick window (`window_bound`, issue #32), so the manual's
+        // dynamic criterion keeps only its own am here. Elsewhere the fixed normal share.
+        let box_rule = self.box_rule(i);
+        // Under the box rule the lines beside a turn keep what the turn leaves of each axis
+        // at the highest speed they run; with the override headroom on top (150 %) that is
+        // next to nothing on a curve that allows more than the feed. So a box-rule turn is
+        // passed at most at the programmed feed: override above 100 % does not raise the
+        // speed through it (issue #32).
+        let override_max = if box_rule { 1.0 } else { OVERRIDE_MAX };
+        let a_iso = if box_rule {
+            f64::INFINITY
+        } else {
+            self.cfg.iso_accel(&p.t_end, &n.t_start) * NORMAL_SHARE
+        };
         let am = set.overload_mm_s2.min(a_iso);
         let len = 0.5 * (p.seg.length_mm + n.seg.length_mm);
         let v = criteria::dynamic_mm_s(am, p.turn, set.overload_ref_len_mm, len)
             .min(criteria::accuracy_mm_s(set.accuracy_um, p.turn))
             .min(p.seg.v_max_mm_s)
             .min(n.seg.v_max_mm_s)
-            .min(OVERRIDE_MAX * p.seg.feed_mm_s.max(n.seg.feed_mm_s));
+            .min(override_max * p.seg.feed_mm_s.max(n.seg.feed_mm_s));
         if !p.smooth {
             return (v, 0.0);
         }
-        let limits = self.window_limits(i, a_iso);
-        let guess = self.window_guess_mm_s;
-        let (v, searched) = largest_within(v, guess, |v| self.window_bound(i, v, &limits));
-        if searched {
+        let mut limits = self.window_limits(i, a_iso);
+        limits.share = share;
+        let guess = if share == BOX_NORMAL_SHARE {
+            self.window_guess_mm_s
+        } else {
+            0.0
+        };
+        let (v, searched) = if box_rule {
+            largest_within(v, guess, |v| self.box_window_bound(i, v, &limits))
+        } else {
+            largest_within(v, guess, |v| self.window_bound(i, v, &limits))
+        };
+        if searched && share == BOX_NORMAL_SHARE {
             self.window_guess_mm_s = v;
         }
         (v, v)
@@ -146,6 +194,8 @@ impl Planner {
         let a_path = |q: &Pending| env.sets[q.set].accel_mm_s2.min(q.a_axes) * (1.0 - NORMAL_SHARE);
         WindowLimits {
             a_iso,
+            am: env.sets[n.set].overload_mm_s2,
+            share: BOX_NORMAL_SHARE,
             lm_um: env.sets[n.set].accuracy_um,
             t_f: self.cfg.axis_filter_s(),
             a_corner: a_path(p).max(a_path(n)),
@@ -188,6 +238,66 @@ impl Planner {
             }
         }
         turn.dynamic_mm_s(l.a_iso).min(turn.accuracy_mm_s(l.lm_um))
+    }
+
+    /// Whether junction `i` takes its normal acceleration from the per-axis box (issue #32):
+    /// linear profile, lines on both sides whose neighbours are lines too (arcs and the
+    /// lines next to them keep the fixed split of `tangential_share`), axes with finite
+    /// limits. The block after the next must be known (it decides whether the next line
+    /// is next to an arc).
+    pub(super) fn box_rule(&self, i: usize) -> bool {
+        if self.cfg.envelope.profile != Profile::Linear {
+            return false;
+        }
+        let is_line =
+            |q: &Pending| matches!(q.seg.path, SegPath::Line { .. }) && q.a_axes.is_finite();
+        let (p, n) = (&self.win[i], &self.win[i + 1]);
+        if !is_line(p) || !is_line(n) {
+            return false;
+        }
+        if i > 0 && self.win[i - 1].smooth && !is_line(&self.win[i - 1]) {
+            return false;
+        }
+        match self.win.get(i + 2) {
+            Some(q) => !n.smooth || is_line(q),
+            None => self.finished,
+        }
+    }
+
+    /// The per-axis form of the curvature criterion (linear profile, issue #32): over the
+    /// tick window around junction `i` at speed `v`, per axis k
+    /// - the normal acceleration v_ref·T_k/Ts (the turns of [`Planner::junction_turns`],
+    ///   v_ref = v + A·Ts) within `BOX_NORMAL_SHARE` of a_k: constant speed on constant
+    ///   curvature needs no tangential budget, and the lines beside it keep what is left
+    ///   ([`LineBudget`], at least the floor of the other share);
+    /// - the dynamic criterion R385 on the velocity step of each axis, v·|Θ_k| ≤ am·Ts
+    ///   (**decided**: am is an axis acceleration; at the junction itself the manual's
+    ///   formula on the norm holds as well);
+    /// - the accuracy criterion on the chord of a tick: v·Ts·|Θ|/4 ≤ Lm (a tick chord of
+    ///   v·Ts across a turn Θ misses its apex by at most v·Ts·sin(Θ/2)/2).
+    ///
+    /// Θ = t(+h) − t(−h), h = v_ref·Ts/2.
+    fn box_window_bound(&self, i: usize, v: f64, l: &WindowLimits) -> f64 {
+        let axes = self.cfg.axes;
+        let (t, window) = self.turns_and_window(i, v);
+        let a_ts = t.v_ref_mm_s - v;
+        let mut bound = f64::INFINITY;
+        for k in 0..axes {
+            let turn = t.normal_per_s[k] * TS_S;
+            if turn > 1e-12 {
+                let a_k = self.cfg.axis_a_max_mm_s2[k] * l.share;
+                bound = bound.min(a_k * TS_S / turn - a_ts);
+            }
+            let w = window[k].abs();
+            if w > 1e-12 {
+                bound = bound.min(l.am * TS_S / w);
+            }
+        }
+        let chord = window.norm(axes);
+        if l.lm_um > 0.0 && chord > 1e-12 {
+            bound = bound.min(4.0 * l.lm_um * 1e-3 / (TS_S * chord));
+        }
+        bound
     }
 
     /// Acceleration of block `i` (feed, and stop/hold): R52 without continuity, R236 (or the
@@ -328,8 +438,14 @@ impl Planner {
                 dir[k] = dir[k].max(t.dir[k]);
             }
         }
-        let split = 1.0 - NORMAL_SHARE;
-        let mut b = LineBudget::new(v_ref, p.a_axes, split * p.a_axes, base);
+        // The floor: what the normal acceleration leaves on every axis at any junction's
+        // cap (`box_window_bound`; the fixed split leaves more).
+        let floor = (0..axes)
+            .filter(|&k| dir[k] > 1e-12)
+            .fold(p.a_axes, |f, k| {
+                f.min(self.cfg.axis_a_max_mm_s2[k] / dir[k])
+            });
+        let mut b = LineBudget::new(v_ref, p.a_axes, (1.0 - BOX_NORMAL_SHARE) * floor, base);
         for k in 0..axes {
             b.add_axis(self.cfg.axis_a_max_mm_s2[k], normal[k], dir[k]);
         }
@@ -342,6 +458,12 @@ impl Planner {
     /// acceleration of the two blocks); and the tangent components the ticks near it move
     /// along. Looked up once per junction for the lines on both sides.
     pub(super) fn junction_turns(&self, j: usize, cap: f64) -> JunctionTurns {
+        self.turns_and_window(j, cap).0
+    }
+
+    /// [`Planner::junction_turns`] and the turn of the tangent over the tick window,
+    /// t(+h) − t(−h).
+    fn turns_and_window(&self, j: usize, cap: f64) -> (JunctionTurns, AxesMm) {
         let axes = self.cfg.axes;
         let (a0, a1) = (self.win[j].a_axes, self.win[j + 1].a_axes);
         let a = if a0.is_finite() && a1.is_finite() {
@@ -358,17 +480,18 @@ impl Planner {
         // The velocity change of a tick weighs the turns within ±v·Ts of it by
         // 1 − |x|/(v·Ts): the mean of the turns within ±h/2 and ±3h/2.
         let mut ahead = [AxesMm::ZERO; 4];
-        let mut behind = [AxesMm::ZERO; 3];
-        self.tangents_near(j, true, &[h / 2.0, h, 1.5 * h, 3.0 * h], &mut ahead);
-        self.tangents_near(j, false, &[h / 2.0, 1.5 * h, 3.0 * h], &mut behind);
+        let mut behind = [AxesMm::ZERO; 4];
+        let ds = [h / 2.0, h, 1.5 * h, 3.0 * h];
+        self.tangents_near(j, true, &ds, &mut ahead);
+        self.tangents_near(j, false, &ds, &mut behind);
         let [ti1, t1, to1, t2] = ahead;
-        let [ti0, to0, tm] = behind;
+        let [ti0, t0, to0, tm] = behind;
         for k in 0..axes {
             let turn = 0.5 * ((ti1[k] - ti0[k]).abs() + (to1[k] - to0[k]).abs());
             t.normal_per_s[k] = turn / TS_S;
             t.dir[k] = t1[k].abs().max(t2[k].abs()).max(tm[k].abs());
         }
-        t
+        (t, t1 - t0)
     }
 
     /// R395: keep the junction speeds through a short block unless rising pays off. Only
@@ -409,14 +532,42 @@ impl Planner {
         if !p.smooth || !shares {
             return false;
         }
+        let (gain, loss) = self.corner_net_s(i, cap, turns);
+        loss > gain
+    }
+
+    /// What passing junction `i` at `cap` gains over stopping there, and what the lines
+    /// beside it lose by ramping at the acceleration the turn leaves them, s (see
+    /// [`Planner::corner_is_a_stop`]). A gain of −∞ where the corner is passed slower than
+    /// one tick's acceleration step.
+    pub(super) fn corner_net_s(
+        &self,
+        i: usize,
+        cap: f64,
+        turns: Option<&JunctionTurns>,
+    ) -> (f64, f64) {
+        let (p, n) = (&self.win[i], &self.win[i + 1]);
+        let is_arc = |q: &Pending| matches!(q.seg.path, SegPath::Arc { .. });
         let sets = &self.cfg.envelope.sets;
         let a = |q: &Pending| sets[q.set].accel_mm_s2.min(q.a_axes);
-        // The speed the corner can actually be passed at, with rest at the far ends.
+        // The speed the corner can actually be passed at, from the speeds at the far ends
+        // (rest at a stop; on a dense path a tiny block between smooth junctions must not
+        // turn its junctions into stops, issue #32).
+        let far_p = if i > 0 && self.win[i - 1].smooth {
+            self.win[i - 1].cap
+        } else {
+            0.0
+        };
+        let far_n = if n.smooth {
+            n.seg.feed_mm_s.min(n.seg.v_max_mm_s)
+        } else {
+            0.0
+        };
         let cap = cap
-            .min((a(p) * p.seg.length_mm).sqrt())
-            .min((a(n) * n.seg.length_mm).sqrt());
+            .min((far_p * far_p + a(p) * p.seg.length_mm).sqrt())
+            .min((far_n * far_n + a(n) * n.seg.length_mm).sqrt());
         if cap < a(p).min(a(n)) * TS_S {
-            return true;
+            return (f64::NEG_INFINITY, 0.0);
         }
         let start = (i > 0 && self.win[i - 1].smooth)
             .then(|| self.win[i - 1].turns)
@@ -452,6 +603,6 @@ impl Planner {
             };
             loss += (1.0 / b - 1.0 / aq) * (v - cap) * (v - cap) / (2.0 * v);
         }
-        loss > gain
+        (gain, loss)
     }
 }

@@ -710,3 +710,76 @@ pub fn star(r: f64, feed: f64) -> Vec<Block> {
     }
     p.blocks
 }
+
+/// One path of the independent reference (issue #32, `scripts/planner-reference/`): its
+/// program and the limit times the reference computed without the planner.
+pub struct ReferencePath {
+    pub name: String,
+    pub title: String,
+    pub blocks: Vec<Block>,
+    pub exact_s: f64,
+    pub smooth_s: f64,
+    pub limit_s: f64,
+}
+
+/// Directory of the committed reference paths.
+pub fn reference_dir() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/planner-reference")
+}
+
+/// The machine of issue #32: per axis 20000 mm/min and 1000 mm/s², constants
+/// `scripts/planner-reference/machine.rek` (R384 Lm = 8 µm, R385 am = 1000), default
+/// `[planner] min_block_time_ms` 0: the configuration `cncd` builds for it.
+pub fn reference_config() -> PlannerConfig {
+    let text = std::fs::read_to_string(reference_dir().join("machine.rek")).unwrap();
+    let c = Constants::parse(&text).unwrap();
+    let axis = kernel::plan::AxisLimits {
+        v_max_mm_s: 20000.0 / 60.0,
+        a_max_mm_s2: 1000.0,
+    };
+    PlannerConfig::for_machine(&[axis; 3], 0.0, Some(&c))
+}
+
+/// The reference paths with their limits (`reference.tsv`).
+pub fn reference_paths() -> Vec<ReferencePath> {
+    let dir = reference_dir();
+    let table = std::fs::read_to_string(dir.join("reference.tsv")).unwrap();
+    table
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| {
+            let f: Vec<&str> = l.split('\t').collect();
+            let nc =
+                std::fs::read_to_string(dir.join("paths").join(format!("{}.nc", f[0]))).unwrap();
+            ReferencePath {
+                name: f[0].to_string(),
+                title: f[6].to_string(),
+                blocks: program_of_g1(&nc),
+                exact_s: f[3].parse().unwrap(),
+                smooth_s: f[4].parse().unwrap(),
+                limit_s: f[5].parse().unwrap(),
+            }
+        })
+        .collect()
+}
+
+/// Blocks of a program of `G1 X Y Z` lines from the origin (the reference's programs; the
+/// first line also carries G23 and F).
+fn program_of_g1(text: &str) -> Vec<Block> {
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 6000.0, Continuity::G23);
+    for line in text.lines() {
+        let mut q = p.pos;
+        for w in line.split_whitespace() {
+            let (k, v) = w.split_at(1);
+            match k {
+                "X" => q[0] = v.parse().unwrap(),
+                "Y" => q[1] = v.parse().unwrap(),
+                "Z" => q[2] = v.parse().unwrap(),
+                "F" => p.feed_mm_min = v.parse().unwrap(),
+                _ => {}
+            }
+        }
+        p.g1(q);
+    }
+    p.blocks
+}

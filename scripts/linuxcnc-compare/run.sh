@@ -1,0 +1,58 @@
+#!/bin/sh
+# Side by side with LinuxCNC 2.9 (issue #32): runs the reference paths of
+# scripts/planner-reference/paths on a headless simulated LinuxCNC (Debian's linuxcnc-uspace,
+# trivkins, loopback feedback, 1 ms servo, HAL sampler on the servo thread) and prints its
+# time, axis accelerations and path deviation beside the planner's (kernel bench, the
+# configuration cncd builds). Not part of CI (minutes per path); the table goes into
+# docs/planner.md. Usage: scripts/linuxcnc-compare/run.sh [names...]   (as root)
+set -eu
+ROOT=$(cd "$(dirname "$0")/../.." && pwd)
+HERE=$ROOT/scripts/linuxcnc-compare
+PATHS=$ROOT/scripts/planner-reference/paths
+WORK=$ROOT/target/linuxcnc-compare
+NAMES=${*:-$(cd "$PATHS" && ls *.nc | sed 's/\.nc$//' | tr '\n' ' ')}
+
+if ! command -v linuxcnc >/dev/null; then
+    apt-get update
+    apt-get install -y linuxcnc-uspace
+fi
+VENV=$WORK/venv
+if [ ! -x "$VENV/bin/python" ]; then
+    python3 -m venv "$VENV"
+    "$VENV/bin/pip" install -q numpy
+fi
+
+rm -rf "$WORK/config" "$WORK/programs" "$WORK/out"
+mkdir -p "$WORK/config" "$WORK/programs" "$WORK/out"
+cp "$HERE/config/sim.hal" "$HERE/config/sim.tbl" "$WORK/config/"
+: > "$WORK/config/sim.var"
+sed "s|@DISPLAY@|$HERE/driver.py $WORK/programs $WORK/out $NAMES|" \
+    "$HERE/config/sim.ini.in" > "$WORK/config/sim.ini"
+
+# The same paths as LinuxCNC programs: G64 P0.008 (the planner's Lm), no N words.
+for n in $NAMES; do
+    {
+        echo "G21 G90 G17 G94 G64 P0.008"
+        sed 's/^G23 //' "$PATHS/$n.nc"
+        echo "M2"
+    } > "$WORK/programs/$n.ngc"
+done
+
+# rtapi_app as root needs an unprivileged user, and its master socket (RTAPI_FIFO_PATH, a
+# file) in a world-writable directory that user can reach.
+RTAPI_UID=$(id -u nobody)
+RTAPI_FIFO_PATH=/tmp/planner-compare-rtapi-$$
+export RTAPI_UID RTAPI_FIFO_PATH
+rm -f /tmp/linuxcnc.lock
+echo "running LinuxCNC on: $NAMES"
+# (on a pseudo terminal the launcher writes its messages to our log, not to temporary files)
+(cd "$WORK/config" && script -qec "linuxcnc sim.ini" /dev/null < /dev/null) > "$WORK/linuxcnc.log" 2>&1 || {
+    echo "linuxcnc failed, see $WORK/linuxcnc.log" >&2
+    tail -20 "$WORK/linuxcnc.log" >&2
+    exit 1
+}
+cat "$WORK/out/driver.log"
+
+echo "running the planner bench (reference table)"
+(cd "$ROOT" && cargo bench -q -p kernel --bench plan -- reference) > "$WORK/ours.md"
+"$VENV/bin/python" "$HERE/analyze.py" "$PATHS" "$WORK/out" "$WORK/ours.md" $NAMES | tee "$WORK/table.md"

@@ -1,0 +1,14 @@
+#!/bin/sh
+# Regenerates the independent reference of the planner (issue #32): the paths
+# (paths/*.nc) and their limit times (reference.tsv), with TOPP-RA from PyPI in a venv under
+# target/. Minutes; the results are committed. Usage: scripts/planner-reference/run.sh
+set -eu
+ROOT=$(cd "$(dirname "$0")/../.." && pwd)
+VENV=$ROOT/target/planner-ref/venv
+if [ ! -x "$VENV/bin/python" ]; then
+    python3 -m venv "$VENV"
+fi
+"$VENV/bin/python" -c "import toppra, scipy, numpy" 2>/dev/null ||
+    "$VENV/bin/pip" install -q toppra numpy scipy
+cd "$ROOT/scripts/planner-reference"
+"$VENV/bin/python" reference.py "$@"
