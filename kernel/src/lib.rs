@@ -26,5 +26,5 @@ pub mod plc;
 pub mod program;
 pub mod units;
 
-pub use diag::{DiagCode, Diagnostic, Severity};
+pub use diag::{DiagCode, DiagCounts, Diagnostic, Severity};
 pub use units::{AxesMm, MAX_AXES, TS_S};

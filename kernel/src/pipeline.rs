@@ -16,7 +16,7 @@
 
 use crate::block::{Block, BlockKind, Continuity};
 use crate::comp::{CompBlock, Compensator};
-use crate::diag::{DiagCode, Diagnostic};
+use crate::diag::{DiagCode, DiagCounts, Diagnostic};
 use crate::machine::MachineSetup;
 use crate::offsets::TableEdit;
 use crate::plan::{Planner, Segment};
@@ -296,46 +296,70 @@ pub fn run_lines<L: program::Lines>(
     p.summary
 }
 
-/// Diagnostics beyond this many are counted, not listed.
-pub const MAX_LISTED: usize = 1000;
+/// Diagnostics beyond this many are counted, not listed (issue #31): every door (validate,
+/// upload, load, run, start) answers at most the first `MAX_LISTED` messages, the first error
+/// always among them, and the totals by severity (docs/api.md "Diagnostics at any size").
+pub const MAX_LISTED: usize = 200;
 
 /// Outcome of validating a program: the verdict of validate, upload, load, start and MDI.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Validation {
     /// Programmed blocks (the interpreter's count).
     pub blocks: u32,
-    /// Every error, warning and information, in the order found (see [`MAX_LISTED`]).
+    /// The first [`MAX_LISTED`] errors, warnings and notes in the order found (the first
+    /// error always listed), then a `messages_not_listed` note counting the rest.
     pub diagnostics: Vec<Diagnostic>,
-    /// Messages found but not listed.
-    unlisted: usize,
+    /// Messages found but not listed, by severity.
+    unlisted: DiagCounts,
+    /// Whether an error is listed.
+    error_listed: bool,
 }
 
 impl Validation {
     pub fn has_errors(&self) -> bool {
-        self.diagnostics.iter().any(Diagnostic::is_error)
+        self.error_listed
     }
 
-    /// Keeps `d` unless the list is full (errors get a second allowance so that a program
-    /// with many warnings still lists its errors).
+    /// Every message found, listed or not, by severity.
+    pub fn counts(&self) -> DiagCounts {
+        DiagCounts::of(&self.diagnostics)
+    }
+
+    /// Keeps `d` unless the list is full (the first error is kept whatever came before it,
+    /// so that a program with many warnings still lists why it is refused).
     pub fn add(&mut self, d: Diagnostic) {
         let n = self.diagnostics.len();
-        if n < MAX_LISTED || d.is_error() && n < 2 * MAX_LISTED {
+        if n < MAX_LISTED || d.is_error() && !self.error_listed {
+            self.error_listed |= d.is_error();
             self.diagnostics.push(d);
+        } else if let Some(c) = d.not_listed {
+            self.unlisted.errors += c.errors;
+            self.unlisted.warnings += c.warnings;
+            self.unlisted.infos += c.infos;
         } else {
-            self.unlisted += 1;
+            self.unlisted.add(d.severity);
         }
     }
 
     fn close(&mut self, s: Summary) {
         self.blocks = s.blocks;
-        if self.unlisted > 0 {
-            self.diagnostics.push(Diagnostic::info(
+        let u = self.unlisted;
+        if u.total() > 0 {
+            let mut note = Diagnostic::info(
                 DiagCode::MessagesNotListed,
                 None,
                 0,
                 0,
-                format!("{} more messages not listed", self.unlisted),
-            ));
+                format!(
+                    "{} more messages not listed ({} errors, {} warnings, {} notes)",
+                    u.total(),
+                    u.errors,
+                    u.warnings,
+                    u.infos
+                ),
+            );
+            note.not_listed = Some(u);
+            self.diagnostics.push(note);
         }
     }
 }

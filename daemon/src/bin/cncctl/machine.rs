@@ -13,7 +13,7 @@ use serde_json::{Value, json};
 use crate::args::Cmd;
 use crate::connect::Svc;
 use crate::error::CliError;
-use crate::render::{Render, block_name, diag_lines, diags_json, done, emit, read_text, show};
+use crate::render::{Render, block_name, diags_json, done, emit, read_text, show};
 use crate::status::{alarm_json, dro, status_json, status_line};
 
 type Reply = Result<ExitCode, CliError>;
@@ -21,7 +21,6 @@ type Reply = Result<ExitCode, CliError>;
 /// Runs one Machine command (main routes only these here).
 pub async fn command(m: &mut MachineClient<Svc>, cmd: Cmd, j: bool) -> Reply {
     match cmd {
-        Cmd::Validate { file } => validate(m, &file, j).await,
         Cmd::Refine { file } => refine(m, &file, j).await,
         Cmd::Select { name } => {
             let r = m
@@ -128,41 +127,6 @@ impl Render for pb::HomeReply {
     fn human(&self) -> String {
         format!("homed {}", self.homed)
     }
-}
-
-struct Validated<'a> {
-    file: &'a Path,
-    r: pb::ValidateProgramReply,
-}
-
-impl Render for Validated<'_> {
-    fn json(&self) -> Value {
-        json!({"valid": self.r.valid, "blocks": self.r.blocks, "diagnostics": diags_json(&self.r.diagnostics)})
-    }
-    fn human(&self) -> String {
-        let head = if self.r.valid {
-            format!("{}: valid, {} blocks", self.file.display(), self.r.blocks)
-        } else {
-            format!("{}: has errors", self.file.display())
-        };
-        head + &diag_lines(&self.r.diagnostics)
-    }
-}
-
-/// Validates a program file; fails when it has errors.
-async fn validate(m: &mut MachineClient<Svc>, file: &Path, j: bool) -> Reply {
-    let text = read_text(file)?;
-    let r = m
-        .validate_program(pb::ValidateProgramRequest { text })
-        .await?
-        .into_inner();
-    let valid = r.valid;
-    emit(j, &Validated { file, r });
-    Ok(if valid {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::FAILURE
-    })
 }
 
 impl Render for pb::RefinedProgramReply {

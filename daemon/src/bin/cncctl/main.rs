@@ -84,7 +84,8 @@ async fn dispatch(c: &mut Clients, cmd: Cmd, j: bool) -> Result<ExitCode, CliErr
         | Cmd::Programs
         | Cmd::Download { .. }
         | Cmd::Delete { .. }
-        | Cmd::Rename { .. } => programs::command(c, cmd, j).await,
+        | Cmd::Rename { .. }
+        | Cmd::Validate { .. } => programs::command(c, cmd, j).await,
         Cmd::Offsets { .. }
         | Cmd::OffsetSet { .. }
         | Cmd::OffsetsFile

@@ -17,7 +17,7 @@ use kernel::plan::Segment;
 use super::programs::{check_name, select_stored, store_text};
 use super::{
     ApiState, DEFAULT_STATUS_HZ, JUNCTION_CLASSIFY_MAX_BLOCKS, MAX_STATUS_HZ, RunInfo, RunMode,
-    blocking, diagnostic_to_pb, status_of,
+    blocking, counts_pb, diagnostic_to_pb, status_of,
 };
 use crate::runtime::config::Role::{Observer, Operator};
 use crate::runtime::controller::{ControlError, Controller};
@@ -42,6 +42,7 @@ fn reply_of(done: pb::UploadDone) -> pb::LoadProgramReply {
     pb::LoadProgramReply {
         blocks: done.program.map_or(0, |p| p.blocks),
         diagnostics: done.diagnostics,
+        totals: done.totals,
     }
 }
 
@@ -115,6 +116,7 @@ impl Machine for MachineSvc {
             valid: !v.has_errors(),
             blocks: v.blocks,
             diagnostics: v.diagnostics.iter().map(diagnostic_to_pb).collect(),
+            totals: Some(counts_pb(&v.diagnostics)),
             refinements: refined.iter().map(refinement_to_pb).collect(),
         }))
     }
@@ -141,6 +143,7 @@ impl Machine for MachineSvc {
         Ok(Response::new(pb::LoadProgramReply {
             blocks: loaded.block_count,
             diagnostics: loaded.warnings.iter().map(diagnostic_to_pb).collect(),
+            totals: Some(counts_pb(&loaded.warnings)),
         }))
     }
 
