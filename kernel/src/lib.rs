@@ -24,6 +24,7 @@ pub mod pipeline;
 pub mod plan;
 pub mod plc;
 pub mod program;
+pub mod restart;
 pub mod units;
 
 pub use diag::{DiagCode, DiagCounts, Diagnostic, Severity};

@@ -21,6 +21,7 @@ use crate::machine::MachineSetup;
 use crate::offsets::TableEdit;
 use crate::plan::{Planner, Segment};
 use crate::program::{self, Modal};
+use crate::restart::Restart;
 
 /// Whether the pipeline goes on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -101,6 +102,10 @@ pub struct Options {
     pub job: u32,
     /// Every block ends at rest (G98): single-block runs.
     pub stop_at_blocks: bool,
+    /// Restart from the block with this `N` number (issue #31, `kernel::restart`): the
+    /// blocks before it are interpreted and compensated without motion, an approach leads to
+    /// its start.
+    pub from_block: Option<u32>,
 }
 
 /// What a pass found besides what the observer collected.
@@ -126,6 +131,7 @@ pub struct Pipeline {
     limits: crate::limits::SoftLimits,
     axis_names: Vec<char>,
     summary: Summary,
+    restart: Option<Restart>,
 }
 
 impl Pipeline {
@@ -138,6 +144,10 @@ impl Pipeline {
             limits: setup.program().soft_limits,
             axis_names: setup.program().axis_names.clone(),
             summary: Summary::default(),
+            restart: opts.from_block.map(|n| {
+                let p = setup.program();
+                Restart::new(n, p.start, p.axis_names.len())
+            }),
         }
     }
 
@@ -169,6 +179,9 @@ impl Pipeline {
             return self.report(d, obs);
         }
         obs.programmed(&b, modal);
+        if let Some(r) = &mut self.restart {
+            r.programmed(&b);
+        }
         if let BlockKind::TableWrite { entry, values } = b.kind {
             let f = obs.table_write(&b, &TableEdit { entry, values });
             if self.flow(f) == Flow::Stop {
@@ -209,20 +222,42 @@ impl Pipeline {
             }
         }
         while let Some(cb) = self.comp.poll_traced() {
-            obs.compensated(&cb);
-            if let Some(cell) = obs.dynam_set_cell() {
-                self.planner.set_dynam_set_cell(cell);
+            let approach = match &mut self.restart {
+                Some(r) => match r.compensated(&cb.block) {
+                    Some(legs) => legs,
+                    None => continue, // before the restart block: not run
+                },
+                None => Vec::new(),
+            };
+            for leg in approach {
+                let c = CompBlock {
+                    block: leg,
+                    role: crate::comp::Role::Passthrough,
+                    offset_mm: 0.0,
+                };
+                if self.plan(&c, obs) == Flow::Stop {
+                    return Flow::Stop;
+                }
             }
-            if let Err(d) = self.planner.push(&cb.block)
-                && self.report(d, obs) == Flow::Stop
-            {
-                return Flow::Stop;
-            }
-            if self.drain_planner(obs) == Flow::Stop {
+            if self.plan(&cb, obs) == Flow::Stop {
                 return Flow::Stop;
             }
         }
         Flow::Go
+    }
+
+    /// One tool-centre block into the planner, and what it commits out.
+    fn plan(&mut self, cb: &CompBlock, obs: &mut impl Observer) -> Flow {
+        obs.compensated(cb);
+        if let Some(cell) = obs.dynam_set_cell() {
+            self.planner.set_dynam_set_cell(cell);
+        }
+        if let Err(d) = self.planner.push(&cb.block)
+            && self.report(d, obs) == Flow::Stop
+        {
+            return Flow::Stop;
+        }
+        self.drain_planner(obs)
     }
 
     fn drain_planner(&mut self, obs: &mut impl Observer) -> Flow {
@@ -245,6 +280,11 @@ impl Pipeline {
     pub fn finish(&mut self, obs: &mut impl Observer) -> Flow {
         self.comp.finish();
         if self.drain_comp(obs) == Flow::Stop {
+            return Flow::Stop;
+        }
+        if let Some(d) = self.restart.as_ref().and_then(Restart::finish)
+            && self.report(d, obs) == Flow::Stop
+        {
             return Flow::Stop;
         }
         self.planner.finish();
@@ -515,6 +555,7 @@ mod tests {
         let opts = Options {
             job: 7,
             stop_at_blocks: true,
+            ..Options::default()
         };
         run(text, &s, opts, &mut sb);
         assert!(

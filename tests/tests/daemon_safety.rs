@@ -615,7 +615,7 @@ async fn homing_in_order_and_refusals_before_it() {
     let homed: Vec<bool> = st.axes.iter().map(|a| a.homed).collect();
     assert_eq!(homed, [false, true, false], "Y needs no homing");
     load(&mut c, "N10 G1 X1 F1000\n").await.unwrap();
-    let e = c.start(pb::StartRequest {}).await.unwrap_err();
+    let e = c.start(pb::StartRequest::default()).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition);
     let e = c.mdi(mdi_block("G1 X1 F1000")).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition);

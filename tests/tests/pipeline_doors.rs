@@ -412,7 +412,11 @@ async fn start_refuses_what_the_constants_in_force_refuse() {
     doors.set(&[(339, 0.0)]).await;
     let (v, _) = doors.validate(&fig5()).await;
     assert!(!v.valid);
-    let e = doors.m.start(pb::StartRequest {}).await.unwrap_err();
+    let e = doors
+        .m
+        .start(pb::StartRequest::default())
+        .await
+        .unwrap_err();
     assert_eq!(from_refusal(e), v);
     assert_eq!(d.ctl.snapshot().state, MachineState::Idle);
 }
@@ -581,7 +585,7 @@ async fn a_refused_load_selects_nothing() {
     let list = list_programs(&mut m).await;
     assert_eq!(list.selected, "");
     assert_eq!(list.programs.len(), 64);
-    let e = m.start(pb::StartRequest {}).await.unwrap_err();
+    let e = m.start(pb::StartRequest::default()).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition);
 
     // A load whose deadline expires while it validates: never selected afterwards.
@@ -696,7 +700,11 @@ async fn planner_and_interpreter_constants_take_effect_at_the_next_pass() {
     assert!(doors.load(switch).await.valid);
     doors.set(&[(397, 0.0)]).await;
     // Loaded under 6.R397 = 1; Start validates again with the constants in force now.
-    let e = doors.m.start(pb::StartRequest {}).await.unwrap_err();
+    let e = doors
+        .m
+        .start(pb::StartRequest::default())
+        .await
+        .unwrap_err();
     assert_eq!(from_refusal(e), doors.validate(switch).await.0);
 }
 

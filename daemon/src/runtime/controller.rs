@@ -494,6 +494,12 @@ impl Controller {
 
     /// Starts the selected program. Returns the job id.
     pub fn start_program(&self) -> Result<u32, ControlError> {
+        self.start_program_from(None)
+    }
+
+    /// Starts the selected program, or restarts it from the block numbered `from_block`
+    /// (`kernel::restart`: the blocks before it without motion, an approach to its start).
+    pub fn start_program_from(&self, from_block: Option<u32>) -> Result<u32, ControlError> {
         self.require_homed("a program")?;
         let program = self
             .program()
@@ -502,12 +508,15 @@ impl Controller {
         let snap = self.idle_for_start()?;
         // The job's snapshot of the machine, taken now: every stage of the run reads it.
         let setup = self.machine_setup()?;
+        let opts = Options {
+            from_block,
+            ..Options::default()
+        };
         // Validated with another setup (the axes moved by MDI or another job, constants or
-        // offsets changed): validate again with this one, so the run cannot fail half-way.
-        if !self.validated_as_now(&program, &snap) {
-            let v = program
-                .text
-                .validate_into(&setup, Options::default(), &mut NoObserver);
+        // offsets changed) or restarted: validate again with this one, so the run cannot fail
+        // half-way.
+        if !self.validated_as_now(&program, &snap) || from_block.is_some() {
+            let v = program.text.validate_into(&setup, opts, &mut NoObserver);
             if v.has_errors() {
                 return Err(ControlError::InvalidProgram(v.diagnostics));
             }
@@ -515,7 +524,7 @@ impl Controller {
         let spec = JobSpec {
             text: program.text.clone(),
             setup,
-            opts: Options::default(),
+            opts,
             execution: self.execution.clone(),
             status: self.status.clone(),
         };
@@ -923,6 +932,7 @@ impl Controller {
         let opts = Options {
             job: 0,
             stop_at_blocks,
+            ..Options::default()
         };
         let modal = if mdi {
             self.execution.lock().unwrap().modal_left()

@@ -35,8 +35,8 @@ pub async fn command(m: &mut MachineClient<Svc>, cmd: Cmd, j: bool) -> Reply {
                 },
             )
         }
-        Cmd::Start => {
-            let job = m.start(pb::StartRequest {}).await?.into_inner().job;
+        Cmd::Start { .. } => {
+            let job = m.start(pb::StartRequest::default()).await?.into_inner().job;
             show(j, &Started { job, mdi: false })
         }
         Cmd::Mdi { block } => {
@@ -102,9 +102,9 @@ impl Render for Selected {
 }
 
 /// A job started by `start` or `mdi`.
-struct Started {
-    job: u32,
-    mdi: bool,
+pub struct Started {
+    pub job: u32,
+    pub mdi: bool,
 }
 
 impl Render for Started {

@@ -54,7 +54,12 @@ async fn run(c: &mut Clients, file: &Path, quiet: bool, j: bool) -> Reply {
     for d in &done.diagnostics {
         eprintln!("{}", diag_line(d));
     }
-    let job = c.machine.start(pb::StartRequest {}).await?.into_inner().job;
+    let job = c
+        .machine
+        .start(pb::StartRequest::default())
+        .await?
+        .into_inner()
+        .job;
     follow(&mut c.machine, job, quiet || j, j).await
 }
 

@@ -179,14 +179,22 @@ impl Machine for MachineSvc {
         req: Request<pb::StartRequest>,
     ) -> Result<Response<pb::StartReply>, Status> {
         require(&req, Operator, "Start")?;
+        let from_block = req.into_inner().from_block;
         let _one_at_a_time = self.0.start_lock.lock().await;
         // Start on a held machine (feed hold, M0/M1) continues the job.
-        if let Some(job) = self.0.ctl.start_resumes().map_err(status_of)? {
+        if from_block.is_none()
+            && let Some(job) = self.0.ctl.start_resumes().map_err(status_of)?
+        {
             return Ok(Response::new(pb::StartReply { job }));
         }
         let st = self.0.clone();
         let job = blocking(move || -> Result<u32, Status> {
             if st.single_block.load(Ordering::Relaxed) {
+                if from_block.is_some() {
+                    return Err(Status::failed_precondition(
+                        "a restart from a block runs continuously: switch single block off",
+                    ));
+                }
                 // Single block: every block ends at rest so the holds land on block ends.
                 let p = st
                     .ctl
@@ -215,7 +223,7 @@ impl Machine for MachineSvc {
                 });
                 Ok(job)
             } else {
-                let job = st.ctl.start_program().map_err(status_of)?;
+                let job = st.ctl.start_program_from(from_block).map_err(status_of)?;
                 *st.run.lock().unwrap() = None;
                 Ok(job)
             }
