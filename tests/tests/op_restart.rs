@@ -219,3 +219,59 @@ async fn cncctl_start_from_block_shows_the_approach_and_needs_a_confirmation() {
     assert!(ok, "{out}");
     assert!(out.contains("started job"), "{out}");
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn after_a_stop_status_names_the_block_to_restart_from() {
+    let d = daemon().await;
+    let mut m = MachineClient::new(d.channel().await);
+    let slow = "N10 G1 X5 F600\nN20 X10\nN30 X40\nN40 X0\n";
+    let job = load_and_start(&mut m, "slow.nc", slow).await;
+    wait_until("N30 to run", || {
+        let s = d.ctl.snapshot();
+        s.job == job && s.block_n == Some(30)
+    })
+    .await;
+    m.stop(pb::StopRequest::default()).await.unwrap();
+    wait_until("the stop to end", || {
+        d.ctl.snapshot().state == MachineState::Idle
+    })
+    .await;
+    let s = status_now(&mut m).await;
+    assert_eq!(s.restart_block, Some(30), "{s:?}");
+    // Restarted from there it ends where the program ends.
+    let job = m
+        .start(pb::StartRequest {
+            from_block: Some(30),
+        })
+        .await
+        .unwrap()
+        .into_inner()
+        .job;
+    wait_job_done(&d, job).await;
+    assert!(d.ctl.snapshot().commanded[0].abs() < 1e-6);
+    assert_eq!(status_now(&mut m).await.restart_block, None);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn block_delete_skips_slashed_blocks_only_while_on() {
+    let d = daemon().await;
+    let mut m = MachineClient::new(d.channel().await);
+    let text = "N10 G1 X10 F3000\n/N20 X20\n";
+    m.load_program(named_program("bd.nc", text)).await.unwrap();
+    for (on, end) in [(true, 10.0), (false, 20.0)] {
+        m.set_block_delete(pb::SetBlockDeleteRequest { on })
+            .await
+            .unwrap();
+        assert_eq!(status_now(&mut m).await.block_delete, on);
+        let job = start_job(&mut m).await;
+        wait_job_done(&d, job).await;
+        let x = d.ctl.snapshot().commanded[0];
+        assert!((x - end).abs() < 1e-6, "block delete {on}: X{x}");
+        m.mdi(mdi_block("G0 X0")).await.unwrap();
+        wait_until("back at X0", || {
+            let s = d.ctl.snapshot();
+            s.state == MachineState::Idle && s.commanded[0].abs() < 1e-9
+        })
+        .await;
+    }
+}

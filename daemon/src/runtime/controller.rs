@@ -156,6 +156,8 @@ pub struct Controller {
     hold_requested: AtomicBool,
     /// The bus can run reference runs (homing).
     can_home: bool,
+    /// The block-delete switch (issue #31): `/` blocks are skipped while it is on.
+    block_delete: AtomicBool,
 }
 
 /// The constants: the file's, and those in force (the file's, except the constants that
@@ -259,6 +261,7 @@ impl Controller {
             validation_passes: AtomicU64::new(0),
             hold_requested: AtomicBool::new(false),
             can_home,
+            block_delete: AtomicBool::new(false),
         }))
     }
 
@@ -297,6 +300,7 @@ impl Controller {
             offsets.memory(),
             self.snapshot().commanded,
         )
+        .map(|s| s.with_block_delete(self.block_delete.load(Ordering::Acquire)))
         .map_err(|e| ControlError::Invalid(format!("constant cutting speed: {e}")))
     }
 
@@ -744,6 +748,18 @@ impl Controller {
     }
 
     /// Optional stop switch: M1 stops the program only while it is on.
+    /// The block-delete switch: read when a job's setup is taken (a program validated with
+    /// the other setting is validated again at start).
+    pub fn set_block_delete(&self, on: bool) {
+        if self.block_delete.swap(on, Ordering::AcqRel) != on {
+            self.generation.fetch_add(1, Ordering::AcqRel);
+        }
+    }
+
+    pub fn block_delete(&self) -> bool {
+        self.block_delete.load(Ordering::Acquire)
+    }
+
     pub fn set_optional_stop(&self, on: bool) -> Result<(), ControlError> {
         self.send(RtCommand::OptionalStop(on))
     }

@@ -101,6 +101,11 @@ pub enum Cmd {
         #[arg(value_parser = ["on", "off"])]
         mode: String,
     },
+    /// Block delete on or off: when on, blocks starting with `/` are skipped.
+    BlockDelete {
+        #[arg(value_parser = ["on", "off"])]
+        mode: String,
+    },
     /// Jog an axis: `cncctl jog X+ --speed 1000` moves X in + at 1000 mm/min until Ctrl-C
     /// (the axis brakes to rest when cncctl stops, however it stops); `cncctl jog X --step 0.1`
     /// (or `X- --step 0.1`) moves by one step. Soft limits are never passed.

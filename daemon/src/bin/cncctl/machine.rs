@@ -83,6 +83,11 @@ async fn control(m: &mut MachineClient<Svc>, cmd: Cmd, j: bool) -> Reply {
             m.set_optional_stop(pb::SetOptionalStopRequest { on: mode == "on" })
                 .await,
         ),
+        Cmd::BlockDelete { mode } => done(
+            j,
+            m.set_block_delete(pb::SetBlockDeleteRequest { on: mode == "on" })
+                .await,
+        ),
         _ => unreachable!("main routes only Machine service commands here"),
     }
 }

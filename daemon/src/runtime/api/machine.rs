@@ -299,6 +299,15 @@ impl Machine for MachineSvc {
         Ok(Response::new(pb::SetSingleBlockReply {}))
     }
 
+    async fn set_block_delete(
+        &self,
+        req: Request<pb::SetBlockDeleteRequest>,
+    ) -> Result<Response<pb::SetBlockDeleteReply>, Status> {
+        require(&req, Operator, "SetBlockDelete")?;
+        self.0.ctl.set_block_delete(req.into_inner().on);
+        Ok(Response::new(pb::SetBlockDeleteReply {}))
+    }
+
     async fn set_optional_stop(
         &self,
         req: Request<pb::SetOptionalStopRequest>,

@@ -288,6 +288,8 @@ impl ApiState {
             optional_stop: s.optional_stop,
             program_stop: s.program_stop,
             fault_path_deviation_mm: s.fault_path_deviation_mm,
+            block_delete: ctl.block_delete(),
+            restart_block: restart_block(s, block.as_ref()),
         }
     }
 
@@ -490,6 +492,17 @@ pub fn alarm_text(ctl: &Controller, s: &Snapshot) -> Option<String> {
             None => a,
         },
     }
+}
+
+/// The block to restart from after a stop or a fault ended the job early: the programmed
+/// block it stopped in (issue #31).
+fn restart_block(s: &Snapshot, block: Option<&Block>) -> Option<u32> {
+    let ended_early = s.job != 0
+        && s.aborted_job == s.job
+        && matches!(s.state, MachineState::Idle | MachineState::Fault);
+    ended_early
+        .then(|| block.and_then(|b| b.n).or(s.block_n))
+        .flatten()
 }
 
 pub fn diagnostic_to_pb(d: &Diagnostic) -> pb::Diagnostic {
