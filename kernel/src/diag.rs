@@ -193,10 +193,13 @@ diag_codes! {
     NonFiniteCoordinate = "non_finite_coordinate",
     /// Lines after M2/M30 are not run (information).
     LinesAfterEnd = "lines_after_end",
+    /// A jog while another jog, a program or a reference run moves the machine (issue #31:
+    /// one motion source at a time).
+    JogBusy = "jog_busy",
+    /// A jog step that would end beyond a soft limit, or longer than any travel.
+    JogBeyondTravel = "jog_beyond_travel",
     /// A restart from a block the program does not have (issue #31).
     RestartBlockNotFound = "restart_block_not_found",
-    /// A byte of a legacy code page outside a comment or remark (issue #31).
-    TextNotAscii = "text_not_ascii",
     /// Too many errors: checking stopped.
     TooManyErrors = "too_many_errors",
     /// More messages than are listed (information).

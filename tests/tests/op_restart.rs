@@ -275,3 +275,42 @@ async fn block_delete_skips_slashed_blocks_only_while_on() {
         .await;
     }
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn one_jog_at_a_time_and_no_step_beyond_any_travel() {
+    let d = daemon().await;
+    let mut m = MachineClient::new(d.channel().await);
+    let step = |axis: &str, step_mm: f64| pb::JogStepRequest {
+        axis: axis.into(),
+        step_mm,
+        speed_mm_min: 60.0,
+    };
+    // No soft limits on the test machine: a step longer than any travel is refused.
+    let e = m.jog_step(step("X", 1e12)).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    assert_eq!(diagnostics(&e)[0].code, "jog_beyond_travel");
+    // A slow step runs; a continuous jog and a second step meanwhile are refused, and the
+    // step ends where it should.
+    m.jog_step(step("X", 2.0)).await.unwrap();
+    wait_until("the step to move", || {
+        d.ctl.snapshot().state == MachineState::Jog
+    })
+    .await;
+    let e = m.jog_step(step("Y", 1.0)).await.unwrap_err();
+    assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
+    assert_eq!(diagnostics(&e)[0].code, "jog_busy");
+    let msg = pb::JogRequest {
+        axis: "Y".into(),
+        direction: 1,
+        speed_mm_min: 600.0,
+    };
+    let e = m.jog(tokio_stream::iter(vec![msg])).await.unwrap_err();
+    assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
+    assert_eq!(diagnostics(&e)[0].code, "jog_busy");
+    wait_until("the step to end", || {
+        let s = d.ctl.snapshot();
+        s.state == MachineState::Idle && (s.commanded[0] - 2.0).abs() < 1e-9
+    })
+    .await;
+    assert_eq!(d.ctl.snapshot().commanded[1], 0.0, "Y never moved");
+}

@@ -124,6 +124,10 @@ pub enum ControlError {
     Aborted(String),
 }
 
+/// The longest jog step on an axis without soft limits, mm (degrees on a rotary axis): no
+/// machine of this family travels further (issue #31).
+pub const MAX_JOG_STEP_MM: f64 = 10_000.0;
+
 pub struct Controller {
     config: Config,
     /// The RT core's command ring, and how many commands were pushed into it.
@@ -742,12 +746,41 @@ impl Controller {
         Ok(target)
     }
 
+    /// Whether a jog step of `step_mm` on `axis` may run (issue #31): refused before motion
+    /// when it would end beyond a soft limit (an axis standing beyond one may step back
+    /// inside), or, on an axis without limits, when it is longer than [`MAX_JOG_STEP_MM`].
+    pub fn jog_step_check(&self, axis: &str, step_mm: f64) -> Result<(), String> {
+        let Ok(i) = self.axis_index(axis) else {
+            return Ok(()); // jog_step names the axis error
+        };
+        let a = &self.config.axes[i];
+        let here = self.snapshot().commanded[i];
+        let target = here + step_mm;
+        let beyond = |limit: Option<f64>, upper: bool| match limit {
+            Some(l) if upper => target > l + 1e-9 && step_mm > 0.0,
+            Some(l) => target < l - 1e-9 && step_mm < 0.0,
+            None => false,
+        };
+        if beyond(a.soft_max_mm, true) || beyond(a.soft_min_mm, false) {
+            return Err(format!(
+                "a step of {step_mm} mm on {} would end at {target:.3}, beyond its soft limits                  {:?}..{:?}",
+                a.name, a.soft_min_mm, a.soft_max_mm
+            ));
+        }
+        if step_mm.abs() > MAX_JOG_STEP_MM {
+            return Err(format!(
+                "a step of {step_mm} mm on {} is longer than any travel ({MAX_JOG_STEP_MM} mm)",
+                a.name
+            ));
+        }
+        Ok(())
+    }
+
     /// Brakes a jog to rest (the client let go, or went away).
     pub fn jog_stop(&self) -> Result<(), ControlError> {
         self.send(RtCommand::JogStop)
     }
 
-    /// Optional stop switch: M1 stops the program only while it is on.
     /// The block-delete switch: read when a job's setup is taken (a program validated with
     /// the other setting is validated again at start).
     pub fn set_block_delete(&self, on: bool) {
@@ -760,6 +793,7 @@ impl Controller {
         self.block_delete.load(Ordering::Acquire)
     }
 
+    /// Optional stop switch: M1 stops the program only while it is on.
     pub fn set_optional_stop(&self, on: bool) -> Result<(), ControlError> {
         self.send(RtCommand::OptionalStop(on))
     }

@@ -17,10 +17,19 @@ use kernel::plan::Segment;
 use super::programs::{check_name, select_stored, store_text};
 use super::{
     ApiState, DEFAULT_STATUS_HZ, JUNCTION_CLASSIFY_MAX_BLOCKS, MAX_STATUS_HZ, RunInfo, RunMode,
-    blocking, counts_pb, diagnostic_to_pb, status_of,
+    blocking, counts_pb, diagnostic_to_pb, refused, status_of,
 };
 use crate::runtime::config::Role::{Observer, Operator};
 use crate::runtime::controller::{ControlError, Controller};
+
+/// Releases the continuous jog when its stream ends, however it ends.
+struct JogHeld<'a>(&'a std::sync::atomic::AtomicBool);
+
+impl Drop for JogHeld<'_> {
+    fn drop(&mut self) {
+        self.0.store(false, Ordering::Release);
+    }
+}
 
 /// Largest program run in single-block mode (its blocks are kept in memory), bytes.
 const SINGLE_BLOCK_MAX_BYTES: u64 = 16 << 20;
@@ -324,6 +333,19 @@ impl Machine for MachineSvc {
         require(&req, Operator, "Jog")?;
         let mut stream = req.into_inner();
         let ctl = &self.0.ctl;
+        // One motion source at a time: this stream holds the jog until it ends; another
+        // stream, a running step, a program or a reference run refuses it.
+        let state = ctl.snapshot().state;
+        if state != crate::runtime::rt::MachineState::Idle
+            || self.0.jog_stream.swap(true, Ordering::AcqRel)
+        {
+            return Err(refused(
+                tonic::Code::FailedPrecondition,
+                kernel::DiagCode::JogBusy,
+                format!("the machine is busy ({state:?}, or another jog): one motion at a time"),
+            ));
+        }
+        let _held = JogHeld(&self.0.jog_stream);
         let mut target = 0.0;
         // Every message renews the jog; the end of the stream (or its failure: the client
         // went away) stops it. A silent client is stopped by the RT thread's lease.
@@ -354,6 +376,23 @@ impl Machine for MachineSvc {
     ) -> Result<Response<pb::JogReply>, Status> {
         require(&req, Operator, "JogStep")?;
         let r = req.into_inner();
+        let state = self.0.ctl.snapshot().state;
+        if state != crate::runtime::rt::MachineState::Idle
+            || self.0.jog_stream.load(Ordering::Acquire)
+        {
+            return Err(refused(
+                tonic::Code::FailedPrecondition,
+                kernel::DiagCode::JogBusy,
+                format!("the machine is busy ({state:?}, or a jog): one motion at a time"),
+            ));
+        }
+        self.0.ctl.jog_step_check(&r.axis, r.step_mm).map_err(|m| {
+            refused(
+                tonic::Code::InvalidArgument,
+                kernel::DiagCode::JogBeyondTravel,
+                m,
+            )
+        })?;
         let target = self
             .0
             .ctl

@@ -96,6 +96,8 @@ pub struct ApiState {
     /// Serialises Start and MDI: the RT thread takes a start on its next tick, so a second
     /// start must wait until the first is seen in the snapshot.
     start_lock: tokio::sync::Mutex<()>,
+    /// A continuous jog stream holds the jog (issue #31: one motion source at a time).
+    jog_stream: AtomicBool,
     streams: Arc<AtomicUsize>,
     observer_streams: Arc<AtomicUsize>,
     max_streams: usize,
@@ -127,6 +129,7 @@ impl ApiState {
             run: Mutex::new(None),
             single_block: AtomicBool::new(false),
             start_lock: tokio::sync::Mutex::new(()),
+            jog_stream: AtomicBool::new(false),
             streams: Arc::new(AtomicUsize::new(0)),
             closing: tokio::sync::watch::Sender::new(false),
             observer_streams: Arc::new(AtomicUsize::new(0)),
@@ -492,6 +495,20 @@ pub fn alarm_text(ctl: &Controller, s: &Snapshot) -> Option<String> {
             None => a,
         },
     }
+}
+
+/// A refusal with one coded diagnostic in its details (not tied to a program line).
+pub fn refused(code: Code, what: kernel::DiagCode, msg: String) -> Status {
+    let d = Diagnostic::error(what, None, 0, 0, msg.clone());
+    let details = pb::Diagnostics {
+        items: vec![diagnostic_to_pb(&d)],
+        totals: Some(counts_pb(std::slice::from_ref(&d))),
+    };
+    Status::with_details(
+        code,
+        format!("{what}: {msg}"),
+        details.encode_to_vec().into(),
+    )
 }
 
 /// The block to restart from after a stop or a fault ended the job early: the programmed
