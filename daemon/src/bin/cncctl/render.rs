@@ -48,15 +48,6 @@ impl Render for Done {
     }
 }
 
-/// Waits for a call that answers nothing and prints [`Done`].
-pub fn done<T>(
-    j: bool,
-    r: Result<tonic::Response<T>, tonic::Status>,
-) -> Result<ExitCode, CliError> {
-    r?;
-    show(j, &Done)
-}
-
 /// Renders a gRPC error for a person, with every diagnostic it carries on its own line and
 /// the totals when more were found than the details carry.
 pub fn explain(s: &tonic::Status) -> String {
