@@ -160,12 +160,11 @@ async fn start_from_block_runs_the_approach_and_the_rest_on_the_machine() {
     let whole = trajectory(d.channel().await, None).await;
     let end = whole.last().unwrap().0;
     let s = d.ctl.snapshot();
-    for i in 0..3 {
+    for (i, e) in end.iter().enumerate() {
         assert!(
-            (s.commanded[i] - end[i]).abs() < 1e-3,
-            "{i}: {} vs {}",
-            s.commanded[i],
-            end[i]
+            (s.commanded[i] - e).abs() < 1e-3,
+            "{i}: {} vs {e}",
+            s.commanded[i]
         );
     }
 }
