@@ -115,7 +115,7 @@ async fn bench(blocks: u64) {
     let prog = done.program.expect("program");
     assert_eq!(u64::from(prog.blocks), blocks, "blocks validated");
     let job = m
-        .start(pb::StartRequest {})
+        .start(pb::StartRequest::default())
         .await
         .expect("start")
         .into_inner()

@@ -193,6 +193,13 @@ diag_codes! {
     NonFiniteCoordinate = "non_finite_coordinate",
     /// Lines after M2/M30 are not run (information).
     LinesAfterEnd = "lines_after_end",
+    /// A jog while another jog, a program or a reference run moves the machine (issue #31:
+    /// one motion source at a time).
+    JogBusy = "jog_busy",
+    /// A jog step that would end beyond a soft limit, or longer than any travel.
+    JogBeyondTravel = "jog_beyond_travel",
+    /// A restart from a block the program does not have (issue #31).
+    RestartBlockNotFound = "restart_block_not_found",
     /// Too many errors: checking stopped.
     TooManyErrors = "too_many_errors",
     /// More messages than are listed (information).
@@ -253,6 +260,48 @@ pub struct Diagnostic {
     pub message: String,
     /// Set when the message is a soft-limit refusal (issue #15): which axis, where, which limit.
     pub limit: Option<crate::limits::LimitHit>,
+    /// Set on the `messages_not_listed` note closing a capped list (issue #31): the messages
+    /// found but not listed, by severity, so that [`DiagCounts::of`] gives the totals.
+    pub not_listed: Option<DiagCounts>,
+}
+
+/// How many messages of each severity a pass found (listed or not).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DiagCounts {
+    pub errors: u64,
+    pub warnings: u64,
+    pub infos: u64,
+}
+
+impl DiagCounts {
+    pub fn add(&mut self, s: Severity) {
+        match s {
+            Severity::Error => self.errors += 1,
+            Severity::Warning => self.warnings += 1,
+            Severity::Info => self.infos += 1,
+        }
+    }
+
+    /// The totals of a list capped by the pipeline: the listed messages plus what its
+    /// `messages_not_listed` note counts (the note itself is not counted).
+    pub fn of(list: &[Diagnostic]) -> DiagCounts {
+        let mut c = DiagCounts::default();
+        for d in list {
+            match d.not_listed {
+                Some(n) => {
+                    c.errors += n.errors;
+                    c.warnings += n.warnings;
+                    c.infos += n.infos;
+                }
+                None => c.add(d.severity),
+            }
+        }
+        c
+    }
+
+    pub fn total(&self) -> u64 {
+        self.errors + self.warnings + self.infos
+    }
 }
 
 impl Diagnostic {
@@ -271,6 +320,7 @@ impl Diagnostic {
             column,
             message: message.into(),
             limit: None,
+            not_listed: None,
         }
     }
 

@@ -24,7 +24,8 @@ pub mod pipeline;
 pub mod plan;
 pub mod plc;
 pub mod program;
+pub mod restart;
 pub mod units;
 
-pub use diag::{DiagCode, Diagnostic, Severity};
+pub use diag::{DiagCode, DiagCounts, Diagnostic, Severity};
 pub use units::{AxesMm, MAX_AXES, TS_S};

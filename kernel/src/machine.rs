@@ -165,6 +165,12 @@ impl MachineSetup {
         self.program.modal = modal;
         self
     }
+
+    /// The same setup with the block-delete switch `on` (docs/language.md "Block delete").
+    pub fn with_block_delete(mut self, on: bool) -> Self {
+        self.program.block_delete = on;
+        self
+    }
 }
 
 /// Who reads a constant.

@@ -16,11 +16,12 @@
 
 use crate::block::{Block, BlockKind, Continuity};
 use crate::comp::{CompBlock, Compensator};
-use crate::diag::{DiagCode, Diagnostic};
+use crate::diag::{DiagCode, DiagCounts, Diagnostic};
 use crate::machine::MachineSetup;
 use crate::offsets::TableEdit;
 use crate::plan::{Planner, Segment};
 use crate::program::{self, Modal};
+use crate::restart::Restart;
 
 /// Whether the pipeline goes on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -101,6 +102,10 @@ pub struct Options {
     pub job: u32,
     /// Every block ends at rest (G98): single-block runs.
     pub stop_at_blocks: bool,
+    /// Restart from the block with this `N` number (issue #31, `kernel::restart`): the
+    /// blocks before it are interpreted and compensated without motion, an approach leads to
+    /// its start.
+    pub from_block: Option<u32>,
 }
 
 /// What a pass found besides what the observer collected.
@@ -126,6 +131,7 @@ pub struct Pipeline {
     limits: crate::limits::SoftLimits,
     axis_names: Vec<char>,
     summary: Summary,
+    restart: Option<Restart>,
 }
 
 impl Pipeline {
@@ -138,6 +144,10 @@ impl Pipeline {
             limits: setup.program().soft_limits,
             axis_names: setup.program().axis_names.clone(),
             summary: Summary::default(),
+            restart: opts.from_block.map(|n| {
+                let p = setup.program();
+                Restart::new(n, p.start, p.axis_names.len())
+            }),
         }
     }
 
@@ -169,6 +179,9 @@ impl Pipeline {
             return self.report(d, obs);
         }
         obs.programmed(&b, modal);
+        if let Some(r) = &mut self.restart {
+            r.programmed(&b);
+        }
         if let BlockKind::TableWrite { entry, values } = b.kind {
             let f = obs.table_write(&b, &TableEdit { entry, values });
             if self.flow(f) == Flow::Stop {
@@ -209,20 +222,42 @@ impl Pipeline {
             }
         }
         while let Some(cb) = self.comp.poll_traced() {
-            obs.compensated(&cb);
-            if let Some(cell) = obs.dynam_set_cell() {
-                self.planner.set_dynam_set_cell(cell);
+            let approach = match &mut self.restart {
+                Some(r) => match r.compensated(&cb.block) {
+                    Some(legs) => legs,
+                    None => continue, // before the restart block: not run
+                },
+                None => Vec::new(),
+            };
+            for leg in approach {
+                let c = CompBlock {
+                    block: leg,
+                    role: crate::comp::Role::Passthrough,
+                    offset_mm: 0.0,
+                };
+                if self.plan(&c, obs) == Flow::Stop {
+                    return Flow::Stop;
+                }
             }
-            if let Err(d) = self.planner.push(&cb.block)
-                && self.report(d, obs) == Flow::Stop
-            {
-                return Flow::Stop;
-            }
-            if self.drain_planner(obs) == Flow::Stop {
+            if self.plan(&cb, obs) == Flow::Stop {
                 return Flow::Stop;
             }
         }
         Flow::Go
+    }
+
+    /// One tool-centre block into the planner, and what it commits out.
+    fn plan(&mut self, cb: &CompBlock, obs: &mut impl Observer) -> Flow {
+        obs.compensated(cb);
+        if let Some(cell) = obs.dynam_set_cell() {
+            self.planner.set_dynam_set_cell(cell);
+        }
+        if let Err(d) = self.planner.push(&cb.block)
+            && self.report(d, obs) == Flow::Stop
+        {
+            return Flow::Stop;
+        }
+        self.drain_planner(obs)
     }
 
     fn drain_planner(&mut self, obs: &mut impl Observer) -> Flow {
@@ -245,6 +280,11 @@ impl Pipeline {
     pub fn finish(&mut self, obs: &mut impl Observer) -> Flow {
         self.comp.finish();
         if self.drain_comp(obs) == Flow::Stop {
+            return Flow::Stop;
+        }
+        if let Some(d) = self.restart.as_ref().and_then(Restart::finish)
+            && self.report(d, obs) == Flow::Stop
+        {
             return Flow::Stop;
         }
         self.planner.finish();
@@ -296,46 +336,70 @@ pub fn run_lines<L: program::Lines>(
     p.summary
 }
 
-/// Diagnostics beyond this many are counted, not listed.
-pub const MAX_LISTED: usize = 1000;
+/// Diagnostics beyond this many are counted, not listed (issue #31): every door (validate,
+/// upload, load, run, start) answers at most the first `MAX_LISTED` messages, the first error
+/// always among them, and the totals by severity (docs/api.md "Diagnostics at any size").
+pub const MAX_LISTED: usize = 200;
 
 /// Outcome of validating a program: the verdict of validate, upload, load, start and MDI.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Validation {
     /// Programmed blocks (the interpreter's count).
     pub blocks: u32,
-    /// Every error, warning and information, in the order found (see [`MAX_LISTED`]).
+    /// The first [`MAX_LISTED`] errors, warnings and notes in the order found (the first
+    /// error always listed), then a `messages_not_listed` note counting the rest.
     pub diagnostics: Vec<Diagnostic>,
-    /// Messages found but not listed.
-    unlisted: usize,
+    /// Messages found but not listed, by severity.
+    unlisted: DiagCounts,
+    /// Whether an error is listed.
+    error_listed: bool,
 }
 
 impl Validation {
     pub fn has_errors(&self) -> bool {
-        self.diagnostics.iter().any(Diagnostic::is_error)
+        self.error_listed
     }
 
-    /// Keeps `d` unless the list is full (errors get a second allowance so that a program
-    /// with many warnings still lists its errors).
+    /// Every message found, listed or not, by severity.
+    pub fn counts(&self) -> DiagCounts {
+        DiagCounts::of(&self.diagnostics)
+    }
+
+    /// Keeps `d` unless the list is full (the first error is kept whatever came before it,
+    /// so that a program with many warnings still lists why it is refused).
     pub fn add(&mut self, d: Diagnostic) {
         let n = self.diagnostics.len();
-        if n < MAX_LISTED || d.is_error() && n < 2 * MAX_LISTED {
+        if n < MAX_LISTED || d.is_error() && !self.error_listed {
+            self.error_listed |= d.is_error();
             self.diagnostics.push(d);
+        } else if let Some(c) = d.not_listed {
+            self.unlisted.errors += c.errors;
+            self.unlisted.warnings += c.warnings;
+            self.unlisted.infos += c.infos;
         } else {
-            self.unlisted += 1;
+            self.unlisted.add(d.severity);
         }
     }
 
     fn close(&mut self, s: Summary) {
         self.blocks = s.blocks;
-        if self.unlisted > 0 {
-            self.diagnostics.push(Diagnostic::info(
+        let u = self.unlisted;
+        if u.total() > 0 {
+            let mut note = Diagnostic::info(
                 DiagCode::MessagesNotListed,
                 None,
                 0,
                 0,
-                format!("{} more messages not listed", self.unlisted),
-            ));
+                format!(
+                    "{} more messages not listed ({} errors, {} warnings, {} notes)",
+                    u.total(),
+                    u.errors,
+                    u.warnings,
+                    u.infos
+                ),
+            );
+            note.not_listed = Some(u);
+            self.diagnostics.push(note);
         }
     }
 }
@@ -491,6 +555,7 @@ mod tests {
         let opts = Options {
             job: 7,
             stop_at_blocks: true,
+            ..Options::default()
         };
         run(text, &s, opts, &mut sb);
         assert!(

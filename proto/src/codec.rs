@@ -121,6 +121,10 @@ fn refusal(e: &prost::DecodeError, raw: &[u8]) -> Status {
             code: "text_not_utf8".into(),
             ..Default::default()
         }],
+        totals: Some(crate::v1::DiagnosticCounts {
+            errors: 1,
+            ..Default::default()
+        }),
     }
     .encode_to_vec();
     Status::with_details(Code::InvalidArgument, msg, details.into())

@@ -56,7 +56,7 @@ async fn roles_observer_operator_admin() {
         .await
         .unwrap();
     let denied = [
-        m.start(pb::StartRequest {}).await.unwrap_err(),
+        m.start(pb::StartRequest::default()).await.unwrap_err(),
         m.stop(pb::StopRequest {}).await.unwrap_err(),
         m.hold(pb::HoldRequest {}).await.unwrap_err(),
         m.set_override(pb::SetOverrideRequest { percent: 50.0 })
@@ -117,7 +117,7 @@ async fn roles_observer_operator_admin() {
 
     // Observer token explicitly: same as observer.
     let e = m
-        .start(with_token(pb::StartRequest {}, OBSERVER_TOKEN))
+        .start(with_token(pb::StartRequest::default(), OBSERVER_TOKEN))
         .await
         .unwrap_err();
     assert_eq!(e.code(), Code::PermissionDenied);
@@ -127,7 +127,7 @@ async fn roles_observer_operator_admin() {
         .await
         .unwrap();
     assert_eq!(d.ctl.constants().get(39), 45.0);
-    m.start(with_token(pb::StartRequest {}, ADMIN_TOKEN))
+    m.start(with_token(pb::StartRequest::default(), ADMIN_TOKEN))
         .await
         .unwrap();
 

@@ -76,7 +76,7 @@ async fn programs_validate_upload_select_list_start_and_status() {
     assert_eq!(list.programs.len(), 1);
     assert_eq!(list.programs[0].name, "part.nc");
     assert_eq!(list.selected, "");
-    let e = c.start(pb::StartRequest {}).await.unwrap_err();
+    let e = c.start(pb::StartRequest::default()).await.unwrap_err();
     assert_eq!(
         e.code(),
         Code::FailedPrecondition,
@@ -104,7 +104,7 @@ async fn programs_validate_upload_select_list_start_and_status() {
         .unwrap()
         .into_inner();
     let job = start_job(&mut c).await;
-    let e = c.start(pb::StartRequest {}).await.unwrap_err();
+    let e = c.start(pb::StartRequest::default()).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition, "start while running");
     let e = c
         .load_program(named_program("x", PROGRAM))
@@ -208,7 +208,7 @@ async fn mdi_runs_one_block_and_keeps_the_selected_program() {
     let list = list_programs(&mut c).await;
     assert_eq!(list.selected, "part.nc");
     // MDI while running is a wrong state.
-    c.start(pb::StartRequest {}).await.unwrap();
+    c.start(pb::StartRequest::default()).await.unwrap();
     let e = c.mdi(mdi_block("G1 X1 F100")).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition);
 }

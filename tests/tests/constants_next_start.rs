@@ -218,7 +218,10 @@ impl Api {
     async fn planned_s(&mut self, text: &str) -> f64 {
         let mut s = self
             .t
-            .get_trajectory(pb::TrajectoryRequest { text: text.into() })
+            .get_trajectory(pb::TrajectoryRequest {
+                text: text.into(),
+                ..Default::default()
+            })
             .await
             .unwrap()
             .into_inner();
@@ -567,7 +570,7 @@ async fn r325_refines_the_arc_r55_refuses() {
     // Limit 1 µm: too small for 3 µm, refused again at the next pass and start.
     api.set(&[(325, 10000.001)]).await.unwrap();
     assert!(!api.validate(OFF_CENTRE).await.valid);
-    let e = api.m.start(pb::StartRequest {}).await.unwrap_err();
+    let e = api.m.start(pb::StartRequest::default()).await.unwrap_err();
     assert_eq!(e.code(), Code::InvalidArgument);
 }
 

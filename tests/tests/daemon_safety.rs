@@ -470,11 +470,15 @@ async fn jog_steps_and_continuous_jog_rest_on_the_soft_limit() {
         s.state == MachineState::Idle && s.commanded[0] == 0.1
     })
     .await;
-    // A step past the soft limit stops on it.
-    let r = d.c.jog_step(step("X", -5.0)).await.unwrap().into_inner();
-    assert_eq!(r.target_mm, -1.0);
-    wait_for(&d.ctl, "clamped step done", |s| {
-        s.state == MachineState::Idle && s.commanded[0] == -1.0
+    // A step past the soft limit is refused before motion (issue #31); one to it runs.
+    let e = d.c.jog_step(step("X", -5.0)).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    assert!(e.message().starts_with("jog_beyond_travel"), "{e:?}");
+    assert_eq!(d.ctl.snapshot().commanded[0], 0.1);
+    let r = d.c.jog_step(step("X", -1.1)).await.unwrap().into_inner();
+    assert!((r.target_mm + 1.0).abs() < 1e-12, "{}", r.target_mm);
+    wait_for(&d.ctl, "step to the limit done", |s| {
+        s.state == MachineState::Idle && (s.commanded[0] + 1.0).abs() < 1e-12
     })
     .await;
     let e = d.c.jog_step(step("Q", 1.0)).await.unwrap_err();
@@ -615,7 +619,7 @@ async fn homing_in_order_and_refusals_before_it() {
     let homed: Vec<bool> = st.axes.iter().map(|a| a.homed).collect();
     assert_eq!(homed, [false, true, false], "Y needs no homing");
     load(&mut c, "N10 G1 X1 F1000\n").await.unwrap();
-    let e = c.start(pb::StartRequest {}).await.unwrap_err();
+    let e = c.start(pb::StartRequest::default()).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition);
     let e = c.mdi(mdi_block("G1 X1 F1000")).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition);

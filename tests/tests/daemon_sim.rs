@@ -175,7 +175,7 @@ async fn bad_program_is_rejected_with_block_number_and_nothing_moves() {
         assert_eq!(first.code, code, "{}", first.message);
     }
     // No program is selected, so start is refused; nothing moved; the daemon still serves.
-    let err = client.start(pb::StartRequest {}).await.unwrap_err();
+    let err = client.start(pb::StartRequest::default()).await.unwrap_err();
     assert_eq!(err.code(), tonic::Code::FailedPrecondition);
     tokio::time::sleep(Duration::from_millis(50)).await;
     assert_eq!(ctl.snapshot().commanded, before);

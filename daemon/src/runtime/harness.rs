@@ -306,6 +306,7 @@ impl Harness {
         let opts = Options {
             job,
             stop_at_blocks,
+            ..Options::default()
         };
         let v = pipeline::validate(text, &setup, opts);
         if v.has_errors() {

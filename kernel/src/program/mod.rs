@@ -46,6 +46,9 @@ pub enum IjMode {
 /// What the interpreter needs to know about the machine.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Setup {
+    /// The block-delete switch (issue #31, docs/language.md "Block delete"): a block whose
+    /// first character is `/` is skipped while on, and runs (the `/` ignored) while off.
+    pub block_delete: bool,
     /// Axis letters in machine order (R0..R5), e.g. `['X', 'Y', 'Z']`.
     pub axis_names: Vec<char>,
     /// Position of the axes when the program starts (machine coordinates).
@@ -98,6 +101,7 @@ impl Setup {
             max_feed_mm_min: 0.0,
             modal: None,
             soft_limits: crate::limits::SoftLimits::NONE,
+            block_delete: false,
         }
     }
 
@@ -324,6 +328,7 @@ pub fn stream_lines<L: Lines>(lines: L, setup: &Setup) -> Stream<L> {
         lines,
         line_no: 0,
         done: false,
+        block_delete: setup.block_delete,
     }
 }
 
@@ -334,6 +339,8 @@ pub struct Stream<L> {
     line_no: u32,
     pending_setup_error: Option<Diagnostic>,
     done: bool,
+    /// The block-delete switch of the setup.
+    block_delete: bool,
 }
 
 impl<L> Stream<L> {
@@ -404,6 +411,16 @@ impl<L: Lines> Iterator for Stream<L> {
             } else {
                 line
             };
+            let unslashed;
+            let line = match block_delete_slash(line) {
+                Some(_) if self.block_delete => continue,
+                // Switch off: the block runs; the `/` becomes a space (columns stay).
+                Some(k) => {
+                    unslashed = format!("{} {}", &line[..k], &line[k + 1..]);
+                    unslashed.as_str()
+                }
+                None => line,
+            };
             match self.interp.line(self.line_no, line) {
                 Ok(Some(b)) => {
                     if crate::block::ends_program(&b.m) {
@@ -417,6 +434,12 @@ impl<L: Lines> Iterator for Stream<L> {
         }
         None
     }
+}
+
+/// Where the block-delete `/` of `line` is: the first character that is not a space or tab.
+fn block_delete_slash(line: &str) -> Option<usize> {
+    let k = line.len() - line.trim_start_matches([' ', '\t']).len();
+    (line.as_bytes().get(k) == Some(&b'/')).then_some(k)
 }
 
 /// Fuzzing entry: arbitrary bytes as a program, for a mill and a lathe, with refinement and

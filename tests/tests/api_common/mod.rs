@@ -272,7 +272,11 @@ pub fn constant_values(values: &[(u32, f64)]) -> pb::SetConstantsRequest {
 
 /// `Start` of the selected program: its job number.
 pub async fn start_job(m: &mut MachineClient<Channel>) -> u32 {
-    m.start(pb::StartRequest {}).await.unwrap().into_inner().job
+    m.start(pb::StartRequest::default())
+        .await
+        .unwrap()
+        .into_inner()
+        .job
 }
 
 /// `LoadProgram` of `text` as `name`, then `Start`: the job number.

@@ -66,8 +66,16 @@ pub enum Cmd {
     Delete { name: String },
     /// Rename a stored program.
     Rename { from: String, to: String },
-    /// Start the selected program.
-    Start,
+    /// Start the selected program (or restart it from block N: docs/operator.md).
+    Start {
+        /// Restart from the block numbered N: the blocks before it set the modal state
+        /// without motion, an approach (retract, over, down at feed) leads to its start.
+        #[arg(long, value_name = "N")]
+        from_block: Option<u32>,
+        /// Confirm the approach of `--from-block` without asking.
+        #[arg(long, short = 'y')]
+        yes: bool,
+    },
     /// Stop motion (brake on the path) and drop the rest of the program.
     Stop,
     /// Feed hold.
@@ -90,6 +98,11 @@ pub enum Cmd {
     },
     /// Optional stop on or off: when on, M1 stops the program like M0 (Resume continues).
     OptionalStop {
+        #[arg(value_parser = ["on", "off"])]
+        mode: String,
+    },
+    /// Block delete on or off: when on, blocks starting with `/` are skipped.
+    BlockDelete {
         #[arg(value_parser = ["on", "off"])]
         mode: String,
     },
@@ -199,6 +212,9 @@ pub enum Cmd {
     /// (time, setpoints, path speed, block) for plotting.
     Trajectory {
         file: Option<PathBuf>,
+        /// The trajectory of a restart from block N, approach first.
+        #[arg(long, value_name = "N")]
+        from_block: Option<u32>,
         /// CSV output file.
         #[arg(short = 'o', long)]
         out: Option<PathBuf>,

@@ -65,6 +65,8 @@ pub enum CliError {
     PreviewRejected { file: PathBuf, lines: Vec<String> },
     #[error("{0}")]
     Png(String),
+    #[error("not started: confirm the approach with --yes (or y at the prompt)")]
+    NotConfirmed,
 }
 
 impl CliError {
@@ -94,6 +96,7 @@ impl CliError {
             CliError::ConstantValue(_) => "cli_constant_value",
             CliError::PreviewRejected { .. } => "cli_preview_rejected",
             CliError::Png(_) => "cli_png",
+            CliError::NotConfirmed => "cli_not_confirmed",
         }
     }
 

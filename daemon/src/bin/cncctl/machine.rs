@@ -14,13 +14,12 @@ use crate::args::Cmd;
 use crate::call::{Reply, call, call_as, call_done};
 use crate::connect::Svc;
 use crate::error::CliError;
-use crate::render::{Render, block_name, diag_lines, diags_json, emit, read_text, show};
+use crate::render::{Render, block_name, diags_json, emit, read_text, show};
 use crate::status::{alarm_json, dro, status_json, status_line};
 
 /// Runs one Machine command (main routes only these here).
 pub async fn command(m: &mut MachineClient<Svc>, cmd: Cmd, j: bool) -> Reply {
     match cmd {
-        Cmd::Validate { file } => validate(m, &file, j).await,
         Cmd::Refine { file } => refine(m, &file, j).await,
         Cmd::Select { name } => {
             let answer = m.select_program(pb::SelectProgramRequest { name: name.clone() });
@@ -30,8 +29,8 @@ pub async fn command(m: &mut MachineClient<Svc>, cmd: Cmd, j: bool) -> Reply {
             })
             .await
         }
-        Cmd::Start => {
-            let answer = m.start(pb::StartRequest {});
+        Cmd::Start { .. } => {
+            let answer = m.start(pb::StartRequest::default());
             call_as(j, answer, |r| Started {
                 job: r.job,
                 mdi: false,
@@ -82,6 +81,10 @@ async fn control(m: &mut MachineClient<Svc>, cmd: Cmd, j: bool) -> Reply {
             let req = pb::SetOptionalStopRequest { on: mode == "on" };
             call_done(j, m.set_optional_stop(req)).await
         }
+        Cmd::BlockDelete { mode } => {
+            let req = pb::SetBlockDeleteRequest { on: mode == "on" };
+            call_done(j, m.set_block_delete(req)).await
+        }
         _ => unreachable!("main routes only Machine service commands here"),
     }
 }
@@ -101,9 +104,9 @@ impl Render for Selected {
 }
 
 /// A job started by `start` or `mdi`.
-struct Started {
-    job: u32,
-    mdi: bool,
+pub struct Started {
+    pub job: u32,
+    pub mdi: bool,
 }
 
 impl Render for Started {
@@ -126,41 +129,6 @@ impl Render for pb::HomeReply {
     fn human(&self) -> String {
         format!("homed {}", self.homed)
     }
-}
-
-struct Validated<'a> {
-    file: &'a Path,
-    r: pb::ValidateProgramReply,
-}
-
-impl Render for Validated<'_> {
-    fn json(&self) -> Value {
-        json!({"valid": self.r.valid, "blocks": self.r.blocks, "diagnostics": diags_json(&self.r.diagnostics)})
-    }
-    fn human(&self) -> String {
-        let head = if self.r.valid {
-            format!("{}: valid, {} blocks", self.file.display(), self.r.blocks)
-        } else {
-            format!("{}: has errors", self.file.display())
-        };
-        head + &diag_lines(&self.r.diagnostics)
-    }
-}
-
-/// Validates a program file; fails when it has errors.
-async fn validate(m: &mut MachineClient<Svc>, file: &Path, j: bool) -> Reply {
-    let text = read_text(file)?;
-    let r = m
-        .validate_program(pb::ValidateProgramRequest { text })
-        .await?
-        .into_inner();
-    let valid = r.valid;
-    emit(j, &Validated { file, r });
-    Ok(if valid {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::FAILURE
-    })
 }
 
 impl Render for pb::RefinedProgramReply {

@@ -16,6 +16,7 @@ mod plc;
 mod preview;
 mod programs;
 mod render;
+mod restart;
 mod status;
 mod trajectory;
 
@@ -87,7 +88,8 @@ async fn dispatch(c: &mut Clients, cmd: Cmd, j: bool) -> Reply {
         | Cmd::Programs
         | Cmd::Download { .. }
         | Cmd::Delete { .. }
-        | Cmd::Rename { .. } => programs::command(c, cmd, j).await,
+        | Cmd::Rename { .. }
+        | Cmd::Validate { .. } => programs::command(c, cmd, j).await,
         Cmd::Offsets { .. }
         | Cmd::OffsetSet { .. }
         | Cmd::OffsetsFile
@@ -98,9 +100,18 @@ async fn dispatch(c: &mut Clients, cmd: Cmd, j: bool) -> Reply {
         Cmd::PreviewData { file, junctions } => {
             preview::data(&mut c.preview, &file, junctions, j).await
         }
-        Cmd::Trajectory { file, out } => {
-            trajectory::command(&mut c.trajectory, file.as_deref(), out.as_deref(), j).await
+        Cmd::Trajectory {
+            file,
+            out,
+            from_block,
+        } => {
+            let (f, o) = (file.as_deref(), out.as_deref());
+            trajectory::command(&mut c.trajectory, f, o, from_block, j).await
         }
+        Cmd::Start {
+            from_block: Some(n),
+            yes,
+        } => restart::command(c, n, yes, j).await,
         Cmd::Health => health(c, j).await,
         Cmd::HashToken { .. } | Cmd::Preview { .. } => unreachable!("run answers it"),
         other => machine::command(&mut c.machine, other, j).await,

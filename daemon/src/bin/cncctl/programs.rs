@@ -15,12 +15,15 @@ use crate::call::{Reply, call, call_done};
 use crate::connect::{Clients, Svc};
 use crate::error::CliError;
 use crate::machine::follow;
-use crate::render::{Render, diag_line, diag_lines, diags_json, show};
+use crate::render::{
+    Render, diag_line, diag_lines, diags_json, emit, show, totals_json, totals_line,
+};
 
 /// Runs one Programs command (main routes only these here).
 pub async fn command(c: &mut Clients, cmd: Cmd, j: bool) -> Reply {
     match cmd {
         Cmd::Run { file, quiet } => run(c, &file, quiet, j).await,
+        Cmd::Validate { file } => validate(&mut c.programs, &file, j).await,
         other => library(&mut c.programs, other, j).await,
     }
 }
@@ -52,7 +55,12 @@ async fn run(c: &mut Clients, file: &Path, quiet: bool, j: bool) -> Reply {
     for d in &done.diagnostics {
         eprintln!("{}", diag_line(d));
     }
-    let job = c.machine.start(pb::StartRequest {}).await?.into_inner().job;
+    let job = c
+        .machine
+        .start(pb::StartRequest::default())
+        .await?
+        .into_inner()
+        .job;
     follow(&mut c.machine, job, quiet || j, j).await
 }
 
@@ -63,11 +71,13 @@ struct Loaded {
 
 impl Render for Loaded {
     fn json(&self) -> Value {
-        json!({"blocks": self.blocks(), "diagnostics": diags_json(&self.done.diagnostics)})
+        json!({"blocks": self.blocks(), "diagnostics": diags_json(&self.done.diagnostics),
+            "totals": totals_json(self.done.totals)})
     }
     fn human(&self) -> String {
         format!("loaded {} ({} blocks)", self.file.display(), self.blocks())
             + &diag_lines(&self.done.diagnostics)
+            + &totals_line(self.done.totals)
     }
 }
 
@@ -140,6 +150,51 @@ async fn download(g: &mut ProgramsClient<Svc>, name: String, out: Option<&Path>)
     }
     sink.flush().map_err(CliError::Output)?;
     Ok(ExitCode::SUCCESS)
+}
+
+struct Validated<'a> {
+    file: &'a Path,
+    r: pb::ValidateProgramReply,
+}
+
+impl Render for Validated<'_> {
+    fn json(&self) -> Value {
+        json!({"valid": self.r.valid, "blocks": self.r.blocks,
+            "diagnostics": diags_json(&self.r.diagnostics), "totals": totals_json(self.r.totals)})
+    }
+    fn human(&self) -> String {
+        let head = if self.r.valid {
+            format!("{}: valid, {} blocks", self.file.display(), self.r.blocks)
+        } else {
+            format!("{}: has errors", self.file.display())
+        };
+        head + &diag_lines(&self.r.diagnostics) + &totals_line(self.r.totals)
+    }
+}
+
+/// Validates a program file of any size (Programs.Validate, in chunks as an upload);
+/// fails when it has errors.
+async fn validate(g: &mut ProgramsClient<Svc>, file: &Path, j: bool) -> Reply {
+    let f = std::fs::File::open(file).map_err(CliError::read(file))?;
+    let (tx, rx) = tokio::sync::mpsc::channel::<pb::ProgramChunk>(4);
+    let bar = ProgressBar::hidden();
+    let b = bar.clone();
+    let reader =
+        tokio::task::spawn_blocking(move || send_chunks(f, pb::ProgramChunk::default(), &b, &tx));
+    let r = g
+        .validate(tokio_stream::wrappers::ReceiverStream::new(rx))
+        .await?
+        .into_inner();
+    reader
+        .await
+        .map_err(|e| CliError::UploadReader(e.to_string()))??;
+    let valid = r.valid;
+    emit(j, &Validated { file, r });
+    Ok(if valid {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
 }
 
 /// Upload chunk size: well below the 4 MiB message limit.

@@ -48,14 +48,44 @@ impl Render for Done {
     }
 }
 
-/// Renders a gRPC error for a person, with every diagnostic on its own line.
+/// Renders a gRPC error for a person, with every diagnostic it carries on its own line and
+/// the totals when more were found than the details carry.
 pub fn explain(s: &tonic::Status) -> String {
     match pb::Diagnostics::decode(s.details()) {
         Ok(d) if !d.items.is_empty() => {
-            format!("{:?}: rejected{}", s.code(), diag_lines(&d.items))
+            let listed = d.items.len() as u64;
+            let all = d.totals.map_or(0, |t| t.errors + t.warnings + t.infos);
+            let more = if all > listed {
+                format!(
+                    "{}\n  (the first {listed} shown; `cncctl validate FILE` lists the first 200)",
+                    totals_line(d.totals)
+                )
+            } else {
+                String::new()
+            };
+            format!("{:?}: rejected{}{more}", s.code(), diag_lines(&d.items))
         }
         _ => format!("{:?}: {}", s.code(), s.message()),
     }
+}
+
+/// `\n  totals: 3 errors, 1 warnings, 0 notes`, or nothing when the daemon sent no totals.
+pub fn totals_line(t: Option<pb::DiagnosticCounts>) -> String {
+    match t {
+        Some(t) if t.errors + t.warnings + t.infos > 0 => format!(
+            "\n  totals: {} errors, {} warnings, {} notes",
+            t.errors, t.warnings, t.infos
+        ),
+        _ => String::new(),
+    }
+}
+
+/// The totals as JSON (`null` when the daemon sent none).
+pub fn totals_json(t: Option<pb::DiagnosticCounts>) -> Value {
+    t.map_or(
+        Value::Null,
+        |t| json!({"errors": t.errors, "warnings": t.warnings, "infos": t.infos}),
+    )
 }
 
 /// One diagnostic for people: `error: line 3:5 block N30: message`.

@@ -85,6 +85,12 @@ pub fn status_line(s: &pb::Status) -> String {
     if s.program_stop {
         line.push_str("  program stop (M0/M1): resume to continue");
     }
+    if s.block_delete {
+        line.push_str("  [/ skipped]");
+    }
+    if let Some(n) = s.restart_block {
+        line.push_str(&format!("  restart from N{n}: start --from-block {n}"));
+    }
     if s.fault_path_deviation_mm > 0.0 {
         line.push_str(&format!(
             "  fault stop left the path by {:.3} mm",
@@ -128,6 +134,7 @@ pub fn status_json(s: &pb::Status) -> Value {
         "waiting_for_spindle": s.waiting_for_spindle,
         "optional_stop": s.optional_stop, "program_stop": s.program_stop,
         "fault_path_deviation_mm": s.fault_path_deviation_mm,
+        "block_delete": s.block_delete, "restart_block": s.restart_block,
         "ticks": {"ticks": t.ticks, "overruns": t.overruns, "lateness_p50_us": t.lateness_p50_us,
             "lateness_p99_us": t.lateness_p99_us, "lateness_max_us": t.lateness_max_us,
             "cycle_us": t.cycle_us},

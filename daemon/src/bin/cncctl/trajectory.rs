@@ -18,28 +18,80 @@ pub async fn command(
     t: &mut TrajectoryClient<Svc>,
     file: Option<&Path>,
     out: Option<&Path>,
+    from_block: Option<u32>,
     j: bool,
 ) -> Reply {
     let text = match file {
         Some(f) => read_text(f)?,
         None => String::new(),
     };
-    show(j, &trajectory(t, text, out).await?)
+    show(j, &trajectory(t, text, from_block, out).await?)
 }
 
-/// Machining time and tick count.
-struct Planned {
-    total_s: f64,
-    ticks: u64,
+/// Machining time and tick count; for a restart, the approach.
+pub struct Planned {
+    pub total_s: f64,
+    pub ticks: u64,
+    pub approach: Option<Approach>,
+}
+
+/// The approach of a restart: the ticks before the first of a programmed block (the legs
+/// carry no block number).
+#[derive(Default)]
+pub struct Approach {
+    pub axes: Vec<String>,
+    /// Where the approach ends: the start of the restart block.
+    pub to_mm: Vec<f64>,
+    pub time_s: f64,
+    /// The approach ended (a programmed block's tick came).
+    done: bool,
+}
+
+impl Approach {
+    fn tick(&mut self, k: &pb::TrajectoryTick) {
+        if self.done || k.block.is_some() {
+            self.done = true;
+            return;
+        }
+        self.to_mm = k.position_mm.clone();
+        self.time_s = k.t_s;
+    }
+
+    pub fn describe(&self) -> String {
+        if self.to_mm.is_empty() {
+            return "no approach (the axes are at the start of the block)".into();
+        }
+        let to: Vec<String> = self
+            .axes
+            .iter()
+            .zip(&self.to_mm)
+            .map(|(a, v)| format!("{a}{v:.3}"))
+            .collect();
+        format!(
+            "approach to {} in {:.3} s (retract, rapid over, down at feed)",
+            to.join(" "),
+            self.time_s
+        )
+    }
+
+    fn json(&self) -> Value {
+        json!({"to_mm": self.to_mm, "time_s": self.time_s})
+    }
 }
 
 impl Render for Planned {
     fn json(&self) -> Value {
-        json!({"total_s": self.total_s, "ticks": self.ticks})
+        json!({"total_s": self.total_s, "ticks": self.ticks,
+            "approach": self.approach.as_ref().map(Approach::json)})
     }
     fn human(&self) -> String {
+        let a = self
+            .approach
+            .as_ref()
+            .map(|a| format!("\n{}", a.describe()))
+            .unwrap_or_default();
         format!(
-            "machining time {:.3} s ({} ticks of 4 ms)",
+            "machining time {:.3} s ({} ticks of 4 ms){a}",
             self.total_s, self.ticks
         )
     }
@@ -47,13 +99,14 @@ impl Render for Planned {
 
 /// Streams the trajectory of `text` (the selected program when empty); writes the CSV to
 /// `out` when given.
-async fn trajectory(
+pub async fn trajectory(
     t: &mut TrajectoryClient<Svc>,
     text: String,
+    from_block: Option<u32>,
     out: Option<&Path>,
 ) -> Result<Planned, CliError> {
     let mut stream = t
-        .get_trajectory(pb::TrajectoryRequest { text })
+        .get_trajectory(pb::TrajectoryRequest { text, from_block })
         .await?
         .into_inner();
     let mut csv = match out {
@@ -68,9 +121,18 @@ async fn trajectory(
     let mut planned = Planned {
         total_s: 0.0,
         ticks: 0,
+        approach: from_block.map(|_| Approach::default()),
     };
     while let Some(chunk) = stream.message().await? {
         planned.ticks += chunk.ticks.len() as u64;
+        if let Some(a) = planned.approach.as_mut() {
+            if !chunk.axes.is_empty() {
+                a.axes = chunk.axes.clone();
+            }
+            for k in &chunk.ticks {
+                a.tick(k);
+            }
+        }
         if let Some(w) = csv.as_mut() {
             write_csv(w, &chunk).map_err(CliError::Csv)?;
         }

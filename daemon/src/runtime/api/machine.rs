@@ -17,7 +17,7 @@ use kernel::plan::Segment;
 use super::programs::{check_name, select_stored, store_text};
 use super::{
     ApiState, DEFAULT_STATUS_HZ, JUNCTION_CLASSIFY_MAX_BLOCKS, MAX_STATUS_HZ, RunInfo, RunMode,
-    blocking, diagnostic_to_pb, status_of,
+    blocking, counts_pb, diagnostic_to_pb, refused, status_of,
 };
 use crate::runtime::config::Role::{Observer, Operator};
 use crate::runtime::controller::{ControlError, Controller};
@@ -28,6 +28,15 @@ use crate::runtime::rt::MachineState;
 const DEFAULT_LEASE_MS: u32 = 500;
 const MIN_LEASE_MS: u32 = 100;
 const MAX_LEASE_MS: u32 = 1000;
+
+/// Releases the continuous jog when its stream ends, however it ends.
+struct JogHeld<'a>(&'a std::sync::atomic::AtomicBool);
+
+impl Drop for JogHeld<'_> {
+    fn drop(&mut self) {
+        self.0.store(false, Ordering::Release);
+    }
+}
 
 /// Largest program run in single-block mode (its blocks are kept in memory), bytes.
 const SINGLE_BLOCK_MAX_BYTES: u64 = 16 << 20;
@@ -49,6 +58,7 @@ fn reply_of(done: pb::UploadDone) -> pb::LoadProgramReply {
     pb::LoadProgramReply {
         blocks: done.program.map_or(0, |p| p.blocks),
         diagnostics: done.diagnostics,
+        totals: done.totals,
     }
 }
 
@@ -122,6 +132,7 @@ impl Machine for MachineSvc {
             valid: !v.has_errors(),
             blocks: v.blocks,
             diagnostics: v.diagnostics.iter().map(diagnostic_to_pb).collect(),
+            totals: Some(counts_pb(&v.diagnostics)),
             refinements: refined.iter().map(refinement_to_pb).collect(),
         }))
     }
@@ -148,6 +159,7 @@ impl Machine for MachineSvc {
         Ok(Response::new(pb::LoadProgramReply {
             blocks: loaded.block_count,
             diagnostics: loaded.warnings.iter().map(diagnostic_to_pb).collect(),
+            totals: Some(counts_pb(&loaded.warnings)),
         }))
     }
 
@@ -183,14 +195,22 @@ impl Machine for MachineSvc {
         req: Request<pb::StartRequest>,
     ) -> Result<Response<pb::StartReply>, Status> {
         require(&req, Operator, "Start")?;
+        let from_block = req.into_inner().from_block;
         let _one_at_a_time = self.0.start_lock.lock().await;
         // Start on a held machine (feed hold, M0/M1) continues the job.
-        if let Some(job) = self.0.ctl.start_resumes().map_err(status_of)? {
+        if from_block.is_none()
+            && let Some(job) = self.0.ctl.start_resumes().map_err(status_of)?
+        {
             return Ok(Response::new(pb::StartReply { job }));
         }
         let st = self.0.clone();
         let job = blocking(move || -> Result<u32, Status> {
             if st.single_block.load(Ordering::Relaxed) {
+                if from_block.is_some() {
+                    return Err(Status::failed_precondition(
+                        "a restart from a block runs continuously: switch single block off",
+                    ));
+                }
                 // Single block: every block ends at rest so the holds land on block ends.
                 let p = st
                     .ctl
@@ -219,7 +239,7 @@ impl Machine for MachineSvc {
                 });
                 Ok(job)
             } else {
-                let job = st.ctl.start_program().map_err(status_of)?;
+                let job = st.ctl.start_program_from(from_block).map_err(status_of)?;
                 *st.run.lock().unwrap() = None;
                 Ok(job)
             }
@@ -295,6 +315,15 @@ impl Machine for MachineSvc {
         Ok(Response::new(pb::SetSingleBlockReply {}))
     }
 
+    async fn set_block_delete(
+        &self,
+        req: Request<pb::SetBlockDeleteRequest>,
+    ) -> Result<Response<pb::SetBlockDeleteReply>, Status> {
+        require(&req, Operator, "SetBlockDelete")?;
+        self.0.ctl.set_block_delete(req.into_inner().on);
+        Ok(Response::new(pb::SetBlockDeleteReply {}))
+    }
+
     async fn set_optional_stop(
         &self,
         req: Request<pb::SetOptionalStopRequest>,
@@ -311,6 +340,19 @@ impl Machine for MachineSvc {
         require(&req, Operator, "Jog")?;
         let mut stream = req.into_inner();
         let ctl = &self.0.ctl;
+        // One motion source at a time: this stream holds the jog until it ends; another
+        // stream, a running step, a program or a reference run refuses it.
+        let state = ctl.snapshot().state;
+        if state != crate::runtime::rt::MachineState::Idle
+            || self.0.jog_stream.swap(true, Ordering::AcqRel)
+        {
+            return Err(refused(
+                tonic::Code::FailedPrecondition,
+                kernel::DiagCode::JogBusy,
+                format!("the machine is busy ({state:?}, or another jog): one motion at a time"),
+            ));
+        }
+        let _held = JogHeld(&self.0.jog_stream);
         let mut target = 0.0;
         // Every message renews the jog; the end of the stream (or its failure: the client
         // went away) stops it. A silent client is stopped by the RT thread's lease.
@@ -375,6 +417,23 @@ impl Machine for MachineSvc {
     ) -> Result<Response<pb::JogReply>, Status> {
         require(&req, Operator, "JogStep")?;
         let r = req.into_inner();
+        let state = self.0.ctl.snapshot().state;
+        if state != crate::runtime::rt::MachineState::Idle
+            || self.0.jog_stream.load(Ordering::Acquire)
+        {
+            return Err(refused(
+                tonic::Code::FailedPrecondition,
+                kernel::DiagCode::JogBusy,
+                format!("the machine is busy ({state:?}, or a jog): one motion at a time"),
+            ));
+        }
+        self.0.ctl.jog_step_check(&r.axis, r.step_mm).map_err(|m| {
+            refused(
+                tonic::Code::InvalidArgument,
+                kernel::DiagCode::JogBeyondTravel,
+                m,
+            )
+        })?;
         let target = self
             .0
             .ctl

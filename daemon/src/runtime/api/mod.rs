@@ -13,6 +13,7 @@ mod programs;
 mod tables;
 mod trajectory;
 pub mod upload_session;
+mod validate_stream;
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -96,6 +97,8 @@ pub struct ApiState {
     /// Serialises Start and MDI: the RT thread takes a start on its next tick, so a second
     /// start must wait until the first is seen in the snapshot.
     start_lock: tokio::sync::Mutex<()>,
+    /// A continuous jog stream holds the jog (issue #31: one motion source at a time).
+    jog_stream: AtomicBool,
     streams: Arc<AtomicUsize>,
     observer_streams: Arc<AtomicUsize>,
     max_streams: usize,
@@ -131,6 +134,7 @@ impl ApiState {
             run: Mutex::new(None),
             single_block: AtomicBool::new(false),
             start_lock: tokio::sync::Mutex::new(()),
+            jog_stream: AtomicBool::new(false),
             streams: Arc::new(AtomicUsize::new(0)),
             closing: tokio::sync::watch::Sender::new(false),
             observer_streams: Arc::new(AtomicUsize::new(0)),
@@ -294,6 +298,8 @@ impl ApiState {
             optional_stop: s.optional_stop,
             program_stop: s.program_stop,
             fault_path_deviation_mm: s.fault_path_deviation_mm,
+            block_delete: ctl.block_delete(),
+            restart_block: restart_block(s, block.as_ref()),
         }
     }
 
@@ -498,6 +504,31 @@ pub fn alarm_text(ctl: &Controller, s: &Snapshot) -> Option<String> {
     }
 }
 
+/// A refusal with one coded diagnostic in its details (not tied to a program line).
+pub fn refused(code: Code, what: kernel::DiagCode, msg: String) -> Status {
+    let d = Diagnostic::error(what, None, 0, 0, msg.clone());
+    let details = pb::Diagnostics {
+        items: vec![diagnostic_to_pb(&d)],
+        totals: Some(counts_pb(std::slice::from_ref(&d))),
+    };
+    Status::with_details(
+        code,
+        format!("{what}: {msg}"),
+        details.encode_to_vec().into(),
+    )
+}
+
+/// The block to restart from after a stop or a fault ended the job early: the programmed
+/// block it stopped in (issue #31).
+fn restart_block(s: &Snapshot, block: Option<&Block>) -> Option<u32> {
+    let ended_early = s.job != 0
+        && s.aborted_job == s.job
+        && matches!(s.state, MachineState::Idle | MachineState::Fault);
+    ended_early
+        .then(|| block.and_then(|b| b.n).or(s.block_n))
+        .flatten()
+}
+
 pub fn diagnostic_to_pb(d: &Diagnostic) -> pb::Diagnostic {
     pb::Diagnostic {
         severity: match d.severity {
@@ -519,22 +550,80 @@ pub fn diagnostic_to_pb(d: &Diagnostic) -> pb::Diagnostic {
     }
 }
 
-/// INVALID_ARGUMENT whose message lists the first errors and whose details carry every
-/// diagnostic as a `cnc.v1.Diagnostics` message.
+/// The totals of a capped list (see `kernel::pipeline::MAX_LISTED`).
+pub fn counts_pb(diags: &[Diagnostic]) -> pb::DiagnosticCounts {
+    let c = kernel::DiagCounts::of(diags);
+    pb::DiagnosticCounts {
+        errors: c.errors,
+        warnings: c.warnings,
+        infos: c.infos,
+    }
+}
+
+/// Bytes of encoded diagnostics a refusal's details may carry: status details travel in a
+/// header (base64, a third larger) and every header of a reply must fit the client's limit
+/// (16 KiB in tonic/hyper, 8 KiB in grpcio), so a refusal never becomes a transport error.
+pub const DETAILS_MAX_BYTES: usize = 4096;
+
+/// A diagnostic's message in the details is cut to this many characters.
+const DETAILS_MESSAGE_CHARS: usize = 200;
+
+/// How many errors the status message names.
+const MESSAGE_ERRORS: usize = 5;
+
+/// INVALID_ARGUMENT whose message names the first errors and the totals, and whose details
+/// carry a `cnc.v1.Diagnostics`: the first diagnostics that fit [`DETAILS_MAX_BYTES`] (the
+/// first error always among them) and the totals.
 pub fn invalid_with_diagnostics(what: &str, diags: &[Diagnostic]) -> Status {
-    let errors: Vec<&Diagnostic> = diags.iter().filter(|d| d.is_error()).collect();
-    let mut msg = format!("{what} rejected, {} error(s): ", errors.len());
-    for (i, d) in errors.iter().take(5).enumerate() {
+    let totals = counts_pb(diags);
+    let mut msg = format!(
+        "{what} rejected, {} error(s), {} warning(s): ",
+        totals.errors, totals.warnings
+    );
+    for (i, d) in diags
+        .iter()
+        .filter(|d| d.is_error())
+        .take(MESSAGE_ERRORS)
+        .enumerate()
+    {
         if i > 0 {
             msg.push_str("; ");
         }
-        msg.push_str(&d.to_string());
+        msg.push_str(&cut(&d.to_string(), DETAILS_MESSAGE_CHARS));
     }
-    let details = pb::Diagnostics {
-        items: diags.iter().map(diagnostic_to_pb).collect(),
+    let mut details = pb::Diagnostics {
+        items: Vec::new(),
+        totals: Some(totals),
+    };
+    let mut used = details.encoded_len();
+    let first_error = diags.iter().position(Diagnostic::is_error);
+    for (i, d) in diags.iter().enumerate() {
+        let mut item = diagnostic_to_pb(d);
+        item.message = cut(&item.message, DETAILS_MESSAGE_CHARS);
+        // Room is kept for the first error when it comes later.
+        let reserve = match first_error {
+            Some(k) if k > i => 512,
+            _ => 0,
+        };
+        let n = item.encoded_len() + 3;
+        if used + n + reserve > DETAILS_MAX_BYTES && Some(i) != first_error {
+            if first_error.is_some_and(|k| k > i) {
+                continue;
+            }
+            break;
+        }
+        used += n;
+        details.items.push(item);
     }
-    .encode_to_vec();
-    Status::with_details(Code::InvalidArgument, msg, details.into())
+    Status::with_details(Code::InvalidArgument, msg, details.encode_to_vec().into())
+}
+
+/// `s` cut to `max` characters (an ellipsis marks the cut).
+fn cut(s: &str, max: usize) -> String {
+    match s.char_indices().nth(max) {
+        Some((k, _)) => format!("{}…", &s[..k]),
+        None => s.to_owned(),
+    }
 }
 
 /// Maps controller errors to gRPC statuses.

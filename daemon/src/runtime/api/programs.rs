@@ -19,7 +19,7 @@ use kernel::program::Modal;
 use super::auth::require;
 use super::machine::Junctions;
 use super::upload_session;
-use super::{ApiState, PlanInfo, blocking, diagnostic_to_pb, status_of};
+use super::{ApiState, PlanInfo, blocking, counts_pb, diagnostic_to_pb, status_of};
 use crate::runtime::config::Role;
 use crate::runtime::controller::{ControlError, LoadedProgram};
 use crate::runtime::library::{Entry, LibraryError, ProgramText, Upload, Verdict};
@@ -192,6 +192,7 @@ pub fn commit_upload(st: &ApiState, v: Validated, select: bool) -> Result<pb::Up
     Ok(pb::UploadDone {
         program: Some(entry_pb(&entry)),
         diagnostics: warnings,
+        totals: Some(counts_pb(&loaded.warnings)),
         selected: select,
     })
 }
@@ -365,6 +366,15 @@ impl Programs for ProgramsSvc {
         Ok(Response::new(Box::pin(
             tokio_stream::wrappers::ReceiverStream::new(rx),
         )))
+    }
+
+    async fn validate(
+        &self,
+        req: Request<Streaming<pb::ProgramChunk>>,
+    ) -> Result<Response<pb::ValidateProgramReply>, Status> {
+        require(&req, Role::Observer, "Validate")?;
+        let reply = super::validate_stream::validate_chunks(&self.0, req.into_inner()).await?;
+        Ok(Response::new(reply))
     }
 
     type DownloadStream = Stream_<pb::ProgramChunk>;

@@ -42,13 +42,20 @@ impl Trajectory for TrajectorySvc {
         req: Request<pb::TrajectoryRequest>,
     ) -> Result<Response<Chunks>, Status> {
         require(&req, Observer, "GetTrajectory")?;
-        let text = req.into_inner().text;
+        let r = req.into_inner();
+        let (text, opts) = (
+            r.text,
+            Options {
+                from_block: r.from_block,
+                ..Options::default()
+            },
+        );
         let ctl = self.0.ctl.clone();
         let text = super::text_or_selected(&ctl, text)?;
         // The job's machine setup and the one pipeline a run uses (issue #14): the verdict is
         // validation's, the segments are the run's.
         let setup = ctl.machine_setup().map_err(super::status_of)?;
-        let v = pipeline::validate(&text, &setup, Options::default());
+        let v = pipeline::validate(&text, &setup, opts);
         if v.has_errors() {
             return Err(invalid_with_diagnostics("program", &v.diagnostics));
         }
@@ -61,7 +68,7 @@ impl Trajectory for TrajectorySvc {
         let (tx, rx) = mpsc::channel(4);
         tokio::task::spawn_blocking(move || {
             let send = |c: Result<pb::TrajectoryChunk, Status>| tx.blocking_send(c).is_ok();
-            if let Err(e) = run(&text, &setup, axes, send) {
+            if let Err(e) = run(&text, &setup, opts, axes, send) {
                 let _ = tx.blocking_send(Err(e));
             }
         });
@@ -77,6 +84,7 @@ impl Trajectory for TrajectorySvc {
 fn run(
     text: &str,
     setup: &MachineSetup,
+    opts: Options,
     axes: Vec<String>,
     send: impl FnMut(Result<pb::TrajectoryChunk, Status>) -> bool,
 ) -> Result<(), Status> {
@@ -95,7 +103,7 @@ fn run(
         send,
         outcome: Ok(true),
     };
-    pipeline::run(text, setup, Options::default(), &mut t);
+    pipeline::run(text, setup, opts, &mut t);
     if !std::mem::replace(&mut t.outcome, Ok(true))? {
         return Ok(()); // the client has gone
     }

@@ -81,8 +81,15 @@ impl Jobs {
         homing::require_homed(&self.config, &rt.snapshot(), what)
     }
 
-    /// Starts the selected program. Returns the job id.
-    pub(super) fn start_program(&self, rt: &RtLink, tables: &Tables) -> Result<u32, ControlError> {
+    /// Starts the selected program, or restarts it from the block numbered `from_block`
+    /// (`kernel::restart`: the blocks before it without motion, an approach to its start).
+    /// Returns the job id.
+    pub(super) fn start_program(
+        &self,
+        rt: &RtLink,
+        tables: &Tables,
+        from_block: Option<u32>,
+    ) -> Result<u32, ControlError> {
         self.require_homed(rt, "a program")?;
         let program = self
             .selection
@@ -92,12 +99,17 @@ impl Jobs {
         let snap = rt.idle_for_start()?;
         // The job's snapshot of the machine, taken now: every stage of the run reads it.
         let setup = tables.machine_setup(rt.snapshot().commanded)?;
+        let opts = Options {
+            from_block,
+            ..Options::default()
+        };
         // Validated with another setup (the axes moved by MDI or another job, constants or
-        // offsets changed): validate again with this one, so the run cannot fail half-way.
-        if !program.validated_as(&snap, tables.generation(), self.config.axes.len()) {
-            let v = program
-                .text
-                .validate_into(&setup, Options::default(), &mut NoObserver);
+        // offsets changed) or restarted: validate again with this one, so the run cannot fail
+        // half-way.
+        if !program.validated_as(&snap, tables.generation(), self.config.axes.len())
+            || from_block.is_some()
+        {
+            let v = program.text.validate_into(&setup, opts, &mut NoObserver);
             if v.has_errors() {
                 return Err(ControlError::InvalidProgram(v.diagnostics));
             }
@@ -105,7 +117,7 @@ impl Jobs {
         let spec = JobSpec {
             text: program.text.clone(),
             setup,
-            opts: Options::default(),
+            opts,
             execution: self.execution.clone(),
             status: rt.subscribe(),
         };
@@ -131,6 +143,7 @@ impl Jobs {
         let opts = Options {
             job: 0,
             stop_at_blocks,
+            ..Options::default()
         };
         let modal = if mdi {
             self.execution.lock().unwrap().modal_left()

@@ -275,7 +275,13 @@ impl Controller {
 
     /// Starts the selected program. Returns the job id.
     pub fn start_program(&self) -> Result<u32, ControlError> {
-        self.jobs.start_program(&self.rt, &self.tables)
+        self.start_program_from(None)
+    }
+
+    /// Starts the selected program, or restarts it from the block numbered `from_block`
+    /// (`kernel::restart`: the blocks before it without motion, an approach to its start).
+    pub fn start_program_from(&self, from_block: Option<u32>) -> Result<u32, ControlError> {
+        self.jobs.start_program(&self.rt, &self.tables, from_block)
     }
 
     /// Runs `text` as a job without changing the selected program (MDI, single-block runs).
@@ -365,6 +371,20 @@ impl Controller {
         speed_mm_min: f64,
     ) -> Result<f64, ControlError> {
         self.motion.jog_step(&self.rt, axis, step_mm, speed_mm_min)
+    }
+
+    /// Whether a jog step may run: `Err` says why not (beyond a soft limit or any travel).
+    pub fn jog_step_check(&self, axis: &str, step_mm: f64) -> Result<(), String> {
+        self.motion.jog_step_check(&self.rt, axis, step_mm)
+    }
+
+    /// The block-delete switch (issue #31): `/` blocks are skipped while it is on.
+    pub fn set_block_delete(&self, on: bool) {
+        self.tables.set_block_delete(on);
+    }
+
+    pub fn block_delete(&self) -> bool {
+        self.tables.block_delete()
     }
 
     /// Brakes a jog to rest (the client let go, or went away).

@@ -16,6 +16,10 @@ use crate::runtime::rt::{MachineState, RtCommand, Snapshot};
 /// dead-man of a client that goes away without a word (the API renews it every 100 ms).
 pub const JOG_LEASE_TICKS: u32 = 125;
 
+/// The longest jog step on an axis without soft limits, mm (degrees on a rotary axis): no
+/// machine of this family travels further (issue #31).
+pub const MAX_JOG_STEP_MM: f64 = 10_000.0;
+
 pub(super) struct Motion {
     config: Arc<Config>,
     /// The bus can run reference runs (homing).
@@ -166,6 +170,41 @@ impl Motion {
             lease_ticks,
         }))?;
         Ok(if dir > 0 { hi } else { lo })
+    }
+
+    /// Whether a jog step of `step_mm` on `axis` may run (issue #31): refused before motion
+    /// when it would end beyond a soft limit (an axis standing beyond one may step back
+    /// inside), or, on an axis without limits, when it is longer than [`MAX_JOG_STEP_MM`].
+    pub(super) fn jog_step_check(
+        &self,
+        rt: &RtLink,
+        axis: &str,
+        step_mm: f64,
+    ) -> Result<(), String> {
+        let Ok(i) = self.axis_index(axis) else {
+            return Ok(()); // jog_step names the axis error
+        };
+        let a = &self.config.axes[i];
+        let target = rt.snapshot().commanded[i] + step_mm;
+        let beyond = |limit: Option<f64>, upper: bool| match limit {
+            Some(l) if upper => target > l + 1e-9 && step_mm > 0.0,
+            Some(l) => target < l - 1e-9 && step_mm < 0.0,
+            None => false,
+        };
+        if beyond(a.soft_max_mm, true) || beyond(a.soft_min_mm, false) {
+            return Err(format!(
+                "a step of {step_mm} mm on {} would end at {target:.3}, beyond its soft limits \
+                 {:?}..{:?}",
+                a.name, a.soft_min_mm, a.soft_max_mm
+            ));
+        }
+        if step_mm.abs() > MAX_JOG_STEP_MM {
+            return Err(format!(
+                "a step of {step_mm} mm on {} is longer than any travel ({MAX_JOG_STEP_MM} mm)",
+                a.name
+            ));
+        }
+        Ok(())
     }
 
     /// Incremental jog: `step_mm` on `axis`, clamped to the soft limits. Returns the target.

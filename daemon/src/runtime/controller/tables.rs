@@ -3,7 +3,7 @@
 //! (SPEC §3: its file and the memory copy programs use), with the setup generation that
 //! counts their changes.
 
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use kernel::constants::Constants;
@@ -35,6 +35,8 @@ pub(super) struct Tables {
     /// table, also by `G92` writes): a program validated under another generation is
     /// validated again at start.
     generation: Arc<AtomicU64>,
+    /// The block-delete switch (issue #31): `/` blocks are skipped while it is on.
+    block_delete: AtomicBool,
 }
 
 /// The constants: the file's, and those in force (the file's, except the constants that
@@ -62,7 +64,20 @@ impl Tables {
             }),
             offsets: Arc::new(Mutex::new(offsets)),
             generation: Arc::new(AtomicU64::new(0)),
+            block_delete: AtomicBool::new(false),
         }
+    }
+
+    /// The block-delete switch: read when a job's setup is taken (a program validated with
+    /// the other setting is validated again at start).
+    pub(super) fn set_block_delete(&self, on: bool) {
+        if self.block_delete.swap(on, Ordering::AcqRel) != on {
+            self.generation.fetch_add(1, Ordering::AcqRel);
+        }
+    }
+
+    pub(super) fn block_delete(&self) -> bool {
+        self.block_delete.load(Ordering::Acquire)
     }
 
     /// The offset store, shared with the status thread (`G92` writes).
@@ -96,6 +111,7 @@ impl Tables {
             offsets.memory(),
             commanded,
         )
+        .map(|s| s.with_block_delete(self.block_delete()))
         .map_err(|e| ControlError::Invalid(format!("constant cutting speed: {e}")))
     }
 
