@@ -94,7 +94,7 @@ async fn who_am_i_is_observer_without_a_token_and_the_tokens_role_with_one() {
 async fn an_observer_cannot_start_or_jog() {
     let h = hmi_common::start(config(Role::Admin)).await;
     let mut m = h.machine();
-    let e = m.start(pb::StartRequest {}).await.unwrap_err();
+    let e = m.start(pb::StartRequest::default()).await.unwrap_err();
     assert_eq!(e.code(), Code::PermissionDenied, "{e:?}");
     let jog = pb::JogLeaseRequest {
         axis: "X".into(),
