@@ -259,7 +259,7 @@ mod tests {
             block: Some("N20 G1 X10 F500"),
             planner_alarm: None,
             axis_names: names,
-            cutting_axis: Some((0, true)),
+            cutting_axis: Some(0),
         }
     }
 

@@ -21,8 +21,9 @@ pub struct MachineView<'a> {
     pub planner_alarm: Option<(&'a str, &'a str)>,
     /// Axis letters in machine order.
     pub axis_names: &'a [char],
-    /// Controlling axis of constant cutting speed and whether its position is a diameter.
-    pub cutting_axis: Option<(usize, bool)>,
+    /// Controlling axis of constant cutting speed (R67): its machine coordinate is the
+    /// cutting radius (a radius also where the axis is programmed as a diameter).
+    pub cutting_axis: Option<usize>,
 }
 
 /// µm (or 0.001 % / rpm) resolution: finer digits are noise that would flood the buffer.
@@ -173,8 +174,8 @@ pub fn values(m: &DeviceModel, v: &MachineView) -> Vec<(usize, Value)> {
         }
     }
     out.push((ids.path_position, Value::Vector(p)));
-    if let (Some(id), Some((axis, diameter))) = (ids.cutting_speed, v.cutting_axis) {
-        let r_mm = s.actual[axis].abs() / if diameter { 2.0 } else { 1.0 };
+    if let (Some(id), Some(axis)) = (ids.cutting_speed, v.cutting_axis) {
+        let r_mm = s.actual[axis].abs();
         let mm_s = std::f64::consts::TAU * r_mm * s.spindle_rpm.abs() / 60.0;
         out.push((id, num(mm_s)));
     }
