@@ -31,4 +31,9 @@ if [ -x tests/python/run.sh ]; then
   echo "== Python gRPC client"
   tests/python/run.sh
 fi
+
+if [ -x tests/mtconnect/run.sh ]; then
+  echo "== MTConnect agent (documents checked against the official 2.5 schemas)"
+  tests/mtconnect/run.sh
+fi
 echo "== all test suites passed"

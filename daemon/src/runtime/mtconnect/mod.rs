@@ -155,3 +155,35 @@ async fn connection(shared: Arc<Shared>, sock: tokio::net::TcpStream, tls: Optio
         tracing::debug!("MTConnect: connection ended: {e}");
     }
 }
+
+/// What `cncd` runs: the agent of `cfg` (when enabled) until `shutdown`. The agent only
+/// watches: when its address cannot be bound or its TLS files are unusable the error is
+/// logged with its code and the machine runs on without it.
+pub async fn run_configured(
+    ctl: Arc<Controller>,
+    cfg: MtconnectConfig,
+    shutdown: impl Future<Output = ()> + Send,
+) {
+    if !cfg.enabled {
+        return;
+    }
+    let started = async {
+        let tls = tls_for(&ctl, cfg.listen)?;
+        let listener = bind(&cfg).await?;
+        let scheme = if tls.is_some() { "https" } else { "http" };
+        tracing::info!(
+            "MTConnect agent on {scheme}://{}/ (device {})",
+            cfg.listen,
+            cfg.device_name
+        );
+        Ok::<_, MtconnectError>((listener, tls))
+    };
+    match started.await {
+        Ok((listener, tls)) => {
+            if let Err(e) = serve(ctl, cfg, listener, tls, shutdown).await {
+                tracing::error!(code = e.code(), "MTConnect agent: {e}");
+            }
+        }
+        Err(e) => tracing::error!(code = e.code(), "MTConnect agent not served: {e}"),
+    }
+}
