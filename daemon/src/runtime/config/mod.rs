@@ -21,6 +21,7 @@ mod axes;
 mod bus;
 mod error;
 mod kr;
+mod mtconnect;
 mod planner;
 mod program;
 mod rt;
@@ -36,6 +37,7 @@ pub use axes::{AxisConfig, HomingMode};
 pub use bus::{BusConfig, CanBusConfig, FaultReactionKey, SerialBusConfig, ShutdownKey};
 pub use error::{ConfigError, InvalidConfig};
 pub use kr::{GearConfig, KrSection, RadiusInputConfig};
+pub use mtconnect::MtconnectConfig;
 pub use planner::PlannerSection;
 pub use program::{IjSetting, ProgramSection};
 pub use rt::RtConfig;
@@ -64,6 +66,9 @@ pub struct Config {
     pub program: ProgramSection,
     #[serde(default)]
     pub planner: PlannerSection,
+    /// The MTConnect agent (docs/mtconnect.md).
+    #[serde(default)]
+    pub mtconnect: MtconnectConfig,
 }
 
 impl Default for Config {
@@ -78,6 +83,7 @@ impl Default for Config {
             kr: KrSection::default(),
             program: ProgramSection::default(),
             planner: PlannerSection::default(),
+            mtconnect: MtconnectConfig::default(),
         }
     }
 }
@@ -115,7 +121,9 @@ impl Config {
         self.planner.validate()?;
         self.rt.validate()?;
         self.api.validate()?;
-        self.bus.validate(&self.axes)
+        self.bus.validate(&self.axes)?;
+        let tls = self.api.tls_cert.is_some() && self.api.tls_key.is_some();
+        self.mtconnect.validate(tls)
     }
 
     pub fn axis_names(&self) -> Vec<char> {

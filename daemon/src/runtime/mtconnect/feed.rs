@@ -13,7 +13,7 @@ use crate::mtconnect::observe::MachineView;
 use crate::mtconnect::{Agent, AxisDesc, DeviceModel, MachineDesc};
 use crate::runtime::controller::Controller;
 
-use super::config::MtconnectConfig;
+use super::MtconnectConfig;
 
 /// How often the offset table is compared for AssetChanged.
 const TOOLS_PERIOD: Duration = Duration::from_millis(250);

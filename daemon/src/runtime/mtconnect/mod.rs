@@ -3,7 +3,6 @@
 //! tokio task. Read-only: no request changes anything on the machine, and nothing here touches
 //! the RT thread.
 
-pub mod config;
 pub mod feed;
 pub mod http;
 
@@ -19,7 +18,7 @@ use tokio_rustls::rustls;
 use tokio_rustls::rustls::pki_types::pem::PemObject;
 use tokio_rustls::rustls::pki_types::{CertificateDer, PrivateKeyDer};
 
-pub use config::MtconnectConfig;
+pub use super::config::MtconnectConfig;
 
 use super::controller::Controller;
 use feed::Shared;
@@ -43,8 +42,8 @@ pub enum MtconnectError {
         path: std::path::PathBuf,
         reason: String,
     },
-    #[error("{0}: {1}")]
-    Config(&'static str, String),
+    #[error(transparent)]
+    Config(#[from] super::config::InvalidConfig),
 }
 
 impl MtconnectError {
@@ -54,7 +53,7 @@ impl MtconnectError {
             MtconnectError::Listen { .. } => "mtconnect_listen",
             MtconnectError::TlsRequired(_) => "mtconnect_tls_required",
             MtconnectError::Tls { .. } => "mtconnect_tls",
-            MtconnectError::Config(..) => "mtconnect_config",
+            MtconnectError::Config(e) => e.code(),
         }
     }
 }
@@ -96,7 +95,6 @@ pub fn tls_for(
 
 /// Binds `cfg.listen` (what `cncd` calls).
 pub async fn bind(cfg: &MtconnectConfig) -> Result<TcpListener, MtconnectError> {
-    cfg.check().map_err(|(k, m)| MtconnectError::Config(k, m))?;
     TcpListener::bind(cfg.listen)
         .await
         .map_err(|source| MtconnectError::Listen {
@@ -114,7 +112,7 @@ pub async fn serve(
     tls: Option<TlsAcceptor>,
     shutdown: impl Future<Output = ()> + Send,
 ) -> Result<(), MtconnectError> {
-    cfg.check().map_err(|(k, m)| MtconnectError::Config(k, m))?;
+    cfg.validate(tls.is_some())?;
     let shared = Arc::new(Shared::new(&ctl, &cfg));
     let period = Duration::from_millis(cfg.sample_period_ms);
     let feed = tokio::spawn(feed::run(ctl.clone(), shared.clone(), period));

@@ -4,6 +4,8 @@ use std::net::SocketAddr;
 
 use serde::Deserialize;
 
+use super::InvalidConfig;
+
 /// The agent's settings. On by default on loopback at the port agents conventionally use.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
@@ -69,11 +71,19 @@ impl Default for MtconnectConfig {
     }
 }
 
+fn bad(key: &str, detail: String) -> InvalidConfig {
+    InvalidConfig::BadValue {
+        key: key.into(),
+        detail,
+    }
+}
+
 impl MtconnectConfig {
-    /// What is wrong with the settings, as (key, reason) (`cncd --check-config` and start-up).
-    pub fn check(&self) -> Result<(), (&'static str, String)> {
+    /// Ranges and names; a non-loopback `listen` needs the API's TLS files (`tls`: both
+    /// `api.tls_cert` and `api.tls_key` are set).
+    pub fn validate(&self, tls: bool) -> Result<(), InvalidConfig> {
         if !(16..=16_777_216).contains(&self.buffer_size) {
-            return Err((
+            return Err(bad(
                 "mtconnect.buffer_size",
                 format!("{} is outside 16..16777216 observations", self.buffer_size),
             ));
@@ -84,7 +94,7 @@ impl MtconnectConfig {
                     .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'))
         };
         if !name_ok(&self.device_name) {
-            return Err((
+            return Err(bad(
                 "mtconnect.device_name",
                 format!(
                     "{:?}: letters, digits, '_', '-' and '.' only",
@@ -92,18 +102,59 @@ impl MtconnectConfig {
                 ),
             ));
         }
-        if self.device_uuid.is_empty() {
-            return Err(("mtconnect.device_uuid", "must not be empty".into()));
+        if self.device_uuid.trim().is_empty() {
+            return Err(bad("mtconnect.device_uuid", "must not be empty".into()));
         }
         if !(1..=1000).contains(&self.sample_period_ms) {
-            return Err((
+            return Err(bad(
                 "mtconnect.sample_period_ms",
                 format!("{} is outside 1..1000 ms", self.sample_period_ms),
             ));
         }
         if self.max_streams == 0 {
-            return Err(("mtconnect.max_streams", "must be at least 1".into()));
+            return Err(bad("mtconnect.max_streams", "must be at least 1".into()));
+        }
+        if self.enabled && !self.listen.ip().is_loopback() && !tls {
+            return Err(InvalidConfig::Missing {
+                key: "mtconnect.listen".into(),
+                detail: format!(
+                    "{} is not a loopback address: serving the agent beyond the machine needs \
+                     TLS (api.tls_cert and api.tls_key)",
+                    self.listen
+                ),
+            });
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_non_loopback_agent_needs_tls_and_bad_values_name_their_key() {
+        let mut c = MtconnectConfig::default();
+        assert_eq!(c.validate(false), Ok(()));
+        c.listen = "192.168.10.2:5000".parse().unwrap();
+        let e = c.validate(false).unwrap_err();
+        assert_eq!((e.code(), e.key()), ("config_missing", "mtconnect.listen"));
+        assert_eq!(c.validate(true), Ok(()));
+        c.enabled = false;
+        assert_eq!(c.validate(false), Ok(()));
+        let mut c = MtconnectConfig {
+            buffer_size: 8,
+            ..MtconnectConfig::default()
+        };
+        assert_eq!(
+            c.validate(false).unwrap_err().key(),
+            "mtconnect.buffer_size"
+        );
+        c.buffer_size = 1024;
+        c.device_name = "my machine".into();
+        assert_eq!(
+            c.validate(false).unwrap_err().key(),
+            "mtconnect.device_name"
+        );
     }
 }
