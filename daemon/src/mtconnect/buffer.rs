@@ -132,10 +132,10 @@ impl Buffer {
 
     /// Appends an observation; returns its sequence number.
     pub fn push(&mut self, time_ns: u64, item: usize, value: Value) -> u64 {
-        if self.ring.len() == self.capacity {
-            if let Some(old) = self.ring.pop_front() {
-                self.base[old.item].apply(&old);
-            }
+        if self.ring.len() == self.capacity
+            && let Some(old) = self.ring.pop_front()
+        {
+            self.base[old.item].apply(&old);
         }
         let o = Observation {
             sequence: self.next,

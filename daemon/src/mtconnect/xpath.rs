@@ -166,8 +166,11 @@ fn step(m: &DeviceModel, set: &[Node], s: &Step) -> Vec<Node> {
     cand
 }
 
+/// An attribute of a node of the model by name.
+type AttrOf<'a> = Box<dyn Fn(&str) -> Option<String> + 'a>;
+
 fn matches(m: &DeviceModel, n: Node, s: &Step) -> bool {
-    let (element, attr): (&str, Box<dyn Fn(&str) -> Option<String>>) = match n {
+    let (element, attr): (&str, AttrOf) = match n {
         Node::Root => return false,
         Node::Comp(c) => {
             let comp = &m.components[c];
