@@ -42,4 +42,8 @@ if [ -x tests/browser/run.sh ]; then
   echo "== browser HMI in Chromium"
   tests/browser/run.sh
 fi
+if [ -x tests/mtconnect/run.sh ]; then
+  echo "== MTConnect agent (documents checked against the official 2.5 schemas)"
+  tests/mtconnect/run.sh
+fi
 echo "== all test suites passed"

@@ -108,6 +108,49 @@ pub enum FaultReason {
     ProtocolVersion { drive: u8, needed: u8 },
 }
 
+impl FaultReason {
+    /// Stable code of the fault (alarm consumers such as the MTConnect agent's `nativeCode`
+    /// match it; the message may improve).
+    pub fn code(&self) -> &'static str {
+        match self {
+            FaultReason::DriveFault { .. } => "drive_fault",
+            FaultReason::FollowingError => "following_error",
+            FaultReason::Timeout => "feedback_timeout",
+            FaultReason::HeartbeatLost => "heartbeat_lost",
+            FaultReason::BusError => "bus_error",
+            FaultReason::BusOff => "bus_off",
+            FaultReason::ErrorFrames => "error_frames",
+            FaultReason::SdoAbort { .. } => "sdo_abort",
+            FaultReason::SdoTimeout { .. } => "sdo_timeout",
+            FaultReason::PdoLength { .. } => "pdo_length",
+            FaultReason::NoBootUp => "no_boot_up",
+            FaultReason::EnableTimeout { .. } => "enable_timeout",
+            FaultReason::DriveDisabled { .. } => "drive_disabled",
+            FaultReason::NmtStateChanged { .. } => "nmt_state_changed",
+            FaultReason::LinkDown => "link_down",
+            FaultReason::CorruptFrames => "corrupt_frames",
+            FaultReason::HomingError { .. } => "homing_error",
+            FaultReason::HomingTimeout => "homing_timeout",
+            FaultReason::HomingRefused => "homing_refused",
+            FaultReason::ProtocolVersion { .. } => "protocol_version",
+        }
+    }
+
+    /// The fault concerns the link to the drives rather than one drive.
+    pub fn is_communication(&self) -> bool {
+        matches!(
+            self,
+            FaultReason::Timeout
+                | FaultReason::HeartbeatLost
+                | FaultReason::BusError
+                | FaultReason::BusOff
+                | FaultReason::ErrorFrames
+                | FaultReason::LinkDown
+                | FaultReason::CorruptFrames
+        )
+    }
+}
+
 impl fmt::Display for FaultReason {
     // One arm per fault, each the machinist's message: a match over the variants that reads
     // better whole than split (issue #22's exception for tables and matches).

@@ -1,6 +1,8 @@
 //! What the API benches share: their knobs from the environment, the runtime they run on, and
 //! the daemon's API served the way `cncd` serves it locally.
 
+pub mod cyclic;
+
 use std::future::Future;
 use std::time::{Duration, Instant};
 

@@ -17,6 +17,7 @@ use clap::Parser;
 use daemon::runtime::config::Config;
 use daemon::runtime::controller::{ClockKind, Controller, StartError};
 use daemon::runtime::logging::{self, BlockNo, LogTarget};
+use daemon::runtime::mtconnect;
 use daemon::runtime::server;
 use daemon::runtime::systemd::{self, Notifier, NotifyState};
 
@@ -140,8 +141,13 @@ fn check_config(path: Option<&std::path::Path>) -> ExitCode {
             } else {
                 "HMI disabled".into()
             };
+            let agent = if c.mtconnect.enabled {
+                format!(", MTConnect on {}", c.mtconnect.listen)
+            } else {
+                String::new()
+            };
             println!(
-                "{}: configuration is valid: axes {names}, bus {}, API on {}, {hmi}",
+                "{}: configuration is valid: axes {names}, bus {}, API on {}, {hmi}{agent}",
                 path.display(),
                 bus_label(&c),
                 c.api.listen
@@ -214,6 +220,15 @@ async fn run(config: Config) -> Result<(), CncdError> {
             let _ = rx.await;
         },
     ));
+    // The MTConnect agent (docs/mtconnect.md): read-only; it stops with the API.
+    let (mt_tx, mt_rx) = tokio::sync::oneshot::channel::<()>();
+    let agent = tokio::spawn(mtconnect::run_configured(
+        ctl.clone(),
+        ctl.config().mtconnect.clone(),
+        async {
+            let _ = mt_rx.await;
+        },
+    ));
     // Run until a signal, or until the API fails (then stop too: an unreachable controller
     // must not look healthy to systemd).
     let api_failure = tokio::select! {
@@ -232,6 +247,8 @@ async fn run(config: Config) -> Result<(), CncdError> {
     health.abort();
     log_rest_positions(&ctl);
     let _ = tx.send(());
+    let _ = mt_tx.send(());
+    let _ = tokio::time::timeout(server::SHUTDOWN_DRAIN, agent).await;
     if api_failure.is_none() {
         let _ = serve.await;
     }

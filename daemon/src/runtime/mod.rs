@@ -12,6 +12,7 @@ pub mod homing;
 pub mod job;
 pub mod library;
 pub mod logging;
+pub mod mtconnect;
 pub mod pipeline;
 pub mod resample;
 pub mod rt;

@@ -22,6 +22,7 @@ mod bus;
 mod error;
 mod hmi;
 mod kr;
+mod mtconnect;
 mod planner;
 mod program;
 mod rt;
@@ -38,6 +39,7 @@ pub use bus::{BusConfig, CanBusConfig, FaultReactionKey, SerialBusConfig, Shutdo
 pub use error::{ConfigError, InvalidConfig};
 pub use hmi::{HmiSection, HmiTlsFiles};
 pub use kr::{GearConfig, KrSection, RadiusInputConfig};
+pub use mtconnect::MtconnectConfig;
 pub use planner::PlannerSection;
 pub use program::{IjSetting, ProgramSection};
 pub use rt::RtConfig;
@@ -68,6 +70,9 @@ pub struct Config {
     pub planner: PlannerSection,
     #[serde(default)]
     pub hmi: HmiSection,
+    /// The MTConnect agent (docs/mtconnect.md).
+    #[serde(default)]
+    pub mtconnect: MtconnectConfig,
 }
 
 impl Default for Config {
@@ -83,6 +88,7 @@ impl Default for Config {
             program: ProgramSection::default(),
             planner: PlannerSection::default(),
             hmi: HmiSection::default(),
+            mtconnect: MtconnectConfig::default(),
         }
     }
 }
@@ -121,7 +127,9 @@ impl Config {
         self.rt.validate()?;
         self.api.validate()?;
         self.bus.validate(&self.axes)?;
-        self.hmi.validate(&self.api)
+        self.hmi.validate(&self.api)?;
+        let tls = self.api.tls_cert.is_some() && self.api.tls_key.is_some();
+        self.mtconnect.validate(tls)
     }
 
     pub fn axis_names(&self) -> Vec<char> {
