@@ -190,7 +190,7 @@ async fn bench(secs: u64) {
     })
     .await
     .unwrap();
-    m.start(pb::StartRequest {}).await.unwrap();
+    m.start(pb::StartRequest::default()).await.unwrap();
     let before = ctl.snapshot().ticks;
     let cyclic = spawn_cyclictest(secs);
 
