@@ -21,7 +21,11 @@ async fn load_and_start(m: &mut MachineClient<tonic::transport::Channel>, text: 
     })
     .await
     .unwrap();
-    m.start(pb::StartRequest::default()).await.unwrap().into_inner().job
+    m.start(pb::StartRequest::default())
+        .await
+        .unwrap()
+        .into_inner()
+        .job
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
