@@ -28,7 +28,7 @@ use super::library::ProgramText;
 use super::logging::BlockNo;
 use super::pipeline::Execution;
 use super::rt::{self, JobMachine, MachineState, RtCommand, RtCoreConfig, RtParts, Snapshot};
-use super::storage::{self, OffsetStore, StorageError};
+use super::storage::{self, ConstantsFile, DiskChange, OffsetStore, StorageError};
 
 /// Segment ring capacity (planner → RT).
 const SEGMENT_RING: usize = 4096;
@@ -164,6 +164,34 @@ struct ConstantsState {
     saved: Constants,
     in_force: Constants,
     from_file: bool,
+    /// The file's text as a person wrote it (issue #31: edits go into it in place).
+    file: ConstantsFile,
+}
+
+impl ConstantsState {
+    /// A constants file saved by hand since it was last seen becomes the saved constants, in
+    /// force at once except those of [`needs_restart`]. Returns whether it changed.
+    fn sync_with_disk(&mut self) -> Result<bool, StorageError> {
+        let Some(c) = self.file.sync_with_disk()? else {
+            return Ok(false);
+        };
+        let mut in_force = c.clone();
+        for r in (0..=kernel::constants::MAX_R).filter(|&r| needs_restart(r)) {
+            in_force.set(r, self.in_force.get(r));
+        }
+        self.saved = c;
+        self.in_force = in_force;
+        self.from_file = true;
+        Ok(true)
+    }
+}
+
+/// What a look at the data files found (see [`Controller::sync_files`]): per file, whether a
+/// saved edit was loaded, or why the file on disk does not load (the memory copy is kept).
+#[derive(Debug)]
+pub struct FilesSync {
+    pub offsets: Result<bool, StorageError>,
+    pub constants: Result<bool, StorageError>,
 }
 
 /// Constants read only at daemon start: axis codes R0..R5 (checked against the configured
@@ -194,7 +222,7 @@ impl Controller {
         let axes = config.axes.len();
         let can_home = bus.supports_homing();
         warn_without_spindle(bus.as_ref());
-        let (constants, offsets) = load_storage(&config)?;
+        let (constants, offsets, constants_file) = load_storage(&config)?;
         let core = rt_core_config(&config, &constants, offsets.memory())?;
         let machine = machine_config(&config);
         let (cmd_tx, cmd_rx) = rtrb::RingBuffer::new(COMMAND_RING);
@@ -251,6 +279,7 @@ impl Controller {
                 saved: constants.0.clone(),
                 in_force: constants.0,
                 from_file: constants.1,
+                file: constants_file,
             }),
             machine,
             offsets,
@@ -801,19 +830,51 @@ impl Controller {
         self.offsets.lock().unwrap().file_text()
     }
 
-    /// Operator edit of one entry: file and memory (SPEC §3 b).
+    /// The revision of the offset table file's text (`storage::revision_of`).
+    pub fn offsets_revision(&self) -> String {
+        self.offsets.lock().unwrap().revision()
+    }
+
+    /// Operator edit of one entry: file and memory (SPEC §3 b), made on the file as it is on
+    /// disk (a hand edit saved since is loaded first, issue #31).
     pub fn edit_offset(&self, edit: &TableEdit) -> Result<(), ControlError> {
-        self.offsets.lock().unwrap().operator_edit(edit)?;
+        let r = self.offsets.lock().unwrap().operator_edit(edit);
+        // A hand edit may have been loaded even when the edit itself was refused.
         self.generation.fetch_add(1, Ordering::AcqRel);
-        Ok(())
+        Ok(r?)
     }
 
     /// Replaces the whole file; memory becomes the file's table (SPEC §3 a). A rejected text
-    /// changes nothing.
-    pub fn replace_offsets_file(&self, text: &str) -> Result<(), ControlError> {
-        self.offsets.lock().unwrap().save_file_text(text)?;
+    /// changes nothing. With `base_revision`, refused when the file changed since that revision.
+    pub fn replace_offsets_file(
+        &self,
+        text: &str,
+        base_revision: Option<&str>,
+    ) -> Result<(), ControlError> {
+        let r = self
+            .offsets
+            .lock()
+            .unwrap()
+            .replace_file_text(text, base_revision);
         self.generation.fetch_add(1, Ordering::AcqRel);
-        Ok(())
+        Ok(r?)
+    }
+
+    /// Looks at TAB0.KOR and the constants file on disk (the file watch of issue #31): a saved
+    /// edit is loaded into memory (SPEC §3: after every saved edit of the file), one that does
+    /// not load is reported and memory kept. Blocks on disk IO.
+    pub fn sync_files(&self) -> FilesSync {
+        let offsets = self
+            .offsets
+            .lock()
+            .unwrap()
+            .sync_with_disk()
+            .map(|c| c == DiskChange::Loaded);
+        let constants = self.constants.lock().unwrap().sync_with_disk();
+        if matches!(offsets, Ok(true)) || matches!(constants, Ok(true)) {
+            self.generation.fetch_add(1, Ordering::AcqRel);
+        }
+        FilesSync { offsets, constants }
     }
 
     /// Reloads the table from its file (power-on semantics).
@@ -856,6 +917,10 @@ impl Controller {
     pub fn set_constants(&self, values: &[(u16, f64)]) -> Result<Vec<u16>, ControlError> {
         self.idle_or_refuse("changing machine constants")?;
         let mut guard = self.constants.lock().unwrap();
+        // Made on top of the file as it is on disk (issue #31).
+        if guard.sync_with_disk()? {
+            self.generation.fetch_add(1, Ordering::AcqRel);
+        }
         let mut saved = guard.saved.clone();
         let mut in_force = guard.in_force.clone();
         let mut restart = Vec::new();
@@ -884,12 +949,11 @@ impl Controller {
             AxesMm::ZERO,
         )
         .map_err(|e| ControlError::Invalid(format!("constant cutting speed: {e}")))?;
-        storage::save_constants(&self.config.storage.constants_path(), &saved)?;
-        *guard = ConstantsState {
-            saved,
-            in_force,
-            from_file: true,
-        };
+        let milli: Vec<(u16, i64)> = values.iter().map(|&(r, _)| (r, saved.milli(r))).collect();
+        let saved = guard.file.set(&saved, &milli)?;
+        guard.saved = saved;
+        guard.in_force = in_force;
+        guard.from_file = true;
         self.generation.fetch_add(1, Ordering::AcqRel);
         Ok(restart)
     }
@@ -1085,7 +1149,7 @@ impl Observer for Blocks {
 /// but does not parse stops the start-up: running with wrong offsets scraps parts.
 pub(crate) fn load_storage(
     config: &Config,
-) -> Result<((Constants, bool), OffsetStore), StartError> {
+) -> Result<((Constants, bool), OffsetStore, ConstantsFile), StartError> {
     let st = &config.storage;
     std::fs::create_dir_all(&st.dir).map_err(|source| StartError::StorageDir {
         dir: st.dir.clone(),
@@ -1093,8 +1157,8 @@ pub(crate) fn load_storage(
     })?;
     let cpath = st.constants_path();
     let names = config.axis_names();
-    let constants = if cpath.exists() {
-        let c = storage::load_constants(&cpath)?;
+    let (constants_file, from_file) = ConstantsFile::open(&cpath)?;
+    let constants = if let Some(c) = from_file {
         // R0..R5 name the axes the programs use: they must be the configured ones.
         let named = c.axis_names();
         if named[..] != names[..] {
@@ -1124,7 +1188,7 @@ pub(crate) fn load_storage(
         offsets = %st.offsets_path().display(),
         "data files loaded"
     );
-    Ok((constants, offsets))
+    Ok((constants, offsets, constants_file))
 }
 
 /// Start-up of the RT thread: real-time priority and locked memory where permitted.

@@ -60,7 +60,13 @@ pub async fn command(o: &mut OffsetsClient<Svc>, cmd: Cmd, j: bool) -> Reply {
 
 async fn replace(o: &mut OffsetsClient<Svc>, file: &Path, j: bool) -> Reply {
     let text = read_text(file)?;
-    let r = o.replace_offsets_file(pb::OffsetsFile { text }).await?;
+    // No base revision: the operator replaces whatever the file holds now.
+    let r = o
+        .replace_offsets_file(pb::OffsetsFile {
+            text,
+            revision: String::new(),
+        })
+        .await?;
     show(j, &Entries("TAB0.KOR replaced", r.into_inner().entries))
 }
 
@@ -106,7 +112,7 @@ impl Render for pb::OffsetEntry {
 
 impl Render for pb::OffsetsFile {
     fn json(&self) -> Value {
-        json!({"text": self.text})
+        json!({"text": self.text, "revision": self.revision})
     }
     fn human(&self) -> String {
         self.text.trim_end().to_string()

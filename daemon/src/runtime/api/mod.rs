@@ -7,6 +7,7 @@
 
 pub mod alarms;
 pub mod auth;
+pub mod files_watch;
 mod machine;
 pub mod preview;
 mod programs;
@@ -132,6 +133,7 @@ impl ApiState {
             alarms,
         });
         alarms::spawn_watcher(state.ctl.clone(), state.alarms.clone());
+        files_watch::spawn(state.ctl.clone(), state.alarms.clone());
         // The program selected before the restart is selected again (validated, not started).
         let st = state.clone();
         tokio::task::spawn_blocking(move || programs::restore_selection(&st));
@@ -539,6 +541,23 @@ pub fn status_of(e: ControlError) -> Status {
         ControlError::Storage(e) => match e {
             super::storage::StorageError::Invalid { diagnostics, .. } => {
                 invalid_with_diagnostics("table", &diagnostics)
+            }
+            // The file on disk (a hand edit) must be fixed first: its lines and codes.
+            super::storage::StorageError::DiskInvalid {
+                ref diagnostics, ..
+            } => {
+                let details = pb::Diagnostics {
+                    items: diagnostics.iter().map(diagnostic_to_pb).collect(),
+                }
+                .encode_to_vec();
+                Status::with_details(
+                    Code::FailedPrecondition,
+                    format!("[{}] {e}", e.code()),
+                    details.into(),
+                )
+            }
+            super::storage::StorageError::Changed { .. } => {
+                Status::aborted(format!("[{}] {e}", e.code()))
             }
             _ => Status::internal(e.to_string()),
         },
