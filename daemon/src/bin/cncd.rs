@@ -17,8 +17,8 @@ use clap::Parser;
 use daemon::runtime::config::Config;
 use daemon::runtime::controller::{ClockKind, Controller, StartError};
 use daemon::runtime::logging::{self, BlockNo, LogTarget};
-use daemon::runtime::server;
 use daemon::runtime::systemd::{self, Notifier, NotifyState};
+use daemon::runtime::{discovery, server};
 
 /// Exit code of a configuration mistake (`RestartPreventExitStatus=2` in the unit).
 const EXIT_CONFIG: u8 = 2;
@@ -185,6 +185,11 @@ async fn run(config: Config) -> Result<(), CncdError> {
     let ctl = start_controller(config)?;
     tracing::info!("cncd started: axes {names} on bus {bus}, API on {api_on}; enabling drives");
     let listeners = listeners_beside(&ctl, listener, local).await?;
+    // Bound: cncctl may find it now, whatever the data directory (issue #31).
+    let socket = discovery::socket_of(ctl.config());
+    if let Some(s) = &socket {
+        discovery::publish(s);
+    }
     let supervision = systemd::supervise(
         ctl.subscribe(),
         notifier.clone(),
@@ -221,6 +226,9 @@ async fn run(config: Config) -> Result<(), CncdError> {
     let _ = tx.send(());
     if api_failure.is_none() {
         let _ = serve.await;
+    }
+    if let Some(s) = &socket {
+        discovery::unpublish(s);
     }
     tracing::info!("cncd stopped");
     match api_failure {

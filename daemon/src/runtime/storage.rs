@@ -48,7 +48,7 @@ pub enum StorageError {
         "{} was edited on disk and does not load ({}): the controller keeps the table it had; \
          fix the file first",
         path.display(),
-        join(diagnostics)
+        join_coded(diagnostics)
     )]
     DiskInvalid {
         path: PathBuf,
@@ -81,6 +81,22 @@ impl StorageError {
 fn join(d: &[Diagnostic]) -> String {
     d.iter()
         .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// `line 3, column 7 [offset_value_syntax]: …; …` (the alarm of a hand edit names the code).
+fn join_coded(d: &[Diagnostic]) -> String {
+    d.iter()
+        .map(|d| {
+            format!(
+                "line {}, column {} [{}]: {}",
+                d.line,
+                d.column,
+                d.code.as_str(),
+                d.message
+            )
+        })
         .collect::<Vec<_>>()
         .join("; ")
 }

@@ -19,6 +19,10 @@ pub async fn command(
 ) -> Result<ExitCode, CliError> {
     match cmd {
         ConstCmd::Get { numbers } => {
+            let numbers = numbers
+                .iter()
+                .map(|n| constant_number(n))
+                .collect::<Result<Vec<_>, _>>()?;
             let r = k.get_constants(pb::GetConstantsRequest { numbers }).await?;
             show(j, &r.into_inner())
         }
@@ -31,6 +35,14 @@ pub async fn command(
             show(j, &r.into_inner())
         }
     }
+}
+
+/// `R384` or `384` → 384 (issue #31: both spellings, as in `constants set`).
+fn constant_number(n: &str) -> Result<u32, CliError> {
+    n.strip_prefix(['R', 'r'])
+        .unwrap_or(n)
+        .parse()
+        .map_err(|_| CliError::ConstantNumber(n.to_string()))
 }
 
 /// `R39=45` (or `39=45`) → constant 39, value 45.
@@ -92,6 +104,17 @@ impl Render for pb::SetConstantsReply {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn numbers_parse_with_or_without_r() {
+        assert_eq!(constant_number("R384").unwrap(), 384);
+        assert_eq!(constant_number("384").unwrap(), 384);
+        assert_eq!(constant_number("r7").unwrap(), 7);
+        assert_eq!(
+            constant_number("Rx").unwrap_err().code(),
+            "cli_constant_number"
+        );
+    }
 
     #[test]
     fn assignments_parse_with_or_without_r() {

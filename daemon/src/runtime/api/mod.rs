@@ -8,6 +8,7 @@
 pub mod alarms;
 pub mod auth;
 pub mod files_watch;
+pub mod job_journal;
 mod machine;
 pub mod preview;
 mod programs;
@@ -117,7 +118,10 @@ impl ApiState {
                     source,
                 }
             })?;
-        let alarms = Arc::new(alarms::AlarmLog::new(api.alarm_history as usize));
+        let alarms = Arc::new(alarms::AlarmLog::persistent(
+            api.alarm_history as usize,
+            st.dir.join(alarms::HISTORY_FILE),
+        ));
         let state = Arc::new(ApiState {
             max_streams: api.max_streams as usize,
             reserved_streams: (api.reserved_streams as usize).min(api.max_streams as usize - 1),
@@ -134,6 +138,7 @@ impl ApiState {
         });
         alarms::spawn_watcher(state.ctl.clone(), state.alarms.clone());
         files_watch::spawn(state.ctl.clone(), state.alarms.clone());
+        job_journal::spawn(Arc::downgrade(&state));
         // The program selected before the restart is selected again (validated, not started).
         let st = state.clone();
         tokio::task::spawn_blocking(move || programs::restore_selection(&st));
