@@ -1,38 +1,31 @@
 //! Commands of the Constants service: machine constants (R numbers), decades decoded.
 
-use std::process::ExitCode;
-
 use proto::v1 as pb;
 use proto::v1::constants_client::ConstantsClient;
 use serde_json::{Value, json};
 
 use crate::args::ConstCmd;
+use crate::call::{Reply, call};
 use crate::connect::Svc;
 use crate::error::CliError;
-use crate::render::{Render, diag_lines, diags_json, show};
+use crate::render::{Render, diag_lines, diags_json};
 
 /// Reads or sets constants and prints the answer.
-pub async fn command(
-    k: &mut ConstantsClient<Svc>,
-    cmd: ConstCmd,
-    j: bool,
-) -> Result<ExitCode, CliError> {
+pub async fn command(k: &mut ConstantsClient<Svc>, cmd: ConstCmd, j: bool) -> Reply {
     match cmd {
         ConstCmd::Get { numbers } => {
             let numbers = numbers
                 .iter()
                 .map(|n| constant_number(n))
                 .collect::<Result<Vec<_>, _>>()?;
-            let r = k.get_constants(pb::GetConstantsRequest { numbers }).await?;
-            show(j, &r.into_inner())
+            call(j, k.get_constants(pb::GetConstantsRequest { numbers })).await
         }
         ConstCmd::Set { values } => {
             let values = values
                 .iter()
                 .map(|v| parse_assignment(v))
                 .collect::<Result<Vec<_>, _>>()?;
-            let r = k.set_constants(pb::SetConstantsRequest { values }).await?;
-            show(j, &r.into_inner())
+            call(j, k.set_constants(pb::SetConstantsRequest { values })).await
         }
     }
 }

@@ -11,14 +11,13 @@ use proto::v1::machine_client::MachineClient;
 use serde_json::{Value, json};
 
 use crate::args::Cmd;
+use crate::call::{Reply, call, call_as, call_done};
 use crate::connect::Svc;
 use crate::error::CliError;
 use crate::render::{
-    Render, block_name, diag_lines, diags_json, done, emit, local_time, print_line, read_text, show,
+    Render, block_name, diag_lines, diags_json, emit, local_time, print_line, read_text, show,
 };
 use crate::status::{alarm_json, dro, status_json, status_line};
-
-type Reply = Result<ExitCode, CliError>;
 
 /// Runs one Machine command (main routes only these here).
 pub async fn command(m: &mut MachineClient<Svc>, cmd: Cmd, j: bool) -> Reply {
@@ -26,27 +25,30 @@ pub async fn command(m: &mut MachineClient<Svc>, cmd: Cmd, j: bool) -> Reply {
         Cmd::Validate { file } => validate(m, &file, j).await,
         Cmd::Refine { file } => refine(m, &file, j).await,
         Cmd::Select { name } => {
-            let r = m
-                .select_program(pb::SelectProgramRequest { name: name.clone() })
-                .await?
-                .into_inner();
-            show(
-                j,
-                &Selected {
-                    name,
-                    blocks: r.blocks,
-                },
-            )
+            let answer = m.select_program(pb::SelectProgramRequest { name: name.clone() });
+            call_as(j, answer, |r| Selected {
+                name,
+                blocks: r.blocks,
+            })
+            .await
         }
         Cmd::Start => {
-            let job = m.start(pb::StartRequest {}).await?.into_inner().job;
-            show(j, &Started { job, mdi: false })
+            let answer = m.start(pb::StartRequest {});
+            call_as(j, answer, |r| Started {
+                job: r.job,
+                mdi: false,
+            })
+            .await
         }
         Cmd::Mdi { block } => {
-            let job = m.mdi(pb::MdiRequest { block }).await?.into_inner().job;
-            show(j, &Started { job, mdi: true })
+            let answer = m.mdi(pb::MdiRequest { block });
+            call_as(j, answer, |r| Started {
+                job: r.job,
+                mdi: true,
+            })
+            .await
         }
-        Cmd::Home { axes } => show(j, &m.home(pb::HomeRequest { axes }).await?.into_inner()),
+        Cmd::Home { axes } => call(j, m.home(pb::HomeRequest { axes })).await,
         Cmd::Jog { axis, speed, step } => jog(m, j, &axis, speed, step).await,
         Cmd::Status { watch, rate } => status(m, watch, rate, j).await,
         Cmd::Alarms { follow } => alarms(m, follow, j).await,
@@ -57,35 +59,31 @@ pub async fn command(m: &mut MachineClient<Svc>, cmd: Cmd, j: bool) -> Reply {
 /// The commands that answer nothing but success.
 async fn control(m: &mut MachineClient<Svc>, cmd: Cmd, j: bool) -> Reply {
     match cmd {
-        Cmd::Stop => done(j, m.stop(pb::StopRequest {}).await),
-        Cmd::Hold => done(j, m.hold(pb::HoldRequest {}).await),
-        Cmd::Resume => done(j, m.resume(pb::ResumeRequest {}).await),
-        Cmd::Reset => done(j, m.reset(pb::ResetRequest {}).await),
+        Cmd::Stop => call_done(j, m.stop(pb::StopRequest {})).await,
+        Cmd::Hold => call_done(j, m.hold(pb::HoldRequest {})).await,
+        Cmd::Resume => call_done(j, m.resume(pb::ResumeRequest {})).await,
+        Cmd::Reset => call_done(j, m.reset(pb::ResetRequest {})).await,
         Cmd::Override { percent } => {
-            done(j, m.set_override(pb::SetOverrideRequest { percent }).await)
+            call_done(j, m.set_override(pb::SetOverrideRequest { percent })).await
         }
-        Cmd::SpindleOverride { percent } => done(
-            j,
-            m.set_spindle_override(pb::SetSpindleOverrideRequest { percent })
-                .await,
-        ),
-        Cmd::RapidOverride { percent } => done(
-            j,
-            m.set_rapid_override(pb::SetRapidOverrideRequest { percent })
-                .await,
-        ),
-        Cmd::SingleBlock { mode } => done(
-            j,
-            m.set_single_block(pb::SetSingleBlockRequest {
+        Cmd::SpindleOverride { percent } => {
+            let req = pb::SetSpindleOverrideRequest { percent };
+            call_done(j, m.set_spindle_override(req)).await
+        }
+        Cmd::RapidOverride { percent } => {
+            let req = pb::SetRapidOverrideRequest { percent };
+            call_done(j, m.set_rapid_override(req)).await
+        }
+        Cmd::SingleBlock { mode } => {
+            let req = pb::SetSingleBlockRequest {
                 enabled: mode == "on",
-            })
-            .await,
-        ),
-        Cmd::OptionalStop { mode } => done(
-            j,
-            m.set_optional_stop(pb::SetOptionalStopRequest { on: mode == "on" })
-                .await,
-        ),
+            };
+            call_done(j, m.set_single_block(req)).await
+        }
+        Cmd::OptionalStop { mode } => {
+            let req = pb::SetOptionalStopRequest { on: mode == "on" };
+            call_done(j, m.set_optional_stop(req)).await
+        }
         _ => unreachable!("main routes only Machine service commands here"),
     }
 }
@@ -183,11 +181,7 @@ impl Render for pb::RefinedProgramReply {
 
 async fn refine(m: &mut MachineClient<Svc>, file: &Path, j: bool) -> Reply {
     let text = read_text(file)?;
-    let r = m
-        .get_refined_program(pb::RefinedProgramRequest { text })
-        .await?
-        .into_inner();
-    show(j, &r)
+    call(j, m.get_refined_program(pb::RefinedProgramRequest { text })).await
 }
 
 /// One status (or, with `watch`, a refreshing status line until the stream ends).
@@ -312,15 +306,12 @@ async fn jog(
     let (axis, dir) = jog_axis(arg)?;
     if let Some(step) = step {
         let step_mm = if dir < 0 { -step.abs() } else { step };
-        let r = m
-            .jog_step(pb::JogStepRequest {
-                axis,
-                step_mm,
-                speed_mm_min: speed,
-            })
-            .await?
-            .into_inner();
-        return show(j, &r);
+        let req = pb::JogStepRequest {
+            axis,
+            step_mm,
+            speed_mm_min: speed,
+        };
+        return call(j, m.jog_step(req)).await;
     }
     if dir == 0 {
         return Err(CliError::JogDirection);

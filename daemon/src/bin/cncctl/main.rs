@@ -1,9 +1,12 @@
 //! `cncctl`: command-line client of the controller's gRPC API (docs/api.md).
 //!
-//! Every service is covered, one module each; every answer implements [`render::Render`]:
-//! output is for people by default and JSON with `--json`.
+//! Every service is covered, one module each. The connection is made here once; every call
+//! that answers once goes through [`call::call`] (await, a refusal to [`error::CliError`],
+//! print); every answer implements [`render::Render`]: output is for people by default and
+//! JSON with `--json`.
 
 mod args;
+mod call;
 mod connect;
 mod constants;
 mod error;
@@ -24,8 +27,8 @@ use tonic_health::pb::HealthCheckRequest;
 use tonic_health::pb::health_check_response::ServingStatus;
 
 use args::{Args, Cmd};
+use call::Reply;
 use connect::{Clients, connect};
-use error::CliError;
 use render::{Render, emit};
 
 #[tokio::main(flavor = "current_thread")]
@@ -41,7 +44,7 @@ async fn main() -> ExitCode {
 }
 
 /// Runs the commands that need no daemon here, the others on the daemon.
-async fn run(args: Args) -> Result<ExitCode, CliError> {
+async fn run(args: Args) -> Reply {
     match &args.cmd {
         Cmd::HashToken { token } => {
             println!("{}", daemon::runtime::api::auth::hash_token_hex(token));
@@ -76,7 +79,7 @@ async fn run(args: Args) -> Result<ExitCode, CliError> {
 }
 
 /// Routes a command to the module of its gRPC service.
-async fn dispatch(c: &mut Clients, cmd: Cmd, j: bool) -> Result<ExitCode, CliError> {
+async fn dispatch(c: &mut Clients, cmd: Cmd, j: bool) -> Reply {
     match cmd {
         Cmd::Run { .. }
         | Cmd::Load { .. }
@@ -117,7 +120,7 @@ impl Render for Health {
 }
 
 /// Prints the daemon's health; fails unless it is serving.
-async fn health(c: &mut Clients, j: bool) -> Result<ExitCode, CliError> {
+async fn health(c: &mut Clients, j: bool) -> Reply {
     let r = c
         .health
         .check(HealthCheckRequest {

@@ -1,27 +1,25 @@
 //! Commands of the Offsets service: the offset table (TAB0.KOR) in memory and on file.
 
 use std::path::Path;
-use std::process::ExitCode;
 
 use proto::v1 as pb;
 use proto::v1::offsets_client::OffsetsClient;
 use serde_json::{Value, json};
 
 use crate::args::Cmd;
+use crate::call::{Reply, call, call_as};
 use crate::connect::Svc;
-use crate::error::CliError;
-use crate::render::{Render, read_text, show};
-
-type Reply = Result<ExitCode, CliError>;
+use crate::render::{Render, read_text};
 
 /// Runs one Offsets command (main routes only these here).
 pub async fn command(o: &mut OffsetsClient<Svc>, cmd: Cmd, j: bool) -> Reply {
     match cmd {
         Cmd::Offsets { all } => {
-            let r = o
-                .get_offsets(pb::GetOffsetsRequest { include_zero: all })
-                .await?;
-            show(j, &r.into_inner())
+            call(
+                j,
+                o.get_offsets(pb::GetOffsetsRequest { include_zero: all }),
+            )
+            .await
         }
         Cmd::OffsetSet {
             entry,
@@ -31,28 +29,21 @@ pub async fn command(o: &mut OffsetsClient<Svc>, cmd: Cmd, j: bool) -> Reply {
             l3,
             l4,
         } => {
-            let r = o
-                .set_offset(pb::SetOffsetRequest {
-                    entry,
-                    radius_mm: radius,
-                    length1_mm: l1,
-                    length2_mm: l2,
-                    length3_mm: l3,
-                    length4_mm: l4,
-                })
-                .await?;
-            show(j, &r.into_inner())
+            let req = pb::SetOffsetRequest {
+                entry,
+                radius_mm: radius,
+                length1_mm: l1,
+                length2_mm: l2,
+                length3_mm: l3,
+                length4_mm: l4,
+            };
+            call(j, o.set_offset(req)).await
         }
-        Cmd::OffsetsFile => show(
-            j,
-            &o.get_offsets_file(pb::GetOffsetsFileRequest {})
-                .await?
-                .into_inner(),
-        ),
+        Cmd::OffsetsFile => call(j, o.get_offsets_file(pb::GetOffsetsFileRequest {})).await,
         Cmd::OffsetsReplace { file } => replace(o, &file, j).await,
         Cmd::OffsetsReload => {
-            let r = o.reload_offsets(pb::ReloadOffsetsRequest {}).await?;
-            show(j, &Entries("reloaded", r.into_inner().entries))
+            let answer = o.reload_offsets(pb::ReloadOffsetsRequest {});
+            call_as(j, answer, |r| Entries("reloaded", r.entries)).await
         }
         _ => unreachable!("main routes only Offsets service commands here"),
     }
@@ -61,13 +52,11 @@ pub async fn command(o: &mut OffsetsClient<Svc>, cmd: Cmd, j: bool) -> Reply {
 async fn replace(o: &mut OffsetsClient<Svc>, file: &Path, j: bool) -> Reply {
     let text = read_text(file)?;
     // No base revision: the operator replaces whatever the file holds now.
-    let r = o
-        .replace_offsets_file(pb::OffsetsFile {
-            text,
-            revision: String::new(),
-        })
-        .await?;
-    show(j, &Entries("TAB0.KOR replaced", r.into_inner().entries))
+    let answer = o.replace_offsets_file(pb::OffsetsFile {
+        text,
+        revision: String::new(),
+    });
+    call_as(j, answer, |r| Entries("TAB0.KOR replaced", r.entries)).await
 }
 
 /// The table as people read it: `D`, radius and lengths, G92 changes marked.

@@ -1,42 +1,33 @@
 //! Commands of the Plc service: PLC memory area 1, by cell name or address.
 
-use std::process::ExitCode;
-
 use proto::v1 as pb;
 use proto::v1::plc_client::PlcClient;
 use serde_json::{Value, json};
 
 use crate::args::PlcCmd;
+use crate::call::{Reply, call_as};
 use crate::connect::Svc;
-use crate::error::CliError;
-use crate::render::{Render, show};
+use crate::render::Render;
 
 /// Lists, reads or writes cells and prints them.
-pub async fn command(p: &mut PlcClient<Svc>, cmd: PlcCmd, j: bool) -> Result<ExitCode, CliError> {
-    let cells = match cmd {
-        PlcCmd::List => {
-            p.list_cells(pb::ListCellsRequest {})
-                .await?
-                .into_inner()
-                .cells
-        }
+pub async fn command(p: &mut PlcClient<Svc>, cmd: PlcCmd, j: bool) -> Reply {
+    match cmd {
+        PlcCmd::List => call_as(j, p.list_cells(pb::ListCellsRequest {}), |r| Cells(r.cells)).await,
         PlcCmd::Read { cells } => {
             let cells = cells.iter().map(|s| cell_ref(s)).collect();
-            p.read_cells(pb::ReadCellsRequest { cells })
-                .await?
-                .into_inner()
-                .cells
+            call_as(j, p.read_cells(pb::ReadCellsRequest { cells }), |r| {
+                Cells(r.cells)
+            })
+            .await
         }
         PlcCmd::Write { cell, value } => {
             let cell = Some(cell_ref(&cell));
-            vec![
-                p.write_cell(pb::WriteCellRequest { cell, value })
-                    .await?
-                    .into_inner(),
-            ]
+            call_as(j, p.write_cell(pb::WriteCellRequest { cell, value }), |c| {
+                Cells(vec![c])
+            })
+            .await
         }
-    };
-    show(j, &Cells(cells))
+    }
 }
 
 /// `0xA19C`, `A19Ch` (an address) or a cell name.

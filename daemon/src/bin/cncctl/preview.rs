@@ -2,17 +2,15 @@
 //! (`preview` without a daemon: the preview crate with default machine settings).
 
 use std::path::Path;
-use std::process::ExitCode;
 
 use proto::v1 as pb;
 use proto::v1::preview_client::PreviewClient;
 use serde_json::{Value, json};
 
+use crate::call::{Reply, call};
 use crate::connect::Svc;
 use crate::error::CliError;
 use crate::render::{Render, block_name, diag_lines, diags_json, read_text, show};
-
-type Reply = Result<ExitCode, CliError>;
 
 /// What `cncctl preview` draws: file, output, plane, page, velocity plot or path picture.
 pub struct PreviewArgs<'a> {
@@ -34,10 +32,11 @@ impl PreviewArgs<'_> {
 /// Paths and junctions of a program file, as a summary or JSON.
 pub async fn data(v: &mut PreviewClient<Svc>, file: &Path, junctions: bool, j: bool) -> Reply {
     let text = read_text(file)?;
-    let d = v
-        .get_preview_data(pb::PreviewDataRequest { text, junctions })
-        .await?;
-    show(j, &d.into_inner())
+    call(
+        j,
+        v.get_preview_data(pb::PreviewDataRequest { text, junctions }),
+    )
+    .await
 }
 
 fn junction_class(class: i32) -> &'static str {

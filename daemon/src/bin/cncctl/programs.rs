@@ -11,12 +11,11 @@ use proto::v1::programs_client::ProgramsClient;
 use serde_json::{Value, json};
 
 use crate::args::Cmd;
+use crate::call::{Reply, call, call_done};
 use crate::connect::{Clients, Svc};
 use crate::error::CliError;
 use crate::machine::follow;
-use crate::render::{Render, diag_line, diag_lines, diags_json, done, local_time, show};
-
-type Reply = Result<ExitCode, CliError>;
+use crate::render::{Render, diag_line, diag_lines, diags_json, local_time, show};
 
 /// Runs one Programs command (main routes only these here).
 pub async fn command(c: &mut Clients, cmd: Cmd, j: bool) -> Reply {
@@ -37,10 +36,12 @@ async fn library(g: &mut ProgramsClient<Svc>, cmd: Cmd, j: bool) -> Reply {
             let done = upload(g, &file, name, false, j).await?;
             show(j, &Stored(done.program.unwrap_or_default()))
         }
-        Cmd::Programs => show(j, &g.list(pb::LibraryListRequest {}).await?.into_inner()),
+        Cmd::Programs => call(j, g.list(pb::LibraryListRequest {})).await,
         Cmd::Download { name, out } => download(g, name, out.as_deref()).await,
-        Cmd::Delete { name } => done(j, g.delete(pb::ProgramName { name }).await),
-        Cmd::Rename { from, to } => done(j, g.rename(pb::RenameProgramRequest { from, to }).await),
+        Cmd::Delete { name } => call_done(j, g.delete(pb::ProgramName { name })).await,
+        Cmd::Rename { from, to } => {
+            call_done(j, g.rename(pb::RenameProgramRequest { from, to })).await
+        }
         _ => unreachable!("main routes only Programs service commands here"),
     }
 }

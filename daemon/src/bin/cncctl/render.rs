@@ -77,15 +77,6 @@ impl Render for Done {
     }
 }
 
-/// Waits for a call that answers nothing and prints [`Done`].
-pub fn done<T>(
-    j: bool,
-    r: Result<tonic::Response<T>, tonic::Status>,
-) -> Result<ExitCode, CliError> {
-    r?;
-    show(j, &Done)
-}
-
 /// Renders a gRPC error for a person, with every diagnostic on its own line.
 pub fn explain(s: &tonic::Status) -> String {
     match pb::Diagnostics::decode(s.details()) {

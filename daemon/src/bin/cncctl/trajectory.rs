@@ -3,12 +3,12 @@
 
 use std::io::Write;
 use std::path::Path;
-use std::process::ExitCode;
 
 use proto::v1 as pb;
 use proto::v1::trajectory_client::TrajectoryClient;
 use serde_json::{Value, json};
 
+use crate::call::Reply;
 use crate::connect::Svc;
 use crate::error::CliError;
 use crate::render::{Render, read_text, show};
@@ -19,7 +19,7 @@ pub async fn command(
     file: Option<&Path>,
     out: Option<&Path>,
     j: bool,
-) -> Result<ExitCode, CliError> {
+) -> Reply {
     let text = match file {
         Some(f) => read_text(f)?,
         None => String::new(),

@@ -1,0 +1,462 @@
+//! The controller: owns the RT thread, the loaded program and the planner threads, and offers
+//! the operations the API calls. Everything here runs outside the RT thread.
+//!
+//! [`Controller`] is a facade over parts, each owning its state and its lock (the file says
+//! where a state lives):
+//!
+//! - `rt_link.rs`: the command ring, the snapshot subscription, the RT thread, shutdown;
+//! - `pump.rs`: the status thread (snapshots to the watch channel, `G92` writes applied as
+//!   their block executes);
+//! - `tables.rs`: constants and the offset table (files, memory copies, restart rules) and
+//!   the setup generation that counts their changes;
+//! - `jobs.rs`: the planner thread, the execution record (`G92` writes, the MDI modal
+//!   state), hold, resume and stop; it owns
+//! - `selection.rs`: validation passes and the selected program;
+//! - `motion.rs`: homing, jog, overrides, single block, optional stop, fault reset;
+//! - `startup.rs`: data files loaded and checked, what the RT core and jobs are built from.
+//!
+//! A part reaches another only through arguments the facade passes (`&RtLink`, `&Tables`),
+//! so the lock order stays visible: a start holds the run lock, then takes the execution
+//! record or the constants, then the offsets; the status thread takes the execution record,
+//! then the offsets.
+
+mod jobs;
+mod motion;
+mod pump;
+mod rt_link;
+mod selection;
+mod startup;
+mod tables;
+
+use std::sync::{Arc, Mutex};
+
+use kernel::Diagnostic;
+use kernel::block::Block;
+use kernel::machine::MachineSetup;
+use kernel::pipeline::{self, Observer, Options, Validation};
+use tokio::sync::watch;
+
+use kernel::constants::Constants;
+use kernel::offsets::{OffsetTable, TableEdit};
+use kernel::plc::{PlcError, PlcWrite};
+
+use super::buses::open_bus;
+use super::config::Config;
+use super::library::ProgramText;
+use super::pipeline::Execution;
+use super::rt::{RtCommand, Snapshot};
+use super::storage::StorageError;
+
+use jobs::Jobs;
+use motion::Motion;
+use rt_link::RtLink;
+use selection::NoObserver;
+use tables::Tables;
+
+pub use motion::JOG_LEASE_TICKS;
+pub(crate) use pump::Pump;
+pub use selection::LoadedProgram;
+pub use startup::StartError;
+pub(crate) use startup::{load_storage, machine_config, rt_core_config};
+pub use tables::{FilesSync, needs_restart};
+
+/// Which clock drives the tick loop of the RT thread. Simulated time is not a clock of the
+/// threaded daemon: tests that need it step the RT core in the single-threaded harness
+/// ([`super::harness`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ClockKind {
+    Monotonic,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum ControlError {
+    #[error("the program has errors")]
+    InvalidProgram(Vec<Diagnostic>),
+    #[error("{0}")]
+    WrongState(String),
+    #[error("the real-time thread is not running")]
+    RtGone,
+    #[error("{0}")]
+    Storage(#[from] StorageError),
+    #[error("{0}")]
+    Plc(#[from] PlcError),
+    #[error("{0}")]
+    Invalid(String),
+    /// An operation was started and did not complete (e.g. a reference run failed).
+    #[error("{0}")]
+    Aborted(String),
+}
+
+/// The facade the API calls: each method delegates to the part that owns the state.
+pub struct Controller {
+    config: Arc<Config>,
+    rt: RtLink,
+    tables: Tables,
+    jobs: Jobs,
+    motion: Motion,
+}
+
+impl Controller {
+    /// Opens the bus, starts the RT thread and the status pump.
+    pub fn start(config: Config, clock: ClockKind) -> Result<Arc<Controller>, StartError> {
+        let bus = open_bus(&config.bus, &config.axes, &config.sim).map_err(StartError::Bus)?;
+        Self::start_with_bus(config, clock, bus)
+    }
+
+    /// As [`Controller::start`], on a bus the caller built (tests wrap the simulated bus to
+    /// record every setpoint).
+    pub fn start_with_bus(
+        config: Config,
+        clock: ClockKind,
+        bus: Box<dyn hal::DriveBus>,
+    ) -> Result<Arc<Controller>, StartError> {
+        let config = Arc::new(config);
+        let can_home = bus.supports_homing();
+        rt_link::warn_without_spindle(bus.as_ref());
+        let (constants, offsets, constants_file) = load_storage(&config)?;
+        let core = rt_core_config(&config, &constants, offsets.memory())?;
+        let tables = Tables::new(config.clone(), constants, offsets, constants_file);
+        let execution: Arc<Mutex<Execution>> = Arc::default();
+        let pump = Pump {
+            execution: execution.clone(),
+            offsets: tables.offsets_shared(),
+            generation: tables.generation_shared(),
+            axis_names: config.axis_names(),
+        };
+        let (rt, job_link) = RtLink::start(&config, clock, bus, core, pump)?;
+        Ok(Arc::new(Controller {
+            jobs: Jobs::new(config.clone(), job_link, execution),
+            motion: Motion::new(config.clone(), can_home),
+            config,
+            rt,
+            tables,
+        }))
+    }
+
+    pub fn config(&self) -> &Config {
+        &self.config
+    }
+
+    // ---- the RT link ----
+
+    /// Latest snapshot.
+    pub fn snapshot(&self) -> Snapshot {
+        self.rt.snapshot()
+    }
+
+    /// A receiver that sees every snapshot the pump publishes.
+    pub fn subscribe(&self) -> watch::Receiver<Snapshot> {
+        self.rt.subscribe()
+    }
+
+    /// Writes a PLC input cell; in force from the next tick. Refusals change nothing.
+    pub fn plc_write(&self, write: PlcWrite) -> Result<(), ControlError> {
+        self.rt.send(RtCommand::Plc(write))
+    }
+
+    /// Brings the axes to rest and ends the RT thread (SIGTERM/SIGINT path). Blocking.
+    pub fn shutdown(&self) {
+        self.jobs.cancel_for_shutdown();
+        self.rt.shutdown_rt();
+        self.jobs.join();
+        self.rt.stop_pump();
+    }
+
+    // ---- validation and selection ----
+
+    pub fn program(&self) -> Option<Arc<LoadedProgram>> {
+        self.jobs.selection().program()
+    }
+
+    /// The machine setup a job started now would take: the configuration, the constants in
+    /// force and the memory offset table, decoded once (issue #14), from where the axes are
+    /// commanded now.
+    pub fn machine_setup(&self) -> Result<MachineSetup, ControlError> {
+        self.tables.machine_setup(self.rt.snapshot().commanded)
+    }
+
+    /// The R325 listing of `text` under the setup in force (SPEC §4.6): the text with E
+    /// written, the refinements, the program's messages.
+    pub fn refinement_listing(
+        &self,
+        text: &str,
+    ) -> Result<(String, Vec<kernel::program::arc::Refined>, Vec<Diagnostic>), ControlError> {
+        let setup = self.machine_setup()?;
+        Ok(kernel::program::refinement_listing(text, setup.program()))
+    }
+
+    /// Validates `text` through the whole pipeline (interpretation, compensation, planning)
+    /// against the machine as it is now, passing what the stages produce to `obs`. Nothing is
+    /// selected or run. The verdict of validate, upload, load, previews, start and MDI.
+    pub fn validate_with(
+        &self,
+        text: &str,
+        opts: Options,
+        modal: Option<kernel::program::Modal>,
+        obs: &mut impl Observer,
+    ) -> Result<(Validation, MachineSetup, u64), ControlError> {
+        let selection = self.jobs.selection();
+        selection.validate_by(&self.rt, &self.tables, modal, |setup| {
+            pipeline::validate_into(text, setup, opts, obs)
+        })
+    }
+
+    /// As [`Controller::validate_with`] for a text in memory or a stored program's file
+    /// (streamed line by line: memory bounded whatever its size).
+    pub fn validate_program_with(
+        &self,
+        text: &ProgramText,
+        opts: Options,
+        obs: &mut impl Observer,
+    ) -> Result<(Validation, MachineSetup, u64), ControlError> {
+        let selection = self.jobs.selection();
+        selection.validate_by(&self.rt, &self.tables, None, |setup| {
+            text.validate_into(setup, opts, obs)
+        })
+    }
+
+    /// Validates `text` through the whole pipeline against the machine as it is now, without
+    /// selecting or running it.
+    pub fn validate_text(&self, text: &str) -> Result<Validation, ControlError> {
+        Ok(self
+            .validate_with(text, Options::default(), None, &mut NoObserver)?
+            .0)
+    }
+
+    /// Validates `text` (see [`Controller::validate_program_with`]) into a program that may
+    /// be selected; `obs` sees the pass. Errors: the program's diagnostics.
+    pub fn prepare_program(
+        &self,
+        name: &str,
+        text: ProgramText,
+        obs: &mut impl Observer,
+    ) -> Result<Arc<LoadedProgram>, ControlError> {
+        let selection = self.jobs.selection();
+        selection.prepare_program(&self.rt, &self.tables, name, text, obs)
+    }
+
+    /// Makes a validated program the selected one. Refused while a program runs.
+    pub fn select(&self, loaded: Arc<LoadedProgram>) -> Result<(), ControlError> {
+        self.jobs.selection().select(&self.snapshot(), loaded)
+    }
+
+    /// Validates `text` and makes it the selected program. Nothing moves; on error the
+    /// previously selected program stays selected.
+    pub fn load_program(&self, name: &str, text: &str) -> Result<Arc<LoadedProgram>, ControlError> {
+        let text = ProgramText::Memory(Arc::from(text));
+        let loaded = self.prepare_program(name, text, &mut NoObserver)?;
+        self.select(loaded.clone())?;
+        Ok(loaded)
+    }
+
+    /// Whether `program` was validated with the setup a job started now would take: the same
+    /// constants and offsets (generation) and the same start position. Its load's pass is then
+    /// the pass of the next start.
+    pub fn validated_as_now(&self, program: &LoadedProgram, snap: &Snapshot) -> bool {
+        program.validated_as(snap, self.tables.generation(), self.config.axes.len())
+    }
+
+    /// Passes of the pipeline made for validation so far (validate, upload, load, previews
+    /// of a text): tests see with it that a preview read load's pass instead of making one.
+    pub fn validation_passes(&self) -> u64 {
+        self.jobs.selection().passes()
+    }
+
+    /// Counts a pass made outside [`Controller::validate_with`] (the preview crate's picture).
+    pub fn count_validation_pass(&self) {
+        self.jobs.selection().count_pass();
+    }
+
+    // ---- jobs ----
+
+    pub fn alarm(&self) -> Option<String> {
+        self.jobs.alarm()
+    }
+
+    /// Starts the selected program. Returns the job id.
+    pub fn start_program(&self) -> Result<u32, ControlError> {
+        self.jobs.start_program(&self.rt, &self.tables)
+    }
+
+    /// Runs `text` as a job without changing the selected program (MDI, single-block runs).
+    /// With `stop_at_blocks` every block ends at rest (G98), so single-block holds land on
+    /// block ends. MDI (`mdi`) starts in the modal state the last program or MDI left.
+    /// Returns the job id and the blocks it runs.
+    pub fn start_text(
+        &self,
+        name: &str,
+        text: &str,
+        stop_at_blocks: bool,
+        mdi: bool,
+    ) -> Result<(u32, Arc<Vec<Block>>), ControlError> {
+        let (rt, tables) = (&self.rt, &self.tables);
+        self.jobs
+            .start_text(rt, tables, name, text, stop_at_blocks, mdi)
+    }
+
+    /// Block `seq` of `job` if the job is running (or just ran) and the block is near the
+    /// executing one: the modal state for status.
+    pub fn block_at(&self, job: u32, seq: u32) -> Option<Block> {
+        self.jobs.block_at(job, seq)
+    }
+
+    /// Stops motion: brake on the path, drop the rest of the program; the spindle stops once
+    /// the axes are at rest. Never refused (a stop is always allowed, also to stop a spindle
+    /// left turning on an idle machine).
+    pub fn stop(&self) -> Result<(), ControlError> {
+        self.jobs.stop(&self.rt)
+    }
+
+    /// Feed hold. FAILED_PRECONDITION when nothing runs.
+    pub fn hold(&self) -> Result<(), ControlError> {
+        self.jobs.hold(&self.rt)
+    }
+
+    /// Continues after a feed hold, a single-block hold or a program stop (M0/M1).
+    /// FAILED_PRECONDITION when nothing is held (idle, after a stop, while stopping).
+    pub fn resume(&self) -> Result<(), ControlError> {
+        self.jobs.resume(&self.rt)
+    }
+
+    /// Start while held (feed hold or a program stop M0/M1) continues the job: returns its
+    /// id; `None` when nothing is held.
+    pub fn start_resumes(&self) -> Result<Option<u32>, ControlError> {
+        self.jobs.start_resumes(&self.rt)
+    }
+
+    // ---- motion ----
+
+    /// Whether axis `i` is referenced: homed since power-on, or needing no reference run.
+    pub fn axis_homed(&self, snap: &Snapshot, i: usize) -> bool {
+        self.motion.axis_homed(snap, i)
+    }
+
+    /// Reference run of `axes` (all when empty), one axis after the other in the configured
+    /// order. Returns the letters homed.
+    pub async fn home(&self, axes: &str) -> Result<String, ControlError> {
+        self.motion.home(&self.rt, axes).await
+    }
+
+    /// Starts or renews a continuous jog of `axis` in direction `dir` (sign) at `speed_mm_min`.
+    /// The real-time thread stops it by itself unless renewed within [`JOG_LEASE_TICKS`]
+    /// (the dead-man). Returns the target: the soft limit in that direction.
+    pub fn jog(&self, axis: &str, dir: i32, speed_mm_min: f64) -> Result<f64, ControlError> {
+        self.motion.jog(&self.rt, axis, dir, speed_mm_min)
+    }
+
+    /// Incremental jog: `step_mm` on `axis`, clamped to the soft limits. Returns the target.
+    pub fn jog_step(
+        &self,
+        axis: &str,
+        step_mm: f64,
+        speed_mm_min: f64,
+    ) -> Result<f64, ControlError> {
+        self.motion.jog_step(&self.rt, axis, step_mm, speed_mm_min)
+    }
+
+    /// Brakes a jog to rest (the client let go, or went away).
+    pub fn jog_stop(&self) -> Result<(), ControlError> {
+        self.motion.jog_stop(&self.rt)
+    }
+
+    /// Optional stop switch: M1 stops the program only while it is on.
+    pub fn set_optional_stop(&self, on: bool) -> Result<(), ControlError> {
+        self.motion.set_optional_stop(&self.rt, on)
+    }
+
+    /// Single-block mode on the RT thread: hold when the path enters a new block.
+    pub fn set_single_block(&self, on: bool) -> Result<(), ControlError> {
+        self.motion.set_single_block(&self.rt, on)
+    }
+
+    /// Feed override, 0..150 %.
+    pub fn set_override(&self, percent: f64) -> Result<(), ControlError> {
+        self.motion.set_override(&self.rt, percent)
+    }
+
+    /// Spindle override, 50..120 % (issue #19): the RT core scales the commanded spindle
+    /// speed within the gear range from the next tick.
+    pub fn set_spindle_override(&self, percent: f64) -> Result<(), ControlError> {
+        self.motion.set_spindle_override(&self.rt, percent)
+    }
+
+    /// Rapid override, 0..100 % (issue #19): G0 moves run at this share of their speed.
+    pub fn set_rapid_override(&self, percent: f64) -> Result<(), ControlError> {
+        self.motion.set_rapid_override(&self.rt, percent)
+    }
+
+    /// Clears a fault and re-enables the drives.
+    pub fn reset(&self) -> Result<(), ControlError> {
+        self.motion.reset(&self.rt)
+    }
+
+    // ---- tables ----
+
+    /// The memory offset table (what programs use).
+    pub fn offsets_memory(&self) -> OffsetTable {
+        self.tables.offsets_memory()
+    }
+
+    /// The offset table file as text.
+    pub fn offsets_file_text(&self) -> String {
+        self.tables.offsets_file_text()
+    }
+
+    /// The revision of the offset table file's text (`storage::revision_of`).
+    pub fn offsets_revision(&self) -> String {
+        self.tables.offsets_revision()
+    }
+
+    /// Operator edit of one entry: file and memory (SPEC §3 b), made on the file as it is on
+    /// disk (a hand edit saved since is loaded first, issue #31).
+    pub fn edit_offset(&self, edit: &TableEdit) -> Result<(), ControlError> {
+        self.tables.edit_offset(edit)
+    }
+
+    /// Replaces the whole file; memory becomes the file's table (SPEC §3 a). A rejected text
+    /// changes nothing. With `base_revision`, refused when the file changed since that revision.
+    pub fn replace_offsets_file(
+        &self,
+        text: &str,
+        base_revision: Option<&str>,
+    ) -> Result<(), ControlError> {
+        self.tables.replace_offsets_file(text, base_revision)
+    }
+
+    /// Looks at TAB0.KOR and the constants file on disk (the file watch of issue #31): a saved
+    /// edit is loaded into memory, one that does not load is reported and memory kept.
+    pub fn sync_files(&self) -> FilesSync {
+        self.tables.sync_files()
+    }
+
+    /// Reloads the table from its file (power-on semantics). Only on an idle machine.
+    pub fn reload_offsets(&self) -> Result<(), ControlError> {
+        self.rt.idle_or_refuse("reloading the offset table")?;
+        self.tables.reload_offsets()
+    }
+
+    /// The constants as saved (the file; see [`needs_restart`] for those not yet in force).
+    pub fn constants(&self) -> Constants {
+        self.tables.constants()
+    }
+
+    /// The constants jobs start with now.
+    pub fn constants_in_force(&self) -> Constants {
+        self.tables.constants_in_force()
+    }
+
+    /// The axis programmed (and shown) as a diameter: the controlling axis R67 in force when
+    /// `[kr] radius_input = "diameter"` (docs/lathe.md). Its machine coordinates are radii.
+    pub fn diameter_axis(&self) -> Option<usize> {
+        self.tables.diameter_axis()
+    }
+
+    /// Sets machine constants and saves the constants file. Only on an idle machine. Each is
+    /// in force for every stage from the next start, except those of [`needs_restart`], which
+    /// are saved and used from the next daemon start only. Refused (nothing changed) when the
+    /// machine could not run with them. Returns the constants that need a restart.
+    pub fn set_constants(&self, values: &[(u16, f64)]) -> Result<Vec<u16>, ControlError> {
+        self.rt.idle_or_refuse("changing machine constants")?;
+        self.tables.set_constants(values)
+    }
+}

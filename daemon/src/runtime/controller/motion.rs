@@ -1,0 +1,245 @@
+//! Motion outside programs and the operator's switches: reference runs (homing), jogging
+//! (continuous with its dead-man lease, and by steps), the overrides, single block, optional
+//! stop, and the fault reset. Each is a command to the RT core, checked here first.
+
+use std::sync::Arc;
+
+use kernel::jog::{Jog, JogRequest};
+
+use super::ControlError;
+use super::rt_link::RtLink;
+use crate::runtime::config::Config;
+use crate::runtime::homing;
+use crate::runtime::rt::{MachineState, RtCommand, Snapshot};
+
+/// A continuous jog stops by itself unless renewed within this many ticks (0.5 s): the
+/// dead-man of a client that goes away without a word (the API renews it every 100 ms).
+pub const JOG_LEASE_TICKS: u32 = 125;
+
+pub(super) struct Motion {
+    config: Arc<Config>,
+    /// The bus can run reference runs (homing).
+    can_home: bool,
+}
+
+impl Motion {
+    pub(super) fn new(config: Arc<Config>, can_home: bool) -> Motion {
+        Motion { config, can_home }
+    }
+
+    /// Whether axis `i` is referenced: homed since power-on, or needing no reference run.
+    pub(super) fn axis_homed(&self, snap: &Snapshot, i: usize) -> bool {
+        homing::axis_homed(&self.config, snap, i)
+    }
+
+    /// Reference run of `axes` (all when empty), one axis after the other in the configured
+    /// order. Returns the letters homed.
+    pub(super) async fn home(&self, rt: &RtLink, axes: &str) -> Result<String, ControlError> {
+        if !self.can_home {
+            return Err(ControlError::WrongState(
+                "this bus cannot run a reference run (serial: it needs an axis with \
+                 homing = \"required\", which switches the link to protocol version 3)"
+                    .into(),
+            ));
+        }
+        let order = homing::homing_order(&self.config, axes)?;
+        let mut done = String::new();
+        for i in order {
+            self.home_axis(rt, i).await?;
+            done.push(self.config.axes[i].name);
+        }
+        Ok(done)
+    }
+
+    async fn home_axis(&self, rt: &RtLink, i: usize) -> Result<(), ControlError> {
+        let snap = rt.snapshot();
+        if snap.state != MachineState::Idle {
+            return Err(ControlError::WrongState(format!(
+                "homing needs an idle machine; it is {:?}",
+                snap.state
+            )));
+        }
+        let sent = rt.send_counted(RtCommand::Home(homing::home_request(&self.config, i)))?;
+        let mut rx = rt.subscribe();
+        let bit = 1u8 << i;
+        loop {
+            let s = *rx.borrow_and_update();
+            if s.commands_taken >= sent && s.state != MachineState::Homing {
+                if s.homed & bit != 0 {
+                    return Ok(());
+                }
+                return Err(homing::failure(&self.config, &s, i));
+            }
+            rx.changed().await.map_err(|_| ControlError::RtGone)?;
+        }
+    }
+
+    /// Axis index of letter `axis`, or INVALID_ARGUMENT.
+    fn axis_index(&self, axis: &str) -> Result<usize, ControlError> {
+        homing::axis_index(&self.config, axis)
+    }
+
+    /// Jog speed in mm/s: the asked speed within the axis's maximum; 0 asks for 10 % of it.
+    fn jog_speed(&self, axis: usize, speed_mm_min: f64) -> Result<f64, ControlError> {
+        let max = self.config.axes[axis].max_velocity_mm_min;
+        if !speed_mm_min.is_finite() || speed_mm_min < 0.0 {
+            return Err(ControlError::Invalid(format!(
+                "jog speed {speed_mm_min} mm/min must be positive"
+            )));
+        }
+        let v = if speed_mm_min == 0.0 {
+            0.1 * max
+        } else {
+            speed_mm_min.min(max)
+        };
+        Ok(v / 60.0)
+    }
+
+    /// Starts or renews a continuous jog of `axis` in direction `dir` (sign) at `speed_mm_min`.
+    /// The real-time thread stops it by itself unless renewed within [`JOG_LEASE_TICKS`]
+    /// (the dead-man). Returns the target: the soft limit in that direction.
+    pub(super) fn jog(
+        &self,
+        rt: &RtLink,
+        axis: &str,
+        dir: i32,
+        speed_mm_min: f64,
+    ) -> Result<f64, ControlError> {
+        let i = self.axis_index(axis)?;
+        if dir == 0 {
+            return Err(ControlError::Invalid(
+                "jog direction must be +1 or -1".into(),
+            ));
+        }
+        let speed = self.jog_speed(i, speed_mm_min)?;
+        let snap = rt.snapshot();
+        if !self.axis_homed(&snap, i) {
+            return Err(ControlError::WrongState(format!(
+                "axis {} is not homed: its soft limits mean nothing yet, so it jogs only by \
+                 steps until homed (cncctl home {})",
+                self.config.axes[i].name, self.config.axes[i].name
+            )));
+        }
+        if !matches!(snap.state, MachineState::Idle | MachineState::Jog) {
+            return Err(ControlError::WrongState(format!(
+                "jogging needs an idle machine; it is {:?}",
+                snap.state
+            )));
+        }
+        let a = &self.config.axes[i];
+        let (lo, hi) = (
+            a.soft_min_mm.unwrap_or(f64::NEG_INFINITY),
+            a.soft_max_mm.unwrap_or(f64::INFINITY),
+        );
+        let target = Jog::continuous_target(snap.commanded[i], f64::from(dir.signum()), lo, hi);
+        rt.send(RtCommand::Jog(JogRequest {
+            axis: i,
+            target_mm: target,
+            speed_mm_s: speed,
+            accel_mm_s2: a.max_accel_mm_s2,
+            lease_ticks: JOG_LEASE_TICKS,
+        }))?;
+        Ok(if dir > 0 { hi } else { lo })
+    }
+
+    /// Incremental jog: `step_mm` on `axis`, clamped to the soft limits. Returns the target.
+    pub(super) fn jog_step(
+        &self,
+        rt: &RtLink,
+        axis: &str,
+        step_mm: f64,
+        speed_mm_min: f64,
+    ) -> Result<f64, ControlError> {
+        let i = self.axis_index(axis)?;
+        if !step_mm.is_finite() || step_mm == 0.0 {
+            return Err(ControlError::Invalid(format!("jog step {step_mm} mm")));
+        }
+        let speed = self.jog_speed(i, speed_mm_min)?;
+        let snap = rt.snapshot();
+        if snap.state != MachineState::Idle {
+            return Err(ControlError::WrongState(format!(
+                "a jog step needs an idle machine; it is {:?}",
+                snap.state
+            )));
+        }
+        let a = &self.config.axes[i];
+        let here = snap.commanded[i];
+        let mut target = here + step_mm;
+        if let Some(hi) = a.soft_max_mm {
+            target = target.min(hi.max(here));
+        }
+        if let Some(lo) = a.soft_min_mm {
+            target = target.max(lo.min(here));
+        }
+        rt.send(RtCommand::Jog(JogRequest {
+            axis: i,
+            target_mm: target,
+            speed_mm_s: speed,
+            accel_mm_s2: a.max_accel_mm_s2,
+            lease_ticks: u32::MAX,
+        }))?;
+        Ok(target)
+    }
+
+    /// Brakes a jog to rest (the client let go, or went away).
+    pub(super) fn jog_stop(&self, rt: &RtLink) -> Result<(), ControlError> {
+        rt.send(RtCommand::JogStop)
+    }
+
+    /// Optional stop switch: M1 stops the program only while it is on.
+    pub(super) fn set_optional_stop(&self, rt: &RtLink, on: bool) -> Result<(), ControlError> {
+        rt.send(RtCommand::OptionalStop(on))
+    }
+
+    pub(super) fn set_override(&self, rt: &RtLink, percent: f64) -> Result<(), ControlError> {
+        if !(0.0..=150.0).contains(&percent) {
+            return Err(ControlError::WrongState(format!(
+                "feed override {percent} % is outside 0..150 %"
+            )));
+        }
+        rt.send(RtCommand::Override(percent))
+    }
+
+    /// Spindle override, 50..120 % (issue #19): the RT core scales the commanded spindle
+    /// speed within the gear range from the next tick.
+    pub(super) fn set_spindle_override(
+        &self,
+        rt: &RtLink,
+        percent: f64,
+    ) -> Result<(), ControlError> {
+        let range = kernel::kr::SPINDLE_OVERRIDE_PCT;
+        if !range.contains(&percent) {
+            return Err(ControlError::Invalid(format!(
+                "spindle override {percent} % is outside {}..{} %",
+                range.start(),
+                range.end()
+            )));
+        }
+        rt.send(RtCommand::SpindleOverride(percent))
+    }
+
+    /// Rapid override, 0..100 % (issue #19): G0 moves run at this share of their speed.
+    pub(super) fn set_rapid_override(&self, rt: &RtLink, percent: f64) -> Result<(), ControlError> {
+        if !(0.0..=100.0).contains(&percent) {
+            return Err(ControlError::Invalid(format!(
+                "rapid override {percent} % is outside 0..100 %"
+            )));
+        }
+        rt.send(RtCommand::RapidOverride(percent))
+    }
+
+    /// Clears a fault and re-enables the drives.
+    pub(super) fn reset(&self, rt: &RtLink) -> Result<(), ControlError> {
+        if rt.snapshot().state != MachineState::Fault {
+            return Err(ControlError::WrongState(
+                "there is no fault to reset".into(),
+            ));
+        }
+        rt.send(RtCommand::Reset)
+    }
+
+    /// Single-block mode on the RT thread: hold when the path enters a new block.
+    pub(super) fn set_single_block(&self, rt: &RtLink, on: bool) -> Result<(), ControlError> {
+        rt.send(RtCommand::SingleBlock(on))
+    }
+}

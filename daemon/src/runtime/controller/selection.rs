@@ -1,0 +1,149 @@
+//! Validation and program selection: every text passes the whole pipeline against the machine
+//! as it is now (the setup of the tables, from where the axes are), and a program that passed
+//! may be selected; it remembers the setup generation it passed under.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+
+use kernel::Diagnostic;
+use kernel::block::Block;
+use kernel::machine::MachineSetup;
+use kernel::pipeline::{self, Observer, Options, Validation};
+use kernel::units::AxesMm;
+
+use super::ControlError;
+use super::rt_link::RtLink;
+use super::tables::Tables;
+use crate::runtime::library::ProgramText;
+use crate::runtime::rt::{MachineState, Snapshot};
+
+/// A program that passed validation. Only its text is kept (in memory, or the open file of a
+/// stored program): blocks are streamed again when it runs, so a program of any size needs no
+/// memory for its blocks.
+pub struct LoadedProgram {
+    pub name: String,
+    pub text: ProgramText,
+    /// Number of blocks.
+    pub block_count: u32,
+    pub warnings: Vec<Diagnostic>,
+    /// Where the axes were when it was validated.
+    pub start: AxesMm,
+    /// The setup generation it was validated with (see `Tables::generation`).
+    generation: u64,
+}
+
+impl LoadedProgram {
+    /// Whether it was validated with the setup a job started at `snap` under setup generation
+    /// `generation` would take: the same constants and offsets and the same start position.
+    pub(super) fn validated_as(&self, snap: &Snapshot, generation: u64, axes: usize) -> bool {
+        let here = snap.commanded;
+        let moved = (0..axes).any(|i| (self.start[i] - here[i]).abs() > 1e-9);
+        !moved && self.generation == generation
+    }
+}
+
+/// The selected program and the count of validation passes.
+#[derive(Default)]
+pub(super) struct Selection {
+    program: Mutex<Option<Arc<LoadedProgram>>>,
+    /// See [`super::Controller::validation_passes`].
+    passes: AtomicU64,
+}
+
+impl Selection {
+    pub(super) fn program(&self) -> Option<Arc<LoadedProgram>> {
+        self.program.lock().unwrap().clone()
+    }
+
+    /// Makes a validated program the selected one. Refused while a program runs.
+    pub(super) fn select(
+        &self,
+        snap: &Snapshot,
+        loaded: Arc<LoadedProgram>,
+    ) -> Result<(), ControlError> {
+        let running = matches!(
+            snap.state,
+            MachineState::Running | MachineState::Hold | MachineState::Stopping
+        );
+        if running {
+            return Err(ControlError::WrongState(
+                "a program is running: stop it before loading another".into(),
+            ));
+        }
+        *self.program.lock().unwrap() = Some(loaded);
+        Ok(())
+    }
+
+    pub(super) fn passes(&self) -> u64 {
+        self.passes.load(Ordering::Relaxed)
+    }
+
+    pub(super) fn count_pass(&self) {
+        self.passes.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// The setup in force (with `modal`) and its generation, and `pass`'s verdict with it.
+    pub(super) fn validate_by(
+        &self,
+        rt: &RtLink,
+        tables: &Tables,
+        modal: Option<kernel::program::Modal>,
+        pass: impl FnOnce(&MachineSetup) -> Validation,
+    ) -> Result<(Validation, MachineSetup, u64), ControlError> {
+        let generation = tables.generation();
+        let setup = tables
+            .machine_setup(rt.snapshot().commanded)?
+            .with_modal(modal);
+        self.count_pass();
+        let v = pass(&setup);
+        Ok((v, setup, generation))
+    }
+
+    /// Validates `text` (in memory or a stored program's file) into a program that may be
+    /// selected; `obs` sees the pass. Errors: the program's diagnostics.
+    pub(super) fn prepare_program(
+        &self,
+        rt: &RtLink,
+        tables: &Tables,
+        name: &str,
+        text: ProgramText,
+        obs: &mut impl Observer,
+    ) -> Result<Arc<LoadedProgram>, ControlError> {
+        let (v, setup, generation) = self.validate_by(rt, tables, None, |setup| {
+            text.validate_into(setup, Options::default(), obs)
+        })?;
+        if v.has_errors() {
+            return Err(ControlError::InvalidProgram(v.diagnostics));
+        }
+        Ok(Arc::new(LoadedProgram {
+            name: name.to_owned(),
+            text,
+            block_count: v.blocks,
+            warnings: v.diagnostics,
+            start: setup.program().start,
+            generation,
+        }))
+    }
+}
+
+/// An observer that keeps nothing (the validation is returned separately).
+pub(super) struct NoObserver;
+
+impl Observer for NoObserver {
+    fn segment(&mut self, _s: kernel::plan::Segment) -> pipeline::Flow {
+        pipeline::Flow::Go
+    }
+}
+
+/// Keeps the programmed blocks (MDI and single-block runs: status shows their modal state).
+#[derive(Default)]
+pub(super) struct Blocks(pub(super) Vec<Block>);
+
+impl Observer for Blocks {
+    fn programmed(&mut self, b: &Block, _modal: &kernel::program::Modal) {
+        self.0.push(*b);
+    }
+    fn segment(&mut self, _s: kernel::plan::Segment) -> pipeline::Flow {
+        pipeline::Flow::Go
+    }
+}
