@@ -120,10 +120,7 @@ fn a_missing_file_is_an_empty_table_until_the_first_save() {
     let mut s = OffsetStore::load_or_empty(&path, &AXES).unwrap();
     assert!(s.memory().iter_nonzero().next().is_none());
     s.operator_edit_text("07: Z=1.5").unwrap();
-    assert_eq!(
-        std::fs::read_to_string(&path).unwrap(),
-        "$KOR\n07: R=0.0 X=0.0 Y=0.0 Z=1.5 4=0.0\n"
-    );
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), "$KOR\n07: Z=1.5\n");
     std::fs::remove_dir_all(&d).unwrap();
 }
 

@@ -8,6 +8,9 @@ use std::collections::BTreeMap;
 
 use crate::diag::{DiagCode, Diagnostic};
 
+mod text_edit;
+pub use text_edit::edit_text;
+
 /// Highest constant number.
 pub const MAX_R: u16 = 999;
 

@@ -7,6 +7,9 @@
 
 use crate::diag::{DiagCode, Diagnostic};
 
+mod text_edit;
+pub use text_edit::edit_text;
+
 /// Entries 1..=99 (SPEC §3).
 pub const ENTRIES: u8 = 99;
 

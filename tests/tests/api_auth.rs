@@ -75,6 +75,7 @@ async fn roles_observer_operator_admin() {
         .unwrap_err(),
         o.replace_offsets_file(pb::OffsetsFile {
             text: "$KOR\n".into(),
+            revision: String::new(),
         })
         .await
         .unwrap_err(),

@@ -516,6 +516,7 @@ async fn offsets_read_edit_replace_reload_and_g92_marking() {
     let e = o
         .replace_offsets_file(pb::OffsetsFile {
             text: "$KOR\n01: R=1.0\n01: R=2.0\n".into(),
+            revision: String::new(),
         })
         .await
         .unwrap_err();
@@ -543,6 +544,7 @@ async fn offsets_read_edit_replace_reload_and_g92_marking() {
     let r = o
         .replace_offsets_file(pb::OffsetsFile {
             text: "tools\n$KOR\n01: R=1.0 Z=50\n02: R=0.5\n".into(),
+            revision: String::new(),
         })
         .await
         .unwrap()

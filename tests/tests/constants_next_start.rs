@@ -256,7 +256,7 @@ impl Api {
 
 async fn daemon() -> (Daemon, Api) {
     let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
+    d.ctl.replace_offsets_file(TABLE, None).unwrap();
     let api = Api::new(d.channel().await).await;
     (d, api)
 }

@@ -329,7 +329,7 @@ impl Doors {
 async fn daemon(table: Option<&str>) -> (Daemon, Doors) {
     let d = start(config(Role::Admin)).await;
     if let Some(t) = table {
-        d.ctl.replace_offsets_file(t).unwrap();
+        d.ctl.replace_offsets_file(t, None).unwrap();
     }
     let doors = Doors::new(d.channel().await).await;
     (d, doors)

@@ -18,8 +18,8 @@ use daemon::runtime::config::Config;
 use daemon::runtime::controller::{ClockKind, Controller, StartError};
 use daemon::runtime::logging::{self, BlockNo, LogTarget};
 use daemon::runtime::mtconnect;
-use daemon::runtime::server;
 use daemon::runtime::systemd::{self, Notifier, NotifyState};
+use daemon::runtime::{discovery, server};
 
 /// Exit code of a configuration mistake (`RestartPreventExitStatus=2` in the unit).
 const EXIT_CONFIG: u8 = 2;
@@ -199,6 +199,11 @@ async fn run(config: Config) -> Result<(), CncdError> {
     tracing::info!("cncd started: axes {names} on bus {bus}, API on {api_on}; enabling drives");
     log_hmi(&ctl, hmi.as_ref());
     let listeners = listeners_beside(&ctl, listener, local).await?;
+    // Bound: cncctl may find it now, whatever the data directory (issue #31).
+    let socket = discovery::socket_of(ctl.config());
+    if let Some(s) = &socket {
+        discovery::publish(s);
+    }
     let supervision = systemd::supervise(
         ctl.subscribe(),
         notifier.clone(),
@@ -251,6 +256,9 @@ async fn run(config: Config) -> Result<(), CncdError> {
     let _ = tokio::time::timeout(server::SHUTDOWN_DRAIN, agent).await;
     if api_failure.is_none() {
         let _ = serve.await;
+    }
+    if let Some(s) = &socket {
+        discovery::unpublish(s);
     }
     tracing::info!("cncd stopped");
     match api_failure {

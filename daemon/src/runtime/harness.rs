@@ -95,7 +95,7 @@ impl Harness {
     ) -> Result<Self, StartError> {
         // Late wake-ups are late by whole ticks of the configured bus period.
         clock.period_ns = config.bus.cycle_ns();
-        let (constants, offsets) = load_storage(&config)?;
+        let (constants, offsets, _) = load_storage(&config)?;
         let axis_names = config.axis_names();
         let cfg = rt_core_config(&config, &constants, offsets.memory())?;
         let (commands, cmd_rx) = rtrb::RingBuffer::new(COMMAND_RING);

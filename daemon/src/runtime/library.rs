@@ -196,6 +196,10 @@ pub struct Entry {
     pub blocks: u32,
     pub modified_unix_ms: u64,
     pub verdict: Verdict,
+    /// The text's revision: the first 16 hex digits of its SHA-256 (issue #31: the listing
+    /// says which text is stored, the status which one is selected). Empty for a program
+    /// stored before revisions were kept.
+    pub revision: String,
 }
 
 /// The outcome of the last validation of a stored program (at upload, at each selection).
@@ -348,6 +352,7 @@ impl Library {
                 .max_bytes
                 .saturating_sub(self.used_bytes().saturating_sub(replaced)),
             max: self.max_bytes,
+            hash: Sha256::new(),
         })
     }
 
@@ -378,6 +383,7 @@ impl Library {
             blocks,
             modified_unix_ms: now_ms(),
             verdict,
+            revision: up.revision(),
         };
         let path = self.program_path(name);
         fs::rename(&up.tmp, &path)?;
@@ -458,6 +464,8 @@ pub struct Upload {
     /// Bytes this upload may still take without overflowing the library.
     allowed: u64,
     max: u64,
+    /// SHA-256 of the bytes written so far.
+    hash: Sha256,
 }
 
 impl Upload {
@@ -474,12 +482,21 @@ impl Upload {
             .as_mut()
             .expect("upload still open")
             .write_all(chunk)?;
+        self.hash.update(chunk);
         self.written = would;
         Ok(())
     }
 
     pub fn written(&self) -> u64 {
         self.written
+    }
+
+    /// The revision of the text written so far (see [`Entry::revision`]).
+    pub fn revision(&self) -> String {
+        self.hash.clone().finalize()[..8]
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect()
     }
 
     /// The uploaded text so far, for reading (validation).
@@ -506,6 +523,7 @@ fn write_meta(path: &Path, e: &Entry) -> io::Result<()> {
         "errors": e.verdict.errors,
         "warnings": e.verdict.warnings,
         "first_error": e.verdict.first_error,
+        "revision": e.revision,
     });
     write_atomic(path, v.to_string().as_bytes())
 }
@@ -525,6 +543,7 @@ fn read_meta(path: &Path) -> Option<Entry> {
             warnings: v["warnings"].as_u64().unwrap_or(0) as u32,
             first_error: v["first_error"].as_str().unwrap_or("").to_owned(),
         },
+        revision: v["revision"].as_str().unwrap_or("").to_owned(),
     })
 }
 

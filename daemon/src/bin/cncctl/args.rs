@@ -8,11 +8,16 @@ use clap::{Parser, Subcommand};
 #[command(name = "cncctl", version, about = "Command-line client of cncd")]
 pub struct Args {
     /// Address of the daemon: http://HOST:PORT, https://HOST:PORT (TLS) or unix:/PATH
-    /// [default: $CNCCTL_ADDR, else the first Unix socket of /run/cncd/cncd.sock,
-    /// ./cncd-data/cncd.sock, /var/lib/cncd/cncd.sock this user may open, else
-    /// http://127.0.0.1:50051 (observer only unless the daemon allows more)].
+    /// [default: $CNCCTL_ADDR, else the daemon of --config, else the first Unix socket this
+    /// user can open of ./cncd-data/cncd.sock, the socket published by the last cncd this user
+    /// started ($XDG_RUNTIME_DIR/cncd/cncd.addr), /run/cncd/cncd.sock, /var/lib/cncd/cncd.sock,
+    /// else http://127.0.0.1:50051 (observer only unless the daemon allows more)].
     #[arg(long, global = true)]
     pub addr: Option<String>,
+    /// The daemon's configuration file: talk to the daemon it configures (its Unix socket, else
+    /// its api.listen address).
+    #[arg(long, global = true)]
+    pub config: Option<PathBuf>,
     /// Bearer token (needed on remote listeners, or for a role above api.local_role)
     /// [default: $CNCCTL_TOKEN].
     #[arg(long, global = true)]
@@ -129,7 +134,8 @@ pub enum Cmd {
     Mdi { block: String },
     /// Show the machine status.
     Status {
-        /// Refresh in place until interrupted.
+        /// Follow the status until interrupted: refreshed in place on a terminal, one line per
+        /// update into a pipe or a file (one JSON object a line with --json).
         #[arg(long)]
         watch: bool,
         /// Refresh rate for --watch, Hz (1..250).
@@ -238,7 +244,8 @@ pub enum PlcCmd {
 #[derive(Subcommand)]
 pub enum ConstCmd {
     /// Read constants (all set or with a default when none are named), decades decoded.
-    Get { numbers: Vec<u32> },
+    /// Constants by number, `384` or `R384`.
+    Get { numbers: Vec<String> },
     /// Set constants: `R39=45 R384=20.0` (admin role).
     Set { values: Vec<String> },
 }

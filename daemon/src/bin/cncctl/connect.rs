@@ -45,14 +45,20 @@ pub struct Clients {
     pub health: HealthClient<Svc>,
 }
 
-/// Connects to `--addr` (else `$CNCCTL_ADDR`, else [`default_addr`]) with `--token` (else
-/// `$CNCCTL_TOKEN`).
+/// Connects to `--addr` (else `$CNCCTL_ADDR`, else the daemon of `--config`, else
+/// [`default_addr`]) with `--token` (else `$CNCCTL_TOKEN`).
 pub async fn connect(args: &Args) -> Result<Clients, CliError> {
-    let addr = args
+    let addr = match args
         .addr
         .clone()
         .or_else(|| std::env::var("CNCCTL_ADDR").ok())
-        .unwrap_or_else(default_addr);
+    {
+        Some(a) => a,
+        None => match &args.config {
+            Some(file) => addr_of_config(file)?,
+            None => default_addr(),
+        },
+    };
     let token_text = args
         .token
         .clone()
@@ -106,19 +112,35 @@ fn endpoint(args: &Args, addr: &str) -> Result<Endpoint, CliError> {
     ep.tls_config(tls).map_err(|e| CliError::Tls(e.to_string()))
 }
 
-/// Unix sockets tried when no address is given: the systemd unit's, the data directory of a
-/// `cncd` started in this directory, the unit's state directory.
-const DEFAULT_SOCKETS: [&str; 3] = [
-    "/run/cncd/cncd.sock",
-    "cncd-data/cncd.sock",
-    "/var/lib/cncd/cncd.sock",
-];
+/// The daemon a configuration file configures: its Unix socket (relative to where cncctl runs,
+/// as for cncd started here), else its `api.listen` address.
+fn addr_of_config(file: &std::path::Path) -> Result<String, CliError> {
+    let config = daemon::runtime::config::Config::load(file).map_err(|e| CliError::Config {
+        path: file.to_owned(),
+        reason: e.to_string(),
+    })?;
+    Ok(match daemon::runtime::discovery::socket_of(&config) {
+        Some(p) => format!("unix:{}", p.display()),
+        None => format!("http://{}", config.api.listen),
+    })
+}
+
+/// Unix sockets tried when no address is given, in order: the data directory of a `cncd`
+/// started in this directory, the one the last `cncd` of this user published (whatever its
+/// data directory, docs/operator.md), the systemd unit's, the unit's state directory.
+fn default_sockets() -> Vec<std::path::PathBuf> {
+    let mut v = vec![std::path::PathBuf::from("cncd-data/cncd.sock")];
+    v.extend(daemon::runtime::discovery::published());
+    v.push("/run/cncd/cncd.sock".into());
+    v.push("/var/lib/cncd/cncd.sock".into());
+    v
+}
 
 /// The first default socket this user can connect to (the socket's mode and group grant
 /// control), else loopback TCP (where callers without a token are observers by default).
 fn default_addr() -> String {
-    for p in DEFAULT_SOCKETS {
-        let path = std::path::Path::new(p);
+    for path in default_sockets() {
+        let path = path.as_path();
         if std::os::unix::net::UnixStream::connect(path).is_ok() {
             let abs = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
             return format!("unix:{}", abs.display());

@@ -14,6 +14,10 @@ use crate::render::{Render, diag_lines, diags_json};
 pub async fn command(k: &mut ConstantsClient<Svc>, cmd: ConstCmd, j: bool) -> Reply {
     match cmd {
         ConstCmd::Get { numbers } => {
+            let numbers = numbers
+                .iter()
+                .map(|n| constant_number(n))
+                .collect::<Result<Vec<_>, _>>()?;
             call(j, k.get_constants(pb::GetConstantsRequest { numbers })).await
         }
         ConstCmd::Set { values } => {
@@ -24,6 +28,14 @@ pub async fn command(k: &mut ConstantsClient<Svc>, cmd: ConstCmd, j: bool) -> Re
             call(j, k.set_constants(pb::SetConstantsRequest { values })).await
         }
     }
+}
+
+/// `R384` or `384` → 384 (issue #31: both spellings, as in `constants set`).
+fn constant_number(n: &str) -> Result<u32, CliError> {
+    n.strip_prefix(['R', 'r'])
+        .unwrap_or(n)
+        .parse()
+        .map_err(|_| CliError::ConstantNumber(n.to_string()))
 }
 
 /// `R39=45` (or `39=45`) → constant 39, value 45.
@@ -85,6 +97,17 @@ impl Render for pb::SetConstantsReply {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn numbers_parse_with_or_without_r() {
+        assert_eq!(constant_number("R384").unwrap(), 384);
+        assert_eq!(constant_number("384").unwrap(), 384);
+        assert_eq!(constant_number("r7").unwrap(), 7);
+        assert_eq!(
+            constant_number("Rx").unwrap_err().code(),
+            "cli_constant_number"
+        );
+    }
 
     #[test]
     fn assignments_parse_with_or_without_r() {

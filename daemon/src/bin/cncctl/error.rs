@@ -11,6 +11,8 @@ pub enum CliError {
     BadAddress { addr: String, reason: String },
     #[error("TLS: {0}")]
     Tls(String),
+    #[error("--config {}: {reason}", path.display())]
+    Config { path: PathBuf, reason: String },
     #[error("cannot reach cncd at {addr}: {reason}")]
     Unreachable { addr: String, reason: String },
     #[error("the token must be printable ASCII")]
@@ -77,6 +79,7 @@ impl CliError {
         match self {
             CliError::BadAddress { .. } => "cli_bad_address",
             CliError::Tls(_) => "cli_tls",
+            CliError::Config { .. } => "cli_config",
             CliError::Unreachable { .. } => "cli_unreachable",
             CliError::TokenNotAscii => "cli_token_not_ascii",
             CliError::Read { .. } => "cli_read",

@@ -14,7 +14,9 @@ use crate::args::Cmd;
 use crate::call::{Reply, call, call_as, call_done};
 use crate::connect::Svc;
 use crate::error::CliError;
-use crate::render::{Render, block_name, diags_json, emit, read_text, show};
+use crate::render::{
+    Render, block_name, diag_lines, diags_json, emit, local_time, print_line, read_text, show,
+};
 use crate::status::{alarm_json, dro, status_json, status_line};
 
 /// Runs one Machine command (main routes only these here).
@@ -164,13 +166,18 @@ async fn status(m: &mut MachineClient<Svc>, watch: bool, rate: u32, j: bool) -> 
             .ok_or(CliError::StatusStreamClosed)?;
         return show(j, &s);
     }
-    let bar = ProgressBar::new_spinner();
-    bar.set_style(ProgressStyle::with_template("{msg}").expect("static template"));
+    // In place on a terminal; a line per update into a pipe or a file (NDJSON with --json).
+    use std::io::IsTerminal;
+    let bar = (!j && std::io::stdout().is_terminal()).then(|| {
+        let bar = ProgressBar::new_spinner();
+        bar.set_style(ProgressStyle::with_template("{msg}").expect("static template"));
+        bar
+    });
     while let Some(s) = stream.message().await? {
-        if j {
-            println!("{}", status_json(&s));
-        } else {
-            bar.set_message(status_line(&s));
+        match &bar {
+            Some(bar) => bar.set_message(status_line(&s)),
+            None if j => print_line(&status_json(&s).to_string()),
+            None => print_line(&status_line(&s)),
         }
     }
     Ok(ExitCode::SUCCESS)
@@ -184,7 +191,8 @@ impl Render for pb::AlarmEvent {
     fn human(&self) -> String {
         let a = self.alarm.clone().unwrap_or_default();
         format!(
-            "#{:<4} {:<7} {:<8} {}",
+            "{} #{:<4} {:<7} {:<8} {}",
+            local_time(self.event_unix_ms),
             a.id,
             if self.active { "RAISED" } else { "cleared" },
             a.source,

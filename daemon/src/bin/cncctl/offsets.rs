@@ -51,7 +51,11 @@ pub async fn command(o: &mut OffsetsClient<Svc>, cmd: Cmd, j: bool) -> Reply {
 
 async fn replace(o: &mut OffsetsClient<Svc>, file: &Path, j: bool) -> Reply {
     let text = read_text(file)?;
-    let answer = o.replace_offsets_file(pb::OffsetsFile { text });
+    // No base revision: the operator replaces whatever the file holds now.
+    let answer = o.replace_offsets_file(pb::OffsetsFile {
+        text,
+        revision: String::new(),
+    });
     call_as(j, answer, |r| Entries("TAB0.KOR replaced", r.entries)).await
 }
 
@@ -97,7 +101,7 @@ impl Render for pb::OffsetEntry {
 
 impl Render for pb::OffsetsFile {
     fn json(&self) -> Value {
-        json!({"text": self.text})
+        json!({"text": self.text, "revision": self.revision})
     }
     fn human(&self) -> String {
         self.text.trim_end().to_string()

@@ -16,7 +16,7 @@ use crate::connect::{Clients, Svc};
 use crate::error::CliError;
 use crate::machine::follow;
 use crate::render::{
-    Render, diag_line, diag_lines, diags_json, emit, show, totals_json, totals_line,
+    Render, diag_line, diag_lines, diags_json, emit, local_time, show, totals_json, totals_line,
 };
 
 /// Runs one Programs command (main routes only these here).
@@ -110,7 +110,8 @@ impl Render for pb::LibraryList {
         json!({"selected": self.selected, "used_bytes": self.used_bytes, "max_bytes": self.max_bytes,
             "programs": self.programs.iter().map(|p| json!({"name": p.name, "blocks": p.blocks,
             "size_bytes": p.size_bytes, "modified_unix_ms": p.modified_unix_ms, "valid": p.valid,
-            "errors": p.errors, "warnings": p.warnings, "first_error": p.first_error})).collect::<Vec<_>>()})
+            "errors": p.errors, "warnings": p.warnings, "first_error": p.first_error,
+            "revision": p.revision})).collect::<Vec<_>>(), "selected_revision": self.selected_revision})
     }
     fn human(&self) -> String {
         let mut out = format!(
@@ -120,18 +121,23 @@ impl Render for pb::LibraryList {
             self.max_bytes
         );
         for p in &self.programs {
-            let when = p.modified_unix_ms / 1000;
+            let when = local_time(p.modified_unix_ms);
             let verdict = if p.valid {
                 format!("valid, {} warnings", p.warnings)
             } else {
                 format!("{} errors: {}", p.errors, p.first_error)
             };
             out.push_str(&format!(
-                "\n{} {:<30} {:>9} blocks {:>11} bytes  stored at {when} (Unix s)  {verdict}",
+                "\n{} {:<30} {:>9} blocks {:>11} bytes  stored {when}  rev {}  {verdict}",
                 if p.name == self.selected { "*" } else { " " },
                 p.name,
                 p.blocks,
                 p.size_bytes,
+                if p.revision.is_empty() {
+                    "-"
+                } else {
+                    &p.revision
+                },
             ));
         }
         out

@@ -21,11 +21,40 @@ pub trait Render {
 /// Prints `r` in the chosen form.
 pub fn emit(json_mode: bool, r: &impl Render) {
     if json_mode {
-        println!("{}", r.json());
+        print_line(&r.json().to_string());
     } else {
         let h = r.human();
         if !h.is_empty() {
-            println!("{h}");
+            print_line(&h);
+        }
+    }
+}
+
+/// A time for people: local ISO 8601 with the offset, `2026-11-27T14:05:09+01:00` (the
+/// system's time zone; UTC where none is set).
+pub fn local_time(unix_ms: u64) -> String {
+    match jiff::Timestamp::from_millisecond(unix_ms as i64) {
+        Ok(t) => t
+            .to_zoned_datetime(jiff::tz::TimeZone::system())
+            .strftime("%Y-%m-%dT%H:%M:%S%:z")
+            .to_string(),
+        Err(_) => format!("{unix_ms} ms after 1970"),
+    }
+}
+
+/// Writes one line to standard output and flushes it (a reader at the other end of a pipe sees
+/// every update as it comes). A reader that went away (`cncctl status --watch | head -1`) ends
+/// cncctl quietly with status 0, as `yes | head` does, instead of a panic.
+pub fn print_line(line: &str) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    let r = writeln!(out, "{line}").and_then(|()| out.flush());
+    match r {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => std::process::exit(0),
+        Err(e) => {
+            eprintln!("cncctl: cannot write to standard output: {e}");
+            std::process::exit(1);
         }
     }
 }
@@ -52,7 +81,7 @@ impl Render for Done {
 /// the totals when more were found than the details carry.
 pub fn explain(s: &tonic::Status) -> String {
     match pb::Diagnostics::decode(s.details()) {
-        Ok(d) if !d.items.is_empty() => {
+        Ok(d) if !d.items.is_empty() && s.code() == tonic::Code::InvalidArgument => {
             let listed = d.items.len() as u64;
             let all = d.totals.map_or(0, |t| t.errors + t.warnings + t.infos);
             let more = if all > listed {
@@ -64,6 +93,12 @@ pub fn explain(s: &tonic::Status) -> String {
                 String::new()
             };
             format!("{:?}: rejected{}{more}", s.code(), diag_lines(&d.items))
+        }
+        // Refused for another reason (e.g. `[storage_file_invalid]`: a file on disk must be
+        // fixed first): the reason, then the diagnostics it carries.
+        Ok(d) if !d.items.is_empty() => {
+            let first = s.message().split(" (").next().unwrap_or_default();
+            format!("{:?}: {first}{}", s.code(), diag_lines(&d.items))
         }
         _ => format!("{:?}: {}", s.code(), s.message()),
     }

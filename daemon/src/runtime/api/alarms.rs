@@ -1,7 +1,14 @@
 //! Alarm history for `StreamAlarms` and `Status.active_alarms`: a watcher task turns drive
 //! faults and planning failures into raise/clear events (outside the RT thread).
+//!
+//! The history is kept in the data directory (`alarms.jsonl`, one event a line with its times,
+//! issue #31) and read back at start-up, so it survives a restart; the file is rewritten with
+//! the last `api.alarm_history` events when it holds twice as many. Alarms active when cncd
+//! stopped are history, not active, after the restart (the machine starts anew).
 
 use std::collections::VecDeque;
+use std::io::Write;
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
@@ -9,6 +16,9 @@ use proto::v1 as pb;
 use tokio::sync::broadcast;
 
 use crate::runtime::controller::Controller;
+
+/// The history file in the data directory.
+pub const HISTORY_FILE: &str = "alarms.jsonl";
 
 /// How often the watcher looks at the controller.
 const WATCH_PERIOD: Duration = Duration::from_millis(10);
@@ -23,6 +33,31 @@ struct Log {
     cap: usize,
     active: Vec<pb::Alarm>,
     next_id: u64,
+    /// Where the history is kept, and how many lines the file holds.
+    file: Option<(PathBuf, usize)>,
+}
+
+/// One event as a line of the history file.
+fn event_line(e: &pb::AlarmEvent) -> String {
+    let a = e.alarm.clone().unwrap_or_default();
+    serde_json::json!({"id": a.id, "source": a.source, "message": a.message,
+        "raised_unix_ms": a.raised_unix_ms, "active": e.active, "event_unix_ms": e.event_unix_ms})
+    .to_string()
+}
+
+fn event_of_line(line: &str) -> Option<pb::AlarmEvent> {
+    let v: serde_json::Value = serde_json::from_str(line).ok()?;
+    Some(pb::AlarmEvent {
+        alarm: Some(pb::Alarm {
+            id: v["id"].as_u64()?,
+            message: v["message"].as_str()?.into(),
+            raised_unix_ms: v["raised_unix_ms"].as_u64().unwrap_or(0),
+            source: v["source"].as_str().unwrap_or("").into(),
+        }),
+        active: v["active"].as_bool().unwrap_or(false),
+        from_history: true,
+        event_unix_ms: v["event_unix_ms"].as_u64().unwrap_or(0),
+    })
 }
 
 fn now_ms() -> u64 {
@@ -40,9 +75,31 @@ impl AlarmLog {
                 cap: cap.max(1),
                 active: Vec::new(),
                 next_id: 1,
+                file: None,
             }),
             tx,
         }
+    }
+
+    /// A log whose history is kept in `path` and read back from it (lines that do not read
+    /// are skipped). Ids go on from the highest one read.
+    pub fn persistent(cap: usize, path: PathBuf) -> AlarmLog {
+        let log = AlarmLog::new(cap);
+        {
+            let mut l = log.inner.lock().unwrap();
+            let text = std::fs::read_to_string(&path).unwrap_or_default();
+            let lines = text.lines().count();
+            for e in text.lines().filter_map(event_of_line) {
+                let id = e.alarm.as_ref().map_or(0, |a| a.id);
+                l.next_id = l.next_id.max(id + 1);
+                if l.history.len() >= l.cap {
+                    l.history.pop_front();
+                }
+                l.history.push_back(e);
+            }
+            l.file = Some((path, lines));
+        }
+        log
     }
 
     fn push(&self, log: &mut Log, e: pb::AlarmEvent) {
@@ -50,7 +107,32 @@ impl AlarmLog {
             log.history.pop_front();
         }
         log.history.push_back(e.clone());
+        Self::keep(log, &e);
         let _ = self.tx.send(e);
+    }
+
+    /// Appends the event to the history file (alarms are rare: a small write on the API side,
+    /// never on the RT thread); rewrites the file with the history when it grew to twice it.
+    fn keep(log: &mut Log, e: &pb::AlarmEvent) {
+        let cap = log.cap;
+        let Some((path, lines)) = &mut log.file else {
+            return;
+        };
+        let r = if *lines >= 2 * cap {
+            let text: String = log.history.iter().map(|e| event_line(e) + "\n").collect();
+            *lines = log.history.len();
+            crate::runtime::storage::write_atomic(path, text.as_bytes())
+        } else {
+            *lines += 1;
+            std::fs::OpenOptions::new()
+                .create(true)
+                .append(true)
+                .open(&*path)
+                .and_then(|mut f| writeln!(f, "{}", event_line(e)))
+        };
+        if let Err(err) = r {
+            tracing::warn!("cannot keep the alarm history in {}: {err}", path.display());
+        }
     }
 
     /// Raises an alarm from `source` (clearing that source's previous alarm first).

@@ -7,6 +7,8 @@
 
 pub mod alarms;
 pub mod auth;
+pub mod files_watch;
+pub mod job_journal;
 mod machine;
 pub mod preview;
 mod programs;
@@ -124,7 +126,10 @@ impl ApiState {
                     source,
                 }
             })?;
-        let alarms = Arc::new(alarms::AlarmLog::new(api.alarm_history as usize));
+        let alarms = Arc::new(alarms::AlarmLog::persistent(
+            api.alarm_history as usize,
+            st.dir.join(alarms::HISTORY_FILE),
+        ));
         let state = Arc::new(ApiState {
             max_streams: api.max_streams as usize,
             reserved_streams: (api.reserved_streams as usize).min(api.max_streams as usize - 1),
@@ -143,6 +148,8 @@ impl ApiState {
             lease_jog: Mutex::new(None),
         });
         alarms::spawn_watcher(state.ctl.clone(), state.alarms.clone());
+        files_watch::spawn(state.ctl.clone(), state.alarms.clone());
+        job_journal::spawn(Arc::downgrade(&state));
         // The program selected before the restart is selected again (validated, not started).
         let st = state.clone();
         tokio::task::spawn_blocking(move || programs::restore_selection(&st));
@@ -635,6 +642,23 @@ pub fn status_of(e: ControlError) -> Status {
         ControlError::Storage(e) => match e {
             super::storage::StorageError::Invalid { diagnostics, .. } => {
                 invalid_with_diagnostics("table", &diagnostics)
+            }
+            // The file on disk (a hand edit) must be fixed first: its lines and codes.
+            super::storage::StorageError::DiskInvalid {
+                ref diagnostics, ..
+            } => {
+                let details = pb::Diagnostics {
+                    items: diagnostics.iter().map(diagnostic_to_pb).collect(),
+                }
+                .encode_to_vec();
+                Status::with_details(
+                    Code::FailedPrecondition,
+                    format!("[{}] {e}", e.code()),
+                    details.into(),
+                )
+            }
+            super::storage::StorageError::Changed { .. } => {
+                Status::aborted(format!("[{}] {e}", e.code()))
             }
             _ => Status::internal(e.to_string()),
         },

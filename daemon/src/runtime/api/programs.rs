@@ -54,6 +54,7 @@ pub fn entry_pb(e: &Entry) -> pb::LibraryProgram {
         errors: e.verdict.errors,
         warnings: e.verdict.warnings,
         first_error: e.verdict.first_error.clone(),
+        revision: e.revision.clone(),
     }
 }
 
@@ -180,6 +181,14 @@ pub fn commit_upload(st: &ApiState, v: Validated, select: bool) -> Result<pb::Up
         return Err(Status::failed_precondition(
             "a program is running: stop it before loading another",
         ));
+    }
+    // Library = what runs (issue #31): the selected program keeps the text it validated, so a
+    // new text under its name without selecting it would list one text and run another.
+    if !select && selected_name(st).as_deref() == Some(name.as_str()) {
+        return Err(Status::failed_precondition(format!(
+            "[program_selected] {name:?} is the selected program: load the new text (upload \
+             with select, `cncctl load`), which selects it, or select another program first"
+        )));
     }
     let (entry, _) = st
         .library
@@ -432,6 +441,10 @@ impl Programs for ProgramsSvc {
             selected: selected_name(&self.0).unwrap_or_default(),
             used_bytes: lib.used_bytes(),
             max_bytes: lib.max_bytes(),
+            selected_revision: selected_name(&self.0)
+                .and_then(|n| lib.entry(&n))
+                .map(|e| e.revision)
+                .unwrap_or_default(),
         }))
     }
 

@@ -131,8 +131,12 @@ impl Offsets for OffsetsSvc {
         req: Request<pb::GetOffsetsFileRequest>,
     ) -> Result<Response<pb::OffsetsFile>, Status> {
         require(&req, Observer, "GetOffsetsFile")?;
+        // A hand edit saved since the last look is shown (and loaded) at once.
+        let st = self.0.clone();
+        blocking(move || st.ctl.sync_files()).await?;
         Ok(Response::new(pb::OffsetsFile {
             text: self.0.ctl.offsets_file_text(),
+            revision: self.0.ctl.offsets_revision(),
         }))
     }
 
@@ -141,9 +145,10 @@ impl Offsets for OffsetsSvc {
         req: Request<pb::OffsetsFile>,
     ) -> Result<Response<pb::ReplaceOffsetsFileReply>, Status> {
         require(&req, Operator, "ReplaceOffsetsFile")?;
-        let text = req.into_inner().text;
+        let pb::OffsetsFile { text, revision } = req.into_inner();
+        let base = (!revision.is_empty()).then_some(revision);
         let st = self.0.clone();
-        blocking(move || st.ctl.replace_offsets_file(&text))
+        blocking(move || st.ctl.replace_offsets_file(&text, base.as_deref()))
             .await?
             .map_err(status_of)?;
         Ok(Response::new(pb::ReplaceOffsetsFileReply {

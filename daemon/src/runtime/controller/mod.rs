@@ -58,7 +58,7 @@ pub(crate) use pump::Pump;
 pub use selection::LoadedProgram;
 pub use startup::StartError;
 pub(crate) use startup::{load_storage, machine_config, rt_core_config};
-pub use tables::needs_restart;
+pub use tables::{FilesSync, needs_restart};
 
 /// Which clock drives the tick loop of the RT thread. Simulated time is not a clock of the
 /// threaded daemon: tests that need it step the RT core in the single-threaded harness
@@ -113,9 +113,9 @@ impl Controller {
         let config = Arc::new(config);
         let can_home = bus.supports_homing();
         rt_link::warn_without_spindle(bus.as_ref());
-        let (constants, offsets) = load_storage(&config)?;
+        let (constants, offsets, constants_file) = load_storage(&config)?;
         let core = rt_core_config(&config, &constants, offsets.memory())?;
-        let tables = Tables::new(config.clone(), constants, offsets);
+        let tables = Tables::new(config.clone(), constants, offsets, constants_file);
         let execution: Arc<Mutex<Execution>> = Arc::default();
         let pump = Pump {
             execution: execution.clone(),
@@ -435,15 +435,31 @@ impl Controller {
         self.tables.offsets_file_text()
     }
 
-    /// Operator edit of one entry: file and memory (SPEC §3 b).
+    /// The revision of the offset table file's text (`storage::revision_of`).
+    pub fn offsets_revision(&self) -> String {
+        self.tables.offsets_revision()
+    }
+
+    /// Operator edit of one entry: file and memory (SPEC §3 b), made on the file as it is on
+    /// disk (a hand edit saved since is loaded first, issue #31).
     pub fn edit_offset(&self, edit: &TableEdit) -> Result<(), ControlError> {
         self.tables.edit_offset(edit)
     }
 
     /// Replaces the whole file; memory becomes the file's table (SPEC §3 a). A rejected text
-    /// changes nothing.
-    pub fn replace_offsets_file(&self, text: &str) -> Result<(), ControlError> {
-        self.tables.replace_offsets_file(text)
+    /// changes nothing. With `base_revision`, refused when the file changed since that revision.
+    pub fn replace_offsets_file(
+        &self,
+        text: &str,
+        base_revision: Option<&str>,
+    ) -> Result<(), ControlError> {
+        self.tables.replace_offsets_file(text, base_revision)
+    }
+
+    /// Looks at TAB0.KOR and the constants file on disk (the file watch of issue #31): a saved
+    /// edit is loaded into memory, one that does not load is reported and memory kept.
+    pub fn sync_files(&self) -> FilesSync {
+        self.tables.sync_files()
     }
 
     /// Reloads the table from its file (power-on semantics). Only on an idle machine.

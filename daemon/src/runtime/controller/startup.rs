@@ -10,7 +10,7 @@ use kernel::units::{AxesMm, MAX_AXES};
 
 use crate::runtime::config::{Config, RadiusInputConfig};
 use crate::runtime::rt::RtCoreConfig;
-use crate::runtime::storage::{self, OffsetStore};
+use crate::runtime::storage::{self, ConstantsFile, OffsetStore};
 
 /// Why the controller did not start (the message names the key or file to fix).
 #[derive(Debug, thiserror::Error)]
@@ -137,7 +137,7 @@ pub(crate) fn machine_config(config: &Config) -> MachineConfig {
 /// but does not parse stops the start-up: running with wrong offsets scraps parts.
 pub(crate) fn load_storage(
     config: &Config,
-) -> Result<((Constants, bool), OffsetStore), StartError> {
+) -> Result<((Constants, bool), OffsetStore, ConstantsFile), StartError> {
     let st = &config.storage;
     std::fs::create_dir_all(&st.dir).map_err(|source| StartError::StorageDir {
         dir: st.dir.clone(),
@@ -145,8 +145,8 @@ pub(crate) fn load_storage(
     })?;
     let cpath = st.constants_path();
     let names = config.axis_names();
-    let constants = if cpath.exists() {
-        let c = storage::load_constants(&cpath)?;
+    let (constants_file, from_file) = ConstantsFile::open(&cpath)?;
+    let constants = if let Some(c) = from_file {
         // R0..R5 name the axes the programs use: they must be the configured ones.
         let named = c.axis_names();
         if named[..] != names[..] {
@@ -176,7 +176,7 @@ pub(crate) fn load_storage(
         offsets = %st.offsets_path().display(),
         "data files loaded"
     );
-    Ok((constants, offsets))
+    Ok((constants, offsets, constants_file))
 }
 
 #[cfg(test)]

@@ -14,7 +14,7 @@ use kernel::units::AxesMm;
 use super::ControlError;
 use super::startup::machine_config;
 use crate::runtime::config::{Config, RadiusInputConfig};
-use crate::runtime::storage::{self, OffsetStore};
+use crate::runtime::storage::{ConstantsFile, DiskChange, OffsetStore, StorageError};
 
 /// Constants read only at daemon start: axis codes R0..R5 (checked against the configured
 /// axes). Changing them is saved, listed in `restart_required` and not used before.
@@ -45,6 +45,34 @@ struct ConstantsState {
     saved: Constants,
     in_force: Constants,
     from_file: bool,
+    /// The file's text as a person wrote it (issue #31: edits go into it in place).
+    file: ConstantsFile,
+}
+
+impl ConstantsState {
+    /// A constants file saved by hand since it was last seen becomes the saved constants, in
+    /// force at once except those of [`needs_restart`]. Returns whether it changed.
+    fn sync_with_disk(&mut self) -> Result<bool, StorageError> {
+        let Some(c) = self.file.sync_with_disk()? else {
+            return Ok(false);
+        };
+        let mut in_force = c.clone();
+        for r in (0..=kernel::constants::MAX_R).filter(|&r| needs_restart(r)) {
+            in_force.set(r, self.in_force.get(r));
+        }
+        self.saved = c;
+        self.in_force = in_force;
+        self.from_file = true;
+        Ok(true)
+    }
+}
+
+/// What a look at the data files found (see [`Tables::sync_files`]): per file, whether a
+/// saved edit was loaded, or why the file on disk does not load (the memory copy is kept).
+#[derive(Debug)]
+pub struct FilesSync {
+    pub offsets: Result<bool, StorageError>,
+    pub constants: Result<bool, StorageError>,
 }
 
 impl Tables {
@@ -53,6 +81,7 @@ impl Tables {
         config: Arc<Config>,
         constants: (Constants, bool),
         offsets: OffsetStore,
+        constants_file: ConstantsFile,
     ) -> Tables {
         Tables {
             machine: machine_config(&config),
@@ -61,6 +90,7 @@ impl Tables {
                 saved: constants.0.clone(),
                 in_force: constants.0,
                 from_file: constants.1,
+                file: constants_file,
             }),
             offsets: Arc::new(Mutex::new(offsets)),
             generation: Arc::new(AtomicU64::new(0)),
@@ -125,19 +155,51 @@ impl Tables {
         self.offsets.lock().unwrap().file_text()
     }
 
-    /// Operator edit of one entry: file and memory (SPEC §3 b).
+    /// The revision of the offset table file's text (`storage::revision_of`).
+    pub(super) fn offsets_revision(&self) -> String {
+        self.offsets.lock().unwrap().revision()
+    }
+
+    /// Operator edit of one entry: file and memory (SPEC §3 b), made on top of the file as it
+    /// is on disk (issue #31).
     pub(super) fn edit_offset(&self, edit: &TableEdit) -> Result<(), ControlError> {
-        self.offsets.lock().unwrap().operator_edit(edit)?;
+        let r = self.offsets.lock().unwrap().operator_edit(edit);
+        // A hand edit may have been loaded even when the edit itself was refused.
         self.changed();
-        Ok(())
+        Ok(r?)
     }
 
     /// Replaces the whole file; memory becomes the file's table (SPEC §3 a). A rejected text
-    /// changes nothing.
-    pub(super) fn replace_offsets_file(&self, text: &str) -> Result<(), ControlError> {
-        self.offsets.lock().unwrap().save_file_text(text)?;
+    /// changes nothing. With `base_revision`, refused when the file changed since.
+    pub(super) fn replace_offsets_file(
+        &self,
+        text: &str,
+        base_revision: Option<&str>,
+    ) -> Result<(), ControlError> {
+        let r = self
+            .offsets
+            .lock()
+            .unwrap()
+            .replace_file_text(text, base_revision);
         self.changed();
-        Ok(())
+        Ok(r?)
+    }
+
+    /// Looks at TAB0.KOR and the constants file on disk: a saved edit is loaded into memory
+    /// (SPEC §3: after every saved edit of the file), one that does not load is reported and
+    /// memory kept. Blocks on disk IO.
+    pub(super) fn sync_files(&self) -> FilesSync {
+        let offsets = self
+            .offsets
+            .lock()
+            .unwrap()
+            .sync_with_disk()
+            .map(|c| c == DiskChange::Loaded);
+        let constants = self.constants.lock().unwrap().sync_with_disk();
+        if matches!(offsets, Ok(true)) || matches!(constants, Ok(true)) {
+            self.changed();
+        }
+        FilesSync { offsets, constants }
     }
 
     /// Reloads the table from its file (power-on semantics).
@@ -179,6 +241,10 @@ impl Tables {
     /// need a restart.
     pub(super) fn set_constants(&self, values: &[(u16, f64)]) -> Result<Vec<u16>, ControlError> {
         let mut guard = self.constants.lock().unwrap();
+        // Made on top of the file as it is on disk (issue #31).
+        if guard.sync_with_disk()? {
+            self.changed();
+        }
         let mut saved = guard.saved.clone();
         let mut in_force = guard.in_force.clone();
         let mut restart = Vec::new();
@@ -207,12 +273,11 @@ impl Tables {
             AxesMm::ZERO,
         )
         .map_err(|e| ControlError::Invalid(format!("constant cutting speed: {e}")))?;
-        storage::save_constants(&self.config.storage.constants_path(), &saved)?;
-        *guard = ConstantsState {
-            saved,
-            in_force,
-            from_file: true,
-        };
+        let milli: Vec<(u16, i64)> = values.iter().map(|&(r, _)| (r, saved.milli(r))).collect();
+        let saved = guard.file.set(&saved, &milli)?;
+        guard.saved = saved;
+        guard.in_force = in_force;
+        guard.from_file = true;
         self.changed();
         Ok(restart)
     }
