@@ -77,7 +77,7 @@ fn dist_to_path(p: [f64; 3], path: &[[f64; 3]]) -> f64 {
 
 async fn daemon() -> Daemon {
     let d = start(config(Role::Admin)).await;
-    d.ctl.replace_offsets_file(TABLE).unwrap();
+    d.ctl.replace_offsets_file(TABLE, None).unwrap();
     d
 }
 

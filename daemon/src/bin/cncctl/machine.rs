@@ -15,7 +15,7 @@ use crate::call::{Reply, call, call_as, call_done};
 use crate::connect::Svc;
 use crate::error::CliError;
 use crate::render::{
-    Render, block_name, diag_lines, diags_json, emit, local_time, print_line, read_text, show,
+    Render, block_name, diags_json, emit, local_time, print_line, read_text, show,
 };
 use crate::status::{alarm_json, dro, status_json, status_line};
 

@@ -598,6 +598,14 @@ pub fn invalid_with_diagnostics(what: &str, diags: &[Diagnostic]) -> Status {
         }
         msg.push_str(&cut(&d.to_string(), DETAILS_MESSAGE_CHARS));
     }
+    let details = bounded_details(diags);
+    Status::with_details(Code::InvalidArgument, msg, details.encode_to_vec().into())
+}
+
+/// The details of a refusal: the first diagnostics that fit [`DETAILS_MAX_BYTES`] (the first
+/// error always among them, messages cut) and the totals.
+pub fn bounded_details(diags: &[Diagnostic]) -> pb::Diagnostics {
+    let totals = counts_pb(diags);
     let mut details = pb::Diagnostics {
         items: Vec::new(),
         totals: Some(totals),
@@ -622,7 +630,7 @@ pub fn invalid_with_diagnostics(what: &str, diags: &[Diagnostic]) -> Status {
         used += n;
         details.items.push(item);
     }
-    Status::with_details(Code::InvalidArgument, msg, details.encode_to_vec().into())
+    details
 }
 
 /// `s` cut to `max` characters (an ellipsis marks the cut).
@@ -647,10 +655,7 @@ pub fn status_of(e: ControlError) -> Status {
             super::storage::StorageError::DiskInvalid {
                 ref diagnostics, ..
             } => {
-                let details = pb::Diagnostics {
-                    items: diagnostics.iter().map(diagnostic_to_pb).collect(),
-                }
-                .encode_to_vec();
+                let details = bounded_details(diagnostics).encode_to_vec();
                 Status::with_details(
                     Code::FailedPrecondition,
                     format!("[{}] {e}", e.code()),
