@@ -35,10 +35,11 @@ pub struct Cncd {
     pub runtime: PathBuf,
 }
 
-/// The simulated mill with everything local to `cwd`: data in `cwd/data`, the API on a
-/// loopback port of its own and the Unix socket in the data dir.
-pub const MILL_TOML: &str =
-    "[storage]\ndir = \"data\"\n\n[api]\nlisten = \"127.0.0.1:0\"\n\n[rt]\nlock_memory = false\n";
+/// The simulated mill with everything local to `cwd`: data in `cwd/data`, the API, the HMI
+/// and the MTConnect agent on loopback ports of their own (tests run side by side) and the
+/// Unix socket in the data dir.
+pub const MILL_TOML: &str = "[storage]\ndir = \"data\"\n\n[api]\nlisten = \"127.0.0.1:0\"\n\n\
+[hmi]\nlisten = \"127.0.0.1:0\"\n\n[mtconnect]\nlisten = \"127.0.0.1:0\"\n\n[rt]\nlock_memory = false\n";
 
 impl Cncd {
     /// Starts `cncd --config cncd.toml` in `cwd` (writing `toml` there first).
