@@ -78,9 +78,16 @@ fn expect(cmd: &str) -> Expect {
         | "cncctl override"
         | "cncctl offset-set"
         | "cncctl constants set"
-        | "cncctl offsets-replace" => Mention,
+        | "cncctl offsets-replace"
+        | "cncctl trajectory --from-block N"
+        | "cncctl start --from-block N" => Mention,
         c if c.contains("FILE") || c.contains("NAME") => Mention,
-        "cncctl home" | "cncctl home Z" | "cncctl home XY" | "cncctl start" => Answers,
+        "cncctl home"
+        | "cncctl home Z"
+        | "cncctl home XY"
+        | "cncctl start"
+        | "cncctl trajectory --from-block 160"
+        | "cncctl start --from-block 160 --yes" => Answers,
         "cncctl reset" | "cncctl resume" => Refused,
         "cncctl jog X+ --speed 1000" | "cncctl status --watch" => Follows,
         "cncctl --config programs/lathe/cncd-lathe.toml status" => Lathe,
@@ -101,7 +108,11 @@ fn expect(cmd: &str) -> Expect {
         | "cncctl --json offsets-file"
         | "cncctl programs"
         | "cncctl --json status --watch | head -1"
-        | "cncctl constants get R384" => Ok,
+        | "cncctl constants get R384"
+        | "cncctl load programs/sample.nc"
+        | "cncctl block-delete on"
+        | "cncctl block-delete off"
+        | "cncctl validate programs/sample.nc" => Ok,
         other => {
             panic!("docs/operator.md documents `{other}`: add it to tests/tests/operator_docs.rs")
         }
@@ -169,6 +180,7 @@ fn the_documented_commands_run_as_written() {
     let md = std::fs::read_to_string(format!("{REPO}/docs/operator.md")).unwrap();
     let cwd = temp_dir("docs_mill");
     std::fs::write(cwd.join("part.nc"), "N10 G1 X5 Y5 F3000\nN20 G1 X0 Y0\n").unwrap();
+    copy_dir(&Path::new(REPO).join("programs"), &cwd.join("programs"));
     let d = Cncd::start(&cwd, MILL_TOML);
     for cmd in commands(&md) {
         match expect(&cmd) {
