@@ -259,10 +259,12 @@ impl Doors {
         )
     }
 
+    /// Under a name of its own: `load` selects corpus.nc, and a new text under the selected
+    /// name without selecting it is refused (`program_selected`, issue #31).
     async fn upload(&mut self, text: &str) -> Verdict {
         verdict(
             self.m
-                .upload_program(named_program("corpus.nc", text))
+                .upload_program(named_program("uploaded.nc", text))
                 .await,
         )
     }
