@@ -13,9 +13,8 @@
 
 mod bench_common;
 
-use bench_common::cyclic::{ensure_cyclictest, parse_cyclictest, percentile};
+use bench_common::cyclic::{finish_cyclictest, percentile, spawn_cyclictest};
 
-use std::process::{Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
@@ -67,24 +66,7 @@ async fn bench(secs: u64) {
     let before = ctl.snapshot().ticks;
 
     // cyclictest alongside.
-    let cyclic = if ensure_cyclictest() {
-        Command::new("cyclictest")
-            .args([
-                "-m",
-                "-q",
-                "-p80",
-                "-t1",
-                "-i4000",
-                "-h100000",
-                &format!("-D{secs}s"),
-            ])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .ok()
-    } else {
-        None
-    };
+    let cyclic = spawn_cyclictest(secs);
 
     // 32 status streams at 250 Hz.
     let deadline = Instant::now() + Duration::from_secs(secs);
@@ -167,10 +149,7 @@ async fn bench(secs: u64) {
     let snap = ctl.snapshot();
     let after = snap.ticks;
     let still_running = matches!(snap.state, MachineState::Running);
-    let cyc = cyclic.and_then(|c| {
-        let out = c.wait_with_output().ok()?;
-        parse_cyclictest(&String::from_utf8_lossy(&out.stdout))
-    });
+    let cyc = finish_cyclictest(cyclic);
 
     let mut r = rates.clone();
     let rmin = percentile(&mut r, 0.0);
