@@ -10,6 +10,7 @@ pub mod auth;
 mod diagnostics;
 pub mod files_watch;
 pub mod job_journal;
+mod jog;
 mod machine;
 pub mod preview;
 mod programs;
@@ -114,7 +115,7 @@ pub struct ApiState {
     /// Unary uploads in progress (`Programs.UploadBegin`..`UploadFinish`).
     pub uploads: Arc<upload_session::UploadSessions>,
     /// The continuous jog `Machine.JogLease` runs, if any.
-    lease_jog: Mutex<Option<machine::LeasedJog>>,
+    lease_jog: Mutex<Option<jog::LeasedJog>>,
 }
 
 impl ApiState {
