@@ -63,7 +63,7 @@ async fn bench(secs: u64) {
     .await
     .unwrap();
     m.start(pb::StartRequest::default()).await.unwrap();
-    let before = ctl.snapshot().ticks;
+    let before = ctl.snapshot().tick.stats;
 
     // cyclictest alongside.
     let cyclic = spawn_cyclictest(secs);
@@ -147,7 +147,7 @@ async fn bench(secs: u64) {
     unary.await.unwrap();
     tokio::time::sleep(Duration::from_millis(200)).await;
     let snap = ctl.snapshot();
-    let after = snap.ticks;
+    let after = snap.tick.stats;
     let still_running = matches!(snap.state, MachineState::Running);
     let cyc = finish_cyclictest(cyclic);
 

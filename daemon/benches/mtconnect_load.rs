@@ -191,7 +191,7 @@ async fn bench(secs: u64) {
     .await
     .unwrap();
     m.start(pb::StartRequest::default()).await.unwrap();
-    let before = ctl.snapshot().ticks;
+    let before = ctl.snapshot().tick.stats;
     let cyclic = spawn_cyclictest(secs);
 
     let mut s = connect(&addr).await;
@@ -245,7 +245,7 @@ async fn bench(secs: u64) {
         .to_bytes();
     let agent_next = attr_u64(&String::from_utf8_lossy(&end), "nextSequence").unwrap();
     let snap = ctl.snapshot();
-    let after = snap.ticks;
+    let after = snap.tick.stats;
     let cyc = finish_cyclictest(cyclic);
     report(
         secs, &snap, before, after, cyc, &lat, &errors, &results, from, agent_next,

@@ -120,7 +120,7 @@ async fn bench(blocks: u64) {
         .expect("start")
         .into_inner()
         .job;
-    while !(ctl.snapshot().job == job && ctl.snapshot().block_seq > 0) {
+    while !(ctl.snapshot().progress.job == job && ctl.snapshot().progress.block_seq > 0) {
         tokio::time::sleep(Duration::from_millis(1)).await;
     }
     let moving = t0.elapsed();

@@ -194,10 +194,10 @@ pub async fn wait_job_finished(ctl: &daemon::runtime::controller::Controller, jo
     let t0 = std::time::Instant::now();
     loop {
         let s = ctl.snapshot();
-        if s.finished_job == job {
+        if s.progress.finished_job == job {
             return;
         }
-        assert_ne!(s.aborted_job, job, "job aborted: {s:?}");
+        assert_ne!(s.progress.aborted_job, job, "job aborted: {s:?}");
         assert!(t0.elapsed() < PATIENCE, "job {job} did not finish: {s:?}");
         tokio::time::sleep(std::time::Duration::from_millis(5)).await;
     }
@@ -248,16 +248,19 @@ pub fn assert_refused_at(
 pub fn run_on_the_grid(h: &mut daemon::runtime::harness::Harness, job: u32, period_ns: u64) -> u64 {
     let mut deadline = h.core().next_deadline_ns();
     let mut max_lateness_ns = 0;
-    while h.snapshot().finished_job != job {
+    while h.snapshot().progress.finished_job != job {
         let s = h.step();
-        let lateness = s.time_ns - deadline;
+        let lateness = s.tick.time_ns - deadline;
         max_lateness_ns = max_lateness_ns.max(lateness);
         let next = h.core().next_deadline_ns();
         assert_eq!(next % period_ns, 0, "{s:?}");
-        assert!(next > s.time_ns && next - s.time_ns <= period_ns, "{s:?}");
+        assert!(
+            next > s.tick.time_ns && next - s.tick.time_ns <= period_ns,
+            "{s:?}"
+        );
         assert_eq!(next - deadline, (lateness / period_ns + 1) * period_ns);
         deadline = next;
-        assert!(s.sequence < 100_000, "{s:?}");
+        assert!(s.tick.sequence < 100_000, "{s:?}");
     }
     max_lateness_ns
 }

@@ -49,17 +49,17 @@ async fn spindle_override_scales_the_spindle_within_the_gear_range() {
     let (ok, out) = cncctl(&addr, &["spindle-override", "40"]).await;
     assert!(!ok && out.contains("InvalidArgument"), "{out}");
     wait_until("spindle override 80 %", || {
-        d.ctl.snapshot().spindle_override_pct == 80.0
+        d.ctl.snapshot().operator.spindle_override_pct == 80.0
     })
     .await;
     start_mdi(&mut m, "S1000 M3").await;
     // S1000 at 80 %: the spindle is commanded 800 rpm, and gets there.
     wait_until("800 rpm commanded", || {
-        (d.ctl.snapshot().kr.spindle_rpm - 800.0).abs() < 1e-9
+        (d.ctl.snapshot().spindle.kr.spindle_rpm - 800.0).abs() < 1e-9
     })
     .await;
     wait_until("800 rpm actual", || {
-        (d.ctl.snapshot().spindle_rpm - 800.0).abs() < 1.0
+        (d.ctl.snapshot().spindle.rpm - 800.0).abs() < 1.0
     })
     .await;
     let s = api_common::status_now(&mut m).await;
@@ -71,7 +71,7 @@ async fn spindle_override_scales_the_spindle_within_the_gear_range() {
     wait_until("idle", || d.ctl.snapshot().state == MachineState::Idle).await;
     start_mdi(&mut m, "S5500").await;
     wait_until("6000 rpm commanded", || {
-        (d.ctl.snapshot().kr.spindle_rpm - 6000.0).abs() < 1e-9
+        (d.ctl.snapshot().spindle.kr.spindle_rpm - 6000.0).abs() < 1e-9
     })
     .await;
     let (ok, out) = cncctl(&addr, &["status", "--json"]).await;
@@ -91,7 +91,7 @@ async fn rapid_override_homed_and_soft_limits_in_status_and_cncctl() {
     let (ok, out) = cncctl(&addr, &["rapid-override", "101"]).await;
     assert!(!ok && out.contains("InvalidArgument"), "{out}");
     wait_until("rapid override 25 %", || {
-        d.ctl.snapshot().rapid_override_pct == 25.0
+        d.ctl.snapshot().operator.rapid_override_pct == 25.0
     })
     .await;
     let mut m = MachineClient::new(d.channel().await);
@@ -108,7 +108,7 @@ async fn rapid_override_homed_and_soft_limits_in_status_and_cncctl() {
     start_mdi(&mut m, "G0 X50").await;
     wait_until("idle at X50", || {
         let s = d.ctl.snapshot();
-        s.state == MachineState::Idle && s.commanded[0] == 50.0
+        s.state == MachineState::Idle && s.axes.commanded[0] == 50.0
     })
     .await;
     let (ok, out) = cncctl(&addr, &["status", "--json"]).await;
@@ -133,7 +133,7 @@ fn rapid_override_changes_speed_without_a_jump() {
         let (bus, record) = RecordingBus::new(bus);
         let mut h = Harness::new(cfg, Box::new(bus), SimClock::exact()).unwrap();
         h.wait_state(MachineState::Idle, 10_000).unwrap();
-        let t0 = h.snapshot().sequence;
+        let t0 = h.snapshot().tick.sequence;
         let skip = record.lock().unwrap().len();
         for &(tick, pct) in overrides {
             h.at_tick(t0 + tick, RtCommand::RapidOverride(pct));
@@ -141,7 +141,7 @@ fn rapid_override_changes_speed_without_a_jump() {
         let end = h.run_program("G0 X200 Y100\n", MAX_TICKS).unwrap();
         assert!(matches!(end, JobEnd::Finished), "{end:?}");
         let points = record.lock().unwrap()[skip..].to_vec();
-        let ticks = h.snapshot().sequence - t0;
+        let ticks = h.snapshot().tick.sequence - t0;
         (points, ticks)
     };
     let (full, full_ticks) = run(&[]);

@@ -166,22 +166,32 @@ async fn hold_resume_stop_override_reset() {
     c.set_override(pb::SetOverrideRequest { percent: 50.0 })
         .await
         .unwrap();
-    wait_until("override 50 %", || d.ctl.snapshot().override_pct == 50.0).await;
+    wait_until("override 50 %", || {
+        d.ctl.snapshot().operator.feed_override_pct == 50.0
+    })
+    .await;
     c.hold(pb::HoldRequest {}).await.unwrap();
     wait_until("held at rest", || {
         let s = d.ctl.snapshot();
-        s.state == MachineState::Hold && s.path_v_mm_s == 0.0
+        s.state == MachineState::Hold && s.axes.path_v_mm_s == 0.0
     })
     .await;
-    let x_held = d.ctl.snapshot().commanded[0];
+    let x_held = d.ctl.snapshot().axes.commanded[0];
     tokio::time::sleep(Duration::from_millis(200)).await;
-    assert_eq!(d.ctl.snapshot().commanded[0], x_held, "moved while held");
+    assert_eq!(
+        d.ctl.snapshot().axes.commanded[0],
+        x_held,
+        "moved while held"
+    );
     c.resume(pb::ResumeRequest {}).await.unwrap();
-    wait_until("moving again", || d.ctl.snapshot().commanded[0] > x_held).await;
+    wait_until("moving again", || {
+        d.ctl.snapshot().axes.commanded[0] > x_held
+    })
+    .await;
     c.stop(pb::StopRequest {}).await.unwrap();
     wait_until("stopped", || {
         let s = d.ctl.snapshot();
-        s.aborted_job == job && s.state == MachineState::Idle
+        s.progress.aborted_job == job && s.state == MachineState::Idle
     })
     .await;
 }
@@ -204,7 +214,7 @@ async fn mdi_runs_one_block_and_keeps_the_selected_program() {
     assert_eq!(s.program, "MDI");
     wait_job_finished(&d.ctl, job).await;
     let s = d.ctl.snapshot();
-    assert!((s.commanded[0] - 5.0).abs() < 1e-6 && (s.commanded[1] - 2.0).abs() < 1e-6);
+    assert!((s.axes.commanded[0] - 5.0).abs() < 1e-6 && (s.axes.commanded[1] - 2.0).abs() < 1e-6);
     let list = list_programs(&mut c).await;
     assert_eq!(list.selected, "part.nc");
     // MDI while running is a wrong state.
@@ -231,12 +241,12 @@ async fn single_block_holds_at_every_block() {
     for _ in 0..2 {
         wait_until("single-block hold", || {
             let s = d.ctl.snapshot();
-            s.state == MachineState::Hold && s.path_v_mm_s == 0.0
+            s.state == MachineState::Hold && s.axes.path_v_mm_s == 0.0
         })
         .await;
         let s = d.ctl.snapshot();
-        assert!(s.single_block);
-        stops.push(s.commanded[0]);
+        assert!(s.operator.single_block);
+        stops.push(s.axes.commanded[0]);
         c.resume(pb::ResumeRequest {}).await.unwrap();
         wait_until("left the hold", || {
             d.ctl.snapshot().state != MachineState::Hold
@@ -247,7 +257,7 @@ async fn single_block_holds_at_every_block() {
     // Holds land at the block ends (5 and 10), within the braking distance from rest.
     assert!((stops[0] - 5.0).abs() < 0.05, "{stops:?}");
     assert!((stops[1] - 10.0).abs() < 0.05, "{stops:?}");
-    assert!((d.ctl.snapshot().commanded[0] - 15.0).abs() < 1e-6);
+    assert!((d.ctl.snapshot().axes.commanded[0] - 15.0).abs() < 1e-6);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

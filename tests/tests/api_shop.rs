@@ -77,7 +77,7 @@ async fn cncctl_uses_the_unix_socket_by_default() {
     let (ok, out) = cncctl_in(&base, &["override", "70"]).await;
     assert!(ok, "cncctl over the default socket: {out}");
     wait_until("override 70 %", || {
-        (d.ctl.snapshot().override_pct - 70.0).abs() < 1e-9
+        (d.ctl.snapshot().operator.feed_override_pct - 70.0).abs() < 1e-9
     })
     .await;
 }
@@ -323,7 +323,7 @@ async fn program_library_on_disk_survives_a_restart() {
     let names: Vec<_> = l.programs.iter().map(|p| p.name.as_str()).collect();
     assert_eq!(names, ["b.nc", "part C"]);
     assert_eq!(l.selected, "b.nc");
-    assert_eq!(d.ctl.snapshot().job, 0, "nothing was started");
+    assert_eq!(d.ctl.snapshot().progress.job, 0, "nothing was started");
     let (ok, out) = cncctl(&d.socket(), &["run", "--quiet", "--json"]).await;
     assert!(!ok, "run needs a file: {out}");
     let mut m = MachineClient::new(d.channel().await);
@@ -394,7 +394,7 @@ async fn a_program_over_the_message_limit_loads_and_runs_from_its_file() {
     let job = start_job(&mut m).await;
     wait_until("moving through the program", || {
         let s = d.ctl.snapshot();
-        s.job == job && s.block_seq > 10
+        s.progress.job == job && s.progress.block_seq > 10
     })
     .await;
     m.stop(pb::StopRequest {}).await.unwrap();

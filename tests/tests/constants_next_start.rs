@@ -613,15 +613,15 @@ async fn g76_spindle_rpm(d: &Daemon, api: &mut Api) -> f64 {
     let st = d.ctl.clone();
     wait_until("KŘR in N30", || {
         let s = st.snapshot();
-        s.job == job && s.block_n == Some(30) && s.kr.spindle_rpm > 0.0
+        s.progress.job == job && s.progress.block_n == Some(30) && s.spindle.kr.spindle_rpm > 0.0
     })
     .await;
     // 50 ticks into N30 (10 s long): KŘR has settled on this job's speed.
-    let t0 = d.ctl.snapshot().sequence;
-    wait_until("50 ticks", || st.snapshot().sequence > t0 + 50).await;
+    let t0 = d.ctl.snapshot().tick.sequence;
+    wait_until("50 ticks", || st.snapshot().tick.sequence > t0 + 50).await;
     let s = d.ctl.snapshot();
-    assert_eq!((s.job, s.block_n), (job, Some(30)));
-    let rpm = s.kr.spindle_rpm;
+    assert_eq!((s.progress.job, s.progress.block_n), (job, Some(30)));
+    let rpm = s.spindle.kr.spindle_rpm;
     api.m.stop(pb::StopRequest {}).await.unwrap();
     wait_state(&d.ctl, MachineState::Idle).await;
     rpm
@@ -647,7 +647,7 @@ async fn a_running_job_keeps_its_constants() {
     let st = d.ctl.clone();
     wait_until("running", || {
         let s = st.snapshot();
-        s.job == job && s.state == MachineState::Running
+        s.progress.job == job && s.state == MachineState::Running
     })
     .await;
     let e = api.set(&[(52, 50.0)]).await.unwrap_err();

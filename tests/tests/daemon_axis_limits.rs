@@ -114,7 +114,7 @@ impl Machine {
         self.record.lock().unwrap().clear();
         self.h.start_program(text).unwrap();
         self.h
-            .run_until(1_000_000, |s| s.commanded[0] > PAUSE_AT_X_MM)
+            .run_until(1_000_000, |s| s.axes.commanded[0] > PAUSE_AT_X_MM)
             .expect("never passed X");
         self.h.send(RtCommand::Stop).unwrap();
         self.h.wait_state(MachineState::Idle, 1_000_000).unwrap();

@@ -94,7 +94,11 @@ fn drives_away_from_zero_enable_without_a_jump_and_shut_down_switched_off() {
     // The commanded position takes over the drives' on the tick after enabling ends.
     let s = h.step();
     for (i, &mm) in start.iter().enumerate() {
-        assert!((s.commanded[i] - mm).abs() < 1e-3, "{:?}", s.commanded);
+        assert!(
+            (s.axes.commanded[i] - mm).abs() < 1e-3,
+            "{:?}",
+            s.axes.commanded
+        );
     }
     // One tick's travel at the axis limit: 12000 mm/min × 4 ms × 10000 increments/mm.
     let max_step = 200.0 * 0.004 * INC_PER_MM;
@@ -152,6 +156,7 @@ fn a_drive_that_never_boots_is_named_in_the_alarm() {
     let f = h
         .wait_state(MachineState::Fault, 100_000)
         .unwrap()
+        .alarm
         .fault
         .unwrap();
     assert_eq!(
@@ -205,16 +210,19 @@ fn can_drives_home_in_order_and_return_to_csp_without_a_jump() {
 
     assert_eq!(h.home("", 100_000).unwrap(), "ZX");
     let s = h.step();
-    assert_eq!(s.homed & 0b101, 0b101);
+    assert_eq!(s.axes.homed & 0b101, 0b101);
     assert!((0..3).all(|i| homing::axis_homed(h.config(), &s, i)));
     // The switch edge became the reference (offset 0x607C); the drive stands just past it
     // (braking from 1 mm/s at 800 mm/s²), and the commanded position is where it stands.
-    assert!((s.actual[0] - 10.0).abs() < 0.01, "{s:?}");
-    assert!((s.actual[2] + 2.0).abs() < 0.01, "{s:?}");
+    assert!((s.axes.actual[0] - 10.0).abs() < 0.01, "{s:?}");
+    assert!((s.axes.actual[2] + 2.0).abs() < 0.01, "{s:?}");
     for i in [0, 2] {
-        assert!((s.commanded[i] - s.actual[i]).abs() < 1e-3, "{s:?}");
+        assert!(
+            (s.axes.commanded[i] - s.axes.actual[i]).abs() < 1e-3,
+            "{s:?}"
+        );
     }
-    assert_eq!(s.commanded[1], 4.0, "Y did not move");
+    assert_eq!(s.axes.commanded[1], 4.0, "Y did not move");
 
     let max_step = 200.0 * 0.004 * INC_PER_MM;
     {
@@ -261,7 +269,7 @@ fn can_drives_home_in_order_and_return_to_csp_without_a_jump() {
     // Homed: a program runs, in the homed coordinates.
     let end = h.run_program("G90 G1 X12 Z-1 F3000\n", 100_000).unwrap();
     assert_eq!(end, JobEnd::Finished);
-    h.run_until(1000, |s| (s.actual[0] - 12.0).abs() < 1e-3)
+    h.run_until(1000, |s| (s.axes.actual[0] - 12.0).abs() < 1e-3)
         .unwrap();
     let b = bus.lock().unwrap();
     assert!((b.nodes[0].drive.position_mm() - 12.0).abs() < 1e-3);
@@ -286,13 +294,13 @@ fn a_homing_error_of_the_drive_is_a_fault_naming_axis_and_node() {
         "{e:?}"
     );
     let s = h.snapshot();
-    let f = s.fault.unwrap();
+    let f = s.alarm.fault.unwrap();
     assert_eq!((f.axis, f.node), (Some(1), Some(2)));
     assert!(
         matches!(f.reason, FaultReason::HomingError { statusword } if statusword & 0x2000 != 0),
         "{f:?}"
     );
-    assert_eq!(s.homed & 0b010, 0);
+    assert_eq!(s.axes.homed & 0b010, 0);
 }
 
 /// Issue #15: after a drive fault the healthy axes brake to rest, then their drives go to the
@@ -310,7 +318,7 @@ fn after_a_fault_the_healthy_drives_go_to_the_configured_safe_state() {
         let (mut h, bus) = daemon([0.0; 3], None, keys);
         h.wait_state(MachineState::Idle, 10_000).unwrap();
         let job = h.start_program("G90 G1 X100 Y50 Z20 F3000\n").unwrap();
-        h.run_until(10_000, |s| s.commanded[0] > 5.0).unwrap();
+        h.run_until(10_000, |s| s.axes.commanded[0] > 5.0).unwrap();
         {
             let mut b = bus.lock().unwrap();
             let mut out = Vec::new();
@@ -318,7 +326,7 @@ fn after_a_fault_the_healthy_drives_go_to_the_configured_safe_state() {
             b.to_master.extend(out);
         }
         assert_eq!(h.finish_job(job, 10_000).unwrap(), JobEnd::Aborted);
-        let f = h.snapshot().fault.unwrap();
+        let f = h.snapshot().alarm.fault.unwrap();
         assert_eq!((f.axis, f.node), (Some(1), Some(2)));
         // At rest, then the safe state (bounded: the settle timeout is 1 s).
         for _ in 0..1000 {
@@ -331,7 +339,7 @@ fn after_a_fault_the_healthy_drives_go_to_the_configured_safe_state() {
         assert_eq!(b.nodes[1].drive.state(), PowerState::Fault);
         let x = b.nodes[0].drive.position_mm();
         drop(b);
-        assert!((h.snapshot().actual[0] - x).abs() < 1e-3);
+        assert!((h.snapshot().axes.actual[0] - x).abs() < 1e-3);
         // Reset walks every drive up again from its state.
         h.send(RtCommand::Reset).unwrap();
         h.wait_state(MachineState::Idle, 10_000).unwrap();
@@ -364,16 +372,19 @@ fn a_stop_interrupts_a_drive_homing_and_a_timeout_is_a_fault() {
     h.wait_state(MachineState::Idle, 10_000).unwrap();
     h.send(RtCommand::Home(homing::home_request(h.config(), 0)))
         .unwrap();
-    h.run_until(10_000, |s| s.actual[0] < -1.0).unwrap();
+    h.run_until(10_000, |s| s.axes.actual[0] < -1.0).unwrap();
     h.send(RtCommand::Stop).unwrap();
     let s = h
         .run_until(10_000, |s| s.state != MachineState::Homing)
         .unwrap();
     assert_eq!(s.state, MachineState::Idle);
-    assert_eq!((s.homed & 1, s.homing_failed & 1), (0, 1));
-    assert!(s.fault.is_none());
+    assert_eq!((s.axes.homed & 1, s.axes.homing_failed & 1), (0, 1));
+    assert!(s.alarm.fault.is_none());
     let s = h.run_until(100, |_| true).unwrap();
-    assert!((s.commanded[0] - s.actual[0]).abs() < 1e-3, "{s:?}");
+    assert!(
+        (s.axes.commanded[0] - s.axes.actual[0]).abs() < 1e-3,
+        "{s:?}"
+    );
     {
         let b = bus.lock().unwrap();
         let modes: Vec<u8> = mode_writes(&b.sent, 1).iter().map(|&(_, m)| m).collect();
@@ -387,7 +398,7 @@ fn a_stop_interrupts_a_drive_homing_and_a_timeout_is_a_fault() {
         matches!(e, HarnessError::Control(ControlError::Aborted(_))),
         "{e:?}"
     );
-    let f = h.snapshot().fault.unwrap();
+    let f = h.snapshot().alarm.fault.unwrap();
     assert_eq!(
         (f.axis, f.node, f.reason),
         (Some(0), Some(1), FaultReason::HomingTimeout)
@@ -416,7 +427,7 @@ fn a_2ms_bus_cycle_reaches_the_drives_and_they_follow() {
     let start = [25.0, -40.0, 7.5];
     let (mut h, bus) = daemon(start, None, "cycle_ms = 2\n");
     h.wait_state(MachineState::Idle, 20_000).unwrap();
-    assert_eq!(h.snapshot().cycle_ns, 2_000_000);
+    assert_eq!(h.snapshot().tick.cycle_ns, 2_000_000);
     let end = h
         .run_program("G90 G1 X27 Y-38 Z8 F3000\nG0 X20 Y-30 Z0\n", 200_000)
         .unwrap();
@@ -427,7 +438,11 @@ fn a_2ms_bus_cycle_reaches_the_drives_and_they_follow() {
     }
     let s = h.snapshot();
     for (i, want) in [20.0, -30.0, 0.0].into_iter().enumerate() {
-        assert!((s.actual[i] - want).abs() < 1e-3, "{:?}", s.actual);
+        assert!(
+            (s.axes.actual[i] - want).abs() < 1e-3,
+            "{:?}",
+            s.axes.actual
+        );
     }
     {
         let b = bus.lock().unwrap();

@@ -151,15 +151,15 @@ fn rates(points: &[[f64; MAX_AXES]], axes: usize, dt_s: f64) -> Vec<(f64, f64)> 
 fn run_part(cycle_ms: u64) -> (Vec<[f64; MAX_AXES]>, Config, u64) {
     let (mut h, points, cfg) = machine(cycle_ms, SimClock::exact());
     let from = points.lock().unwrap().len();
-    let t0 = h.snapshot().time_ns;
+    let t0 = h.snapshot().tick.time_ns;
     assert_eq!(h.run_program(PART, MAX_TICKS).unwrap(), JobEnd::Finished);
     // Let the drives and the smoothing come to rest.
     for _ in 0..(40 / cycle_ms) {
         h.step();
     }
     let s = h.snapshot();
-    assert_eq!(s.cycle_ns, cycle_ms * 1_000_000);
-    let duration_ms = (s.time_ns - t0) / 1_000_000;
+    assert_eq!(s.tick.cycle_ns, cycle_ms * 1_000_000);
+    let duration_ms = (s.tick.time_ns - t0) / 1_000_000;
     // From the setpoint before the job's first (where the machine stood).
     let p = points.lock().unwrap()[from - 1..].to_vec();
     if std::env::var("CYCLE_DEBUG").is_ok() {
@@ -270,15 +270,17 @@ fn late_ticks_at_2ms_keep_the_grid_and_count_overruns_exactly() {
     assert_eq!(expected, 2 + 7 + 40 + 2);
     let program = "G1 X200 Y100 F6000\n";
     let (mut h, points, _) = machine(2, clock);
-    let overruns0 = h.snapshot().ticks.overruns;
+    let overruns0 = h.snapshot().tick.stats.overruns;
     let job = h.start_program(program).unwrap();
     tests::run_on_the_grid(&mut h, job, CYCLE_NS);
-    assert_eq!(h.snapshot().ticks.overruns - overruns0, expected);
+    assert_eq!(h.snapshot().tick.stats.overruns - overruns0, expected);
     assert!(h.clock().wakeups() > 550);
 
     let (mut exact, exact_points, _) = machine(2, SimClock::exact());
     let job = exact.start_program(program).unwrap();
-    exact.run_until(100_000, |s| s.finished_job == job).unwrap();
+    exact
+        .run_until(100_000, |s| s.progress.finished_job == job)
+        .unwrap();
     assert_eq!(h.setpoint_hash(), exact.setpoint_hash());
     let (a, b) = (points.lock().unwrap(), exact_points.lock().unwrap());
     assert_eq!(a.len(), b.len());
@@ -304,11 +306,14 @@ fn jog_and_its_lease_count_time_at_every_bus_period() {
         .unwrap();
         h.wait_state(MachineState::Jog, 100).unwrap();
         let s = h.wait_state(MachineState::Idle, 100_000).unwrap();
-        let travel = s.commanded[0];
+        let travel = s.axes.commanded[0];
         // The jog ends where the axis stands: no setpoint goes back (the path resumes there).
         for _ in 0..20 {
             let t = h.step();
-            assert!((t.commanded[0] - travel).abs() < 0.01, "{ms} ms: {t:?}");
+            assert!(
+                (t.axes.commanded[0] - travel).abs() < 0.01,
+                "{ms} ms: {t:?}"
+            );
         }
         // 0.5 s of lease at ≤ 50 mm/s plus the braking: about 25 mm whatever the period.
         assert!((20.0..=27.0).contains(&travel), "{ms} ms: {travel} {s:?}");
@@ -362,7 +367,7 @@ async fn a_program_runs_through_grpc_at_a_2ms_bus_period() {
         .unwrap()
         .unwrap();
     assert_eq!(status.ticks.unwrap().cycle_us, 2000);
-    assert_eq!(ctl.snapshot().commanded.0[..3], [0.0, 0.0, 5.0]);
+    assert_eq!(ctl.snapshot().axes.commanded.0[..3], [0.0, 0.0, 5.0]);
     let p = points.lock().unwrap()[from..].to_vec();
     for (i, ((v, a), (v_lim, a_lim))) in rates(&p, 3, 0.002).into_iter().zip(&limits).enumerate() {
         assert!(v <= v_lim * (1.0 + 1e-6), "axis {i}: v {v} > {v_lim}");
@@ -403,9 +408,9 @@ fn the_enabling_window_is_the_bus_deadline_in_time_plus_one_second() {
     for ms in [1, 2, 4, 10] {
         let mut h = Harness::new(config(ms), Box::new(NeverEnabled), SimClock::exact()).unwrap();
         let s = h.wait_state(MachineState::Fault, 100_000).unwrap();
-        assert_eq!(s.fault.unwrap().reason, hal::FaultReason::Timeout);
+        assert_eq!(s.alarm.fault.unwrap().reason, hal::FaultReason::Timeout);
         let window_ms = 500 * ms + 1000;
-        let at_ms = s.time_ns / 1_000_000;
+        let at_ms = s.tick.time_ns / 1_000_000;
         assert!(
             at_ms > window_ms && at_ms <= window_ms + 2 * 4 + ms,
             "{ms} ms: alarm at {at_ms} ms, window {window_ms} ms"
@@ -429,16 +434,16 @@ fn a_drive_fault_at_2ms_brakes_within_the_limits_and_resets() {
     let mut h = Harness::new(cfg.clone(), Box::new(bus), SimClock::exact()).unwrap();
     h.wait_state(MachineState::Idle, 10_000).unwrap();
     let job = h.start_program("G1 X200 Y100 F6000").unwrap();
-    h.run_until(100_000, |s| s.path_v_mm_s > 50.0).unwrap();
+    h.run_until(100_000, |s| s.axes.path_v_mm_s > 50.0).unwrap();
     let from = points.lock().unwrap().len();
     fault_axis.store(1, std::sync::atomic::Ordering::Relaxed);
     let s = h.wait_state(MachineState::Fault, 10).unwrap();
-    assert_eq!(s.fault.unwrap().axis, Some(1));
+    assert_eq!(s.alarm.fault.unwrap().axis, Some(1));
     // 0.5 s: the brake ends at rest.
     for _ in 0..250 {
         h.step();
     }
-    assert_eq!(h.snapshot().aborted_job, job);
+    assert_eq!(h.snapshot().progress.aborted_job, job);
     let p = points.lock().unwrap()[from.saturating_sub(2)..].to_vec();
     let (v, a) = rates(&p, 1, 0.002)[0];
     let decel = cfg.axes[0].stop_decel();
@@ -488,16 +493,16 @@ fn homing_at_1ms_and_10ms_takes_the_reference_without_a_jump() {
         .unwrap();
         h.wait_state(MachineState::Homing, 100).unwrap();
         let s = h.wait_state(MachineState::Idle, 100_000).unwrap();
-        assert_eq!(s.homed & 1, 1, "{ms} ms: {s:?}");
+        assert_eq!(s.axes.homed & 1, 1, "{ms} ms: {s:?}");
         // The setpoint shifted with the drive's position: the axis stands at about the
         // reference (the braking distance past the switch at 20 mm/s).
         for _ in 0..(100 / ms) {
             h.step();
         }
         let s = h.snapshot();
-        assert!((s.commanded[0] - 100.0).abs() < 1.0, "{ms} ms: {s:?}");
+        assert!((s.axes.commanded[0] - 100.0).abs() < 1.0, "{ms} ms: {s:?}");
         assert!(
-            (s.commanded[0] - s.actual[0]).abs() < 0.05,
+            (s.axes.commanded[0] - s.axes.actual[0]).abs() < 0.05,
             "{ms} ms: {s:?}"
         );
         // Within the limits up to the shift (the shift moves drive and setpoint together).

@@ -36,7 +36,7 @@ fn mikroprog_template_runs_compensated() {
     let mut h = machine(cfg, bus);
     run_to_end(&mut h, "mikroprog_template.nc", &text);
     let s = h.snapshot();
-    assert!((s.commanded[0] + 30.0).abs() < 1e-9 && s.commanded[1].abs() < 1e-9);
+    assert!((s.axes.commanded[0] + 30.0).abs() < 1e-9 && s.axes.commanded[1].abs() < 1e-9);
     let points = record.lock().unwrap().clone();
     let side: Vec<&[f64; 6]> = points
         .iter()
@@ -76,7 +76,7 @@ fn readme_sample_program_runs() {
     let mut h = machine(cfg, bus);
     run_to_end(&mut h, "sample.nc", &text);
     let s = h.snapshot();
-    assert_eq!(&s.commanded.0[..3], &[0.0, 0.0, 5.0]);
+    assert_eq!(&s.axes.commanded.0[..3], &[0.0, 0.0, 5.0]);
 }
 
 /// A simulated lathe X (programmed as a diameter) Z at Ø300 Z100, recording every setpoint
@@ -150,7 +150,7 @@ N40 M5
     assert!(clamped > 10, "the G76 limit was never reached");
     // M5 at the end stops the spindle.
     assert_eq!(*rpm.last().unwrap(), 0.0);
-    assert_eq!(h.snapshot().spindle_rpm, 0.0);
+    assert_eq!(h.snapshot().spindle.rpm, 0.0);
 }
 
 /// Spindle speeds of the facing ticks of a run (X moving at Z1), with the carriage diameter

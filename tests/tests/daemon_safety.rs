@@ -85,20 +85,20 @@ async fn m30_ends_the_program_and_the_spindle_stops() {
     let job = start_job(&mut d.c).await;
     wait_job_finished(&d.ctl, job).await;
     let s = d.ctl.snapshot();
-    assert!((s.commanded[0] - 10.0).abs() < 1e-9, "N40 ran: {s:?}");
+    assert!((s.axes.commanded[0] - 10.0).abs() < 1e-9, "N40 ran: {s:?}");
     assert!(
         d.spindle.lock().unwrap().iter().any(|&r| r > 900.0),
         "the spindle never ran"
     );
-    wait_for(&d.ctl, "spindle stopped at M30", |s| s.spindle_rpm == 0.0).await;
+    wait_for(&d.ctl, "spindle stopped at M30", |s| s.spindle.rpm == 0.0).await;
     // M2 does the same.
     load(&mut d.c, "N10 S500 M3\nN20 G1 X20 F3000\nN30 M2\nN40 X0\n")
         .await
         .unwrap();
     let job = start_job(&mut d.c).await;
     wait_job_finished(&d.ctl, job).await;
-    assert!((d.ctl.snapshot().commanded[0] - 20.0).abs() < 1e-9);
-    wait_for(&d.ctl, "spindle stopped at M2", |s| s.spindle_rpm == 0.0).await;
+    assert!((d.ctl.snapshot().axes.commanded[0] - 20.0).abs() < 1e-9);
+    wait_for(&d.ctl, "spindle stopped at M2", |s| s.spindle.rpm == 0.0).await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -109,23 +109,23 @@ async fn m0_stops_until_resume_and_m1_only_with_optional_stop() {
     // Optional stop off: M0 stops, M1 does not.
     let job = start_job(&mut d.c).await;
     wait_for(&d.ctl, "held at M0", |s| {
-        s.state == MachineState::Hold && s.program_stop
+        s.state == MachineState::Hold && s.progress.program_stop
     })
     .await;
     let s = d.ctl.snapshot();
     assert!(
-        (s.commanded[0] - 10.0).abs() < 1e-9,
+        (s.axes.commanded[0] - 10.0).abs() < 1e-9,
         "stopped off the M0 point: {s:?}"
     );
     let st = api_common::status_now(&mut d.c).await;
     assert!(st.program_stop && !st.optional_stop);
     // At rest it stays there.
-    let seq = s.sequence;
-    wait_for(&d.ctl, "time passes", |s| s.sequence > seq + 200).await;
-    assert_eq!(d.ctl.snapshot().commanded[0], s.commanded[0]);
+    let seq = s.tick.sequence;
+    wait_for(&d.ctl, "time passes", |s| s.tick.sequence > seq + 200).await;
+    assert_eq!(d.ctl.snapshot().axes.commanded[0], s.axes.commanded[0]);
     d.c.resume(pb::ResumeRequest {}).await.unwrap();
     wait_job_finished(&d.ctl, job).await;
-    assert!((d.ctl.snapshot().commanded[0] - 30.0).abs() < 1e-9);
+    assert!((d.ctl.snapshot().axes.commanded[0] - 30.0).abs() < 1e-9);
 
     // Optional stop on: M0 and M1 both stop; Start continues like Resume.
     d.c.set_optional_stop(pb::SetOptionalStopRequest { on: true })
@@ -136,15 +136,15 @@ async fn m0_stops_until_resume_and_m1_only_with_optional_stop() {
         .unwrap();
     let job = start_job(&mut d.c).await;
     wait_for(&d.ctl, "held at M1", |s| {
-        s.state == MachineState::Hold && s.program_stop
+        s.state == MachineState::Hold && s.progress.program_stop
     })
     .await;
-    assert!((d.ctl.snapshot().commanded[0] - 10.0).abs() < 1e-9);
+    assert!((d.ctl.snapshot().axes.commanded[0] - 10.0).abs() < 1e-9);
     assert!(api_common::status_now(&mut d.c).await.optional_stop);
     let again = start_job(&mut d.c).await;
     assert_eq!(again, job, "Start at a program stop continues the job");
     wait_job_finished(&d.ctl, job).await;
-    assert!((d.ctl.snapshot().commanded[0] - 20.0).abs() < 1e-9);
+    assert!((d.ctl.snapshot().axes.commanded[0] - 20.0).abs() < 1e-9);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -162,16 +162,16 @@ async fn stop_stops_the_spindle_and_wrong_states_are_refused() {
         .unwrap();
     let job = start_job(&mut d.c).await;
     wait_for(&d.ctl, "cutting with the spindle on", |s| {
-        s.state == MachineState::Running && s.spindle_rpm > 900.0 && s.commanded[0] > 1.0
+        s.state == MachineState::Running && s.spindle.rpm > 900.0 && s.axes.commanded[0] > 1.0
     })
     .await;
     d.c.stop(pb::StopRequest {}).await.unwrap();
     wait_for(&d.ctl, "stopped", |s| {
-        s.aborted_job == job && s.state == MachineState::Idle
+        s.progress.aborted_job == job && s.state == MachineState::Idle
     })
     .await;
     wait_for(&d.ctl, "spindle stopped after Stop", |s| {
-        s.spindle_rpm == 0.0
+        s.spindle.rpm == 0.0
     })
     .await;
     // Resume after a stop has nothing to continue.
@@ -236,7 +236,7 @@ async fn soft_limits_refuse_programs_and_mdi_with_the_offsets_in_force() {
             .unwrap_err();
     assert_eq!(e.code(), Code::InvalidArgument);
     assert!(diagnostics(&e).iter().any(|d| d.soft_limit.is_some()));
-    assert_eq!(d.ctl.snapshot().commanded[0], 0.0);
+    assert_eq!(d.ctl.snapshot().axes.commanded[0], 0.0);
 
     // Status shows the limits per axis; an axis without limits has none.
     let st = api_common::status_now(&mut d.c).await;
@@ -347,8 +347,8 @@ async fn fault_stops_every_axis_on_its_own_and_reports_the_path_deviation() {
         tokio::time::sleep(Duration::from_millis(5)).await;
     }
     let s = ctl.snapshot();
-    assert_eq!(s.aborted_job, job);
-    let f = s.fault.expect("a fault");
+    assert_eq!(s.progress.aborted_job, job);
+    let f = s.alarm.fault.expect("a fault");
     assert_eq!((f.axis, f.node), (Some(0), Some(1)));
     assert_eq!(f.reason, hal::FaultReason::FollowingError);
     let worst = actual
@@ -359,7 +359,7 @@ async fn fault_stops_every_axis_on_its_own_and_reports_the_path_deviation() {
         .fold(0.0, f64::max);
     eprintln!(
         "fault stop: tool left the programmed line by {worst:.3} mm (status says {:.3} mm)",
-        s.fault_path_deviation_mm
+        s.alarm.fault_path_deviation_mm
     );
     // The alarm names axis, node and reason.
     let st = api_common::status_now(&mut c).await;
@@ -377,7 +377,7 @@ async fn fault_stops_every_axis_on_its_own_and_reports_the_path_deviation() {
     // 0.9 mm more: the tool ends about 2.2 mm off the line (5.19 mm before).
     assert!(worst < 2.4, "deviation {worst} mm");
     // The spindle stops at once; the healthy drives are switched off once at rest.
-    assert_eq!(s.spindle_rpm, 0.0);
+    assert_eq!(s.spindle.rpm, 0.0);
     wait_for(&ctl, "drives in their safe state", |_| {
         let st = states.lock().unwrap();
         st[0] == hal::DriveState::Fault
@@ -388,13 +388,13 @@ async fn fault_stops_every_axis_on_its_own_and_reports_the_path_deviation() {
     // Reset re-enables the drives where they stand; the machine runs again.
     c.reset(pb::ResetRequest {}).await.unwrap();
     wait_state(&ctl, MachineState::Idle).await;
-    let here = ctl.snapshot().commanded;
+    let here = ctl.snapshot().axes.commanded;
     let job = ctl
         .start_text("mdi", "G91 G1 X-10 F1000", false, true)
         .unwrap()
         .0;
     wait_job_finished(&ctl, job).await;
-    assert!((ctl.snapshot().commanded[0] - (here[0] - 10.0)).abs() < 1e-9);
+    assert!((ctl.snapshot().axes.commanded[0] - (here[0] - 10.0)).abs() < 1e-9);
 }
 
 /// A jog request stream kept open by the test: drop the sender to end it.
@@ -467,18 +467,18 @@ async fn jog_steps_and_continuous_jog_rest_on_the_soft_limit() {
     let r = d.c.jog_step(step("X", 0.1)).await.unwrap().into_inner();
     assert_eq!(r.target_mm, 0.1);
     wait_for(&d.ctl, "step done", |s| {
-        s.state == MachineState::Idle && s.commanded[0] == 0.1
+        s.state == MachineState::Idle && s.axes.commanded[0] == 0.1
     })
     .await;
     // A step past the soft limit is refused before motion (issue #31); one to it runs.
     let e = d.c.jog_step(step("X", -5.0)).await.unwrap_err();
     assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
     assert!(e.message().starts_with("jog_beyond_travel"), "{e:?}");
-    assert_eq!(d.ctl.snapshot().commanded[0], 0.1);
+    assert_eq!(d.ctl.snapshot().axes.commanded[0], 0.1);
     let r = d.c.jog_step(step("X", -1.1)).await.unwrap().into_inner();
     assert!((r.target_mm + 1.0).abs() < 1e-12, "{}", r.target_mm);
     wait_for(&d.ctl, "step to the limit done", |s| {
-        s.state == MachineState::Idle && (s.commanded[0] + 1.0).abs() < 1e-12
+        s.state == MachineState::Idle && (s.axes.commanded[0] + 1.0).abs() < 1e-12
     })
     .await;
     let e = d.c.jog_step(step("Q", 1.0)).await.unwrap_err();
@@ -489,7 +489,7 @@ async fn jog_steps_and_continuous_jog_rest_on_the_soft_limit() {
     let (tx, call) = jog_stream(&d.c, "x", 1, 1000.0).await;
     wait_for(&d.ctl, "jog started", |s| s.state == MachineState::Jog).await;
     wait_for(&d.ctl, "at rest on the limit", |s| {
-        s.state == MachineState::Idle && s.commanded[0] == 2.0
+        s.state == MachineState::Idle && s.axes.commanded[0] == 2.0
     })
     .await;
     assert!(d.record.lock().unwrap().iter().all(|p| p[0] <= 2.0));
@@ -512,7 +512,7 @@ async fn jog_stops_when_the_client_goes_away() {
     let addr_client = d.c.clone();
     let (tx, call) = jog_stream(&addr_client, "X", -1, 6000.0).await;
     wait_for(&d.ctl, "jogging", |s| {
-        s.state == MachineState::Jog && s.commanded[0] < -5.0
+        s.state == MachineState::Jog && s.axes.commanded[0] < -5.0
     })
     .await;
     // The client vanishes: its task and connection are dropped without ending the stream.
@@ -531,7 +531,7 @@ async fn jog_stops_when_the_client_goes_away() {
     );
     let s = d.ctl.snapshot();
     let last = points.last().unwrap()[0];
-    assert_eq!(s.commanded[0], last, "at rest");
+    assert_eq!(s.axes.commanded[0], last, "at rest");
 }
 
 /// Path of a workspace binary of this build (built once per test process if needed).
@@ -569,15 +569,15 @@ async fn cncctl_jog_killed_mid_jog_leaves_the_axis_at_rest() {
         .spawn()
         .unwrap();
     wait_for(&ctl, "jogging Y", |s| {
-        s.state == MachineState::Jog && s.commanded[1] > 1.0
+        s.state == MachineState::Jog && s.axes.commanded[1] > 1.0
     })
     .await;
     child.kill().unwrap();
-    let y_killed = ctl.snapshot().commanded[1];
+    let y_killed = ctl.snapshot().axes.commanded[1];
     child.wait().unwrap();
     wait_for(&ctl, "at rest", |s| s.state == MachineState::Idle).await;
     let v = 1000.0 / 60.0;
-    let y = ctl.snapshot().commanded[1];
+    let y = ctl.snapshot().axes.commanded[1];
     assert!(
         y >= y_killed && y - y_killed <= v * 0.5 + v * v / 1600.0 + 1e-6,
         "{y_killed} -> {y}"
@@ -639,13 +639,13 @@ async fn homing_in_order_and_refusals_before_it() {
         while rx.changed().await.is_ok() {
             let s = *rx.borrow_and_update();
             n += 1;
-            if s.commanded[2] != 0.0 && first_z.is_none() {
+            if s.axes.commanded[2] != 0.0 && first_z.is_none() {
                 first_z = Some(n);
             }
-            if s.commanded[0] != 0.0 && first_x.is_none() {
+            if s.axes.commanded[0] != 0.0 && first_x.is_none() {
                 first_x = Some(n);
             }
-            if s.homed & 0b101 == 0b101 {
+            if s.axes.homed & 0b101 == 0b101 {
                 return (first_z, first_x);
             }
         }
@@ -662,17 +662,23 @@ async fn homing_in_order_and_refusals_before_it() {
     let (first_z, first_x) = watcher.await.unwrap();
     assert!(first_z.unwrap() < first_x.unwrap(), "Z homes before X");
     let s = ctl.snapshot();
-    assert_eq!(s.homed & 0b101, 0b101);
+    assert_eq!(s.axes.homed & 0b101, 0b101);
     // The switch position became the reference: the axis stands at 0 plus its overshoot in
     // the search direction: the following error when the drive met the switch (10 mm/s at
     // kv 30/s: 0.33 mm) and the braking distance (0.0625 mm at 800 mm/s²).
     let over = 10.0 / 30.0 + 0.0625 + 10.0 * 0.004;
-    assert!(s.commanded[0] <= 0.0 && s.commanded[0] > -over, "{s:?}");
-    assert!(s.commanded[2] >= 0.0 && s.commanded[2] < over, "{s:?}");
+    assert!(
+        s.axes.commanded[0] <= 0.0 && s.axes.commanded[0] > -over,
+        "{s:?}"
+    );
+    assert!(
+        s.axes.commanded[2] >= 0.0 && s.axes.commanded[2] < over,
+        "{s:?}"
+    );
     // The drive settles on its setpoint in the new coordinates (no jump, no offset).
-    let x = s.commanded[0];
+    let x = s.axes.commanded[0];
     wait_for(&ctl, "X settled at the reference", |s| {
-        s.commanded[0] == x && (s.actual[0] - x).abs() < 1e-3
+        s.axes.commanded[0] == x && (s.axes.actual[0] - x).abs() < 1e-3
     })
     .await;
     let st = api_common::status_now(&mut c).await;
@@ -708,17 +714,17 @@ async fn m0_just_before_the_program_end_stops_until_resume() {
         load(&mut d.c, text).await.unwrap();
         let job = start_job(&mut d.c).await;
         wait_for(&d.ctl, text, |s| {
-            s.state == MachineState::Hold && s.program_stop
+            s.state == MachineState::Hold && s.progress.program_stop
         })
         .await;
         let s = d.ctl.snapshot();
-        assert!((s.commanded[0] - x).abs() < 1e-9, "{text}: {s:?}");
+        assert!((s.axes.commanded[0] - x).abs() < 1e-9, "{text}: {s:?}");
         // It stays at the stop: the job has not ended.
-        let seq = s.sequence;
-        wait_for(&d.ctl, "time passes", |s| s.sequence > seq + 100).await;
+        let seq = s.tick.sequence;
+        wait_for(&d.ctl, "time passes", |s| s.tick.sequence > seq + 100).await;
         let s = d.ctl.snapshot();
         assert!(
-            s.state == MachineState::Hold && s.finished_job != job,
+            s.state == MachineState::Hold && s.progress.finished_job != job,
             "{text}: {s:?}"
         );
         d.c.resume(pb::ResumeRequest {}).await.unwrap();

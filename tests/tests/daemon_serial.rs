@@ -96,7 +96,11 @@ fn drives_away_from_zero_enable_without_a_jump_when_one_enables_late() {
     h.wait_state(MachineState::Idle, 10_000).unwrap();
     let s = h.step();
     for (i, &mm) in start.iter().enumerate() {
-        assert!((s.commanded[i] - mm).abs() < 1e-3, "{:?}", s.commanded);
+        assert!(
+            (s.axes.commanded[i] - mm).abs() < 1e-3,
+            "{:?}",
+            s.axes.commanded
+        );
     }
     let end = h
         .run_program("G90 G1 X27 Y-38 Z8 F3000\n", 100_000)
@@ -128,10 +132,10 @@ fn after_a_fault_the_healthy_serial_drives_go_to_the_configured_safe_state() {
         let (mut h, side) = daemon([0.0; 3], &[], keys);
         h.wait_state(MachineState::Idle, 10_000).unwrap();
         let job = h.start_program("G90 G1 X100 Y50 Z20 F3000\n").unwrap();
-        h.run_until(10_000, |s| s.commanded[0] > 5.0).unwrap();
+        h.run_until(10_000, |s| s.axes.commanded[0] > 5.0).unwrap();
         side.lock().unwrap().unit.drives[1].fault(0x2310);
         assert_eq!(h.finish_job(job, 10_000).unwrap(), JobEnd::Aborted);
-        let f = h.snapshot().fault.unwrap();
+        let f = h.snapshot().alarm.fault.unwrap();
         assert_eq!((f.axis, f.node), (Some(1), Some(2)), "{keys}");
         // At rest, then the safe state (bounded: the settle timeout is 1 s).
         for _ in 0..1000 {
@@ -144,7 +148,7 @@ fn after_a_fault_the_healthy_serial_drives_go_to_the_configured_safe_state() {
                 assert_eq!(d[k].state(), want, "{keys}: axis {k}");
             }
             assert_eq!(d[1].state(), PowerState::Fault);
-            assert!((h.snapshot().actual[0] - d[0].position_mm()).abs() < 1e-3);
+            assert!((h.snapshot().axes.actual[0] - d[0].position_mm()).abs() < 1e-3);
         }
         h.send(RtCommand::Reset).unwrap();
         h.wait_state(MachineState::Idle, 10_000).unwrap();

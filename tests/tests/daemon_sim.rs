@@ -93,16 +93,16 @@ async fn program_runs_through_grpc_within_limits_and_ends_exactly() {
     let s = ctl.snapshot();
     for (i, e) in END.iter().enumerate() {
         assert!(
-            (s.commanded[i] - e).abs() < 1e-6,
+            (s.axes.commanded[i] - e).abs() < 1e-6,
             "axis {i}: {:?}",
-            s.commanded
+            s.axes.commanded
         );
     }
     // The drives follow with a lag; they settle on the end point.
     let t0 = Instant::now();
     loop {
         let s = ctl.snapshot();
-        if (0..3).all(|i| (s.actual[i] - END[i]).abs() < 1e-3) {
+        if (0..3).all(|i| (s.axes.actual[i] - END[i]).abs() < 1e-3) {
             break;
         }
         assert!(
@@ -153,7 +153,7 @@ async fn program_runs_through_grpc_within_limits_and_ends_exactly() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_program_is_rejected_with_block_number_and_nothing_moves() {
     let (mut client, ctl, record) = daemon(tests::test_config(), ClockKind::Monotonic).await;
-    let before = ctl.snapshot().commanded;
+    let before = ctl.snapshot().axes.commanded;
     for (text, block, code) in [
         ("N10 G1 X5 F100\nN20 Q7\n", 20, "unknown_address"),
         ("N10 G1 X5 F100\nN20 X\n", 20, "word_without_value"),
@@ -178,7 +178,7 @@ async fn bad_program_is_rejected_with_block_number_and_nothing_moves() {
     let err = client.start(pb::StartRequest::default()).await.unwrap_err();
     assert_eq!(err.code(), tonic::Code::FailedPrecondition);
     tokio::time::sleep(Duration::from_millis(50)).await;
-    assert_eq!(ctl.snapshot().commanded, before);
+    assert_eq!(ctl.snapshot().axes.commanded, before);
     let moved = record
         .lock()
         .unwrap()

@@ -49,13 +49,13 @@ async fn a_leased_jog_moves_while_renewed_and_rests_within_lease_and_braking() {
         if i > 0 {
             tokio::time::sleep(Duration::from_millis(20)).await;
         }
-        before = h.ctl.snapshot().commanded[0];
+        before = h.ctl.snapshot().axes.commanded[0];
         let r = m
             .jog_lease(lease("X", 1, lease_ms))
             .await
             .unwrap()
             .into_inner();
-        after = h.ctl.snapshot().commanded[0];
+        after = h.ctl.snapshot().axes.commanded[0];
         assert!(r.target_mm > 1e6, "no soft limit: far away, {r:?}");
         if i == 0 {
             wait_state(&h.ctl, MachineState::Jog).await;
@@ -63,10 +63,10 @@ async fn a_leased_jog_moves_while_renewed_and_rests_within_lease_and_braking() {
     }
     let moving = h.ctl.snapshot();
     assert_eq!(moving.state, MachineState::Jog);
-    assert!(moving.commanded[0] > 0.1, "{moving:?}");
+    assert!(moving.axes.commanded[0] > 0.1, "{moving:?}");
     // No renewal any more: the axis brakes to rest by itself.
     wait_state(&h.ctl, MachineState::Idle).await;
-    let rest = h.ctl.snapshot().commanded[0];
+    let rest = h.ctl.snapshot().axes.commanded[0];
     let lease_mm = v * f64::from(lease_ms) / 1000.0;
     // The last renewal was taken no earlier than `before` was read, and within two ticks of
     // the read after it: the lease's travel and the braking distance after it, a few ticks.
@@ -81,7 +81,7 @@ async fn a_leased_jog_moves_while_renewed_and_rests_within_lease_and_braking() {
         "stopped before the lease ran out: rest {rest}, renewal at {before}"
     );
     let c = h.ctl.clone();
-    wait_until("the axis at rest", || c.snapshot().path_v_mm_s == 0.0).await;
+    wait_until("the axis at rest", || c.snapshot().axes.path_v_mm_s == 0.0).await;
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -91,13 +91,13 @@ async fn jog_stop_brakes_at_once() {
     let (v, brake_mm) = speed_and_brake(&h);
     m.jog_lease(lease("Y", -1, 1000)).await.unwrap();
     let c = h.ctl.clone();
-    wait_until("Y moving", || c.snapshot().commanded[1] < -0.05).await;
+    wait_until("Y moving", || c.snapshot().axes.commanded[1] < -0.05).await;
     m.jog_stop(with_token(pb::JogStopRequest {}, OPERATOR_TOKEN))
         .await
         .unwrap();
-    let at_stop = h.ctl.snapshot().commanded[1];
+    let at_stop = h.ctl.snapshot().axes.commanded[1];
     wait_state(&h.ctl, MachineState::Idle).await;
-    let rest = h.ctl.snapshot().commanded[1];
+    let rest = h.ctl.snapshot().axes.commanded[1];
     // The braking distance (two ticks until the RT thread takes the stop), not the lease's
     // second of travel.
     assert!(

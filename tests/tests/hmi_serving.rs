@@ -115,7 +115,7 @@ async fn an_observer_cannot_start_or_jog() {
         .await
         .unwrap_err();
     assert_eq!(e.code(), Code::PermissionDenied, "{e:?}");
-    assert_eq!(h.ctl.snapshot().commanded[0], 0.0);
+    assert_eq!(h.ctl.snapshot().axes.commanded[0], 0.0);
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

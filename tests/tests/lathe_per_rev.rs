@@ -53,8 +53,8 @@ fn run(h: &mut Harness, text: &str, mut each: impl FnMut(&Snapshot, &Snapshot, &
         let s = h.step();
         each(&prev, &s, h);
         prev = s;
-        if s.finished_job == job || s.aborted_job == job {
-            assert_eq!(s.finished_job, job, "aborted: {s:?}");
+        if s.progress.finished_job == job || s.progress.aborted_job == job {
+            assert_eq!(s.progress.finished_job, job, "aborted: {s:?}");
             return;
         }
     }
@@ -63,7 +63,7 @@ fn run(h: &mut Harness, text: &str, mut each: impl FnMut(&Snapshot, &Snapshot, &
 
 /// Feed of this tick, mm/min, and the spindle speed the RT core fed from (last tick's).
 fn feed_and_spindle(prev: &Snapshot, s: &Snapshot) -> (f64, f64) {
-    (s.path_v_mm_s * 60.0, prev.spindle_rpm)
+    (s.axes.path_v_mm_s * 60.0, prev.spindle.rpm)
 }
 
 fn within(a: f64, b: f64, share: f64) -> bool {
@@ -77,12 +77,12 @@ fn manual_lathe_example_feeds_per_revolution_of_the_actual_spindle() {
     let (mut h, _) = lathe();
     let mut checked = 0;
     run(&mut h, MANUAL_EXAMPLE, |prev, s, _| {
-        let x = 2.0 * s.commanded[0]; // diameter: the setpoint is the radius
-        if s.block_n != Some(20) || !(60.0..290.0).contains(&x) {
+        let x = 2.0 * s.axes.commanded[0]; // diameter: the setpoint is the radius
+        if s.progress.block_n != Some(20) || !(60.0..290.0).contains(&x) {
             return;
         }
-        let n = s.spindle_rpm;
-        let v = 2.0 * std::f64::consts::PI * n * s.commanded[0];
+        let n = s.spindle.rpm;
+        let v = 2.0 * std::f64::consts::PI * n * s.axes.commanded[0];
         assert!(within(v, V_MM_MIN, 0.01), "X{x}: n {n} rpm gives v {v}");
         let (feed, n_fed) = feed_and_spindle(prev, s);
         assert!(
@@ -93,7 +93,7 @@ fn manual_lathe_example_feeds_per_revolution_of_the_actual_spindle() {
     });
     assert!(checked > 10_000, "only {checked} ticks checked");
     let s = h.snapshot();
-    assert!((s.commanded[0] - 25.0).abs() < 1e-9 && (s.commanded[1] + 1.0).abs() < 1e-9);
+    assert!((s.axes.commanded[0] - 25.0).abs() < 1e-9 && (s.axes.commanded[1] + 1.0).abs() < 1e-9);
 }
 
 /// With `G76 S400` the spindle is clamped at 400 rpm below Ø71.6 and the feed with it
@@ -110,8 +110,8 @@ N20 G96 G1 F200 S90 X50
 ";
     let (mut clamped, mut loaded, mut held, mut after) = (0, 0, 0, 0);
     run(&mut h, text, |prev, s, _| {
-        let x = 2.0 * s.commanded[0]; // diameter
-        if s.block_n != Some(20) {
+        let x = 2.0 * s.axes.commanded[0]; // diameter
+        if s.progress.block_n != Some(20) {
             return;
         }
         // The load knob: 30 % of the speed lost between Ø250 and Ø200, stalled between Ø150
@@ -126,11 +126,11 @@ N20 G96 G1 F200 S90 X50
         load.set(l);
         let (feed, n_fed) = feed_and_spindle(prev, s);
         if x < 70.0 && x > 51.0 {
-            assert_eq!(s.kr.spindle_rpm, 400.0, "X{x}: clamp");
+            assert_eq!(s.spindle.kr.spindle_rpm, 400.0, "X{x}: clamp");
             assert!(within(feed, 400.0 * BETA_MM_REV, 0.01), "X{x}: feed {feed}");
             clamped += 1;
         }
-        if (205.0..245.0).contains(&x) && within(n_fed, 0.7 * s.kr.spindle_rpm, 0.005) {
+        if (205.0..245.0).contains(&x) && within(n_fed, 0.7 * s.spindle.kr.spindle_rpm, 0.005) {
             // Settled under load: the feed follows the slowed spindle.
             assert!(
                 within(feed, n_fed * BETA_MM_REV, 0.01),
@@ -138,8 +138,8 @@ N20 G96 G1 F200 S90 X50
             );
             loaded += 1;
         }
-        if prev.spindle_rpm < 1.0 && s.path_v_mm_s == 0.0 && prev.path_v_mm_s == 0.0 {
-            assert!(s.waiting_for_spindle, "X{x}: held without saying why");
+        if prev.spindle.rpm < 1.0 && s.axes.path_v_mm_s == 0.0 && prev.axes.path_v_mm_s == 0.0 {
+            assert!(s.spindle.waiting, "X{x}: held without saying why");
             assert!((149.0..150.0).contains(&x));
             held += 1;
         }
@@ -170,11 +170,11 @@ fn gears_from_the_configuration() {
         .unwrap();
     let end = h
         .run_until(MAX_TICKS, |s| {
-            top = top.max(s.path_v_mm_s * 60.0);
-            s.finished_job == job || s.aborted_job == job
+            top = top.max(s.axes.path_v_mm_s * 60.0);
+            s.progress.finished_job == job || s.progress.aborted_job == job
         })
         .unwrap();
-    assert_eq!(end.finished_job, job);
+    assert_eq!(end.progress.finished_job, job);
     assert!(within(top, 500.0, 0.01), "top feed {top} mm/min");
 }
 
@@ -226,19 +226,19 @@ fn lathe_example_configuration_runs_its_sample_programs() {
         let mut top_cut = 0.0f64;
         let end = h
             .run_until(MAX_TICKS, |s| {
-                if s.block_n.is_some_and(|n| cuts.contains(&n)) {
-                    top_cut = top_cut.max(s.path_v_mm_s * 60.0);
+                if s.progress.block_n.is_some_and(|n| cuts.contains(&n)) {
+                    top_cut = top_cut.max(s.axes.path_v_mm_s * 60.0);
                 }
-                s.finished_job == job || s.aborted_job == job
+                s.progress.finished_job == job || s.progress.aborted_job == job
             })
             .unwrap();
-        assert_eq!(end.finished_job, job, "{name}: {end:?}");
-        assert_eq!(end.kr.spindle_rpm, 0.0, "{name}: M5 at the end");
+        assert_eq!(end.progress.finished_job, job, "{name}: {end:?}");
+        assert_eq!(end.spindle.kr.spindle_rpm, 0.0, "{name}: M5 at the end");
         assert!(
-            (2.0 * end.commanded[0] - end_x).abs() < 1e-9
-                && (end.commanded[1] - 100.0).abs() < 1e-9,
+            (2.0 * end.axes.commanded[0] - end_x).abs() < 1e-9
+                && (end.axes.commanded[1] - 100.0).abs() < 1e-9,
             "{name}: ends at Ø{end_x} Z100: {:?}",
-            end.commanded
+            end.axes.commanded
         );
         if let Some(f) = feed_mm_min {
             assert!(

@@ -162,9 +162,9 @@ async fn start_from_block_runs_the_approach_and_the_rest_on_the_machine() {
     let s = d.ctl.snapshot();
     for (i, e) in end.iter().enumerate() {
         assert!(
-            (s.commanded[i] - e).abs() < 1e-3,
+            (s.axes.commanded[i] - e).abs() < 1e-3,
             "{i}: {} vs {e}",
-            s.commanded[i]
+            s.axes.commanded[i]
         );
     }
 }
@@ -173,7 +173,7 @@ async fn start_from_block_runs_the_approach_and_the_rest_on_the_machine() {
 async fn wait_job_done(d: &Daemon, job: u32) {
     wait_until("the restarted job to end", || {
         let s = d.ctl.snapshot();
-        s.finished_job == job && s.state == MachineState::Idle
+        s.progress.finished_job == job && s.state == MachineState::Idle
     })
     .await;
 }
@@ -227,7 +227,7 @@ async fn after_a_stop_status_names_the_block_to_restart_from() {
     let job = load_and_start(&mut m, "slow.nc", slow).await;
     wait_until("N30 to run", || {
         let s = d.ctl.snapshot();
-        s.job == job && s.block_n == Some(30)
+        s.progress.job == job && s.progress.block_n == Some(30)
     })
     .await;
     m.stop(pb::StopRequest::default()).await.unwrap();
@@ -247,7 +247,7 @@ async fn after_a_stop_status_names_the_block_to_restart_from() {
         .into_inner()
         .job;
     wait_job_done(&d, job).await;
-    assert!(d.ctl.snapshot().commanded[0].abs() < 1e-6);
+    assert!(d.ctl.snapshot().axes.commanded[0].abs() < 1e-6);
     assert_eq!(status_now(&mut m).await.restart_block, None);
 }
 
@@ -264,12 +264,12 @@ async fn block_delete_skips_slashed_blocks_only_while_on() {
         assert_eq!(status_now(&mut m).await.block_delete, on);
         let job = start_job(&mut m).await;
         wait_job_done(&d, job).await;
-        let x = d.ctl.snapshot().commanded[0];
+        let x = d.ctl.snapshot().axes.commanded[0];
         assert!((x - end).abs() < 1e-6, "block delete {on}: X{x}");
         m.mdi(mdi_block("G0 X0")).await.unwrap();
         wait_until("back at X0", || {
             let s = d.ctl.snapshot();
-            s.state == MachineState::Idle && s.commanded[0].abs() < 1e-9
+            s.state == MachineState::Idle && s.axes.commanded[0].abs() < 1e-9
         })
         .await;
     }
@@ -308,8 +308,8 @@ async fn one_jog_at_a_time_and_no_step_beyond_any_travel() {
     assert_eq!(diagnostics(&e)[0].code, "jog_busy");
     wait_until("the step to end", || {
         let s = d.ctl.snapshot();
-        s.state == MachineState::Idle && (s.commanded[0] - 2.0).abs() < 1e-9
+        s.state == MachineState::Idle && (s.axes.commanded[0] - 2.0).abs() < 1e-9
     })
     .await;
-    assert_eq!(d.ctl.snapshot().commanded[1], 0.0, "Y never moved");
+    assert_eq!(d.ctl.snapshot().axes.commanded[1], 0.0, "Y never moved");
 }

@@ -317,7 +317,7 @@ impl Doors {
             wait_state(&d.ctl, MachineState::Idle).await;
             let s = d.ctl.snapshot();
             assert!(
-                s.finished_job == job || s.aborted_job == job,
+                s.progress.finished_job == job || s.progress.aborted_job == job,
                 "{name}: {s:?}"
             );
             assert!(d.ctl.alarm().is_none(), "{name}: {:?}", d.ctl.alarm());
@@ -444,7 +444,7 @@ async fn kr_status_while_running(d: &Daemon, m: &mut MachineClient<Channel>) -> 
     let st = d.ctl.clone();
     wait_until("KŘR in N30", || {
         let s = st.snapshot();
-        s.job == job && s.block_n == Some(30) && s.kr.spindle_rpm > 0.0
+        s.progress.job == job && s.progress.block_n == Some(30) && s.spindle.kr.spindle_rpm > 0.0
     })
     .await;
     let state = daemon::runtime::api::ApiState::new(d.ctl.clone()).unwrap();
@@ -559,13 +559,13 @@ async fn g92_changes_the_memory_table_when_it_executes() {
     let st = d.ctl.clone();
     wait_until("moving in N10", || {
         let s = st.snapshot();
-        s.job == job && s.block_n == Some(10) && s.path_v_mm_s > 0.0
+        s.progress.job == job && s.progress.block_n == Some(10) && s.axes.path_v_mm_s > 0.0
     })
     .await;
     assert_eq!(radius_7(&d), before, "not yet executed");
     m.stop(pb::StopRequest {}).await.unwrap();
     wait_state(&d.ctl, MachineState::Idle).await;
-    assert_eq!(d.ctl.snapshot().aborted_job, job);
+    assert_eq!(d.ctl.snapshot().progress.aborted_job, job);
     assert_eq!(
         radius_7(&d),
         before,
@@ -650,7 +650,7 @@ async fn mdi_inherits_spindle_gear_feed_and_g91() {
     wait_job_finished(&d.ctl, job).await;
     // S800 in gear 4 (P = 4000 rpm): output 800/4000 of 7FFFh.
     let gear4 = (800.0 / 4000.0 * 32767.0) as u16;
-    let kr = |d: &Daemon| d.ctl.snapshot().kr;
+    let kr = |d: &Daemon| d.ctl.snapshot().spindle.kr;
     assert_eq!(kr(&d).spindle_rpm, 800.0);
     assert!(kr(&d).output.abs_diff(gear4) <= 1, "{:?}", kr(&d));
 
@@ -662,16 +662,16 @@ async fn mdi_inherits_spindle_gear_feed_and_g91() {
         "gear 4 kept: {:?}",
         kr(&d)
     );
-    assert!((d.ctl.snapshot().commanded[0] - 90.0).abs() < 1e-6);
+    assert!((d.ctl.snapshot().axes.commanded[0] - 90.0).abs() < 1e-6);
 
     // G91 and the feed carry from one MDI to the next.
     mdi(&d, &mut m, "G91 G1 X-5 F3000").await;
     mdi(&d, &mut m, "G1 X-5").await;
-    assert!((d.ctl.snapshot().commanded[0] - 80.0).abs() < 1e-6);
+    assert!((d.ctl.snapshot().axes.commanded[0] - 80.0).abs() < 1e-6);
     // M5 in MDI: the next MDI keeps the spindle stopped.
     mdi(&d, &mut m, "M5").await;
     mdi(&d, &mut m, "X-5").await;
-    assert!((d.ctl.snapshot().commanded[0] - 75.0).abs() < 1e-6);
+    assert!((d.ctl.snapshot().axes.commanded[0] - 75.0).abs() < 1e-6);
     assert_eq!(kr(&d).spindle_rpm, 0.0, "M5 kept");
 }
 

@@ -80,7 +80,7 @@ fn mixed_move_feeds_the_linear_axes_and_the_rotary_follows() {
     let (x, a) = top_speeds(&mut h, &record, "N10 G1 X100 A180 F600\n");
     assert!(within(x, 10.0, 0.01), "X top speed {x} mm/s");
     assert!(within(a, 18.0, 0.01), "A top speed {a} °/s");
-    let end = h.snapshot().commanded;
+    let end = h.snapshot().axes.commanded;
     assert!((end[0] - 100.0).abs() < 1e-9 && (end[1] - 180.0).abs() < 1e-9);
 }
 

@@ -68,7 +68,7 @@ fn assembled_tick(cycle_ms: u64) {
     // Plan (allocates, as the planner thread does); the whole job fits on the segment ring.
     let (job, planning) = alloc_count::count(|| h.start_program(PROGRAM).unwrap());
     assert!(planning > 0, "the counter counts nothing");
-    let t = h.snapshot().sequence;
+    let t = h.snapshot().tick.sequence;
     h.at_tick(
         t + 50,
         RtCommand::Plc(PlcWrite::by_name("AKRR_V", 80_000).unwrap()),
@@ -80,12 +80,14 @@ fn assembled_tick(cycle_ms: u64) {
     let (mut kr, mut held, mut compensated) = (false, false, false);
     let (end, n) = alloc_count::count(|| {
         h.run_until(1_000_000, |s| {
-            kr |= s.kr.active && s.kr.spindle_rpm > 0.0;
+            kr |= s.spindle.kr.active && s.spindle.kr.spindle_rpm > 0.0;
             held |= s.state == MachineState::Hold;
-            compensated |= s.commanded[1] > 2.0 && s.commanded[1] < 18.0 && s.commanded[0] < 0.0;
-            s.finished_job == job || s.aborted_job == job
+            compensated |= s.axes.commanded[1] > 2.0
+                && s.axes.commanded[1] < 18.0
+                && s.axes.commanded[0] < 0.0;
+            s.progress.finished_job == job || s.progress.aborted_job == job
         })
-        .map(|s| s.finished_job == job)
+        .map(|s| s.progress.finished_job == job)
     });
     assert_eq!(n, 0, "allocations in the ticks of the program");
     assert_eq!(end.ok(), Some(true), "{:?}", h.snapshot());
@@ -94,14 +96,14 @@ fn assembled_tick(cycle_ms: u64) {
         "kr {kr}, held {held}, compensated {compensated}"
     );
     assert!(
-        h.snapshot().ticks.overruns > 0,
+        h.snapshot().tick.stats.overruns > 0,
         "the clock missed no deadline"
     );
 
     // A drive fault mid-motion, the stop, the reset and the re-enable allocate nothing either.
     let job = h.start_program("G1 X200 Y100 F6000").unwrap();
     let (faulted, n) = alloc_count::count(|| {
-        let moving = h.run_until(100_000, |s| s.path_v_mm_s > 50.0).is_ok();
+        let moving = h.run_until(100_000, |s| s.axes.path_v_mm_s > 50.0).is_ok();
         fault_axis.store(1, Ordering::Relaxed);
         let fault = h.wait_state(MachineState::Fault, 10).is_ok();
         // Reset acts once the path has braked to rest (400 ms).
@@ -114,7 +116,7 @@ fn assembled_tick(cycle_ms: u64) {
     });
     assert!(faulted, "{:?}", h.snapshot());
     assert_eq!(n, 0, "allocations in fault, stop and reset");
-    assert_eq!(h.snapshot().aborted_job, job);
+    assert_eq!(h.snapshot().progress.aborted_job, job);
     assert_eq!(
         h.run_program("G0 X0 Y0", 100_000).ok(),
         Some(JobEnd::Finished)

@@ -45,25 +45,25 @@ fn hours_of_machining_in_seconds() {
     .unwrap();
     h.wait_state(MachineState::Idle, 10_000).unwrap();
     let (t0, seq0, deadline0) = (
-        h.snapshot().time_ns,
-        h.snapshot().sequence,
+        h.snapshot().tick.time_ns,
+        h.snapshot().tick.sequence,
         h.core().next_deadline_ns(),
     );
-    let overruns0 = h.snapshot().ticks.overruns;
+    let overruns0 = h.snapshot().tick.stats.overruns;
     let end = h.run_program(&text, MAX_TICKS).unwrap();
     assert_eq!(end, JobEnd::Finished);
     let s = h.snapshot();
-    let machining_s = (s.time_ns - t0) as f64 * 1e-9;
+    let machining_s = (s.tick.time_ns - t0) as f64 * 1e-9;
     assert!(
         machining_s > 3.0 * 3600.0 * 0.95,
         "machined {machining_s} s"
     );
-    assert!(s.commanded[0].abs() < 1e-9 && (s.commanded[1] - 11.9).abs() < 1e-9);
+    assert!(s.axes.commanded[0].abs() < 1e-9 && (s.axes.commanded[1] - 11.9).abs() < 1e-9);
     // The clock was late now and then: the grid skipped those periods and did not drift. The
     // deadlines advanced by one period per tick executed plus one per period skipped.
-    let overruns = s.ticks.overruns - overruns0;
-    assert!(overruns > 100, "{:?}", s.ticks);
-    let ticks = s.sequence - seq0;
+    let overruns = s.tick.stats.overruns - overruns0;
+    assert!(overruns > 100, "{:?}", s.tick.stats);
+    let ticks = s.tick.sequence - seq0;
     assert_eq!(
         h.core().next_deadline_ns() - deadline0,
         (ticks + overruns) * TS_NS
@@ -96,10 +96,13 @@ fn late_ticks_skip_grid_points_counted_exactly_without_setpoint_jump() {
         h.clock().wakeups() > 300,
         "the run ended before the late ticks"
     );
-    assert_eq!(s.ticks.overruns, expected_overruns);
-    assert_eq!(s.ticks.ticks, s.sequence);
+    assert_eq!(s.tick.stats.overruns, expected_overruns);
+    assert_eq!(s.tick.stats.ticks, s.tick.sequence);
     assert_eq!(max_lateness_ns, 40 * TS_NS + 3);
-    assert_eq!(u64::from(s.ticks.lateness_max_us), (40 * TS_NS + 3) / 1000);
+    assert_eq!(
+        u64::from(s.tick.stats.lateness_max_us),
+        (40 * TS_NS + 3) / 1000
+    );
     // No setpoint jump anywhere: every step within the axis limits.
     let points = record.lock().unwrap().clone();
     for (i, (vmax, amax)) in max_rates(&points, 3, TS_S).into_iter().enumerate() {
@@ -113,7 +116,7 @@ fn late_ticks_skip_grid_points_counted_exactly_without_setpoint_jump() {
             "axis {i}: {amax}"
         );
     }
-    assert_eq!(&s.commanded.0[..2], &[200.0, 100.0]);
+    assert_eq!(&s.axes.commanded.0[..2], &[200.0, 100.0]);
 }
 
 /// Runs `PART` with override changes and a hold on `clock`; returns (setpoint hash, timeline
@@ -121,7 +124,7 @@ fn late_ticks_skip_grid_points_counted_exactly_without_setpoint_jump() {
 fn part_run(clock: SimClock) -> (u64, u64, u64) {
     let (mut h, _, _) = recorded(clock);
     h.wait_state(MachineState::Idle, 10_000).unwrap();
-    let start = h.snapshot().sequence;
+    let start = h.snapshot().tick.sequence;
     h.at_tick(start + 200, RtCommand::Override(60.0));
     h.at_tick(start + 500, RtCommand::Hold);
     h.at_tick(start + 700, RtCommand::Resume);
@@ -129,8 +132,8 @@ fn part_run(clock: SimClock) -> (u64, u64, u64) {
     let job = h.start_program(PART).unwrap();
     assert_eq!(h.finish_job(job, 1_000_000).unwrap(), JobEnd::Finished);
     let s = h.snapshot();
-    assert_eq!(&s.commanded.0[..3], &[0.0, 0.0, 5.0]);
-    (h.setpoint_hash(), h.timeline_hash(), s.ticks.overruns)
+    assert_eq!(&s.axes.commanded.0[..3], &[0.0, 0.0, 5.0]);
+    (h.setpoint_hash(), h.timeline_hash(), s.tick.stats.overruns)
 }
 
 /// Same seed, same run, bit for bit (every setpoint, every tick time). Another seed changes
@@ -157,7 +160,7 @@ fn shutdown_ramps_axes_down_before_exit() {
     let a_lim = cfg.axes[0].max_accel_mm_s2;
     h.wait_state(MachineState::Idle, 10_000).unwrap();
     h.start_program("G1 X500 F6000").unwrap();
-    h.run_until(100_000, |s| s.path_v_mm_s > 50.0).unwrap();
+    h.run_until(100_000, |s| s.axes.path_v_mm_s > 50.0).unwrap();
     h.send(RtCommand::Shutdown).unwrap();
     let mut ticks = 0;
     while !h.core().finished() {
@@ -167,13 +170,13 @@ fn shutdown_ramps_axes_down_before_exit() {
         assert!(ticks < 100_000, "{s:?}");
     }
     let s = h.snapshot();
-    assert!(s.commanded[0] < 500.0);
+    assert!(s.axes.commanded[0] < 500.0);
     let points = record.lock().unwrap().clone();
     let (_, amax) = max_rates(&points, 1, TS_S)[0];
     assert!(amax <= a_lim * (1.0 + 1e-6), "braking at {amax} mm/s²");
     let tail = &points[points.len() - 3..];
     assert!(tail.iter().all(|p| p[0] == tail[0][0]));
-    assert!((s.actual[0] - s.commanded[0]).abs() < 1e-3);
+    assert!((s.axes.actual[0] - s.axes.commanded[0]).abs() < 1e-3);
 }
 
 /// A drive fault mid-motion aborts the job; the faulted drive stops following; Reset
@@ -185,11 +188,11 @@ fn drive_fault_stops_and_reset_resumes_from_where_the_drives_are() {
     let mut h = Harness::new(cfg, Box::new(bus), SimClock::seeded(9, 500_000, 100)).unwrap();
     h.wait_state(MachineState::Idle, 10_000).unwrap();
     let job = h.start_program("N10 G1 X200 Y100 F6000").unwrap();
-    h.run_until(100_000, |s| s.path_v_mm_s > 50.0).unwrap();
+    h.run_until(100_000, |s| s.axes.path_v_mm_s > 50.0).unwrap();
     fault_axis.store(1, Ordering::Relaxed);
     let s = h.wait_state(MachineState::Fault, 10).unwrap();
-    assert_eq!(s.aborted_job, job);
-    let f = s.fault.unwrap();
+    assert_eq!(s.progress.aborted_job, job);
+    let f = s.alarm.fault.unwrap();
     assert_eq!((f.axis, f.node), (Some(1), Some(2)));
     // The faulted drive no longer follows: its setpoint stays where it stands (fault
     // reaction, issue #15) while the healthy X brakes to rest on its own.
@@ -197,8 +200,8 @@ fn drive_fault_stops_and_reset_resumes_from_where_the_drives_are() {
         h.step();
     }
     let s = h.snapshot();
-    assert_eq!(s.commanded[1], s.actual[1], "{s:?}");
-    assert!(s.actual[0] > 0.0, "{s:?}");
+    assert_eq!(s.axes.commanded[1], s.axes.actual[1], "{s:?}");
+    assert!(s.axes.actual[0] > 0.0, "{s:?}");
     h.send(RtCommand::Reset).unwrap();
     h.wait_state(MachineState::Idle, 10_000).unwrap();
     // The tick that enables reports the setpoint it sent; from the next one on, the drives'
@@ -206,13 +209,13 @@ fn drive_fault_stops_and_reset_resumes_from_where_the_drives_are() {
     let s = h.step();
     for i in 0..3 {
         assert!(
-            (s.commanded[i] - s.actual[i]).abs() < 1e-3,
+            (s.axes.commanded[i] - s.axes.actual[i]).abs() < 1e-3,
             "axis {i}: {s:?}"
         );
     }
     let end = h.run_program("N20 G1 X0 Y0 F6000", 100_000).unwrap();
     assert_eq!(end, JobEnd::Finished);
-    assert_eq!(&h.snapshot().commanded.0[..2], &[0.0, 0.0]);
+    assert_eq!(&h.snapshot().axes.commanded.0[..2], &[0.0, 0.0]);
 }
 
 /// Override, feed hold at rest (no motion while held), resume, stop: the RT logic behind the
@@ -224,36 +227,40 @@ fn override_hold_resume_stop() {
     let job = h.start_program("N10 G1 X80 F600\nN20 X0\n").unwrap();
     h.wait_state(MachineState::Running, 100).unwrap();
     let full = h
-        .run_until(10_000, |s| s.path_v_mm_s >= 10.0 - 1e-9)
+        .run_until(10_000, |s| s.axes.path_v_mm_s >= 10.0 - 1e-9)
         .unwrap();
-    assert!((full.path_v_mm_s - 10.0).abs() < 1e-6, "{full:?}");
+    assert!((full.axes.path_v_mm_s - 10.0).abs() < 1e-6, "{full:?}");
     h.send(RtCommand::Override(50.0)).unwrap();
     let s = h.step();
-    assert_eq!(s.override_pct, 50.0);
+    assert_eq!(s.operator.feed_override_pct, 50.0);
     let half = h
-        .run_until(10_000, |s| s.path_v_mm_s <= 5.0 + 1e-9)
+        .run_until(10_000, |s| s.axes.path_v_mm_s <= 5.0 + 1e-9)
         .unwrap();
-    assert!(half.commanded[0] < 80.0);
+    assert!(half.axes.commanded[0] < 80.0);
     h.send(RtCommand::Hold).unwrap();
     let held = h
         .run_until(10_000, |s| {
-            s.state == MachineState::Hold && s.path_v_mm_s == 0.0
+            s.state == MachineState::Hold && s.axes.path_v_mm_s == 0.0
         })
         .unwrap();
     for _ in 0..500 {
-        assert_eq!(h.step().commanded, held.commanded, "moved while held");
+        assert_eq!(
+            h.step().axes.commanded,
+            held.axes.commanded,
+            "moved while held"
+        );
     }
     h.send(RtCommand::Resume).unwrap();
-    h.run_until(10_000, |s| s.commanded[0] > held.commanded[0])
+    h.run_until(10_000, |s| s.axes.commanded[0] > held.axes.commanded[0])
         .unwrap();
     h.send(RtCommand::Stop).unwrap();
     let stopped = h
         .run_until(10_000, |s| {
-            s.aborted_job == job && s.state == MachineState::Idle
+            s.progress.aborted_job == job && s.state == MachineState::Idle
         })
         .unwrap();
-    assert!(stopped.commanded[0] < 80.0, "{stopped:?}");
-    assert_ne!(stopped.finished_job, job);
+    assert!(stopped.axes.commanded[0] < 80.0, "{stopped:?}");
+    assert_ne!(stopped.progress.finished_job, job);
 }
 
 /// Single block: the path holds at every block end (within the braking distance from rest),
@@ -271,18 +278,18 @@ fn single_block_holds_at_every_block() {
     for _ in 0..2 {
         let s = h
             .run_until(10_000, |s| {
-                s.state == MachineState::Hold && s.path_v_mm_s == 0.0
+                s.state == MachineState::Hold && s.axes.path_v_mm_s == 0.0
             })
             .unwrap();
-        assert!(s.single_block);
-        stops.push(s.commanded[0]);
+        assert!(s.operator.single_block);
+        stops.push(s.axes.commanded[0]);
         h.send(RtCommand::Resume).unwrap();
         h.run_until(10, |s| s.state != MachineState::Hold).unwrap();
     }
     assert_eq!(h.finish_job(job, 10_000).unwrap(), JobEnd::Finished);
     assert!((stops[0] - 5.0).abs() < 0.05, "{stops:?}");
     assert!((stops[1] - 10.0).abs() < 0.05, "{stops:?}");
-    assert!((h.snapshot().commanded[0] - 15.0).abs() < 1e-6);
+    assert!((h.snapshot().axes.commanded[0] - 15.0).abs() < 1e-6);
 }
 
 /// A program longer than the segment ring: the inline planner ticks the RT core whenever the
@@ -295,18 +302,22 @@ fn planning_beyond_the_ring_ticks_the_core_and_a_stop_cancels_it() {
     }
     let (mut h, _, _) = recorded(SimClock::seeded(31, 1_000_000, 100));
     h.wait_state(MachineState::Idle, 10_000).unwrap();
-    let t0 = h.snapshot().sequence;
+    let t0 = h.snapshot().tick.sequence;
     let job = h.start_program(&text).unwrap();
     // The ring (4096) could not hold the program: the core ran while it was planned.
-    assert!(h.snapshot().sequence > t0, "no tick during planning");
+    assert!(h.snapshot().tick.sequence > t0, "no tick during planning");
     assert_eq!(h.finish_job(job, 1_000_000).unwrap(), JobEnd::Finished);
-    assert!((h.snapshot().commanded[1] - 60.0).abs() < 1e-9);
+    assert!((h.snapshot().axes.commanded[1] - 60.0).abs() < 1e-9);
 
-    let back = h.snapshot().sequence;
+    let back = h.snapshot().tick.sequence;
     h.at_tick(back + 100, RtCommand::Stop);
     let job = h.start_program(&text.replace("Y", "Y-")).unwrap();
     // Returned at the stop, long before the program could have been planned to its end.
-    assert!(h.snapshot().sequence < back + 200, "{:?}", h.snapshot());
+    assert!(
+        h.snapshot().tick.sequence < back + 200,
+        "{:?}",
+        h.snapshot()
+    );
     assert_eq!(h.finish_job(job, 10_000).unwrap(), JobEnd::Aborted);
     h.wait_state(MachineState::Idle, 10_000).unwrap();
 }

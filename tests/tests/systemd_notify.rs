@@ -270,10 +270,10 @@ async fn ready_after_start_up_pings_while_ticking_and_not_while_the_rt_thread_st
     stall.store(true, Ordering::Release);
     // One look may still see the ticks made before the stall.
     let settling = mgr.collect(PING * 5 / 2).await;
-    let seq = ctl.snapshot().sequence;
+    let seq = ctl.snapshot().tick.sequence;
     let stalled = mgr.collect(Duration::from_millis(2500)).await;
     assert_eq!(
-        ctl.snapshot().sequence,
+        ctl.snapshot().tick.sequence,
         seq,
         "the test bus did not stall the real-time thread"
     );

@@ -411,12 +411,18 @@ async fn bring_to_rest(
 /// Logs where every axis came to rest (and the block it was in).
 fn log_rest_positions(ctl: &Controller) {
     let s = ctl.snapshot();
-    for (i, name) in ctl.config().axis_names().iter().enumerate().take(s.axes) {
+    for (i, name) in ctl
+        .config()
+        .axis_names()
+        .iter()
+        .enumerate()
+        .take(s.axes.count)
+    {
         tracing::info!(
             axis = %name,
-            block = %BlockNo(s.block_n),
-            line = s.line,
-            position_mm = s.commanded[i],
+            block = %BlockNo(s.progress.block_n),
+            line = s.progress.line,
+            position_mm = s.axes.commanded[i],
             "axis at rest"
         );
     }

@@ -278,12 +278,12 @@ mod tests {
         let names = ['X', 'Y', 'C'];
         let mut s = Snapshot::initial(3, kernel::AxesMm::default());
         s.state = MachineState::Running;
-        s.job = 1;
-        s.line = 2;
-        s.actual[0] = 12.5;
+        s.progress.job = 1;
+        s.progress.line = 2;
+        s.axes.actual[0] = 12.5;
         assert!(a.observe(&view(&s, &names), 1_700_000_000_100_000_000) > 0);
         s.state = MachineState::Fault;
-        s.fault = Some(hal::BusFault {
+        s.alarm.fault = Some(hal::BusFault {
             axis: Some(1),
             node: Some(2),
             reason: hal::FaultReason::FollowingError,
@@ -305,7 +305,7 @@ mod tests {
         assert!(cur.contains("nativeCode=\"following_error\""), "{cur}");
         assert!(cur.contains("<Execution dataItemId=\"exec\""), "{cur}");
         s.state = MachineState::Idle;
-        s.fault = None;
+        s.alarm.fault = None;
         a.observe(&view(&s, &names), 1_700_000_000_400_000_000);
         let cur =
             String::from_utf8(a.current(None, None, 1_700_000_000_500_000_000).unwrap()).unwrap();

@@ -35,13 +35,17 @@ fn round6(v: f64) -> f64 {
 pub fn execution(s: &Snapshot) -> &'static str {
     match s.state {
         MachineState::Running | MachineState::Jog | MachineState::Homing => "ACTIVE",
-        MachineState::Hold if s.program_stop => "PROGRAM_STOPPED",
+        MachineState::Hold if s.progress.program_stop => "PROGRAM_STOPPED",
         MachineState::Hold => "FEED_HOLD",
         MachineState::Stopping => "INTERRUPTED",
         MachineState::Fault => "STOPPED",
         MachineState::Enabling | MachineState::Shutdown => "WAIT",
-        MachineState::Idle if s.job != 0 && s.finished_job == s.job => "PROGRAM_COMPLETED",
-        MachineState::Idle if s.job != 0 && s.aborted_job == s.job => "STOPPED",
+        MachineState::Idle if s.progress.job != 0 && s.progress.finished_job == s.progress.job => {
+            "PROGRAM_COMPLETED"
+        }
+        MachineState::Idle if s.progress.job != 0 && s.progress.aborted_job == s.progress.job => {
+            "STOPPED"
+        }
         MachineState::Idle => "READY",
     }
 }
@@ -50,7 +54,7 @@ pub fn execution(s: &Snapshot) -> &'static str {
 pub fn controller_mode(s: &Snapshot) -> &'static str {
     match s.state {
         MachineState::Jog | MachineState::Homing => "MANUAL",
-        _ if s.single_block => "SEMI_AUTOMATIC",
+        _ if s.operator.single_block => "SEMI_AUTOMATIC",
         _ => "AUTOMATIC",
     }
 }
@@ -75,7 +79,7 @@ pub fn conditions(m: &DeviceModel, v: &MachineView) -> Vec<(usize, Cond)> {
         native_code: Some(code.into()),
         message,
     };
-    if let Some(f) = v.snap.fault {
+    if let Some(f) = v.snap.alarm.fault {
         let label = hal::fault_axis_label(f.axis, v.axis_names);
         let node = f.node.map(|n| format!("node {n}, ")).unwrap_or_default();
         let target = match f.axis {
@@ -94,7 +98,7 @@ pub fn conditions(m: &DeviceModel, v: &MachineView) -> Vec<(usize, Cond)> {
             fault(f.reason.code(), format!("{who}{node}{}", f.reason)),
         ));
     }
-    if let Some(k) = &v.snap.kr_fault {
+    if let Some(k) = &v.snap.alarm.kr_fault {
         out.push((
             ids.system,
             fault(kr_code(k), format!("constant cutting speed: {k}")),
@@ -104,7 +108,7 @@ pub fn conditions(m: &DeviceModel, v: &MachineView) -> Vec<(usize, Cond)> {
         out.push((ids.motion, fault(code, msg.to_string())));
     }
     for (i, a) in ids.axes.iter().enumerate() {
-        if v.snap.homing_failed & (1 << i) != 0 {
+        if v.snap.axes.homing_failed & (1 << i) != 0 {
             let name = v.axis_names.get(i).copied().unwrap_or('?');
             out.push((
                 a.condition,
@@ -151,32 +155,35 @@ pub fn values(m: &DeviceModel, v: &MachineView) -> Vec<(usize, Value)> {
         (ids.block, v.block.map_or(Value::Unavailable, text)),
         (
             ids.line_number,
-            if s.line > 0 {
-                num(f64::from(s.line))
+            if s.progress.line > 0 {
+                num(f64::from(s.progress.line))
             } else {
                 Value::Unavailable
             },
         ),
-        (ids.path_feedrate, num(s.path_v_mm_s)),
-        (ids.feedrate_override, num(s.override_pct)),
-        (ids.rapid_override, num(s.rapid_override_pct)),
-        (ids.spindle.actual, num(s.spindle_rpm)),
-        (ids.spindle.commanded, num(s.kr.spindle_rpm)),
-        (ids.spindle.override_pct, num(s.spindle_override_pct)),
+        (ids.path_feedrate, num(s.axes.path_v_mm_s)),
+        (ids.feedrate_override, num(s.operator.feed_override_pct)),
+        (ids.rapid_override, num(s.operator.rapid_override_pct)),
+        (ids.spindle.actual, num(s.spindle.rpm)),
+        (ids.spindle.commanded, num(s.spindle.kr.spindle_rpm)),
+        (
+            ids.spindle.override_pct,
+            num(s.operator.spindle_override_pct),
+        ),
         (ids.spindle.mode, text(SPINDLE_MODE)),
     ];
     let mut p = [0.0; 3];
     for (i, a) in ids.axes.iter().enumerate() {
-        out.push((a.actual, num(s.actual[i])));
-        out.push((a.commanded, num(s.commanded[i])));
+        out.push((a.actual, num(s.axes.actual[i])));
+        out.push((a.commanded, num(s.axes.commanded[i])));
         if i < 3 {
-            p[i] = round6(s.actual[i]);
+            p[i] = round6(s.axes.actual[i]);
         }
     }
     out.push((ids.path_position, Value::Vector(p)));
     if let (Some(id), Some(axis)) = (ids.cutting_speed, v.cutting_axis) {
-        let r_mm = s.actual[axis].abs();
-        let mm_s = std::f64::consts::TAU * r_mm * s.spindle_rpm.abs() / 60.0;
+        let r_mm = s.axes.actual[axis].abs();
+        let mm_s = std::f64::consts::TAU * r_mm * s.spindle.rpm.abs() / 60.0;
         out.push((id, num(mm_s)));
     }
     out

@@ -185,7 +185,7 @@ impl Harness {
 
     /// One RT tick: the clock wakes at (or after) the core's next deadline, the core ticks.
     pub fn step(&mut self) -> Snapshot {
-        let next = self.core.snapshot().sequence + 1;
+        let next = self.core.snapshot().tick.sequence + 1;
         let mut i = 0;
         while i < self.scheduled.len() {
             if self.scheduled[i].0 <= next {
@@ -204,15 +204,16 @@ impl Harness {
     }
 
     fn record(&mut self, s: &Snapshot) {
-        for v in &s.commanded.0[..s.axes] {
+        for v in &s.axes.commanded.0[..s.axes.count] {
             self.setpoint_hash.write(v.to_bits());
             self.timeline_hash.write(v.to_bits());
         }
-        self.setpoint_hash.write(s.kr.spindle_rpm.to_bits());
-        self.timeline_hash.write(s.kr.spindle_rpm.to_bits());
-        self.timeline_hash.write(s.time_ns);
-        self.timeline_hash.write(s.ticks.overruns);
-        self.timeline_hash.write(u64::from(s.ticks.lateness_max_us));
+        self.setpoint_hash.write(s.spindle.kr.spindle_rpm.to_bits());
+        self.timeline_hash.write(s.spindle.kr.spindle_rpm.to_bits());
+        self.timeline_hash.write(s.tick.time_ns);
+        self.timeline_hash.write(s.tick.stats.overruns);
+        self.timeline_hash
+            .write(u64::from(s.tick.stats.lateness_max_us));
         self.status.0.send_replace(*s);
     }
 
@@ -286,7 +287,7 @@ impl Harness {
             &self.constants.0,
             self.constants.1,
             offsets.memory(),
-            self.snapshot().commanded,
+            self.snapshot().axes.commanded,
         )
     }
 
@@ -352,8 +353,10 @@ impl Harness {
 
     /// Ticks until job `job` ends (ran to its end, or was stopped / ended by a fault).
     pub fn finish_job(&mut self, job: u32, max_ticks: u64) -> Result<JobEnd, HarnessError> {
-        let s = self.run_until(max_ticks, |s| s.finished_job == job || s.aborted_job == job)?;
-        Ok(if s.finished_job == job {
+        let s = self.run_until(max_ticks, |s| {
+            s.progress.finished_job == job || s.progress.aborted_job == job
+        })?;
+        Ok(if s.progress.finished_job == job {
             JobEnd::Finished
         } else {
             JobEnd::Aborted
@@ -379,7 +382,7 @@ impl Harness {
             self.send(RtCommand::Home(homing::home_request(&self.config, i)))?;
             self.step();
             let s = self.run_until(max_ticks, |s| s.state != MachineState::Homing)?;
-            if s.homed & (1 << i) == 0 {
+            if s.axes.homed & (1 << i) == 0 {
                 return Err(homing::failure(&self.config, &s, i).into());
             }
             done.push(self.config.axes[i].name);

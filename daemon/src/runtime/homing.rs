@@ -11,7 +11,7 @@ const HOMING_MAX_TRAVEL_MM: f64 = 2000.0;
 
 /// Whether axis `i` is referenced: homed since power-on, or needing no reference run.
 pub fn axis_homed(config: &Config, snap: &Snapshot, i: usize) -> bool {
-    config.axes[i].homing == HomingMode::None || snap.homed & (1 << i) != 0
+    config.axes[i].homing == HomingMode::None || snap.axes.homed & (1 << i) != 0
 }
 
 /// FAILED_PRECONDITION while an axis that needs a reference run has not had one; `what`
@@ -86,9 +86,9 @@ pub fn home_request(config: &Config, i: usize) -> HomeRequest {
 
 /// Why the reference run of axis `i` failed, from the snapshot after it ended.
 pub fn failure(config: &Config, s: &Snapshot, i: usize) -> ControlError {
-    let why = match s.fault {
+    let why = match s.alarm.fault {
         Some(f) => f.reason.to_string(),
-        None if s.homing_failed & (1 << i) != 0 => "home switch not found, or stopped".into(),
+        None if s.axes.homing_failed & (1 << i) != 0 => "home switch not found, or stopped".into(),
         None => "the machine was not idle".into(),
     };
     ControlError::Aborted(format!("homing of {} failed: {why}", config.axes[i].name))

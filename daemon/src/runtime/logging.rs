@@ -123,7 +123,7 @@ pub async fn rt_health(
     let mut ticker = tokio::time::interval(every);
     ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     ticker.tick().await;
-    let mut last = status.borrow().ticks;
+    let mut last = status.borrow().tick.stats;
     let mut since_summary = Duration::ZERO;
     loop {
         ticker.tick().await;
@@ -131,16 +131,16 @@ pub async fn rt_health(
             return;
         }
         let s = *status.borrow();
-        let t = s.ticks;
+        let t = s.tick.stats;
         if t.overruns > last.overruns {
             tracing::warn!(
                 overruns = t.overruns - last.overruns,
                 total = t.overruns,
                 lateness_max_us = t.lateness_max_us,
                 state = ?s.state,
-                job = s.job,
-                block = %BlockNo(s.block_n),
-                line = s.line,
+                job = s.progress.job,
+                block = %BlockNo(s.progress.block_n),
+                line = s.progress.line,
                 "real-time deadlines missed"
             );
         }
@@ -148,7 +148,7 @@ pub async fn rt_health(
         if since_summary >= summary_every {
             since_summary = Duration::ZERO;
             tracing::info!(
-                cycle_us = s.cycle_ns / 1000,
+                cycle_us = s.tick.cycle_ns / 1000,
                 ticks = t.ticks,
                 overruns = t.overruns,
                 lateness_p50_us = t.lateness_p50_us,

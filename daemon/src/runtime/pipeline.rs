@@ -92,27 +92,27 @@ impl Execution {
     /// are dropped; a finished job's remaining writes all apply. Allocates nothing, so the
     /// single-threaded harness can run it beside the RT core.
     pub fn observe(&mut self, s: &Snapshot, mut apply: impl FnMut(&PendingWrite)) {
-        if self.job == 0 || self.settled == self.job || s.job != self.job {
+        if self.job == 0 || self.settled == self.job || s.progress.job != self.job {
             return;
         }
-        if s.path_v_mm_s > 0.0 {
+        if s.axes.path_v_mm_s > 0.0 {
             self.moved = true;
         }
-        if s.finished_job == self.job {
+        if s.progress.finished_job == self.job {
             self.pending.drain(..).for_each(|w| apply(&w));
             self.modal_left = self.blocks.back().map(|e| e.1).or(self.modal_left);
             self.settled = self.job;
-        } else if s.aborted_job == self.job {
-            self.take_passed(s.block_seq, &mut apply);
+        } else if s.progress.aborted_job == self.job {
+            self.take_passed(s.progress.block_seq, &mut apply);
             self.pending.clear();
             if self.moved
-                && let Some(e) = self.entry(self.job, s.block_seq)
+                && let Some(e) = self.entry(self.job, s.progress.block_seq)
             {
                 self.modal_left = Some(e.1);
             }
             self.settled = self.job;
         } else {
-            self.take_passed(s.block_seq, &mut apply);
+            self.take_passed(s.progress.block_seq, &mut apply);
         }
     }
 

@@ -161,9 +161,9 @@ pub async fn wait_operational(
         let s = *status.borrow_and_update();
         match s.state {
             MachineState::Idle => return Some(s),
-            MachineState::Fault if s.fault != reported_fault => {
-                reported_fault = s.fault;
-                let (axis, node, reason) = match s.fault {
+            MachineState::Fault if s.alarm.fault != reported_fault => {
+                reported_fault = s.alarm.fault;
+                let (axis, node, reason) = match s.alarm.fault {
                     Some(f) => (
                         axis_label(f.axis, axis_names),
                         f.node.map(i64::from).unwrap_or(-1),
@@ -174,8 +174,8 @@ pub async fn wait_operational(
                 tracing::error!(
                     axis,
                     node,
-                    block = %BlockNo(s.block_n),
-                    line = s.line,
+                    block = %BlockNo(s.progress.block_n),
+                    line = s.progress.line,
                     "drives not operational at start-up: {reason}; not reporting ready \
                      (reset through the API, or systemd's start timeout restarts the service)"
                 );
@@ -208,7 +208,7 @@ pub async fn watchdog(
     let mut ticker = tokio::time::interval(interval);
     ticker.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     ticker.tick().await; // the first tick is immediate
-    let mut last_seq = status.borrow().sequence;
+    let mut last_seq = status.borrow().tick.sequence;
     let mut last_at = Instant::now();
     let mut stalled = false;
     loop {
@@ -216,15 +216,19 @@ pub async fn watchdog(
         let s = *status.borrow();
         let now = Instant::now();
         // A snapshot from before the core existed carries no period: the default 4 ms.
-        let tick = Duration::from_nanos(if s.cycle_ns == 0 { TS_NS } else { s.cycle_ns });
-        match judge(last_seq, s.sequence, now - last_at, tick) {
+        let tick = Duration::from_nanos(if s.tick.cycle_ns == 0 {
+            TS_NS
+        } else {
+            s.tick.cycle_ns
+        });
+        match judge(last_seq, s.tick.sequence, now - last_at, tick) {
             Progress::Ticking { ticks } => {
                 if stalled {
                     stalled = false;
                     tracing::warn!(
                         ticks,
-                        block = %BlockNo(s.block_n),
-                        line = s.line,
+                        block = %BlockNo(s.progress.block_n),
+                        line = s.progress.line,
                         "real-time thread ticking again: watchdog pings resume"
                     );
                     notifier.send(&[NotifyState::Status("running")]);
@@ -238,9 +242,9 @@ pub async fn watchdog(
                         ticks,
                         expected,
                         state = ?s.state,
-                        job = s.job,
-                        block = %BlockNo(s.block_n),
-                        line = s.line,
+                        job = s.progress.job,
+                        block = %BlockNo(s.progress.block_n),
+                        line = s.progress.line,
                         "real-time thread stalled: {ticks} ticks where {expected} were due; \
                          withholding the watchdog ping"
                     );
@@ -248,7 +252,7 @@ pub async fn watchdog(
                 }
             }
         }
-        last_seq = s.sequence;
+        last_seq = s.tick.sequence;
         last_at = now;
     }
 }
@@ -302,7 +306,7 @@ pub fn supervise(
         let Some(s) = wait_operational(status, &axis_names, notifier.as_deref()).await else {
             return false;
         };
-        tracing::info!(block = %BlockNo(s.block_n), line = s.line, "drives operational: {ready_status}");
+        tracing::info!(block = %BlockNo(s.progress.block_n), line = s.progress.line, "drives operational: {ready_status}");
         if let Some(n) = &notifier {
             n.send(&[NotifyState::Ready, NotifyState::Status(&ready_status)]);
         }

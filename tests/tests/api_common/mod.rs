@@ -356,16 +356,18 @@ pub async fn assert_g24_waits_at_the_end_of_n10(
     let c = ctl.clone();
     wait_until("at the end of N10", || {
         let s = c.snapshot();
-        s.job == job && (s.commanded[axis] - at_mm).abs() < 1e-9 && s.path_v_mm_s == 0.0
+        s.progress.job == job
+            && (s.axes.commanded[axis] - at_mm).abs() < 1e-9
+            && s.axes.path_v_mm_s == 0.0
     })
     .await;
-    let t0 = ctl.snapshot().sequence;
+    let t0 = ctl.snapshot().tick.sequence;
     let c = ctl.clone();
-    wait_until("250 ticks", || c.snapshot().sequence > t0 + 250).await;
+    wait_until("250 ticks", || c.snapshot().tick.sequence > t0 + 250).await;
     let s = ctl.snapshot();
-    assert_eq!(s.block_n, Some(10), "{s:?}");
+    assert_eq!(s.progress.block_n, Some(10), "{s:?}");
     assert_eq!(s.state, MachineState::Running);
-    assert!((s.commanded[axis] - at_mm).abs() < 1e-9);
+    assert!((s.axes.commanded[axis] - at_mm).abs() < 1e-9);
     m.stop(pb::StopRequest {}).await.unwrap();
     wait_state(ctl, MachineState::Idle).await;
 }

@@ -25,26 +25,26 @@ pub fn run_manual_example(mut h: Harness) {
     let mut checked = 0;
     for _ in 0..1_000_000 {
         let s = h.step();
-        let d = 2.0 * s.commanded[0];
-        if s.block_n == Some(20) && (60.0..290.0).contains(&d) {
-            let n = s.spindle_rpm;
-            let v = 2.0 * std::f64::consts::PI * n * s.commanded[0];
+        let d = 2.0 * s.axes.commanded[0];
+        if s.progress.block_n == Some(20) && (60.0..290.0).contains(&d) {
+            let n = s.spindle.rpm;
+            let v = 2.0 * std::f64::consts::PI * n * s.axes.commanded[0];
             assert!(within(v, V_MM_MIN, 0.01), "Ø{d}: n {n} rpm gives v {v}");
-            let feed = s.path_v_mm_s * 60.0;
+            let feed = s.axes.path_v_mm_s * 60.0;
             assert!(
-                within(feed, prev.spindle_rpm * BETA_MM_REV, 0.01),
+                within(feed, prev.spindle.rpm * BETA_MM_REV, 0.01),
                 "Ø{d}: feed {feed} mm/min at {} rpm",
-                prev.spindle_rpm
+                prev.spindle.rpm
             );
             checked += 1;
         }
         prev = s;
-        if s.finished_job == job || s.aborted_job == job {
-            assert_eq!(s.finished_job, job, "aborted: {s:?}");
+        if s.progress.finished_job == job || s.progress.aborted_job == job {
+            assert_eq!(s.progress.finished_job, job, "aborted: {s:?}");
             break;
         }
     }
     assert!(checked > 10_000, "only {checked} ticks checked");
     let s = h.snapshot();
-    assert!((s.commanded[0] - 25.0).abs() < 1e-9 && (s.commanded[1] + 1.0).abs() < 1e-9);
+    assert!((s.axes.commanded[0] - 25.0).abs() < 1e-9 && (s.axes.commanded[1] + 1.0).abs() < 1e-9);
 }

@@ -218,6 +218,7 @@ pub fn spawn_watcher(ctl: Arc<Controller>, log: Arc<AlarmLog>) {
             }
             let s = ctl.snapshot();
             let fault = s
+                .alarm
                 .fault
                 .map(|_| super::alarm_text(&ctl, &s).unwrap_or_default());
             if fault != last_fault {

@@ -106,7 +106,7 @@ pub fn spawn(state: Weak<ApiState>) {
                 s.state,
                 MachineState::Running | MachineState::Hold | MachineState::Stopping
             );
-            if !running || s.job == 0 {
+            if !running || s.progress.job == 0 {
                 if written.take().is_some() {
                     let p = path.clone();
                     let _ = tokio::task::spawn_blocking(move || std::fs::remove_file(p)).await;
@@ -114,7 +114,9 @@ pub fn spawn(state: Weak<ApiState>) {
                 continue;
             }
             let status = st.status(&s);
-            let new_job = written.as_ref().is_none_or(|(r, _)| r.job != s.job);
+            let new_job = written
+                .as_ref()
+                .is_none_or(|(r, _)| r.job != s.progress.job);
             let started = match &written {
                 Some((r, _)) if !new_job => r.started_unix_ms,
                 _ => now_ms(),

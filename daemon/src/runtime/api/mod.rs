@@ -200,7 +200,9 @@ impl ApiState {
     /// Waits until the RT thread has taken job `job` (at most a few ticks).
     async fn wait_started(&self, job: u32) {
         let t0 = std::time::Instant::now();
-        while self.ctl.snapshot().job != job && t0.elapsed() < std::time::Duration::from_secs(1) {
+        while self.ctl.snapshot().progress.job != job
+            && t0.elapsed() < std::time::Duration::from_secs(1)
+        {
             tokio::time::sleep(std::time::Duration::from_millis(1)).await;
         }
     }
@@ -240,7 +242,7 @@ impl ApiState {
     pub fn status(&self, s: &Snapshot) -> pb::Status {
         let ctl = &self.ctl;
         let program = ctl.program();
-        let (mode, run_blocks) = self.run_of(s.job);
+        let (mode, run_blocks) = self.run_of(s.progress.job);
         let total = match (&run_blocks, &program) {
             (Some(b), _) => b.len() as u32,
             (None, Some(p)) => p.block_count,
@@ -251,8 +253,10 @@ impl ApiState {
             MachineState::Running | MachineState::Hold | MachineState::Stopping
         );
         let block: Option<Block> = match (&run_blocks, &program) {
-            (Some(b), _) => b.get(s.block_seq as usize).copied(),
-            (None, Some(_)) if s.job != 0 => ctl.block_at(s.job, s.block_seq),
+            (Some(b), _) => b.get(s.progress.block_seq as usize).copied(),
+            (None, Some(_)) if s.progress.job != 0 => {
+                ctl.block_at(s.progress.job, s.progress.block_seq)
+            }
             _ => None,
         };
         // Distance to go: only while a block moves (its end point is where the path goes).
@@ -261,8 +265,8 @@ impl ApiState {
             .and_then(|b| b.motion())
             .map(|(_, end, _)| end);
         let junction = match (&run_blocks, &program) {
-            (None, Some(p)) if s.job != 0 => {
-                self.junction_of(Arc::as_ptr(p) as *const () as usize, s.block_seq)
+            (None, Some(p)) if s.progress.job != 0 => {
+                self.junction_of(Arc::as_ptr(p) as *const () as usize, s.progress.block_seq)
             }
             _ => pb::JunctionClass::Unspecified,
         };
@@ -275,28 +279,28 @@ impl ApiState {
                 (_, Some(p)) => p.name.clone(),
                 _ => String::new(),
             },
-            block: s.block_n,
-            line: s.line,
-            block_index: s.block_seq,
+            block: s.progress.block_n,
+            line: s.progress.line,
+            block_index: s.progress.block_seq,
             blocks_total: total,
             percent: percent_done(s, total, running),
             axes: self.axes_status(s, target),
-            path_velocity_mm_s: s.path_v_mm_s,
+            path_velocity_mm_s: s.axes.path_v_mm_s,
             ticks: Some(tick_stats(s)),
-            sequence: s.sequence,
-            job: s.job,
+            sequence: s.tick.sequence,
+            job: s.progress.job,
             alarm: alarm_text(ctl, s).unwrap_or_default(),
-            finished_job: s.finished_job,
-            aborted_job: s.aborted_job,
-            override_percent: s.override_pct,
-            spindle_override_percent: s.spindle_override_pct,
-            rapid_override_percent: s.rapid_override_pct,
-            spindle_rpm: s.spindle_rpm,
+            finished_job: s.progress.finished_job,
+            aborted_job: s.progress.aborted_job,
+            override_percent: s.operator.feed_override_pct,
+            spindle_override_percent: s.operator.spindle_override_pct,
+            rapid_override_percent: s.operator.rapid_override_pct,
+            spindle_rpm: s.spindle.rpm,
             mode: match mode {
                 RunMode::Auto => pb::Mode::Auto,
                 RunMode::Mdi => pb::Mode::Mdi,
             } as i32,
-            single_block: s.single_block,
+            single_block: s.operator.single_block,
             feed_programmed,
             feed_mode: feed_mode.into(),
             modal_g_codes: block.map(|b| modal_codes(&b)).unwrap_or_default(),
@@ -305,10 +309,10 @@ impl ApiState {
             kr: Some(kr_status(plc)),
             active_alarms: self.alarms.active(),
             dynamic_set: plc.dynam_set().into(),
-            waiting_for_spindle: s.waiting_for_spindle,
-            optional_stop: s.optional_stop,
-            program_stop: s.program_stop,
-            fault_path_deviation_mm: s.fault_path_deviation_mm,
+            waiting_for_spindle: s.spindle.waiting,
+            optional_stop: s.operator.optional_stop,
+            program_stop: s.progress.program_stop,
+            fault_path_deviation_mm: s.alarm.fault_path_deviation_mm,
             block_delete: ctl.block_delete(),
             restart_block: restart_block(s, block.as_ref()),
         }
@@ -332,21 +336,21 @@ impl ApiState {
         let ctl = &self.ctl;
         let names = ctl.config().axis_names();
         let diameter_axis = ctl.diameter_axis();
-        (0..s.axes)
+        (0..s.axes.count)
             .map(|i| pb::AxisStatus {
                 diameter: diameter_axis == Some(i),
-                display_mm: s.commanded[i] * if diameter_axis == Some(i) { 2.0 } else { 1.0 },
+                display_mm: s.axes.commanded[i] * if diameter_axis == Some(i) { 2.0 } else { 1.0 },
                 name: names.get(i).map(|c| c.to_string()).unwrap_or_default(),
-                commanded_mm: s.commanded[i],
-                actual_mm: s.actual[i],
-                following_error_mm: s.commanded[i] - s.actual[i],
+                commanded_mm: s.axes.commanded[i],
+                actual_mm: s.axes.actual[i],
+                following_error_mm: s.axes.commanded[i] - s.axes.actual[i],
                 soft_min_mm: ctl.config().axes.get(i).and_then(|a| a.soft_min_mm),
                 soft_max_mm: ctl.config().axes.get(i).and_then(|a| a.soft_max_mm),
                 homed: ctl.axis_homed(s, i),
                 homing_required: ctl.config().axes[i].homing
                     == crate::runtime::config::HomingMode::Required,
-                distance_to_go_mm: target.map_or(0.0, |e| e[i] - s.commanded[i]),
-                at_soft_limit: at_soft_limit(ctl.config().axes.get(i), s.commanded[i]),
+                distance_to_go_mm: target.map_or(0.0, |e| e[i] - s.axes.commanded[i]),
+                at_soft_limit: at_soft_limit(ctl.config().axes.get(i), s.axes.commanded[i]),
             })
             .collect()
     }
@@ -354,10 +358,10 @@ impl ApiState {
 
 /// Progress of the job in per cent of its blocks (100 once it finished).
 fn percent_done(s: &Snapshot, total: u32, running: bool) -> f64 {
-    if s.finished_job == s.job && s.job != 0 && !running {
+    if s.progress.finished_job == s.progress.job && s.progress.job != 0 && !running {
         100.0
-    } else if total > 0 && s.job != 0 {
-        (s.block_seq as f64 / total as f64 * 100.0).min(100.0)
+    } else if total > 0 && s.progress.job != 0 {
+        (s.progress.block_seq as f64 / total as f64 * 100.0).min(100.0)
     } else {
         0.0
     }
@@ -400,12 +404,12 @@ fn kr_status(plc: &kernel::plc::PlcArea) -> pb::KrStatus {
 
 fn tick_stats(s: &Snapshot) -> pb::TickStats {
     pb::TickStats {
-        ticks: s.ticks.ticks,
-        overruns: s.ticks.overruns,
-        lateness_p50_us: s.ticks.lateness_p50_us,
-        lateness_p99_us: s.ticks.lateness_p99_us,
-        lateness_max_us: s.ticks.lateness_max_us,
-        cycle_us: (s.cycle_ns / 1000) as u32,
+        ticks: s.tick.stats.ticks,
+        overruns: s.tick.stats.overruns,
+        lateness_p50_us: s.tick.stats.lateness_p50_us,
+        lateness_p99_us: s.tick.stats.lateness_p99_us,
+        lateness_max_us: s.tick.stats.lateness_max_us,
+        cycle_us: (s.tick.cycle_ns / 1000) as u32,
     }
 }
 
@@ -497,7 +501,7 @@ pub fn plane_code(p: Plane) -> &'static str {
 /// The alarm in force: a drive/bus fault, else a KŘR fault, else a planning failure.
 pub fn alarm_text(ctl: &Controller, s: &Snapshot) -> Option<String> {
     let names = ctl.config().axis_names();
-    match (s.fault, ctl.alarm()) {
+    match (s.alarm.fault, ctl.alarm()) {
         (Some(f), _) => {
             // "axis X, " or "spindle, " (SPINDLE_AXIS).
             let axis = match hal::fault_axis_label(f.axis, &names) {
@@ -508,7 +512,7 @@ pub fn alarm_text(ctl: &Controller, s: &Snapshot) -> Option<String> {
             let node = f.node.map(|n| format!("node {n}, ")).unwrap_or_default();
             Some(format!("{axis}{node}{}", f.reason))
         }
-        (None, a) => match s.kr_fault {
+        (None, a) => match s.alarm.kr_fault {
             Some(k) => Some(format!("constant cutting speed: {k}")),
             None => a,
         },
@@ -518,11 +522,11 @@ pub fn alarm_text(ctl: &Controller, s: &Snapshot) -> Option<String> {
 /// The block to restart from after a stop or a fault ended the job early: the programmed
 /// block it stopped in (issue #31).
 fn restart_block(s: &Snapshot, block: Option<&Block>) -> Option<u32> {
-    let ended_early = s.job != 0
-        && s.aborted_job == s.job
+    let ended_early = s.progress.job != 0
+        && s.progress.aborted_job == s.progress.job
         && matches!(s.state, MachineState::Idle | MachineState::Fault);
     ended_early
-        .then(|| block.and_then(|b| b.n).or(s.block_n))
+        .then(|| block.and_then(|b| b.n).or(s.progress.block_n))
         .flatten()
 }
 

@@ -98,7 +98,7 @@ impl Jobs {
         let mut run = self.run.lock().unwrap();
         let snap = rt.idle_for_start()?;
         // The job's snapshot of the machine, taken now: every stage of the run reads it.
-        let setup = tables.machine_setup(rt.snapshot().commanded)?;
+        let setup = tables.machine_setup(rt.snapshot().axes.commanded)?;
         let opts = Options {
             from_block,
             ..Options::default()
@@ -240,8 +240,10 @@ impl Jobs {
     /// thread has not taken its start yet.
     fn job_active(&self, snap: &Snapshot) -> bool {
         let last = self.next_job.load(Ordering::Relaxed).saturating_sub(1);
-        let pending =
-            last != 0 && snap.job != last && snap.finished_job != last && snap.aborted_job != last;
+        let pending = last != 0
+            && snap.progress.job != last
+            && snap.progress.finished_job != last
+            && snap.progress.aborted_job != last;
         pending
             || matches!(
                 snap.state,
@@ -289,6 +291,6 @@ impl Jobs {
         }
         self.hold_requested.store(false, Ordering::Relaxed);
         rt.send(RtCommand::Resume)?;
-        Ok(Some(snap.job))
+        Ok(Some(snap.progress.job))
     }
 }

@@ -172,7 +172,7 @@ impl Controller {
     /// force and the memory offset table, decoded once (issue #14), from where the axes are
     /// commanded now.
     pub fn machine_setup(&self) -> Result<MachineSetup, ControlError> {
-        self.tables.machine_setup(self.rt.snapshot().commanded)
+        self.tables.machine_setup(self.rt.snapshot().axes.commanded)
     }
 
     /// The R325 listing of `text` under the setup in force (SPEC §4.6): the text with E

@@ -68,8 +68,8 @@ impl Motion {
         let bit = 1u8 << i;
         loop {
             let s = *rx.borrow_and_update();
-            if s.commands_taken >= sent && s.state != MachineState::Homing {
-                if s.homed & bit != 0 {
+            if s.tick.commands_taken >= sent && s.state != MachineState::Homing {
+                if s.axes.homed & bit != 0 {
                     return Ok(());
                 }
                 return Err(homing::failure(&self.config, &s, i));
@@ -161,7 +161,8 @@ impl Motion {
             a.soft_min_mm.unwrap_or(f64::NEG_INFINITY),
             a.soft_max_mm.unwrap_or(f64::INFINITY),
         );
-        let target = Jog::continuous_target(snap.commanded[i], f64::from(dir.signum()), lo, hi);
+        let target =
+            Jog::continuous_target(snap.axes.commanded[i], f64::from(dir.signum()), lo, hi);
         rt.send(RtCommand::Jog(JogRequest {
             axis: i,
             target_mm: target,
@@ -185,7 +186,7 @@ impl Motion {
             return Ok(()); // jog_step names the axis error
         };
         let a = &self.config.axes[i];
-        let target = rt.snapshot().commanded[i] + step_mm;
+        let target = rt.snapshot().axes.commanded[i] + step_mm;
         let beyond = |limit: Option<f64>, upper: bool| match limit {
             Some(l) if upper => target > l + 1e-9 && step_mm > 0.0,
             Some(l) => target < l - 1e-9 && step_mm < 0.0,
@@ -228,7 +229,7 @@ impl Motion {
             )));
         }
         let a = &self.config.axes[i];
-        let here = snap.commanded[i];
+        let here = snap.axes.commanded[i];
         let mut target = here + step_mm;
         if let Some(hi) = a.soft_max_mm {
             target = target.min(hi.max(here));

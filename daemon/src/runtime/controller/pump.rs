@@ -63,15 +63,15 @@ impl Pump {
     }
 
     fn log_changes(&self, last: &Snapshot, s: &Snapshot) {
-        if s.fault != last.fault
-            && let Some(f) = s.fault
+        if s.alarm.fault != last.alarm.fault
+            && let Some(f) = s.alarm.fault
         {
             let axis =
                 hal::fault_axis_label(f.axis, &self.axis_names).unwrap_or_else(|| "-".into());
-            tracing::error!(axis, node = ?f.node, block = %BlockNo(s.block_n), line = s.line, "alarm: {}", f.reason);
+            tracing::error!(axis, node = ?f.node, block = %BlockNo(s.progress.block_n), line = s.progress.line, "alarm: {}", f.reason);
         }
         if s.state != last.state {
-            tracing::info!(state = ?s.state, job = s.job, block = %BlockNo(s.block_n), line = s.line, "machine state");
+            tracing::info!(state = ?s.state, job = s.progress.job, block = %BlockNo(s.progress.block_n), line = s.progress.line, "machine state");
         }
     }
 }

@@ -36,7 +36,7 @@ impl LoadedProgram {
     /// Whether it was validated with the setup a job started at `snap` under setup generation
     /// `generation` would take: the same constants and offsets and the same start position.
     pub(super) fn validated_as(&self, snap: &Snapshot, generation: u64, axes: usize) -> bool {
-        let here = snap.commanded;
+        let here = snap.axes.commanded;
         let moved = (0..axes).any(|i| (self.start[i] - here[i]).abs() > 1e-9);
         !moved && self.generation == generation
     }
@@ -92,7 +92,7 @@ impl Selection {
     ) -> Result<(Validation, MachineSetup, u64), ControlError> {
         let generation = tables.generation();
         let setup = tables
-            .machine_setup(rt.snapshot().commanded)?
+            .machine_setup(rt.snapshot().axes.commanded)?
             .with_modal(modal);
         self.count_pass();
         let v = pass(&setup);

@@ -155,9 +155,9 @@ pub async fn run(ctl: Arc<Controller>, shared: Arc<Shared>, period: Duration) {
     loop {
         let snap = *rx.borrow_and_update();
         let program = ctl.program().map(|p| p.name.clone());
-        let block = (snap.line > 0).then(|| match snap.block_n {
+        let block = (snap.progress.line > 0).then(|| match snap.progress.block_n {
             Some(n) => format!("N{n}"),
-            None => format!("line {}", snap.line),
+            None => format!("line {}", snap.progress.line),
         });
         let alarm = ctl.alarm();
         let view = MachineView {

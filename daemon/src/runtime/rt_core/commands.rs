@@ -76,14 +76,14 @@ impl RtCore {
         bus: &mut dyn DriveBus,
     ) {
         while let Ok(c) = commands.pop() {
-            self.snap.commands_taken += 1;
+            self.snap.tick.commands_taken += 1;
             match c {
                 RtCommand::Start { job, machine } => {
                     if self.snap.state == MachineState::Idle && !self.lifecycle.shutting_down {
                         self.logic.kr.set_constants(machine.kr);
                         self.job.in_position_mm = machine.in_position_mm;
                         self.job.active = job;
-                        self.snap.job = job;
+                        self.snap.progress.job = job;
                         self.job.sb_seq = u32::MAX;
                         self.job.spindle_off = false;
                         self.snap.state = MachineState::Running;
@@ -104,19 +104,19 @@ impl RtCore {
                 RtCommand::Resume => self.motion.interp.resume(),
                 RtCommand::Override(pct) => {
                     self.motion.interp.set_override(pct);
-                    self.snap.override_pct = pct.clamp(0.0, 150.0);
+                    self.snap.operator.feed_override_pct = pct.clamp(0.0, 150.0);
                 }
                 RtCommand::SpindleOverride(pct) => self.spindle_override(pct),
                 RtCommand::RapidOverride(pct) => {
                     self.motion.interp.set_rapid_override(pct);
-                    self.snap.rapid_override_pct = pct.clamp(0.0, 100.0);
+                    self.snap.operator.rapid_override_pct = pct.clamp(0.0, 100.0);
                 }
                 RtCommand::Reset => {
                     if self.snap.state == MachineState::Fault
                         && self.motion.interp.state() == InterpState::Idle
                     {
-                        self.snap.fault = None;
-                        self.snap.kr_fault = None;
+                        self.snap.alarm.fault = None;
+                        self.snap.alarm.kr_fault = None;
                         self.fault_stop.brake.clear();
                         self.fault_stop.safe_state_sent = false;
                         self.logic.kr.reset();
@@ -127,12 +127,12 @@ impl RtCore {
                 }
                 RtCommand::Plc(w) => self.logic.plc.stage(w),
                 RtCommand::SingleBlock(on) => {
-                    self.snap.single_block = on;
+                    self.snap.operator.single_block = on;
                     self.job.sb_seq = u32::MAX;
                 }
                 RtCommand::OptionalStop(on) => {
                     self.motion.interp.set_optional_stop(on);
-                    self.snap.optional_stop = on;
+                    self.snap.operator.optional_stop = on;
                 }
                 RtCommand::Shutdown => {
                     self.motion.jog.stop();
@@ -152,7 +152,7 @@ impl RtCore {
             *kernel::kr::SPINDLE_OVERRIDE_PCT.start(),
             *kernel::kr::SPINDLE_OVERRIDE_PCT.end(),
         );
-        self.snap.spindle_override_pct = pct.clamp(lo, hi);
+        self.snap.operator.spindle_override_pct = pct.clamp(lo, hi);
     }
 
     /// A jog starts only on an idle machine (or renews the running jog); its speed is scaled
@@ -165,7 +165,7 @@ impl RtCore {
         if !free {
             return;
         }
-        r.speed_mm_s *= self.snap.override_pct / 100.0;
+        r.speed_mm_s *= self.snap.operator.feed_override_pct / 100.0;
         let here = self.io.cmd.positions_mm[r.axis];
         if self.motion.jog.request(r, here) {
             self.snap.state = MachineState::Jog;

@@ -48,7 +48,7 @@ impl RtCore {
         );
         let result = bus.cycle(&self.io.bus_cmd, &mut self.io.fb);
         for i in 0..axes {
-            self.snap.actual[i] = self.io.fb.axes[i].position_mm;
+            self.snap.axes.actual[i] = self.io.fb.axes[i].position_mm;
         }
         if let Err(fault) = result {
             self.fault(fault);

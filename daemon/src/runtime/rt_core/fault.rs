@@ -24,7 +24,7 @@ impl RtCore {
     pub(super) fn abort(&mut self) {
         self.job.spindle_off = true;
         if self.job.active != 0 {
-            self.snap.aborted_job = self.job.active;
+            self.snap.progress.aborted_job = self.job.active;
             self.job.active = 0;
         }
         self.motion.interp.stop();
@@ -32,8 +32,8 @@ impl RtCore {
 
     pub(super) fn fault(&mut self, fault: BusFault) {
         self.forget_reference(fault);
-        if self.snap.fault.is_none() {
-            self.snap.fault = Some(fault);
+        if self.snap.alarm.fault.is_none() {
+            self.snap.alarm.fault = Some(fault);
             self.start_fault_stop(fault);
             self.abort();
         }
@@ -48,7 +48,7 @@ impl RtCore {
         self.motion.jog.cancel();
         let homing = self.motion.homing.take();
         if let Some(h) = homing {
-            self.snap.homing_failed |= 1 << h.axis;
+            self.snap.axes.homing_failed |= 1 << h.axis;
         }
         let now = AxesMm(self.io.cmd.positions_mm);
         self.fault_stop.brake.start(
@@ -69,7 +69,7 @@ impl RtCore {
         }
         self.fault_stop.rest_ticks = 0;
         self.fault_stop.safe_state_sent = false;
-        self.snap.fault_path_deviation_mm = 0.0;
+        self.snap.alarm.fault_path_deviation_mm = 0.0;
     }
 
     /// While the fault stop runs: measure the deviation from the path; once every axis is at
@@ -79,13 +79,13 @@ impl RtCore {
         if !self.fault_stop.brake.active() {
             return;
         }
-        self.fault_stop.brake.observe(&self.snap.actual);
-        self.snap.fault_path_deviation_mm = self.fault_stop.brake.deviation_mm();
+        self.fault_stop.brake.observe(&self.snap.axes.actual);
+        self.snap.alarm.fault_path_deviation_mm = self.fault_stop.brake.deviation_mm();
         if self.fault_stop.safe_state_sent || !self.fault_stop.brake.at_rest() {
             return;
         }
         let settled = (0..self.io.axes)
-            .all(|i| (self.io.cmd.positions_mm[i] - self.snap.actual[i]).abs() < SETTLED_MM);
+            .all(|i| (self.io.cmd.positions_mm[i] - self.snap.axes.actual[i]).abs() < SETTLED_MM);
         self.fault_stop.rest_ticks += 1;
         if settled || self.fault_stop.rest_ticks >= SETTLE_TICKS {
             bus.safe_state();

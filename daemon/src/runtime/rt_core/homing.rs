@@ -30,8 +30,8 @@ impl RtCore {
             return;
         }
         let bit = 1u8 << r.axis;
-        self.snap.homed &= !bit;
-        self.snap.homing_failed &= !bit;
+        self.snap.axes.homed &= !bit;
+        self.snap.axes.homing_failed &= !bit;
         if bus.drive_homes() {
             // The drive moves on its own (its settings are the bus's); the axis's setpoint
             // is not used until the run ends.
@@ -91,10 +91,10 @@ impl RtCore {
                 self.io.bus_cmd.positions_mm[h.axis] += shift;
                 self.io.resampler.shift(h.axis, shift);
                 self.io.fb.axes[h.axis].position_mm += shift;
-                self.snap.actual[h.axis] += shift;
-                self.snap.homed |= bit;
+                self.snap.axes.actual[h.axis] += shift;
+                self.snap.axes.homed |= bit;
             }
-            None => self.snap.homing_failed |= bit,
+            None => self.snap.axes.homing_failed |= bit,
         }
         self.motion.homing = None;
     }
@@ -106,8 +106,8 @@ impl RtCore {
         let bit = 1u8 << axis;
         match bus.homing_state(axis) {
             HomingState::Idle | HomingState::Running => return,
-            HomingState::Done => self.snap.homed |= bit,
-            HomingState::Aborted => self.snap.homing_failed |= bit,
+            HomingState::Done => self.snap.axes.homed |= bit,
+            HomingState::Aborted => self.snap.axes.homing_failed |= bit,
         }
         let here = self.io.fb.axes[axis].position_mm;
         self.io.cmd.positions_mm[axis] = here;
@@ -130,8 +130,8 @@ impl RtCore {
         if let (Some(a), HomingRefused | HomingTimeout) = (fault.axis, fault.reason)
             && usize::from(a) < self.io.axes
         {
-            self.snap.homed &= !(1 << a);
-            self.snap.homing_failed |= 1 << a;
+            self.snap.axes.homed &= !(1 << a);
+            self.snap.axes.homing_failed |= 1 << a;
         }
     }
 }

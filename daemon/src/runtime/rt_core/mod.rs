@@ -45,7 +45,9 @@ use super::resample::{BusClock, Resampler};
 use super::stats::TickStats;
 
 pub use commands::{HomeRequest, JobMachine, RtCommand};
-pub use snapshot::Snapshot;
+pub use snapshot::{
+    Alarms, AxesStatus, OperatorSettings, Progress, Snapshot, SpindleStatus, TickInfo,
+};
 pub use state::MachineState;
 
 use exchange::BusIo;
@@ -106,9 +108,10 @@ impl RtCore {
             .saturating_add(ENABLE_MARGIN_TICKS);
         bus.enable();
         RtCore {
-            snap: Snapshot {
-                cycle_ns: cfg.cycle_ns,
-                ..Snapshot::initial(cfg.axes, cfg.start)
+            snap: {
+                let mut s = Snapshot::initial(cfg.axes, cfg.start);
+                s.tick.cycle_ns = cfg.cycle_ns;
+                s
             },
             timing: Timing {
                 deadline_ns: now_ns + cfg.cycle_ns,

@@ -98,7 +98,8 @@ impl RtCore {
     /// speed commanded last tick.
     pub(super) fn interpolate(&mut self) -> TickOut {
         let in_position = (0..self.io.axes).all(|i| {
-            (self.snap.commanded[i] - self.snap.actual[i]).abs() <= self.job.in_position_mm[i]
+            (self.snap.axes.commanded[i] - self.snap.axes.actual[i]).abs()
+                <= self.job.in_position_mm[i]
         });
         self.motion.interp.set_in_position(in_position);
         self.motion.interp.set_spindle_ready(
@@ -129,7 +130,7 @@ impl RtCore {
         };
         let axis = self.logic.kr.config().controlling_axis;
         // After a stop the spindle stops once the axes are at rest; on a fault at once.
-        let off = self.snap.fault.is_some()
+        let off = self.snap.alarm.fault.is_some()
             || (self.job.spindle_off && self.motion.interp.state() == InterpState::Idle);
         let input = KrInput {
             program: ProgramSpindle {
@@ -150,18 +151,18 @@ impl RtCore {
         };
         let k = self.logic.kr.tick(&input, &mut self.logic.plc);
         self.io.cmd.spindle_rpm = k.spindle_rpm;
-        self.snap.kr = k;
+        self.snap.spindle.kr = k;
         if let Some(f) = k.fault
-            && self.snap.kr_fault.is_none()
+            && self.snap.alarm.kr_fault.is_none()
         {
-            self.snap.kr_fault = Some(f);
+            self.snap.alarm.kr_fault = Some(f);
             self.abort();
         }
     }
 
     /// Single-block mode: once the path of the running job moves into another block, hold.
     pub(super) fn single_block_check(&mut self, seq: u32, v_mm_s: f64) {
-        if !self.snap.single_block || self.job.active == 0 {
+        if !self.snap.operator.single_block || self.job.active == 0 {
             return;
         }
         if self.job.sb_seq == u32::MAX {

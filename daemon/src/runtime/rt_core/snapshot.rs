@@ -10,9 +10,29 @@ use super::super::resample::BusClock;
 use super::super::stats::{TickStats, TickSummary};
 use super::{MachineState, RtCore};
 
-/// What the RT thread publishes every tick. `Copy`, fixed size: written without allocation.
+/// What the RT thread publishes every tick, grouped by concern. `Copy`, fixed size: written
+/// without allocation.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Snapshot {
+    /// The tick itself: its count, period, time, the commands taken, lateness statistics.
+    pub tick: TickInfo,
+    pub state: MachineState,
+    /// What stopped the machine: a drive or bus fault, a KŘR fault.
+    pub alarm: Alarms,
+    /// Where the axes are and whether they are homed.
+    pub axes: AxesStatus,
+    /// The job and the block it executes.
+    pub progress: Progress,
+    /// What the operator set: overrides and switches in force.
+    pub operator: OperatorSettings,
+    pub spindle: SpindleStatus,
+    /// PLC memory area 1 as in force this tick.
+    pub plc: PlcArea,
+}
+
+/// The tick: its count and time, and the lateness statistics of the deadline grid.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TickInfo {
     /// Increases by one per tick (bus period).
     pub sequence: u64,
     /// Commands the core has taken from its ring so far: the controller's n-th command has
@@ -23,11 +43,38 @@ pub struct Snapshot {
     pub cycle_ns: u64,
     /// Clock time of the tick, ns.
     pub time_ns: u64,
-    pub state: MachineState,
-    pub axes: usize,
+    pub stats: TickSummary,
+}
+
+/// The faults in force (cleared by Reset) and what the last fault stop cost.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Alarms {
+    /// A drive or bus fault.
+    pub fault: Option<BusFault>,
+    /// A KŘR fault stopped the machine (cleared by Reset).
+    pub kr_fault: Option<KrFault>,
+    /// Largest distance of the tool from the programmed path the last fault stop caused, mm.
+    pub fault_path_deviation_mm: f64,
+}
+
+/// The axes: positions, path velocity, reference state.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct AxesStatus {
+    /// Configured axes (the first `count` entries of the positions are used).
+    pub count: usize,
+    /// What the drives were sent, mm.
     pub commanded: AxesMm,
     pub actual: AxesMm,
     pub path_v_mm_s: f64,
+    /// Axes homed since power-on (bit i: axis i).
+    pub homed: u8,
+    /// Axes whose last reference run failed (switch not found, stopped, fault).
+    pub homing_failed: u8,
+}
+
+/// The job and the block it executes.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Progress {
     /// Job running, or the last one started.
     pub job: u32,
     /// Last job that ran to its end.
@@ -38,47 +85,52 @@ pub struct Snapshot {
     pub block_seq: u32,
     pub block_n: Option<u32>,
     pub line: u32,
-    pub ticks: TickSummary,
-    pub fault: Option<BusFault>,
-    pub override_pct: f64,
+    /// Held at a program stop (M0, or M1 with optional stop on).
+    pub program_stop: bool,
+}
+
+/// What the operator set: the overrides and switches in force.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct OperatorSettings {
+    /// Feed override in force, percent.
+    pub feed_override_pct: f64,
     /// Spindle override in force, percent (issue #19).
     pub spindle_override_pct: f64,
     /// Rapid override in force, percent (issue #19).
     pub rapid_override_pct: f64,
-    pub spindle_rpm: f64,
-    /// PLC memory area 1 as in force this tick.
-    pub plc: PlcArea,
     /// Single-block mode is on.
     pub single_block: bool,
-    /// A cut waits for the spindle: at rest for it to reach its speed, or a feed per
-    /// revolution held because the spindle is below 1 rpm (stopped, stalled by load).
-    pub waiting_for_spindle: bool,
-    /// Constant cutting speed (KŘR) output this tick (SPEC §6).
-    pub kr: KrOutput,
-    /// A KŘR fault stopped the machine (cleared by Reset).
-    pub kr_fault: Option<KrFault>,
     /// Optional stop is on: M1 stops the program.
     pub optional_stop: bool,
-    /// Held at a program stop (M0, or M1 with optional stop on).
-    pub program_stop: bool,
-    /// Largest distance of the tool from the programmed path the last fault stop caused, mm.
-    pub fault_path_deviation_mm: f64,
-    /// Axes homed since power-on (bit i: axis i).
-    pub homed: u8,
-    /// Axes whose last reference run failed (switch not found, stopped, fault).
-    pub homing_failed: u8,
+}
+
+/// The spindle: its speed and the constant cutting speed (KŘR) output.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SpindleStatus {
+    pub rpm: f64,
+    /// A cut waits for the spindle: at rest for it to reach its speed, or a feed per
+    /// revolution held because the spindle is below 1 rpm (stopped, stalled by load).
+    pub waiting: bool,
+    /// Constant cutting speed (KŘR) output this tick (SPEC §6).
+    pub kr: KrOutput,
 }
 
 impl Snapshot {
-    /// The snapshot before the first tick: at `start`, override 100 %.
+    /// The snapshot before the first tick: at `start`, overrides 100 %.
     pub fn initial(axes: usize, start: AxesMm) -> Snapshot {
         Snapshot {
-            axes,
-            commanded: start,
-            actual: start,
-            override_pct: 100.0,
-            spindle_override_pct: 100.0,
-            rapid_override_pct: 100.0,
+            axes: AxesStatus {
+                count: axes,
+                commanded: start,
+                actual: start,
+                ..AxesStatus::default()
+            },
+            operator: OperatorSettings {
+                feed_override_pct: 100.0,
+                spindle_override_pct: 100.0,
+                rapid_override_pct: 100.0,
+                ..OperatorSettings::default()
+            },
             ..Snapshot::default()
         }
     }
@@ -106,7 +158,7 @@ impl RtCore {
         let missed = lateness_ns / cycle_ns;
         self.timing.deadline_ns += (missed + 1) * cycle_ns;
         self.timing.stats.record(lateness_ns, missed);
-        if self.snap.sequence.is_multiple_of(STATS_REFRESH_TICKS) {
+        if self.snap.tick.sequence.is_multiple_of(STATS_REFRESH_TICKS) {
             self.timing.stats.refresh();
         }
     }
@@ -114,18 +166,18 @@ impl RtCore {
     pub(super) fn publish(&mut self, now_ns: u64) -> &Snapshot {
         let out = &self.motion.out;
         let s = &mut self.snap;
-        s.sequence += 1;
-        s.time_ns = now_ns;
+        s.tick.sequence += 1;
+        s.tick.time_ns = now_ns;
         // What the drives were sent: following error and in-position compare against it.
-        s.commanded = AxesMm(self.io.bus_cmd.positions_mm);
-        s.path_v_mm_s = out.path_v_mm_s;
-        s.block_seq = out.seq;
-        s.block_n = out.n;
-        s.line = out.line;
-        s.ticks = self.timing.stats.summary();
-        s.spindle_rpm = self.io.fb.spindle_rpm;
-        s.waiting_for_spindle = self.motion.interp.waiting_for_spindle();
-        s.program_stop = self.motion.interp.at_program_stop();
+        s.axes.commanded = AxesMm(self.io.bus_cmd.positions_mm);
+        s.axes.path_v_mm_s = out.path_v_mm_s;
+        s.progress.block_seq = out.seq;
+        s.progress.block_n = out.n;
+        s.progress.line = out.line;
+        s.tick.stats = self.timing.stats.summary();
+        s.spindle.rpm = self.io.fb.spindle_rpm;
+        s.spindle.waiting = self.motion.interp.waiting_for_spindle();
+        s.progress.program_stop = self.motion.interp.at_program_stop();
         s.plc = self.logic.plc;
         &self.snap
     }

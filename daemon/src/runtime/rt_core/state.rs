@@ -62,7 +62,7 @@ impl RtCore {
             return;
         }
         let s = &mut self.snap;
-        if s.fault.is_some() || s.kr_fault.is_some() {
+        if s.alarm.fault.is_some() || s.alarm.kr_fault.is_some() {
             s.state = MachineState::Fault;
             return;
         }
@@ -98,8 +98,8 @@ impl RtCore {
         let s = &mut self.snap;
         s.state = MachineState::Shutdown;
         if is == InterpState::Idle {
-            let settled =
-                (0..self.io.axes).all(|i| (s.commanded[i] - s.actual[i]).abs() < SETTLED_MM);
+            let settled = (0..self.io.axes)
+                .all(|i| (s.axes.commanded[i] - s.axes.actual[i]).abs() < SETTLED_MM);
             self.lifecycle.settle_ticks = if settled {
                 SETTLE_TICKS
             } else {
@@ -122,12 +122,12 @@ impl RtCore {
         if ready {
             // Drives report where they are: command from there (after a fault or at
             // power-on they may be elsewhere than the last setpoint).
-            let mut here = s.commanded;
+            let mut here = s.axes.commanded;
             for i in 0..self.io.axes {
                 here[i] = self.io.fb.axes[i].position_mm;
             }
             if self.motion.interp.set_position(here) {
-                s.commanded = here;
+                s.axes.commanded = here;
                 self.io.cmd.positions_mm[..self.io.axes].copy_from_slice(&here.0[..self.io.axes]);
                 self.io.bus_cmd.positions_mm[..self.io.axes]
                     .copy_from_slice(&here.0[..self.io.axes]);
@@ -136,7 +136,7 @@ impl RtCore {
             }
             s.state = MachineState::Idle;
         } else if self.lifecycle.enable_ticks > self.lifecycle.enable_window_ticks {
-            s.fault = Some(BusFault {
+            s.alarm.fault = Some(BusFault {
                 axis: None,
                 node: None,
                 reason: hal::FaultReason::Timeout,
@@ -157,7 +157,7 @@ impl RtCore {
             && is == InterpState::Idle
             && self.io.resampler.settled();
         if job_done {
-            s.finished_job = self.job.active;
+            s.progress.finished_job = self.job.active;
             self.job.active = 0;
         }
         s.state = match is {

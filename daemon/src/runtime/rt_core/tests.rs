@@ -62,8 +62,8 @@ fn a_late_tick_stays_on_the_deadline_grid() {
     // Woke two and a half periods late: two deadlines missed.
     let snap = *core.tick(due + 5 * TS_NS / 2, &mut rings, &mut bus);
     assert_eq!(core.next_deadline_ns(), due + 3 * TS_NS);
-    assert_eq!(snap.ticks.overruns, 2);
-    assert_eq!(snap.sequence, 1);
+    assert_eq!(snap.tick.stats.overruns, 2);
+    assert_eq!(snap.tick.sequence, 1);
     // On time again: one period on.
     let due = core.next_deadline_ns();
     core.tick(due, &mut rings, &mut bus);
@@ -81,7 +81,7 @@ fn the_drives_enable_then_the_machine_is_idle() {
         }
     }
     assert_eq!(core.snapshot().state, MachineState::Idle);
-    assert_eq!(core.snapshot().fault, None);
+    assert_eq!(core.snapshot().alarm.fault, None);
 }
 
 #[test]
