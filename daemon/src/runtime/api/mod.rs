@@ -29,7 +29,7 @@ use kernel::block::{ArcDir, Block, BlockKind, Comp, Continuity, Feed, Path, Plan
 use kernel::plc::CellId;
 
 use super::config::Role;
-use super::controller::Controller;
+use super::controller::{Controller, LoadedProgram};
 use super::library::{Library, ProgramText};
 use super::rt::{MachineState, Snapshot};
 
@@ -274,11 +274,7 @@ impl ApiState {
         let plc = &s.plc;
         pb::Status {
             state: state_to_pb(s.state) as i32,
-            program: match (mode, &program) {
-                (RunMode::Mdi, _) => "MDI".into(),
-                (_, Some(p)) => p.name.clone(),
-                _ => String::new(),
-            },
+            program: program_name(mode, program.as_deref()),
             block: s.progress.block_n,
             line: s.progress.line,
             block_index: s.progress.block_seq,
@@ -296,10 +292,7 @@ impl ApiState {
             spindle_override_percent: s.operator.spindle_override_pct,
             rapid_override_percent: s.operator.rapid_override_pct,
             spindle_rpm: s.spindle.rpm,
-            mode: match mode {
-                RunMode::Auto => pb::Mode::Auto,
-                RunMode::Mdi => pb::Mode::Mdi,
-            } as i32,
+            mode: mode.to_pb() as i32,
             single_block: s.operator.single_block,
             feed_programmed,
             feed_mode: feed_mode.into(),
@@ -353,6 +346,24 @@ impl ApiState {
                 at_soft_limit: at_soft_limit(ctl.config().axes.get(i), s.axes.commanded[i]),
             })
             .collect()
+    }
+}
+
+impl RunMode {
+    fn to_pb(self) -> pb::Mode {
+        match self {
+            RunMode::Auto => pb::Mode::Auto,
+            RunMode::Mdi => pb::Mode::Mdi,
+        }
+    }
+}
+
+/// The program the status names: MDI, else the selected program's name.
+fn program_name(mode: RunMode, program: Option<&LoadedProgram>) -> String {
+    match (mode, program) {
+        (RunMode::Mdi, _) => "MDI".into(),
+        (_, Some(p)) => p.name.clone(),
+        _ => String::new(),
     }
 }
 
