@@ -104,6 +104,14 @@ impl<const N: usize> Track<N> {
         }
     }
 
+    /// Frees what only drawing more needs (the set of drawn edges), for a track kept to be
+    /// read: segments added later are no longer checked against what is drawn.
+    pub fn freeze(&mut self) {
+        self.edges = HashSet::default();
+        self.pts.shrink_to_fit();
+        self.pen = None;
+    }
+
     /// Ends the drawing here (the next segment starts a new polyline even if it joins).
     pub fn pen_up(&mut self) {
         self.pen = None;

@@ -121,6 +121,14 @@ impl Outline {
         }
     }
 
+    /// The pass is over: frees what only collecting needs (the outline is kept to be read).
+    pub fn freeze(&mut self) {
+        for t in [&mut self.feed, &mut self.rapid, &mut self.comp] {
+            t.freeze();
+        }
+        self.scratch = Vec::new();
+    }
+
     /// Grid of the outline, mm (a view finer than this needs a clipped pass).
     pub fn cell_mm(&self) -> f64 {
         self.feed
@@ -402,8 +410,8 @@ mod tests {
         assert!(v.feed.xy.len() / 2 <= VIEW_POINTS, "{}", v.feed.xy.len());
         assert!(o.cell_mm() > 0.0);
         let zoom = Bounds {
-            min: [10.0, 10.0],
-            max: [11.0, 11.0],
+            min: [10.0, 2.0],
+            max: [11.0, 3.0],
         };
         let opts = PreviewOptions::new(Setup::new(&['X', 'Y', 'Z']));
         let clip = Clip {

@@ -42,6 +42,7 @@ fn own_pass(st: &ApiState, clip: Option<Clip>, cell_mm: f64) -> Result<Outline, 
     if v.has_errors() {
         return Err(invalid_with_diagnostics("program", &v.diagnostics));
     }
+    o.freeze();
     Ok(o)
 }
 

@@ -129,7 +129,8 @@ fn prepare(
     let outline = ::preview::outline::Outline::new(&st.ctl.config().axis_names());
     let mut obs = (pass, (record, outline));
     let loaded = st.ctl.prepare_program(name, text, &mut obs)?;
-    let (pass, (record, outline)) = obs;
+    let (pass, (record, mut outline)) = obs;
+    outline.freeze();
     let recording = record
         .finish(loaded.block_count, loaded.warnings.clone())
         .map(Arc::new);
