@@ -160,18 +160,26 @@ export function previewScreen(): Screen {
     }, REFINE_AFTER_MS);
   }
 
+  /** What the drawing is of: the selection (name, blocks) and the job, so that a start (of
+   * a program selected again meanwhile, by any client) draws what it runs. */
+  const keyOf = (s: Status) => `${s.program}/${s.blocksTotal}/${s.job}/${plane.value}`;
+
   async function load(s: Status): Promise<void> {
-    loadedFor = `${s.program}/${s.blocksTotal}/${plane.value}`;
+    // The same program on the same plane keeps the operator's zoom.
+    const keep = !!whole && loadedFor.split("/")[0] === s.program && loadedFor.endsWith(`/${plane.value}`);
+    loadedFor = keyOf(s);
     const gen = ++generation;
     stage.dataset.state = "loading";
     const t0 = performance.now();
     try {
-      whole = detail = undefined;
+      if (!keep) whole = detail = undefined;
       velocity.hidden = true;
       const o = await preview.getPreviewOutline({ plane: plane.value, ...px() });
       if (gen !== generation) return;
       whole = { o };
-      fit();
+      detail = undefined;
+      if (keep) refineLater();
+      else fit();
       redraw();
       stage.dataset.mode = "outline";
       stage.dataset.state = "drawn";
@@ -200,8 +208,7 @@ export function previewScreen(): Screen {
   // coordinates, the tool centre: what the outline's blue path shows under compensation).
   subscribe((s) => {
     latest = s;
-    const key = `${s.program}/${s.blocksTotal}/${plane.value}`;
-    if (!el.hidden && s.program && key !== loadedFor && stage.dataset.state !== "loading") void load(s);
+    if (!el.hidden && s.program && keyOf(s) !== loadedFor && stage.dataset.state !== "loading") void load(s);
     if (!whole || el.hidden) return;
     const [hn, vn] = plane.value.toUpperCase().split("");
     const at = (n: string) => s.axes.find((a) => a.name === n)?.commandedMm ?? 0;
