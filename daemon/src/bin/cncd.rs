@@ -173,30 +173,18 @@ fn bus_label(c: &Config) -> String {
 }
 
 async fn run(config: Config) -> Result<(), CncdError> {
-    let notifier = match Notifier::from_env() {
-        Ok(n) => n.map(Arc::new),
-        Err(e) => {
-            tracing::warn!("NOTIFY_SOCKET unusable ({e}): systemd will not hear from cncd");
-            None
-        }
-    };
+    let notifier = notifier_from_env();
     // Signal handlers first: a SIGTERM during start-up also brakes and exits cleanly.
     let mut signals = Signals::install()?;
     // Every API listener is bound before READY=1 (sent once the drives are operational), so
     // ready means reachable; a listener that cannot be bound ends the start with an error.
     let (listener, local) = bind_listen(&config).await?;
     let hmi = bind_hmi(&config).await?;
-    let mut api_on = vec![local.to_string()];
-    if let Some(p) = config.api.unix_socket_path(&config.storage.dir) {
-        api_on.push(p.display().to_string());
-    }
-    let api_on = api_on.join(" and ");
-    let names: String = config.axis_names().iter().collect();
-    let bus = bus_label(&config);
+    let summary = summary(&config, local);
     let axis_names = config.axis_names();
     // The controller creates the storage directory, where the Unix socket may live.
     let ctl = start_controller(config)?;
-    tracing::info!("cncd started: axes {names} on bus {bus}, API on {api_on}; enabling drives");
+    tracing::info!("cncd started: {summary}; enabling drives");
     log_hmi(&ctl, hmi.as_ref());
     let listeners = listeners_beside(&ctl, listener, local).await?;
     // Bound: cncctl may find it now, whatever the data directory (issue #31).
@@ -209,54 +197,20 @@ async fn run(config: Config) -> Result<(), CncdError> {
         notifier.clone(),
         systemd::watchdog_from_env(),
         axis_names,
-        format!("axes {names} on bus {bus}, API on {api_on}"),
+        summary,
     );
     let health = tokio::spawn(logging::rt_health(
         ctl.subscribe(),
         Duration::from_secs(10),
         Duration::from_secs(15 * 60),
     ));
-    let (tx, rx) = tokio::sync::oneshot::channel::<()>();
-    let mut serve = tokio::spawn(server::serve_with_configured_hmi(
-        ctl.clone(),
-        listeners,
-        hmi,
-        async {
-            let _ = rx.await;
-        },
-    ));
-    // The MTConnect agent (docs/mtconnect.md): read-only; it stops with the API.
-    let (mt_tx, mt_rx) = tokio::sync::oneshot::channel::<()>();
-    let agent = tokio::spawn(mtconnect::run_configured(
-        ctl.clone(),
-        ctl.config().mtconnect.clone(),
-        async {
-            let _ = mt_rx.await;
-        },
-    ));
-    // Run until a signal, or until the API fails (then stop too: an unreachable controller
-    // must not look healthy to systemd).
-    let api_failure = tokio::select! {
-        _ = signals.recv() => None,
-        r = &mut serve => Some(match r {
-            Ok(Ok(())) => "the API stopped".to_owned(),
-            Ok(Err(e)) => format!("API: {e}"),
-            Err(e) => format!("API task: {e}"),
-        }),
-    };
-    if let Some(e) = &api_failure {
-        tracing::error!("{e}");
-    }
+    let mut services = Services::start(&ctl, listeners, hmi);
+    let api_failure = services.until_signal_or_failure(&mut signals).await;
     bring_to_rest(&ctl, notifier.as_deref()).await?;
     supervision.stop();
     health.abort();
     log_rest_positions(&ctl);
-    let _ = tx.send(());
-    let _ = mt_tx.send(());
-    let _ = tokio::time::timeout(server::SHUTDOWN_DRAIN, agent).await;
-    if api_failure.is_none() {
-        let _ = serve.await;
-    }
+    services.stop(api_failure.is_none()).await;
     if let Some(s) = &socket {
         discovery::unpublish(s);
     }
@@ -264,6 +218,98 @@ async fn run(config: Config) -> Result<(), CncdError> {
     match api_failure {
         None => Ok(()),
         Some(_) => Err(CncdError::AfterApiFailure),
+    }
+}
+
+/// systemd's notification socket when cncd runs under it.
+fn notifier_from_env() -> Option<Arc<Notifier>> {
+    match Notifier::from_env() {
+        Ok(n) => n.map(Arc::new),
+        Err(e) => {
+            tracing::warn!("NOTIFY_SOCKET unusable ({e}): systemd will not hear from cncd");
+            None
+        }
+    }
+}
+
+/// `axes XYZ on bus sim, API on 127.0.0.1:50051 and /run/cnc/api.sock`: the start-up log line
+/// and systemd's status.
+fn summary(config: &Config, local: std::net::SocketAddr) -> String {
+    let mut api_on = vec![local.to_string()];
+    if let Some(p) = config.api.unix_socket_path(&config.storage.dir) {
+        api_on.push(p.display().to_string());
+    }
+    let api_on = api_on.join(" and ");
+    let names: String = config.axis_names().iter().collect();
+    let bus = bus_label(config);
+    format!("axes {names} on bus {bus}, API on {api_on}")
+}
+
+/// The API (with the HMI) and the MTConnect agent, each on its task with its stop signal.
+struct Services {
+    api: tokio::task::JoinHandle<Result<(), server::ServerError>>,
+    stop_api: tokio::sync::oneshot::Sender<()>,
+    agent: tokio::task::JoinHandle<()>,
+    stop_agent: tokio::sync::oneshot::Sender<()>,
+}
+
+impl Services {
+    fn start(
+        ctl: &Arc<Controller>,
+        listeners: server::Listeners,
+        hmi: Option<tokio::net::TcpListener>,
+    ) -> Services {
+        let (stop_api, rx) = tokio::sync::oneshot::channel::<()>();
+        let api = tokio::spawn(server::serve_with_configured_hmi(
+            ctl.clone(),
+            listeners,
+            hmi,
+            async {
+                let _ = rx.await;
+            },
+        ));
+        // The MTConnect agent (docs/mtconnect.md): read-only; it stops with the API.
+        let (stop_agent, mt_rx) = tokio::sync::oneshot::channel::<()>();
+        let agent = tokio::spawn(mtconnect::run_configured(
+            ctl.clone(),
+            ctl.config().mtconnect.clone(),
+            async {
+                let _ = mt_rx.await;
+            },
+        ));
+        Services {
+            api,
+            stop_api,
+            agent,
+            stop_agent,
+        }
+    }
+
+    /// Runs until a signal (`None`), or until the API fails (its failure: then cncd stops
+    /// too, since an unreachable controller must not look healthy to systemd).
+    async fn until_signal_or_failure(&mut self, signals: &mut Signals) -> Option<String> {
+        let api_failure = tokio::select! {
+            _ = signals.recv() => None,
+            r = &mut self.api => Some(match r {
+                Ok(Ok(())) => "the API stopped".to_owned(),
+                Ok(Err(e)) => format!("API: {e}"),
+                Err(e) => format!("API task: {e}"),
+            }),
+        };
+        if let Some(e) = &api_failure {
+            tracing::error!("{e}");
+        }
+        api_failure
+    }
+
+    /// Stops the agent and the API (waiting for the API's drain when it still runs).
+    async fn stop(self, api_running: bool) {
+        let _ = self.stop_api.send(());
+        let _ = self.stop_agent.send(());
+        let _ = tokio::time::timeout(server::SHUTDOWN_DRAIN, self.agent).await;
+        if api_running {
+            let _ = self.api.await;
+        }
     }
 }
 

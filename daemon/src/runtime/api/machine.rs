@@ -11,32 +11,17 @@ use tokio_stream::Stream;
 use tonic::{Request, Response, Status};
 
 use super::auth::require;
+use super::jog;
 use kernel::pipeline::{self, Flow};
 use kernel::plan::Segment;
 
 use super::programs::{check_name, select_stored, store_text};
 use super::{
     ApiState, DEFAULT_STATUS_HZ, JUNCTION_CLASSIFY_MAX_BLOCKS, MAX_STATUS_HZ, RunInfo, RunMode,
-    blocking, counts_pb, diagnostic_to_pb, refused, status_of,
+    blocking, counts_pb, diagnostic_to_pb, status_of,
 };
 use crate::runtime::config::Role::{Observer, Operator};
 use crate::runtime::controller::{ControlError, Controller};
-use crate::runtime::homing;
-use crate::runtime::rt::MachineState;
-
-/// Jog lease of `JogLease` when the request gives none, and its bounds, ms (cnc.proto).
-const DEFAULT_LEASE_MS: u32 = 500;
-const MIN_LEASE_MS: u32 = 100;
-const MAX_LEASE_MS: u32 = 1000;
-
-/// Releases the continuous jog when its stream ends, however it ends.
-struct JogHeld<'a>(&'a std::sync::atomic::AtomicBool);
-
-impl Drop for JogHeld<'_> {
-    fn drop(&mut self) {
-        self.0.store(false, Ordering::Release);
-    }
-}
 
 /// Largest program run in single-block mode (its blocks are kept in memory), bytes.
 const SINGLE_BLOCK_MAX_BYTES: u64 = 16 << 20;
@@ -338,36 +323,8 @@ impl Machine for MachineSvc {
         req: Request<tonic::Streaming<pb::JogRequest>>,
     ) -> Result<Response<pb::JogReply>, Status> {
         require(&req, Operator, "Jog")?;
-        let mut stream = req.into_inner();
-        let ctl = &self.0.ctl;
-        // One motion source at a time: this stream holds the jog until it ends; another
-        // stream, a running step, a program or a reference run refuses it.
-        let state = ctl.snapshot().state;
-        if state != crate::runtime::rt::MachineState::Idle
-            || self.0.jog_stream.swap(true, Ordering::AcqRel)
-        {
-            return Err(refused(
-                tonic::Code::FailedPrecondition,
-                kernel::DiagCode::JogBusy,
-                format!("the machine is busy ({state:?}, or another jog): one motion at a time"),
-            ));
-        }
-        let _held = JogHeld(&self.0.jog_stream);
-        let mut target = 0.0;
-        // Every message renews the jog; the end of the stream (or its failure: the client
-        // went away) stops it. A silent client is stopped by the RT thread's lease.
-        let result = loop {
-            match stream.message().await {
-                Ok(Some(m)) => match ctl.jog(&m.axis, m.direction, m.speed_mm_min) {
-                    Ok(t) => target = t,
-                    Err(e) => break Err(status_of(e)),
-                },
-                Ok(None) => break Ok(()),
-                Err(e) => break Err(e),
-            }
-        };
-        let _ = ctl.jog_stop();
-        result.map(|()| Response::new(pb::JogReply { target_mm: target }))
+        let target_mm = jog::streamed(&self.0, req.into_inner()).await?;
+        Ok(Response::new(pb::JogReply { target_mm }))
     }
 
     async fn who_am_i(
@@ -386,7 +343,7 @@ impl Machine for MachineSvc {
         req: Request<pb::JogLeaseRequest>,
     ) -> Result<Response<pb::JogReply>, Status> {
         require(&req, Operator, "JogLease")?;
-        let target_mm = jog_lease(&self.0, req.into_inner())?;
+        let target_mm = jog::lease(&self.0, req.into_inner())?;
         Ok(Response::new(pb::JogReply { target_mm }))
     }
 
@@ -395,12 +352,7 @@ impl Machine for MachineSvc {
         req: Request<pb::JogStopRequest>,
     ) -> Result<Response<pb::JogStopReply>, Status> {
         require(&req, Operator, "JogStop")?;
-        let mut held = self.0.lease_jog.lock().unwrap();
-        *held = None;
-        // Only a jog is braked: the jog generator also moves a reference run (homing).
-        if self.0.ctl.snapshot().state == MachineState::Jog {
-            self.0.ctl.jog_stop().map_err(status_of)?;
-        }
+        jog::stop(&self.0)?;
         Ok(Response::new(pb::JogStopReply {}))
     }
 
@@ -416,30 +368,8 @@ impl Machine for MachineSvc {
         req: Request<pb::JogStepRequest>,
     ) -> Result<Response<pb::JogReply>, Status> {
         require(&req, Operator, "JogStep")?;
-        let r = req.into_inner();
-        let state = self.0.ctl.snapshot().state;
-        if state != crate::runtime::rt::MachineState::Idle
-            || self.0.jog_stream.load(Ordering::Acquire)
-        {
-            return Err(refused(
-                tonic::Code::FailedPrecondition,
-                kernel::DiagCode::JogBusy,
-                format!("the machine is busy ({state:?}, or a jog): one motion at a time"),
-            ));
-        }
-        self.0.ctl.jog_step_check(&r.axis, r.step_mm).map_err(|m| {
-            refused(
-                tonic::Code::InvalidArgument,
-                kernel::DiagCode::JogBeyondTravel,
-                m,
-            )
-        })?;
-        let target = self
-            .0
-            .ctl
-            .jog_step(&r.axis, r.step_mm, r.speed_mm_min)
-            .map_err(status_of)?;
-        Ok(Response::new(pb::JogReply { target_mm: target }))
+        let target_mm = jog::step(&self.0, req.into_inner())?;
+        Ok(Response::new(pb::JogReply { target_mm }))
     }
 
     async fn mdi(&self, req: Request<pb::MdiRequest>) -> Result<Response<pb::StartReply>, Status> {
@@ -585,65 +515,6 @@ impl Machine for MachineSvc {
             diagnostics: diags.iter().map(diagnostic_to_pb).collect(),
         }))
     }
-}
-
-/// The continuous jog `JogLease` started: which axis (index) in which direction.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct LeasedJog {
-    axis: usize,
-    dir: i32,
-}
-
-/// A lease of `lease_ms` (0: [`DEFAULT_LEASE_MS`]) within 100..1000 ms.
-fn lease_of(lease_ms: u32) -> Result<u32, Status> {
-    match lease_ms {
-        0 => Ok(DEFAULT_LEASE_MS),
-        ms if (MIN_LEASE_MS..=MAX_LEASE_MS).contains(&ms) => Ok(ms),
-        ms => Err(Status::invalid_argument(format!(
-            "jog lease {ms} ms is outside {MIN_LEASE_MS}..{MAX_LEASE_MS} ms (0 means \
-             {DEFAULT_LEASE_MS})"
-        ))),
-    }
-}
-
-/// Starts or renews the leased continuous jog (the browser's dead-man): the same checks as
-/// the streamed `Jog`; another axis or direction while a jog runs is refused, not merged.
-fn jog_lease(st: &ApiState, r: pb::JogLeaseRequest) -> Result<f64, Status> {
-    let lease_ms = lease_of(r.lease_ms)?;
-    if r.direction != 1 && r.direction != -1 {
-        return Err(Status::invalid_argument(format!(
-            "jog direction {} must be +1 or -1",
-            r.direction
-        )));
-    }
-    let axis = homing::axis_index(st.ctl.config(), &r.axis).map_err(status_of)?;
-    let want = LeasedJog {
-        axis,
-        dir: r.direction,
-    };
-    let names = st.ctl.config().axis_names();
-    let mut held = st.lease_jog.lock().unwrap();
-    if st.ctl.snapshot().state == MachineState::Jog && *held != Some(want) {
-        let running = match *held {
-            Some(h) => format!(
-                "a jog of {}{} runs",
-                names[h.axis],
-                if h.dir > 0 { '+' } else { '-' }
-            ),
-            None => "another jog runs (a step or a streamed jog)".into(),
-        };
-        return Err(Status::failed_precondition(format!(
-            "{running}: stop it (JogStop, or let it end) before jogging {}{}",
-            names[axis],
-            if r.direction > 0 { '+' } else { '-' }
-        )));
-    }
-    let target = st
-        .ctl
-        .jog_leased(&r.axis, r.direction, r.speed_mm_min, lease_ms)
-        .map_err(status_of)?;
-    *held = Some(want);
-    Ok(target)
 }
 
 /// One R325 refinement for the API (SPEC §4.6).

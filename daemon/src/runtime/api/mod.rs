@@ -7,8 +7,10 @@
 
 pub mod alarms;
 pub mod auth;
+mod diagnostics;
 pub mod files_watch;
 pub mod job_journal;
+mod jog;
 mod machine;
 pub mod preview;
 mod preview_outline;
@@ -21,19 +23,21 @@ mod validate_stream;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
-use prost::Message;
 use proto::v1 as pb;
-use tonic::{Code, Status};
+use tonic::Status;
 
 use kernel::block::{ArcDir, Block, BlockKind, Comp, Continuity, Feed, Path, Plane};
 use kernel::plc::CellId;
-use kernel::{Diagnostic, Severity};
 
 use super::config::Role;
-use super::controller::{ControlError, Controller};
+use super::controller::Controller;
 use super::library::{Library, ProgramText};
 use super::rt::{MachineState, Snapshot};
 
+pub use diagnostics::{
+    DETAILS_MAX_BYTES, bounded_details, counts_pb, diagnostic_to_pb, invalid_with_diagnostics,
+    refused, status_of,
+};
 pub use machine::MachineSvc;
 pub use preview::PreviewSvc;
 pub use programs::ProgramsSvc;
@@ -114,7 +118,7 @@ pub struct ApiState {
     /// Unary uploads in progress (`Programs.UploadBegin`..`UploadFinish`).
     pub uploads: Arc<upload_session::UploadSessions>,
     /// The continuous jog `Machine.JogLease` runs, if any.
-    lease_jog: Mutex<Option<machine::LeasedJog>>,
+    lease_jog: Mutex<Option<jog::LeasedJog>>,
 }
 
 impl ApiState {
@@ -514,20 +518,6 @@ pub fn alarm_text(ctl: &Controller, s: &Snapshot) -> Option<String> {
     }
 }
 
-/// A refusal with one coded diagnostic in its details (not tied to a program line).
-pub fn refused(code: Code, what: kernel::DiagCode, msg: String) -> Status {
-    let d = Diagnostic::error(what, None, 0, 0, msg.clone());
-    let details = pb::Diagnostics {
-        items: vec![diagnostic_to_pb(&d)],
-        totals: Some(counts_pb(std::slice::from_ref(&d))),
-    };
-    Status::with_details(
-        code,
-        format!("{what}: {msg}"),
-        details.encode_to_vec().into(),
-    )
-}
-
 /// The block to restart from after a stop or a fault ended the job early: the programmed
 /// block it stopped in (issue #31).
 fn restart_block(s: &Snapshot, block: Option<&Block>) -> Option<u32> {
@@ -537,143 +527,6 @@ fn restart_block(s: &Snapshot, block: Option<&Block>) -> Option<u32> {
     ended_early
         .then(|| block.and_then(|b| b.n).or(s.block_n))
         .flatten()
-}
-
-pub fn diagnostic_to_pb(d: &Diagnostic) -> pb::Diagnostic {
-    pb::Diagnostic {
-        severity: match d.severity {
-            Severity::Info => pb::Severity::Info,
-            Severity::Warning => pb::Severity::Warning,
-            Severity::Error => pb::Severity::Error,
-        } as i32,
-        block: d.block,
-        line: d.line,
-        column: d.column,
-        message: d.message.clone(),
-        code: d.code.as_str().to_string(),
-        soft_limit: d.limit.map(|h| pb::SoftLimitHit {
-            axis: h.axis_name.to_string(),
-            position_mm: h.position_mm,
-            limit_mm: h.limit_mm,
-            upper: h.upper,
-        }),
-    }
-}
-
-/// The totals of a capped list (see `kernel::pipeline::MAX_LISTED`).
-pub fn counts_pb(diags: &[Diagnostic]) -> pb::DiagnosticCounts {
-    let c = kernel::DiagCounts::of(diags);
-    pb::DiagnosticCounts {
-        errors: c.errors,
-        warnings: c.warnings,
-        infos: c.infos,
-    }
-}
-
-/// Bytes of encoded diagnostics a refusal's details may carry: status details travel in a
-/// header (base64, a third larger) and every header of a reply must fit the client's limit
-/// (16 KiB in tonic/hyper, 8 KiB in grpcio), so a refusal never becomes a transport error.
-pub const DETAILS_MAX_BYTES: usize = 4096;
-
-/// A diagnostic's message in the details is cut to this many characters.
-const DETAILS_MESSAGE_CHARS: usize = 200;
-
-/// How many errors the status message names.
-const MESSAGE_ERRORS: usize = 5;
-
-/// INVALID_ARGUMENT whose message names the first errors and the totals, and whose details
-/// carry a `cnc.v1.Diagnostics`: the first diagnostics that fit [`DETAILS_MAX_BYTES`] (the
-/// first error always among them) and the totals.
-pub fn invalid_with_diagnostics(what: &str, diags: &[Diagnostic]) -> Status {
-    let totals = counts_pb(diags);
-    let mut msg = format!(
-        "{what} rejected, {} error(s), {} warning(s): ",
-        totals.errors, totals.warnings
-    );
-    for (i, d) in diags
-        .iter()
-        .filter(|d| d.is_error())
-        .take(MESSAGE_ERRORS)
-        .enumerate()
-    {
-        if i > 0 {
-            msg.push_str("; ");
-        }
-        msg.push_str(&cut(&d.to_string(), DETAILS_MESSAGE_CHARS));
-    }
-    let details = bounded_details(diags);
-    Status::with_details(Code::InvalidArgument, msg, details.encode_to_vec().into())
-}
-
-/// The details of a refusal: the first diagnostics that fit [`DETAILS_MAX_BYTES`] (the first
-/// error always among them, messages cut) and the totals.
-pub fn bounded_details(diags: &[Diagnostic]) -> pb::Diagnostics {
-    let totals = counts_pb(diags);
-    let mut details = pb::Diagnostics {
-        items: Vec::new(),
-        totals: Some(totals),
-    };
-    let mut used = details.encoded_len();
-    let first_error = diags.iter().position(Diagnostic::is_error);
-    for (i, d) in diags.iter().enumerate() {
-        let mut item = diagnostic_to_pb(d);
-        item.message = cut(&item.message, DETAILS_MESSAGE_CHARS);
-        // Room is kept for the first error when it comes later.
-        let reserve = match first_error {
-            Some(k) if k > i => 512,
-            _ => 0,
-        };
-        let n = item.encoded_len() + 3;
-        if used + n + reserve > DETAILS_MAX_BYTES && Some(i) != first_error {
-            if first_error.is_some_and(|k| k > i) {
-                continue;
-            }
-            break;
-        }
-        used += n;
-        details.items.push(item);
-    }
-    details
-}
-
-/// `s` cut to `max` characters (an ellipsis marks the cut).
-fn cut(s: &str, max: usize) -> String {
-    match s.char_indices().nth(max) {
-        Some((k, _)) => format!("{}…", &s[..k]),
-        None => s.to_owned(),
-    }
-}
-
-/// Maps controller errors to gRPC statuses.
-pub fn status_of(e: ControlError) -> Status {
-    match e {
-        ControlError::InvalidProgram(diags) => invalid_with_diagnostics("program", &diags),
-        ControlError::WrongState(m) => Status::failed_precondition(m),
-        ControlError::RtGone => Status::unavailable("the real-time thread has stopped"),
-        ControlError::Storage(e) => match e {
-            super::storage::StorageError::Invalid { diagnostics, .. } => {
-                invalid_with_diagnostics("table", &diagnostics)
-            }
-            // The file on disk (a hand edit) must be fixed first: its lines and codes.
-            super::storage::StorageError::DiskInvalid {
-                ref diagnostics, ..
-            } => {
-                let details = bounded_details(diagnostics).encode_to_vec();
-                Status::with_details(
-                    Code::FailedPrecondition,
-                    format!("[{}] {e}", e.code()),
-                    details.into(),
-                )
-            }
-            super::storage::StorageError::Changed { .. } => {
-                Status::aborted(format!("[{}] {e}", e.code()))
-            }
-            _ => Status::internal(e.to_string()),
-        },
-        ControlError::Plc(e) => Status::invalid_argument(e.to_string()),
-        ControlError::Invalid(m) => Status::invalid_argument(m),
-        ControlError::Aborted(m) => Status::aborted(m),
-    }
 }
 
 fn state_to_pb(s: MachineState) -> pb::MachineState {

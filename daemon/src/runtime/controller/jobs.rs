@@ -28,8 +28,9 @@ pub(super) struct Jobs {
     next_job: AtomicU32,
     run: Mutex<Option<Run>>,
     link: Arc<JobLink>,
-    /// Last alarm raised outside the RT thread (e.g. a planning failure), for status.
-    alarm: Arc<Mutex<Option<String>>>,
+    /// Last alarm raised outside the RT thread (a planning failure): its diagnostic's stable
+    /// code and its text, for status and the MTConnect CONDITION's nativeCode.
+    alarm: Arc<Mutex<Option<(&'static str, String)>>>,
     /// The running job's pass: blocks near the executing one, pending `G92` writes, the modal
     /// state left for MDI. Shared with the status thread, which follows execution.
     execution: Arc<Mutex<Execution>>,
@@ -66,7 +67,7 @@ impl Jobs {
         &self.selection
     }
 
-    pub(super) fn alarm(&self) -> Option<String> {
+    pub(super) fn alarm(&self) -> Option<(&'static str, String)> {
         self.alarm.lock().unwrap().clone()
     }
 
@@ -200,7 +201,7 @@ impl Jobs {
             .spawn(move || {
                 if let Err(d) = job::run(spec, &link, &c) {
                     tracing::error!(job, block = %BlockNo(d.block), line = d.line, "planning failed: {}", d.message);
-                    *alarm_slot.lock().unwrap() = Some(d.to_string());
+                    *alarm_slot.lock().unwrap() = Some((d.code.as_str(), d.to_string()));
                 }
             })
             .map_err(|e| ControlError::WrongState(format!("cannot start the planner: {e}")))?;

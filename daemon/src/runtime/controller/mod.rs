@@ -269,7 +269,13 @@ impl Controller {
 
     // ---- jobs ----
 
+    /// The planning failure in force, as text.
     pub fn alarm(&self) -> Option<String> {
+        self.jobs.alarm().map(|(_, text)| text)
+    }
+
+    /// The planning failure in force: its diagnostic's stable code and its text.
+    pub fn planning_alarm(&self) -> Option<(&'static str, String)> {
         self.jobs.alarm()
     }
 

@@ -135,16 +135,6 @@ fn tools(ctl: &Controller) -> Vec<Tool> {
         .collect()
 }
 
-/// Stable code of a planning failure: the diagnostic's code where the alarm text shows it.
-fn planner_code(alarm: &str) -> &str {
-    alarm
-        .split_once('[')
-        .and_then(|(_, r)| r.split_once(']'))
-        .map(|(c, _)| c)
-        .filter(|c| !c.is_empty() && c.chars().all(|ch| ch.is_ascii_lowercase() || ch == '_'))
-        .unwrap_or("planning_failed")
-}
-
 /// Feeds the agent until `shared.closing` is set.
 pub async fn run(ctl: Arc<Controller>, shared: Arc<Shared>, period: Duration) {
     let mut rx = ctl.subscribe();
@@ -159,12 +149,12 @@ pub async fn run(ctl: Arc<Controller>, shared: Arc<Shared>, period: Duration) {
             Some(n) => format!("N{n}"),
             None => format!("line {}", snap.line),
         });
-        let alarm = ctl.alarm();
+        let alarm = ctl.planning_alarm();
         let view = MachineView {
             snap: &snap,
             program: program.as_deref(),
             block: block.as_deref(),
-            planner_alarm: alarm.as_deref().map(|a| (planner_code(a), a)),
+            planner_alarm: alarm.as_ref().map(|(code, text)| (*code, text.as_str())),
             axis_names: &names,
             cutting_axis: cutting,
         };
