@@ -160,9 +160,9 @@ export function previewScreen(): Screen {
     }, REFINE_AFTER_MS);
   }
 
-  /** What the drawing is of: the selection (name, blocks) and the job, so that a start (of
-   * a program selected again meanwhile, by any client) draws what it runs. */
-  const keyOf = (s: Status) => `${s.program}/${s.blocksTotal}/${s.job}/${plane.value}`;
+  /** What the drawing is of: the selection (name, blocks) on a plane. Opening the screen
+   * asks again (a program selected again by another client with the same name and size). */
+  const keyOf = (s: Status) => `${s.program}/${s.blocksTotal}/${plane.value}`;
 
   async function load(s: Status): Promise<void> {
     // The same program on the same plane keeps the operator's zoom.
@@ -172,8 +172,10 @@ export function previewScreen(): Screen {
     stage.dataset.state = "loading";
     const t0 = performance.now();
     try {
-      if (!keep) whole = detail = undefined;
-      velocity.hidden = true;
+      if (!keep) {
+        whole = detail = undefined;
+        velocity.hidden = true;
+      }
       const o = await preview.getPreviewOutline({ plane: plane.value, ...px() });
       if (gen !== generation) return;
       whole = { o };
@@ -186,7 +188,7 @@ export function previewScreen(): Screen {
       stage.dataset.ms = (performance.now() - t0).toFixed(0);
       setText(info, `${o.program}: ${o.blocks} blocks, ${o.smoothJunctions} smooth and ${o.redJunctions} red junctions`);
       msg.ok("");
-      void loadVelocity().catch(() => {});
+      if (!keep) void loadVelocity().catch(() => {});
     } catch (e) {
       stage.dataset.state = "error";
       msg.err(errorText(e));
@@ -277,5 +279,5 @@ export function previewScreen(): Screen {
       h("span", { style: `color:${COLORS.red}` }, "● stop / speed drop"), h("span", { style: `color:${COLORS.tool}` }, "⊕ tool")),
     velocity,
     msg.el);
-  return { id: "preview", title: "Preview", el, onShow: () => requestAnimationFrame(() => (whole ? (fit(), detail = undefined, redraw()) : reload())) };
+  return { id: "preview", title: "Preview", el, onShow: () => requestAnimationFrame(reload) };
 }

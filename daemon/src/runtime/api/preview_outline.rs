@@ -14,15 +14,22 @@ use ::preview::outline::{Clip, Outline, Plane, Runs, View};
 use kernel::pipeline::Options;
 
 use super::{ApiState, invalid_with_diagnostics};
+use crate::runtime::rt::MachineState;
 
 /// Picture size when the request gives none.
 const DEFAULT_PX: (u32, u32) = (1200, 800);
 
 /// The outline recorded by the selection's pass, while it is the next start's (same check
-/// as the recorded preview pass: constants, offsets and start position unchanged).
+/// as the recorded preview pass: constants, offsets and start position unchanged). While a
+/// program runs it is the one shown: a pass now would start from wherever the tool is.
 fn recorded_outline(st: &ApiState) -> Option<Arc<Outline>> {
     let program = st.ctl.program()?;
-    if !st.ctl.validated_as_now(&program, &st.ctl.snapshot()) {
+    let snap = st.ctl.snapshot();
+    let running = matches!(
+        snap.state,
+        MachineState::Running | MachineState::Hold | MachineState::Stopping
+    );
+    if !running && !st.ctl.validated_as_now(&program, &snap) {
         return None;
     }
     let info = st.plan_info.lock().unwrap();
