@@ -23,6 +23,8 @@ pub const OUTLINE_POINTS: usize = 1 << 17;
 const OUTLINE_DOTS: usize = 1 << 16;
 /// Most points per path in a view (bounds what a screen receives and draws).
 pub const VIEW_POINTS: usize = 1 << 16;
+/// Finest chord tolerance of arcs, mm (a micrometre: no screen shows finer).
+const ARC_TOL_MIN_MM: f64 = 1e-3;
 /// Junction dots closer than this many pixels are one dot in a view.
 const DOT_MERGE_PX: f64 = 3.0;
 
@@ -155,7 +157,9 @@ impl Outline {
             Which::Rapid => &mut self.rapid,
             Which::Comp => &mut self.comp,
         };
-        let tol = track.cell() / 2.0;
+        // Half the grid, but not below ARC_TOL_MIN_MM: on the first fine grid an arc would
+        // otherwise be cut into the most chords a curve may have (MAX_ARC_POINTS).
+        let tol = (track.cell() / 2.0).max(ARC_TOL_MIN_MM);
         self.scratch.clear();
         let from = self.xyz(&path.start());
         match *path {
