@@ -23,6 +23,10 @@ pub const OUTLINE_POINTS: usize = 1 << 17;
 const OUTLINE_DOTS: usize = 1 << 16;
 /// Most points per path in a view (bounds what a screen receives and draws).
 pub const VIEW_POINTS: usize = 1 << 16;
+/// Grid an outline starts with, mm: a micrometre (each doubling of the grid on the way to
+/// what a large program needs redraws the outline; a zoom finer than the outline's grid
+/// makes a pass of its own anyway).
+pub const START_CELL_MM: f64 = 1e-3;
 /// Finest chord tolerance of arcs, mm (a micrometre: no screen shows finer).
 const ARC_TOL_MIN_MM: f64 = 1e-3;
 /// Junction dots closer than this many pixels are one dot in a view.
@@ -101,7 +105,7 @@ pub struct View {
 impl Outline {
     /// An outline for a machine with these axis letters, of the whole program.
     pub fn new(axis_names: &[char]) -> Self {
-        Self::clipped(axis_names, None, crate::decimate::START_CELL)
+        Self::clipped(axis_names, None, START_CELL_MM)
     }
 
     /// An outline of what falls in `clip`, starting at grid `cell_mm`.

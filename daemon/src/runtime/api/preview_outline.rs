@@ -93,7 +93,7 @@ pub fn outline_reply(
     let (outline, mut own) = match recorded_outline(st) {
         Some(o) => (o, false),
         None => (
-            Arc::new(own_pass(st, None, ::preview::decimate::START_CELL)?),
+            Arc::new(own_pass(st, None, ::preview::outline::START_CELL_MM)?),
             true,
         ),
     };
