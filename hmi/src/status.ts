@@ -11,6 +11,11 @@ export const RATE_HZ = 30;
 /** No snapshot for this long: the numbers on screen are no longer live. */
 const STALL_MS = 1000;
 const BACKOFF_MIN_MS = 250;
+/** Snapshots read from one stream before it is replaced by a fresh one (2 minutes at
+ * RATE_HZ). @connectrpc/connect 2.3.0 races every read of a server stream against a promise
+ * that settles only when the call ends (run-call.js), so each snapshot leaves a few hundred
+ * bytes reachable until then: an open stream would grow the page about 10 MB an hour. */
+const RECYCLE_AFTER = 120 * RATE_HZ;
 const BACKOFF_MAX_MS = 4000;
 
 let conn: Conn = "connecting";
@@ -45,6 +50,7 @@ async function run(): Promise<void> {
   let backoff = BACKOFF_MIN_MS;
   for (;;) {
     abort = new AbortController();
+    let read = 0;
     try {
       for await (const s of machine.streamStatus({ rateHz: RATE_HZ }, { signal: abort.signal })) {
         lastAt = performance.now();
@@ -52,9 +58,16 @@ async function run(): Promise<void> {
         latest = s;
         setConn("live");
         schedule();
+        if (++read >= RECYCLE_AFTER) break;
       }
     } catch {
       // Refused, cut or aborted by the stall watch: reconnect below.
+    }
+    // Recycled (see RECYCLE_AFTER): the call ends (break cancels it), a new one opens at
+    // once; the screen stays live (the next snapshot comes within the stall time).
+    if (read >= RECYCLE_AFTER) {
+      abort.abort();
+      continue;
     }
     // Stays "lost" (not "connecting") until a fresh snapshot arrives: the operator must see it.
     setConn("lost");

@@ -1,7 +1,7 @@
 //! Preview figures (issue #10): time and peak heap of the program preview and the velocity
 //! plot for programs of 10,000 to 1,000,000 blocks. Prints a table; asserts nothing.
 //!
-//! Run: `cargo bench -p preview --bench preview`
+//! Run: `cargo bench -p preview --bench preview` (`PREVIEW_BENCH=outline`: the outline only)
 //!
 //! Peak heap is counted by a global allocator above the level before each call (the program
 //! text itself is not counted: the caller holds it anyway).
@@ -80,10 +80,55 @@ fn first(e: Vec<kernel::Diagnostic>) -> String {
     format!("{} errors, first: {}", e.len(), e[0])
 }
 
+/// A sink that keeps nothing (the pass alone).
+struct Nothing;
+impl preview::pipeline::Sink for Nothing {
+    fn segment(&mut self, _s: &kernel::plan::Segment) {}
+}
+
+/// The outline the daemon collects in the selection's pass (`GetPreviewOutline`): the pass
+/// alone, the pass with the outline, and one view of the whole program at 1280 x 800.
+fn outline_figures(opts: &PreviewOptions) {
+    use preview::outline::{Outline, Plane};
+    println!("## Outline (GetPreviewOutline): its cost in the pass, and one view\n");
+    println!(
+        "| blocks | pass s | pass + outline s | outline peak heap MiB | view s | view points | dots |"
+    );
+    println!("|---:|---:|---:|---:|---:|---:|---:|");
+    for n in [100_000usize, 1_000_000] {
+        let text = program(n);
+        let (_, bare_s, _) = measure(|| {
+            preview::pipeline::run(&text, opts, &mut Nothing)
+                .map_err(first)
+                .unwrap()
+        });
+        let (o, s, peak) = measure(|| {
+            let mut o = Outline::new(&opts.setup.axis_names);
+            preview::pipeline::run(&text, opts, &mut o)
+                .map_err(first)
+                .unwrap();
+            o
+        });
+        let (v, view_s, _) = measure(|| o.view(Plane::parse("xy").unwrap(), None, 1280, 800));
+        let points = (v.feed.xy.len() + v.rapid.xy.len() + v.comp.xy.len()) / 2;
+        println!(
+            "| {n} | {bare_s:.2} | {s:.2} | {peak:.1} | {view_s:.3} | {points} | {} |",
+            (v.smooth.len() + v.red.len()) / 2
+        );
+    }
+    println!();
+}
+
 fn main() {
     let mut opts = PreviewOptions::default();
     opts.setup.constants.set(384, 200.008);
     opts.planner = opts.planner.clone().with_constants(&opts.setup.constants);
+    // PREVIEW_BENCH=outline: the outline figures alone.
+    if std::env::var("PREVIEW_BENCH").as_deref() == Ok("outline") {
+        outline_figures(&opts);
+        return;
+    }
+    outline_figures(&opts);
     println!("## Program preview (release build, one thread)\n");
     println!(
         "| blocks | text MiB | render s | blocks/s | peak heap MiB | SVG KiB | SVG s | PNG KiB | PNG s | red | yellow |"

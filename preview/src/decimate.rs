@@ -16,42 +16,50 @@ use rustc_hash::{FxHashMap, FxHashSet as HashSet};
 /// Cell size the grids start with, mm: far below what any picture shows.
 pub const START_CELL: f64 = 1e-4;
 
-type Cell = (i32, i32);
+/// A grid cell of an `N`-dimensional grid (2: a picture's plane; 3: the server's outline of a
+/// program, projected later onto any plane).
+type Cell<const N: usize> = [i32; N];
 
-fn cell_of(p: [f64; 2], cell: f64) -> Cell {
+fn cell_of<const N: usize>(p: [f64; N], cell: f64) -> Cell<N> {
     // `as` saturates: coordinates beyond the grid's range share the border cells.
-    ((p[0] / cell).floor() as i32, (p[1] / cell).floor() as i32)
+    p.map(|v| (v / cell).floor() as i32)
 }
 
-fn edge_key(a: Cell, b: Cell) -> (Cell, Cell) {
+fn edge_key<const N: usize>(a: Cell<N>, b: Cell<N>) -> (Cell<N>, Cell<N>) {
     if a <= b { (a, b) } else { (b, a) }
 }
 
 /// Where the drawing stands.
 #[derive(Clone, Copy, Debug)]
-struct Pen {
-    at: [f64; 2],
-    cell: Cell,
+struct Pen<const N: usize> {
+    at: [f64; N],
+    cell: Cell<N>,
     /// `at` is the last vertex of the last polyline (drawing continues it).
     drawn: bool,
 }
 
 /// Open polylines with grid decimation.
 #[derive(Clone, Debug)]
-pub struct Track {
-    pts: Vec<[f64; 2]>,
+pub struct Track<const N: usize = 2> {
+    pts: Vec<[f64; N]>,
     /// Index in `pts` where each polyline starts.
     starts: Vec<usize>,
     /// Edges between cells already drawn.
-    edges: HashSet<(Cell, Cell)>,
+    edges: HashSet<(Cell<N>, Cell<N>)>,
     cell: f64,
     budget: usize,
-    pen: Option<Pen>,
+    pen: Option<Pen<N>>,
 }
 
-impl Track {
+impl<const N: usize> Track<N> {
     pub fn new(budget_points: usize) -> Self {
         Self::with_cell(START_CELL, budget_points.max(16))
+    }
+
+    /// A track whose grid starts at `cell` mm (coarser than [`START_CELL`]: a view that
+    /// cannot show finer anyway).
+    pub fn with_start(cell: f64, budget_points: usize) -> Self {
+        Self::with_cell(cell.max(START_CELL), budget_points.max(16))
     }
 
     fn with_cell(cell: f64, budget: usize) -> Self {
@@ -80,7 +88,7 @@ impl Track {
 
     /// A piece of path from `from` through `to`: continues the drawing when `from` is where
     /// the last piece ended, else starts a new polyline.
-    pub fn segment(&mut self, from: [f64; 2], to: &[[f64; 2]]) {
+    pub fn segment(&mut self, from: [f64; N], to: &[[f64; N]]) {
         if self.pen.is_none_or(|p| p.at != from) {
             self.pen = Some(Pen {
                 at: from,
@@ -96,12 +104,20 @@ impl Track {
         }
     }
 
+    /// Frees what only drawing more needs (the set of drawn edges), for a track kept to be
+    /// read: segments added later are no longer checked against what is drawn.
+    pub fn freeze(&mut self) {
+        self.edges = HashSet::default();
+        self.pts.shrink_to_fit();
+        self.pen = None;
+    }
+
     /// Ends the drawing here (the next segment starts a new polyline even if it joins).
     pub fn pen_up(&mut self) {
         self.pen = None;
     }
 
-    fn push(&mut self, p: [f64; 2]) {
+    fn push(&mut self, p: [f64; N]) {
         let c = cell_of(p, self.cell);
         let Some(pen) = self.pen.as_mut() else {
             self.pen = Some(Pen {
@@ -145,7 +161,7 @@ impl Track {
     }
 
     /// The polylines redrawn on a grid of `cell`.
-    fn redrawn(&self, cell: f64, budget: usize) -> Track {
+    fn redrawn(&self, cell: f64, budget: usize) -> Track<N> {
         let mut t = Track::with_cell(cell, budget);
         t.edges.reserve(self.pts.len());
         t.pts.reserve(self.pts.len());
@@ -178,7 +194,7 @@ impl Track {
     }
 
     /// The polylines decimated to `cell` (at least the track's own cell).
-    pub fn runs_at(&self, cell: f64) -> Vec<Vec<[f64; 2]>> {
+    pub fn runs_at(&self, cell: f64) -> Vec<Vec<[f64; N]>> {
         let redrawn;
         let t = if cell > self.cell {
             redrawn = self.redrawn(cell, usize::MAX);
@@ -197,8 +213,8 @@ impl Track {
 
 /// A junction dot before drawing.
 #[derive(Clone, Debug, PartialEq)]
-pub struct JunctionDot {
-    pub at: [f64; 2],
+pub struct JunctionDot<const N: usize = 2> {
+    pub at: [f64; N],
     pub red: bool,
     /// Junctions merged into this dot.
     pub count: u64,
@@ -208,13 +224,13 @@ pub struct JunctionDot {
 
 /// Junction dots, merged per grid cell and colour when there are more than the budget.
 #[derive(Clone, Debug)]
-pub struct DotSet {
-    dots: Vec<JunctionDot>,
+pub struct DotSet<const N: usize = 2> {
+    dots: Vec<JunctionDot<N>>,
     cell: f64,
     budget: usize,
 }
 
-impl DotSet {
+impl<const N: usize> DotSet<N> {
     pub fn new(budget: usize) -> Self {
         DotSet {
             dots: Vec::new(),
@@ -231,7 +247,7 @@ impl DotSet {
         self.dots.is_empty()
     }
 
-    pub fn add(&mut self, dot: JunctionDot) {
+    pub fn add(&mut self, dot: JunctionDot<N>) {
         self.dots.push(dot);
         if self.dots.len() > self.budget {
             // Dots added since the last merge may share cells with earlier ones: merge at
@@ -246,7 +262,7 @@ impl DotSet {
 
     /// The dots merged at `cell` (at least the set's own cell), smooth ones first so red ones
     /// are drawn on top.
-    pub fn at(&self, cell: f64) -> Vec<JunctionDot> {
+    pub fn at(&self, cell: f64) -> Vec<JunctionDot<N>> {
         let mut d = merge(self.dots.clone(), cell.max(self.cell));
         d.sort_by_key(|d| d.red);
         d
@@ -255,10 +271,10 @@ impl DotSet {
 
 /// Merges dots of the same colour in the same cell (keeps the first one's position and label,
 /// and program order).
-fn merge(dots: Vec<JunctionDot>, cell: f64) -> Vec<JunctionDot> {
-    let mut index: FxHashMap<(Cell, bool), usize> =
+fn merge<const N: usize>(dots: Vec<JunctionDot<N>>, cell: f64) -> Vec<JunctionDot<N>> {
+    let mut index: FxHashMap<(Cell<N>, bool), usize> =
         FxHashMap::with_capacity_and_hasher(dots.len(), Default::default());
-    let mut out: Vec<JunctionDot> = Vec::with_capacity(dots.len() / 2 + 1);
+    let mut out: Vec<JunctionDot<N>> = Vec::with_capacity(dots.len() / 2 + 1);
     for d in dots {
         match index.entry((cell_of(d.at, cell), d.red)) {
             Entry::Occupied(e) => out[*e.get()].count += d.count,

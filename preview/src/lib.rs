@@ -42,6 +42,7 @@
 pub mod collect;
 pub mod decimate;
 pub mod layout;
+pub mod outline;
 pub mod paging;
 pub mod pipeline;
 pub mod plane;

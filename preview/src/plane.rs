@@ -105,7 +105,7 @@ impl Projection {
 pub const MAX_ARC_POINTS: usize = 1024;
 
 /// Chords needed so each deviates by at most `tol_mm` from the arc.
-fn arc_points(radius_mm: f64, sweep_rad: f64, tol_mm: f64) -> usize {
+pub(crate) fn arc_points(radius_mm: f64, sweep_rad: f64, tol_mm: f64) -> usize {
     if radius_mm.is_nan() || radius_mm <= 0.0 || !sweep_rad.is_finite() {
         return 1;
     }

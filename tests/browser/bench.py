@@ -7,8 +7,10 @@
 - preview of a 1 M-block program: upload through the page (UploadBegin/Part/Finish), select,
   then time from opening the Preview tab to the first picture, and the longest main-thread task
   meanwhile (the page stays responsive when no task is long);
-- browser memory (JS heap, DOM nodes) after CNC_MINUTES of live status with a program running.
-Environment: CNC_HMI_URL, CNC_ADDR (gRPC), CNC_TOKEN, CNC_MINUTES; PYTHONPATH with the stubs."""
+- browser memory (JS heap, DOM nodes) sampled every CNC_SAMPLE_S (60) seconds over CNC_MINUTES
+  of live status with a program running, and its slope (MB/h).
+Environment: CNC_HMI_URL, CNC_ADDR (gRPC), CNC_TOKEN, CNC_MINUTES, CNC_SAMPLE_S,
+CNC_BENCH_PARTS (load,dro,preview,memory), CNC_BENCH_BLOCKS; PYTHONPATH with the stubs."""
 
 import bisect
 import os
@@ -158,36 +160,70 @@ def preview_big(d, blocks: int) -> None:
           f"tab switch after it {t_click * 1000:.0f} ms")
 
 
+def slope_mb_per_h(samples) -> float:
+    """Least-squares slope of (minute, MB) samples, in MB per hour."""
+    n = len(samples)
+    mx = sum(t for t, _ in samples) / n
+    my = sum(v for _, v in samples) / n
+    sxx = sum((t - mx) ** 2 for t, _ in samples)
+    return 60 * sum((t - mx) * (v - my) for t, v in samples) / sxx if sxx else 0.0
+
+
 def memory_run(d, minutes: float) -> None:
+    """JS heap and DOM nodes (after a forced garbage collection, via CDP Performance.getMetrics)
+    every CNC_SAMPLE_S seconds over MINUTES of live status with a program running on the Run
+    screen; the slope is fitted after the first two minutes (warm-up). The latency probe's ring
+    (cncHmi.drawn, a benchmark aid of at most 20,000 frames) is emptied before each sample so it
+    does not count as the page's own growth."""
+    every_s = float(os.environ.get("CNC_SAMPLE_S", "60"))
     d.get(URL)
     wait("live", lambda: tid(d, "connection-state").text == "connected")
     d.execute_cdp_cmd("Performance.enable", {})
 
     def metrics():
+        d.execute_script("cncHmi.drawn.length = 0")
         d.execute_cdp_cmd("HeapProfiler.collectGarbage", {})
         m = {x["name"]: x["value"] for x in d.execute_cdp_cmd("Performance.getMetrics", {})["metrics"]}
         return m["JSHeapUsedSize"] / 1e6, int(m["Nodes"])
     start_loop_program()
+    t_start = time.time()
     heap0, nodes0 = metrics()
-    end = time.time() + minutes * 60
+    samples = [(0.0, heap0, nodes0)]
+    end = t_start + minutes * 60
+    next_sample = t_start + every_s
     while time.time() < end:
-        time.sleep(10)
+        time.sleep(min(10, max(0.1, end - time.time())))
         st = machine.StreamStatus(pb.StatusRequest(rate_hz=1), metadata=META)
         s = next(st)
         st.cancel()
         if s.state == pb.MACHINE_STATE_IDLE:
             machine.Start(pb.StartRequest(), metadata=META)
-    heap1, nodes1 = metrics()
-    n = d.execute_script("return cncHmi.drawn.length")
-    print(f"memory after {minutes:.0f} min of live status (program running, 30 Hz): JS heap "
-          f"{heap0:.1f} -> {heap1:.1f} MB, DOM nodes {nodes0} -> {nodes1} ({n} recent frames kept)")
+        if time.time() >= next_sample or time.time() >= end:
+            next_sample += every_s
+            heap, nodes = metrics()
+            t_min = (time.time() - t_start) / 60
+            samples.append((t_min, heap, nodes))
+            print(f"memory sample {t_min:6.1f} min: JS heap {heap:.2f} MB, DOM nodes {nodes}", flush=True)
+    heap1, nodes1 = samples[-1][1], samples[-1][2]
+    steady = [(t, h) for t, h, _ in samples if t >= 2] or [(t, h) for t, h, _ in samples]
+    peak = max(h for _, h, _ in samples)
+    print(f"memory after {samples[-1][0]:.0f} min of live status (program running, 30 Hz): JS heap "
+          f"{heap0:.1f} -> {heap1:.1f} MB (peak {peak:.1f}), slope after 2 min "
+          f"{slope_mb_per_h(steady):+.2f} MB/h over {len(steady)} samples, DOM nodes {nodes0} -> {nodes1}",
+          flush=True)
     machine.Stop(pb.StopRequest(), metadata=META)
 
 
+# CNC_BENCH_PARTS picks the parts (e.g. "memory" alone for a long memory run).
+PARTS = os.environ.get("CNC_BENCH_PARTS", "load,dro,preview,memory").split(",")
 d = browser()
-page_load(d)
-dro_rate_and_latency(d)
-for n in os.environ.get("CNC_BENCH_BLOCKS", "50000,1000000").split(","):
-    preview_big(d, int(n))
-memory_run(d, MINUTES)
+if "load" in PARTS:
+    page_load(d)
+if "dro" in PARTS:
+    dro_rate_and_latency(d)
+if "preview" in PARTS:
+    for n in os.environ.get("CNC_BENCH_BLOCKS", "50000,1000000").split(","):
+        preview_big(d, int(n))
+if "memory" in PARTS:
+    memory_run(d, MINUTES)
 d.quit()

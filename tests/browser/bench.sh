@@ -3,7 +3,7 @@
 # machine and headless Chromium; tests/browser/bench.py measures page load, DRO update rate and
 # latency (against a native gRPC client's view of the same snapshots), the preview of a
 # 1 M-block program, and browser memory after a status run of MINUTES (default 10).
-#   tests/browser/bench.sh [MINUTES]
+#   tests/browser/bench.sh [MINUTES]        (CNC_BENCH_PARTS=memory for the memory run alone)
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 . tests/browser/lib.sh

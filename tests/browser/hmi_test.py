@@ -12,6 +12,7 @@ import traceback
 from urllib.parse import urlparse
 
 from selenium.webdriver.common.action_chains import ActionChains
+from selenium.webdriver.common.actions.wheel_input import ScrollOrigin
 from selenium.webdriver.common.by import By
 from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.support.ui import Select
@@ -27,17 +28,21 @@ PROXY = CuttableProxy(target.hostname, target.port)
 URL = f"http://127.0.0.1:{PROXY.port}/"
 
 # The way back to the start is G1 at 50 mm/s: a rapid would fault over the 5 mm following
-# window (that is the alarm test). A continuous path (G23): lines with shallow bends (smooth junctions, yellow), two square
-# corners (stops, red) and an arc joined tangentially; about 20 s at F600, long enough to
-# hold, resume and stop.
+# window (that is the alarm test). A continuous path (G23) under radius compensation (G41,
+# tool D1 of radius 3 mm: the tool-centre path is drawn blue beside the programmed one):
+# lines with shallow bends (smooth junctions, yellow), two square corners (stops, red) and an
+# arc joined tangentially; about 20 s at F600, long enough to hold, resume and stop.
 PROGRAM = """N10 G1 X0 Y0 F3000
-N20 G23 G1 X20 Y1 F600
+N12 G92 D1 R0=3.0
+N14 G17 D1
+N20 G41 G23 G1 X20 Y1 F600
 N30 X40 Y3
 N40 X60 Y6
 N50 X60 Y30
 N60 G3 X40 Y50 I-20 J0
 N70 G1 X0 Y50
 N80 X0 Y0
+N90 G40 G1 X0 Y-5
 """
 
 
@@ -175,6 +180,45 @@ def upload_select_and_preview_with_junction_dots():
         }
         return [yellow, red, grey];""", stage)
     assert all(n > 20 for n in counts), f"yellow, red, path pixels: {counts}"
+    # The tool-centre path of G41 (blue) beside the programmed one.
+    blue = op.d.execute_script("""
+        const c = arguments[0].querySelector('canvas');
+        const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data;
+        let n = 0;
+        for (let i = 0; i < d.length; i += 4) if (d[i+3] > 200 && d[i+2] > 200 && d[i] < 100) n++;
+        return n;""", stage)
+    assert blue > 100, f"tool-centre (blue) pixels: {blue}"
+
+
+def touch(d, kind, points):
+    d.execute_cdp_cmd("Input.dispatchTouchEvent", {"type": kind, "touchPoints": [
+        {"x": x, "y": y, "id": i, "radiusX": 5, "radiusY": 5, "force": 1} for i, (x, y) in points]})
+
+
+@test
+def preview_pinch_and_wheel_zoom_and_the_zoomed_extent_is_refined():
+    stage = op.el("preview")
+    scale = lambda: float(stage.get_attribute("data-scale"))
+    s0 = scale()
+    r = op.d.execute_script("const r = arguments[0].getBoundingClientRect();"
+                            "return [r.left + r.width / 2, r.top + r.height / 2];", stage)
+    cx, cy = r
+    # Two fingers moving apart (touch events through the DevTools protocol: the page sees
+    # pointer events of type touch): zoom in about their middle.
+    op.d.execute_cdp_cmd("Emulation.setTouchEmulationEnabled", {"enabled": True, "maxTouchPoints": 5})
+    touch(op.d, "touchStart", [(0, (cx - 40, cy)), (1, (cx + 40, cy))])
+    for k in range(1, 6):
+        touch(op.d, "touchMove", [(0, (cx - 40 - 20 * k, cy)), (1, (cx + 40 + 20 * k, cy))])
+    touch(op.d, "touchEnd", [])
+    op.d.execute_cdp_cmd("Emulation.setTouchEmulationEnabled", {"enabled": False})
+    s1 = wait("pinch zoomed in", lambda: scale() > s0 * 2 and scale())
+    # The server's outline of the extent shown comes after the zoom, finer.
+    wait("zoomed extent drawn", lambda: stage.get_attribute("data-detail") == "extent")
+    # The wheel zooms out about the pointer; Fit shows the whole program again.
+    ActionChains(op.d).scroll_from_origin(ScrollOrigin.from_element(stage), 0, 200).perform()
+    wait("wheel zoomed out", lambda: scale() < s1)
+    op.el("preview-fit").click()
+    wait("the whole program again", lambda: scale() < s1 / 2 and stage.get_attribute("data-detail") == "whole")
 
 
 @test

@@ -1,50 +1,43 @@
 // Preview: the programmed path, the tool-centre path (blue), the junction dots (yellow:
 // smooth; red: stop or speed drop below R384, SPEC §7.5), the live tool position while the
-// program runs, and the velocity plot; plane choice, zoom and pan.
+// program runs, and the velocity plot; plane choice, zoom and pan (wheel, drag, pinch).
 //
-// Up to DATA_MAX_BLOCKS blocks the page draws the program itself from GetPreviewData (typed
-// arrays; segments shorter than a pixel are skipped, dots sharing a pixel drawn once). A
-// larger (CAM-size) program is shown as the server's picture of one R387 page (GetPreview),
-// so the browser never holds a million blocks.
+// The page draws the server's outline of the selected program (GetPreviewOutline): the paths
+// reduced on the server to about a pixel of what is shown, so a program of a million blocks
+// costs the browser what a screenful of lines costs. First the whole program; after a zoom or
+// pan the page asks for the extent shown and draws it finer when it comes.
 import { preview } from "../api";
 import { button, h, setText } from "../dom";
 import { errorText } from "../format";
-import { type Box, type Segments, bounds, segments } from "../geometry";
 import { type Screen, messageLine } from "../screen";
 import { subscribe } from "../status";
-import { ImageFormat, JunctionClass, type PreviewData, type Status } from "../gen/cnc/v1/cnc_pb";
+import { ImageFormat, type Polylines, type PreviewOutline, type Status } from "../gen/cnc/v1/cnc_pb";
 
-const DATA_MAX_BLOCKS = 20_000;
 const COLORS = { path: "#c8c8c8", rapid: "#e08a3c", comp: "#3d8bff", smooth: "#ffd400", red: "#ff3030", tool: "#39ff88" };
+/** Quiet time after a zoom or pan before the finer outline of the extent is asked for. */
+const REFINE_AFTER_MS = 250;
 
 interface View { scale: number; ox: number; oy: number }
+/** An outline reply and the extent it covers (undefined: the whole program). */
+interface Drawing { o: PreviewOutline; extent?: [number, number, number, number] }
 
 export function previewScreen(): Screen {
   const msg = messageLine();
   const base = h("canvas", { class: "layer" });
   const overlay = h("canvas", { class: "layer" });
-  const picture = h("img", { class: "layer picture", hidden: true, alt: "preview picture" });
-  const stage = h("div", { class: "stage", testid: "preview", "data-state": "empty" }, base, picture, overlay);
+  const stage = h("div", { class: "stage", testid: "preview", "data-state": "empty" }, base, overlay);
   const velocity = h("img", { class: "velocity", testid: "velocity-plot", alt: "velocity plot", hidden: true });
   const plane = h("select", { testid: "preview-plane" },
     h("option", { value: "xy" }, "XY"), h("option", { value: "xz" }, "XZ"), h("option", { value: "yz" }, "YZ"), h("option", { value: "zx" }, "ZX (lathe)"));
-  const pageLabel = h("span", { class: "lbl" });
   const info = h("span", { class: "lbl", testid: "preview-info" });
-  let page = 1;
-  let pages = 1;
 
-  let data: PreviewData | undefined;
-  let prog: Segments | undefined, comp: Segments | undefined;
-  let dots: { x: number; y: number; red: boolean }[] = [];
-  let axisIdx: [number, number] = [0, 1];
+  let whole: Drawing | undefined;
+  let detail: Drawing | undefined;
   let view: View = { scale: 1, ox: 0, oy: 0 };
   let loadedFor = "";
   let tool: [number, number] | undefined;
-
-  function planeAxes(names: string[]): [number, number] {
-    const [hn, vn] = plane.value.toUpperCase().split("");
-    return [names.indexOf(hn), names.indexOf(vn)];
-  }
+  let refineTimer = 0;
+  let generation = 0;
 
   function size(c: HTMLCanvasElement): CanvasRenderingContext2D {
     const dpr = devicePixelRatio || 1;
@@ -60,67 +53,78 @@ export function previewScreen(): Screen {
   }
 
   function fit(): void {
-    const b: Box = bounds([prog, comp].filter((s): s is Segments => !!s));
+    if (!whole) return;
+    const o = whole.o;
     const w = stage.clientWidth || 800, hgt = stage.clientHeight || 600;
-    const span = Math.max(b.maxX - b.minX, b.maxY - b.minY, 1e-3);
-    const scale = 0.9 * Math.min(w / Math.max(b.maxX - b.minX, span * 0.05), hgt / Math.max(b.maxY - b.minY, span * 0.05));
-    view = { scale, ox: w / 2 - scale * (b.minX + b.maxX) / 2, oy: hgt / 2 + scale * (b.minY + b.maxY) / 2 };
+    const bw = o.maxHMm - o.minHMm, bh = o.maxVMm - o.minVMm;
+    const span = Math.max(bw, bh, 1e-3);
+    const scale = 0.9 * Math.min(w / Math.max(bw, span * 0.05), hgt / Math.max(bh, span * 0.05));
+    view = { scale, ox: w / 2 - scale * (o.minHMm + o.maxHMm) / 2, oy: hgt / 2 + scale * (o.minVMm + o.maxVMm) / 2 };
   }
 
   const sx = (x: number) => view.ox + view.scale * x;
   const sy = (y: number) => view.oy - view.scale * y;
+  /** The extent shown, mm: min h, min v, max h, max v. */
+  function shown(): [number, number, number, number] {
+    const w = stage.clientWidth, hgt = stage.clientHeight;
+    return [-view.ox / view.scale, (view.oy - hgt) / view.scale, (w - view.ox) / view.scale, view.oy / view.scale];
+  }
 
-  function strokePath(g: CanvasRenderingContext2D, s: Segments, color: string, width: number, rapidColor?: string): void {
-    for (const wantRapid of rapidColor ? [0, 1] : [-1]) {
-      g.beginPath();
-      let lx = NaN, ly = NaN;
-      for (let i = 0; i < s.count; i++) {
-        if (wantRapid >= 0 && s.rapid[i] !== wantRapid) continue;
-        const x0 = sx(s.xy[i * 4]), y0 = sy(s.xy[i * 4 + 1]);
-        const x1 = sx(s.xy[i * 4 + 2]), y1 = sy(s.xy[i * 4 + 3]);
-        if (Math.abs(x0 - lx) > 0.5 || Math.abs(y0 - ly) > 0.5) g.moveTo(x0, y0);
-        else if (Math.abs(x1 - lx) < 0.7 && Math.abs(y1 - ly) < 0.7) continue; // under a pixel
-        g.lineTo(x1, y1);
-        lx = x1;
-        ly = y1;
-      }
-      g.strokeStyle = wantRapid === 1 ? rapidColor! : color;
-      g.lineWidth = width;
-      g.setLineDash(wantRapid === 1 ? [6, 5] : []);
-      g.stroke();
+  function strokeRuns(g: CanvasRenderingContext2D, p: Polylines | undefined, color: string, width: number, dash: number[] = []): void {
+    if (!p || !p.xyMm.length) return;
+    const xy = p.xyMm, starts = p.starts, n = xy.length / 2;
+    g.beginPath();
+    for (let k = 0; k < starts.length; k++) {
+      const s = starts[k], e = k + 1 < starts.length ? starts[k + 1] : n;
+      g.moveTo(sx(xy[2 * s]), sy(xy[2 * s + 1]));
+      for (let i = s + 1; i < e; i++) g.lineTo(sx(xy[2 * i]), sy(xy[2 * i + 1]));
     }
+    g.strokeStyle = color;
+    g.lineWidth = width;
+    g.setLineDash(dash);
+    g.stroke();
     g.setLineDash([]);
+  }
+
+  function dots(g: CanvasRenderingContext2D, xy: number[], color: string, r: number): number {
+    g.fillStyle = color;
+    g.beginPath();
+    for (let i = 0; i < xy.length; i += 2) {
+      const x = sx(xy[i]), y = sy(xy[i + 1]);
+      g.moveTo(x + r, y);
+      g.arc(x, y, r, 0, 2 * Math.PI);
+    }
+    g.fill();
+    return xy.length / 2;
+  }
+
+  /** The finer drawing when it covers what is shown, else the whole program's. */
+  function current(): Drawing | undefined {
+    if (!detail?.extent) return whole;
+    const [a, b, c, d] = shown(), [e0, e1, e2, e3] = detail.extent;
+    return a >= e0 - 1e-9 && b >= e1 - 1e-9 && c <= e2 + 1e-9 && d <= e3 + 1e-9 ? detail : whole;
   }
 
   function drawBase(): void {
     const g = size(base);
-    if (!prog) return;
-    strokePath(g, prog, COLORS.path, 1.5, COLORS.rapid);
-    if (comp) strokePath(g, comp, COLORS.comp, 2);
-    const seen = new Set<number>();
-    let smooth = 0, red = 0;
-    for (const redPass of [false, true]) {
-      g.fillStyle = redPass ? COLORS.red : COLORS.smooth;
-      for (const d of dots) {
-        if (d.red !== redPass) continue;
-        const x = sx(d.x), y = sy(d.y);
-        const key = (Math.round(x / 2) << 16) ^ Math.round(y / 2) ^ (redPass ? 1 << 30 : 0);
-        if (seen.has(key)) continue;
-        seen.add(key);
-        g.beginPath();
-        g.arc(x, y, redPass ? 5 : 4, 0, 2 * Math.PI);
-        g.fill();
-        if (redPass) red++;
-        else smooth++;
-      }
-    }
+    const d = current();
+    if (!d) return;
+    const o = d.o;
+    strokeRuns(g, o.rapid, COLORS.rapid, 1.5, [6, 5]);
+    strokeRuns(g, o.feed, COLORS.path, 1.5);
+    strokeRuns(g, o.compensated, COLORS.comp, 2);
+    const smooth = dots(g, o.smoothXyMm, COLORS.smooth, 4);
+    const red = dots(g, o.redXyMm, COLORS.red, 5);
     stage.dataset.smoothDots = String(smooth);
     stage.dataset.redDots = String(red);
+    stage.dataset.scale = view.scale.toPrecision(4);
+    stage.dataset.cellMm = o.cellMm.toPrecision(3);
+    stage.dataset.detail = d === detail ? "extent" : "whole";
   }
 
   function drawTool(): void {
     const g = size(overlay);
-    if (!tool || picture.hidden === false) return;
+    if (!tool || !whole) return;
     const x = sx(tool[0]), y = sy(tool[1]);
     g.strokeStyle = COLORS.tool;
     g.lineWidth = 2;
@@ -129,74 +133,72 @@ export function previewScreen(): Screen {
     g.moveTo(x - 15, y); g.lineTo(x + 15, y);
     g.moveTo(x, y - 15); g.lineTo(x, y + 15);
     g.stroke();
+    stage.dataset.tool = `${tool[0].toFixed(3)} ${tool[1].toFixed(3)}`;
   }
 
-  function project(): void {
-    if (!data) return;
-    axisIdx = planeAxes(data.axes);
-    const [a, b] = axisIdx;
-    if (a < 0 || b < 0) {
-      msg.err(`plane ${plane.value.toUpperCase()}: this machine has axes ${data.axes.join("")}`);
-      prog = comp = undefined;
-      dots = [];
-    } else {
-      prog = segments(data.programmed, a, b);
-      // The tool-centre path where it leaves the programmed one (radius compensation on).
-      const same = new Set(data.programmed.map((e) => `${e.startMm}|${e.endMm}`));
-      const moved = data.compensated.filter((e) => !same.has(`${e.startMm}|${e.endMm}`));
-      comp = moved.length ? segments(moved, a, b) : undefined;
-      dots = data.junctions.map((j) => ({ x: j.positionMm[a], y: j.positionMm[b], red: j.class !== JunctionClass.SMOOTH }));
-    }
-    fit();
+  function redraw(): void {
     drawBase();
     drawTool();
   }
 
-  async function loadVelocity(): Promise<void> {
-    const r = await preview.getPreview({ velocity: true, format: ImageFormat.SVG, page, widthPx: 1200, heightPx: 300 });
-    velocity.src = URL.createObjectURL(new Blob([r.image as BlobPart], { type: "image/svg+xml" }));
-    velocity.hidden = false;
+  const px = () => ({ widthPx: Math.max(100, stage.clientWidth), heightPx: Math.max(100, stage.clientHeight) });
+
+  /** After a zoom or pan: the extent shown, finer, once the view is still. */
+  function refineLater(): void {
+    clearTimeout(refineTimer);
+    if (!whole) return;
+    refineTimer = window.setTimeout(async () => {
+      const ext = shown(), gen = generation;
+      try {
+        const o = await preview.getPreviewOutline({ plane: plane.value, minHMm: ext[0], minVMm: ext[1], maxHMm: ext[2], maxVMm: ext[3], ...px() });
+        if (gen !== generation) return;
+        detail = { o, extent: ext };
+        redraw();
+      } catch (e) {
+        msg.err(errorText(e));
+      }
+    }, REFINE_AFTER_MS);
   }
 
-  async function loadPicture(): Promise<void> {
-    const r = await preview.getPreview({
-      format: ImageFormat.PNG, plane: plane.value === "zx" ? "xz" : plane.value, page,
-      widthPx: Math.max(400, stage.clientWidth), heightPx: Math.max(300, stage.clientHeight),
-    });
-    pages = r.pages;
-    picture.src = URL.createObjectURL(new Blob([r.image as BlobPart], { type: "image/png" }));
-    picture.hidden = false;
-    stage.dataset.smoothDots = String(r.smoothJunctions);
-    stage.dataset.redDots = String(r.redJunctions);
-  }
+  /** What the drawing is of: the selection (name, blocks) on a plane. Opening the screen
+   * asks again (a program selected again by another client with the same name and size). */
+  const keyOf = (s: Status) => `${s.program}/${s.blocksTotal}/${plane.value}`;
 
   async function load(s: Status): Promise<void> {
-    loadedFor = `${s.program}/${s.blocksTotal}/${plane.value}/${page}`;
+    // The same program on the same plane keeps the operator's zoom.
+    const keep = !!whole && loadedFor.split("/")[0] === s.program && loadedFor.endsWith(`/${plane.value}`);
+    loadedFor = keyOf(s);
+    const gen = ++generation;
     stage.dataset.state = "loading";
     const t0 = performance.now();
     try {
-      data = undefined; prog = comp = undefined; dots = [];
-      velocity.hidden = true;
-      if (s.blocksTotal <= DATA_MAX_BLOCKS) {
-        picture.hidden = true;
-        data = await preview.getPreviewData({ text: "", junctions: true });
-        project();
-        pages = 1;
-      } else {
-        size(base);
-        await loadPicture();
+      if (!keep) {
+        whole = detail = undefined;
+        velocity.hidden = true;
       }
-      stage.dataset.mode = data ? "data" : "picture";
+      const o = await preview.getPreviewOutline({ plane: plane.value, ...px() });
+      if (gen !== generation) return;
+      whole = { o };
+      detail = undefined;
+      if (keep) refineLater();
+      else fit();
+      redraw();
+      stage.dataset.mode = "outline";
       stage.dataset.state = "drawn";
       stage.dataset.ms = (performance.now() - t0).toFixed(0);
-      setText(info, `${s.program}: ${s.blocksTotal} blocks${data ? "" : " (server picture of R387 page)"}`);
-      setText(pageLabel, pages > 1 ? `page ${page}/${pages}` : "");
+      setText(info, `${o.program}: ${o.blocks} blocks, ${o.smoothJunctions} smooth and ${o.redJunctions} red junctions`);
       msg.ok("");
-      void loadVelocity().catch(() => {});
+      if (!keep) void loadVelocity().catch(() => {});
     } catch (e) {
       stage.dataset.state = "error";
       msg.err(errorText(e));
     }
+  }
+
+  async function loadVelocity(): Promise<void> {
+    const r = await preview.getPreview({ velocity: true, format: ImageFormat.SVG, widthPx: 1200, heightPx: 300 });
+    velocity.src = URL.createObjectURL(new Blob([r.image as BlobPart], { type: "image/svg+xml" }));
+    velocity.hidden = false;
   }
 
   let latest: Status | undefined;
@@ -204,52 +206,71 @@ export function previewScreen(): Screen {
     if (latest && latest.program && !el.hidden) void load(latest);
   }
 
+  // The live tool position: the commanded position of the plane's axes (machine
+  // coordinates, the tool centre: what the outline's blue path shows under compensation).
   subscribe((s) => {
     latest = s;
-    const key = `${s.program}/${s.blocksTotal}/${plane.value}/${page}`;
-    if (!el.hidden && s.program && key !== loadedFor && stage.dataset.state !== "loading") void load(s);
-    if (!data || el.hidden) return;
-    const [a, b] = axisIdx;
-    const p: [number, number] = [s.axes[a]?.commandedMm ?? 0, s.axes[b]?.commandedMm ?? 0];
+    if (!el.hidden && s.program && keyOf(s) !== loadedFor && stage.dataset.state !== "loading") void load(s);
+    if (!whole || el.hidden) return;
+    const [hn, vn] = plane.value.toUpperCase().split("");
+    const at = (n: string) => s.axes.find((a) => a.name === n)?.commandedMm ?? 0;
+    const p: [number, number] = [at(hn), at(vn)];
     if (!tool || p[0] !== tool[0] || p[1] !== tool[1]) {
       tool = p;
       drawTool();
     }
   });
 
-  // Zoom and pan: wheel zooms about the pointer, a drag pans (mouse or one finger).
+  // Zoom and pan: the wheel zooms about the pointer; one pointer (mouse or finger) drags;
+  // two fingers pinch (zoom about their middle) and pan together.
   function zoom(f: number, cx = stage.clientWidth / 2, cy = stage.clientHeight / 2): void {
     view = { scale: view.scale * f, ox: cx - (cx - view.ox) * f, oy: cy - (cy - view.oy) * f };
-    drawBase();
-    drawTool();
+    redraw();
+    refineLater();
   }
   stage.addEventListener("wheel", (e) => {
     e.preventDefault();
     const r = stage.getBoundingClientRect();
     zoom(e.deltaY < 0 ? 1.25 : 0.8, e.clientX - r.left, e.clientY - r.top);
   }, { passive: false });
-  let drag: { x: number; y: number } | undefined;
-  stage.addEventListener("pointerdown", (e) => { drag = { x: e.clientX, y: e.clientY }; stage.setPointerCapture(e.pointerId); });
-  stage.addEventListener("pointermove", (e) => {
-    if (!drag) return;
-    view.ox += e.clientX - drag.x;
-    view.oy += e.clientY - drag.y;
-    drag = { x: e.clientX, y: e.clientY };
-    drawBase();
-    drawTool();
+  const pointers = new Map<number, { x: number; y: number }>();
+  /** Middle and spread of the pointers down (stage coordinates). */
+  function gesture(): { x: number; y: number; d: number } {
+    const r = stage.getBoundingClientRect();
+    const ps = [...pointers.values()];
+    const x = ps.reduce((a, p) => a + p.x, 0) / ps.length - r.left;
+    const y = ps.reduce((a, p) => a + p.y, 0) / ps.length - r.top;
+    const d = ps.length > 1 ? Math.hypot(ps[0].x - ps[1].x, ps[0].y - ps[1].y) : 0;
+    return { x, y, d };
+  }
+  stage.addEventListener("pointerdown", (e) => {
+    pointers.set(e.pointerId, { x: e.clientX, y: e.clientY });
+    stage.setPointerCapture(e.pointerId);
   });
-  for (const ev of ["pointerup", "pointercancel"]) stage.addEventListener(ev, () => (drag = undefined));
-  plane.addEventListener("change", () => (data ? project() : reload()));
-  new ResizeObserver(() => { if (data) { drawBase(); drawTool(); } }).observe(stage);
+  stage.addEventListener("pointermove", (e) => {
+    if (!pointers.has(e.pointerId)) return;
+    const before = gesture();
+    pointers.set(e.pointerId, { x: e.clientX, y: e.clientY });
+    const after = gesture();
+    const f = pointers.size > 1 && before.d > 0 && after.d > 0 ? after.d / before.d : 1;
+    // Zoom about the middle, then move with it.
+    view = {
+      scale: view.scale * f,
+      ox: after.x - (before.x - view.ox) * f,
+      oy: after.y - (before.y - view.oy) * f,
+    };
+    redraw();
+    refineLater();
+  });
+  for (const ev of ["pointerup", "pointercancel"]) stage.addEventListener(ev, (e) => pointers.delete((e as PointerEvent).pointerId));
+  plane.addEventListener("change", reload);
+  new ResizeObserver(() => { if (whole) { redraw(); refineLater(); } }).observe(stage);
 
   const el = h("div", { class: "screen preview" },
     h("div", { class: "row" }, h("label", {}, "Plane ", plane),
       button("−", "preview-zoom-out", () => zoom(0.8), "", "observer"),
       button("+", "preview-zoom-in", () => zoom(1.25), "", "observer"),
-      button("Fit", "preview-fit", () => { fit(); drawBase(); drawTool(); }, "", "observer"),
-      button("◀", "preview-page-prev", () => { if (page > 1) { page--; reload(); } }, "", "observer"),
-      pageLabel,
-      button("▶", "preview-page-next", () => { if (page < pages) { page++; reload(); } }, "", "observer"),
+      button("Fit", "preview-fit", () => { fit(); detail = undefined; redraw(); }, "", "observer"),
       info),
     stage,
     h("div", { class: "legend" },
@@ -258,5 +279,5 @@ export function previewScreen(): Screen {
       h("span", { style: `color:${COLORS.red}` }, "● stop / speed drop"), h("span", { style: `color:${COLORS.tool}` }, "⊕ tool")),
     velocity,
     msg.el);
-  return { id: "preview", title: "Preview", el, onShow: () => requestAnimationFrame(() => (data ? (fit(), drawBase(), drawTool()) : reload())) };
+  return { id: "preview", title: "Preview", el, onShow: () => requestAnimationFrame(reload) };
 }

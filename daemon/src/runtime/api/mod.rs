@@ -13,6 +13,7 @@ pub mod job_journal;
 mod jog;
 mod machine;
 pub mod preview;
+mod preview_outline;
 mod programs;
 mod tables;
 mod trajectory;
@@ -71,6 +72,8 @@ struct PlanInfo {
     /// The outputs of the same pass, read by the previews of the selected program (`None`:
     /// too large to keep).
     pass: Option<Arc<::preview::pipeline::Recording>>,
+    /// The outline the same pass collected (`GetPreviewOutline`).
+    outline: Arc<::preview::outline::Outline>,
 }
 
 /// Why the state shared by the services could not be built.

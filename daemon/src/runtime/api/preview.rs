@@ -200,6 +200,17 @@ impl Preview for PreviewSvc {
         Ok(Response::new(data))
     }
 
+    async fn get_preview_outline(
+        &self,
+        req: Request<pb::PreviewOutlineRequest>,
+    ) -> Result<Response<pb::PreviewOutline>, Status> {
+        require(&req, Observer, "GetPreviewOutline")?;
+        let r = req.into_inner();
+        let st = self.0.clone();
+        let reply = blocking(move || super::preview_outline::outline_reply(&st, &r)).await??;
+        Ok(Response::new(reply))
+    }
+
     async fn get_preview(
         &self,
         req: Request<pb::GetPreviewRequest>,

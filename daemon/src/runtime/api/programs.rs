@@ -125,16 +125,20 @@ fn prepare(
     // The same pass records what the previews of the selected program read (instead of
     // making a pass of their own).
     let record = ::preview::pipeline::Recorder::new(super::preview::RECORD_MAX_OUTPUTS);
-    let mut obs = (pass, record);
+    // ... and the outline a screen draws a program of any size from (GetPreviewOutline).
+    let outline = ::preview::outline::Outline::new(&st.ctl.config().axis_names());
+    let mut obs = (pass, (record, outline));
     let loaded = st.ctl.prepare_program(name, text, &mut obs)?;
-    let recording = obs
-        .1
+    let (pass, (record, mut outline)) = obs;
+    outline.freeze();
+    let recording = record
         .finish(loaded.block_count, loaded.warnings.clone())
         .map(Arc::new);
     Ok(Prepared {
         loaded,
-        junctions: obs.0.junctions.classes,
+        junctions: pass.junctions.classes,
         recording,
+        outline: Arc::new(outline),
     })
 }
 
@@ -143,6 +147,7 @@ pub struct Prepared {
     loaded: Arc<LoadedProgram>,
     junctions: Vec<pb::JunctionClass>,
     recording: Option<Arc<::preview::pipeline::Recording>>,
+    outline: Arc<::preview::outline::Outline>,
 }
 
 /// An upload validated and not yet stored.
@@ -276,6 +281,7 @@ fn after_select(st: &ApiState, p: Prepared) {
         program: Arc::as_ptr(&p.loaded) as *const () as usize,
         junctions: p.junctions,
         pass: p.recording,
+        outline: p.outline,
     });
 }
 

@@ -1,0 +1,142 @@
+//! `Preview.GetPreviewOutline` over grpc-web (issue #30): the browser draws a program of any
+//! size from the server's outline of the selected program, collected by the pass that
+//! validated the selection (no pass of its own), bounded per view, finer for a zoomed extent
+//! (a pass of its own, clipped), with the tool-centre path of radius compensation.
+
+mod api_common;
+mod hmi_common;
+
+use api_common::{OPERATOR_TOKEN, config, with_token};
+use daemon::runtime::config::Role;
+use proto::v1 as pb;
+use proto::v1::preview_client::PreviewClient;
+use tonic::Code;
+
+fn preview(h: &hmi_common::Hmi) -> PreviewClient<hmi_common::Web> {
+    let (svc, origin) = hmi_common::web_channel(&h.base);
+    PreviewClient::with_origin(svc, origin)
+}
+
+fn whole(plane: &str) -> pb::PreviewOutlineRequest {
+    pb::PreviewOutlineRequest {
+        plane: plane.into(),
+        width_px: 1000,
+        height_px: 800,
+        ..Default::default()
+    }
+}
+
+fn points(p: &Option<pb::Polylines>) -> usize {
+    p.as_ref().map_or(0, |p| p.xy_mm.len() / 2)
+}
+
+/// A contour under G41 (tool radius 3 mm), then a continuous (G23) raster of `rows` x 1000
+/// short moves.
+fn program(rows: u32) -> String {
+    let mut t = String::from(
+        "N1 G92 D1 R0=3.0\nN2 G17 D1\nN3 G0 X-10 Y-10\nN4 G41 G1 X0 Y0 F3000\n\
+         N5 Y80\nN6 X100\nN7 Y0\nN8 X0\nN9 G40 G1 X-10 Y-10\nN10 G23\n",
+    );
+    for row in 0..rows {
+        for col in 0..1000 {
+            let x = if row % 2 == 0 { col } else { 999 - col } as f64 * 0.1;
+            let y = 5.0 + row as f64 * 0.1 + if col % 7 == 0 { 0.02 } else { 0.0 };
+            t += &format!("G1 X{x:.3} Y{y:.3}\n");
+        }
+    }
+    t
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_selected_programs_outline_is_bounded_true_and_refined_on_zoom() {
+    let h = hmi_common::start(config(Role::Admin)).await;
+    let mut p = preview(&h);
+    let e = p.get_preview_outline(whole("xy")).await.unwrap_err();
+    assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");
+
+    let text = program(60);
+    h.machine()
+        .load_program(with_token(
+            pb::LoadProgramRequest {
+                name: "cam.nc".into(),
+                text,
+            },
+            OPERATOR_TOKEN,
+        ))
+        .await
+        .unwrap();
+    let passes = h.ctl.validation_passes();
+    let o = p
+        .get_preview_outline(whole("xy"))
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!(
+        h.ctl.validation_passes(),
+        passes,
+        "read from the selection's pass"
+    );
+    assert!(!o.own_pass);
+    assert_eq!((o.program.as_str(), o.blocks), ("cam.nc", 60_010));
+    // The whole program's box: the rapid from X-10 Y-10, the contour, the tool centre.
+    assert!(o.min_h_mm <= -10.0 && o.max_h_mm >= 100.0, "{o:?}");
+    assert!(o.min_v_mm <= -10.0 && o.max_v_mm >= 80.0);
+    // Bounded: a screenful, not 60,000 blocks.
+    assert!(
+        points(&o.feed) > 100 && points(&o.feed) <= 1 << 16,
+        "{}",
+        points(&o.feed)
+    );
+    assert!(points(&o.rapid) >= 2);
+    assert!(points(&o.compensated) >= 4, "the tool-centre path is sent");
+    assert!(o.smooth_junctions + o.red_junctions >= 60_000);
+    assert!(!o.red_xy_mm.is_empty() && !o.smooth_xy_mm.is_empty());
+    assert!(o.cell_mm > 0.0 && o.cell_mm < 0.5, "{}", o.cell_mm);
+
+    // A zoom on 2 mm of the raster: finer, from the outline (fine enough for 60,000 blocks).
+    let zoom = pb::PreviewOutlineRequest {
+        min_h_mm: 40.0,
+        min_v_mm: 6.0,
+        max_h_mm: 42.0,
+        max_v_mm: 8.0,
+        ..whole("xy")
+    };
+    let z = p.get_preview_outline(zoom).await.unwrap().into_inner();
+    assert!(z.cell_mm < o.cell_mm / 2.0, "{} {}", z.cell_mm, o.cell_mm);
+    let xy = &z.feed.as_ref().unwrap().xy_mm;
+    assert!(!xy.is_empty());
+    assert!(
+        xy.chunks(2).all(|q| q[0] > 30.0 && q[0] < 52.0),
+        "clipped to the extent"
+    );
+    // The same box as the whole program's (to fit it).
+    assert_eq!((z.min_h_mm, z.max_v_mm), (o.min_h_mm, o.max_v_mm));
+
+    // Zoomed finer than the outline's grid: a pass of its own, clipped to the extent.
+    let passes = h.ctl.validation_passes();
+    let deep = pb::PreviewOutlineRequest {
+        min_h_mm: 40.0,
+        min_v_mm: 6.0,
+        max_h_mm: 40.01,
+        max_v_mm: 6.01,
+        ..whole("xy")
+    };
+    let d = p.get_preview_outline(deep).await.unwrap().into_inner();
+    assert!(
+        d.own_pass && d.cell_mm < z.cell_mm,
+        "{} {}",
+        d.cell_mm,
+        z.cell_mm
+    );
+    assert_eq!(h.ctl.validation_passes(), passes + 1);
+
+    // Other planes, a lathe's ZX too; an unknown plane is refused.
+    let xz = p
+        .get_preview_outline(whole("zx"))
+        .await
+        .unwrap()
+        .into_inner();
+    assert!(points(&xz.feed) > 0);
+    let e = p.get_preview_outline(whole("xq")).await.unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+}
