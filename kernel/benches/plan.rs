@@ -487,9 +487,82 @@ fn count_only() {
     println!("{n} segments");
 }
 
+/// `cargo bench -p kernel --bench plan -- count-ticks [parabolic]`: the interpolator over
+/// 20000 circle chords planned first (linear.rek, or parabolic.rek), for an instruction count
+/// of `Interpolator::tick` under valgrind (`--toggle-collect='*Interpolator::tick*'`); prints
+/// the number of ticks.
+fn count_ticks_only() {
+    let blocks = dense_blocks(20_000);
+    let profile = if std::env::args().any(|a| a == "parabolic") {
+        2
+    } else {
+        1
+    };
+    let mut pl = Planner::new(ours(profile), 1);
+    let mut segs = vec![];
+    for b in &blocks {
+        while !pl.wants_input() {
+            segs.extend(pl.poll());
+        }
+        pl.push(b).unwrap();
+        segs.extend(std::iter::from_fn(|| pl.poll()));
+    }
+    pl.finish();
+    segs.extend(std::iter::from_fn(|| pl.poll()));
+    println!("{} ticks", tick_times_ns(&segs).len());
+}
+
+/// `cargo bench -p kernel --bench plan -- fingerprint`: per path and configuration the
+/// number of ticks and a checksum of the setpoints, to see whether a change of the planner's
+/// or interpolator's code changed any trajectory.
+fn fingerprint() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/plan");
+    let mut configs = vec![("reference".to_string(), reference_config())];
+    for name in ["linear", "parabolic"] {
+        let c = constants_file(&format!("{dir}/{name}.rek"));
+        configs.push((name.to_string(), daemon_config(&default_axes(), Some(&c))));
+        configs.push((
+            format!("{name} unequal"),
+            daemon_config(&unequal_axes(), Some(&c)),
+        ));
+    }
+    configs.push(("defaults".to_string(), daemon_config(&default_axes(), None)));
+    let mut paths: Vec<(String, Vec<Block>)> = reference_paths()
+        .into_iter()
+        .map(|p| (p.name, p.blocks))
+        .collect();
+    paths.extend(daemon_suite().into_iter().map(|(n, b)| (n.to_string(), b)));
+    paths.push(("unequal".to_string(), unequal_limits_path()));
+    for (cname, cfg) in &configs {
+        for (pname, blocks) in &paths {
+            let r = run(cfg.clone(), blocks);
+            let mut h = 0u64;
+            for t in &r.ticks {
+                for k in 0..cfg.axes {
+                    h = h.rotate_left(5) ^ t.position[k].to_bits();
+                }
+            }
+            println!("{cname:18} {pname:40} {:7} ticks {h:016x}", r.ticks.len());
+        }
+    }
+}
+
 fn main() {
+    if std::env::args().any(|a| a == "fingerprint") {
+        fingerprint();
+        return;
+    }
     if std::env::args().any(|a| a == "count") {
         count_only();
+        return;
+    }
+    if std::env::args().any(|a| a == "count-ticks") {
+        count_ticks_only();
+        return;
+    }
+    if std::env::args().any(|a| a == "speed") {
+        throughput();
+        tick_cost();
         return;
     }
     reference_paths_table();

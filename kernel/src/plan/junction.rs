@@ -3,6 +3,7 @@
 //! ceiling. `Planner::finalize` runs these steps in order; each is a function of its own.
 
 use super::budget::{JunctionTurns, LineBudget};
+use super::near::NearJunction;
 use super::{
     NORMAL_SHARE, OVERRIDE_MAX, Pending, Planner, Profile, SegPath, Segment, criteria, junction_of,
 };
@@ -89,6 +90,8 @@ impl Planner {
     /// Computes the junction at the end of block `i` (all criteria of SPEC §7.2) and the final
     /// limits of block `i` itself.
     pub(super) fn finalize(&mut self, i: usize, last: bool) {
+        // The window changed since the last walk near a junction.
+        self.near.invalidate();
         let (mut crit, mut criteria_cap) = if last {
             (0.0, 0.0)
         } else {
@@ -97,11 +100,14 @@ impl Planner {
         let passed = !last && self.win[i].smooth && criteria_cap > 0.0;
         let mut turns = (passed && self.cfg.envelope.profile == Profile::Linear)
             .then(|| self.junction_turns(i, criteria_cap));
+        // What passing gains over stopping and what the lines lose, once known.
+        let mut net = None;
         if passed && self.box_rule(i) {
             // The per-axis box lets the turn take nearly all of an axis; the lines beside
             // it then ramp slowly. Where that loses time (long lines that ramp far from
             // the turn's speed) the turn takes half of each axis instead (issue #32).
             let (gain, loss) = self.corner_net_s(i, criteria_cap, turns.as_ref());
+            net = Some((gain, loss));
             if loss > 0.05 * gain.max(0.0) {
                 let (c, cap) = self.junction_speed(i, NORMAL_SHARE);
                 if cap > 0.0 {
@@ -109,11 +115,12 @@ impl Planner {
                     let (g, l) = self.corner_net_s(i, cap, Some(&t));
                     if g - l > gain - loss {
                         (crit, criteria_cap, turns) = (c, cap, Some(t));
+                        net = Some((g, l));
                     }
                 }
             }
         }
-        let planned_stop = !last && self.corner_is_a_stop(i, criteria_cap, turns.as_ref());
+        let planned_stop = !last && self.corner_is_a_stop(i, criteria_cap, turns.as_ref(), net);
         let p = &mut self.win[i];
         if planned_stop {
             p.smooth = false;
@@ -172,7 +179,16 @@ impl Planner {
             0.0
         };
         let (v, searched) = if box_rule {
-            largest_within(v, guess, |v| self.box_window_bound(i, v, &limits))
+            let near = self.near_junction(i, v);
+            // (Bisection, although the bound is constant over ranges of v where every
+            // tangent it looks up stays on the same line: caps at the exact crossing took an
+            // axis of the random arcs to 1.0005-1.0011 × its limit; the bisection's 0.2 %
+            // below it is what the tests hold.)
+            let (found, searched) =
+                largest_within(v, guess, |v| self.box_window_bound(i, v, &limits, &near));
+            let found = (found, searched);
+            self.near = near;
+            found
         } else {
             largest_within(v, guess, |v| self.window_bound(i, v, &limits))
         };
@@ -276,12 +292,15 @@ impl Planner {
     /// - the accuracy criterion on the chord of a tick: v·Ts·|Θ|/4 ≤ Lm (a tick chord of
     ///   v·Ts across a turn Θ misses its apex by at most v·Ts·sin(Θ/2)/2).
     ///
-    /// Θ = t(+h) − t(−h), h = v_ref·Ts/2.
-    fn box_window_bound(&self, i: usize, v: f64, l: &WindowLimits) -> f64 {
+    /// Θ = t(+h) − t(−h), h = v_ref·Ts/2. The tangents come from the walk `near`; a result
+    /// within its bound is remembered there with the range of h over which it is the same,
+    /// for [`Planner::junction_turns`] at the speed the search settles on.
+    fn box_window_bound(&self, i: usize, v: f64, l: &WindowLimits, near: &NearJunction) -> f64 {
         let axes = self.cfg.axes;
-        let (t, window) = self.turns_and_window(i, v);
+        let (t, window, h_piece) = self.turns_and_window(i, v, near);
         let a_ts = t.v_ref_mm_s - v;
         let mut bound = f64::INFINITY;
+        // (The turns' dir is not needed here: `junction_turns` adds it.)
         for k in 0..axes {
             let turn = t.normal_per_s[k] * TS_S;
             if turn > 1e-12 {
@@ -296,6 +315,10 @@ impl Planner {
         let chord = window.norm(axes);
         if l.lm_um > 0.0 && chord > 1e-12 {
             bound = bound.min(4.0 * l.lm_um * 1e-3 / (TS_S * chord));
+        }
+        if bound >= v && h_piece.0 < h_piece.1 {
+            // Within its bound: the search's result is likely in this piece.
+            near.remember(t, window, h_piece);
         }
         bound
     }
@@ -457,14 +480,29 @@ impl Planner {
     /// cap + A·Ts the fastest a tick touching the junction runs (A the larger path
     /// acceleration of the two blocks); and the tangent components the ticks near it move
     /// along. Looked up once per junction for the lines on both sides.
-    pub(super) fn junction_turns(&self, j: usize, cap: f64) -> JunctionTurns {
-        self.turns_and_window(j, cap).0
+    pub(super) fn junction_turns(&mut self, j: usize, cap: f64) -> JunctionTurns {
+        let near = self.near_junction(j, cap);
+        let mut t = self.turns_and_window(j, cap, &near).0;
+        t.dir = self.turn_dirs(j, self.turn_window(j, cap).1, &near);
+        self.near = near;
+        t
     }
 
-    /// [`Planner::junction_turns`] and the turn of the tangent over the tick window,
-    /// t(+h) − t(−h).
-    fn turns_and_window(&self, j: usize, cap: f64) -> (JunctionTurns, AxesMm) {
-        let axes = self.cfg.axes;
+    /// The blocks near junction `j` that its turns at speeds up to `cap` look at (the walk
+    /// of the last call when it covers them; hand it back to `self.near` after use).
+    fn near_junction(&mut self, j: usize, cap: f64) -> NearJunction {
+        let mut near = std::mem::take(&mut self.near);
+        let reach = 3.0 * self.turn_window(j, cap).1;
+        if !near.covers(j, reach) {
+            self.walk_near(j, reach, &mut near);
+        }
+        near
+    }
+
+    /// The fastest a tick touching junction `j` passed at `cap` runs, v_ref = cap + A·Ts (A
+    /// the larger path acceleration of the two blocks), and half its tick window, h =
+    /// v_ref·Ts/2 (mm/s, mm).
+    fn turn_window(&self, j: usize, cap: f64) -> (f64, f64) {
         let (a0, a1) = (self.win[j].a_axes, self.win[j + 1].a_axes);
         let a = if a0.is_finite() && a1.is_finite() {
             a0.max(a1)
@@ -472,26 +510,78 @@ impl Planner {
             a0.min(a1)
         };
         let v = cap + if a.is_finite() { a * TS_S } else { 0.0 };
-        let h = v * TS_S / 2.0;
+        (v, v * TS_S / 2.0)
+    }
+
+    /// The turns of [`Planner::junction_turns`] without `dir`, and the turn of the tangent
+    /// over the tick window, t(+h) − t(−h), with the tangents looked up in `near` where it
+    /// covers them. Also the range of h = v_ref·Ts/2 (h_lo, h_hi] over which both are the
+    /// same (an empty one where they vary, near arcs).
+    fn turns_and_window(
+        &self,
+        j: usize,
+        cap: f64,
+        near: &NearJunction,
+    ) -> (JunctionTurns, AxesMm, (f64, f64)) {
+        let axes = self.cfg.axes;
+        let (v, h) = self.turn_window(j, cap);
+        if let Some((turns, window, piece)) = near.same_piece(j, h) {
+            // The same tangents as a recent lookup: only v_ref differs.
+            let t = JunctionTurns {
+                v_ref_mm_s: v,
+                ..turns
+            };
+            return (t, window, piece);
+        }
         let mut t = JunctionTurns {
             v_ref_mm_s: v,
             ..JunctionTurns::default()
         };
         // The velocity change of a tick weighs the turns within ±v·Ts of it by
         // 1 − |x|/(v·Ts): the mean of the turns within ±h/2 and ±3h/2.
-        let mut ahead = [AxesMm::ZERO; 4];
-        let mut behind = [AxesMm::ZERO; 4];
-        let ds = [h / 2.0, h, 1.5 * h, 3.0 * h];
-        self.tangents_near(j, true, &ds, &mut ahead);
-        self.tangents_near(j, false, &ds, &mut behind);
-        let [ti1, t1, to1, t2] = ahead;
-        let [ti0, t0, to0, tm] = behind;
+        let mut ahead = [AxesMm::ZERO; 3];
+        let mut behind = [AxesMm::ZERO; 3];
+        let ds = [h / 2.0, h, 1.5 * h];
+        let mut h_piece = (0.0, f64::INFINITY);
+        if near.covers(j, ds[2]) {
+            // (c·h is bit-identical to the distances above.)
+            let cs = [0.5, 1.0, 1.5];
+            self.tangents_from(near, true, h, &cs, &mut ahead, &mut h_piece);
+            self.tangents_from(near, false, h, &cs, &mut behind, &mut h_piece);
+        } else {
+            h_piece = (h, h);
+            self.tangents_near(j, true, &ds, &mut ahead);
+            self.tangents_near(j, false, &ds, &mut behind);
+        }
+        let [ti1, t1, to1] = ahead;
+        let [ti0, t0, to0] = behind;
         for k in 0..axes {
             let turn = 0.5 * ((ti1[k] - ti0[k]).abs() + (to1[k] - to0[k]).abs());
             t.normal_per_s[k] = turn / TS_S;
-            t.dir[k] = t1[k].abs().max(t2[k].abs()).max(tm[k].abs());
         }
-        (t, t1 - t0)
+        (t, t1 - t0, h_piece)
+    }
+
+    /// Per axis the largest tangent component the ticks near junction `j` move along: of
+    /// t(h), t(3h) and t(−3h) (`h` of [`Planner::turn_window`]).
+    fn turn_dirs(&self, j: usize, h: f64, near: &NearJunction) -> [f64; MAX_AXES] {
+        let mut ahead = [AxesMm::ZERO; 2];
+        let mut behind = [AxesMm::ZERO; 1];
+        if near.covers(j, 3.0 * h) {
+            let mut piece = (0.0, f64::INFINITY);
+            self.tangents_from(near, true, h, &[1.0, 3.0], &mut ahead, &mut piece);
+            self.tangents_from(near, false, h, &[3.0], &mut behind, &mut piece);
+        } else {
+            self.tangents_near(j, true, &[h, 3.0 * h], &mut ahead);
+            self.tangents_near(j, false, &[3.0 * h], &mut behind);
+        }
+        let [t1, t2] = ahead;
+        let [tm] = behind;
+        let mut dir = [0.0; MAX_AXES];
+        for (k, d) in dir.iter_mut().enumerate().take(self.cfg.axes) {
+            *d = t1[k].abs().max(t2[k].abs()).max(tm[k].abs());
+        }
+        dir
     }
 
     /// R395: keep the junction speeds through a short block unless rising pays off. Only
@@ -520,11 +610,14 @@ impl Planner {
     /// passed at is below one tick's acceleration step, or when the time the line sides lose
     /// by ramping at the acceleration the turn leaves them exceeds what passing at that speed
     /// gains over stopping.
+    ///
+    /// `net`: [`Planner::corner_net_s`] for these arguments where already computed.
     pub(super) fn corner_is_a_stop(
         &self,
         i: usize,
         cap: f64,
         turns: Option<&JunctionTurns>,
+        net: Option<(f64, f64)>,
     ) -> bool {
         let (p, n) = (&self.win[i], &self.win[i + 1]);
         let is_arc = |q: &Pending| matches!(q.seg.path, SegPath::Arc { .. });
@@ -532,7 +625,7 @@ impl Planner {
         if !p.smooth || !shares {
             return false;
         }
-        let (gain, loss) = self.corner_net_s(i, cap, turns);
+        let (gain, loss) = net.unwrap_or_else(|| self.corner_net_s(i, cap, turns));
         loss > gain
     }
 

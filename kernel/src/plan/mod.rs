@@ -18,16 +18,18 @@
 //!
 //! ## Streaming and memory
 //! `push` appends to the window; a segment is committed (returned by `poll`) as soon as its end
-//! speed can no longer rise (it reached its junction cap), or when the window holds
-//! `lookahead_blocks` blocks (then with the speed that is safe for the window). `wants_input`
-//! is false while the window is full, so memory is bounded by the look-ahead, and execution of
-//! a long program starts after the first junctions are final, not after the whole program.
+//! speed can no longer rise (it, or a later junction, reached its junction cap), or when the
+//! window holds `lookahead_blocks` blocks (then with the speed that is safe for the window).
+//! `wants_input` is false while the window is full, so memory is bounded by the look-ahead,
+//! and execution of a long program starts after the first junctions are final, not after the
+//! whole program.
 
 mod budget;
 mod config;
 pub mod criteria;
 mod junction;
 mod merge;
+mod near;
 mod path;
 
 use std::collections::VecDeque;
@@ -207,6 +209,10 @@ pub struct Planner {
     emitted: usize,
     /// Leading entries of `win` whose end junction is final.
     finalized: usize,
+    /// Leading entries of `win` whose end speed is final: up to a junction the backward pass
+    /// left at its cap (or a stop). Later passes stop there (end speeds only rise, and a
+    /// capped one cannot), so the end speeds before it can no longer change.
+    settled: usize,
     finished: bool,
     carry: Option<merge::Carry>,
     /// Dynamic set chosen by the PLC cell DYNAM_SET, until the program selects one again.
@@ -220,6 +226,8 @@ pub struct Planner {
     leading_stop: ProgramStop,
     /// Spindle state of the last block pushed (to see changes in technology blocks).
     spindle_state: Spindle,
+    /// The blocks near the junction being finalized, walked once (`near.rs`).
+    near: near::NearJunction,
     /// Last result of the curvature-window search (a warm start for the next junction).
     window_guess_mm_s: f64,
     /// Junctions finalized since the last backward pass.
@@ -243,6 +251,7 @@ impl Planner {
             win: VecDeque::new(),
             emitted: 0,
             finalized: 0,
+            settled: 0,
             finished: false,
             carry: None,
             plc_set: None,
@@ -251,6 +260,7 @@ impl Planner {
             leading_dwell_s: 0.0,
             leading_stop: ProgramStop::None,
             spindle_state: Spindle::default(),
+            near: near::NearJunction::default(),
             window_guess_mm_s: 0.0,
             pending_backward: 0,
             committed_end_mm_s: 0.0,
@@ -424,9 +434,7 @@ impl Planner {
         if i >= self.finalized - self.pending_backward {
             return None;
         }
-        let p = &self.win[i];
-        let settled = p.seg.v_end_mm_s >= p.cap * (1.0 - 1e-12);
-        if !(settled || full || self.finished) {
+        if !(i < self.settled || full || self.finished) {
             return None;
         }
         self.commit_budget(i);
@@ -436,6 +444,7 @@ impl Planner {
             self.win.pop_front();
             self.emitted -= 1;
             self.finalized -= 1;
+            self.settled = self.settled.saturating_sub(1);
         }
         Some(seg)
     }
@@ -847,6 +856,10 @@ impl Planner {
                 break;
             }
             p.seg.v_end_mm_s = v;
+            if v >= p.cap * (1.0 - 1e-12) {
+                // At its cap: this end speed and every one before it are final.
+                self.settled = self.settled.max(k + 1);
+            }
             // Reclassify a drop that came from braking (never below what the junction allows).
             if p.seg.junction != Junction::Stop {
                 let drop = self.cfg.envelope.sets[p.set].drop_percent / 100.0;
