@@ -112,6 +112,8 @@ fn expect(cmd: &str) -> Expect {
         | "cncctl load programs/sample.nc"
         | "cncctl block-delete on"
         | "cncctl block-delete off"
+        | "cncctl single-block on"
+        | "cncctl single-block off"
         | "cncctl validate programs/sample.nc" => Ok,
         other => {
             panic!("docs/operator.md documents `{other}`: add it to tests/tests/operator_docs.rs")

@@ -307,6 +307,11 @@ impl ApiState {
             fault_path_deviation_mm: s.fault_path_deviation_mm,
             block_delete: ctl.block_delete(),
             restart_block: restart_block(s, block.as_ref()),
+            block_finished: s.block_stop.then_some(pb::FinishedBlock {
+                block: s.block_n,
+                line: s.line,
+                block_index: s.block_seq,
+            }),
         }
     }
 

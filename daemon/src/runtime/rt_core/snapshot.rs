@@ -61,6 +61,9 @@ pub struct Snapshot {
     pub optional_stop: bool,
     /// Held at a program stop (M0, or M1 with optional stop on).
     pub program_stop: bool,
+    /// Held at the end of a block in single-block mode: `block_seq`, `block_n` and `line`
+    /// name the block just finished.
+    pub block_stop: bool,
     /// Largest distance of the tool from the programmed path the last fault stop caused, mm.
     pub fault_path_deviation_mm: f64,
     /// Axes homed since power-on (bit i: axis i).
@@ -126,6 +129,7 @@ impl RtCore {
         s.spindle_rpm = self.io.fb.spindle_rpm;
         s.waiting_for_spindle = self.motion.interp.waiting_for_spindle();
         s.program_stop = self.motion.interp.at_program_stop();
+        s.block_stop = self.motion.interp.at_block_stop();
         s.plc = self.logic.plc;
         &self.snap
     }
