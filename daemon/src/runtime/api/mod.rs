@@ -707,7 +707,7 @@ fn text_or_selected(ctl: &Controller, text: String) -> Result<String, Status> {
         return Ok(text);
     }
     let all = selected_text(ctl)?
-        .read_all()
+        .read_all(ctl.program_encoding())
         .map_err(|e| Status::internal(format!("cannot read the selected program: {e}")))?;
     Ok(all.to_string())
 }
