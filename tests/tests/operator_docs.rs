@@ -79,6 +79,7 @@ fn expect(cmd: &str) -> Expect {
         | "cncctl offset-set"
         | "cncctl constants set"
         | "cncctl offsets-replace"
+        | "cncctl offsets-replace FILE --revision REV"
         | "cncctl trajectory --from-block N"
         | "cncctl start --from-block N" => Mention,
         c if c.contains("FILE") || c.contains("NAME") => Mention,
