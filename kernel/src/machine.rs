@@ -35,6 +35,8 @@ pub struct MachineConfig {
     /// Encoder pulses per revolution of each rotary axis, in machine order (`None`: linear).
     pub rotary_pulses_per_rev: Vec<Option<f64>>,
     pub ij: IjMode,
+    /// Code page of program files (`[program] encoding`, issue #31).
+    pub encoding: crate::program::encoding::TextEncoding,
     /// `$63`: the preprocessor is on (R325 refinement).
     pub preprocessor: bool,
     /// Minimum block duration of the planner (`[planner] min_block_time_ms`; 0: as many
@@ -78,6 +80,7 @@ impl MachineSetup {
         program.constants = constants.clone();
         program.offsets = offsets.clone();
         program.ij = machine.ij;
+        program.encoding = machine.encoding;
         program.preprocessor = machine.preprocessor;
         program.soft_limits = machine.soft_limits;
         // Gears select by M code; the fastest axis is Vmax of the βmax warning (SPEC §5, §6).
@@ -324,6 +327,7 @@ mod tests {
             radius_input: RadiusInput::Radius,
             rotary_pulses_per_rev: Vec::new(),
             ij: IjMode::default(),
+            encoding: Default::default(),
             preprocessor: true,
             min_block_time_s: 0.0,
             soft_limits: crate::limits::SoftLimits::NONE,

@@ -254,9 +254,9 @@ async fn single_block_holds_at_every_block() {
         .await;
     }
     wait_job_finished(&d.ctl, job).await;
-    // Holds land at the block ends (5 and 10), within the braking distance from rest.
-    assert!((stops[0] - 5.0).abs() < 0.05, "{stops:?}");
-    assert!((stops[1] - 10.0).abs() < 0.05, "{stops:?}");
+    // Holds land exactly at the block ends (5 and 10).
+    assert!((stops[0] - 5.0).abs() < 1e-6, "{stops:?}");
+    assert!((stops[1] - 10.0).abs() < 1e-6, "{stops:?}");
     assert!((d.ctl.snapshot().axes.commanded[0] - 15.0).abs() < 1e-6);
 }
 

@@ -114,6 +114,22 @@ fn library_revision_is_what_runs() {
     let stored = out.lines().nth(1).unwrap_or_default().to_string();
     let when = stored.split("stored ").nth(1).unwrap_or_default();
     assert!(is_local_iso_time(when), "{stored}");
+    // Loading (selecting) another program while one runs: refused with the same code.
+    std::fs::write(
+        cwd.join("long.nc"),
+        "N10 G1 X200 F300
+N20 X0
+",
+    )
+    .unwrap();
+    let (ok, out) = d.cncctl(&["load", "long.nc"]);
+    assert!(ok, "{out}");
+    let (ok, out) = d.cncctl(&["start"]);
+    assert!(ok, "{out}");
+    let (ok, out) = d.cncctl(&["load", "part.nc"]);
+    assert!(!ok && out.contains("program_selected"), "{out}");
+    let (ok, out) = d.cncctl(&["stop"]);
+    assert!(ok, "{out}");
 }
 
 #[test]

@@ -79,6 +79,7 @@ fn expect(cmd: &str) -> Expect {
         | "cncctl offset-set"
         | "cncctl constants set"
         | "cncctl offsets-replace"
+        | "cncctl offsets-replace FILE --revision REV"
         | "cncctl trajectory --from-block N"
         | "cncctl start --from-block N" => Mention,
         c if c.contains("FILE") || c.contains("NAME") => Mention,
@@ -112,6 +113,8 @@ fn expect(cmd: &str) -> Expect {
         | "cncctl load programs/sample.nc"
         | "cncctl block-delete on"
         | "cncctl block-delete off"
+        | "cncctl single-block on"
+        | "cncctl single-block off"
         | "cncctl validate programs/sample.nc" => Ok,
         other => {
             panic!("docs/operator.md documents `{other}`: add it to tests/tests/operator_docs.rs")

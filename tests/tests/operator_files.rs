@@ -166,3 +166,37 @@ fn hand_edits_of_the_constants_file_are_loaded_and_kept() {
         alarms_of(&d, "constants_file").is_empty()
     });
 }
+
+/// `cncctl offsets-replace` sends the revision it is based on: the one given with
+/// `--revision` (as `--json offsets-file` showed it) or the one on disk when it starts. A hand
+/// edit saved since the revision was read is refused with `storage_file_changed` and kept.
+#[test]
+fn offsets_replace_never_overwrites_an_edit_it_has_not_seen() {
+    let cwd = temp_dir("replace_rev");
+    let d = Cncd::start(&cwd, MILL_TOML);
+    std::fs::write(cwd.join("first.kor"), "$KOR\n01: R=3\n").unwrap();
+    let (ok, out) = d.cncctl(&["offsets-replace", "first.kor"]);
+    assert!(ok, "{out}");
+    let (ok, out) = d.cncctl(&["--json", "offsets-file"]);
+    assert!(ok, "{out}");
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap();
+    let seen = v["revision"].as_str().unwrap().to_string();
+    assert_eq!(seen.len(), 16, "{v}");
+    // Someone saves a hand edit after the HMI (or the operator) read the file.
+    let hand = "by hand\n$KOR\n01: R=7\n";
+    std::fs::write(d.data.join("TAB0.KOR"), hand).unwrap();
+    std::fs::write(cwd.join("new.kor"), "$KOR\n02: R=1\n").unwrap();
+    let (ok, out) = d.cncctl(&["offsets-replace", "new.kor", "--revision", &seen]);
+    assert!(!ok && out.contains("storage_file_changed"), "{out}");
+    assert_eq!(
+        std::fs::read_to_string(d.data.join("TAB0.KOR")).unwrap(),
+        hand
+    );
+    // Without --revision: based on the file as it is now, so it replaces it.
+    let (ok, out) = d.cncctl(&["offsets-replace", "new.kor"]);
+    assert!(ok, "{out}");
+    assert_eq!(
+        std::fs::read_to_string(d.data.join("TAB0.KOR")).unwrap(),
+        "$KOR\n02: R=1\n"
+    );
+}

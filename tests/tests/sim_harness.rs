@@ -263,7 +263,7 @@ fn override_hold_resume_stop() {
     assert_ne!(stopped.progress.finished_job, job);
 }
 
-/// Single block: the path holds at every block end (within the braking distance from rest),
+/// Single block: the path holds exactly at every block end,
 /// and runs on at each resume to the program's end.
 #[test]
 fn single_block_holds_at_every_block() {
@@ -287,8 +287,8 @@ fn single_block_holds_at_every_block() {
         h.run_until(10, |s| s.state != MachineState::Hold).unwrap();
     }
     assert_eq!(h.finish_job(job, 10_000).unwrap(), JobEnd::Finished);
-    assert!((stops[0] - 5.0).abs() < 0.05, "{stops:?}");
-    assert!((stops[1] - 10.0).abs() < 0.05, "{stops:?}");
+    assert!((stops[0] - 5.0).abs() < 1e-6, "{stops:?}");
+    assert!((stops[1] - 10.0).abs() < 1e-6, "{stops:?}");
     assert!((h.snapshot().axes.commanded[0] - 15.0).abs() < 1e-6);
 }
 

@@ -24,6 +24,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use kernel::machine::MachineSetup;
 use kernel::pipeline::{self, Observer, Options, Summary, Validation};
 use kernel::program::Lines;
+use kernel::program::encoding::TextEncoding;
 use kernel::{DiagCode, Diagnostic};
 use sha2::{Digest, Sha256};
 
@@ -45,7 +46,12 @@ impl ProgramText {
     pub fn run(&self, setup: &MachineSetup, opts: Options, obs: &mut impl Observer) -> Summary {
         match self {
             ProgramText::Memory(t) => pipeline::run(t, setup, opts, obs),
-            ProgramText::File(f) => pipeline::run_lines(FileLines::open(f), setup, opts, obs),
+            ProgramText::File(f) => pipeline::run_lines(
+                FileLines::open(f).with_encoding(setup.program().encoding),
+                setup,
+                opts,
+                obs,
+            ),
         }
     }
 
@@ -60,20 +66,25 @@ impl ProgramText {
         match self {
             ProgramText::Memory(t) => pipeline::validate_into(t, setup, opts, inner),
             ProgramText::File(f) => {
-                pipeline::validate_lines_into(FileLines::open(f), setup, opts, inner)
+                let lines = FileLines::open(f).with_encoding(setup.program().encoding);
+                pipeline::validate_lines_into(lines, setup, opts, inner)
             }
         }
     }
 
     /// The whole text in memory (previews, single-block runs): costs memory in proportion to
     /// the program.
-    pub fn read_all(&self) -> io::Result<Arc<str>> {
+    /// A file is decoded with `encoding` (`[program] encoding`).
+    pub fn read_all(&self, encoding: TextEncoding) -> io::Result<Arc<str>> {
         match self {
             ProgramText::Memory(t) => Ok(t.clone()),
             ProgramText::File(f) => {
-                let mut s = String::new();
-                PosReader::new(f.clone()).read_to_string(&mut s)?;
-                Ok(s.into())
+                let mut bytes = Vec::new();
+                PosReader::new(f.clone()).read_to_end(&mut bytes)?;
+                let text = encoding.decode(&bytes).ok_or_else(|| {
+                    io::Error::new(io::ErrorKind::InvalidData, "the program is not UTF-8")
+                })?;
+                Ok(text.into())
             }
         }
     }
@@ -118,6 +129,9 @@ impl Read for PosReader {
 pub struct FileLines<R> {
     reader: R,
     line: Vec<u8>,
+    /// Code page of the file (`[program] encoding`), and a line decoded from it.
+    encoding: TextEncoding,
+    decoded: String,
     /// Byte offset of the next line in the file.
     offset: u64,
     done: bool,
@@ -138,9 +152,19 @@ impl<R: BufRead> FileLines<R> {
         FileLines {
             reader,
             line: Vec::with_capacity(256),
+            encoding: TextEncoding::Utf8,
+            decoded: String::new(),
             offset: 0,
             done: false,
         }
+    }
+}
+
+impl<R> FileLines<R> {
+    /// Lines decoded from `encoding` (UTF-8 without this).
+    pub fn with_encoding(mut self, encoding: TextEncoding) -> Self {
+        self.encoding = encoding;
+        self
     }
 }
 
@@ -168,6 +192,15 @@ impl<R: BufRead> Lines for FileLines<R> {
         }
         let start = self.offset;
         self.offset += self.line.len() as u64 + 1;
+        if self.encoding != TextEncoding::Utf8 && !self.line.is_ascii() {
+            // (A single-byte page decodes every byte.)
+            self.decoded = self
+                .encoding
+                .decode(&self.line)
+                .unwrap_or_default()
+                .into_owned();
+            return Some(Ok(&self.decoded));
+        }
         match std::str::from_utf8(&self.line) {
             Ok(t) => Some(Ok(t)),
             Err(_) => {

@@ -182,6 +182,15 @@ pub struct Interpolator {
     optional_stop: bool,
     /// Held at a program stop (M0/M1) rather than by a feed hold.
     at_program_stop: bool,
+    /// Single-block mode (`single_block`): the path stops at rest at the end of every block.
+    single_block: bool,
+    /// Held at the end of a block in single-block mode.
+    at_block_stop: bool,
+    /// The stop point the raw position rests at has had its single-block (or program) stop.
+    block_stop_done: bool,
+    /// A block end ahead within the buffer is a stop point for single block (no scan needed
+    /// until the raw position leaves the next stop point).
+    block_stop_armed: bool,
 }
 
 impl Interpolator {
@@ -231,6 +240,10 @@ impl Interpolator {
             last_line: 0,
             optional_stop: false,
             at_program_stop: false,
+            single_block: false,
+            at_block_stop: false,
+            block_stop_done: false,
+            block_stop_armed: false,
         }
     }
 
@@ -248,6 +261,22 @@ impl Interpolator {
     /// Held at rest at a program stop (M0, or M1 with optional stop on); `resume` continues.
     pub fn at_program_stop(&self) -> bool {
         self.at_program_stop
+    }
+
+    /// Single-block mode: the path stops at rest exactly at the end of every block (the
+    /// first block end it can still brake for when switched on while moving) and holds
+    /// there; `resume` runs the next block. Off: look-ahead across blocks as planned.
+    pub fn set_single_block(&mut self, on: bool) {
+        self.single_block = on;
+        if !on {
+            self.block_stop_armed = false;
+        }
+    }
+
+    /// Held at rest at the end of a block in single-block mode; `resume` continues. The
+    /// tick's `seq`/`n`/`line` name the block just finished.
+    pub fn at_block_stop(&self) -> bool {
+        self.at_block_stop
     }
 
     pub fn axes(&self) -> usize {
@@ -371,6 +400,7 @@ impl Interpolator {
 
     pub fn resume(&mut self) {
         self.at_program_stop = false;
+        self.at_block_stop = false;
         if matches!(self.state, InterpState::Holding | InterpState::Held) {
             self.state = if self.len > 0 {
                 InterpState::Running
@@ -411,6 +441,9 @@ impl Interpolator {
 
     fn clear(&mut self) {
         self.at_program_stop = false;
+        self.at_block_stop = false;
+        self.block_stop_done = false;
+        self.block_stop_armed = false;
         self.len = 0;
         self.floor_accel_mm_s2.clear();
         self.floor_jerk_mm_s3.clear();

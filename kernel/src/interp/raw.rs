@@ -259,6 +259,8 @@ impl Interpolator {
             // Feed per revolution with a standing spindle: the feed holds (status says why).
             self.spindle_wait = true;
         }
+        self.arm_block_stop(&head, accel_mm_s2);
+        let head = *self.seg(self.raw_seg);
         let limits = self.speed_limits(&head, accel_mm_s2, braking);
         self.advance_raw(&head, accel_mm_s2, limits)
     }
@@ -295,12 +297,71 @@ impl Interpolator {
             return false;
         }
         if self.program_stop_at(true) {
+            // (One stop per point: single block does not hold again after this one.)
+            self.block_stop_done = true;
+            return false;
+        }
+        if self.block_stop_at() {
             return false;
         }
         self.raw_at_stop = false;
         self.raw_seg += 1;
         self.raw_in_seg_mm = 0.0;
+        self.block_stop_done = false;
+        self.block_stop_armed = false;
         true
+    }
+
+    /// At rest between segment `raw_seg` and the next, in single-block mode: holds where a
+    /// block ends (the next segment comes from another block), once per stop point.
+    fn block_stop_at(&mut self) -> bool {
+        let (here, next) = (self.seg(self.raw_seg).seq, self.seg(self.raw_seg + 1).seq);
+        if !self.single_block || self.block_stop_done || here == next {
+            return false;
+        }
+        self.block_stop_done = true;
+        self.state = InterpState::Holding;
+        self.at_block_stop = true;
+        true
+    }
+
+    /// Single-block mode while running: makes the first block end ahead that the path can
+    /// still brake for a stop point (its end speed 0), unless a stop point comes first. A
+    /// program started in single-block mode is planned with every block ending at rest (that
+    /// end is found at once); one switched on while moving stops at the next block end out of
+    /// braking reach, as a stop at the end of the buffer is (`speed_limits` then brakes for it
+    /// like for any stop). Bounded by the braking reach, as the look-ahead of `speed_limits`.
+    fn arm_block_stop(&mut self, head: &Segment, accel_mm_s2: f64) {
+        if !self.single_block || self.block_stop_armed || self.state != InterpState::Running {
+            return;
+        }
+        let v_up = self.raw_v_mm_s + accel_mm_s2 * TS_S;
+        let (_, coast_accel) = self.coast_gaps(head);
+        let lag_s = self.cap_zone_ticks() as f64 * TS_S;
+        // The reach of `speed_limits` with a margin: a stop point farther than this has not
+        // constrained any tick yet, so braking for it from here is within the limits.
+        let reach_mm = 1.5
+            * (v_up * v_up / (2.0 * self.accel_floor())
+                + (2.0 + coast_accel) * v_up * TS_S
+                + v_up * lag_s)
+            + 1e-6;
+        let mut d = head.length_mm - self.raw_in_seg_mm;
+        for k in self.raw_seg..self.len {
+            let seg = self.seg(k);
+            if seg.v_end_mm_s == 0.0 || k + 1 >= self.len {
+                // A stop point first (or the end of the buffer: look again as segments come).
+                self.block_stop_armed = seg.v_end_mm_s == 0.0;
+                return;
+            }
+            let next = self.seg(k + 1);
+            if next.seq != seg.seq && d >= reach_mm {
+                let i = self.idx(k);
+                self.buf[i].v_end_mm_s = 0.0;
+                self.block_stop_armed = true;
+                return;
+            }
+            d += next.length_mm;
+        }
     }
 
     /// Before the first motion from rest: a program stop, a leading dwell or (for a cut) a

@@ -329,3 +329,55 @@ fn pure_parabola_ramp_matches_the_manual() {
     let t = reached as f64 * TS_S;
     assert!((t - manual).abs() <= 0.05 * manual, "{t} s vs {manual} s");
 }
+
+/// Ticks until the path holds at rest; the held tick.
+fn until_held(ip: &mut Interpolator, trace: &mut Vec<TickOut>) -> TickOut {
+    for _ in 0..10_000 {
+        let t = ip.tick();
+        trace.push(t);
+        if t.state == InterpState::Held {
+            return t;
+        }
+    }
+    panic!("never held: {:?}", trace.last());
+}
+
+/// Single block switched on while the path runs through smooth junctions: it stops at rest
+/// exactly on a block end (the first it can still brake for), names that block, and each
+/// resume runs one more block; the limits hold throughout.
+#[test]
+fn single_block_stops_exactly_at_a_block_end() {
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    for k in 0..6u32 {
+        let x = k as f64 * 2.0;
+        let v_end = if k == 5 { 0.0 } else { 50.0 };
+        ip.push(line(k, [x, 0.0, 0.0], [x + 2.0, 0.0, 0.0], 50.0, v_end))
+            .unwrap();
+    }
+    let mut trace = vec![TickOut::default()];
+    // At full speed inside block 0 (1.5 mm in): its end is 0.5 mm ahead, 2.5 mm of braking
+    // are needed, so the first end it can brake for is that of block 1 or 2.
+    while trace.last().unwrap().position[0] < 1.5 {
+        trace.push(ip.tick());
+    }
+    ip.set_single_block(true);
+    let held = until_held(&mut ip, &mut trace);
+    assert!(ip.at_block_stop());
+    let x = held.position[0];
+    assert!([4.0, 6.0].contains(&x), "held at {x}");
+    assert_eq!(
+        held.seq as f64,
+        x / 2.0 - 1.0,
+        "names the block just finished"
+    );
+    for seq in (held.seq + 1)..5 {
+        ip.resume();
+        let t = until_held(&mut ip, &mut trace);
+        assert_eq!((t.position[0], t.seq), ((seq + 1) as f64 * 2.0, seq));
+    }
+    ip.set_single_block(false);
+    ip.resume();
+    trace.extend(run(&mut ip, 10_000));
+    assert_eq!(trace.last().unwrap().position[0], 12.0);
+    check_limits(&trace, 50.0, 500.0);
+}

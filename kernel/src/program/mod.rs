@@ -13,6 +13,8 @@
 //! [`interpreter`] (modal state, one block at a time).
 
 pub mod arc;
+mod code_pages;
+pub mod encoding;
 pub mod feed;
 pub mod interpreter;
 pub mod words;
@@ -59,6 +61,9 @@ pub struct Setup {
     pub offsets: OffsetTable,
     /// How I and J are read.
     pub ij: IjMode,
+    /// The code page of program files (`[program] encoding`): the daemon's doors decode with
+    /// it before the text reaches the stream.
+    pub encoding: encoding::TextEncoding,
     /// The axis programmed as a diameter (`[kr] radius_input = "diameter"`: the controlling
     /// axis R67 of a lathe), `None` on a machine programmed in radius everywhere. Its words,
     /// its absolute arc centre and its TAB0.KOR length are diameters; the interpreter halves
@@ -94,6 +99,7 @@ impl Setup {
             constants: Constants::new(),
             offsets: OffsetTable::new(),
             ij: IjMode::default(),
+            encoding: encoding::TextEncoding::Utf8,
             diameter_axis: None,
             rotary_kpulses_per_rev: [0.0; crate::units::MAX_AXES],
             preprocessor: true,

@@ -171,8 +171,15 @@ pub enum Cmd {
     },
     /// Print the TAB0.KOR file.
     OffsetsFile,
-    /// Replace TAB0.KOR with a file (validated; a refused file changes nothing).
-    OffsetsReplace { file: PathBuf },
+    /// Replace TAB0.KOR with a file (validated; a refused file changes nothing). Only if the
+    /// file on disk is still of the revision `--revision` (as `--json offsets-file` showed
+    /// it), else of the revision read just before: a hand edit saved in between is refused
+    /// with `storage_file_changed`.
+    OffsetsReplace {
+        file: PathBuf,
+        #[arg(long)]
+        revision: Option<String>,
+    },
     /// Reload the offset table from its file (drops G92 changes).
     OffsetsReload,
     /// PLC memory area 1.

@@ -40,7 +40,7 @@ pub async fn command(o: &mut OffsetsClient<Svc>, cmd: Cmd, j: bool) -> Reply {
             call(j, o.set_offset(req)).await
         }
         Cmd::OffsetsFile => call(j, o.get_offsets_file(pb::GetOffsetsFileRequest {})).await,
-        Cmd::OffsetsReplace { file } => replace(o, &file, j).await,
+        Cmd::OffsetsReplace { file, revision } => replace(o, &file, revision, j).await,
         Cmd::OffsetsReload => {
             let answer = o.reload_offsets(pb::ReloadOffsetsRequest {});
             call_as(j, answer, |r| Entries("reloaded", r.entries)).await
@@ -49,13 +49,25 @@ pub async fn command(o: &mut OffsetsClient<Svc>, cmd: Cmd, j: bool) -> Reply {
     }
 }
 
-async fn replace(o: &mut OffsetsClient<Svc>, file: &Path, j: bool) -> Reply {
+async fn replace(
+    o: &mut OffsetsClient<Svc>,
+    file: &Path,
+    revision: Option<String>,
+    j: bool,
+) -> Reply {
     let text = read_text(file)?;
-    // No base revision: the operator replaces whatever the file holds now.
-    let answer = o.replace_offsets_file(pb::OffsetsFile {
-        text,
-        revision: String::new(),
-    });
+    // The base: the revision the operator saw, else the one on disk now (never over a save
+    // cncctl has not seen, issue #31).
+    let revision = match revision {
+        Some(r) => r,
+        None => {
+            o.get_offsets_file(pb::GetOffsetsFileRequest {})
+                .await?
+                .into_inner()
+                .revision
+        }
+    };
+    let answer = o.replace_offsets_file(pb::OffsetsFile { text, revision });
     call_as(j, answer, |r| Entries("TAB0.KOR replaced", r.entries)).await
 }
 

@@ -85,6 +85,13 @@ pub fn status_line(s: &pb::Status) -> String {
     if s.program_stop {
         line.push_str("  program stop (M0/M1): resume to continue");
     }
+    if let Some(b) = &s.block_finished {
+        line.push_str(&format!(
+            "  single block: {} (line {}) done, resume for the next",
+            block_name(b.block),
+            b.line
+        ));
+    }
     if s.block_delete {
         line.push_str("  [/ skipped]");
     }
@@ -110,6 +117,8 @@ pub fn status_json(s: &pb::Status) -> Value {
         "state": state_name(s.state),
         "mode": pb::Mode::try_from(s.mode).map(|m| m.as_str_name()).unwrap_or("?"),
         "single_block": s.single_block,
+        "block_finished": s.block_finished.as_ref().map(|b| json!({"block": b.block,
+            "line": b.line, "block_index": b.block_index})),
         "program": s.program, "job": s.job, "block": s.block, "line": s.line,
         "block_index": s.block_index, "blocks_total": s.blocks_total, "percent": s.percent,
         "axes": s.axes.iter().map(|a| json!({"name": a.name, "commanded_mm": a.commanded_mm,

@@ -211,7 +211,7 @@ impl Machine for MachineSvc {
                 }
                 let text = p
                     .text
-                    .read_all()
+                    .read_all(st.ctl.program_encoding())
                     .map_err(|e| Status::internal(e.to_string()))?;
                 let (job, blocks) = st
                     .ctl

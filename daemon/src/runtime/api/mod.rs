@@ -311,6 +311,11 @@ impl ApiState {
             fault_path_deviation_mm: s.alarm.fault_path_deviation_mm,
             block_delete: ctl.block_delete(),
             restart_block: restart_block(s, block.as_ref()),
+            block_finished: s.progress.block_stop.then_some(pb::FinishedBlock {
+                block: s.progress.block_n,
+                line: s.progress.line,
+                block_index: s.progress.block_seq,
+            }),
         }
     }
 
@@ -573,7 +578,7 @@ fn text_or_selected(ctl: &Controller, text: String) -> Result<String, Status> {
         return Ok(text);
     }
     let all = selected_text(ctl)?
-        .read_all()
+        .read_all(ctl.program_encoding())
         .map_err(|e| Status::internal(format!("cannot read the selected program: {e}")))?;
     Ok(all.to_string())
 }

@@ -184,7 +184,7 @@ pub fn commit_upload(st: &ApiState, v: Validated, select: bool) -> Result<pb::Up
     let warnings: Vec<pb::Diagnostic> = loaded.warnings.iter().map(diagnostic_to_pb).collect();
     if select && running(st) {
         return Err(Status::failed_precondition(
-            "a program is running: stop it before loading another",
+            "[program_selected] a program is running: stop it before loading another",
         ));
     }
     // Library = what runs (issue #31): the selected program keeps the text it validated, so a

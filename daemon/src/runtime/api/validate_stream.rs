@@ -68,7 +68,8 @@ pub async fn validate_chunks(
             chunk: Vec::new(),
             pos: 0,
         };
-        let lines = FileLines::new(BufReader::with_capacity(64 << 10, reader));
+        let lines = FileLines::new(BufReader::with_capacity(64 << 10, reader))
+            .with_encoding(setup.program().encoding);
         Ok(pipeline::validate_lines_into(
             lines,
             &setup,

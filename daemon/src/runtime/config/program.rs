@@ -10,6 +10,37 @@ pub struct ProgramSection {
     /// program coordinates. Every path from text to motion (load, run, preview) reads it.
     #[serde(default)]
     pub ij: IjSetting,
+    /// Code page of program files (issue #31, docs/operator.md "Program text encoding"):
+    /// `"utf-8"` (default), `"windows-1250"`, `"cp852"` or `"kamenicky"`. Applies to every
+    /// door that reads a program's bytes (upload, validate, load, run, the library).
+    #[serde(default)]
+    pub encoding: EncodingSetting,
+}
+
+/// `[program] encoding`.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+pub enum EncodingSetting {
+    #[default]
+    #[serde(rename = "utf-8")]
+    Utf8,
+    #[serde(rename = "windows-1250")]
+    Windows1250,
+    #[serde(rename = "cp852")]
+    Cp852,
+    #[serde(rename = "kamenicky")]
+    Kamenicky,
+}
+
+impl From<EncodingSetting> for kernel::program::encoding::TextEncoding {
+    fn from(s: EncodingSetting) -> Self {
+        use kernel::program::encoding::TextEncoding as T;
+        match s {
+            EncodingSetting::Utf8 => T::Utf8,
+            EncodingSetting::Windows1250 => T::Windows1250,
+            EncodingSetting::Cp852 => T::Cp852,
+            EncodingSetting::Kamenicky => T::Kamenicky,
+        }
+    }
 }
 
 /// `[program] ij`.

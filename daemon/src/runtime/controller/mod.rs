@@ -175,6 +175,13 @@ impl Controller {
         self.tables.machine_setup(self.rt.snapshot().axes.commanded)
     }
 
+    /// The code page of program files (`[program] encoding`, issue #31).
+    pub fn program_encoding(&self) -> kernel::program::encoding::TextEncoding {
+        self.machine_setup()
+            .map(|s| s.program().encoding)
+            .unwrap_or_default()
+    }
+
     /// The R325 listing of `text` under the setup in force (SPEC §4.6): the text with E
     /// written, the refinements, the program's messages.
     pub fn refinement_listing(

@@ -127,6 +127,7 @@ pub(crate) fn machine_config(config: &Config) -> MachineConfig {
             .map(|a| a.rotary_pulses_per_rev)
             .collect(),
         ij: config.program.ij.into(),
+        encoding: config.program.encoding.into(),
         preprocessor: true,
         min_block_time_s: config.planner.min_block_time_ms / 1000.0,
         soft_limits: config.soft_limits(),

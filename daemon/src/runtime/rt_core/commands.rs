@@ -84,7 +84,6 @@ impl RtCore {
                         self.job.in_position_mm = machine.in_position_mm;
                         self.job.active = job;
                         self.snap.progress.job = job;
-                        self.job.sb_seq = u32::MAX;
                         self.job.spindle_off = false;
                         self.snap.state = MachineState::Running;
                     }
@@ -128,7 +127,7 @@ impl RtCore {
                 RtCommand::Plc(w) => self.logic.plc.stage(w),
                 RtCommand::SingleBlock(on) => {
                     self.snap.operator.single_block = on;
-                    self.job.sb_seq = u32::MAX;
+                    self.motion.interp.set_single_block(on);
                 }
                 RtCommand::OptionalStop(on) => {
                     self.motion.interp.set_optional_stop(on);

@@ -9,7 +9,7 @@
 //! keeps its 4 ms period and steps as bus time advances ([`super::resample`]).
 //!
 //! One bus tick, in phases (one method each): timing → commands → PLC → the 4 ms steps due
-//! (segments → motion (interpolator, in-position, spindle ready) → KŘR/spindle → single block
+//! (segments → motion (interpolator, in-position, spindle ready, single block) → KŘR/spindle
 //! → setpoint) → bus exchange of the resampled setpoint → fault reaction, homing, state
 //! machine → snapshot. After [`RtCore::new`] no phase allocates, locks or logs.
 //!
@@ -135,7 +135,6 @@ impl RtCore {
             job: JobRun {
                 active: 0,
                 in_position_mm: cfg.in_position_mm,
-                sb_seq: u32::MAX,
                 spindle_off: false,
             },
             logic: MachineLogic {

@@ -1,6 +1,7 @@
 //! Phase *segments and interpolation*: one 4 ms step of the kernel: segments from the ring into
-//! the interpolator, the path's motion (in-position, spindle ready), KŘR and the spindle, single
-//! block, and the axes' setpoint (path, jog or fault brake) handed to the resampler.
+//! the interpolator, the path's motion (in-position, spindle ready; single block stops there at
+//! the block ends), KŘR and the spindle, and the axes' setpoint (path, jog or fault brake)
+//! handed to the resampler.
 
 use kernel::block::SpindleDir;
 use kernel::interp::{InterpState, Interpolator, TickOut};
@@ -30,9 +31,6 @@ pub(super) struct JobRun {
     pub(super) active: u32,
     /// G24 in-position window per axis (R6, R7), mm.
     pub(super) in_position_mm: AxesMm,
-    /// Single block: the block the path was in when last checked (`u32::MAX`: not yet moving
-    /// in this job).
-    pub(super) sb_seq: u32,
     /// A stop ended the job: the spindle stops once the axes are at rest (until the next
     /// start).
     pub(super) spindle_off: bool,
@@ -69,13 +67,13 @@ pub(super) fn spindle_feed_rpm(set_rpm: f64, actual_rpm: f64) -> f64 {
 }
 
 impl RtCore {
-    /// One 4 ms step of the kernel: segments, interpolator, KŘR, single block, and the axes'
-    /// setpoint (path, jog or fault brake) handed to the resampler.
+    /// One 4 ms step of the kernel: segments, interpolator (single block stops it at the
+    /// block ends), KŘR, and the axes' setpoint (path, jog or fault brake) handed to the
+    /// resampler.
     pub(super) fn interpolator_step(&mut self, segments: &mut rtrb::Consumer<Segment>) {
         self.feed_segments(segments);
         let out = self.interpolate();
         self.spindle(&out);
-        self.single_block_check(out.seq, out.path_v_mm_s);
         self.setpoint(&out);
         self.motion.out = out;
     }
@@ -157,23 +155,6 @@ impl RtCore {
         {
             self.snap.alarm.kr_fault = Some(f);
             self.abort();
-        }
-    }
-
-    /// Single-block mode: once the path of the running job moves into another block, hold.
-    pub(super) fn single_block_check(&mut self, seq: u32, v_mm_s: f64) {
-        if !self.snap.operator.single_block || self.job.active == 0 {
-            return;
-        }
-        if self.job.sb_seq == u32::MAX {
-            if v_mm_s > 0.0 {
-                self.job.sb_seq = seq;
-            }
-        } else if seq != self.job.sb_seq {
-            self.job.sb_seq = seq;
-            if self.motion.interp.state() == InterpState::Running {
-                self.motion.interp.hold();
-            }
         }
     }
 

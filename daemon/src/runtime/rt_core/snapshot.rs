@@ -87,6 +87,9 @@ pub struct Progress {
     pub line: u32,
     /// Held at a program stop (M0, or M1 with optional stop on).
     pub program_stop: bool,
+    /// Held at the end of a block in single-block mode: `block_seq`, `block_n` and `line`
+    /// name the block just finished.
+    pub block_stop: bool,
 }
 
 /// What the operator set: the overrides and switches in force.
@@ -178,6 +181,7 @@ impl RtCore {
         s.spindle.rpm = self.io.fb.spindle_rpm;
         s.spindle.waiting = self.motion.interp.waiting_for_spindle();
         s.progress.program_stop = self.motion.interp.at_program_stop();
+        s.progress.block_stop = self.motion.interp.at_block_stop();
         s.plc = self.logic.plc;
         &self.snap
     }
