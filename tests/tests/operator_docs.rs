@@ -155,10 +155,17 @@ fn run(cwd: &Path, line: &str) -> (bool, String) {
 
 /// Starts `line` in the background; ends it with SIGINT (Ctrl-C) once `working` holds.
 fn follow(cwd: &Path, line: &str, working: impl FnMut() -> bool) {
-    let mut child: Child = shell(cwd, &format!("exec {line}"))
-        .stdout(Stdio::null())
-        .spawn()
-        .unwrap();
+    let mut cmd = shell(cwd, &format!("exec {line}"));
+    // Ctrl-C as on a terminal: a test run started in the background (`cmd &` in a
+    // non-interactive shell) inherits SIGINT ignored, and the command would never end.
+    // SAFETY: signal(2) in the child between fork and exec, async-signal-safe.
+    unsafe {
+        std::os::unix::process::CommandExt::pre_exec(&mut cmd, || {
+            libc::signal(libc::SIGINT, libc::SIG_DFL);
+            Ok(())
+        });
+    }
+    let mut child: Child = cmd.stdout(Stdio::null()).spawn().unwrap();
     wait_for(line, working);
     // SAFETY: plain syscall on our own child's pid (not yet reaped).
     unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) };
