@@ -62,8 +62,11 @@ fn status_watch_feeds_pipes_and_files_and_ends_quietly() {
     // Into a file: a line per update.
     let (ok, _, err) = sh(
         &d,
-        "cncctl status --watch --rate 50 > watch.txt & pid=$!; \
-         while [ \"$(wc -l < watch.txt)\" -lt 3 ]; do sleep 0.1; done; kill $pid",
+        // The file exists before cncctl starts, so the loop never reads a missing file
+        // (a killed-too-early cncctl used to leave none); bounded to 60 s.
+        ": > watch.txt; cncctl status --watch --rate 50 >> watch.txt & pid=$!; n=0; \
+         while [ \"$(wc -l < watch.txt)\" -lt 3 ] && [ $n -lt 600 ]; do sleep 0.1; n=$((n+1)); done; \
+         kill $pid",
     );
     assert!(ok, "{err}");
     let text = std::fs::read_to_string(cwd.join("watch.txt")).unwrap();
