@@ -55,8 +55,7 @@ pub struct Collector {
     pub red_list: Vec<RedJunction>,
     /// A tool-centre block on this page differs from the programmed path (G41/G42 in force).
     pub compensated: bool,
-    /// Last tool-centre block was compensated (the next pass-through one is the leave move).
-    prev_comp: bool,
+    centre: ToolCentre,
     done: bool,
     scratch: Vec<[f64; 2]>,
 }
@@ -76,7 +75,7 @@ impl Collector {
             red: 0,
             red_list: Vec::new(),
             compensated: false,
-            prev_comp: false,
+            centre: ToolCentre::default(),
             done: false,
             scratch: Vec::new(),
         }
@@ -118,13 +117,9 @@ impl Sink for Collector {
     }
 
     fn compensated(&mut self, c: &CompBlock) {
-        let is_comp = c.role != Role::Passthrough;
-        // The first pass-through block after compensation starts from the tool centre (the
-        // cancel move, SPEC §4.2): part of the tool-centre path too.
-        let leave = c.role == Role::Passthrough && self.prev_comp;
-        self.prev_comp = is_comp;
-        if !(is_comp || leave) || !self.page.contains(c.block.seq) {
-            if !is_comp {
+        let part = self.centre.next(c);
+        if !part.drawn() || !self.page.contains(c.block.seq) {
+            if part != CentrePart::Compensated {
                 self.comp.pen_up();
             }
             return;
@@ -178,6 +173,49 @@ impl Sink for Collector {
 
     fn done(&self) -> bool {
         self.done
+    }
+}
+
+/// What a tool-centre block is to the tool-centre path a preview draws (SPEC §4.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CentrePart {
+    /// Compensated (G41/G42 in force).
+    Compensated,
+    /// The first pass-through block after compensated ones: the cancel move starts from the
+    /// tool centre, so it is part of the path too.
+    Leave,
+    /// Neither: the path has a gap here.
+    Off,
+}
+
+impl CentrePart {
+    /// Part of the drawn tool-centre path.
+    pub fn drawn(self) -> bool {
+        self != CentrePart::Off
+    }
+}
+
+/// Follows the compensator's blocks in order to tell which belong to the tool-centre path
+/// (the rule of every preview sink: the paged picture and the outline).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ToolCentre {
+    /// Last block was compensated (the next pass-through one is the leave move).
+    prev_comp: bool,
+}
+
+impl ToolCentre {
+    /// What the next tool-centre block `c` is to the path.
+    pub fn next(&mut self, c: &CompBlock) -> CentrePart {
+        let comp = c.role != Role::Passthrough;
+        let leave = !comp && self.prev_comp;
+        self.prev_comp = comp;
+        if comp {
+            CentrePart::Compensated
+        } else if leave {
+            CentrePart::Leave
+        } else {
+            CentrePart::Off
+        }
     }
 }
 
