@@ -169,9 +169,10 @@ async fn a_changed_setup_is_outlined_once_and_a_running_job_shows_what_it_runs()
         )
     };
     offsets.set_offset(radius(2.0)).await.unwrap();
-    // A 40 mm square under G41 with the radius of entry 1, then a slow move (a run to look at).
+    // A 40 mm square under G41 with the radius of entry 1, then slow continuous (G23) moves (a
+    // run to look at, a smooth junction).
     let text = "N1 G17 D1\nN2 G0 X-10 Y-10\nN3 G41 G1 X0 Y0 F3000\nN4 Y40\nN5 X40\nN6 Y0\n\
-                N7 X0\nN8 G40 G1 X-10 Y-10\nN9 G1 Y-60 F200\n";
+                N7 X0\nN8 G40 G1 X-10 Y-10\nN9 G23 G1 Y-30 F200\nN10 Y-60\n";
     h.machine()
         .load_program(with_token(
             pb::LoadProgramRequest {
@@ -242,6 +243,33 @@ async fn a_changed_setup_is_outlined_once_and_a_running_job_shows_what_it_runs()
     assert_eq!(h.ctl.snapshot().state, MachineState::Running);
     h.machine()
         .stop(with_token(pb::StopRequest::default(), OPERATOR_TOKEN))
+        .await
+        .unwrap();
+    wait_state(&h.ctl, MachineState::Idle).await;
+
+    // Single block: the job's pass ends every block at rest, so every junction is a stop.
+    let mut m = h.machine();
+    m.set_single_block(with_token(
+        pb::SetSingleBlockRequest { enabled: true },
+        OPERATOR_TOKEN,
+    ))
+    .await
+    .unwrap();
+    m.start(with_token(pb::StartRequest::default(), OPERATOR_TOKEN))
+        .await
+        .unwrap();
+    let single = p
+        .get_preview_outline(whole("xy"))
+        .await
+        .unwrap()
+        .into_inner();
+    assert!(changed.smooth_junctions > 0);
+    assert_eq!(single.smooth_junctions, 0);
+    assert_eq!(
+        single.red_junctions,
+        changed.smooth_junctions + changed.red_junctions
+    );
+    m.stop(with_token(pb::StopRequest::default(), OPERATOR_TOKEN))
         .await
         .unwrap();
     wait_state(&h.ctl, MachineState::Idle).await;
