@@ -226,3 +226,55 @@ pub fn block_label(n: Option<u32>, line: u32) -> String {
         None => format!("line {line}"),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::PreviewOptions;
+    use kernel::program::Setup;
+
+    /// What each tool-centre block is to the path, by its `N` number.
+    struct Parts(ToolCentre, Vec<(Option<u32>, CentrePart)>);
+
+    impl Sink for Parts {
+        fn compensated(&mut self, c: &CompBlock) {
+            let part = self.0.next(c);
+            self.1.push((c.block.n, part));
+        }
+        fn segment(&mut self, _s: &Segment) {}
+    }
+
+    #[test]
+    fn the_tool_centre_path_is_the_compensated_blocks_and_the_leave_move() {
+        let text = "N1 G92 D1 R0=2\nN2 G17 D1\nN3 G0 X-10 Y-10\nN4 G41 G1 X0 Y0 F600\n\
+                    N5 Y10\nN6 X10\nN7 G40 G1 X20 Y-10\nN8 X30\nN9 Y-20\n";
+        let opts = PreviewOptions::new(Setup::new(&['X', 'Y', 'Z']));
+        let mut parts = Parts(ToolCentre::default(), Vec::new());
+        crate::pipeline::run(text, &opts, &mut parts).expect("valid");
+        let of = |n: u32| -> Vec<CentrePart> {
+            parts
+                .1
+                .iter()
+                .filter(|p| p.0 == Some(n))
+                .map(|p| p.1)
+                .collect()
+        };
+        assert!(of(3).iter().all(|&p| p == CentrePart::Off), "{:?}", parts.1);
+        for n in 4..=6 {
+            assert!(!of(n).is_empty(), "N{n}: {:?}", parts.1);
+            assert!(
+                of(n).iter().all(|&p| p == CentrePart::Compensated),
+                "N{n}: {:?}",
+                parts.1
+            );
+        }
+        assert_eq!(
+            of(7),
+            [CentrePart::Leave],
+            "the cancel move starts at the tool centre"
+        );
+        assert_eq!(of(8), [CentrePart::Off]);
+        assert_eq!(of(9), [CentrePart::Off]);
+        assert!(CentrePart::Leave.drawn() && !CentrePart::Off.drawn());
+    }
+}
