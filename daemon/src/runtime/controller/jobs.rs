@@ -84,8 +84,8 @@ impl Jobs {
 
     /// Starts the selected program, or restarts it from the block numbered `from_block`
     /// (`kernel::restart`: the blocks before it without motion, an approach to its start).
-    /// Returns the job id.
-    /// `obs` sees the job's own validation pass, if it makes one, and is returned then.
+    /// Returns the job id, and `obs` when the job made a validation pass of its own (which
+    /// `obs` saw).
     pub(super) fn start_program<O: Observer>(
         &self,
         rt: &RtLink,
