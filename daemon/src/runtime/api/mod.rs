@@ -101,6 +101,8 @@ pub struct ApiState {
     pub ctl: Arc<Controller>,
     library: Arc<Library>,
     plan_info: Mutex<Option<PlanInfo>>,
+    /// Outlines besides the selection's: of a changed setup, of the running job.
+    outlines: preview_outline::Outlines,
     run: Mutex<Option<RunInfo>>,
     single_block: AtomicBool,
     /// Serialises Start and MDI: the RT thread takes a start on its next tick, so a second
@@ -143,6 +145,7 @@ impl ApiState {
             ctl,
             library: Arc::new(library),
             plan_info: Mutex::new(None),
+            outlines: preview_outline::Outlines::default(),
             run: Mutex::new(None),
             single_block: AtomicBool::new(false),
             start_lock: tokio::sync::Mutex::new(()),
