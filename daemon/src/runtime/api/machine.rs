@@ -191,12 +191,8 @@ impl Machine for MachineSvc {
         let st = self.0.clone();
         let job = blocking(move || -> Result<u32, Status> {
             if st.single_block.load(Ordering::Relaxed) {
-                if from_block.is_some() {
-                    return Err(Status::failed_precondition(
-                        "a restart from a block runs continuously: switch single block off",
-                    ));
-                }
-                // Single block: every block ends at rest so the holds land on block ends.
+                // Single block: every block ends at rest so the holds land on block ends
+                // (a restart's approach holds at its end too).
                 let p = st
                     .ctl
                     .program()
@@ -215,7 +211,7 @@ impl Machine for MachineSvc {
                     .map_err(|e| Status::internal(e.to_string()))?;
                 let (job, blocks) = st
                     .ctl
-                    .start_text(&p.name, &text, true, false)
+                    .start_program_blocks(&p, &text, from_block)
                     .map_err(status_of)?;
                 *st.run.lock().unwrap() = Some(RunInfo {
                     job,

@@ -39,6 +39,14 @@ pub(super) struct Jobs {
     hold_requested: AtomicBool,
 }
 
+/// A text run as a restart from a block (the selected program's single-block run).
+#[derive(Clone, Copy, Debug)]
+pub struct TextRestart {
+    pub from_block: u32,
+    /// Where the blocks before it are interpreted from (`LoadedProgram::restart_origin`).
+    pub origin_mm: kernel::units::AxesMm,
+}
+
 /// The planner thread of the current job.
 struct Run {
     cancel: Arc<AtomicBool>,
@@ -99,7 +107,10 @@ impl Jobs {
         let mut run = self.run.lock().unwrap();
         let snap = rt.idle_for_start()?;
         // The job's snapshot of the machine, taken now: every stage of the run reads it.
-        let setup = tables.machine_setup(rt.snapshot().axes.commanded)?;
+        let setup = tables
+            .machine_setup(rt.snapshot().axes.commanded)?
+            .with_restart_origin(from_block.map(|_| program.restart_origin()));
+        let start_mm = setup.program().start;
         let opts = Options {
             from_block,
             ..Options::default()
@@ -122,7 +133,11 @@ impl Jobs {
             execution: self.execution.clone(),
             status: rt.subscribe(),
         };
-        self.spawn_job(rt, &mut run, spec, &program.name, program.block_count)
+        let job = self.spawn_job(rt, &mut run, spec, &program.name, program.block_count)?;
+        if from_block.is_none() {
+            program.note_run_start(start_mm);
+        }
+        Ok(job)
     }
 
     /// Runs `text` as a job without changing the selected program (MDI, single-block runs).
@@ -137,6 +152,7 @@ impl Jobs {
         text: &str,
         stop_at_blocks: bool,
         mdi: bool,
+        restart: Option<TextRestart>,
     ) -> Result<(u32, Arc<Vec<Block>>), ControlError> {
         self.require_homed(rt, "MDI")?;
         let mut run = self.run.lock().unwrap();
@@ -144,7 +160,7 @@ impl Jobs {
         let opts = Options {
             job: 0,
             stop_at_blocks,
-            ..Options::default()
+            from_block: restart.map(|r| r.from_block),
         };
         let modal = if mdi {
             self.execution.lock().unwrap().modal_left()
@@ -152,9 +168,12 @@ impl Jobs {
             None
         };
         let mut blocks = Blocks::default();
+        let origin = restart.map(|r| r.origin_mm);
         let (v, setup, _) = self.selection.validate_by(rt, tables, modal, |setup| {
-            kernel::pipeline::validate_into(text, setup, opts, &mut blocks)
+            let setup = setup.clone().with_restart_origin(origin);
+            kernel::pipeline::validate_into(text, &setup, opts, &mut blocks)
         })?;
+        let setup = setup.with_restart_origin(origin);
         if v.has_errors() {
             return Err(ControlError::InvalidProgram(v.diagnostics));
         }
