@@ -587,4 +587,47 @@ mod tests {
                 .all(|s| s.junction == Junction::Stop && s.job == 7)
         );
     }
+
+    /// Collects a restart's approach legs and the segments.
+    #[derive(Default)]
+    struct Legs(Vec<Block>, Vec<Segment>);
+
+    impl Observer for Legs {
+        fn approach(&mut self, leg: &Block) {
+            self.0.push(*leg);
+        }
+        fn segment(&mut self, s: Segment) -> Flow {
+            self.1.push(s);
+            Flow::Go
+        }
+    }
+
+    #[test]
+    fn a_restart_scans_incremental_blocks_from_the_runs_origin_and_approaches_from_the_axes() {
+        let text = "N10 G91 G1 X10 F600\nN20 Y5\nN30 X10\n";
+        let mut here = crate::units::AxesMm::default();
+        here[0] = 50.0; // the axes stand at X50 (the run started at X0)
+        let base = setup(Constants::new());
+        let mut p = base.program().clone();
+        p.start = here;
+        let s = MachineSetup::from_stages(p, base.comp(), base.planner().clone())
+            .with_restart_origin(Some(crate::units::AxesMm::default()));
+        let opts = Options {
+            from_block: Some(30),
+            ..Options::default()
+        };
+        let mut legs = Legs::default();
+        let sum = run(text, &s, opts, &mut legs);
+        assert_eq!(sum.errors, 0);
+        let start = legs.0[0].motion().unwrap().0;
+        assert_eq!((start[0], start[1]), (50.0, 0.0), "from where the axes are");
+        let last = legs.0.last().unwrap().motion().unwrap().1;
+        assert_eq!(
+            (last[0], last[1]),
+            (10.0, 5.0),
+            "to where N30 starts in the run"
+        );
+        let n30 = legs.1.iter().find(|s| s.n == Some(30)).unwrap();
+        assert_eq!((n30.path.end()[0], n30.path.end()[1]), (20.0, 5.0));
+    }
 }

@@ -290,29 +290,18 @@ async fn the_preview_draws_a_restarts_approach_apart_from_the_program() {
         .into_inner();
     assert_eq!(data.programmed, plain.programmed);
     assert_eq!(data.compensated, plain.compensated);
-    let legs: Vec<(i32, Vec<f64>, Vec<f64>, Option<u32>)> = data
-        .approach
-        .iter()
-        .map(|e| {
-            (
-                e.kind,
-                e.start_mm[..3].to_vec(),
-                e.end_mm[..3].to_vec(),
-                e.block,
-            )
-        })
-        .collect();
+    let legs = &data.approach;
     let near = |a: &[f64], b: [f64; 3]| (0..3).all(|i| (a[i] - b[i]).abs() < 1e-6);
     assert_eq!(legs.len(), 2, "{legs:?}");
-    assert_eq!(legs[0].0, pb::PathKind::Rapid as i32);
+    assert_eq!(legs[0].kind, pb::PathKind::Rapid as i32);
     assert!(
-        near(&legs[0].1, [0.0, 0.0, 0.0]) && near(&legs[0].2, [47.0, 10.0, 0.0]),
+        near(&legs[0].start_mm, [0.0, 0.0, 0.0]) && near(&legs[0].end_mm, [47.0, 10.0, 0.0]),
         "{legs:?}"
     );
-    assert_eq!(legs[1].0, pb::PathKind::Line as i32);
-    assert!(near(&legs[1].2, [47.0, 10.0, -2.0]), "{legs:?}");
+    assert_eq!(legs[1].kind, pb::PathKind::Line as i32);
+    assert!(near(&legs[1].end_mm, [47.0, 10.0, -2.0]), "{legs:?}");
     assert!(
-        legs.iter().all(|l| l.3.is_none()),
+        legs.iter().all(|l| l.block.is_none()),
         "approach legs carry no block number"
     );
     // The outline (the browser's preview) on XZ: one polyline through the leg ends.

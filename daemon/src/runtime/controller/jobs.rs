@@ -39,6 +39,17 @@ pub(super) struct Jobs {
     hold_requested: AtomicBool,
 }
 
+/// How a text runs (`Jobs::start_text`).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct TextRun {
+    /// Every block ends at rest (G98): single-block runs.
+    pub stop_at_blocks: bool,
+    /// MDI: starts in the modal state the last program or MDI left.
+    pub mdi: bool,
+    /// A restart from a block.
+    pub restart: Option<TextRestart>,
+}
+
 /// A text run as a restart from a block (the selected program's single-block run).
 #[derive(Clone, Copy, Debug)]
 pub struct TextRestart {
@@ -150,10 +161,13 @@ impl Jobs {
         tables: &Tables,
         name: &str,
         text: &str,
-        stop_at_blocks: bool,
-        mdi: bool,
-        restart: Option<TextRestart>,
+        how: TextRun,
     ) -> Result<(u32, Arc<Vec<Block>>), ControlError> {
+        let TextRun {
+            stop_at_blocks,
+            mdi,
+            restart,
+        } = how;
         self.require_homed(rt, "MDI")?;
         let mut run = self.run.lock().unwrap();
         rt.idle_for_start()?;

@@ -332,8 +332,12 @@ impl Controller {
         mdi: bool,
     ) -> Result<(u32, Arc<Vec<Block>>), ControlError> {
         let (rt, tables) = (&self.rt, &self.tables);
-        self.jobs
-            .start_text(rt, tables, name, text, stop_at_blocks, mdi, None)
+        let how = jobs::TextRun {
+            stop_at_blocks,
+            mdi,
+            restart: None,
+        };
+        self.jobs.start_text(rt, tables, name, text, how)
     }
 
     /// Runs the selected `program`'s `text` with every block ending at rest (the API's
@@ -353,9 +357,12 @@ impl Controller {
             origin_mm: program.restart_origin(),
         });
         let (rt, tables) = (&self.rt, &self.tables);
-        let r = self
-            .jobs
-            .start_text(rt, tables, &program.name, text, true, false, restart)?;
+        let how = jobs::TextRun {
+            stop_at_blocks: true,
+            mdi: false,
+            restart,
+        };
+        let r = self.jobs.start_text(rt, tables, &program.name, text, how)?;
         if from_block.is_none() {
             program.note_run_start(start_mm);
         }
