@@ -62,6 +62,9 @@ pub struct MachineSetup {
     kr: Option<KrConfig>,
     in_position_mm: AxesMm,
     preview_page_blocks: u32,
+    /// Where the run of the program a restart resumes started (issue #31): the blocks
+    /// before the restart block are interpreted from there; `None`: from `program.start`.
+    restart_origin: Option<AxesMm>,
 }
 
 impl MachineSetup {
@@ -109,6 +112,7 @@ impl MachineSetup {
             kr: Some(kr),
             in_position_mm: constants.in_position_window_mm(),
             preview_page_blocks: constants.preview_page_blocks(),
+            restart_origin: None,
         })
     }
 
@@ -149,6 +153,7 @@ impl MachineSetup {
             kr: None,
             in_position_mm,
             preview_page_blocks,
+            restart_origin: None,
         }
     }
 
@@ -167,6 +172,20 @@ impl MachineSetup {
     pub fn with_modal(mut self, modal: Option<Modal>) -> Self {
         self.program.modal = modal;
         self
+    }
+
+    /// The same setup for a restart (`Options::from_block`) of a program whose run started at
+    /// `origin`: the blocks before the restart block are interpreted from there, as an
+    /// uninterrupted run does (incremental moves), while the approach starts where the axes
+    /// are. `None`: from where the axes are.
+    pub fn with_restart_origin(mut self, origin: Option<AxesMm>) -> Self {
+        self.restart_origin = origin;
+        self
+    }
+
+    /// See [`MachineSetup::with_restart_origin`].
+    pub fn restart_origin(&self) -> Option<AxesMm> {
+        self.restart_origin
     }
 
     /// The same setup with the block-delete switch `on` (docs/language.md "Block delete").

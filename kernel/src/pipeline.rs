@@ -53,6 +53,10 @@ pub trait Observer {
     fn dynam_set_cell(&mut self) -> Option<u8> {
         None
     }
+    /// A leg of a restart's approach (issue #31, `kernel::restart`), before it is planned:
+    /// previews draw it apart from the program's path. It also comes to
+    /// [`Observer::compensated`] (a pass-through block) like any block that runs.
+    fn approach(&mut self, _leg: &Block) {}
 }
 
 /// Two observers of one pass (e.g. `LoadProgram` keeps the junction classes for status and
@@ -84,6 +88,10 @@ impl<A: Observer, B: Observer> Observer for (A, B) {
     }
     fn dynam_set_cell(&mut self) -> Option<u8> {
         self.0.dynam_set_cell().or(self.1.dynam_set_cell())
+    }
+    fn approach(&mut self, leg: &Block) {
+        self.0.approach(leg);
+        self.1.approach(leg);
     }
 }
 
@@ -146,7 +154,8 @@ impl Pipeline {
             summary: Summary::default(),
             restart: opts.from_block.map(|n| {
                 let p = setup.program();
-                Restart::new(n, p.start, p.axis_names.len())
+                let origin = setup.restart_origin().unwrap_or(p.start);
+                Restart::new(n, p.start, origin, p.axis_names.len())
             }),
         }
     }
@@ -230,6 +239,7 @@ impl Pipeline {
                 None => Vec::new(),
             };
             for leg in approach {
+                obs.approach(&leg);
                 let c = CompBlock {
                     block: leg,
                     role: crate::comp::Role::Passthrough,
@@ -305,7 +315,17 @@ pub fn run_lines<L: program::Lines>(
     opts: Options,
     obs: &mut impl Observer,
 ) -> Summary {
-    let mut stream = program::stream_lines(lines, setup.program());
+    // A restart scans the blocks before N from where the program's run started (its
+    // incremental moves land where an uninterrupted run's do); the approach starts from
+    // where the axes are (`setup.program().start`).
+    let scan_setup = match (opts.from_block, setup.restart_origin()) {
+        (Some(_), Some(origin)) => Some(program::Setup {
+            start: origin,
+            ..setup.program().clone()
+        }),
+        _ => None,
+    };
+    let mut stream = program::stream_lines(lines, scan_setup.as_ref().unwrap_or(setup.program()));
     let mut p = Pipeline::new(setup, opts);
     let notes = |stream: &mut program::Stream<L>, p: &mut Pipeline, obs: &mut _| {
         for d in stream.take_notes() {
@@ -446,6 +466,9 @@ impl<O: Observer> Observer for Validating<'_, O> {
     fn compensated(&mut self, c: &CompBlock) {
         self.inner.compensated(c);
     }
+    fn approach(&mut self, leg: &Block) {
+        self.inner.approach(leg);
+    }
     /// The pass goes on whatever `inner` says: the verdict covers the whole program.
     fn segment(&mut self, s: Segment) -> Flow {
         self.inner.segment(s);
@@ -563,5 +586,48 @@ mod tests {
                 .iter()
                 .all(|s| s.junction == Junction::Stop && s.job == 7)
         );
+    }
+
+    /// Collects a restart's approach legs and the segments.
+    #[derive(Default)]
+    struct Legs(Vec<Block>, Vec<Segment>);
+
+    impl Observer for Legs {
+        fn approach(&mut self, leg: &Block) {
+            self.0.push(*leg);
+        }
+        fn segment(&mut self, s: Segment) -> Flow {
+            self.1.push(s);
+            Flow::Go
+        }
+    }
+
+    #[test]
+    fn a_restart_scans_incremental_blocks_from_the_runs_origin_and_approaches_from_the_axes() {
+        let text = "N10 G91 G1 X10 F600\nN20 Y5\nN30 X10\n";
+        let mut here = crate::units::AxesMm::default();
+        here[0] = 50.0; // the axes stand at X50 (the run started at X0)
+        let base = setup(Constants::new());
+        let mut p = base.program().clone();
+        p.start = here;
+        let s = MachineSetup::from_stages(p, base.comp(), base.planner().clone())
+            .with_restart_origin(Some(crate::units::AxesMm::default()));
+        let opts = Options {
+            from_block: Some(30),
+            ..Options::default()
+        };
+        let mut legs = Legs::default();
+        let sum = run(text, &s, opts, &mut legs);
+        assert_eq!(sum.errors, 0);
+        let start = legs.0[0].motion().unwrap().0;
+        assert_eq!((start[0], start[1]), (50.0, 0.0), "from where the axes are");
+        let last = legs.0.last().unwrap().motion().unwrap().1;
+        assert_eq!(
+            (last[0], last[1]),
+            (10.0, 5.0),
+            "to where N30 starts in the run"
+        );
+        let n30 = legs.1.iter().find(|s| s.n == Some(30)).unwrap();
+        assert_eq!((n30.path.end()[0], n30.path.end()[1]), (20.0, 5.0));
     }
 }

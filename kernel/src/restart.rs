@@ -36,12 +36,14 @@ pub struct Restart {
 }
 
 impl Restart {
-    pub fn new(n: u32, start_mm: AxesMm, axes: usize) -> Self {
+    /// A restart from block `n` with the axes at `machine_mm`, the blocks before `n`
+    /// interpreted from `origin_mm` (where the program's run started).
+    pub fn new(n: u32, machine_mm: AxesMm, origin_mm: AxesMm, axes: usize) -> Self {
         Restart {
             n,
             from_seq: None,
-            machine_mm: start_mm,
-            tool_mm: start_mm,
+            machine_mm,
+            tool_mm: origin_mm,
             axes,
             approached: false,
         }
@@ -178,7 +180,7 @@ mod tests {
 
     #[test]
     fn skips_the_blocks_before_n_then_retracts_moves_over_and_feeds_down() {
-        let mut r = Restart::new(30, mm(0.0, 0.0, 50.0), 3);
+        let mut r = Restart::new(30, mm(0.0, 0.0, 50.0), mm(0.0, 0.0, 50.0), 3);
         let b10 = block(1, 10, mm(0.0, 0.0, 50.0), mm(10.0, 0.0, -5.0));
         let b20 = block(2, 20, mm(10.0, 0.0, -5.0), mm(10.0, 10.0, -5.0));
         let b30 = block(3, 30, mm(10.0, 10.0, -5.0), mm(0.0, 10.0, -5.0));
@@ -210,7 +212,7 @@ mod tests {
 
     #[test]
     fn a_missing_block_is_an_error_with_a_code() {
-        let mut r = Restart::new(99, AxesMm::default(), 3);
+        let mut r = Restart::new(99, AxesMm::default(), AxesMm::default(), 3);
         let b = block(1, 10, AxesMm::default(), mm(1.0, 0.0, 0.0));
         r.programmed(&b);
         assert_eq!(r.compensated(&b), None);

@@ -361,6 +361,22 @@ impl Sink for Outline {
     }
 }
 
+/// One polyline through `points` (machine axes, mm) on `plane` of a machine with these axis
+/// letters, unreduced: a restart's approach, a few legs drawn apart from the outline.
+pub fn polyline(axis_names: &[char], plane: Plane, points: &[AxesMm]) -> Runs {
+    let dim = |c| axis_names.iter().position(|&a| a == c);
+    let dims = [dim('X'), dim('Y'), dim('Z')];
+    let at = |p: &AxesMm, d: usize| dims[d].map_or(0.0, |i| p[i]) as f32;
+    let mut r = Runs::default();
+    if !points.is_empty() {
+        r.starts.push(0);
+    }
+    for p in points {
+        r.xy.extend([at(p, plane.h), at(p, plane.v)]);
+    }
+    r
+}
+
 impl Observer for Outline {
     fn programmed(&mut self, b: &Block, _modal: &Modal) {
         Sink::programmed(self, b);

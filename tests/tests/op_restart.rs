@@ -14,6 +14,7 @@ use daemon::runtime::config::Role;
 use daemon::runtime::rt::MachineState;
 use proto::v1 as pb;
 use proto::v1::machine_client::MachineClient;
+use proto::v1::preview_client::PreviewClient;
 use proto::v1::trajectory_client::TrajectoryClient;
 use tonic::Code;
 use tonic::transport::Channel;
@@ -32,12 +33,22 @@ N80 Y0\n\
 N90 G40 X-10 Y-10\n\
 N100 G0 Z5\n";
 
-/// The setpoints (first 3 axes) and block numbers of the daemon's trajectory.
+/// The setpoints (first 3 axes) and block numbers of the daemon's trajectory of CONTOUR.
 async fn trajectory(ch: Channel, from_block: Option<u32>) -> Vec<([f64; 3], Option<u32>)> {
+    trajectory_of(ch, CONTOUR, from_block).await
+}
+
+/// The setpoints (first 3 axes) and block numbers of the daemon's trajectory of `text` (the
+/// selected program when empty).
+async fn trajectory_of(
+    ch: Channel,
+    text: &str,
+    from_block: Option<u32>,
+) -> Vec<([f64; 3], Option<u32>)> {
     let mut t = TrajectoryClient::new(ch);
     let mut s = t
         .get_trajectory(pb::TrajectoryRequest {
-            text: CONTOUR.into(),
+            text: text.into(),
             from_block,
         })
         .await
@@ -165,6 +176,184 @@ async fn start_from_block_runs_the_approach_and_the_rest_on_the_machine() {
             (s.axes.commanded[i] - e).abs() < 1e-3,
             "{i}: {} vs {e}",
             s.axes.commanded[i]
+        );
+    }
+}
+
+/// Incremental moves before the restart block: their positions come from where the program's
+/// run started, not from where the axes stand when it restarts.
+const INCREMENTAL: &str = "N10 G91 G1 X10 Y5 F3000\n\
+N20 X10\n\
+N30 Y10\n\
+N40 X-5 Y5\n\
+N50 X-3\n";
+
+/// Every setpoint of `restart` after its approach (from index `k`) lies on the uninterrupted
+/// run `whole` from `from_n` on within 1 µm, and both end at the same point.
+fn assert_follows(
+    whole: &[([f64; 3], Option<u32>)],
+    restart: &[([f64; 3], Option<u32>)],
+    k: usize,
+    from_n: u32,
+) {
+    let path: Vec<[f64; 3]> = whole.iter().map(|(p, _)| *p).collect();
+    let from = whole
+        .iter()
+        .position(|(_, b)| *b == Some(from_n))
+        .expect("the uninterrupted run passes the block");
+    let tail = &path[from.saturating_sub(2)..];
+    let worst = restart[k..]
+        .iter()
+        .map(|(p, _)| dist_to_path(*p, tail))
+        .fold(0.0f64, f64::max);
+    assert!(worst <= 1e-3, "{worst} mm off the uninterrupted path");
+    let (a, b) = (path.last().unwrap(), restart.last().unwrap().0);
+    assert!((0..3).all(|i| (a[i] - b[i]).abs() <= 1e-3), "{a:?} {b:?}");
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_restart_after_incremental_moves_follows_the_uninterrupted_run() {
+    let d = daemon().await;
+    let mut m = MachineClient::new(d.channel().await);
+    m.load_program(named_program("g91.nc", INCREMENTAL))
+        .await
+        .unwrap();
+    // The uninterrupted run from where it starts (the origin), then run: the axes end at
+    // X12 Y20, away from where the program started.
+    let whole = trajectory_of(d.channel().await, "", None).await;
+    let job = start_job(&mut m).await;
+    wait_job_done(&d, job).await;
+    wait_at(&d, [12.0, 20.0, 0.0]).await;
+    // Restarted from N30 there: the approach goes to where N30 starts in the run (X20 Y5),
+    // and from there the setpoints are the uninterrupted run's.
+    let restart = trajectory_of(d.channel().await, "", Some(30)).await;
+    let k = restart.iter().position(|(_, b)| b.is_some()).unwrap();
+    assert!(k > 0, "an approach comes first");
+    // (The first tick has moved already: the setpoint at its end.)
+    let p0 = restart[0].0;
+    assert!(
+        (p0[0] - 12.0).abs() < 0.1 && (p0[1] - 20.0).abs() < 0.1,
+        "{p0:?}"
+    );
+    let at_n30 = restart[k - 1].0;
+    assert!(
+        (at_n30[0] - 20.0).abs() < 1e-6 && (at_n30[1] - 5.0).abs() < 1e-6,
+        "the approach ends at {at_n30:?}, N30 starts at X20 Y5"
+    );
+    assert_follows(&whole, &restart, k, 30);
+    // On the machine: the same end.
+    let job = m
+        .start(pb::StartRequest {
+            from_block: Some(30),
+        })
+        .await
+        .unwrap()
+        .into_inner()
+        .job;
+    wait_job_done(&d, job).await;
+    wait_at(&d, [12.0, 20.0, 0.0]).await;
+}
+
+/// Waits until the commanded position settles at `p` (within 1 µm).
+async fn wait_at(d: &Daemon, p: [f64; 3]) {
+    wait_until(&format!("the axes at {p:?}"), || {
+        let c = d.ctl.snapshot().axes.commanded;
+        (0..3).all(|i| (c[i] - p[i]).abs() < 1e-6)
+    })
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_preview_draws_a_restarts_approach_apart_from_the_program() {
+    let d = daemon().await;
+    let mut m = MachineClient::new(d.channel().await);
+    m.load_program(named_program("contour.nc", CONTOUR))
+        .await
+        .unwrap();
+    let mut p = PreviewClient::new(d.channel().await);
+    // Preview data: the approach legs from the origin, over at the height the axes are,
+    // then down at feed to the start of N60 on the equidistant; the program's paths are the
+    // whole program's, as without a restart.
+    let plain = p
+        .get_preview_data(pb::PreviewDataRequest::default())
+        .await
+        .unwrap()
+        .into_inner();
+    assert!(plain.approach.is_empty());
+    let data = p
+        .get_preview_data(pb::PreviewDataRequest {
+            from_block: Some(60),
+            ..Default::default()
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!(data.programmed, plain.programmed);
+    assert_eq!(data.compensated, plain.compensated);
+    let legs = &data.approach;
+    let near = |a: &[f64], b: [f64; 3]| (0..3).all(|i| (a[i] - b[i]).abs() < 1e-6);
+    assert_eq!(legs.len(), 2, "{legs:?}");
+    assert_eq!(legs[0].kind, pb::PathKind::Rapid as i32);
+    assert!(
+        near(&legs[0].start_mm, [0.0, 0.0, 0.0]) && near(&legs[0].end_mm, [47.0, 10.0, 0.0]),
+        "{legs:?}"
+    );
+    assert_eq!(legs[1].kind, pb::PathKind::Line as i32);
+    assert!(near(&legs[1].end_mm, [47.0, 10.0, -2.0]), "{legs:?}");
+    assert!(
+        legs.iter().all(|l| l.block.is_none()),
+        "approach legs carry no block number"
+    );
+    // The outline (the browser's preview) on XZ: one polyline through the leg ends.
+    let o = p
+        .get_preview_outline(pb::PreviewOutlineRequest {
+            plane: "xz".into(),
+            from_block: Some(60),
+            ..Default::default()
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    let a = o.approach.expect("an approach polyline");
+    assert_eq!(a.starts, vec![0]);
+    let pts: Vec<f32> = a.xy_mm;
+    let want = [0.0f32, 0.0, 47.0, 0.0, 47.0, -2.0];
+    assert_eq!(pts.len(), want.len(), "{pts:?}");
+    assert!(
+        pts.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-3),
+        "{pts:?}"
+    );
+    let without = p
+        .get_preview_outline(pb::PreviewOutlineRequest {
+            plane: "xz".into(),
+            ..Default::default()
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    assert!(without.approach.is_none());
+    assert_eq!(without.feed, o.feed, "the program's paths do not change");
+    // A block the program does not have: refused with the code, as Start refuses it.
+    for e in [
+        p.get_preview_data(pb::PreviewDataRequest {
+            from_block: Some(65),
+            ..Default::default()
+        })
+        .await
+        .unwrap_err(),
+        p.get_preview_outline(pb::PreviewOutlineRequest {
+            from_block: Some(65),
+            ..Default::default()
+        })
+        .await
+        .unwrap_err(),
+    ] {
+        assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+        assert!(
+            diagnostics(&e)
+                .iter()
+                .any(|d| d.code == "restart_block_not_found"),
+            "{e:?}"
         );
     }
 }

@@ -112,3 +112,35 @@ fn single_block_switched_on_while_running_stops_at_a_block_end() {
     assert!(ok, "{out}");
     assert_at_end_of(&wait_end(&d), 40);
 }
+
+#[test]
+fn a_restart_in_single_block_holds_after_the_approach_and_after_each_block() {
+    let cwd = temp_dir("single_block_restart");
+    let d = Cncd::start(&cwd, MILL_TOML);
+    std::fs::write(cwd.join("sb.nc"), PROGRAM).unwrap();
+    for args in [
+        &["single-block", "on"][..],
+        &["load", "sb.nc"],
+        &["start", "--from-block", "30", "--yes"],
+    ] {
+        let (ok, out) = d.cncctl(args);
+        assert!(ok, "{args:?}: {out}");
+    }
+    // The approach (to where N30 starts: the end of N20) is a block of its own: it holds at
+    // its end, without a block number.
+    let s = wait_block_stop(&d);
+    assert!(s["block_finished"]["block"].is_null(), "{s}");
+    assert_eq!(s["state"], "hold", "{s}");
+    assert_at_end_of(&s, 20);
+    let (ok, out) = d.cncctl(&["status"]);
+    assert!(ok && out.contains("single block: approach done"), "{out}");
+    // Then one block per cycle start, each ending exactly at its end point.
+    let (ok, out) = d.cncctl(&["start"]);
+    assert!(ok, "{out}");
+    let s = wait_block_stop(&d);
+    assert_eq!(s["block_finished"]["block"], 30, "{s}");
+    assert_at_end_of(&s, 30);
+    let (ok, out) = d.cncctl(&["start"]);
+    assert!(ok, "{out}");
+    assert_at_end_of(&wait_end(&d), 40);
+}

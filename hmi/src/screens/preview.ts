@@ -13,7 +13,7 @@ import { type Screen, messageLine } from "../screen";
 import { subscribe } from "../status";
 import { ImageFormat, type Polylines, type PreviewOutline, type Status } from "../gen/cnc/v1/cnc_pb";
 
-const COLORS = { path: "#c8c8c8", rapid: "#e08a3c", comp: "#3d8bff", smooth: "#ffd400", red: "#ff3030", tool: "#39ff88" };
+const COLORS = { path: "#c8c8c8", rapid: "#e08a3c", comp: "#3d8bff", smooth: "#ffd400", red: "#ff3030", tool: "#39ff88", approach: "#ff4fd8" };
 /** Quiet time after a zoom or pan before the finer outline of the extent is asked for. */
 const REFINE_AFTER_MS = 250;
 
@@ -38,6 +38,10 @@ export function previewScreen(): Screen {
   let tool: [number, number] | undefined;
   let refineTimer = 0;
   let generation = 0;
+  /** The approach of a restart from the block status names (Status.restart_block), from
+   * where the axes were when it was asked for. */
+  let approach: Polylines | undefined;
+  let approachFor = "";
 
   function size(c: HTMLCanvasElement): CanvasRenderingContext2D {
     const dpr = devicePixelRatio || 1;
@@ -113,6 +117,8 @@ export function previewScreen(): Screen {
     strokeRuns(g, o.rapid, COLORS.rapid, 1.5, [6, 5]);
     strokeRuns(g, o.feed, COLORS.path, 1.5);
     strokeRuns(g, o.compensated, COLORS.comp, 2);
+    strokeRuns(g, approach, COLORS.approach, 2, [3, 4]);
+    stage.dataset.approachPoints = String((approach?.xyMm.length ?? 0) / 2);
     const smooth = dots(g, o.smoothXyMm, COLORS.smooth, 4);
     const red = dots(g, o.redXyMm, COLORS.red, 5);
     stage.dataset.smoothDots = String(smooth);
@@ -203,6 +209,23 @@ export function previewScreen(): Screen {
     velocity.hidden = false;
   }
 
+  /** The restart approach when status names a block to restart from (a pass on the server,
+   * asked again when that block or the plane changes); none otherwise. */
+  async function loadApproach(s: Status): Promise<void> {
+    const key = s.restartBlock === undefined ? "" : `${s.program}/${s.restartBlock}/${plane.value}`;
+    if (key === approachFor) return;
+    approachFor = key;
+    approach = undefined;
+    if (s.restartBlock !== undefined) {
+      try {
+        approach = (await preview.getPreviewOutline({ plane: plane.value, fromBlock: s.restartBlock, ...px() })).approach;
+      } catch {
+        approach = undefined;
+      }
+    }
+    if (key === approachFor) redraw();
+  }
+
   let latest: Status | undefined;
   function reload(): void {
     if (latest && latest.program && !el.hidden) void load(latest);
@@ -214,6 +237,7 @@ export function previewScreen(): Screen {
     latest = s;
     if (!el.hidden && s.program && keyOf(s) !== loadedFor && stage.dataset.state !== "loading") void load(s);
     if (!whole || el.hidden) return;
+    void loadApproach(s);
     const [hn, vn] = plane.value.toUpperCase().split("");
     const at = (n: string) => s.axes.find((a) => a.name === n)?.commandedMm ?? 0;
     const p: [number, number] = [at(hn), at(vn)];
@@ -278,7 +302,8 @@ export function previewScreen(): Screen {
     h("div", { class: "legend" },
       h("span", { style: `color:${COLORS.path}` }, "— programmed"), h("span", { style: `color:${COLORS.rapid}` }, "- - rapid"),
       h("span", { style: `color:${COLORS.comp}` }, "— tool centre"), h("span", { style: `color:${COLORS.smooth}` }, "● smooth"),
-      h("span", { style: `color:${COLORS.red}` }, "● stop / speed drop"), h("span", { style: `color:${COLORS.tool}` }, "⊕ tool")),
+      h("span", { style: `color:${COLORS.red}` }, "● stop / speed drop"), h("span", { style: `color:${COLORS.tool}` }, "⊕ tool"),
+      h("span", { style: `color:${COLORS.approach}` }, "- - restart approach")),
     velocity,
     msg.el);
   return { id: "preview", title: "Preview", el, onShow: () => requestAnimationFrame(reload) };

@@ -337,10 +337,12 @@ impl Interpolator {
     }
 
     /// At rest between segment `raw_seg` and the next, in single-block mode: holds where a
-    /// block ends (the next segment comes from another block), once per stop point.
+    /// block ends (the next segment comes from another block), once per stop point. A
+    /// restart's approach legs carry block N's `seq` with line 0 (`kernel::restart`): the
+    /// approach is one block of its own, so the path holds between it and block N.
     fn block_stop_at(&mut self) -> bool {
-        let (here, next) = (self.seg(self.raw_seg).seq, self.seg(self.raw_seg + 1).seq);
-        if !self.single_block || self.block_stop_done || here == next {
+        let same = same_block(self.seg(self.raw_seg), self.seg(self.raw_seg + 1));
+        if !self.single_block || self.block_stop_done || same {
             return false;
         }
         self.block_stop_done = true;
@@ -378,7 +380,7 @@ impl Interpolator {
                 return;
             }
             let next = self.seg(k + 1);
-            if next.seq != seg.seq && d >= reach_mm {
+            if !same_block(seg, next) && d >= reach_mm {
                 let i = self.idx(k);
                 self.buf[i].v_end_mm_s = 0.0;
                 self.note_stop_at(i);
@@ -710,4 +712,10 @@ impl Interpolator {
             self.raw_in_seg_mm = 0.0;
         }
     }
+}
+
+/// Whether two segments come from one block: the same `seq` and line (a restart's approach
+/// has block N's `seq` with line 0, see `block_stop_at`).
+fn same_block(a: &Segment, b: &Segment) -> bool {
+    a.seq == b.seq && a.line == b.line
 }

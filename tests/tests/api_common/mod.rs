@@ -310,6 +310,7 @@ pub async fn preview_data(
     p.get_preview_data(pb::PreviewDataRequest {
         text: text.into(),
         junctions,
+        from_block: None,
     })
     .await
     .map(tonic::Response::into_inner)

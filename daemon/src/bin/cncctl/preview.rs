@@ -34,7 +34,11 @@ pub async fn data(v: &mut PreviewClient<Svc>, file: &Path, junctions: bool, j: b
     let text = read_text(file)?;
     call(
         j,
-        v.get_preview_data(pb::PreviewDataRequest { text, junctions }),
+        v.get_preview_data(pb::PreviewDataRequest {
+            text,
+            junctions,
+            from_block: None,
+        }),
     )
     .await
 }

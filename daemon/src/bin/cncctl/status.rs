@@ -85,12 +85,17 @@ pub fn status_line(s: &pb::Status) -> String {
     if s.program_stop {
         line.push_str("  program stop (M0/M1): resume to continue");
     }
-    if let Some(b) = &s.block_finished {
-        line.push_str(&format!(
+    match &s.block_finished {
+        // A restart's approach (no block number, line 0) holds at its end like a block.
+        Some(b) if b.block.is_none() && b.line == 0 => {
+            line.push_str("  single block: approach done, resume for the next");
+        }
+        Some(b) => line.push_str(&format!(
             "  single block: {} (line {}) done, resume for the next",
             block_name(b.block),
             b.line
-        ));
+        )),
+        None => {}
     }
     if s.block_delete {
         line.push_str("  [/ skipped]");

@@ -192,12 +192,8 @@ impl Machine for MachineSvc {
         let st = self.0.clone();
         let job = blocking(move || -> Result<u32, Status> {
             if st.single_block.load(Ordering::Relaxed) {
-                if from_block.is_some() {
-                    return Err(Status::failed_precondition(
-                        "a restart from a block runs continuously: switch single block off",
-                    ));
-                }
-                // Single block: every block ends at rest so the holds land on block ends.
+                // Single block: every block ends at rest so the holds land on block ends
+                // (a restart's approach holds at its end too).
                 let p = st
                     .ctl
                     .program()
@@ -218,7 +214,7 @@ impl Machine for MachineSvc {
                 let outline = Outline::new(&st.ctl.config().axis_names());
                 let (job, blocks, outline) = st
                     .ctl
-                    .start_text_observed(&p.name, &text, true, false, outline)
+                    .start_program_blocks(&p, &text, from_block, outline)
                     .map_err(status_of)?;
                 super::preview_outline::job_started(&st, job, Some(outline));
                 *st.run.lock().unwrap() = Some(RunInfo {

@@ -575,6 +575,20 @@ fn selected_text(ctl: &Controller) -> Result<ProgramText, Status> {
     Ok(p.text.clone())
 }
 
+/// Where a restart from `from_block` of `text` interprets the blocks before it from: for the
+/// selected program (an empty `text`) where its last run started (as `Start` does); for a
+/// text given with the request where the axes are (`None`).
+fn restart_origin(
+    ctl: &Controller,
+    text: &str,
+    from_block: Option<u32>,
+) -> Option<kernel::units::AxesMm> {
+    from_block?;
+    text.is_empty()
+        .then(|| ctl.program().map(|p| p.restart_origin()))
+        .flatten()
+}
+
 /// `text`, or when it is empty the whole text of the selected program, read into memory.
 fn text_or_selected(ctl: &Controller, text: String) -> Result<String, Status> {
     if !text.is_empty() {

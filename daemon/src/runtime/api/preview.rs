@@ -180,6 +180,29 @@ pub fn preview_data(
     Ok(c.finish(&v.diagnostics))
 }
 
+/// The approach legs of a restart from block `from_block` of `text` (empty: the selected
+/// program, its blocks before `from_block` from where its last run started, as `Start`
+/// does): a pass of their own, refused as validation refuses (`restart_block_not_found`).
+pub(super) fn approach_legs(
+    ctl: &Controller,
+    text: &str,
+    from_block: u32,
+) -> Result<Vec<Block>, Status> {
+    let origin = super::restart_origin(ctl, text, Some(from_block));
+    let text = if text.is_empty() {
+        super::selected_text(ctl)?
+    } else {
+        ProgramText::Memory(Arc::from(text))
+    };
+    let (v, legs) = ctl
+        .restart_approach(&text, from_block, origin)
+        .map_err(super::status_of)?;
+    if v.has_errors() {
+        return Err(invalid_with_diagnostics("program", &v.diagnostics));
+    }
+    Ok(legs)
+}
+
 #[tonic::async_trait]
 impl Preview for PreviewSvc {
     async fn get_preview_data(
@@ -188,15 +211,28 @@ impl Preview for PreviewSvc {
     ) -> Result<Response<pb::PreviewData>, Status> {
         require(&req, Observer, "GetPreviewData")?;
         let r = req.into_inner();
-        // The selected program: what its load's pass recorded, if that is still the pass
-        // of the next start (no second pass of the same program with the same setup).
-        if r.text.is_empty()
-            && let Some(data) = recorded_preview(&self.0, r.junctions)
-        {
-            return Ok(Response::new(data));
-        }
         let st = self.0.clone();
-        let data = blocking(move || preview_data(&st.ctl, &r.text, r.junctions)).await??;
+        let data = blocking(move || {
+            // The selected program: what its load's pass recorded, if that is still the
+            // pass of the next start (no second pass of the same program with the same
+            // setup).
+            let recorded = r
+                .text
+                .is_empty()
+                .then(|| recorded_preview(&st, r.junctions))
+                .flatten();
+            let mut data = match recorded {
+                Some(d) => d,
+                None => preview_data(&st.ctl, &r.text, r.junctions)?,
+            };
+            if let Some(n) = r.from_block {
+                let axes = st.ctl.config().axes.len();
+                let legs = approach_legs(&st.ctl, &r.text, n)?;
+                data.approach = legs.iter().filter_map(|b| element(b, axes)).collect();
+            }
+            Ok::<_, Status>(data)
+        })
+        .await??;
         Ok(Response::new(data))
     }
 

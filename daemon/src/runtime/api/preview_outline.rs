@@ -198,7 +198,28 @@ pub fn outline_reply(
             own = true;
         }
     }
-    Ok(reply(&program.name, &outline, view, own))
+    let mut reply = reply(&program.name, &outline, view, own);
+    if let Some(n) = r.from_block {
+        reply.approach = Some(approach(st, plane, n)?);
+    }
+    Ok(reply)
+}
+
+/// The approach of a restart of the selected program from block `n` on `plane`: one
+/// polyline from where the axes are through the end of each leg.
+fn approach(st: &ApiState, plane: Plane, n: u32) -> Result<pb::Polylines, Status> {
+    let legs = super::preview::approach_legs(&st.ctl, "", n)?;
+    let mut points: Vec<kernel::AxesMm> = Vec::new();
+    for (start, end, _) in legs.iter().filter_map(|b| b.motion()) {
+        if points.is_empty() {
+            points.push(start);
+        }
+        points.push(end);
+    }
+    let names = st.ctl.config().axis_names();
+    Ok(runs_pb(::preview::outline::polyline(
+        &names, plane, &points,
+    )))
 }
 
 fn reply(name: &str, o: &Outline, v: View, own_pass: bool) -> pb::PreviewOutline {
@@ -222,5 +243,6 @@ fn reply(name: &str, o: &Outline, v: View, own_pass: bool) -> pb::PreviewOutline
         max_v_mm: b.max[1],
         cell_mm: v.cell_mm,
         own_pass,
+        approach: None,
     }
 }

@@ -51,10 +51,14 @@ impl Trajectory for TrajectorySvc {
             },
         );
         let ctl = self.0.ctl.clone();
+        let origin = super::restart_origin(&ctl, &text, opts.from_block);
         let text = super::text_or_selected(&ctl, text)?;
         // The job's machine setup and the one pipeline a run uses (issue #14): the verdict is
         // validation's, the segments are the run's.
-        let setup = ctl.machine_setup().map_err(super::status_of)?;
+        let setup = ctl
+            .machine_setup()
+            .map_err(super::status_of)?
+            .with_restart_origin(origin);
         let v = pipeline::validate(&text, &setup, opts);
         if v.has_errors() {
             return Err(invalid_with_diagnostics("program", &v.diagnostics));

@@ -39,6 +39,25 @@ pub(super) struct Jobs {
     hold_requested: AtomicBool,
 }
 
+/// How a text runs (`Jobs::start_text`).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct TextRun {
+    /// Every block ends at rest (G98): single-block runs.
+    pub stop_at_blocks: bool,
+    /// MDI: starts in the modal state the last program or MDI left.
+    pub mdi: bool,
+    /// A restart from a block.
+    pub restart: Option<TextRestart>,
+}
+
+/// A text run as a restart from a block (the selected program's single-block run).
+#[derive(Clone, Copy, Debug)]
+pub struct TextRestart {
+    pub from_block: u32,
+    /// Where the blocks before it are interpreted from (`LoadedProgram::restart_origin`).
+    pub origin_mm: kernel::units::AxesMm,
+}
+
 /// The planner thread of the current job.
 struct Run {
     cancel: Arc<AtomicBool>,
@@ -101,7 +120,10 @@ impl Jobs {
         let mut run = self.run.lock().unwrap();
         let snap = rt.idle_for_start()?;
         // The job's snapshot of the machine, taken now: every stage of the run reads it.
-        let setup = tables.machine_setup(rt.snapshot().axes.commanded)?;
+        let setup = tables
+            .machine_setup(rt.snapshot().axes.commanded)?
+            .with_restart_origin(from_block.map(|_| program.restart_origin()));
+        let start_mm = setup.program().start;
         let opts = Options {
             from_block,
             ..Options::default()
@@ -125,6 +147,9 @@ impl Jobs {
             status: rt.subscribe(),
         };
         let job = self.spawn_job(rt, &mut run, spec, &program.name, program.block_count)?;
+        if from_block.is_none() {
+            program.note_run_start(start_mm);
+        }
         Ok((job, revalidate.then_some(obs)))
     }
 
@@ -132,24 +157,27 @@ impl Jobs {
     /// With `stop_at_blocks` every block ends at rest (G98), so single-block holds land on
     /// block ends. MDI (`mdi`) starts in the modal state the last program or MDI left.
     /// Returns the job id, the blocks it runs and `obs`, which saw the job's validation pass.
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn start_text<O: Observer>(
         &self,
         rt: &RtLink,
         tables: &Tables,
         name: &str,
         text: &str,
-        stop_at_blocks: bool,
-        mdi: bool,
+        how: TextRun,
         obs: O,
     ) -> Result<(u32, Arc<Vec<Block>>, O), ControlError> {
+        let TextRun {
+            stop_at_blocks,
+            mdi,
+            restart,
+        } = how;
         self.require_homed(rt, "MDI")?;
         let mut run = self.run.lock().unwrap();
         rt.idle_for_start()?;
         let opts = Options {
             job: 0,
             stop_at_blocks,
-            ..Options::default()
+            from_block: restart.map(|r| r.from_block),
         };
         let modal = if mdi {
             self.execution.lock().unwrap().modal_left()
@@ -157,9 +185,12 @@ impl Jobs {
             None
         };
         let mut pass = (Blocks::default(), obs);
+        let origin = restart.map(|r| r.origin_mm);
         let (v, setup, _) = self.selection.validate_by(rt, tables, modal, |setup| {
-            kernel::pipeline::validate_into(text, setup, opts, &mut pass)
+            let setup = setup.clone().with_restart_origin(origin);
+            kernel::pipeline::validate_into(text, &setup, opts, &mut pass)
         })?;
+        let setup = setup.with_restart_origin(origin);
         let (blocks, obs) = pass;
         if v.has_errors() {
             return Err(ControlError::InvalidProgram(v.diagnostics));

@@ -222,6 +222,29 @@ impl Controller {
         })
     }
 
+    /// The approach of a restart of `text` from block `from_block` with the axes where they
+    /// are, the blocks before it interpreted from `origin` (`LoadedProgram::restart_origin`
+    /// for the selected program; `None`: from where the axes are): the legs in order, and
+    /// the pass's verdict (a block the program lacks is `restart_block_not_found`).
+    pub fn restart_approach(
+        &self,
+        text: &ProgramText,
+        from_block: u32,
+        origin: Option<kernel::units::AxesMm>,
+    ) -> Result<(Validation, Vec<Block>), ControlError> {
+        let opts = Options {
+            from_block: Some(from_block),
+            ..Options::default()
+        };
+        let mut legs = selection::ApproachLegs::default();
+        let selection = self.jobs.selection();
+        let (v, _, _) = selection.validate_by(&self.rt, &self.tables, None, |setup| {
+            let setup = setup.clone().with_restart_origin(origin);
+            text.validate_into(&setup, opts, &mut legs)
+        })?;
+        Ok((v, legs.0))
+    }
+
     /// Validates `text` through the whole pipeline against the machine as it is now, without
     /// selecting or running it.
     pub fn validate_text(&self, text: &str) -> Result<Validation, ControlError> {
@@ -343,8 +366,42 @@ impl Controller {
         obs: O,
     ) -> Result<(u32, Arc<Vec<Block>>, O), ControlError> {
         let (rt, tables) = (&self.rt, &self.tables);
-        self.jobs
-            .start_text(rt, tables, name, text, stop_at_blocks, mdi, obs)
+        let how = jobs::TextRun {
+            stop_at_blocks,
+            mdi,
+            restart: None,
+        };
+        self.jobs.start_text(rt, tables, name, text, how, obs)
+    }
+
+    /// Runs the selected `program`'s `text` with every block ending at rest (the API's
+    /// single-block start: the blocks in memory for the holds), from its first block or
+    /// restarted from block `from_block` (the blocks before it from the program's
+    /// [`LoadedProgram::restart_origin`], then the approach, which holds at its end like a
+    /// block). Returns the job id, the blocks it runs and `obs`, which saw the job's pass.
+    pub fn start_program_blocks<O: Observer>(
+        &self,
+        program: &LoadedProgram,
+        text: &str,
+        from_block: Option<u32>,
+        obs: O,
+    ) -> Result<(u32, Arc<Vec<Block>>, O), ControlError> {
+        let start_mm = self.snapshot().axes.commanded;
+        let restart = from_block.map(|from_block| jobs::TextRestart {
+            from_block,
+            origin_mm: program.restart_origin(),
+        });
+        let (rt, tables) = (&self.rt, &self.tables);
+        let how = jobs::TextRun {
+            stop_at_blocks: true,
+            mdi: false,
+            restart,
+        };
+        let r = self.jobs.start_text(rt, tables, &program.name, text, how, obs)?;
+        if from_block.is_none() {
+            program.note_run_start(start_mm);
+        }
+        Ok(r)
     }
 
     /// Block `seq` of `job` if the job is running (or just ran) and the block is near the

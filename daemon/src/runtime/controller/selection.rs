@@ -30,6 +30,8 @@ pub struct LoadedProgram {
     pub start: AxesMm,
     /// The setup generation it was validated with (see `Tables::generation`).
     generation: u64,
+    /// Where its last run from the first block started (`None`: it has not run).
+    run_start: Mutex<Option<AxesMm>>,
 }
 
 impl LoadedProgram {
@@ -45,6 +47,19 @@ impl LoadedProgram {
             start: self.start,
         };
         then.matches(&now, axes)
+    }
+
+    /// A run of it from the first block starts at `at` (a restart's origin from now on).
+    pub(super) fn note_run_start(&self, at: AxesMm) {
+        *self.run_start.lock().unwrap() = Some(at);
+    }
+
+    /// Where a restart interprets the blocks before its block from (issue #31): where the
+    /// last run of this program started, or where the axes were when it was loaded if it
+    /// has not run since; so incremental (G91) moves before the block land where an
+    /// uninterrupted run's did, wherever the axes are now.
+    pub fn restart_origin(&self) -> AxesMm {
+        self.run_start.lock().unwrap().unwrap_or(self.start)
     }
 }
 
@@ -152,6 +167,7 @@ impl Selection {
             warnings: v.diagnostics,
             start: setup.program().start,
             generation,
+            run_start: Mutex::new(None),
         }))
     }
 }
@@ -172,6 +188,19 @@ pub(super) struct Blocks(pub(super) Vec<Block>);
 impl Observer for Blocks {
     fn programmed(&mut self, b: &Block, _modal: &kernel::program::Modal) {
         self.0.push(*b);
+    }
+    fn segment(&mut self, _s: kernel::plan::Segment) -> pipeline::Flow {
+        pipeline::Flow::Go
+    }
+}
+
+/// Keeps the legs of a restart's approach (the previews draw them apart).
+#[derive(Default)]
+pub(super) struct ApproachLegs(pub(super) Vec<Block>);
+
+impl Observer for ApproachLegs {
+    fn approach(&mut self, leg: &Block) {
+        self.0.push(*leg);
     }
     fn segment(&mut self, _s: kernel::plan::Segment) -> pipeline::Flow {
         pipeline::Flow::Go
