@@ -32,7 +32,7 @@ fn recorded_outline(st: &ApiState) -> Option<Arc<Outline>> {
     if !running && !st.ctl.validated_as_now(&program, &snap) {
         return None;
     }
-    let info = st.plan_info.lock().unwrap();
+    let info = st.job.plan_info.lock().unwrap();
     let info = info.as_ref()?;
     (info.program == Arc::as_ptr(&program) as *const () as usize).then(|| info.outline.clone())
 }
