@@ -55,8 +55,7 @@ pub struct Collector {
     pub red_list: Vec<RedJunction>,
     /// A tool-centre block on this page differs from the programmed path (G41/G42 in force).
     pub compensated: bool,
-    /// Last tool-centre block was compensated (the next pass-through one is the leave move).
-    prev_comp: bool,
+    centre: ToolCentre,
     done: bool,
     scratch: Vec<[f64; 2]>,
 }
@@ -76,7 +75,7 @@ impl Collector {
             red: 0,
             red_list: Vec::new(),
             compensated: false,
-            prev_comp: false,
+            centre: ToolCentre::default(),
             done: false,
             scratch: Vec::new(),
         }
@@ -118,13 +117,9 @@ impl Sink for Collector {
     }
 
     fn compensated(&mut self, c: &CompBlock) {
-        let is_comp = c.role != Role::Passthrough;
-        // The first pass-through block after compensation starts from the tool centre (the
-        // cancel move, SPEC §4.2): part of the tool-centre path too.
-        let leave = c.role == Role::Passthrough && self.prev_comp;
-        self.prev_comp = is_comp;
-        if !(is_comp || leave) || !self.page.contains(c.block.seq) {
-            if !is_comp {
+        let part = self.centre.next(c);
+        if !part.drawn() || !self.page.contains(c.block.seq) {
+            if part != CentrePart::Compensated {
                 self.comp.pen_up();
             }
             return;
@@ -181,10 +176,105 @@ impl Sink for Collector {
     }
 }
 
+/// What a tool-centre block is to the tool-centre path a preview draws (SPEC §4.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CentrePart {
+    /// Compensated (G41/G42 in force).
+    Compensated,
+    /// The first pass-through block after compensated ones: the cancel move starts from the
+    /// tool centre, so it is part of the path too.
+    Leave,
+    /// Neither: the path has a gap here.
+    Off,
+}
+
+impl CentrePart {
+    /// Part of the drawn tool-centre path.
+    pub fn drawn(self) -> bool {
+        self != CentrePart::Off
+    }
+}
+
+/// Follows the compensator's blocks in order to tell which belong to the tool-centre path
+/// (the rule of every preview sink: the paged picture and the outline).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ToolCentre {
+    /// Last block was compensated (the next pass-through one is the leave move).
+    prev_comp: bool,
+}
+
+impl ToolCentre {
+    /// What the next tool-centre block `c` is to the path.
+    pub fn next(&mut self, c: &CompBlock) -> CentrePart {
+        let comp = c.role != Role::Passthrough;
+        let leave = !comp && self.prev_comp;
+        self.prev_comp = comp;
+        if comp {
+            CentrePart::Compensated
+        } else if leave {
+            CentrePart::Leave
+        } else {
+            CentrePart::Off
+        }
+    }
+}
+
 /// `N40`, or `line 12` for a block without a number.
 pub fn block_label(n: Option<u32>, line: u32) -> String {
     match n {
         Some(n) => format!("N{n}"),
         None => format!("line {line}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::PreviewOptions;
+    use kernel::program::Setup;
+
+    /// What each tool-centre block is to the path, by its `N` number.
+    struct Parts(ToolCentre, Vec<(Option<u32>, CentrePart)>);
+
+    impl Sink for Parts {
+        fn compensated(&mut self, c: &CompBlock) {
+            let part = self.0.next(c);
+            self.1.push((c.block.n, part));
+        }
+        fn segment(&mut self, _s: &Segment) {}
+    }
+
+    #[test]
+    fn the_tool_centre_path_is_the_compensated_blocks_and_the_leave_move() {
+        let text = "N1 G92 D1 R0=2\nN2 G17 D1\nN3 G0 X-10 Y-10\nN4 G41 G1 X0 Y0 F600\n\
+                    N5 Y10\nN6 X10\nN7 G40 G1 X20 Y-10\nN8 X30\nN9 Y-20\n";
+        let opts = PreviewOptions::new(Setup::new(&['X', 'Y', 'Z']));
+        let mut parts = Parts(ToolCentre::default(), Vec::new());
+        crate::pipeline::run(text, &opts, &mut parts).expect("valid");
+        let of = |n: u32| -> Vec<CentrePart> {
+            parts
+                .1
+                .iter()
+                .filter(|p| p.0 == Some(n))
+                .map(|p| p.1)
+                .collect()
+        };
+        assert!(of(3).iter().all(|&p| p == CentrePart::Off), "{:?}", parts.1);
+        for n in 4..=6 {
+            assert!(!of(n).is_empty(), "N{n}: {:?}", parts.1);
+            assert!(
+                of(n).iter().all(|&p| p == CentrePart::Compensated),
+                "N{n}: {:?}",
+                parts.1
+            );
+        }
+        assert_eq!(
+            of(7),
+            [CentrePart::Leave],
+            "the cancel move starts at the tool centre"
+        );
+        assert_eq!(of(8), [CentrePart::Off]);
+        assert_eq!(of(9), [CentrePart::Off]);
+        assert!(CentrePart::Leave.drawn() && !CentrePart::Off.drawn());
     }
 }

@@ -7,13 +7,13 @@
 //! decimated again to its pixels.
 
 use kernel::block::Block;
-use kernel::comp::{CompBlock, Role};
+use kernel::comp::CompBlock;
 use kernel::pipeline::{Flow, Observer};
 use kernel::plan::{SegPath, Segment};
 use kernel::program::Modal;
 use kernel::{AxesMm, MAX_AXES};
 
-use crate::collect::Bounds;
+use crate::collect::{Bounds, ToolCentre};
 use crate::decimate::{DotSet, JunctionDot, Track};
 use crate::pipeline::Sink;
 use crate::plane::{arc_points, block_path};
@@ -74,8 +74,7 @@ pub struct Outline {
     pub smooth: u64,
     pub red: u64,
     pub blocks: u32,
-    /// Last tool-centre block was compensated (the next pass-through one is the leave move).
-    prev_comp: bool,
+    centre: ToolCentre,
     scratch: Vec<[f64; 3]>,
 }
 
@@ -122,7 +121,7 @@ impl Outline {
             smooth: 0,
             red: 0,
             blocks: 0,
-            prev_comp: false,
+            centre: ToolCentre::default(),
             scratch: Vec::new(),
         }
     }
@@ -328,12 +327,8 @@ impl Sink for Outline {
     }
 
     fn compensated(&mut self, c: &CompBlock) {
-        // As the picture does (`collect`): compensated blocks, and the first pass-through
-        // block after them (the cancel move starts from the tool centre, SPEC §4.2).
-        let is_comp = c.role != Role::Passthrough;
-        let leave = c.role == Role::Passthrough && self.prev_comp;
-        self.prev_comp = is_comp;
-        if !(is_comp || leave) {
+        // The picture's rule (`collect::ToolCentre`, SPEC §4.2).
+        if !self.centre.next(c).drawn() {
             self.comp.pen_up();
             return;
         }

@@ -160,9 +160,11 @@ export function previewScreen(): Screen {
     }, REFINE_AFTER_MS);
   }
 
-  /** What the drawing is of: the selection (name, blocks) on a plane. Opening the screen
-   * asks again (a program selected again by another client with the same name and size). */
-  const keyOf = (s: Status) => `${s.program}/${s.blocksTotal}/${plane.value}`;
+  /** What the drawing is of: the selection (name, blocks) and the job on a plane. A start
+   * asks again: the server then answers with the pass the job validated with (a setup
+   * changed since the selection), what runs. Opening the screen asks again too (a program
+   * selected again by another client with the same name and size). */
+  const keyOf = (s: Status) => `${s.program}/${s.blocksTotal}/${s.job}/${plane.value}`;
 
   async function load(s: Status): Promise<void> {
     // The same program on the same plane keeps the operator's zoom.

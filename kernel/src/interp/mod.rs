@@ -44,9 +44,12 @@ use crate::block::Spindle;
 use crate::plan::Segment;
 use crate::units::{AxesMm, TS_S};
 
+mod ahead;
 mod axis_filter;
 mod jerk_filter;
 mod raw;
+
+use ahead::{Ahead, AheadGroup, GROUP};
 
 pub use jerk_filter::ideal_jerk_limited_move_s;
 
@@ -107,6 +110,10 @@ pub struct Interpolator {
     axes: usize,
     /// Ring of buffered segments (`head`, `len`).
     buf: Box<[Segment]>,
+    /// What the look-ahead reads of each buffered segment, by ring slot, and its bounds per
+    /// group of `GROUP` slots (`ahead`).
+    ahead: Box<[Ahead]>,
+    groups: Box<[AheadGroup]>,
     /// Arc length (from the first buffered segment after the last reset) at each segment start.
     seg_start_s_mm: Box<[f64]>,
     /// Oldest buffered segment: the one the commanded (filtered) position lies on.
@@ -198,6 +205,8 @@ impl Interpolator {
         Interpolator {
             axes,
             buf: vec![Segment::default(); BUFFER_SEGMENTS].into_boxed_slice(),
+            ahead: vec![Ahead::default(); BUFFER_SEGMENTS].into_boxed_slice(),
+            groups: vec![AheadGroup::NONE; BUFFER_SEGMENTS / GROUP].into_boxed_slice(),
             seg_start_s_mm: vec![0.0; BUFFER_SEGMENTS].into_boxed_slice(),
             head: 0,
             len: 0,
@@ -339,6 +348,7 @@ impl Interpolator {
         self.seg_start_s_mm[i] = self.buffered_end_s_mm;
         self.buffered_end_s_mm += seg.length_mm;
         self.len += 1;
+        self.note_pushed(i);
         if self.state == InterpState::Idle {
             self.state = InterpState::Running;
         }
@@ -480,12 +490,20 @@ impl Interpolator {
     }
 
     fn ceiling(&self, seg: &Segment) -> f64 {
-        (self.feed_of(seg) * self.override_factor).min(seg.v_max_mm_s)
+        self.ceiling_of(&Ahead::of(seg))
+    }
+
+    fn ceiling_of(&self, seg: &Ahead) -> f64 {
+        (self.feed_of_ahead(seg) * self.override_factor).min(seg.v_max_mm_s)
     }
 
     /// Programmed feed of a segment now: feed per revolution follows the actual spindle speed;
     /// a rapid runs at its rapid override's share of the speed the axes allow on it.
     fn feed_of(&self, seg: &Segment) -> f64 {
+        self.feed_of_ahead(&Ahead::of(seg))
+    }
+
+    fn feed_of_ahead(&self, seg: &Ahead) -> f64 {
         if seg.rapid {
             seg.feed_mm_s.min(seg.v_max_mm_s) * self.rapid_factor
         } else if seg.per_rev_nominal_rpm > 0.0 {

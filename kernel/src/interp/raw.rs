@@ -2,8 +2,8 @@
 //! each segment (acceleration-limited; SPEC §7.2), the raw arc length advancing by `v·Ts`.
 
 use super::{
-    ARRIVE_EPS_MM, AXIS_FILTER_MAX_TICKS, FILTER_MAX_TICKS, FILTER_SCAN_SEGMENTS, InterpState,
-    Interpolator,
+    ARRIVE_EPS_MM, AXIS_FILTER_MAX_TICKS, Ahead, FILTER_MAX_TICKS, FILTER_SCAN_SEGMENTS, GROUP,
+    InterpState, Interpolator,
 };
 use crate::block::ProgramStop;
 use crate::plan::Segment;
@@ -25,13 +25,13 @@ struct SpeedLimits {
 /// The limits of `speed_limits` while it walks the caps ahead: with the coasting gap of a
 /// tick at constant acceleration (`coast`) and of one that accelerates (`coast_accel`; the
 /// parabolic profile's jerk limit makes them differ, the linear one has no gap).
-struct CapWalk {
-    soft: f64,
-    hard: f64,
-    soft_acc: f64,
-    hard_acc: f64,
-    coast: f64,
-    coast_accel: f64,
+pub(super) struct CapWalk {
+    pub soft: f64,
+    pub hard: f64,
+    pub soft_acc: f64,
+    pub hard_acc: f64,
+    pub coast: f64,
+    pub coast_accel: f64,
 }
 
 impl CapWalk {
@@ -42,9 +42,15 @@ impl CapWalk {
         // able to brake to it (later caps are checked on their own). A cap at or above the
         // limit so far cannot lower it (skipped: no square root on a dense path at its cap
         // speed).
+        // A cap whose braking curve is certainly not below the limit so far is skipped with
+        // a few products (`v_brake_at_least`): on a dense path most caps within the reach are
+        // far enough, and their square roots were half of the tick.
         let limit = |cur: &mut f64, cap: f64, gap: f64| {
             if cap < *cur {
-                *cur = cur.min(cap.max(Interpolator::v_brake(d - cap * lead_s, cap, a_walk, gap)));
+                let d_cap = d - cap * lead_s;
+                if !Interpolator::v_brake_at_least(d_cap, cap, a_walk, gap, *cur) {
+                    *cur = cur.min(cap.max(Interpolator::v_brake(d_cap, cap, a_walk, gap)));
+                }
             }
         };
         limit(&mut self.hard, hard_cap, self.coast);
@@ -192,8 +198,12 @@ impl Interpolator {
     }
 
     pub(super) fn raw_accel(&self, a: f64, seg: &Segment) -> f64 {
-        let a = if seg.jerk_mm_s3.is_finite() {
-            a.min(seg.jerk_mm_s3 * self.jerk_filter_ticks as f64 * TS_S)
+        self.raw_accel_j(a, seg.jerk_mm_s3)
+    }
+
+    pub(super) fn raw_accel_j(&self, a: f64, jerk_mm_s3: f64) -> f64 {
+        let a = if jerk_mm_s3.is_finite() {
+            a.min(jerk_mm_s3 * self.jerk_filter_ticks as f64 * TS_S)
         } else {
             a
         };
@@ -232,6 +242,20 @@ impl Interpolator {
         }
         let r = ((dd - lower(j)) / (j + 1.0 + coast)).min(u);
         v_cap + r + j * u
+    }
+
+    /// Whether `v_brake(d, v_cap, a, coast)` is certainly at least `v` (> `v_cap`), without
+    /// computing it. `v_brake` returns v_cap + r + j·u (0 < r ≤ u) with lower(j + 1) ≥ dd,
+    /// so j + 1 < x = (v_brake − v_cap)/u + 1 and dd < lower(x), lower increasing: if
+    /// lower(x_v) ≤ dd at x_v = (v − v_cap)/u + 1, then v_brake > v. The margins (1e-9 of v
+    /// and u in speed, 1e-9 of dd) cover the rounding of both computations, so a cap skipped
+    /// this way would not have lowered the limit: the result is bit-identical.
+    pub(super) fn v_brake_at_least(d: f64, v_cap: f64, a: f64, coast: f64, v: f64) -> bool {
+        let u = a * TS_S;
+        let dd = d.max(0.0) / TS_S - v_cap;
+        let x = ((v - v_cap) + 1e-9 * (v + u)) / u + 1.0;
+        let lower = (x + 1.0 + coast) * v_cap + u * x * (x + 1.0) / 2.0 + coast * x * u;
+        lower * (1.0 + 1e-9) <= dd
     }
 
     /// Raw stage of one tick (SPEC §7.2, §7.3): leave a stop point or wait at rest, re-size
@@ -357,6 +381,7 @@ impl Interpolator {
             if next.seq != seg.seq && d >= reach_mm {
                 let i = self.idx(k);
                 self.buf[i].v_end_mm_s = 0.0;
+                self.note_stop_at(i);
                 self.block_stop_armed = true;
                 return;
             }
@@ -431,10 +456,32 @@ impl Interpolator {
         let mut stop_dist_mm = f64::INFINITY;
         let mut a_walk = accel_mm_s2;
         let mut reach_mm = reach(a_floor.min(a_walk));
-        // (Segments by reference: copying two of them per step dominated the tick on dense
-        // paths.)
-        for k in self.raw_seg..self.len {
-            let seg = self.seg(k);
+        // (The segments' fields from the compact table `ahead`: reading ~300 full segments
+        // per tick on a dense path cost cache misses.)
+        let mut k = self.raw_seg;
+        'walk: while k < self.len {
+            if k > self.raw_seg
+                && self.idx(k).is_multiple_of(GROUP)
+                && k + GROUP < self.len
+                && self.group_clear(k, &walk, d, a_walk, lag_s, braking)
+            {
+                // No cap of this group can lower a limit (`ahead::group_bound_clear`): only
+                // the distances and accelerations of the walk move on.
+                for _ in 0..GROUP {
+                    let a_seg = self.walk_accel(&self.ahead[self.idx(k)], braking);
+                    if a_seg < a_walk {
+                        a_walk = a_seg;
+                        reach_mm = reach(a_floor.min(a_walk));
+                    }
+                    if d > reach_mm {
+                        break 'walk;
+                    }
+                    k += 1;
+                    d += self.ahead[self.idx(k)].length_mm;
+                }
+                continue;
+            }
+            let seg = &self.ahead[self.idx(k)];
             if k > self.raw_seg {
                 let a_seg = self.walk_accel(seg, braking);
                 if a_seg < a_walk {
@@ -442,7 +489,7 @@ impl Interpolator {
                     reach_mm = reach(a_floor.min(a_walk));
                 }
             }
-            let next = (k + 1 < self.len).then(|| self.seg(k + 1));
+            let next = (k + 1 < self.len).then(|| &self.ahead[self.idx(k + 1)]);
             let (hard_cap, soft_cap, lead_s) = self.caps_at_end(seg, next, lag_s);
             walk.limit(d, hard_cap, soft_cap, lead_s, a_walk);
             if hard_cap == 0.0 {
@@ -453,6 +500,7 @@ impl Interpolator {
                 break;
             }
             d += next.map_or(0.0, |n| n.length_mm);
+            k += 1;
         }
         walk.finish(stop_dist_mm)
     }
@@ -479,22 +527,23 @@ impl Interpolator {
     }
 
     /// The acceleration the look-ahead brakes with on a later segment `seg`.
-    fn walk_accel(&self, seg: &Segment, braking: bool) -> f64 {
+    fn walk_accel(&self, seg: &Ahead, braking: bool) -> f64 {
         let a = if braking {
             seg.stop_accel_mm_s2
         } else {
             seg.accel_mm_s2
         };
-        self.raw_accel(a, seg)
+        self.raw_accel_j(a, seg.jerk_mm_s3)
     }
 
     /// The caps at the end of `seg` (hard, soft) and how long before them they hold: a stop
     /// point (0, 0, 0) at the end of the buffer or where the segment ends at rest.
-    fn caps_at_end(&self, seg: &Segment, next: Option<&Segment>, lag_s: f64) -> (f64, f64, f64) {
+    fn caps_at_end(&self, seg: &Ahead, next: Option<&Ahead>, lag_s: f64) -> (f64, f64, f64) {
         match next {
             Some(n) if seg.v_end_mm_s > 0.0 => (
-                self.end_cap_mm_s(seg).min(n.v_max_mm_s),
-                self.ceiling(n),
+                self.end_cap_parts(seg.v_end_mm_s, seg.junction_cap_mm_s)
+                    .min(n.v_max_mm_s),
+                self.ceiling_of(n),
                 lag_s,
             ),
             _ => (0.0, 0.0, 0.0),
@@ -510,10 +559,14 @@ impl Interpolator {
     /// each junction of a braking zone cost part of a tick: the tick before a cap runs at the
     /// cap.) The parabolic filters keep the planned end speeds.
     fn end_cap_mm_s(&self, seg: &Segment) -> f64 {
+        self.end_cap_parts(seg.v_end_mm_s, seg.junction_cap_mm_s)
+    }
+
+    fn end_cap_parts(&self, v_end_mm_s: f64, junction_cap_mm_s: f64) -> f64 {
         if self.jerk_filter_ticks > 1 || self.axis_window_ticks > 1 {
-            return seg.v_end_mm_s;
+            return v_end_mm_s;
         }
-        seg.v_end_mm_s.max(seg.junction_cap_mm_s)
+        v_end_mm_s.max(junction_cap_mm_s)
     }
 
     /// Smallest raw acceleration of the segments the next tick covers at speeds up to `v_up`,

@@ -381,3 +381,52 @@ fn single_block_stops_exactly_at_a_block_end() {
     assert_eq!(trace.last().unwrap().position[0], 12.0);
     check_limits(&trace, 50.0, 500.0);
 }
+
+/// A deterministic spread of values over several decades (no rand dependency here).
+fn spread(seed: &mut u64, lo: f64, hi: f64) -> f64 {
+    *seed = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    let f = (*seed >> 11) as f64 / (1u64 << 53) as f64;
+    lo * (hi / lo).powf(f)
+}
+
+#[test]
+fn skipped_caps_never_lower_the_limit() {
+    // `v_brake_at_least` and `ahead::group_bound_clear` skip a cap only when v_brake from it
+    // is at least the limit: the look-ahead's result is then what evaluating it gives.
+    let mut seed = 7u64;
+    let (mut skipped, mut grouped) = (0, 0);
+    for _ in 0..200_000 {
+        let a = spread(&mut seed, 1e-3, 1e5);
+        let cur = spread(&mut seed, 1e-3, 2e3);
+        let cap = cur * spread(&mut seed, 1e-6, 1.0);
+        let d = spread(&mut seed, 1e-7, 1e3);
+        let coast = (spread(&mut seed, 1.0, 300.0) - 1.0).floor();
+        if Interpolator::v_brake_at_least(d, cap, a, coast, cur) {
+            skipped += 1;
+            assert!(
+                Interpolator::v_brake(d, cap, a, coast) >= cur,
+                "d {d} cap {cap} a {a} coast {coast} cur {cur}"
+            );
+        }
+        // A stretch of caps in [c_lo, cur), distances ≥ d, accelerations in [a_lo, a].
+        let c_lo = cap * spread(&mut seed, 1e-3, 1.0);
+        let a_lo = a * spread(&mut seed, 1e-2, 1.0);
+        let lead_s = if coast > 0.0 { 0.004 * coast } else { 0.0 };
+        if ahead::group_bound_clear(cur, c_lo, d, lead_s, a_lo, a, coast) {
+            grouped += 1;
+            for _ in 0..8 {
+                let c = c_lo + (cur - c_lo) * spread(&mut seed, 1e-9, 1.0).min(0.999_999);
+                let dk = d * spread(&mut seed, 1.0, 3.0);
+                let ak = a_lo * (a / a_lo).powf(spread(&mut seed, 1e-6, 1.0));
+                let dc = dk - c * lead_s;
+                assert!(
+                    c >= cur || Interpolator::v_brake(dc, c, ak, coast) >= cur,
+                    "group: d {dk} cap {c} a {ak} coast {coast} cur {cur}"
+                );
+            }
+        }
+    }
+    assert!(skipped > 1000 && grouped > 1000, "{skipped} {grouped}");
+}

@@ -1,7 +1,7 @@
 //! What the API keeps beside the controller about the selected program and the job it started:
-//! the junction classes and recorded pass of the selection (status, previews), the job's own
-//! block list (modal codes in status), single block as the operator set it, and the lock that
-//! serialises Start and MDI.
+//! the junction classes, recorded pass and outlines of the selection and of the running job
+//! (status, previews), the job's own block list (modal codes in status), single block as the
+//! operator set it, and the lock that serialises Start and MDI.
 
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
@@ -47,6 +47,8 @@ pub(super) struct PlanInfo {
 /// The selection's pass and the started job, as the API saw them.
 pub(super) struct JobView {
     pub(super) plan_info: Mutex<Option<PlanInfo>>,
+    /// Outlines besides the selection's: of a changed setup, of the running job.
+    pub(super) outlines: super::preview_outline::Outlines,
     pub(super) run: Mutex<Option<RunInfo>>,
     pub(super) single_block: AtomicBool,
     /// Serialises Start and MDI: the RT thread takes a start on its next tick, so a second
@@ -58,6 +60,7 @@ impl JobView {
     pub(super) fn new() -> JobView {
         JobView {
             plan_info: Mutex::new(None),
+            outlines: super::preview_outline::Outlines::default(),
             run: Mutex::new(None),
             single_block: AtomicBool::new(false),
             start_lock: tokio::sync::Mutex::new(()),

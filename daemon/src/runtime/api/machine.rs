@@ -12,6 +12,7 @@ use tonic::{Request, Response, Status};
 
 use super::auth::require;
 use super::jog;
+use ::preview::outline::Outline;
 use kernel::pipeline::{self, Flow};
 use kernel::plan::Segment;
 
@@ -213,10 +214,13 @@ impl Machine for MachineSvc {
                     .text
                     .read_all(st.ctl.program_encoding())
                     .map_err(|e| Status::internal(e.to_string()))?;
-                let (job, blocks) = st
+                // The job's pass (every block ends at rest) is what the preview shows.
+                let outline = Outline::new(&st.ctl.config().axis_names());
+                let (job, blocks, outline) = st
                     .ctl
-                    .start_text(&p.name, &text, true, false)
+                    .start_text_observed(&p.name, &text, true, false, outline)
                     .map_err(status_of)?;
+                super::preview_outline::job_started(&st, job, Some(outline));
                 *st.job.run.lock().unwrap() = Some(RunInfo {
                     job,
                     blocks,
@@ -224,7 +228,14 @@ impl Machine for MachineSvc {
                 });
                 Ok(job)
             } else {
-                let job = st.ctl.start_program_from(from_block).map_err(status_of)?;
+                // A job that validates again (setup changed, restart): its pass is what
+                // the preview shows while it runs.
+                let outline = Outline::new(&st.ctl.config().axis_names());
+                let (job, pass) = st
+                    .ctl
+                    .start_program_observed(from_block, outline)
+                    .map_err(status_of)?;
+                super::preview_outline::job_started(&st, job, pass);
                 *st.job.run.lock().unwrap() = None;
                 Ok(job)
             }

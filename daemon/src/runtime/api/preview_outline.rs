@@ -1,56 +1,138 @@
 //! `Preview.GetPreviewOutline`: the selected program's outline reduced to what a screen shows
 //! (issue #30: the browser HMI draws a program of any size). The outline comes from the pass
-//! that validated the selection (`programs::prepare`), so it is the program a start runs; a
-//! zoom finer than it, or a machine setup changed since, gets a pass of its own (clipped to
-//! the extent), made on a blocking thread like every validation pass (never the RT thread).
+//! that validated the selection (`programs::prepare`), so it is the program a start runs.
+//! While a job runs it is the job's: the pass the job validated with when it made one (a
+//! setup changed since the selection, a restart, single block). A machine setup changed since
+//! the selection gets a pass of its own, kept for the next request with the same program and
+//! setup; a zoom finer than the outline gets a pass clipped to the extent (never while a job
+//! runs: that pass would start from wherever the tool is). Passes run on a blocking thread
+//! like every validation pass (never the RT thread).
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, Weak};
 
 use proto::v1 as pb;
 use tonic::Status;
 
 use ::preview::collect::Bounds;
-use ::preview::outline::{Clip, Outline, Plane, Runs, View};
+use ::preview::outline::{Clip, Outline, Plane, Runs, START_CELL_MM, View};
 use kernel::pipeline::Options;
 
 use super::{ApiState, invalid_with_diagnostics};
+use crate::runtime::controller::{LoadedProgram, SetupStamp};
 use crate::runtime::rt::MachineState;
 
 /// Picture size when the request gives none.
 const DEFAULT_PX: (u32, u32) = (1200, 800);
 
-/// The outline recorded by the selection's pass, while it is the next start's (same check
-/// as the recorded preview pass: constants, offsets and start position unchanged). While a
-/// program runs it is the one shown: a pass now would start from wherever the tool is.
-fn recorded_outline(st: &ApiState) -> Option<Arc<Outline>> {
-    let program = st.ctl.program()?;
-    let snap = st.ctl.snapshot();
-    let running = matches!(
-        snap.state,
-        MachineState::Running | MachineState::Hold | MachineState::Stopping
-    );
-    if !running && !st.ctl.validated_as_now(&program, &snap) {
-        return None;
-    }
-    let info = st.job.plan_info.lock().unwrap();
-    let info = info.as_ref()?;
-    (info.program == Arc::as_ptr(&program) as *const () as usize).then(|| info.outline.clone())
+/// The outlines kept besides the selection's (in [`ApiState`]'s job view).
+#[derive(Default)]
+pub(super) struct Outlines {
+    /// The selected program's pass with a setup changed since its selection. Locked while
+    /// that pass runs, so a second request waits for it instead of making the same pass.
+    setup: Mutex<Option<SetupOutline>>,
+    /// The running job's.
+    job: Mutex<Option<JobOutline>>,
 }
 
-/// A pass over the selected program with the setup in force, into an outline (clipped to
-/// `clip` from grid `cell_mm` when given).
-fn own_pass(st: &ApiState, clip: Option<Clip>, cell_mm: f64) -> Result<Outline, Status> {
-    let text = super::selected_text(&st.ctl)?;
+/// A pass of its own over a program with the setup of `stamp`.
+struct SetupOutline {
+    program: Weak<LoadedProgram>,
+    stamp: SetupStamp,
+    outline: Arc<Outline>,
+}
+
+/// What job `job` runs: its own validation pass (`None`: the selection's pass was the job's).
+struct JobOutline {
+    job: u32,
+    outline: Option<Arc<Outline>>,
+}
+
+/// A job was started from the selected program; `pass` is the outline of its own validation
+/// pass if it made one (`Controller::start_program_observed`).
+pub(super) fn job_started(st: &ApiState, job: u32, pass: Option<Outline>) {
+    let outline = pass.map(|mut o| {
+        o.freeze();
+        Arc::new(o)
+    });
+    *st.job.outlines.job.lock().unwrap() = Some(JobOutline { job, outline });
+}
+
+/// The outline the selection's pass collected, if `program` is the selection it belongs to.
+fn selection_outline(st: &ApiState, program: &Arc<LoadedProgram>) -> Option<Arc<Outline>> {
+    let info = st.job.plan_info.lock().unwrap();
+    let info = info.as_ref()?;
+    (info.program == Arc::as_ptr(program) as *const () as usize).then(|| info.outline.clone())
+}
+
+/// The outline of what runs while the machine runs: the job's when the selected program was
+/// started through the API, the selection's otherwise (an MDI job runs: the selection is the
+/// next start's).
+fn running_outline(
+    st: &ApiState,
+    program: &Arc<LoadedProgram>,
+    job: u32,
+) -> Result<Arc<Outline>, Status> {
+    let own = match &*st.job.outlines.job.lock().unwrap() {
+        Some(j) if j.job == job => j.outline.clone(),
+        _ => None,
+    };
+    own.or_else(|| selection_outline(st, program))
+        .ok_or_else(|| {
+            Status::failed_precondition(
+                "the outline of the running job is not kept: ask again once it has ended",
+            )
+        })
+}
+
+/// The selected program with the setup in force: its selection's pass while that is the next
+/// start's (same check as the recorded preview pass: constants, offsets and start position
+/// unchanged), else a pass of its own, kept for the next request with the same setup.
+fn idle_outline(
+    st: &ApiState,
+    program: &Arc<LoadedProgram>,
+) -> Result<(Arc<Outline>, bool), Status> {
+    if st.ctl.validated_as_now(program, &st.ctl.snapshot())
+        && let Some(o) = selection_outline(st, program)
+    {
+        return Ok((o, false));
+    }
+    let axes = st.ctl.config().axes.len();
+    let mut kept = st.job.outlines.setup.lock().unwrap();
+    let now = st.ctl.setup_stamp();
+    if let Some(k) = kept.as_ref()
+        && std::ptr::eq(k.program.as_ptr(), Arc::as_ptr(program))
+        && k.stamp.matches(&now, axes)
+    {
+        return Ok((k.outline.clone(), true));
+    }
+    let (outline, stamp) = own_pass(st, program, None, START_CELL_MM)?;
+    let outline = Arc::new(outline);
+    *kept = Some(SetupOutline {
+        program: Arc::downgrade(program),
+        stamp,
+        outline: outline.clone(),
+    });
+    Ok((outline, true))
+}
+
+/// A pass over `program` with the setup in force, into an outline (clipped to `clip` from
+/// grid `cell_mm` when given), with the stamp of the setup it used.
+fn own_pass(
+    st: &ApiState,
+    program: &LoadedProgram,
+    clip: Option<Clip>,
+    cell_mm: f64,
+) -> Result<(Outline, SetupStamp), Status> {
     let mut o = Outline::clipped(&st.ctl.config().axis_names(), clip, cell_mm);
-    let (v, _, _) = st
+    let (v, setup, generation) = st
         .ctl
-        .validate_program_with(&text, Options::default(), &mut o)
+        .validate_program_with(&program.text, Options::default(), &mut o)
         .map_err(super::status_of)?;
     if v.has_errors() {
         return Err(invalid_with_diagnostics("program", &v.diagnostics));
     }
     o.freeze();
-    Ok(o)
+    Ok((o, SetupStamp::of(&setup, generation)))
 }
 
 fn runs_pb(r: Runs) -> pb::Polylines {
@@ -90,20 +172,24 @@ pub fn outline_reply(
         .ctl
         .program()
         .ok_or_else(|| Status::failed_precondition("no program is selected"))?;
-    let (outline, mut own) = match recorded_outline(st) {
-        Some(o) => (o, false),
-        None => (
-            Arc::new(own_pass(st, None, ::preview::outline::START_CELL_MM)?),
-            true,
-        ),
+    let snap = st.ctl.snapshot();
+    let running = matches!(
+        snap.state,
+        MachineState::Running | MachineState::Hold | MachineState::Stopping
+    );
+    let (outline, mut own) = if running {
+        (running_outline(st, &program, snap.progress.job)?, false)
+    } else {
+        idle_outline(st, &program)?
     };
     let mut view = outline.view(plane, extent, w, h);
-    // Zoomed in finer than the outline's grid: a pass of its own over the extent.
-    if let Some(e) = extent {
+    // Zoomed in finer than the outline's grid: a pass of its own over the extent (not while
+    // a job runs: it would not be the job's).
+    if let Some(e) = extent.filter(|_| !running) {
         let px_mm =
             ((e.max[0] - e.min[0]) / f64::from(w)).max((e.max[1] - e.min[1]) / f64::from(h));
         if px_mm < outline.cell_mm() / 2.0 {
-            let fine = own_pass(st, Some(Clip { plane, extent: e }), px_mm)?;
+            let (fine, _) = own_pass(st, &program, Some(Clip { plane, extent: e }), px_mm)?;
             let bounds = view.bounds;
             view = View {
                 bounds,

@@ -7,11 +7,11 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 use kernel::block::Block;
-use kernel::pipeline::Options;
+use kernel::pipeline::{Observer, Options};
 
 use super::ControlError;
 use super::rt_link::RtLink;
-use super::selection::{Blocks, NoObserver, Selection};
+use super::selection::{Blocks, Selection};
 use super::tables::Tables;
 use crate::runtime::config::Config;
 use crate::runtime::homing;
@@ -84,13 +84,15 @@ impl Jobs {
 
     /// Starts the selected program, or restarts it from the block numbered `from_block`
     /// (`kernel::restart`: the blocks before it without motion, an approach to its start).
-    /// Returns the job id.
-    pub(super) fn start_program(
+    /// Returns the job id, and `obs` when the job made a validation pass of its own (which
+    /// `obs` saw).
+    pub(super) fn start_program<O: Observer>(
         &self,
         rt: &RtLink,
         tables: &Tables,
         from_block: Option<u32>,
-    ) -> Result<u32, ControlError> {
+        mut obs: O,
+    ) -> Result<(u32, Option<O>), ControlError> {
         self.require_homed(rt, "a program")?;
         let program = self
             .selection
@@ -107,10 +109,10 @@ impl Jobs {
         // Validated with another setup (the axes moved by MDI or another job, constants or
         // offsets changed) or restarted: validate again with this one, so the run cannot fail
         // half-way.
-        if !program.validated_as(&snap, tables.generation(), self.config.axes.len())
-            || from_block.is_some()
-        {
-            let v = program.text.validate_into(&setup, opts, &mut NoObserver);
+        let revalidate = !program.validated_as(&snap, tables.generation(), self.config.axes.len())
+            || from_block.is_some();
+        if revalidate {
+            let v = program.text.validate_into(&setup, opts, &mut obs);
             if v.has_errors() {
                 return Err(ControlError::InvalidProgram(v.diagnostics));
             }
@@ -122,14 +124,16 @@ impl Jobs {
             execution: self.execution.clone(),
             status: rt.subscribe(),
         };
-        self.spawn_job(rt, &mut run, spec, &program.name, program.block_count)
+        let job = self.spawn_job(rt, &mut run, spec, &program.name, program.block_count)?;
+        Ok((job, revalidate.then_some(obs)))
     }
 
     /// Runs `text` as a job without changing the selected program (MDI, single-block runs).
     /// With `stop_at_blocks` every block ends at rest (G98), so single-block holds land on
     /// block ends. MDI (`mdi`) starts in the modal state the last program or MDI left.
-    /// Returns the job id and the blocks it runs.
-    pub(super) fn start_text(
+    /// Returns the job id, the blocks it runs and `obs`, which saw the job's validation pass.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn start_text<O: Observer>(
         &self,
         rt: &RtLink,
         tables: &Tables,
@@ -137,7 +141,8 @@ impl Jobs {
         text: &str,
         stop_at_blocks: bool,
         mdi: bool,
-    ) -> Result<(u32, Arc<Vec<Block>>), ControlError> {
+        obs: O,
+    ) -> Result<(u32, Arc<Vec<Block>>, O), ControlError> {
         self.require_homed(rt, "MDI")?;
         let mut run = self.run.lock().unwrap();
         rt.idle_for_start()?;
@@ -151,10 +156,11 @@ impl Jobs {
         } else {
             None
         };
-        let mut blocks = Blocks::default();
+        let mut pass = (Blocks::default(), obs);
         let (v, setup, _) = self.selection.validate_by(rt, tables, modal, |setup| {
-            kernel::pipeline::validate_into(text, setup, opts, &mut blocks)
+            kernel::pipeline::validate_into(text, setup, opts, &mut pass)
         })?;
+        let (blocks, obs) = pass;
         if v.has_errors() {
             return Err(ControlError::InvalidProgram(v.diagnostics));
         }
@@ -166,7 +172,7 @@ impl Jobs {
             status: rt.subscribe(),
         };
         let job = self.spawn_job(rt, &mut run, spec, name, v.blocks)?;
-        Ok((job, Arc::new(blocks.0)))
+        Ok((job, Arc::new(blocks.0), obs))
     }
 
     /// Starts the planner thread of a new job and tells the RT thread to run it with the

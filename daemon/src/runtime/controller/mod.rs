@@ -55,7 +55,7 @@ use tables::Tables;
 
 pub use motion::JOG_LEASE_TICKS;
 pub(crate) use pump::Pump;
-pub use selection::LoadedProgram;
+pub use selection::{LoadedProgram, SetupStamp};
 pub use startup::StartError;
 pub(crate) use startup::{load_storage, machine_config, rt_core_config};
 pub use tables::{FilesSync, needs_restart};
@@ -263,6 +263,14 @@ impl Controller {
         program.validated_as(snap, self.tables.generation(), self.config.axes.len())
     }
 
+    /// The stamp of the setup a pass or a job started now would take.
+    pub fn setup_stamp(&self) -> SetupStamp {
+        SetupStamp {
+            generation: self.tables.generation(),
+            start: self.rt.snapshot().axes.commanded,
+        }
+    }
+
     /// Passes of the pipeline made for validation so far (validate, upload, load, previews
     /// of a text): tests see with it that a preview read load's pass instead of making one.
     pub fn validation_passes(&self) -> u64 {
@@ -294,7 +302,19 @@ impl Controller {
     /// Starts the selected program, or restarts it from the block numbered `from_block`
     /// (`kernel::restart`: the blocks before it without motion, an approach to its start).
     pub fn start_program_from(&self, from_block: Option<u32>) -> Result<u32, ControlError> {
-        self.jobs.start_program(&self.rt, &self.tables, from_block)
+        Ok(self.start_program_observed(from_block, NoObserver)?.0)
+    }
+
+    /// As [`Controller::start_program_from`]. When the job validates the program again (a
+    /// setup changed since the selection, or a restart), `obs` sees that pass, the job's, and
+    /// is returned; `None`: the selection's pass is the job's.
+    pub fn start_program_observed<O: Observer>(
+        &self,
+        from_block: Option<u32>,
+        obs: O,
+    ) -> Result<(u32, Option<O>), ControlError> {
+        self.jobs
+            .start_program(&self.rt, &self.tables, from_block, obs)
     }
 
     /// Runs `text` as a job without changing the selected program (MDI, single-block runs).
@@ -308,9 +328,23 @@ impl Controller {
         stop_at_blocks: bool,
         mdi: bool,
     ) -> Result<(u32, Arc<Vec<Block>>), ControlError> {
+        let (job, blocks, _) =
+            self.start_text_observed(name, text, stop_at_blocks, mdi, NoObserver)?;
+        Ok((job, blocks))
+    }
+
+    /// As [`Controller::start_text`]; `obs` sees the job's validation pass and is returned.
+    pub fn start_text_observed<O: Observer>(
+        &self,
+        name: &str,
+        text: &str,
+        stop_at_blocks: bool,
+        mdi: bool,
+        obs: O,
+    ) -> Result<(u32, Arc<Vec<Block>>, O), ControlError> {
         let (rt, tables) = (&self.rt, &self.tables);
         self.jobs
-            .start_text(rt, tables, name, text, stop_at_blocks, mdi)
+            .start_text(rt, tables, name, text, stop_at_blocks, mdi, obs)
     }
 
     /// Block `seq` of `job` if the job is running (or just ran) and the block is near the

@@ -36,9 +36,39 @@ impl LoadedProgram {
     /// Whether it was validated with the setup a job started at `snap` under setup generation
     /// `generation` would take: the same constants and offsets and the same start position.
     pub(super) fn validated_as(&self, snap: &Snapshot, generation: u64, axes: usize) -> bool {
-        let here = snap.axes.commanded;
-        let moved = (0..axes).any(|i| (self.start[i] - here[i]).abs() > 1e-9);
-        !moved && self.generation == generation
+        let now = SetupStamp {
+            generation,
+            start: snap.axes.commanded,
+        };
+        let then = SetupStamp {
+            generation: self.generation,
+            start: self.start,
+        };
+        then.matches(&now, axes)
+    }
+}
+
+/// What the machine setup of a pass is known by: the setup generation (constants, offsets,
+/// `G92`) and the start position. Two passes of one text with matching stamps are the same.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SetupStamp {
+    pub generation: u64,
+    pub start: AxesMm,
+}
+
+impl SetupStamp {
+    /// The stamp of a pass made with `setup` under `generation`.
+    pub fn of(setup: &MachineSetup, generation: u64) -> Self {
+        SetupStamp {
+            generation,
+            start: setup.program().start,
+        }
+    }
+
+    /// The same generation and start position on the first `axes` axes.
+    pub fn matches(&self, other: &SetupStamp, axes: usize) -> bool {
+        self.generation == other.generation
+            && (0..axes).all(|i| (self.start[i] - other.start[i]).abs() <= 1e-9)
     }
 }
 

@@ -2309,7 +2309,8 @@ export type PreviewOutline = Message<"cnc.v1.PreviewOutline"> & {
   cellMm: number;
 
   /**
-   * A pass of its own was made (a zoomed extent, or a setup changed since the selection).
+   * From a pass of its own, not the selection's or the running job's (a zoomed extent, or a
+   * setup changed since the selection: that pass is kept, so a repeated view reports it too).
    *
    * @generated from field: bool own_pass = 15;
    */
@@ -3998,9 +3999,12 @@ export const Preview: GenService<{
    * width_px x height_px shows of the extent asked for: the paths snapped to a grid of about a
    * pixel (segments already drawn are not sent again), junction dots merged within a few
    * pixels. A screen draws a program of any size from it (the browser HMI). The outline is
-   * collected by the pass that validated the selection, so it shows what a start runs; an
-   * extent finer than that outline, or a machine setup changed since the selection, costs a
-   * pass of its own. FAILED_PRECONDITION when no program is selected; INVALID_ARGUMENT for an
+   * collected by the pass that validated the selection, so it shows what a start runs; a
+   * machine setup changed since the selection costs one pass of its own, kept while that
+   * setup holds; an extent finer than the outline costs a pass clipped to it. While a job
+   * runs: the outline of the pass the job validated with (a setup changed since the
+   * selection, a restart, single block), else the selection's; no pass then, whatever the
+   * extent. FAILED_PRECONDITION when no program is selected; INVALID_ARGUMENT for an
    * unknown plane or a program that no longer validates (details: Diagnostics).
    *
    * @generated from rpc cnc.v1.Preview.GetPreviewOutline
