@@ -75,7 +75,8 @@ pub struct Component {
     pub items: Vec<usize>,
 }
 
-/// Indices (into [`DeviceModel::items`]) of the data items the feed writes.
+/// Indices (into [`DeviceModel::items`]) of the data items the feed writes: one concern, a
+/// lookup table with one entry per data item (per-axis and spindle items grouped).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ItemIds {
     pub availability: usize,

@@ -64,26 +64,73 @@ pub enum JobEnd {
 /// The daemon's pipeline and RT core on one thread, under a simulated clock.
 pub struct Harness {
     config: Config,
+    /// What the RT thread owns in the daemon.
+    rt: SimRt,
+    /// The controller's ends of the RT link.
+    link: Link,
+    /// What the controller keeps to start jobs and follow them.
+    jobs: Jobs,
+    hashes: Hashes,
+}
+
+/// The RT side: the core, its ends of the rings, the drive bus and the simulated clock.
+struct SimRt {
     core: RtCore,
     rings: RtRings,
     bus: Box<dyn DriveBus>,
     clock: SimClock,
+}
+
+impl SimRt {
+    /// One tick: the clock wakes at (or after) the core's next deadline, the core ticks.
+    fn tick(&mut self) -> Snapshot {
+        let now = self.clock.wake(self.core.next_deadline_ns());
+        *self.core.tick(now, &mut self.rings, self.bus.as_mut())
+    }
+}
+
+/// The controller's side of the RT link: the rings' producer ends, commands waiting for their
+/// tick, the snapshot channel the planner reads, and whether the planning is cancelled.
+struct Link {
     commands: rtrb::Producer<RtCommand>,
     segments: rtrb::Producer<Segment>,
+    /// Commands to send before the tick of the given sequence number (sorted by the caller's
+    /// order of adding; several per tick allowed).
+    scheduled: Vec<(u64, RtCommand)>,
+    status: (watch::Sender<Snapshot>, watch::Receiver<Snapshot>),
+    /// The planning of the current job is cancelled (the controller cancels it on Stop and
+    /// Shutdown; on a fault it runs on and the RT core drops the leftovers).
+    cancel: bool,
+}
+
+/// Jobs: the constants a job starts with (and whether they came from a file), the execution
+/// record with the offset table, and the next job id.
+struct Jobs {
     constants: (Constants, bool),
     /// Follows execution and applies `G92` writes when their block executes, as the
     /// controller's status thread does.
     pump: Pump,
-    status: (watch::Sender<Snapshot>, watch::Receiver<Snapshot>),
     next_job: u32,
-    /// The planning of the current job is cancelled (the controller cancels it on Stop and
-    /// Shutdown; on a fault it runs on and the RT core drops the leftovers).
-    cancel: bool,
-    /// Commands to send before the tick of the given sequence number (sorted by the caller's
-    /// order of adding; several per tick allowed).
-    scheduled: Vec<(u64, RtCommand)>,
-    setpoint_hash: Fnv,
-    timeline_hash: Fnv,
+}
+
+/// The replay hashes of a run (see [`Harness::setpoint_hash`], [`Harness::timeline_hash`]).
+struct Hashes {
+    setpoint: Fnv,
+    timeline: Fnv,
+}
+
+impl Hashes {
+    fn record(&mut self, s: &Snapshot) {
+        for v in &s.axes.commanded.0[..s.axes.count] {
+            self.setpoint.write(v.to_bits());
+            self.timeline.write(v.to_bits());
+        }
+        self.setpoint.write(s.spindle.kr.spindle_rpm.to_bits());
+        self.timeline.write(s.spindle.kr.spindle_rpm.to_bits());
+        self.timeline.write(s.tick.time_ns);
+        self.timeline.write(s.tick.stats.overruns);
+        self.timeline.write(u64::from(s.tick.stats.lateness_max_us));
+    }
 }
 
 impl Harness {
@@ -104,29 +151,37 @@ impl Harness {
         let status = watch::channel(*core.snapshot());
         Ok(Harness {
             config,
-            core,
-            rings: RtRings {
-                commands: cmd_rx,
-                segments: seg_rx,
-                planned_job: Arc::new(AtomicU32::new(0)),
+            rt: SimRt {
+                core,
+                rings: RtRings {
+                    commands: cmd_rx,
+                    segments: seg_rx,
+                    planned_job: Arc::new(AtomicU32::new(0)),
+                },
+                bus,
+                clock,
             },
-            bus,
-            clock,
-            commands,
-            segments,
-            constants,
-            pump: Pump {
-                execution: Arc::default(),
-                offsets: Arc::new(Mutex::new(offsets)),
-                generation: Arc::new(AtomicU64::new(0)),
-                axis_names,
+            link: Link {
+                commands,
+                segments,
+                scheduled: Vec::new(),
+                status,
+                cancel: false,
             },
-            status,
-            next_job: 1,
-            cancel: false,
-            scheduled: Vec::new(),
-            setpoint_hash: Fnv::new(),
-            timeline_hash: Fnv::new(),
+            jobs: Jobs {
+                constants,
+                pump: Pump {
+                    execution: Arc::default(),
+                    offsets: Arc::new(Mutex::new(offsets)),
+                    generation: Arc::new(AtomicU64::new(0)),
+                    axis_names,
+                },
+                next_job: 1,
+            },
+            hashes: Hashes {
+                setpoint: Fnv::new(),
+                timeline: Fnv::new(),
+            },
         })
     }
 
@@ -137,84 +192,71 @@ impl Harness {
 
     /// The RT core (deadline grid, state).
     pub fn core(&self) -> &RtCore {
-        &self.core
+        &self.rt.core
     }
 
     /// The latest snapshot.
     pub fn snapshot(&self) -> Snapshot {
-        *self.core.snapshot()
+        *self.rt.core.snapshot()
     }
 
     pub fn clock(&self) -> &SimClock {
-        &self.clock
+        &self.rt.clock
     }
 
     /// The offset table (file and memory), as the daemon holds it.
     pub fn offsets(&self) -> Arc<Mutex<OffsetStore>> {
-        self.pump.offsets.clone()
+        self.jobs.pump.offsets.clone()
     }
 
     /// Hash of every setpoint (positions and spindle speed) sent so far: the same for the same
     /// program whatever the clock did (the trajectory advances one bus period per executed
     /// tick).
     pub fn setpoint_hash(&self) -> u64 {
-        self.setpoint_hash.0
+        self.hashes.setpoint.0
     }
 
     /// Hash of every setpoint with the time of its tick and the tick statistics: the same for
     /// the same seed, bit for bit.
     pub fn timeline_hash(&self) -> u64 {
-        self.timeline_hash.0
+        self.hashes.timeline.0
     }
 
     /// Sends a command now (it acts at the next tick). Stop and Shutdown also cancel the
     /// planning of the running job, as the controller does.
     pub fn send(&mut self, cmd: RtCommand) -> Result<(), HarnessError> {
         if matches!(cmd, RtCommand::Stop | RtCommand::Shutdown) {
-            self.cancel = true;
+            self.link.cancel = true;
         }
-        self.commands
+        self.link
+            .commands
             .push(cmd)
             .map_err(|_| HarnessError::CommandRingFull)
     }
 
     /// Sends `cmd` just before the tick with snapshot sequence `sequence` runs.
     pub fn at_tick(&mut self, sequence: u64, cmd: RtCommand) {
-        self.scheduled.push((sequence, cmd));
+        self.link.scheduled.push((sequence, cmd));
     }
 
     /// One RT tick: the clock wakes at (or after) the core's next deadline, the core ticks.
     pub fn step(&mut self) -> Snapshot {
-        let next = self.core.snapshot().tick.sequence + 1;
+        let next = self.rt.core.snapshot().tick.sequence + 1;
         let mut i = 0;
-        while i < self.scheduled.len() {
-            if self.scheduled[i].0 <= next {
-                let (_, cmd) = self.scheduled.remove(i);
+        while i < self.link.scheduled.len() {
+            if self.link.scheduled[i].0 <= next {
+                let (_, cmd) = self.link.scheduled.remove(i);
                 // A full command ring in a test is a defect of the test.
                 self.send(cmd).expect("command ring full");
             } else {
                 i += 1;
             }
         }
-        let now = self.clock.wake(self.core.next_deadline_ns());
-        let snap = *self.core.tick(now, &mut self.rings, self.bus.as_mut());
-        self.record(&snap);
-        self.pump.apply_executed_writes(&snap);
+        let snap = self.rt.tick();
+        self.hashes.record(&snap);
+        self.link.status.0.send_replace(snap);
+        self.jobs.pump.apply_executed_writes(&snap);
         snap
-    }
-
-    fn record(&mut self, s: &Snapshot) {
-        for v in &s.axes.commanded.0[..s.axes.count] {
-            self.setpoint_hash.write(v.to_bits());
-            self.timeline_hash.write(v.to_bits());
-        }
-        self.setpoint_hash.write(s.spindle.kr.spindle_rpm.to_bits());
-        self.timeline_hash.write(s.spindle.kr.spindle_rpm.to_bits());
-        self.timeline_hash.write(s.tick.time_ns);
-        self.timeline_hash.write(s.tick.stats.overruns);
-        self.timeline_hash
-            .write(u64::from(s.tick.stats.lateness_max_us));
-        self.status.0.send_replace(*s);
     }
 
     /// Shuts down as cncd does on SIGTERM: `Shutdown` brakes the axes to rest and ends the
@@ -222,7 +264,7 @@ impl Harness {
     pub fn shut_down(&mut self, max_ticks: u64) -> Result<(), HarnessError> {
         self.send(RtCommand::Shutdown)?;
         let mut ticks = 0;
-        while !self.core.finished() {
+        while !self.rt.core.finished() {
             if ticks == max_ticks {
                 return Err(HarnessError::Timeout {
                     ticks,
@@ -232,8 +274,9 @@ impl Harness {
             self.step();
             ticks += 1;
         }
-        let clock = &mut self.clock;
-        self.core.shut_down_bus(self.bus.as_mut(), |t| {
+        let rt = &mut self.rt;
+        let clock = &mut rt.clock;
+        rt.core.shut_down_bus(rt.bus.as_mut(), |t| {
             clock.wake(t);
         });
         Ok(())
@@ -273,19 +316,19 @@ impl Harness {
     /// job (the constants then count as coming from a file).
     pub fn set_constants(&mut self, values: &[(u16, f64)]) {
         for &(r, v) in values {
-            self.constants.0.set(r, v);
+            self.jobs.constants.0.set(r, v);
         }
-        self.constants.1 = true;
+        self.jobs.constants.1 = true;
     }
 
     /// The machine setup a job started now takes (as the controller's): configuration,
     /// constants and memory offsets, from where the axes are commanded now.
     pub fn machine_setup(&self) -> Result<MachineSetup, kernel::kr::KrConfigError> {
-        let offsets = self.pump.offsets.lock().unwrap();
+        let offsets = self.jobs.pump.offsets.lock().unwrap();
         MachineSetup::new(
             &machine_config(&self.config),
-            &self.constants.0,
-            self.constants.1,
+            &self.jobs.constants.0,
+            self.jobs.constants.1,
             offsets.memory(),
             self.snapshot().axes.commanded,
         )
@@ -303,7 +346,7 @@ impl Harness {
     pub fn start_job(&mut self, text: &str, stop_at_blocks: bool) -> Result<u32, HarnessError> {
         homing::require_homed(&self.config, &self.snapshot(), "a program")?;
         let setup = self.machine_setup().map_err(HarnessError::Setup)?;
-        let job = self.next_job;
+        let job = self.jobs.next_job;
         let opts = Options {
             job,
             stop_at_blocks,
@@ -313,9 +356,9 @@ impl Harness {
         if v.has_errors() {
             return Err(HarnessError::InvalidProgram(v.diagnostics));
         }
-        self.next_job += 1;
-        self.cancel = false;
-        self.pump.execution.lock().unwrap().begin(job);
+        self.jobs.next_job += 1;
+        self.link.cancel = false;
+        self.jobs.pump.execution.lock().unwrap().begin(job);
         let machine = JobMachine {
             kr: setup.kr_constants().expect("the daemon's setup has KŘR"),
             in_position_mm: setup.in_position_mm(),
@@ -325,11 +368,11 @@ impl Harness {
             text: ProgramText::Memory(Arc::from(text)),
             setup,
             opts,
-            execution: self.pump.execution.clone(),
-            status: self.status.1.clone(),
+            execution: self.jobs.pump.execution.clone(),
+            status: self.link.status.1.clone(),
         };
         let result = plan_into(&spec, |seg| self.push_segment(seg));
-        self.rings.planned_job.store(job, Ordering::Release);
+        self.rt.rings.planned_job.store(job, Ordering::Release);
         result.map_err(HarnessError::Planning)?;
         Ok(job)
     }
@@ -338,10 +381,10 @@ impl Harness {
     /// thread waits instead). False (cancel the planning) once the job was stopped.
     fn push_segment(&mut self, mut seg: Segment) -> bool {
         loop {
-            if self.cancel {
+            if self.link.cancel {
                 return false;
             }
-            match self.segments.push(seg) {
+            match self.link.segments.push(seg) {
                 Ok(()) => return true,
                 Err(rtrb::PushError::Full(s)) => {
                     seg = s;

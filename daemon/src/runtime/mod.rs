@@ -15,6 +15,7 @@ pub mod library;
 pub mod logging;
 pub mod mtconnect;
 pub mod pipeline;
+pub mod program_text;
 pub mod resample;
 pub mod rt;
 pub mod rt_core;

@@ -3,6 +3,7 @@
 //! and the step jog. One motion source at a time (issue #31): a jog is refused while another
 //! jog, a program or a reference run moves the machine.
 
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 use proto::v1 as pb;
@@ -16,6 +17,15 @@ use crate::runtime::rt::MachineState;
 const DEFAULT_LEASE_MS: u32 = 500;
 const MIN_LEASE_MS: u32 = 100;
 const MAX_LEASE_MS: u32 = 1000;
+
+/// The continuous jogs the API started, each holding the jog while it runs.
+#[derive(Default)]
+pub(super) struct JogSources {
+    /// A continuous jog stream (`Machine.Jog`) holds the jog.
+    stream: AtomicBool,
+    /// The continuous jog `Machine.JogLease` runs, if any.
+    leased: Mutex<Option<LeasedJog>>,
+}
 
 /// Releases the continuous jog when its stream ends, however it ends.
 struct JogHeld<'a>(&'a AtomicBool);
@@ -35,14 +45,14 @@ pub(super) async fn streamed(
     // One motion source at a time: this stream holds the jog until it ends; another
     // stream, a running step, a program or a reference run refuses it.
     let state = ctl.snapshot().state;
-    if state != MachineState::Idle || st.jog_stream.swap(true, Ordering::AcqRel) {
+    if state != MachineState::Idle || st.jog.stream.swap(true, Ordering::AcqRel) {
         return Err(refused(
             tonic::Code::FailedPrecondition,
             kernel::DiagCode::JogBusy,
             format!("the machine is busy ({state:?}, or another jog): one motion at a time"),
         ));
     }
-    let _held = JogHeld(&st.jog_stream);
+    let _held = JogHeld(&st.jog.stream);
     let mut target = 0.0;
     // Every message renews the jog; the end of the stream (or its failure: the client
     // went away) stops it. A silent client is stopped by the RT thread's lease.
@@ -62,7 +72,7 @@ pub(super) async fn streamed(
 
 /// `Machine.JogStop`: ends the leased jog (and brakes any jog).
 pub(super) fn stop(st: &ApiState) -> Result<(), Status> {
-    let mut held = st.lease_jog.lock().unwrap();
+    let mut held = st.jog.leased.lock().unwrap();
     *held = None;
     // Only a jog is braked: the jog generator also moves a reference run (homing).
     if st.ctl.snapshot().state == MachineState::Jog {
@@ -74,7 +84,7 @@ pub(super) fn stop(st: &ApiState) -> Result<(), Status> {
 /// `Machine.JogStep`: one step of `step_mm`; returns its target, mm.
 pub(super) fn step(st: &ApiState, r: pb::JogStepRequest) -> Result<f64, Status> {
     let state = st.ctl.snapshot().state;
-    if state != MachineState::Idle || st.jog_stream.load(Ordering::Acquire) {
+    if state != MachineState::Idle || st.jog.stream.load(Ordering::Acquire) {
         return Err(refused(
             tonic::Code::FailedPrecondition,
             kernel::DiagCode::JogBusy,
@@ -129,7 +139,7 @@ pub(super) fn lease(st: &ApiState, r: pb::JogLeaseRequest) -> Result<f64, Status
         dir: r.direction,
     };
     let names = st.ctl.config().axis_names();
-    let mut held = st.lease_jog.lock().unwrap();
+    let mut held = st.jog.leased.lock().unwrap();
     if st.ctl.snapshot().state == MachineState::Jog && *held != Some(want) {
         let running = match *held {
             Some(h) => format!(

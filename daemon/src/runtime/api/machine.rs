@@ -182,7 +182,7 @@ impl Machine for MachineSvc {
     ) -> Result<Response<pb::StartReply>, Status> {
         require(&req, Operator, "Start")?;
         let from_block = req.into_inner().from_block;
-        let _one_at_a_time = self.0.start_lock.lock().await;
+        let _one_at_a_time = self.0.job.start_lock.lock().await;
         // Start on a held machine (feed hold, M0/M1) continues the job.
         if from_block.is_none()
             && let Some(job) = self.0.ctl.start_resumes().map_err(status_of)?
@@ -191,7 +191,7 @@ impl Machine for MachineSvc {
         }
         let st = self.0.clone();
         let job = blocking(move || -> Result<u32, Status> {
-            if st.single_block.load(Ordering::Relaxed) {
+            if st.job.single_block.load(Ordering::Relaxed) {
                 // Single block: every block ends at rest so the holds land on block ends
                 // (a restart's approach holds at its end too).
                 let p = st
@@ -217,7 +217,7 @@ impl Machine for MachineSvc {
                     .start_program_blocks(&p, &text, from_block, outline)
                     .map_err(status_of)?;
                 super::preview_outline::job_started(&st, job, Some(outline));
-                *st.run.lock().unwrap() = Some(RunInfo {
+                *st.job.run.lock().unwrap() = Some(RunInfo {
                     job,
                     blocks,
                     mode: RunMode::Auto,
@@ -232,7 +232,7 @@ impl Machine for MachineSvc {
                     .start_program_observed(from_block, outline)
                     .map_err(status_of)?;
                 super::preview_outline::job_started(&st, job, pass);
-                *st.run.lock().unwrap() = None;
+                *st.job.run.lock().unwrap() = None;
                 Ok(job)
             }
         })
@@ -303,7 +303,7 @@ impl Machine for MachineSvc {
         require(&req, Operator, "SetSingleBlock")?;
         let on = req.into_inner().enabled;
         self.0.ctl.set_single_block(on).map_err(status_of)?;
-        self.0.single_block.store(on, Ordering::Relaxed);
+        self.0.job.single_block.store(on, Ordering::Relaxed);
         Ok(Response::new(pb::SetSingleBlockReply {}))
     }
 
@@ -387,14 +387,14 @@ impl Machine for MachineSvc {
                 "MDI takes exactly one block (one line of program text)",
             ));
         }
-        let _one_at_a_time = self.0.start_lock.lock().await;
+        let _one_at_a_time = self.0.job.start_lock.lock().await;
         let st = self.0.clone();
         let job = blocking(move || -> Result<u32, Status> {
             let (job, blocks) = st
                 .ctl
                 .start_text("MDI", &block, false, true)
                 .map_err(status_of)?;
-            *st.run.lock().unwrap() = Some(RunInfo {
+            *st.job.run.lock().unwrap() = Some(RunInfo {
                 job,
                 blocks,
                 mode: RunMode::Mdi,
@@ -422,11 +422,11 @@ impl Machine for MachineSvc {
                 )));
             }
         };
-        let slot = self.0.stream_slot(caller.role)?;
+        let slot = self.0.streams.slot(caller.role)?;
         let (tx, rx) = tokio::sync::mpsc::channel(16);
         let st = self.0.clone();
         let watch = st.ctl.subscribe();
-        let closing = st.closing();
+        let closing = st.streams.closing();
         tokio::spawn(async move {
             let _slot = slot;
             let mut every = tokio::time::interval(Duration::from_secs_f64(1.0 / hz as f64));
@@ -465,10 +465,10 @@ impl Machine for MachineSvc {
     ) -> Result<Response<Self::StreamAlarmsStream>, Status> {
         let caller = require(&req, Observer, "StreamAlarms")?;
         let skip_history = req.into_inner().skip_history;
-        let slot = self.0.stream_slot(caller.role)?;
+        let slot = self.0.streams.slot(caller.role)?;
         let (history, mut live) = self.0.alarms.subscribe(!skip_history);
         let (tx, rx) = tokio::sync::mpsc::channel(64);
-        let closing = self.0.closing();
+        let closing = self.0.streams.closing();
         tokio::spawn(async move {
             let _slot = slot;
             tokio::pin!(closing);

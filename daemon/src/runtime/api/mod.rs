@@ -10,18 +10,19 @@ pub mod auth;
 mod diagnostics;
 pub mod files_watch;
 pub mod job_journal;
+mod job_view;
 mod jog;
 mod machine;
 pub mod preview;
 mod preview_outline;
 mod programs;
+mod stream_budget;
 mod tables;
 mod trajectory;
 pub mod upload_session;
 mod validate_stream;
 
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 use proto::v1 as pb;
 use tonic::Status;
@@ -29,10 +30,12 @@ use tonic::Status;
 use kernel::block::{ArcDir, Block, BlockKind, Comp, Continuity, Feed, Path, Plane};
 use kernel::plc::CellId;
 
-use super::config::Role;
 use super::controller::{Controller, LoadedProgram};
 use super::library::{Library, ProgramText};
 use super::rt::{MachineState, Snapshot};
+
+use job_view::{JobView, PlanInfo, RunInfo, RunMode};
+use stream_budget::StreamBudget;
 
 pub use diagnostics::{
     DETAILS_MAX_BYTES, bounded_details, counts_pb, diagnostic_to_pb, invalid_with_diagnostics,
@@ -49,32 +52,6 @@ pub const MAX_STATUS_HZ: u32 = 250;
 const DEFAULT_STATUS_HZ: u32 = 25;
 /// Programs larger than this are not planned at load for the status junction field.
 const JUNCTION_CLASSIFY_MAX_BLOCKS: usize = 200_000;
-
-/// How a job was started.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum RunMode {
-    Auto,
-    Mdi,
-}
-
-/// A job started through the API with its blocks (for the modal codes in status).
-struct RunInfo {
-    job: u32,
-    blocks: Arc<Vec<Block>>,
-    mode: RunMode,
-}
-
-/// Junction class per block index of the selected program.
-struct PlanInfo {
-    /// `Arc::as_ptr` of the `LoadedProgram` it belongs to.
-    program: usize,
-    junctions: Vec<pb::JunctionClass>,
-    /// The outputs of the same pass, read by the previews of the selected program (`None`:
-    /// too large to keep).
-    pass: Option<Arc<::preview::pipeline::Recording>>,
-    /// The outline the same pass collected (`GetPreviewOutline`).
-    outline: Arc<::preview::outline::Outline>,
-}
 
 /// Why the state shared by the services could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -96,31 +73,20 @@ impl ApiStateError {
     }
 }
 
-/// State shared by every service.
+/// State shared by every service, by concern: the controller it drives, the program library,
+/// the alarm log, unary uploads, the open streams, the jog sources and the API's view of jobs.
 pub struct ApiState {
     pub ctl: Arc<Controller>,
     library: Arc<Library>,
-    plan_info: Mutex<Option<PlanInfo>>,
-    /// Outlines besides the selection's: of a changed setup, of the running job.
-    outlines: preview_outline::Outlines,
-    run: Mutex<Option<RunInfo>>,
-    single_block: AtomicBool,
-    /// Serialises Start and MDI: the RT thread takes a start on its next tick, so a second
-    /// start must wait until the first is seen in the snapshot.
-    start_lock: tokio::sync::Mutex<()>,
-    /// A continuous jog stream holds the jog (issue #31: one motion source at a time).
-    jog_stream: AtomicBool,
-    streams: Arc<AtomicUsize>,
-    observer_streams: Arc<AtomicUsize>,
-    max_streams: usize,
-    /// Set once the daemon shuts down: every open stream sends its last message and ends.
-    closing: tokio::sync::watch::Sender<bool>,
-    reserved_streams: usize,
     pub alarms: Arc<alarms::AlarmLog>,
     /// Unary uploads in progress (`Programs.UploadBegin`..`UploadFinish`).
     pub uploads: Arc<upload_session::UploadSessions>,
-    /// The continuous jog `Machine.JogLease` runs, if any.
-    lease_jog: Mutex<Option<jog::LeasedJog>>,
+    /// Status and alarm streams: their budget and their end at shutdown.
+    streams: StreamBudget,
+    /// The streamed and the leased continuous jog (issue #31: one motion source at a time).
+    jog: jog::JogSources,
+    /// The selection's recorded pass, the started job, single block, the start lock.
+    job: JobView,
 }
 
 impl ApiState {
@@ -139,23 +105,15 @@ impl ApiState {
             api.alarm_history as usize,
             st.dir.join(alarms::HISTORY_FILE),
         ));
+        let streams = StreamBudget::new(api.max_streams as usize, api.reserved_streams as usize);
         let state = Arc::new(ApiState {
-            max_streams: api.max_streams as usize,
-            reserved_streams: (api.reserved_streams as usize).min(api.max_streams as usize - 1),
             ctl,
             library: Arc::new(library),
-            plan_info: Mutex::new(None),
-            outlines: preview_outline::Outlines::default(),
-            run: Mutex::new(None),
-            single_block: AtomicBool::new(false),
-            start_lock: tokio::sync::Mutex::new(()),
-            jog_stream: AtomicBool::new(false),
-            streams: Arc::new(AtomicUsize::new(0)),
-            closing: tokio::sync::watch::Sender::new(false),
-            observer_streams: Arc::new(AtomicUsize::new(0)),
             alarms,
             uploads: upload_session::UploadSessions::start(),
-            lease_jog: Mutex::new(None),
+            streams,
+            jog: jog::JogSources::default(),
+            job: JobView::new(),
         });
         alarms::spawn_watcher(state.ctl.clone(), state.alarms.clone());
         files_watch::spawn(state.ctl.clone(), state.alarms.clone());
@@ -164,43 +122,6 @@ impl ApiState {
         let st = state.clone();
         tokio::task::spawn_blocking(move || programs::restore_selection(&st));
         Ok(state)
-    }
-
-    /// Takes one stream slot for a caller of `role`, or RESOURCE_EXHAUSTED. Observers
-    /// (tokenless loopback clients, dashboards) hold at most `max_streams - reserved_streams`
-    /// streams, so they cannot lock the operator's status out; operators and admins may use
-    /// every slot.
-    fn stream_slot(&self, role: Role) -> Result<StreamSlot, Status> {
-        let observer = role < Role::Operator;
-        let total = self.streams.fetch_add(1, Ordering::AcqRel);
-        let observers = if observer {
-            self.observer_streams.fetch_add(1, Ordering::AcqRel)
-        } else {
-            0
-        };
-        let observer_limit = self.max_streams - self.reserved_streams;
-        let slot = StreamSlot {
-            total: self.streams.clone(),
-            observers: observer.then(|| self.observer_streams.clone()),
-        };
-        let refusal = if total >= self.max_streams {
-            format!(
-                "{total} streams are open, the limit is {} (api.max_streams)",
-                self.max_streams
-            )
-        } else if observer && observers >= observer_limit {
-            format!(
-                "{observers} observer streams are open, the limit for observers is \
-                 {observer_limit}: {} of api.max_streams ({}) are reserved for operator and \
-                 admin callers (api.reserved_streams)",
-                self.reserved_streams, self.max_streams
-            )
-        } else {
-            return Ok(slot);
-        };
-        drop(slot);
-        tracing::warn!(role = role.name(), "stream refused: {refusal}");
-        Err(Status::resource_exhausted(refusal))
     }
 
     /// Waits until the RT thread has taken job `job` (at most a few ticks).
@@ -216,39 +137,19 @@ impl ApiState {
     /// Ends every open stream (shutdown): the HTTP/2 graceful shutdown waits for open responses,
     /// so a status stream left open would keep the daemon alive until systemd's SIGKILL.
     pub fn close_streams(&self) {
-        self.closing.send_replace(true);
-    }
-
-    /// Resolves once [`ApiState::close_streams`] was called (at once if it already was).
-    fn closing(&self) -> impl std::future::Future<Output = ()> + Send + 'static {
-        let mut rx = self.closing.subscribe();
-        async move {
-            let _ = rx.wait_for(|c| *c).await;
-        }
+        self.streams.close();
     }
 
     /// Open status and alarm streams.
     pub fn open_streams(&self) -> usize {
-        self.streams.load(Ordering::Acquire)
-    }
-
-    fn junction_of(&self, program_ptr: usize, seq: u32) -> pb::JunctionClass {
-        let g = self.plan_info.lock().unwrap();
-        match &*g {
-            Some(p) if p.program == program_ptr => p
-                .junctions
-                .get(seq as usize)
-                .copied()
-                .unwrap_or(pb::JunctionClass::Unspecified),
-            _ => pb::JunctionClass::Unspecified,
-        }
+        self.streams.open()
     }
 
     /// Builds the API status message from a snapshot.
     pub fn status(&self, s: &Snapshot) -> pb::Status {
         let ctl = &self.ctl;
         let program = ctl.program();
-        let (mode, run_blocks) = self.run_of(s.progress.job);
+        let (mode, run_blocks) = self.job.run_of(s.progress.job);
         let total = match (&run_blocks, &program) {
             (Some(b), _) => b.len() as u32,
             (None, Some(p)) => p.block_count,
@@ -271,9 +172,9 @@ impl ApiState {
             .and_then(|b| b.motion())
             .map(|(_, end, _)| end);
         let junction = match (&run_blocks, &program) {
-            (None, Some(p)) if s.progress.job != 0 => {
-                self.junction_of(Arc::as_ptr(p) as *const () as usize, s.progress.block_seq)
-            }
+            (None, Some(p)) if s.progress.job != 0 => self
+                .job
+                .junction_of(Arc::as_ptr(p) as *const () as usize, s.progress.block_seq),
             _ => pb::JunctionClass::Unspecified,
         };
         let (feed_programmed, feed_mode) = feed_of(block.map(|b| b.feed));
@@ -322,15 +223,6 @@ impl ApiState {
         }
     }
 
-    /// How job `job` was started, with its blocks when the API started it with its own list
-    /// (MDI, a run from a block list); else automatic with the selected program's blocks.
-    fn run_of(&self, job: u32) -> (RunMode, Option<Arc<Vec<Block>>>) {
-        match &*self.run.lock().unwrap() {
-            Some(r) if r.job == job && job != 0 => (r.mode, Some(r.blocks.clone())),
-            _ => (RunMode::Auto, None),
-        }
-    }
-
     /// Per-axis status; `target` is the end point of the moving block (distance to go).
     fn axes_status(
         &self,
@@ -357,15 +249,6 @@ impl ApiState {
                 at_soft_limit: at_soft_limit(ctl.config().axes.get(i), s.axes.commanded[i]),
             })
             .collect()
-    }
-}
-
-impl RunMode {
-    fn to_pb(self) -> pb::Mode {
-        match self {
-            RunMode::Auto => pb::Mode::Auto,
-            RunMode::Mdi => pb::Mode::Mdi,
-        }
     }
 }
 
@@ -445,22 +328,6 @@ fn at_soft_limit(axis: Option<&crate::runtime::config::AxisConfig>, pos_mm: f64)
         1
     } else {
         0
-    }
-}
-
-/// Releases a stream slot when the stream task ends.
-struct StreamSlot {
-    total: Arc<AtomicUsize>,
-    /// Set for an observer's stream.
-    observers: Option<Arc<AtomicUsize>>,
-}
-
-impl Drop for StreamSlot {
-    fn drop(&mut self) {
-        self.total.fetch_sub(1, Ordering::AcqRel);
-        if let Some(o) = &self.observers {
-            o.fetch_sub(1, Ordering::AcqRel);
-        }
     }
 }
 

@@ -141,7 +141,7 @@ pub fn recorded_pass(st: &ApiState) -> Option<Arc<::preview::pipeline::Recording
     if !st.ctl.validated_as_now(&program, &st.ctl.snapshot()) {
         return None;
     }
-    let info = st.plan_info.lock().unwrap();
+    let info = st.job.plan_info.lock().unwrap();
     let info = info.as_ref()?;
     if info.program != Arc::as_ptr(&program) as *const () as usize {
         return None;

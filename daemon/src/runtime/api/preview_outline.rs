@@ -24,7 +24,7 @@ use crate::runtime::rt::MachineState;
 /// Picture size when the request gives none.
 const DEFAULT_PX: (u32, u32) = (1200, 800);
 
-/// The outlines kept besides the selection's (fields of [`ApiState`]).
+/// The outlines kept besides the selection's (in [`ApiState`]'s job view).
 #[derive(Default)]
 pub(super) struct Outlines {
     /// The selected program's pass with a setup changed since its selection. Locked while
@@ -54,12 +54,12 @@ pub(super) fn job_started(st: &ApiState, job: u32, pass: Option<Outline>) {
         o.freeze();
         Arc::new(o)
     });
-    *st.outlines.job.lock().unwrap() = Some(JobOutline { job, outline });
+    *st.job.outlines.job.lock().unwrap() = Some(JobOutline { job, outline });
 }
 
 /// The outline the selection's pass collected, if `program` is the selection it belongs to.
 fn selection_outline(st: &ApiState, program: &Arc<LoadedProgram>) -> Option<Arc<Outline>> {
-    let info = st.plan_info.lock().unwrap();
+    let info = st.job.plan_info.lock().unwrap();
     let info = info.as_ref()?;
     (info.program == Arc::as_ptr(program) as *const () as usize).then(|| info.outline.clone())
 }
@@ -72,7 +72,7 @@ fn running_outline(
     program: &Arc<LoadedProgram>,
     job: u32,
 ) -> Result<Arc<Outline>, Status> {
-    let own = match &*st.outlines.job.lock().unwrap() {
+    let own = match &*st.job.outlines.job.lock().unwrap() {
         Some(j) if j.job == job => j.outline.clone(),
         _ => None,
     };
@@ -97,7 +97,7 @@ fn idle_outline(
         return Ok((o, false));
     }
     let axes = st.ctl.config().axes.len();
-    let mut kept = st.outlines.setup.lock().unwrap();
+    let mut kept = st.job.outlines.setup.lock().unwrap();
     let now = st.ctl.setup_stamp();
     if let Some(k) = kept.as_ref()
         && std::ptr::eq(k.program.as_ptr(), Arc::as_ptr(program))

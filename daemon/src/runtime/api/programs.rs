@@ -277,7 +277,7 @@ fn after_select(st: &ApiState, p: Prepared) {
     if let Err(e) = st.library.save_selected(&p.loaded.name) {
         tracing::warn!("cannot remember the selected program: {e}");
     }
-    *st.plan_info.lock().unwrap() = Some(PlanInfo {
+    *st.job.plan_info.lock().unwrap() = Some(PlanInfo {
         program: Arc::as_ptr(&p.loaded) as *const () as usize,
         junctions: p.junctions,
         pass: p.recording,

@@ -12,6 +12,11 @@ use super::InvalidConfig;
 /// Callers without a token get `local_role` on the Unix socket (its mode and group decide who
 /// may connect) and `loopback_role` on loopback TCP (every local account can connect there, so
 /// the default is observer); any other address needs TLS and a bearer token from `tokens`.
+///
+/// One field per key of `[api]`, which mixes listeners, TLS, roles and tokens, and stream
+/// limits: grouping them would need `#[serde(flatten)]`, which loses `deny_unknown_fields`
+/// (the check that names a mistyped key), so the fields stay flat in the file's order of
+/// concerns.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct ApiConfig {

@@ -5,6 +5,8 @@ use serde::Deserialize;
 
 use super::InvalidConfig;
 
+/// One `[[axes]]` entry. Its fields are the table's keys one to one (the file format is the
+/// API; see the module doc of `config` for why they are not grouped).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct AxisConfig {

@@ -25,7 +25,8 @@ pub enum BusConfig {
     Serial(SerialBusConfig),
 }
 
-/// `[bus] kind = "can"`. Times in ms are converted to ticks of `cycle_ms`.
+/// `[bus] kind = "can"`. Times in ms are converted to ticks of `cycle_ms`. One field per key
+/// of the table (the file format is the API, see the `config` module doc).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct CanBusConfig {
@@ -188,7 +189,7 @@ fn default_error_frame_limit() -> u32 {
     20
 }
 
-/// `[bus] kind = "serial"`.
+/// `[bus] kind = "serial"`. One field per key of the table (the file format is the API).
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct SerialBusConfig {

@@ -46,6 +46,7 @@ pub use rt::RtConfig;
 pub use sim::SimConfig;
 pub use storage::StorageConfig;
 
+/// The whole file: one field per TOML section, each section its own type and file.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct Config {
