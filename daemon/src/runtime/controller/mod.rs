@@ -351,27 +351,14 @@ impl Controller {
         stop_at_blocks: bool,
         mdi: bool,
     ) -> Result<(u32, Arc<Vec<Block>>), ControlError> {
-        let (job, blocks, _) =
-            self.start_text_observed(name, text, stop_at_blocks, mdi, NoObserver)?;
-        Ok((job, blocks))
-    }
-
-    /// As [`Controller::start_text`]; `obs` sees the job's validation pass and is returned.
-    pub fn start_text_observed<O: Observer>(
-        &self,
-        name: &str,
-        text: &str,
-        stop_at_blocks: bool,
-        mdi: bool,
-        obs: O,
-    ) -> Result<(u32, Arc<Vec<Block>>, O), ControlError> {
-        let (rt, tables) = (&self.rt, &self.tables);
         let how = jobs::TextRun {
             stop_at_blocks,
             mdi,
             restart: None,
         };
-        self.jobs.start_text(rt, tables, name, text, how, obs)
+        let (job, blocks, _) =
+            (self.jobs).start_text(&self.rt, &self.tables, name, text, how, NoObserver)?;
+        Ok((job, blocks))
     }
 
     /// Runs the selected `program`'s `text` with every block ending at rest (the API's
@@ -397,7 +384,9 @@ impl Controller {
             mdi: false,
             restart,
         };
-        let r = self.jobs.start_text(rt, tables, &program.name, text, how, obs)?;
+        let r = self
+            .jobs
+            .start_text(rt, tables, &program.name, text, how, obs)?;
         if from_block.is_none() {
             program.note_run_start(start_mm);
         }
