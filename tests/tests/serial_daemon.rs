@@ -20,7 +20,9 @@ fn daemon_runs_a_program_over_serial_and_recovers_after_replug() {
         &["--link", link_s, "--axes", "3", "--watchdog-ms", "5000"],
     );
     sim.expect_line(" -> /dev/pts", Duration::from_secs(10));
-    let bus = format!("[bus]\nkind = 'serial'\nport = '{link_s}'\nreply_timeout_ticks = 100\n");
+    // 2 s without a reply is a fault: a loaded test machine can stall the simulator's process
+    // for hundreds of ms (400 ms failed a CI-like run); an unplug is "link lost" at once.
+    let bus = format!("[bus]\nkind = 'serial'\nport = '{link_s}'\nreply_timeout_ticks = 500\n");
     let d = Daemon::start("serial-daemon", &bus, [1, 2, 3]);
 
     let prog = d.program(
@@ -90,7 +92,7 @@ fn daemon_runs_the_spindle_over_serial() {
     );
     sim.expect_line(" -> /dev/pts", Duration::from_secs(10));
     let bus = format!(
-        "[bus]\nkind = 'serial'\nport = '{link_s}'\nreply_timeout_ticks = 100\nspindle_node = 4\n"
+        "[bus]\nkind = 'serial'\nport = '{link_s}'\nreply_timeout_ticks = 500\nspindle_node = 4\n"
     );
     let d = Daemon::start("serial-daemon-spindle", &bus, [1, 2, 3]);
     let prog = d.program("turn.nc", "N10 M3 S800\nN20 G1 X2 F3000\n");
