@@ -22,6 +22,14 @@ fn preview(h: &hmi_common::Hmi) -> PreviewClient<hmi_common::Web> {
     PreviewClient::with_origin(svc, origin)
 }
 
+/// The whole XY outline of the selected program (or of the running job).
+async fn outline(p: &mut PreviewClient<hmi_common::Web>) -> pb::PreviewOutline {
+    p.get_preview_outline(whole("xy"))
+        .await
+        .unwrap()
+        .into_inner()
+}
+
 fn whole(plane: &str) -> pb::PreviewOutlineRequest {
     pb::PreviewOutlineRequest {
         plane: plane.into(),
@@ -71,11 +79,7 @@ async fn the_selected_programs_outline_is_bounded_true_and_refined_on_zoom() {
         .await
         .unwrap();
     let passes = h.ctl.validation_passes();
-    let o = p
-        .get_preview_outline(whole("xy"))
-        .await
-        .unwrap()
-        .into_inner();
+    let o = outline(&mut p).await;
     assert_eq!(
         h.ctl.validation_passes(),
         passes,
@@ -183,30 +187,18 @@ async fn a_changed_setup_is_outlined_once_and_a_running_job_shows_what_it_runs()
         ))
         .await
         .unwrap();
-    let selected = p
-        .get_preview_outline(whole("xy"))
-        .await
-        .unwrap()
-        .into_inner();
+    let selected = outline(&mut p).await;
     assert!(!selected.own_pass);
     assert!((max_x(&selected.compensated) - 42.0).abs() < 0.01);
 
     // The tool table changed since the selection: one pass of its own, kept for the next views.
     offsets.set_offset(radius(5.0)).await.unwrap();
     let passes = h.ctl.validation_passes();
-    let changed = p
-        .get_preview_outline(whole("xy"))
-        .await
-        .unwrap()
-        .into_inner();
+    let changed = outline(&mut p).await;
     assert!(changed.own_pass);
     assert!((max_x(&changed.compensated) - 45.0).abs() < 0.01);
     assert_eq!(h.ctl.validation_passes(), passes + 1);
-    let again = p
-        .get_preview_outline(whole("xy"))
-        .await
-        .unwrap()
-        .into_inner();
+    let again = outline(&mut p).await;
     assert_eq!(
         h.ctl.validation_passes(),
         passes + 1,
@@ -223,11 +215,7 @@ async fn a_changed_setup_is_outlined_once_and_a_running_job_shows_what_it_runs()
         .unwrap();
     wait_state(&h.ctl, MachineState::Running).await;
     let passes = h.ctl.validation_passes();
-    let running = p
-        .get_preview_outline(whole("xy"))
-        .await
-        .unwrap()
-        .into_inner();
+    let running = outline(&mut p).await;
     assert!(!running.own_pass);
     assert_eq!(running.compensated, changed.compensated, "the job's pass");
     let deep = pb::PreviewOutlineRequest {
@@ -258,11 +246,7 @@ async fn a_changed_setup_is_outlined_once_and_a_running_job_shows_what_it_runs()
     m.start(with_token(pb::StartRequest::default(), OPERATOR_TOKEN))
         .await
         .unwrap();
-    let single = p
-        .get_preview_outline(whole("xy"))
-        .await
-        .unwrap()
-        .into_inner();
+    let single = outline(&mut p).await;
     assert!(changed.smooth_junctions > 0);
     assert_eq!(single.smooth_junctions, 0);
     assert_eq!(

@@ -140,11 +140,7 @@ async fn restart_inside_a_compensated_contour_follows_the_uninterrupted_path() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn start_from_block_runs_the_approach_and_the_rest_on_the_machine() {
-    let d = daemon().await;
-    let mut m = MachineClient::new(d.channel().await);
-    m.load_program(named_program("contour.nc", CONTOUR))
-        .await
-        .unwrap();
+    let (d, mut m) = daemon_with("contour.nc", CONTOUR).await;
     // A block the program does not have: refused with a code, nothing moves.
     let e = m
         .start(pb::StartRequest {
@@ -152,22 +148,8 @@ async fn start_from_block_runs_the_approach_and_the_rest_on_the_machine() {
         })
         .await
         .unwrap_err();
-    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
-    assert!(
-        diagnostics(&e)
-            .iter()
-            .any(|d| d.code == "restart_block_not_found"),
-        "{e:?}"
-    );
-    let job = m
-        .start(pb::StartRequest {
-            from_block: Some(60),
-        })
-        .await
-        .unwrap()
-        .into_inner()
-        .job;
-    wait_job_done(&d, job).await;
+    assert_block_not_found(&e);
+    run_from(&d, &mut m, 60).await;
     let whole = trajectory(d.channel().await, None).await;
     let end = whole.last().unwrap().0;
     let s = d.ctl.snapshot();
@@ -213,11 +195,7 @@ fn assert_follows(
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_restart_after_incremental_moves_follows_the_uninterrupted_run() {
-    let d = daemon().await;
-    let mut m = MachineClient::new(d.channel().await);
-    m.load_program(named_program("g91.nc", INCREMENTAL))
-        .await
-        .unwrap();
+    let (d, mut m) = daemon_with("g91.nc", INCREMENTAL).await;
     // The uninterrupted run from where it starts (the origin), then run: the axes end at
     // X12 Y20, away from where the program started.
     let whole = trajectory_of(d.channel().await, "", None).await;
@@ -242,15 +220,7 @@ async fn a_restart_after_incremental_moves_follows_the_uninterrupted_run() {
     );
     assert_follows(&whole, &restart, k, 30);
     // On the machine: the same end.
-    let job = m
-        .start(pb::StartRequest {
-            from_block: Some(30),
-        })
-        .await
-        .unwrap()
-        .into_inner()
-        .job;
-    wait_job_done(&d, job).await;
+    run_from(&d, &mut m, 30).await;
     wait_at(&d, [12.0, 20.0, 0.0]).await;
 }
 
@@ -265,11 +235,7 @@ async fn wait_at(d: &Daemon, p: [f64; 3]) {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_preview_draws_a_restarts_approach_apart_from_the_program() {
-    let d = daemon().await;
-    let mut m = MachineClient::new(d.channel().await);
-    m.load_program(named_program("contour.nc", CONTOUR))
-        .await
-        .unwrap();
+    let (d, _m) = daemon_with("contour.nc", CONTOUR).await;
     let mut p = PreviewClient::new(d.channel().await);
     // Preview data: the approach legs from the origin, over at the height the axes are,
     // then down at feed to the start of N60 on the equidistant; the program's paths are the
@@ -348,14 +314,40 @@ async fn the_preview_draws_a_restarts_approach_apart_from_the_program() {
         .await
         .unwrap_err(),
     ] {
-        assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
-        assert!(
-            diagnostics(&e)
-                .iter()
-                .any(|d| d.code == "restart_block_not_found"),
-            "{e:?}"
-        );
+        assert_block_not_found(&e);
     }
+}
+
+/// `e` refuses a restart block the program does not have, with its code.
+fn assert_block_not_found(e: &tonic::Status) {
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    assert!(
+        diagnostics(e)
+            .iter()
+            .any(|d| d.code == "restart_block_not_found"),
+        "{e:?}"
+    );
+}
+
+/// A daemon on the simulated machine with `text` loaded as `name`, and a Machine client.
+async fn daemon_with(name: &str, text: &str) -> (Daemon, MachineClient<Channel>) {
+    let d = daemon().await;
+    let mut m = MachineClient::new(d.channel().await);
+    m.load_program(named_program(name, text)).await.unwrap();
+    (d, m)
+}
+
+/// Starts the selected program from block `n` and waits until that job has ended.
+async fn run_from(d: &Daemon, m: &mut MachineClient<Channel>, n: u32) {
+    let job = m
+        .start(pb::StartRequest {
+            from_block: Some(n),
+        })
+        .await
+        .unwrap()
+        .into_inner()
+        .job;
+    wait_job_done(d, job).await;
 }
 
 /// Waits until `job` ran to its end and the machine is idle.
@@ -427,15 +419,7 @@ async fn after_a_stop_status_names_the_block_to_restart_from() {
     let s = status_now(&mut m).await;
     assert_eq!(s.restart_block, Some(30), "{s:?}");
     // Restarted from there it ends where the program ends.
-    let job = m
-        .start(pb::StartRequest {
-            from_block: Some(30),
-        })
-        .await
-        .unwrap()
-        .into_inner()
-        .job;
-    wait_job_done(&d, job).await;
+    run_from(&d, &mut m, 30).await;
     assert!(d.ctl.snapshot().axes.commanded[0].abs() < 1e-6);
     assert_eq!(status_now(&mut m).await.restart_block, None);
 }
