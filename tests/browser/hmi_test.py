@@ -278,6 +278,16 @@ def stop_ends_the_program():
 
 
 @test
+def the_preview_draws_the_restart_approach_after_a_stop():
+    # The stop ended the program early: status names the block to restart from, and the
+    # preview draws the approach to it (magenta, dashed) apart from the program's paths.
+    op.tab("preview")
+    stage = op.el("preview")
+    wait("approach drawn", lambda: int(stage.get_attribute("data-approach-points") or 0) >= 2)
+    op.tab("run")
+
+
+@test
 def space_holds_and_escape_stops():
     op.el("cycle-start").click()
     op.wait_state("RUNNING")
