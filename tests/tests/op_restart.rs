@@ -219,6 +219,12 @@ async fn a_restart_after_incremental_moves_follows_the_uninterrupted_run() {
         "the approach ends at {at_n30:?}, N30 starts at X20 Y5"
     );
     assert_follows(&whole, &restart, k, 30);
+    // Loaded again (say after an edit), the program keeps where its last run started.
+    m.load_program(named_program("g91.nc", INCREMENTAL))
+        .await
+        .unwrap();
+    let reloaded = trajectory_of(d.channel().await, "", Some(30)).await;
+    assert_eq!(reloaded[k - 1].0, at_n30, "the approach after a reload");
     // On the machine: the same end.
     run_from(&d, &mut m, 30).await;
     wait_at(&d, [12.0, 20.0, 0.0]).await;

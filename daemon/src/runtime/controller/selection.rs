@@ -115,7 +115,17 @@ impl Selection {
                 "a program is running: stop it before loading another".into(),
             ));
         }
-        *self.program.lock().unwrap() = Some(loaded);
+        let mut selected = self.program.lock().unwrap();
+        // The same program loaded again (edited, or re-selected after a stop) keeps where its
+        // last run started: a restart's scan must start there, not where the axes stopped.
+        let kept = selected
+            .as_ref()
+            .filter(|p| p.name == loaded.name)
+            .and_then(|p| *p.run_start.lock().unwrap());
+        if let Some(at) = kept {
+            loaded.note_run_start(at);
+        }
+        *selected = Some(loaded);
         Ok(())
     }
 
