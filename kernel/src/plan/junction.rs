@@ -91,7 +91,9 @@ impl Planner {
     /// limits of block `i` itself.
     pub(super) fn finalize(&mut self, i: usize, last: bool) {
         // The window changed since the last walk near a junction.
-        self.near.invalidate();
+        if let Some(near) = self.near.as_mut() {
+            near.invalidate();
+        }
         let (mut crit, mut criteria_cap) = if last {
             (0.0, 0.0)
         } else {
@@ -187,7 +189,7 @@ impl Planner {
             let (found, searched) =
                 largest_within(v, guess, |v| self.box_window_bound(i, v, &limits, &near));
             let found = (found, searched);
-            self.near = near;
+            self.near = Some(near);
             found
         } else {
             largest_within(v, guess, |v| self.window_bound(i, v, &limits))
@@ -316,8 +318,8 @@ impl Planner {
         if l.lm_um > 0.0 && chord > 1e-12 {
             bound = bound.min(4.0 * l.lm_um * 1e-3 / (TS_S * chord));
         }
-        if bound >= v && h_piece.0 < h_piece.1 {
-            // Within its bound: the search's result is likely in this piece.
+        if h_piece.0 < h_piece.1 {
+            // The search's next speeds, and its result, are likely in this piece.
             near.remember(t, window, h_piece);
         }
         bound
@@ -484,14 +486,15 @@ impl Planner {
         let near = self.near_junction(j, cap);
         let mut t = self.turns_and_window(j, cap, &near).0;
         t.dir = self.turn_dirs(j, self.turn_window(j, cap).1, &near);
-        self.near = near;
+        self.near = Some(near);
         t
     }
 
     /// The blocks near junction `j` that its turns at speeds up to `cap` look at (the walk
     /// of the last call when it covers them; hand it back to `self.near` after use).
-    fn near_junction(&mut self, j: usize, cap: f64) -> NearJunction {
-        let mut near = std::mem::take(&mut self.near);
+    fn near_junction(&mut self, j: usize, cap: f64) -> Box<NearJunction> {
+        // (Boxed: moving it out and back costs a pointer.)
+        let mut near = self.near.take().unwrap_or_default();
         let reach = 3.0 * self.turn_window(j, cap).1;
         if !near.covers(j, reach) {
             self.walk_near(j, reach, &mut near);
