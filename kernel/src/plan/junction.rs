@@ -294,12 +294,12 @@ impl Planner {
     /// - the accuracy criterion on the chord of a tick: v·Ts·|Θ|/4 ≤ Lm (a tick chord of
     ///   v·Ts across a turn Θ misses its apex by at most v·Ts·sin(Θ/2)/2).
     ///
-    /// Θ = t(+h) − t(−h), h = v_ref·Ts/2. The tangents come from the walk `near`; a result
-    /// within its bound is remembered there with the range of h over which it is the same,
-    /// for [`Planner::junction_turns`] at the speed the search settles on.
+    /// Θ = t(+h) − t(−h), h = v_ref·Ts/2. The tangents come from the walk `near`, which
+    /// keeps the turns with the range of h over which they are the same, for the search's
+    /// later speeds and [`Planner::junction_turns`] at the speed it settles on.
     fn box_window_bound(&self, i: usize, v: f64, l: &WindowLimits, near: &NearJunction) -> f64 {
         let axes = self.cfg.axes;
-        let (t, window, h_piece) = self.turns_and_window(i, v, near);
+        let (t, window, _) = self.turns_and_window(i, v, near);
         let a_ts = t.v_ref_mm_s - v;
         let mut bound = f64::INFINITY;
         // (The turns' dir is not needed here: `junction_turns` adds it.)
@@ -317,10 +317,6 @@ impl Planner {
         let chord = window.norm(axes);
         if l.lm_um > 0.0 && chord > 1e-12 {
             bound = bound.min(4.0 * l.lm_um * 1e-3 / (TS_S * chord));
-        }
-        if h_piece.0 < h_piece.1 {
-            // The search's next speeds, and its result, are likely in this piece.
-            near.remember(t, window, h_piece);
         }
         bound
     }
@@ -561,6 +557,10 @@ impl Planner {
         for k in 0..axes {
             let turn = 0.5 * ((ti1[k] - ti0[k]).abs() + (to1[k] - to0[k]).abs());
             t.normal_per_s[k] = turn / TS_S;
+        }
+        if h_piece.0 < h_piece.1 {
+            // The search's next speeds, and its result, are likely in this piece.
+            near.remember(t, t1 - t0, h_piece);
         }
         (t, t1 - t0, h_piece)
     }

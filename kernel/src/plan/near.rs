@@ -17,11 +17,9 @@ struct Entry {
     length_mm: f64,
     /// Index in the planner's window.
     k: usize,
-    /// An arc: its tangent depends on the distance.
+    /// An arc: its tangent depends on the distance. (A line's is read from the window when
+    /// looked up: copying it here for every block walked cost more.)
     arc: bool,
-    /// The tangent at the far end (seen from the junction): a line's tangent, and what
-    /// the lookups beyond the last block of the walk give.
-    tangent: AxesMm,
 }
 
 /// Turns looked up near a junction (without `dir`), the tangent's turn over the tick window
@@ -146,8 +144,6 @@ impl Planner {
                 length_mm: p.seg.length_mm,
                 k,
                 arc,
-                // (A line's t_start and t_end are the same vector.)
-                tangent: if ahead { p.t_end } else { p.t_start },
             });
             if last {
                 return Some(f64::INFINITY);
@@ -200,6 +196,13 @@ impl Planner {
         // distance ends (rest ≤ length, rounded as written here). Where that test, once
         // true, stays true (`sorted`), the first lookup starts from where the last call's
         // ended: the search's speeds are close, so that is mostly the entry itself.
+        // The tangent at the far end of a block (seen from the junction): a line's tangent
+        // (its t_start and t_end are the same vector), and what the lookups beyond the last
+        // block of the walk give.
+        let far_end = |y: &Entry| {
+            let p = &self.win[y.k];
+            if ahead { p.t_end } else { p.t_start }
+        };
         let hint = &near.hint[usize::from(ahead)];
         let mut e = if near.sorted { hint.get() } else { 0 };
         for (n, &c) in cs.iter().enumerate() {
@@ -220,7 +223,7 @@ impl Planner {
             let Some(y) = entries.get(e) else {
                 // Beyond the last block of the walk (a stop or the window's end): its tangent.
                 let Some(y) = entries.last() else { return };
-                out[n..cs.len()].fill(y.tangent);
+                out[n..cs.len()].fill(far_end(y));
                 h_piece.0 = h_piece.0.max((y.walked_mm + y.length_mm) / c);
                 return;
             };
@@ -234,7 +237,7 @@ impl Planner {
                 let before_mm = if e == 0 { 0.0 } else { y.walked_mm };
                 h_piece.0 = h_piece.0.max(before_mm / c);
                 h_piece.1 = h_piece.1.min((y.walked_mm + y.length_mm) / c);
-                y.tangent
+                far_end(y)
             };
         }
     }
