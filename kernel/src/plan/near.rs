@@ -3,7 +3,7 @@
 //! it for every speed it tries; walking the look-ahead window for each lookup dominated the
 //! planner's cost (issue #32). The lookups give exactly what `Planner::tangents_near` gives.
 
-use std::cell::RefCell;
+use std::cell::Cell;
 
 use super::budget::JunctionTurns;
 use super::{Planner, SegPath};
@@ -42,15 +42,17 @@ pub(super) struct NearJunction {
     sorted: bool,
     /// Where the first lookup of the last call ended, behind and ahead (index into the side's
     /// entries; see `tangents_from`).
-    hint: [std::cell::Cell<usize>; 2],
+    hint: [Cell<usize>; 2],
     /// The last turns the curvature search looked up, the tangent's turn over the tick
     /// window and the range of h (h_lo, h_hi] over which they are the same: the search's
     /// speeds close in on its result, so most of its evaluations fall in a range it has
     /// already seen, and the cap it settles on too (`junction_turns`). At most `PIECES`,
     /// the oldest replaced first.
-    pieces: RefCell<Vec<Lookup>>,
-    /// Where the next piece goes once `pieces` is full.
-    next_piece: std::cell::Cell<usize>,
+    piece_h: [Cell<(f64, f64)>; PIECES],
+    piece_turns: [Cell<(JunctionTurns, AxesMm)>; PIECES],
+    /// Pieces kept, and where the next one goes once `PIECES` are.
+    pieces: Cell<usize>,
+    next_piece: Cell<usize>,
 }
 
 /// Ranges of h kept per junction (the search's evaluations see 2-4 of them).
@@ -66,8 +68,10 @@ impl Default for NearJunction {
             reach_behind_mm: 0.0,
             sorted: false,
             hint: Default::default(),
-            pieces: RefCell::new(Vec::new()),
-            next_piece: std::cell::Cell::new(0),
+            piece_h: Default::default(),
+            piece_turns: Default::default(),
+            pieces: Cell::new(0),
+            next_piece: Cell::new(0),
         }
     }
 }
@@ -82,21 +86,24 @@ impl NearJunction {
     /// Keeps the turns of a lookup at h in `h_piece` (h_lo, h_hi] (a lookup in a range
     /// already kept comes from it: not kept twice).
     pub(super) fn remember(&self, t: JunctionTurns, window: AxesMm, h_piece: (f64, f64)) {
-        let mut pieces = self.pieces.borrow_mut();
-        if pieces.iter().any(|p| p.2 == h_piece) {
+        let n = self.pieces.get();
+        if self.piece_h[..n].iter().any(|p| p.get() == h_piece) {
             return;
         }
-        if pieces.len() < PIECES {
-            pieces.push((t, window, h_piece));
+        let slot = if n < PIECES {
+            self.pieces.set(n + 1);
+            n
         } else {
-            let n = self.next_piece.get();
-            pieces[n] = (t, window, h_piece);
-            self.next_piece.set((n + 1) % PIECES);
-        }
+            let slot = self.next_piece.get();
+            self.next_piece.set((slot + 1) % PIECES);
+            slot
+        };
+        self.piece_h[slot].set(h_piece);
+        self.piece_turns[slot].set((t, window));
     }
 
     fn forget(&self) {
-        self.pieces.borrow_mut().clear();
+        self.pieces.set(0);
         self.next_piece.set(0);
     }
 
@@ -106,12 +113,15 @@ impl NearJunction {
         if self.j != j {
             return None;
         }
-        let pieces = self.pieces.borrow();
-        // (The latest first: the search closes in on its result.)
-        let inside = |&&(_, _, (lo, hi)): &&Lookup| {
+        // (The latest first: the search closes in on its result. The ranges apart from the
+        // turns: a hit copies only its own.)
+        let n = self.pieces.get();
+        let slot = self.piece_h[..n].iter().rposition(|p| {
+            let (lo, hi) = p.get();
             lo < hi && lo * (1.0 + 1e-9) < h && h <= hi * (1.0 - 1e-9)
-        };
-        pieces.iter().rev().find(inside).copied()
+        })?;
+        let (t, window) = self.piece_turns[slot].get();
+        Some((t, window, self.piece_h[slot].get()))
     }
 
     /// Whether the walk was made for junction `j` and covers `d_mm` on both sides.
