@@ -202,10 +202,6 @@ impl Planner {
     ) {
         let axes = self.cfg.axes;
         let entries = if ahead { &near.ahead } else { &near.behind };
-        // Each lookup takes the first entry from the previous lookup's on whose block its
-        // distance ends (rest ≤ length, rounded as written here). Where that test, once
-        // true, stays true (`sorted`), the first lookup starts from where the last call's
-        // ended: the search's speeds are close, so that is mostly the entry itself.
         // The tangent at the far end of a block (seen from the junction): a line's tangent
         // (its t_start and t_end are the same vector), and what the lookups beyond the last
         // block of the walk give.
@@ -213,6 +209,16 @@ impl Planner {
             let p = &self.win[y.k];
             if ahead { p.t_end } else { p.t_start }
         };
+        // (The range's ends are finite: plain comparisons, not the NaN-aware max and min.)
+        let raise = |lo: &mut f64, x: f64| {
+            if x > *lo {
+                *lo = x;
+            }
+        };
+        // Each lookup takes the first entry from the previous lookup's on whose block its
+        // distance ends (rest ≤ length, rounded as written here). Where that test, once
+        // true, stays true (`sorted`), the first lookup starts from where the last call's
+        // ended: the search's speeds are close, so that is mostly the entry itself.
         let hint = &near.hint[usize::from(ahead)];
         let mut e = if near.sorted { hint.get() } else { 0 };
         for (n, &c) in cs.iter().enumerate() {
@@ -234,7 +240,7 @@ impl Planner {
                 // Beyond the last block of the walk (a stop or the window's end): its tangent.
                 let Some(y) = entries.last() else { return };
                 out[n..cs.len()].fill(far_end(y));
-                h_piece.0 = h_piece.0.max((y.walked_mm + y.length_mm) / c);
+                raise(&mut h_piece.0, (y.walked_mm + y.length_mm) / c);
                 return;
             };
             out[n] = if y.arc {
@@ -245,8 +251,11 @@ impl Planner {
             } else {
                 // (`walked_mm` is the end of the block before, summed as it was walked.)
                 let before_mm = if e == 0 { 0.0 } else { y.walked_mm };
-                h_piece.0 = h_piece.0.max(before_mm / c);
-                h_piece.1 = h_piece.1.min((y.walked_mm + y.length_mm) / c);
+                raise(&mut h_piece.0, before_mm / c);
+                let end = (y.walked_mm + y.length_mm) / c;
+                if end < h_piece.1 {
+                    h_piece.1 = end;
+                }
                 far_end(y)
             };
         }
