@@ -191,6 +191,7 @@ impl Planner {
     /// `near` (which must cover them). `h_piece` is narrowed to the range of h over which
     /// every lookup stays on the same line (h_lo, h_hi]: the tangents, and so the turns, are
     /// the same for every h in it; a lookup on an arc narrows it to nothing.
+    #[inline(always)]
     pub(super) fn tangents_from(
         &self,
         near: &NearJunction,
