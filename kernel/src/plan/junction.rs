@@ -516,6 +516,7 @@ impl Planner {
     /// over the tick window, t(+h) − t(−h), with the tangents looked up in `near` where it
     /// covers them. Also the range of h = v_ref·Ts/2 (h_lo, h_hi] over which both are the
     /// same (an empty one where they vary, near arcs).
+    #[inline(always)]
     fn turns_and_window(
         &self,
         j: usize,

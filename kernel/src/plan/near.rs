@@ -109,6 +109,7 @@ impl NearJunction {
 
     /// Turns looked up at junction `j` in a range that holds h well inside (the tangents at
     /// c·h are the same), with that range.
+    #[inline]
     pub(super) fn same_piece(&self, j: usize, h: f64) -> Option<Lookup> {
         if self.j != j {
             return None;
