@@ -486,12 +486,14 @@ impl Planner {
         t
     }
 
-    /// The blocks near junction `j` that its turns at speeds up to `cap` look at (the walk
-    /// of the last call when it covers them; hand it back to `self.near` after use).
+    /// The blocks near junction `j` that its turns at speeds up to `cap` look at, within
+    /// 1.5h (the walk of the last call when it covers them; hand it back to `self.near`
+    /// after use). The `dir` lookups at 3h, once per junction, walk the window instead
+    /// (`tangents_near`, the same tangents): walking 3h for them cost more.
     fn near_junction(&mut self, j: usize, cap: f64) -> Box<NearJunction> {
         // (Boxed: moving it out and back costs a pointer.)
         let mut near = self.near.take().unwrap_or_default();
-        let reach = 3.0 * self.turn_window(j, cap).1;
+        let reach = 1.5 * self.turn_window(j, cap).1;
         if !near.covers(j, reach) {
             self.walk_near(j, reach, &mut near);
         }
