@@ -514,8 +514,10 @@ fn count_ticks_only() {
 
 /// `cargo bench -p kernel --bench plan -- fingerprint`: per path and configuration the
 /// number of ticks and a checksum of the setpoints, to see whether a change of the planner's
-/// or interpolator's code changed any trajectory.
+/// or interpolator's code changed any trajectory. `fingerprint segments` adds a checksum of
+/// every committed segment's speeds and limits (the planner's output itself).
 fn fingerprint() {
+    let segments = std::env::args().any(|a| a == "segments");
     let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/benches/plan");
     let mut configs = vec![("reference".to_string(), reference_config())];
     for name in ["linear", "parabolic"] {
@@ -541,6 +543,31 @@ fn fingerprint() {
                 for k in 0..cfg.axes {
                     h = h.rotate_left(5) ^ t.position[k].to_bits();
                 }
+            }
+            if segments {
+                // Every committed segment's limits and speeds, bit for bit.
+                let mut s = 0u64;
+                for g in &r.segments {
+                    for x in [
+                        g.length_mm,
+                        g.feed_mm_s,
+                        g.v_max_mm_s,
+                        g.v_end_mm_s,
+                        g.junction_cap_mm_s,
+                        g.accel_mm_s2,
+                        g.jerk_mm_s3,
+                        g.stop_accel_mm_s2,
+                    ] {
+                        s = s.rotate_left(5) ^ x.to_bits();
+                    }
+                    s = s.rotate_left(5) ^ g.junction as u64;
+                }
+                println!(
+                    "{cname:18} {pname:40} {:7} ticks {h:016x} {:6} segments {s:016x}",
+                    r.ticks.len(),
+                    r.segments.len()
+                );
+                continue;
             }
             println!("{cname:18} {pname:40} {:7} ticks {h:016x}", r.ticks.len());
         }

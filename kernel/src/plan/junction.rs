@@ -91,7 +91,9 @@ impl Planner {
     /// limits of block `i` itself.
     pub(super) fn finalize(&mut self, i: usize, last: bool) {
         // The window changed since the last walk near a junction.
-        self.near.invalidate();
+        if let Some(near) = self.near.as_mut() {
+            near.invalidate();
+        }
         let (mut crit, mut criteria_cap) = if last {
             (0.0, 0.0)
         } else {
@@ -187,7 +189,7 @@ impl Planner {
             let (found, searched) =
                 largest_within(v, guess, |v| self.box_window_bound(i, v, &limits, &near));
             let found = (found, searched);
-            self.near = near;
+            self.near = Some(near);
             found
         } else {
             largest_within(v, guess, |v| self.window_bound(i, v, &limits))
@@ -292,12 +294,12 @@ impl Planner {
     /// - the accuracy criterion on the chord of a tick: v·Ts·|Θ|/4 ≤ Lm (a tick chord of
     ///   v·Ts across a turn Θ misses its apex by at most v·Ts·sin(Θ/2)/2).
     ///
-    /// Θ = t(+h) − t(−h), h = v_ref·Ts/2. The tangents come from the walk `near`; a result
-    /// within its bound is remembered there with the range of h over which it is the same,
-    /// for [`Planner::junction_turns`] at the speed the search settles on.
+    /// Θ = t(+h) − t(−h), h = v_ref·Ts/2. The tangents come from the walk `near`, which
+    /// keeps the turns with the range of h over which they are the same, for the search's
+    /// later speeds and [`Planner::junction_turns`] at the speed it settles on.
     fn box_window_bound(&self, i: usize, v: f64, l: &WindowLimits, near: &NearJunction) -> f64 {
         let axes = self.cfg.axes;
-        let (t, window, h_piece) = self.turns_and_window(i, v, near);
+        let (t, window, _) = self.turns_and_window(i, v, near);
         let a_ts = t.v_ref_mm_s - v;
         let mut bound = f64::INFINITY;
         // (The turns' dir is not needed here: `junction_turns` adds it.)
@@ -315,10 +317,6 @@ impl Planner {
         let chord = window.norm(axes);
         if l.lm_um > 0.0 && chord > 1e-12 {
             bound = bound.min(4.0 * l.lm_um * 1e-3 / (TS_S * chord));
-        }
-        if bound >= v && h_piece.0 < h_piece.1 {
-            // Within its bound: the search's result is likely in this piece.
-            near.remember(t, window, h_piece);
         }
         bound
     }
@@ -484,15 +482,18 @@ impl Planner {
         let near = self.near_junction(j, cap);
         let mut t = self.turns_and_window(j, cap, &near).0;
         t.dir = self.turn_dirs(j, self.turn_window(j, cap).1, &near);
-        self.near = near;
+        self.near = Some(near);
         t
     }
 
-    /// The blocks near junction `j` that its turns at speeds up to `cap` look at (the walk
-    /// of the last call when it covers them; hand it back to `self.near` after use).
-    fn near_junction(&mut self, j: usize, cap: f64) -> NearJunction {
-        let mut near = std::mem::take(&mut self.near);
-        let reach = 3.0 * self.turn_window(j, cap).1;
+    /// The blocks near junction `j` that its turns at speeds up to `cap` look at, within
+    /// 1.5h (the walk of the last call when it covers them; hand it back to `self.near`
+    /// after use). The `dir` lookups at 3h, once per junction, walk the window instead
+    /// (`tangents_near`, the same tangents): walking 3h for them cost more.
+    fn near_junction(&mut self, j: usize, cap: f64) -> Box<NearJunction> {
+        // (Boxed: moving it out and back costs a pointer.)
+        let mut near = self.near.take().unwrap_or_default();
+        let reach = 1.5 * self.turn_window(j, cap).1;
         if !near.covers(j, reach) {
             self.walk_near(j, reach, &mut near);
         }
@@ -517,6 +518,7 @@ impl Planner {
     /// over the tick window, t(+h) − t(−h), with the tangents looked up in `near` where it
     /// covers them. Also the range of h = v_ref·Ts/2 (h_lo, h_hi] over which both are the
     /// same (an empty one where they vary, near arcs).
+    #[inline(always)]
     fn turns_and_window(
         &self,
         j: usize,
@@ -558,6 +560,10 @@ impl Planner {
         for k in 0..axes {
             let turn = 0.5 * ((ti1[k] - ti0[k]).abs() + (to1[k] - to0[k]).abs());
             t.normal_per_s[k] = turn / TS_S;
+        }
+        if h_piece.0 < h_piece.1 {
+            // The search's next speeds, and its result, are likely in this piece.
+            near.remember(t, t1 - t0, h_piece);
         }
         (t, t1 - t0, h_piece)
     }

@@ -227,11 +227,16 @@ pub struct Planner {
     /// Spindle state of the last block pushed (to see changes in technology blocks).
     spindle_state: Spindle,
     /// The blocks near the junction being finalized, walked once (`near.rs`).
-    near: near::NearJunction,
+    near: Option<Box<near::NearJunction>>,
     /// Last result of the curvature-window search (a warm start for the next junction).
     window_guess_mm_s: f64,
     /// Junctions finalized since the last backward pass.
     pending_backward: usize,
+    /// How far `ahead_known` got for the junction at `finalized`: the number of blocks after
+    /// it summed so far and their length (summed in order, as a fresh scan sums them), so a
+    /// push adds only the new block instead of rescanning (issue #32). Reset when that
+    /// junction is finalized.
+    ahead_scan: (usize, f64),
     /// End speed of the last committed segment, mm/s (the start speed of the next).
     committed_end_mm_s: f64,
     /// A spindle change in a technology block before any motion (`M3 S..` at the top of a
@@ -260,9 +265,10 @@ impl Planner {
             leading_dwell_s: 0.0,
             leading_stop: ProgramStop::None,
             spindle_state: Spindle::default(),
-            near: near::NearJunction::default(),
+            near: None,
             window_guess_mm_s: 0.0,
             pending_backward: 0,
+            ahead_scan: (0, 0.0),
             committed_end_mm_s: 0.0,
             leading_spindle: None,
             tech_out: None,
@@ -716,6 +722,7 @@ impl Planner {
             }
             self.finalize(i, last);
             self.finalized += 1;
+            self.ahead_scan = (0, 0.0);
             self.pending_backward += 1;
         }
         // The backward pass runs once per BACKWARD_BATCH junctions (it walks back over the
@@ -740,10 +747,10 @@ impl Planner {
         v * TS_S * (2 * self.cfg.axis_filter_ticks).max(1) as f64
     }
 
-    /// Whether the blocks after junction `i` cover half the curvature window, and in the
-    /// linear profile the window of its turns (`junction_turns`: 3h = 1.5·v_ref·Ts), or end
-    /// in a stop.
-    fn ahead_known(&self, i: usize) -> bool {
+    /// Whether the blocks after junction `i` (the first one not finalized) cover half the
+    /// curvature window, and in the linear profile the window of its turns
+    /// (`junction_turns`: 3h = 1.5·v_ref·Ts), or end in a stop.
+    fn ahead_known(&mut self, i: usize) -> bool {
         let mut need = self.window_len_mm(i) / 2.0;
         if self.cfg.envelope.profile == Profile::Linear {
             // window_len_mm is v·Ts here; v_ref ≤ v + A·Ts.
@@ -751,16 +758,29 @@ impl Planner {
             let a_ts = if a.is_finite() { a * TS_S } else { 0.0 };
             need = need.max(1.5 * (need * 2.0 + a_ts * TS_S));
         }
-        let mut have = 0.0;
-        for k in i + 1..self.win.len() {
-            have += self.win[k].seg.length_mm;
+        // Resume where the last call for this junction stopped: the blocks it summed are
+        // unchanged (only the last one's junction was not known then).
+        let (seen, mut have) = self.ahead_scan;
+        let n = self.win.len();
+        let from = i + 1 + seen;
+        if seen > 0 && from < n && !self.win[from - 1].smooth {
+            return true;
+        }
+        for (k, p) in self
+            .win
+            .range(from..)
+            .enumerate()
+            .map(|(o, p)| (from + o, p))
+        {
+            have += p.seg.length_mm;
             if have >= need {
                 return true;
             }
-            if k + 1 < self.win.len() && !self.win[k].smooth {
+            if k + 1 < n && !p.smooth {
                 return true;
             }
         }
+        self.ahead_scan = (n - i - 1, have);
         false
     }
 

@@ -17,13 +17,9 @@ struct Entry {
     length_mm: f64,
     /// Index in the planner's window.
     k: usize,
-    /// The walk ends with this block (a stop, or the end of the window).
-    last: bool,
-    /// An arc: its tangent depends on the distance.
+    /// An arc: its tangent depends on the distance. (A line's is read from the window when
+    /// looked up: copying it here for every block walked cost more.)
     arc: bool,
-    /// The tangent at the far end (seen from the junction): a line's tangent, and what
-    /// the lookups beyond the last block of the walk give.
-    tangent: AxesMm,
 }
 
 /// Turns looked up near a junction (without `dir`), the tangent's turn over the tick window
@@ -39,11 +35,28 @@ pub(super) struct NearJunction {
     /// Distance covered on each side (∞ where the walk ended), mm.
     reach_ahead_mm: f64,
     reach_behind_mm: f64,
-    /// The last turns the curvature search found within its bound, the tangent's turn over
-    /// the tick window and the range of h (h_lo, h_hi] over which they are the same (the
-    /// search's result lies in that range, mostly).
-    last: Cell<Option<Lookup>>,
+    /// Every block of the walk is longer than 1e-12 of its distance from the junction: then
+    /// the lookup's test `x − walked ≤ length` (rounded) that holds at one entry holds at
+    /// every later one (x − walked_{e+1} is at most a few ulp of walked_{e+1}, below
+    /// length_{e+1}), so it can be searched by bisection.
+    sorted: bool,
+    /// Where the first lookup of the last call ended, behind and ahead (index into the side's
+    /// entries; see `tangents_from`).
+    hint: [Cell<usize>; 2],
+    /// The last turns the curvature search looked up, the tangent's turn over the tick
+    /// window and the range of h (h_lo, h_hi] over which they are the same: the search's
+    /// speeds close in on its result, so most of its evaluations fall in a range it has
+    /// already seen, and the cap it settles on too (`junction_turns`). At most `PIECES`,
+    /// the oldest replaced first.
+    piece_h: [Cell<(f64, f64)>; PIECES],
+    piece_turns: [Cell<(JunctionTurns, AxesMm)>; PIECES],
+    /// Pieces kept, and where the next one goes once `PIECES` are.
+    pieces: Cell<usize>,
+    next_piece: Cell<usize>,
 }
+
+/// Ranges of h kept per junction (the search's evaluations see 2-4 of them).
+const PIECES: usize = 8;
 
 impl Default for NearJunction {
     fn default() -> Self {
@@ -53,7 +66,12 @@ impl Default for NearJunction {
             behind: Vec::new(),
             reach_ahead_mm: 0.0,
             reach_behind_mm: 0.0,
-            last: Cell::new(None),
+            sorted: false,
+            hint: Default::default(),
+            piece_h: Default::default(),
+            piece_turns: Default::default(),
+            pieces: Cell::new(0),
+            next_piece: Cell::new(0),
         }
     }
 }
@@ -65,24 +83,46 @@ impl NearJunction {
         self.forget();
     }
 
-    /// Keeps the turns of a lookup at h in `h_piece` (h_lo, h_hi].
+    /// Keeps the turns of a lookup at h in `h_piece` (h_lo, h_hi] (a lookup in a range
+    /// already kept comes from it: not kept twice).
     pub(super) fn remember(&self, t: JunctionTurns, window: AxesMm, h_piece: (f64, f64)) {
-        self.last.set(Some((t, window, h_piece)));
+        let n = self.pieces.get();
+        if self.piece_h[..n].iter().any(|p| p.get() == h_piece) {
+            return;
+        }
+        let slot = if n < PIECES {
+            self.pieces.set(n + 1);
+            n
+        } else {
+            let slot = self.next_piece.get();
+            self.next_piece.set((slot + 1) % PIECES);
+            slot
+        };
+        self.piece_h[slot].set(h_piece);
+        self.piece_turns[slot].set((t, window));
     }
 
     fn forget(&self) {
-        self.last.set(None);
+        self.pieces.set(0);
+        self.next_piece.set(0);
     }
 
-    /// The last turns looked up at junction `j` when h is well inside their range (the
-    /// tangents at c·h are the same), with that range.
+    /// Turns looked up at junction `j` in a range that holds h well inside (the tangents at
+    /// c·h are the same), with that range.
+    #[inline]
     pub(super) fn same_piece(&self, j: usize, h: f64) -> Option<Lookup> {
         if self.j != j {
             return None;
         }
-        let (t, w, (lo, hi)) = self.last.get()?;
-        let inside = lo < hi && lo * (1.0 + 1e-9) < h && h <= hi * (1.0 - 1e-9);
-        inside.then_some((t, w, (lo, hi)))
+        // (The latest first: the search closes in on its result. The ranges apart from the
+        // turns: a hit copies only its own.)
+        let n = self.pieces.get();
+        let slot = self.piece_h[..n].iter().rposition(|p| {
+            let (lo, hi) = p.get();
+            lo < hi && lo * (1.0 + 1e-9) < h && h <= hi * (1.0 - 1e-9)
+        })?;
+        let (t, window) = self.piece_turns[slot].get();
+        Some((t, window, self.piece_h[slot].get()))
     }
 
     /// Whether the walk was made for junction `j` and covers `d_mm` on both sides.
@@ -99,6 +139,9 @@ impl Planner {
         near.forget();
         near.reach_ahead_mm = self.walk_side(j, true, d_mm, &mut near.ahead);
         near.reach_behind_mm = self.walk_side(j, false, d_mm, &mut near.behind);
+        let sorted = |side: &[Entry]| side.iter().all(|x| x.length_mm > 1e-12 * x.walked_mm);
+        near.sorted = sorted(&near.ahead) && sorted(&near.behind);
+        near.hint = Default::default();
     }
 
     fn walk_side(&self, j: usize, ahead: bool, d_mm: f64, out: &mut Vec<Entry>) -> f64 {
@@ -111,10 +154,7 @@ impl Planner {
                 walked_mm: walked,
                 length_mm: p.seg.length_mm,
                 k,
-                last,
                 arc,
-                // (A line's t_start and t_end are the same vector.)
-                tangent: if ahead { p.t_end } else { p.t_start },
             });
             if last {
                 return Some(f64::INFINITY);
@@ -152,6 +192,7 @@ impl Planner {
     /// `near` (which must cover them). `h_piece` is narrowed to the range of h over which
     /// every lookup stays on the same line (h_lo, h_hi]: the tangents, and so the turns, are
     /// the same for every h in it; a lookup on an arc narrows it to nothing.
+    #[inline(always)]
     pub(super) fn tangents_from(
         &self,
         near: &NearJunction,
@@ -163,34 +204,62 @@ impl Planner {
     ) {
         let axes = self.cfg.axes;
         let entries = if ahead { &near.ahead } else { &near.behind };
-        let mut e = 0;
-        let mut n = 0;
-        let mut before_mm = 0.0;
-        while n < cs.len() {
-            let x = &entries[e];
-            let rest = cs[n] * h - x.walked_mm;
-            if rest <= x.length_mm {
-                out[n] = if x.arc {
-                    let f = rest / x.length_mm;
-                    let t = if ahead { f } else { 1.0 - f };
-                    *h_piece = (h, h);
-                    self.win[x.k].seg.path.tangent_at(t, axes)
-                } else {
-                    h_piece.0 = h_piece.0.max(before_mm / cs[n]);
-                    h_piece.1 = h_piece.1.min((x.walked_mm + x.length_mm) / cs[n]);
-                    x.tangent
-                };
-                n += 1;
-                continue;
+        // The tangent at the far end of a block (seen from the junction): a line's tangent
+        // (its t_start and t_end are the same vector), and what the lookups beyond the last
+        // block of the walk give.
+        let far_end = |y: &Entry| {
+            let p = &self.win[y.k];
+            if ahead { p.t_end } else { p.t_start }
+        };
+        // (The range's ends are finite: plain comparisons, not the NaN-aware max and min.)
+        let raise = |lo: &mut f64, x: f64| {
+            if x > *lo {
+                *lo = x;
             }
-            if x.last {
-                out[n..cs.len()].fill(x.tangent);
-                let end_mm = x.walked_mm + x.length_mm;
-                h_piece.0 = h_piece.0.max(end_mm / cs[n]);
+        };
+        // Each lookup takes the first entry from the previous lookup's on whose block its
+        // distance ends (rest ≤ length, rounded as written here). Where that test, once
+        // true, stays true (`sorted`), the first lookup starts from where the last call's
+        // ended: the search's speeds are close, so that is mostly the entry itself.
+        let hint = &near.hint[usize::from(ahead)];
+        let mut e = if near.sorted { hint.get() } else { 0 };
+        for (n, &c) in cs.iter().enumerate() {
+            let x = c * h;
+            let beyond = |y: &Entry| x - y.walked_mm > y.length_mm;
+            if n == 0 && near.sorted {
+                while e > 0 && !beyond(&entries[e - 1]) {
+                    e -= 1;
+                }
+            }
+            e += entries[e..]
+                .iter()
+                .position(|y| !beyond(y))
+                .unwrap_or(entries.len() - e);
+            if n == 0 {
+                hint.set(e.min(entries.len().saturating_sub(1)));
+            }
+            let Some(y) = entries.get(e) else {
+                // Beyond the last block of the walk (a stop or the window's end): its tangent.
+                let Some(y) = entries.last() else { return };
+                out[n..cs.len()].fill(far_end(y));
+                raise(&mut h_piece.0, (y.walked_mm + y.length_mm) / c);
                 return;
-            }
-            before_mm = x.walked_mm + x.length_mm;
-            e += 1;
+            };
+            out[n] = if y.arc {
+                let f = (x - y.walked_mm) / y.length_mm;
+                let t = if ahead { f } else { 1.0 - f };
+                *h_piece = (h, h);
+                self.win[y.k].seg.path.tangent_at(t, axes)
+            } else {
+                // (`walked_mm` is the end of the block before, summed as it was walked.)
+                let before_mm = if e == 0 { 0.0 } else { y.walked_mm };
+                raise(&mut h_piece.0, before_mm / c);
+                let end = (y.walked_mm + y.length_mm) / c;
+                if end < h_piece.1 {
+                    h_piece.1 = end;
+                }
+                far_end(y)
+            };
         }
     }
 }
