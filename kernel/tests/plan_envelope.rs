@@ -681,3 +681,26 @@ fn stops_land_on_the_continuous_profile() {
     let lengths = [100.0, 3.0, 0.5, 37.0, 12.5, 0.02];
     stop_to_stop("stops", &lengths.map(|l| (l, 0.0)));
 }
+
+/// Issue #32: turns of opposite sign within a tick window cancel in the turn of the tangent
+/// but not in the setpoints' second differences (each weighs a turn by a different part of
+/// a tick's step): the box rule counts their absolute turns. Deterministic random dense
+/// paths of the property test's kind (one of them broke the Y axis by 1 % when the ticks
+/// inside a line began to use its free acceleration).
+#[test]
+fn opposite_turns_within_a_tick_window_do_not_cancel() {
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut next = |lo: f64, hi: f64| {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        lo + (hi - lo) * (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for _ in 0..40 {
+        let turns: Vec<(f64, f64, f64)> = (0..300)
+            .map(|_| (next(-0.4, 0.4), next(-0.1, 0.1), next(0.01, 0.6)))
+            .collect();
+        let feed = next(600.0, 12000.0);
+        assert_within("opposite turns", &cfg(1), &dense_path(&turns, feed));
+    }
+}

@@ -77,6 +77,12 @@ impl LineBudget {
         a.min(self.a_axes_mm_s2).max(self.a_floor_mm_s2)
     }
 
+    /// Highest tick speed the acceleration of speeds up to `v` covers (one tick's speed
+    /// step above it), mm/s.
+    pub(super) fn covered_mm_s(&self, v: f64) -> f64 {
+        v + self.margin_mm_s
+    }
+
     /// Path acceleration of the constants it was built with, mm/s².
     pub(super) fn base_mm_s2(&self) -> f64 {
         self.base_mm_s2

@@ -347,8 +347,17 @@ impl Planner {
             Share::Fixed(share) => (share, None),
             Share::Line => (1.0, Some(self.line_budget(i, base))),
         };
+        let linear_line = self.cfg.envelope.profile == Profile::Linear
+            && matches!(self.win[i].seg.path, SegPath::Line { .. });
         let p = &mut self.win[i];
         p.budget = budget;
+        // Ticks inside a line see no turn (`Segment::free_accel_mm_s2`).
+        (p.seg.free_accel_mm_s2, p.seg.free_accel_v_max_mm_s) = if linear_line && a_axes.is_finite()
+        {
+            (base.min(a_axes), f64::INFINITY)
+        } else {
+            (0.0, 0.0)
+        };
         if let Some(b) = budget {
             p.apply_budget(&b, f64::INFINITY, rapid_a);
             return;
@@ -555,9 +564,22 @@ impl Planner {
         }
         let [ti1, t1, to1] = ahead;
         let [ti0, t0, to0] = behind;
+        // Turns of opposite sign within the window cancel in the tangent's turn, not in the
+        // ticks' second differences (which weigh them by different parts of a step): the
+        // absolute turns of the junctions within ±h/2 and ±3h/2 where the walk covers them.
+        let mut abs_in = [AxesMm::ZERO; 2];
+        if near.covers(j, ds[2]) {
+            let mut a = [AxesMm::ZERO; 2];
+            let mut b = [AxesMm::ZERO; 2];
+            self.abs_turns_from(near, true, &[ds[0], ds[2]], &mut a);
+            self.abs_turns_from(near, false, &[ds[0], ds[2]], &mut b);
+            abs_in = [a[0] + b[0], a[1] + b[1]];
+        }
+        let own = self.win[j + 1].t_start - self.win[j].t_end;
         for k in 0..axes {
             let turn = 0.5 * ((ti1[k] - ti0[k]).abs() + (to1[k] - to0[k]).abs());
-            t.normal_per_s[k] = turn / TS_S;
+            let abs = own[k].abs() + 0.5 * (abs_in[0][k] + abs_in[1][k]);
+            t.normal_per_s[k] = turn.max(abs) / TS_S;
         }
         (t, t1 - t0, h_piece)
     }
