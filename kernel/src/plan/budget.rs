@@ -23,6 +23,14 @@ pub(super) struct JunctionTurns {
     pub(super) dir: [f64; MAX_AXES],
     /// The fastest a tick touching the junction runs, mm/s.
     pub(super) v_ref_mm_s: f64,
+    /// The speed the turns are passed at (N_k(v) ≤ normal_k·min(v, v_turn)), mm/s: v_ref,
+    /// or the junction's cap where it is alone in the ticks touching it (issue #32). The
+    /// second difference of the tick n crossing such a junction (a before it, b after,
+    /// a + b = its step) is Δs_n·u_in + b·Δu, and of the next tick Δs_n+1·u_out + a·Δu:
+    /// the turn weighs at most the crossing step, which the interpolator keeps within the
+    /// cap (a faster tick ends a cap-tick before it); ticks one acceleration step faster
+    /// next to it add nothing to the turn's share.
+    pub(super) v_turn_mm_s: f64,
 }
 
 #[derive(Clone, Copy, Debug, Default)]

@@ -298,7 +298,7 @@ impl Planner {
     fn box_window_bound(&self, i: usize, v: f64, l: &WindowLimits, near: &NearJunction) -> f64 {
         let axes = self.cfg.axes;
         let (t, window, h_piece) = self.turns_and_window(i, v, near);
-        let a_ts = t.v_ref_mm_s - v;
+        let a_ts = t.v_turn_mm_s - v;
         let mut bound = f64::INFINITY;
         // (The turns' dir is not needed here: `junction_turns` adds it.)
         for k in 0..axes {
@@ -464,7 +464,7 @@ impl Planner {
         }
         let mut v_ref = 0.0f64;
         for t in [start, end].into_iter().flatten() {
-            v_ref = v_ref.max(t.v_ref_mm_s);
+            v_ref = v_ref.max(t.v_turn_mm_s);
             for k in 0..axes {
                 normal[k] = normal[k].max(t.normal_per_s[k]);
                 dir[k] = dir[k].max(t.dir[k]);
@@ -522,6 +522,17 @@ impl Planner {
         (v, v * TS_S / 2.0)
     }
 
+    /// Whether junction `j` between two lines is alone in the ticks that touch it at speeds
+    /// up to `v_ref` (mm/s): both lines longer than two such ticks, so no other junction
+    /// lies within the ticks n−1, n, n+1 around the tick n that crosses it (see
+    /// `JunctionTurns::v_turn_mm_s`).
+    fn isolated(&self, j: usize, v_ref: f64) -> bool {
+        let reach = 2.0 * v_ref * TS_S * (1.0 + 1e-9);
+        [&self.win[j], &self.win[j + 1]]
+            .iter()
+            .all(|q| matches!(q.seg.path, SegPath::Line { .. }) && q.seg.length_mm > reach)
+    }
+
     /// The turns of [`Planner::junction_turns`] without `dir`, and the turn of the tangent
     /// over the tick window, t(+h) − t(−h), with the tangents looked up in `near` where it
     /// covers them. Also the range of h = v_ref·Ts/2 (h_lo, h_hi] over which both are the
@@ -534,16 +545,19 @@ impl Planner {
     ) -> (JunctionTurns, AxesMm, (f64, f64)) {
         let axes = self.cfg.axes;
         let (v, h) = self.turn_window(j, cap);
+        let v_turn = if self.isolated(j, v) { cap } else { v };
         if let Some((turns, window, piece)) = near.same_piece(j, h) {
             // The same tangents as a recent lookup: only v_ref differs.
             let t = JunctionTurns {
                 v_ref_mm_s: v,
+                v_turn_mm_s: v_turn,
                 ..turns
             };
             return (t, window, piece);
         }
         let mut t = JunctionTurns {
             v_ref_mm_s: v,
+            v_turn_mm_s: v_turn,
             ..JunctionTurns::default()
         };
         // The velocity change of a tick weighs the turns within ±v·Ts of it by
