@@ -296,8 +296,23 @@ impl Planner {
     /// within its bound is remembered there with the range of h over which it is the same,
     /// for [`Planner::junction_turns`] at the speed the search settles on.
     fn box_window_bound(&self, i: usize, v: f64, l: &WindowLimits, near: &NearJunction) -> f64 {
+        let (mut t, window, h_piece, fresh) = self.turns_and_window(i, v, near);
+        let mut bound = self.box_bound(&t, &window, v, l);
+        if bound >= v * (1.0 - 1e-9) && fresh {
+            // The absolute turns only lower the bound: needed where it holds without them.
+            self.add_abs_turns(i, v, near, &mut t);
+            bound = self.box_bound(&t, &window, v, l);
+        }
+        if bound >= v && h_piece.0 < h_piece.1 {
+            // Within its bound: the search's result is likely in this piece.
+            near.remember(t, window, h_piece);
+        }
+        bound
+    }
+
+    /// The bound of [`Planner::box_window_bound`] for these turns and window at `v`.
+    fn box_bound(&self, t: &JunctionTurns, window: &AxesMm, v: f64, l: &WindowLimits) -> f64 {
         let axes = self.cfg.axes;
-        let (t, window, h_piece) = self.turns_and_window(i, v, near);
         let a_ts = t.v_turn_mm_s - v;
         let mut bound = f64::INFINITY;
         // (The turns' dir is not needed here: `junction_turns` adds it.)
@@ -315,10 +330,6 @@ impl Planner {
         let chord = window.norm(axes);
         if l.lm_um > 0.0 && chord > 1e-12 {
             bound = bound.min(4.0 * l.lm_um * 1e-3 / (TS_S * chord));
-        }
-        if bound >= v && h_piece.0 < h_piece.1 {
-            // Within its bound: the search's result is likely in this piece.
-            near.remember(t, window, h_piece);
         }
         bound
     }
@@ -491,7 +502,10 @@ impl Planner {
     /// along. Looked up once per junction for the lines on both sides.
     pub(super) fn junction_turns(&mut self, j: usize, cap: f64) -> JunctionTurns {
         let near = self.near_junction(j, cap);
-        let mut t = self.turns_and_window(j, cap, &near).0;
+        let (mut t, _, _, fresh) = self.turns_and_window(j, cap, &near);
+        if fresh {
+            self.add_abs_turns(j, cap, &near, &mut t);
+        }
         t.dir = self.turn_dirs(j, self.turn_window(j, cap).1, &near);
         self.near = near;
         t
@@ -542,18 +556,19 @@ impl Planner {
         j: usize,
         cap: f64,
         near: &NearJunction,
-    ) -> (JunctionTurns, AxesMm, (f64, f64)) {
+    ) -> (JunctionTurns, AxesMm, (f64, f64), bool) {
         let axes = self.cfg.axes;
         let (v, h) = self.turn_window(j, cap);
         let v_turn = if self.isolated(j, v) { cap } else { v };
         if let Some((turns, window, piece)) = near.same_piece(j, h) {
-            // The same tangents as a recent lookup: only v_ref differs.
+            // The same tangents as a recent lookup (with its absolute turns): only v_ref
+            // differs.
             let t = JunctionTurns {
                 v_ref_mm_s: v,
                 v_turn_mm_s: v_turn,
                 ..turns
             };
-            return (t, window, piece);
+            return (t, window, piece, false);
         }
         let mut t = JunctionTurns {
             v_ref_mm_s: v,
@@ -578,24 +593,32 @@ impl Planner {
         }
         let [ti1, t1, to1] = ahead;
         let [ti0, t0, to0] = behind;
-        // Turns of opposite sign within the window cancel in the tangent's turn, not in the
-        // ticks' second differences (which weigh them by different parts of a step): the
-        // absolute turns of the junctions within ±h/2 and ±3h/2 where the walk covers them.
-        let mut abs_in = [AxesMm::ZERO; 2];
-        if near.covers(j, ds[2]) {
-            let mut a = [AxesMm::ZERO; 2];
-            let mut b = [AxesMm::ZERO; 2];
-            self.abs_turns_from(near, true, &[ds[0], ds[2]], &mut a);
-            self.abs_turns_from(near, false, &[ds[0], ds[2]], &mut b);
-            abs_in = [a[0] + b[0], a[1] + b[1]];
-        }
-        let own = self.win[j + 1].t_start - self.win[j].t_end;
         for k in 0..axes {
             let turn = 0.5 * ((ti1[k] - ti0[k]).abs() + (to1[k] - to0[k]).abs());
-            let abs = own[k].abs() + 0.5 * (abs_in[0][k] + abs_in[1][k]);
-            t.normal_per_s[k] = turn.max(abs) / TS_S;
+            t.normal_per_s[k] = turn / TS_S;
         }
-        (t, t1 - t0, h_piece)
+        (t, t1 - t0, h_piece, true)
+    }
+
+    /// Raises the turns of [`Planner::turns_and_window`] (looked up afresh, at `cap`) to the
+    /// absolute turns of the junctions within ±h/2 and ±3h/2 where the walk covers them:
+    /// turns of opposite sign cancel in the tangent's turn, not in the ticks' second
+    /// differences (which weigh them by different parts of a step; issue #32).
+    fn add_abs_turns(&self, j: usize, cap: f64, near: &NearJunction, t: &mut JunctionTurns) {
+        let h = self.turn_window(j, cap).1;
+        let ds = [h / 2.0, 1.5 * h];
+        if !near.covers(j, ds[1]) {
+            return;
+        }
+        let mut a = [AxesMm::ZERO; 2];
+        let mut b = [AxesMm::ZERO; 2];
+        self.abs_turns_from(near, true, &ds, &mut a);
+        self.abs_turns_from(near, false, &ds, &mut b);
+        let own = self.win[j + 1].t_start - self.win[j].t_end;
+        for k in 0..self.cfg.axes {
+            let abs = own[k].abs() + 0.5 * (a[0][k] + b[0][k] + a[1][k] + b[1][k]);
+            t.normal_per_s[k] = t.normal_per_s[k].max(abs / TS_S);
+        }
     }
 
     /// Per axis the largest tangent component the ticks near junction `j` move along: of
