@@ -681,3 +681,50 @@ fn stops_land_on_the_continuous_profile() {
     let lengths = [100.0, 3.0, 0.5, 37.0, 12.5, 0.02];
     stop_to_stop("stops", &lengths.map(|l| (l, 0.0)));
 }
+
+/// Issue #32: turns of opposite sign within a tick window cancel in the turn of the tangent
+/// but not in the setpoints' second differences (each weighs a turn by a different part of
+/// a tick's step): the box rule counts their absolute turns. Deterministic random dense
+/// paths of the property test's kind (one of them broke the Y axis by 1 % when the ticks
+/// inside a line began to use its free acceleration).
+#[test]
+fn opposite_turns_within_a_tick_window_do_not_cancel() {
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut next = |lo: f64, hi: f64| {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        lo + (hi - lo) * (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for _ in 0..40 {
+        let turns: Vec<(f64, f64, f64)> = (0..300)
+            .map(|_| (next(-0.4, 0.4), next(-0.1, 0.1), next(0.01, 0.6)))
+            .collect();
+        let feed = next(600.0, 12000.0);
+        assert_within("opposite turns", &cfg(1), &dense_path(&turns, feed));
+    }
+}
+
+/// Issue #32: a junction alone in the ticks that touch it (lines longer than two ticks on
+/// both sides) is passed at the box rule's share of the exact bound, v·|Δu_k| ≤ 0.8·a_k·Ts,
+/// without the margin of one acceleration step the ticks beside a dense turn need: its turn
+/// weighs only on the step that crosses it, which runs within the cap.
+#[test]
+fn an_isolated_junction_takes_no_acceleration_step_margin() {
+    let cfg = reference_config();
+    let turn = 5f64.to_radians();
+    // A polygon of 0.5 mm chords turning 5° each (R ≈ 5.7 mm); the first chord along X.
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 6000.0, Continuity::G23);
+    let mut q = p3(0.0, 0.0, 0.0);
+    for k in 0..12 {
+        let a = turn * k as f64;
+        q = q + p3(a.cos(), a.sin(), 0.0) * 0.5;
+        p.g1(q);
+    }
+    let r = assert_within("isolated", &cfg, &p.blocks);
+    // The second junction turns from 5° to 10°: Y changes most, by sin 10° − sin 5°.
+    let du_y = (2.0 * turn).sin() - turn.sin();
+    let bound = 0.8 * cfg.axis_a_max_mm_s2[1] * kernel::TS_S / du_y;
+    let cap = r.segments[1].junction_cap_mm_s;
+    assert!(cap <= bound && cap >= 0.997 * bound, "{cap} vs {bound}");
+}

@@ -131,6 +131,10 @@ pub struct Interpolator {
     raw_v_mm_s: f64,
     /// The raw position rests at the end of segment `raw_seg`, a stop point.
     raw_at_stop: bool,
+    /// The last raw step stayed inside segment `raw_seg` (it crossed and reached no
+    /// junction): the next tick's second difference has no turn if its step stays inside
+    /// too (`Segment::free_accel_mm_s2`).
+    raw_step_inside: bool,
     /// The last tick ended exactly on a junction: its cap holds for the next tick too (the
     /// velocity turns between these two ticks).
     entry_cap_mm_s: f64,
@@ -215,6 +219,7 @@ impl Interpolator {
             raw_in_seg_mm: 0.0,
             raw_v_mm_s: 0.0,
             raw_at_stop: false,
+            raw_step_inside: false,
             entry_cap_mm_s: f64::INFINITY,
             dwell_ticks: 0,
             jerk_filter_ticks: 1,

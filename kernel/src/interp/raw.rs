@@ -6,7 +6,7 @@ use super::{
     InterpState, Interpolator,
 };
 use crate::block::ProgramStop;
-use crate::plan::Segment;
+use crate::plan::{SegPath, Segment};
 use crate::units::TS_S;
 
 /// Speed limits of one tick, mm/s, and the distance to the next stop point (∞: none in reach).
@@ -609,10 +609,12 @@ impl Interpolator {
         // Parabolic profile: the acceleration may differ by at most J·m·Ts from the one m
         // ticks before (`jerk_filter`); linear: ±a.
         let (down_mm_s2, up_mm_s2) = self.jerk_accel_window(accel_mm_s2, head);
+        let inside = std::mem::take(&mut self.raw_step_inside);
         let a_up = self
             .accel_over_next_tick(accel_mm_s2, v + accel_mm_s2 * TS_S, braking)
             .min(up_mm_s2);
         let up = (v + a_up * TS_S)
+            .max(self.free_up_mm_s(head, inside, braking))
             .min(limits.soft_accel_mm_s)
             .min(limits.hard_accel_mm_s);
         let mut v_next = if up > v {
@@ -642,6 +644,29 @@ impl Interpolator {
             self.entry_cap_mm_s = self.departure_cap_mm_s(v_next, accel_mm_s2);
         }
         caps
+    }
+
+    /// Path acceleration of the next tick when its step and the last one stay inside the
+    /// line `head` (0 otherwise; linear profile, not braking). The second difference of
+    /// the setpoints at the tick point σ between the steps s_n−1 and s_n is
+    /// (s_n − s_n−1)·u(σ) plus, for each junction j within the two steps, its turn Δu_j
+    /// weighted by the part of the step beyond it; with no junction there, each axis
+    /// changes by (s_n − s_n−1)·u_k ≤ a·Ts²·|u_k|, within a_k for a ≤ min a_k/|u_k|.
+    /// `last_inside`: the last step stayed inside `head`. Returns the highest next speed
+    /// by it (0 where it does not apply), within the speeds the line's acceleration was
+    /// planned for (`Segment::free_accel_v_max_mm_s`).
+    fn free_up_mm_s(&self, head: &Segment, last_inside: bool, braking: bool) -> f64 {
+        let linear = self.jerk_filter_ticks <= 1 && self.axis_window_ticks <= 1;
+        if !last_inside || braking || !linear || !matches!(head.path, SegPath::Line { .. }) {
+            return 0.0;
+        }
+        let up = (self.raw_v_mm_s + head.free_accel_mm_s2 * TS_S).min(head.free_accel_v_max_mm_s);
+        let rest = head.length_mm - self.raw_in_seg_mm;
+        if up * TS_S < rest - ARRIVE_EPS_MM {
+            up
+        } else {
+            0.0
+        }
     }
 
     /// Arrived at a stop point in this tick at `v_arrive`: the highest speed of the first
@@ -682,6 +707,7 @@ impl Interpolator {
     /// feed met on the way (segment ceilings and junction speeds).
     pub(super) fn move_raw(&mut self, mut ds: f64) -> (f64, f64) {
         let first = *self.seg(self.raw_seg);
+        self.raw_step_inside = ds < first.length_mm - self.raw_in_seg_mm - ARRIVE_EPS_MM;
         let mut cap = first.v_max_mm_s;
         let mut feed = self.feed_of(&first);
         self.entry_cap_mm_s = f64::INFINITY;

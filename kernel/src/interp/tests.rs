@@ -430,3 +430,50 @@ fn skipped_caps_never_lower_the_limit() {
     }
     assert!(skipped > 1000 && grouped > 1000, "{skipped} {grouped}");
 }
+
+/// Arc length of `p` on the path (0,0) → (5,0) → (10,5).
+fn s_on_corner(p: &AxesMm) -> f64 {
+    if p[1] == 0.0 && p[0] <= 5.0 {
+        p[0]
+    } else {
+        5.0 + (p[0] - 5.0).hypot(p[1])
+    }
+}
+
+/// Issue #32: a tick whose step and the step before it stay inside one line has no turn in
+/// its second difference and may use the line's free acceleration; the ticks whose steps
+/// touch the junction keep the line's own (the share the turn leaves it), and the free
+/// ticks never carry the line past the speed its acceleration was planned for.
+#[test]
+fn ticks_inside_a_line_use_its_free_acceleration() {
+    for v_cover in [f64::INFINITY, 20.0] {
+        let mut ip = Interpolator::new(3, AxesMm::ZERO);
+        let mut a = line(0, [0.0; 3], [5.0, 0.0, 0.0], 100.0, 30.0);
+        a.junction_cap_mm_s = 30.0;
+        let mut b = line(1, [5.0, 0.0, 0.0], [10.0, 5.0, 0.0], 100.0, 0.0);
+        for s in [&mut a, &mut b] {
+            s.accel_mm_s2 = 200.0;
+            s.stop_accel_mm_s2 = 200.0;
+            s.free_accel_mm_s2 = 800.0;
+            s.free_accel_v_max_mm_s = v_cover;
+        }
+        ip.push(a).unwrap();
+        ip.push(b).unwrap();
+        let mut trace = vec![TickOut::default()];
+        trace.extend(run(&mut ip, 10_000));
+        assert_eq!(&trace.last().unwrap().position.0[..2], &[10.0, 5.0]);
+        let s: Vec<f64> = trace.iter().map(|t| s_on_corner(&t.position)).collect();
+        let touches = |k: usize| s[k - 1] < 5.0 && s[k] >= 5.0;
+        let mut free_used = false;
+        for k in 2..s.len() {
+            let (v0, v1) = ((s[k - 1] - s[k - 2]) / TS_S, (s[k] - s[k - 1]) / TS_S);
+            let acc = (v1 - v0) / TS_S;
+            assert!(acc.abs() <= 800.0 * (1.0 + 1e-9), "tick {k}: {acc}");
+            if touches(k) || touches(k - 1) || v1 > v_cover + 1e-9 {
+                assert!(acc <= 200.0 * (1.0 + 1e-9), "tick {k}: {acc} at {v1}");
+            }
+            free_used |= acc > 201.0;
+        }
+        assert!(free_used);
+    }
+}

@@ -23,6 +23,14 @@ pub(super) struct JunctionTurns {
     pub(super) dir: [f64; MAX_AXES],
     /// The fastest a tick touching the junction runs, mm/s.
     pub(super) v_ref_mm_s: f64,
+    /// The speed the turns are passed at (N_k(v) ≤ normal_k·min(v, v_turn)), mm/s: v_ref,
+    /// or the junction's cap where it is alone in the ticks touching it (issue #32). The
+    /// second difference of the tick n crossing such a junction (a before it, b after,
+    /// a + b = its step) is Δs_n·u_in + b·Δu, and of the next tick Δs_n+1·u_out + a·Δu:
+    /// the turn weighs at most the crossing step, which the interpolator keeps within the
+    /// cap (a faster tick ends a cap-tick before it); ticks one acceleration step faster
+    /// next to it add nothing to the turn's share.
+    pub(super) v_turn_mm_s: f64,
 }
 
 #[derive(Clone, Copy, Debug, Default)]
@@ -75,6 +83,12 @@ impl LineBudget {
             a = a.min(p - q * w);
         }
         a.min(self.a_axes_mm_s2).max(self.a_floor_mm_s2)
+    }
+
+    /// Highest tick speed the acceleration of speeds up to `v` covers (one tick's speed
+    /// step above it), mm/s.
+    pub(super) fn covered_mm_s(&self, v: f64) -> f64 {
+        v + self.margin_mm_s
     }
 
     /// Path acceleration of the constants it was built with, mm/s².

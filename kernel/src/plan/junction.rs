@@ -298,9 +298,25 @@ impl Planner {
     /// keeps the turns with the range of h over which they are the same, for the search's
     /// later speeds and [`Planner::junction_turns`] at the speed it settles on.
     fn box_window_bound(&self, i: usize, v: f64, l: &WindowLimits, near: &NearJunction) -> f64 {
+        let (mut t, window, h_piece, fresh) = self.turns_and_window(i, v, near);
+        let mut bound = self.box_bound(&t, &window, v, l);
+        if bound >= v * (1.0 - 1e-9) && fresh {
+            // The absolute turns only lower the bound: needed where it holds without them.
+            self.add_abs_turns(i, v, near, &mut t);
+            bound = self.box_bound(&t, &window, v, l);
+            // Kept with them (a lookup without them must not be reused): the search's next
+            // speeds, and its result, are likely in this piece.
+            if h_piece.0 < h_piece.1 {
+                near.remember(t, window, h_piece);
+            }
+        }
+        bound
+    }
+
+    /// The bound of [`Planner::box_window_bound`] for these turns and window at `v`.
+    fn box_bound(&self, t: &JunctionTurns, window: &AxesMm, v: f64, l: &WindowLimits) -> f64 {
         let axes = self.cfg.axes;
-        let (t, window, _) = self.turns_and_window(i, v, near);
-        let a_ts = t.v_ref_mm_s - v;
+        let a_ts = t.v_turn_mm_s - v;
         let mut bound = f64::INFINITY;
         // (The turns' dir is not needed here: `junction_turns` adds it.)
         for k in 0..axes {
@@ -345,8 +361,17 @@ impl Planner {
             Share::Fixed(share) => (share, None),
             Share::Line => (1.0, Some(self.line_budget(i, base))),
         };
+        let linear_line = self.cfg.envelope.profile == Profile::Linear
+            && matches!(self.win[i].seg.path, SegPath::Line { .. });
         let p = &mut self.win[i];
         p.budget = budget;
+        // Ticks inside a line see no turn (`Segment::free_accel_mm_s2`).
+        (p.seg.free_accel_mm_s2, p.seg.free_accel_v_max_mm_s) = if linear_line && a_axes.is_finite()
+        {
+            (base.min(a_axes), f64::INFINITY)
+        } else {
+            (0.0, 0.0)
+        };
         if let Some(b) = budget {
             p.apply_budget(&b, f64::INFINITY, rapid_a);
             return;
@@ -453,7 +478,7 @@ impl Planner {
         }
         let mut v_ref = 0.0f64;
         for t in [start, end].into_iter().flatten() {
-            v_ref = v_ref.max(t.v_ref_mm_s);
+            v_ref = v_ref.max(t.v_turn_mm_s);
             for k in 0..axes {
                 normal[k] = normal[k].max(t.normal_per_s[k]);
                 dir[k] = dir[k].max(t.dir[k]);
@@ -480,7 +505,10 @@ impl Planner {
     /// along. Looked up once per junction for the lines on both sides.
     pub(super) fn junction_turns(&mut self, j: usize, cap: f64) -> JunctionTurns {
         let near = self.near_junction(j, cap);
-        let mut t = self.turns_and_window(j, cap, &near).0;
+        let (mut t, _, _, fresh) = self.turns_and_window(j, cap, &near);
+        if fresh {
+            self.add_abs_turns(j, cap, &near, &mut t);
+        }
         t.dir = self.turn_dirs(j, self.turn_window(j, cap).1, &near);
         self.near = Some(near);
         t
@@ -514,6 +542,17 @@ impl Planner {
         (v, v * TS_S / 2.0)
     }
 
+    /// Whether junction `j` between two lines is alone in the ticks that touch it at speeds
+    /// up to `v_ref` (mm/s): both lines longer than two such ticks, so no other junction
+    /// lies within the ticks n−1, n, n+1 around the tick n that crosses it (see
+    /// `JunctionTurns::v_turn_mm_s`).
+    fn isolated(&self, j: usize, v_ref: f64) -> bool {
+        let reach = 2.0 * v_ref * TS_S * (1.0 + 1e-9);
+        [&self.win[j], &self.win[j + 1]]
+            .iter()
+            .all(|q| matches!(q.seg.path, SegPath::Line { .. }) && q.seg.length_mm > reach)
+    }
+
     /// The turns of [`Planner::junction_turns`] without `dir`, and the turn of the tangent
     /// over the tick window, t(+h) − t(−h), with the tangents looked up in `near` where it
     /// covers them. Also the range of h = v_ref·Ts/2 (h_lo, h_hi] over which both are the
@@ -524,19 +563,23 @@ impl Planner {
         j: usize,
         cap: f64,
         near: &NearJunction,
-    ) -> (JunctionTurns, AxesMm, (f64, f64)) {
+    ) -> (JunctionTurns, AxesMm, (f64, f64), bool) {
         let axes = self.cfg.axes;
         let (v, h) = self.turn_window(j, cap);
+        let v_turn = if self.isolated(j, v) { cap } else { v };
         if let Some((turns, window, piece)) = near.same_piece(j, h) {
-            // The same tangents as a recent lookup: only v_ref differs.
+            // The same tangents as a recent lookup (with its absolute turns): only v_ref
+            // differs.
             let t = JunctionTurns {
                 v_ref_mm_s: v,
+                v_turn_mm_s: v_turn,
                 ..turns
             };
-            return (t, window, piece);
+            return (t, window, piece, false);
         }
         let mut t = JunctionTurns {
             v_ref_mm_s: v,
+            v_turn_mm_s: v_turn,
             ..JunctionTurns::default()
         };
         // The velocity change of a tick weighs the turns within ±v·Ts of it by
@@ -561,11 +604,28 @@ impl Planner {
             let turn = 0.5 * ((ti1[k] - ti0[k]).abs() + (to1[k] - to0[k]).abs());
             t.normal_per_s[k] = turn / TS_S;
         }
-        if h_piece.0 < h_piece.1 {
-            // The search's next speeds, and its result, are likely in this piece.
-            near.remember(t, t1 - t0, h_piece);
+        (t, t1 - t0, h_piece, true)
+    }
+
+    /// Raises the turns of [`Planner::turns_and_window`] (looked up afresh, at `cap`) to the
+    /// absolute turns of the junctions within ±h/2 and ±3h/2 where the walk covers them:
+    /// turns of opposite sign cancel in the tangent's turn, not in the ticks' second
+    /// differences (which weigh them by different parts of a step; issue #32).
+    fn add_abs_turns(&self, j: usize, cap: f64, near: &NearJunction, t: &mut JunctionTurns) {
+        let h = self.turn_window(j, cap).1;
+        let ds = [h / 2.0, 1.5 * h];
+        if !near.covers(j, ds[1]) {
+            return;
         }
-        (t, t1 - t0, h_piece)
+        let mut a = [AxesMm::ZERO; 2];
+        let mut b = [AxesMm::ZERO; 2];
+        self.abs_turns_from(near, true, &ds, &mut a);
+        self.abs_turns_from(near, false, &ds, &mut b);
+        let own = self.win[j + 1].t_start - self.win[j].t_end;
+        for k in 0..self.cfg.axes {
+            let abs = own[k].abs() + 0.5 * (a[0][k] + b[0][k] + a[1][k] + b[1][k]);
+            t.normal_per_s[k] = t.normal_per_s[k].max(abs / TS_S);
+        }
     }
 
     /// Per axis the largest tangent component the ticks near junction `j` move along: of

@@ -103,6 +103,15 @@ pub struct Segment {
     pub junction_cap_mm_s: f64,
     /// Path acceleration limit on this segment, mm/s².
     pub accel_mm_s2: f64,
+    /// Linear profile, lines: the path acceleration of a tick whose step and the step
+    /// before it both lie inside this line, mm/s² (0: none beyond `accel_mm_s2`). Such a
+    /// tick's second difference is the speed change along the line alone, so it may use
+    /// the axes' full path acceleration; the share a turn takes (`accel_mm_s2` of a line
+    /// next to one) is needed only by the ticks whose steps touch it (issue #32).
+    pub free_accel_mm_s2: f64,
+    /// Speed up to which `free_accel_mm_s2` applies, mm/s: the speeds a line's budget was
+    /// computed for (its acceleration next to a turn falls with the speed it runs at).
+    pub free_accel_v_max_mm_s: f64,
     /// Path jerk limit, mm/s³ (`f64::INFINITY` for the linear profile).
     pub jerk_mm_s3: f64,
     /// Deceleration for feed hold and stop (rapid and stop set, SPEC §7.4), mm/s².
@@ -660,6 +669,8 @@ impl Planner {
             v_end_mm_s: 0.0,
             junction_cap_mm_s: 0.0,
             accel_mm_s2: a_plan,
+            free_accel_mm_s2: 0.0,
+            free_accel_v_max_mm_s: 0.0,
             jerk_mm_s3: l.jerk_mm_s3,
             stop_accel_mm_s2: a_plan,
             rapid,
@@ -931,6 +942,8 @@ impl Planner {
                 .min(b.reach_mm_s(v_from, len))
                 .min(p.seg.v_max_mm_s);
             p.apply_budget(&b, v, rapid_a);
+            // Free ticks must not carry the line past the speeds its budget covers.
+            p.seg.free_accel_v_max_mm_s = b.covered_mm_s(v);
             self.committed_end_mm_s = p.seg.v_end_mm_s.min(v);
         } else {
             self.committed_end_mm_s = p.seg.v_end_mm_s;

@@ -262,4 +262,42 @@ impl Planner {
             };
         }
     }
+
+    /// Per axis the sum of the absolute turns |Δu_k| of the junctions between blocks of the
+    /// walk `near` on one side of its junction, within each distance of `ds` (ascending;
+    /// cumulative in `out`), the junction itself not counted. Unlike the turn of the
+    /// tangent between two distances, turns of opposite sign do not cancel: the second
+    /// difference of a tick weighs each turn by a different part of its step.
+    pub(super) fn abs_turns_from(
+        &self,
+        near: &NearJunction,
+        ahead: bool,
+        ds: &[f64],
+        out: &mut [AxesMm],
+    ) {
+        let axes = self.cfg.axes;
+        let entries = if ahead { &near.ahead } else { &near.behind };
+        let mut sum = AxesMm::ZERO;
+        let mut n = 0;
+        for pair in entries.windows(2) {
+            let at = pair[1].walked_mm;
+            while n < ds.len() && at > ds[n] {
+                out[n] = sum;
+                n += 1;
+            }
+            if n == ds.len() {
+                return;
+            }
+            // The tangent at each block's far end (seen from the junction), as the lookups.
+            let far_end = |y: &Entry| {
+                let p = &self.win[y.k];
+                if ahead { p.t_end } else { p.t_start }
+            };
+            let (t0, t1) = (far_end(&pair[0]), far_end(&pair[1]));
+            for k in 0..axes {
+                sum[k] += (t1[k] - t0[k]).abs();
+            }
+        }
+        out[n..ds.len()].fill(sum);
+    }
 }

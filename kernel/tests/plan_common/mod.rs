@@ -451,10 +451,11 @@ fn measure_dynamics(cfg: &PlannerConfig, r: &Run, w: &mut Worst) {
     let axes = cfg.axes;
     let by_seq: std::collections::HashMap<u32, Segment> =
         r.segments.iter().map(|s| (s.seq, *s)).collect();
-    let a_path = r
-        .segments
-        .iter()
-        .fold(0.0f64, |m, s| m.max(s.accel_mm_s2).max(s.stop_accel_mm_s2));
+    let a_path = r.segments.iter().fold(0.0f64, |m, s| {
+        m.max(s.accel_mm_s2)
+            .max(s.stop_accel_mm_s2)
+            .max(s.free_accel_mm_s2)
+    });
     let j_path = r.segments.iter().fold(0.0f64, |m, s| m.max(s.jerk_mm_s3));
     let t = &r.ticks;
     let v = |k: usize, i: usize| (t[k].position[i] - t[k - 1].position[i]) / TS_S;
