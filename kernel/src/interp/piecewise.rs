@@ -29,6 +29,10 @@ use crate::units::TS_S;
 /// within 2·W and within W); a tick that would need more uses the exact curve alone.
 pub(super) const PIECEWISE_SLOTS: usize = 1024;
 
+/// Caps looked at per tick at most (the cost of a tick): past them the walk assumes a stop,
+/// which no cap farther can be below (its R = c² + 2·E is at least 2·E there).
+const PIECEWISE_CAPS: usize = 128;
+
 /// The limits of the piecewise curve, mm/s: hard, soft.
 pub(super) struct Piecewise {
     pub hard: f64,
@@ -60,16 +64,21 @@ impl Smallest {
 }
 
 impl Interpolator {
-    /// The piecewise limits of this tick (`hard`, `soft` before any cap ahead: the ceilings
-    /// of `caps_here`), walking at most to the first stop point. `None` where the windows do
-    /// not fit their slots.
+    /// The piecewise limits (hard, soft) of this tick where the exact ones (`exact`) are below
+    /// this tick's speed, each at most that speed (elsewhere 0: not needed). `here`: the
+    /// limits before any cap ahead (`caps_here`). Walks at most to the first stop point, and
+    /// only as far as a cap could still bring a needed limit below this tick's speed. `None`
+    /// where the windows do not fit their slots.
     pub(super) fn piecewise_limits(
         &mut self,
         accel_mm_s2: f64,
         braking: bool,
         v_up: f64,
         here: (f64, f64),
+        exact: (f64, f64),
     ) -> Option<Piecewise> {
+        let v_now = self.raw_v_mm_s;
+        let need = (exact.0 < v_now, exact.1 < v_now);
         let w = v_up * TS_S;
         let (mut hard, mut soft) = (Smallest::NONE, Smallest::NONE);
         // Monotonic deque of (segment, end distance, acceleration): the smallest acceleration
@@ -120,25 +129,40 @@ impl Interpolator {
                 self.pw_points[points] = (end_j, e, a_j);
                 points += 1;
             } else if g_up.is_infinite() {
-                g_up = v_up * v_up + 2.0 * self.e_at(points, w);
+                // G at this tick's speed: a cap with R above it allows that speed.
+                g_up = v_now * v_now + 2.0 * self.e_at(points, v_now * TS_S);
             }
             let seg = &self.ahead[self.idx(j)];
             let next = (j + 1 < self.len).then(|| &self.ahead[self.idx(j + 1)]);
             let (hard_cap, soft_cap, _) = self.caps_at_end(seg, next, 0.0);
             hard.add(hard_cap, end_j, e);
             soft.add(soft_cap, end_j, e);
-            if hard_cap == 0.0 || 2.0 * e >= g_up {
-                // A stop point, or every cap farther has R ≥ G(v_up): none binds this tick.
+            // Every cap farther has R ≥ 2·E: none can lower a needed limit below this tick's
+            // speed once 2·E reaches both its smallest R so far and G(v_now).
+            let bound = |needed: bool, s: &Smallest| if needed { s.r.min(g_up) } else { 0.0 };
+            let reach = bound(need.0, &hard).max(bound(need.1, &soft));
+            if hard_cap == 0.0 || 2.0 * e >= reach {
+                // (At a stop point the walk ends too.)
+                break;
+            }
+            if j + 1 - self.raw_seg >= PIECEWISE_CAPS {
+                hard.add(0.0, end_j, e);
+                soft.add(0.0, end_j, e);
                 break;
             }
             start_j = end_j;
             j += 1;
         }
-        let inv =
-            |s: &Smallest, here: f64| s.direct.min(self.g_inverse(points, s.r, v_up)).min(here);
+        let inv = |needed: bool, s: &Smallest, here: f64| {
+            if needed {
+                s.direct.min(self.g_inverse(points, s.r, v_now)).min(here)
+            } else {
+                0.0
+            }
+        };
         Some(Piecewise {
-            hard: inv(&hard, here.0),
-            soft: inv(&soft, here.1),
+            hard: inv(need.0, &hard, here.0),
+            soft: inv(need.1, &soft, here.1),
         })
     }
 
@@ -154,11 +178,11 @@ impl Interpolator {
         prev
     }
 
-    /// The largest v ≤ `v_up` with G(v) = v² + 2·E(0..v·Ts) ≤ `r`: per point E is linear, so
-    /// on the stretch where v·Ts lies v = −ã·Ts + √((ã·Ts)² + r − 2·(e − ã·end)).
-    fn g_inverse(&self, points: usize, r: f64, v_up: f64) -> f64 {
+    /// The largest v ≤ `v_top` with G(v) = v² + 2·E(0..v·Ts) ≤ `r`: per point E is linear,
+    /// so on the stretch where v·Ts lies v = −ã·Ts + √((ã·Ts)² + r − 2·(e − ã·end)).
+    fn g_inverse(&self, points: usize, r: f64, v_top: f64) -> f64 {
         if !r.is_finite() {
-            return v_up;
+            return v_top;
         }
         for &(end, e, a) in &self.pw_points[..points] {
             let v_end = end / TS_S;
@@ -166,11 +190,11 @@ impl Interpolator {
                 // v·Ts within this stretch: E(x) = e − a·(end − x).
                 let k = a * TS_S;
                 let c = r - 2.0 * (e - a * end);
-                return (-k + (k * k + c).max(0.0).sqrt()).clamp(0.0, v_up);
+                return (-k + (k * k + c).max(0.0).sqrt()).clamp(0.0, v_top);
             }
         }
         // Beyond the recorded stretch (past a stop point): no more distance.
         let e = points.checked_sub(1).map_or(0.0, |i| self.pw_points[i].1);
-        (r - 2.0 * e).max(0.0).sqrt().min(v_up)
+        (r - 2.0 * e).max(0.0).sqrt().min(v_top)
     }
 }

@@ -508,10 +508,11 @@ impl Interpolator {
         let linear = lag_s == 0.0 && walk.coast == 0.0 && walk.coast_accel == 0.0;
         let mut limits = walk.finish(stop_dist_mm);
         let keep = self.raw_v_mm_s;
-        let brakes = limits.hard_mm_s < keep || limits.soft_mm_s < keep;
+        let exact = (limits.hard_mm_s, limits.soft_mm_s);
+        let brakes = exact.0 < keep || exact.1 < keep;
         if linear
             && brakes
-            && let Some(pw) = self.piecewise_limits(accel_mm_s2, braking, v_up, here)
+            && let Some(pw) = self.piecewise_limits(accel_mm_s2, braking, v_up, here, exact)
         {
             // The piecewise curve (issue #32) lets the speed fall later and by each tick's
             // own acceleration, but never rise above the exact curve: a tick accelerates only
