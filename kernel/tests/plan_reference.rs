@@ -16,8 +16,8 @@ const NOT_YET_MET: &[(&str, f64)] = &[
     ("lissajous", 1.04),
     ("splines", 1.29),
     ("arcs", 1.165),
-    ("surface", 1.045),
-    ("helix", 1.085),
+    ("surface", 1.04),
+    ("helix", 1.075),
 ];
 
 #[test]
