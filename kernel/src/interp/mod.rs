@@ -47,6 +47,7 @@ use crate::units::{AxesMm, TS_S};
 mod ahead;
 mod axis_filter;
 mod jerk_filter;
+mod piecewise;
 mod raw;
 
 use ahead::{Ahead, AheadGroup, GROUP};
@@ -202,6 +203,11 @@ pub struct Interpolator {
     /// A block end ahead within the buffer is a stop point for single block (no scan needed
     /// until the raw position leaves the next stop point).
     block_stop_armed: bool,
+    /// Work space of the piecewise braking curve (`piecewise`): the window of accelerations
+    /// (segment, end distance, acceleration) and the points of E within one tick (end
+    /// distance, E, acceleration).
+    pw_deque: Box<[(usize, f64, f64)]>,
+    pw_points: Box<[(f64, f64, f64)]>,
 }
 
 impl Interpolator {
@@ -258,6 +264,8 @@ impl Interpolator {
             at_block_stop: false,
             block_stop_done: false,
             block_stop_armed: false,
+            pw_deque: vec![(0, 0.0, 0.0); piecewise::PIECEWISE_SLOTS].into_boxed_slice(),
+            pw_points: vec![(0.0, 0.0, 0.0); piecewise::PIECEWISE_SLOTS].into_boxed_slice(),
         }
     }
 

@@ -431,6 +431,70 @@ fn skipped_caps_never_lower_the_limit() {
     assert!(skipped > 1000 && grouped > 1000, "{skipped} {grouped}");
 }
 
+/// A straight X line of 80 segments of 0.5 mm, all at 1000 mm/s² but one at `a_low` (a line
+/// next to a turn), a cap of 20 mm/s at the end of segment 70 (x = 35.5) and a stop at the
+/// end; F 100 mm/s. The
+/// trace and the accelerations of the segments.
+fn braking_through_a_low_segment(a_low: f64, low: usize) -> (Vec<TickOut>, Vec<f64>) {
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    let mut accels = vec![];
+    for i in 0..80 {
+        let x = 0.5 * i as f64;
+        let v_end = match i {
+            70 => 20.0,
+            79 => 0.0,
+            _ => 100.0,
+        };
+        let mut s = line(i as u32, [x, 0.0, 0.0], [x + 0.5, 0.0, 0.0], 100.0, v_end);
+        let a = if i == low { a_low } else { 1000.0 };
+        s.accel_mm_s2 = a;
+        s.stop_accel_mm_s2 = a;
+        s.junction_cap_mm_s = v_end;
+        accels.push(a);
+        ip.push(s).unwrap();
+    }
+    let mut trace = vec![TickOut::default()];
+    trace.extend(run(&mut ip, 10_000));
+    (trace, accels)
+}
+
+/// Issue #32: the look-ahead brakes for a cap with the acceleration of each stretch of the way
+/// (`piecewise`), not with the smallest one on the whole way: a 0.5 mm segment of low
+/// acceleration before a cap no longer makes the whole braking zone slow. Each tick's speed
+/// still falls by at most the smallest acceleration of the segments it covers, and the cap
+/// point is passed at its cap.
+#[test]
+fn braking_uses_each_stretch_s_own_acceleration() {
+    let (trace, accels) = braking_through_a_low_segment(300.0, 67);
+    let x = |t: &TickOut| t.position[0];
+    let mut prev_v = 0.0;
+    for w in trace.windows(2) {
+        let v = (x(&w[1]) - x(&w[0])) / TS_S;
+        let (from, to) = (x(&w[0]), x(&w[1]));
+        let a_min = (0..80)
+            .filter(|&i| 0.5 * (i as f64) < to && 0.5 * (i + 1) as f64 > from)
+            .map(|i| accels[i])
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            prev_v - v <= a_min * TS_S * (1.0 + 1e-9) + 1e-9,
+            "drop {} at x {from}..{to}, a {a_min}",
+            prev_v - v
+        );
+        if from < 35.5 && to > 35.5 {
+            assert!(v <= 20.0 + 1e-9, "cap passed at {v}");
+        }
+        prev_v = v;
+    }
+    // At x = 28 braking with 300 mm/s² all the way (the smallest on the way) allows only
+    // √(20² + 2·300·7.5) = 70 mm/s; each stretch's own allows the feed.
+    let at_28 = trace
+        .windows(2)
+        .find(|w| x(&w[0]) <= 28.0 && x(&w[1]) > 28.0)
+        .map(|w| (x(&w[1]) - x(&w[0])) / TS_S)
+        .unwrap();
+    assert!(at_28 > 99.0, "{at_28}");
+}
+
 /// Arc length of `p` on the path (0,0) → (5,0) → (10,5).
 fn s_on_corner(p: &AxesMm) -> f64 {
     if p[1] == 0.0 && p[0] <= 5.0 {
