@@ -37,6 +37,9 @@ export function previewScreen(): Screen {
   let loadedFor = "";
   let tool: [number, number] | undefined;
   let refineTimer = 0;
+  /** Counts the refinements asked for: Fit drops one still on its way (it would mark the
+   * whole view as a refined extent). */
+  let refineSeq = 0;
   let generation = 0;
   /** The approach of a restart from the block status names (Status.restart_block), from
    * where the axes were when it was asked for. */
@@ -153,11 +156,12 @@ export function previewScreen(): Screen {
   function refineLater(): void {
     clearTimeout(refineTimer);
     if (!whole) return;
+    const seq = ++refineSeq;
     refineTimer = window.setTimeout(async () => {
       const ext = shown(), gen = generation;
       try {
         const o = await preview.getPreviewOutline({ plane: plane.value, minHMm: ext[0], minVMm: ext[1], maxHMm: ext[2], maxVMm: ext[3], ...px() });
-        if (gen !== generation) return;
+        if (gen !== generation || seq !== refineSeq) return;
         detail = { o, extent: ext };
         redraw();
       } catch (e) {
@@ -296,7 +300,7 @@ export function previewScreen(): Screen {
     h("div", { class: "row" }, h("label", {}, "Plane ", plane),
       button("−", "preview-zoom-out", () => zoom(0.8), "", "observer"),
       button("+", "preview-zoom-in", () => zoom(1.25), "", "observer"),
-      button("Fit", "preview-fit", () => { fit(); detail = undefined; redraw(); }, "", "observer"),
+      button("Fit", "preview-fit", () => { clearTimeout(refineTimer); refineSeq++; fit(); detail = undefined; redraw(); }, "", "observer"),
       info),
     stage,
     h("div", { class: "legend" },
