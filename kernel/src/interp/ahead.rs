@@ -161,7 +161,7 @@ impl Interpolator {
     ) -> bool {
         let g = &self.groups[self.idx(k) / GROUP];
         let next = &self.ahead[self.idx(k + GROUP)];
-        let filtered = self.jerk_filter_ticks > 1 || self.axis_window_ticks > 1;
+        let filtered = self.filtered();
         if g.v_end_mm_s <= 0.0 {
             return false;
         }

@@ -70,13 +70,19 @@ impl Interpolator {
         (now as f64, m as f64)
     }
 
+    /// Whether a filter (jerk or axis, the parabolic profile) stands between the raw speed and
+    /// the setpoints; without one the raw ticks are the setpoints (linear profile).
+    pub(super) fn filtered(&self) -> bool {
+        self.jerk_filter_ticks > 1 || self.axis_window_ticks > 1
+    }
+
     /// Ticks before and after a speed cap during which the raw speed stays within it (0: only
     /// at the cap). The jerk filter averages raw speeds over `m` ticks, so its speed at a
     /// point is within a cap if the raw speed was over the `m + 1` ticks around it; the axis
     /// filter takes path speeds from 2n ticks before to 2n ticks after a turn, and the
     /// planner's corner limits count on all of them being within the junction speed.
     pub(super) fn cap_zone_ticks(&self) -> usize {
-        if self.jerk_filter_ticks <= 1 && self.axis_window_ticks <= 1 {
+        if !self.filtered() {
             return 0;
         }
         let axis = if self.axis_window_ticks > 1 {

@@ -7,8 +7,8 @@
 //! the smallest acceleration on the way started far too early. Here the speed w(x) from which
 //! a cap c at distance d can still be reached is w(x)² = c² + 2·E(x..d), E the integral of
 //! ã, where ã at a point is the smallest acceleration of the segments within one tick's
-//! distance W = v_up·Ts of it (a tick's speed change is along the chords of the ticks around
-//! it). This tick may run at v with v ≤ w(v·Ts): at the end of its own distance it is still
+//! distance W = v_now·Ts of it (a tick's speed change is along the chords of the ticks around
+//! it; a braking tick covers no more than this one, and W must not grow from tick to tick). This tick may run at v with v ≤ w(v·Ts): at the end of its own distance it is still
 //! on the curve, so it never crosses a cap point faster than the cap. With G(v) = v² +
 //! 2·E(0..v·Ts), that is G(v) ≤ c² + 2·E(0..d) =: R: one inversion of G for the smallest R
 //! over the caps, no square root per cap.

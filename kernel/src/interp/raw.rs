@@ -596,7 +596,7 @@ impl Interpolator {
     }
 
     fn end_cap_parts(&self, v_end_mm_s: f64, junction_cap_mm_s: f64) -> f64 {
-        if self.jerk_filter_ticks > 1 || self.axis_window_ticks > 1 {
+        if self.filtered() {
             return v_end_mm_s;
         }
         v_end_mm_s.max(junction_cap_mm_s)
@@ -687,8 +687,8 @@ impl Interpolator {
     /// by it (0 where it does not apply), within the speeds the line's acceleration was
     /// planned for (`Segment::free_accel_v_max_mm_s`).
     fn free_up_mm_s(&self, head: &Segment, last_inside: bool, braking: bool) -> f64 {
-        let linear = self.jerk_filter_ticks <= 1 && self.axis_window_ticks <= 1;
-        if !last_inside || braking || !linear || !matches!(head.path, SegPath::Line { .. }) {
+        if !last_inside || braking || self.filtered() || !matches!(head.path, SegPath::Line { .. })
+        {
             return 0.0;
         }
         let up = (self.raw_v_mm_s + head.free_accel_mm_s2 * TS_S).min(head.free_accel_v_max_mm_s);
@@ -708,8 +708,7 @@ impl Interpolator {
     /// (a segment's path acceleration is within a_k/|u_k| of every axis it moves), so
     /// v_d ≤ a_out·(Ts − v_a/a_in) keeps every axis within its limit, whatever the turn.
     fn departure_cap_mm_s(&self, v_arrive: f64, a_head: f64) -> f64 {
-        if self.raw_seg + 1 >= self.len || self.jerk_filter_ticks > 1 || self.axis_window_ticks > 1
-        {
+        if self.raw_seg + 1 >= self.len || self.filtered() {
             return f64::INFINITY;
         }
         let (here, next) = (self.seg(self.raw_seg), self.seg(self.raw_seg + 1));
