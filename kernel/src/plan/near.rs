@@ -38,7 +38,7 @@ pub(super) struct NearJunction {
     /// Every block of the walk is longer than 1e-12 of its distance from the junction: then
     /// the lookup's test `x − walked ≤ length` (rounded) that holds at one entry holds at
     /// every later one (x − walked_{e+1} is at most a few ulp of walked_{e+1}, below
-    /// length_{e+1}), so it can be searched by bisection.
+    /// length_{e+1}), so a lookup may start from the entry where the last one ended.
     sorted: bool,
     /// Where the first lookup of the last call ended, behind and ahead (index into the side's
     /// entries; see `tangents_from`).
@@ -188,6 +188,15 @@ impl Planner {
         f64::INFINITY
     }
 
+    /// The tangent at the far end of the walk's block `y` (seen from the junction): a line's
+    /// tangent (its t_start and t_end are the same vector), and what the lookups beyond the
+    /// last block of the walk give.
+    #[inline(always)]
+    fn far_tangent(&self, y: &Entry, ahead: bool) -> AxesMm {
+        let p = &self.win[y.k];
+        if ahead { p.t_end } else { p.t_start }
+    }
+
     /// [`Planner::tangents_near`] at the distances `c·h` (`cs` ascending, > 0) from the walk
     /// `near` (which must cover them). `h_piece` is narrowed to the range of h over which
     /// every lookup stays on the same line (h_lo, h_hi]: the tangents, and so the turns, are
@@ -204,13 +213,7 @@ impl Planner {
     ) {
         let axes = self.cfg.axes;
         let entries = if ahead { &near.ahead } else { &near.behind };
-        // The tangent at the far end of a block (seen from the junction): a line's tangent
-        // (its t_start and t_end are the same vector), and what the lookups beyond the last
-        // block of the walk give.
-        let far_end = |y: &Entry| {
-            let p = &self.win[y.k];
-            if ahead { p.t_end } else { p.t_start }
-        };
+        let far_end = |y: &Entry| self.far_tangent(y, ahead);
         // (The range's ends are finite: plain comparisons, not the NaN-aware max and min.)
         let raise = |lo: &mut f64, x: f64| {
             if x > *lo {
@@ -289,11 +292,8 @@ impl Planner {
                 return;
             }
             // The tangent at each block's far end (seen from the junction), as the lookups.
-            let far_end = |y: &Entry| {
-                let p = &self.win[y.k];
-                if ahead { p.t_end } else { p.t_start }
-            };
-            let (t0, t1) = (far_end(&pair[0]), far_end(&pair[1]));
+            let t0 = self.far_tangent(&pair[0], ahead);
+            let t1 = self.far_tangent(&pair[1], ahead);
             for k in 0..axes {
                 sum[k] += (t1[k] - t0[k]).abs();
             }
