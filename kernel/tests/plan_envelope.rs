@@ -728,3 +728,32 @@ fn an_isolated_junction_takes_no_acceleration_step_margin() {
     let cap = r.segments[1].junction_cap_mm_s;
     assert!(cap <= bound && cap >= 0.997 * bound, "{cap} vs {bound}");
 }
+
+/// Issue #32: two turns closer than a tick's step both weigh on the second difference of
+/// the tick after them (each by the part of the previous step beyond it). The window
+/// measure of each junction weighed the other's turn by a sample of the window (half
+/// where it lies between h/2 and 3h/2), less than the step weighs it: on a short line
+/// between a 2° and a 1° turn at 200 mm/s the Y axis reached 1.0069 × its limit in the
+/// tick after them. Every turn within a step now weighs 1 − d/S (`near::AbsTurns`).
+#[test]
+fn junction_pairs_closer_than_a_step_keep_the_axis_limits() {
+    let cfg = reference_config();
+    for feed in [3000.0, 12000.0] {
+        for (t1, t2) in [(2.0f64, 1.0f64), (3.0, -3.0), (0.5, 1.0)] {
+            for rot in [0.0f64, 45.0, 70.0] {
+                for l in (0..20).map(|i| 0.01 + 0.02 * i as f64) {
+                    let mut p = Prog::new(p3(0.0, 0.0, 0.0), feed, Continuity::G23);
+                    let mut a = rot.to_radians();
+                    let mut q = p3(0.0, 0.0, 0.0);
+                    for (len, turn) in [(5.0, t1), (l, t2), (5.0, 0.0)] {
+                        q = q + p3(a.cos(), a.sin(), 0.0) * len;
+                        p.g1(q);
+                        a += turn.to_radians();
+                    }
+                    let name = format!("pair F{feed} {t1}° {l:.2} mm {t2}° at {rot}°");
+                    assert_within(&name, &cfg, &p.blocks);
+                }
+            }
+        }
+    }
+}
