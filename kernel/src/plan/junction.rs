@@ -439,8 +439,13 @@ impl Planner {
         let arcs = is_arc(p)
             || (next_smooth && is_arc(&self.win[i + 1]))
             || (prev_smooth && is_arc(&self.win[i - 1]));
-        let turning =
-            (prev_smooth && self.win[i - 1].turn > 1e-9) || (next_smooth && p.turn > 1e-9);
+        // A junction turns the path where it turns itself or where its turns see a turn
+        // within a tick's step of it (a straight junction beside a short turning block: the
+        // tick after both weighs their turns; issue #32).
+        let turns = |q: &Pending| {
+            q.turn > 1e-9 || q.turns.is_some_and(|t| t.normal_per_s.iter().any(|&n| n > 0.0))
+        };
+        let turning = (prev_smooth && turns(&self.win[i - 1])) || (next_smooth && turns(p));
         if !arcs && !turning {
             return Share::Fixed(1.0);
         }
