@@ -470,12 +470,20 @@ proptest! {
 /// splits a line) mixed among small and larger turns: main took an axis to 1.158 × its
 /// limit on such a path (a 2.7° turn, 0.007 mm, a straight junction, 0.31 mm) before a
 /// junction that sees turns within a step counted as turning.
-fn short_blocks_path(feed_mm_min: f64, rot: (f64, f64), steps: &[(f64, u8, f64, f64)]) -> Vec<Block> {
+fn short_blocks_path(
+    feed_mm_min: f64,
+    rot: (f64, f64),
+    steps: &[(f64, u8, f64, f64)],
+) -> Vec<Block> {
     let mut p = Prog::new(p3(0.0, 0.0, 0.0), feed_mm_min, Continuity::G23);
     let (mut a, mut b) = rot;
     let n = steps.len();
     for (i, &(log_len, kind, da, db)) in steps.iter().enumerate() {
-        let len = if i == 0 || i + 1 == n { 5.0 } else { log_len.exp() };
+        let len = if i == 0 || i + 1 == n {
+            5.0
+        } else {
+            log_len.exp()
+        };
         let q = p.pos + p3(a.cos() * b.cos(), a.sin() * b.cos(), b.sin()) * len;
         p.g1(q);
         let scale = [0.0, 0.15, 1.0][usize::from(kind % 3)];
@@ -495,7 +503,7 @@ proptest! {
     fn random_short_blocks_and_straight_junctions_stay_within_limits(
         steps in prop::collection::vec((-5.3f64..0.5, 0u8..3, -0.3f64..0.3, -0.1f64..0.1), 3..8),
         feed in prop::sample::select(vec![1500.0, 3000.0, 6000.0, 12000.0]),
-        rot in (0.0f64..6.28, -0.5f64..0.5),
+        rot in (0.0f64..std::f64::consts::TAU, -0.5f64..0.5),
     ) {
         assert_within("short blocks", &reference_config(), &short_blocks_path(feed, rot, &steps));
     }

@@ -443,7 +443,9 @@ impl Planner {
         // within a tick's step of it (a straight junction beside a short turning block: the
         // tick after both weighs their turns; issue #32).
         let turns = |q: &Pending| {
-            q.turn > 1e-9 || q.turns.is_some_and(|t| t.normal_per_s.iter().any(|&n| n > 0.0))
+            q.turn > 1e-9
+                || q.turns
+                    .is_some_and(|t| t.normal_per_s.iter().any(|&n| n > 0.0))
         };
         let turning = (prev_smooth && turns(&self.win[i - 1])) || (next_smooth && turns(p));
         if !arcs && !turning {
