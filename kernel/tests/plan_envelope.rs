@@ -466,6 +466,49 @@ proptest! {
     }
 }
 
+/// Short blocks between long ones, with straight junctions (collinear chords, as CAM output
+/// splits a line) mixed among small and larger turns: main took an axis to 1.158 × its
+/// limit on such a path (a 2.7° turn, 0.007 mm, a straight junction, 0.31 mm) before a
+/// junction that sees turns within a step counted as turning.
+fn short_blocks_path(
+    feed_mm_min: f64,
+    rot: (f64, f64),
+    steps: &[(f64, u8, f64, f64)],
+) -> Vec<Block> {
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), feed_mm_min, Continuity::G23);
+    let (mut a, mut b) = rot;
+    let n = steps.len();
+    for (i, &(log_len, kind, da, db)) in steps.iter().enumerate() {
+        let len = if i == 0 || i + 1 == n {
+            5.0
+        } else {
+            log_len.exp()
+        };
+        let q = p.pos + p3(a.cos() * b.cos(), a.sin() * b.cos(), b.sin()) * len;
+        p.g1(q);
+        let scale = [0.0, 0.15, 1.0][usize::from(kind % 3)];
+        a += da * scale;
+        b = (b + db * scale).clamp(-0.5, 0.5);
+    }
+    p.blocks
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig {
+        cases: std::env::var("PROPTEST_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(64),
+        ..ProptestConfig::default()
+    })]
+
+    #[test]
+    fn random_short_blocks_and_straight_junctions_stay_within_limits(
+        steps in prop::collection::vec((-5.3f64..0.5, 0u8..3, -0.3f64..0.3, -0.1f64..0.1), 3..8),
+        feed in prop::sample::select(vec![1500.0, 3000.0, 6000.0, 12000.0]),
+        rot in (0.0f64..std::f64::consts::TAU, -0.5f64..0.5),
+    ) {
+        assert_within("short blocks", &reference_config(), &short_blocks_path(feed, rot, &steps));
+    }
+}
+
 #[test]
 fn dwells_wait_at_rest() {
     let mut p = Prog::new(p3(0.0, 0.0, 0.0), 3000.0, Continuity::G23);
@@ -727,4 +770,44 @@ fn an_isolated_junction_takes_no_acceleration_step_margin() {
     let bound = 0.8 * cfg.axis_a_max_mm_s2[1] * kernel::TS_S / du_y;
     let cap = r.segments[1].junction_cap_mm_s;
     assert!(cap <= bound && cap >= 0.997 * bound, "{cap} vs {bound}");
+}
+
+/// Issue #32: two turns closer than a tick's step both weigh on the second difference of
+/// the tick after them (each by the part of the previous step beyond it). The window
+/// measure of each junction weighed the other's turn by a sample of the window (half
+/// where it lies between h/2 and 3h/2), less than the step weighs it: on a short line
+/// between a 2° and a 1° turn at 200 mm/s the Y axis reached 1.0069 × its limit in the
+/// tick after them. Every turn within a step now weighs 1 − d/S (`near::AbsTurns`). And a
+/// line after a straight junction took its full acceleration although the turns just
+/// before that junction weighed on its first tick (1.088 × with a 1° and a 2° turn 0.01 mm
+/// apart, then 0.017 mm straight on): a junction that sees turns within a step is turning.
+#[test]
+fn junction_pairs_closer_than_a_step_keep_the_axis_limits() {
+    let cfg = reference_config();
+    for feed in [3000.0, 12000.0] {
+        for (t1, t2, t3) in [
+            (2.0f64, 1.0f64, None),
+            (3.0, -3.0, None),
+            (0.5, 1.0, None),
+            (1.0, 2.0, Some(0.0)),
+            (5.0, 0.2, Some(0.0)),
+        ] {
+            for rot in [0.0f64, 45.0, 70.0] {
+                for l in (0..20).map(|i| 0.01 + 0.02 * i as f64) {
+                    let mut p = Prog::new(p3(0.0, 0.0, 0.0), feed, Continuity::G23);
+                    let mut a = rot.to_radians();
+                    let mut q = p3(0.0, 0.0, 0.0);
+                    let third = t3.map(|t| (1.7 * l, t));
+                    let blocks = [(5.0, t1), (l, t2)].into_iter().chain(third);
+                    for (len, turn) in blocks.chain([(5.0, 0.0)]) {
+                        q = q + p3(a.cos(), a.sin(), 0.0) * len;
+                        p.g1(q);
+                        a += turn.to_radians();
+                    }
+                    let name = format!("pair F{feed} {t1}° {l:.2} mm {t2}° {t3:?} at {rot}°");
+                    assert_within(&name, &cfg, &p.blocks);
+                }
+            }
+        }
+    }
 }

@@ -198,3 +198,50 @@ fn linear_moves_reach_the_limits_of_the_axes_they_move() {
 fn parabolic_moves_reach_the_limits_of_the_axes_they_move() {
     moves_reach_their_own_axes_limits(true);
 }
+
+/// A program of G1 lines at `feed` through `points` (absolute), smooth continuity (G23).
+fn polyline_program(points: &[[f64; 2]], feed_mm_min: f64) -> String {
+    let mut text = format!("G90 G23 F{feed_mm_min}\n");
+    for p in points {
+        text += &format!("G1 X{:.6} Y{:.6}\n", p[0], p[1]);
+    }
+    text + "G98\n"
+}
+
+/// Issue #32: turns closer than a tick's step, and a straight junction just after them
+/// (collinear chords, as CAM output splits a line), run through the daemon's pipeline: no
+/// axis past its limit. The old planner took an axis above it on such paths (the lines
+/// after them used more acceleration than the turns left; docs/planner.md).
+#[test]
+fn turns_closer_than_a_step_keep_every_axis_limit() {
+    let mut m = machine();
+    for feed in [3000.0, 6000.0, 12000.0] {
+        for (t1, t2, straight) in [(2.0f64, 1.0f64, false), (1.0, 2.0, true), (3.0, 0.5, true)] {
+            for l in [0.007, 0.02, 0.05, 0.12] {
+                m.run("G90 G0 X0 Y0 Z0");
+                let mut a = 70f64.to_radians();
+                let mut p = [0.0, 0.0];
+                let mut points = Vec::new();
+                let third = straight.then_some((1.7 * l, 0.0));
+                for (len, turn) in [(5.0, t1), (l, t2)]
+                    .into_iter()
+                    .chain(third)
+                    .chain([(5.0, 0.0)])
+                {
+                    p = [p[0] + a.cos() * len, p[1] + a.sin() * len];
+                    points.push(p);
+                    a += turn.to_radians();
+                }
+                let text = polyline_program(&points, feed);
+                let r = measure(&m.run(&text));
+                for (i, a_lim) in A_MM_S2.iter().enumerate() {
+                    assert!(
+                        r.axis_accel[i] <= a_lim * (1.0 + 1e-6),
+                        "axis {i} at {} mm/s² ({t1}°, {l} mm, {t2}°, straight {straight}, F{feed})",
+                        r.axis_accel[i]
+                    );
+                }
+            }
+        }
+    }
+}

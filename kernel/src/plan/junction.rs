@@ -3,7 +3,7 @@
 //! ceiling. `Planner::finalize` runs these steps in order; each is a function of its own.
 
 use super::budget::{JunctionTurns, LineBudget};
-use super::near::NearJunction;
+use super::near::{AbsTurns, NearJunction};
 use super::{
     NORMAL_SHARE, OVERRIDE_MAX, Pending, Planner, Profile, SegPath, Segment, criteria, junction_of,
 };
@@ -300,16 +300,21 @@ impl Planner {
     /// keeps the turns with the range of h over which they are the same, for the search's
     /// later speeds and [`Planner::junction_turns`] at the speed it settles on.
     fn box_window_bound(&self, i: usize, v: f64, l: &WindowLimits, near: &NearJunction) -> f64 {
-        let (mut t, window, h_piece, fresh) = self.turns_and_window(i, v, near);
+        let (mut t, window, mut h_piece, fresh) = self.turns_and_window(i, v, near);
         let mut bound = self.box_bound(&t, &window, v, l);
         if bound >= v * (1.0 - 1e-9) && fresh {
             // The absolute turns only lower the bound: needed where it holds without them.
-            self.add_abs_turns(i, v, near, &mut t);
+            let signed = t;
+            let Some(abs) = self.abs_turns(i, v, near, &mut h_piece) else {
+                // (Not reached: the walk covers 2h of the search's highest speed.)
+                return 0.0;
+            };
+            Self::apply_abs_turns(self.cfg.axes, &abs, self.turn_window(i, v).1, &mut t);
             bound = self.box_bound(&t, &window, v, l);
             // Kept with them (a lookup without them must not be reused): the search's next
             // speeds, and its result, are likely in this piece.
             if h_piece.0 < h_piece.1 {
-                near.remember(t, window, h_piece);
+                near.remember((signed, window, abs, h_piece));
             }
         }
         bound
@@ -434,8 +439,15 @@ impl Planner {
         let arcs = is_arc(p)
             || (next_smooth && is_arc(&self.win[i + 1]))
             || (prev_smooth && is_arc(&self.win[i - 1]));
-        let turning =
-            (prev_smooth && self.win[i - 1].turn > 1e-9) || (next_smooth && p.turn > 1e-9);
+        // A junction turns the path where it turns itself or where its turns see a turn
+        // within a tick's step of it (a straight junction beside a short turning block: the
+        // tick after both weighs their turns; issue #32).
+        let turns = |q: &Pending| {
+            q.turn > 1e-9
+                || q.turns
+                    .is_some_and(|t| t.normal_per_s.iter().any(|&n| n > 0.0))
+        };
+        let turning = (prev_smooth && turns(&self.win[i - 1])) || (next_smooth && turns(p));
         if !arcs && !turning {
             return Share::Fixed(1.0);
         }
@@ -507,9 +519,12 @@ impl Planner {
     /// along. Looked up once per junction for the lines on both sides.
     pub(super) fn junction_turns(&mut self, j: usize, cap: f64) -> JunctionTurns {
         let near = self.near_junction(j, cap);
-        let (mut t, _, _, fresh) = self.turns_and_window(j, cap, &near);
+        let (mut t, _, mut h_piece, fresh) = self.turns_and_window(j, cap, &near);
         if fresh {
-            self.add_abs_turns(j, cap, &near, &mut t);
+            // (`near_junction` walked 2h at `cap`.)
+            if let Some(abs) = self.abs_turns(j, cap, &near, &mut h_piece) {
+                Self::apply_abs_turns(self.cfg.axes, &abs, self.turn_window(j, cap).1, &mut t);
+            }
         }
         t.dir = self.turn_dirs(j, self.turn_window(j, cap).1, &near);
         self.near = Some(near);
@@ -517,13 +532,13 @@ impl Planner {
     }
 
     /// The blocks near junction `j` that its turns at speeds up to `cap` look at, within
-    /// 1.5h (the walk of the last call when it covers them; hand it back to `self.near`
+    /// 2h (the walk of the last call when it covers them; hand it back to `self.near`
     /// after use). The `dir` lookups at 3h, once per junction, walk the window instead
     /// (`tangents_near`, the same tangents): walking 3h for them cost more.
     fn near_junction(&mut self, j: usize, cap: f64) -> Box<NearJunction> {
         // (Boxed: moving it out and back costs a pointer.)
         let mut near = self.near.take().unwrap_or_default();
-        let reach = 1.5 * self.turn_window(j, cap).1;
+        let reach = 2.0 * self.turn_window(j, cap).1;
         if !near.covers(j, reach) {
             self.walk_near(j, reach, &mut near);
         }
@@ -569,14 +584,15 @@ impl Planner {
         let axes = self.cfg.axes;
         let (v, h) = self.turn_window(j, cap);
         let v_turn = if self.isolated(j, v) { cap } else { v };
-        if let Some((turns, window, piece)) = near.same_piece(j, h) {
-            // The same tangents as a recent lookup (with its absolute turns): only v_ref
-            // differs.
-            let t = JunctionTurns {
+        if let Some((turns, window, abs, piece)) = near.same_piece(j, h) {
+            // The same tangents and junctions within 2h as a recent lookup: v_ref and the
+            // weights of the absolute turns differ.
+            let mut t = JunctionTurns {
                 v_ref_mm_s: v,
                 v_turn_mm_s: v_turn,
                 ..turns
             };
+            Self::apply_abs_turns(axes, &abs, h, &mut t);
             return (t, window, piece, false);
         }
         let mut t = JunctionTurns {
@@ -609,24 +625,35 @@ impl Planner {
         (t, t1 - t0, h_piece, true)
     }
 
-    /// Raises the turns of [`Planner::turns_and_window`] (looked up afresh, at `cap`) to the
-    /// absolute turns of the junctions within ±h/2 and ±3h/2 where the walk covers them:
-    /// turns of opposite sign cancel in the tangent's turn, not in the ticks' second
-    /// differences (which weigh them by different parts of a step; issue #32).
-    fn add_abs_turns(&self, j: usize, cap: f64, near: &NearJunction, t: &mut JunctionTurns) {
+    /// The absolute turns near junction `j` at `cap` ([`AbsTurns`]; the walk must cover 2h,
+    /// `near_junction` walks that far), with `h_piece` narrowed to the range of h over which
+    /// the same junctions lie within 2h. None where the walk does not cover them.
+    fn abs_turns(
+        &self,
+        j: usize,
+        cap: f64,
+        near: &NearJunction,
+        h_piece: &mut (f64, f64),
+    ) -> Option<AbsTurns> {
         let h = self.turn_window(j, cap).1;
-        let ds = [h / 2.0, 1.5 * h];
-        if !near.covers(j, ds[1]) {
-            return;
+        if !near.covers(j, 2.0 * h) {
+            return None;
         }
-        let mut a = [AxesMm::ZERO; 2];
-        let mut b = [AxesMm::ZERO; 2];
-        self.abs_turns_from(near, true, &ds, &mut a);
-        self.abs_turns_from(near, false, &ds, &mut b);
+        let mut abs = AbsTurns::default();
         let own = self.win[j + 1].t_start - self.win[j].t_end;
-        for k in 0..self.cfg.axes {
-            let abs = own[k].abs() + 0.5 * (a[0][k] + b[0][k] + a[1][k] + b[1][k]);
-            t.normal_per_s[k] = t.normal_per_s[k].max(abs / TS_S);
+        abs.add(self.cfg.axes, &own, 0.0);
+        self.abs_turns_from(near, true, h, &mut abs, h_piece);
+        self.abs_turns_from(near, false, h, &mut abs, h_piece);
+        Some(abs)
+    }
+
+    /// Raises the turns to the absolute turns near the junction at h ([`AbsTurns`]): the
+    /// tangent's turn over the window lets turns of opposite sign cancel and weighs the
+    /// turns by two samples of the window, not as the ticks' second differences do.
+    #[inline]
+    fn apply_abs_turns(axes: usize, abs: &AbsTurns, h: f64, t: &mut JunctionTurns) {
+        for k in 0..axes {
+            t.normal_per_s[k] = t.normal_per_s[k].max(abs.at(k, h) / TS_S);
         }
     }
 

@@ -22,9 +22,43 @@ struct Entry {
     arc: bool,
 }
 
-/// Turns looked up near a junction (without `dir`), the tangent's turn over the tick window
-/// and the range of h (h_lo, h_hi] over which they are the same.
-pub(super) type Lookup = (JunctionTurns, AxesMm, (f64, f64));
+/// Turns looked up near a junction (without `dir` and without the absolute turns), the
+/// tangent's turn over the tick window, the absolute turns and the range of h (h_lo, h_hi]
+/// over which all are the same (the absolute turns as a function of h).
+pub(super) type Lookup = (JunctionTurns, AxesMm, AbsTurns, (f64, f64));
+
+/// The absolute turns near a junction weighted as the setpoints' second differences weigh
+/// them (issue #32): a tick point p with steps of at most S = v_ref·Ts = 2h on either side
+/// weighs the turn Δu of a junction at distance d by S − d (the part of the step beyond it),
+/// so per axis N_k·Ts ≤ v_ref·Σ|Δu_k|·(1 − d/S) over the junctions within S. Between two
+/// junctions the sum is convex in p (each term falls or rises linearly, then stays 0), so
+/// its largest value on a line is at one of its ends: the junction's own sum bounds every
+/// tick whose step starts on the lines beside it. Turns of opposite sign do not cancel.
+/// Kept as Σ|Δu_k| and Σ|Δu_k|·d over the junctions within S (the junction's own at d = 0):
+/// the same junctions lie within S over a range of h.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct AbsTurns {
+    sum: AxesMm,
+    moment_mm: AxesMm,
+}
+
+impl AbsTurns {
+    /// Σ|Δu_k|·(1 − d/S) for axis k at S = 2h.
+    #[inline]
+    pub(super) fn at(&self, k: usize, h: f64) -> f64 {
+        self.sum[k] - self.moment_mm[k] / (2.0 * h)
+    }
+
+    /// Adds the turn `du` of a junction at distance `d_mm`.
+    #[inline]
+    pub(super) fn add(&mut self, axes: usize, du: &AxesMm, d_mm: f64) {
+        for k in 0..axes {
+            let a = du[k].abs();
+            self.sum[k] += a;
+            self.moment_mm[k] += a * d_mm;
+        }
+    }
+}
 
 /// The blocks within a distance before and after junction `j` (the end of block `j`).
 #[derive(Clone, Debug)]
@@ -49,7 +83,7 @@ pub(super) struct NearJunction {
     /// already seen, and the cap it settles on too (`junction_turns`). At most `PIECES`,
     /// the oldest replaced first.
     piece_h: [Cell<(f64, f64)>; PIECES],
-    piece_turns: [Cell<(JunctionTurns, AxesMm)>; PIECES],
+    piece_turns: [Cell<(JunctionTurns, AxesMm, AbsTurns)>; PIECES],
     /// Pieces kept, and where the next one goes once `PIECES` are.
     pieces: Cell<usize>,
     next_piece: Cell<usize>,
@@ -85,7 +119,8 @@ impl NearJunction {
 
     /// Keeps the turns of a lookup at h in `h_piece` (h_lo, h_hi] (a lookup in a range
     /// already kept comes from it: not kept twice).
-    pub(super) fn remember(&self, t: JunctionTurns, window: AxesMm, h_piece: (f64, f64)) {
+    pub(super) fn remember(&self, lookup: Lookup) {
+        let (t, window, abs, h_piece) = lookup;
         let n = self.pieces.get();
         if self.piece_h[..n].iter().any(|p| p.get() == h_piece) {
             return;
@@ -99,7 +134,7 @@ impl NearJunction {
             slot
         };
         self.piece_h[slot].set(h_piece);
-        self.piece_turns[slot].set((t, window));
+        self.piece_turns[slot].set((t, window, abs));
     }
 
     fn forget(&self) {
@@ -121,8 +156,8 @@ impl NearJunction {
             let (lo, hi) = p.get();
             lo < hi && lo * (1.0 + 1e-9) < h && h <= hi * (1.0 - 1e-9)
         })?;
-        let (t, window) = self.piece_turns[slot].get();
-        Some((t, window, self.piece_h[slot].get()))
+        let (t, window, abs) = self.piece_turns[slot].get();
+        Some((t, window, abs, self.piece_h[slot].get()))
     }
 
     /// Whether the walk was made for junction `j` and covers `d_mm` on both sides.
@@ -266,38 +301,29 @@ impl Planner {
         }
     }
 
-    /// Per axis the sum of the absolute turns |Δu_k| of the junctions between blocks of the
-    /// walk `near` on one side of its junction, within each distance of `ds` (ascending;
-    /// cumulative in `out`), the junction itself not counted. Unlike the turn of the
-    /// tangent between two distances, turns of opposite sign do not cancel: the second
-    /// difference of a tick weighs each turn by a different part of its step.
+    /// Adds the absolute turns of the junctions between blocks of the walk `near` on one side
+    /// of its junction at distances d < 2h to `abs` (the junction itself not counted).
+    /// Narrows `h_piece` to the range of h over which the same junctions lie within 2h.
     pub(super) fn abs_turns_from(
         &self,
         near: &NearJunction,
         ahead: bool,
-        ds: &[f64],
-        out: &mut [AxesMm],
+        h: f64,
+        abs: &mut AbsTurns,
+        h_piece: &mut (f64, f64),
     ) {
-        let axes = self.cfg.axes;
         let entries = if ahead { &near.ahead } else { &near.behind };
-        let mut sum = AxesMm::ZERO;
-        let mut n = 0;
+        let s = 2.0 * h;
         for pair in entries.windows(2) {
-            let at = pair[1].walked_mm;
-            while n < ds.len() && at > ds[n] {
-                out[n] = sum;
-                n += 1;
-            }
-            if n == ds.len() {
+            let d = pair[1].walked_mm;
+            if d >= s {
+                h_piece.1 = h_piece.1.min(0.5 * d);
                 return;
             }
+            h_piece.0 = h_piece.0.max(0.5 * d);
             // The tangent at each block's far end (seen from the junction), as the lookups.
-            let t0 = self.far_tangent(&pair[0], ahead);
-            let t1 = self.far_tangent(&pair[1], ahead);
-            for k in 0..axes {
-                sum[k] += (t1[k] - t0[k]).abs();
-            }
+            let du = self.far_tangent(&pair[1], ahead) - self.far_tangent(&pair[0], ahead);
+            abs.add(self.cfg.axes, &du, d);
         }
-        out[n..ds.len()].fill(sum);
     }
 }
