@@ -467,9 +467,11 @@ proptest! {
 }
 
 /// Short blocks between long ones, with straight junctions (collinear chords, as CAM output
-/// splits a line) mixed among small and larger turns: main took an axis to 1.158 × its
-/// limit on such a path (a 2.7° turn, 0.007 mm, a straight junction, 0.31 mm) before a
-/// junction that sees turns within a step counted as turning.
+/// splits a line) mixed among tiny, small, larger and sharp turns. Main took an axis to
+/// 1.158 × its limit on such a path (a 2.7° turn, 0.007 mm, a straight junction, 0.31 mm)
+/// before a junction that sees turns within a step counted as turning, and to 1.011 × on a
+/// 12-block one at F20000 before a budgeted line's ceiling held its ticks to the speeds its
+/// budget covers (free acceleration took them there early, and the ticks after it went on).
 fn short_blocks_path(
     feed_mm_min: f64,
     rot: (f64, f64),
@@ -486,9 +488,16 @@ fn short_blocks_path(
         };
         let q = p.pos + p3(a.cos() * b.cos(), a.sin() * b.cos(), b.sin()) * len;
         p.g1(q);
-        let scale = [0.0, 0.15, 1.0][usize::from(kind % 3)];
-        a += da * scale;
-        b = (b + db * scale).clamp(-0.5, 0.5);
+        // Straight, small, larger, tiny (1e-6 of da), sharp.
+        let (ka, kb) = [
+            (0.0, 0.0),
+            (0.15, 0.15),
+            (1.0, 1.0),
+            (3e-6, 0.0),
+            (6.0, 3.0),
+        ][usize::from(kind % 5)];
+        a += da * ka;
+        b = (b + db * kb).clamp(-0.5, 0.5);
     }
     p.blocks
 }
@@ -501,12 +510,68 @@ proptest! {
 
     #[test]
     fn random_short_blocks_and_straight_junctions_stay_within_limits(
-        steps in prop::collection::vec((-5.3f64..0.5, 0u8..3, -0.3f64..0.3, -0.1f64..0.1), 3..8),
-        feed in prop::sample::select(vec![1500.0, 3000.0, 6000.0, 12000.0]),
+        steps in prop::collection::vec((-7.0f64..1.0, 0u8..5, -0.3f64..0.3, -0.1f64..0.1), 3..14),
+        feed in prop::sample::select(vec![600.0, 1500.0, 3000.0, 6000.0, 12000.0, 20000.0]),
         rot in (0.0f64..std::f64::consts::TAU, -0.5f64..0.5),
     ) {
         assert_within("short blocks", &reference_config(), &short_blocks_path(feed, rot, &steps));
     }
+}
+
+/// A budgeted line's ticks stay within the speeds its budget covers: after a near stop the
+/// free acceleration took the ticks of a 2.3 mm line to the top of what its budget covers
+/// early, the ticks after it went on at the line's acceleration, and two short lines later
+/// the X axis reached 1.011 × its limit (F20000). The commit now makes that speed the line's
+/// ceiling. Found by a random search of short-block paths (`short_blocks_path`'s kind).
+#[test]
+fn a_budgeted_line_s_ticks_stay_within_the_speeds_its_budget_covers() {
+    let turns: [(f64, f64, f64); 12] = [
+        (5e0, 1.034106379698533e-2, -1.383815588500065e-2),
+        (
+            2.8570740247694324e-2,
+            1.586924733605583e-1,
+            5.6328751000078225e-2,
+        ),
+        (
+            4.497019501210325e-3,
+            -2.1303196212385224e-2,
+            -1.1358839324071121e-2,
+        ),
+        (2.03801459277952e0, 0.0, 0.0),
+        (
+            2.278290799516519e-3,
+            2.7485144635613662e-2,
+            -1.352479114760598e-2,
+        ),
+        (
+            1.4416592615823742e-1,
+            4.95682727270553e-2,
+            -8.2418118657485e-3,
+        ),
+        (2.509806446533193e0, -2.0381485644710407e-7, 0.0),
+        (
+            7.701950099384344e-2,
+            9.888012530889281e-1,
+            -1.403629004327717e-1,
+        ),
+        (
+            2.2888536700654423e0,
+            -5.301578190093226e-2,
+            -2.855163514730462e-2,
+        ),
+        (1.3063243813608426e-3, 0.0, 0.0),
+        (1.6853497544435564e-1, 0.0, 0.0),
+        (5e0, 9.247893896562559e-2, -1.74025508155273e-2),
+    ];
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 20000.0, Continuity::G23);
+    let (mut a, mut b) = (6.0595514704534335e0f64, 4.1718629573187815e-1f64);
+    for (len, da, db) in turns {
+        let q = p.pos + p3(a.cos() * b.cos(), a.sin() * b.cos(), b.sin()) * len;
+        p.g1(q);
+        a += da;
+        b = (b + db).clamp(-0.5, 0.5);
+    }
+    assert_within("budget ceiling", &reference_config(), &p.blocks);
 }
 
 #[test]

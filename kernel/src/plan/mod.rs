@@ -944,6 +944,7 @@ impl Planner {
             p.apply_budget(&b, v, rapid_a);
             // Free ticks must not carry the line past the speeds its budget covers.
             p.seg.free_accel_v_max_mm_s = b.covered_mm_s(v);
+            p.seg.v_max_mm_s = p.seg.v_max_mm_s.min(b.covered_mm_s(v));
             self.committed_end_mm_s = p.seg.v_end_mm_s.min(v);
         } else {
             self.committed_end_mm_s = p.seg.v_end_mm_s;
