@@ -14,7 +14,7 @@ use crate::units::{AxesMm, MAX_AXES, TS_S};
 /// tangential acceleration of the lines beside it, so braking never stalls. (0.8 until the
 /// interpolator braked with each stretch's own acceleration; from 0.9 on the random splines,
 /// whose long chords ramp at what the turns leave, lose: docs/planner.md.)
-pub(super) const BOX_NORMAL_SHARE: f64 = 0.8;
+pub const BOX_NORMAL_SHARE: f64 = 0.8;
 
 /// How much of the axes' path acceleration a block may use along the path.
 enum Share {
@@ -743,7 +743,10 @@ impl Planner {
         let split = 1.0 - NORMAL_SHARE;
         let linear = self.cfg.envelope.profile == Profile::Linear;
         // Per side, with V the speed the block reaches from the cap: a line ramping between
-        // cap and V at b < a instead of a loses (1/b − 1/a)·(V − cap)²/(2V).
+        // cap and V at b < a instead of a loses (1/b − 1/a)·(V − cap)²/(2V); where its far
+        // end is a stop (or the start) it also ramps between 0 and V at b, not at the a a
+        // stop at this junction would leave it: (1/b − 1/a)·V/2 more (a two-line path
+        // turning 34° at 5-8 mm/s ran 3 ticks slower passed than stopped).
         let mut loss = 0.0;
         for (side, q) in [(i, p), (i + 1, n)] {
             if is_arc(q) {
@@ -762,7 +765,13 @@ impl Planner {
             } else {
                 split * aq
             };
-            loss += (1.0 / b - 1.0 / aq) * (v - cap) * (v - cap) / (2.0 * v);
+            let far_stop = if side == i {
+                i == 0 || !self.win[i - 1].smooth
+            } else {
+                !n.smooth
+            };
+            let far = if far_stop { v * v } else { 0.0 };
+            loss += (1.0 / b - 1.0 / aq) * ((v - cap) * (v - cap) + far) / (2.0 * v);
         }
         (gain, loss)
     }
