@@ -15,9 +15,9 @@ use plan_common::*;
 const NOT_YET_MET: &[(&str, f64)] = &[
     ("lissajous", 1.04),
     ("splines", 1.16),
-    ("arcs", 1.13),
+    ("arcs", 1.115),
     ("surface", 1.045),
-    ("helix", 1.085),
+    ("helix", 1.075),
 ];
 
 #[test]
