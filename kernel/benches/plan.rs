@@ -306,20 +306,23 @@ fn dense_blocks(n: usize) -> Vec<Block> {
     out
 }
 
+/// `n` blocks of 0.1 mm along X alternating 0.02 mm in Y (turns of ±22.6°), F6000.
+fn zigzag_blocks(n: usize) -> Vec<Block> {
+    let mut zz = Prog::new(p3(0.0, 0.0, 0.0), 6000.0, Continuity::G23);
+    for i in 0..n {
+        zz.g1(p3((i + 1) as f64 * 0.1, ((i + 1) % 2) as f64 * 0.02, 0.0));
+    }
+    zz.blocks
+}
+
 fn throughput() {
     println!("## Planner throughput (push + poll, 500-block look-ahead)\n");
     println!("| program | profile | blocks | seconds | blocks/s |");
     println!("|---|---|---:|---:|---:|");
     let n = 200_000;
     let blocks = dense_blocks(n);
-    let mut zz = Prog::new(p3(0.0, 0.0, 0.0), 6000.0, Continuity::G23);
-    for i in 0..n {
-        zz.g1(p3((i + 1) as f64 * 0.1, ((i + 1) % 2) as f64 * 0.02, 0.0));
-    }
-    for (name, prog) in [
-        ("0.05 mm circle chords", &blocks),
-        ("0.1 mm zig-zag", &zz.blocks),
-    ] {
+    let zz = zigzag_blocks(n);
+    for (name, prog) in [("0.05 mm circle chords", &blocks), ("0.1 mm zig-zag", &zz)] {
         for profile in [1u8, 2] {
             let mut best = f64::INFINITY;
             for _ in 0..3 {
@@ -465,10 +468,15 @@ fn reference_paths_table() {
     println!();
 }
 
-/// `cargo bench -p kernel --bench plan -- count`: one planner pass over 20000 circle chords
-/// (linear.rek), for an instruction count under valgrind (load-independent).
+/// `cargo bench -p kernel --bench plan -- count [zigzag]`: one planner pass over 20000 circle
+/// chords (or the throughput table's alternating 0.1 mm zig-zag; linear.rek), for an
+/// instruction count under valgrind (load-independent).
 fn count_only() {
-    let blocks = dense_blocks(20_000);
+    let blocks = if std::env::args().any(|a| a == "zigzag") {
+        zigzag_blocks(20_000)
+    } else {
+        dense_blocks(20_000)
+    };
     let mut pl = Planner::new(ours(1), 1);
     let mut n = 0usize;
     for b in &blocks {

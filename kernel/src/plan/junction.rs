@@ -11,10 +11,11 @@ use crate::units::{AxesMm, MAX_AXES, TS_S};
 
 /// Share of each axis's acceleration the normal acceleration of the turns may take at a
 /// junction's cap in the linear profile (issue #32); the rest is the floor of the
-/// tangential acceleration of the lines beside it, so braking never stalls. (0.8 until the
-/// interpolator braked with each stretch's own acceleration; from 0.9 on the random splines,
-/// whose long chords ramp at what the turns leave, lose: docs/planner.md.)
-pub(super) const BOX_NORMAL_SHARE: f64 = 0.8;
+/// tangential acceleration of the lines beside it, so braking never stalls. (0.85 since the
+/// half-share fallback gives up early, which made it affordable on the zig-zag; from 0.9 on
+/// the random splines, whose long chords ramp at what the turns leave, lose:
+/// docs/planner.md, *Share 0.85*.)
+pub const BOX_NORMAL_SHARE: f64 = 0.85;
 
 /// How much of the axes' path acceleration a block may use along the path.
 enum Share {
@@ -46,8 +47,17 @@ struct WindowLimits {
 /// Largest speed in [0, v] within `bound` (bound(v) ≥ v), found by bisection to 0.2 % (far
 /// below the spread of the other criteria); `guess` (the previous junction's result) brackets
 /// it first, since neighbouring junctions of a dense path have similar limits. `v` itself when
-/// it is within its bound. Returns the speed and whether a search ran.
-fn largest_within(v: f64, guess: f64, bound: impl Fn(f64) -> f64) -> (f64, bool) {
+/// it is within its bound. Returns the speed and whether a search ran; 0 once `give_up(hi)`
+/// holds for a speed `hi` the result cannot exceed.
+fn largest_within(
+    v: f64,
+    guess: f64,
+    bound: impl Fn(f64) -> f64,
+    give_up: impl Fn(f64) -> bool,
+) -> (f64, bool) {
+    if give_up(v) {
+        return (0.0, false);
+    }
     let (mut lo, mut hi) = (0.0, v);
     if guess > 0.0 && guess < v {
         // Bracket around the guess, ±0.1 % then ±3 %, from both sides.
@@ -77,6 +87,9 @@ fn largest_within(v: f64, guess: f64, bound: impl Fn(f64) -> f64) -> (f64, bool)
     }
     let mut steps = 0;
     while hi - lo > 0.002 * hi && steps < 64 {
+        if give_up(hi) {
+            return (0.0, true);
+        }
         steps += 1;
         let mid = 0.5 * (lo + hi);
         if bound(mid) >= mid {
@@ -99,7 +112,7 @@ impl Planner {
         let (mut crit, mut criteria_cap) = if last {
             (0.0, 0.0)
         } else {
-            self.junction_speed(i, BOX_NORMAL_SHARE)
+            self.junction_speed(i, BOX_NORMAL_SHARE, None)
         };
         let passed = !last && self.win[i].smooth && criteria_cap > 0.0;
         let mut turns = (passed && self.cfg.envelope.profile == Profile::Linear)
@@ -113,8 +126,12 @@ impl Planner {
             let (gain, loss) = self.corner_net_s(i, criteria_cap, turns.as_ref());
             net = Some((gain, loss));
             if loss > 0.05 * gain.max(0.0) {
-                let (c, cap) = self.junction_speed(i, NORMAL_SHARE);
-                if cap > 0.0 {
+                // The half share wins only if its gain minus its loss (≥ 0) beats this one:
+                // its search stops (cap 0) once its gain alone cannot, and then its turns
+                // and budgets are not needed (on an alternating zig-zag every junction gets
+                // here and never wins).
+                let (c, cap) = self.junction_speed(i, NORMAL_SHARE, Some(gain - loss));
+                if cap > 0.0 && self.pass_gain_s(i, cap).1 > gain - loss {
                     let t = self.junction_turns(i, cap);
                     let (g, l) = self.corner_net_s(i, cap, Some(&t));
                     if g - l > gain - loss {
@@ -146,7 +163,9 @@ impl Planner {
     /// Criteria speed at the end of block `i` as if the junction were smooth, and its hard cap
     /// (0 when it is not smooth): dynamic (R385 with the 8.R385 correction), accuracy (R384),
     /// the ceilings of both blocks, and for a smooth junction the local curvature window.
-    fn junction_speed(&mut self, i: usize, share: f64) -> (f64, f64) {
+    /// With `beat_s`, 0 once passing at any speed the search may still find gains no more
+    /// than `beat_s` ([`Planner::pass_gain_s`], which rises with the speed).
+    fn junction_speed(&mut self, i: usize, share: f64, beat_s: Option<f64>) -> (f64, f64) {
         let env = &self.cfg.envelope;
         let (p, n) = (&self.win[i], &self.win[i + 1]);
         let set = &env.sets[n.set];
@@ -188,13 +207,18 @@ impl Planner {
             // tangent it looks up stays on the same line: caps at the exact crossing took an
             // axis of the random arcs to 1.0005-1.0011 × its limit; the bisection's 0.2 %
             // below it is what the tests hold.)
-            let (found, searched) =
-                largest_within(v, guess, |v| self.box_window_bound(i, v, &limits, &near));
+            let give_up = |hi| beat_s.is_some_and(|b| self.pass_gain_s(i, hi).1 <= b);
+            let (found, searched) = largest_within(
+                v,
+                guess,
+                |v| self.box_window_bound(i, v, &limits, &near),
+                give_up,
+            );
             let found = (found, searched);
             self.near = Some(near);
             found
         } else {
-            largest_within(v, guess, |v| self.window_bound(i, v, &limits))
+            largest_within(v, guess, |v| self.window_bound(i, v, &limits), |_| false)
         };
         if searched && share == BOX_NORMAL_SHARE {
             self.window_guess_mm_s = v;
@@ -736,8 +760,56 @@ impl Planner {
     ) -> (f64, f64) {
         let (p, n) = (&self.win[i], &self.win[i + 1]);
         let is_arc = |q: &Pending| matches!(q.seg.path, SegPath::Arc { .. });
-        let sets = &self.cfg.envelope.sets;
-        let a = |q: &Pending| sets[q.set].accel_mm_s2.min(q.a_axes);
+        let a = |q: &Pending| self.cfg.envelope.sets[q.set].accel_mm_s2.min(q.a_axes);
+        let (cap, gain) = self.pass_gain_s(i, cap);
+        if gain == f64::NEG_INFINITY {
+            return (gain, 0.0);
+        }
+        let start = (i > 0 && self.win[i - 1].smooth)
+            .then(|| self.win[i - 1].turns)
+            .flatten();
+        let split = 1.0 - NORMAL_SHARE;
+        let linear = self.cfg.envelope.profile == Profile::Linear;
+        // Per side, with V the speed the block reaches from the cap: a line ramping between
+        // cap and V at b < a instead of a loses (1/b − 1/a)·(V − cap)²/(2V); where its far
+        // end is a stop (or the start) it also ramps between 0 and V at b, not at the a a
+        // stop at this junction would leave it: (1/b − 1/a)·V/2 more (a two-line path
+        // turning 34° at 5-8 mm/s ran 3 ticks slower passed than stopped).
+        let mut loss = 0.0;
+        for (side, q) in [(i, p), (i + 1, n)] {
+            if is_arc(q) {
+                continue;
+            }
+            let aq = a(q);
+            let v = pass_reach_mm_s(q, aq, cap);
+            let b = if linear && q.a_axes.is_finite() && !is_arc(p) && !is_arc(n) {
+                let (t0, t1) = if side == i {
+                    (start.as_ref(), turns)
+                } else {
+                    (turns, None)
+                };
+                let b = self.budget_between(side, t0, t1, aq);
+                b.accel_at(f64::INFINITY)
+            } else {
+                split * aq
+            };
+            let far_stop = if side == i {
+                i == 0 || !self.win[i - 1].smooth
+            } else {
+                !n.smooth
+            };
+            let far = if far_stop { v * v } else { 0.0 };
+            loss += (1.0 / b - 1.0 / aq) * ((v - cap) * (v - cap) + far) / (2.0 * v);
+        }
+        (gain, loss)
+    }
+
+    /// The speed junction `i` can actually be passed at below `cap`, and what passing there
+    /// gains over stopping, s (−∞ below one tick's acceleration step): the gain part of
+    /// [`Planner::corner_net_s`].
+    fn pass_gain_s(&self, i: usize, cap: f64) -> (f64, f64) {
+        let (p, n) = (&self.win[i], &self.win[i + 1]);
+        let a = |q: &Pending| self.cfg.envelope.sets[q.set].accel_mm_s2.min(q.a_axes);
         // The speed the corner can actually be passed at, from the speeds at the far ends
         // (rest at a stop; on a dense path a tiny block between smooth junctions must not
         // turn its junctions into stops, issue #32).
@@ -755,42 +827,25 @@ impl Planner {
             .min((far_p * far_p + a(p) * p.seg.length_mm).sqrt())
             .min((far_n * far_n + a(n) * n.seg.length_mm).sqrt());
         if cap < a(p).min(a(n)) * TS_S {
-            return (f64::NEG_INFINITY, 0.0);
+            return (cap, f64::NEG_INFINITY);
         }
-        let start = (i > 0 && self.win[i - 1].smooth)
-            .then(|| self.win[i - 1].turns)
-            .flatten();
-        let split = 1.0 - NORMAL_SHARE;
-        let linear = self.cfg.envelope.profile == Profile::Linear;
         // Per side, with V the speed the block reaches from the cap: passing at the cap
-        // instead of from rest saves cap/a − cap²/(2aV); a line ramping between cap and V at
-        // b < a instead of a loses (1/b − 1/a)·(V − cap)²/(2V).
-        let (mut gain, mut loss) = (0.0, 0.0);
-        for (side, q) in [(i, p), (i + 1, n)] {
+        // instead of from rest saves cap/a − cap²/(2aV).
+        let mut gain = 0.0;
+        for q in [p, n] {
             let aq = a(q);
-            let v = q
-                .seg
-                .feed_mm_s
-                .min(q.seg.v_max_mm_s)
-                .min((cap * cap + aq * q.seg.length_mm).sqrt())
-                .max(cap);
+            let v = pass_reach_mm_s(q, aq, cap);
             gain += cap / aq - cap * cap / (2.0 * aq * v);
-            if is_arc(q) {
-                continue;
-            }
-            let b = if linear && q.a_axes.is_finite() && !is_arc(p) && !is_arc(n) {
-                let (t0, t1) = if side == i {
-                    (start.as_ref(), turns)
-                } else {
-                    (turns, None)
-                };
-                let b = self.budget_between(side, t0, t1, aq);
-                b.accel_at(f64::INFINITY)
-            } else {
-                split * aq
-            };
-            loss += (1.0 / b - 1.0 / aq) * (v - cap) * (v - cap) / (2.0 * v);
         }
-        (gain, loss)
+        (cap, gain)
     }
+}
+
+/// The speed block `q` reaches from `cap` at `aq` (at least `cap`).
+fn pass_reach_mm_s(q: &Pending, aq: f64, cap: f64) -> f64 {
+    q.seg
+        .feed_mm_s
+        .min(q.seg.v_max_mm_s)
+        .min((cap * cap + aq * q.seg.length_mm).sqrt())
+        .max(cap)
 }

@@ -39,6 +39,7 @@ pub use config::{
     DEFAULT_AXIS_LIMITS, DynamicSet, Envelope, PlannerConfig, Profile, axis_filter_ticks_for,
     jerk_from_p_mm_s3,
 };
+pub use junction::BOX_NORMAL_SHARE;
 pub use path::SegPath;
 
 use crate::block::{Block, BlockKind, Continuity, Feed, Path, ProgramStop, Spindle};
