@@ -206,8 +206,18 @@ pub struct Interpolator {
     /// Work space of the piecewise braking curve (`piecewise`): the window of accelerations
     /// (segment, end distance, acceleration) and the points of E within one tick (end
     /// distance, E, acceleration).
-    pw_deque: Box<[(usize, f64, f64)]>,
+    pw_deque: Box<[(f64, f64)]>,
     pw_points: Box<[(f64, f64, f64)]>,
+    /// Upper bounds of E after each segment of the piecewise walk, and the segments'
+    /// accelerations (`piecewise_upper`).
+    pw_hi: Box<[f64]>,
+    pw_own: Box<[f64]>,
+    /// The bounds that leave the piecewise walk early are used (tests turn them off to
+    /// compare: the trajectory must be the same).
+    pw_bounds: bool,
+    /// Walks the bounds left early, and groups whose caps they skipped (tests).
+    #[cfg(test)]
+    pw_stats: (usize, usize),
 }
 
 impl Interpolator {
@@ -264,8 +274,13 @@ impl Interpolator {
             at_block_stop: false,
             block_stop_done: false,
             block_stop_armed: false,
-            pw_deque: vec![(0, 0.0, 0.0); piecewise::PIECEWISE_SLOTS].into_boxed_slice(),
+            pw_deque: vec![(0.0, 0.0); piecewise::PIECEWISE_SLOTS].into_boxed_slice(),
             pw_points: vec![(0.0, 0.0, 0.0); piecewise::PIECEWISE_SLOTS].into_boxed_slice(),
+            pw_hi: vec![0.0; piecewise::PIECEWISE_CAPS].into_boxed_slice(),
+            pw_own: vec![0.0; piecewise::PIECEWISE_CAPS].into_boxed_slice(),
+            pw_bounds: true,
+            #[cfg(test)]
+            pw_stats: (0, 0),
         }
     }
 
