@@ -113,7 +113,8 @@ pub struct Interpolator {
     buf: Box<[Segment]>,
     /// What the look-ahead reads of each buffered segment, by ring slot, and its bounds per
     /// group of `GROUP` slots (`ahead`).
-    ahead: Box<[Ahead]>,
+    /// (Arrays of their fixed length: the walks index them without bounds checks.)
+    ahead: Box<[Ahead; BUFFER_SEGMENTS]>,
     groups: Box<[AheadGroup]>,
     /// Arc length (from the first buffered segment after the last reset) at each segment start.
     seg_start_s_mm: Box<[f64]>,
@@ -210,8 +211,8 @@ pub struct Interpolator {
     pw_points: Box<[(f64, f64, f64)]>,
     /// Upper bounds of E after each segment of the piecewise walk, and the segments'
     /// accelerations (`piecewise_upper`).
-    pw_hi: Box<[f64]>,
-    pw_own: Box<[f64]>,
+    pw_hi: Box<[f64; piecewise::PIECEWISE_CAPS]>,
+    pw_own: Box<[f64; piecewise::PIECEWISE_CAPS]>,
     /// The bounds that leave the piecewise walk early are used (tests turn them off to
     /// compare: the trajectory must be the same).
     pw_bounds: bool,
@@ -225,7 +226,11 @@ impl Interpolator {
         Interpolator {
             axes,
             buf: vec![Segment::default(); BUFFER_SEGMENTS].into_boxed_slice(),
-            ahead: vec![Ahead::default(); BUFFER_SEGMENTS].into_boxed_slice(),
+            // (Built on the heap: a 320 kB array would pass through the stack.)
+            ahead: vec![Ahead::default(); BUFFER_SEGMENTS]
+                .into_boxed_slice()
+                .try_into()
+                .expect("BUFFER_SEGMENTS slots"),
             groups: vec![AheadGroup::NONE; BUFFER_SEGMENTS / GROUP].into_boxed_slice(),
             seg_start_s_mm: vec![0.0; BUFFER_SEGMENTS].into_boxed_slice(),
             head: 0,
@@ -276,8 +281,8 @@ impl Interpolator {
             block_stop_armed: false,
             pw_deque: vec![(0.0, 0.0); piecewise::PIECEWISE_SLOTS].into_boxed_slice(),
             pw_points: vec![(0.0, 0.0, 0.0); piecewise::PIECEWISE_SLOTS].into_boxed_slice(),
-            pw_hi: vec![0.0; piecewise::PIECEWISE_CAPS].into_boxed_slice(),
-            pw_own: vec![0.0; piecewise::PIECEWISE_CAPS].into_boxed_slice(),
+            pw_hi: Box::new([0.0; piecewise::PIECEWISE_CAPS]),
+            pw_own: Box::new([0.0; piecewise::PIECEWISE_CAPS]),
             pw_bounds: true,
             #[cfg(test)]
             pw_stats: (0, 0),
