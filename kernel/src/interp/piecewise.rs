@@ -21,6 +21,11 @@
 //! the raw stage takes the higher of the two, but not above the speed it runs at: each keeps
 //! every cap and falls by at most the acceleration of the tick, so their maximum does too,
 //! and a tick still accelerates only where the exact curve allows it (see `speed_limits`).
+//!
+//! Cost (the tick's p99 on a dense curve): the walk is left as soon as its result certainly
+//! cannot exceed the exact limits (`Settled`, from an upper bound of E), and the caps of a
+//! group of slots that cannot lower the smallest R are not evaluated
+//! (`piecewise_group_clear`); both give the result of the full walk bit for bit.
 
 use super::Interpolator;
 use super::ahead::GROUP;
