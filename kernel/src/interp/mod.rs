@@ -113,7 +113,8 @@ pub struct Interpolator {
     buf: Box<[Segment]>,
     /// What the look-ahead reads of each buffered segment, by ring slot, and its bounds per
     /// group of `GROUP` slots (`ahead`).
-    ahead: Box<[Ahead]>,
+    /// (Arrays of their fixed length: the walks index them without bounds checks.)
+    ahead: Box<[Ahead; BUFFER_SEGMENTS]>,
     groups: Box<[AheadGroup]>,
     /// Arc length (from the first buffered segment after the last reset) at each segment start.
     seg_start_s_mm: Box<[f64]>,
@@ -206,8 +207,18 @@ pub struct Interpolator {
     /// Work space of the piecewise braking curve (`piecewise`): the window of accelerations
     /// (segment, end distance, acceleration) and the points of E within one tick (end
     /// distance, E, acceleration).
-    pw_deque: Box<[(usize, f64, f64)]>,
+    pw_deque: Box<[(f64, f64)]>,
     pw_points: Box<[(f64, f64, f64)]>,
+    /// Upper bounds of E after each segment of the piecewise walk, and the segments'
+    /// accelerations (`piecewise_upper`).
+    pw_hi: Box<[f64; piecewise::PIECEWISE_CAPS]>,
+    pw_own: Box<[f64; piecewise::PIECEWISE_CAPS]>,
+    /// The bounds that leave the piecewise walk early are used (tests turn them off to
+    /// compare: the trajectory must be the same).
+    pw_bounds: bool,
+    /// Walks the bounds left early, and groups whose caps they skipped (tests).
+    #[cfg(test)]
+    pw_stats: (usize, usize),
 }
 
 impl Interpolator {
@@ -215,7 +226,11 @@ impl Interpolator {
         Interpolator {
             axes,
             buf: vec![Segment::default(); BUFFER_SEGMENTS].into_boxed_slice(),
-            ahead: vec![Ahead::default(); BUFFER_SEGMENTS].into_boxed_slice(),
+            // (Built on the heap: a 320 kB array would pass through the stack.)
+            ahead: vec![Ahead::default(); BUFFER_SEGMENTS]
+                .into_boxed_slice()
+                .try_into()
+                .expect("BUFFER_SEGMENTS slots"),
             groups: vec![AheadGroup::NONE; BUFFER_SEGMENTS / GROUP].into_boxed_slice(),
             seg_start_s_mm: vec![0.0; BUFFER_SEGMENTS].into_boxed_slice(),
             head: 0,
@@ -264,8 +279,13 @@ impl Interpolator {
             at_block_stop: false,
             block_stop_done: false,
             block_stop_armed: false,
-            pw_deque: vec![(0, 0.0, 0.0); piecewise::PIECEWISE_SLOTS].into_boxed_slice(),
+            pw_deque: vec![(0.0, 0.0); piecewise::PIECEWISE_SLOTS].into_boxed_slice(),
             pw_points: vec![(0.0, 0.0, 0.0); piecewise::PIECEWISE_SLOTS].into_boxed_slice(),
+            pw_hi: Box::new([0.0; piecewise::PIECEWISE_CAPS]),
+            pw_own: Box::new([0.0; piecewise::PIECEWISE_CAPS]),
+            pw_bounds: true,
+            #[cfg(test)]
+            pw_stats: (0, 0),
         }
     }
 

@@ -21,8 +21,14 @@
 //! the raw stage takes the higher of the two, but not above the speed it runs at: each keeps
 //! every cap and falls by at most the acceleration of the tick, so their maximum does too,
 //! and a tick still accelerates only where the exact curve allows it (see `speed_limits`).
+//!
+//! Cost (the tick's p99 on a dense curve): the walk is left as soon as its result certainly
+//! cannot exceed the exact limits (`Settled`, from an upper bound of E), and the caps of a
+//! group of slots that cannot lower the smallest R are not evaluated
+//! (`piecewise_group_clear`); both give the result of the full walk bit for bit.
 
 use super::Interpolator;
+use super::ahead::GROUP;
 use crate::units::TS_S;
 
 /// Capacity of the window of accelerations and of the points of E within one tick (segments
@@ -31,7 +37,7 @@ pub(super) const PIECEWISE_SLOTS: usize = 1024;
 
 /// Caps looked at per tick at most (the cost of a tick): past them the walk assumes a stop,
 /// which no cap farther can be below (its R = c² + 2·E is at least 2·E there).
-const PIECEWISE_CAPS: usize = 128;
+pub(super) const PIECEWISE_CAPS: usize = 128;
 
 /// The limits of the piecewise curve, mm/s: hard, soft.
 pub(super) struct Piecewise {
@@ -63,12 +69,112 @@ impl Smallest {
     }
 }
 
+/// What proves, before and while walking, that the piecewise limits cannot exceed the exact
+/// ones (`Interpolator::piecewise_upper`): the walk is then left, and the raw stage keeps the
+/// exact limits, as it does where the walk's result is below them.
+pub(super) struct Settled {
+    /// Per limit (hard, soft) a value of R at or below which the inversion gives less than
+    /// the exact limit (−∞: none; ∞: the limit is not needed).
+    pub(super) r: (f64, f64),
+    /// The speeds below the exact limits whose G they are.
+    v: (f64, f64),
+    /// Upper bound of E at the end of the walk (`pw_hi`'s last).
+    e_hi_end: f64,
+}
+
+impl Settled {
+    /// Thresholds v² (G(v) ≥ v², E ≥ 0) below the exact limits by a margin that covers the
+    /// rounding of `g_inverse` (its errors are a few ulps of the speeds and of a·Ts).
+    pub(super) fn new(
+        need: (bool, bool),
+        exact: (f64, f64),
+        v_now: f64,
+        a_hi: f64,
+        e_hi_end: f64,
+    ) -> Self {
+        let margin = 1e-9 * (v_now + a_hi * TS_S);
+        let below = |needed: bool, exact: f64| {
+            let v = exact * (1.0 - 1e-9) - margin;
+            match (needed, v > 0.0) {
+                (false, _) => (f64::INFINITY, 0.0),
+                (true, true) => (v * v, v),
+                (true, false) => (f64::NEG_INFINITY, 0.0),
+            }
+        };
+        let (h, s) = (below(need.0, exact.0), below(need.1, exact.1));
+        Settled {
+            r: (h.0, s.0),
+            v: (h.1, s.1),
+            e_hi_end,
+        }
+    }
+
+    /// Once E is known over this tick's distance: the thresholds G(v), lowered by 1e-9 for
+    /// the rounding of E and G, where that is above v².
+    pub(super) fn raise(&mut self, g: impl Fn(f64) -> f64) {
+        let up = |r: f64, v: f64| {
+            if r.is_finite() && v > 0.0 {
+                r.max(g(v) * (1.0 - 1e-9))
+            } else {
+                r
+            }
+        };
+        self.r = (up(self.r.0, self.v.0), up(self.r.1, self.v.1));
+    }
+
+    /// Whether the final R of both limits is at or below its threshold: the smallest R so
+    /// far is, or 2·E at the walk's end is (every needed R is at most that, see
+    /// `piecewise_upper`), by an upper bound of E there from E = `e` after a segment whose
+    /// upper bound was `e_hi` (the rest of the upper bounds, with a margin for the rounding
+    /// of their sums: at most `PIECEWISE_CAPS` terms of relative error 1.1e-16 each).
+    fn holds(&self, hard_r: f64, soft_r: f64, e: f64, e_hi: f64) -> bool {
+        let end = 2.0 * (e + (self.e_hi_end - e_hi) + 1e-12 * self.e_hi_end) * (1.0 + 1e-12);
+        (hard_r <= self.r.0 || end <= self.r.0) && (soft_r <= self.r.1 || end <= self.r.1)
+    }
+}
+
+/// The monotonic deque of the window of ã (end distance, acceleration; the smallest
+/// acceleration of the segments from the frontier back to W before the segment evaluated)
+/// and the frontier: the next segment to enter, where it starts, and whether a stop point
+/// has entered (a tick never crosses one: nothing after it is in any window).
+struct Window {
+    front: usize,
+    len: usize,
+    frontier: usize,
+    front_start: f64,
+    stop_seen: bool,
+}
+
+/// The state of the piecewise walk.
+struct Walk {
+    need: (bool, bool),
+    /// This tick's distance W = v_now·Ts, the window's half width.
+    w: f64,
+    hard: Smallest,
+    soft: Smallest,
+    /// E so far, and the points of E within W recorded in `pw_points`.
+    e: f64,
+    points: usize,
+    /// G(v_now) once known (∞ before), and 2·E up to which a cap farther may still lower a
+    /// needed limit: the larger of min(R, G(v_now)) over them.
+    g_up: f64,
+    reach: f64,
+}
+
+impl Walk {
+    fn set_reach(&mut self) {
+        let bound = |needed: bool, s: &Smallest| if needed { s.r.min(self.g_up) } else { 0.0 };
+        self.reach = bound(self.need.0, &self.hard).max(bound(self.need.1, &self.soft));
+    }
+}
+
 impl Interpolator {
     /// The piecewise limits (hard, soft) of this tick where the exact ones (`exact`) are below
     /// this tick's speed, each at most that speed (elsewhere 0: not needed). `here`: the
     /// limits before any cap ahead (`caps_here`). Walks at most to the first stop point, and
     /// only as far as a cap could still bring a needed limit below this tick's speed. `None`
-    /// where the windows do not fit their slots.
+    /// where the windows do not fit their slots, or where the result would certainly not be
+    /// above the exact limits (`Settled`; the raw stage then keeps those, as it would).
     pub(super) fn piecewise_limits(
         &mut self,
         accel_mm_s2: f64,
@@ -78,99 +184,245 @@ impl Interpolator {
     ) -> Option<Piecewise> {
         let v_now = self.raw_v_mm_s;
         let need = (exact.0 < v_now, exact.1 < v_now);
+        let (walked, a_hi) = self.piecewise_upper(accel_mm_s2, braking);
+        let mut settled = Settled::new(need, exact, v_now, a_hi, self.pw_hi[walked - 1]);
+        if self.pw_bounds && settled.holds(f64::INFINITY, f64::INFINITY, 0.0, 0.0) {
+            #[cfg(test)]
+            {
+                self.pw_stats.0 += 1;
+            }
+            return None;
+        }
         // The window of ã: a braking tick covers at most v_now·Ts (it never runs faster than
         // this one). Not v_up·Ts: v_up grows with the head's acceleration, so a tick entering
         // a segment of higher acceleration would widen the window, lower ã and make the curve
         // fall by more than a tick's acceleration (a random dense path: 26.5 → 21.3 mm/s).
-        let w = v_now * TS_S;
-        let (mut hard, mut soft) = (Smallest::NONE, Smallest::NONE);
-        // Monotonic deque of (segment, end distance, acceleration): the smallest acceleration
-        // of the segments from the frontier back to W before the segment `j` evaluated.
-        let (mut q_front, mut q_len) = (0usize, 0usize);
-        let mut frontier = self.raw_seg;
-        let mut front_start = -self.raw_in_seg_mm;
-        let mut points = 0usize;
-        let mut stop_seen = false;
-        let mut e = 0.0;
-        let mut g_up = f64::INFINITY;
-        let mut j = self.raw_seg;
-        let mut start_j = -self.raw_in_seg_mm;
-        while j < self.len {
-            let end_j = start_j + self.ahead[self.idx(j)].length_mm;
-            // Frontier: every segment starting within W after segment j's end.
-            while !stop_seen && frontier < self.len && front_start <= end_j + w {
-                let seg = &self.ahead[self.idx(frontier)];
-                let a = if frontier == self.raw_seg {
-                    accel_mm_s2
-                } else {
-                    self.walk_accel(seg, braking)
-                };
-                let end = front_start + seg.length_mm;
-                while q_len > 0 && self.pw_deque[(q_front + q_len - 1) % PIECEWISE_SLOTS].2 >= a {
-                    q_len -= 1;
-                }
-                if q_len == PIECEWISE_SLOTS {
-                    return None;
-                }
-                self.pw_deque[(q_front + q_len) % PIECEWISE_SLOTS] = (frontier, end, a);
-                q_len += 1;
-                // (A tick never crosses a stop point: nothing after it is in any window.)
-                stop_seen = seg.v_end_mm_s == 0.0 || frontier + 1 == self.len;
-                frontier += 1;
-                front_start = end;
-            }
-            while q_len > 1 && self.pw_deque[q_front].1 < start_j - w {
-                q_front = (q_front + 1) % PIECEWISE_SLOTS;
-                q_len -= 1;
-            }
-            let a_j = self.pw_deque[q_front].2;
-            e += a_j * (end_j - start_j.max(0.0));
-            if start_j <= w {
-                if points == PIECEWISE_SLOTS {
-                    return None;
-                }
-                self.pw_points[points] = (end_j, e, a_j);
-                points += 1;
-            } else if g_up.is_infinite() {
-                // G at this tick's speed: a cap with R above it allows that speed.
-                g_up = v_now * v_now + 2.0 * self.e_at(points, v_now * TS_S);
-            }
-            let seg = &self.ahead[self.idx(j)];
-            let next = (j + 1 < self.len).then(|| &self.ahead[self.idx(j + 1)]);
-            let (hard_cap, soft_cap, _) = self.caps_at_end(seg, next, 0.0);
-            hard.add(hard_cap, end_j, e);
-            soft.add(soft_cap, end_j, e);
-            // Every cap farther has R ≥ 2·E: none can lower a needed limit below this tick's
-            // speed once 2·E reaches both its smallest R so far and G(v_now).
-            let bound = |needed: bool, s: &Smallest| if needed { s.r.min(g_up) } else { 0.0 };
-            let reach = bound(need.0, &hard).max(bound(need.1, &soft));
-            if hard_cap == 0.0 || 2.0 * e >= reach {
-                // (At a stop point the walk ends too.)
-                break;
-            }
-            if j + 1 - self.raw_seg >= PIECEWISE_CAPS {
-                hard.add(0.0, end_j, e);
-                soft.add(0.0, end_j, e);
-                break;
-            }
-            start_j = end_j;
-            j += 1;
-        }
+        let mut walk = Walk {
+            need,
+            w: v_now * TS_S,
+            hard: Smallest::NONE,
+            soft: Smallest::NONE,
+            e: 0.0,
+            points: 0,
+            g_up: f64::INFINITY,
+            reach: 0.0,
+        };
+        walk.set_reach();
+        self.piecewise_walk(&mut walk, &mut settled, walked, braking)?;
         let inv = |needed: bool, s: &Smallest, here: f64| {
             if needed {
-                s.direct.min(self.g_inverse(points, s.r, v_now)).min(here)
+                s.direct
+                    .min(self.g_inverse(walk.points, s.r, v_now))
+                    .min(here)
             } else {
                 0.0
             }
         };
         Some(Piecewise {
-            hard: inv(need.0, &hard, here.0),
-            soft: inv(need.1, &soft, here.1),
+            hard: inv(need.0, &walk.hard, here.0),
+            soft: inv(need.1, &walk.soft, here.1),
         })
     }
 
+    /// The walk of `piecewise_limits` over the caps; `None` where the windows do not fit or
+    /// `settled` holds. The caps of a group of `GROUP` slots that cannot lower any needed R
+    /// (`piecewise_group_clear`) are not evaluated: their R would not change the smallest.
+    fn piecewise_walk(
+        &mut self,
+        walk: &mut Walk,
+        settled: &mut Settled,
+        walked: usize,
+        braking: bool,
+    ) -> Option<()> {
+        let mut win = Window {
+            front: 0,
+            len: 0,
+            frontier: self.raw_seg,
+            front_start: -self.raw_in_seg_mm,
+            stop_seen: false,
+        };
+        let mut caps_from = self.raw_seg;
+        let mut j = self.raw_seg;
+        let mut start_j = -self.raw_in_seg_mm;
+        loop {
+            let end_j = start_j + self.ahead[self.idx(j)].length_mm;
+            if j >= caps_from
+                && start_j > walk.w
+                && self.pw_bounds
+                && self.piecewise_group_clear(j, walk)
+            {
+                caps_from = j + GROUP;
+                #[cfg(test)]
+                {
+                    self.pw_stats.1 += 1;
+                }
+            }
+            let a_j = self.window_accel(&mut win, walk.w, start_j, end_j, walked, braking)?;
+            walk.e += a_j * (end_j - start_j.max(0.0));
+            if start_j <= walk.w {
+                if walk.points == PIECEWISE_SLOTS {
+                    return None;
+                }
+                self.pw_points[walk.points] = (end_j, walk.e, a_j);
+                walk.points += 1;
+            } else if walk.g_up.is_infinite() {
+                // G at this tick's speed: a cap with R above it allows that speed.
+                let v_now = self.raw_v_mm_s;
+                walk.g_up = v_now * v_now + 2.0 * self.e_at(walk.points, v_now * TS_S);
+                settled.raise(|v| v * v + 2.0 * self.e_at(walk.points, v * TS_S));
+                walk.set_reach();
+            }
+            let offset = j - self.raw_seg;
+            if j >= caps_from {
+                let seg = &self.ahead[self.idx(j)];
+                let next = (j + 1 < self.len).then(|| &self.ahead[self.idx(j + 1)]);
+                let (hard_cap, soft_cap, _) = self.caps_at_end(seg, next, 0.0);
+                walk.hard.add(hard_cap, end_j, walk.e);
+                walk.soft.add(soft_cap, end_j, walk.e);
+                walk.set_reach();
+                if hard_cap == 0.0 {
+                    // (At a stop point the walk ends.)
+                    return Some(());
+                }
+            }
+            if offset % 8 == 7
+                && self.pw_bounds
+                && settled.holds(walk.hard.r, walk.soft.r, walk.e, self.pw_hi[offset])
+            {
+                #[cfg(test)]
+                {
+                    self.pw_stats.0 += 1;
+                }
+                return None;
+            }
+            // Every cap farther has R ≥ 2·E: none can lower a needed limit below this tick's
+            // speed once 2·E reaches both its smallest R so far and G(v_now).
+            if 2.0 * walk.e >= walk.reach {
+                return Some(());
+            }
+            if offset + 1 >= PIECEWISE_CAPS {
+                walk.hard.add(0.0, end_j, walk.e);
+                walk.soft.add(0.0, end_j, walk.e);
+                return Some(());
+            }
+            start_j = end_j;
+            j += 1;
+        }
+    }
+
+    /// ã of the segment from `start_j` to `end_j`: the smallest acceleration of the segments
+    /// from W before its start to W after its end (the frontier moves on to every segment
+    /// starting within W after `end_j`). The first `walked` segments' accelerations are those
+    /// `piecewise_upper` kept. `None` where the deque does not fit its slots.
+    fn window_accel(
+        &mut self,
+        win: &mut Window,
+        w: f64,
+        start_j: f64,
+        end_j: f64,
+        walked: usize,
+        braking: bool,
+    ) -> Option<f64> {
+        while !win.stop_seen && win.frontier < self.len && win.front_start <= end_j + w {
+            let seg = &self.ahead[self.idx(win.frontier)];
+            let offset = win.frontier - self.raw_seg;
+            let a = if offset < walked {
+                self.pw_own[offset]
+            } else {
+                self.walk_accel(seg, braking)
+            };
+            let end = win.front_start + seg.length_mm;
+            while win.len > 0 && self.pw_deque[(win.front + win.len - 1) % PIECEWISE_SLOTS].1 >= a {
+                win.len -= 1;
+            }
+            if win.len == PIECEWISE_SLOTS {
+                return None;
+            }
+            self.pw_deque[(win.front + win.len) % PIECEWISE_SLOTS] = (end, a);
+            win.len += 1;
+            win.stop_seen = seg.v_end_mm_s == 0.0 || win.frontier + 1 == self.len;
+            win.frontier += 1;
+            win.front_start = end;
+        }
+        while win.len > 1 && self.pw_deque[win.front].0 < start_j - w {
+            win.front = (win.front + 1) % PIECEWISE_SLOTS;
+            win.len -= 1;
+        }
+        Some(self.pw_deque[win.front].1)
+    }
+
+    /// Whether no cap at the ends of the `GROUP` segments from `j` (the first slot of a group,
+    /// beyond this tick's distance W) can lower a needed smallest R: each cap is at least the
+    /// group's lower bound c_lo (as in `group_clear`: the bounds hold for the slots pushed
+    /// since the group's first) and each E from here on at least `walk.e`, so its R is at
+    /// least c_lo² + 2·E (rounding is monotone); none is a stop (its R would be 2·E), and
+    /// none counts as a direct cap below this tick's speed (cap·Ts ≥ d > W means cap >
+    /// v_now, and the raw stage takes at most v_now of the piecewise limits).
+    fn piecewise_group_clear(&self, j: usize, walk: &Walk) -> bool {
+        if !self.idx(j).is_multiple_of(GROUP) || j + GROUP >= self.len {
+            return false;
+        }
+        let g = &self.groups[self.idx(j) / GROUP];
+        let next = &self.ahead[self.idx(j + GROUP)];
+        let v_max = g.v_max_mm_s.min(next.v_max_mm_s);
+        let end = if self.filtered() {
+            g.v_end_mm_s
+        } else {
+            g.end_linear_mm_s
+        };
+        let hard_lo = end.min(v_max);
+        if !(g.v_end_mm_s > 0.0 && hard_lo > 0.0) {
+            return false;
+        }
+        let soft_lo = if g.feed_mm_s.is_nan() || next.rapid || next.per_rev_nominal_rpm > 0.0 {
+            0.0
+        } else {
+            (g.feed_mm_s.min(next.feed_mm_s) * self.override_factor).min(v_max)
+        };
+        let clear = |needed: bool, lo: f64, s: &Smallest| !needed || lo * lo + 2.0 * walk.e >= s.r;
+        clear(walk.need.0, hard_lo, &walk.hard) && clear(walk.need.1, soft_lo, &walk.soft)
+    }
+
+    /// An upper bound of E along the walk of `piecewise_limits`, into `pw_hi` (after each
+    /// segment), and the segments' accelerations into `pw_own`; returns how many segments the
+    /// walk may take and the largest acceleration on them. The walk ends at the latest at its
+    /// `PIECEWISE_CAPS`-th cap or at the first stop point, where it adds a stop (R = 2·E
+    /// there), or where 2·E reaches a needed R (not G(v_now) when that is above G(exact)):
+    /// every needed R is then at most 2·E at its end. ã of a segment is at most the
+    /// segment's own acceleration (its window holds it), so these sums over the same
+    /// distances, in the same order, are at least the walk's E (rounding is monotone). On
+    /// the dense circle most braking ticks ended on the assumed stop after `PIECEWISE_CAPS`
+    /// caps, far below their exact limits (issue #32: 128 caps walked in vain, the ticks of
+    /// the p99).
+    fn piecewise_upper(&mut self, accel_mm_s2: f64, braking: bool) -> (usize, f64) {
+        let (mut e_hi, mut a_hi) = (0.0, accel_mm_s2);
+        let mut j = self.raw_seg;
+        let mut start = -self.raw_in_seg_mm;
+        loop {
+            let seg = &self.ahead[self.idx(j)];
+            let end = start + seg.length_mm;
+            let a = if j == self.raw_seg {
+                accel_mm_s2
+            } else {
+                self.walk_accel(seg, braking)
+            };
+            a_hi = a_hi.max(a);
+            e_hi += a * (end - start.max(0.0)).max(0.0);
+            let offset = j - self.raw_seg;
+            self.pw_hi[offset] = e_hi;
+            self.pw_own[offset] = a;
+            // (`caps_at_end`'s stop points, and the walk's last cap.)
+            let moving = seg.v_end_mm_s > 0.0;
+            if !moving || j + 1 >= self.len || offset + 1 >= PIECEWISE_CAPS {
+                return (offset + 1, a_hi);
+            }
+            start = end;
+            j += 1;
+        }
+    }
+
     /// E(0..x) from the first `points` points (end distance, E at it, acceleration on it).
-    fn e_at(&self, points: usize, x: f64) -> f64 {
+    pub(super) fn e_at(&self, points: usize, x: f64) -> f64 {
         let mut prev = 0.0;
         for &(end, e, a) in &self.pw_points[..points] {
             if x <= end {
@@ -183,7 +435,7 @@ impl Interpolator {
 
     /// The largest v ≤ `v_top` with G(v) = v² + 2·E(0..v·Ts) ≤ `r`: per point E is linear,
     /// so on the stretch where v·Ts lies v = −ã·Ts + √((ã·Ts)² + r − 2·(e − ã·end)).
-    fn g_inverse(&self, points: usize, r: f64, v_top: f64) -> f64 {
+    pub(super) fn g_inverse(&self, points: usize, r: f64, v_top: f64) -> f64 {
         if !r.is_finite() {
             return v_top;
         }

@@ -431,6 +431,160 @@ fn skipped_caps_never_lower_the_limit() {
     assert!(skipped > 1000 && grouped > 1000, "{skipped} {grouped}");
 }
 
+/// Uniform in [0, 1).
+fn uniform(seed: &mut u64) -> f64 {
+    spread(seed, 1.0, 2.0).log2()
+}
+
+/// A random polyline of `n` short lines (linear profile), now and then a corner and a stop
+/// point: the dense paths the piecewise walk is for. `smooth`: caps and accelerations that
+/// change slowly along the path, with a dip now and then (as on a dense curve); else
+/// independent per segment, lengths 0.002-0.6 mm.
+fn random_dense_segments(seed: &mut u64, n: usize, smooth: bool) -> Vec<Segment> {
+    let (mut p, mut dir) = ([0.0; 3], [1.0, 0.0, 0.0]);
+    let (base, phase) = (spread(seed, 30.0, 200.0), spread(seed, 1.0, 100.0));
+    let mut out = vec![];
+    for i in 0..n {
+        let turn = if uniform(seed) < 0.02 { 1.5 } else { 0.1 };
+        for d in &mut dir {
+            *d += turn * (2.0 * uniform(seed) - 1.0);
+        }
+        let norm = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
+        dir = dir.map(|d| d / norm);
+        let len = if smooth {
+            spread(seed, 0.02, 0.1)
+        } else {
+            spread(seed, 2e-3, 0.6)
+        };
+        let q = [0, 1, 2].map(|k| p[k] + len * dir[k]);
+        let x = i as f64 / 20.0 + phase;
+        let (cap, accel) = if !smooth {
+            (spread(seed, 5.0, 300.0), spread(seed, 50.0, 5000.0))
+        } else {
+            let dip = if i % 150 == 149 {
+                spread(seed, 0.1, 0.7)
+            } else {
+                1.0
+            };
+            (
+                dip * base * (1.0 + 0.3 * x.sin()) * spread(seed, 0.98, 1.0),
+                (600.0 + 400.0 * (0.7 * x).cos()) * spread(seed, 0.8, 1.0),
+            )
+        };
+        let stop = i + 1 == n || uniform(seed) < 0.002;
+        let v_end = if stop {
+            0.0
+        } else {
+            cap * spread(seed, 0.7, 1.0)
+        };
+        let mut s = line(i as u32, p, q, spread(seed, 20.0, 300.0), v_end);
+        s.junction_cap_mm_s = if stop { 0.0 } else { cap };
+        s.v_max_mm_s = spread(seed, 100.0, 400.0);
+        s.accel_mm_s2 = accel;
+        s.stop_accel_mm_s2 = accel * spread(seed, 0.5, 1.0);
+        out.push(s);
+        p = q;
+    }
+    out
+}
+
+/// The piecewise walk leaves early where its result cannot exceed the exact limits
+/// (`piecewise::Settled`) and skips the caps of groups that cannot lower a needed R
+/// (`piecewise_group_clear`): the trajectory must be bit-identical to the full walk's, on
+/// random dense paths with feed holds and override changes.
+#[test]
+fn piecewise_bounds_keep_the_trajectory() {
+    let mut seed = 32u64;
+    let (mut ticks, mut left, mut groups) = (0, 0, 0);
+    for case in 0..40 {
+        let segs = random_dense_segments(&mut seed, 1500, case % 2 == 0);
+        let mut ips = [true, false].map(|bounds| {
+            let mut ip = Interpolator::new(3, AxesMm::ZERO);
+            ip.pw_bounds = bounds;
+            for s in &segs {
+                ip.push(*s).unwrap();
+            }
+            ip
+        });
+        for t in 0..200_000 {
+            if t % 997 == 500 {
+                let ov = spread(&mut seed, 10.0, 150.0);
+                ips.iter_mut().for_each(|ip| ip.set_override(ov));
+            }
+            if case % 4 == 1 && t % 1500 == 700 {
+                ips.iter_mut().for_each(|ip| ip.hold());
+            }
+            if case % 4 == 1 && t % 1500 == 1000 {
+                ips.iter_mut().for_each(|ip| ip.resume());
+            }
+            let (a, b) = (ips[0].tick(), ips[1].tick());
+            assert_eq!(a, b, "case {case} tick {t}");
+            ticks += 1;
+            if a.state == InterpState::Idle {
+                break;
+            }
+        }
+        left += ips[0].pw_stats.0;
+        groups += ips[0].pw_stats.1;
+        assert_eq!(ips[1].pw_stats, (0, 0));
+    }
+    eprintln!("{ticks} ticks: {left} walks left early, {groups} groups skipped");
+    assert!(left > 1000 && groups > 100);
+}
+
+/// `piecewise::Settled`: an R at or below a threshold inverts (`g_inverse`) to less than the
+/// exact limit it was made for, on random stretches of E within one tick's distance (as the
+/// walk records them), random speeds, accelerations 1e-3..1e5 mm/s².
+#[test]
+fn settled_thresholds_bound_the_inversion() {
+    let mut seed = 11u64;
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    let mut checked = 0;
+    for _ in 0..100_000 {
+        let v_now = spread(&mut seed, 1e-3, 2e3);
+        let w = v_now * TS_S;
+        // (The first segment is the one the raw position is on: it starts at or before it.)
+        let first = w * spread(&mut seed, 1e-4, 2.0);
+        let mut start = -first * spread(&mut seed, 1e-9, 1.0);
+        let (mut e, mut points, mut a_hi) = (0.0, 0, 0.0f64);
+        while start <= w && points < 20 {
+            let len = if points == 0 {
+                first
+            } else {
+                w * spread(&mut seed, 1e-4, 2.0)
+            };
+            let end = start + len;
+            let a = spread(&mut seed, 1e-3, 1e5);
+            a_hi = a_hi.max(a);
+            e += a * (end - start.max(0.0));
+            ip.pw_points[points] = (end, e, a);
+            points += 1;
+            start = end;
+        }
+        let exact = v_now * spread(&mut seed, 1e-6, 1.0).min(0.999_999);
+        let need = (true, spread(&mut seed, 1e-3, 1.0) < 0.5);
+        let mut settled = piecewise::Settled::new(need, (exact, exact), v_now, a_hi, 0.0);
+        let g = |v: f64| v * v + 2.0 * ip.e_at(points, v * TS_S);
+        if spread(&mut seed, 1e-3, 1.0) < 0.7 {
+            settled.raise(g);
+        }
+        for thr in [settled.r.0, settled.r.1] {
+            if thr.is_finite() && thr > 0.0 {
+                let r = thr * (1.0 - spread(&mut seed, 1e-17, 1e-3));
+                for r in [thr, r] {
+                    let v = ip.g_inverse(points, r, v_now);
+                    assert!(
+                        v < exact,
+                        "r {r} thr {thr} v {v} exact {exact} v_now {v_now}"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert!(checked > 100_000, "{checked}");
+}
+
 /// A straight X line of 80 segments of 0.5 mm, all at 1000 mm/s² but one at `a_low` (a line
 /// next to a turn), a cap of 20 mm/s at the end of segment 70 (x = 35.5) and a stop at the
 /// end; F 100 mm/s. The
