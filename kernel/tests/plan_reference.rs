@@ -15,9 +15,9 @@ use plan_common::*;
 const NOT_YET_MET: &[(&str, f64)] = &[
     ("lissajous", 1.04),
     ("splines", 1.165),
-    ("arcs", 1.12),
+    ("arcs", 1.13),
     ("surface", 1.05),
-    ("helix", 1.08),
+    ("helix", 1.085),
 ];
 
 #[test]
