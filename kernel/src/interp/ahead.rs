@@ -26,6 +26,8 @@ pub(super) struct Ahead {
     pub v_end_mm_s: f64,
     pub junction_cap_mm_s: f64,
     pub accel_mm_s2: f64,
+    /// `Segment::free_accel_mm_s2`: the braking walk's acceleration away from junctions.
+    pub free_accel_mm_s2: f64,
     pub stop_accel_mm_s2: f64,
     pub jerk_mm_s3: f64,
     pub rapid: bool,
@@ -41,6 +43,7 @@ impl Ahead {
             v_end_mm_s: seg.v_end_mm_s,
             junction_cap_mm_s: seg.junction_cap_mm_s,
             accel_mm_s2: seg.accel_mm_s2,
+            free_accel_mm_s2: seg.free_accel_mm_s2,
             stop_accel_mm_s2: seg.stop_accel_mm_s2,
             jerk_mm_s3: seg.jerk_mm_s3,
             rapid: seg.rapid,

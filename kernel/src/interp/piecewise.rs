@@ -258,14 +258,35 @@ impl Interpolator {
                 }
             }
             let a_j = self.window_accel(&mut win, walk.w, start_j, end_j, walked, braking)?;
-            walk.e += a_j * (end_j - start_j.max(0.0));
-            if start_j <= walk.w {
-                if walk.points == PIECEWISE_SLOTS {
-                    return None;
+            let record = start_j <= walk.w;
+            match self.free_stretch(j, start_j, end_j, walk.w, braking) {
+                Some((lo, hi, free)) => {
+                    let parts = [(lo, a_j), (hi, free.max(a_j)), (end_j, a_j)];
+                    let mut from = start_j;
+                    for (to, a) in parts {
+                        walk.e += a * (to - from.max(0.0)).max(0.0);
+                        if record && to > 0.0 {
+                            if walk.points == PIECEWISE_SLOTS {
+                                return None;
+                            }
+                            self.pw_points[walk.points] = (to, walk.e, a);
+                            walk.points += 1;
+                        }
+                        from = to;
+                    }
                 }
-                self.pw_points[walk.points] = (end_j, walk.e, a_j);
-                walk.points += 1;
-            } else if walk.g_up.is_infinite() {
+                None => {
+                    walk.e += a_j * (end_j - start_j.max(0.0));
+                    if record {
+                        if walk.points == PIECEWISE_SLOTS {
+                            return None;
+                        }
+                        self.pw_points[walk.points] = (end_j, walk.e, a_j);
+                        walk.points += 1;
+                    }
+                }
+            }
+            if start_j > walk.w && walk.g_up.is_infinite() {
                 // G at this tick's speed: a cap with R above it allows that speed.
                 let v_now = self.raw_v_mm_s;
                 walk.g_up = v_now * v_now + 2.0 * self.e_at(walk.points, v_now * TS_S);
@@ -396,6 +417,7 @@ impl Interpolator {
     /// the p99).
     fn piecewise_upper(&mut self, accel_mm_s2: f64, braking: bool) -> (usize, f64) {
         let (mut e_hi, mut a_hi) = (0.0, accel_mm_s2);
+        let w = self.raw_v_mm_s * TS_S;
         let mut j = self.raw_seg;
         let mut start = -self.raw_in_seg_mm;
         loop {
@@ -407,7 +429,18 @@ impl Interpolator {
                 self.walk_accel(seg, braking)
             };
             a_hi = a_hi.max(a);
-            e_hi += a * (end - start.max(0.0)).max(0.0);
+            match self.free_stretch(j, start, end, w, braking) {
+                Some((lo, hi, free)) => {
+                    let free = free.max(a);
+                    a_hi = a_hi.max(free);
+                    let mut from = start;
+                    for (to, a) in [(lo, a), (hi, free), (end, a)] {
+                        e_hi += a * (to - from.max(0.0)).max(0.0);
+                        from = to;
+                    }
+                }
+                None => e_hi += a * (end - start.max(0.0)).max(0.0),
+            }
             let offset = j - self.raw_seg;
             self.pw_hi[offset] = e_hi;
             self.pw_own[offset] = a;
@@ -419,6 +452,35 @@ impl Interpolator {
             start = end;
             j += 1;
         }
+    }
+
+    /// The stretch of segment `j` (from `start` to `end`, mm from the raw position) where a
+    /// braking tick may use the line's free acceleration, and that acceleration: (from,
+    /// to, a). None where there is none (a line not longer than 3W, no free acceleration,
+    /// or a feed hold or stop, which brake at their own rate). A tick's speed change at
+    /// its tick point x_n is bounded by ã over its next step [x_n, x_n + W]; a junction
+    /// within its two steps [x_n − W, x_n + W] limits it to the budget (the window's
+    /// smallest acceleration), otherwise its second difference is the speed change along
+    /// the line alone and the free acceleration holds (`Segment::free_accel_mm_s2`). So a
+    /// point x may take it where no junction lies within [x − 2W, x + W]: from 2W after
+    /// the line's start to W before its end (issue #32: the braking zones of the dense
+    /// paths crossed the lines beside tight turns at the budget those turns leave). The
+    /// walk and the upper bound of E (`piecewise_upper`) split a segment at the same
+    /// points, so the bound still sums the same lengths.
+    fn free_stretch(
+        &self,
+        j: usize,
+        start: f64,
+        end: f64,
+        w: f64,
+        braking: bool,
+    ) -> Option<(f64, f64, f64)> {
+        let (lo, hi) = (start + 2.0 * w, end - w);
+        if lo >= hi || braking {
+            return None;
+        }
+        let free = self.ahead[self.idx(j)].free_accel_mm_s2;
+        (free > 0.0).then_some((lo, hi, free))
     }
 
     /// E(0..x) from the first `points` points (end distance, E at it, acceleration on it).

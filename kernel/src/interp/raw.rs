@@ -648,6 +648,9 @@ impl Interpolator {
             .max(self.free_up_mm_s(head, inside, braking))
             .min(limits.soft_accel_mm_s)
             .min(limits.hard_accel_mm_s);
+        // (A tick inside a line brakes toward a soft limit at the line's free acceleration,
+        // as the piecewise curve assumes there: `piecewise::stretches`.)
+        let down_mm_s2 = down_mm_s2.max(self.free_down_mm_s2(head, inside, braking));
         let mut v_next = if up > v {
             up
         } else {
@@ -695,6 +698,22 @@ impl Interpolator {
         let rest = head.length_mm - self.raw_in_seg_mm;
         if up * TS_S < rest - ARRIVE_EPS_MM {
             up
+        } else {
+            0.0
+        }
+    }
+
+    /// Path deceleration of the next tick when its step (at most this tick's) and the last
+    /// one stay inside the line `head`: the line's free acceleration, as in
+    /// `free_up_mm_s` (0 otherwise).
+    fn free_down_mm_s2(&self, head: &Segment, last_inside: bool, braking: bool) -> f64 {
+        if !last_inside || braking || self.filtered() || !matches!(head.path, SegPath::Line { .. })
+        {
+            return 0.0;
+        }
+        let rest = head.length_mm - self.raw_in_seg_mm;
+        if self.raw_v_mm_s * TS_S < rest - ARRIVE_EPS_MM {
+            head.free_accel_mm_s2
         } else {
             0.0
         }

@@ -695,3 +695,47 @@ fn ticks_inside_a_line_use_its_free_acceleration() {
         assert!(free_used);
     }
 }
+
+/// Issue #32: a braking tick whose two steps stay inside one line brakes at the line's free
+/// acceleration (`piecewise::stretches`, `Interpolator::free_down_mm_s2`); the ticks whose
+/// steps touch a junction brake at most at the budgets of the segments they cover, and the
+/// cap is passed at its cap.
+#[test]
+fn braking_inside_a_line_uses_its_free_acceleration() {
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    let ends = [(40.0, 100.0), (40.5, 10.0), (50.0, 0.0)];
+    let mut from = 0.0;
+    for (i, &(to, v_end)) in ends.iter().enumerate() {
+        let mut s = line(i as u32, [from, 0.0, 0.0], [to, 0.0, 0.0], 100.0, v_end);
+        s.junction_cap_mm_s = v_end;
+        s.accel_mm_s2 = 200.0;
+        s.stop_accel_mm_s2 = 200.0;
+        s.free_accel_mm_s2 = 800.0;
+        s.free_accel_v_max_mm_s = f64::INFINITY;
+        ip.push(s).unwrap();
+        from = to;
+    }
+    let mut trace = vec![TickOut::default()];
+    trace.extend(run(&mut ip, 10_000));
+    let x: Vec<f64> = trace.iter().map(|t| t.position[0]).collect();
+    assert_eq!(*x.last().unwrap(), 50.0);
+    let mut free_braking = false;
+    for k in 2..x.len() {
+        let (v0, v1) = ((x[k - 1] - x[k - 2]) / TS_S, (x[k] - x[k - 1]) / TS_S);
+        let acc = (v1 - v0) / TS_S;
+        assert!(acc.abs() <= 800.0 * (1.0 + 1e-9), "tick {k}: {acc}");
+        let touches = [40.0, 40.5].iter().any(|&j| x[k - 2] < j && x[k] > j);
+        if touches {
+            assert!(
+                acc >= -200.0 * (1.0 + 1e-9),
+                "tick {k}: {acc} at {}",
+                x[k - 1]
+            );
+        }
+        if x[k - 1] < 40.5 && x[k] >= 40.5 {
+            assert!(v1 <= 10.0 + 1e-9, "cap passed at {v1}");
+        }
+        free_braking |= acc < -201.0;
+    }
+    assert!(free_braking);
+}
