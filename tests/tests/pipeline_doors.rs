@@ -444,7 +444,10 @@ async fn kr_status_while_running(d: &Daemon, m: &mut MachineClient<Channel>) -> 
     let st = d.ctl.clone();
     wait_until("KŘR in N30", || {
         let s = st.snapshot();
-        s.progress.job == job && s.progress.block_n == Some(30) && s.spindle.kr.spindle_rpm > 0.0
+        s.progress.job == job
+            && s.progress.block_n == Some(30)
+            && s.spindle.kr.active
+            && s.spindle.kr.spindle_rpm > 0.0
     })
     .await;
     let state = daemon::runtime::api::ApiState::new(d.ctl.clone()).unwrap();

@@ -388,6 +388,18 @@ impl Interpolator {
         Ok(())
     }
 
+    /// A new job starts: the block the last one ended in is no longer the one in progress,
+    /// so the ticks name no block until the new job's first segment is followed (the
+    /// status must not show the last job's block as the new one's). Only when idle with
+    /// nothing buffered.
+    pub fn forget_block(&mut self) {
+        if self.state == InterpState::Idle && self.len == 0 {
+            self.last_seq = 0;
+            self.last_n = None;
+            self.last_line = 0;
+        }
+    }
+
     /// Feed override in percent, clamped to 0..=150.
     pub fn set_override(&mut self, percent: f64) {
         let p = if percent.is_finite() { percent } else { 0.0 };

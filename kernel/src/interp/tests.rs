@@ -739,3 +739,26 @@ fn braking_inside_a_line_uses_its_free_acceleration() {
     }
     assert!(free_braking);
 }
+
+/// A new job names no block until its first segment is followed: the ticks between its
+/// start and its first segment showed the last job's block (a status "in N30" of a job
+/// still planning its N10).
+#[test]
+fn a_new_job_names_no_block_before_its_first_segment() {
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    let mut s = line(7, [0.0; 3], [1.0, 0.0, 0.0], 100.0, 0.0);
+    s.n = Some(30);
+    s.line = 3;
+    ip.push(s).unwrap();
+    let last = *run(&mut ip, 10_000).last().unwrap();
+    assert_eq!((last.seq, last.n, last.line), (7, Some(30), 3));
+    // Idle after the job: the block it ended in stays shown.
+    assert_eq!(ip.tick().n, Some(30));
+    ip.forget_block();
+    let t = ip.tick();
+    assert_eq!((t.seq, t.n, t.line), (0, None, 0));
+    let mut next = line(1, [1.0, 0.0, 0.0], [2.0, 0.0, 0.0], 100.0, 0.0);
+    next.n = Some(10);
+    ip.push(next).unwrap();
+    assert_eq!(ip.tick().n, Some(10));
+}

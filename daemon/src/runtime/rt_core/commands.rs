@@ -84,6 +84,9 @@ impl RtCore {
                         self.job.in_position_mm = machine.in_position_mm;
                         self.job.active = job;
                         self.snap.progress.job = job;
+                        // Until its first segment arrives the job is in no block (not in
+                        // the last job's).
+                        self.motion.interp.forget_block();
                         self.job.spindle_off = false;
                         self.snap.state = MachineState::Running;
                     }
