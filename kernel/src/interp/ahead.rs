@@ -28,6 +28,10 @@ pub(super) struct Ahead {
     pub accel_mm_s2: f64,
     /// `Segment::free_accel_mm_s2`: the braking walk's acceleration away from junctions.
     pub free_accel_mm_s2: f64,
+    /// `Segment::accel_start_mm_s2`, `accel_end_mm_s2`: the braking walk's acceleration
+    /// near one junction of the line only (0: none beyond `accel_mm_s2`).
+    pub accel_start_mm_s2: f64,
+    pub accel_end_mm_s2: f64,
     pub stop_accel_mm_s2: f64,
     pub jerk_mm_s3: f64,
     pub rapid: bool,
@@ -44,6 +48,8 @@ impl Ahead {
             junction_cap_mm_s: seg.junction_cap_mm_s,
             accel_mm_s2: seg.accel_mm_s2,
             free_accel_mm_s2: seg.free_accel_mm_s2,
+            accel_start_mm_s2: seg.accel_start_mm_s2,
+            accel_end_mm_s2: seg.accel_end_mm_s2,
             stop_accel_mm_s2: seg.stop_accel_mm_s2,
             jerk_mm_s3: seg.jerk_mm_s3,
             rapid: seg.rapid,

@@ -39,6 +39,11 @@ pub(super) const PIECEWISE_SLOTS: usize = 1024;
 /// which no cap farther can be below (its R = c² + 2·E is at least 2·E there).
 pub(super) const PIECEWISE_CAPS: usize = 128;
 
+/// The per-end budgets of a line split its stretches in the piecewise walk only where one
+/// of them exceeds the line's budget by this factor (splitting every segment of a dense
+/// curve, whose ends differ little, costs the walk).
+const ENDS_MIN_GAIN: f64 = 1.01;
+
 /// The limits of the piecewise curve, mm/s: hard, soft.
 pub(super) struct Piecewise {
     pub hard: f64,
@@ -260,8 +265,17 @@ impl Interpolator {
             let a_j = self.window_accel(&mut win, walk.w, start_j, end_j, walked, braking)?;
             let record = start_j <= walk.w;
             match self.free_stretch(j, start_j, end_j, walk.w, braking) {
-                Some((lo, hi, free)) => {
-                    let parts = [(lo, a_j), (hi, free.max(a_j)), (end_j, a_j)];
+                Some((lo, hi, free, ends)) => {
+                    let (a_lo, a_hi) = match ends {
+                        Some(top) => {
+                            let (a_lo, a_hi) =
+                                self.end_stretch_accels(j, start_j, end_j, walk.w, walked, a_j);
+                            let top = top.max(a_j);
+                            (a_lo.min(top), a_hi.min(top))
+                        }
+                        None => (a_j, a_j),
+                    };
+                    let parts = [(lo, a_lo), (hi, free.max(a_j)), (end_j, a_hi)];
                     let mut from = start_j;
                     for (to, a) in parts {
                         walk.e += a * (to - from.max(0.0)).max(0.0);
@@ -430,11 +444,20 @@ impl Interpolator {
             };
             a_hi = a_hi.max(a);
             match self.free_stretch(j, start, end, w, braking) {
-                Some((lo, hi, free)) => {
+                Some((lo, hi, free, ends)) => {
                     let free = free.max(a);
-                    a_hi = a_hi.max(free);
+                    let (a_lo, a_end) = if ends.is_some() {
+                        let own = &self.ahead[self.idx(j)];
+                        let budget = |e: f64| {
+                            a.max(self.raw_accel_j(e.max(own.accel_mm_s2), own.jerk_mm_s3))
+                        };
+                        (budget(own.accel_start_mm_s2), budget(own.accel_end_mm_s2))
+                    } else {
+                        (a, a)
+                    };
+                    a_hi = a_hi.max(free).max(a_lo).max(a_end);
                     let mut from = start;
-                    for (to, a) in [(lo, a), (hi, free), (end, a)] {
+                    for (to, a) in [(lo, a_lo), (hi, free), (end, a_end)] {
                         e_hi += a * (to - from.max(0.0)).max(0.0);
                         from = to;
                     }
@@ -467,6 +490,20 @@ impl Interpolator {
     /// paths crossed the lines beside tight turns at the budget those turns leave). The
     /// walk and the upper bound of E (`piecewise_upper`) split a segment at the same
     /// points, so the bound still sums the same lengths.
+    ///
+    /// With per-end budgets (`Segment::accel_start_mm_s2`, `accel_end_mm_s2`, above the
+    /// line's budget by more than `ENDS_MIN_GAIN`), the point x takes its start junction's
+    /// budget where only that junction lies within [x − 2W, x + W] (from the line's start
+    /// to W before its end), its end junction's where only that one does (from 2W after its
+    /// start), the budget where both do and the free acceleration where neither does: the
+    /// stretches [start, min(lo, hi)), [min, max(lo, hi)) with the free acceleration, or the
+    /// budget where lo ≥ hi, and [max, end], with lo = start + 2W and hi = end − W (the
+    /// fourth value, where the end stretches take the ends' budgets, is what they may take
+    /// at most: the middle stretch's acceleration (∞ where it takes the budget). The
+    /// stretches move with W, which falls from tick to tick while braking: the middle one
+    /// grows into the end ones where lo < hi, the end ones into the middle one where lo ≥ hi.
+    /// E must not fall when W does (the curve would fall by more than ã in a tick), so the
+    /// stretch that grows must not have the lower acceleration (issue #32).
     fn free_stretch(
         &self,
         j: usize,
@@ -474,13 +511,74 @@ impl Interpolator {
         end: f64,
         w: f64,
         braking: bool,
-    ) -> Option<(f64, f64, f64)> {
-        let (lo, hi) = (start + 2.0 * w, end - w);
-        if lo >= hi || braking {
+    ) -> Option<(f64, f64, f64, Option<f64>)> {
+        // (A segment not longer than W has no point with at most one of its junctions
+        // within [x − 2W, x + W]: not split.)
+        if braking || end - start <= w {
             return None;
         }
-        let free = self.ahead[self.idx(j)].free_accel_mm_s2;
-        (free > 0.0).then_some((lo, hi, free))
+        let (lo, hi) = (start + 2.0 * w, end - w);
+        let seg = &self.ahead[self.idx(j)];
+        let free = seg.free_accel_mm_s2;
+        let gain = seg.accel_mm_s2 * ENDS_MIN_GAIN;
+        if seg.accel_start_mm_s2 > gain || seg.accel_end_mm_s2 > gain {
+            // (Where lo ≥ hi the middle stretch takes the budget: free = 0.)
+            let (a, b) = (lo.min(hi).max(start), lo.max(hi).min(end));
+            let (free, top) = if lo < hi {
+                (free, free)
+            } else {
+                (0.0, f64::INFINITY)
+            };
+            return Some((a, b.max(a), free, Some(top)));
+        }
+        if lo >= hi {
+            return None;
+        }
+        (free > 0.0).then_some((lo, hi, free, None))
+    }
+
+    /// The accelerations of the start and end stretches of segment `j` (from `start_j` to
+    /// `end_j`, `free_stretch`) in the piecewise walk, each at least `a_j` (the window's
+    /// smallest): a tick point x_n within W before a point of the start stretch lies in
+    /// this line, where its steps touch no junction but the start one, or in a segment
+    /// ending within W before the line; its acceleration is the start budget's or that
+    /// segment's. Likewise the end stretch's tick points lie in this line, and their next
+    /// steps reach the segments starting within W after it. Those segments take their own
+    /// budgets (the ones `window_accel` takes).
+    fn end_stretch_accels(
+        &self,
+        j: usize,
+        start_j: f64,
+        end_j: f64,
+        w: f64,
+        walked: usize,
+        a_j: f64,
+    ) -> (f64, f64) {
+        let seg_a = |k: usize| {
+            let offset = k - self.raw_seg;
+            if offset < walked {
+                self.pw_own[offset]
+            } else {
+                self.walk_accel(&self.ahead[self.idx(k)], false)
+            }
+        };
+        let own = &self.ahead[self.idx(j)];
+        let budget = |a: f64| self.raw_accel_j(a.max(own.accel_mm_s2), own.jerk_mm_s3);
+        let mut a_lo = budget(own.accel_start_mm_s2);
+        let mut a_hi = budget(own.accel_end_mm_s2);
+        let (mut k, mut edge) = (j, start_j);
+        while k > self.raw_seg && edge >= start_j - w {
+            k -= 1;
+            a_lo = a_lo.min(seg_a(k));
+            edge -= self.ahead[self.idx(k)].length_mm;
+        }
+        let (mut k, mut edge) = (j, end_j);
+        while self.ahead[self.idx(k)].v_end_mm_s > 0.0 && k + 1 < self.len && edge <= end_j + w {
+            k += 1;
+            a_hi = a_hi.min(seg_a(k));
+            edge += self.ahead[self.idx(k)].length_mm;
+        }
+        (a_lo.max(a_j), a_hi.max(a_j))
     }
 
     /// E(0..x) from the first `points` points (end distance, E at it, acceleration on it).

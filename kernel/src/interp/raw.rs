@@ -646,11 +646,14 @@ impl Interpolator {
             .min(up_mm_s2);
         let up = (v + a_up * TS_S)
             .max(self.free_up_mm_s(head, inside, braking))
+            .max(self.ends_up_mm_s(head, inside, braking))
             .min(limits.soft_accel_mm_s)
             .min(limits.hard_accel_mm_s);
         // (A tick inside a line brakes toward a soft limit at the line's free acceleration,
         // as the piecewise curve assumes there: `piecewise::stretches`.)
-        let down_mm_s2 = down_mm_s2.max(self.free_down_mm_s2(head, inside, braking));
+        let down_mm_s2 = down_mm_s2
+            .max(self.free_down_mm_s2(head, inside, braking))
+            .max(self.ends_down_mm_s2(head, inside, braking));
         let mut v_next = if up > v {
             up
         } else {
@@ -716,6 +719,62 @@ impl Interpolator {
             head.free_accel_mm_s2
         } else {
             0.0
+        }
+    }
+
+    /// Whether the per-end budgets of line `head` apply (linear profile, not braking).
+    fn ends_apply(&self, head: &Segment, braking: bool) -> bool {
+        !braking
+            && !self.filtered()
+            && matches!(head.path, SegPath::Line { .. })
+            && (head.accel_start_mm_s2 > head.accel_mm_s2
+                || head.accel_end_mm_s2 > head.accel_mm_s2)
+    }
+
+    /// Highest next speed of an accelerating tick whose steps touch only one junction of
+    /// the line `head` (0 otherwise): the last step crossed its start junction and the next
+    /// one stays inside it (`Segment::accel_start_mm_s2`), or the last step stayed inside
+    /// and the next one reaches its end junction (`accel_end_mm_s2`, and the segments
+    /// that step reaches, as `accel_over_next_tick`). The second difference at the tick
+    /// point then holds the turns of that junction only (issue #32).
+    fn ends_up_mm_s(&self, head: &Segment, last_inside: bool, braking: bool) -> f64 {
+        if !self.ends_apply(head, braking) {
+            return 0.0;
+        }
+        let v = self.raw_v_mm_s;
+        let rest = head.length_mm - self.raw_in_seg_mm;
+        if !last_inside {
+            let a = self.raw_accel(head.accel_start_mm_s2.max(head.accel_mm_s2), head);
+            let up = v + a * TS_S;
+            if up * TS_S < rest - ARRIVE_EPS_MM {
+                up
+            } else {
+                0.0
+            }
+        } else {
+            let a = self.raw_accel(head.accel_end_mm_s2.max(head.accel_mm_s2), head);
+            let a = self.accel_over_next_tick(a, v + a * TS_S, false);
+            v + a * TS_S
+        }
+    }
+
+    /// Path deceleration of a tick toward a soft limit whose steps touch only one junction
+    /// of the line `head` (its step at most this tick's), as in `ends_up_mm_s` (0
+    /// otherwise): what the piecewise curve assumes there (`piecewise::stretches`).
+    fn ends_down_mm_s2(&self, head: &Segment, last_inside: bool, braking: bool) -> f64 {
+        if !self.ends_apply(head, braking) {
+            return 0.0;
+        }
+        let v = self.raw_v_mm_s;
+        let rest = head.length_mm - self.raw_in_seg_mm;
+        let inside = v * TS_S < rest - ARRIVE_EPS_MM;
+        match (last_inside, inside) {
+            (false, true) => self.raw_accel(head.accel_start_mm_s2.max(head.accel_mm_s2), head),
+            (true, false) => {
+                let a = self.raw_accel(head.accel_end_mm_s2.max(head.accel_mm_s2), head);
+                self.accel_over_next_tick(a, v, false)
+            }
+            _ => 0.0,
         }
     }
 

@@ -740,6 +740,83 @@ fn braking_inside_a_line_uses_its_free_acceleration() {
     assert!(free_braking);
 }
 
+/// Issue #32: a tick whose steps touch one junction of a line only uses that junction's
+/// budget (`Segment::accel_start_mm_s2`, `accel_end_mm_s2`), not the line's budget for
+/// both ends. Accelerating: after the corner at s = 5 the tick whose last step crossed it
+/// (and whose next one stays inside the line) accelerates by the start budget, the tick
+/// crossing it by the budget of the line before. Braking: the ticks whose tick point lies
+/// before the gentle junction at x = 40 and whose next step crosses it brake by more than
+/// the line's budget for both ends, and the cap after it is passed at its cap.
+#[test]
+fn ticks_touching_one_junction_use_that_junction_s_budget() {
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    let mut a = line(0, [0.0; 3], [5.0, 0.0, 0.0], 100.0, 30.0);
+    a.junction_cap_mm_s = 30.0;
+    let mut b = line(1, [5.0, 0.0, 0.0], [10.0, 5.0, 0.0], 100.0, 0.0);
+    for s in [&mut a, &mut b] {
+        s.accel_mm_s2 = 200.0;
+        s.stop_accel_mm_s2 = 200.0;
+        s.free_accel_mm_s2 = 800.0;
+        s.free_accel_v_max_mm_s = f64::INFINITY;
+    }
+    b.accel_start_mm_s2 = 400.0;
+    ip.push(a).unwrap();
+    ip.push(b).unwrap();
+    let mut trace = vec![TickOut::default()];
+    trace.extend(run(&mut ip, 10_000));
+    assert_eq!(&trace.last().unwrap().position.0[..2], &[10.0, 5.0]);
+    let s: Vec<f64> = trace.iter().map(|t| s_on_corner(&t.position)).collect();
+    let crosses = |k: usize| s[k - 1] < 5.0 && s[k] >= 5.0;
+    let mut start_used = false;
+    for k in 2..s.len() {
+        let (v0, v1) = ((s[k - 1] - s[k - 2]) / TS_S, (s[k] - s[k - 1]) / TS_S);
+        let acc = (v1 - v0) / TS_S;
+        assert!(acc.abs() <= 800.0 * (1.0 + 1e-9), "tick {k}: {acc}");
+        if crosses(k) {
+            assert!(acc <= 200.0 * (1.0 + 1e-9), "tick {k}: {acc}");
+        }
+        if crosses(k - 1) {
+            assert!(acc <= 400.0 * (1.0 + 1e-9), "tick {k}: {acc}");
+            start_used |= acc > 201.0;
+        }
+    }
+    assert!(start_used);
+
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    let mut a = line(0, [0.0; 3], [40.0, 0.0, 0.0], 100.0, 20.0);
+    a.junction_cap_mm_s = 20.0;
+    a.accel_mm_s2 = 200.0;
+    a.stop_accel_mm_s2 = 200.0;
+    a.free_accel_mm_s2 = 400.0;
+    a.free_accel_v_max_mm_s = f64::INFINITY;
+    a.accel_start_mm_s2 = 200.0;
+    a.accel_end_mm_s2 = 400.0;
+    let mut b = line(1, [40.0, 0.0, 0.0], [50.0, 0.0, 0.0], 100.0, 0.0);
+    b.accel_mm_s2 = 800.0;
+    b.stop_accel_mm_s2 = 800.0;
+    ip.push(a).unwrap();
+    ip.push(b).unwrap();
+    let mut trace = vec![TickOut::default()];
+    trace.extend(run(&mut ip, 10_000));
+    let x: Vec<f64> = trace.iter().map(|t| t.position[0]).collect();
+    assert_eq!(*x.last().unwrap(), 50.0);
+    let mut end_used = false;
+    for k in 2..x.len() {
+        let (v0, v1) = ((x[k - 1] - x[k - 2]) / TS_S, (x[k] - x[k - 1]) / TS_S);
+        let acc = (v1 - v0) / TS_S;
+        assert!(acc.abs() <= 800.0 * (1.0 + 1e-9), "tick {k}: {acc}");
+        // The tick point before the junction, within a step of it.
+        if x[k - 1] < 40.0 && x[k - 1] + (x[k - 1] - x[k - 2]).max(x[k] - x[k - 1]) >= 40.0 {
+            assert!(acc >= -400.0 * (1.0 + 1e-9), "tick {k}: {acc}");
+            end_used |= acc < -201.0;
+        }
+        if x[k - 1] < 40.0 && x[k] >= 40.0 {
+            assert!(v1 <= 20.0 + 1e-9, "cap passed at {v1}");
+        }
+    }
+    assert!(end_used);
+}
+
 /// A new job names no block until its first segment is followed: the ticks between its
 /// start and its first segment showed the last job's block (a status "in N30" of a job
 /// still planning its N10).

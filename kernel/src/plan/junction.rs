@@ -500,6 +500,27 @@ impl Planner {
         self.budget_between(i, start.as_ref(), end.as_ref(), base)
     }
 
+    /// The budgets of line block `i` with the turns of its start junction alone and of its
+    /// end junction alone (`Segment::accel_start_mm_s2`, `accel_end_mm_s2`): a tick whose
+    /// steps touch one junction of the line has only that junction's turns in its second
+    /// difference (those turns weigh every junction within a step of it). `budget_between`
+    /// with the other side None counts no turn there, as at a stop: the floor and the
+    /// directions are the line's own and that junction's.
+    pub(super) fn line_end_budgets(&self, i: usize, base: f64) -> (LineBudget, LineBudget) {
+        let start = (i > 0 && self.win[i - 1].smooth)
+            .then(|| self.win[i - 1].turns)
+            .flatten();
+        let end = if self.win[i].smooth {
+            self.win[i].turns
+        } else {
+            None
+        };
+        (
+            self.budget_between(i, start.as_ref(), None, base),
+            self.budget_between(i, None, end.as_ref(), base),
+        )
+    }
+
     /// The budget of line block `i` between junctions with these turns (None: a stop).
     fn budget_between(
         &self,

@@ -113,6 +113,14 @@ pub struct Segment {
     /// Speed up to which `free_accel_mm_s2` applies, mm/s: the speeds a line's budget was
     /// computed for (its acceleration next to a turn falls with the speed it runs at).
     pub free_accel_v_max_mm_s: f64,
+    /// Linear profile, budgeted lines: the path acceleration of a tick whose steps touch
+    /// the line's start junction but not its end one (`accel_start_mm_s2`), or its end
+    /// junction but not its start one (`accel_end_mm_s2`), at the same speeds as
+    /// `accel_mm_s2` (0: none beyond `accel_mm_s2`). Such a tick's second difference holds
+    /// the turns of that junction only (its turns weigh every junction within a step of it),
+    /// so the budget of that junction's turns alone holds (issue #32).
+    pub accel_start_mm_s2: f64,
+    pub accel_end_mm_s2: f64,
     /// Path jerk limit, mm/s³ (`f64::INFINITY` for the linear profile).
     pub jerk_mm_s3: f64,
     /// Deceleration for feed hold and stop (rapid and stop set, SPEC §7.4), mm/s².
@@ -672,6 +680,8 @@ impl Planner {
             accel_mm_s2: a_plan,
             free_accel_mm_s2: 0.0,
             free_accel_v_max_mm_s: 0.0,
+            accel_start_mm_s2: 0.0,
+            accel_end_mm_s2: 0.0,
             jerk_mm_s3: l.jerk_mm_s3,
             stop_accel_mm_s2: a_plan,
             rapid,
@@ -935,6 +945,9 @@ impl Planner {
     fn commit_budget(&mut self, i: usize) {
         let rapid_a = self.cfg.envelope.rapid_accel_mm_s2;
         let v_from = self.committed_end_mm_s;
+        let ends = self.win[i]
+            .budget
+            .map(|b| self.line_end_budgets(i, b.base_mm_s2()));
         let p = &mut self.win[i];
         if let Some(b) = p.budget {
             let len = p.seg.length_mm;
@@ -943,6 +956,12 @@ impl Planner {
                 .min(b.reach_mm_s(v_from, len))
                 .min(p.seg.v_max_mm_s);
             p.apply_budget(&b, v, rapid_a);
+            // Each end's turns alone, at the same speeds (each at least the combined
+            // budget: fewer turns, the same line).
+            if let Some((bs, be)) = ends {
+                p.seg.accel_start_mm_s2 = bs.accel_at(v).max(p.seg.accel_mm_s2);
+                p.seg.accel_end_mm_s2 = be.accel_at(v).max(p.seg.accel_mm_s2);
+            }
             // Free ticks must not carry the line past the speeds its budget covers.
             p.seg.free_accel_v_max_mm_s = b.covered_mm_s(v);
             p.seg.v_max_mm_s = p.seg.v_max_mm_s.min(b.covered_mm_s(v));
