@@ -489,6 +489,12 @@ impl Planner {
     /// the local curvature criterion that bounds the junction speed (|N| ≤ NORMAL_SHARE·a_iso
     /// at the cap). `base`: the constants' path acceleration.
     pub(super) fn line_budget(&self, i: usize, base: f64) -> LineBudget {
+        let (start, end) = self.line_turns(i);
+        self.budget_between(i, start.as_ref(), end.as_ref(), base)
+    }
+
+    /// The turns of line block `i`'s start and end junctions (None: a stop there).
+    fn line_turns(&self, i: usize) -> (Option<JunctionTurns>, Option<JunctionTurns>) {
         let start = (i > 0 && self.win[i - 1].smooth)
             .then(|| self.win[i - 1].turns)
             .flatten();
@@ -497,7 +503,7 @@ impl Planner {
         } else {
             None
         };
-        self.budget_between(i, start.as_ref(), end.as_ref(), base)
+        (start, end)
     }
 
     /// The budgets of line block `i` with the turns of its start junction alone and of its
@@ -507,14 +513,7 @@ impl Planner {
     /// with the other side None counts no turn there, as at a stop: the floor and the
     /// directions are the line's own and that junction's.
     pub(super) fn line_end_budgets(&self, i: usize, base: f64) -> (LineBudget, LineBudget) {
-        let start = (i > 0 && self.win[i - 1].smooth)
-            .then(|| self.win[i - 1].turns)
-            .flatten();
-        let end = if self.win[i].smooth {
-            self.win[i].turns
-        } else {
-            None
-        };
+        let (start, end) = self.line_turns(i);
         (
             self.budget_between(i, start.as_ref(), None, base),
             self.budget_between(i, None, end.as_ref(), base),
