@@ -658,6 +658,30 @@ fn s_on_corner(p: &AxesMm) -> f64 {
     }
 }
 
+/// The corner of `s_on_corner` run to its end: a 5 mm line into the corner (cap 30 mm/s),
+/// then 5 mm at 45°, both with budget 200 mm/s² and free acceleration 800 mm/s² up to
+/// `v_cover`; the second line's start budget `accel_start_mm_s2` (0: none). The arc length
+/// of every tick, from rest.
+fn corner_run(v_cover: f64, accel_start_mm_s2: f64) -> Vec<f64> {
+    let mut ip = Interpolator::new(3, AxesMm::ZERO);
+    let mut a = line(0, [0.0; 3], [5.0, 0.0, 0.0], 100.0, 30.0);
+    a.junction_cap_mm_s = 30.0;
+    let mut b = line(1, [5.0, 0.0, 0.0], [10.0, 5.0, 0.0], 100.0, 0.0);
+    for s in [&mut a, &mut b] {
+        s.accel_mm_s2 = 200.0;
+        s.stop_accel_mm_s2 = 200.0;
+        s.free_accel_mm_s2 = 800.0;
+        s.free_accel_v_max_mm_s = v_cover;
+    }
+    b.accel_start_mm_s2 = accel_start_mm_s2;
+    ip.push(a).unwrap();
+    ip.push(b).unwrap();
+    let mut trace = vec![TickOut::default()];
+    trace.extend(run(&mut ip, 10_000));
+    assert_eq!(&trace.last().unwrap().position.0[..2], &[10.0, 5.0]);
+    trace.iter().map(|t| s_on_corner(&t.position)).collect()
+}
+
 /// Issue #32: a tick whose step and the step before it stay inside one line has no turn in
 /// its second difference and may use the line's free acceleration; the ticks whose steps
 /// touch the junction keep the line's own (the share the turn leaves it), and the free
@@ -665,22 +689,7 @@ fn s_on_corner(p: &AxesMm) -> f64 {
 #[test]
 fn ticks_inside_a_line_use_its_free_acceleration() {
     for v_cover in [f64::INFINITY, 20.0] {
-        let mut ip = Interpolator::new(3, AxesMm::ZERO);
-        let mut a = line(0, [0.0; 3], [5.0, 0.0, 0.0], 100.0, 30.0);
-        a.junction_cap_mm_s = 30.0;
-        let mut b = line(1, [5.0, 0.0, 0.0], [10.0, 5.0, 0.0], 100.0, 0.0);
-        for s in [&mut a, &mut b] {
-            s.accel_mm_s2 = 200.0;
-            s.stop_accel_mm_s2 = 200.0;
-            s.free_accel_mm_s2 = 800.0;
-            s.free_accel_v_max_mm_s = v_cover;
-        }
-        ip.push(a).unwrap();
-        ip.push(b).unwrap();
-        let mut trace = vec![TickOut::default()];
-        trace.extend(run(&mut ip, 10_000));
-        assert_eq!(&trace.last().unwrap().position.0[..2], &[10.0, 5.0]);
-        let s: Vec<f64> = trace.iter().map(|t| s_on_corner(&t.position)).collect();
+        let s = corner_run(v_cover, 0.0);
         let touches = |k: usize| s[k - 1] < 5.0 && s[k] >= 5.0;
         let mut free_used = false;
         for k in 2..s.len() {
@@ -749,23 +758,7 @@ fn braking_inside_a_line_uses_its_free_acceleration() {
 /// the line's budget for both ends, and the cap after it is passed at its cap.
 #[test]
 fn ticks_touching_one_junction_use_that_junction_s_budget() {
-    let mut ip = Interpolator::new(3, AxesMm::ZERO);
-    let mut a = line(0, [0.0; 3], [5.0, 0.0, 0.0], 100.0, 30.0);
-    a.junction_cap_mm_s = 30.0;
-    let mut b = line(1, [5.0, 0.0, 0.0], [10.0, 5.0, 0.0], 100.0, 0.0);
-    for s in [&mut a, &mut b] {
-        s.accel_mm_s2 = 200.0;
-        s.stop_accel_mm_s2 = 200.0;
-        s.free_accel_mm_s2 = 800.0;
-        s.free_accel_v_max_mm_s = f64::INFINITY;
-    }
-    b.accel_start_mm_s2 = 400.0;
-    ip.push(a).unwrap();
-    ip.push(b).unwrap();
-    let mut trace = vec![TickOut::default()];
-    trace.extend(run(&mut ip, 10_000));
-    assert_eq!(&trace.last().unwrap().position.0[..2], &[10.0, 5.0]);
-    let s: Vec<f64> = trace.iter().map(|t| s_on_corner(&t.position)).collect();
+    let s = corner_run(f64::INFINITY, 400.0);
     let crosses = |k: usize| s[k - 1] < 5.0 && s[k] >= 5.0;
     let mut start_used = false;
     for k in 2..s.len() {
