@@ -466,6 +466,22 @@ proptest! {
     }
 }
 
+/// A jerk filter re-sized at a stop forgets the speeds it gave out, so it leaves only once
+/// its last two were 0. The 0.42 mm line ends in a braking tail of 8 nm, one tick after the
+/// ramp; the re-sized filter (8 → 3 ticks) left one tick early and the path jerk was
+/// 1.0000017 × J (found by a random run, seed 12 at 30000 cases).
+#[test]
+fn a_re_sized_jerk_filter_leaves_a_stop_with_its_output_at_rest() {
+    let turns = [
+        (0.0, 0.0, 0.4218846453917058),
+        (0.0, -0.03730652786227857, 0.01),
+    ];
+    let c = cfg(2);
+    let r = run(c.clone(), &dense_path(&turns, 600.0));
+    let w = measure(&c, &r, LM_UM);
+    assert!(w.path_j <= 1.0 + 1e-9, "{w:?}");
+}
+
 /// Short blocks between long ones, with straight junctions (collinear chords, as CAM output
 /// splits a line) mixed among tiny, small, larger and sharp turns. Main took an axis to
 /// 1.158 × its limit on such a path (a 2.7° turn, 0.007 mm, a straight junction, 0.31 mm)

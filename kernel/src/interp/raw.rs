@@ -269,8 +269,8 @@ impl Interpolator {
         if self.waits_before_motion() {
             return IDLE;
         }
-        if self.raw_v_mm_s == 0.0 && self.settled() {
-            self.resize_filters_at_rest();
+        if self.raw_v_mm_s == 0.0 && self.settled() && !self.resize_filters_at_rest() {
+            return IDLE;
         }
         let head = *self.seg(self.raw_seg);
         let braking = matches!(self.state, InterpState::Holding | InterpState::Stopping);
@@ -415,8 +415,12 @@ impl Interpolator {
     }
 
     /// At rest (the commanded position equals the raw one): both filters may be re-sized for
-    /// the dynamics of what comes next; their history is all this one point.
-    fn resize_filters_at_rest(&mut self) {
+    /// the dynamics of what comes next; their history is all this one point. Returns whether
+    /// the raw position may move this tick: a re-sized jerk filter forgets the speeds it gave
+    /// out, so it waits until the old one's last two were 0 (`still_ticks` > m). Its jerk is
+    /// (a(n) − a(n−m))/(m·Ts) only over one m, and a departure one tick early took the
+    /// path jerk to 1.0000017 × J after a braking tail of 8 nm (F600, 0.42 mm then 0.01 mm).
+    fn resize_filters_at_rest(&mut self) -> bool {
         let n =
             usize::from(self.seg(self.raw_seg).axis_filter_ticks).clamp(1, AXIS_FILTER_MAX_TICKS);
         if n != self.axis_window_ticks {
@@ -426,6 +430,9 @@ impl Interpolator {
         }
         let m = self.filter_for();
         if m != self.jerk_filter_ticks {
+            if self.still_ticks <= self.jerk_filter_ticks {
+                return false;
+            }
             let s = self.raw_s();
             self.hist_raw_s_mm.fill(s);
             self.hist_cap_mm_s.fill(f64::INFINITY);
@@ -434,6 +441,7 @@ impl Interpolator {
             self.ticks_since_accel = FILTER_MAX_TICKS;
             self.jerk_filter_ticks = m;
         }
+        true
     }
 
     /// This tick's speed limits (SPEC §7.2: the envelope speed never exceeds a junction's
