@@ -142,6 +142,28 @@ impl Settled {
 /// acceleration of the segments from the frontier back to W before the segment evaluated)
 /// and the frontier: the next segment to enter, where it starts, and whether a stop point
 /// has entered (a tick never crosses one: nothing after it is in any window).
+/// A segment's stretches in the piecewise walk (`Interpolator::free_stretch`), mm from
+/// the raw position: [start, lo) next to its start junction, [lo, hi) the middle, [hi, end]
+/// next to its end junction.
+#[derive(Clone, Copy)]
+struct Stretches {
+    lo: f64,
+    hi: f64,
+    /// The middle's acceleration: the line's free one, or None where it takes the budget
+    /// (where every point has a junction within its ticks).
+    middle_mm_s2: Option<f64>,
+    /// With per-end budgets, the most the end stretches may take (the middle's acceleration,
+    /// ∞ where the middle takes the budget); None: they take the budget.
+    ends_top_mm_s2: Option<f64>,
+}
+
+impl Stretches {
+    /// The middle's acceleration where `budget` is the segment's (never below it).
+    fn middle(&self, budget: f64) -> f64 {
+        self.middle_mm_s2.map_or(budget, |a| a.max(budget))
+    }
+}
+
 struct Window {
     front: usize,
     len: usize,
@@ -265,8 +287,8 @@ impl Interpolator {
             let a_j = self.window_accel(&mut win, walk.w, start_j, end_j, walked, braking)?;
             let record = start_j <= walk.w;
             match self.free_stretch(j, start_j, end_j, walk.w, braking) {
-                Some((lo, hi, free, ends)) => {
-                    let (a_lo, a_hi) = match ends {
+                Some(st) => {
+                    let (a_lo, a_hi) = match st.ends_top_mm_s2 {
                         Some(top) => {
                             let (a_lo, a_hi) =
                                 self.end_stretch_accels(j, start_j, end_j, walk.w, walked, a_j);
@@ -275,7 +297,7 @@ impl Interpolator {
                         }
                         None => (a_j, a_j),
                     };
-                    let parts = [(lo, a_lo), (hi, free.max(a_j)), (end_j, a_hi)];
+                    let parts = [(st.lo, a_lo), (st.hi, st.middle(a_j)), (end_j, a_hi)];
                     let mut from = start_j;
                     for (to, a) in parts {
                         walk.e += a * (to - from.max(0.0)).max(0.0);
@@ -444,20 +466,17 @@ impl Interpolator {
             };
             a_hi = a_hi.max(a);
             match self.free_stretch(j, start, end, w, braking) {
-                Some((lo, hi, free, ends)) => {
-                    let free = free.max(a);
-                    let (a_lo, a_end) = if ends.is_some() {
-                        let own = &self.ahead[self.idx(j)];
-                        let budget = |e: f64| {
-                            a.max(self.raw_accel_j(e.max(own.accel_mm_s2), own.jerk_mm_s3))
-                        };
-                        (budget(own.accel_start_mm_s2), budget(own.accel_end_mm_s2))
+                Some(st) => {
+                    let free = st.middle(a);
+                    let (a_lo, a_end) = if st.ends_top_mm_s2.is_some() {
+                        let (s, e) = self.end_budget_accels(&self.ahead[self.idx(j)]);
+                        (a.max(s), a.max(e))
                     } else {
                         (a, a)
                     };
                     a_hi = a_hi.max(free).max(a_lo).max(a_end);
                     let mut from = start;
-                    for (to, a) in [(lo, a_lo), (hi, free), (end, a_end)] {
+                    for (to, a) in [(st.lo, a_lo), (st.hi, free), (end, a_end)] {
                         e_hi += a * (to - from.max(0.0)).max(0.0);
                         from = to;
                     }
@@ -479,7 +498,7 @@ impl Interpolator {
 
     /// The stretch of segment `j` (from `start` to `end`, mm from the raw position) where a
     /// braking tick may use the line's free acceleration, and that acceleration: (from,
-    /// to, a). None where there is none (a line not longer than 3W, no free acceleration,
+    /// to, and their accelerations). None where there is none (a line not longer than 3W, no free acceleration,
     /// or a feed hold or stop, which brake at their own rate). A tick's speed change at
     /// its tick point x_n is bounded by ã over its next step [x_n, x_n + W]; a junction
     /// within its two steps [x_n − W, x_n + W] limits it to the budget (the window's
@@ -497,9 +516,8 @@ impl Interpolator {
     /// to W before its end), its end junction's where only that one does (from 2W after its
     /// start), the budget where both do and the free acceleration where neither does: the
     /// stretches [start, min(lo, hi)), [min, max(lo, hi)) with the free acceleration, or the
-    /// budget where lo ≥ hi, and [max, end], with lo = start + 2W and hi = end − W (the
-    /// fourth value, where the end stretches take the ends' budgets, is what they may take
-    /// at most: the middle stretch's acceleration (∞ where it takes the budget). The
+    /// budget where lo ≥ hi, and [max, end], with lo = start + 2W and hi = end − W (the end
+    /// stretches take the ends' budgets, at most the middle stretch's acceleration). The
     /// stretches move with W, which falls from tick to tick while braking: the middle one
     /// grows into the end ones where lo < hi, the end ones into the middle one where lo ≥ hi.
     /// E must not fall when W does (the curve would fall by more than ã in a tick), so the
@@ -511,7 +529,7 @@ impl Interpolator {
         end: f64,
         w: f64,
         braking: bool,
-    ) -> Option<(f64, f64, f64, Option<f64>)> {
+    ) -> Option<Stretches> {
         // (A segment not longer than W has no point with at most one of its junctions
         // within [x − 2W, x + W]: not split.)
         if braking || end - start <= w {
@@ -524,17 +542,27 @@ impl Interpolator {
         if seg.accel_start_mm_s2 > gain || seg.accel_end_mm_s2 > gain {
             // (Where lo ≥ hi the middle stretch takes the budget: free = 0.)
             let (a, b) = (lo.min(hi).max(start), lo.max(hi).min(end));
-            let (free, top) = if lo < hi {
-                (free, free)
+            let (middle, top) = if lo < hi {
+                (Some(free), free)
             } else {
-                (0.0, f64::INFINITY)
+                (None, f64::INFINITY)
             };
-            return Some((a, b.max(a), free, Some(top)));
+            return Some(Stretches {
+                lo: a,
+                hi: b.max(a),
+                middle_mm_s2: middle,
+                ends_top_mm_s2: Some(top),
+            });
         }
         if lo >= hi {
             return None;
         }
-        (free > 0.0).then_some((lo, hi, free, None))
+        (free > 0.0).then_some(Stretches {
+            lo,
+            hi,
+            middle_mm_s2: Some(free),
+            ends_top_mm_s2: None,
+        })
     }
 
     /// The accelerations of the start and end stretches of segment `j` (from `start_j` to
@@ -562,10 +590,7 @@ impl Interpolator {
                 self.walk_accel(&self.ahead[self.idx(k)], false)
             }
         };
-        let own = &self.ahead[self.idx(j)];
-        let budget = |a: f64| self.raw_accel_j(a.max(own.accel_mm_s2), own.jerk_mm_s3);
-        let mut a_lo = budget(own.accel_start_mm_s2);
-        let mut a_hi = budget(own.accel_end_mm_s2);
+        let (mut a_lo, mut a_hi) = self.end_budget_accels(&self.ahead[self.idx(j)]);
         let (mut k, mut edge) = (j, start_j);
         while k > self.raw_seg && edge >= start_j - w {
             k -= 1;
@@ -579,6 +604,13 @@ impl Interpolator {
             edge += self.ahead[self.idx(k)].length_mm;
         }
         (a_lo.max(a_j), a_hi.max(a_j))
+    }
+
+    /// The raw accelerations of segment `seg`'s start and end stretches from its per-end
+    /// budgets (`Interpolator::end_raw_accel`).
+    fn end_budget_accels(&self, seg: &super::ahead::Ahead) -> (f64, f64) {
+        let end = |a: f64| self.end_raw_accel(a, seg.accel_mm_s2, seg.jerk_mm_s3);
+        (end(seg.accel_start_mm_s2), end(seg.accel_end_mm_s2))
     }
 
     /// E(0..x) from the first `points` points (end distance, E at it, acceleration on it).

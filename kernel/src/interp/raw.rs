@@ -210,6 +210,13 @@ impl Interpolator {
         a.max(1e-6)
     }
 
+    /// Raw acceleration of a tick on a line whose steps touch only one of its junctions: that
+    /// end's budget (`Segment::accel_start_mm_s2` or `accel_end_mm_s2`), never below the
+    /// line's budget `line_mm_s2` (issue #32).
+    pub(super) fn end_raw_accel(&self, end_mm_s2: f64, line_mm_s2: f64, jerk_mm_s3: f64) -> f64 {
+        self.raw_accel_j(end_mm_s2.max(line_mm_s2), jerk_mm_s3)
+    }
+
     /// Highest speed for this tick from which the per-tick speeds, falling by u = a·Ts per
     /// tick, are down to `v_cap` when the path reaches the cap point `d` ahead. Exact in
     /// discrete time: the speeds before the point are v_cap + r + j·u (j = J..0, 0 < r ≤ u),
@@ -752,7 +759,7 @@ impl Interpolator {
         let v = self.raw_v_mm_s;
         let rest = head.length_mm - self.raw_in_seg_mm;
         if !last_inside {
-            let a = self.raw_accel(head.accel_start_mm_s2.max(head.accel_mm_s2), head);
+            let a = self.end_raw_accel(head.accel_start_mm_s2, head.accel_mm_s2, head.jerk_mm_s3);
             let up = v + a * TS_S;
             if up * TS_S < rest - ARRIVE_EPS_MM {
                 up
@@ -760,7 +767,7 @@ impl Interpolator {
                 0.0
             }
         } else {
-            let a = self.raw_accel(head.accel_end_mm_s2.max(head.accel_mm_s2), head);
+            let a = self.end_raw_accel(head.accel_end_mm_s2, head.accel_mm_s2, head.jerk_mm_s3);
             let a = self.accel_over_next_tick(a, v + a * TS_S, false);
             v + a * TS_S
         }
@@ -777,9 +784,11 @@ impl Interpolator {
         let rest = head.length_mm - self.raw_in_seg_mm;
         let inside = v * TS_S < rest - ARRIVE_EPS_MM;
         match (last_inside, inside) {
-            (false, true) => self.raw_accel(head.accel_start_mm_s2.max(head.accel_mm_s2), head),
+            (false, true) => {
+                self.end_raw_accel(head.accel_start_mm_s2, head.accel_mm_s2, head.jerk_mm_s3)
+            }
             (true, false) => {
-                let a = self.raw_accel(head.accel_end_mm_s2.max(head.accel_mm_s2), head);
+                let a = self.end_raw_accel(head.accel_end_mm_s2, head.accel_mm_s2, head.jerk_mm_s3);
                 self.accel_over_next_tick(a, v, false)
             }
             _ => 0.0,
