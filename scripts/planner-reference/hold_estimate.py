@@ -26,13 +26,8 @@ import sys
 
 import numpy as np
 
-# The machine of reference.py (issue #32).
-V_AXIS = 20000.0 / 60.0
-A_AXIS = 1000.0
-FEED = 6000.0 / 60.0
-LM_MM = 0.008
-AM = 1000.0
-TS = 0.004
+# The daemon's configuration of issue #32 (machine.py).
+from machine import A_AXIS, AM, FEED, LM_MM, TS, V_AXIS  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 PATHS = ["line", "circle", "zigzag", "pocket", "lissajous", "pentagram", "splines", "arcs",

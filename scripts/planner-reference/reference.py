@@ -31,14 +31,8 @@ from scipy.interpolate import CubicSpline
 
 ta.setup_logging("WARNING")
 
-# The daemon's configuration of issue #32: per axis 20000 mm/min and 1000 mm/s², F6000,
-# R384 Lm = 8 µm, R385 am = 1000 mm/s², 4 ms ticks.
-V_AXIS = 20000.0 / 60.0
-A_AXIS = 1000.0
-FEED = 6000.0 / 60.0
-LM_MM = 0.008
-AM = 1000.0
-TS = 0.004
+# The daemon's configuration of issue #32 (machine.py).
+from machine import A_AXIS, AM, FEED, LM_MM, TS, V_AXIS  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 

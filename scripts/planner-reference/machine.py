@@ -1,0 +1,10 @@
+"""The machine of issue #32, shared by reference.py and hold_estimate.py (the same figures as
+machine.rek): per axis 20000 mm/min and 1000 mm/s², F6000, R384 Lm = 8 µm, R385 am =
+1000 mm/s², 4 ms ticks. Plain numbers, so a script that needs no TOPP-RA can import them."""
+
+V_AXIS = 20000.0 / 60.0
+A_AXIS = 1000.0
+FEED = 6000.0 / 60.0
+LM_MM = 0.008
+AM = 1000.0
+TS = 0.004
