@@ -138,10 +138,6 @@ impl Settled {
     }
 }
 
-/// The monotonic deque of the window of ã (end distance, acceleration; the smallest
-/// acceleration of the segments from the frontier back to W before the segment evaluated)
-/// and the frontier: the next segment to enter, where it starts, and whether a stop point
-/// has entered (a tick never crosses one: nothing after it is in any window).
 /// A segment's stretches in the piecewise walk (`Interpolator::free_stretch`), mm from
 /// the raw position: [start, lo) next to its start junction, [lo, hi) the middle, [hi, end]
 /// next to its end junction.
@@ -164,6 +160,10 @@ impl Stretches {
     }
 }
 
+/// The monotonic deque of the window of ã (end distance, acceleration; the smallest
+/// acceleration of the segments from the frontier back to W before the segment evaluated)
+/// and the frontier: the next segment to enter, where it starts, and whether a stop point
+/// has entered (a tick never crosses one: nothing after it is in any window).
 struct Window {
     front: usize,
     len: usize,
@@ -497,9 +497,9 @@ impl Interpolator {
     }
 
     /// The stretch of segment `j` (from `start` to `end`, mm from the raw position) where a
-    /// braking tick may use the line's free acceleration, and that acceleration: (from,
-    /// to, and their accelerations). None where there is none (a line not longer than 3W, no free acceleration,
-    /// or a feed hold or stop, which brake at their own rate). A tick's speed change at
+    /// braking tick may use the line's free acceleration, split into stretches with their
+    /// accelerations. None where there is none (a line not longer than 3W, no free
+    /// acceleration, or a feed hold or stop, which brake at their own rate). A tick's speed change at
     /// its tick point x_n is bounded by ã over its next step [x_n, x_n + W]; a junction
     /// within its two steps [x_n − W, x_n + W] limits it to the budget (the window's
     /// smallest acceleration), otherwise its second difference is the speed change along
@@ -540,7 +540,7 @@ impl Interpolator {
         let free = seg.free_accel_mm_s2;
         let gain = seg.accel_mm_s2 * ENDS_MIN_GAIN;
         if seg.accel_start_mm_s2 > gain || seg.accel_end_mm_s2 > gain {
-            // (Where lo ≥ hi the middle stretch takes the budget: free = 0.)
+            // (Where lo ≥ hi the middle stretch takes the budget: no middle acceleration.)
             let (a, b) = (lo.min(hi).max(start), lo.max(hi).min(end));
             let (middle, top) = if lo < hi {
                 (Some(free), free)
