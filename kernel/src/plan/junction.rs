@@ -45,59 +45,76 @@ struct WindowLimits {
     accel_budget: [f64; MAX_AXES],
 }
 
-/// Largest speed in [0, v] within `bound` (bound(v) ≥ v), found by bisection to 0.2 % (far
-/// below the spread of the other criteria); `guess` (the previous junction's result) brackets
-/// it first, since neighbouring junctions of a dense path have similar limits. `v` itself when
-/// it is within its bound. Returns the speed and whether a search ran; 0 once `give_up(hi)`
-/// holds for a speed `hi` the result cannot exceed.
+/// Largest speed in [0, v] within `bound` (bound(v) ≥ v), to 0.2 % (far below the spread of
+/// the other criteria): a speed `lo` within its bound with one above it, `hi` ≤ lo/0.998,
+/// that is not. `v` itself when it is within its bound. Returns the speed and whether a
+/// search ran; 0 once `give_up(hi)` holds for a speed `hi` the result cannot exceed.
+///
+/// The probes follow the bound's own value: where the bound is flat around the crossing (the
+/// same tangents within the tick window, as on the chords of a curve) that value is the
+/// crossing, so 0.999 of it is within and lo/0.998 above it is not, which ends the search.
+/// `guess_mm_s` (the previous junction's crossing: neighbouring junctions of a dense path
+/// have similar limits) is the first estimate. After a few probes, or without an estimate
+/// inside the bracket, bisection (the bound need not be flat).
 fn largest_within(
     v: f64,
-    guess: f64,
+    guess_mm_s: f64,
     bound: impl Fn(f64) -> f64,
     give_up: impl Fn(f64) -> bool,
 ) -> (f64, bool) {
     if give_up(v) {
         return (0.0, false);
     }
+    let within_v = |b: f64| b >= v * (1.0 - 1e-12);
+    let first = 0.999 * guess_mm_s;
     let (mut lo, mut hi) = (0.0, v);
-    if guess > 0.0 && guess < v {
-        // Bracket around the guess, ±0.1 % then ±3 %, from both sides.
-        for w in [0.001, 0.03] {
-            let (gl, gh) = ((1.0 - w) * guess, ((1.0 + w) * guess).min(v));
-            if gl > lo && gl < hi {
-                if bound(gl) >= gl {
-                    lo = gl;
-                } else {
-                    hi = gl;
-                }
-            }
-            if gh > lo && gh < hi {
-                if bound(gh) >= gh {
-                    lo = gh;
-                } else {
-                    hi = gh;
-                }
-            }
-            if hi - lo <= 0.002 * hi {
-                break;
-            }
+    let mut est = if first > 0.0 && first < v {
+        let b = bound(first);
+        if b >= first {
+            lo = first;
+        } else {
+            hi = first;
         }
-    }
-    if hi == v && bound(v) >= v * (1.0 - 1e-12) {
-        return (v, false);
-    }
+        b
+    } else {
+        let b = bound(v);
+        if within_v(b) {
+            return (v, false);
+        }
+        b
+    };
+    let mut v_probed = hi < v || lo == 0.0;
     let mut steps = 0;
     while hi - lo > 0.002 * hi && steps < 64 {
         if give_up(hi) {
             return (0.0, true);
         }
         steps += 1;
-        let mid = 0.5 * (lo + hi);
-        if bound(mid) >= mid {
-            lo = mid;
+        let x = if lo > 0.0 && est <= lo * 1.0019 {
+            // The crossing lies within 0.19 % above lo: close the bracket there (0.19: the
+            // bracket's test must hold with rounding).
+            lo * 1.0019
+        } else if steps <= 4 && est > lo && est < hi {
+            0.999 * est
+        } else if !v_probed {
+            // Every probe so far was within: v itself may be.
+            v_probed = true;
+            v
         } else {
-            hi = mid;
+            0.5 * (lo + hi)
+        };
+        let b = bound(x);
+        if x == v {
+            if within_v(b) {
+                return (v, true);
+            }
+            hi = v;
+        } else if b >= x {
+            lo = x;
+        } else {
+            hi = x;
         }
+        est = b;
     }
     (lo, true)
 }
@@ -222,7 +239,8 @@ impl Planner {
             largest_within(v, guess, |v| self.window_bound(i, v, &limits), |_| false)
         };
         if searched && share == BOX_NORMAL_SHARE {
-            self.window_guess_mm_s = v;
+            // (The search ends 0.1 % below a flat bound's crossing.)
+            self.window_guess_mm_s = v / 0.999;
         }
         (v, v)
     }

@@ -174,6 +174,11 @@ struct Pending {
     /// Unit tangents at start and end.
     t_start: AxesMm,
     t_end: AxesMm,
+    /// |t_end − the previous block's t_end| and |t_start − the next block's t_start| per
+    /// axis (0 until known): the turns the absolute-turn sums add per block walked
+    /// (`near.rs`), worked out once per block rather than once per junction that sees it.
+    abs_du_end: AxesMm,
+    abs_du_start: AxesMm,
     /// Dynamic set index 0..3.
     set: usize,
     /// Path acceleration along the block from the axis limits.
@@ -246,7 +251,8 @@ pub struct Planner {
     spindle_state: Spindle,
     /// The blocks near the junction being finalized, walked once (`near.rs`).
     near: Option<Box<near::NearJunction>>,
-    /// Last result of the curvature-window search (a warm start for the next junction).
+    /// The crossing the last curvature-window search found (a warm start for the next
+    /// junction), mm/s.
     window_guess_mm_s: f64,
     /// Junctions finalized since the last backward pass.
     pending_backward: usize,
@@ -548,6 +554,8 @@ impl Planner {
             self.leading_dwell_s = 0.0;
         }
         if let Some(prev) = self.win.back_mut() {
+            p.abs_du_end = abs_diff(&p.t_end, &prev.t_end);
+            prev.abs_du_start = abs_diff(&prev.t_start, &p.t_start);
             let turn = angle_between(&prev.t_end, &p.t_start);
             prev.turn = turn;
             prev.smooth = Self::is_smooth(&self.cfg, prev, p);
@@ -633,6 +641,8 @@ impl Planner {
             continuity: block.continuity,
             t_start,
             t_end,
+            abs_du_end: AxesMm::ZERO,
+            abs_du_start: AxesMm::ZERO,
             set,
             a_axes,
             j_axes,
@@ -970,6 +980,15 @@ impl Planner {
             self.committed_end_mm_s = p.seg.v_end_mm_s;
         }
     }
+}
+
+/// |a − b| per axis.
+fn abs_diff(a: &AxesMm, b: &AxesMm) -> AxesMm {
+    let mut d = *a - *b;
+    for x in d.0.iter_mut() {
+        *x = x.abs();
+    }
+    d
 }
 
 /// Programmed feed of a cutting move, mm/min, or the error of a missing one.

@@ -58,6 +58,16 @@ impl AbsTurns {
             self.moment_mm[k] += a * d_mm;
         }
     }
+
+    /// [`AbsTurns::add`] of a turn already taken absolute per axis.
+    #[inline]
+    pub(super) fn add_abs(&mut self, axes: usize, du_abs: &AxesMm, d_mm: f64) {
+        for k in 0..axes {
+            let a = du_abs[k];
+            self.sum[k] += a;
+            self.moment_mm[k] += a * d_mm;
+        }
+    }
 }
 
 /// The blocks within a distance before and after junction `j` (the end of block `j`).
@@ -321,9 +331,15 @@ impl Planner {
                 return;
             }
             h_piece.0 = h_piece.0.max(0.5 * d);
-            // The tangent at each block's far end (seen from the junction), as the lookups.
-            let du = self.far_tangent(&pair[1], ahead) - self.far_tangent(&pair[0], ahead);
-            abs.add(self.cfg.axes, &du, d);
+            // The turn of the tangent at each block's far end (seen from the junction), as
+            // the lookups: |far(pair[1]) − far(pair[0])|.
+            let p = &self.win[pair[1].k];
+            let du = if ahead {
+                &p.abs_du_end
+            } else {
+                &p.abs_du_start
+            };
+            abs.add_abs(self.cfg.axes, du, d);
         }
     }
 }
