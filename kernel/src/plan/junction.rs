@@ -221,10 +221,10 @@ impl Planner {
         };
         let (v, searched) = if box_rule {
             let near = self.near_junction(i, v);
-            // (Bisection, although the bound is constant over ranges of v where every
-            // tangent it looks up stays on the same line: caps at the exact crossing took an
-            // axis of the random arcs to 1.0005-1.0011 × its limit; the bisection's 0.2 %
-            // below it is what the tests hold.)
+            // (Not the exact crossing, although the bound is constant over ranges of v where
+            // every tangent it looks up stays on the same line: caps at the exact crossing
+            // took an axis of the random arcs to 1.0005-1.0011 × its limit; the search's
+            // result below it, 0.1 % where the bound is flat, is what the tests hold.)
             let give_up = |hi| beat_s.is_some_and(|b| self.pass_gain_s(i, hi).1 <= b);
             let (found, searched) = largest_within(
                 v,
