@@ -78,9 +78,14 @@ impl LineBudget {
     /// (not capped by the constants: the stop set has its own).
     pub(super) fn tangential_at(&self, v: f64) -> f64 {
         let w = (v + self.margin_mm_s).min(self.v_ref_mm_s);
+        // (Plain comparisons where the running value starts at ∞: they skip a NaN term as
+        // `min` does, at a quarter of the cost; this runs on every braking step.)
         let mut a = f64::INFINITY;
         for &(p, q) in &self.terms[..self.count] {
-            a = a.min(p - q * w);
+            let x = p - q * w;
+            if x < a {
+                a = x;
+            }
         }
         a.min(self.a_axes_mm_s2).max(self.a_floor_mm_s2)
     }
@@ -122,7 +127,11 @@ impl LineBudget {
                 let b = length_mm * q;
                 -b + (b * b + v2 + 2.0 * length_mm * p).sqrt()
             };
-            v = v.min(fk);
+            // (`v` starts finite, hi being at most the constants' acceleration, and only
+            // takes smaller fk: a plain comparison skips a NaN fk as `min` does.)
+            if fk < v {
+                v = fk;
+            }
         }
         v.max(constant(self.base_mm_s2.min(self.a_floor_mm_s2)))
     }

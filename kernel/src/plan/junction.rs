@@ -368,21 +368,27 @@ impl Planner {
         let axes = self.cfg.axes;
         let a_ts = t.v_turn_mm_s - v;
         let mut bound = f64::INFINITY;
+        // (Plain comparisons, as `min` treats a NaN term: the bound starts at ∞, never NaN.)
+        let mut lower = |x: f64| {
+            if x < bound {
+                bound = x;
+            }
+        };
         // (The turns' dir is not needed here: `junction_turns` adds it.)
         for k in 0..axes {
             let turn = t.normal_per_s[k] * TS_S;
             if turn > 1e-12 {
                 let a_k = self.cfg.axis_a_max_mm_s2[k] * l.share;
-                bound = bound.min(a_k * TS_S / turn - a_ts);
+                lower(a_k * TS_S / turn - a_ts);
             }
             let w = window[k].abs();
             if w > 1e-12 {
-                bound = bound.min(l.am * TS_S / w);
+                lower(l.am * TS_S / w);
             }
         }
         let chord = window.norm(axes);
         if l.lm_um > 0.0 && chord > 1e-12 {
-            bound = bound.min(4.0 * l.lm_um * 1e-3 / (TS_S * chord));
+            lower(4.0 * l.lm_um * 1e-3 / (TS_S * chord));
         }
         bound
     }
@@ -508,16 +514,16 @@ impl Planner {
     /// at the cap). `base`: the constants' path acceleration.
     pub(super) fn line_budget(&self, i: usize, base: f64) -> LineBudget {
         let (start, end) = self.line_turns(i);
-        self.budget_between(i, start.as_ref(), end.as_ref(), base)
+        self.budget_between(i, start, end, base)
     }
 
     /// The turns of line block `i`'s start and end junctions (None: a stop there).
-    fn line_turns(&self, i: usize) -> (Option<JunctionTurns>, Option<JunctionTurns>) {
+    fn line_turns(&self, i: usize) -> (Option<&JunctionTurns>, Option<&JunctionTurns>) {
         let start = (i > 0 && self.win[i - 1].smooth)
-            .then(|| self.win[i - 1].turns)
+            .then(|| self.win[i - 1].turns.as_ref())
             .flatten();
         let end = if self.win[i].smooth {
-            self.win[i].turns
+            self.win[i].turns.as_ref()
         } else {
             None
         };
@@ -533,8 +539,8 @@ impl Planner {
     pub(super) fn line_end_budgets(&self, i: usize, base: f64) -> (LineBudget, LineBudget) {
         let (start, end) = self.line_turns(i);
         (
-            self.budget_between(i, start.as_ref(), None, base),
-            self.budget_between(i, None, end.as_ref(), base),
+            self.budget_between(i, start, None, base),
+            self.budget_between(i, None, end, base),
         )
     }
 
@@ -546,28 +552,32 @@ impl Planner {
         end: Option<&JunctionTurns>,
         base: f64,
     ) -> LineBudget {
+        // (Plain comparisons: every value here is finite and ≥ 0, and the NaN-aware max and
+        // min cost a third of this function, which runs five times per line.)
+        let larger = |a: f64, b: f64| if b > a { b } else { a };
         let axes = self.cfg.axes;
         let p = &self.win[i];
         let mut normal = [0.0f64; MAX_AXES];
         let mut dir = [0.0f64; MAX_AXES];
         for (k, d) in dir.iter_mut().enumerate().take(axes) {
-            *d = p.t_start[k].abs().max(p.t_end[k].abs());
+            *d = larger(p.t_start[k].abs(), p.t_end[k].abs());
         }
         let mut v_ref = 0.0f64;
         for t in [start, end].into_iter().flatten() {
-            v_ref = v_ref.max(t.v_turn_mm_s);
+            v_ref = larger(v_ref, t.v_turn_mm_s);
             for k in 0..axes {
-                normal[k] = normal[k].max(t.normal_per_s[k]);
-                dir[k] = dir[k].max(t.dir[k]);
+                normal[k] = larger(normal[k], t.normal_per_s[k]);
+                dir[k] = larger(dir[k], t.dir[k]);
             }
         }
         // The floor: what the normal acceleration leaves on every axis at any junction's
         // cap (`box_window_bound`; the fixed split leaves more).
-        let floor = (0..axes)
-            .filter(|&k| dir[k] > 1e-12)
-            .fold(p.a_axes, |f, k| {
-                f.min(self.cfg.axis_a_max_mm_s2[k] / dir[k])
-            });
+        let mut floor = p.a_axes;
+        for (&d, &a_max) in dir.iter().zip(&self.cfg.axis_a_max_mm_s2).take(axes) {
+            if d > 1e-12 && a_max / d < floor {
+                floor = a_max / d;
+            }
+        }
         let mut b = LineBudget::new(v_ref, p.a_axes, (1.0 - BOX_NORMAL_SHARE) * floor, base);
         for k in 0..axes {
             b.add_axis(self.cfg.axis_a_max_mm_s2[k], normal[k], dir[k]);
@@ -716,7 +726,11 @@ impl Planner {
     #[inline]
     fn apply_abs_turns(axes: usize, abs: &AbsTurns, h: f64, t: &mut JunctionTurns) {
         for k in 0..axes {
-            t.normal_per_s[k] = t.normal_per_s[k].max(abs.at(k, h) / TS_S);
+            // (A plain comparison, as `max` treats a NaN turn.)
+            let n = abs.at(k, h) / TS_S;
+            if n > t.normal_per_s[k] {
+                t.normal_per_s[k] = n;
+            }
         }
     }
 
@@ -805,7 +819,7 @@ impl Planner {
             return (gain, 0.0);
         }
         let start = (i > 0 && self.win[i - 1].smooth)
-            .then(|| self.win[i - 1].turns)
+            .then(|| self.win[i - 1].turns.as_ref())
             .flatten();
         let split = 1.0 - NORMAL_SHARE;
         let linear = self.cfg.envelope.profile == Profile::Linear;
@@ -823,7 +837,7 @@ impl Planner {
             let v = pass_reach_mm_s(q, aq, cap);
             let b = if linear && q.a_axes.is_finite() && !is_arc(p) && !is_arc(n) {
                 let (t0, t1) = if side == i {
-                    (start.as_ref(), turns)
+                    (start, turns)
                 } else {
                     (turns, None)
                 };
