@@ -118,8 +118,9 @@ impl LineBudget {
         let mut v = constant(hi);
         // a(v) with min(v + margin, v_ref) = margin + min(v, v_ref − margin).
         let v_ref = (self.v_ref_mm_s - self.margin_mm_s).max(0.0);
+        let margin = self.margin_mm_s.min(self.v_ref_mm_s);
         for &(p, q) in &self.terms[..self.count] {
-            let p = p - q * self.margin_mm_s.min(self.v_ref_mm_s);
+            let p = p - q * margin;
             let c = v2 + 2.0 * length_mm * (p - q * v_ref);
             let fk = if c >= v_ref * v_ref {
                 c.sqrt()

@@ -24,6 +24,7 @@
 //! and execution of a long program starts after the first junctions are final, not after the
 //! whole program.
 
+mod ahead;
 mod budget;
 mod config;
 pub mod criteria;
@@ -258,11 +259,14 @@ pub struct Planner {
     window_guess_mm_s: f64,
     /// Junctions finalized since the last backward pass.
     pending_backward: usize,
-    /// How far `ahead_known` got for the junction at `finalized`: the number of blocks after
-    /// it summed so far and their length (summed in order, as a fresh scan sums them), so a
-    /// push adds only the new block instead of rescanning (issue #32). Reset when that
-    /// junction is finalized.
-    ahead_scan: (usize, f64),
+    /// The length known after the junction at `finalized` (`ahead_known`), kept as blocks
+    /// arrive and junctions are finalized.
+    ahead: ahead::AheadSum,
+    /// Blocks dropped from the front of `win` so far: a block's absolute number is its index
+    /// plus this.
+    popped: u64,
+    /// One past the absolute number of the last block that is followed by a stop (0: none).
+    last_rough: u64,
     /// End speed of the last committed segment, mm/s (the start speed of the next).
     committed_end_mm_s: f64,
     /// A spindle change in a technology block before any motion (`M3 S..` at the top of a
@@ -294,7 +298,9 @@ impl Planner {
             near: None,
             window_guess_mm_s: 0.0,
             pending_backward: 0,
-            ahead_scan: (0, 0.0),
+            ahead: ahead::AheadSum::default(),
+            popped: 0,
+            last_rough: 0,
             committed_end_mm_s: 0.0,
             leading_spindle: None,
             tech_out: None,
@@ -474,6 +480,7 @@ impl Planner {
         self.emitted += 1;
         while self.emitted > HISTORY_BLOCKS {
             self.win.pop_front();
+            self.popped += 1;
             self.emitted -= 1;
             self.finalized -= 1;
             self.settled = self.settled.saturating_sub(1);
@@ -555,12 +562,17 @@ impl Planner {
             p.seg.dwell_before_s = self.leading_dwell_s;
             self.leading_dwell_s = 0.0;
         }
+        // (One past the absolute number of the block before this one.)
+        let prev_end = self.popped + self.win.len() as u64;
         if let Some(prev) = self.win.back_mut() {
             p.abs_du_end = abs_diff(&p.t_end, &prev.t_end);
             prev.abs_du_start = abs_diff(&prev.t_start, &p.t_start);
             let turn = angle_between(&prev.t_end, &p.t_start);
             prev.turn = turn;
             prev.smooth = Self::is_smooth(&self.cfg, prev, p);
+            if !prev.smooth {
+                self.last_rough = prev_end;
+            }
             if !prev.smooth
                 && (prev.continuity == Continuity::G24 || p.continuity == Continuity::G24)
             {
@@ -756,7 +768,12 @@ impl Planner {
             }
             self.finalize(i, last);
             self.finalized += 1;
-            self.ahead_scan = (0, 0.0);
+            match self.win.get(self.finalized) {
+                Some(p) => self
+                    .ahead
+                    .next_junction(self.popped + i as u64, p.seg.length_mm),
+                None => self.ahead = ahead::AheadSum::default(),
+            }
             self.pending_backward += 1;
         }
         // The backward pass runs once per BACKWARD_BATCH junctions (it walks back over the
@@ -792,30 +809,32 @@ impl Planner {
             let a_ts = if a.is_finite() { a * TS_S } else { 0.0 };
             need = need.max(1.5 * (need * 2.0 + a_ts * TS_S));
         }
-        // Resume where the last call for this junction stopped: the blocks it summed are
-        // unchanged (only the last one's junction was not known then).
-        let (seen, mut have) = self.ahead_scan;
-        let n = self.win.len();
-        let from = i + 1 + seen;
-        if seen > 0 && from < n && !self.win[from - 1].smooth {
+        // A stop after one of the blocks ahead (but the last, whose junction is not known).
+        let j = self.popped + i as u64;
+        if self.last_rough > j + 1 {
             return true;
         }
-        for (k, p) in self
-            .win
-            .range(from..)
-            .enumerate()
-            .map(|(o, p)| (from + o, p))
-        {
-            have += p.seg.length_mm;
-            if have >= need {
-                return true;
-            }
-            if k + 1 < n && !p.smooth {
-                return true;
+        // Their length (`ahead.rs`); the blocks pushed since the last call are added.
+        if !self.ahead.is_for(j) {
+            self.ahead = ahead::AheadSum::start(j);
+        }
+        let end = self.popped + self.win.len() as u64;
+        while self.ahead.end() < end {
+            let k = (self.ahead.end() - self.popped) as usize;
+            self.ahead.add(self.win[k].seg.length_mm);
+        }
+        match self.ahead.compare(need) {
+            ahead::Verdict::Reached => true,
+            ahead::Verdict::NotReached => false,
+            // The lengths summed in order, as the comparison is defined.
+            ahead::Verdict::Unsure => {
+                let mut have = 0.0;
+                self.win.range(i + 1..).any(|p| {
+                    have += p.seg.length_mm;
+                    have >= need
+                })
             }
         }
-        self.ahead_scan = (n - i - 1, have);
-        false
     }
 
     /// Unit tangents at the distances `ds` (ascending, > 0) after (`ahead`) or before the end

@@ -326,11 +326,16 @@ impl Planner {
         let s = 2.0 * h;
         for pair in entries.windows(2) {
             let d = pair[1].walked_mm;
+            // (Plain comparisons: the range's ends and d are finite.)
             if d >= s {
-                h_piece.1 = h_piece.1.min(0.5 * d);
+                if 0.5 * d < h_piece.1 {
+                    h_piece.1 = 0.5 * d;
+                }
                 return;
             }
-            h_piece.0 = h_piece.0.max(0.5 * d);
+            if 0.5 * d > h_piece.0 {
+                h_piece.0 = 0.5 * d;
+            }
             // The turn of the tangent at each block's far end (seen from the junction), as
             // the lookups: |far(pair[1]) − far(pair[0])|.
             let p = &self.win[pair[1].k];
