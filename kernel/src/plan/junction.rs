@@ -127,17 +127,18 @@ impl Planner {
         if let Some(near) = self.near.as_mut() {
             near.invalidate();
         }
+        let box_rule = !last && self.box_rule(i);
         let (mut crit, mut criteria_cap) = if last {
             (0.0, 0.0)
         } else {
-            self.junction_speed(i, BOX_NORMAL_SHARE, None)
+            self.junction_speed(i, BOX_NORMAL_SHARE, None, box_rule)
         };
         let passed = !last && self.win[i].smooth && criteria_cap > 0.0;
         let mut turns = (passed && self.cfg.envelope.profile == Profile::Linear)
             .then(|| self.junction_turns(i, criteria_cap));
         // What passing gains over stopping and what the lines lose, once known.
         let mut net = None;
-        if passed && self.box_rule(i) {
+        if passed && box_rule {
             // The per-axis box lets the turn take nearly all of an axis; the lines beside
             // it then ramp slowly. Where that loses time (long lines that ramp far from
             // the turn's speed) the turn takes half of each axis instead (issue #32).
@@ -148,7 +149,7 @@ impl Planner {
                 // its search stops (cap 0) once its gain alone cannot, and then its turns
                 // and budgets are not needed (on an alternating zig-zag every junction gets
                 // here and never wins).
-                let (c, cap) = self.junction_speed(i, NORMAL_SHARE, Some(gain - loss));
+                let (c, cap) = self.junction_speed(i, NORMAL_SHARE, Some(gain - loss), true);
                 if cap > 0.0 && self.pass_gain_s(i, cap).1 > gain - loss {
                     let t = self.junction_turns(i, cap);
                     let (g, l) = self.corner_net_s(i, cap, Some(&t));
@@ -183,14 +184,20 @@ impl Planner {
     /// the ceilings of both blocks, and for a smooth junction the local curvature window.
     /// With `beat_s`, 0 once passing at any speed the search may still find gains no more
     /// than `beat_s` ([`Planner::pass_gain_s`], which rises with the speed).
-    fn junction_speed(&mut self, i: usize, share: f64, beat_s: Option<f64>) -> (f64, f64) {
+    /// `box_rule`: [`Planner::box_rule`] of junction `i`.
+    fn junction_speed(
+        &mut self,
+        i: usize,
+        share: f64,
+        beat_s: Option<f64>,
+        box_rule: bool,
+    ) -> (f64, f64) {
         let env = &self.cfg.envelope;
         let (p, n) = (&self.win[i], &self.win[i + 1]);
         let set = &env.sets[n.set];
         // Linear profile: the normal acceleration is checked per axis against the whole
         // axis limit over the tick window (`window_bound`, issue #32), so the manual's
         // dynamic criterion keeps only its own am here. Elsewhere the fixed normal share.
-        let box_rule = self.box_rule(i);
         // Under the box rule the lines beside a turn keep what the turn leaves of each axis
         // at the highest speed they run; with the override headroom on top (150 %) that is
         // next to nothing on a curve that allows more than the feed. So a box-rule turn is

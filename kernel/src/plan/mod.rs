@@ -216,14 +216,20 @@ impl Pending {
     /// Gives the segment the acceleration of its budget for speeds up to `v` (feed moves: the
     /// constants' path acceleration; hold and stop: the stop set's `rapid_a`).
     fn apply_budget(&mut self, b: &budget::LineBudget, v: f64, rapid_a: f64) {
-        self.seg.accel_mm_s2 = b.accel_at(v);
-        let stop = rapid_a.min(b.tangential_at(v));
-        self.seg.stop_accel_mm_s2 = if stop > 0.0 && stop.is_finite() {
-            stop
-        } else {
-            self.seg.accel_mm_s2
-        };
+        apply_budget_to(&mut self.seg, b, v, rapid_a);
     }
+}
+
+/// [`Pending::apply_budget`] on the segment alone (its block's budget borrowed beside it,
+/// not copied: this runs on every braking step).
+fn apply_budget_to(seg: &mut Segment, b: &budget::LineBudget, v: f64, rapid_a: f64) {
+    seg.accel_mm_s2 = b.accel_at(v);
+    let stop = rapid_a.min(b.tangential_at(v));
+    seg.stop_accel_mm_s2 = if stop > 0.0 && stop.is_finite() {
+        stop
+    } else {
+        seg.accel_mm_s2
+    };
 }
 
 /// Streaming planner: push blocks, poll committed segments.
@@ -958,10 +964,10 @@ impl Planner {
     fn braking_start_mm_s(&mut self, k: usize, v_end: f64) -> f64 {
         let rapid_a = self.cfg.envelope.rapid_accel_mm_s2;
         let n = &mut self.win[k];
-        match n.budget {
+        match &n.budget {
             Some(b) => {
                 let v = b.reach_mm_s(v_end, n.seg.length_mm).min(n.seg.v_max_mm_s);
-                n.apply_budget(&b, v, rapid_a);
+                apply_budget_to(&mut n.seg, b, v, rapid_a);
                 v
             }
             None => (v_end * v_end + 2.0 * n.seg.accel_mm_s2 * n.seg.length_mm)
@@ -980,13 +986,13 @@ impl Planner {
             .budget
             .map(|b| self.line_end_budgets(i, b.base_mm_s2()));
         let p = &mut self.win[i];
-        if let Some(b) = p.budget {
+        if let Some(b) = &p.budget {
             let len = p.seg.length_mm;
             let v = b
                 .reach_mm_s(p.seg.v_end_mm_s, len)
                 .min(b.reach_mm_s(v_from, len))
                 .min(p.seg.v_max_mm_s);
-            p.apply_budget(&b, v, rapid_a);
+            apply_budget_to(&mut p.seg, b, v, rapid_a);
             // Each end's turns alone, at the same speeds (each at least the combined
             // budget: fewer turns, the same line).
             if let Some((bs, be)) = ends {
