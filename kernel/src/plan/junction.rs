@@ -52,7 +52,7 @@ struct WindowLimits {
 ///
 /// The probes follow the bound's own value: where the bound is flat around the crossing (the
 /// same tangents within the tick window, as on the chords of a curve) that value is the
-/// crossing, so 0.999 of it is within and lo/0.998 above it is not, which ends the search.
+/// crossing, so 0.999 of it is within and 1.0019 times that is not, which ends the search.
 /// `guess_mm_s` (the previous junction's crossing: neighbouring junctions of a dense path
 /// have similar limits) is the first estimate. After a few probes, or without an estimate
 /// inside the bracket, bisection (the bound need not be flat).
@@ -83,6 +83,8 @@ fn largest_within(
         }
         b
     };
+    // v needs no probe of its own once it was the first (nothing found within) or a probe
+    // below it was not within.
     let mut v_probed = hi < v || lo == 0.0;
     let mut steps = 0;
     while hi - lo > 0.002 * hi && steps < 64 {
@@ -149,7 +151,7 @@ impl Planner {
                 // its search stops (cap 0) once its gain alone cannot, and then its turns
                 // and budgets are not needed (on an alternating zig-zag every junction gets
                 // here and never wins).
-                let (c, cap) = self.junction_speed(i, NORMAL_SHARE, Some(gain - loss), true);
+                let (c, cap) = self.junction_speed(i, NORMAL_SHARE, Some(gain - loss), box_rule);
                 if cap > 0.0 && self.pass_gain_s(i, cap).1 > gain - loss {
                     let t = self.junction_turns(i, cap);
                     let (g, l) = self.corner_net_s(i, cap, Some(&t));
