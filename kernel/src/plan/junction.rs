@@ -827,9 +827,7 @@ impl Planner {
         if gain == f64::NEG_INFINITY {
             return (gain, 0.0);
         }
-        let start = (i > 0 && self.win[i - 1].smooth)
-            .then(|| self.win[i - 1].turns.as_ref())
-            .flatten();
+        let (start, _) = self.line_turns(i);
         let split = 1.0 - NORMAL_SHARE;
         let linear = self.cfg.envelope.profile == Profile::Linear;
         // Per side, with V the speed the block reaches from the cap: a line ramping between

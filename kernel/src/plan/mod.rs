@@ -578,11 +578,9 @@ impl Planner {
             prev.smooth = Self::is_smooth(&self.cfg, prev, p);
             if !prev.smooth {
                 self.last_rough = prev_end;
-            }
-            if !prev.smooth
-                && (prev.continuity == Continuity::G24 || p.continuity == Continuity::G24)
-            {
-                prev.seg.wait_in_position = true;
+                if prev.continuity == Continuity::G24 || p.continuity == Continuity::G24 {
+                    prev.seg.wait_in_position = true;
+                }
             }
         }
     }
