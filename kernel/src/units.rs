@@ -31,6 +31,14 @@ impl AxesMm {
         self.0[..n].iter().fold(0.0, |m, v| m.max(v.abs()))
     }
 
+    /// The absolute value of every component.
+    pub fn abs(mut self) -> AxesMm {
+        for a in self.0.iter_mut() {
+            *a = a.abs();
+        }
+        self
+    }
+
     /// Linear interpolation `self + (other - self) * t`.
     pub fn lerp(&self, other: &AxesMm, t: f64) -> AxesMm {
         let mut out = *self;

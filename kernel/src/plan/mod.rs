@@ -571,8 +571,8 @@ impl Planner {
         // (One past the absolute number of the block before this one.)
         let prev_end = self.popped + self.win.len() as u64;
         if let Some(prev) = self.win.back_mut() {
-            p.abs_du_end = abs_diff(&p.t_end, &prev.t_end);
-            prev.abs_du_start = abs_diff(&prev.t_start, &p.t_start);
+            p.abs_du_end = (p.t_end - prev.t_end).abs();
+            prev.abs_du_start = (prev.t_start - p.t_start).abs();
             let turn = angle_between(&prev.t_end, &p.t_start);
             prev.turn = turn;
             prev.smooth = Self::is_smooth(&self.cfg, prev, p);
@@ -1005,15 +1005,6 @@ impl Planner {
             self.committed_end_mm_s = p.seg.v_end_mm_s;
         }
     }
-}
-
-/// |a − b| per axis.
-fn abs_diff(a: &AxesMm, b: &AxesMm) -> AxesMm {
-    let mut d = *a - *b;
-    for x in d.0.iter_mut() {
-        *x = x.abs();
-    }
-    d
 }
 
 /// Programmed feed of a cutting move, mm/min, or the error of a missing one.

@@ -52,11 +52,7 @@ impl AbsTurns {
     /// Adds the turn `du` of a junction at distance `d_mm`.
     #[inline]
     pub(super) fn add(&mut self, axes: usize, du: &AxesMm, d_mm: f64) {
-        let mut du_abs = *du;
-        for a in du_abs.0.iter_mut() {
-            *a = a.abs();
-        }
-        self.add_abs(axes, &du_abs, d_mm);
+        self.add_abs(axes, &du.abs(), d_mm);
     }
 
     /// [`AbsTurns::add`] of a turn already taken absolute per axis.
