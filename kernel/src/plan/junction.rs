@@ -146,7 +146,13 @@ impl Planner {
             // the turn's speed) the turn takes half of each axis instead (issue #32).
             let (gain, loss) = self.corner_net_s(i, criteria_cap, turns.as_ref());
             net = Some((gain, loss));
-            if loss > 0.05 * gain.max(0.0) {
+            // (The half share's cap is at most `own_turn_cap`, and its gain rises with the
+            // speed: where even that gain cannot beat this share, its search is not run.)
+            let may_win = || {
+                let upper = self.own_turn_cap(i, NORMAL_SHARE);
+                self.pass_gain_s(i, upper).1 > gain - loss
+            };
+            if loss > 0.05 * gain.max(0.0) && may_win() {
                 // The half share wins only if its gain minus its loss (≥ 0) beats this one:
                 // its search stops (cap 0) once its gain alone cannot, and then its turns
                 // and budgets are not needed (on an alternating zig-zag every junction gets
@@ -611,6 +617,26 @@ impl Planner {
         t.dir = self.turn_dirs(j, self.turn_window(j, cap).1, &near);
         self.near = Some(near);
         t
+    }
+
+    /// An upper bound of every speed the box-rule search at `share` finds within its bound
+    /// at junction `j`: the absolute turns count the junction's own turn |Δu_k| with weight
+    /// 1, so such a speed v keeps v·|Δu_k| ≤ share·a_k·Ts (the margin a_ts only lowers it).
+    /// ∞ where the junction does not turn (mm/s).
+    fn own_turn_cap(&self, j: usize, share: f64) -> f64 {
+        let own = self.win[j + 1].t_start - self.win[j].t_end;
+        let mut cap = f64::INFINITY;
+        for k in 0..self.cfg.axes {
+            let turn = own[k].abs();
+            if turn > 1e-12 {
+                // (1e-9 above: the bound's sum and the search's tolerance round.)
+                let v = share * self.cfg.axis_a_max_mm_s2[k] * TS_S / turn * (1.0 + 1e-9);
+                if v < cap {
+                    cap = v;
+                }
+            }
+        }
+        cap
     }
 
     /// The blocks near junction `j` that its turns at speeds up to `cap` look at, within
