@@ -12,11 +12,11 @@ use crate::units::{AxesMm, MAX_AXES, TS_S};
 /// Share of each axis's acceleration the normal acceleration of the turns may take at a
 /// junction's cap in the linear profile (issue #32); the rest is the floor of the
 /// tangential acceleration of the lines beside it, so braking never stalls. (0.85 gains up
-/// to 1 % on the dense paths but raises the interpolator's tick p99 on the dense circle from
-/// 7.6 to 10.3 µs, past the 10 µs the project allows: its lines keep less, so the braking
-/// look-ahead reaches farther; from 0.9 on the random splines lose: docs/planner.md, *The
-/// share*.)
-pub const BOX_NORMAL_SHARE: f64 = 0.8;
+/// to 1.2 % on the dense paths over 0.8; its cost, the interpolator's tick p99 on the dense
+/// circle 58.4 k → 71.3 k instructions, is within the 10 µs allowed, and the half share's
+/// search no longer runs where it cannot win (`own_turn_cap`); from 0.9 on the random
+/// splines lose: docs/planner.md, *The share*.)
+pub const BOX_NORMAL_SHARE: f64 = 0.85;
 
 /// How much of the axes' path acceleration a block may use along the path.
 enum Share {
