@@ -1,6 +1,7 @@
 """The machine of issue #32, shared by reference.py and hold_estimate.py (the same figures as
-machine.rek): per axis 20000 mm/min and 1000 mm/s², no path-level acceleration (R52 = R237 = 0:
-the axes' limits), F6000, R384 Lm = 8 µm, R385 am = 1000 mm/s², 4 ms ticks. Plain numbers, so a script that needs no TOPP-RA can import them."""
+machine.rek): per axis 20000 mm/min and 1000 mm/s², no path-level acceleration (R52 = R237 =
+0: the axes' limits), F6000, R384 Lm = 8 µm, R385 am = 1000 mm/s², 4 ms ticks. Plain numbers,
+so a script that needs no TOPP-RA can import them."""
 
 V_AXIS = 20000.0 / 60.0
 A_AXIS = 1000.0

@@ -14,7 +14,7 @@ use crate::units::{AxesMm, MAX_AXES, TS_S};
 /// tangential acceleration of the lines beside it, so braking never stalls. (0.85 gains up
 /// to 1.2 % on the dense paths over 0.8; its cost, the interpolator's tick p99 on the dense
 /// circle 58.4 k → 71.3 k instructions, is within the 10 µs allowed, and the half share's
-/// search no longer runs where it cannot win (`own_turn_cap`); from 0.9 on the random
+/// search no longer runs where it cannot win (`own_turn_cap`); from 0.87 on the random
 /// splines lose: docs/planner.md, *The share*.)
 pub const BOX_NORMAL_SHARE: f64 = 0.85;
 
