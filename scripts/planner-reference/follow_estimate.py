@@ -21,8 +21,8 @@ import sys
 
 import numpy as np
 
-from hold_estimate import HERE, junction_caps, load
-from machine import A_AXIS, FEED, TS, V_AXIS
+from hold_estimate import HERE, chords, junction_caps, load
+from machine import A_AXIS, TS
 
 DX_MM = 0.002
 
@@ -30,15 +30,7 @@ DX_MM = 0.002
 def grid(name, share):
     """Per grid point: ceiling, the chord's acceleration, and the zone's turn per axis
     (|du_k|/Ts, largest tangent component; 0 outside every zone)."""
-    pts = load(name)
-    d = np.diff(pts, axis=0)
-    length = np.linalg.norm(d, axis=1)
-    d, length = d[length > 1e-9], length[length > 1e-9]
-    u = d / length[:, None]
-    with np.errstate(divide="ignore"):
-        vseg = np.minimum(FEED, np.min(np.where(np.abs(u) > 1e-12, V_AXIS / np.abs(u), np.inf), axis=1))
-        aseg = np.min(np.where(np.abs(u) > 1e-12, A_AXIS / np.abs(u), np.inf), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(length)])
+    u, vseg, aseg, s = chords(load(name))
     caps = junction_caps(u, vseg, share)
     n = int(math.ceil(s[-1] / DX_MM)) + 1
     x = np.linspace(0.0, s[-1], n)

@@ -73,9 +73,9 @@ def zone_accel(u0, u1, cap):
     return max(float(np.min(left[moving] / d[moving])), 1e-6)
 
 
-def intervals(pts, share, hold, budget):
-    """Intervals of constant ceiling and acceleration: (lengths, ceilings, accelerations,
-    caps at their ends)."""
+def chords(pts):
+    """The polyline's chords: unit tangents, per chord the speed ceiling min(F, v_k/|u_k|)
+    and the full path acceleration min a_k/|u_k|, and the arc length at each point."""
     d = np.diff(pts, axis=0)
     length = np.linalg.norm(d, axis=1)
     d, length = d[length > 1e-9], length[length > 1e-9]
@@ -83,7 +83,13 @@ def intervals(pts, share, hold, budget):
     with np.errstate(divide="ignore"):
         vseg = np.minimum(FEED, np.min(np.where(np.abs(u) > 1e-12, V_AXIS / np.abs(u), np.inf), axis=1))
         aseg = np.min(np.where(np.abs(u) > 1e-12, A_AXIS / np.abs(u), np.inf), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(length)])
+    return u, vseg, aseg, np.concatenate([[0.0], np.cumsum(length)])
+
+
+def intervals(pts, share, hold, budget):
+    """Intervals of constant ceiling and acceleration: (lengths, ceilings, accelerations,
+    caps at their ends)."""
+    u, vseg, aseg, s = chords(pts)
     caps = junction_caps(u, vseg, share)
     at = s[1:-1]
     half = np.where(np.isfinite(caps), caps * TS, 0.0) if hold else np.zeros(len(caps))
