@@ -16,12 +16,11 @@ Usage: target/planner-ref/venv/bin/python scripts/planner-reference/follow_estim
 """
 
 import math
-import os
 import sys
 
 import numpy as np
 
-from hold_estimate import HERE, chords, junction_caps, load
+from hold_estimate import chords, junction_caps, limits_s, load
 from machine import A_AXIS, TS
 
 DX_MM = 0.002
@@ -79,12 +78,7 @@ def time_s(name, share, zone):
 
 
 def main():
-    limits = {}
-    with open(os.path.join(HERE, "reference.tsv")) as f:
-        for row in f:
-            if not row.startswith("#"):
-                cols = row.split("\t")
-                limits[cols[0]] = float(cols[5])
+    limits = limits_s()
     runs = ((1.0, "full"), (1.0, "cap"), (1.0, "local"), (0.85, "cap"), (0.85, "local"))
     print("path       limit   " + "   ".join(f"{z} {s}" for s, z in runs))
     for name in sys.argv[1:] or ["splines", "arcs", "helix", "surface"]:

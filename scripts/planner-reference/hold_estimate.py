@@ -126,13 +126,19 @@ def time_s(pts, share, hold, budget):
     return t
 
 
-def main():
+def limits_s():
+    """Per path the limit of reference.tsv, max(exact, smooth), s."""
     limits = {}
     with open(os.path.join(HERE, "reference.tsv")) as f:
         for row in f:
             if not row.startswith("#"):
                 cols = row.split("\t")
                 limits[cols[0]] = float(cols[5])
+    return limits
+
+
+def main():
+    limits = limits_s()
     runs = ((1.0, False, False), (1.0, True, False), (1.0, True, True), (0.8, True, True))
     print("path          limit    exact   zones at c (/limit)   + budget at c (/limit)   "
           "share 0.8 + budget (/limit)")
