@@ -624,7 +624,7 @@ impl Planner {
     /// 1, so such a speed v keeps v·|Δu_k| ≤ share·a_k·Ts (the margin a_ts only lowers it).
     /// ∞ where the junction does not turn (mm/s).
     fn own_turn_cap(&self, j: usize, share: f64) -> f64 {
-        let own = self.win[j + 1].t_start - self.win[j].t_end;
+        let own = self.own_turn(j);
         let mut cap = f64::INFINITY;
         for k in 0..self.cfg.axes {
             let turn = own[k].abs();
@@ -637,6 +637,12 @@ impl Planner {
             }
         }
         cap
+    }
+
+    /// The turn of the tangent at junction `j` itself, t_start of the next block − t_end of
+    /// this one: the absolute turns count it with weight 1, which `own_turn_cap` relies on.
+    fn own_turn(&self, j: usize) -> AxesMm {
+        self.win[j + 1].t_start - self.win[j].t_end
     }
 
     /// The blocks near junction `j` that its turns at speeds up to `cap` look at, within
@@ -748,7 +754,7 @@ impl Planner {
             return None;
         }
         let mut abs = AbsTurns::default();
-        let own = self.win[j + 1].t_start - self.win[j].t_end;
+        let own = self.own_turn(j);
         abs.add(self.cfg.axes, &own, 0.0);
         self.abs_turns_from(near, true, h, &mut abs, h_piece);
         self.abs_turns_from(near, false, h, &mut abs, h_piece);
