@@ -19,6 +19,11 @@ pub(super) struct JunctionTurns {
     /// Per axis: the turn of the tangent per tick within the tick window, 1/s (N_k(v) ≤
     /// normal_k·min(v, v_ref)).
     pub(super) normal_per_s: [f64; MAX_AXES],
+    /// Per axis: the junction's own turn per tick, |Δu_k|/Ts, where `normal_per_s` is the
+    /// absolute turns between lines (which count it with weight 1); 0 elsewhere. The cap
+    /// takes no acceleration step margin on it: a tick point weighs it by at most the step
+    /// that crosses or ends on the junction, which the interpolator keeps within the cap.
+    pub(super) own_per_s: [f64; MAX_AXES],
     /// Per axis: the largest tangent component the ticks near the junction move along.
     pub(super) dir: [f64; MAX_AXES],
     /// The fastest a tick touching the junction runs, mm/s.

@@ -358,24 +358,14 @@ impl Planner {
     /// keeps the turns with the range of h over which they are the same, for the search's
     /// later speeds and [`Planner::junction_turns`] at the speed it settles on.
     fn box_window_bound(&self, i: usize, v: f64, l: &WindowLimits, near: &NearJunction) -> f64 {
-        let (mut t, window, mut h_piece, fresh) = self.turns_and_window(i, v, near);
-        let mut bound = self.box_bound(&t, &window, v, l);
-        if bound >= v * (1.0 - 1e-9) && fresh {
-            // The absolute turns only lower the bound: needed where it holds without them.
-            let signed = t;
-            let Some(abs) = self.abs_turns(i, v, near, &mut h_piece) else {
-                // (Not reached: the walk covers 2h of the search's highest speed.)
-                return 0.0;
-            };
-            Self::apply_abs_turns(self.cfg.axes, &abs, self.turn_window(i, v).1, &mut t);
-            bound = self.box_bound(&t, &window, v, l);
-            // Kept with them (a lookup without them must not be reused): the search's next
-            // speeds, and its result, are likely in this piece.
-            if h_piece.0 < h_piece.1 {
-                near.remember((signed, window, abs, h_piece));
-            }
+        // (A fresh lookup is kept in `near`: the search's next speeds, and its result, are
+        // likely in its piece.)
+        let (t, window, complete) = self.turns_and_window(i, v, near, true);
+        if !complete {
+            // (Not reached: the walk covers 2h of the search's highest speed.)
+            return 0.0;
         }
-        bound
+        self.box_bound(&t, &window, v, l)
     }
 
     /// The bound of [`Planner::box_window_bound`] for these turns and window at `v`.
@@ -393,8 +383,12 @@ impl Planner {
         for k in 0..axes {
             let turn = t.normal_per_s[k] * TS_S;
             if turn > 1e-12 {
+                // v_turn·(turn − own) + v·own ≤ share·a_k·Ts: the ticks touching the
+                // junction may run one acceleration step faster than v, but the steps that
+                // carry its own turn are within v (`JunctionTurns::own_per_s`).
                 let a_k = self.cfg.axis_a_max_mm_s2[k] * l.share;
-                lower(a_k * TS_S / turn - a_ts);
+                let others = (1.0 - t.own_per_s[k] * TS_S / turn).max(0.0);
+                lower(a_k * TS_S / turn - a_ts * others);
             }
             let w = window[k].abs();
             if w > 1e-12 {
@@ -607,13 +601,8 @@ impl Planner {
     /// along. Looked up once per junction for the lines on both sides.
     pub(super) fn junction_turns(&mut self, j: usize, cap: f64) -> JunctionTurns {
         let near = self.near_junction(j, cap);
-        let (mut t, _, mut h_piece, fresh) = self.turns_and_window(j, cap, &near);
-        if fresh {
-            // (`near_junction` walked 2h at `cap`.)
-            if let Some(abs) = self.abs_turns(j, cap, &near, &mut h_piece) {
-                Self::apply_abs_turns(self.cfg.axes, &abs, self.turn_window(j, cap).1, &mut t);
-            }
-        }
+        // (`near_junction` walked 2h at `cap`: the absolute turns are found.)
+        let (mut t, _, _) = self.turns_and_window(j, cap, &near, false);
         t.dir = self.turn_dirs(j, self.turn_window(j, cap).1, &near);
         self.near = Some(near);
         t
@@ -686,19 +675,21 @@ impl Planner {
 
     /// The turns of [`Planner::junction_turns`] without `dir`, and the turn of the tangent
     /// over the tick window, t(+h) − t(−h), with the tangents looked up in `near` where it
-    /// covers them. Also the range of h = v_ref·Ts/2 (h_lo, h_hi] over which both are the
-    /// same (an empty one where they vary, near arcs).
+    /// covers them. With `keep`, a fresh lookup is kept in `near` with the range of h =
+    /// v_ref·Ts/2 (h_lo, h_hi] over which it is the same (not where it varies, near arcs).
+    /// Whether the absolute turns are in them (the walk covers 2h).
     #[inline(always)]
     fn turns_and_window(
         &self,
         j: usize,
         cap: f64,
         near: &NearJunction,
-    ) -> (JunctionTurns, AxesMm, (f64, f64), bool) {
+        keep: bool,
+    ) -> (JunctionTurns, AxesMm, bool) {
         let axes = self.cfg.axes;
         let (v, h) = self.turn_window(j, cap);
         let v_turn = if self.isolated(j, v) { cap } else { v };
-        if let Some((turns, window, abs, piece)) = near.same_piece(j, h) {
+        if let Some((turns, window, abs, _)) = near.same_piece(j, h) {
             // The same tangents and junctions within 2h as a recent lookup: v_ref and the
             // weights of the absolute turns differ.
             let mut t = JunctionTurns {
@@ -707,36 +698,66 @@ impl Planner {
                 ..turns
             };
             Self::apply_abs_turns(axes, &abs, h, &mut t);
-            return (t, window, piece, false);
+            return (t, window, true);
         }
         let mut t = JunctionTurns {
             v_ref_mm_s: v,
             v_turn_mm_s: v_turn,
             ..JunctionTurns::default()
         };
-        // The velocity change of a tick weighs the turns within ±v·Ts of it by
-        // 1 − |x|/(v·Ts): the mean of the turns within ±h/2 and ±3h/2.
+        let mut h_piece = (0.0, f64::INFINITY);
+        let abs = self.abs_turns(j, cap, near, &mut h_piece);
+        let window = if abs.is_some_and(|a| a.exact()) {
+            // Only lines within 2h: the absolute turns replace the window's samples.
+            let (mut ahead, mut behind) = ([AxesMm::ZERO; 1], [AxesMm::ZERO; 1]);
+            self.tangents_from(near, true, h, &[1.0], &mut ahead, &mut h_piece);
+            self.tangents_from(near, false, h, &[1.0], &mut behind, &mut h_piece);
+            ahead[0] - behind[0]
+        } else {
+            self.signed_turns(j, h, near, &mut t, &mut h_piece)
+        };
+        let Some(abs) = abs else {
+            return (t, window, false);
+        };
+        if keep && h_piece.0 < h_piece.1 {
+            near.remember((t, window, abs, h_piece));
+        }
+        Self::apply_abs_turns(axes, &abs, h, &mut t);
+        (t, window, true)
+    }
+
+    /// Sets the turns of `t` to the turn of the tangent over the tick window, sampled as a
+    /// tick weighs the turns within ±v·Ts of it, by 1 − |x|/(v·Ts): the mean of the turns
+    /// within ±h/2 and ±3h/2; returns the window's turn t(+h) − t(−h).
+    #[inline(always)]
+    fn signed_turns(
+        &self,
+        j: usize,
+        h: f64,
+        near: &NearJunction,
+        t: &mut JunctionTurns,
+        h_piece: &mut (f64, f64),
+    ) -> AxesMm {
         let mut ahead = [AxesMm::ZERO; 3];
         let mut behind = [AxesMm::ZERO; 3];
         let ds = [h / 2.0, h, 1.5 * h];
-        let mut h_piece = (0.0, f64::INFINITY);
         if near.covers(j, ds[2]) {
             // (c·h is bit-identical to the distances above.)
             let cs = [0.5, 1.0, 1.5];
-            self.tangents_from(near, true, h, &cs, &mut ahead, &mut h_piece);
-            self.tangents_from(near, false, h, &cs, &mut behind, &mut h_piece);
+            self.tangents_from(near, true, h, &cs, &mut ahead, h_piece);
+            self.tangents_from(near, false, h, &cs, &mut behind, h_piece);
         } else {
-            h_piece = (h, h);
+            *h_piece = (h, h);
             self.tangents_near(j, true, &ds, &mut ahead);
             self.tangents_near(j, false, &ds, &mut behind);
         }
         let [ti1, t1, to1] = ahead;
         let [ti0, t0, to0] = behind;
-        for k in 0..axes {
+        for k in 0..self.cfg.axes {
             let turn = 0.5 * ((ti1[k] - ti0[k]).abs() + (to1[k] - to0[k]).abs());
             t.normal_per_s[k] = turn / TS_S;
         }
-        (t, t1 - t0, h_piece, true)
+        t1 - t0
     }
 
     /// The absolute turns near junction `j` at `cap` ([`AbsTurns`]; the walk must cover 2h,
@@ -754,24 +775,29 @@ impl Planner {
             return None;
         }
         let mut abs = AbsTurns::default();
-        let own = self.own_turn(j);
-        abs.add(self.cfg.axes, &own, 0.0);
+        abs.add_own(self.cfg.axes, &self.own_turn(j));
         self.abs_turns_from(near, true, h, &mut abs, h_piece);
         self.abs_turns_from(near, false, h, &mut abs, h_piece);
         Some(abs)
     }
 
-    /// Raises the turns to the absolute turns near the junction at h ([`AbsTurns`]): the
+    /// Sets the turns to the absolute turns near the junction at h ([`AbsTurns`]): the
     /// tangent's turn over the window lets turns of opposite sign cancel and weighs the
-    /// turns by two samples of the window, not as the ticks' second differences do.
+    /// turns by two samples of the window, not as the ticks' second differences do. Where
+    /// only lines lie within 2h the absolute turns are what the ticks see (issue #32: the
+    /// window's samples weighed a turn within h/2 by 1 where a tick weighs it by at most
+    /// 1 − d/2h, and cost the Lissajous 1.028 → 1.032); near arcs, whose turn the sums
+    /// count at the arc's far end, the larger of the two is kept.
     #[inline]
     fn apply_abs_turns(axes: usize, abs: &AbsTurns, h: f64, t: &mut JunctionTurns) {
+        let exact = abs.exact();
         for k in 0..axes {
             // (A plain comparison, as `max` treats a NaN turn.)
             let n = abs.at(k, h) / TS_S;
-            if n > t.normal_per_s[k] {
+            if exact || n > t.normal_per_s[k] {
                 t.normal_per_s[k] = n;
             }
+            t.own_per_s[k] = if exact { abs.own(k) / TS_S } else { 0.0 };
         }
     }
 

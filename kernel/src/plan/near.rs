@@ -40,19 +40,38 @@ pub(super) type Lookup = (JunctionTurns, AxesMm, AbsTurns, (f64, f64));
 pub(super) struct AbsTurns {
     sum: AxesMm,
     moment_mm: AxesMm,
+    /// The junction's own turn (in the sums at d = 0).
+    own: AxesMm,
+    /// An arc lies within S: its turn is spread along it, where the sums (which count it at
+    /// its far end) do not bound what the ticks see.
+    arcs: bool,
 }
 
 impl AbsTurns {
+    /// Whether the sums bound the turns every tick near the junction sees: only lines
+    /// within S, so the setpoints' second differences are exactly the weighted turns.
+    #[inline]
+    pub(super) fn exact(&self) -> bool {
+        !self.arcs
+    }
+
     /// Σ|Δu_k|·(1 − d/S) for axis k at S = 2h.
     #[inline]
     pub(super) fn at(&self, k: usize, h: f64) -> f64 {
         self.sum[k] - self.moment_mm[k] / (2.0 * h)
     }
 
-    /// Adds the turn `du` of a junction at distance `d_mm`.
+    /// |Δu_k| of the junction's own turn.
     #[inline]
-    pub(super) fn add(&mut self, axes: usize, du: &AxesMm, d_mm: f64) {
-        self.add_abs(axes, &du.abs(), d_mm);
+    pub(super) fn own(&self, k: usize) -> f64 {
+        self.own[k]
+    }
+
+    /// Adds the junction's own turn `du` (at d = 0).
+    #[inline]
+    pub(super) fn add_own(&mut self, axes: usize, du: &AxesMm) {
+        self.own = du.abs();
+        self.add_abs(axes, &self.own.clone(), 0.0);
     }
 
     /// [`AbsTurns::add`] of a turn already taken absolute per axis.
@@ -320,6 +339,7 @@ impl Planner {
     ) {
         let entries = if ahead { &near.ahead } else { &near.behind };
         let s = 2.0 * h;
+        abs.arcs |= entries.first().is_some_and(|y| y.arc);
         for pair in entries.windows(2) {
             let d = pair[1].walked_mm;
             // (Plain comparisons: the range's ends and d are finite.)
@@ -341,6 +361,7 @@ impl Planner {
                 &p.abs_du_start
             };
             abs.add_abs(self.cfg.axes, du, d);
+            abs.arcs |= pair[1].arc;
         }
     }
 }
