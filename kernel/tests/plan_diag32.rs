@@ -113,6 +113,19 @@ fn where_the_time_goes() {
         let a_min: Vec<f64> = a_pl.iter().zip(&a_full).map(|(a, b)| a.min(*b)).collect();
         let t_exa = pass_time(&cap_ex, &a_min, &l, &vseg);
         let t_pl = pass_time(&capmin, &a_min, &l, &vseg);
+        {
+            // Planner caps with its stops passed at the exact caps (full accelerations).
+            let unstop: Vec<f64> = capmin
+                .iter()
+                .zip(&cap_ex)
+                .map(|(a, b)| if *a == 0.0 { *b } else { *a })
+                .collect();
+            println!(
+                "  planner caps, stops at exact, full a {:.3}; with planner a {:.3}",
+                pass_time(&unstop, &a_full, &l, &vseg),
+                pass_time(&unstop, &a_min, &l, &vseg)
+            );
+        }
         let stops = segs.iter().filter(|s| s.v_end_mm_s == 0.0).count();
         let stops_junc = segs
             .iter()

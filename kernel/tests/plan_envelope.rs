@@ -854,6 +854,31 @@ fn an_isolated_junction_takes_no_acceleration_step_margin() {
     assert!(cap <= bound && cap >= 0.997 * bound, "{cap} vs {bound}");
 }
 
+/// Issue #32: a raster's corner whose criteria (R384: 2 mm/s at 90° with Lm 8 µm) lie below
+/// one tick's acceleration step is a stop however it is approached, and is known as one
+/// from the start: the junction 0.05 mm before it, which barely turns, is passed at the
+/// speed the short line reaches from the stop. Before, its tick window counted the corner's
+/// turn and held it to a few mm/s, and it became a stop too (the random surface raster
+/// 3.876 → 3.864 s).
+#[test]
+fn a_junction_before_a_corner_below_a_tick_step_is_passed() {
+    let cfg = reference_config();
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 6000.0, Continuity::G23);
+    let tilt = 2f64.to_radians();
+    p.g1(p3(5.0, 0.0, 0.0))
+        .g1(p3(5.0 + 0.05 * tilt.cos(), 0.0, -0.05 * tilt.sin()));
+    let corner = p.pos;
+    p.g1(corner + p3(0.0, 1.0, 0.0))
+        .g1(corner + p3(-5.0, 1.0, 0.0));
+    let r = assert_within("raster corner", &cfg, &p.blocks);
+    let v_end: Vec<f64> = r.segments.iter().map(|s| s.v_end_mm_s).collect();
+    assert_eq!(v_end[1], 0.0, "the corner is a stop: {v_end:?}");
+    assert_eq!(v_end[2], 0.0, "the corner is a stop: {v_end:?}");
+    // From rest over 0.05 mm at up to 1000 mm/s²: at most 10 mm/s, at least what a
+    // budgeted line reaches.
+    assert!(v_end[0] > 5.0 && v_end[0] <= 10.0 + 1e-9, "{v_end:?}");
+}
+
 /// Issue #32: two turns closer than a tick's step both weigh on the second difference of
 /// the tick after them (each by the part of the previous step beyond it). The window
 /// measure of each junction weighed the other's turn by a sample of the window (half

@@ -15,7 +15,7 @@ use plan_common::*;
 const NOT_YET_MET: &[(&str, f64)] = &[
     ("splines", 1.135),
     ("arcs", 1.1),
-    ("surface", 1.035),
+    ("surface", 1.031),
     ("helix", 1.055),
 ];
 

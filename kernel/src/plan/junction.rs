@@ -168,7 +168,9 @@ impl Planner {
                 }
             }
         }
-        let planned_stop = !last && self.corner_is_a_stop(i, criteria_cap, turns.as_ref(), net);
+        let certain_stop = self.win[i].certain_stop;
+        let planned_stop =
+            !last && (certain_stop || self.corner_is_a_stop(i, criteria_cap, turns.as_ref(), net));
         let p = &mut self.win[i];
         if planned_stop {
             p.smooth = false;
@@ -176,7 +178,8 @@ impl Planner {
         p.turns = if planned_stop { None } else { turns };
         p.crit = crit;
         p.cap = if planned_stop { 0.0 } else { criteria_cap };
-        p.seg.junction_cap_mm_s = criteria_cap;
+        // (A certain stop was never smooth here: its criteria speed, as a stop's cap.)
+        p.seg.junction_cap_mm_s = if certain_stop { crit } else { criteria_cap };
         if planned_stop {
             self.rebudget_before(i);
         }

@@ -192,6 +192,10 @@ struct Pending {
     stop_after: bool,
     /// Junction to the next block is smooth (known once the next block is in the window).
     smooth: bool,
+    /// A smooth junction that will be planned as a stop whatever the look-ahead finds
+    /// (`Planner::passes_below_a_tick_step`): not smooth from the start, so the junctions
+    /// before it see the stop when they are finalized.
+    certain_stop: bool,
     /// Turn angle at the end junction, rad.
     turn: f64,
     /// Speed allowed by the criteria at the end junction as if it were smooth (for R395).
@@ -576,6 +580,10 @@ impl Planner {
             let turn = angle_between(&prev.t_end, &p.t_start);
             prev.turn = turn;
             prev.smooth = Self::is_smooth(&self.cfg, prev, p);
+            if prev.smooth && Self::passes_below_a_tick_step(&self.cfg, prev, p) {
+                prev.smooth = false;
+                prev.certain_stop = true;
+            }
             if !prev.smooth {
                 self.last_rough = prev_end;
                 if prev.continuity == Continuity::G24 || p.continuity == Continuity::G24 {
@@ -666,6 +674,7 @@ impl Planner {
             j_axes,
             stop_after: false,
             smooth: false,
+            certain_stop: false,
             turn: 0.0,
             crit: 0.0,
             cap: 0.0,
@@ -726,6 +735,46 @@ impl Planner {
             axis_filter_ticks: self.cfg.axis_filter_ticks as u16,
             per_rev_nominal_rpm: per_rev_nominal_rpm(block, rapid),
         }
+    }
+
+    /// Whether the smooth junction between `prev` and `next` is a planned stop however it is
+    /// approached: the manual's criteria at the junction itself (R385 with the constants'
+    /// overload acceleration, R384), which bound every cap the planner finds there, lie
+    /// below one tick's acceleration step of both blocks, where `Planner::pass_gain_s`
+    /// stops every turning junction (issue #32: a raster's 90° corner, 2 mm/s by R384,
+    /// turned the junction before it, 0.05 mm away, into a stop too, its cap held by the
+    /// corner's turn within its tick window).
+    fn passes_below_a_tick_step(cfg: &PlannerConfig, prev: &Pending, next: &Pending) -> bool {
+        let is_arc = |q: &Pending| matches!(q.seg.path, SegPath::Arc { .. });
+        if prev.turn <= 1e-9 && !is_arc(prev) && !is_arc(next) {
+            return false;
+        }
+        let env = &cfg.envelope;
+        let set = &env.sets[next.set];
+        let a = |q: &Pending| env.sets[q.set].accel_mm_s2.min(q.a_axes);
+        let a_ts = a(prev).min(a(next)) * TS_S;
+        // The criteria of `criteria::Turn` squared, from chord² = |t1 − t0|² = 4·sin²(α/2)
+        // (and sum² = 4 − chord²): no root or trigonometry, as this runs for every block.
+        let mut chord2 = 0.0;
+        for k in 0..cfg.axes {
+            let d = next.t_start[k] - prev.t_end[k];
+            chord2 += d * d;
+        }
+        let below2 = a_ts * a_ts * chord2;
+        // R385: am·Ts·√(len/ref)/chord, the length correction below the reference length.
+        let am_ts = set.overload_mm_s2 * TS_S;
+        let len = 0.5 * (prev.seg.length_mm + next.seg.length_mm);
+        let ref_len = set.overload_ref_len_mm;
+        let short = if ref_len > 0.0 && len < ref_len {
+            len / ref_len
+        } else {
+            1.0
+        };
+        let dynamic_below = am_ts * am_ts * short < below2;
+        // R384: Lm·sum/(Ts·chord).
+        let lm_ts = set.accuracy_um * 1e-3 / TS_S;
+        let accuracy_below = lm_ts > 0.0 && lm_ts * lm_ts * (4.0 - chord2).max(0.0) < below2;
+        dynamic_below || accuracy_below
     }
 
     /// Junction rule of SPEC §7.1 between `prev` and `next`.
