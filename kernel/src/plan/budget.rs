@@ -19,6 +19,11 @@ pub(super) struct JunctionTurns {
     /// Per axis: the turn of the tangent per tick within the tick window, 1/s (N_k(v) ≤
     /// normal_k·min(v, v_ref)).
     pub(super) normal_per_s: [f64; MAX_AXES],
+    /// Per axis: the turns per tick at half the window, 1/s (N_k(v_ref/2) ≤
+    /// half_k·v_ref/2): between lines the absolute turns within h (Σ|Δu_k|·(1 − d/h)),
+    /// which N_k(w), convex in w, lets the lines use below v_ref (issue #32); elsewhere
+    /// `normal_per_s` (the chord).
+    pub(super) half_per_s: [f64; MAX_AXES],
     /// Per axis: the junction's own turn per tick, |Δu_k|/Ts, where `normal_per_s` is the
     /// absolute turns between lines (which count it with weight 1); 0 elsewhere. The cap
     /// takes no acceleration step margin on it: a tick point weighs it by at most the step
@@ -38,13 +43,35 @@ pub(super) struct JunctionTurns {
     pub(super) v_turn_mm_s: f64,
 }
 
+/// The normal acceleration of one end's turns on one axis, N(w)/d at tick speeds up to w:
+/// the turns weigh Σ|Δu|·(w·Ts − d)⁺ at the junction, convex in w and 0 at w = 0, so below
+/// v_ref it is at most the larger of its chords through N(v_ref/2) and N(v_ref), and above
+/// v_ref (no tick touching the junction runs faster) it is N(v_ref). `q`, `q_half`: N/(w·d)
+/// at v_ref and at v_ref/2, 1/s (q_half ≤ q).
+#[inline(always)]
+pub(super) fn normal_at(q: f64, q_half: f64, v_ref: f64, w: f64) -> f64 {
+    if w >= v_ref {
+        return q * v_ref;
+    }
+    let low = q_half * w;
+    let high = (2.0 * q - q_half) * w - (q - q_half) * v_ref;
+    if high > low { high } else { low }
+}
+
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct LineBudget {
-    /// Per moving axis: (a_k/d_k, q_k/d_k) in mm/s² and 1/s.
-    terms: [(f64, f64); MAX_AXES],
+    /// Per moving axis the turns see: a_k/d_k, mm/s².
+    p: [f64; MAX_AXES],
+    /// The smallest a_k/d_k of the moving axes no turn is seen on, mm/s².
+    flat_mm_s2: f64,
+    /// Per end (start, end) and axis: N(w)/(w·d_k) of that end's turns at v_ref and at
+    /// v_ref/2, 1/s ([`normal_at`]).
+    q: [[f64; MAX_AXES]; 2],
+    q_half: [[f64; MAX_AXES]; 2],
     count: usize,
-    /// Speed above which the turns add no more normal acceleration, mm/s.
-    v_ref_mm_s: f64,
+    /// Per end: speed above which its turns add no more normal acceleration (0 where it
+    /// has none: a stop), mm/s.
+    v_ref_mm_s: [f64; 2],
     /// Path acceleration of the axes moved (A = min a_k/|u_k|) and its share that is sound
     /// on its own (the normal acceleration within NORMAL_SHARE), mm/s².
     a_axes_mm_s2: f64,
@@ -58,11 +85,14 @@ pub(super) struct LineBudget {
 }
 
 impl LineBudget {
-    pub(super) fn new(v_ref_mm_s: f64, a_axes_mm_s2: f64, a_floor_mm_s2: f64, base: f64) -> Self {
+    pub(super) fn new(a_axes_mm_s2: f64, a_floor_mm_s2: f64, base: f64) -> Self {
         LineBudget {
-            terms: [(0.0, 0.0); MAX_AXES],
+            p: [0.0; MAX_AXES],
+            flat_mm_s2: f64::INFINITY,
+            q: [[0.0; MAX_AXES]; 2],
+            q_half: [[0.0; MAX_AXES]; 2],
             count: 0,
-            v_ref_mm_s,
+            v_ref_mm_s: [0.0; 2],
             a_axes_mm_s2,
             a_floor_mm_s2,
             base_mm_s2: base,
@@ -70,29 +100,72 @@ impl LineBudget {
         }
     }
 
-    /// Adds an axis: its limit a_k, normal term q_k (N_k(v) ≤ q_k·min(v, v_ref)) and the
-    /// largest tangent component d_k near the line.
-    pub(super) fn add_axis(&mut self, a_k: f64, q_k: f64, d_k: f64) {
-        if d_k > 1e-12 && self.count < MAX_AXES {
-            self.terms[self.count] = (a_k / d_k, q_k / d_k);
+    /// Adds an axis: its limit a_k, the largest tangent component d_k near the line, and
+    /// per end the turns' normal terms (N_k(w) ≤ [`normal_at`] of `q` and `q_half` times
+    /// d_k), 1/s.
+    pub(super) fn add_axis(&mut self, a_k: f64, d_k: f64, q: [f64; 2], q_half: [f64; 2]) {
+        if d_k <= 1e-12 {
+            return;
+        }
+        if q[0] <= 0.0 && q[1] <= 0.0 {
+            // (No turn on this axis: a constant, a term of its own would cost every call.)
+            let p = a_k / d_k;
+            if p < self.flat_mm_s2 {
+                self.flat_mm_s2 = p;
+            }
+            return;
+        }
+        if self.count < MAX_AXES {
+            let k = self.count;
+            self.p[k] = a_k / d_k;
+            for e in 0..2 {
+                self.q[e][k] = q[e] / d_k;
+                // (Convexity: at most the chord; guards the rounding of the sums.)
+                self.q_half[e][k] = q_half[e].min(q[e]) / d_k;
+            }
             self.count += 1;
         }
+    }
+
+    /// Sets the speed above which end `e`'s turns add no more (mm/s; 0: no turns there).
+    pub(super) fn set_v_ref(&mut self, e: usize, v_ref_mm_s: f64) {
+        self.v_ref_mm_s[e] = v_ref_mm_s;
     }
 
     /// Tangential acceleration the axes leave at speeds up to `v`, within [floor, A]
     /// (not capped by the constants: the stop set has its own).
     pub(super) fn tangential_at(&self, v: f64) -> f64 {
-        let w = (v + self.margin_mm_s).min(self.v_ref_mm_s);
+        let w = v + self.margin_mm_s;
         // (Plain comparisons where the running value starts at ∞: they skip a NaN term as
         // `min` does, at a quarter of the cost; this runs on every braking step.)
-        let mut a = f64::INFINITY;
-        for &(p, q) in &self.terms[..self.count] {
-            let x = p - q * w;
+        let mut a = self.flat_mm_s2;
+        for k in 0..self.count {
+            for e in 0..2 {
+                let vr = self.v_ref_mm_s[e];
+                let x = self.p[k] - normal_at(self.q[e][k], self.q_half[e][k], vr, w);
+                if x < a {
+                    a = x;
+                }
+            }
+        }
+        a.min(self.a_axes_mm_s2).max(self.a_floor_mm_s2)
+    }
+
+    /// The acceleration at speeds up to `v` with the turns of end `e` alone (the other end
+    /// as at a stop), with the line's directions of both ends (at most what that end's own
+    /// budget leaves).
+    pub(super) fn end_accel_at(&self, v: f64, e: usize) -> f64 {
+        let w = v + self.margin_mm_s;
+        let vr = self.v_ref_mm_s[e];
+        let mut a = self.flat_mm_s2;
+        for k in 0..self.count {
+            let x = self.p[k] - normal_at(self.q[e][k], self.q_half[e][k], vr, w);
             if x < a {
                 a = x;
             }
         }
-        a.min(self.a_axes_mm_s2).max(self.a_floor_mm_s2)
+        self.base_mm_s2
+            .min(a.min(self.a_axes_mm_s2).max(self.a_floor_mm_s2))
     }
 
     /// Highest tick speed the acceleration of speeds up to `v` covers (one tick's speed
@@ -111,21 +184,30 @@ impl LineBudget {
         self.base_mm_s2.min(self.tangential_at(v))
     }
 
-    /// Highest speed v with v² ≤ v_from² + 2·L·a(v): the fastest a line of length L can run
-    /// while still braking to `v_from` at its end (or when accelerating from `v_from` at its
-    /// start). Closed form per term: a(v) is the max of the floor and the min of linear
-    /// functions of min(v, v_ref), and g(v) = v_from² + 2·L·a(v) − v² falls with v, so the
-    /// fixed point of a min (max) of terms is the min (max) of their fixed points.
+    /// Highest speed v with v² ≤ v_from² + 2·L·a_lin(v): the fastest a line of length L can
+    /// run while still braking to `v_from` at its end (or when accelerating from `v_from` at
+    /// its start), with a_lin(v) ≤ a(v) the acceleration of each axis's turns taken linear
+    /// in the speed and merged over both ends, N ≤ max_e q_e·min(w, max_e v_ref_e) (each
+    /// end's chords lie below its q_e·w). The passes run this on every braking step, and
+    /// its closed form has one root per axis; the segment then gets the chords' a(v) at the
+    /// speed it is committed for, with that speed as its ceiling. (The chords in the passes
+    /// as well cost the planner 25 % more and gained nothing on the reference paths: the
+    /// lines that gain are the slow ones, whose speeds the junctions' caps set.) Closed
+    /// form per axis: a_lin is the max of the floor and the min of linear functions of
+    /// min(v, v_ref), and g(v) = v_from² + 2·L·a_lin(v) − v² falls with v, so the fixed point
+    /// of a min (max) of terms is the min (max) of their fixed points.
     pub(super) fn reach_mm_s(&self, v_from: f64, length_mm: f64) -> f64 {
         let v2 = v_from * v_from;
         let constant = |a: f64| (v2 + 2.0 * length_mm * a.max(0.0)).sqrt();
-        let hi = self.base_mm_s2.min(self.a_axes_mm_s2);
+        let hi = self.base_mm_s2.min(self.a_axes_mm_s2).min(self.flat_mm_s2);
         let mut v = constant(hi);
+        let v_ref_mm_s = self.v_ref_mm_s[0].max(self.v_ref_mm_s[1]);
         // a(v) with min(v + margin, v_ref) = margin + min(v, v_ref − margin).
-        let v_ref = (self.v_ref_mm_s - self.margin_mm_s).max(0.0);
-        let margin = self.margin_mm_s.min(self.v_ref_mm_s);
-        for &(p, q) in &self.terms[..self.count] {
-            let p = p - q * margin;
+        let v_ref = (v_ref_mm_s - self.margin_mm_s).max(0.0);
+        let margin = self.margin_mm_s.min(v_ref_mm_s);
+        for k in 0..self.count {
+            let q = self.q[0][k].max(self.q[1][k]);
+            let p = self.p[k] - q * margin;
             let c = v2 + 2.0 * length_mm * (p - q * v_ref);
             let fk = if c >= v_ref * v_ref {
                 c.sqrt()
@@ -148,10 +230,73 @@ mod tests {
     use super::*;
 
     fn budget() -> LineBudget {
-        let mut b = LineBudget::new(100.0, 800.0, 400.0, 1000.0);
-        b.add_axis(800.0, 0.0, 1.0);
-        b.add_axis(800.0, 8.0, 0.3);
+        let mut b = LineBudget::new(800.0, 400.0, 1000.0);
+        b.set_v_ref(0, 100.0);
+        b.set_v_ref(1, 60.0);
+        b.add_axis(800.0, 1.0, [0.0; 2], [0.0; 2]);
+        b.add_axis(800.0, 0.3, [8.0, 6.0], [3.0, 6.0]);
         b
+    }
+
+    impl LineBudget {
+        /// The acceleration `reach_mm_s` solves with: linear in the speed, ends merged.
+        fn linear_accel_at(&self, v: f64) -> f64 {
+            let v_ref = self.v_ref_mm_s[0].max(self.v_ref_mm_s[1]);
+            let w = (v + self.margin_mm_s).min(v_ref);
+            let mut a = self.flat_mm_s2;
+            for k in 0..self.count {
+                a = a.min(self.p[k] - self.q[0][k].max(self.q[1][k]) * w);
+            }
+            self.base_mm_s2
+                .min(a.min(self.a_axes_mm_s2).max(self.a_floor_mm_s2))
+        }
+    }
+
+    /// The chords bound what the ticks see: for turns |Δu_j| at distances d_j (the own at
+    /// 0), N(w)·Ts² = Σ|Δu_j|·(w·Ts − d_j)⁺ at tick speeds up to w is convex in w, so the
+    /// chords through N(v_ref/2) and N(v_ref) lie above it below v_ref, and N(v_ref) bounds
+    /// it above (no tick touching the junction runs faster).
+    #[test]
+    fn the_chords_bound_the_weighted_turns_at_every_speed() {
+        let n = |turns: &[(f64, f64)], w: f64| {
+            turns
+                .iter()
+                .map(|&(du, d)| du * (w * TS_S - d).max(0.0))
+                .sum::<f64>()
+                / (TS_S * TS_S)
+        };
+        let cases: [&[(f64, f64)]; 4] = [
+            &[(0.02, 0.0)],
+            &[
+                (0.01, 0.0),
+                (0.01, 0.05),
+                (0.01, 0.1),
+                (0.01, 0.15),
+                (0.01, 0.2),
+            ],
+            &[(0.0, 0.0), (0.3, 0.02), (0.001, 0.3)],
+            &[(0.05, 0.0), (0.2, 0.39)],
+        ];
+        for turns in cases {
+            let vr = 100.0;
+            let q = n(turns, vr) / vr;
+            let qh = n(turns, vr / 2.0) / (vr / 2.0);
+            assert!(qh <= q * (1.0 + 1e-12), "{turns:?}");
+            for i in 0..=300 {
+                let w = vr * i as f64 / 200.0;
+                let exact = n(turns, w.min(vr));
+                let bound = normal_at(q, qh, vr, w);
+                assert!(
+                    bound >= exact * (1.0 - 1e-12) - 1e-9,
+                    "{turns:?} {w}: {bound} < {exact}"
+                );
+                // ... and never above the linear form it replaces.
+                assert!(
+                    bound <= q * w.min(vr) * (1.0 + 1e-12) + 1e-9,
+                    "{turns:?} {w}"
+                );
+            }
+        }
     }
 
     /// The closed form is the fixed point: braking from the reach at a(reach) over L ends at
@@ -159,19 +304,29 @@ mod tests {
     #[test]
     fn reach_is_the_fixed_point_of_the_speed_dependent_acceleration() {
         let b = budget();
+        // (Fixed points below the knots, between a knot and v_ref, and above, at both ends.)
         for (v_from, len) in [
             (0.0, 0.2),
             (20.0, 0.2),
             (60.0, 5.0),
             (90.0, 0.05),
             (0.0, 40.0),
+            (0.0, 0.001),
+            (5.0, 0.01),
+            (25.0, 0.1),
+            (40.0, 0.3),
+            (48.0, 0.5),
+            (70.0, 1.0),
+            (100.0, 0.02),
         ] {
             let v = b.reach_mm_s(v_from, len);
-            let rhs = (v_from * v_from + 2.0 * len * b.accel_at(v)).sqrt();
+            let rhs = (v_from * v_from + 2.0 * len * b.linear_accel_at(v)).sqrt();
             assert!(
                 (v - rhs).abs() < 1e-9 * v.max(1.0),
                 "{v_from} {len}: {v} vs {rhs}"
             );
+            // The chords leave at least the linear bound.
+            assert!(b.accel_at(v) >= b.linear_accel_at(v) * (1.0 - 1e-12));
         }
         // Slow lines get more of the axes than fast ones; the floor holds.
         assert!(b.accel_at(10.0) > b.accel_at(90.0));

@@ -50,6 +50,12 @@ pub struct Turn {
 }
 
 impl Turn {
+    /// No turn: |t1 − t0| = 0, |t1 + t0| = 2.
+    pub const STRAIGHT: Turn = Turn {
+        chord: 0.0,
+        sum: 2.0,
+    };
+
     pub fn between(t0: &crate::units::AxesMm, t1: &crate::units::AxesMm, axes: usize) -> Turn {
         Turn {
             chord: (*t1 - *t0).norm(axes),
@@ -63,6 +69,17 @@ impl Turn {
             f64::INFINITY
         } else {
             am_mm_s2 * TS_S / self.chord
+        }
+    }
+
+    /// [`Turn::dynamic_mm_s`] with the length correction of [`dynamic_mm_s`]: ×√(len/ref)
+    /// for blocks shorter than the reference length.
+    pub fn dynamic_len_mm_s(&self, am_mm_s2: f64, ref_len_mm: f64, len_mm: f64) -> f64 {
+        let vm = self.dynamic_mm_s(am_mm_s2);
+        if ref_len_mm > 0.0 && len_mm < ref_len_mm {
+            vm * (len_mm / ref_len_mm).sqrt()
+        } else {
+            vm
         }
     }
 

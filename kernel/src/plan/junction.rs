@@ -222,8 +222,10 @@ impl Planner {
         };
         let am = set.overload_mm_s2.min(a_iso);
         let len = 0.5 * (p.seg.length_mm + n.seg.length_mm);
-        let v = criteria::dynamic_mm_s(am, p.turn, set.overload_ref_len_mm, len)
-            .min(criteria::accuracy_mm_s(set.accuracy_um, p.turn))
+        let v = p
+            .turn
+            .dynamic_len_mm_s(am, set.overload_ref_len_mm, len)
+            .min(p.turn.accuracy_mm_s(set.accuracy_um))
             .min(p.seg.v_max_mm_s)
             .min(n.seg.v_max_mm_s)
             .min(override_max * p.seg.feed_mm_s.max(n.seg.feed_mm_s));
@@ -363,7 +365,7 @@ impl Planner {
     fn box_window_bound(&self, i: usize, v: f64, l: &WindowLimits, near: &NearJunction) -> f64 {
         // (A fresh lookup is kept in `near`: the search's next speeds, and its result, are
         // likely in its piece.)
-        let (t, window, complete) = self.turns_and_window(i, v, near, true);
+        let (t, window, complete, _) = self.turns_and_window(i, v, near, true);
         if !complete {
             // (Not reached: the walk covers 2h of the search's highest speed.)
             return 0.0;
@@ -504,7 +506,7 @@ impl Planner {
         // within a tick's step of it (a straight junction beside a short turning block: the
         // tick after both weighs their turns; issue #32).
         let turns = |q: &Pending| {
-            q.turn > 1e-9
+            q.turn.chord > 1e-9
                 || q.turns
                     .is_some_and(|t| t.normal_per_s.iter().any(|&n| n > 0.0))
         };
@@ -542,20 +544,6 @@ impl Planner {
         (start, end)
     }
 
-    /// The budgets of line block `i` with the turns of its start junction alone and of its
-    /// end junction alone (`Segment::accel_start_mm_s2`, `accel_end_mm_s2`): a tick whose
-    /// steps touch one junction of the line has only that junction's turns in its second
-    /// difference (those turns weigh every junction within a step of it). `budget_between`
-    /// with the other side None counts no turn there, as at a stop: the floor and the
-    /// directions are the line's own and that junction's.
-    pub(super) fn line_end_budgets(&self, i: usize, base: f64) -> (LineBudget, LineBudget) {
-        let (start, end) = self.line_turns(i);
-        (
-            self.budget_between(i, start, None, base),
-            self.budget_between(i, None, end, base),
-        )
-    }
-
     /// The budget of line block `i` between junctions with these turns (None: a stop).
     fn budget_between(
         &self,
@@ -564,37 +552,87 @@ impl Planner {
         end: Option<&JunctionTurns>,
         base: f64,
     ) -> LineBudget {
+        let axes = self.cfg.axes;
+        let (dir, floor) = self.line_dirs(i, start, end);
+        let mut b = LineBudget::new(self.win[i].a_axes, floor, base);
+        let mut normal = [[0.0f64; 2]; MAX_AXES];
+        let mut half = [[0.0f64; 2]; MAX_AXES];
+        for (e, t) in [start, end].into_iter().enumerate() {
+            if let Some(t) = t {
+                b.set_v_ref(e, t.v_turn_mm_s);
+                for k in 0..axes {
+                    normal[k][e] = t.normal_per_s[k];
+                    half[k][e] = t.half_per_s[k];
+                }
+            }
+        }
+        for k in 0..axes {
+            b.add_axis(self.cfg.axis_a_max_mm_s2[k], dir[k], normal[k], half[k]);
+        }
+        b
+    }
+
+    /// `budget_between(i, start, end, base).accel_at(∞)` without building the budget: the
+    /// acceleration the line keeps with every junction at its cap (the pass-or-stop
+    /// estimate's), mm/s².
+    fn accel_at_caps(
+        &self,
+        i: usize,
+        start: Option<&JunctionTurns>,
+        end: Option<&JunctionTurns>,
+        base: f64,
+    ) -> f64 {
+        let (dir, floor) = self.line_dirs(i, start, end);
+        let mut a = f64::INFINITY;
+        for (k, &d) in dir.iter().enumerate().take(self.cfg.axes) {
+            if d <= 1e-12 {
+                continue;
+            }
+            let p = self.cfg.axis_a_max_mm_s2[k] / d;
+            for t in [start, end].into_iter().flatten() {
+                let x = p - t.normal_per_s[k] / d * t.v_turn_mm_s;
+                if x < a {
+                    a = x;
+                }
+            }
+            if p < a {
+                a = p;
+            }
+        }
+        base.min(a.min(self.win[i].a_axes).max(floor))
+    }
+
+    /// Per axis the largest tangent component the ticks on line block `i` and near its
+    /// junctions with these turns move along, and the budget's floor: what the normal
+    /// acceleration leaves on every axis at any junction's cap (`box_window_bound`; the
+    /// fixed split leaves more), mm/s².
+    fn line_dirs(
+        &self,
+        i: usize,
+        start: Option<&JunctionTurns>,
+        end: Option<&JunctionTurns>,
+    ) -> ([f64; MAX_AXES], f64) {
         // (Plain comparisons: every value here is finite and ≥ 0, and the NaN-aware max and
         // min cost a third of this function, which runs five times per line.)
         let larger = |a: f64, b: f64| if b > a { b } else { a };
         let axes = self.cfg.axes;
         let p = &self.win[i];
-        let mut normal = [0.0f64; MAX_AXES];
         let mut dir = [0.0f64; MAX_AXES];
         for (k, d) in dir.iter_mut().enumerate().take(axes) {
             *d = larger(p.t_start[k].abs(), p.t_end[k].abs());
         }
-        let mut v_ref = 0.0f64;
         for t in [start, end].into_iter().flatten() {
-            v_ref = larger(v_ref, t.v_turn_mm_s);
-            for k in 0..axes {
-                normal[k] = larger(normal[k], t.normal_per_s[k]);
-                dir[k] = larger(dir[k], t.dir[k]);
+            for (d, &td) in dir.iter_mut().zip(&t.dir).take(axes) {
+                *d = larger(*d, td);
             }
         }
-        // The floor: what the normal acceleration leaves on every axis at any junction's
-        // cap (`box_window_bound`; the fixed split leaves more).
         let mut floor = p.a_axes;
         for (&d, &a_max) in dir.iter().zip(&self.cfg.axis_a_max_mm_s2).take(axes) {
             if d > 1e-12 && a_max / d < floor {
                 floor = a_max / d;
             }
         }
-        let mut b = LineBudget::new(v_ref, p.a_axes, (1.0 - BOX_NORMAL_SHARE) * floor, base);
-        for k in 0..axes {
-            b.add_axis(self.cfg.axis_a_max_mm_s2[k], normal[k], dir[k]);
-        }
-        b
+        (dir, (1.0 - BOX_NORMAL_SHARE) * floor)
     }
 
     /// The turns near junction `j` passed at `cap`, per axis: N_k(v) = min(v, v_ref)·T_k/Ts
@@ -605,10 +643,31 @@ impl Planner {
     pub(super) fn junction_turns(&mut self, j: usize, cap: f64) -> JunctionTurns {
         let near = self.near_junction(j, cap);
         // (`near_junction` walked 2h at `cap`: the absolute turns are found.)
-        let (mut t, _, _) = self.turns_and_window(j, cap, &near, false);
-        t.dir = self.turn_dirs(j, self.turn_window(j, cap).1, &near);
+        let (mut t, _, _, exact) = self.turns_and_window(j, cap, &near, false);
+        let h = self.turn_window(j, cap).1;
+        t.dir = self.turn_dirs(j, h, &near);
+        t.half_per_s = t.normal_per_s;
+        if exact && t.v_turn_mm_s >= t.v_ref_mm_s {
+            self.half_turns(j, h, &near, &mut t.half_per_s);
+        }
         self.near = Some(near);
         t
+    }
+
+    /// Lowers `half` to the absolute turns within h of junction `j` (only lines within 2h,
+    /// not passed at its cap alone): [`JunctionTurns::half_per_s`].
+    fn half_turns(&self, j: usize, h: f64, near: &NearJunction, half: &mut [f64; MAX_AXES]) {
+        let mut piece = (0.0, f64::INFINITY);
+        let own = self.own_turn(j).abs();
+        let Some(abs) = self.abs_turns_at(j, 0.5 * h, &own, near, &mut piece) else {
+            return;
+        };
+        for (k, x) in half.iter_mut().enumerate().take(self.cfg.axes) {
+            let n = abs.at(k, 0.5 * h) / TS_S;
+            if n < *x {
+                *x = n;
+            }
+        }
     }
 
     /// An upper bound of every speed the box-rule search at `share` finds within its bound
@@ -680,7 +739,8 @@ impl Planner {
     /// over the tick window, t(+h) − t(−h), with the tangents looked up in `near` where it
     /// covers them. With `keep`, a fresh lookup is kept in `near` with the range of h =
     /// v_ref·Ts/2 (h_lo, h_hi] over which it is the same (not where it varies, near arcs).
-    /// Whether the absolute turns are in them (the walk covers 2h).
+    /// Whether the absolute turns are in them (the walk covers 2h), and whether they alone
+    /// are (only lines within 2h, [`AbsTurns::exact`]).
     #[inline(always)]
     fn turns_and_window(
         &self,
@@ -688,20 +748,22 @@ impl Planner {
         cap: f64,
         near: &NearJunction,
         keep: bool,
-    ) -> (JunctionTurns, AxesMm, bool) {
+    ) -> (JunctionTurns, AxesMm, bool, bool) {
         let axes = self.cfg.axes;
         let (v, h) = self.turn_window(j, cap);
         let v_turn = if self.isolated(j, v) { cap } else { v };
-        if let Some((turns, window, abs, _)) = near.same_piece(j, h) {
+        let own = self.own_turn(j).abs();
+        if let Some((signed, window, abs, _)) = near.same_piece(j, h) {
             // The same tangents and junctions within 2h as a recent lookup: v_ref and the
             // weights of the absolute turns differ.
             let mut t = JunctionTurns {
+                normal_per_s: signed,
                 v_ref_mm_s: v,
                 v_turn_mm_s: v_turn,
-                ..turns
+                ..JunctionTurns::default()
             };
-            Self::apply_abs_turns(axes, &abs, h, &mut t);
-            return (t, window, true);
+            Self::apply_abs_turns(axes, &abs, h, &own, &mut t);
+            return (t, window, true, abs.exact());
         }
         let mut t = JunctionTurns {
             v_ref_mm_s: v,
@@ -709,7 +771,7 @@ impl Planner {
             ..JunctionTurns::default()
         };
         let mut h_piece = (0.0, f64::INFINITY);
-        let abs = self.abs_turns(j, cap, near, &mut h_piece);
+        let abs = self.abs_turns_at(j, h, &own, near, &mut h_piece);
         let window = if abs.is_some_and(|a| a.exact()) {
             // Only lines within 2h: the absolute turns replace the window's samples.
             let (mut ahead, mut behind) = ([AxesMm::ZERO; 1], [AxesMm::ZERO; 1]);
@@ -720,13 +782,13 @@ impl Planner {
             self.signed_turns(j, h, near, &mut t, &mut h_piece)
         };
         let Some(abs) = abs else {
-            return (t, window, false);
+            return (t, window, false, false);
         };
         if keep && h_piece.0 < h_piece.1 {
-            near.remember((t, window, abs, h_piece));
+            near.remember((t.normal_per_s, window, abs, h_piece));
         }
-        Self::apply_abs_turns(axes, &abs, h, &mut t);
-        (t, window, true)
+        Self::apply_abs_turns(axes, &abs, h, &own, &mut t);
+        (t, window, true, abs.exact())
     }
 
     /// Sets the turns of `t` to the turn of the tangent over the tick window, sampled as a
@@ -763,22 +825,23 @@ impl Planner {
         t1 - t0
     }
 
-    /// The absolute turns near junction `j` at `cap` ([`AbsTurns`]; the walk must cover 2h,
-    /// `near_junction` walks that far), with `h_piece` narrowed to the range of h over which
-    /// the same junctions lie within 2h. None where the walk does not cover them.
-    fn abs_turns(
+    /// The absolute turns near junction `j` at half window `h` ([`AbsTurns`]; the walk must
+    /// cover 2h, `near_junction` walks that far), `own` its own turn (absolute per axis),
+    /// with `h_piece` narrowed to the range of h over which the same junctions lie within
+    /// 2h. None where the walk does not cover them.
+    fn abs_turns_at(
         &self,
         j: usize,
-        cap: f64,
+        h: f64,
+        own: &AxesMm,
         near: &NearJunction,
         h_piece: &mut (f64, f64),
     ) -> Option<AbsTurns> {
-        let h = self.turn_window(j, cap).1;
         if !near.covers(j, 2.0 * h) {
             return None;
         }
         let mut abs = AbsTurns::default();
-        abs.add_own(self.cfg.axes, &self.own_turn(j));
+        abs.add_own(self.cfg.axes, own);
         self.abs_turns_from(near, true, h, &mut abs, h_piece);
         self.abs_turns_from(near, false, h, &mut abs, h_piece);
         Some(abs)
@@ -792,7 +855,7 @@ impl Planner {
     /// 1 − d/2h, and cost the Lissajous 1.028 → 1.032); near arcs, whose turn the sums
     /// count at the arc's far end, the larger of the two is kept.
     #[inline]
-    fn apply_abs_turns(axes: usize, abs: &AbsTurns, h: f64, t: &mut JunctionTurns) {
+    fn apply_abs_turns(axes: usize, abs: &AbsTurns, h: f64, own: &AxesMm, t: &mut JunctionTurns) {
         let exact = abs.exact();
         for k in 0..axes {
             // (A plain comparison, as `max` treats a NaN turn.)
@@ -800,7 +863,7 @@ impl Planner {
             if exact || n > t.normal_per_s[k] {
                 t.normal_per_s[k] = n;
             }
-            t.own_per_s[k] = if exact { abs.own(k) / TS_S } else { 0.0 };
+            t.own_per_s[k] = if exact { own[k] / TS_S } else { 0.0 };
         }
     }
 
@@ -863,7 +926,7 @@ impl Planner {
     ) -> bool {
         let (p, n) = (&self.win[i], &self.win[i + 1]);
         let is_arc = |q: &Pending| matches!(q.seg.path, SegPath::Arc { .. });
-        let shares = p.turn > 1e-9 || is_arc(p) || is_arc(n);
+        let shares = p.turn.chord > 1e-9 || is_arc(p) || is_arc(n);
         if !p.smooth || !shares {
             return false;
         }
@@ -909,8 +972,7 @@ impl Planner {
                 } else {
                     (turns, None)
                 };
-                let b = self.budget_between(side, t0, t1, aq);
-                b.accel_at(f64::INFINITY)
+                self.accel_at_caps(side, t0, t1, aq)
             } else {
                 split * aq
             };

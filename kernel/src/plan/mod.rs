@@ -196,8 +196,8 @@ struct Pending {
     /// (`Planner::passes_below_a_tick_step`): not smooth from the start, so the junctions
     /// before it see the stop when they are finalized.
     certain_stop: bool,
-    /// Turn angle at the end junction, rad.
-    turn: f64,
+    /// Turn at the end junction (its chord 2·sin(α/2) and 2·cos(α/2)).
+    turn: criteria::Turn,
     /// Speed allowed by the criteria at the end junction as if it were smooth (for R395).
     crit: f64,
     /// Hard cap at the end junction (0 when not smooth).
@@ -577,8 +577,8 @@ impl Planner {
         if let Some(prev) = self.win.back_mut() {
             p.abs_du_end = (p.t_end - prev.t_end).abs();
             prev.abs_du_start = (prev.t_start - p.t_start).abs();
-            let turn = angle_between(&prev.t_end, &p.t_start);
-            prev.turn = turn;
+            // (|t1 − t0| and |t1 + t0|, not the angle: the criteria need no acos, sin or tan.)
+            prev.turn = criteria::Turn::between(&prev.t_end, &p.t_start, self.cfg.axes);
             prev.smooth = Self::is_smooth(&self.cfg, prev, p);
             if prev.smooth && Self::passes_below_a_tick_step(&self.cfg, prev, p) {
                 prev.smooth = false;
@@ -675,7 +675,7 @@ impl Planner {
             stop_after: false,
             smooth: false,
             certain_stop: false,
-            turn: 0.0,
+            turn: criteria::Turn::STRAIGHT,
             crit: 0.0,
             cap: 0.0,
             budget: None,
@@ -746,21 +746,16 @@ impl Planner {
     /// corner's turn within its tick window).
     fn passes_below_a_tick_step(cfg: &PlannerConfig, prev: &Pending, next: &Pending) -> bool {
         let is_arc = |q: &Pending| matches!(q.seg.path, SegPath::Arc { .. });
-        if prev.turn <= 1e-9 && !is_arc(prev) && !is_arc(next) {
+        if prev.turn.chord <= 1e-9 && !is_arc(prev) && !is_arc(next) {
             return false;
         }
         let env = &cfg.envelope;
         let set = &env.sets[next.set];
         let a = |q: &Pending| env.sets[q.set].accel_mm_s2.min(q.a_axes);
         let a_ts = a(prev).min(a(next)) * TS_S;
-        // The criteria of `criteria::Turn` squared, from chord² = |t1 − t0|² = 4·sin²(α/2)
-        // (and sum² = 4 − chord²): no root or trigonometry, as this runs for every block.
-        let mut chord2 = 0.0;
-        for k in 0..cfg.axes {
-            let d = next.t_start[k] - prev.t_end[k];
-            chord2 += d * d;
-        }
-        let below2 = a_ts * a_ts * chord2;
+        // The criteria of `criteria::Turn`, squared: no root, as this runs for every block.
+        let (chord, sum) = (prev.turn.chord, prev.turn.sum);
+        let below2 = a_ts * a_ts * chord * chord;
         // R385: am·Ts·√(len/ref)/chord, the length correction below the reference length.
         let am_ts = set.overload_mm_s2 * TS_S;
         let len = 0.5 * (prev.seg.length_mm + next.seg.length_mm);
@@ -773,7 +768,7 @@ impl Planner {
         let dynamic_below = am_ts * am_ts * short < below2;
         // R384: Lm·sum/(Ts·chord).
         let lm_ts = set.accuracy_um * 1e-3 / TS_S;
-        let accuracy_below = lm_ts > 0.0 && lm_ts * lm_ts * (4.0 - chord2).max(0.0) < below2;
+        let accuracy_below = lm_ts > 0.0 && lm_ts * lm_ts * sum * sum < below2;
         dynamic_below || accuracy_below
     }
 
@@ -1006,17 +1001,13 @@ impl Planner {
 
 impl Planner {
     /// Highest speed at the start of block `k` from which it can brake to `v_end` at its end,
-    /// within its ceiling. A line with a [`budget::LineBudget`] takes the acceleration of
-    /// that speed (the speeds on it stay below it, see `commit_budget`).
+    /// within its ceiling. A line with a [`budget::LineBudget`] gets the acceleration of the
+    /// speeds it runs at when it is committed (`commit_budget`, which every emitted segment
+    /// passes).
     fn braking_start_mm_s(&mut self, k: usize, v_end: f64) -> f64 {
-        let rapid_a = self.cfg.envelope.rapid_accel_mm_s2;
-        let n = &mut self.win[k];
+        let n = &self.win[k];
         match &n.budget {
-            Some(b) => {
-                let v = b.reach_mm_s(v_end, n.seg.length_mm).min(n.seg.v_max_mm_s);
-                apply_budget_to(&mut n.seg, b, v, rapid_a);
-                v
-            }
+            Some(b) => b.reach_mm_s(v_end, n.seg.length_mm).min(n.seg.v_max_mm_s),
             None => (v_end * v_end + 2.0 * n.seg.accel_mm_s2 * n.seg.length_mm)
                 .sqrt()
                 .min(n.seg.v_max_mm_s),
@@ -1029,30 +1020,30 @@ impl Planner {
     fn commit_budget(&mut self, i: usize) {
         let rapid_a = self.cfg.envelope.rapid_accel_mm_s2;
         let v_from = self.committed_end_mm_s;
-        let ends = self.win[i]
-            .budget
-            .map(|b| self.line_end_budgets(i, b.base_mm_s2()));
-        let p = &mut self.win[i];
-        if let Some(b) = &p.budget {
-            let len = p.seg.length_mm;
-            let v = b
-                .reach_mm_s(p.seg.v_end_mm_s, len)
-                .min(b.reach_mm_s(v_from, len))
-                .min(p.seg.v_max_mm_s);
-            apply_budget_to(&mut p.seg, b, v, rapid_a);
-            // Each end's turns alone, at the same speeds (each at least the combined
-            // budget: fewer turns, the same line).
-            if let Some((bs, be)) = ends {
-                p.seg.accel_start_mm_s2 = bs.accel_at(v).max(p.seg.accel_mm_s2);
-                p.seg.accel_end_mm_s2 = be.accel_at(v).max(p.seg.accel_mm_s2);
-            }
-            // Free ticks must not carry the line past the speeds its budget covers.
-            p.seg.free_accel_v_max_mm_s = b.covered_mm_s(v);
-            p.seg.v_max_mm_s = p.seg.v_max_mm_s.min(b.covered_mm_s(v));
-            self.committed_end_mm_s = p.seg.v_end_mm_s.min(v);
-        } else {
+        let p = &self.win[i];
+        let Some(b) = &p.budget else {
             self.committed_end_mm_s = p.seg.v_end_mm_s;
-        }
+            return;
+        };
+        let len = p.seg.length_mm;
+        let v = b
+            .reach_mm_s(p.seg.v_end_mm_s, len)
+            .min(b.reach_mm_s(v_from, len))
+            .min(p.seg.v_max_mm_s);
+        let p = &mut self.win[i];
+        let Some(b) = &p.budget else { return };
+        apply_budget_to(&mut p.seg, b, v, rapid_a);
+        // Each end's turns alone, at the same speeds (each at least the combined budget:
+        // fewer turns, the same line): a tick whose steps touch one junction of the line
+        // has only that junction's turns in its second difference (those turns weigh every
+        // junction within a step of it). With the directions of both ends: an end's own
+        // would leave a little more (splines 8 ms) for two more walks of the axes per commit.
+        p.seg.accel_start_mm_s2 = b.end_accel_at(v, 0).max(p.seg.accel_mm_s2);
+        p.seg.accel_end_mm_s2 = b.end_accel_at(v, 1).max(p.seg.accel_mm_s2);
+        // Free ticks must not carry the line past the speeds its budget covers.
+        p.seg.free_accel_v_max_mm_s = b.covered_mm_s(v);
+        p.seg.v_max_mm_s = p.seg.v_max_mm_s.min(b.covered_mm_s(v));
+        self.committed_end_mm_s = p.seg.v_end_mm_s.min(v);
     }
 }
 

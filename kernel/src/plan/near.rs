@@ -5,9 +5,8 @@
 
 use std::cell::Cell;
 
-use super::budget::JunctionTurns;
 use super::{Planner, SegPath};
-use crate::units::AxesMm;
+use crate::units::{AxesMm, MAX_AXES};
 
 /// One block on a side of the junction.
 #[derive(Clone, Copy, Debug)]
@@ -22,10 +21,11 @@ struct Entry {
     arc: bool,
 }
 
-/// Turns looked up near a junction (without `dir` and without the absolute turns), the
-/// tangent's turn over the tick window, the absolute turns and the range of h (h_lo, h_hi]
-/// over which all are the same (the absolute turns as a function of h).
-pub(super) type Lookup = (JunctionTurns, AxesMm, AbsTurns, (f64, f64));
+/// Turns looked up near a junction (`JunctionTurns::normal_per_s` without the absolute
+/// turns), the tangent's turn over the tick window, the absolute turns and the range of h
+/// (h_lo, h_hi] over which all are the same (the absolute turns as a function of h). (The
+/// turns alone, not the whole `JunctionTurns`: the search copies a lookup at every hit.)
+pub(super) type Lookup = ([f64; MAX_AXES], AxesMm, AbsTurns, (f64, f64));
 
 /// The absolute turns near a junction weighted as the setpoints' second differences weigh
 /// them (issue #32): a tick point p with steps of at most S = v_ref·Ts = 2h on either side
@@ -40,8 +40,6 @@ pub(super) type Lookup = (JunctionTurns, AxesMm, AbsTurns, (f64, f64));
 pub(super) struct AbsTurns {
     sum: AxesMm,
     moment_mm: AxesMm,
-    /// The junction's own turn (in the sums at d = 0).
-    own: AxesMm,
     /// An arc lies within S: its turn is spread along it, where the sums (which count it at
     /// its far end) do not bound what the ticks see.
     arcs: bool,
@@ -61,17 +59,10 @@ impl AbsTurns {
         self.sum[k] - self.moment_mm[k] / (2.0 * h)
     }
 
-    /// |Δu_k| of the junction's own turn.
+    /// Adds the junction's own turn, taken absolute per axis (at d = 0).
     #[inline]
-    pub(super) fn own(&self, k: usize) -> f64 {
-        self.own[k]
-    }
-
-    /// Adds the junction's own turn `du` (at d = 0).
-    #[inline]
-    pub(super) fn add_own(&mut self, axes: usize, du: &AxesMm) {
-        self.own = du.abs();
-        self.add_abs(axes, &self.own.clone(), 0.0);
+    pub(super) fn add_own(&mut self, axes: usize, du_abs: &AxesMm) {
+        self.add_abs(axes, du_abs, 0.0);
     }
 
     /// [`AbsTurns::add`] of a turn already taken absolute per axis.
@@ -108,7 +99,7 @@ pub(super) struct NearJunction {
     /// already seen, and the cap it settles on too (`junction_turns`). At most `PIECES`,
     /// the oldest replaced first.
     piece_h: [Cell<(f64, f64)>; PIECES],
-    piece_turns: [Cell<(JunctionTurns, AxesMm, AbsTurns)>; PIECES],
+    piece_turns: [Cell<([f64; MAX_AXES], AxesMm, AbsTurns)>; PIECES],
     /// Pieces kept, and where the next one goes once `PIECES` are.
     pieces: Cell<usize>,
     next_piece: Cell<usize>,
