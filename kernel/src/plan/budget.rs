@@ -136,18 +136,7 @@ impl LineBudget {
     /// (not capped by the constants: the stop set has its own).
     pub(super) fn tangential_at(&self, v: f64) -> f64 {
         let w = v + self.margin_mm_s;
-        // (Plain comparisons where the running value starts at ∞: they skip a NaN term as
-        // `min` does, at a quarter of the cost; this runs on every braking step.)
-        let mut a = self.flat_mm_s2;
-        for k in 0..self.count {
-            for e in 0..2 {
-                let vr = self.v_ref_mm_s[e];
-                let x = self.p[k] - normal_at(self.q[e][k], self.q_half[e][k], vr, w);
-                if x < a {
-                    a = x;
-                }
-            }
-        }
+        let a = self.left_by(0, w).min(self.left_by(1, w));
         a.min(self.a_axes_mm_s2).max(self.a_floor_mm_s2)
     }
 
@@ -155,7 +144,18 @@ impl LineBudget {
     /// as at a stop), with the line's directions of both ends (at most what that end's own
     /// budget leaves).
     pub(super) fn end_accel_at(&self, v: f64, e: usize) -> f64 {
-        let w = v + self.margin_mm_s;
+        let a = self.left_by(e, v + self.margin_mm_s);
+        self.base_mm_s2
+            .min(a.min(self.a_axes_mm_s2).max(self.a_floor_mm_s2))
+    }
+
+    /// What end `e`'s turns leave of the axes at tick speeds up to `w`: min_k p_k − N_k(w)
+    /// (and the axes without turns), mm/s².
+    #[inline(always)]
+    fn left_by(&self, e: usize, w: f64) -> f64 {
+        // (Plain comparisons where the running value starts at ∞ or the flat axes': they
+        // skip a NaN term as `min` does, at a quarter of the cost; this runs at every
+        // commit.)
         let vr = self.v_ref_mm_s[e];
         let mut a = self.flat_mm_s2;
         for k in 0..self.count {
@@ -164,8 +164,7 @@ impl LineBudget {
                 a = x;
             }
         }
-        self.base_mm_s2
-            .min(a.min(self.a_axes_mm_s2).max(self.a_floor_mm_s2))
+        a
     }
 
     /// Highest tick speed the acceleration of speeds up to `v` covers (one tick's speed

@@ -752,24 +752,12 @@ impl Planner {
         let env = &cfg.envelope;
         let set = &env.sets[next.set];
         let a = |q: &Pending| env.sets[q.set].accel_mm_s2.min(q.a_axes);
-        let a_ts = a(prev).min(a(next)) * TS_S;
-        // The criteria of `criteria::Turn`, squared: no root, as this runs for every block.
-        let (chord, sum) = (prev.turn.chord, prev.turn.sum);
-        let below2 = a_ts * a_ts * chord * chord;
-        // R385: am·Ts·√(len/ref)/chord, the length correction below the reference length.
-        let am_ts = set.overload_mm_s2 * TS_S;
         let len = 0.5 * (prev.seg.length_mm + next.seg.length_mm);
-        let ref_len = set.overload_ref_len_mm;
-        let short = if ref_len > 0.0 && len < ref_len {
-            len / ref_len
-        } else {
-            1.0
-        };
-        let dynamic_below = am_ts * am_ts * short < below2;
-        // R384: Lm·sum/(Ts·chord).
-        let lm_ts = set.accuracy_um * 1e-3 / TS_S;
-        let accuracy_below = lm_ts > 0.0 && lm_ts * lm_ts * sum * sum < below2;
-        dynamic_below || accuracy_below
+        let ub = prev
+            .turn
+            .dynamic_len_mm_s(set.overload_mm_s2, set.overload_ref_len_mm, len)
+            .min(prev.turn.accuracy_mm_s(set.accuracy_um));
+        ub < a(prev).min(a(next)) * TS_S
     }
 
     /// Junction rule of SPEC §7.1 between `prev` and `next`.
