@@ -1008,7 +1008,7 @@ impl Planner {
     fn commit_budget(&mut self, i: usize) {
         let rapid_a = self.cfg.envelope.rapid_accel_mm_s2;
         let v_from = self.committed_end_mm_s;
-        let p = &self.win[i];
+        let p = &mut self.win[i];
         let Some(b) = &p.budget else {
             self.committed_end_mm_s = p.seg.v_end_mm_s;
             return;
@@ -1018,8 +1018,6 @@ impl Planner {
             .reach_mm_s(p.seg.v_end_mm_s, len)
             .min(b.reach_mm_s(v_from, len))
             .min(p.seg.v_max_mm_s);
-        let p = &mut self.win[i];
-        let Some(b) = &p.budget else { return };
         apply_budget_to(&mut p.seg, b, v, rapid_a);
         // Each end's turns alone, at the same speeds (each at least the combined budget:
         // fewer turns, the same line): a tick whose steps touch one junction of the line

@@ -65,7 +65,7 @@ impl AbsTurns {
         self.add_abs(axes, du_abs, 0.0);
     }
 
-    /// [`AbsTurns::add`] of a turn already taken absolute per axis.
+    /// Adds the turn of a junction at distance `d_mm`, taken absolute per axis.
     #[inline]
     pub(super) fn add_abs(&mut self, axes: usize, du_abs: &AxesMm, d_mm: f64) {
         for k in 0..axes {
