@@ -1,7 +1,8 @@
 #!/bin/sh
 # Regenerates the independent reference of the planner (issue #32): the paths
 # (paths/*.nc) and their limit times (reference.tsv), with TOPP-RA from PyPI in a venv under
-# target/. Minutes; the results are committed. Usage: scripts/planner-reference/run.sh
+# target/; then what 4 ms setpoints on the polyline allow (ticks.tsv, plain Python). Minutes;
+# the results are committed. Usage: scripts/planner-reference/run.sh
 set -eu
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 VENV=$ROOT/target/planner-ref/venv
@@ -12,3 +13,4 @@ fi
     "$VENV/bin/pip" install -q toppra numpy scipy
 cd "$ROOT/scripts/planner-reference"
 "$VENV/bin/python" reference.py "$@"
+"$VENV/bin/python" ticks.py "$@"

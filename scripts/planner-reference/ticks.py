@@ -1,0 +1,194 @@
+#!/usr/bin/env python3
+"""What 4 ms ticks on the polyline allow (issue #32): a feasible tick sequence, found greedily.
+
+The limit of reference.py is continuous in time. A controller that keeps its setpoints on the
+programmed polyline, one every Ts, is held instead by the setpoints themselves: per axis the
+second difference |x_k(s_i+1) - 2·x_k(s_i) + x_k(s_i-1)| <= a_k·Ts², the step |Δx_k| <= v_k·Ts,
+the path step s_i+1 - s_i <= F·Ts, and at each junction the step that crosses it within the
+junction's R384/R385 speeds (the same criteria as reference.py's exact bound).
+
+This script finds such a sequence, from rest to rest, greedily: each tick takes the farthest
+next setpoint that keeps every constraint and from which braking as hard as the constraints
+allow (each tick the nearest feasible setpoint) reaches rest before the end of the path. The
+braking continuation proves each state safe, so the sequence is feasible; being greedy, it is
+not always optimal (it gives up up to half a tick at a sharp corner, where a planner chooses
+the phase of its ticks). Its time is therefore an upper bound on what on-path 4 ms setpoints
+can do, independent of the planner's model. The sequence is checked again at the end from
+its setpoints alone.
+
+Nothing here uses the planner's code. Input: paths/<name>.nc (reference.py). Output
+(committed): ticks.tsv. Run: python3 ticks.py [name ...] (plain Python, about a minute).
+"""
+
+import math
+import os
+import sys
+
+from machine import A_AXIS, AM, FEED, LM_MM, TS, V_AXIS
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+STEP_A = A_AXIS * TS * TS  # per axis, mm per tick²
+STEP_V = V_AXIS * TS  # per axis, mm per tick
+STEP_F = FEED * TS  # path, mm per tick
+
+
+def read_polyline(path):
+    """The points of a program of G1 X Y Z lines from the origin (repeated points dropped)."""
+    pts = [(0.0, 0.0, 0.0)]
+    cur = [0.0, 0.0, 0.0]
+    with open(path) as f:
+        for line in f:
+            for word in line.split():
+                axis = "XYZ".find(word[0])
+                if axis >= 0:
+                    cur[axis] = float(word[1:])
+            if tuple(cur) != pts[-1]:
+                pts.append(tuple(cur))
+    return pts
+
+
+class Polyline:
+    def __init__(self, pts):
+        self.pts = pts
+        self.s = [0.0]
+        self.u = []
+        for p, q in zip(pts, pts[1:]):
+            d = [q[k] - p[k] for k in range(3)]
+            n = math.sqrt(sum(x * x for x in d))
+            self.s.append(self.s[-1] + n)
+            self.u.append([x / n for x in d])
+        self.length = self.s[-1]
+        # Speed cap of the step crossing point j (R384, R385), as reference.py's exact bound.
+        self.cap = [math.inf] * len(pts)
+        for j in range(1, len(pts) - 1):
+            chord = math.sqrt(sum((self.u[j][k] - self.u[j - 1][k]) ** 2 for k in range(3)))
+            if chord > 1e-12:
+                half = math.asin(min(chord / 2, 1.0))
+                tan = math.tan(half) if chord < 2 - 1e-12 else math.inf
+                self.cap[j] = min(AM * TS / chord, LM_MM / (TS * tan))
+
+    def segment(self, s):
+        lo, hi = 0, len(self.u) - 1
+        while lo < hi:
+            mid = (lo + hi + 1) // 2
+            if self.s[mid] <= s:
+                lo = mid
+            else:
+                hi = mid - 1
+        return lo
+
+    def at(self, s):
+        j = self.segment(s)
+        t = s - self.s[j]
+        return [self.pts[j][k] + self.u[j][k] * t for k in range(3)]
+
+    def next_setpoints(self, a, b):
+        """The feasible next setpoints c >= b after setpoints a, b: a list of intervals in s."""
+        xa, xb = self.at(a), self.at(b)
+        aim = [2 * xb[k] - xa[k] for k in range(3)]
+        top = min(b + STEP_F, self.length)
+        out = []
+        j = self.segment(b)
+        while True:
+            if j > 0 and self.s[j] > b:
+                top = min(top, b + self.cap[j] * TS)
+            lo, hi = max(self.s[j], b), min(self.s[j + 1], top)
+            if lo > hi:
+                break
+            for k in range(3):
+                uk = self.u[j][k]
+                base = self.pts[j][k] - uk * self.s[j]
+                for centre, radius in ((aim[k], STEP_A), (xb[k], STEP_V)):
+                    if abs(uk) < 1e-15:
+                        if abs(base - centre) > radius:
+                            lo, hi = 1.0, 0.0
+                    elif uk > 0:
+                        lo = max(lo, (centre - radius - base) / uk)
+                        hi = min(hi, (centre + radius - base) / uk)
+                    else:
+                        lo = max(lo, (centre + radius - base) / uk)
+                        hi = min(hi, (centre - radius - base) / uk)
+            if lo <= hi:
+                out.append((lo, hi))
+            if self.s[j + 1] >= top or j + 1 >= len(self.u):
+                break
+            j += 1
+        return out
+
+    def can_stop(self, a, b):
+        """Braking as hard as the constraints allow from setpoints a, b reaches rest."""
+        while True:
+            nxt = self.next_setpoints(a, b)
+            if not nxt:
+                return False
+            c = nxt[0][0]
+            if c <= b + 1e-12:
+                return True
+            a, b = b, c
+
+
+def below(intervals, c):
+    """The largest feasible setpoint at most c, or None."""
+    best = None
+    for lo, hi in intervals:
+        if lo <= c:
+            best = min(hi, c)
+    return best
+
+
+def greedy_ticks(line):
+    """The setpoints (arc lengths) of the greedy sequence, from rest at 0 to rest at the end."""
+    seq = [0.0, 0.0]
+    while seq[-1] < line.length - 1e-9:
+        a, b = seq[-2], seq[-1]
+        nxt = line.next_setpoints(a, b)
+        c = nxt[-1][1]
+        if not line.can_stop(b, c):
+            # The nearest setpoint is the braking step the previous tick proved safe.
+            lo, hi = nxt[0][0], c
+            while hi - lo > 1e-9:
+                mid = 0.5 * (lo + hi)
+                cand = below(nxt, mid)
+                if cand is not None and line.can_stop(b, cand):
+                    lo = mid
+                else:
+                    hi = mid
+            c = below(nxt, lo)
+        seq.append(c)
+    return seq
+
+
+def check(line, seq):
+    """From the setpoints alone: the largest axis acceleration / a_k, axis speed / v_k and path
+    speed / F over the sequence held at rest at both ends."""
+    xs = [line.at(s) for s in [seq[0]] + seq + [seq[-1]]]
+    acc = max(abs(p[k] - 2 * q[k] + r[k]) for p, q, r in zip(xs, xs[1:], xs[2:]) for k in range(3))
+    vel = max(abs(q[k] - p[k]) for p, q in zip(xs, xs[1:]) for k in range(3))
+    path = max(q - p for p, q in zip(seq, seq[1:]))
+    return acc / STEP_A, vel / STEP_V, path / STEP_F
+
+
+def main():
+    only = set(sys.argv[1:])
+    rows = []
+    with open(os.path.join(HERE, "reference.tsv")) as f:
+        names = [l.split("\t")[0] for l in f if not l.startswith("#")]
+    for name in names:
+        if only and name not in only:
+            continue
+        line = Polyline(read_polyline(os.path.join(HERE, "paths", f"{name}.nc")))
+        seq = greedy_ticks(line)
+        ticks = len(seq) - 2
+        acc, vel, path = check(line, seq)
+        rows.append((name, ticks, ticks * TS, acc, vel, path))
+        print(f"{name:10s} {ticks:6d} ticks {ticks * TS:8.3f} s  axis a {acc:.6f}  axis v {vel:.6f}  F {path:.6f}", flush=True)
+    if only:
+        return
+    with open(os.path.join(HERE, "ticks.tsv"), "w") as f:
+        f.write("# name\tticks\tticks_s\tmax_axis_a\tmax_axis_v\tmax_path_v\n")
+        for r in rows:
+            f.write(f"{r[0]}\t{r[1]}\t{r[2]:.3f}\t{r[3]:.6f}\t{r[4]:.6f}\t{r[5]:.6f}\n")
+
+
+if __name__ == "__main__":
+    main()
