@@ -135,9 +135,11 @@ impl Resampler {
         let u = phase;
         let wa = 0.5 * (1.0 - u) * (1.0 - u);
         let wc = 0.5 * u * u;
-        let wb = 1.0 - wa - wc;
+        // (As offsets from the middle point: at rest, where all three are equal, the sample
+        // is that point exactly; the weighted sum of the three rounded it by an ulp either
+        // way from one bus cycle to the next.)
         for i in 0..axes {
-            out[i] = wa * a[i] + wb * b[i] + wc * c[i];
+            out[i] = b[i] + (wa * (a[i] - b[i]) + wc * (c[i] - b[i]));
         }
     }
 }
