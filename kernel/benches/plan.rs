@@ -394,10 +394,30 @@ fn tick_cost() {
         ("mixed arcs", mixed_arcs()),
         ("pocket sharp corners", pocket(30.0, 20.0, 2.0, 2000.0)),
     ];
-    for (name, blocks) in progs.iter() {
-        for profile in [1u8, 2] {
+    // Linear and parabolic with the constants files; and the daemon's defaults without
+    // constants (the axes' limits alone: the per-axis box on the setpoints chooses them).
+    let configs = [
+        ("linear", ours(1)),
+        ("parabolic", ours(2)),
+        ("linear, axes only", daemon_config(&default_axes(), None)),
+    ];
+    let splines = reference_paths().into_iter().find(|p| p.name == "splines");
+    let splines = splines.map(|p| ("random splines (#32)", p.blocks));
+    let runs = progs.iter().flat_map(|(name, blocks)| {
+        configs
+            .iter()
+            .map(move |(kind, c)| (*name, blocks, *kind, c))
+    });
+    let reference = reference_config();
+    let runs = runs.chain(
+        splines
+            .iter()
+            .map(|(name, blocks)| (*name, blocks, "linear, axes only", &reference)),
+    );
+    for (name, blocks, kind, cfg) in runs {
+        {
             // Plan everything first so only the interpolator is timed.
-            let mut pl = Planner::new(ours(profile), 1);
+            let mut pl = Planner::new(cfg.clone(), 1);
             let mut segs = vec![];
             for b in blocks.iter() {
                 while !pl.wants_input() {
@@ -424,7 +444,6 @@ fn tick_cost() {
             }
             ns.sort_by(|a, b| a.partial_cmp(b).unwrap());
             let q = |p: f64| ns[((ns.len() - 1) as f64 * p) as usize] / 1000.0;
-            let kind = if profile == 1 { "linear" } else { "parabolic" };
             println!(
                 "| {name} | {kind} | {} | {:.2} | {:.2} | {:.2} | {:.2} |",
                 ns.len(),
@@ -500,13 +519,28 @@ fn count_only() {
 /// of `Interpolator::tick` under valgrind (`--toggle-collect='*Interpolator::tick*'`); prints
 /// the number of ticks.
 fn count_ticks_only() {
-    let blocks = dense_blocks(20_000);
+    // `count-ticks <reference path>`: that path on the issue #32 machine (the per-axis box
+    // chooses the setpoints); `count-ticks box`: the dense circle on it; `count-ticks axes`:
+    // the dense circle on the daemon's defaults without constants.
+    let path = reference_paths()
+        .into_iter()
+        .find(|p| std::env::args().any(|a| a == p.name));
+    let boxed = path.is_some() || std::env::args().any(|a| a == "box");
+    let blocks = path.map_or_else(|| dense_blocks(20_000), |p| p.blocks);
     let profile = if std::env::args().any(|a| a == "parabolic") {
         2
     } else {
         1
     };
-    let mut pl = Planner::new(ours(profile), 1);
+    // `count-ticks axes`: the dense circle on the daemon's defaults without constants.
+    let cfg = if boxed {
+        reference_config()
+    } else if std::env::args().any(|a| a == "axes") {
+        daemon_config(&default_axes(), None)
+    } else {
+        ours(profile)
+    };
+    let mut pl = Planner::new(cfg, 1);
     let mut segs = vec![];
     for b in &blocks {
         while !pl.wants_input() {

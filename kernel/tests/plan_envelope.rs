@@ -42,8 +42,14 @@ fn assert_within(name: &str, cfg: &PlannerConfig, blocks: &[Block]) -> Run {
     r
 }
 
+/// Profile 1 linear, 2 parabolic, 3 linear with the axes' limits alone (the per-axis box on
+/// the setpoints chooses them on lines, `config_box`).
 fn cfg(profile: u8) -> PlannerConfig {
-    let mut c = config(profile);
+    let mut c = if profile == 3 {
+        config_box()
+    } else {
+        config(profile)
+    };
     c.min_block_time_s = 0.0;
     c
 }
@@ -52,6 +58,17 @@ fn cfg(profile: u8) -> PlannerConfig {
 fn suite_linear_within_limits() {
     for (name, blocks) in suite() {
         assert_within(name, &cfg(1), &blocks);
+    }
+}
+
+#[test]
+fn suite_box_within_limits() {
+    for (name, blocks) in suite() {
+        let r = assert_within(name, &cfg(3), &blocks);
+        assert!(
+            r.segments.iter().any(|s| s.axis_box.accel_mm_s2.is_set()),
+            "{name}"
+        );
     }
 }
 
@@ -255,7 +272,7 @@ fn short_blocks_merge_and_break_continuity() {
 #[test]
 fn override_and_hold_within_limits() {
     let programs = [("mixed arcs", mixed_arcs()), ("long lines", long_lines())];
-    for (profile, (name, blocks)) in [1u8, 2]
+    for (profile, (name, blocks)) in [1u8, 2, 3]
         .into_iter()
         .flat_map(|p| programs.iter().map(move |b| (p, b)))
     {
@@ -331,7 +348,7 @@ proptest! {
             (0u8..6, -3.2f64..3.2, -1.5f64..1.5, prop_oneof![0.01f64..0.2, 0.2f64..20.0], 0u8..200, 0u8..5),
             1..60,
         ),
-        profile in 1u8..=2,
+        profile in 1u8..=3,
     ) {
         let blocks = random_program(&steps);
         prop_assume!(blocks.iter().any(|b| b.motion().is_some()));
@@ -460,7 +477,7 @@ proptest! {
     fn random_dense_paths_stay_within_limits(
         turns in prop::collection::vec((-0.4f64..0.4, -0.1f64..0.1, 0.01f64..0.6), 2..400),
         feed in 600.0f64..12000.0,
-        profile in 1u8..=2,
+        profile in 1u8..=3,
     ) {
         assert_within("dense", &cfg(profile), &dense_path(&turns, feed));
     }
@@ -941,4 +958,133 @@ fn a_turn_between_two_stops_is_not_passed_slower_than_stopped() {
     let ts = run(cfg.clone(), &with(2)).time_s();
     let tg = run(cfg, &with(0)).time_s();
     assert!(ts <= tg + 1e-9, "G23 {ts} s, G98 {tg} s");
+}
+
+/// The per-axis box on the setpoints (issue #32): a circle of radius R in dense chords, at a
+/// feed above what curvature allows, runs on average at the speed the axes allow on the
+/// circle itself, √(a·R) (the normal acceleration v²/R along an axis is that axis's whole
+/// acceleration where the circle's normal points along it), every axis within its limit and
+/// the setpoints on the chords. (On the chords the tick points fall at every distance from
+/// the vertices, and each distance allows its own speed: it varies by ±6 % around √(a·R).)
+/// The envelope's fixed normal share (0.85) held it below √0.85 = 0.92 of that.
+#[test]
+fn a_dense_circle_runs_at_the_speed_the_axes_allow_on_a_circle() {
+    let cfg = reference_config();
+    let a = cfg.axis_a_max_mm_s2[0];
+    let r_mm = 3.0;
+    let blocks = dense_circle(r_mm, 0.05, 12000.0);
+    let run = assert_within("circle R3", &cfg, &blocks);
+    let v_axes = (a * r_mm).sqrt();
+    let n = run.ticks.len();
+    // The middle half of the circle: past the run-up, before the braking.
+    let steady = &run.ticks[n / 4..3 * n / 4];
+    let mean = steady.iter().map(|t| t.path_v_mm_s).sum::<f64>() / steady.len() as f64;
+    let slowest = steady
+        .iter()
+        .map(|t| t.path_v_mm_s)
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        mean >= 0.98 * v_axes,
+        "{mean} mm/s against √(a·R) = {v_axes}"
+    );
+    assert!(
+        slowest >= 0.92 * v_axes,
+        "{slowest} mm/s against √(a·R) = {v_axes}"
+    );
+}
+
+/// A feed hold while the box chooses the setpoints brakes to rest on the path within every
+/// axis's limit; resumed, the program ends where it should.
+#[test]
+fn a_hold_on_a_dense_curve_brakes_within_the_axis_limits() {
+    let cfg = cfg(3);
+    let blocks = dense_circle(4.0, 0.05, 9000.0);
+    let r = run_with(cfg.clone(), &blocks, 100_000, |t, ip| match t {
+        60 => ip.hold(),
+        200 => ip.resume(),
+        _ => {}
+    });
+    let w = measure(&cfg, &r, LM_UM);
+    assert!(
+        w.axis_a <= A_TOL && w.axis_v <= V_TOL && w.path_v <= V_TOL,
+        "{w:?}"
+    );
+    assert!(w.off_path_mm <= 1e-9, "{w:?}");
+    assert!(r.ticks[59].path_v_mm_s > 10.0, "moving at the hold");
+    assert_eq!(r.ticks[150].state, kernel::interp::InterpState::Held);
+    let end = blocks.iter().rev().find_map(Block::motion).unwrap().1;
+    assert_eq!(r.ticks.last().unwrap().position.0[..3], end.0[..3]);
+}
+
+/// Dense chords into an arc and out of it, passed without a stop: the box hands the
+/// setpoints to the envelope before the arc (the box judges lines only), every axis within
+/// its limit and the setpoints on the path.
+#[test]
+fn dense_chords_into_an_arc_hand_over_without_a_stop() {
+    let cfg = cfg(3);
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 6000.0, Continuity::G23);
+    for i in 1..=200 {
+        let x = i as f64 * 0.1;
+        p.g1(p3(x, 0.3 * (x / 3.0).sin(), 0.0));
+    }
+    let (x0, y0) = (p.pos[0], p.pos[1]);
+    p.arc(
+        p3(x0 + 10.0, y0 + 10.0, 0.0),
+        p3(x0, y0 + 10.0, 0.0),
+        kernel::block::ArcDir::Ccw,
+    );
+    for i in 1..=100 {
+        p.g1(p3(x0 + 10.0, y0 + 10.0 + i as f64 * 0.1, 0.0));
+    }
+    let r = assert_within("chords and an arc", &cfg, &p.blocks);
+    let moving = &r.ticks[1..r.ticks.len() - 1];
+    let slowest = moving
+        .iter()
+        .map(|t| t.path_v_mm_s)
+        .fold(f64::INFINITY, f64::min);
+    assert!(slowest > 1.0, "a stop on the way: {slowest} mm/s");
+    assert!(r.segments.iter().any(|s| s.axis_box.accel_mm_s2.is_set()));
+}
+
+/// Single block switched on while the box chooses the setpoints on a dense curve: the path
+/// stops at rest exactly on a block end (beyond where the box's last proof came to rest),
+/// and runs on from there; every axis within its limit.
+#[test]
+fn single_block_on_a_dense_curve_stops_on_a_block_end() {
+    let cfg = cfg(3);
+    let blocks = dense_circle(4.0, 0.05, 9000.0);
+    let ends: Vec<_> = blocks
+        .iter()
+        .filter_map(Block::motion)
+        .map(|m| m.1)
+        .collect();
+    let mut stops = vec![];
+    let r = run_with(cfg.clone(), &blocks, 100_000, |t, ip| {
+        if t == 60 {
+            ip.set_single_block(true);
+        }
+        if ip.at_block_stop() {
+            stops.push(ip.position());
+            if stops.len() == 3 {
+                ip.set_single_block(false);
+            }
+            ip.resume();
+        }
+    });
+    let w = measure(&cfg, &r, LM_UM);
+    assert!(
+        w.axis_a <= A_TOL && w.axis_v <= V_TOL && w.path_v <= V_TOL,
+        "{w:?}"
+    );
+    assert_eq!(stops.len(), 3, "{stops:?} {}", r.ticks.len());
+    for p in &stops {
+        assert!(
+            ends.iter().any(|e| e.0[..3] == p.0[..3]),
+            "held off a block end: {p:?}"
+        );
+    }
+    assert_eq!(
+        r.ticks.last().unwrap().position.0[..3],
+        ends.last().unwrap().0[..3]
+    );
 }

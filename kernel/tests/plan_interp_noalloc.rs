@@ -13,9 +13,14 @@ use plan_common::*;
 
 #[test]
 fn push_and_tick_do_not_allocate() {
-    for profile in [1u8, 2] {
-        // Plan outside the counted region (the planner thread may allocate).
-        let mut cfg = config(profile);
+    for profile in [1u8, 2, 3] {
+        // Plan outside the counted region (the planner thread may allocate). Profile 3: the
+        // per-axis box on the setpoints (`config_box`).
+        let mut cfg = if profile == 3 {
+            config_box()
+        } else {
+            config(profile)
+        };
         cfg.min_block_time_s = 0.0;
         let mut pl = Planner::new(cfg, 1);
         let mut blocks = mixed_arcs();

@@ -56,7 +56,7 @@ fn cncctl_trajectory_gives_the_planned_ticks_without_moving() {
             .collect();
         for w in vel.windows(2) {
             let a = ((w[1] - w[0]) / TS_S).abs();
-            assert!(a <= 800.0 * (1.0 + 1e-6) + 1e-3, "axis {axis}: {a} mm/s²");
+            assert!(a <= 800.0 + CSV_ROUNDING_MM_S2, "axis {axis}: {a} mm/s²");
         }
     }
     // The machine did not move.
@@ -66,6 +66,12 @@ fn cncctl_trajectory_gives_the_planned_ticks_without_moving() {
         "{s}"
     );
 }
+
+/// The CSV gives positions to 1 nm (`{:.6}` mm): a second difference of three of them is off
+/// by up to 4 × 0.5 nm, 0.125 mm/s² at 4 ms. The setpoints themselves keep every axis within
+/// its limit to 1e-6 (kernel tests, exact positions); the per-axis box on the setpoints
+/// (issue #32) uses the whole limit, so the rounding shows.
+const CSV_ROUNDING_MM_S2: f64 = 4.0 * 0.5e-6 / (TS_S * TS_S);
 
 /// Rows of a trajectory CSV (t, X, Y, Z, path v, seq, block).
 fn csv_rows(path: &std::path::Path) -> Vec<Vec<f64>> {
@@ -94,10 +100,10 @@ fn max_axis_accel(rows: &[Vec<f64>], axis: usize) -> f64 {
 #[test]
 fn dense_circle_uses_the_axis_acceleration_within_its_limits() {
     // Issue #16: a circle r20 of 0.05 mm chords, G23, F6000, default axes (200 mm/s,
-    // 800 mm/s²). The curvature cap (normal share ½ of 800 mm/s²) gives √(400·20) = 89.4 mm/s;
-    // the ramps at both ends run along the axes the normal acceleration leaves free, so the
-    // whole circle takes about 1.50 s (1.62 s with the tangential acceleration halved on every
-    // turning block). Per-axis acceleration stays within 800 mm/s² on every tick.
+    // 800 mm/s²). The curvature allows √(800·20) = 126 mm/s where the normal lies along an
+    // axis, so the feed governs: the whole circle takes about 1.38 s with the per-axis box on
+    // the setpoints (issue #32; 1.50 s with the fixed normal share ½ of the first planner).
+    // Per-axis acceleration stays within 800 mm/s² on every tick.
     let d = Daemon::start(
         "daemon-trajectory-circle",
         "[bus]\nkind = 'sim'\n",
@@ -129,7 +135,7 @@ fn dense_circle_uses_the_axis_acceleration_within_its_limits() {
     assert!(t < 1.56, "circle took {t} s");
     for axis in 1..4 {
         let a = max_axis_accel(circle, axis);
-        assert!(a <= 800.0 * (1.0 + 1e-6) + 1e-3, "axis {axis}: {a} mm/s²");
+        assert!(a <= 800.0 + CSV_ROUNDING_MM_S2, "axis {axis}: {a} mm/s²");
     }
 }
 

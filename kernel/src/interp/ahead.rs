@@ -142,6 +142,7 @@ impl Interpolator {
     /// is left in its other slots from before (a nearly full ring) is never judged with them.
     pub(super) fn note_pushed(&mut self, i: usize) {
         self.ahead[i] = Ahead::of(&self.buf[i]);
+        self.box_slots[i] = super::setpoint_box::BoxSlot::of(&self.buf[i]);
         let g = &mut self.groups[i / GROUP];
         if i.is_multiple_of(GROUP) {
             *g = AheadGroup::NONE;
@@ -152,6 +153,7 @@ impl Interpolator {
     /// Segment in slot `i` now ends at rest (single block).
     pub(super) fn note_stop_at(&mut self, i: usize) {
         self.ahead[i].v_end_mm_s = 0.0;
+        self.box_slots[i].stop_end = true;
         self.groups[i / GROUP].v_end_mm_s = 0.0;
     }
 

@@ -49,6 +49,7 @@ mod axis_filter;
 mod jerk_filter;
 mod piecewise;
 mod raw;
+mod setpoint_box;
 
 use ahead::{Ahead, AheadGroup, GROUP};
 
@@ -115,6 +116,8 @@ pub struct Interpolator {
     /// group of `GROUP` slots (`ahead`).
     /// (Arrays of their fixed length: the walks index them without bounds checks.)
     ahead: Box<[Ahead; BUFFER_SEGMENTS]>,
+    /// What the per-axis box reads of each buffered segment besides that (`setpoint_box`).
+    box_slots: Box<[setpoint_box::BoxSlot; BUFFER_SEGMENTS]>,
     groups: Box<[AheadGroup]>,
     /// Arc length (from the first buffered segment after the last reset) at each segment start.
     seg_start_s_mm: Box<[f64]>,
@@ -213,6 +216,31 @@ pub struct Interpolator {
     /// accelerations (`piecewise_upper`).
     pw_hi: Box<[f64; piecewise::PIECEWISE_CAPS]>,
     pw_own: Box<[f64; piecewise::PIECEWISE_CAPS]>,
+    // The per-axis box on the setpoints (`setpoint_box`).
+    /// The box chooses the raw steps (until it hands back to the envelope or rests).
+    box_mode: bool,
+    /// The setpoint sent a tick before the last one (the last is `path_pos`).
+    box_prev_point: AxesMm,
+    /// The junction the raw position lies on (`OnJunction::NONE`: none), noted after each
+    /// raw step while the segment before is still buffered.
+    box_on: setpoint_box::OnJunction,
+    /// Each axis's room for the second difference of its setpoints this tick, mm, and the
+    /// norm of those rooms (`setpoint_box::note_box_room`).
+    box_room: [f64; crate::units::MAX_AXES],
+    box_room_norm: f64,
+    /// The braking of the last accepted proof (`setpoint_box::Plan`), and the setpoints of
+    /// the brakings proofs write (three regions of `setpoint_box::PLAN_SLOTS`).
+    box_plan: setpoint_box::Plan,
+    box_paths: Box<[f64]>,
+    /// This tick's choice of the box, while the envelope is computed to see whether it takes
+    /// over (`box_hand_back`).
+    box_pending: Option<setpoint_box::Choice>,
+    /// The box arrived at a plain stop point this tick: the next may leave it at once
+    /// (`setpoint_box::box_step`).
+    box_departs: bool,
+    /// Where the box's search guesses, as a fraction of the way from the nearest setpoint to
+    /// the farthest (`setpoint_box::box_search`).
+    box_guess: f64,
     /// The bounds that leave the piecewise walk early are used (tests turn them off to
     /// compare: the trajectory must be the same).
     pw_bounds: bool,
@@ -228,6 +256,10 @@ impl Interpolator {
             buf: vec![Segment::default(); BUFFER_SEGMENTS].into_boxed_slice(),
             // (Built on the heap: a 320 kB array would pass through the stack.)
             ahead: vec![Ahead::default(); BUFFER_SEGMENTS]
+                .into_boxed_slice()
+                .try_into()
+                .expect("BUFFER_SEGMENTS slots"),
+            box_slots: vec![setpoint_box::BoxSlot::default(); BUFFER_SEGMENTS]
                 .into_boxed_slice()
                 .try_into()
                 .expect("BUFFER_SEGMENTS slots"),
@@ -284,6 +316,16 @@ impl Interpolator {
             pw_hi: Box::new([0.0; piecewise::PIECEWISE_CAPS]),
             pw_own: Box::new([0.0; piecewise::PIECEWISE_CAPS]),
             pw_bounds: true,
+            box_mode: false,
+            box_prev_point: position,
+            box_on: setpoint_box::OnJunction::NONE,
+            box_room: [0.0; crate::units::MAX_AXES],
+            box_room_norm: 0.0,
+            box_plan: setpoint_box::Plan::default(),
+            box_paths: vec![0.0; 3 * setpoint_box::PLAN_SLOTS].into_boxed_slice(),
+            box_pending: None,
+            box_departs: false,
+            box_guess: 0.5,
             #[cfg(test)]
             pw_stats: (0, 0),
         }
@@ -484,6 +526,7 @@ impl Interpolator {
         self.clear();
         self.position = position;
         self.path_pos = position;
+        self.box_prev_point = position;
         self.axis_hist_in.fill(position);
         self.axis_hist_mid.fill(position);
         true
@@ -522,6 +565,8 @@ impl Interpolator {
         self.ticks_since_accel = FILTER_MAX_TICKS;
         self.filtered_s_mm = 0.0;
         self.filtered_v_mm_s = 0.0;
+        self.box_mode = false;
+        self.box_on = setpoint_box::OnJunction::NONE;
     }
 
     fn idx(&self, k: usize) -> usize {
@@ -568,12 +613,14 @@ impl Interpolator {
         let mut program_end = false;
         let mut path_v = 0.0;
         self.spindle_wait = false;
+        let sent_before = self.path_pos;
         if self.len > 0 {
             let (cap, feed) = if matches!(self.state, InterpState::Held | InterpState::Idle) {
                 (f64::INFINITY, f64::INFINITY)
             } else {
                 self.raw_step()
             };
+            self.note_box_junction();
             self.record(cap, feed);
             program_end = self.follow();
             path_v = self.filtered_v_mm_s;
@@ -584,6 +631,7 @@ impl Interpolator {
             self.filtered_v_mm_s = 0.0;
             self.smooth_axes();
         }
+        self.box_prev_point = sent_before;
         self.reported_spindle = self.last_spindle;
         TickOut {
             position: self.position,

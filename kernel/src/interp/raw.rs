@@ -292,6 +292,9 @@ impl Interpolator {
         }
         self.arm_block_stop(&head, accel_mm_s2);
         let head = *self.seg(self.raw_seg);
+        if let Some(ds) = self.box_step(braking) {
+            return self.advance_raw_by(&head, accel_mm_s2, ds);
+        }
         let limits = self.speed_limits(&head, accel_mm_s2, braking);
         self.advance_raw(&head, accel_mm_s2, limits)
     }
@@ -316,8 +319,10 @@ impl Interpolator {
         // the arrival step left of the tick (`departure_cap_mm_s`).
         if self.still_ticks > 0 {
             self.entry_cap_mm_s = f64::INFINITY;
+            self.box_departs = false;
         }
-        if !self.settled() || (self.still_ticks == 0 && !self.entry_cap_mm_s.is_finite()) {
+        let departs = self.entry_cap_mm_s.is_finite() || self.box_departs;
+        if !self.settled() || (self.still_ticks == 0 && !departs) {
             return false;
         }
         if self.dwell_ticks > 0 {
@@ -363,7 +368,9 @@ impl Interpolator {
     /// program started in single-block mode is planned with every block ending at rest (that
     /// end is found at once); one switched on while moving stops at the next block end out of
     /// braking reach, as a stop at the end of the buffer is (`speed_limits` then brakes for it
-    /// like for any stop). Bounded by the braking reach, as the look-ahead of `speed_limits`.
+    /// like for any stop). Bounded by the braking reach, as the look-ahead of `speed_limits`;
+    /// while the per-axis box chooses the setpoints (`setpoint_box`), by where its last
+    /// proof comes to rest.
     fn arm_block_stop(&mut self, head: &Segment, accel_mm_s2: f64) {
         if !self.single_block || self.block_stop_armed || self.state != InterpState::Running {
             return;
@@ -387,7 +394,14 @@ impl Interpolator {
                 return;
             }
             let next = self.seg(k + 1);
-            if !same_block(seg, next) && d >= reach_mm {
+            // (While the box chooses the setpoints, its last proof brakes to rest before
+            // any stop point beyond where that proof rests.)
+            let far_enough = if self.box_mode {
+                self.raw_s() + d >= self.box_plan.rest_s(&self.box_paths, self.raw_s())
+            } else {
+                d >= reach_mm
+            };
+            if !same_block(seg, next) && far_enough {
                 let i = self.idx(k);
                 self.buf[i].v_end_mm_s = 0.0;
                 self.note_stop_at(i);
@@ -686,16 +700,45 @@ impl Interpolator {
             ds = stop_dist;
             v_next = ds / TS_S;
         }
+        if let Some(box_ds) = self.box_hand_back(ds, (limits.hard_mm_s, limits.soft_mm_s)) {
+            return self.advance_raw_by(head, accel_mm_s2, box_ds);
+        }
         if v_next <= 0.0 && stop_dist > ARRIVE_EPS_MM {
             self.raw_v_mm_s = 0.0;
             return (head.v_max_mm_s, self.feed_of(head));
         }
         self.raw_v_mm_s = v_next;
         let caps = self.move_raw(ds);
+        self.note_arrival(v_next, accel_mm_s2);
+        caps
+    }
+
+    /// Moves the raw position by the step `ds` the per-axis box chose (`setpoint_box`), as
+    /// `advance_raw` does with its own: a step of 0 rests where the box's proof came to rest.
+    fn advance_raw_by(&mut self, head: &Segment, accel_mm_s2: f64, ds: f64) -> (f64, f64) {
+        self.raw_step_inside = false;
+        if ds <= 0.0 {
+            self.raw_v_mm_s = 0.0;
+            return (head.v_max_mm_s, self.feed_of(head));
+        }
+        let v_next = ds / TS_S;
+        self.raw_v_mm_s = v_next;
+        let caps = self.move_raw(ds);
+        self.note_arrival(v_next, accel_mm_s2);
+        caps
+    }
+
+    /// After a raw step of `v_next` that may have arrived at a stop point: what the next
+    /// tick may leave it with. The envelope's departure cap; and the box judges the departure
+    /// exactly (the second difference across the stop point), so where it judges the segment
+    /// after a plain stop the path may leave in the next tick whatever the arrival step
+    /// (`setpoint_box::box_step`).
+    fn note_arrival(&mut self, v_next: f64, accel_mm_s2: f64) {
         if self.raw_at_stop {
             self.entry_cap_mm_s = self.departure_cap_mm_s(v_next, accel_mm_s2);
+            self.box_departs =
+                self.plain_stop() && self.box_slots[self.idx(self.raw_seg + 1)].boxed;
         }
-        caps
     }
 
     /// Path acceleration of the next tick when its step and the last one stay inside the
@@ -803,19 +846,10 @@ impl Interpolator {
     /// (a segment's path acceleration is within a_k/|u_k| of every axis it moves), so
     /// v_d ≤ a_out·(Ts − v_a/a_in) keeps every axis within its limit, whatever the turn.
     fn departure_cap_mm_s(&self, v_arrive: f64, a_head: f64) -> f64 {
-        if self.raw_seg + 1 >= self.len || self.filtered() {
+        if !self.plain_stop() {
             return f64::INFINITY;
         }
         let (here, next) = (self.seg(self.raw_seg), self.seg(self.raw_seg + 1));
-        let plain = here.dwell_s <= 0.0
-            && !here.wait_in_position
-            && here.spindle_after.is_none()
-            && !self.stops_here(here.program_stop)
-            && !self.stops_here(next.program_stop_before)
-            && next.dwell_before_s <= 0.0;
-        if !plain {
-            return f64::INFINITY;
-        }
         let a_in = a_head.min(self.raw_accel(here.accel_mm_s2, here));
         let a_out = self.raw_accel(next.accel_mm_s2.min(next.stop_accel_mm_s2), next);
         let cap = a_out * (TS_S - v_arrive / a_in);
@@ -826,6 +860,22 @@ impl Interpolator {
         } else {
             f64::INFINITY
         }
+    }
+
+    /// The stop point at the end of segment `raw_seg` is a plain one, left as soon as the
+    /// path has arrived (linear profile; no dwell, G24, program stop or spindle change
+    /// there, and a segment after it).
+    fn plain_stop(&self) -> bool {
+        if self.raw_seg + 1 >= self.len || self.filtered() {
+            return false;
+        }
+        let (here, next) = (self.seg(self.raw_seg), self.seg(self.raw_seg + 1));
+        here.dwell_s <= 0.0
+            && !here.wait_in_position
+            && here.spindle_after.is_none()
+            && !self.stops_here(here.program_stop)
+            && !self.stops_here(next.program_stop_before)
+            && next.dwell_before_s <= 0.0
     }
 
     /// Moves the raw position `ds` along the buffered path. Returns the smallest hard cap and

@@ -5,7 +5,8 @@
 use super::budget::{JunctionTurns, LineBudget};
 use super::near::{AbsTurns, NearJunction};
 use super::{
-    NORMAL_SHARE, OVERRIDE_MAX, Pending, Planner, Profile, SegPath, Segment, criteria, junction_of,
+    BoxAccel, NORMAL_SHARE, OVERRIDE_MAX, Pending, Planner, Profile, SegPath, Segment, criteria,
+    junction_of,
 };
 use crate::units::{AxesMm, MAX_AXES, TS_S};
 
@@ -169,8 +170,22 @@ impl Planner {
             }
         }
         let certain_stop = self.win[i].certain_stop;
-        let planned_stop =
-            !last && (certain_stop || self.corner_is_a_stop(i, criteria_cap, turns.as_ref(), net));
+        // Between two lines the per-axis box may judge, a junction is passed rather than
+        // stopped where the envelope's estimate finds stopping faster: the box passes it as
+        // fast as the axes allow (a stop is one of the speeds it could choose), and the
+        // envelope only runs there from rest (issue #32).
+        let boxed_both = !last && self.win[i].box_candidate && self.win[i + 1].box_candidate;
+        let planned_stop = !last
+            && (certain_stop
+                || (!boxed_both && self.corner_is_a_stop(i, criteria_cap, turns.as_ref(), net)));
+        let criteria_end = if last || planned_stop {
+            None
+        } else if self.win[i].box_candidate || self.win[i + 1].box_candidate {
+            Some(self.criteria_alone(i))
+        } else {
+            // (Read only by the per-axis box.)
+            Some((f64::INFINITY, 0.0, f64::INFINITY))
+        };
         let p = &mut self.win[i];
         if planned_stop {
             p.smooth = false;
@@ -180,6 +195,9 @@ impl Planner {
         p.cap = if planned_stop { 0.0 } else { criteria_cap };
         // (A certain stop was never smooth here: its criteria speed, as a stop's cap.)
         p.seg.junction_cap_mm_s = if certain_stop { crit } else { criteria_cap };
+        let b = &mut p.seg.axis_box;
+        (b.criteria_end_mm_s, b.end_half_tan, b.lm_mm) =
+            criteria_end.unwrap_or((0.0, 0.0, f64::INFINITY));
         if planned_stop {
             self.rebudget_before(i);
         }
@@ -188,6 +206,30 @@ impl Planner {
         let p = &mut self.win[i];
         let drop = self.cfg.envelope.sets[p.set].drop_percent / 100.0;
         p.seg.junction = junction_of(planned_stop, p.smooth && !last, p.cap, drop, &p.seg);
+    }
+
+    /// The manual's criteria alone at the junction after block `i`, without the axes
+    /// (`SegmentBox`): the speed R385 (with the 8.R385 correction) and R384 allow, the
+    /// junction's turn as tan(α/2), and R384's Lm (mm, ∞ where off).
+    fn criteria_alone(&self, i: usize) -> (f64, f64, f64) {
+        let (p, n) = (&self.win[i], &self.win[i + 1]);
+        let set = &self.cfg.envelope.sets[n.set];
+        let len = 0.5 * (p.seg.length_mm + n.seg.length_mm);
+        let v = p
+            .turn
+            .dynamic_len_mm_s(set.overload_mm_s2, set.overload_ref_len_mm, len)
+            .min(p.turn.accuracy_mm_s(set.accuracy_um));
+        let half_tan = if p.turn.chord <= 1e-12 {
+            0.0
+        } else {
+            p.turn.chord / p.turn.sum
+        };
+        let lm_mm = if set.accuracy_um > 0.0 {
+            set.accuracy_um * 1e-3
+        } else {
+            f64::INFINITY
+        };
+        (v, half_tan, lm_mm)
     }
 
     /// Criteria speed at the end of block `i` as if the junction were smooth, and its hard cap
@@ -433,7 +475,13 @@ impl Planner {
         };
         let linear_line = self.cfg.envelope.profile == Profile::Linear
             && matches!(self.win[i].seg.path, SegPath::Line { .. });
+        let box_accel = if linear_line && a_axes.is_finite() && base.is_infinite() {
+            BoxAccel::of_axes(&self.cfg.axis_a_max_mm_s2)
+        } else {
+            BoxAccel::NONE
+        };
         let p = &mut self.win[i];
+        p.seg.axis_box.accel_mm_s2 = box_accel;
         p.budget = budget;
         // Ticks inside a line see no turn (`Segment::free_accel_mm_s2`).
         (p.seg.free_accel_mm_s2, p.seg.free_accel_v_max_mm_s) = if linear_line && a_axes.is_finite()
@@ -892,15 +940,36 @@ impl Planner {
     /// R395: keep the junction speeds through a short block unless rising pays off. Only
     /// between two smooth junctions (**decided**): at a stop there is no criterion speed to
     /// keep, and a block between stops is a plain point-to-point move.
+    ///
+    /// The per-axis box search (`SegmentBox::v_max_mm_s`) keeps the manual's criteria
+    /// speeds at the junctions, and rises at the full path acceleration of the axes.
     fn apply_rise_limit(&mut self, i: usize) {
-        let prev = (i > 0 && self.win[i - 1].smooth).then(|| self.win[i - 1].crit);
+        let prev = (i > 0 && self.win[i - 1].smooth).then(|| {
+            (
+                self.win[i - 1].crit,
+                self.win[i - 1].seg.axis_box.criteria_end_mm_s,
+            )
+        });
         let rise_limit = self.cfg.envelope.rise_time_s;
+        let boxed = self.win[i].box_candidate;
         let p = &mut self.win[i];
-        let Some(prev_crit) = prev else { return };
+        let Some((prev_crit, prev_criteria)) = prev else {
+            return;
+        };
         if p.seg.rapid || !p.smooth {
             return;
         }
+        let a_axes = p.a_axes;
         let seg: &mut Segment = &mut p.seg;
+        if boxed {
+            let box_flat = prev_criteria
+                .max(seg.axis_box.criteria_end_mm_s)
+                .min(seg.axis_box.v_max_mm_s);
+            let box_top = seg.axis_box.v_max_mm_s.min(seg.feed_mm_s);
+            if !criteria::rise_pays_off(seg.length_mm, box_flat, box_top, a_axes, rise_limit) {
+                seg.axis_box.v_max_mm_s = box_flat.max(1e-9);
+            }
+        }
         let v_flat = prev_crit.max(p.crit).min(seg.v_max_mm_s);
         let v_top = seg.v_max_mm_s.min(seg.feed_mm_s);
         if !criteria::rise_pays_off(seg.length_mm, v_flat, v_top, seg.accel_mm_s2, rise_limit) {

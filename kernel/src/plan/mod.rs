@@ -45,7 +45,7 @@ pub use path::SegPath;
 
 use crate::block::{Block, BlockKind, Continuity, Feed, Path, ProgramStop, Spindle};
 use crate::diag::{DiagCode, Diagnostic};
-use crate::units::{AxesMm, TS_S, mm_min_to_mm_s};
+use crate::units::{AxesMm, MAX_AXES, TS_S, mm_min_to_mm_s};
 
 /// Share of the isotropic axis acceleration given to acceleration normal to the path
 /// (corners, curvature); the rest is left to the tangential acceleration on curved segments,
@@ -105,6 +105,8 @@ pub struct Segment {
     /// Speed the junction criteria allow at the end (0 at a stop), before braking for later
     /// blocks: what a time-optimal profile under the same constraints may reach there.
     pub junction_cap_mm_s: f64,
+    /// What the per-axis box on the setpoints reads of it (`interp::setpoint_box`).
+    pub axis_box: SegmentBox,
     /// Path acceleration limit on this segment, mm/s².
     pub accel_mm_s2: f64,
     /// Linear profile, lines: the path acceleration of a tick whose step and the step
@@ -161,6 +163,53 @@ pub struct Segment {
     pub per_rev_nominal_rpm: f64,
 }
 
+/// What the per-axis box on the setpoints reads of a segment (`interp::setpoint_box`, issue
+/// #32): the box judges lines of the linear profile that only their axes limit (no path-level
+/// acceleration), choosing each setpoint by the axes' accelerations directly.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SegmentBox {
+    /// The axes' accelerations; unset where the box does not judge the segment.
+    pub accel_mm_s2: BoxAccel,
+    /// Its ceiling, mm/s: the geometric and axis ceiling, lowered by R395 to the faster of
+    /// the manual's criteria speeds at its junctions (`criteria_end_mm_s`) where rising inside
+    /// the block would not pay off. The envelope's own junction speeds and line budgets,
+    /// which lower `Segment::v_max_mm_s`, are not its limits.
+    pub v_max_mm_s: f64,
+    /// The end junction: the speed the manual's criteria alone (R385, R384; SPEC §7.2) allow
+    /// there, mm/s (∞ where the path goes straight on; 0 at a stop); and for the accuracy
+    /// criterion over the junctions within one step (the criteria over the blocks within one
+    /// tick), its turn as tan(α/2) and the criterion's Lm (mm, ∞: off).
+    pub criteria_end_mm_s: f64,
+    pub end_half_tan: f64,
+    pub lm_mm: f64,
+}
+
+/// The axes' accelerations a segment carries for the per-axis box (`SegmentBox::accel_mm_s2`),
+/// mm/s², in single precision rounded down (every segment carries them: half the bytes).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BoxAccel([f32; MAX_AXES]);
+
+impl BoxAccel {
+    /// Not judged by the box.
+    pub const NONE: BoxAccel = BoxAccel([0.0; MAX_AXES]);
+
+    pub fn of_axes(a_mm_s2: &[f64; MAX_AXES]) -> Self {
+        BoxAccel(a_mm_s2.map(|a| {
+            let f = a as f32;
+            if f as f64 > a { f.next_down() } else { f }
+        }))
+    }
+
+    pub fn is_set(&self) -> bool {
+        self.0[0] > 0.0
+    }
+
+    /// Axis `k`'s acceleration, mm/s² (at most the configured one).
+    pub fn axis(&self, k: usize) -> f64 {
+        f64::from(self.0[k])
+    }
+}
+
 /// Limits of a new segment from the axes and the criteria of its block alone.
 struct SegLimits {
     v_max_mm_s: f64,
@@ -202,6 +251,10 @@ struct Pending {
     crit: f64,
     /// Hard cap at the end junction (0 when not smooth).
     cap: f64,
+    /// The per-axis box on the setpoints may judge this block (`interp::setpoint_box`): a
+    /// line of the linear profile without a path-level acceleration (`set_accelerations`
+    /// decides, with the continuity of its junctions).
+    box_candidate: bool,
     /// A line between turning junctions: its acceleration as a function of its speed.
     budget: Option<budget::LineBudget>,
     /// The turns near the end junction when it is passed (linear profile).
@@ -623,6 +676,19 @@ impl Planner {
         dir
     }
 
+    /// Whether the per-axis box on the setpoints may judge a block (`Pending::box_candidate`).
+    fn box_candidate(&self, path: &SegPath, rapid: bool, set: usize) -> bool {
+        let env = &self.cfg.envelope;
+        let path_a = if rapid {
+            env.accel_rapid_mm_s2.min(env.rapid_accel_mm_s2)
+        } else {
+            env.sets[set].accel_mm_s2
+        };
+        env.profile == Profile::Linear
+            && matches!(path, SegPath::Line { .. })
+            && path_a.is_infinite()
+    }
+
     /// Appends a motion block to the window: its limits from the axes, the arc criteria and
     /// the minimum block duration (SPEC §7.2), and the junction to the block before.
     fn append(
@@ -678,6 +744,7 @@ impl Planner {
             turn: criteria::Turn::STRAIGHT,
             crit: 0.0,
             cap: 0.0,
+            box_candidate: self.box_candidate(&path, rapid, set),
             budget: None,
             turns: None,
         };
@@ -714,6 +781,10 @@ impl Planner {
             v_max_mm_s: l.v_max_mm_s,
             v_end_mm_s: 0.0,
             junction_cap_mm_s: 0.0,
+            axis_box: SegmentBox {
+                v_max_mm_s: l.v_max_mm_s,
+                ..SegmentBox::default()
+            },
             accel_mm_s2: a_plan,
             free_accel_mm_s2: 0.0,
             free_accel_v_max_mm_s: 0.0,

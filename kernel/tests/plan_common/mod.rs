@@ -235,6 +235,18 @@ pub fn config(profile: u8) -> PlannerConfig {
     machine().with_constants(&constants(profile))
 }
 
+/// The suite's machine, linear profile, with no path-level acceleration (R52, R236, R237 and
+/// the set's A at 0: the axes' limits alone, as the daemon's machine without constants and the
+/// issue #32 machine have it), so the per-axis box on the setpoints (`interp::setpoint_box`)
+/// chooses the setpoints on its lines.
+pub fn config_box() -> PlannerConfig {
+    let mut c = constants(1);
+    for r in [52, 236, 237, 408] {
+        c.set(r, 0.0);
+    }
+    machine().with_constants(&c)
+}
+
 /// Result of a virtual-time run.
 pub struct Run {
     /// Tick outputs, with the start position first.
@@ -451,11 +463,18 @@ fn measure_dynamics(cfg: &PlannerConfig, r: &Run, w: &mut Worst) {
     let axes = cfg.axes;
     let by_seq: std::collections::HashMap<u32, Segment> =
         r.segments.iter().map(|s| (s.seq, *s)).collect();
-    let a_path = r.segments.iter().fold(0.0f64, |m, s| {
-        m.max(s.accel_mm_s2)
-            .max(s.stop_accel_mm_s2)
-            .max(s.free_accel_mm_s2)
-    });
+    // A segment the per-axis box judges (`Segment::axis_box`) has no path-level
+    // acceleration: only its axes' limits, and the box's ceiling `SegmentBox::v_max_mm_s`.
+    let boxed = |s: &Segment| s.axis_box.accel_mm_s2.is_set();
+    let a_path = r
+        .segments
+        .iter()
+        .filter(|s| !boxed(s))
+        .fold(0.0f64, |m, s| {
+            m.max(s.accel_mm_s2)
+                .max(s.stop_accel_mm_s2)
+                .max(s.free_accel_mm_s2)
+        });
     let j_path = r.segments.iter().fold(0.0f64, |m, s| m.max(s.jerk_mm_s3));
     // The reported path speed is the difference of two arc lengths of up to the program's
     // length over a tick, so it rounds by a few ulp of that length per tick: 4.3e-11 mm/s
@@ -479,9 +498,20 @@ fn measure_dynamics(cfg: &PlannerConfig, r: &Run, w: &mut Worst) {
             }
         }
         let ceil = |seq: u32| {
-            by_seq
-                .get(&seq)
-                .map_or(f64::INFINITY, |s| s.feed_mm_s.min(s.v_max_mm_s))
+            by_seq.get(&seq).map_or(f64::INFINITY, |s| {
+                let v_max = if boxed(s) {
+                    s.axis_box.v_max_mm_s
+                } else {
+                    s.v_max_mm_s
+                };
+                s.feed_mm_s.min(v_max)
+            })
+        };
+        // (A step may cross a whole boxed segment and end on the next one's start: every
+        // block from the tick two before to this one counts.)
+        let on_box = |k: usize| {
+            let (lo, hi) = (t[k.saturating_sub(2)].seq, t[k].seq);
+            (lo.min(hi)..=hi.max(lo)).any(|q| by_seq.get(&q).is_some_and(boxed))
         };
         let lim = if k == 1 {
             ceil(t[k].seq)
@@ -489,7 +519,7 @@ fn measure_dynamics(cfg: &PlannerConfig, r: &Run, w: &mut Worst) {
             ceil(t[k - 1].seq).max(ceil(t[k].seq))
         };
         w.path_v = w.path_v.max((t[k].path_v_mm_s - v_eps) / lim);
-        if k >= 2 {
+        if k >= 2 && !on_box(k) {
             let a = (t[k].path_v_mm_s - t[k - 1].path_v_mm_s) / TS_S;
             w.path_a = w.path_a.max((a.abs() - 2.0 * v_eps / TS_S) / a_path);
             if k >= 3 && j_path.is_finite() {

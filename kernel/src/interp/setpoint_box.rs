@@ -1,0 +1,756 @@
+//! The per-axis box on the setpoints themselves (linear profile, issue #32; docs/planner.md,
+//! *The per-axis box on the setpoints*).
+//!
+//! What the drives see is the setpoints: per axis, the second difference of three consecutive
+//! ones is the axis's velocity change over a tick and must stay within a_k·Ts². The planner's
+//! envelope bounds it from the geometry ahead for every speed (junction caps, line budgets),
+//! which on a dense curve leaves 4-12 % of the time on the table. Where a segment is limited by
+//! its axes alone (`Segment::axis_box`: a line, the linear profile, no path-level
+//! acceleration), the raw stage chooses each setpoint from the box directly:
+//! - the setpoints the box allows next lie in intervals of arc length, exact on lines, where
+//!   each axis's position is linear in the arc length (`box_scan`); the step also keeps every
+//!   segment's ceiling it runs on, the manual's criteria (R385, R384) of every junction it
+//!   crosses or starts on, R384 over all the junctions of the step together (`Accuracy`),
+//!   and never passes a stop point;
+//! - a setpoint is taken only with a proof that the motion can still come to rest from it:
+//!   braking as hard as the box allows (each tick the nearest allowed setpoint) comes to rest
+//!   within the buffered path (`box_proof`);
+//! - each tick takes the farthest setpoint within the feed that a proof passes, out of three
+//!   tried at most (`box_search`). The braking of the last accepted proof is kept (`Plan`):
+//!   its next setpoint is proven whatever the search finds, so every tick stays within the box.
+//!
+//! The envelope takes over where the box cannot look (an arc, a path-level acceleration, the
+//! jerk filters) once it allows the current speed and its next setpoint is inside the box.
+
+use super::{ARRIVE_EPS_MM, InterpState, Interpolator};
+use crate::plan::{SegPath, Segment};
+use crate::units::{AxesMm, MAX_AXES, TS_S};
+
+/// Braking ticks one proof may simulate (256 mm/s brake to rest at 1000 mm/s²): a longer
+/// braking is not judged, as past an arc, and the envelope runs such speeds (long lines,
+/// rapids), where it is exact anyway.
+const PROOF_TICKS: usize = 64;
+/// Smallest gain of a searched step over the nearest one, mm.
+const SEARCH_TOL_MM: f64 = 1e-5;
+/// Proofs one tick may run while it searches (the first tries the feed).
+const PROOF_RUNS: usize = 3;
+/// Guesses of the search, as fractions of the way from the nearest setpoint to the farthest
+/// (the farthest itself has just failed): the range, and the step above the last find.
+const GUESS_MIN: f64 = 1.0 / 16.0;
+const GUESS_MAX: f64 = 15.0 / 16.0;
+const GUESS_STEP: f64 = 1.0 / 16.0;
+/// How far before the start of a segment the box cannot judge its steps end, mm.
+const BOUNDARY_MM: f64 = 1e-6;
+/// Slack on each axis's second difference, mm: the setpoints as sent snap to a segment's end
+/// within `ARRIVE_EPS_MM`, which moves a second difference by up to four times that.
+const BOX_SLACK_MM: f64 = 4.0 * ARRIVE_EPS_MM;
+
+/// The next setpoints the box allows.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Reach {
+    /// Allowed: `near` is the nearest (on segment `near_k`), `far` the farthest (with gaps
+    /// between, at most).
+    Within { near: f64, near_k: usize, far: f64 },
+    /// None.
+    Empty,
+    /// None before the scan met a segment the box cannot judge.
+    Unknown,
+}
+
+/// How braking as hard as the box allows ends.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Proof {
+    /// At rest at this arc length.
+    Rest(f64),
+    /// No allowed setpoint on the way.
+    Fails,
+    /// It meets a segment the box cannot judge, or needs more than `PROOF_TICKS`.
+    Unknown,
+}
+
+/// Setpoints of one braking (a proof's) in a region of `Interpolator::box_paths`.
+pub(super) const PLAN_SLOTS: usize = PROOF_TICKS;
+
+/// The braking of the last accepted proof: `len` setpoints in region `region` of
+/// `Interpolator::box_paths`, the next to take at `next` (all taken: at rest).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Plan {
+    pub region: usize,
+    pub len: usize,
+    pub next: usize,
+}
+
+impl Plan {
+    /// Where the braking comes to rest (`here`: at rest already).
+    pub(super) fn rest_s(&self, paths: &[f64], here: f64) -> f64 {
+        if self.len > 0 {
+            paths[self.region * PLAN_SLOTS + self.len - 1]
+        } else {
+            here
+        }
+    }
+}
+
+/// A setpoint the search chose: with the region and length of its proof's braking (`None`:
+/// the plan's next setpoint), and whether a proof met a segment the box cannot judge.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Choice {
+    s: f64,
+    plan: Option<(usize, usize)>,
+    unknown: bool,
+}
+
+/// A tick of the box: the setpoint a tick ago, the current one (arc length on buffered
+/// segment `k`, and the point) and the junction it lies on (`OnJunction::NONE`: none).
+#[derive(Clone, Copy, Debug)]
+struct Tick {
+    prev: AxesMm,
+    s: f64,
+    k: usize,
+    /// The setpoint at `s`.
+    at: AxesMm,
+    on: OnJunction,
+}
+
+/// What the box reads of a buffered segment besides `Ahead`, kept at push time.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct BoxSlot {
+    /// The box judges the setpoints on it.
+    pub boxed: bool,
+    /// It ends at a stop point (`Segment::v_end_mm_s` 0).
+    pub stop_end: bool,
+    /// Its feed is `feed_mm_s` as programmed (not a rapid, not per revolution).
+    pub plain_feed: bool,
+    /// `SegmentBox::v_max_mm_s`.
+    pub v_max_mm_s: f64,
+    /// The end junction (`SegmentBox::criteria_end_mm_s`, `end_half_tan`, `lm_mm`).
+    pub end: OnJunction,
+}
+
+impl BoxSlot {
+    pub(super) fn of(seg: &Segment) -> Self {
+        let b = &seg.axis_box;
+        BoxSlot {
+            boxed: b.accel_mm_s2.is_set() && matches!(seg.path, SegPath::Line { .. }),
+            stop_end: seg.v_end_mm_s == 0.0,
+            plain_feed: !seg.rapid && seg.per_rev_nominal_rpm <= 0.0,
+            v_max_mm_s: b.v_max_mm_s,
+            end: OnJunction {
+                crit_mm_s: b.criteria_end_mm_s,
+                half_tan: b.end_half_tan,
+                lm_mm: b.lm_mm,
+            },
+        }
+    }
+}
+
+/// A junction's criteria for the box: the speed the manual's criteria allow there, and its
+/// turn as tan(α/2) with the criterion's Lm (mm) for the turns of a step (`Accuracy`).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct OnJunction {
+    pub crit_mm_s: f64,
+    pub half_tan: f64,
+    pub lm_mm: f64,
+}
+
+impl OnJunction {
+    /// No junction (or a stop point, which is left from rest).
+    pub(super) const NONE: OnJunction = OnJunction {
+        crit_mm_s: f64::INFINITY,
+        half_tan: 0.0,
+        lm_mm: f64::INFINITY,
+    };
+}
+
+/// The manual's accuracy criterion (R384) over the blocks within one step (SPEC §7.2): the
+/// chord of a step keeps the junctions it crosses within Lm. A junction of turn α at distance
+/// d along a step of length L lies within w·min(d, L − d) of the chord, w = 2·tan(α/2) ≥ α
+/// (one junction in the middle: L·tan(α/2) ≤ Lm, R384's own form), and the turns of several
+/// add up: F(L) = Σ w_j·min(d_j, L − d_j) ≤ Lm. The scan keeps the sum of the weights: F is
+/// at most that sum times L/2, and only where that bound reaches Lm is F followed exactly
+/// (`Interpolator::box_accuracy_reach`).
+#[derive(Clone, Copy, Debug)]
+struct Accuracy {
+    lm_mm: f64,
+    w_sum: f64,
+    /// The last segment whose end junction the step crosses (with a turn).
+    last: Option<usize>,
+}
+
+impl Accuracy {
+    const NONE: Accuracy = Accuracy {
+        lm_mm: f64::INFINITY,
+        w_sum: 0.0,
+        last: None,
+    };
+
+    /// The step crosses the end junction `j` of segment `k`.
+    fn cross(&mut self, k: usize, j: &OnJunction) {
+        if j.half_tan > 0.0 && j.lm_mm.is_finite() {
+            self.w_sum += 2.0 * j.half_tan;
+            self.lm_mm = self.lm_mm.min(j.lm_mm);
+            self.last = Some(k);
+        }
+    }
+}
+
+impl Interpolator {
+    fn start_of(&self, k: usize) -> f64 {
+        self.seg_start_s_mm[self.idx(k)]
+    }
+
+    /// The setpoint at arc length `s` on segment `k`, as `follow` sends it.
+    fn box_point(&self, k: usize, s: f64) -> AxesMm {
+        let seg = self.seg(k);
+        let local = s - self.start_of(k);
+        if local >= seg.length_mm - ARRIVE_EPS_MM {
+            seg.path.end()
+        } else {
+            seg.path.point_at((local / seg.length_mm).max(0.0))
+        }
+    }
+
+    /// The segment from `k` on that holds arc length `s` (its end counts as on it).
+    fn box_seg_at(&self, mut k: usize, s: f64) -> usize {
+        // (The start of the next segment is this one's end: the walk reads one array.)
+        while k + 1 < self.len && s > self.start_of(k + 1) {
+            k += 1;
+        }
+        k
+    }
+
+    /// The junction at arc length `s` on segment `k` (`OnJunction::NONE` off a junction or at
+    /// a stop point, which is left from rest).
+    fn box_on(&self, k: usize, s: f64) -> OnJunction {
+        let at = |j: usize| {
+            let i = self.idx(j);
+            if self.ahead[i].v_end_mm_s == 0.0 {
+                OnJunction::NONE
+            } else {
+                self.box_slots[i].end
+            }
+        };
+        let local = s - self.start_of(k);
+        if local >= self.ahead[self.idx(k)].length_mm - ARRIVE_EPS_MM && k + 1 < self.len {
+            at(k)
+        } else if local <= ARRIVE_EPS_MM && k > 0 {
+            at(k - 1)
+        } else {
+            OnJunction::NONE
+        }
+    }
+
+    /// Called after each raw step, before `follow` may drop the segment behind: the junction
+    /// the raw position lies on, for the next tick.
+    pub(super) fn note_box_junction(&mut self) {
+        self.box_on = if self.len > 0 {
+            self.box_on(self.raw_seg, self.raw_s())
+        } else {
+            OnJunction::NONE
+        };
+    }
+
+    /// The next setpoints the box allows after tick `t`, up to arc length `up_to`; with
+    /// `feed`, also within the feed (× override) of each segment the step runs on.
+    fn box_reach(&self, t: &Tick, up_to: f64, feed: bool) -> Reach {
+        self.box_scan(t, up_to, feed, false)
+    }
+
+    /// The nearest setpoint the box allows after tick `t` within the feed (`far` is not
+    /// looked for).
+    fn box_near(&self, t: &Tick) -> Reach {
+        self.box_scan(t, f64::INFINITY, true, true)
+    }
+
+    fn box_scan(&self, t: &Tick, up_to: f64, feed: bool, near_only: bool) -> Reach {
+        let x = &t.at;
+        let room = &self.box_room;
+        let mut aim = [0.0; MAX_AXES];
+        let mut step2 = 0.0;
+        for ax in 0..self.axes {
+            aim[ax] = 2.0 * x[ax] - t.prev[ax];
+            step2 += (x[ax] - t.prev[ax]).powi(2);
+        }
+        // Every allowed setpoint lies within |room| of the aim, which lies the last step's
+        // chord ahead: at least that chord less |room| along the path (no shorter than its
+        // chord). Segments before that are not looked at.
+        let first_s = t.s + (step2.sqrt() - self.box_room_norm).max(0.0);
+        let mut top = up_to.min(t.s + t.on.crit_mm_s * TS_S);
+        let mut accuracy = Accuracy::NONE;
+        let Some(j) = self.box_skip(t, first_s, feed, &mut top, &mut accuracy) else {
+            return Reach::Unknown;
+        };
+        let (mut near, mut near_k, mut far) = (f64::NAN, 0, f64::NAN);
+        let mut j = j;
+        // (The compact tables `ahead` and `box_slots`.)
+        let mut slot = self.box_slots[self.idx(j)];
+        while j < self.len {
+            let i = self.idx(j);
+            let ahead = &self.ahead[i];
+            if !slot.boxed {
+                return if near.is_nan() {
+                    Reach::Unknown
+                } else {
+                    Reach::Within { near, near_k, far }
+                };
+            }
+            let s0 = self.seg_start_s_mm[i];
+            let s1 = s0 + ahead.length_mm;
+            let ceiling = if feed {
+                (self.feed_of_ahead(ahead) * self.override_factor).min(slot.v_max_mm_s)
+            } else {
+                slot.v_max_mm_s
+            };
+            top = top.min(t.s + ceiling * TS_S);
+            if s0 > top {
+                break;
+            }
+            let last = ahead.v_end_mm_s == 0.0 || j + 1 >= self.len;
+            let next = if last {
+                slot
+            } else {
+                self.box_slots[self.idx(j + 1)]
+            };
+            // A step never ends on the start of a segment the box cannot judge (unless that
+            // junction is a stop point): the envelope takes over before it, from a point the
+            // box checks (`box_hand_back`).
+            let end = if !last && !next.boxed {
+                s1 - BOUNDARY_MM
+            } else {
+                s1
+            };
+            let (lo, hi) = (s0.max(t.s).max(first_s), end.min(top));
+            if lo <= hi
+                && let Some((lo, hi)) =
+                    line_within(&self.buf[i], s0, (lo, hi), &aim[..self.axes], room)
+            {
+                if near.is_nan() {
+                    (near, near_k) = (lo, j);
+                    if near_only {
+                        return Reach::Within {
+                            near,
+                            near_k,
+                            far: hi,
+                        };
+                    }
+                }
+                far = hi;
+            }
+            if last || s1 >= top {
+                break;
+            }
+            // Crossing the junction at the end of this segment.
+            accuracy.cross(j, &slot.end);
+            top = top.min(t.s + slot.end.crit_mm_s * TS_S);
+            top = top.min(t.s + self.box_accuracy_reach(t, &accuracy, top - t.s));
+            slot = next;
+            j += 1;
+        }
+        if near.is_nan() {
+            Reach::Empty
+        } else {
+            Reach::Within { near, near_k, far }
+        }
+    }
+
+    /// The segments of tick `t` on that end before `first_s` hold no allowed setpoint: a step
+    /// that reaches one crosses them whole, so only their ceilings and the criteria of their
+    /// end junctions count (`accuracy` adds their turns), which lower `top`. Returns the first
+    /// segment left to look at (`None`: one of them is not judged by the box), or the one
+    /// that ends at a stop point.
+    fn box_skip(
+        &self,
+        t: &Tick,
+        first_s: f64,
+        feed: bool,
+        top: &mut f64,
+        accuracy: &mut Accuracy,
+    ) -> Option<usize> {
+        let mut k = t.k;
+        let (mut fixed, mut feeds) = (f64::INFINITY, f64::INFINITY);
+        while k + 1 < self.len && self.start_of(k + 1) <= first_s {
+            let i = self.idx(k);
+            let slot = &self.box_slots[i];
+            if !slot.boxed {
+                return None;
+            }
+            if slot.stop_end {
+                // (Never passed: the scan ends on this segment.)
+                break;
+            }
+            accuracy.cross(k, &slot.end);
+            fixed = fixed.min(slot.v_max_mm_s).min(slot.end.crit_mm_s);
+            if feed {
+                let f = if slot.plain_feed {
+                    self.ahead[i].feed_mm_s
+                } else {
+                    self.feed_of_ahead(&self.ahead[i])
+                };
+                feeds = feeds.min(f);
+            }
+            k += 1;
+        }
+        *top = top.min(t.s + fixed.min(feeds * self.override_factor) * TS_S);
+        // (The accuracy's reach from the last junction crossed: the steps that end before it
+        // hold no allowed setpoint.)
+        *top = top.min(t.s + self.box_accuracy_reach(t, accuracy, *top - t.s));
+        Some(k)
+    }
+
+    /// The longest step from tick `t` that keeps the junctions it crosses up to
+    /// `accuracy.last` within Lm of its chord (`Accuracy`), where a step up to `l_max` could
+    /// break it (∞ where not). F is piecewise linear, concave and nondecreasing in L: each
+    /// junction's term rises up to L = 2d, then stays; from the last junction on, the walk
+    /// goes through those peaks.
+    fn box_accuracy_reach(&self, t: &Tick, accuracy: &Accuracy, l_max: f64) -> f64 {
+        let Some(last) = accuracy.last else {
+            return f64::INFINITY;
+        };
+        if accuracy.w_sum * 0.5 * l_max <= accuracy.lm_mm {
+            return f64::INFINITY;
+        }
+        let turn = |j: usize| {
+            let end = &self.box_slots[self.idx(j)].end;
+            let d = self.start_of(j + 1) - t.s;
+            let w = if end.half_tan > 0.0 && end.lm_mm.is_finite() && d > 0.0 {
+                2.0 * end.half_tan
+            } else {
+                0.0
+            };
+            (d, w)
+        };
+        let d_last = self.start_of(last + 1) - t.s;
+        let (mut f, mut slope) = (0.0, 0.0);
+        for j in t.k..=last {
+            let (d, w) = turn(j);
+            f += w * d.min(d_last - d);
+            if 2.0 * d > d_last {
+                slope += w;
+            }
+        }
+        let mut l = d_last;
+        for j in t.k..=last {
+            let (d, w) = turn(j);
+            if 2.0 * d <= d_last || w == 0.0 {
+                continue;
+            }
+            let at_peak = f + slope * (2.0 * d - l);
+            if at_peak > accuracy.lm_mm {
+                break;
+            }
+            (f, l) = (at_peak, 2.0 * d);
+            slope -= w;
+        }
+        if slope <= 1e-300 {
+            return f64::INFINITY;
+        }
+        l + (accuracy.lm_mm - f).max(0.0) / slope
+    }
+
+    /// Brakes as hard as the box allows from tick `from` moving on to setpoint `c`, writing
+    /// the setpoints after `c` into `path` (the last one where it rests). Returns how it ends
+    /// and how many setpoints it wrote.
+    fn box_proof(&self, from: &Tick, c: f64, path: &mut [f64]) -> (Proof, usize) {
+        let mut t = self.box_tick(from.at, from.k, c);
+        for (n, slot) in path.iter_mut().take(PROOF_TICKS).enumerate() {
+            match self.box_near(&t) {
+                Reach::Within { near, .. } if near <= t.s + 1e-12 => return (Proof::Rest(t.s), n),
+                Reach::Within { near, near_k, .. } => {
+                    *slot = near;
+                    t = Tick {
+                        prev: t.at,
+                        s: near,
+                        k: near_k,
+                        at: self.box_point(near_k, near),
+                        on: self.box_on(near_k, near),
+                    };
+                }
+                Reach::Empty => return (Proof::Fails, 0),
+                Reach::Unknown => return (Proof::Unknown, 0),
+            }
+        }
+        (Proof::Unknown, 0)
+    }
+
+    /// The raw position's tick now.
+    fn box_here(&self) -> Tick {
+        Tick {
+            prev: self.box_prev_point,
+            s: self.raw_s(),
+            k: self.raw_seg,
+            at: self.box_point(self.raw_seg, self.raw_s()),
+            on: self.box_on,
+        }
+    }
+
+    /// The tick at arc length `s` (on segment `k` or later) after the setpoint `prev`.
+    fn box_tick(&self, prev: AxesMm, k: usize, s: f64) -> Tick {
+        let k = self.box_seg_at(k, s);
+        Tick {
+            prev,
+            s,
+            k,
+            at: self.box_point(k, s),
+            on: self.box_on(k, s),
+        }
+    }
+
+    /// Whether the setpoint at arc length `s` (on any segment: an arc too) keeps every axis
+    /// within the box after tick `t`.
+    fn box_holds_at(&self, t: &Tick, s: f64) -> bool {
+        let x = &t.at;
+        let k = self.box_seg_at(t.k, s);
+        let y = self.box_point(k, s.min(self.start_of(k) + self.seg(k).length_mm));
+        (0..self.axes).all(|ax| (y[ax] - (2.0 * x[ax] - t.prev[ax])).abs() <= self.box_room[ax])
+    }
+
+    /// Each axis's room for the second difference of its setpoints, mm (its acceleration
+    /// over a tick less the slack), from the segment the raw position lies on.
+    fn note_box_room(&mut self) {
+        let accel = self.seg(self.raw_seg).axis_box.accel_mm_s2;
+        let mut norm2 = 0.0;
+        for ax in 0..self.axes {
+            let room = accel.axis(ax) * TS_S * TS_S * (1.0 - 1e-9) - BOX_SLACK_MM;
+            self.box_room[ax] = room;
+            norm2 += room * room;
+        }
+        self.box_room_norm = norm2.sqrt();
+    }
+
+    /// The farthest allowed setpoint at most `s` after tick `t`.
+    fn box_below(&self, t: &Tick, s: f64) -> Option<f64> {
+        match self.box_reach(t, s, true) {
+            Reach::Within { far, .. } => Some(far),
+            _ => None,
+        }
+    }
+
+    /// The next setpoint of the last accepted proof's braking (`box_plan`), or the current
+    /// one where that braking has come to rest.
+    fn box_plan_next(&self, paths: &[f64], here: f64) -> f64 {
+        let plan = &self.box_plan;
+        if plan.next < plan.len {
+            paths[plan.region * PLAN_SLOTS + plan.next]
+        } else {
+            here
+        }
+    }
+
+    /// The farthest setpoint up to `want` with a proof it finds, from `lo` (the next setpoint
+    /// of the last proof's braking, proven), with `PROOF_RUNS` proofs at most: `want` itself,
+    /// else a guess, the fraction `box_guess` of the way from `lo` to `want`, then halving.
+    /// The fraction follows what the search finds, so over the ticks of a braking or a curve
+    /// the guess lands where the proofs start to fail. Proofs write their braking into the
+    /// regions of `paths` other than the plan's.
+    fn box_search(&mut self, t: &Tick, lo: f64, want: f64, paths: &mut [f64]) -> Choice {
+        let mut choice = Choice {
+            s: lo,
+            plan: None,
+            unknown: false,
+        };
+        if want <= lo {
+            return choice;
+        }
+        let range = want - lo;
+        let mut hi = want;
+        // (Three regions: the plan's, the best proof's so far, and the one being written.)
+        let live = self.box_plan.region;
+        let mut free = [(live + 1) % 3, (live + 2) % 3];
+        for run in 0..PROOF_RUNS {
+            let m = match run {
+                0 => want,
+                1 => lo + self.box_guess.clamp(GUESS_MIN, GUESS_MAX) * range,
+                _ => 0.5 * (choice.s + hi),
+            };
+            // (The farthest itself may lie a hair above the plan's next setpoint: a stop point
+            // the braking would otherwise miss by micrometres, then creep to.)
+            let gain = if run == 0 { 0.0 } else { SEARCH_TOL_MM };
+            let Some(c) = self.box_below(t, m).filter(|&c| c > choice.s + gain) else {
+                hi = m;
+                continue;
+            };
+            let region = free[0] * PLAN_SLOTS;
+            match self.box_proof(t, c, &mut paths[region..region + PLAN_SLOTS]) {
+                (Proof::Rest(_), len) => {
+                    choice.s = c;
+                    choice.plan = Some((free[0], len));
+                    free.swap(0, 1);
+                    if run == 0 {
+                        break;
+                    }
+                }
+                (proof, _) => {
+                    choice.unknown |= proof == Proof::Unknown;
+                    hi = m;
+                }
+            }
+        }
+        // Next time a little above what was found (the proofs may pass there again).
+        self.box_guess = ((choice.s - lo) / range + GUESS_STEP).min(1.0);
+        choice
+    }
+
+    /// Takes `choice`: the plan of its proof, or one more setpoint of the plan.
+    fn box_take(&mut self, choice: &Choice) {
+        match choice.plan {
+            Some((region, len)) => {
+                self.box_plan = Plan {
+                    region,
+                    len,
+                    next: 0,
+                }
+            }
+            None => self.box_plan.next = (self.box_plan.next + 1).min(self.box_plan.len),
+        }
+    }
+
+    /// The raw step of this tick by the box, before the envelope is computed: `Some(ds)`
+    /// where the box decides alone, `None` where the envelope's step stands or must be seen
+    /// first (`box_hand_back`).
+    ///
+    /// Outside box mode the box takes over where the farthest setpoint within the feed has a
+    /// proof: the envelope's step is within the box and the feed, so it is never farther.
+    /// In box mode the box searches up from the next setpoint of the last accepted proof's
+    /// braking, which keeps a proof however the search goes (the proof was run from this
+    /// very state, so its setpoints are taken as it found them, not found again); where a
+    /// proof met a segment the box cannot judge (an arc ahead), the envelope is computed and
+    /// may take over.
+    pub(super) fn box_step(&mut self, braking: bool) -> Option<f64> {
+        self.box_pending = None;
+        let departs = std::mem::take(&mut self.box_departs);
+        let applies = !self.filtered()
+            && self.len > 0
+            && matches!(
+                self.state,
+                InterpState::Running | InterpState::Holding | InterpState::Stopping
+            )
+            && self.box_slots[self.idx(self.raw_seg)].boxed;
+        if !applies || self.raw_v_mm_s == 0.0 {
+            // At rest every limit of the envelope holds.
+            self.box_mode = false;
+        }
+        if !applies {
+            return departs.then_some(0.0);
+        }
+        self.note_box_room();
+        // (Taken out for the proofs to write into while they read the buffer; an empty boxed
+        // slice in the meantime, which does not allocate.)
+        let mut paths = std::mem::take(&mut self.box_paths);
+        let step = self.box_step_with(braking, &mut paths);
+        self.box_paths = paths;
+        if departs && step.is_none() && !self.entry_cap_mm_s.is_finite() {
+            // Left right after the box's arrival, but the box takes no step: the envelope
+            // may not either (its departure cap does not allow one), so the path rests this
+            // tick.
+            return Some(0.0);
+        }
+        step
+    }
+
+    fn box_step_with(&mut self, braking: bool, paths: &mut [f64]) -> Option<f64> {
+        let here = self.box_here();
+        let lo = if self.box_mode {
+            self.box_plan_next(paths, here.s)
+        } else {
+            here.s
+        };
+        // Within the feed: the farthest setpoint it allows, or the proven one (the feed or
+        // its override fell: braking as hard as the box allows approaches it).
+        let far = match self.box_reach(&here, f64::INFINITY, true) {
+            Reach::Within { far, .. } => far.max(lo),
+            _ => lo,
+        };
+        let want = if braking {
+            let stop_a = self.seg(self.raw_seg).stop_accel_mm_s2;
+            let gentle = here.s + self.raw_v_mm_s * TS_S - stop_a * TS_S * TS_S;
+            self.box_below(&here, gentle.clamp(lo, far))
+                .unwrap_or(lo)
+                .max(lo)
+        } else {
+            far
+        };
+        if !self.box_mode {
+            if want <= here.s + SEARCH_TOL_MM {
+                return None;
+            }
+            let region = (self.box_plan.region + 1) % 3;
+            let out = &mut paths[region * PLAN_SLOTS..(region + 1) * PLAN_SLOTS];
+            let (Proof::Rest(_), len) = self.box_proof(&here, want, out) else {
+                return None;
+            };
+            self.box_mode = true;
+            self.box_plan = Plan {
+                region,
+                len,
+                next: 0,
+            };
+            return Some(want - here.s);
+        }
+        let choice = self.box_search(&here, lo, want, paths);
+        if choice.unknown {
+            self.box_pending = Some(choice);
+            return None;
+        }
+        self.box_take(&choice);
+        Some(choice.s - here.s)
+    }
+
+    /// In box mode, where a proof met a segment the box cannot judge: the envelope, whose
+    /// step is `envelope_ds` and hard and soft limits `limits_mm_s`, takes over where it goes
+    /// farther, allows the current speed and its setpoint is inside the box (`None`); else
+    /// the box's step stands.
+    pub(super) fn box_hand_back(
+        &mut self,
+        envelope_ds: f64,
+        limits_mm_s: (f64, f64),
+    ) -> Option<f64> {
+        let (hard_mm_s, soft_mm_s) = limits_mm_s;
+        let choice = self.box_pending.take()?;
+        let c = choice.s;
+        let here = self.box_here();
+        let envelope_s = here.s + envelope_ds;
+        // (Within its soft limit too: the feed of a segment ahead the box cannot judge is
+        // then still met, the envelope braking for it as it plans.)
+        if envelope_s > c + SEARCH_TOL_MM
+            && hard_mm_s.min(soft_mm_s) >= self.raw_v_mm_s
+            && self.box_holds_at(&here, envelope_s)
+        {
+            self.box_mode = false;
+            return None;
+        }
+        self.box_take(&choice);
+        Some(c - here.s)
+    }
+}
+
+/// The part of `[lo, hi]` (arc length on line `seg`, which starts at `s0`) where every axis is
+/// within `room` of `aim`.
+fn line_within(
+    seg: &Segment,
+    s0: f64,
+    (mut lo, mut hi): (f64, f64),
+    aim: &[f64],
+    room: &[f64; MAX_AXES],
+) -> Option<(f64, f64)> {
+    let (start, end) = (seg.path.start(), seg.path.end());
+    for (ax, &aim) in aim.iter().enumerate() {
+        let d = end[ax] - start[ax];
+        let off = aim - start[ax];
+        if d == 0.0 {
+            if off.abs() > room[ax] {
+                return None;
+            }
+            continue;
+        }
+        // x(s) = start + d·(s − s0)/length
+        let per_mm = d / seg.length_mm;
+        let (a, b) = ((off - room[ax]) / per_mm, (off + room[ax]) / per_mm);
+        let (a, b) = if per_mm > 0.0 { (a, b) } else { (b, a) };
+        lo = lo.max(s0 + a);
+        hi = hi.min(s0 + b);
+        if lo > hi {
+            return None;
+        }
+    }
+    Some((lo, hi))
+}
