@@ -10,6 +10,7 @@ use std::fmt;
 pub mod candump;
 pub mod canopen;
 pub mod cia402;
+pub mod io;
 pub mod serial;
 pub mod units;
 
@@ -106,6 +107,14 @@ pub enum FaultReason {
     /// The drive unit answers an older protocol version than the configuration needs
     /// (serial: homing needs version 3).
     ProtocolVersion { drive: u8, needed: u8 },
+    /// The emergency-stop chain opened (an input of function `estop` reads open); `input` is
+    /// its index in the configuration's `[[io.inputs]]`.
+    EmergencyStop { input: u8 },
+    /// A hardware limit switch of the axis (`BusFault::axis`) was reached: `positive` side
+    /// or negative; `input` as above.
+    LimitSwitch { positive: bool, input: u8 },
+    /// An alarm input of severity `fault` became active (its message is the configuration's).
+    InputAlarm { input: u8 },
 }
 
 impl FaultReason {
@@ -133,10 +142,24 @@ impl FaultReason {
             FaultReason::HomingTimeout => "homing_timeout",
             FaultReason::HomingRefused => "homing_refused",
             FaultReason::ProtocolVersion { .. } => "protocol_version",
+            FaultReason::EmergencyStop { .. } => "emergency_stop",
+            FaultReason::LimitSwitch { .. } => "limit_switch",
+            FaultReason::InputAlarm { .. } => "input_alarm",
         }
     }
 
     /// The fault concerns the link to the drives rather than one drive.
+    /// The fault is the machine's own input (e-stop chain, limit switch, alarm input), not a
+    /// drive's: every axis, the named one too, still follows and brakes on its own.
+    pub fn is_input(&self) -> bool {
+        matches!(
+            self,
+            FaultReason::EmergencyStop { .. }
+                | FaultReason::LimitSwitch { .. }
+                | FaultReason::InputAlarm { .. }
+        )
+    }
+
     pub fn is_communication(&self) -> bool {
         matches!(
             self,
@@ -241,6 +264,18 @@ impl fmt::Display for FaultReason {
                 "drive unit speaks serial protocol version {drive}, homing needs version \
                  {needed} (update the unit, or set homing = \"none\")"
             ),
+            FaultReason::EmergencyStop { .. } => write!(
+                f,
+                "emergency stop: the e-stop chain is open (release the button, then Reset)"
+            ),
+            FaultReason::LimitSwitch { positive, .. } => write!(
+                f,
+                "hardware limit switch reached on the {} side (after Reset jog away from it)",
+                if *positive { "positive" } else { "negative" }
+            ),
+            FaultReason::InputAlarm { input } => {
+                write!(f, "alarm input {input} active (see the machine's I/O list)")
+            }
         }
     }
 }
@@ -265,6 +300,8 @@ pub struct CycleCommand {
     /// Spindle speed setpoint, rpm (signed: negative is M4). It goes to the spindle drive as
     /// a velocity setpoint; buses without a spindle drive ([`DriveBus::has_spindle`]) ignore it.
     pub spindle_rpm: f64,
+    /// Digital outputs, bit k for output k of the bus's [`io::IoMap`], written in this cycle.
+    pub outputs: io::IoBits,
 }
 
 /// What the drives reported in one tick.
@@ -275,6 +312,9 @@ pub struct CycleFeedback {
     pub spindle_rpm: f64,
     /// State of the spindle drive; stays `Disabled` on a bus without one.
     pub spindle_state: DriveState,
+    /// Digital inputs as the wire reads them, bit k for input k of the bus's [`io::IoMap`]
+    /// (the newest values received; 0 for points the bus does not serve).
+    pub inputs: io::IoBits,
 }
 
 /// Where a reference run done by the drive itself stands ([`DriveBus::drive_homes`]).

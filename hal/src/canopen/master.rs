@@ -101,6 +101,13 @@ pub struct SpindleNodeConfig {
 pub struct CanOpenConfig {
     /// Axis drives, in axis order.
     pub nodes: Vec<NodeConfig>,
+    /// Digital I/O on this bus (docs/io.md): CiA 401 modules (`IoPoint::Module`) and the
+    /// drives' own 0x60FD/0x60FE (`IoPoint::Drive`); other points are not this bus's.
+    pub io: crate::io::IoMap,
+    /// Heartbeat consumer time the master sets on each I/O module (0x1016): a module that
+    /// hears no master heartbeat for this long sets its outputs to their safe values by
+    /// itself (error mode 0x6206, error values 0x6207).
+    pub io_consumer_timeout: Duration,
     /// The spindle drive, if the spindle is on this bus.
     pub spindle: Option<SpindleNodeConfig>,
     /// The master's own node id: it produces a heartbeat the drives consume (0x1016).
@@ -145,6 +152,8 @@ impl CanOpenConfig {
         let ms = Duration::from_millis;
         CanOpenConfig {
             nodes,
+            io: crate::io::IoMap::default(),
+            io_consumer_timeout: ms(500),
             spindle: None,
             master_node_id: NodeId::MASTER_DEFAULT,
             cycle: ms(4),

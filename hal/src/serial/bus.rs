@@ -86,6 +86,9 @@ pub struct SerialConfig {
     pub fault_reaction: FaultReaction,
     /// The unit takes part in reference runs: speak protocol version 3.
     pub homing: bool,
+    /// Digital I/O of the unit (`IoPoint::Serial`; docs/io.md); other points are not this
+    /// bus's.
+    pub io: crate::io::IoMap,
 }
 
 impl SerialConfig {
@@ -101,6 +104,7 @@ impl SerialConfig {
             shutdown: ShutdownMode::Disable,
             fault_reaction: FaultReaction::QuickStop,
             homing: false,
+            io: crate::io::IoMap::default(),
         }
     }
 }
