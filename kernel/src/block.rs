@@ -126,6 +126,9 @@ pub struct Spindle {
     /// P of the gear range in force (rpm), from the machine's gear table (0 = no table given
     /// to the interpreter). Feed per revolution is planned at a nominal speed capped by it.
     pub gear_max_rpm: f64,
+    /// The machine outputs the program has switched (M functions on outputs, docs/io.md):
+    /// they ride with the spindle state and take effect where it does.
+    pub outputs: crate::outputs::ProgramOutputs,
 }
 
 impl Spindle {

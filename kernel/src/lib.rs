@@ -20,6 +20,7 @@ pub mod kr;
 pub mod limits;
 pub mod machine;
 pub mod offsets;
+pub mod outputs;
 pub mod pipeline;
 pub mod plan;
 pub mod plc;

@@ -31,6 +31,8 @@ pub struct MachineConfig {
     pub axes: Vec<AxisLimits>,
     /// Spindle gear ranges (KŘR, SPEC §6).
     pub gears: Vec<Gear>,
+    /// M functions on the machine's outputs (`[io]`, docs/io.md).
+    pub m_outputs: crate::outputs::MFunctions,
     pub radius_input: RadiusInput,
     /// Encoder pulses per revolution of each rotary axis, in machine order (`None`: linear).
     pub rotary_pulses_per_rev: Vec<Option<f64>>,
@@ -88,6 +90,7 @@ impl MachineSetup {
         program.soft_limits = machine.soft_limits;
         // Gears select by M code; the fastest axis is Vmax of the βmax warning (SPEC §5, §6).
         program.gears = machine.gears.clone();
+        program.m_outputs = machine.m_outputs.clone();
         program.max_feed_mm_min = machine
             .axes
             .iter()
@@ -338,6 +341,7 @@ mod tests {
         };
         MachineConfig {
             axes: vec![axis('X'), axis('Y'), axis('Z')],
+            m_outputs: Default::default(),
             gears: vec![Gear {
                 max_rpm: 6000.0,
                 output_range: 0x7FFF,

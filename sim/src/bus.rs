@@ -6,6 +6,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use hal::{AxisFeedback, BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason};
 
 use crate::drive::{SimDrive, SimDriveParams};
+use crate::io::{SimInput, SimInputs, SimIo};
 
 pub struct SimBus {
     drives: Vec<SimDrive>,
@@ -20,6 +21,10 @@ pub struct SimBus {
     spindle_load: SpindleLoad,
     /// Time the drives advance per cycle, s (the bus period).
     cycle_s: f64,
+    /// The simulated machine's inputs and outputs.
+    io: SimIo,
+    /// Work space: the drives' positions (no allocation per cycle).
+    raw_mm: Vec<f64>,
 }
 
 /// Test knob of the simulated spindle: the share (0..1) of its speed lost to cutting load.
@@ -55,7 +60,36 @@ impl SimBus {
             spindle_load: SpindleLoad::default(),
             // The interpolation period, which is also the daemon's default bus period.
             cycle_s: kernel::units::TS_S,
+            io: SimIo {
+                inputs: SimIo::machine_default(start_mm.len()),
+                ..SimIo::default()
+            },
+            raw_mm: vec![0.0; start_mm.len()],
         }
+    }
+
+    /// The machine's simulated inputs, in the configuration's order (docs/io.md); without
+    /// this call the daemon's default set ([`SimIo::machine_default`]).
+    pub fn with_inputs(mut self, inputs: Vec<SimInput>) -> Self {
+        self.io.inputs = inputs;
+        self
+    }
+
+    /// Uses `handle` to set simulated inputs from outside (the daemon keeps one for
+    /// `cncctl io sim-set`).
+    pub fn with_input_handle(mut self, handle: SimInputs) -> Self {
+        self.io.set = handle;
+        self
+    }
+
+    /// The handle that sets simulated inputs from outside (shared: use it while the bus runs).
+    pub fn input_handle(&self) -> SimInputs {
+        self.io.set.clone()
+    }
+
+    /// The outputs as last written.
+    pub fn outputs(&self) -> hal::io::IoBits {
+        self.io.outputs
     }
 
     /// The drives advance `cycle_s` per cycle (the daemon's `[bus] cycle_ms`).
@@ -136,6 +170,11 @@ impl DriveBus for SimBus {
                 });
             }
         }
+        for (i, d) in self.drives.iter().enumerate() {
+            self.raw_mm[i] = d.position_mm();
+        }
+        feedback.inputs = self.io.read(&self.raw_mm);
+        self.io.outputs = cmd.outputs;
         fault.map_or(Ok(()), Err)
     }
 

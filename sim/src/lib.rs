@@ -8,6 +8,7 @@ pub mod cia402_drive;
 pub mod control;
 pub mod drive;
 pub mod homing;
+pub mod io;
 pub mod serial_drive;
 
 pub use bus::{SimBus, SpindleLoad};

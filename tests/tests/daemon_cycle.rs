@@ -57,7 +57,13 @@ fn config(cycle_ms: u64) -> Config {
 /// The daemon at `cycle_ms` on the bus it builds, idle.
 fn machine(cycle_ms: u64, clock: SimClock) -> (Harness, Points, Config) {
     let cfg = config(cycle_ms);
-    let inner = open_bus(&cfg.bus, &cfg.axes, &cfg.sim).unwrap();
+    let inner = open_bus(
+        &cfg.bus,
+        &cfg.axes,
+        &cfg.sim,
+        &daemon::runtime::buses::IoWiring::of(&cfg),
+    )
+    .unwrap();
     let points = Points::default();
     let bus = Recorded {
         inner,
@@ -343,7 +349,13 @@ async fn a_program_runs_through_grpc_at_a_2ms_bus_period() {
         .collect();
     let points = Points::default();
     let bus = Recorded {
-        inner: open_bus(&cfg.bus, &cfg.axes, &cfg.sim).unwrap(),
+        inner: open_bus(
+            &cfg.bus,
+            &cfg.axes,
+            &cfg.sim,
+            &daemon::runtime::buses::IoWiring::of(&cfg),
+        )
+        .unwrap(),
         points: points.clone(),
     };
     let ctl = Controller::start_with_bus(cfg, ClockKind::Monotonic, Box::new(bus)).unwrap();
@@ -475,7 +487,13 @@ fn homing_at_1ms_and_10ms_takes_the_reference_without_a_jump() {
         cfg.axes[0].reference_mm = 100.0;
         let points = Points::default();
         let bus = Recorded {
-            inner: open_bus(&cfg.bus, &cfg.axes, &cfg.sim).unwrap(),
+            inner: open_bus(
+                &cfg.bus,
+                &cfg.axes,
+                &cfg.sim,
+                &daemon::runtime::buses::IoWiring::of(&cfg),
+            )
+            .unwrap(),
             points: points.clone(),
         };
         let mut h = Harness::new(cfg.clone(), Box::new(bus), SimClock::exact()).unwrap();

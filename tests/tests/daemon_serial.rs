@@ -57,7 +57,8 @@ fn daemon(
     let base = tests::test_config();
     cfg.storage = base.storage;
     cfg.rt = base.rt;
-    let bus = open_bus(&cfg.bus, &cfg.axes, &cfg.sim).unwrap();
+    let io = daemon::runtime::buses::IoWiring::of(&cfg);
+    let bus = open_bus(&cfg.bus, &cfg.axes, &cfg.sim, &io).unwrap();
     let line = Line {
         bus,
         side: side.clone(),

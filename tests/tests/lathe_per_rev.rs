@@ -211,7 +211,8 @@ fn lathe_example_configuration_runs_its_sample_programs() {
     cfg.rt.lock_memory = false;
     std::fs::create_dir_all(&cfg.storage.dir).unwrap();
     std::fs::copy(dir.join("TAB0.REK"), cfg.storage.constants_path()).unwrap();
-    let bus = daemon::runtime::buses::open_bus(&cfg.bus, &cfg.axes, &cfg.sim).unwrap();
+    let io = daemon::runtime::buses::IoWiring::of(&cfg);
+    let bus = daemon::runtime::buses::open_bus(&cfg.bus, &cfg.axes, &cfg.sim, &io).unwrap();
     let mut h = Harness::new(cfg, bus, SimClock::seeded(5, 500_000, 200)).unwrap();
     // Program, its cutting blocks, the top feed expected there, where it ends (X).
     for (name, cuts, feed_mm_min, end_x) in [

@@ -444,7 +444,8 @@ fn start_controller(config: Config) -> Result<Arc<Controller>, CncdError> {
         "fault injection: the real-time thread will stall after {ticks} ticks \
          ({STALL_RT_AFTER_TICKS}; for tests only)"
     );
-    let bus = open_bus(&config.bus, &config.axes, &config.sim).map_err(StartError::Bus)?;
+    let io = daemon::runtime::buses::IoWiring::of(&config);
+    let bus = open_bus(&config.bus, &config.axes, &config.sim, &io).map_err(StartError::Bus)?;
     Ok(Controller::start_with_bus(
         config,
         ClockKind::Monotonic,

@@ -110,6 +110,34 @@ pub fn homing_params(a: &AxisConfig) -> HomingParams {
     }
 }
 
+/// The machine's I/O as the buses take it (docs/io.md).
+#[derive(Clone, Debug, Default)]
+pub struct IoWiring {
+    pub map: hal::io::IoMap,
+    /// The simulated machine's inputs, and the handle `cncctl io sim-set` flips them with.
+    pub sim: Vec<sim::io::SimInput>,
+    pub sim_handle: Option<sim::io::SimInputs>,
+    /// Heartbeat consumer time of the CiA 401 modules, ms.
+    pub module_consumer_ms: u16,
+}
+
+impl IoWiring {
+    pub fn of(config: &super::config::Config) -> IoWiring {
+        IoWiring {
+            map: super::io_setup::io_map(config),
+            sim: super::io_setup::sim_inputs(config)
+                .into_iter()
+                .map(|p| sim::io::SimInput {
+                    rest: p.rest,
+                    switch: p.switch,
+                })
+                .collect(),
+            sim_handle: None,
+            module_consumer_ms: config.io().module_consumer_timeout_ms,
+        }
+    }
+}
+
 /// Why the configured bus could not be opened (the message names the interface or port).
 #[derive(Debug, thiserror::Error)]
 pub enum OpenBusError {
@@ -137,6 +165,7 @@ pub fn open_bus(
     bus: &BusConfig,
     axes: &[AxisConfig],
     sim: &SimConfig,
+    io: &IoWiring,
 ) -> Result<Box<dyn hal::DriveBus>, OpenBusError> {
     match bus {
         BusConfig::Sim { cycle_ms } => {
@@ -148,7 +177,11 @@ pub fn open_bus(
             let start: Vec<f64> = axes.iter().map(|a| a.home_mm).collect();
             let mut bus = sim::SimBus::new(params, &start)
                 .with_spindle_ramp(sim.spindle_ramp_rpm_s)
-                .with_cycle_s(cycle_ms * 1e-3);
+                .with_cycle_s(cycle_ms * 1e-3)
+                .with_inputs(io.sim.clone());
+            if let Some(h) = &io.sim_handle {
+                bus = bus.with_input_handle(h.clone());
+            }
             for (i, a) in axes.iter().enumerate() {
                 if let Some(at) = a.sim_home_switch_mm {
                     bus = bus.with_home_switch(i, at, f64::from(a.homing_direction));
@@ -163,8 +196,14 @@ pub fn open_bus(
                 let (tap, _writer) = hal::candump::start(path, &c.interface)?;
                 port = port.with_recording(tap);
             }
-            let master =
-                can_config(c, axes).and_then(|cfg| CanOpenMaster::new(port, &c.interface, cfg))?;
+            let master = can_config(c, axes).and_then(|cfg| {
+                let cfg = CanOpenConfig {
+                    io: io.map.clone(),
+                    io_consumer_timeout: Duration::from_millis(u64::from(io.module_consumer_ms)),
+                    ..cfg
+                };
+                CanOpenMaster::new(port, &c.interface, cfg)
+            })?;
             Ok(Box::new(master))
         }
         BusConfig::Serial(s) => {
@@ -178,6 +217,7 @@ pub fn open_bus(
                 // Reference runs need protocol version 3; without them the link stays on the
                 // version older units speak.
                 homing: axes.iter().any(|a| a.homing == HomingMode::Required),
+                io: io.map.clone(),
                 spindle: s.spindle_node.map(|node_id| SerialSpindle {
                     node_id,
                     units_per_rpm: s.spindle_units_per_rpm,

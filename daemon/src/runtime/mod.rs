@@ -10,6 +10,7 @@ pub mod fault_inject;
 pub mod harness;
 pub mod hmi;
 pub mod homing;
+pub mod io_setup;
 pub mod job;
 pub mod library;
 pub mod logging;

@@ -189,6 +189,11 @@ pub struct Interpolator {
     reported_spindle: Spindle,
     /// This tick a cut waited for the spindle to be at speed.
     spindle_wait: bool,
+    /// The inputs a block waits for (its M functions' confirmations) read 1, judged by the
+    /// daemon on the state it was last given (`set_inputs_confirmed`).
+    inputs_confirmed: bool,
+    /// This tick a block waited for its inputs.
+    inputs_wait: bool,
     last_seq: u32,
     last_n: Option<u32>,
     last_spindle: Spindle,
@@ -300,6 +305,8 @@ impl Interpolator {
             spindle_ready: true,
             reported_spindle: Spindle::default(),
             spindle_wait: false,
+            inputs_confirmed: true,
+            inputs_wait: false,
             last_seq: 0,
             last_n: None,
             last_spindle: Spindle::default(),
@@ -478,6 +485,18 @@ impl Interpolator {
         self.spindle_ready = ready;
     }
 
+    /// Whether every input the block about to start waits for
+    /// (`TickOut::spindle.outputs.wait`) reads 1. The daemon calls this every tick; a block
+    /// with such inputs does not start from rest while it is false (docs/io.md).
+    pub fn set_inputs_confirmed(&mut self, confirmed: bool) {
+        self.inputs_confirmed = confirmed;
+    }
+
+    /// A block is waiting at rest for the inputs its M functions wait for.
+    pub fn waiting_for_inputs(&self) -> bool {
+        self.inputs_wait
+    }
+
     /// A cut is waiting for the spindle: at rest for it to be at speed, or a feed per
     /// revolution held by a spindle below its hold threshold (shown in the status).
     pub fn waiting_for_spindle(&self) -> bool {
@@ -613,6 +632,7 @@ impl Interpolator {
         let mut program_end = false;
         let mut path_v = 0.0;
         self.spindle_wait = false;
+        self.inputs_wait = false;
         let sent_before = self.path_pos;
         if self.len > 0 {
             let (cap, feed) = if matches!(self.state, InterpState::Held | InterpState::Idle) {

@@ -425,7 +425,14 @@ impl Interpolator {
             self.dwell_ticks -= 1;
             return true;
         }
-        let spindle_ok = self.spindle_ready && self.last_spindle == self.reported_spindle;
+        let seen = self.last_spindle == self.reported_spindle;
+        let waits = self.seg(self.raw_seg).spindle.outputs.wait != 0;
+        if at_rest && self.raw_in_seg_mm == 0.0 && waits && !(self.inputs_confirmed && seen) {
+            // An M function waits for its input before the motion (docs/io.md).
+            self.inputs_wait = true;
+            return true;
+        }
+        let spindle_ok = self.spindle_ready && seen;
         if at_rest && self.raw_in_seg_mm == 0.0 && !spindle_ok && !self.seg(self.raw_seg).rapid {
             // A cut starts from rest only with the spindle at speed, judged by the daemon on a
             // spindle state it has already been given.
@@ -875,6 +882,7 @@ impl Interpolator {
             && here.spindle_after.is_none()
             && !self.stops_here(here.program_stop)
             && !self.stops_here(next.program_stop_before)
+            && next.spindle.outputs.wait == 0
             && next.dwell_before_s <= 0.0
     }
 

@@ -313,6 +313,9 @@ pub struct Planner {
     /// M0/M1 that could not ride on the last segment (none yet, or already committed): held
     /// at the start of the next segment, which starts from rest anyway.
     leading_stop: ProgramStop,
+    /// Inputs a technology block's M functions wait for (docs/io.md): the next motion starts
+    /// once they read 1.
+    pending_wait: u64,
     /// Spindle state of the last block pushed (to see changes in technology blocks).
     spindle_state: Spindle,
     /// The blocks near the junction being finalized, walked once (`near.rs`).
@@ -357,6 +360,7 @@ impl Planner {
             last_block_set: 1,
             leading_dwell_s: 0.0,
             leading_stop: ProgramStop::None,
+            pending_wait: 0,
             spindle_state: Spindle::default(),
             near: None,
             window_guess_mm_s: 0.0,
@@ -416,7 +420,17 @@ impl Planner {
                 return Ok(());
             }
         };
+        // Inputs a technology block before waits for hold this block's start.
+        let mut own = *block;
+        own.spindle.outputs.wait |= self.pending_wait;
+        let block = &own;
         self.spindle_state = block.spindle;
+        if block.spindle.outputs.wait != 0 {
+            // An M function that waits for an input acts before the motion, at rest: the
+            // block starts from a stop (docs/io.md).
+            self.flush_carry();
+            self.force_stop(0.0);
+        }
         let axes = self.cfg.axes;
         if (0..axes).any(|i| !start[i].is_finite() || !end[i].is_finite()) {
             return Err(Diagnostic::error(
@@ -439,10 +453,14 @@ impl Planner {
         if length_mm.is_nan() || length_mm <= 1e-9 {
             return Ok(());
         }
-        if self.hold_back_short_line(block, path, start, end, length_mm, feed_mm_min) {
+        // (A block that waits for inputs keeps its own start: it is not merged away.)
+        if block.spindle.outputs.wait == 0
+            && self.hold_back_short_line(block, path, start, end, length_mm, feed_mm_min)
+        {
             return Ok(());
         }
         let set = self.dyn_set_of(block);
+        self.pending_wait = 0;
         self.append(block, seg_path, length_mm, rapid, feed_mm_min, set);
         let stop = ProgramStop::of(&block.m);
         if stop != ProgramStop::None {
@@ -458,6 +476,7 @@ impl Planner {
     /// them. A spindle change rides on the segment it follows, so the RT thread applies it
     /// when that segment ends (M5 after the last cut, S between cuts).
     fn push_technology(&mut self, block: &Block) {
+        self.pending_wait |= block.spindle.outputs.wait;
         let spindle_change = block.spindle != self.spindle_state;
         self.spindle_state = block.spindle;
         let has_m = block.m.iter().any(Option::is_some);
@@ -468,7 +487,8 @@ impl Planner {
         }
         // M3/M4/M5 count even when the state looks unchanged: each run starts from the
         // power-on state, while the spindle may still turn from an earlier run.
-        let spindle_m = block.m.iter().flatten().any(|m| matches!(m, 3..=5));
+        let spindle_m =
+            block.m.iter().flatten().any(|m| matches!(m, 3..=5)) || block.spindle.outputs.touched;
         if spindle_change || (spindle_m && self.win.is_empty()) {
             let open = self.finalized < self.win.len();
             if let Some(p) = self.win.back_mut().filter(|_| open) {

@@ -235,6 +235,8 @@ pub struct Interpreter {
     kr_axis: Option<usize>,
     /// The spindle gear table (empty: M41..M44 select ranges 1..4), SPEC §6.
     gears: Vec<crate::kr::Gear>,
+    /// M functions bound to the machine's outputs and inputs (docs/io.md).
+    m_outputs: crate::outputs::MFunctions,
     /// The axis programmed as a diameter ([`Setup::diameter_axis`]): its words are halved.
     diameter_axis: Option<usize>,
     /// Thousands of encoder pulses per revolution of rotary axes, 0 for linear ones.
@@ -264,6 +266,7 @@ impl Interpreter {
         let mut interp = Interpreter {
             kr_axis,
             gears: setup.gears.clone(),
+            m_outputs: setup.m_outputs.clone(),
             diameter_axis: setup.diameter_axis.filter(|&k| k < setup.axis_names.len()),
             rotary_kppr: setup.rotary_kpulses_per_rev,
             max_feed_mm_min: setup.max_feed_mm_min,
@@ -654,8 +657,12 @@ impl Interpreter {
     fn m_functions(&self, w: &Words, st: &mut State) -> Result<MCodes, Fail> {
         let mut m_codes: MCodes = [None; 4];
         let (mut dir_at, mut scale_at, mut gear_at) = (None, None, None);
+        st.modal.spindle.outputs = st.modal.spindle.outputs.carried();
         for (k, (m, at)) in w.m.iter().flatten().enumerate() {
             m_codes[k] = Some(*m);
+            if self.m_outputs.apply(*m, &mut st.modal.spindle.outputs) {
+                continue;
+            }
             let gear = crate::kr::config::gear_for_m_code(&self.gears, *m);
             let (slot, what) = match m {
                 3..=5 => (&mut dir_at, "spindle direction (M3/M4/M5)"),
@@ -694,6 +701,8 @@ impl Interpreter {
             // M2/M30 end the program: the spindle stops with it (the next run starts from the
             // power-on modal state anyway, docs/language.md).
             st.modal.spindle.dir = SpindleDir::Stopped;
+            // … and so do the outputs it switched on (LinuxCNC: M2/M30 switch coolant off).
+            st.modal.spindle.outputs.on = 0;
         }
         // P of the range in force (gear 0, none selected yet, is range 1), for feed per rev.
         st.modal.spindle.gear_max_rpm = self

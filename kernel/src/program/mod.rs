@@ -80,6 +80,9 @@ pub struct Setup {
     /// is. Empty (unit tests, tools without a machine): M41..M44 select ranges 1..4 and feed
     /// per revolution is planned at the programmed S.
     pub gears: Vec<crate::kr::Gear>,
+    /// M functions bound to the machine's outputs and inputs (`[io]`, docs/io.md); empty:
+    /// every M without a meaning of its own passes through.
+    pub m_outputs: crate::outputs::MFunctions,
     /// Highest path feed the machine can reach, mm/min (the fastest axis; 0 = unknown): a
     /// feed per revolution above βmax = Vmax/S is a warning (SPEC §5).
     pub max_feed_mm_min: f64,
@@ -104,6 +107,7 @@ impl Setup {
             rotary_kpulses_per_rev: [0.0; crate::units::MAX_AXES],
             preprocessor: true,
             gears: Vec::new(),
+            m_outputs: crate::outputs::MFunctions::default(),
             max_feed_mm_min: 0.0,
             modal: None,
             soft_limits: crate::limits::SoftLimits::NONE,

@@ -182,6 +182,15 @@ pub enum Cmd {
     },
     /// Reload the offset table from its file (drops G92 changes).
     OffsetsReload,
+    /// The machine's inputs and outputs (docs/io.md): list them, watch them, force an
+    /// output (admin), set a simulated input (admin, simulated machine only).
+    Io {
+        #[command(subcommand)]
+        cmd: Option<IoCmd>,
+        /// Print the list again whenever a value changes (Ctrl-C ends).
+        #[arg(long)]
+        watch: bool,
+    },
     /// PLC memory area 1.
     Plc {
         #[command(subcommand)]
@@ -236,6 +245,18 @@ pub enum Cmd {
     Health,
     /// Print the SHA-256 of a token, for `[[api.tokens]] sha256 = ...`.
     HashToken { token: String },
+}
+
+#[derive(Subcommand)]
+pub enum IoCmd {
+    /// Every input and output with its function, wiring and value.
+    List,
+    /// Force an output to 0 or 1 for commissioning, or `release` it (admin role; Reset
+    /// releases every forced output).
+    Force { name: String, value: String },
+    /// Set an input of the simulated machine to 0 or 1, or `release` it to the model
+    /// (admin role; refused on a real bus).
+    SimSet { name: String, value: String },
 }
 
 #[derive(Subcommand)]

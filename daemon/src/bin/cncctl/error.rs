@@ -54,6 +54,8 @@ pub enum CliError {
     JogAxis { arg: String },
     #[error("a continuous jog needs a direction: X+ or X-")]
     JogDirection,
+    #[error("{0:?}: give 0, 1 or release")]
+    IoLevel(String),
     #[error("plane {0}: use xy, xz or yz")]
     Plane(String),
     #[error("{0}: write Rnnn=value")]
@@ -95,6 +97,7 @@ impl CliError {
             CliError::JogDirection => "cli_jog_direction",
             CliError::Plane(_) => "cli_plane",
             CliError::ConstantSyntax(_) => "cli_constant_syntax",
+            CliError::IoLevel(_) => "cli_io_level",
             CliError::ConstantNumber(_) => "cli_constant_number",
             CliError::ConstantValue(_) => "cli_constant_value",
             CliError::PreviewRejected { .. } => "cli_preview_rejected",

@@ -10,6 +10,7 @@ mod call;
 mod connect;
 mod constants;
 mod error;
+mod io;
 mod machine;
 mod offsets;
 mod plc;
@@ -96,6 +97,7 @@ async fn dispatch(c: &mut Clients, cmd: Cmd, j: bool) -> Reply {
         | Cmd::OffsetsReplace { .. }
         | Cmd::OffsetsReload => offsets::command(&mut c.offsets, cmd, j).await,
         Cmd::Plc { cmd } => plc::command(&mut c.plc, cmd, j).await,
+        Cmd::Io { cmd, watch } => io::command(&mut c.machine, cmd, watch, j).await,
         Cmd::Constants { cmd } => constants::command(&mut c.constants, cmd, j).await,
         Cmd::PreviewData { file, junctions } => {
             preview::data(&mut c.preview, &file, junctions, j).await

@@ -21,7 +21,7 @@ use super::{
     ApiState, DEFAULT_STATUS_HZ, JUNCTION_CLASSIFY_MAX_BLOCKS, MAX_STATUS_HZ, RunInfo, RunMode,
     blocking, counts_pb, diagnostic_to_pb, status_of,
 };
-use crate::runtime::config::Role::{Observer, Operator};
+use crate::runtime::config::Role::{Admin, Observer, Operator};
 use crate::runtime::controller::{ControlError, Controller};
 
 /// Largest program run in single-block mode (its blocks are kept in memory), bytes.
@@ -79,6 +79,13 @@ fn command<Req, Rep: Default>(
     require(&req, Operator, method)?;
     run(&st.ctl, req.into_inner()).map_err(status_of)?;
     Ok(Response::new(Rep::default()))
+}
+
+impl MachineSvc {
+    fn io_now(&self) -> pb::IoList {
+        let ctl = &self.0.ctl;
+        super::io::io_list(ctl.config(), &ctl.snapshot(), ctl.simulated())
+    }
 }
 
 #[tonic::async_trait]
@@ -361,6 +368,43 @@ impl Machine for MachineSvc {
         require(&req, Operator, "JogStop")?;
         jog::stop(&self.0)?;
         Ok(Response::new(pb::JogStopReply {}))
+    }
+
+    async fn list_io(
+        &self,
+        req: Request<pb::ListIoRequest>,
+    ) -> Result<Response<pb::IoList>, Status> {
+        require(&req, Observer, "ListIo")?;
+        Ok(Response::new(self.io_now()))
+    }
+
+    async fn force_output(
+        &self,
+        req: Request<pb::ForceOutputRequest>,
+    ) -> Result<Response<pb::IoList>, Status> {
+        require(&req, Admin, "ForceOutput")?;
+        let r = req.into_inner();
+        self.0
+            .ctl
+            .force_output(&r.name, r.value)
+            .map_err(status_of)?;
+        self.0.ctl.wait_commands_taken().await;
+        Ok(Response::new(self.io_now()))
+    }
+
+    async fn sim_set_input(
+        &self,
+        req: Request<pb::SimSetInputRequest>,
+    ) -> Result<Response<pb::IoList>, Status> {
+        require(&req, Admin, "SimSetInput")?;
+        let r = req.into_inner();
+        self.0
+            .ctl
+            .sim_set_input(&r.name, r.value)
+            .map_err(status_of)?;
+        // The bus reads it in its next cycle: answer with the tick after that.
+        self.0.ctl.wait_ticks(2).await;
+        Ok(Response::new(self.io_now()))
     }
 
     async fn home(&self, req: Request<pb::HomeRequest>) -> Result<Response<pb::HomeReply>, Status> {

@@ -9,6 +9,7 @@ pub mod alarms;
 pub mod auth;
 mod diagnostics;
 pub mod files_watch;
+pub mod io;
 pub mod job_journal;
 mod job_view;
 mod jog;
@@ -220,6 +221,7 @@ impl ApiState {
                 line: s.progress.line,
                 block_index: s.progress.block_seq,
             }),
+            io: Some(io::io_list(ctl.config(), s, ctl.simulated())),
         }
     }
 

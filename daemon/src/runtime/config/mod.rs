@@ -21,6 +21,8 @@ mod axes;
 mod bus;
 mod error;
 mod hmi;
+mod io;
+mod io_check;
 mod kr;
 mod mtconnect;
 mod planner;
@@ -38,6 +40,11 @@ pub use axes::{AxisConfig, HomingMode};
 pub use bus::{BusConfig, CanBusConfig, FaultReactionKey, SerialBusConfig, ShutdownKey};
 pub use error::{ConfigError, InvalidConfig};
 pub use hmi::{HmiSection, HmiTlsFiles};
+pub use io::{
+    AlarmSeverity, InputConfig, InputFunction, IoSection, ModuleConfig, OutputConfig,
+    OutputFunction, RESERVED_M, Wiring, parse_m,
+};
+pub use io_check::IoContext;
 pub use kr::{GearConfig, KrSection, RadiusInputConfig};
 pub use mtconnect::MtconnectConfig;
 pub use planner::PlannerSection;
@@ -74,6 +81,10 @@ pub struct Config {
     /// The MTConnect agent (docs/mtconnect.md).
     #[serde(default)]
     pub mtconnect: MtconnectConfig,
+    /// Digital inputs and outputs (docs/io.md); unset: the simulated machine's own set on
+    /// `[bus] kind = "sim"`, none on a real bus ([`Config::io`]).
+    #[serde(default)]
+    pub io: Option<IoSection>,
 }
 
 impl Default for Config {
@@ -90,6 +101,7 @@ impl Default for Config {
             planner: PlannerSection::default(),
             hmi: HmiSection::default(),
             mtconnect: MtconnectConfig::default(),
+            io: None,
         }
     }
 }
@@ -130,7 +142,22 @@ impl Config {
         self.bus.validate(&self.axes)?;
         self.hmi.validate(&self.api)?;
         let tls = self.api.tls_cert.is_some() && self.api.tls_key.is_some();
-        self.mtconnect.validate(tls)
+        self.mtconnect.validate(tls)?;
+        self.io().validate(&IoContext {
+            bus: &self.bus,
+            axes: &self.axes,
+            gear_m: self.kr.gears.iter().filter_map(|g| g.m_code).collect(),
+        })
+    }
+
+    /// The machine's inputs and outputs: the `[io]` section, or without one the simulated
+    /// machine's own set (`[bus] kind = "sim"`) or none.
+    pub fn io(&self) -> IoSection {
+        match (&self.io, &self.bus) {
+            (Some(io), _) => io.clone(),
+            (None, BusConfig::Sim { .. }) => IoSection::sim_default(&self.axes),
+            (None, _) => IoSection::default(),
+        }
     }
 
     pub fn axis_names(&self) -> Vec<char> {

@@ -40,8 +40,8 @@ use kernel::constants::Constants;
 use kernel::offsets::{OffsetTable, TableEdit};
 use kernel::plc::{PlcError, PlcWrite};
 
-use super::buses::open_bus;
-use super::config::Config;
+use super::buses::{IoWiring, open_bus};
+use super::config::{BusConfig, Config};
 use super::library::ProgramText;
 use super::pipeline::Execution;
 use super::rt::{RtCommand, Snapshot};
@@ -94,13 +94,21 @@ pub struct Controller {
     tables: Tables,
     jobs: Jobs,
     motion: Motion,
+    /// The simulated machine's input handle (`cncctl io sim-set`); `None` on a real bus.
+    sim_inputs: Mutex<Option<sim::io::SimInputs>>,
 }
 
 impl Controller {
     /// Opens the bus, starts the RT thread and the status pump.
     pub fn start(config: Config, clock: ClockKind) -> Result<Arc<Controller>, StartError> {
-        let bus = open_bus(&config.bus, &config.axes, &config.sim).map_err(StartError::Bus)?;
-        Self::start_with_bus(config, clock, bus)
+        let mut io = IoWiring::of(&config);
+        let handle = sim::io::SimInputs::default();
+        io.sim_handle = Some(handle.clone());
+        let bus = open_bus(&config.bus, &config.axes, &config.sim, &io).map_err(StartError::Bus)?;
+        let sim_inputs = matches!(config.bus, BusConfig::Sim { .. }).then_some(handle);
+        let c = Self::start_with_bus(config, clock, bus)?;
+        *c.sim_inputs.lock().unwrap_or_else(|e| e.into_inner()) = sim_inputs;
+        Ok(c)
     }
 
     /// As [`Controller::start`], on a bus the caller built (tests wrap the simulated bus to
@@ -127,6 +135,7 @@ impl Controller {
         Ok(Arc::new(Controller {
             jobs: Jobs::new(config.clone(), job_link, execution),
             motion: Motion::new(config.clone(), can_home),
+            sim_inputs: Mutex::new(None),
             config,
             rt,
             tables,
@@ -514,6 +523,65 @@ impl Controller {
     /// Clears a fault and re-enables the drives.
     pub fn reset(&self) -> Result<(), ControlError> {
         self.motion.reset(&self.rt)
+    }
+
+    // ---- inputs and outputs (docs/io.md) ----
+
+    /// Forces output `name` (`None`: releases it).
+    pub fn force_output(&self, name: &str, value: Option<bool>) -> Result<(), ControlError> {
+        let (_, outputs) = super::io_setup::names(&self.config);
+        let k = outputs
+            .iter()
+            .position(|n| n == name)
+            .ok_or_else(|| ControlError::Invalid(format!("there is no output '{name}'")))?;
+        self.rt.send(RtCommand::ForceOutput {
+            output: k as u8,
+            value,
+        })
+    }
+
+    /// Sets input `name` of the simulated machine (`None`: the model's value again).
+    pub fn sim_set_input(&self, name: &str, value: Option<bool>) -> Result<(), ControlError> {
+        let (inputs, _) = super::io_setup::names(&self.config);
+        let k = inputs
+            .iter()
+            .position(|n| n == name)
+            .ok_or_else(|| ControlError::Invalid(format!("there is no input '{name}'")))?;
+        let handle = self.sim_inputs.lock().unwrap_or_else(|e| e.into_inner());
+        let Some(h) = handle.as_ref() else {
+            return Err(ControlError::WrongState(
+                "inputs are set by hand on the simulated machine only".into(),
+            ));
+        };
+        h.set(k, value);
+        Ok(())
+    }
+
+    /// Waits (bounded, 1 s) until the RT core has taken every command sent so far.
+    pub async fn wait_commands_taken(&self) {
+        let sent = self.rt.commands_sent();
+        self.wait_until(|s| s.tick.commands_taken >= sent).await;
+    }
+
+    /// Waits (bounded, 1 s) until `n` more ticks have run.
+    pub async fn wait_ticks(&self, n: u64) {
+        let from = self.snapshot().tick.sequence;
+        self.wait_until(|s| s.tick.sequence >= from + n).await;
+    }
+
+    async fn wait_until(&self, done: impl Fn(&Snapshot) -> bool) {
+        let t0 = std::time::Instant::now();
+        while !done(&self.snapshot()) && t0.elapsed() < std::time::Duration::from_secs(1) {
+            tokio::time::sleep(std::time::Duration::from_millis(1)).await;
+        }
+    }
+
+    /// Whether the machine is the built-in simulated one (its inputs can be set).
+    pub fn simulated(&self) -> bool {
+        self.sim_inputs
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .is_some()
     }
 
     // ---- tables ----

@@ -296,7 +296,18 @@ impl Motion {
 
     /// Clears a fault and re-enables the drives.
     pub(super) fn reset(&self, rt: &RtLink) -> Result<(), ControlError> {
-        if rt.snapshot().state != MachineState::Fault {
+        let snap = rt.snapshot();
+        if snap.io.estop_open {
+            return Err(ControlError::WrongState(
+                "the emergency-stop chain is open: close it (release the button), then Reset"
+                    .into(),
+            ));
+        }
+        // Reset also ends the forcing of outputs (docs/io.md).
+        if snap.state != MachineState::Fault && snap.io.forced.0 != 0 {
+            return rt.send(RtCommand::Reset);
+        }
+        if snap.state != MachineState::Fault {
             return Err(ControlError::WrongState(
                 "there is no fault to reset".into(),
             ));

@@ -102,6 +102,11 @@ impl RtLink {
         Ok(ring.1)
     }
 
+    /// Commands sent so far (compare with `Snapshot::commands_taken`).
+    pub(super) fn commands_sent(&self) -> u64 {
+        self.commands.lock().unwrap().1
+    }
+
     /// The latest snapshot if the machine is idle, the refusal to start otherwise.
     pub(super) fn idle_for_start(&self) -> Result<Snapshot, ControlError> {
         let snap = self.snapshot();
@@ -110,6 +115,9 @@ impl RtLink {
                 "the machine is {:?}, it must be idle to start",
                 snap.state
             )));
+        }
+        if let Some(why) = io_blocks_start(&snap) {
+            return Err(ControlError::WrongState(why.into()));
         }
         Ok(snap)
     }
@@ -189,5 +197,20 @@ fn prepare_rt_thread(priority: i32, lock: bool) {
                  LimitMEMLOCK"
             ),
         }
+    }
+}
+
+/// What of the machine's inputs forbids a start (docs/io.md): the e-stop chain or the door
+/// open, a limit switch reached.
+pub(super) fn io_blocks_start(snap: &Snapshot) -> Option<&'static str> {
+    let io = &snap.io;
+    if io.estop_open {
+        Some("the emergency-stop chain is open")
+    } else if io.door_open {
+        Some("the door is open")
+    } else if io.limits.0 != 0 {
+        Some("a hardware limit switch is reached: jog the axis away from it first")
+    } else {
+        None
     }
 }

@@ -91,6 +91,7 @@ pub(crate) fn rt_core_config(
         in_position_mm: setup.in_position_mm(),
         stop_decel_mm_s2: stop_decel(config),
         cycle_ns: config.bus.cycle_ns(),
+        io: crate::runtime::io_setup::functions(config),
     })
 }
 
@@ -110,6 +111,7 @@ pub(crate) fn machine_config(config: &Config) -> MachineConfig {
                 max_accel_mm_s2: a.max_accel_mm_s2,
             })
             .collect(),
+        m_outputs: crate::runtime::io_setup::m_functions(config),
         gears: config
             .kr
             .gears

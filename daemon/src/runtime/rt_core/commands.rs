@@ -42,6 +42,9 @@ pub enum RtCommand {
     JogStop,
     /// Reference run of one axis (idle machine only; issue #15).
     Home(HomeRequest),
+    /// Forces output `output` to a value (`None`: releases it), for commissioning; every
+    /// forcing ends with Reset (docs/io.md).
+    ForceOutput { output: u8, value: Option<bool> },
 }
 
 /// A reference run of one axis: search the home switch, then make its position the reference.
@@ -79,7 +82,13 @@ impl RtCore {
             self.snap.tick.commands_taken += 1;
             match c {
                 RtCommand::Start { job, machine } => {
-                    if self.snap.state == MachineState::Idle && !self.lifecycle.shutting_down {
+                    // (Never with the e-stop chain or the door open, or a limit switch reached.)
+                    let io = &self.snap.io;
+                    let blocked = io.estop_open || io.door_open || self.any_limit();
+                    if self.snap.state == MachineState::Idle
+                        && !self.lifecycle.shutting_down
+                        && !blocked
+                    {
                         self.logic.kr.set_constants(machine.kr);
                         self.job.in_position_mm = machine.in_position_mm;
                         self.job.active = job;
@@ -103,7 +112,9 @@ impl RtCore {
                 // snapshot: the job may have ended since).
                 RtCommand::Hold if self.job.active != 0 => self.motion.interp.hold(),
                 RtCommand::Hold => {}
-                RtCommand::Resume => self.motion.interp.resume(),
+                RtCommand::Resume if !self.snap.io.door_open => self.resume_job(),
+                RtCommand::Resume => {}
+                RtCommand::ForceOutput { output, value } => self.force_output(output, value),
                 RtCommand::Override(pct) => {
                     self.motion.interp.set_override(pct);
                     self.snap.operator.feed_override_pct = pct.clamp(0.0, 150.0);
@@ -113,6 +124,9 @@ impl RtCore {
                     self.motion.interp.set_rapid_override(pct);
                     self.snap.operator.rapid_override_pct = pct.clamp(0.0, 100.0);
                 }
+                // Forcing ends and reached limits are acknowledged; nothing while the e-stop
+                // chain is open (docs/io.md).
+                RtCommand::Reset if !self.io_reset() => {}
                 RtCommand::Reset => {
                     if self.snap.state == MachineState::Fault
                         && self.motion.interp.state() == InterpState::Idle
@@ -164,7 +178,7 @@ impl RtCore {
             && self.job.active == 0
             && !self.lifecycle.shutting_down
             && r.axis < self.io.axes;
-        if !free {
+        if !free || self.jog_into_limit(r.axis, self.io.cmd.positions_mm[r.axis], r.target_mm) {
             return;
         }
         r.speed_mm_s *= self.snap.operator.feed_override_pct / 100.0;

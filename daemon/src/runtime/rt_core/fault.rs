@@ -62,7 +62,9 @@ impl RtCore {
                 .brake
                 .hold_axis(h.axis, self.io.fb.axes[h.axis].position_mm);
         }
-        if let Some(a) = fault.axis.map(usize::from).filter(|&a| a < self.io.axes) {
+        // (An input's fault names an axis that still follows: a limit switch's.)
+        let faulted_axis = fault.axis.filter(|_| !fault.reason.is_input());
+        if let Some(a) = faulted_axis.map(usize::from).filter(|&a| a < self.io.axes) {
             self.fault_stop
                 .brake
                 .hold_axis(a, self.io.fb.axes[a].position_mm);

@@ -73,7 +73,10 @@ impl RtCore {
         if h.by_drive {
             return self.drive_homing_step(h.axis, bus);
         }
-        if h.trigger_mm.is_none() && bus.home_switch(h.axis) {
+        let pressed = self
+            .home_input(h.axis)
+            .unwrap_or_else(|| bus.home_switch(h.axis));
+        if h.trigger_mm.is_none() && pressed {
             h.trigger_mm = Some(self.io.fb.axes[h.axis].position_mm);
             self.motion.jog.stop();
         }

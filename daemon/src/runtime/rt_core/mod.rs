@@ -23,6 +23,7 @@ mod commands;
 mod exchange;
 mod fault;
 mod homing;
+mod io;
 mod motion;
 mod snapshot;
 mod state;
@@ -45,6 +46,7 @@ use super::resample::{BusClock, Resampler};
 use super::stats::TickStats;
 
 pub use commands::{HomeRequest, JobMachine, RtCommand};
+pub use io::{IoFunctions, IoStatus};
 pub use snapshot::{
     Alarms, AxesStatus, OperatorSettings, Progress, Snapshot, SpindleStatus, TickInfo,
 };
@@ -52,6 +54,7 @@ pub use state::MachineState;
 
 use exchange::BusIo;
 use fault::FaultStop;
+use io::IoLogic;
 use motion::{JobRun, MachineLogic, MotionSources};
 use snapshot::Timing;
 use state::{ENABLE_MARGIN_TICKS, Lifecycle, SETTLE_TICKS};
@@ -78,6 +81,8 @@ pub struct RtCoreConfig {
     /// Bus period (`[bus] cycle_ms`), ns: the tick of the RT thread. The interpolator keeps
     /// its 4 ms period ([`super::resample`]).
     pub cycle_ns: u64,
+    /// What the machine's inputs and outputs do (docs/io.md).
+    pub io: IoFunctions,
 }
 
 /// The real-time core. Everything the tick owns, by part (each in the file of the phase that
@@ -91,6 +96,7 @@ pub struct RtCore {
     logic: MachineLogic,
     fault_stop: FaultStop,
     lifecycle: Lifecycle,
+    io_logic: IoLogic,
 }
 
 impl RtCore {
@@ -147,6 +153,7 @@ impl RtCore {
                 rest_ticks: 0,
                 safe_state_sent: false,
             },
+            io_logic: IoLogic::new(cfg.io),
             lifecycle: Lifecycle {
                 enable_ticks: 0,
                 enable_window_ticks,
@@ -190,7 +197,10 @@ impl RtCore {
             }
             self.interpolator_step(&mut rings.segments);
         }
+        self.outputs();
         self.exchange(bus);
+        // The inputs this exchange read act in this tick (docs/io.md).
+        self.inputs();
         if steps > 0 {
             self.after_feedback(rings, bus);
         }

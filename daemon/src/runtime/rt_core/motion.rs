@@ -72,6 +72,7 @@ impl RtCore {
     /// resampler.
     pub(super) fn interpolator_step(&mut self, segments: &mut rtrb::Consumer<Segment>) {
         self.feed_segments(segments);
+        self.input_waits();
         let out = self.interpolate();
         self.spindle(&out);
         self.setpoint(&out);
@@ -128,7 +129,9 @@ impl RtCore {
         };
         let axis = self.logic.kr.config().controlling_axis;
         // After a stop the spindle stops once the axes are at rest; on a fault at once.
+        // An open door stops it too (docs/io.md).
         let off = self.snap.alarm.fault.is_some()
+            || self.snap.io.door_open
             || (self.job.spindle_off && self.motion.interp.state() == InterpState::Idle);
         let input = KrInput {
             program: ProgramSpindle {

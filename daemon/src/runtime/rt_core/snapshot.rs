@@ -28,6 +28,8 @@ pub struct Snapshot {
     pub spindle: SpindleStatus,
     /// PLC memory area 1 as in force this tick.
     pub plc: PlcArea,
+    /// The machine's inputs and outputs (docs/io.md).
+    pub io: super::IoStatus,
 }
 
 /// The tick: its count and time, and the lateness statistics of the deadline grid.

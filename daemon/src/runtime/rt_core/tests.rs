@@ -34,6 +34,7 @@ fn core_at(now_ns: u64) -> (RtCore, RtRings, sim::SimBus) {
         in_position_mm: AxesMm::ZERO,
         stop_decel_mm_s2: [1000.0; MAX_AXES],
         cycle_ns: TS_NS,
+        io: Default::default(),
     };
     let mut bus = sim::SimBus::new(sim::SimDriveParams::default(), &[0.0; AXES]);
     let core = RtCore::new(cfg, &mut bus, now_ns);

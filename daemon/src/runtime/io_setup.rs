@@ -1,0 +1,231 @@
+//! The machine's inputs and outputs as the parts of the daemon take them (docs/io.md): the
+//! buses' wiring ([`hal::io::IoMap`]), the RT core's functions ([`IoFunctions`]), the
+//! interpreter's M functions ([`MFunctions`]) and the simulated machine's switches, all from
+//! one validated `[io]` section ([`Config::io`]).
+
+use hal::io::{IoBits, IoMap, IoPoint};
+use kernel::outputs::{MFunction, MFunctions};
+use kernel::units::TS_S;
+
+use super::config::{
+    AlarmSeverity, Config, InputConfig, InputFunction, IoSection, OutputConfig, OutputFunction,
+    parse_m,
+};
+use super::rt_core::IoFunctions;
+
+/// Where each point is wired, in the configuration's order (validated already).
+pub fn io_map(config: &Config) -> IoMap {
+    let io = config.io();
+    let point = |node: Option<u8>, drive: Option<&str>, bit: Option<u8>| -> IoPoint {
+        match (node, drive) {
+            (Some(node), _) => IoPoint::Module {
+                node,
+                bit: bit.unwrap_or(0),
+            },
+            (None, Some(d)) => IoPoint::Drive {
+                axis: drive_axis(config, d),
+                bit: bit.unwrap_or(0),
+            },
+            (None, None) => match config.bus {
+                super::config::BusConfig::Serial(_) => IoPoint::Serial {
+                    bit: bit.unwrap_or(0),
+                },
+                _ => IoPoint::Sim,
+            },
+        }
+    };
+    let mut safe = IoBits::NONE;
+    for (k, o) in io.outputs.iter().enumerate() {
+        safe.set(k, o.safe == 1);
+    }
+    IoMap {
+        inputs: io
+            .inputs
+            .iter()
+            .map(|i| point(i.node_id, i.drive.as_deref(), i.bit))
+            .collect(),
+        outputs: io
+            .outputs
+            .iter()
+            .map(|o| point(o.node_id, o.drive.as_deref(), o.bit))
+            .collect(),
+        safe_outputs: safe,
+    }
+}
+
+fn drive_axis(config: &Config, drive: &str) -> u8 {
+    if drive.eq_ignore_ascii_case("spindle") {
+        return hal::SPINDLE_AXIS;
+    }
+    config
+        .axes
+        .iter()
+        .position(|a| drive.starts_with(a.name))
+        .unwrap_or(0) as u8
+}
+
+fn axis_index(config: &Config, inp: &InputConfig) -> Option<usize> {
+    match inp.axis {
+        Some(l) => config.axes.iter().position(|a| a.name == l),
+        None => inp
+            .drive
+            .as_deref()
+            .map(|d| usize::from(drive_axis(config, d))),
+    }
+    .filter(|&a| a < kernel::MAX_AXES)
+}
+
+fn steps(ms: u32) -> u32 {
+    ((f64::from(ms) / 1000.0) / TS_S).ceil() as u32
+}
+
+/// What each input and output does in the RT core.
+pub fn functions(config: &Config) -> IoFunctions {
+    let io = config.io();
+    let mut f = IoFunctions {
+        inputs: io.inputs.len(),
+        outputs: io.outputs.len(),
+        ..IoFunctions::default()
+    };
+    for (k, inp) in io.inputs.iter().enumerate() {
+        input_function(config, &mut f, k, inp);
+    }
+    for (k, out) in io.outputs.iter().enumerate() {
+        output_function(&mut f, k, out);
+    }
+    f
+}
+
+fn input_function(config: &Config, f: &mut IoFunctions, k: usize, inp: &InputConfig) {
+    let bit = 1u64 << k;
+    if inp.invert {
+        f.invert |= bit;
+    }
+    f.wait_steps[k] = steps(inp.timeout_ms);
+    let axis = axis_index(config, inp);
+    match inp.function {
+        InputFunction::None => {}
+        InputFunction::Estop => f.estop |= bit,
+        InputFunction::LimitNeg => axis.into_iter().for_each(|a| f.limit_neg[a] |= bit),
+        InputFunction::LimitPos => axis.into_iter().for_each(|a| f.limit_pos[a] |= bit),
+        InputFunction::Home => axis.into_iter().for_each(|a| f.home[a] |= bit),
+        InputFunction::FeedHold => f.feed_hold |= bit,
+        InputFunction::CycleStart => f.cycle_start |= bit,
+        InputFunction::Door => f.door |= bit,
+        InputFunction::Alarm => match inp.severity {
+            AlarmSeverity::Warning => f.alarm_warning |= bit,
+            AlarmSeverity::Fault => f.alarm_fault |= bit,
+        },
+    }
+}
+
+fn output_function(f: &mut IoFunctions, k: usize, out: &OutputConfig) {
+    let bit = 1u64 << k;
+    if out.safe == 1 {
+        f.safe |= bit;
+    }
+    if !out.on.is_empty() || !out.off.is_empty() {
+        f.program |= bit;
+    }
+    if let Some(ms) = out.pulse_ms {
+        f.pulse_steps[k] = steps(ms).max(1);
+    }
+    match out.function {
+        OutputFunction::None => {}
+        OutputFunction::SpindleEnable => f.spindle_enable |= bit,
+        OutputFunction::SpindleCw => f.spindle_cw |= bit,
+        OutputFunction::SpindleCcw => f.spindle_ccw |= bit,
+    }
+}
+
+/// The M functions the interpreter applies: outputs switched on, off or pulsed, inputs
+/// waited for.
+pub fn m_functions(config: &Config) -> MFunctions {
+    section_m_functions(&config.io())
+}
+
+fn section_m_functions(io: &IoSection) -> MFunctions {
+    let mut t = MFunctions::default();
+    for (k, out) in io.outputs.iter().enumerate() {
+        let bit = 1u64 << k;
+        let pulse = out.pulse_ms.is_some();
+        for code in out.on.iter().filter_map(|m| parse_m(m)) {
+            t.add(MFunction {
+                code,
+                on: if pulse { 0 } else { bit },
+                pulse: if pulse { bit } else { 0 },
+                ..MFunction::default()
+            });
+        }
+        for code in out.off.iter().filter_map(|m| parse_m(m)) {
+            t.add(MFunction {
+                code,
+                off: bit,
+                ..MFunction::default()
+            });
+        }
+    }
+    for (k, inp) in io.inputs.iter().enumerate() {
+        for code in inp.confirms.iter().filter_map(|m| parse_m(m)) {
+            t.add(MFunction {
+                code,
+                wait: 1 << k,
+                ..MFunction::default()
+            });
+        }
+    }
+    t
+}
+
+/// One input of the simulated machine: its value at rest, and the switch it models on an
+/// axis (at `at_mm`, reached at and beyond it on the side `side`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SimInputPlan {
+    pub rest: bool,
+    pub switch: Option<(usize, f64, f64)>,
+}
+
+/// The simulated machine's inputs: the e-stop chain and the door closed, every other input
+/// off, limit and home switches where `sim_at_mm` puts them (wire values: `invert` applied).
+pub fn sim_inputs(config: &Config) -> Vec<SimInputPlan> {
+    let io = config.io();
+    io.inputs
+        .iter()
+        .map(|inp| {
+            let closed = matches!(inp.function, InputFunction::Estop | InputFunction::Door);
+            let side = match inp.function {
+                InputFunction::LimitNeg => Some(-1.0),
+                InputFunction::LimitPos => Some(1.0),
+                InputFunction::Home => Some(if axis_homing_direction(config, inp) < 0 {
+                    -1.0
+                } else {
+                    1.0
+                }),
+                _ => None,
+            };
+            let switch = match (axis_index(config, inp), inp.sim_at_mm, side) {
+                (Some(a), Some(at), Some(s)) => Some((a, at, s)),
+                _ => None,
+            };
+            SimInputPlan {
+                rest: closed != inp.invert,
+                switch,
+            }
+        })
+        .collect()
+}
+
+fn axis_homing_direction(config: &Config, inp: &InputConfig) -> i8 {
+    axis_index(config, inp)
+        .and_then(|a| config.axes.get(a))
+        .map_or(-1, |a| a.homing_direction)
+}
+
+/// The name of each input and output, in order (for the API and the alarms).
+pub fn names(config: &Config) -> (Vec<String>, Vec<String>) {
+    let io = config.io();
+    (
+        io.inputs.iter().map(|i| i.name.clone()).collect(),
+        io.outputs.iter().map(|o| o.name.clone()).collect(),
+    )
+}
