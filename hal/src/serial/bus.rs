@@ -19,6 +19,11 @@
 //! each request a reference command, by which the end of a reference run shifts the drive's
 //! position (see [`Homing`]). A unit that answers only older versions is refused at start-up
 //! with [`FaultReason::ProtocolVersion`].
+//!
+//! With digital I/O wired to the unit ([`IoPoint::Serial`](crate::io::IoPoint) in
+//! `SerialConfig::io`) it speaks version 4: each request carries the unit's output word, each
+//! reply its input word, and the safe output word goes out until the unit confirms it
+//! ([`UnitIo`]). Older units are refused the same way ([`VersionCheck`]).
 
 use std::time::Duration;
 
@@ -28,6 +33,9 @@ use super::message::{
     AxisRequest, HomeAction, HomeCommand, HomeResult, HomeStatus, Reply, Request,
 };
 use super::port::{LinkDown, SerialPort, TtyPort};
+use super::unit_io::{self, UnitIo};
+use super::version::VersionCheck;
+pub use super::version::{PROBE_ANSWERS, PROBE_EVERY_TICKS};
 use crate::cia402::{Drive, DrivePhase, DriveSettings, FaultReaction, Setpoint, ShutdownMode, cw};
 use crate::units::to_units;
 use crate::{
@@ -130,14 +138,13 @@ pub struct SerialBus<P: SerialPort = TtyPort> {
     link_fault: Option<FaultReason>,
     rx: [u8; 256],
     homing: Homing,
+    /// The version the link needs and the probes that find an old unit.
+    version: VersionCheck,
+    /// The unit's digital I/O (version 4).
+    io: UnitIo,
     shutting_down: bool,
 }
 
-/// Without a version 3 reply, every this many ticks of silence the request goes out in the
-/// older version, to tell an old unit (which answers it) from a silent one.
-const PROBE_EVERY_TICKS: u32 = 3;
-/// Probes answered by a unit that never answered version 3: it is an old unit.
-const PROBE_ANSWERS: u32 = 3;
 /// Ticks the drive has to acknowledge a reference command.
 pub const HOME_ACK_TIMEOUT_TICKS: u64 = 50;
 
@@ -156,12 +163,8 @@ struct PendingHome {
 /// they are shifted here, so the controller sees one consistent position (no jump).
 #[derive(Clone, Copy, Debug, Default)]
 struct Homing {
-    /// Some reply arrived in version 3.
-    v3_seen: bool,
-    /// Older-version replies to probes while no version 3 reply arrived.
-    probe_answers: u32,
-    /// The last request went out in the older version.
-    probing: bool,
+    /// Some reply carried the homing record (the drive's last id is known).
+    status_seen: bool,
     /// Home switch inputs of the last reply.
     switches: u8,
     /// The id the drive acknowledged last.
@@ -206,6 +209,9 @@ fn check_config(cfg: &SerialConfig) -> Result<(), SerialError> {
     {
         return Err(SerialError::SpindleScale);
     }
+    if let Some(bit) = unit_io::bad_bit(&cfg.io) {
+        return Err(SerialError::IoBit { bit });
+    }
     Ok(())
 }
 
@@ -237,7 +243,10 @@ impl<P: SerialPort> SerialBus<P> {
         if cfg.spindle.is_some() {
             axes.push(Drive::new(settings(Setpoint::Velocity, 1.0)));
         }
+        let io = UnitIo::new(&cfg.io);
         SerialBus {
+            version: VersionCheck::new(cfg.spindle.is_some(), cfg.homing, io.is_used()),
+            io,
             n_axes: cfg.axes.len(),
             axes,
             cfg,
@@ -302,15 +311,17 @@ impl<P: SerialPort> SerialBus<P> {
     }
 
     /// The reply to this tick's request: an older version answering a probe, or the feedback
-    /// when it has our axes and, exactly when we have one, the spindle.
+    /// when it has our axes and, exactly when we have them, the spindle, homing and I/O.
     fn on_reply(&mut self, y: &Reply) {
         let spindle = self.axes.len() > self.n_axes;
-        if self.cfg.homing && y.home.is_none() {
+        if self.version.is_older(y.version()) {
             self.probe_answered(y);
         } else if usize::from(y.axes) == self.n_axes
             && y.spindle.is_some() == spindle
             && y.home.is_some() == self.cfg.homing
+            && y.io.is_some() == self.io.is_used()
         {
+            self.version.confirm();
             let records = y.axis[..self.n_axes].iter().chain(y.spindle.as_ref());
             for (d, r) in self.axes.iter_mut().zip(records) {
                 d.on_status(r.statusword, r.position_increments);
@@ -318,6 +329,9 @@ impl<P: SerialPort> SerialBus<P> {
             }
             if let Some(h) = y.home {
                 self.home_status(h);
+            }
+            if let Some(s) = y.io {
+                self.io.on_status(s);
             }
             self.awaiting = false;
             self.missing = 0;
@@ -374,7 +388,8 @@ impl<P: SerialPort> SerialBus<P> {
         }
     }
 
-    fn send_request(&mut self) {
+    /// Writes this tick's request (`outputs`: the configuration's output bits).
+    fn send_request(&mut self, outputs: crate::io::IoBits) {
         if !self.port_open {
             return;
         }
@@ -383,25 +398,28 @@ impl<P: SerialPort> SerialBus<P> {
             controlword: d.controlword(),
             target_increments: d.target_increments(),
         };
-        let probe = self.probe_due();
-        self.homing.probing = probe;
+        let probe = self.version.next_request(self.missing);
+        // A probe of version 3 carries the homing record; older ones carry neither it nor I/O.
+        let home = self.cfg.homing && probe.is_none_or(|v| v >= 3);
+        let io = self.io.is_used() && probe.is_none();
         let mut req = Request {
             seq: self.seq,
             axes: self.n_axes as u8,
             axis: [AxisRequest::default(); MAX_AXES],
             spindle: self.axes.get(self.n_axes).map(record),
-            home: (self.cfg.homing && !probe).then(|| self.home_command()),
+            home: home.then(|| self.home_command()),
+            io: io.then(|| self.io.command(outputs)),
         };
         for (r, a) in req.axis.iter_mut().zip(&self.axes[..self.n_axes]) {
             *r = record(a);
         }
-        if probe {
+        if probe.is_some() {
             // The probe must not switch anything on in a unit we are about to refuse.
             for r in req.axis.iter_mut().chain(req.spindle.as_mut()) {
                 r.controlword = cw::DISABLE_VOLTAGE;
             }
         }
-        let mut payload = [0u8; 64];
+        let mut payload = [0u8; frame::MAX_PAYLOAD];
         let n = req.encode(&mut payload);
         let mut out = [0u8; frame::MAX_FRAME];
         let len = frame::encode(&payload[..n], &mut out);
@@ -411,29 +429,17 @@ impl<P: SerialPort> SerialBus<P> {
         }
     }
 
-    /// Whether this request goes out in the older version (see [`PROBE_EVERY_TICKS`]).
-    fn probe_due(&self) -> bool {
-        self.cfg.homing
-            && !self.homing.v3_seen
-            && self.missing > 0
-            && self.missing.is_multiple_of(PROBE_EVERY_TICKS)
-    }
-
-    /// An older-version reply while homing needs version 3: the answer to a probe. A unit
-    /// that answers probes but never version 3 is an old unit: refused, clearly.
+    /// An older-version reply than the link needs: the answer to a probe. A unit that
+    /// answers probes but never the needed version is an old unit: refused, clearly.
     fn probe_answered(&mut self, y: &Reply) {
-        if !self.homing.probing {
+        if !self.version.probing() {
             return;
         }
         self.awaiting = false;
         self.missing = 0;
         self.corrupt_since_reply = 0;
-        self.homing.probe_answers += 1;
-        if !self.homing.v3_seen && self.homing.probe_answers >= PROBE_ANSWERS {
-            self.link_fault = Some(FaultReason::ProtocolVersion {
-                drive: y.version(),
-                needed: 3,
-            });
+        if let Some(refusal) = self.version.probe_answered(y.version()) {
+            self.link_fault = Some(refusal);
         }
     }
 
@@ -456,8 +462,8 @@ impl<P: SerialPort> SerialBus<P> {
 
     /// Switches and acknowledgement of a version 3 reply (its positions already stored).
     fn home_status(&mut self, h: HomeStatus) {
-        let first = !self.homing.v3_seen;
-        self.homing.v3_seen = true;
+        let first = !self.homing.status_seen;
+        self.homing.status_seen = true;
         self.homing.switches = h.switches;
         let Some(p) = self.homing.pending else {
             if first {
@@ -533,6 +539,7 @@ impl<P: SerialPort> SerialBus<P> {
             }
             None => (0.0, DriveState::Disabled),
         };
+        feedback.inputs = self.io.inputs();
     }
 
     /// The fault to report this tick: the link's, else the first faulted drive's.
@@ -582,7 +589,7 @@ impl<P: SerialPort> DriveBus for SerialBus<P> {
         self.count_missing_reply();
         self.check_home_ack();
         self.update_drives(cmd, fresh);
-        self.send_request();
+        self.send_request(cmd.outputs);
         self.fill_feedback(feedback);
         self.first_fault()
     }
@@ -686,12 +693,15 @@ impl<P: SerialPort> DriveBus for SerialBus<P> {
         self.awaiting = false;
         self.missing = 0;
         self.corrupt_since_reply = 0;
-        // The unit may have been swapped: find out its version again. A reference command
-        // still pending is dropped (its axis is no longer homed: the fault cleared that).
+        // The unit may have been swapped: find out its version again, and send it the safe
+        // output word. A reference command still pending is dropped (its axis is no longer
+        // homed: the fault cleared that).
         self.homing = Homing {
             acked_id: self.homing.acked_id,
             ..Homing::default()
         };
+        self.version.restart();
+        self.io.forget_unit();
         let tick = self.tick;
         // Every axis goes through the enable sequence again: a drive that lost its link has
         // switched itself off, one that did not is confirmed enabled on the first reply.

@@ -2,7 +2,8 @@
 
 use super::*;
 use crate::cia402::{self, PowerState};
-use crate::serial::message::AxisReply;
+use crate::io::{IoBits, IoMap, IoPoint};
+use crate::serial::message::{AxisReply, IoStatus};
 use std::sync::{Arc, Mutex};
 
 /// Both directions of an in-memory line, and whether it hung up.
@@ -70,7 +71,7 @@ impl Unit {
         });
         let req = got?;
         if let Some(y) = reply(&req) {
-            let mut p = [0u8; 64];
+            let mut p = [0u8; frame::MAX_PAYLOAD];
             let n = y.encode(&mut p);
             let mut f = [0u8; frame::MAX_FRAME];
             let len = frame::encode(&p[..n], &mut f);
@@ -106,6 +107,7 @@ fn v1_reply(req: &Request, position: i32) -> Reply {
         axis: [AxisReply::default(); MAX_AXES],
         spindle: None,
         home: None,
+        io: None,
     };
     y.axis[0] = AxisReply {
         statusword: PowerState::OperationEnabled.statusword_bits(),
@@ -128,9 +130,14 @@ fn setup() -> (SerialBus<MemPort>, Unit) {
 }
 
 fn setup_with(homing: bool) -> (SerialBus<MemPort>, Unit) {
+    setup_io(homing, IoMap::default())
+}
+
+fn setup_io(homing: bool, io: IoMap) -> (SerialBus<MemPort>, Unit) {
     let line = MemPort::default();
     let cfg = SerialConfig {
         homing,
+        io,
         ..SerialConfig::new("mem", vec![SerialAxis::new(4, 100.0)])
     };
     let bus = SerialBus::new(line.clone(), cfg).unwrap();
@@ -498,4 +505,153 @@ fn a_link_down_ends_the_shutdown_walk_at_once() {
     let mut fb = CycleFeedback::default();
     let _ = bus.cycle(&CycleCommand::default(), &mut fb);
     assert!(bus.is_shut_down());
+}
+
+/// Inputs 0 and 2 on the unit's bits 5 and 63 (input 1 is another bus's); outputs 1 and 2
+/// on its bits 0 and 40 (output 0 another bus's), output 2 on when the link is lost.
+fn io_map() -> IoMap {
+    IoMap {
+        inputs: vec![
+            IoPoint::Serial { bit: 5 },
+            IoPoint::Sim,
+            IoPoint::Serial { bit: 63 },
+        ],
+        outputs: vec![
+            IoPoint::Module { node: 9, bit: 0 },
+            IoPoint::Serial { bit: 0 },
+            IoPoint::Serial { bit: 40 },
+        ],
+        safe_outputs: IoBits(0b100),
+    }
+}
+
+/// A version 4 reply of one enabled axis with input word `inputs`, holding the safe word
+/// when `held`.
+fn v4_reply(req: &Request, inputs: u64, held: bool) -> Option<Reply> {
+    Some(Reply {
+        io: Some(IoStatus {
+            inputs,
+            safe_held: held,
+        }),
+        ..v1_reply(req, 0)
+    })
+}
+
+/// Version 4: the output word carries the configured outputs in the unit's bits, the safe
+/// word goes out until a reply confirms it, and the reply's input word fills the inputs.
+#[test]
+fn io_words_map_both_ways_and_the_safe_word_goes_out_until_confirmed() {
+    let (mut bus, mut unit) = setup_io(false, io_map());
+    bus.enable();
+    let mut fb = CycleFeedback {
+        inputs: IoBits(0b010),
+        ..CycleFeedback::default()
+    };
+    let cmd = CycleCommand {
+        outputs: IoBits(0b111),
+        ..CycleCommand::default()
+    };
+    bus.cycle(&cmd, &mut fb).unwrap();
+    assert_eq!(
+        fb.inputs,
+        IoBits::NONE,
+        "nothing received yet, other buses' bits are 0"
+    );
+    // The first reply does not yet hold the safe word: it goes out again.
+    let req = unit.answer_with(|r| v4_reply(r, 1 << 5 | 1 << 63 | 1 << 6, false));
+    let io = req.unwrap().io.unwrap();
+    assert_eq!(io.outputs, 1 | 1 << 40);
+    assert_eq!(io.safe_outputs, Some(1 << 40));
+    bus.cycle(&cmd, &mut fb).unwrap();
+    assert_eq!(fb.inputs, IoBits(0b101));
+    let req = unit.answer_with(|r| v4_reply(r, 1 << 63, true)).unwrap();
+    assert_eq!(req.version(), 4);
+    assert_eq!(req.io.unwrap().safe_outputs, Some(1 << 40));
+    bus.cycle(&cmd, &mut fb).unwrap();
+    assert_eq!(fb.inputs, IoBits(0b100));
+    let req = unit.answer_with(|r| v4_reply(r, 0, true)).unwrap();
+    assert_eq!(req.io.unwrap().safe_outputs, None, "confirmed");
+    // The unit restarted and lost it: sent again.
+    bus.cycle(&cmd, &mut fb).unwrap();
+    unit.answer_with(|r| v4_reply(r, 0, false));
+    bus.cycle(&cmd, &mut fb).unwrap();
+    let req = unit.answer_with(|r| v4_reply(r, 0, true)).unwrap();
+    assert_eq!(req.io.unwrap().safe_outputs, Some(1 << 40));
+}
+
+/// An I/O map without serial points leaves the link in version 1, exactly as before.
+#[test]
+fn io_on_other_buses_keeps_the_link_on_version_1() {
+    let others = IoMap {
+        inputs: vec![IoPoint::Sim],
+        outputs: vec![IoPoint::Module { node: 2, bit: 1 }],
+        safe_outputs: IoBits(1),
+    };
+    let (mut bus, mut unit) = setup_io(false, others);
+    bus.enable();
+    let mut fb = CycleFeedback::default();
+    let cmd = CycleCommand {
+        outputs: IoBits(1),
+        ..CycleCommand::default()
+    };
+    for _ in 0..3 {
+        bus.cycle(&cmd, &mut fb).unwrap();
+        let req = unit.answer(PowerState::SwitchOnDisabled.statusword_bits(), 0);
+        assert_eq!(req.unwrap().version(), 1);
+    }
+}
+
+/// A unit of version 3 (it answers versions 1 to 3, never 4) is refused, named as version 3
+/// when homing lets the probes ask version 3, as version 1 otherwise.
+#[test]
+fn an_old_unit_is_refused_when_io_needs_version_4() {
+    for (homing, named) in [(true, 3), (false, 1)] {
+        let (mut bus, mut unit) = setup_io(homing, io_map());
+        bus.enable();
+        let mut fb = CycleFeedback::default();
+        let cmd = CycleCommand::default();
+        let mut versions = Vec::new();
+        let e = loop {
+            if let Err(e) = bus.cycle(&cmd, &mut fb) {
+                break e;
+            }
+            let req = unit
+                .answer_with(|r| {
+                    let home = r.home.map(|_| HomeStatus::default());
+                    (r.version() < 4).then_some(Reply {
+                        home,
+                        ..v1_reply(r, 0)
+                    })
+                })
+                .unwrap();
+            if req.version() < 4 {
+                versions.push(req.version());
+                assert_eq!(req.axis[0].controlword, cw::DISABLE_VOLTAGE);
+            }
+            assert!(versions.len() < 10, "no refusal: {versions:?}");
+        };
+        assert_eq!(
+            (e.reason, e.reason.code()),
+            (
+                FaultReason::ProtocolVersion {
+                    drive: named,
+                    needed: 4
+                },
+                "protocol_version"
+            ),
+            "{versions:?}"
+        );
+    }
+}
+
+#[test]
+fn an_io_bit_beyond_the_word_is_refused_with_its_code() {
+    let mut io = io_map();
+    io.inputs.push(IoPoint::Serial { bit: 64 });
+    let cfg = SerialConfig {
+        io,
+        ..SerialConfig::new("mem", vec![SerialAxis::new(1, 1.0)])
+    };
+    let e = SerialBus::new(MemPort::default(), cfg).err().unwrap();
+    assert_eq!(e.code(), "serial_io_bit");
 }

@@ -7,8 +7,10 @@ use crc::{CRC_16_IBM_3740, Crc};
 /// CRC-16/IBM-3740 (also known as CRC-16/CCITT-FALSE): poly 0x1021, init 0xFFFF.
 pub const CRC: Crc<u16> = Crc::<u16>::new(&CRC_16_IBM_3740);
 
-/// Largest payload a frame carries (a reply for 6 axes is 3 + 6 * 8 = 51 bytes).
-pub const MAX_PAYLOAD: usize = 64;
+/// Largest payload a frame carries: versions 1 to 3 stay within 64 bytes (a version 3 reply
+/// for 6 axes and the spindle is 63), version 4 within 80 (its reply with 6 axes, the spindle
+/// and homing is 71, its request with the safe output word 69).
+pub const MAX_PAYLOAD: usize = 80;
 /// Largest encoded frame: payload + CRC, COBS overhead, delimiter.
 pub const MAX_FRAME: usize = cobs::max_encoding_length(MAX_PAYLOAD + 2) + 1;
 

@@ -5,6 +5,8 @@ pub mod bus;
 pub mod frame;
 pub mod message;
 pub mod port;
+pub mod unit_io;
+pub mod version;
 
 pub use bus::{SerialAxis, SerialBus, SerialConfig, SerialSpindle};
 pub use port::{LinkDown, SerialPort, TtyPort};
@@ -25,6 +27,8 @@ pub enum SerialError {
     AxisSpeed { axis: usize },
     #[error("velocity units per rpm of the spindle must be positive")]
     SpindleScale,
+    #[error("serial I/O bit {bit} is beyond the drive unit's 64-bit I/O words (0..=63)")]
+    IoBit { bit: u8 },
 }
 
 impl SerialError {
@@ -36,6 +40,7 @@ impl SerialError {
             SerialError::AxisScale { .. } => "serial_axis_scale",
             SerialError::AxisSpeed { .. } => "serial_axis_speed",
             SerialError::SpindleScale => "serial_spindle_scale",
+            SerialError::IoBit { .. } => "serial_io_bit",
         }
     }
 }

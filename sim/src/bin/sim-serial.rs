@@ -6,15 +6,20 @@
 //!
 //! Homing (protocol version 3): `--home-switch AXIS:MM:SIDE` (repeatable) gives axis AXIS
 //! (1-based) a home switch at MM (power-on coordinates) pressed on side SIDE (-1: at and
-//! below, 1: at and above); `--protocol 2` (or 1) plays an old unit that does not answer
-//! version 3 requests. `--watchdog-ms MS` sets the communication watchdog (default 100).
+//! below, 1: at and above); `--protocol 3` (or 2, 1) plays an old unit that does not answer
+//! newer requests. `--watchdog-ms MS` sets the communication watchdog (default 100).
+//!
+//! Digital I/O (protocol version 4), by lines on stdin besides `sim::control`'s: `inputs HEX`
+//! sets the unit's input word, `input BIT on|off` one bit; `io` prints
+//! `io inputs XXXXXXXXXXXXXXXX outputs XXXXXXXXXXXXXXXX safe XXXXXXXXXXXXXXXX fallen yes|no`.
 
-use std::io::{Read, Write};
+use std::io::{BufRead, Read, Write};
+use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use serialport::{SerialPort, TTYPort};
 use sim::control::{self, Command, SimArgs};
-use sim::serial_drive::SerialDriveUnit;
+use sim::serial_drive::{IoWords, SerialDriveUnit};
 
 /// A pty pair with the link pointing at its slave side. The slave fd stays open here so
 /// the master side does not read EIO before the controller opens the link.
@@ -49,7 +54,7 @@ enum HomingArgsError {
     MissingValue(&'static str),
     #[error("bad --home-switch '{0}': give AXIS:MM:SIDE, e.g. 1:-5:-1")]
     BadHomeSwitch(String),
-    #[error("bad --protocol '{0}': 1, 2 or 3")]
+    #[error("bad --protocol '{0}': 1, 2, 3 or 4")]
     BadProtocol(String),
     #[error("bad --watchdog-ms '{0}'")]
     BadWatchdog(String),
@@ -94,7 +99,7 @@ struct HomingArgs {
 fn homing_args(args: impl Iterator<Item = String>) -> Result<HomingArgs, HomingArgsError> {
     let mut h = HomingArgs {
         switches: Vec::new(),
-        max_version: 3,
+        max_version: 4,
         watchdog_ms: None,
         rest: Vec::new(),
     };
@@ -112,7 +117,7 @@ fn homing_args(args: impl Iterator<Item = String>) -> Result<HomingArgs, HomingA
                 h.max_version = v
                     .parse()
                     .ok()
-                    .filter(|n| (1..=3).contains(n))
+                    .filter(|n| (1..=4).contains(n))
                     .ok_or(HomingArgsError::BadProtocol(v))?;
             }
             "--watchdog-ms" => {
@@ -147,6 +152,100 @@ fn drive_unit(args: &SimArgs, homing: &HomingArgs) -> SerialDriveUnit {
         unit.spindle = Some(args.drive());
     }
     unit
+}
+
+/// A line on stdin of the unit's digital I/O.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum IoLine {
+    /// `inputs HEX`: the whole input word.
+    Inputs(u64),
+    /// `input BIT on|off`.
+    Input(u8, bool),
+    /// `io`: print the words.
+    Show,
+}
+
+/// Why an I/O line was refused (the simulator says so and goes on).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+enum IoLineError {
+    #[error("inputs needs a hex word, e.g. inputs 1F")]
+    BadWord,
+    #[error("input needs a bit 0..=63 and on or off, e.g. input 5 on")]
+    BadBit,
+}
+
+/// The I/O line `line` is, `None` if it is none (a `sim::control` command, maybe).
+fn io_line(line: &str) -> Option<Result<IoLine, IoLineError>> {
+    let w: Vec<&str> = line.split_whitespace().collect();
+    Some(match w.as_slice() {
+        ["io"] => Ok(IoLine::Show),
+        ["inputs", rest @ ..] => match rest {
+            [hex] => u64::from_str_radix(hex.trim_start_matches("0x"), 16)
+                .map(IoLine::Inputs)
+                .map_err(|_| IoLineError::BadWord),
+            _ => Err(IoLineError::BadWord),
+        },
+        ["input", rest @ ..] => match rest {
+            [bit, on @ ("on" | "off")] => bit
+                .parse()
+                .ok()
+                .filter(|b| *b < 64)
+                .map(|b| IoLine::Input(b, *on == "on"))
+                .ok_or(IoLineError::BadBit),
+            _ => Err(IoLineError::BadBit),
+        },
+        _ => return None,
+    })
+}
+
+/// A line on stdin: a fault-injection command or an I/O line.
+#[derive(Clone, Copy, Debug)]
+enum StdinLine {
+    Control(Command),
+    Io(IoLine),
+}
+
+/// Reads stdin on a thread (as `control::stdin_commands`, with the I/O lines besides).
+fn stdin_lines() -> mpsc::Receiver<StdinLine> {
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in std::io::stdin().lock().lines() {
+            let Ok(line) = line else { return };
+            if line.trim().is_empty() {
+                continue;
+            }
+            let parsed = match io_line(&line) {
+                Some(io) => io.map(StdinLine::Io).map_err(|e| e.to_string()),
+                None => control::parse(&line)
+                    .map(StdinLine::Control)
+                    .map_err(|e| e.to_string()),
+            };
+            match parsed {
+                Ok(l) if tx.send(l).is_err() => return,
+                Ok(_) => {}
+                Err(e) => eprintln!("sim-serial: {e}"),
+            }
+        }
+    });
+    rx
+}
+
+/// Applies one I/O line.
+fn apply_io(l: IoLine, io: &IoWords) {
+    match l {
+        IoLine::Inputs(word) => io.set_inputs(word),
+        IoLine::Input(bit, on) => io.set_input(bit, on),
+        IoLine::Show => {
+            println!(
+                "io inputs {:016X} outputs {:016X} safe {:016X} fallen {}",
+                io.inputs(),
+                io.outputs(),
+                io.safe_outputs(),
+                if io.is_fallen() { "yes" } else { "no" }
+            );
+            let _ = std::io::stdout().flush();
+        }
+    }
 }
 
 /// Applies one stdin command; `false` on `quit`.
@@ -190,15 +289,20 @@ fn main() {
     };
     let mut unit = drive_unit(&args, &homing);
     let mut line = Some(plug(&args.link));
-    let commands = control::stdin_commands();
+    let commands = stdin_lines();
     let start = Instant::now();
     let mut buf = [0u8; 512];
     let mut out = Vec::new();
     loop {
         let now_ms = start.elapsed().as_millis() as u64;
-        while let Ok(c) = commands.try_recv() {
-            if !apply(c, &mut unit, &mut line, &args.link) {
-                return;
+        while let Ok(l) = commands.try_recv() {
+            match l {
+                StdinLine::Io(l) => apply_io(l, &unit.io),
+                StdinLine::Control(c) => {
+                    if !apply(c, &mut unit, &mut line, &args.link) {
+                        return;
+                    }
+                }
             }
         }
         let Some(l) = line.as_mut() else {
@@ -254,8 +358,19 @@ mod tests {
             code(&["--home-switch", "1:1:0"]),
             Some("sim_bad_home_switch")
         );
-        assert_eq!(code(&["--protocol", "4"]), Some("sim_bad_protocol"));
+        assert_eq!(code(&["--protocol", "5"]), Some("sim_bad_protocol"));
+        assert_eq!(code(&["--protocol", "4"]), None);
         assert_eq!(code(&["--watchdog-ms", "x"]), Some("sim_bad_watchdog"));
         assert_eq!(code(&["--watchdog-ms", "50"]), None);
+    }
+
+    #[test]
+    fn io_lines_parse_and_others_are_left_to_control() {
+        assert_eq!(io_line("inputs 1F"), Some(Ok(IoLine::Inputs(0x1F))));
+        assert_eq!(io_line("input 63 on"), Some(Ok(IoLine::Input(63, true))));
+        assert_eq!(io_line("io"), Some(Ok(IoLine::Show)));
+        assert_eq!(io_line("input 64 on"), Some(Err(IoLineError::BadBit)));
+        assert_eq!(io_line("inputs zz"), Some(Err(IoLineError::BadWord)));
+        assert_eq!(io_line("silent on"), None);
     }
 }
