@@ -259,6 +259,11 @@ impl fmt::Display for FaultReason {
                 f,
                 "drive refused the reference position of the reference run (home again)"
             ),
+            FaultReason::ProtocolVersion { drive, needed } if *needed >= 4 => write!(
+                f,
+                "drive unit speaks serial protocol version {drive}, digital I/O on the link \
+                 needs version {needed} (update the unit, or wire the I/O elsewhere)"
+            ),
             FaultReason::ProtocolVersion { drive, needed } => write!(
                 f,
                 "drive unit speaks serial protocol version {drive}, homing needs version \

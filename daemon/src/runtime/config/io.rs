@@ -20,7 +20,7 @@
 use serde::Deserialize;
 
 /// `[io]` section.
-#[derive(Clone, Debug, Default, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct IoSection {
     #[serde(default)]
@@ -38,6 +38,17 @@ pub struct IoSection {
 
 fn default_consumer_ms() -> u16 {
     500
+}
+
+impl Default for IoSection {
+    fn default() -> Self {
+        IoSection {
+            inputs: Vec::new(),
+            outputs: Vec::new(),
+            modules: Vec::new(),
+            module_consumer_timeout_ms: default_consumer_ms(),
+        }
+    }
 }
 
 /// What an input does (besides being shown and readable in the PLC area).
