@@ -36,7 +36,11 @@ impl IoBits {
 
     /// The mask of the first `n` bits.
     pub fn first(n: usize) -> IoBits {
-        IoBits(if n >= MAX_IO { u64::MAX } else { (1u64 << n) - 1 })
+        IoBits(if n >= MAX_IO {
+            u64::MAX
+        } else {
+            (1u64 << n) - 1
+        })
     }
 }
 
