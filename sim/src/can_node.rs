@@ -3,8 +3,10 @@
 //! and consumer, and fault injection. The mode of operation (0x6060 = 8 or 9) and the PDO
 //! mapping the master writes decide whether the node is a position or a velocity drive;
 //! 0x6060 = 6 is homing mode ([`crate::homing`]: a home switch, objects 0x6098, 0x607C,
-//! 0x6099, 0x609A). No I/O: the caller feeds frames and the time, and sends what comes out
-//! (the `sim-can` binary does that on a SocketCAN interface; tests do it in memory).
+//! 0x6099, 0x609A). Digital inputs 0x60FD and outputs 0x60FE:1 in PDO2 when the master maps
+//! them ([`crate::drive_io`]). No I/O of its own: the caller feeds frames and the time, and
+//! sends what comes out (the `sim-can` binary does that on a SocketCAN interface; tests do it
+//! in memory).
 
 use hal::canopen::emcy::Emcy;
 use hal::canopen::pdo::{OpMode, Rpdo, Tpdo};
@@ -12,6 +14,7 @@ use hal::canopen::sdo::{self, Request, abort};
 use hal::canopen::{Frame, cob, nmt};
 
 use crate::cia402_drive::{COMMUNICATION_LOST, Cia402Drive, Event};
+use crate::drive_io::DriveIo;
 
 /// Fault-injection switches.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -114,6 +117,8 @@ pub struct CanNode {
     pub id: u8,
     pub drive: Cia402Drive,
     pub inject: Injection,
+    /// Its digital inputs 0x60FD (set from outside) and outputs 0x60FE:1.
+    pub io: DriveIo,
     nmt: u8,
     od: CommObjects,
     latched: Option<Rpdo>,
@@ -129,6 +134,7 @@ impl CanNode {
             id,
             drive,
             inject: Injection::default(),
+            io: DriveIo::new(id),
             nmt: nmt::state::PRE_OPERATIONAL,
             od: CommObjects::defaults(id),
             latched: None,
@@ -148,6 +154,7 @@ impl CanNode {
 
     fn boot(&mut self, now_ms: u64, out: &mut Vec<Frame>) {
         self.od = CommObjects::defaults(self.id);
+        self.io.reset_communication(self.id);
         self.drive.set_homing_mode(false);
         self.nmt = nmt::state::PRE_OPERATIONAL;
         self.latched = None;
@@ -208,6 +215,9 @@ impl CanNode {
         match code {
             cob::HEARTBEAT if node == consumer_id && consumer_id != 0 => {
                 self.master_heartbeat_ms = Some(now_ms);
+            }
+            cob::RPDO2 if node == self.id && self.nmt == nmt::state::OPERATIONAL => {
+                self.io.on_rpdo2(self.id, p);
             }
             cob::RPDO1
                 if node == self.id
@@ -296,6 +306,7 @@ impl CanNode {
             };
             self.announce(e, out);
         }
+        self.io.on_sync(self.id, out);
         if self.od.tpdo_active(self.id) {
             let value = match self.od.layout(false) {
                 Some(OpMode::Csv) => self.drive.velocity_units(),
@@ -407,6 +418,9 @@ impl CanNode {
     }
 
     fn write(&mut self, index: u16, sub: u8, v: u32) -> Result<(), u32> {
+        if let Some(r) = self.io.write(index, sub, v) {
+            return r;
+        }
         let od = &mut self.od;
         match (index, sub) {
             // CiA 301: a valid PDO's COB-ID changes only through invalid (bit 31 set first).
@@ -457,6 +471,9 @@ impl CanNode {
     }
 
     fn read(&self, index: u16, sub: u8) -> Result<(u32, u8), u32> {
+        if let Some(r) = self.io.read(index, sub) {
+            return r;
+        }
         let od = &self.od;
         Ok(match (index, sub) {
             (0x1000, 0) => (0x0002_0192, 4), // CiA 402 device, servo

@@ -11,6 +11,8 @@
 //! | `fault CODE [NODE]` | force a drive fault with error code CODE (hex, e.g. `2310`) |
 //! | `unplug` / `plug` | close the serial line / open a new one at the same link path (serial) |
 //! | `state` | print each node's state (CAN: NMT state, statusword, error code, 0x1016:1) |
+//! | `input NODE BIT 0\|1` | set input BIT of CAN node NODE: a module's 0x6000 bit (group BIT / 8 + 1), a drive's 0x60FD bit |
+//! | `outputs NODE` | print `outputs node NODE XXXXXXXXXXXXXXXX`: a module's 0x6200 groups (group 1 lowest), a drive's 0x60FE:1 |
 //! | `quit` | exit |
 //!
 //! NODE is a CAN node id, or a 1-based axis number for the serial unit; without it the
@@ -32,6 +34,14 @@ pub enum Command {
     /// Print each node's state on stdout (CAN: `state node N nmt .. statusword .. error ..
     /// consumer ..`).
     State,
+    /// Sets input `bit` of CAN node `node` (an I/O module's 0x6000, a drive's 0x60FD).
+    Input {
+        node: u8,
+        bit: u8,
+        on: bool,
+    },
+    /// Prints the outputs of CAN node `node` (an I/O module's 0x6200, a drive's 0x60FE:1).
+    Outputs(u8),
     Quit,
 }
 
@@ -44,6 +54,8 @@ pub enum CommandError {
     BadNode(String),
     #[error("expected a hex error code")]
     ExpectedHexCode,
+    #[error("expected NODE BIT 0|1")]
+    ExpectedInput,
     #[error("unknown command '{0}'")]
     Unknown(String),
 }
@@ -55,6 +67,7 @@ impl CommandError {
             CommandError::ExpectedOnOff => "sim_expected_on_off",
             CommandError::BadNode(_) => "sim_bad_node",
             CommandError::ExpectedHexCode => "sim_expected_hex_code",
+            CommandError::ExpectedInput => "sim_expected_input",
             CommandError::Unknown(_) => "sim_unknown_command",
         }
     }
@@ -91,6 +104,26 @@ pub fn parse(line: &str) -> Result<Command, CommandError> {
         "unplug" => Command::Unplug,
         "plug" => Command::Plug,
         "state" => Command::State,
+        "input" => {
+            let value = match w.next() {
+                Some("1") => true,
+                Some("0") => false,
+                _ => return Err(CommandError::ExpectedInput),
+            };
+            let number = |s: Option<&str>| s.and_then(|s| s.parse::<u8>().ok());
+            match (number(a), number(b)) {
+                (Some(node), Some(bit)) if bit < 64 => Command::Input {
+                    node,
+                    bit,
+                    on: value,
+                },
+                _ => return Err(CommandError::ExpectedInput),
+            }
+        }
+        "outputs" => match node(a)? {
+            Some(n) => Command::Outputs(n),
+            None => return Err(CommandError::BadNode(String::new())),
+        },
         "quit" => Command::Quit,
         _ => return Err(CommandError::Unknown(cmd.to_string())),
     })
@@ -126,6 +159,10 @@ pub struct SimArgs {
     pub iface: String,
     /// Node ids (`sim-can`), one drive each.
     pub nodes: Vec<u8>,
+    /// Node ids of CiA 401 I/O modules (`sim-can`).
+    pub io_modules: Vec<u8>,
+    /// 8-bit groups of inputs and of outputs each module has (1..=8).
+    pub io_groups: u8,
     /// Link path (`sim-serial`): a symlink to the pty the controller opens.
     pub link: String,
     /// Axes of the serial unit.
@@ -145,7 +182,8 @@ pub struct SimArgs {
     pub home_switch_mm: Option<f64>,
 }
 
-pub const USAGE: &str = "options: --iface IF --node N (repeatable) | --link PATH --axes N \
+pub const USAGE: &str = "options: --iface IF --node N (repeatable) --io-module N (repeatable) \
+    --io-groups N | --link PATH --axes N \
     [--spindle]; --increments-per-mm F --start-mm F --kv F --v-max-mm-s F --window-mm F \
     --units-per-rpm F --ramp-rpm-s F --home-switch-mm F";
 
@@ -169,6 +207,8 @@ pub enum ArgsError {
     UnknownOption(String),
     #[error("--units-per-rpm must be positive and --ramp-rpm-s not negative")]
     SpindleRange,
+    #[error("bad group count '{0}' (1..8)")]
+    BadGroups(String),
 }
 
 impl ArgsError {
@@ -183,8 +223,18 @@ impl ArgsError {
             ArgsError::Help => "sim_help",
             ArgsError::UnknownOption(_) => "sim_unknown_option",
             ArgsError::SpindleRange => "sim_spindle_range",
+            ArgsError::BadGroups(_) => "sim_bad_groups",
         }
     }
+}
+
+/// A node id option's value, 1..=127.
+fn node_id(s: String) -> Result<u8, ArgsError> {
+    let n: u8 = s.parse().map_err(|_| ArgsError::BadNodeId(s))?;
+    if !(1..=127).contains(&n) {
+        return Err(ArgsError::NodeIdRange(n));
+    }
+    Ok(n)
 }
 
 impl SimArgs {
@@ -192,6 +242,8 @@ impl SimArgs {
         let mut a = SimArgs {
             iface: "vcan0".into(),
             nodes: Vec::new(),
+            io_modules: Vec::new(),
+            io_groups: 8,
             link: String::new(),
             axes: 1,
             increments_per_mm: 10_000.0,
@@ -208,13 +260,15 @@ impl SimArgs {
             let num = |s: String| s.parse::<f64>().map_err(|_| ArgsError::BadNumber(s));
             match k.as_str() {
                 "--iface" => a.iface = v()?,
-                "--node" => {
+                "--node" => a.nodes.push(node_id(v()?)?),
+                "--io-module" => a.io_modules.push(node_id(v()?)?),
+                "--io-groups" => {
                     let s = v()?;
-                    let n: u8 = s.parse().map_err(|_| ArgsError::BadNodeId(s))?;
-                    if !(1..=127).contains(&n) {
-                        return Err(ArgsError::NodeIdRange(n));
-                    }
-                    a.nodes.push(n);
+                    a.io_groups = s
+                        .parse()
+                        .ok()
+                        .filter(|n| (1..=8).contains(n))
+                        .ok_or(ArgsError::BadGroups(s))?;
                 }
                 "--link" => a.link = v()?,
                 "--axes" => {
@@ -274,6 +328,17 @@ mod tests {
         assert_eq!(parse("fault xyz"), Err(CommandError::ExpectedHexCode));
         assert_eq!(parse("jump").unwrap_err().code(), "sim_unknown_command");
         assert_eq!(parse("heartbeat maybe"), Err(CommandError::ExpectedOnOff));
+        assert_eq!(
+            parse("input 10 12 1"),
+            Ok(Command::Input {
+                node: 10,
+                bit: 12,
+                on: true
+            })
+        );
+        assert_eq!(parse("input 10 64 1"), Err(CommandError::ExpectedInput));
+        assert_eq!(parse("input 10 1 on"), Err(CommandError::ExpectedInput));
+        assert_eq!(parse("outputs 10"), Ok(Command::Outputs(10)));
     }
 
     #[test]
@@ -285,6 +350,19 @@ mod tests {
         )
         .unwrap();
         assert_eq!(a.nodes, [1, 2]);
+        let io = SimArgs::parse(
+            ["--io-module", "10", "--io-module", "11", "--io-groups", "2"]
+                .into_iter()
+                .map(String::from),
+        )
+        .unwrap();
+        assert_eq!((io.io_modules, io.io_groups), (vec![10, 11], 2));
+        assert_eq!(
+            SimArgs::parse(["--io-groups", "9"].into_iter().map(String::from))
+                .unwrap_err()
+                .code(),
+            "sim_bad_groups"
+        );
         assert_eq!(a.drive().velocity_ramp_units_s2, 2000.0);
         let s = SimArgs::parse(
             ["--spindle", "--units-per-rpm", "10", "--ramp-rpm-s", "500"]

@@ -1,6 +1,6 @@
-//! The CANopen master against simulated drive nodes on an in-memory bus: start-up, CSP
-//! motion, every fault path, enabling from anywhere, orderly shutdown and resets, in virtual
-//! time (4 ms per tick unless a test sets the cycle).
+//! The CANopen master against simulated drive nodes and CiA 401 I/O modules on an in-memory
+//! bus: start-up, CSP motion, every fault path, enabling from anywhere, orderly shutdown and
+//! resets, digital I/O, in virtual time (4 ms per tick unless a test sets the cycle).
 
 use std::collections::VecDeque;
 
@@ -10,9 +10,11 @@ use hal::canopen::{
     ShutdownMode,
 };
 use hal::cia402::PowerState;
+use hal::io::{IoBits, IoMap, IoPoint};
 use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, DriveState, FaultReason};
 use sim::SimDriveParams;
 use sim::can_node::CanNode;
+use sim::cia401_module::Cia401Module;
 use sim::cia402_drive::Cia402Drive;
 
 const INC_PER_MM: f64 = 1000.0;
@@ -20,6 +22,8 @@ const INC_PER_MM: f64 = 1000.0;
 /// The bus: what the master sends reaches every node at once; answers queue for the master.
 struct Net {
     nodes: Vec<CanNode>,
+    /// CiA 401 I/O modules beside the drives.
+    modules: Vec<Cia401Module>,
     now_ms: u64,
     tick: u64,
     to_master: VecDeque<Frame>,
@@ -35,6 +39,7 @@ impl Net {
     fn new(nodes: Vec<CanNode>) -> Net {
         Net {
             nodes,
+            modules: Vec::new(),
             now_ms: 0,
             tick: 0,
             to_master: VecDeque::new(),
@@ -60,6 +65,9 @@ impl CanPort for Net {
                 continue;
             }
             n.handle(f, self.now_ms, &mut out);
+        }
+        for m in &mut self.modules {
+            m.handle(f, self.now_ms, &mut out);
         }
         self.deliver(out);
         Ok(())
@@ -87,6 +95,17 @@ impl Rig {
     }
 
     fn build(ids: &[u8], start_mm: &[f64], cycle_ms: u32, shutdown: ShutdownMode) -> Rig {
+        Rig::build_io(ids, start_mm, cycle_ms, shutdown, &[], IoMap::default())
+    }
+
+    fn build_io(
+        ids: &[u8],
+        start_mm: &[f64],
+        cycle_ms: u32,
+        shutdown: ShutdownMode,
+        modules: &[u8],
+        io: IoMap,
+    ) -> Rig {
         let nodes = ids
             .iter()
             .zip(start_mm)
@@ -97,7 +116,8 @@ impl Rig {
                 )
             })
             .collect();
-        let net = Net::new(nodes);
+        let mut net = Net::new(nodes);
+        net.modules = modules.iter().map(|&id| Cia401Module::new(id, 2)).collect();
         let mut cfg = CanOpenConfig::new(
             ids.iter()
                 .map(|&node_id| NodeConfig {
@@ -111,6 +131,7 @@ impl Rig {
         );
         cfg.cycle = std::time::Duration::from_millis(u64::from(cycle_ms));
         cfg.shutdown = shutdown;
+        cfg.io = io;
         let mut m = CanOpenMaster::new(net, "mem", cfg).unwrap();
         m.enable();
         Rig {
@@ -140,6 +161,9 @@ impl Rig {
         let mut out = Vec::new();
         for n in &mut net.nodes {
             n.poll(net.now_ms, &mut out);
+        }
+        for m in &mut net.modules {
+            m.poll(net.now_ms, &mut out);
         }
         net.deliver(out);
     }
@@ -829,4 +853,242 @@ fn the_cycle_time_is_configurable() {
         ..CanOpenConfig::new(vec![NodeConfig::new(NodeId::new(1).unwrap(), 1000.0)])
     };
     assert!(CanOpenMaster::new(Net::new(vec![]), "mem", cfg).is_err());
+}
+
+/// Module node of the I/O tests.
+const MODULE: u8 = 10;
+
+/// Drive node 1 and module 10 (two groups). Inputs: module bits 0 and 12, the drive's 0x60FD
+/// bit 2 (home switch). Outputs: module bits 1 and 8 (output 1 safe on), the drive's 0x60FE
+/// bit 5.
+fn io_rig() -> Rig {
+    let m = |bit| IoPoint::Module { node: MODULE, bit };
+    let io = IoMap {
+        inputs: vec![m(0), m(12), IoPoint::Drive { axis: 0, bit: 2 }],
+        outputs: vec![m(1), m(8), IoPoint::Drive { axis: 0, bit: 5 }],
+        safe_outputs: IoBits(0b010),
+    };
+    let mut r = Rig::build_io(&[1], &[0.0], 4, ShutdownMode::Disable, &[MODULE], io);
+    r.until_operational();
+    r
+}
+
+/// The SDO writes the master sent to `node`: (index, subindex, value).
+fn sdo_writes(log: &[(u64, Frame)], node: u8) -> Vec<(u16, u8, u32)> {
+    use hal::canopen::sdo;
+    log.iter()
+        .filter(|(_, f)| f.id == 0x600 + u16::from(node))
+        .filter_map(|(_, f)| match sdo::parse_request(f.payload()) {
+            Ok(sdo::Request::Download {
+                index,
+                subindex,
+                value,
+                ..
+            }) => Some((index, subindex, value)),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn a_module_boots_with_the_drives_and_is_configured() {
+    let mut r = io_rig();
+    let writes = sdo_writes(&r.net().log, MODULE);
+    for w in [
+        (0x1A00, 2, 0x6000_0208),
+        (0x1600, 2, 0x6200_0208),
+        (0x6206, 1, 0xFF),
+        (0x6206, 2, 0xFF),
+        (0x6207, 1, 0x00),
+        (0x6207, 2, 0x01),
+        (0x1016, 1, (127 << 16) | 500),
+        (0x1017, 0, 100),
+    ] {
+        assert!(writes.contains(&w), "missing module write {w:X?}");
+    }
+    let module = &r.net().modules[0];
+    assert_eq!(module.nmt_state(), hal::canopen::nmt::state::OPERATIONAL);
+    assert_eq!(module.error_setting(2), (0xFF, 0x01));
+    assert_eq!(module.consumer(), (127 << 16) | 500);
+    // The drive maps 0x60FD and 0x60FE:1 because the map has points on it.
+    let drive = sdo_writes(&r.net().log, 1);
+    assert!(drive.contains(&(0x1A01, 1, 0x60FD_0020)));
+    assert!(drive.contains(&(0x1601, 1, 0x60FE_0120)));
+    // Faults: none for many ticks, the module is watched like a drive.
+    for _ in 0..300 {
+        r.tick().unwrap();
+    }
+}
+
+#[test]
+fn inputs_arrive_the_cycle_after_they_change_and_outputs_in_their_cycle() {
+    let mut r = io_rig();
+    for _ in 0..5 {
+        r.tick().unwrap();
+    }
+    assert_eq!(r.fb.inputs, IoBits::NONE);
+    // Module bit 12 (group 2 bit 4) and the drive's home switch change before a cycle: that
+    // cycle's SYNC samples them, the next cycle reports them.
+    r.net().modules[0].io.set_input(12, true);
+    r.net().nodes[0].io.inputs = 1 << 2;
+    r.tick().unwrap();
+    assert_eq!(r.fb.inputs, IoBits::NONE, "sampled at this cycle's SYNC");
+    r.tick().unwrap();
+    assert_eq!(r.fb.inputs, IoBits(0b110));
+    r.net().modules[0].io.set_input(0, true);
+    r.net().modules[0].io.set_input(12, false);
+    r.tick().unwrap();
+    r.tick().unwrap();
+    assert_eq!(r.fb.inputs, IoBits(0b101));
+
+    // Outputs 0 and 1: module bits 1 and 8, in the cycle they are commanded.
+    r.cmd.outputs = IoBits(0b011);
+    r.tick().unwrap();
+    assert_eq!(r.net().modules[0].io.outputs(), 0x0102);
+    r.cmd.outputs = IoBits(0b001);
+    r.tick().unwrap();
+    assert_eq!(r.net().modules[0].io.outputs(), 0x0002);
+    // Output 2 is the drive's 0x60FE:1 bit 5, applied at the drive's next SYNC.
+    r.cmd.outputs = IoBits(0b100);
+    r.tick().unwrap();
+    r.tick().unwrap();
+    assert_eq!(r.net().nodes[0].io.outputs, 1 << 5);
+    assert_eq!(r.net().modules[0].io.outputs(), 0);
+}
+
+#[test]
+fn without_the_master_the_module_falls_to_its_safe_outputs_by_itself() {
+    let mut r = io_rig();
+    // Output 0 on, output 1 (safe on) off: the unsafe pattern.
+    r.cmd.outputs = IoBits(0b001);
+    for _ in 0..50 {
+        r.tick().unwrap();
+    }
+    assert_eq!(r.net().modules[0].io.outputs(), 0x0002);
+    // The master stops: the last heartbeat it sent is at most 100 ms old now.
+    let stopped_ms = r.net().now_ms;
+    let mut fell_at = None;
+    for _ in 0..300 {
+        r.pass_time();
+        let net = r.net();
+        if fell_at.is_none() && net.modules[0].io.outputs() != 0x0002 {
+            fell_at = Some(net.now_ms - stopped_ms);
+        }
+    }
+    let after_ms = fell_at.expect("the module's heartbeat consumer must fire");
+    // Consumer time 500 ms from the last heartbeat (sent up to 100 ms before the stop).
+    assert!((400..=504).contains(&after_ms), "after {after_ms} ms");
+    assert_eq!(
+        r.net().modules[0].io.outputs(),
+        0x0100,
+        "output 0 off, output 1 on"
+    );
+    assert_eq!(
+        r.net().modules[0].nmt_state(),
+        hal::canopen::nmt::state::PRE_OPERATIONAL
+    );
+}
+
+#[test]
+fn a_module_heartbeat_loss_is_a_fault_naming_its_node() {
+    let mut r = io_rig();
+    r.net().modules[0].inject.drop_heartbeat = true;
+    let (t, e) = r.until_fault(500);
+    assert_eq!(
+        e,
+        BusFault {
+            axis: None,
+            node: Some(MODULE),
+            reason: FaultReason::HeartbeatLost
+        }
+    );
+    assert!((95..=160).contains(&t), "after {t} ticks");
+    assert_eq!(r.fb.axes[0].state, DriveState::Operational, "drive runs on");
+    // Back: the reset restarts the module (reset communication, configuration, start).
+    r.net().modules[0].inject.drop_heartbeat = false;
+    r.m.reset();
+    for _ in 0..100 {
+        r.tick().unwrap();
+    }
+    r.net().modules[0].io.set_input(0, true);
+    r.cmd.outputs = IoBits(0b010);
+    r.tick().unwrap();
+    r.tick().unwrap();
+    assert!(r.fb.inputs.get(0));
+    assert_eq!(r.net().modules[0].io.outputs(), 0x0100);
+}
+
+#[test]
+fn a_silent_module_times_out_and_a_short_tpdo_is_a_mapping_fault() {
+    for corrupt in [false, true] {
+        let mut r = io_rig();
+        if corrupt {
+            r.net().modules[0].inject.corrupt_pdo = true;
+        } else {
+            r.net().modules[0].inject.silent = true;
+        }
+        let (_, e) = r.until_fault(100);
+        let reason = if corrupt {
+            FaultReason::PdoLength {
+                cob_id: 0x18A,
+                len: 1,
+                expected: 2,
+            }
+        } else {
+            FaultReason::Timeout
+        };
+        assert_eq!((e.axis, e.node, e.reason), (None, Some(MODULE), reason));
+    }
+}
+
+/// Shutdown: the drives walk down while the module still gets the caller's (safe) outputs;
+/// then its heartbeat watch is cleared and it goes pre-operational, keeping them.
+#[test]
+fn shutdown_keeps_the_safe_outputs_and_leaves_the_module_pre_operational() {
+    let mut r = io_rig();
+    r.cmd.outputs = IoBits(0b001);
+    for _ in 0..20 {
+        r.tick().unwrap();
+    }
+    let before = r.net().log.len();
+    r.m.shutdown();
+    r.cmd.outputs = IoBits(0b010); // what the caller sends once it shuts down: the safe values
+    let mut ticks = 0;
+    while !r.m.is_shut_down() {
+        r.tick().unwrap();
+        ticks += 1;
+        assert!(ticks < 500, "shutdown must end by itself");
+    }
+    let log = r.net().log[before..].to_vec();
+    let pre_op = log
+        .iter()
+        .position(|(_, f)| f.id == 0 && f.payload() == [0x80, MODULE])
+        .expect("module to pre-operational");
+    let drive_pre_op = log
+        .iter()
+        .position(|(_, f)| f.id == 0 && f.payload() == [0x80, 1])
+        .unwrap();
+    let last_rpdo = log
+        .iter()
+        .rposition(|(_, f)| f.id == 0x20A)
+        .expect("module RPDOs during shutdown");
+    assert!(drive_pre_op < pre_op && last_rpdo < pre_op);
+    assert!(sdo_write_index(&log, MODULE, 0x1016, 1).is_some());
+    for _ in 0..500 {
+        r.tick().unwrap();
+    }
+    let module = &r.net().modules[0];
+    assert_eq!(module.io.outputs(), 0x0100);
+    assert_eq!(module.consumer(), 0);
+    assert_eq!(
+        module.nmt_state(),
+        hal::canopen::nmt::state::PRE_OPERATIONAL
+    );
+    assert!(
+        !r.net()
+            .from_nodes
+            .iter()
+            .any(|(_, f)| f.id == 0x80 + u16::from(MODULE)),
+        "no EMCY of the module"
+    );
 }

@@ -12,6 +12,7 @@ use hal::serial::{SerialAxis, SerialBus, SerialConfig};
 use hal::{CycleCommand, CycleFeedback, DriveBus, DriveState};
 use sim::SimDriveParams;
 use sim::can_node::CanNode;
+use sim::cia401_module::Cia401Module;
 use sim::cia402_drive::Cia402Drive;
 
 #[global_allocator]
@@ -22,6 +23,7 @@ use alloc_count::allocations;
 /// In-memory bus with every buffer allocated up front.
 struct Net {
     nodes: Vec<CanNode>,
+    modules: Vec<Cia401Module>,
     now_ms: u64,
     out: Vec<Frame>,
     to_master: VecDeque<Frame>,
@@ -31,6 +33,9 @@ impl CanPort for Net {
     fn send(&mut self, f: &Frame) -> Result<(), PortError> {
         for n in &mut self.nodes {
             n.handle(f, self.now_ms, &mut self.out);
+        }
+        for m in &mut self.modules {
+            m.handle(f, self.now_ms, &mut self.out);
         }
         self.to_master.extend(self.out.drain(..));
         Ok(())
@@ -47,6 +52,7 @@ fn can_master_cycle_does_not_allocate() {
         .collect();
     let net = Net {
         nodes,
+        modules: Vec::new(),
         now_ms: 0,
         out: Vec::with_capacity(256),
         to_master: VecDeque::with_capacity(1024),
@@ -110,6 +116,71 @@ fn can_master_cycle_does_not_allocate() {
         0,
         "allocations in cycle/enable/reset"
     );
+}
+
+/// One tick of the in-memory bus: the nodes and modules see 4 ms pass, the master cycles.
+fn io_tick(
+    m: &mut CanOpenMaster<Net>,
+    cmd: &CycleCommand,
+    fb: &mut CycleFeedback,
+) -> Result<(), hal::BusFault> {
+    let net = m.port_mut();
+    net.now_ms += 4;
+    for n in &mut net.nodes {
+        n.poll(net.now_ms, &mut net.out);
+    }
+    for md in &mut net.modules {
+        md.poll(net.now_ms, &mut net.out);
+    }
+    net.to_master.extend(net.out.drain(..));
+    m.cycle(cmd, fb)
+}
+
+/// The digital I/O (a CiA 401 module, a drive's 0x60FD/0x60FE) adds no allocation to the
+/// cycle, including a module's fault and its restart.
+#[test]
+fn can_master_cycle_with_io_does_not_allocate() {
+    use hal::io::{IoBits, IoMap, IoPoint};
+    let net = Net {
+        nodes: vec![CanNode::new(
+            1,
+            Cia402Drive::new(SimDriveParams::default(), 1000.0, 0.0),
+        )],
+        modules: vec![Cia401Module::new(10, 2)],
+        now_ms: 0,
+        out: Vec::with_capacity(256),
+        to_master: VecDeque::with_capacity(1024),
+    };
+    let mut cfg = CanOpenConfig::new(vec![NodeConfig::new(NodeId::new(1).unwrap(), 1000.0)]);
+    let module = |bit| IoPoint::Module { node: 10, bit };
+    cfg.io = IoMap {
+        inputs: vec![module(0), module(9), IoPoint::Drive { axis: 0, bit: 2 }],
+        outputs: vec![module(1), IoPoint::Drive { axis: 0, bit: 0 }],
+        safe_outputs: IoBits::NONE,
+    };
+    let mut m = CanOpenMaster::new(net, "mem", cfg).unwrap();
+    let mut cmd = CycleCommand::default();
+    let mut fb = CycleFeedback::default();
+    let before = allocations();
+    m.enable();
+    for i in 0..400u64 {
+        cmd.outputs = IoBits(i / 7 % 4);
+        m.port_mut().modules[0].io.set_input(9, i % 3 == 0);
+        io_tick(&mut m, &cmd, &mut fb).unwrap();
+    }
+    assert_eq!(fb.axes[0].state, DriveState::Operational);
+    m.port_mut().modules[0].inject.drop_heartbeat = true;
+    let mut faulted = false;
+    for _ in 0..300 {
+        faulted |= io_tick(&mut m, &cmd, &mut fb).is_err();
+    }
+    assert!(faulted);
+    m.port_mut().modules[0].inject.drop_heartbeat = false;
+    m.reset();
+    for _ in 0..200 {
+        io_tick(&mut m, &cmd, &mut fb).unwrap();
+    }
+    assert_eq!(allocations() - before, 0, "allocations with I/O");
 }
 
 #[test]

@@ -1,7 +1,10 @@
 //! The cyclic CANopen master for CiA 402 drives: axes in Cyclic Synchronous Position mode
 //! (CSP), and an optional spindle drive in Cyclic Synchronous Velocity mode (CSV) that gets
 //! the spindle speed setpoint and reports the actual speed. The spindle node goes through the
-//! same start-up, enable sequence, watchdogs and fault handling as the axis nodes.
+//! same start-up, enable sequence, watchdogs and fault handling as the axis nodes. The digital
+//! I/O of `cfg.io` travels on CiA 401 modules (booted, configured and watched like the drives,
+//! without a power stage: `io_module.rs`) and in the drives' PDO2 (0x60FD, 0x60FE:1), as
+//! resolved once in `io_plan.rs`.
 //!
 //! Everything happens inside [`DriveBus::cycle`], once per tick, without blocking or
 //! allocating:
@@ -13,7 +16,8 @@
 //!    setpoints; watch TPDOs and heartbeats; on shutdown walk the power stage down and leave
 //!    the bus;
 //! 3. send SYNC (once a node is started), then one RPDO (controlword, target position) per
-//!    node in NMT operational.
+//!    node in NMT operational (and its RPDO2 with 0x60FE:1 where mapped), then one RPDO per
+//!    I/O module with its outputs.
 //!
 //! Drives latch the RPDO at the next SYNC and answer each SYNC with their TPDO, so feedback is
 //! one tick old. Timeouts are counted in ticks, so a late tick never causes a false alarm.
@@ -35,13 +39,19 @@ use crate::{
 use super::emcy::{self, Emcy};
 use super::pdo::{self, OpMode, Rpdo, Tpdo};
 use super::sdo::{self, Response};
-use super::{CanOpenError, CanPort, Frame, NodeId, PortError, RxEvent, cob, err_class, nmt};
+use super::{
+    CanOpenError, CanPort, Frame, NodeId, PortError, RxEvent, cia401, cob, err_class, nmt,
+};
 use crate::cia402::{Drive, DrivePhase, PowerState, cw, sw};
 pub use crate::cia402::{FaultReaction, ShutdownMode};
 use crate::units::to_units;
 
 #[path = "homing.rs"]
 mod homing;
+#[path = "io_module.rs"]
+mod io_module;
+#[path = "io_plan.rs"]
+mod io_plan;
 #[path = "node.rs"]
 mod node;
 #[path = "receive.rs"]
@@ -50,6 +60,8 @@ mod receive;
 mod startup;
 use homing::Home;
 pub use homing::HomingParams;
+use io_module::IoModule;
+use io_plan::IoPlan;
 use node::{Node, Off, Outbox, Phase, Timing};
 use receive::SdoAnswer;
 use startup::{Step, check_config, startup_steps, step_object, ticks};
@@ -181,6 +193,10 @@ pub struct CanOpenMaster<P: CanPort> {
     cfg: CanOpenConfig,
     /// Axis nodes first (`[..axes]`), then the spindle node if configured.
     nodes: Vec<Node>,
+    /// The CiA 401 I/O modules of `cfg.io`, in the order first named.
+    modules: Vec<IoModule>,
+    /// Where each input and output of `cfg.io` travels.
+    io: IoPlan,
     axes: usize,
     timing: Timing,
     /// The frames a node's step sends, emptied onto the bus after each step.
@@ -210,6 +226,9 @@ impl<P: CanPort> CanOpenMaster<P> {
     /// interface name for logs. Nothing is sent before [`DriveBus::enable`].
     pub fn new(port: P, name: &str, cfg: CanOpenConfig) -> Result<Self, CanOpenError> {
         check_config(&cfg)?;
+        io_plan::check_modules(&cfg)?;
+        let module_ids = cfg.io.modules();
+        let io = IoPlan::new(&cfg, &module_ids)?;
         let mut nodes: Vec<Node> = cfg
             .nodes
             .iter()
@@ -222,10 +241,29 @@ impl<P: CanPort> CanOpenMaster<P> {
             };
             nodes.push(Node::new(&cfg, n, OpMode::Csv));
         }
+        for (i, n) in nodes.iter_mut().enumerate() {
+            n.set_io(io.drive_io(i));
+        }
+        let modules = module_ids
+            .iter()
+            .enumerate()
+            .map(|(i, &node)| {
+                let (input_groups, output_groups) = io.module_groups(i);
+                let plan = cia401::ModulePlan {
+                    node,
+                    input_groups,
+                    output_groups,
+                    safe_outputs: io.module_bits(i, cfg.io.safe_outputs),
+                };
+                IoModule::new(&cfg, plan)
+            })
+            .collect();
         Ok(CanOpenMaster {
             port,
             name: name.to_owned(),
             axes: cfg.nodes.len(),
+            modules,
+            io,
             timing: Timing::new(&cfg),
             outbox: Outbox::new(),
             cfg,
@@ -277,15 +315,16 @@ impl<P: CanPort> CanOpenMaster<P> {
         }
     }
 
-    /// A received frame, to the node it comes from.
+    /// A received frame, to the node or module it comes from.
     fn on_frame(&mut self, f: &Frame) {
         let (code, node_id) = cob::split(f.id);
         let Some(i) = self.node_index(node_id) else {
-            return;
+            return self.on_module_frame(code, node_id, f);
         };
         let (now, n) = (self.tick, &mut self.nodes[i]);
         match code {
             cob::TPDO1 => n.on_tpdo(f),
+            cob::TPDO2 => n.on_tpdo2(f),
             cob::EMCY => n.on_emcy(f.payload()),
             cob::HEARTBEAT => {
                 if let Some(&state) = f.payload().first() {
@@ -302,22 +341,53 @@ impl<P: CanPort> CanOpenMaster<P> {
         }
     }
 
-    /// NMT start for every configured node once no node is still being configured: the
-    /// drives get SYNC and PDOs only after all of them have their configuration.
+    /// A received frame of an I/O module (or of no node of ours).
+    fn on_module_frame(&mut self, code: u16, node_id: u8, f: &Frame) {
+        let Some(m) = self.modules.iter_mut().find(|m| m.id == node_id) else {
+            return;
+        };
+        match code {
+            cob::TPDO1 => m.on_tpdo(f),
+            cob::EMCY => m.on_emcy(f.payload()),
+            cob::HEARTBEAT => {
+                if let Some(&state) = f.payload().first() {
+                    m.on_heartbeat(self.tick, state);
+                }
+            }
+            cob::SDO_TX => {
+                if let Some(r) = sdo::parse_response(f.payload()) {
+                    m.on_sdo_response(self.tick, r, &mut self.outbox);
+                    self.flush();
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// NMT start for every configured node and module once none is still being configured:
+    /// SYNC and PDOs begin only after all of them have their configuration.
     fn start_configured(&mut self) {
+        let busy = |p: Phase| {
+            matches!(
+                p,
+                Phase::ResetPending { .. } | Phase::Booting { .. } | Phase::Configuring { .. }
+            )
+        };
         if self.shutting_down
-            || self.nodes.iter().any(|n| {
-                matches!(
-                    n.phase,
-                    Phase::ResetPending { .. } | Phase::Booting { .. } | Phase::Configuring { .. }
-                )
-            })
+            || self.nodes.iter().any(|n| busy(n.phase))
+            || self.modules.iter().any(|m| busy(m.phase))
         {
             return;
         }
         for i in 0..self.nodes.len() {
             if self.nodes[i].phase == Phase::Configured {
                 self.nodes[i].nmt_start(self.tick, &mut self.outbox);
+                self.flush();
+            }
+        }
+        for i in 0..self.modules.len() {
+            if self.modules[i].phase == Phase::Configured {
+                self.modules[i].nmt_start(self.tick, &mut self.outbox);
                 self.flush();
             }
         }
@@ -381,19 +451,33 @@ impl<P: CanPort> CanOpenMaster<P> {
         to_units(value, self.nodes[i].cfg.increments_per_mm)
     }
 
-    /// SYNC (once a node is started), one RPDO per node in NMT operational, the heartbeat.
-    fn send_cyclic(&mut self) {
-        if self.nodes.iter().any(Node::gets_rpdo) {
+    /// SYNC (once a node is started), one RPDO per node in NMT operational (and its RPDO2
+    /// with 0x60FE:1 if it carries outputs), one RPDO per I/O module with its outputs, the
+    /// heartbeat.
+    fn send_cyclic(&mut self, outputs: crate::io::IoBits) {
+        if self.nodes.iter().any(Node::gets_rpdo) || self.modules.iter().any(IoModule::needs_sync) {
             self.send(&pdo::sync());
         }
         for i in 0..self.nodes.len() {
             let n = &self.nodes[i];
             if n.gets_rpdo() {
+                let id = n.cfg.node_id.get();
                 let f = Rpdo {
                     controlword: n.drive.controlword(),
                     target_increments: n.drive.target_increments(),
                 }
-                .encode(n.cfg.node_id.get());
+                .encode(id);
+                let io_out = n.io.outputs;
+                self.send(&f);
+                if io_out {
+                    let bits = self.io.drive_bits(i, outputs);
+                    self.send(&cia401::encode_u32(cob::RPDO2 + u16::from(id), bits));
+                }
+            }
+        }
+        for i in 0..self.modules.len() {
+            if self.modules[i].gets_rpdo() {
+                let f = self.modules[i].rpdo(self.io.module_bits(i, outputs));
                 self.send(&f);
             }
         }
@@ -438,6 +522,21 @@ impl<P: CanPort> CanOpenMaster<P> {
         };
         feedback.spindle_rpm = spindle_rpm;
         feedback.spindle_state = spindle_state;
+        feedback.inputs = self
+            .io
+            .inputs_from(|m| self.modules[m].inputs, |n| self.nodes[n].digital_inputs);
+    }
+
+    /// During shutdown, once every drive is off: the modules leave the bus. Until then they
+    /// keep getting the caller's outputs (the safe ones by then).
+    fn shut_down_modules(&mut self) {
+        if !self.shutting_down || !self.nodes.iter().all(Node::is_off) {
+            return;
+        }
+        for i in 0..self.modules.len() {
+            self.modules[i].shut_down(self.tick, &mut self.outbox);
+            self.flush();
+        }
     }
 
     /// A fault anywhere on the bus interrupts every reference run: the machine stops.
@@ -467,6 +566,16 @@ impl<P: CanPort> CanOpenMaster<P> {
                 return Err(BusFault {
                     axis: Some(self.axis_of(i)),
                     node: Some(n.cfg.node_id.get()),
+                    reason,
+                });
+            }
+        }
+        // A module's fault names its node and no axis.
+        for m in &self.modules {
+            if let Some(reason) = m.fault_reason() {
+                return Err(BusFault {
+                    axis: None,
+                    node: Some(m.id),
                     reason,
                 });
             }
@@ -501,13 +610,21 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
             self.nodes[i].tick(self.tick, target, &self.timing, &mut self.outbox);
             self.flush();
         }
+        for i in 0..self.modules.len() {
+            self.modules[i].tick(self.tick, &self.timing, &mut self.outbox);
+            self.flush();
+        }
         self.interrupt_homing_on_fault();
         self.start_configured();
         if self.enabled {
-            self.send_cyclic();
+            self.send_cyclic(cmd.outputs);
         }
-        if self.shutting_down && self.nodes.iter().all(Node::is_off) {
-            // Every drive has left: SYNC and the master's heartbeat stop.
+        self.shut_down_modules();
+        if self.shutting_down
+            && self.nodes.iter().all(Node::is_off)
+            && self.modules.iter().all(IoModule::is_off)
+        {
+            // Every drive and module has left: SYNC and the master's heartbeat stop.
             self.enabled = false;
         }
         // A transmit queue that stays full (nobody acknowledges, bus jammed) is a bus fault.
@@ -532,6 +649,13 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
                 };
             }
         }
+        for m in &mut self.modules {
+            if matches!(m.phase, Phase::Idle) {
+                m.phase = Phase::ResetPending {
+                    command: nmt::Command::ResetNode,
+                };
+            }
+        }
     }
 
     fn reset(&mut self) {
@@ -545,13 +669,18 @@ impl<P: CanPort> DriveBus for CanOpenMaster<P> {
         for n in &mut self.nodes {
             n.reset(self.tick, whole_bus, &self.timing);
         }
+        for m in &mut self.modules {
+            m.reset(whole_bus);
+        }
     }
 
     fn enable_timeout_ticks(&self) -> u32 {
         // The slowest path a node may take before it is operational or faulted by its own
         // timeouts: boot-up, every SDO with its retry, NMT start to the first TPDO, enable.
         let t = &self.timing;
-        let steps = self.nodes.iter().map(|n| n.steps.len()).max().unwrap_or(0) as u64;
+        let node_steps = self.nodes.iter().map(|n| n.steps.len());
+        let module_steps = self.modules.iter().map(|m| m.steps.len());
+        let steps = node_steps.chain(module_steps).max().unwrap_or(0) as u64;
         let boot = t.boot + 1;
         let sdo = 2 * (t.sdo + 1);
         let total = 2 * boot + steps * sdo + self.ticks(self.cfg.enable_timeout) + 2;

@@ -711,3 +711,6 @@ fn a_node_steps_from_reset_to_start_through_its_outbox() {
     assert_eq!(sent, [nmt::command(nmt::Command::Start, 5)]);
     assert_eq!(n.drive.target_increments(), 777);
 }
+
+#[path = "io_tests.rs"]
+mod io;

@@ -1,7 +1,8 @@
-//! CANopen (CiA 301) for CiA 402 drives: frame encodings in small modules, the cyclic
+//! CANopen (CiA 301) for CiA 402 drives and CiA 401 I/O modules: frame encodings in small modules, the cyclic
 //! [`master::CanOpenMaster`] (a state machine that talks to the bus only through [`CanPort`]),
 //! and the SocketCAN port in [`socket`].
 
+pub mod cia401;
 pub mod emcy;
 pub mod master;
 pub mod nmt;
@@ -74,6 +75,14 @@ pub enum CanOpenError {
     SpindleNodeUsed { node: NodeId },
     #[error("velocity units per rpm of the spindle must be positive")]
     SpindleScale,
+    #[error("node id {node} of an I/O module is the master's or a drive's")]
+    ModuleNodeUsed { node: u8 },
+    #[error("I/O module node {node}: bit {bit} is beyond the 64 bits a PDO carries")]
+    ModuleBitRange { node: u8, bit: u8 },
+    #[error("I/O point on axis index {axis}: no drive of that axis on this bus")]
+    IoDriveMissing { axis: u8 },
+    #[error("I/O point on axis index {axis}: bit {bit} is beyond the 32 bits of 0x60FD/0x60FE")]
+    IoDriveBitRange { axis: u8, bit: u8 },
     #[error("cannot open CAN interface {iface}: {reason} (does it exist and is it up?)")]
     Open { iface: String, reason: String },
     #[error("cannot configure CAN interface {iface}: {reason}")]
@@ -94,6 +103,10 @@ impl CanOpenError {
             CanOpenError::SpindleNodeIsMaster { .. } => "can_spindle_node_is_master",
             CanOpenError::SpindleNodeUsed { .. } => "can_spindle_node_used",
             CanOpenError::SpindleScale => "can_spindle_scale",
+            CanOpenError::ModuleNodeUsed { .. } => "can_module_node_used",
+            CanOpenError::ModuleBitRange { .. } => "can_module_bit_range",
+            CanOpenError::IoDriveMissing { .. } => "can_io_drive_missing",
+            CanOpenError::IoDriveBitRange { .. } => "can_io_drive_bit_range",
             CanOpenError::Open { .. } => "can_open",
             CanOpenError::Configure { .. } => "can_configure",
         }
@@ -107,6 +120,8 @@ pub mod cob {
     pub const EMCY: u16 = 0x080;
     pub const TPDO1: u16 = 0x180;
     pub const RPDO1: u16 = 0x200;
+    pub const TPDO2: u16 = 0x280;
+    pub const RPDO2: u16 = 0x300;
     pub const SDO_TX: u16 = 0x580;
     pub const SDO_RX: u16 = 0x600;
     pub const HEARTBEAT: u16 = 0x700;

@@ -150,6 +150,10 @@ pub(super) struct Node {
     /// The mode of operation may not be CSP (a reference run did not return): a reset
     /// restarts the node so its configuration writes 0x6060 = 8 again.
     pub(super) mode_changed: bool,
+    /// The drive's own digital I/O the map uses (0x60FD in TPDO2, 0x60FE:1 in RPDO2).
+    pub(super) io: io_plan::DriveIo,
+    /// The newest 0x60FD the drive sent.
+    pub(super) digital_inputs: u32,
 }
 
 impl Node {
@@ -180,7 +184,16 @@ impl Node {
             homing: HomingState::Idle,
             home_since: 0,
             mode_changed: false,
+            io: io_plan::DriveIo::default(),
+            digital_inputs: 0,
         }
+    }
+
+    /// The drive carries digital I/O of the map: its start-up maps 0x60FD / 0x60FE:1 too.
+    pub(super) fn set_io(&mut self, io: io_plan::DriveIo) {
+        let steps = std::mem::take(&mut self.steps);
+        self.steps = startup::with_drive_io(steps, self.id(), io.inputs, io.outputs);
+        self.io = io;
     }
 
     pub(super) fn id(&self) -> u8 {

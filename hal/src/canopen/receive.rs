@@ -1,4 +1,5 @@
 //! What a node makes of the frames it sends the master: its TPDO (statusword, actual value),
+//! its TPDO2 (digital inputs 0x60FD, when mapped),
 //! EMCY, heartbeat and SDO answers. The master only dispatches by COB-ID. A child of `master`.
 
 use super::*;
@@ -24,6 +25,22 @@ impl Node {
                 cob_id: f.id,
                 len: f.len,
                 expected: pdo::LEN as u8,
+            }),
+            None => {}
+        }
+    }
+
+    /// TPDO2 of a drive carrying inputs: 0x60FD, answering the same SYNC as its TPDO1.
+    pub(super) fn on_tpdo2(&mut self, f: &Frame) {
+        if !self.io.inputs {
+            return;
+        }
+        match cia401::decode_u32(f.payload()) {
+            Some(bits) => self.digital_inputs = bits,
+            None if self.expects_pdo() => self.fault(FaultReason::PdoLength {
+                cob_id: f.id,
+                len: f.len,
+                expected: 4,
             }),
             None => {}
         }

@@ -68,6 +68,57 @@ pub(super) fn startup_steps(c: &CanOpenConfig, n: &NodeConfig, mode: OpMode) -> 
     steps
 }
 
+/// The start-up plan of a CiA 401 I/O module: its PDOs and the error mode and values of its
+/// outputs ([`cia401::module_pdo_writes`]), its heartbeat (the drives' period), and its watch
+/// on the master's heartbeat with `io_consumer_timeout` (its outputs fall to their error
+/// values by themselves when the master goes silent).
+pub(super) fn module_steps(c: &CanOpenConfig, p: &cia401::ModulePlan) -> Vec<Step> {
+    let mut steps: Vec<Step> = cia401::module_pdo_writes(p)
+        .into_iter()
+        .map(write_step)
+        .collect();
+    steps.push(write_step((
+        0x1017,
+        0,
+        u32::from(ms_u16(c.drive_heartbeat)),
+        2,
+    )));
+    let consumer_ms = if c.master_heartbeat.is_zero() {
+        0
+    } else {
+        ms_u16(c.io_consumer_timeout)
+    };
+    let entry = (u32::from(c.master_node_id.get()) << 16) | u32::from(consumer_ms);
+    steps.push(write_step((0x1016, 1, entry, 4)));
+    steps
+}
+
+/// A drive's plan with its own digital I/O mapped into PDO2 ([`cia401::drive_io_writes`]),
+/// before the mode of operation is set; nothing changes for a drive without points.
+pub(super) fn with_drive_io(
+    mut steps: Vec<Step>,
+    node: u8,
+    inputs: bool,
+    outputs: bool,
+) -> Vec<Step> {
+    let at = steps
+        .iter()
+        .position(|s| matches!(s, Step::Write { index: 0x6060, .. }))
+        .unwrap_or(steps.len());
+    let io = cia401::drive_io_writes(node, inputs, outputs);
+    steps.splice(at..at, io.into_iter().map(write_step));
+    steps
+}
+
+fn write_step((index, subindex, value, size): cia401::Write) -> Step {
+    Step::Write {
+        index,
+        subindex,
+        value,
+        size,
+    }
+}
+
 pub(super) fn step_object(s: Step) -> (u16, u8) {
     match s {
         Step::Write {
