@@ -589,7 +589,7 @@ async fn plc_cells_by_name_and_address_with_units() {
         .await
         .unwrap()
         .into_inner();
-    assert_eq!(all.cells.len(), 15);
+    assert_eq!(all.cells.len(), 19);
     let v = &all.cells[0];
     assert_eq!((v.name.as_str(), v.address), ("AKRR_ACT_V", 0xA178));
     assert_eq!(v.unit, "mm/min");

@@ -421,7 +421,9 @@ fn bus_cycle_outside_1_to_10_ms_or_fractional_is_refused() {
 fn io_mistakes_are_refused_with_the_key() {
     let can = "[bus]\nkind = \"can\"\ninterface = \"vcan0\"\n";
     let estop = |node: u8, bit: u8| {
-        format!("[[io.inputs]]\nname = \"e{node}_{bit}\"\nnode_id = {node}\nbit = {bit}\nfunction = \"estop\"\n")
+        format!(
+            "[[io.inputs]]\nname = \"e{node}_{bit}\"\nnode_id = {node}\nbit = {bit}\nfunction = \"estop\"\n"
+        )
     };
     // The issue's configuration is accepted as written.
     let ok = format!(
@@ -429,29 +431,71 @@ fn io_mistakes_are_refused_with_the_key() {
         estop(10, 0)
     );
     let out = check_text("io_ok", &ok);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     // One input, one function: the same point twice.
     let twice = format!(
         "{can}{}[[io.inputs]]\nname = \"door\"\nnode_id = 10\nbit = 0\nfunction = \"door\"\n",
         estop(10, 0)
     );
-    assert_refused("io_input_twice", &twice, "config_duplicate", &["io.inputs[1]"]);
+    assert_refused(
+        "io_input_twice",
+        &twice,
+        "config_duplicate",
+        &["io.inputs[1]"],
+    );
     // One output bound twice.
     let out_twice = format!(
         "{can}[[io.outputs]]\nname = \"a\"\nnode_id = 10\nbit = 1\n\
          [[io.outputs]]\nname = \"b\"\nnode_id = 10\nbit = 1\n"
     );
-    assert_refused("io_output_twice", &out_twice, "config_duplicate", &["io.outputs[1]"]);
+    assert_refused(
+        "io_output_twice",
+        &out_twice,
+        "config_duplicate",
+        &["io.outputs[1]"],
+    );
     // A node that is a drive's (unknown as a module), a module on a sim bus.
-    assert_refused("io_drive_node", &format!("{can}{}", estop(1, 0)), "config_duplicate", &["io.inputs[0].node_id", "axis X"]);
-    assert_refused("io_sim_node", &estop(10, 0), "config_bad_value", &["io.inputs[0].node_id"]);
+    assert_refused(
+        "io_drive_node",
+        &format!("{can}{}", estop(1, 0)),
+        "config_duplicate",
+        &["io.inputs[0].node_id", "axis X"],
+    );
+    assert_refused(
+        "io_sim_node",
+        &estop(10, 0),
+        "config_bad_value",
+        &["io.inputs[0].node_id"],
+    );
     // A bit outside the module, or outside any module.
-    let small = format!("{can}{}[[io.modules]]\nnode_id = 10\ninput_bits = 8\n", estop(10, 8));
-    assert_refused("io_bit_module", &small, "config_bad_value", &["io.inputs[0].bit", "module 10"]);
-    assert_refused("io_bit_64", &format!("{can}{}", estop(10, 64)), "config_bad_value", &["io.inputs[0].bit"]);
+    let small = format!(
+        "{can}{}[[io.modules]]\nnode_id = 10\ninput_bits = 8\n",
+        estop(10, 8)
+    );
+    assert_refused(
+        "io_bit_module",
+        &small,
+        "config_bad_value",
+        &["io.inputs[0].bit", "module 10"],
+    );
+    assert_refused(
+        "io_bit_64",
+        &format!("{can}{}", estop(10, 64)),
+        "config_bad_value",
+        &["io.inputs[0].bit"],
+    );
     // An M function the controller uses itself.
     let m5 = format!("{can}[[io.outputs]]\nname = \"x\"\nnode_id = 10\nbit = 0\non = [\"M5\"]\n");
-    assert_refused("io_m5", &m5, "config_bad_value", &["io.outputs[0].on[0]", "M5"]);
+    assert_refused(
+        "io_m5",
+        &m5,
+        "config_bad_value",
+        &["io.outputs[0].on[0]", "M5"],
+    );
     // An unknown key is named by serde.
     let typo = "[[io.inputs]]\nname = \"e\"\nfuntion = \"estop\"\n";
     assert_refused("io_typo", typo, "config_parse", &["funtion"]);

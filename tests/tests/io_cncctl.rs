@@ -35,14 +35,21 @@ fn estop_force_and_m8_through_cncd_and_cncctl() {
     assert_eq!(io["simulated"], true);
     // The human list names every point.
     let (ok, text) = d.cncctl(&["io"]);
-    assert!(ok && text.contains("x_limit_pos") && text.contains("spindle_enable"), "{text}");
+    assert!(
+        ok && text.contains("x_limit_pos") && text.contains("spindle_enable"),
+        "{text}"
+    );
     // MDI M8 switches the coolant on, M9 off.
     let (ok, out) = d.cncctl(&["mdi", "M8"]);
     assert!(ok, "{out}");
-    wait_for("coolant on", || value(&io_json(&d), "outputs", "coolant") == 1);
+    wait_for("coolant on", || {
+        value(&io_json(&d), "outputs", "coolant") == 1
+    });
     let (ok, out) = d.cncctl(&["mdi", "M9"]);
     assert!(ok, "{out}");
-    wait_for("coolant off", || value(&io_json(&d), "outputs", "coolant") == 0);
+    wait_for("coolant off", || {
+        value(&io_json(&d), "outputs", "coolant") == 0
+    });
     // The e-stop chain opens: fault; Reset is refused until it closes.
     let (ok, out) = d.cncctl(&["io", "sim-set", "estop", "0"]);
     assert!(ok, "{out}");

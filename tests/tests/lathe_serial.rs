@@ -32,6 +32,9 @@ fn lathe() -> Harness {
     cfg.axes[1].home_mm = 100.0;
     cfg.kr.radius_input = RadiusInputConfig::Diameter;
     cfg.kr.gears = tests::lathe_gears();
+    // The harness runs a serial unit under a simulated-machine configuration: its own I/O
+    // set is not wired here.
+    cfg.io = Some(Default::default());
     tests::save_lathe_constants(&cfg, true);
 
     let drives = [150.0, 100.0]

@@ -60,10 +60,14 @@ pub enum CellId {
     AkrrVcorr,
     AkrrCntr,
     DynamSet,
+    IoInLo,
+    IoInHi,
+    IoOutLo,
+    IoOutHi,
 }
 
 /// Number of cells in the area.
-pub const CELL_COUNT: usize = 15;
+pub const CELL_COUNT: usize = 19;
 
 impl CellId {
     /// Index of the cell in [`CATALOGUE`] and in the area's storage.
@@ -147,7 +151,7 @@ const fn cell(
 use Access::{ReadOnly, ReadWrite};
 use CellUnit::*;
 
-/// Every cell of memory area 1, in address order (SPEC §6 table; A1ACh and A1B0h are ours).
+/// Every cell of memory area 1, in address order (SPEC §6 table; A1ACh..A1C0h are ours).
 pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
     cell(
         CellId::AkrrActV,
@@ -286,6 +290,42 @@ pub const CATALOGUE: [CellInfo; CELL_COUNT] = [
         (0, 3),
         "dynamic parameter set selected by the PLC: 0..3 = set 1..4 (SPEC §7.4)",
     ),
+    cell(
+        CellId::IoInLo,
+        "IO_IN_LO",
+        0xA1B4,
+        Bits,
+        ReadOnly,
+        (i32::MIN, i32::MAX),
+        "the machine's inputs 0..31 in their function's sense, bit k = input k (docs/io.md)",
+    ),
+    cell(
+        CellId::IoInHi,
+        "IO_IN_HI",
+        0xA1B8,
+        Bits,
+        ReadOnly,
+        (i32::MIN, i32::MAX),
+        "the machine's inputs 32..63, bit k = input 32 + k (docs/io.md)",
+    ),
+    cell(
+        CellId::IoOutLo,
+        "IO_OUT_LO",
+        0xA1BC,
+        Bits,
+        ReadOnly,
+        (i32::MIN, i32::MAX),
+        "the machine's outputs 0..31 as sent this tick, bit k = output k (docs/io.md)",
+    ),
+    cell(
+        CellId::IoOutHi,
+        "IO_OUT_HI",
+        0xA1C0,
+        Bits,
+        ReadOnly,
+        (i32::MIN, i32::MAX),
+        "the machine's outputs 32..63 (docs/io.md)",
+    ),
 ];
 
 /// Catalogue entry at a byte address.
@@ -311,7 +351,7 @@ mod tests {
             assert_eq!(c.address % 4, 0, "{}", c.name);
             assert!(c.min <= c.max, "{}", c.name);
         }
-        // Address order, 4 bytes apart, no holes: A178h..A1B0h.
+        // Address order, 4 bytes apart, no holes: A178h..A1C0h.
         for w in CATALOGUE.windows(2) {
             assert_eq!(w[1].address, w[0].address + 4);
         }

@@ -209,6 +209,7 @@ pub fn spawn_watcher(ctl: Arc<Controller>, log: Arc<AlarmLog>) {
     tokio::spawn(async move {
         let mut last_fault: Option<String> = None;
         let mut last_plan: Option<String> = None;
+        let mut last_io = IoAlarms::default();
         let mut every = tokio::time::interval(WATCH_PERIOD);
         every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         loop {
@@ -228,6 +229,11 @@ pub fn spawn_watcher(ctl: Arc<Controller>, log: Arc<AlarmLog>) {
                 }
                 last_fault = fault;
             }
+            let io = IoAlarms::of(&s);
+            if io != last_io {
+                io_alarm_events(&ctl, &log, last_io, io);
+                last_io = io;
+            }
             let plan = ctl.alarm();
             if plan != last_plan {
                 match &plan {
@@ -238,4 +244,54 @@ pub fn spawn_watcher(ctl: Arc<Controller>, log: Arc<AlarmLog>) {
             }
         }
     });
+}
+
+/// The alarms of the machine's inputs: active warning inputs, and timed-out waits of M
+/// functions (docs/io.md). Fault-severity inputs, the e-stop and limit switches are faults.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct IoAlarms {
+    inputs: u64,
+    waits: u64,
+}
+
+impl IoAlarms {
+    fn of(s: &crate::runtime::rt::Snapshot) -> IoAlarms {
+        IoAlarms {
+            inputs: s.io.alarms.0,
+            waits: s.io.wait_timed_out.0,
+        }
+    }
+}
+
+/// Raises and clears one alarm per input (source `input:NAME`, `wait:NAME`).
+fn io_alarm_events(ctl: &Controller, log: &AlarmLog, was: IoAlarms, now: IoAlarms) {
+    let io = ctl.config().io();
+    for (k, inp) in io.inputs.iter().enumerate().take(hal::io::MAX_IO) {
+        let bit = 1u64 << k;
+        let source = format!("input:{}", inp.name);
+        match (was.inputs & bit != 0, now.inputs & bit != 0) {
+            (false, true) => {
+                let msg = inp
+                    .message
+                    .clone()
+                    .unwrap_or_else(|| format!("input {} active", inp.name));
+                log.raise(&source, msg);
+            }
+            (true, false) => log.clear(&source),
+            _ => {}
+        }
+        let source = format!("wait:{}", inp.name);
+        match (was.waits & bit != 0, now.waits & bit != 0) {
+            (false, true) => log.raise(
+                &source,
+                format!(
+                    "io_wait_timeout: input {} did not confirm within {} ms; the program holds \
+                     (Resume waits again)",
+                    inp.name, inp.timeout_ms
+                ),
+            ),
+            (true, false) => log.clear(&source),
+            _ => {}
+        }
+    }
 }

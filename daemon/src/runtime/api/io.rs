@@ -9,50 +9,65 @@ use super::super::config::{Config, InputFunction, OutputFunction};
 use super::super::io_setup;
 use super::super::rt::Snapshot;
 
-/// The list of inputs and outputs with their values in `s`.
-pub fn io_list(config: &Config, s: &Snapshot, simulated: bool) -> pb::IoList {
-    let io = config.io();
-    let map = io_setup::io_map(config);
-    let st = &s.io;
-    let inputs = io
-        .inputs
-        .iter()
-        .enumerate()
-        .map(|(k, i)| pb::IoPoint {
-            name: i.name.clone(),
-            function: input_function_name(i.function).into(),
-            value: st.inputs.get(k),
-            wiring: wiring(config, map.inputs.get(k), "0x60FD"),
-            forced: false,
-            waited_for: st.waiting.get(k),
-            wait_timed_out: st.wait_timed_out.get(k),
-            on: i.confirms.clone(),
-            off: Vec::new(),
+/// What the list shows that the configuration fixes (names, functions, wiring, M functions),
+/// built once; [`IoCatalogue::list`] adds the values of a snapshot.
+#[derive(Clone, Debug, Default)]
+pub struct IoCatalogue(pb::IoList);
+
+impl IoCatalogue {
+    pub fn of(config: &Config) -> IoCatalogue {
+        let io = config.io();
+        let map = io_setup::io_map(config);
+        let inputs = io
+            .inputs
+            .iter()
+            .enumerate()
+            .map(|(k, i)| pb::IoPoint {
+                name: i.name.clone(),
+                function: input_function_name(i.function).into(),
+                wiring: wiring(config, map.inputs.get(k), "0x60FD"),
+                on: i.confirms.clone(),
+                ..pb::IoPoint::default()
+            })
+            .collect();
+        let outputs = io
+            .outputs
+            .iter()
+            .enumerate()
+            .map(|(k, o)| pb::IoPoint {
+                name: o.name.clone(),
+                function: output_function_name(o.function).into(),
+                wiring: wiring(config, map.outputs.get(k), "0x60FE"),
+                on: o.on.clone(),
+                off: o.off.clone(),
+                ..pb::IoPoint::default()
+            })
+            .collect();
+        IoCatalogue(pb::IoList {
+            inputs,
+            outputs,
+            ..pb::IoList::default()
         })
-        .collect();
-    let outputs = io
-        .outputs
-        .iter()
-        .enumerate()
-        .map(|(k, o)| pb::IoPoint {
-            name: o.name.clone(),
-            function: output_function_name(o.function).into(),
-            value: st.outputs.get(k),
-            wiring: wiring(config, map.outputs.get(k), "0x60FE"),
-            forced: st.forced.get(k),
-            waited_for: false,
-            wait_timed_out: false,
-            on: o.on.clone(),
-            off: o.off.clone(),
-        })
-        .collect();
-    pb::IoList {
-        inputs,
-        outputs,
-        estop_open: st.estop_open,
-        door_open: st.door_open,
-        limit_reached: st.limits.0 != 0,
-        simulated,
+    }
+
+    /// The list with the values of `s`.
+    pub fn list(&self, s: &Snapshot, simulated: bool) -> pb::IoList {
+        let st = &s.io;
+        let mut l = self.0.clone();
+        for (k, p) in l.inputs.iter_mut().enumerate() {
+            p.value = st.inputs.get(k);
+            p.waited_for = st.waiting.get(k);
+            p.wait_timed_out = st.wait_timed_out.get(k);
+        }
+        for (k, p) in l.outputs.iter_mut().enumerate() {
+            p.value = st.outputs.get(k);
+            p.forced = st.forced.get(k);
+        }
+        l.estop_open = st.estop_open;
+        l.door_open = st.door_open;
+        l.limit_reached = st.limits.0 != 0;
+        l.simulated = simulated;
+        l
     }
 }
 
@@ -88,5 +103,22 @@ fn output_function_name(f: OutputFunction) -> &'static str {
         OutputFunction::SpindleEnable => "spindle_enable",
         OutputFunction::SpindleCw => "spindle_cw",
         OutputFunction::SpindleCcw => "spindle_ccw",
+    }
+}
+
+/// The text of a fault, naming the input of an input's fault (and an alarm input's message).
+pub fn fault_text(config: &Config, reason: &hal::FaultReason) -> String {
+    use hal::FaultReason::{EmergencyStop, InputAlarm, LimitSwitch};
+    let input = match *reason {
+        EmergencyStop { input } | LimitSwitch { input, .. } | InputAlarm { input } => input,
+        _ => return reason.to_string(),
+    };
+    let io = config.io();
+    let Some(inp) = io.inputs.get(usize::from(input)) else {
+        return reason.to_string();
+    };
+    match (reason, &inp.message) {
+        (InputAlarm { .. }, Some(m)) => format!("alarm input {}: {m}", inp.name),
+        _ => format!("{reason} [input {}]", inp.name),
     }
 }

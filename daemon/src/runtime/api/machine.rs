@@ -84,7 +84,7 @@ fn command<Req, Rep: Default>(
 impl MachineSvc {
     fn io_now(&self) -> pb::IoList {
         let ctl = &self.0.ctl;
-        super::io::io_list(ctl.config(), &ctl.snapshot(), ctl.simulated())
+        self.0.io.list(&ctl.snapshot(), ctl.simulated())
     }
 }
 

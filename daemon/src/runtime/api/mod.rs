@@ -88,6 +88,8 @@ pub struct ApiState {
     jog: jog::JogSources,
     /// The selection's recorded pass, the started job, single block, the start lock.
     job: JobView,
+    /// The inputs and outputs as the configuration names them (docs/io.md).
+    pub io: io::IoCatalogue,
 }
 
 impl ApiState {
@@ -107,6 +109,7 @@ impl ApiState {
             st.dir.join(alarms::HISTORY_FILE),
         ));
         let streams = StreamBudget::new(api.max_streams as usize, api.reserved_streams as usize);
+        let io = io::IoCatalogue::of(ctl.config());
         let state = Arc::new(ApiState {
             ctl,
             library: Arc::new(library),
@@ -115,6 +118,7 @@ impl ApiState {
             streams,
             jog: jog::JogSources::default(),
             job: JobView::new(),
+            io,
         });
         alarms::spawn_watcher(state.ctl.clone(), state.alarms.clone());
         files_watch::spawn(state.ctl.clone(), state.alarms.clone());
@@ -221,7 +225,7 @@ impl ApiState {
                 line: s.progress.line,
                 block_index: s.progress.block_seq,
             }),
-            io: Some(io::io_list(ctl.config(), s, ctl.simulated())),
+            io: Some(self.io.list(s, ctl.simulated())),
         }
     }
 
@@ -401,7 +405,10 @@ pub fn alarm_text(ctl: &Controller, s: &Snapshot) -> Option<String> {
                 None => String::new(),
             };
             let node = f.node.map(|n| format!("node {n}, ")).unwrap_or_default();
-            Some(format!("{axis}{node}{}", f.reason))
+            Some(format!(
+                "{axis}{node}{}",
+                io::fault_text(ctl.config(), &f.reason)
+            ))
         }
         (None, a) => match s.alarm.kr_fault {
             Some(k) => Some(format!("constant cutting speed: {k}")),

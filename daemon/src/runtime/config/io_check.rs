@@ -165,13 +165,13 @@ impl IoSection {
                 ),
             });
         }
-        if let BusConfig::Can(c) = ctx.bus {
-            if c.master_node_id == node || c.spindle_node == Some(node) {
-                return Err(InvalidConfig::Duplicate {
-                    key,
-                    detail: format!("node {node} is the controller's or the spindle drive's"),
-                });
-            }
+        if let BusConfig::Can(c) = ctx.bus
+            && (c.master_node_id == node || c.spindle_node == Some(node))
+        {
+            return Err(InvalidConfig::Duplicate {
+                key,
+                detail: format!("node {node} is the controller's or the spindle drive's"),
+            });
         }
         Ok(())
     }
@@ -299,13 +299,13 @@ fn check_input(
             detail: "a limit or home switch names its axis".into(),
         });
     }
-    if let Some(a) = inp.axis {
-        if !ctx.axes.iter().any(|c| c.name == a) {
-            return Err(bad(
-                format!("{key}.axis"),
-                format!("'{a}' is not an axis of this machine"),
-            ));
-        }
+    if let Some(a) = inp.axis
+        && !ctx.axes.iter().any(|c| c.name == a)
+    {
+        return Err(bad(
+            format!("{key}.axis"),
+            format!("'{a}' is not an axis of this machine"),
+        ));
     }
     if inp.timeout_ms == 0 {
         return Err(bad(

@@ -423,6 +423,11 @@ impl Controller {
     /// Continues after a feed hold, a single-block hold or a program stop (M0/M1).
     /// FAILED_PRECONDITION when nothing is held (idle, after a stop, while stopping).
     pub fn resume(&self) -> Result<(), ControlError> {
+        if self.snapshot().io.door_open {
+            return Err(ControlError::WrongState(
+                "the door is open: close it, then Resume".into(),
+            ));
+        }
         self.jobs.resume(&self.rt)
     }
 

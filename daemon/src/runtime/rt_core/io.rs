@@ -7,6 +7,7 @@
 use hal::io::{IoBits, MAX_IO};
 use hal::{BusFault, FaultReason};
 use kernel::interp::InterpState;
+use kernel::plc::CellId;
 use kernel::units::MAX_AXES;
 
 use super::{MachineState, RtCore};
@@ -168,6 +169,13 @@ impl RtCore {
         // A limit that released needs no acknowledgement any more.
         st.limits_acknowledged.0 &= st.limits.0;
         st.alarms = IoBits(now & (f.alarm_warning | f.alarm_fault));
+        // While the drives are being enabled (power-on, after Reset) nothing moves and the
+        // inputs of modules still booting read 0: an open chain keeps the outputs safe
+        // (`outputs`) and faults once enabling ends.
+        if self.snap.state == MachineState::Enabling {
+            self.buttons(rose, now);
+            return;
+        }
         if st.estop_open {
             let open = f.estop & !now;
             self.input_fault(
@@ -287,6 +295,13 @@ impl RtCore {
         }
         out &= IoBits::first(f.outputs).0;
         st.outputs = IoBits(out);
+        let inputs = st.inputs.0;
+        // The PLC area shows both (docs/plc.md): bit patterns of two double words each.
+        let plc = &mut self.logic.plc;
+        plc.set_act(CellId::IoInLo, inputs as u32 as i32);
+        plc.set_act(CellId::IoInHi, (inputs >> 32) as u32 as i32);
+        plc.set_act(CellId::IoOutLo, out as u32 as i32);
+        plc.set_act(CellId::IoOutHi, (out >> 32) as u32 as i32);
         self.io.cmd.outputs = IoBits(out);
         self.io.bus_cmd.outputs = IoBits(out);
     }
@@ -354,6 +369,6 @@ impl RtCore {
     /// A home switch configured as an input for `axis` (reference runs by the controller).
     pub(super) fn home_input(&self, axis: usize) -> Option<bool> {
         let mask = self.io_logic.f.home.get(axis).copied().unwrap_or(0);
-        (mask != 0).then(|| self.io_logic.last & mask != 0)
+        (mask != 0).then_some(self.io_logic.last & mask != 0)
     }
 }
