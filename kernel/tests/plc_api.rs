@@ -16,7 +16,7 @@ fn busy_area() -> PlcArea {
     a
 }
 
-/// The SPEC §6 table, and our two addresses.
+/// The SPEC §6 table, and our addresses (AKRR_CNTR, DYNAM_SET, the I/O cells).
 #[test]
 fn catalogue_matches_the_spec_table() {
     let expect = [
@@ -35,6 +35,10 @@ fn catalogue_matches_the_spec_table() {
         ("AKRR_VCORR", 0xA1A8, "mm/min", Access::ReadWrite),
         ("AKRR_CNTR", 0xA1AC, "bits", Access::ReadWrite),
         ("DYNAM_SET", 0xA1B0, "index", Access::ReadWrite),
+        ("IO_IN_LO", 0xA1B4, "bits", Access::ReadOnly),
+        ("IO_IN_HI", 0xA1B8, "bits", Access::ReadOnly),
+        ("IO_OUT_LO", 0xA1BC, "bits", Access::ReadOnly),
+        ("IO_OUT_HI", 0xA1C0, "bits", Access::ReadOnly),
     ];
     let got: Vec<_> = PlcArea::new()
         .list()
@@ -56,8 +60,8 @@ fn reads_by_address_and_name() {
     assert_eq!(a.read_by_name("AKRR_SMAX"), Ok(1_500_000));
     assert_eq!(a.input(CellId::AkrrSmax), 0);
     assert_eq!(
-        a.read(0xA1B4),
-        Err(PlcError::UnknownAddress { address: 0xA1B4 })
+        a.read(0xA1C4),
+        Err(PlcError::UnknownAddress { address: 0xA1C4 })
     );
 }
 

@@ -882,6 +882,7 @@ impl Interpolator {
             && here.spindle_after.is_none()
             && !self.stops_here(here.program_stop)
             && !self.stops_here(next.program_stop_before)
+            && !next.spindle.outputs.touched
             && next.spindle.outputs.wait == 0
             && next.dwell_before_s <= 0.0
     }

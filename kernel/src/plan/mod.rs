@@ -425,9 +425,9 @@ impl Planner {
         own.spindle.outputs.wait |= self.pending_wait;
         let block = &own;
         self.spindle_state = block.spindle;
-        if block.spindle.outputs.wait != 0 {
-            // An M function that waits for an input acts before the motion, at rest: the
-            // block starts from a stop (docs/io.md).
+        if block.spindle.outputs.wait != 0 || block.spindle.outputs.touched {
+            // M functions on outputs act before the motion, at rest (and one that waits for
+            // an input waits there): the block starts from a stop (docs/io.md).
             self.flush_carry();
             self.force_stop(0.0);
         }

@@ -297,7 +297,7 @@ impl Motion {
     /// Clears a fault and re-enables the drives.
     pub(super) fn reset(&self, rt: &RtLink) -> Result<(), ControlError> {
         let snap = rt.snapshot();
-        if snap.io.estop_open {
+        if snap.io.estop_open && !crate::runtime::rt_core::bus_fault(&snap) {
             return Err(ControlError::WrongState(
                 "the emergency-stop chain is open: close it (release the button), then Reset"
                     .into(),

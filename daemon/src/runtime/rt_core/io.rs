@@ -339,9 +339,11 @@ impl RtCore {
     }
 
     /// Reset: forcing ends; limit switches still reached are acknowledged (a jog away from
-    /// them may move). Refused while the e-stop chain is open.
+    /// them may move). Refused while the e-stop chain is open, unless a bus fault is in force:
+    /// then the inputs may be stale (a module that never booted reads 0) and only the reset
+    /// of the bus can bring them back; the chain is judged again once enabling ends.
     pub(super) fn io_reset(&mut self) -> bool {
-        if self.snap.io.estop_open {
+        if self.snap.io.estop_open && !bus_fault(&self.snap) {
             return false;
         }
         let st = &mut self.snap.io;
@@ -371,4 +373,9 @@ impl RtCore {
         let mask = self.io_logic.f.home.get(axis).copied().unwrap_or(0);
         (mask != 0).then_some(self.io_logic.last & mask != 0)
     }
+}
+
+/// A fault of the bus or a drive (not of the machine's inputs) is in force.
+pub(crate) fn bus_fault(s: &super::Snapshot) -> bool {
+    s.alarm.fault.is_some_and(|f| !f.reason.is_input())
 }

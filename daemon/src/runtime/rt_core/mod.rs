@@ -46,7 +46,7 @@ use super::resample::{BusClock, Resampler};
 use super::stats::TickStats;
 
 pub use commands::{HomeRequest, JobMachine, RtCommand};
-pub use io::{IoFunctions, IoStatus};
+pub use io::{IoFunctions, IoStatus, bus_fault};
 pub use snapshot::{
     Alarms, AxesStatus, OperatorSettings, Progress, Snapshot, SpindleStatus, TickInfo,
 };
