@@ -62,7 +62,7 @@ export function ioScreen(): Screen {
     const value = h("span", { class: "io-value" });
     const tags = h("span", { class: "io-tags" });
     const m = [...p.on.map((x) => (output ? `on ${x}` : `confirms ${x}`)), ...p.off.map((x) => `off ${x}`)];
-    const about = [p.function || "—", p.wiring, ...m].join(" · ");
+    const about = [p.function, p.wiring, ...m].filter(Boolean).join(" · ");
     const kind = output ? "out" : "in";
     const act = output
       ? h("div", { class: "io-act admin-only" },
