@@ -18,6 +18,7 @@ import { homingScreen } from "./screens/homing";
 import { offsetsScreen } from "./screens/offsets";
 import { constantsScreen } from "./screens/constants";
 import { plcScreen } from "./screens/plc";
+import { ioScreen } from "./screens/io";
 import { alarmsScreen } from "./screens/alarms";
 
 const flash = h("div", { class: "flash", testid: "flash" });
@@ -175,6 +176,7 @@ function boot(): void {
     offsetsScreen(),
     constantsScreen(),
     plcScreen(),
+    ioScreen(),
     alarmsScreen(),
   ];
   const nav = h("nav", {});

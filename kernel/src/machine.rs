@@ -16,6 +16,8 @@ use crate::plan::PlannerConfig;
 use crate::program::{IjMode, Modal, Setup};
 use crate::units::{AxesMm, MAX_AXES};
 
+pub mod names;
+
 /// Limits of one configured axis.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AxisLimits {

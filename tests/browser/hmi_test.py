@@ -1,7 +1,8 @@
 """The browser HMI in real headless Chromium (issue #30), driven through its data-testid
 attributes against a cncd on the simulated machine. Environment: CNC_HMI_URL (cncd's HMI
-origin), CNC_TOKEN (an operator token), CNC_SHOTS (folder for the Run and Preview
-screenshots). Every wait is on a condition with a generous timeout (a loaded machine is
+origin), CNC_TOKEN (an operator token), CNC_ADMIN_TOKEN (an admin token: the I/O tests),
+CNC_SHOTS (folder for the Run and Preview screenshots), CNC_FAIL_SHOTS (failure screenshots and
+the 800 x 480 ones of the I/O and Constants screens). Every wait is on a condition with a generous timeout (a loaded machine is
 slow), never a sleep and an assert. Prints one line per test and "N passed, M failed"."""
 
 import os
@@ -9,6 +10,7 @@ import sys
 import tempfile
 import time
 import traceback
+import urllib.request
 from urllib.parse import urlparse
 
 from selenium.webdriver.common.action_chains import ActionChains
@@ -22,6 +24,7 @@ from proxy import CuttableProxy
 
 PATIENCE_S = 60.0
 TOKEN = os.environ["CNC_TOKEN"]
+ADMIN_TOKEN = os.environ["CNC_ADMIN_TOKEN"]
 SHOTS = os.environ.get("CNC_SHOTS", "")
 target = urlparse(os.environ["CNC_HMI_URL"])
 PROXY = CuttableProxy(target.hostname, target.port)
@@ -398,6 +401,148 @@ def kiosk_token_in_the_fragment_signs_in_and_leaves_the_address_bar():
     wait("role operator", lambda: obs.text("role") == "operator")
     assert TOKEN not in obs.d.current_url
 
+
+
+def grpc_web(method: str, message: bytes, token: str) -> None:
+    """One unary call of `cnc.v1.Machine` over grpc-web to cncd's HMI origin (not through the
+    cuttable proxy), as any client makes it; raises unless the grpc-status is OK."""
+    req = urllib.request.Request(
+        f"http://{target.hostname}:{target.port}/cnc.v1.Machine/{method}",
+        data=b"\x00" + len(message).to_bytes(4, "big") + message, method="POST",
+        headers={"content-type": "application/grpc-web+proto", "x-grpc-web": "1",
+                 "authorization": f"Bearer {token}"})
+    with urllib.request.urlopen(req, timeout=10) as r:
+        status, text = r.headers.get("grpc-status"), r.headers.get("grpc-message", "")
+        body = r.read()
+    # Not trailers-only: the status is in the trailer frame (flag 0x80) at the end.
+    i = 0
+    while status is None and i + 5 <= len(body):
+        n = int.from_bytes(body[i + 1:i + 5], "big")
+        if body[i] & 0x80:
+            fields = dict(line.split(":", 1) for line in body[i + 5:i + 5 + n].decode().split("\r\n") if ":" in line)
+            status, text = fields.get("grpc-status"), fields.get("grpc-message", "")
+        i += 5 + n
+    assert status == "0", f"{method}: grpc-status {status} {text}"
+
+
+def name_value(name: str, value) -> bytes:
+    """SimSetInputRequest / ForceOutputRequest: name = 1, optional bool value = 2 (absent:
+    release)."""
+    b = name.encode()
+    return b"\x0a" + bytes([len(b)]) + b + (b"" if value is None else b"\x10" + bytes([int(value)]))
+
+
+SIM_INPUTS = ("estop", "x_limit_neg", "x_limit_pos", "y_limit_neg", "y_limit_pos", "z_limit_neg",
+              "z_limit_pos", "door")
+
+
+@test
+def the_io_screen_lists_the_simulated_inputs_and_outputs():
+    op.tab("io")
+    for name in SIM_INPUTS:
+        wait(f"input {name} listed", lambda: op.el(f"io-in-{name}"))
+    for name in ("coolant", "spindle_enable"):
+        wait(f"output {name} listed", lambda: op.el(f"io-out-{name}"))
+    estop = op.el("io-in-estop")
+    wait("the e-stop chain reads 1 (closed)", lambda: estop.get_attribute("data-value") == "1")
+    assert "estop" in estop.text and "sim" in estop.text, estop.text
+    assert "M8" in op.el("io-out-coolant").text
+    # Forcing is an admin's: an operator does not even see the buttons.
+    assert not op.el("io-force-coolant-on").is_displayed()
+    assert not op.el("io-sim-estop-0").is_displayed()
+
+
+@test
+def an_open_estop_chain_shows_the_banner_and_faults_the_machine():
+    op.wait_state("IDLE")
+    grpc_web("SimSetInput", name_value("estop", False), ADMIN_TOKEN)
+    wait("e-stop banner", lambda: "E-STOP OPEN" in op.text("io-banner"))
+    wait("estop lamp off", lambda: op.el("io-in-estop").get_attribute("data-value") == "0")
+    op.wait_state("FAULT")
+    op.tab("run")
+    wait("e-stop on the Run screen", lambda: op.d.find_element(
+        By.CSS_SELECTOR, '[data-testid="run-io"] [data-kind="estop"]').is_displayed())
+    grpc_web("SimSetInput", name_value("estop", None), ADMIN_TOKEN)
+    wait("the strip gone once the chain closes", lambda: not op.el("run-io").is_displayed())
+    op.el("reset").click()
+    op.wait_state("IDLE")
+
+
+@test
+def an_admin_forces_coolant_after_a_confirmation():
+    adm = obs
+    adm.d.get(URL + "#token=" + ADMIN_TOKEN)
+    adm.wait_live()
+    wait("role admin", lambda: adm.text("role") == "admin")
+    adm.tab("io")
+    on = wait("force button", lambda: adm.el("io-force-coolant-on").is_displayed() and adm.el("io-force-coolant-on"))
+    row = adm.el("io-out-coolant")
+    assert row.get_attribute("data-value") == "0" and row.get_attribute("data-forced") == "0"
+    # Cancel first: nothing is forced.
+    on.click()
+    wait("confirmation", lambda: adm.el("io-confirm").is_displayed())
+    adm.el("io-confirm-no").click()
+    wait("confirmation closed", lambda: not adm.el("io-confirm").is_displayed())
+    time.sleep(0.3)  # not an assertion on time: a forcing would show within this
+    assert row.get_attribute("data-forced") == "0"
+    on.click()
+    q = wait("confirmation", lambda: adm.el("io-confirm").is_displayed() and adm.text("io-confirm-text"))
+    assert "coolant" in q and "1 (on)" in q, q
+    adm.el("io-confirm-yes").click()
+    wait("coolant FORCED at 1", lambda: row.get_attribute("data-forced") == "1"
+         and row.get_attribute("data-value") == "1" and "FORCED" in row.text)
+    adm.tab("run")
+    wait("forced on the Run screen", lambda: "coolant=1" in adm.text("run-io"))
+    # The operator's page sees it too, live.
+    wait("forced seen by the operator", lambda: "coolant=1" in op.text("run-io"))
+    adm.tab("io")
+    adm.el("io-force-coolant-release").click()
+    wait("release confirmation", lambda: "Release output coolant" in adm.text("io-confirm-text"))
+    adm.el("io-confirm-yes").click()
+    wait("coolant released", lambda: row.get_attribute("data-forced") == "0" and row.get_attribute("data-value") == "0")
+
+
+@test
+def the_constants_screen_names_each_constant_with_its_unit():
+    op.tab("constants")
+    row = wait("R384 listed", lambda: op.d.find_element(
+        By.CSS_SELECTOR, '[data-testid="constants-table"] tr[data-number="384"]'))
+    assert "contour accuracy" in row.find_element(By.CSS_SELECTOR, ".c-name").text
+    assert "µm" in row.find_element(By.CSS_SELECTOR, ".c-unit").text
+    assert "SPEC §7.2" in row.find_element(By.CSS_SELECTOR, ".c-meaning").text
+    r52 = op.d.find_element(By.CSS_SELECTOR, '[data-testid="constants-table"] tr[data-number="52"]')
+    assert r52.find_element(By.CSS_SELECTOR, ".c-unit").text == "mm/s²"
+
+
+@test
+def io_constants_and_run_fit_800_by_480():
+    small = Page(browser(800, 480))
+    try:
+        small.d.get(URL + "#token=" + ADMIN_TOKEN)
+        small.wait_live()
+        wait("role admin", lambda: small.text("role") == "admin")
+        grpc_web("SimSetInput", name_value("door", False), ADMIN_TOKEN)
+        for screen in ("io", "constants", "run"):
+            small.tab(screen)
+            if screen == "io":
+                wait("door banner", lambda: "DOOR OPEN" in small.text("io-banner"))
+            if screen == "constants":
+                wait("constants listed", lambda: small.d.find_elements(
+                    By.CSS_SELECTOR, '[data-testid="constants-table"] tr[data-number="384"]'))
+            if screen == "run":
+                wait("door on the Run screen", lambda: "DOOR OPEN" in small.text("run-io"))
+            # Neither the page nor the screen's area nor its lists scroll sideways (the
+            # program listing may: its lines are the program's).
+            wide = small.d.execute_script("""
+                const els = [document.documentElement, document.querySelector('.view'),
+                  ...document.querySelectorAll('.screen:not([hidden]) .scroll')];
+                return els.filter((e) => e.scrollWidth > e.clientWidth + 1)
+                  .map((e) => `${e.className || e.tagName} ${e.scrollWidth} > ${e.clientWidth}`);""")
+            assert not wide, f"{screen} scrolls sideways: {wide}"
+            small.shot(f"hmi_{screen}_800x480.png", os.environ.get("CNC_FAIL_SHOTS", ""))
+    finally:
+        grpc_web("SimSetInput", name_value("door", None), ADMIN_TOKEN)
+        small.d.quit()
 
 passed = failed = 0
 for fn in results:

@@ -1,7 +1,7 @@
 # Shared by run.sh (the suite) and bench.sh: installs Chromium, chromedriver and Selenium when
 # missing, builds cncd and starts it on the simulated machine with a temporary configuration.
 # Sourced from the repository root; sets TARGET_DIR, VENV, WORK, TOKEN, API_PORT, HMI_PORT,
-# CNCD_PID and removes WORK and stops cncd on exit.
+# ADMIN_TOKEN, CNCD_PID and removes WORK and stops cncd on exit.
 
 install_browser() {
   if ! command -v chromium >/dev/null || ! command -v chromedriver >/dev/null; then
@@ -39,8 +39,11 @@ start_cncd() {
   API_PORT=$(free_port)
   HMI_PORT=$(free_port)
   TOKEN="hmi-operator-$RANDOM$RANDOM"
-  local hash
+  # An admin token too: the I/O tests force outputs and set simulated inputs.
+  ADMIN_TOKEN="hmi-admin-$RANDOM$RANDOM"
+  local hash admin_hash
   hash=$(python3 -c 'import hashlib,sys; print(hashlib.sha256(sys.argv[1].encode()).hexdigest())' "$TOKEN")
+  admin_hash=$(python3 -c 'import hashlib,sys; print(hashlib.sha256(sys.argv[1].encode()).hexdigest())' "$ADMIN_TOKEN")
   # A 5 mm following window on the simulated drives: a rapid move faults (the alarm test).
   cat > "$WORK/cncd.toml" <<TOML
 [api]
@@ -51,6 +54,11 @@ unix_socket = ""
 name = "browser-operator"
 role = "operator"
 sha256 = "$hash"
+
+[[api.tokens]]
+name = "browser-admin"
+role = "admin"
+sha256 = "$admin_hash"
 
 [hmi]
 listen = "127.0.0.1:$HMI_PORT"

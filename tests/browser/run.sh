@@ -15,7 +15,7 @@ start_cncd dev
 
 mkdir -p docs/images "$TARGET_DIR/browser"
 set +e
-CNC_HMI_URL="http://127.0.0.1:$HMI_PORT/" CNC_TOKEN="$TOKEN" CNC_SHOTS="$ROOT/docs/images" \
+CNC_HMI_URL="http://127.0.0.1:$HMI_PORT/" CNC_TOKEN="$TOKEN" CNC_ADMIN_TOKEN="$ADMIN_TOKEN" CNC_SHOTS="$ROOT/docs/images" \
   CNC_FAIL_SHOTS="$TARGET_DIR/browser" "$VENV/bin/python" tests/browser/hmi_test.py
 RC=$?
 set -e

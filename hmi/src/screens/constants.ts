@@ -1,5 +1,6 @@
-// Constants: the machine constants R0..R999; an admin changes values (all or nothing), and
-// the screen says which need a restart of cncd (restart_required).
+// Constants: the machine constants R0..R999, each the controller reads named with its unit and
+// meaning (GetConstants); an admin changes values (all or nothing), and the screen says which
+// need a restart of cncd (restart_required).
 import { constants } from "../api";
 import { button, fill, h } from "../dom";
 import { errorText } from "../format";
@@ -16,10 +17,17 @@ export function constantsScreen(): Screen {
   async function refresh(): Promise<void> {
     try {
       const r = await constants.getConstants({});
-      fill(table, h("tr", {}, h("th", {}, "R"), h("th", {}, "value"), h("th", {}, "decades 8…1"), h("th", {}, "")),
+      fill(table, h("tr", {}, h("th", {}, "R"), h("th", {}, "constant"), h("th", {}, "value"), h("th", { class: "dec" }, "decades 8…1")),
         ...r.constants.map((c) => {
-          const tr = h("tr", {}, h("td", {}, `R${c.number}`), h("td", {}, c.text),
-            h("td", {}, [...c.decades].reverse().join(" ")), h("td", {}, c.isDefault ? "default" : ""));
+          // A constant the controller reads has a name, a unit and a meaning (the kernel's
+          // table); the others are only numbers in the file.
+          const what = c.name
+            ? h("td", { class: "c-what" }, h("span", { class: "c-name" }, c.name), h("span", { class: "c-meaning" }, c.meaning))
+            : h("td", { class: "c-what unread" }, "not read by this controller");
+          const tr = h("tr", { "data-number": String(c.number) }, h("td", {}, `R${c.number}`), what,
+            h("td", { class: "c-value" }, h("span", {}, c.text), h("span", { class: "c-unit" }, c.unit),
+              c.isDefault ? h("span", { class: "c-default" }, "default") : null),
+            h("td", { class: "dec" }, [...c.decades].reverse().join(" ")));
           tr.addEventListener("click", () => { number.value = String(c.number); value.value = String(c.value); });
           return tr;
         }));

@@ -1,8 +1,9 @@
 // Run: program, block and line with the listing scrolled to it, progress, overrides, spindle,
 // KŘR, and the cycle controls (start, hold, resume, reset, single block, optional stop).
 import { machine, programs } from "../api";
-import { button, h, setText } from "../dom";
+import { button, fill, h, setText } from "../dom";
 import { errorText } from "../format";
+import { ioWarnings, warningsKey } from "../io";
 import { Listing } from "../listing";
 import type { Screen } from "../screen";
 import { messageLine } from "../screen";
@@ -54,6 +55,10 @@ export function runScreen(): Screen {
   const modal = h("span", { class: "modal" }, "");
   const kr = h("div", { class: "kr", hidden: true });
   const listing = new Listing("run-listing");
+  // E-stop, door, limit and forced outputs without opening the I/O screen (one line, shown
+  // only while one of them holds).
+  const io = h("div", { class: "io-banner compact", testid: "run-io", hidden: true });
+  let ioKey = "";
 
   const feedOv = override("Feed", "feed-override", 0, 150, (p) => machine.setOverride({ percent: p }));
   const spinOv = override("Spindle", "spindle-override", 50, 120, (p) =>
@@ -89,6 +94,7 @@ export function runScreen(): Screen {
       h("div", {}, h("span", { class: "lbl" }, "Program "), program),
       h("div", {}, h("span", { class: "lbl" }, "Block "), block, h("span", { class: "lbl" }, "  Line "), line),
       h("div", { class: "bar" }, bar, pct),
+      io,
     ),
     h("div", { class: "run-body" }, listing.el, h("div", { class: "run-side" },
       feedOv.el, spinOv.el, rapidOv.el,
@@ -138,6 +144,13 @@ export function runScreen(): Screen {
     rapidOv.show(s.rapidOverridePercent);
     single.classList.toggle("active", s.singleBlock);
     optStop.classList.toggle("active", s.optionalStop);
+    const w = ioWarnings(s.io);
+    const wk = warningsKey(w);
+    if (wk !== ioKey) {
+      ioKey = wk;
+      fill(io, ...w.map((x) => h("span", { class: `io-warn ${x.kind}`, "data-kind": x.kind }, x.text)));
+      io.hidden = w.length === 0;
+    }
     const k = s.kr;
     kr.hidden = !k || k.cuttingSpeedMMin <= 0;
     if (k && !kr.hidden) {

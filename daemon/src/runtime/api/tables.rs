@@ -9,6 +9,7 @@ use proto::v1::plc_server::Plc;
 use tonic::{Request, Response, Status};
 
 use kernel::constants::{self, Constants, MAX_R};
+use kernel::machine::names;
 use kernel::offsets::{self, ENTRIES, OffsetTable, TableEdit};
 use kernel::plc::{self, Access, CellInfo, PlcWrite};
 
@@ -288,7 +289,11 @@ fn check_value(field: &str, v: f64, max: f64, decimals: u32) -> Result<(), Statu
 
 fn constant_pb(c: &Constants, r: u16) -> pb::Constant {
     let is_default = !c.iter().any(|(n, _)| n == r);
+    let named = names::constant_name(r);
     pb::Constant {
+        name: named.map(|k| k.name.into()).unwrap_or_default(),
+        unit: named.map(|k| k.unit.into()).unwrap_or_default(),
+        meaning: named.map(|k| k.meaning.into()).unwrap_or_default(),
         number: r.into(),
         value: c.get(r),
         text: constants::fmt_milli(c.milli(r)),
@@ -309,7 +314,13 @@ impl ConstantsRpc for ConstantsSvc {
         let c = self.0.ctl.constants();
         let list: Vec<u16> = if numbers.is_empty() {
             (0..=MAX_R)
-                .filter(|&r| constants::default_of(r) != 0 || c.iter().any(|(n, _)| n == r))
+                .filter(|&r| {
+                    // Every constant the controller reads too: a screen names them all, set
+                    // or not (R384 is 0, off, until a constants file sets it).
+                    constants::default_of(r) != 0
+                        || names::constant_name(r).is_some()
+                        || c.iter().any(|(n, _)| n == r)
+                })
                 .collect()
         } else {
             numbers
