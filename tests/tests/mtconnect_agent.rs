@@ -2,11 +2,15 @@
 //! positions and Execution follow the program, a `/sample` stream over a whole run has
 //! contiguous sequences and ends where the status stream ends, a following error is a Fault
 //! CONDITION on its axis until reset, a restart changes `instanceId`, tools are assets, and
-//! bad requests get MTConnectError documents. Every document received is saved for the
-//! schema check of `tests/mtconnect/run.sh`.
+//! bad requests get MTConnectError documents. The machine's I/O: the e-stop chain drives
+//! EmergencyStop, the door DoorState, M8/M9 the coolant's PowerState, a limit switch is a Fault
+//! of its axis's travel condition and an alarm input a Warning with its message. Every
+//! document received is saved for the schema check of `tests/mtconnect/run.sh`.
 
 mod mtconnect_common;
 
+use daemon::runtime::config::{AlarmSeverity, InputConfig, InputFunction, IoSection};
+use daemon::runtime::controller::Controller;
 use daemon::runtime::mtconnect::MtconnectConfig;
 use daemon::runtime::rt::MachineState;
 use mtconnect_common::*;
@@ -80,7 +84,8 @@ async fn probe_describes_the_machine_and_current_follows_a_program() {
         "{:?}",
         x.obs
     );
-    assert_eq!(x.obs.len(), 3);
+    // Actual, commanded, ACTUATOR and the travel condition (its limit switches).
+    assert_eq!(x.obs.len(), 4);
     // `at`: the state as of an earlier sequence shows READY (before the start).
     let first = cur.header_u64("lastSequence");
     let then = parse(&c.get(&format!("/current?at={first}")).await.body);
@@ -204,6 +209,7 @@ async fn a_following_error_is_a_fault_condition_on_its_axis_until_reset() {
             .body,
     );
     assert!(conds.obs.iter().all(|o| o.id().ends_with("_cond")
+        || o.id().ends_with("_travel")
         || ["ctrl_system", "ctrl_comms", "motion", "logic"].contains(&o.id())));
     // Reset takes once the healthy axes are at rest and the drives in their safe state.
     let t0 = std::time::Instant::now();
@@ -310,5 +316,239 @@ async fn bad_requests_get_mtconnect_error_documents() {
     assert_eq!(parse(&r.body).error_code.as_deref(), Some("UNSUPPORTED"));
     // The device's own name is accepted.
     assert_eq!(c.get("/cncd/current").await.status, 200);
+    d.stop().await;
+}
+
+/// Resets until the machine is idle (Reset takes once the axes are at rest and the drives in
+/// their safe state; it is refused until the RT core has read a closed e-stop chain).
+async fn reset_to_idle(ctl: &Controller, m: &mut MachineClient<tonic::transport::Channel>) {
+    let t0 = std::time::Instant::now();
+    while ctl.snapshot().state != MachineState::Idle {
+        assert!(t0.elapsed() < tests::PATIENCE, "reset never took");
+        if let Err(e) = m.reset(pb::ResetRequest {}).await {
+            assert_eq!(e.code(), tonic::Code::FailedPrecondition, "{e:?}");
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(200)).await;
+    }
+}
+
+/// The active conditions (Warning, Fault) of `id` in a `/current`.
+fn active<'a>(d: &'a Doc, id: &str) -> Vec<&'a Obs> {
+    d.of(id)
+        .into_iter()
+        .filter(|o| o.element != "Normal")
+        .collect()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_e_stop_chain_drives_emergency_stop_and_the_door_door_state() {
+    let d = start(tests::test_config(), MtconnectConfig::default()).await;
+    let c = d.client("io_estop_door");
+    let probe = parse(&c.get("/probe").await.body);
+    for el in ["Door", "Systems", "Coolant"] {
+        assert!(probe.elements.iter().any(|(n, _, _)| n == el), "no {el}");
+    }
+    let cur = parse(&c.get("/current").await.body);
+    assert_eq!(cur.one("estop").text, "ARMED");
+    assert_eq!(cur.one("door_state").text, "CLOSED");
+    assert_eq!(cur.one("ctrl_system").element, "Normal");
+
+    // The chain opens: TRIGGERED, and the fault stop's Fault with its stable code.
+    d.ctl.sim_set_input("estop", Some(false)).unwrap();
+    let t = wait_current(&c, "/current", "EmergencyStop TRIGGERED", |d| {
+        d.one("estop").text == "TRIGGERED" && !active(d, "ctrl_system").is_empty()
+    })
+    .await;
+    let f = active(&t, "ctrl_system");
+    assert_eq!(f.len(), 1, "{f:?}");
+    assert_eq!(f[0].element, "Fault");
+    assert_eq!(f[0].attrs["nativeCode"], "emergency_stop");
+    assert!(f[0].text.contains("input estop"), "{f:?}");
+    // Reset is refused while the chain is open: still TRIGGERED.
+    let mut m = MachineClient::new(d.grpc.clone());
+    let _ = m.reset(pb::ResetRequest {}).await;
+    tokio::time::sleep(std::time::Duration::from_millis(300)).await;
+    assert_eq!(
+        parse(&c.get("/current").await.body).one("estop").text,
+        "TRIGGERED"
+    );
+    // Closed again and reset: ARMED, the condition Normal with its code.
+    d.ctl.sim_set_input("estop", Some(true)).unwrap();
+    reset_to_idle(&d.ctl, &mut m).await;
+    let a = wait_current(&c, "/current", "EmergencyStop ARMED", |d| {
+        d.one("estop").text == "ARMED" && d.one("ctrl_system").element == "Normal"
+    })
+    .await;
+    assert_eq!(a.one("ctrl_system").attrs["nativeCode"], "emergency_stop");
+
+    // The door.
+    d.ctl.sim_set_input("door", Some(false)).unwrap();
+    let o = wait_current(&c, "/current?path=//Door", "DoorState OPEN", |d| {
+        d.one("door_state").text == "OPEN"
+    })
+    .await;
+    assert_eq!(o.one("door_state").element, "DoorState");
+    assert_eq!(o.obs.len(), 1);
+    d.ctl.sim_set_input("door", Some(true)).unwrap();
+    wait_current(&c, "/current", "DoorState CLOSED", |d| {
+        d.one("door_state").text == "CLOSED"
+    })
+    .await;
+    // The history: TRIGGERED then ARMED, OPEN then CLOSED.
+    let s = parse(
+        &c.get("/sample?path=//DataItem%5B@type=%22EMERGENCY_STOP%22%5D%7C//Door&count=100")
+            .await
+            .body,
+    );
+    let seen: Vec<&str> = s.obs.iter().map(|o| o.text.as_str()).collect();
+    for w in ["TRIGGERED", "ARMED", "OPEN", "CLOSED"] {
+        assert!(seen.contains(&w), "{w}: {seen:?}");
+    }
+    d.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn m8_and_m9_switch_the_coolant() {
+    let d = start(tests::test_config(), MtconnectConfig::default()).await;
+    let c = d.client("io_coolant");
+    let cur = parse(&c.get("/current").await.body);
+    assert_eq!(cur.one("coolant_state").text, "OFF");
+    assert_eq!(cur.one("coolant_state").attrs["subType"], "CONTROL");
+    let mut m = MachineClient::new(d.grpc.clone());
+    for (block, want) in [("M8", "ON"), ("M9", "OFF")] {
+        let job = m
+            .mdi(pb::MdiRequest {
+                block: block.into(),
+            })
+            .await
+            .unwrap_or_else(|e| panic!("{block}: {e:?}"))
+            .into_inner()
+            .job;
+        tests::wait_job_finished(&d.ctl, job).await;
+        let doc = wait_current(&c, "/current?path=//Coolant", block, |d| {
+            d.one("coolant_state").text == want
+        })
+        .await;
+        assert_eq!(doc.one("coolant_state").element, "PowerState");
+    }
+    d.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_limit_switch_is_a_fault_of_its_axis_travel_until_released() {
+    let d = start(tests::test_config(), MtconnectConfig::default()).await;
+    let c = d.client("io_limit");
+    let cur = parse(&c.get("/current").await.body);
+    assert_eq!(cur.one("x_travel").element, "Normal");
+    assert_eq!(cur.one("x_travel").attrs["type"], "POSITION");
+    d.ctl.sim_set_input("x_limit_pos", Some(true)).unwrap();
+    let f = wait_current(&c, "/current", "the limit switch's Fault", |d| {
+        active(d, "x_travel").iter().any(|o| o.element == "Fault")
+    })
+    .await;
+    let x = active(&f, "x_travel");
+    assert_eq!(x.len(), 1, "{x:?}");
+    assert_eq!(x[0].attrs["nativeCode"], "limit_switch");
+    assert_eq!(x[0].attrs["qualifier"], "HIGH");
+    assert!(x[0].text.contains("x_limit_pos"), "{x:?}");
+    // Not an ACTUATOR fault as well: one alarm, one condition.
+    assert!(active(&f, "x_cond").is_empty());
+    assert_eq!(f.one("y_travel").element, "Normal");
+    // Reset acknowledges the switch still reached: a Warning until it releases.
+    let mut m = MachineClient::new(d.grpc.clone());
+    reset_to_idle(&d.ctl, &mut m).await;
+    let w = wait_current(&c, "/current", "the acknowledged switch's Warning", |d| {
+        active(d, "x_travel").iter().any(|o| o.element == "Warning")
+    })
+    .await;
+    assert_eq!(
+        active(&w, "x_travel")[0].attrs["nativeCode"],
+        "limit_switch"
+    );
+    d.ctl.sim_set_input("x_limit_pos", None).unwrap();
+    wait_current(&c, "/current", "Normal once released", |d| {
+        d.one("x_travel").element == "Normal"
+    })
+    .await;
+    d.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_alarm_input_is_a_condition_with_its_message() {
+    let mut cfg = tests::test_config();
+    let mut io = IoSection::sim_default(&cfg.axes);
+    let alarm = |name: &str, message: &str, severity| InputConfig {
+        name: name.into(),
+        function: InputFunction::Alarm,
+        message: Some(message.into()),
+        severity,
+        ..io.inputs[0].clone()
+    };
+    let air = alarm("air", "air pressure low", AlarmSeverity::Warning);
+    let lube = alarm("lube", "lubrication empty", AlarmSeverity::Fault);
+    io.inputs.extend([air, lube]);
+    cfg.io = Some(io);
+    let d = start(cfg, MtconnectConfig::default()).await;
+    let c = d.client("io_alarm");
+    let cur = parse(&c.get("/current").await.body);
+    assert_eq!(cur.one("machine_alarms").element, "Normal");
+    assert_eq!(cur.one("machine_alarms").attrs["type"], "SYSTEM");
+
+    d.ctl.sim_set_input("air", Some(true)).unwrap();
+    let w = wait_current(&c, "/current", "the air alarm's Warning", |d| {
+        !active(d, "machine_alarms").is_empty()
+    })
+    .await;
+    let a = active(&w, "machine_alarms");
+    assert_eq!(a.len(), 1, "{a:?}");
+    assert_eq!(a[0].element, "Warning");
+    assert_eq!(a[0].attrs["nativeCode"], "air");
+    assert_eq!(a[0].text, "air pressure low");
+    // A warning stops nothing.
+    assert_eq!(w.one("estop").text, "ARMED");
+    assert_eq!(w.one("exec").text, "READY");
+
+    // A fault-severity input: a Fault of its own, and the fault stop's `input_alarm`.
+    d.ctl.sim_set_input("lube", Some(true)).unwrap();
+    let f = wait_current(&c, "/current", "the lube alarm's Fault", |d| {
+        active(d, "machine_alarms").len() == 2 && !active(d, "ctrl_system").is_empty()
+    })
+    .await;
+    let lube = active(&f, "machine_alarms")
+        .into_iter()
+        .find(|o| o.attrs["nativeCode"] == "lube")
+        .unwrap();
+    assert_eq!(
+        (lube.element.as_str(), lube.text.as_str()),
+        ("Fault", "lubrication empty")
+    );
+    let stop = active(&f, "ctrl_system");
+    assert_eq!(stop[0].attrs["nativeCode"], "input_alarm");
+    assert!(stop[0].text.contains("lubrication empty"), "{stop:?}");
+
+    // Inactive again: Normal with each code; Reset clears the fault stop.
+    d.ctl.sim_set_input("air", None).unwrap();
+    d.ctl.sim_set_input("lube", None).unwrap();
+    let mut m = MachineClient::new(d.grpc.clone());
+    reset_to_idle(&d.ctl, &mut m).await;
+    wait_current(&c, "/current", "Normal", |d| {
+        d.one("machine_alarms").element == "Normal" && d.one("ctrl_system").element == "Normal"
+    })
+    .await;
+    let s = parse(
+        &c.get("/sample?path=//DataItem%5B@id=%22machine_alarms%22%5D&count=100")
+            .await
+            .body,
+    );
+    let normals: Vec<&str> = s
+        .obs
+        .iter()
+        .filter(|o| o.element == "Normal")
+        .filter_map(|o| o.attrs.get("nativeCode").map(String::as_str))
+        .collect();
+    assert!(
+        normals.contains(&"air") && normals.contains(&"lube"),
+        "{normals:?}"
+    );
     d.stop().await;
 }

@@ -220,7 +220,7 @@ impl Agent {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mtconnect::model::{AxisDesc, MachineDesc};
+    use crate::mtconnect::model::{AlarmInput, AxisDesc, IoDesc, MachineDesc};
     use crate::runtime::rt::{MachineState, Snapshot};
 
     fn agent() -> Agent {
@@ -231,17 +231,37 @@ mod tests {
                 AxisDesc {
                     name: 'X',
                     rotary: false,
+                    limit_neg: 1 << 1,
+                    limit_pos: 1 << 2,
                 },
                 AxisDesc {
                     name: 'Y',
                     rotary: false,
+                    limit_neg: 0,
+                    limit_pos: 0,
                 },
                 AxisDesc {
                     name: 'C',
                     rotary: true,
+                    limit_neg: 0,
+                    limit_pos: 0,
                 },
             ],
             cutting_speed: true,
+            io: IoDesc {
+                inputs: ["estop", "x_limit_neg", "x_limit_pos", "door", "air"]
+                    .map(String::from)
+                    .to_vec(),
+                estop: 1,
+                door: true,
+                coolant: 1,
+                alarms: vec![AlarmInput {
+                    input: 4,
+                    name: "air".into(),
+                    message: "air pressure low".into(),
+                    fault: false,
+                }],
+            },
         };
         Agent::new(
             DeviceModel::new(&m),
@@ -326,6 +346,70 @@ mod tests {
             "sample_empty",
             &a.sample(Some(a.next_sequence()), 10, None, 1).unwrap().xml,
         );
+    }
+
+    #[test]
+    fn the_inputs_and_outputs_are_the_door_the_coolant_the_travel_and_the_alarms() {
+        let mut a = agent();
+        let names = ['X', 'Y', 'C'];
+        let mut s = Snapshot::initial(3, kernel::AxesMm::default());
+        // At rest: the chain and the door closed, no switch, no alarm, the coolant off.
+        s.io.inputs = hal::io::IoBits(0b01001);
+        a.observe(&view(&s, &names), 1_700_000_000_100_000_000);
+        let cur = String::from_utf8(a.current(None, None, 1).unwrap()).unwrap();
+        for want in [
+            ">ARMED</EmergencyStop>",
+            ">CLOSED</DoorState>",
+            "subType=\"CONTROL\">OFF</PowerState>",
+            "<Normal dataItemId=\"x_travel\"",
+            "<Normal dataItemId=\"machine_alarms\"",
+        ] {
+            assert!(cur.contains(want), "{want}: {cur}");
+        }
+        // The chain open with the door, X's positive switch reached, the air alarm, M8.
+        s.io.inputs = hal::io::IoBits(0b10100);
+        s.io.estop_open = true;
+        s.io.door_open = true;
+        s.io.limits = hal::io::IoBits(0b00100);
+        s.io.alarms = hal::io::IoBits(0b10000);
+        s.io.outputs = hal::io::IoBits(0b1);
+        s.state = MachineState::Fault;
+        s.alarm.fault = Some(hal::BusFault {
+            axis: None,
+            node: None,
+            reason: hal::FaultReason::EmergencyStop { input: 0 },
+        });
+        a.observe(&view(&s, &names), 1_700_000_000_200_000_000);
+        let cur = String::from_utf8(a.current(None, None, 1).unwrap()).unwrap();
+        save("current_io", cur.as_bytes());
+        for want in [
+            ">TRIGGERED</EmergencyStop>",
+            ">OPEN</DoorState>",
+            "subType=\"CONTROL\">ON</PowerState>",
+            "nativeCode=\"emergency_stop\"",
+            "nativeCode=\"limit_switch\"",
+            "qualifier=\"HIGH\"",
+            "type=\"POSITION\"",
+            "nativeCode=\"air\"",
+            "air pressure low</Warning>",
+            "(input estop)",
+        ] {
+            assert!(cur.contains(want), "{want}: {cur}");
+        }
+        // After Reset the switch is acknowledged but still reached: a Warning; the rest clear.
+        s.io = Default::default();
+        s.io.inputs = hal::io::IoBits(0b01101);
+        s.io.limits = hal::io::IoBits(0b00100);
+        s.io.limits_acknowledged = hal::io::IoBits(0b00100);
+        s.state = MachineState::Idle;
+        s.alarm.fault = None;
+        a.observe(&view(&s, &names), 1_700_000_000_300_000_000);
+        let cur = String::from_utf8(a.current(None, None, 1).unwrap()).unwrap();
+        save("current_io_reset", cur.as_bytes());
+        assert!(cur.contains(">ARMED</EmergencyStop>"), "{cur}");
+        assert!(cur.contains("<Warning dataItemId=\"x_travel\""), "{cur}");
+        assert!(!cur.contains("<Fault"), "{cur}");
+        save("probe_io", &a.probe(1));
     }
 
     #[test]

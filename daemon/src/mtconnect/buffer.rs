@@ -29,6 +29,8 @@ pub struct Cond {
     /// The alarm's stable code (`following_error`); a Normal without code clears every alarm
     /// of the data item.
     pub native_code: Option<String>,
+    /// `HIGH` or `LOW` (the standard's qualifier): which side of its range the value left.
+    pub qualifier: Option<&'static str>,
     pub message: String,
 }
 
@@ -230,6 +232,7 @@ mod tests {
         Value::Condition(Cond {
             level: Level::Fault,
             native_code: Some(code.into()),
+            qualifier: None,
             message: "m".into(),
         })
     }
@@ -275,6 +278,7 @@ mod tests {
             Value::Condition(Cond {
                 level: Level::Normal,
                 native_code: Some("a".into()),
+                qualifier: None,
                 message: String::new(),
             }),
         );
@@ -286,6 +290,7 @@ mod tests {
             Value::Condition(Cond {
                 level: Level::Normal,
                 native_code: None,
+                qualifier: None,
                 message: String::new(),
             }),
         );

@@ -3,7 +3,9 @@
 //!
 //! Types, subtypes and units are the standard's (MTConnect 2.5, Part 2 Devices): positions in
 //! MILLIMETER (DEGREE on rotary axes, `ANGLE`), feed in MILLIMETER/SECOND, speeds in
-//! REVOLUTION/MINUTE, overrides in PERCENT.
+//! REVOLUTION/MINUTE, overrides in PERCENT. The machine's inputs and outputs (`[io]`) add the
+//! Door (`DOOR_STATE`), the Coolant system (`POWER_STATE` CONTROL), a `POSITION` condition per
+//! axis with limit switches and the machine's alarm inputs (a `SYSTEM` condition of the device).
 
 /// What the device model is built from (the configuration, read once at start).
 #[derive(Clone, Debug, PartialEq)]
@@ -17,6 +19,38 @@ pub struct MachineDesc {
     /// The machine has constant cutting speed (KŘR) with a controlling axis: the spindle
     /// publishes the cutting speed at the tool.
     pub cutting_speed: bool,
+    /// The machine's inputs and outputs.
+    pub io: IoDesc,
+}
+
+/// The machine's inputs and outputs as the agent shows them (from `[io]`, in its order: bit k
+/// of the snapshot's `io.inputs` / `io.outputs` is input / output k).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct IoDesc {
+    /// Input names (messages and nativeCodes name them).
+    pub inputs: Vec<String>,
+    /// The e-stop chain's inputs (bit k: input k).
+    pub estop: u64,
+    /// The machine has a door interlock input: a `Door` component with `DOOR_STATE`.
+    pub door: bool,
+    /// The outputs that switch the coolant (bit k: output k): a `Coolant` system with
+    /// `POWER_STATE` CONTROL, ON while one of them is on.
+    pub coolant: u64,
+    /// Alarm inputs (`function = "alarm"`): CONDITIONs of the device's `SYSTEM` item.
+    pub alarms: Vec<AlarmInput>,
+}
+
+/// One alarm input.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AlarmInput {
+    /// Its index among the inputs.
+    pub input: usize,
+    /// Its name: the condition's nativeCode.
+    pub name: String,
+    /// The configured text.
+    pub message: String,
+    /// Severity `fault` (Fault; the machine stops) or `warning` (Warning).
+    pub fault: bool,
 }
 
 /// One axis of the machine.
@@ -26,6 +60,10 @@ pub struct AxisDesc {
     pub name: char,
     /// Rotary axis (degrees): a `Rotary` component with `ANGLE`; else `Linear` with `POSITION`.
     pub rotary: bool,
+    /// Its hardware limit switches, negative and positive side (bit k: input k): with any,
+    /// the axis has a `POSITION` (or `ANGLE`) condition, Fault while one is reached.
+    pub limit_neg: u64,
+    pub limit_pos: u64,
 }
 
 /// Data item category.
@@ -99,6 +137,12 @@ pub struct ItemIds {
     pub axes: Vec<AxisIds>,
     pub spindle: SpindleIds,
     pub cutting_speed: Option<usize>,
+    /// `DOOR_STATE` of the Door (with a door input).
+    pub door_state: Option<usize>,
+    /// `POWER_STATE` CONTROL of the Coolant system (with a coolant output).
+    pub coolant: Option<usize>,
+    /// The device's `SYSTEM` condition: the alarm inputs (with any).
+    pub machine_alarms: Option<usize>,
 }
 
 /// The data items of one axis.
@@ -107,6 +151,8 @@ pub struct AxisIds {
     pub actual: usize,
     pub commanded: usize,
     pub condition: usize,
+    /// The travel condition (`POSITION`/`ANGLE`): its limit switches (with any).
+    pub travel: Option<usize>,
 }
 
 /// The data items of the spindle.
@@ -127,6 +173,10 @@ pub struct DeviceModel {
     pub components: Vec<Component>,
     pub items: Vec<DataItem>,
     pub ids: ItemIds,
+    /// The inputs and outputs the feed reads (names, masks, alarm texts).
+    pub io: IoDesc,
+    /// Per axis, its limit switches (negative, positive side).
+    pub limits: Vec<(u64, u64)>,
 }
 
 /// The spec of one data item before it gets its component.
@@ -218,8 +268,8 @@ impl DeviceModel {
         n
     }
 
-    /// The model of `m`: Device › Axes (Linear/Rotary per axis, the spindle) and Controller ›
-    /// Path.
+    /// The model of `m`: Device › Axes (Linear/Rotary per axis, the spindle), Controller ›
+    /// Path, and with the machine's I/O Systems › Coolant and Door.
     pub fn new(m: &MachineDesc) -> DeviceModel {
         let mut d = DeviceModel {
             name: m.name.clone(),
@@ -227,11 +277,16 @@ impl DeviceModel {
             components: Vec::new(),
             items: Vec::new(),
             ids: ItemIds::default(),
+            io: m.io.clone(),
+            limits: m.axes.iter().map(|a| (a.limit_neg, a.limit_pos)).collect(),
         };
         let dev = d.component(None, "Device", "dev", Some(&m.name));
         d.ids.availability = d.item(dev, event("avail", "AVAILABILITY", "Availability"));
         d.ids.asset_changed = d.item(dev, event("asset_chg", "ASSET_CHANGED", "AssetChanged"));
         d.ids.asset_removed = d.item(dev, event("asset_rem", "ASSET_REMOVED", "AssetRemoved"));
+        if !m.io.alarms.is_empty() {
+            d.ids.machine_alarms = Some(d.item(dev, condition("machine_alarms", "SYSTEM")));
+        }
         let axes = d.component(Some(dev), "Axes", "axes", None);
         for a in &m.axes {
             let ids = d.axis(axes, *a);
@@ -253,6 +308,18 @@ impl DeviceModel {
             d.ids.cutting_speed = Some(id);
         }
         d.controller(dev);
+        if m.io.coolant != 0 {
+            let systems = d.component(Some(dev), "Systems", "systems", None);
+            let c = d.component(Some(systems), "Coolant", "coolant", Some("coolant"));
+            d.ids.coolant = Some(d.item(
+                c,
+                event("coolant_state", "POWER_STATE", "PowerState").sub("CONTROL"),
+            ));
+        }
+        if m.io.door {
+            let c = d.component(Some(dev), "Door", "door", Some("door"));
+            d.ids.door_state = Some(d.item(c, event("door_state", "DOOR_STATE", "DoorState")));
+        }
         d
     }
 
@@ -274,10 +341,13 @@ impl DeviceModel {
             sample(&format!("{id}_cmd"), kind, obs, units).sub("COMMANDED"),
         );
         let condition = self.item(c, condition(&format!("{id}_cond"), "ACTUATOR"));
+        let travel = (a.limit_neg | a.limit_pos != 0)
+            .then(|| self.item(c, self::condition(&format!("{id}_travel"), kind)));
         AxisIds {
             actual,
             commanded,
             condition,
+            travel,
         }
     }
 
@@ -363,17 +433,40 @@ mod tests {
                 AxisDesc {
                     name: 'X',
                     rotary: false,
+                    limit_neg: 1 << 1,
+                    limit_pos: 1 << 2,
                 },
                 AxisDesc {
                     name: 'Z',
                     rotary: false,
+                    limit_neg: 0,
+                    limit_pos: 0,
                 },
                 AxisDesc {
                     name: 'C',
                     rotary: true,
+                    limit_neg: 0,
+                    limit_pos: 0,
                 },
             ],
             cutting_speed: true,
+            io: IoDesc {
+                inputs: vec![
+                    "estop".into(),
+                    "x_neg".into(),
+                    "x_pos".into(),
+                    "door".into(),
+                ],
+                estop: 1,
+                door: true,
+                coolant: 1,
+                alarms: vec![AlarmInput {
+                    input: 4,
+                    name: "lube".into(),
+                    message: "lubrication low".into(),
+                    fault: false,
+                }],
+            },
         }
     }
 
@@ -392,5 +485,16 @@ mod tests {
         assert_eq!(d.ids.axes.len(), 3);
         assert_eq!(d.items[d.ids.axes[2].actual].kind, "ANGLE");
         assert!(d.ids.cutting_speed.is_some());
+        let travel = d.ids.axes[0].travel.unwrap();
+        assert_eq!(
+            (d.items[travel].category, d.items[travel].kind),
+            (Category::Condition, "POSITION")
+        );
+        assert_eq!(d.ids.axes[1].travel, None);
+        let door = d.ids.door_state.unwrap();
+        assert_eq!(d.components[d.items[door].component].element, "Door");
+        let coolant = d.ids.coolant.unwrap();
+        assert_eq!(d.components[d.items[coolant].component].element, "Coolant");
+        assert_eq!(d.items[d.ids.machine_alarms.unwrap()].component, 0);
     }
 }

@@ -2,7 +2,7 @@
 //! *Conditions*): a snapshot of the controller becomes observations, written to the buffer
 //! only where a value changed (MTConnect reports changes).
 
-use hal::SPINDLE_AXIS;
+use hal::{FaultReason, SPINDLE_AXIS};
 use kernel::kr::KrFault;
 
 use super::buffer::{Buffer, Cond, Level, Value};
@@ -70,33 +70,88 @@ pub fn kr_code(k: &KrFault) -> &'static str {
     }
 }
 
+/// The name of input `k` (messages name the switch that acted).
+fn input_name(m: &DeviceModel, k: u8) -> String {
+    m.io.inputs
+        .get(usize::from(k))
+        .cloned()
+        .unwrap_or_else(|| format!("input {k}"))
+}
+
+/// The text of an open e-stop chain (the fault's, with the input that opened).
+fn estop_message(m: &DeviceModel, input: u8) -> String {
+    format!(
+        "{} (input {})",
+        FaultReason::EmergencyStop { input },
+        input_name(m, input)
+    )
+}
+
+/// The text of a fault of the machine's inputs, naming the input (an alarm input's own text);
+/// `None` for the other faults.
+fn input_fault_message(m: &DeviceModel, reason: FaultReason) -> Option<String> {
+    match reason {
+        FaultReason::EmergencyStop { input } => Some(estop_message(m, input)),
+        FaultReason::LimitSwitch { input, .. } => {
+            Some(format!("input {}: {reason}", input_name(m, input)))
+        }
+        FaultReason::InputAlarm { input } => Some(
+            match m.io.alarms.iter().find(|a| a.input == usize::from(input)) {
+                Some(a) => format!("alarm input {}: {}", a.name, a.message),
+                None => reason.to_string(),
+            },
+        ),
+        _ => None,
+    }
+}
+
 /// The alarms in force per condition data item: (item, alarm).
 pub fn conditions(m: &DeviceModel, v: &MachineView) -> Vec<(usize, Cond)> {
     let ids = &m.ids;
+    let io = &v.snap.io;
     let mut out = Vec::new();
     let fault = |code: &str, message: String| Cond {
         level: Level::Fault,
         native_code: Some(code.into()),
+        qualifier: None,
         message,
+    };
+    let travel_of = |axis: Option<u8>| {
+        axis.and_then(|a| ids.axes.get(usize::from(a)))
+            .and_then(|a| a.travel)
     };
     if let Some(f) = v.snap.alarm.fault {
         let label = hal::fault_axis_label(f.axis, v.axis_names);
         let node = f.node.map(|n| format!("node {n}, ")).unwrap_or_default();
+        let limit = matches!(f.reason, FaultReason::LimitSwitch { .. });
         let target = match f.axis {
-            Some(SPINDLE_AXIS) => ids.spindle.condition,
-            Some(a) if usize::from(a) < ids.axes.len() => ids.axes[usize::from(a)].condition,
-            _ if f.reason.is_communication() => ids.communications,
-            _ => ids.system,
+            // A limit switch is the axis's travel condition's (below).
+            _ if limit && travel_of(f.axis).is_some() => None,
+            Some(SPINDLE_AXIS) => Some(ids.spindle.condition),
+            Some(a) if usize::from(a) < ids.axes.len() => Some(ids.axes[usize::from(a)].condition),
+            _ if f.reason.is_communication() => Some(ids.communications),
+            _ => Some(ids.system),
         };
         let who = match (f.axis, label) {
             (Some(SPINDLE_AXIS), Some(l)) => format!("{l}, "),
             (_, Some(l)) => format!("axis {l}, "),
             _ => String::new(),
         };
-        out.push((
-            target,
-            fault(f.reason.code(), format!("{who}{node}{}", f.reason)),
-        ));
+        let text = input_fault_message(m, f.reason).unwrap_or_else(|| f.reason.to_string());
+        if let Some(target) = target {
+            out.push((target, fault(f.reason.code(), format!("{who}{node}{text}"))));
+        }
+    }
+    // The e-stop chain open is the emergency stop even while another fault is in force.
+    let estop_fault = matches!(
+        v.snap.alarm.fault,
+        Some(f) if matches!(f.reason, FaultReason::EmergencyStop { .. })
+    );
+    let open = m.io.estop & !io.inputs.0;
+    if io.estop_open && !estop_fault {
+        let code = FaultReason::EmergencyStop { input: 0 }.code();
+        let input = open.trailing_zeros().min(63) as u8;
+        out.push((ids.system, fault(code, estop_message(m, input))));
     }
     if let Some(k) = &v.snap.alarm.kr_fault {
         out.push((
@@ -108,21 +163,87 @@ pub fn conditions(m: &DeviceModel, v: &MachineView) -> Vec<(usize, Cond)> {
         out.push((ids.motion, fault(code, msg.to_string())));
     }
     for (i, a) in ids.axes.iter().enumerate() {
+        let name = v.axis_names.get(i).copied().unwrap_or('?');
         if v.snap.axes.homing_failed & (1 << i) != 0 {
-            let name = v.axis_names.get(i).copied().unwrap_or('?');
             out.push((
                 a.condition,
                 Cond {
                     level: Level::Warning,
                     native_code: Some("homing_failed".into()),
+                    qualifier: None,
                     message: format!(
                         "axis {name}: the last reference run failed; home the axis again"
                     ),
                 },
             ));
         }
+        if let Some(t) = a.travel
+            && let Some(c) = travel(m, v, i, name)
+        {
+            out.push((t, c));
+        }
+    }
+    if let Some(item) = ids.machine_alarms {
+        for a in m.io.alarms.iter().filter(|a| io.alarms.get(a.input)) {
+            out.push((
+                item,
+                Cond {
+                    level: if a.fault {
+                        Level::Fault
+                    } else {
+                        Level::Warning
+                    },
+                    native_code: Some(a.name.clone()),
+                    qualifier: None,
+                    message: a.message.clone(),
+                },
+            ));
+        }
     }
     out
+}
+
+/// The travel condition of axis `i` (its limit switches): Fault while its limit fault is in
+/// force or a switch is reached and not yet acknowledged, Warning while a switch acknowledged
+/// with Reset is still reached (only a jog away from it moves), with the side as qualifier
+/// (HIGH: positive).
+fn travel(m: &DeviceModel, v: &MachineView, i: usize, name: char) -> Option<Cond> {
+    let io = &v.snap.io;
+    let (neg, pos) = m.limits.get(i).copied().unwrap_or_default();
+    let reached = io.limits.0 & (neg | pos);
+    let faulted = match v.snap.alarm.fault {
+        Some(f) if f.axis.map(usize::from) == Some(i) => match f.reason {
+            FaultReason::LimitSwitch { positive, input } => Some((positive, input)),
+            _ => None,
+        },
+        _ => None,
+    };
+    let (positive, input) = faulted.or_else(|| {
+        (reached != 0).then(|| {
+            let k = reached.trailing_zeros() as u8;
+            (pos & (1 << k) != 0, k)
+        })
+    })?;
+    let fresh = reached & !io.limits_acknowledged.0 != 0;
+    let level = if faulted.is_some() || fresh {
+        Level::Fault
+    } else {
+        Level::Warning
+    };
+    let reason = FaultReason::LimitSwitch { positive, input };
+    let message = match level {
+        Level::Warning => format!(
+            "axis {name}: limit switch {} still reached (acknowledged): only a jog away from it moves",
+            input_name(m, input)
+        ),
+        _ => format!("axis {name}, input {}: {reason}", input_name(m, input)),
+    };
+    Some(Cond {
+        level,
+        native_code: Some(reason.code().into()),
+        qualifier: Some(if positive { "HIGH" } else { "LOW" }),
+        message,
+    })
 }
 
 /// The value of every sample and event data item.
@@ -143,7 +264,7 @@ pub fn values(m: &DeviceModel, v: &MachineView) -> Vec<(usize, Value)> {
         ),
         (
             ids.emergency_stop,
-            text(if s.state == MachineState::Fault {
+            text(if s.io.estop_open || s.state == MachineState::Fault {
                 "TRIGGERED"
             } else {
                 "ARMED"
@@ -181,6 +302,13 @@ pub fn values(m: &DeviceModel, v: &MachineView) -> Vec<(usize, Value)> {
         }
     }
     out.push((ids.path_position, Value::Vector(p)));
+    if let Some(id) = ids.door_state {
+        out.push((id, text(if s.io.door_open { "OPEN" } else { "CLOSED" })));
+    }
+    if let Some(id) = ids.coolant {
+        let on = s.io.outputs.0 & m.io.coolant != 0;
+        out.push((id, text(if on { "ON" } else { "OFF" })));
+    }
     if let (Some(id), Some(axis)) = (ids.cutting_speed, v.cutting_axis) {
         let r_mm = s.axes.actual[axis].abs();
         let mm_s = std::f64::consts::TAU * r_mm * s.spindle.rpm.abs() / 60.0;
@@ -249,6 +377,7 @@ fn update_condition<'a>(
                 Value::Condition(Cond {
                     level: Level::Normal,
                     native_code: a.native_code.clone(),
+                    qualifier: None,
                     message: String::new(),
                 }),
             );
@@ -266,6 +395,7 @@ fn update_condition<'a>(
             Value::Condition(Cond {
                 level: Level::Normal,
                 native_code: None,
+                qualifier: None,
                 message: String::new(),
             }),
         );

@@ -93,6 +93,9 @@ fn observation(x: &mut Xml, m: &DeviceModel, o: &Observation) {
                         a.push(("conditionId", code));
                     }
                 }
+                if let (Some(q), false) = (c.qualifier, c.level == Level::Normal) {
+                    a.push(("qualifier", q));
+                }
                 (c.level.element(), c.message.as_str())
             }
             _ => ("Unavailable", ""),

@@ -9,8 +9,10 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use tokio::sync::watch;
 
 use crate::mtconnect::assets::Tool;
+use crate::mtconnect::model::{AlarmInput, IoDesc};
 use crate::mtconnect::observe::MachineView;
 use crate::mtconnect::{Agent, AxisDesc, DeviceModel, MachineDesc};
+use crate::runtime::config::{AlarmSeverity, Config, InputFunction, OutputConfig, parse_m};
 use crate::runtime::controller::Controller;
 
 use super::MtconnectConfig;
@@ -63,19 +65,76 @@ fn host_name() -> String {
 
 /// The machine description of the controller's configuration.
 pub fn machine_desc(ctl: &Controller, cfg: &MtconnectConfig) -> MachineDesc {
+    let config = ctl.config();
+    let io = config.io();
+    let limits = |axis: char, f: InputFunction| -> u64 {
+        io.inputs
+            .iter()
+            .enumerate()
+            .filter(|(_, i)| {
+                let on_drive = i
+                    .drive
+                    .as_deref()
+                    .is_some_and(|d| !d.eq_ignore_ascii_case("spindle") && d.starts_with(axis));
+                i.function == f && (i.axis == Some(axis) || (i.axis.is_none() && on_drive))
+            })
+            .fold(0, |m, (k, _)| m | 1 << k)
+    };
     MachineDesc {
         name: cfg.device_name.clone(),
         uuid: cfg.device_uuid.clone(),
-        axes: ctl
-            .config()
+        axes: config
             .axes
             .iter()
             .map(|a| AxisDesc {
                 name: a.name,
                 rotary: a.rotary_pulses_per_rev.is_some(),
+                limit_neg: limits(a.name, InputFunction::LimitNeg),
+                limit_pos: limits(a.name, InputFunction::LimitPos),
             })
             .collect(),
         cutting_speed: cutting_axis(ctl).is_some(),
+        io: io_desc(config),
+    }
+}
+
+/// M functions that switch the coolant by convention (ISO 6983: M7 mist, M8 flood).
+const COOLANT_M: [u16; 2] = [7, 8];
+
+/// An output is the coolant's when M7 or M8 switches it on, or its name says so.
+fn is_coolant(o: &OutputConfig) -> bool {
+    o.on.iter()
+        .filter_map(|m| parse_m(m))
+        .any(|m| COOLANT_M.contains(&m))
+        || o.name.to_ascii_lowercase().contains("coolant")
+}
+
+/// The inputs and outputs the agent shows, from `[io]` in force.
+fn io_desc(config: &Config) -> IoDesc {
+    let io = config.io();
+    let mask = |bits: &mut dyn Iterator<Item = usize>| bits.fold(0u64, |m, k| m | 1 << k);
+    IoDesc {
+        inputs: io.inputs.iter().map(|i| i.name.clone()).collect(),
+        estop: mask(
+            &mut (0..io.inputs.len()).filter(|&k| io.inputs[k].function == InputFunction::Estop),
+        ),
+        door: io.inputs.iter().any(|i| i.function == InputFunction::Door),
+        coolant: mask(&mut (0..io.outputs.len()).filter(|&k| is_coolant(&io.outputs[k]))),
+        alarms: io
+            .inputs
+            .iter()
+            .enumerate()
+            .filter(|(_, i)| i.function == InputFunction::Alarm)
+            .map(|(k, i)| AlarmInput {
+                input: k,
+                name: i.name.clone(),
+                message: i
+                    .message
+                    .clone()
+                    .unwrap_or_else(|| format!("alarm input {} active", i.name)),
+                fault: i.severity == AlarmSeverity::Fault,
+            })
+            .collect(),
     }
 }
 
