@@ -134,7 +134,11 @@ fn estop_opens_during_a_move_every_axis_stops_outputs_fall_safe_reset_waits_for_
     assert_eq!(f.reason.code(), "emergency_stop");
     assert!(s.io.estop_open);
     let s = m.h.step();
-    assert_eq!(m.last_sent().0, 0, "the next exchange carries the safe outputs");
+    assert_eq!(
+        m.last_sent().0,
+        0,
+        "the next exchange carries the safe outputs"
+    );
     assert_eq!(s.io.outputs.0, 0);
     let s =
         m.h.run_until(MAX_TICKS, |s| {

@@ -376,6 +376,6 @@ impl RtCore {
 }
 
 /// A fault of the bus or a drive (not of the machine's inputs) is in force.
-pub(crate) fn bus_fault(s: &super::Snapshot) -> bool {
+pub fn bus_fault(s: &super::Snapshot) -> bool {
     s.alarm.fault.is_some_and(|f| !f.reason.is_input())
 }
