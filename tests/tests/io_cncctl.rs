@@ -78,3 +78,43 @@ fn estop_force_and_m8_through_cncd_and_cncctl() {
     let (ok, out) = d.cncctl(&["io", "force", "coolant", "2"]);
     assert!(!ok && out.contains("give 0, 1 or release"), "{out}");
 }
+
+/// The simulated machine with buttons wired: the cycle start button starts the loaded
+/// program, feed hold holds it, cycle start resumes it.
+const BUTTONS: &str = "[[io.inputs]]\nname = \"estop\"\nfunction = \"estop\"\n\n\
+    [[io.inputs]]\nname = \"start\"\nfunction = \"cycle_start\"\n\n\
+    [[io.inputs]]\nname = \"hold\"\nfunction = \"feed_hold\"\n";
+
+fn state(d: &Cncd) -> String {
+    let (_, s) = d.cncctl(&["--json", "status"]);
+    s
+}
+
+fn press(d: &Cncd, button: &str) {
+    for v in ["1", "0"] {
+        let (ok, out) = d.cncctl(&["io", "sim-set", button, v]);
+        assert!(ok, "{out}");
+    }
+}
+
+#[test]
+fn the_cycle_start_and_feed_hold_buttons_start_hold_and_resume_the_program() {
+    let cwd = temp_dir("io-buttons");
+    let d = Cncd::start(&cwd, &format!("{MILL_TOML}\n{BUTTONS}"));
+    d.wait_idle();
+    let part = cwd.join("part.nc");
+    std::fs::write(&part, "G1 X300 F600\nM30\n").unwrap();
+    let (ok, out) = d.cncctl(&["load", part.to_str().unwrap()]);
+    assert!(ok, "{out}");
+    press(&d, "start");
+    wait_for("running", || state(&d).contains("\"state\":\"running\""));
+    press(&d, "hold");
+    wait_for("hold", || state(&d).contains("\"state\":\"hold\""));
+    press(&d, "start");
+    wait_for("running again", || {
+        state(&d).contains("\"state\":\"running\"")
+    });
+    let (ok, out) = d.cncctl(&["stop"]);
+    assert!(ok, "{out}");
+    d.wait_idle();
+}

@@ -301,15 +301,20 @@ fn m8_sets_the_coolant_before_the_next_move_m9_clears_it_m30_too() {
     assert!(!t.last().unwrap().0, "M30 ends the coolant");
 }
 
-fn clamp_config() -> Config {
+/// The configuration `text` with the tests' storage and real-time settings.
+fn config_of(text: &str) -> Config {
     let base = tests::test_config();
-    let text = "[[io.inputs]]\nname = \"estop\"\nfunction = \"estop\"\n\
-        [[io.inputs]]\nname = \"clamped\"\nconfirms = [\"M10\"]\ntimeout_ms = 200\n\
-        [[io.outputs]]\nname = \"clamp\"\non = [\"M10\"]\noff = [\"M11\"]\n";
     let mut cfg = Config::parse(text, std::path::Path::new("io.toml")).unwrap();
     cfg.storage = base.storage;
     cfg.rt = base.rt;
     cfg
+}
+
+fn clamp_config() -> Config {
+    let text = "[[io.inputs]]\nname = \"estop\"\nfunction = \"estop\"\n\
+        [[io.inputs]]\nname = \"clamped\"\nconfirms = [\"M10\"]\ntimeout_ms = 200\n\
+        [[io.outputs]]\nname = \"clamp\"\non = [\"M10\"]\noff = [\"M11\"]\n";
+    config_of(text)
 }
 
 #[test]
@@ -379,4 +384,22 @@ fn an_open_door_holds_the_program_and_stops_the_spindle_start_is_refused() {
     m.h.run_until(MAX_TICKS, |s| s.state == MachineState::Idle)
         .unwrap();
     assert!(m.h.snapshot().axes.commanded[0] > 99.0);
+}
+
+/// A home switch wired as an input (the drive does not home itself): the reference run
+/// searches it, and the axis is referenced where it is pressed.
+#[test]
+fn a_home_switch_input_references_the_axis() {
+    let text = "[[axes]]\nname = \"X\"\nhoming = \"required\"\nhoming_direction = -1\n\
+        reference_mm = 0\n[[axes]]\nname = \"Y\"\n[[axes]]\nname = \"Z\"\n\
+        [[io.inputs]]\nname = \"estop\"\nfunction = \"estop\"\n\
+        [[io.inputs]]\nname = \"x_home\"\nfunction = \"home\"\naxis = \"X\"\nsim_at_mm = -20\n";
+    let mut m = machine(config_of(text));
+    // Without the input the search would run its whole travel and fail.
+    assert_eq!(m.h.home("X", MAX_TICKS).unwrap(), "X");
+    let s = m.h.snapshot();
+    assert_eq!(s.axes.homed & 1, 1);
+    // The switch (at -20 before the run) is the reference 0 now: the axis stands within the
+    // braking distance past it.
+    assert!(s.axes.commanded[0].abs() < 5.0, "{}", s.axes.commanded[0]);
 }

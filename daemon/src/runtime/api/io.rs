@@ -122,3 +122,32 @@ pub fn fault_text(config: &Config, reason: &hal::FaultReason) -> String {
         _ => format!("{reason} [input {}]", inp.name),
     }
 }
+
+/// The cycle start button (docs/io.md): a press seen on an idle machine starts the selected
+/// program as the Start call does (a press on a held machine already resumed it in the RT
+/// core). Without a program selected, or when the start is refused, the log says why.
+pub fn spawn_cycle_start(state: std::sync::Weak<super::ApiState>) {
+    tokio::spawn(async move {
+        let mut last: Option<u32> = None;
+        let mut every = tokio::time::interval(std::time::Duration::from_millis(10));
+        every.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        loop {
+            every.tick().await;
+            let Some(st) = state.upgrade() else {
+                return;
+            };
+            let s = st.ctl.snapshot();
+            let presses = s.io.cycle_start_presses;
+            let pressed = last.is_some_and(|l| l != presses);
+            last = Some(presses);
+            if pressed && s.state == super::super::rt::MachineState::Idle {
+                if let Err(e) = super::machine::start_job(&st, None).await {
+                    tracing::warn!(
+                        "cycle start button: the program did not start: {}",
+                        e.message()
+                    );
+                }
+            }
+        }
+    });
+}

@@ -189,62 +189,7 @@ impl Machine for MachineSvc {
     ) -> Result<Response<pb::StartReply>, Status> {
         require(&req, Operator, "Start")?;
         let from_block = req.into_inner().from_block;
-        let _one_at_a_time = self.0.job.start_lock.lock().await;
-        // Start on a held machine (feed hold, M0/M1) continues the job.
-        if from_block.is_none()
-            && let Some(job) = self.0.ctl.start_resumes().map_err(status_of)?
-        {
-            return Ok(Response::new(pb::StartReply { job }));
-        }
-        let st = self.0.clone();
-        let job = blocking(move || -> Result<u32, Status> {
-            if st.job.single_block.load(Ordering::Relaxed) {
-                // Single block: every block ends at rest so the holds land on block ends
-                // (a restart's approach holds at its end too).
-                let p = st
-                    .ctl
-                    .program()
-                    .ok_or_else(|| Status::failed_precondition("no program is loaded"))?;
-                // Single block keeps every block in memory (the holds need them).
-                if p.text.len() > SINGLE_BLOCK_MAX_BYTES {
-                    return Err(Status::failed_precondition(format!(
-                        "single-block runs keep the whole program in memory: programs over \
-                         {} MiB run only continuously",
-                        SINGLE_BLOCK_MAX_BYTES >> 20
-                    )));
-                }
-                let text = p
-                    .text
-                    .read_all(st.ctl.program_encoding())
-                    .map_err(|e| Status::internal(e.to_string()))?;
-                // The job's pass (every block ends at rest) is what the preview shows.
-                let outline = Outline::new(&st.ctl.config().axis_names());
-                let (job, blocks, outline) = st
-                    .ctl
-                    .start_program_blocks(&p, &text, from_block, outline)
-                    .map_err(status_of)?;
-                super::preview_outline::job_started(&st, job, Some(outline));
-                *st.job.run.lock().unwrap() = Some(RunInfo {
-                    job,
-                    blocks,
-                    mode: RunMode::Auto,
-                });
-                Ok(job)
-            } else {
-                // A job that validates again (setup changed, restart): its pass is what
-                // the preview shows while it runs.
-                let outline = Outline::new(&st.ctl.config().axis_names());
-                let (job, pass) = st
-                    .ctl
-                    .start_program_observed(from_block, outline)
-                    .map_err(status_of)?;
-                super::preview_outline::job_started(&st, job, pass);
-                *st.job.run.lock().unwrap() = None;
-                Ok(job)
-            }
-        })
-        .await??;
-        self.0.wait_started(job).await;
+        let job = start_job(&self.0, from_block).await?;
         Ok(Response::new(pb::StartReply { job }))
     }
 
@@ -587,4 +532,69 @@ fn refinement_to_pb(r: &kernel::program::arc::Refined) -> pb::Refinement {
             .map(|w| format!("E{:.3}", w.encode()))
             .unwrap_or_default(),
     }
+}
+
+/// Start (or continue a held job), as the Start call and the cycle start button do: the
+/// selected program from its start or from block `from_block`.
+pub(super) async fn start_job(
+    state: &Arc<ApiState>,
+    from_block: Option<u32>,
+) -> Result<u32, Status> {
+    let _one_at_a_time = state.job.start_lock.lock().await;
+    // Start on a held machine (feed hold, M0/M1) continues the job.
+    if from_block.is_none()
+        && let Some(job) = state.ctl.start_resumes().map_err(status_of)?
+    {
+        return Ok(job);
+    }
+    let st = state.clone();
+    let job = blocking(move || -> Result<u32, Status> {
+        if st.job.single_block.load(Ordering::Relaxed) {
+            // Single block: every block ends at rest so the holds land on block ends
+            // (a restart's approach holds at its end too).
+            let p = st
+                .ctl
+                .program()
+                .ok_or_else(|| Status::failed_precondition("no program is loaded"))?;
+            // Single block keeps every block in memory (the holds need them).
+            if p.text.len() > SINGLE_BLOCK_MAX_BYTES {
+                return Err(Status::failed_precondition(format!(
+                    "single-block runs keep the whole program in memory: programs over \
+                         {} MiB run only continuously",
+                    SINGLE_BLOCK_MAX_BYTES >> 20
+                )));
+            }
+            let text = p
+                .text
+                .read_all(st.ctl.program_encoding())
+                .map_err(|e| Status::internal(e.to_string()))?;
+            // The job's pass (every block ends at rest) is what the preview shows.
+            let outline = Outline::new(&st.ctl.config().axis_names());
+            let (job, blocks, outline) = st
+                .ctl
+                .start_program_blocks(&p, &text, from_block, outline)
+                .map_err(status_of)?;
+            super::preview_outline::job_started(&st, job, Some(outline));
+            *st.job.run.lock().unwrap() = Some(RunInfo {
+                job,
+                blocks,
+                mode: RunMode::Auto,
+            });
+            Ok(job)
+        } else {
+            // A job that validates again (setup changed, restart): its pass is what
+            // the preview shows while it runs.
+            let outline = Outline::new(&st.ctl.config().axis_names());
+            let (job, pass) = st
+                .ctl
+                .start_program_observed(from_block, outline)
+                .map_err(status_of)?;
+            super::preview_outline::job_started(&st, job, pass);
+            *st.job.run.lock().unwrap() = None;
+            Ok(job)
+        }
+    })
+    .await??;
+    state.wait_started(job).await;
+    Ok(job)
 }

@@ -123,6 +123,7 @@ impl ApiState {
         alarms::spawn_watcher(state.ctl.clone(), state.alarms.clone());
         files_watch::spawn(state.ctl.clone(), state.alarms.clone());
         job_journal::spawn(Arc::downgrade(&state));
+        io::spawn_cycle_start(Arc::downgrade(&state));
         // The program selected before the restart is selected again (validated, not started).
         let st = state.clone();
         tokio::task::spawn_blocking(move || programs::restore_selection(&st));

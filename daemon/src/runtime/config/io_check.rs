@@ -198,27 +198,33 @@ fn module_bits(m: &ModuleConfig, input: bool) -> u8 {
     if input { m.input_bits } else { m.output_bits }
 }
 
-impl InputConfig {
-    fn point_keys<'a>(&'a self, key: &str) -> PointKeys<'a> {
+impl<'a> PointKeys<'a> {
+    fn of(
+        key: &str,
+        input: bool,
+        node_id: Option<u8>,
+        drive: &'a Option<String>,
+        bit: Option<u8>,
+    ) -> Self {
         PointKeys {
             key: key.to_string(),
-            node_id: self.node_id,
-            drive: self.drive.as_deref(),
-            bit: self.bit,
-            input: true,
+            node_id,
+            drive: drive.as_deref(),
+            bit,
+            input,
         }
     }
 }
 
+impl InputConfig {
+    fn point_keys(&self, key: &str) -> PointKeys<'_> {
+        PointKeys::of(key, true, self.node_id, &self.drive, self.bit)
+    }
+}
+
 impl OutputConfig {
-    fn point_keys<'a>(&'a self, key: &str) -> PointKeys<'a> {
-        PointKeys {
-            key: key.to_string(),
-            node_id: self.node_id,
-            drive: self.drive.as_deref(),
-            bit: self.bit,
-            input: false,
-        }
+    fn point_keys(&self, key: &str) -> PointKeys<'_> {
+        PointKeys::of(key, false, self.node_id, &self.drive, self.bit)
     }
 }
 
