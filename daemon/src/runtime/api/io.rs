@@ -140,13 +140,15 @@ pub fn spawn_cycle_start(state: std::sync::Weak<super::ApiState>) {
             let presses = s.io.cycle_start_presses;
             let pressed = last.is_some_and(|l| l != presses);
             last = Some(presses);
-            if pressed && s.state == super::super::rt::MachineState::Idle {
-                if let Err(e) = super::machine::start_job(&st, None).await {
-                    tracing::warn!(
-                        "cycle start button: the program did not start: {}",
-                        e.message()
-                    );
-                }
+            let idle = s.state == super::super::rt::MachineState::Idle;
+            if pressed
+                && idle
+                && let Err(e) = super::machine::start_job(&st, None).await
+            {
+                tracing::warn!(
+                    "cycle start button: the program did not start: {}",
+                    e.message()
+                );
             }
         }
     });
