@@ -74,6 +74,22 @@ fn estop_force_and_m8_through_cncd_and_cncctl() {
         let io = io_json(&d);
         value(&io, "outputs", "coolant") == 0 && !io.to_string().contains("\"forced\":true")
     });
+    // A limit switch: fault naming the axis and side; after Reset only a jog away moves.
+    let (ok, out) = d.cncctl(&["io", "sim-set", "x_limit_pos", "1"]);
+    assert!(ok, "{out}");
+    wait_for("limit fault", || {
+        let (_, s) = d.cncctl(&["--json", "status"]);
+        s.contains("\"state\":\"fault\"") && s.contains("axis X") && s.contains("positive side")
+    });
+    let (ok, out) = d.cncctl(&["reset"]);
+    assert!(ok, "{out}");
+    d.wait_idle();
+    let (ok, out) = d.cncctl(&["jog", "X", "--step", "1"]);
+    assert!(!ok && out.contains("limit switch"), "{out}");
+    let (ok, out) = d.cncctl(&["jog", "X", "--step", "-1"]);
+    assert!(ok, "{out}");
+    let (ok, out) = d.cncctl(&["io", "sim-set", "x_limit_pos", "release"]);
+    assert!(ok, "{out}");
     // A wrong value is refused by cncctl itself.
     let (ok, out) = d.cncctl(&["io", "force", "coolant", "2"]);
     assert!(!ok && out.contains("give 0, 1 or release"), "{out}");

@@ -156,6 +156,9 @@ impl Motion {
                 snap.state
             )));
         }
+        if let Some(why) = self.into_limit_switch(&snap, i, f64::from(dir)) {
+            return Err(ControlError::WrongState(why));
+        }
         let a = &self.config.axes[i];
         let (lo, hi) = (
             a.soft_min_mm.unwrap_or(f64::NEG_INFINITY),
@@ -173,6 +176,25 @@ impl Motion {
         Ok(if dir > 0 { hi } else { lo })
     }
 
+    /// Why a jog of axis `i` in direction `dir` would move into a hardware limit switch that
+    /// is still reached (docs/io.md: only a jog away from it moves).
+    fn into_limit_switch(&self, snap: &Snapshot, i: usize, dir: f64) -> Option<String> {
+        let f = crate::runtime::io_setup::functions(&self.config);
+        let reached = snap.io.limits.0;
+        let name = self.config.axes[i].name;
+        let side = if dir > 0.0 && reached & f.limit_pos[i] != 0 {
+            ("positive", '-')
+        } else if dir < 0.0 && reached & f.limit_neg[i] != 0 {
+            ("negative", '+')
+        } else {
+            return None;
+        };
+        Some(format!(
+            "axis {name} stands on its {} limit switch: only a jog away from it ({name}{}) moves",
+            side.0, side.1
+        ))
+    }
+
     /// Whether a jog step of `step_mm` on `axis` may run (issue #31): refused before motion
     /// when it would end beyond a soft limit (an axis standing beyond one may step back
     /// inside), or, on an axis without limits, when it is longer than [`MAX_JOG_STEP_MM`].
@@ -185,6 +207,9 @@ impl Motion {
         let Ok(i) = self.axis_index(axis) else {
             return Ok(()); // jog_step names the axis error
         };
+        if let Some(why) = self.into_limit_switch(&rt.snapshot(), i, step_mm) {
+            return Err(why);
+        }
         let a = &self.config.axes[i];
         let target = rt.snapshot().axes.commanded[i] + step_mm;
         let beyond = |limit: Option<f64>, upper: bool| match limit {
