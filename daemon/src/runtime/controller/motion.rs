@@ -156,7 +156,7 @@ impl Motion {
                 snap.state
             )));
         }
-        if let Some(why) = self.into_limit_switch(&snap, i, f64::from(dir)) {
+        if let Some(why) = self.jog_toward_reached_limit(&snap, i, f64::from(dir)) {
             return Err(ControlError::WrongState(why));
         }
         let a = &self.config.axes[i];
@@ -178,7 +178,7 @@ impl Motion {
 
     /// Why a jog of axis `i` in direction `dir` would move into a hardware limit switch that
     /// is still reached (docs/io.md: only a jog away from it moves).
-    fn into_limit_switch(&self, snap: &Snapshot, i: usize, dir: f64) -> Option<String> {
+    fn jog_toward_reached_limit(&self, snap: &Snapshot, i: usize, dir: f64) -> Option<String> {
         let f = crate::runtime::io_setup::functions(&self.config);
         let reached = snap.io.limits.0;
         let name = self.config.axes[i].name;
@@ -207,7 +207,7 @@ impl Motion {
         let Ok(i) = self.axis_index(axis) else {
             return Ok(()); // jog_step names the axis error
         };
-        if let Some(why) = self.into_limit_switch(&rt.snapshot(), i, step_mm) {
+        if let Some(why) = self.jog_toward_reached_limit(&rt.snapshot(), i, step_mm) {
             return Err(why);
         }
         let a = &self.config.axes[i];
