@@ -71,6 +71,34 @@ diag_codes! {
     DwellNotSupported = "dwell_not_supported",
     /// G18/G19 on a machine without the third axis.
     PlaneNeedsAxis = "plane_needs_axis",
+    // ---- the ISO / RS274-NGC dialect (docs/language.md) ----
+    /// A word, G or M code of RS274-NGC that cncd does not run (the message names it).
+    IsoUnsupported = "iso_unsupported",
+    /// An expression written wrong (brackets, operator, function name).
+    ExpressionSyntax = "expression_syntax",
+    /// An expression whose value is undefined (division by zero, SQRT of a negative, ...).
+    ExpressionDomain = "expression_domain",
+    /// A numbered parameter outside #1..#5602, or a read-only one written.
+    IsoParamOutOfRange = "iso_param_out_of_range",
+    /// An O-word that does not match its opening (endwhile without while, ...).
+    OWordMismatch = "oword_mismatch",
+    /// A call of a subroutine that the program does not define.
+    SubroutineUnknown = "subroutine_unknown",
+    /// A loop that ran more iterations than the interpreter allows, or calls nested too deep.
+    LoopLimit = "loop_limit",
+    /// The program source cannot go back to a line (a loop or a call needs it).
+    SourceCannotSeek = "source_cannot_seek",
+    /// A canned cycle without a word it needs (R, Z, Q ...), or with a wrong value.
+    CycleWord = "cycle_word",
+    /// An arc written with R whose end point is farther than 2·R from its start, or helical
+    /// turns P other than 1.
+    ArcRadiusForm = "arc_radius_form",
+    /// Two words of a modal group (or two motion words using axes) in one block.
+    IsoModalConflict = "iso_modal_conflict",
+    /// A tool number not in the offset table (T, H or D).
+    ToolNotInTable = "tool_not_in_table",
+    /// A message of the program, `(MSG, …)` (information).
+    ProgramMessage = "program_message",
     // ---- program parameters R0..R94 ----
     /// A parameter number outside R0..R94.
     ParamOutOfRange = "param_out_of_range",

@@ -8,7 +8,9 @@
 use crate::diag::{DiagCode, Diagnostic};
 
 mod text_edit;
+pub mod work;
 pub use text_edit::edit_text;
+pub use work::WorkOffsets;
 
 /// Entries 1..=99 (SPEC §3).
 pub const ENTRIES: u8 = 99;

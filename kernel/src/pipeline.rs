@@ -341,7 +341,7 @@ pub fn run_lines<L: program::Lines>(
         }
         let f = match item {
             Ok(b) => {
-                let modal = stream.interpreter().modal();
+                let modal = stream.modal();
                 p.push(b, &modal, obs)
             }
             Err(d) => p.report(d, obs),

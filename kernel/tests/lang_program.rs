@@ -213,7 +213,7 @@ fn g92_writes_only_the_parameters_present_manual_example() {
     );
     // The interpreter's own copy changed at once: X and 4th lengths untouched.
     assert_eq!(
-        st.interpreter().table().entry(12),
+        st.interpreter().unwrap().table().entry(12),
         Some(&OffsetEntry {
             radius_mm: 10.0,
             length_mm: [11.0, 25.5, -5.0, 14.0]

@@ -14,10 +14,15 @@
 
 pub mod arc;
 mod code_pages;
+mod dialect;
+pub mod dry_run;
 pub mod encoding;
 pub mod feed;
 pub mod interpreter;
+pub mod iso;
 pub mod words;
+
+pub use dialect::Dialect;
 
 pub use feed::{
     FeedMode, MAX_FEED_MM_MIN, MAX_FEED_MM_REV, rotary_feed_factor, rotary_surface_speed_mm_min,
@@ -48,6 +53,10 @@ pub enum IjMode {
 /// What the interpreter needs to know about the machine.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Setup {
+    /// The language of the program (`[program] dialect`, or the file's extension).
+    pub dialect: Dialect,
+    /// Work offsets G54..G59.3 (ISO dialect) at program start.
+    pub work_offsets: crate::offsets::WorkOffsets,
     /// The block-delete switch (issue #31, docs/language.md "Block delete"): a block whose
     /// first character is `/` is skipped while on, and runs (the `/` ignored) while off.
     pub block_delete: bool,
@@ -97,6 +106,8 @@ pub struct Setup {
 impl Setup {
     pub fn new(axis_names: &[char]) -> Self {
         Setup {
+            dialect: Dialect::Cnc836,
+            work_offsets: crate::offsets::WorkOffsets::default(),
             axis_names: axis_names.to_vec(),
             start: AxesMm::ZERO,
             constants: Constants::new(),
@@ -172,8 +183,8 @@ fn run(text: &str, setup: &Setup, mut sink: impl FnMut(Block), diags: &mut Vec<D
         }
     };
     while let Some(item) = s.next() {
-        if s.interp.has_notes() {
-            keep_notes(diags, s.interp.take_notes());
+        if s.has_notes() {
+            keep_notes(diags, s.take_notes());
         }
         match item {
             Ok(b) => sink(b),
@@ -194,7 +205,7 @@ fn run(text: &str, setup: &Setup, mut sink: impl FnMut(Block), diags: &mut Vec<D
             }
         }
     }
-    keep_notes(diags, s.interp.take_notes());
+    keep_notes(diags, s.take_notes());
     // Warnings never stop the check (a program with many warnings may still run); beyond the
     // cap they are only counted.
     if dropped_notes > 0 {
@@ -287,18 +298,35 @@ pub trait Lines {
     /// The next line, `None` after the last. `Err`: a line that cannot be read as text (not
     /// UTF-8 ...): reported as that line's error, and the stream goes on with the next line.
     fn next_line(&mut self, line_no: u32) -> Option<Result<&str, Diagnostic>>;
+
+    /// Where the next line starts, for [`Lines::seek`]: the ISO dialect's loops and
+    /// subroutines go back to a line already read. `None`: this source cannot go back.
+    fn mark(&self) -> Option<LineMark> {
+        None
+    }
+
+    /// Continues reading at `mark` (taken from this source). `false`: it cannot.
+    fn seek(&mut self, _mark: LineMark) -> bool {
+        false
+    }
 }
+
+/// A place in a program's lines: the byte offset of a line's start in the source.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct LineMark(pub u64);
 
 /// The lines of a text in memory.
 pub struct StrLines<'a> {
-    rest: &'a str,
+    text: &'a str,
+    pos: usize,
     done: bool,
 }
 
 impl<'a> StrLines<'a> {
     pub fn new(text: &'a str) -> Self {
         StrLines {
-            rest: text,
+            text,
+            pos: 0,
             done: false,
         }
     }
@@ -309,15 +337,40 @@ impl Lines for StrLines<'_> {
         if self.done {
             return None;
         }
-        let (line, rest) = match self.rest.find('\n') {
-            Some(k) => (&self.rest[..k], &self.rest[k + 1..]),
+        let rest = &self.text[self.pos..];
+        let line = match rest.find('\n') {
+            Some(k) => {
+                self.pos += k + 1;
+                &rest[..k]
+            }
             None => {
                 self.done = true;
-                (self.rest, "")
+                self.pos = self.text.len();
+                rest
             }
         };
-        self.rest = rest;
         Some(Ok(line))
+    }
+
+    fn mark(&self) -> Option<LineMark> {
+        Some(LineMark(if self.done {
+            self.text.len() as u64 + 1
+        } else {
+            self.pos as u64
+        }))
+    }
+
+    fn seek(&mut self, mark: LineMark) -> bool {
+        let Ok(pos) = usize::try_from(mark.0) else {
+            return false;
+        };
+        if pos > self.text.len() + 1 || (pos <= self.text.len() && !self.text.is_char_boundary(pos))
+        {
+            return false;
+        }
+        self.done = pos > self.text.len();
+        self.pos = pos.min(self.text.len());
+        true
     }
 }
 
@@ -332,9 +385,11 @@ pub fn stream<'a>(text: &'a str, setup: &Setup) -> Stream<StrLines<'a>> {
 /// As [`stream`], from lines read by the caller (a program file of any size).
 pub fn stream_lines<L: Lines>(lines: L, setup: &Setup) -> Stream<L> {
     let interp = Interpreter::new(setup);
+    let iso = (setup.dialect == Dialect::Iso).then(|| Box::new(iso::Interpreter::new(setup)));
     Stream {
         pending_setup_error: interp.setup_error(),
         interp,
+        iso,
         lines,
         line_no: 0,
         done: false,
@@ -344,7 +399,10 @@ pub fn stream_lines<L: Lines>(lines: L, setup: &Setup) -> Stream<L> {
 
 /// Iterator of a program's blocks, see [`stream`].
 pub struct Stream<L> {
+    /// The CNC836 interpreter (also the setup's checks for an ISO program).
     interp: Interpreter,
+    /// The ISO front-end, when the program is ISO.
+    iso: Option<Box<iso::Interpreter>>,
     lines: L,
     line_no: u32,
     pending_setup_error: Option<Diagnostic>,
@@ -356,12 +414,31 @@ pub struct Stream<L> {
 impl<L> Stream<L> {
     /// Warnings and information produced so far and not yet taken.
     pub fn take_notes(&mut self) -> Vec<Diagnostic> {
-        self.interp.take_notes()
+        match self.iso.as_mut() {
+            Some(iso) => iso.take_notes(),
+            None => self.interp.take_notes(),
+        }
     }
 
-    /// The interpreter (its offset table, parameters) as of the last block returned.
-    pub fn interpreter(&self) -> &Interpreter {
-        &self.interp
+    fn has_notes(&self) -> bool {
+        match self.iso.as_ref() {
+            Some(iso) => iso.has_notes(),
+            None => self.interp.has_notes(),
+        }
+    }
+
+    /// The CNC836 interpreter (its offset table, parameters) as of the last block returned;
+    /// `None` for an ISO program.
+    pub fn interpreter(&self) -> Option<&Interpreter> {
+        self.iso.is_none().then_some(&self.interp)
+    }
+
+    /// The modal state after the last block returned (what an MDI after it inherits).
+    pub fn modal(&self) -> Modal {
+        match self.iso.as_ref() {
+            Some(iso) => iso.modal(),
+            None => self.interp.modal(),
+        }
     }
 }
 
@@ -370,6 +447,10 @@ impl<L: Lines> Stream<L> {
     /// when there is something.
     fn end_program(&mut self, b: &Block) {
         self.done = true;
+        if self.iso.is_some() {
+            // ISO programs keep subroutines after M2 (LinuxCNC reads them): no note.
+            return;
+        }
         let mut rest = false;
         let mut n = self.line_no;
         while let Some(l) = self.lines.next_line(n + 1) {
@@ -395,16 +476,8 @@ impl<L: Lines> Stream<L> {
             ));
         }
     }
-}
 
-impl<L: Lines> Iterator for Stream<L> {
-    type Item = Result<Block, Diagnostic>;
-
-    fn next(&mut self) -> Option<Self::Item> {
-        if let Some(e) = self.pending_setup_error.take() {
-            self.done = true;
-            return Some(Err(e));
-        }
+    fn next_cnc836(&mut self) -> Option<Result<Block, Diagnostic>> {
         while !self.done {
             self.line_no += 1;
             let line = match self.lines.next_line(self.line_no) {
@@ -432,17 +505,43 @@ impl<L: Lines> Iterator for Stream<L> {
                 None => line,
             };
             match self.interp.line(self.line_no, line) {
-                Ok(Some(b)) => {
-                    if crate::block::ends_program(&b.m) {
-                        self.end_program(&b);
-                    }
-                    return Some(Ok(b));
-                }
+                Ok(Some(b)) => return Some(Ok(b)),
                 Ok(None) => {}
                 Err(d) => return Some(Err(d)),
             }
         }
         None
+    }
+}
+
+impl<L: Lines> Iterator for Stream<L> {
+    type Item = Result<Block, Diagnostic>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        if let Some(e) = self.pending_setup_error.take() {
+            self.done = true;
+            return Some(Err(e));
+        }
+        if self.done {
+            return None;
+        }
+        let item = match self.iso.as_mut() {
+            Some(iso) => {
+                let item = iso.next(&mut self.lines, &mut self.line_no, self.block_delete);
+                if item.is_none() {
+                    self.done = true;
+                }
+                item
+            }
+            None => self.next_cnc836(),
+        };
+        if let Some(Ok(b)) = &item
+            && crate::block::ends_program(&b.m)
+        {
+            let b = *b;
+            self.end_program(&b);
+        }
+        item
     }
 }
 
