@@ -173,6 +173,9 @@ mod tests {
             m[0].json(&['X', 'Y', 'Z']),
             r#"{"kind":"feed","end":{"X":10,"Y":0,"Z":0},"feed_mm_min":100,"seq":0,"n":null,"line":1}"#
         );
-        assert!(m[1].json(&['X', 'Y', 'Z']).contains(r#""centre":{"X":15,"Y":0},"plane":"G17","dir":"cw""#));
+        assert!(
+            m[1].json(&['X', 'Y', 'Z'])
+                .contains(r#""centre":{"X":15,"Y":0},"plane":"G17","dir":"cw""#)
+        );
     }
 }

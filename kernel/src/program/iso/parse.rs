@@ -2,8 +2,8 @@
 //! outside comments, `(…)` and `;` comments, `/` block delete, `N`, words with numbers,
 //! parameters or bracketed expressions, `#…=` assignments, O-words, `%`.
 
-use super::ast::Line;
 use super::Fail;
+use super::ast::Line;
 
 /// Parses one line. Nothing is evaluated.
 pub fn line(_text: &str) -> Result<Line, Fail> {
