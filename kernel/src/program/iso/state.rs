@@ -94,7 +94,8 @@ pub struct State {
 impl State {
     pub fn power_on(start: AxesMm, work: WorkOffsets) -> Self {
         State {
-            motion: MotionMode::Rapid,
+            // LinuxCNC starts in G80: axis words need a motion code first.
+            motion: MotionMode::Off,
             plane: Plane::G17,
             inches: false,
             absolute: true,
@@ -106,7 +107,8 @@ impl State {
             comp_entry: 0,
             comp_radius_mm: 0.0,
             continuity: Continuity::G23,
-            retract_to_r: false,
+            // LinuxCNC's interpreter starts in G99 (retract to R).
+            retract_to_r: true,
             tool: 0,
             next_tool: 0,
             length_entry: 0,
