@@ -552,7 +552,7 @@ fn block_delete_slash(line: &str) -> Option<usize> {
 }
 
 /// Fuzzing entry: arbitrary bytes as a program, for a mill and a lathe, with refinement and
-/// 7.R397 on and off. Must never panic; `compile` and `validate` must agree. Used by `fuzz/`
+/// 7.R397 on and off, and as an ISO program. Must never panic; `compile` and `validate` must agree. Used by `fuzz/`
 /// and by a proptest in kernel/tests.
 pub fn fuzz_entry(data: &[u8]) {
     let text = String::from_utf8_lossy(data);
@@ -570,7 +570,11 @@ pub fn fuzz_entry(data: &[u8]) {
     lathe.constants.set(325, 20003.0);
     lathe.constants.set(397, 1000.0); // 7.R397 = 1
     lathe.ij = IjMode::Absolute;
-    for setup in [&mill, &lathe] {
+    let iso = Setup {
+        dialect: Dialect::Iso,
+        ..mill.clone()
+    };
+    for setup in [&mill, &lathe, &iso] {
         let c = compile(&text, setup);
         let v = validate(&text, setup);
         assert_eq!(
