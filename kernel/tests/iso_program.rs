@@ -14,10 +14,22 @@ fn setup() -> Setup {
     let mut s = Setup::new(&['X', 'Y', 'Z']);
     s.dialect = Dialect::Iso;
     s.offsets
-        .set_entry(1, OffsetEntry { radius_mm: 3.0, length_mm: [0.0, 0.0, 10.0, 0.0] })
+        .set_entry(
+            1,
+            OffsetEntry {
+                radius_mm: 3.0,
+                length_mm: [0.0, 0.0, 10.0, 0.0],
+            },
+        )
         .unwrap();
     s.offsets
-        .set_entry(2, OffsetEntry { radius_mm: 5.0, length_mm: [0.0, 0.0, 25.5, 0.0] })
+        .set_entry(
+            2,
+            OffsetEntry {
+                radius_mm: 5.0,
+                length_mm: [0.0, 0.0, 25.5, 0.0],
+            },
+        )
         .unwrap();
     let mut w = WorkOffsets::default();
     w.systems[0] = AxesMm([10.0, 20.0, -5.0, 0.0, 0.0, 0.0]);
@@ -54,7 +66,10 @@ fn assert_ends(text: &str, want: &[[f64; 3]]) {
 
 fn refused(text: &str, code: DiagCode, line: u32) -> String {
     let (_, d) = moves(text, &setup());
-    let e = d.iter().find(|d| d.is_error()).unwrap_or_else(|| panic!("no error: {text}"));
+    let e = d
+        .iter()
+        .find(|d| d.is_error())
+        .unwrap_or_else(|| panic!("no error: {text}"));
     assert_eq!((e.code, e.line), (code, line), "{text}: {}", e.message);
     e.message.clone()
 }
@@ -63,7 +78,12 @@ fn refused(text: &str, code: DiagCode, line: u32) -> String {
 fn work_offset_and_tool_length_make_machine_positions() {
     assert_ends(
         "G21 G90 G54\nT1 M6\nG43 H1\nG0 X0 Y0 Z5\nG1 Z-1 F100\nG55 G0 X1\nG49 G53 G0 Z0\nM30\n",
-        &[[10.0, 20.0, 10.0], [10.0, 20.0, 4.0], [-99.0, 20.0, 4.0], [-99.0, 20.0, 0.0]],
+        &[
+            [10.0, 20.0, 10.0],
+            [10.0, 20.0, 4.0],
+            [-99.0, 20.0, 4.0],
+            [-99.0, 20.0, 0.0],
+        ],
     );
 }
 
@@ -98,7 +118,11 @@ fn radius_form_arc_and_ijk_give_the_same_centre() {
     let c = run("G0 X0 Y0\nG2 X10 Y0 R-5.000001 F100\n");
     assert!((centre(&c[1])[1] - 20.0).abs() < 1e-2);
     refused("G0 X0 Y0\nG2 X30 Y0 R5 F100\n", DiagCode::ArcRadiusForm, 2);
-    refused("G0 X0 Y0\nG2 X10 Y0 I5 J0 P2 F100\n", DiagCode::ArcRadiusForm, 2);
+    refused(
+        "G0 X0 Y0\nG2 X10 Y0 I5 J0 P2 F100\n",
+        DiagCode::ArcRadiusForm,
+        2,
+    );
 }
 
 #[test]
@@ -141,7 +165,11 @@ fn g83_pecks_and_g91_repeats() {
     }
     // G91: X steps per hole, L holes.
     let m = run("G0 X0 Y0 Z5\nG91 G99 G81 X10 R-4 Z-3 L3 F100\n");
-    let xs: Vec<f64> = m.iter().filter(|m| matches!(m.kind, MoveKind::Feed)).map(|m| m.end[0] - 10.0).collect();
+    let xs: Vec<f64> = m
+        .iter()
+        .filter(|m| matches!(m.kind, MoveKind::Feed))
+        .map(|m| m.end[0] - 10.0)
+        .collect();
     assert_eq!(xs, [10.0, 20.0, 30.0]);
 }
 
@@ -160,7 +188,10 @@ fn dwell_is_a_block() {
 
 #[test]
 fn parameters_are_read_before_the_line_sets_them() {
-    assert_ends("#1=5\n#1=7 G0 X#1\nG0 X#1\n", &[[15.0, 0.0, 0.0], [17.0, 0.0, 0.0]]);
+    assert_ends(
+        "#1=5\n#1=7 G0 X#1\nG0 X#1\n",
+        &[[15.0, 0.0, 0.0], [17.0, 0.0, 0.0]],
+    );
     assert_ends("#<a>=2\nG0 X[#<a>*3+SIN[90]]\n", &[[17.0, 0.0, 0.0]]);
 }
 
@@ -216,7 +247,10 @@ M2
 
 #[test]
 fn a_subroutine_may_follow_its_call() {
-    assert_ends("o<later> call [4]\nM2\no<later> sub\nG0 X#1\no<later> endsub\n", &[[14.0, 0.0, 0.0]]);
+    assert_ends(
+        "o<later> call [4]\nM2\no<later> sub\nG0 X#1\no<later> endsub\n",
+        &[[14.0, 0.0, 0.0]],
+    );
 }
 
 #[test]
@@ -240,17 +274,29 @@ fn what_is_not_run_is_refused_naming_the_word() {
 
 #[test]
 fn compensation_uses_the_entry_radius() {
-    let c = compile("T1 M6\nG0 X0 Y0\nG41 D2 G1 X10 F100\nG1 Y10\nG40 G1 X0\n", &setup());
+    let c = compile(
+        "T1 M6\nG0 X0 Y0\nG41 D2 G1 X10 F100\nG1 Y10\nG40 G1 X0\n",
+        &setup(),
+    );
     assert!(!c.has_errors(), "{:?}", c.diagnostics);
     let comp = c.blocks.iter().find_map(|b| match b.comp {
         kernel::block::Comp::Left { d, radius_mm } => Some((d, radius_mm)),
         _ => None,
     });
     assert_eq!(comp, Some((2, 5.0)));
-    let feeds: Vec<_> = c.blocks.iter().filter_map(|b| match (b.kind, b.feed) {
-        (BlockKind::Motion { path: Path::Line, .. }, Feed::MmPerMin(f)) => Some(f),
-        _ => None,
-    }).collect();
+    let feeds: Vec<_> = c
+        .blocks
+        .iter()
+        .filter_map(|b| match (b.kind, b.feed) {
+            (
+                BlockKind::Motion {
+                    path: Path::Line, ..
+                },
+                Feed::MmPerMin(f),
+            ) => Some(f),
+            _ => None,
+        })
+        .collect();
     assert_eq!(feeds, [100.0, 100.0, 100.0]);
 }
 

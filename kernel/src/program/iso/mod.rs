@@ -203,6 +203,10 @@ impl Interpreter {
         block_delete: bool,
     ) -> Result<(), Fail> {
         self.last_n = None;
+        if block_delete && text.trim_start_matches([' ', '\t']).starts_with('/') {
+            // LinuxCNC does not read a deleted line at all.
+            return Ok(());
+        }
         let l = parse::line(text)?;
         self.last_n = l.n;
         if l.block_delete && block_delete {
@@ -241,7 +245,9 @@ impl Interpreter {
         for c in &l.comments {
             let text = match c {
                 ast::Comment::Msg(t) => t.clone(),
-                ast::Comment::Debug(t) | ast::Comment::Print(t) => t.clone(),
+                ast::Comment::Debug(t) | ast::Comment::Print(t) => {
+                    expr::substitute(t, &self.params)
+                }
             };
             self.notes.push(Diagnostic::info(
                 DiagCode::ProgramMessage,
@@ -257,13 +263,6 @@ impl Interpreter {
     /// the state, then the assignments, state and blocks committed together.
     fn words_line(&mut self, l: &ast::Line, line_no: u32) -> Result<(), Fail> {
         let w = self.evaluate(l)?;
-        let mut assigns = Vec::with_capacity(l.assigns.len());
-        for (r, e, at) in &l.assigns {
-            assigns.push((
-                expr::target(r, &self.params, *at)?,
-                expr::eval(e, &self.params, *at)?,
-            ));
-        }
         let mut x = exec::Exec {
             m: &self.machine,
             st: self.state.clone(),
@@ -275,16 +274,12 @@ impl Interpreter {
         };
         x.run(&w)?;
         let (st, out, seq) = (x.st, x.out, x.seq);
+        // All of the line's assignments or none; they read the values from before the line.
+        expr::assign(&l.assigns, &mut self.params)?;
         self.state = st;
         self.seq = seq;
         let ends = out.iter().any(|b| crate::block::ends_program(&b.m));
         self.queue.extend(out);
-        for (t, v) in assigns {
-            match t {
-                params::Target::Numbered(n) => self.params.set_numbered(n, v),
-                params::Target::Named(name) => self.params.set_named(&name, v),
-            }
-        }
         self.sync_params(w.non_modal.is_some());
         if ends {
             self.ended = true;
