@@ -223,7 +223,7 @@ impl Exec<'_> {
             (None, Some(q)) if same_cycle => q,
             _ => return cycle_fail(w.first, format!("G{g} needs Q: the depth of each peck")),
         };
-        if !(q > 0.0) {
+        if q.is_nan() || q <= 0.0 {
             return cycle_fail(w.q.map_or(w.first, |x| x.1), "Q must be greater than 0");
         }
         self.st.cycle.q_mm = Some(q);

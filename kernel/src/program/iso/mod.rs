@@ -289,8 +289,10 @@ impl Interpreter {
 
     /// The words of a line, evaluated and sorted into their groups.
     fn evaluate(&self, l: &ast::Line) -> Result<words::Words, Fail> {
-        let mut w = words::Words::default();
-        w.first = l.words.first().map_or(0, |x| x.at);
+        let mut w = words::Words {
+            first: l.words.first().map_or(0, |x| x.at),
+            ..Default::default()
+        };
         for word in &l.words {
             let v = expr::eval(&word.value, &self.params, word.at)?;
             match word.letter {

@@ -102,7 +102,7 @@ fn once<T>(slot: &mut At<T>, v: T, at: usize, what: &str) -> Result<(), Fail> {
 /// The G code `g` (tenths: G59.1 is 591) into its group.
 pub fn g_word(w: &mut Words, g10: u32, at: usize) -> Result<(), Fail> {
     const MOTION: &str = "a motion code (G0..G3, G73, G80..G89)";
-    let name = if g10 % 10 == 0 {
+    let name = if g10.is_multiple_of(10) {
         format!("G{}", g10 / 10)
     } else {
         format!("G{}.{}", g10 / 10, g10 % 10)
@@ -149,7 +149,7 @@ pub fn g_word(w: &mut Words, g10: u32, at: usize) -> Result<(), Fail> {
         420 => once(&mut w.comp, CompSide::Right, at, "radius compensation"),
         430 => once(&mut w.length, true, at, "the tool length (G43/G49)"),
         490 => once(&mut w.length, false, at, "the tool length (G43/G49)"),
-        540..=590 if g10 % 10 == 0 => once(
+        540..=590 if g10.is_multiple_of(10) => once(
             &mut w.system,
             (g10 / 10 - 54) as usize,
             at,
