@@ -437,15 +437,18 @@ impl Interpreter {
         let v = value
             .map(|e| expr::eval(e, &self.params, o.at))
             .transpose()?;
+        let endsub = matches!(o.keyword, OKeyword::EndSub(_));
         while let Some(f) = self.flow.frames.pop() {
             if let Frame::Call { label, back } = f {
-                if label != o.label {
-                    return mismatch(o, "returns from another subroutine than the one called");
+                // LinuxCNC: `return` leaves the innermost call whatever its label names.
+                if endsub && label != o.label {
+                    return mismatch(o, "ends another subroutine than the one called");
                 }
                 self.params.pop_frame();
-                if let Some(v) = v {
-                    self.params.set_named("_value", v);
-                }
+                // #<_value> is what the call returned, 0 when it returned nothing.
+                self.params.set_named("_value", v.unwrap_or(0.0));
+                let returned = if v.is_some() { 1.0 } else { 0.0 };
+                self.params.set_named("_value_returned", returned);
                 return self.seek(lines, line_no, back, o);
             }
         }
@@ -469,6 +472,12 @@ impl Interpreter {
             *line_no += 1;
             let Ok(text) = item else { continue };
             let Ok(l) = parse::line(text) else { continue };
+            let letters = &self.machine.axis_letters[..self.machine.n_axes];
+            let outputs = &self.machine.m_outputs;
+            if let Err(f) = super::words::check_unrun(&l, letters, |m| outputs.get(m).is_some()) {
+                self.fail_text = Some(text.to_string());
+                return Err(f);
+            }
             let Some(ow) = l.oword else { continue };
             if ow.label != o.label {
                 continue;

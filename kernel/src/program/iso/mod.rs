@@ -64,6 +64,8 @@ pub struct Interpreter {
     buf: String,
     /// The N of the line being run (for its errors).
     last_n: Option<u32>,
+    /// The text of a skipped line an error is about (its column is counted there).
+    fail_text: Option<String>,
 }
 
 impl Interpreter {
@@ -104,6 +106,7 @@ impl Interpreter {
             setup_error: cnc836.setup_error(),
             buf: String::new(),
             last_n: None,
+            fail_text: None,
         };
         interp.sync_params(true);
         interp
@@ -162,13 +165,9 @@ impl Interpreter {
             self.buf = text;
             if let Err(f) = r {
                 let n = self.last_n;
-                return Some(Err(Diagnostic::error(
-                    f.code,
-                    n,
-                    *line_no,
-                    column(&self.buf, f.at),
-                    f.message,
-                )));
+                let text = self.fail_text.take();
+                let col = column(text.as_deref().unwrap_or(&self.buf), f.at);
+                return Some(Err(Diagnostic::error(f.code, n, *line_no, col, f.message)));
             }
         }
     }

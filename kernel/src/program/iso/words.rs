@@ -256,3 +256,34 @@ pub fn g_tenths(v: f64, at: usize) -> Result<u32, Fail> {
     }
     Ok(t as u32)
 }
+
+/// The words of a line that is read but not run (a skipped branch or subroutine body) and
+/// are written as numbers: a word cncd does not run refuses the program wherever it stands,
+/// so what validation accepts never meets it at run time.
+pub fn check_unrun(
+    l: &super::ast::Line,
+    axis_letters: &[u8],
+    bound: impl Fn(u16) -> bool,
+) -> Result<(), Fail> {
+    for word in &l.words {
+        let super::ast::Expr::Num(v) = word.value else {
+            continue;
+        };
+        let at = word.at;
+        // Only whether the word is one cncd runs: group conflicts are for the run to find.
+        let mut w = Words::default();
+        match word.letter {
+            b'G' => g_word(&mut w, g_tenths(v, at)?, at)?,
+            b'M' => {
+                let m = whole(v, at, "M", 999.0)? as u16;
+                m_word(&mut w, m, at, bound(m))?
+            }
+            b'N' => {}
+            letter => {
+                let axis = axis_letters.iter().position(|&a| a == letter);
+                self::letter(&mut w, letter, v, at, axis)?
+            }
+        }
+    }
+    Ok(())
+}
