@@ -255,7 +255,7 @@ fn a_subroutine_may_follow_its_call() {
 
 #[test]
 fn flow_errors_have_codes() {
-    refused("o1 while [1]\nG0 X1\no1 endwhile\n", DiagCode::LoopLimit, 1);
+    refused("o1 while [1]\n#1=[#1+1]\no1 endwhile\n", DiagCode::LoopLimit, 1);
     refused("o9 call\n", DiagCode::SubroutineUnknown, 1);
     refused("G0 X1\no1 endwhile\n", DiagCode::OWordMismatch, 2);
     let (_, d) = moves("o1 if [1]\nG0 X1\n", &setup());
@@ -298,6 +298,12 @@ fn compensation_uses_the_entry_radius() {
         })
         .collect();
     assert_eq!(feeds, [100.0, 100.0, 100.0]);
+}
+
+#[test]
+fn a_word_not_run_refuses_the_program_even_where_it_is_not_reached() {
+    let m = refused("o1 sub\nM66 P0 L3\no1 endsub\nG0 X1\nM2\n", DiagCode::IsoUnsupported, 2);
+    assert!(m.contains("M66"), "{m}");
 }
 
 #[test]
