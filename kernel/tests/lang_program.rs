@@ -597,3 +597,19 @@ fn setup_from_machine_constants_and_bom() {
     let b = ok("\u{FEFF}N1 G0 X10 Z5", &s);
     assert_eq!(&b[0].motion().unwrap().1.0[..2], &[10.0, 5.0]);
 }
+
+#[test]
+fn the_interpreter_paths_of_callers_stay() {
+    // Callers name these paths; the dialect's code lives in program::cnc836.
+    assert_eq!(kernel::program::interpreter::RESERVED_LETTERS, "NGIJEFSMDR");
+    let _: Option<kernel::program::interpreter::Interpreter> = None;
+    let _: Option<kernel::program::interpreter::Modal> = None;
+    let t: Vec<_> = kernel::program::words::Lexer::new("X1").collect();
+    assert!(matches!(
+        t[0],
+        Ok(kernel::program::words::Lexed {
+            token: kernel::program::words::Token::Word { letter: b'X', .. },
+            ..
+        })
+    ));
+}

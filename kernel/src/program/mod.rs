@@ -8,26 +8,32 @@
 //! - [`stream`]: an iterator of blocks for execution, one at a time (a 1,000,000-block program
 //!   is never held as blocks).
 //!
-//! Submodules: [`words`] (lexing: addresses, numbers with their decimal point, remarks),
-//! [`feed`] (F units and limits), [`arc`] (E address, R325 refinement, R55 check) and
-//! [`interpreter`] (modal state, one block at a time).
+//! Submodules: [`cnc836`] (the CNC836 dialect: its lexer [`words`], modal state, one block
+//! at a time), [`iso`] (the ISO dialect), [`feed`] (F units and limits), [`arc`] (E address,
+//! R325 refinement, R55 check).
 
 pub mod arc;
+pub mod cnc836;
 mod code_pages;
 mod dialect;
 pub mod dry_run;
 pub mod encoding;
 pub mod feed;
-pub mod interpreter;
 pub mod iso;
-pub mod words;
+
+pub use cnc836::words;
+
+/// The CNC836 interpreter's former path (before [`cnc836`]), kept for callers.
+pub mod interpreter {
+    pub use super::cnc836::{Interpreter, Modal, RESERVED_LETTERS};
+}
 
 pub use dialect::Dialect;
 
+pub use cnc836::{Interpreter, Modal, ModalParts, Motion};
 pub use feed::{
     FeedMode, MAX_FEED_MM_MIN, MAX_FEED_MM_REV, rotary_feed_factor, rotary_surface_speed_mm_min,
 };
-pub use interpreter::{Interpreter, Modal};
 
 use crate::block::Block;
 use crate::constants::Constants;

@@ -1,0 +1,2 @@
+; EXPECT 2:5 address X has no value
+N10 X

@@ -1,0 +1,3 @@
+; EXPECT 3:1 not on an arc
+D1 G1 X10 F100
+G41 G2 X20 Y0 I5 J0

@@ -1,0 +1,2 @@
+; EXPECT 2:17 decade 8 of E
+G2 X10 Y0 I5 J0 E20001 F100

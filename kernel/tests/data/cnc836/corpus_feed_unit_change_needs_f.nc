@@ -1,0 +1,3 @@
+; EXPECT 3:1 program F again
+M3 S100 G1 X1 F100
+G95 X2

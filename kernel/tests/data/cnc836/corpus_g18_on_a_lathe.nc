@@ -1,0 +1,3 @@
+; SETUP lathe
+; EXPECT 3:1 third axis
+G18

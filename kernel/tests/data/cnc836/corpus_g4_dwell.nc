@@ -1,0 +1,2 @@
+; EXPECT 2:1 dwell
+G4 X1

@@ -1,0 +1,2 @@
+; EXPECT 2:1 G76 needs S
+G76

@@ -1,0 +1,2 @@
+; EXPECT 2:1 outside
+G92 D1 R0=123456

@@ -1,0 +1,2 @@
+; EXPECT 2:8 need G2 or G3
+G1 X10 I5 J0 F100

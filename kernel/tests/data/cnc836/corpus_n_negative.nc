@@ -1,0 +1,2 @@
+; EXPECT 2:1 outside 0..999999
+N-5 G0 X1

@@ -1,0 +1,2 @@
+; EXPECT 2:4 spindle direction
+M3 M4

@@ -1,0 +1,2 @@
+; EXPECT 2:5 significant digits
+G0 X1234567890123456

@@ -1,0 +1,9 @@
+; Seed 000 §7.1: fill entry 12 from the program (memory only), then use it
+N10 G92 D12 R0=10.0 R2=25.5 R3=-5.0
+N20 D12 &12 G0 X-30 Y0 Z5 M3 S1000
+N30 G41 G1 X0 F100
+N40 Y20
+N50 G2 X20 Y40 I20 J0
+N60 G1 X40
+N70 G40 X60 Y60
+N80 G0 Z50 M5

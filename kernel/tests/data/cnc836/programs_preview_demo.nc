@@ -1,0 +1,71 @@
+; Preview demo (issue #10, SPEC 7.5): an outside contour with arcs under G41, block
+; continuity G23, sharp and soft corners, then a polygon of short lines (dense G23 path).
+; Tool D1: radius 4 mm, written into the memory table with G92.
+N10 G92 D1 R0=4.0                ; tool radius 4 mm (memory table only)
+N20 G17 D1 M3 S2000              ; spindle on
+N30 G0 X-20 Y-20 Z5
+N40 G1 Z-2 F300
+N50 G41 G1 X0 Y0 F1500           ; compensation on: tool left of the path, outside the part
+N60 G23 G1 Y30                   ; continuity from here on
+N70 G2 X10 Y40 I10 J0            ; convex arc R10, tangent
+N80 G1 X50
+N90 G1 X60 Y30                   ; 45 degree corner
+N100 G1 Y10                      ; 45 degree corner
+N110 G2 X50 Y0 I-10 J0           ; convex arc R10, tangent
+N120 G1 X20
+N130 G1 X10 Y3                   ; soft kink
+N140 G1 X0 Y0                    ; back to the start point
+N150 G40 G1 X-20 Y-10            ; compensation off
+N160 G0 Z5
+N170 G0 X45 Y20
+N180 G1 Z-1 F300
+N200 G23 G1 X44.872 Y21.958 F2400           ; polygon of 48 short lines (R15 pocket wall)
+N210 X44.489 Y23.882
+N220 X43.858 Y25.740
+N230 X42.990 Y27.500
+N240 X41.900 Y29.131
+N250 X40.607 Y30.607
+N260 X39.131 Y31.900
+N270 X37.500 Y32.990
+N280 X35.740 Y33.858
+N290 X33.882 Y34.489
+N300 X31.958 Y34.872
+N310 X30.000 Y35.000
+N320 X28.042 Y34.872
+N330 X26.118 Y34.489
+N340 X24.260 Y33.858
+N350 X22.500 Y32.990
+N360 X20.869 Y31.900
+N370 X19.393 Y30.607
+N380 X18.100 Y29.131
+N390 X17.010 Y27.500
+N400 X16.142 Y25.740
+N410 X15.511 Y23.882
+N420 X15.128 Y21.958
+N430 X15.000 Y20.000
+N440 X15.128 Y18.042
+N450 X15.511 Y16.118
+N460 X16.142 Y14.260
+N470 X17.010 Y12.500
+N480 X18.100 Y10.869
+N490 X19.393 Y9.393
+N500 X20.869 Y8.100
+N510 X22.500 Y7.010
+N520 X24.260 Y6.142
+N530 X26.118 Y5.511
+N540 X28.042 Y5.128
+N550 X30.000 Y5.000
+N560 X31.958 Y5.128
+N570 X33.882 Y5.511
+N580 X35.740 Y6.142
+N590 X37.500 Y7.010
+N600 X39.131 Y8.100
+N610 X40.607 Y9.393
+N620 X41.900 Y10.869
+N630 X42.990 Y12.500
+N640 X43.858 Y14.260
+N650 X44.489 Y16.118
+N660 X44.872 Y18.042
+N670 X45.000 Y20.000
+N680 G0 Z5
+N690 M5

@@ -1,0 +1,10 @@
+; kernel/tests/lang_program.rs: full circle, helix, arcs in G18 and G19.
+G2 I5 J0 F100
+G2 X10 Y0 Z-5 I5 J0
+G90 G0 X0 Y0 Z0
+G18 G2 X10 Z10 I10 J0 F100
+G0 X0 Y0 Z0
+G19 G3 Y10 Z10 I0 J10
+G17 G0 X10 Y0
+G3 X20 Y10 I10 J0 F100
+G2 X10 Y0 I5 F100

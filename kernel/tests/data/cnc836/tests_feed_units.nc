@@ -1,0 +1,12 @@
+; kernel/tests/lang_program.rs: F units and limits, M37.
+G1 X1 F1000
+X2 F.5
+X3 F90000
+S1000 M3
+G95 X4 F1000
+X5 F0.2
+X6 F99999
+X7 F99.999
+G94 G1 X1 F1000 M37
+X2 M36
+X3 F90001
