@@ -255,7 +255,11 @@ fn a_subroutine_may_follow_its_call() {
 
 #[test]
 fn flow_errors_have_codes() {
-    refused("o1 while [1]\n#1=[#1+1]\no1 endwhile\n", DiagCode::LoopLimit, 1);
+    refused(
+        "o1 while [1]\n#1=[#1+1]\no1 endwhile\n",
+        DiagCode::LoopLimit,
+        1,
+    );
     refused("o9 call\n", DiagCode::SubroutineUnknown, 1);
     refused("G0 X1\no1 endwhile\n", DiagCode::OWordMismatch, 2);
     let (_, d) = moves("o1 if [1]\nG0 X1\n", &setup());
@@ -302,11 +306,37 @@ fn compensation_uses_the_entry_radius() {
 
 #[test]
 fn a_word_not_run_refuses_the_program_even_where_it_is_not_reached() {
-    let m = refused("o1 sub\nM66 P0 L3\no1 endsub\nG0 X1\nM2\n", DiagCode::IsoUnsupported, 2);
+    let m = refused(
+        "o1 sub\nM66 P0 L3\no1 endsub\nG0 X1\nM2\n",
+        DiagCode::IsoUnsupported,
+        2,
+    );
     assert!(m.contains("M66"), "{m}");
 }
 
 #[test]
 fn percent_brackets_the_program() {
     assert_ends("%\nG0 X1\n%\nG0 X2\n", &[[11.0, 0.0, 0.0]]);
+}
+
+#[test]
+fn mdi_inherits_motion_feed_and_distance_mode() {
+    let s = setup();
+    let mut st = kernel::program::stream("G91 G1 X1 F250\n", &s);
+    while st.next().is_some() {}
+    let next = Setup {
+        modal: Some(st.modal()),
+        ..setup()
+    };
+    let c = compile("X2\n", &next);
+    assert!(!c.has_errors(), "{:?}", c.diagnostics);
+    assert_eq!(c.blocks[0].feed, Feed::MmPerMin(250.0));
+    match c.blocks[0].kind {
+        BlockKind::Motion {
+            start,
+            end,
+            path: Path::Line,
+        } => assert_eq!(end[0] - start[0], 2.0),
+        k => panic!("{k:?}"),
+    }
 }

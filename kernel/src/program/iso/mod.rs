@@ -12,6 +12,7 @@ mod cycles;
 mod exec;
 pub mod expr;
 mod flow;
+mod handover;
 mod motion;
 pub mod params;
 pub mod parse;
@@ -108,6 +109,10 @@ impl Interpreter {
             last_n: None,
             fail_text: None,
         };
+        if let Some(m) = &setup.modal {
+            handover::inherit(&mut interp.state, m);
+        }
+        interp.modal = handover::modal_of(&interp.state);
         interp.sync_params(true);
         interp
     }
@@ -276,6 +281,7 @@ impl Interpreter {
         // All of the line's assignments or none; they read the values from before the line.
         expr::assign(&l.assigns, &mut self.params)?;
         self.state = st;
+        self.modal = handover::modal_of(&self.state);
         self.seq = seq;
         let ends = out.iter().any(|b| crate::block::ends_program(&b.m));
         self.queue.extend(out);
