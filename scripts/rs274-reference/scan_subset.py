@@ -231,7 +231,36 @@ def scan(text):
     return None
 
 
+# (program, expected scan) pairs: the rules above on the cases that are easy to get wrong.
+SELF_TEST = [
+    ("G1 X[#1+2] Y#<_x> Z-#3 F[ABS[-100]]\nG0 X ATAN[1]/[2] Y SIN[30]\n", None),
+    ("G01 M06 T1 ; G28 in a remark\n(G28 in a comment) G0 X1\n", None),
+    ("N10 G0 X1\nN20 G28\n", (2, "G28", None)),
+    ("G0 x1 a10\n", (1, "A10", None)),
+    ("G0 X1 W[#1]\n", (1, "W[#1]", None)),
+    ("G10 L1 P1 Z2\n", (1, "G10", None)),
+    ("G10 L2 P1 X1 R30\n", (1, "G10", None)),
+    ("G10 L20 P2 X1\nG92.1\nG92.2\n", (3, "G92.2", None)),
+    ("G2 X1 Y0 I0.5 P2\n", (1, "P2", "arc_radius_form")),
+    ("G2 X1 Y0 I0.5 P1\nG4 P2\nG64 P0.1 Q0.05\nG82 R1 Z-1 P2\n", None),
+    ("o<x> call\n", (1, "O<X>", "subroutine_unknown")),
+    ("o<x> sub\nG38.2 Z-1\no<x> endsub\nM2\n", (2, "G38.2", None)),
+    ("G0 X1\nM30\nG28\n", None),
+    ("%\nG0 X1\n%\nG28\n", None),
+    ("G59.1 G59.3\nG59.4\n", (2, "G59.4", None)),
+    ("/G0 X1\nG91.1 G90.1 G61.1 G43 H1 G49\nM66 P0\n", (3, "M66", None)),
+]
+
+
+def self_test():
+    for text, want in SELF_TEST:
+        got = scan(text)
+        if got != want:
+            sys.exit(f"scan_subset self-test: {text!r} gives {got}, expected {want}")
+
+
 def main(paths):
+    self_test()
     for p in paths:
         with open(p, encoding="utf-8", errors="replace") as f:
             r = scan(f.read())
