@@ -171,6 +171,8 @@ pub fn g_word(w: &mut Words, g10: u32, at: usize) -> Result<(), Fail> {
         930 => once(&mut w.feed_mode, FeedMode::InverseTime, at, "the feed mode"),
         940 => once(&mut w.feed_mode, FeedMode::PerMinute, at, "the feed mode"),
         950 => once(&mut w.feed_mode, FeedMode::PerRev, at, "the feed mode"),
+        // G97: spindle speed in rpm, the only mode cncd's ISO dialect has (CAM posts write it).
+        970 => Ok(()),
         980 => once(&mut w.retract_to_r, false, at, "the retract mode (G98/G99)"),
         990 => once(&mut w.retract_to_r, true, at, "the retract mode (G98/G99)"),
         _ => Err(unsupported(at, name)),
