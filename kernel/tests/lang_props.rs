@@ -168,6 +168,14 @@ proptest! {
         kernel::constants::fuzz_entry(s.as_bytes());
     }
 
+    /// ... on ISO-like token soup: expressions, parameters, O-words, cycles.
+    #[test]
+    fn fuzz_entries_on_iso_token_soup(
+        s in r"(G0|G1|G2|G3|G4|G81|G83|G73|G91|G90|G20|G43|G41|G92|G10 L2 P1|X1|Y-2|Z\.5|R2|R-1|Q\.5|P1|L2|I1|J-1|F100|H1|D1|T1|M6|M3|M30|#1=|#<a>=|#1|#<a>|\[|\]|\+|\*|/|SIN|ATAN|EQ|o1 |o2 |sub|endsub|call|while|endwhile|if|else|endif|repeat|endrepeat|do|break|continue|\(|\)|;| |\n){0,80}"
+    ) {
+        kernel::program::fuzz_entry(s.as_bytes());
+    }
+
     /// ... and on arbitrary bytes.
     #[test]
     fn fuzz_entries_on_bytes(b in proptest::collection::vec(any::<u8>(), 0..300)) {
