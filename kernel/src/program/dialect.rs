@@ -11,9 +11,10 @@ pub enum Dialect {
     Iso,
 }
 
-/// File extensions that name an ISO program whatever the machine's default dialect (what
-/// CAM post-processors write).
-pub const ISO_EXTENSIONS: [&str; 4] = ["ngc", "nc", "tap", "gcode"];
+/// File extensions that name an ISO program whatever the machine's default dialect. `.nc` is
+/// not one of them: CNC836 programs are commonly kept as `.nc` (this project's examples are),
+/// so a `.nc` file follows the machine's default.
+pub const ISO_EXTENSIONS: [&str; 3] = ["ngc", "tap", "gcode"];
 
 impl Dialect {
     /// The setting's spelling (`cnc836`, `iso`).
@@ -52,6 +53,8 @@ mod tests {
     fn extension_names_iso() {
         assert_eq!(Dialect::of_file("part.NGC", Dialect::Cnc836), Dialect::Iso);
         assert_eq!(Dialect::of_file("P0001", Dialect::Cnc836), Dialect::Cnc836);
+        assert_eq!(Dialect::of_file("sample.nc", Dialect::Cnc836), Dialect::Cnc836);
+        assert_eq!(Dialect::of_file("sample.nc", Dialect::Iso), Dialect::Iso);
         assert_eq!(Dialect::of_file("P0001", Dialect::Iso), Dialect::Iso);
         assert_eq!(Dialect::from_name("ISO"), Some(Dialect::Iso));
         assert_eq!(Dialect::from_name("fanuc"), None);
