@@ -53,7 +53,10 @@ mod tests {
     fn extension_names_iso() {
         assert_eq!(Dialect::of_file("part.NGC", Dialect::Cnc836), Dialect::Iso);
         assert_eq!(Dialect::of_file("P0001", Dialect::Cnc836), Dialect::Cnc836);
-        assert_eq!(Dialect::of_file("sample.nc", Dialect::Cnc836), Dialect::Cnc836);
+        assert_eq!(
+            Dialect::of_file("sample.nc", Dialect::Cnc836),
+            Dialect::Cnc836
+        );
         assert_eq!(Dialect::of_file("sample.nc", Dialect::Iso), Dialect::Iso);
         assert_eq!(Dialect::of_file("P0001", Dialect::Iso), Dialect::Iso);
         assert_eq!(Dialect::from_name("ISO"), Some(Dialect::Iso));

@@ -91,7 +91,13 @@ impl Cursor<'_> {
     fn okeyword(&mut self, label: &Label, comments: &mut Vec<Comment>) -> Result<OKeyword, Fail> {
         let found = KEYWORDS
             .iter()
-            .filter(|k| self.looking_at(k))
+            // A keyword is a whole word: `callsub` is no `call`.
+            .filter(|k| {
+                self.looking_at(k)
+                    && !self
+                        .peek_at(k.len())
+                        .is_some_and(|b| b.is_ascii_alphabetic())
+            })
             .max_by_key(|k| k.len());
         let Some(&kw) = found else {
             return Err(self.unknown_keyword(label));

@@ -336,7 +336,9 @@ fn owords_of_every_keyword() {
 
 #[test]
 fn oword_errors() {
-    assert_eq!(code("O100 sub G1"), DiagCode::UnexpectedCharacter);
+    // Blanks do not count: `sub G1` reads `subg1`, no keyword.
+    assert_eq!(code("O100 sub G1"), DiagCode::ExpressionSyntax);
+    assert_eq!(code("O100 sub (c) G1"), DiagCode::UnexpectedCharacter);
     assert_eq!(code("O100 if [1] X1"), DiagCode::UnexpectedCharacter);
     assert_eq!(code("O100 endif [1]"), DiagCode::UnexpectedCharacter);
     assert_eq!(code("O100 loop"), DiagCode::ExpressionSyntax);
