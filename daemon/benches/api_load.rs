@@ -59,6 +59,7 @@ async fn bench(secs: u64) {
     m.load_program(pb::LoadProgramRequest {
         name: "bench.nc".into(),
         text,
+        dialect: String::new(),
     })
     .await
     .unwrap();

@@ -87,6 +87,7 @@ async fn bench(blocks: u64) {
                 select: first,
                 data: buf,
                 total_bytes: 0,
+                dialect: String::new(),
             };
             first = false;
             if tx.blocking_send(msg).is_err() {

@@ -264,6 +264,8 @@ diag_codes! {
     PreviewNoSuchPage = "preview_no_such_page",
     /// A preview plane naming an axis the machine does not have.
     PreviewAxisMissing = "preview_axis_missing",
+    /// A program language (`dialect`) given over the API that cncd does not know.
+    DialectUnknown = "dialect_unknown",
 }
 
 impl fmt::Display for DiagCode {

@@ -12,8 +12,9 @@ use crate::comp::CompConfig;
 use crate::constants::Constants;
 use crate::kr::{Gear, KrConfig, KrConfigError, KrConstants, RadiusInput};
 use crate::offsets::OffsetTable;
+use crate::offsets::WorkOffsets;
 use crate::plan::PlannerConfig;
-use crate::program::{IjMode, Modal, Setup};
+use crate::program::{Dialect, IjMode, Modal, Setup};
 use crate::units::{AxesMm, MAX_AXES};
 
 pub mod names;
@@ -41,6 +42,9 @@ pub struct MachineConfig {
     pub ij: IjMode,
     /// Code page of program files (`[program] encoding`, issue #31).
     pub encoding: crate::program::encoding::TextEncoding,
+    /// The machine's default program language (`[program] dialect`); a program's file name
+    /// or the API's `dialect` field may choose the other ([`MachineSetup::with_dialect`]).
+    pub dialect: Dialect,
     /// `$63`: the preprocessor is on (R325 refinement).
     pub preprocessor: bool,
     /// Minimum block duration of the planner (`[planner] min_block_time_ms`; 0: as many
@@ -88,6 +92,7 @@ impl MachineSetup {
         program.offsets = offsets.clone();
         program.ij = machine.ij;
         program.encoding = machine.encoding;
+        program.dialect = machine.dialect;
         program.preprocessor = machine.preprocessor;
         program.soft_limits = machine.soft_limits;
         // Gears select by M code; the fastest axis is Vmax of the βmax warning (SPEC §5, §6).
@@ -196,6 +201,20 @@ impl MachineSetup {
     /// The same setup with the block-delete switch `on` (docs/language.md "Block delete").
     pub fn with_block_delete(mut self, on: bool) -> Self {
         self.program.block_delete = on;
+        self
+    }
+
+    /// The same setup for a program in `dialect` (the machine's default, a file name's or
+    /// the API's choice).
+    pub fn with_dialect(mut self, dialect: Dialect) -> Self {
+        self.program.dialect = dialect;
+        self
+    }
+
+    /// The same setup with the work offsets G54..G59.3 of the storage's file (the run works
+    /// on a copy: `G10 L2/L20` never reach the file).
+    pub fn with_work_offsets(mut self, work: WorkOffsets) -> Self {
+        self.program.work_offsets = work;
         self
     }
 }
@@ -353,6 +372,7 @@ mod tests {
             rotary_pulses_per_rev: Vec::new(),
             ij: IjMode::default(),
             encoding: Default::default(),
+            dialect: Dialect::Cnc836,
             preprocessor: true,
             min_block_time_s: 0.0,
             soft_limits: crate::limits::SoftLimits::NONE,

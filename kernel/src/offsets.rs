@@ -9,6 +9,7 @@ use crate::diag::{DiagCode, Diagnostic};
 
 mod text_edit;
 pub mod work;
+pub mod work_file;
 pub use text_edit::edit_text;
 pub use work::WorkOffsets;
 
@@ -312,7 +313,7 @@ fn fmt_value(v: f64) -> String {
 }
 
 /// 1-based character column of byte offset `byte` in `line`.
-fn col_of(line: &str, byte: usize) -> u32 {
+pub(crate) fn col_of(line: &str, byte: usize) -> u32 {
     let b = byte.min(line.len());
     let b = (0..=b)
         .rev()
@@ -488,7 +489,7 @@ fn key_slot(key: &str, axis_names: &[char]) -> Result<usize, KorLineError> {
 }
 
 /// A decimal number: optional sign, digits, optional point and up to 6 decimals. No exponent.
-fn parse_value(v: &str) -> Result<f64, ValueError> {
+pub(crate) fn parse_value(v: &str) -> Result<f64, ValueError> {
     let body = v.strip_prefix(['+', '-']).unwrap_or(v);
     let (int, frac) = body.split_once('.').unwrap_or((body, ""));
     let digits = |s: &str| s.bytes().all(|c| c.is_ascii_digit());

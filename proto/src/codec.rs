@@ -171,6 +171,7 @@ mod tests {
         let mut raw = crate::v1::LoadProgramRequest {
             name: "a".into(),
             text: String::new(),
+            dialect: String::new(),
         }
         .encode_to_vec();
         // field 2, length 3: "X\xffY"

@@ -39,6 +39,7 @@ async fn roles_observer_operator_admin() {
     m.list_programs(pb::ListProgramsRequest {}).await.unwrap();
     m.validate_program(pb::ValidateProgramRequest {
         text: "G1 X1 F100".into(),
+        dialect: String::new(),
     })
     .await
     .unwrap();

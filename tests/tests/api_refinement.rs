@@ -40,6 +40,7 @@ async fn refinements_are_returned_and_written_as_e() {
     let l = c
         .get_refined_program(pb::RefinedProgramRequest {
             text: PROGRAM.into(),
+            dialect: String::new(),
         })
         .await
         .unwrap()
@@ -64,6 +65,7 @@ async fn refinements_are_returned_and_written_as_e() {
     let e = c
         .get_refined_program(pb::RefinedProgramRequest {
             text: String::new(),
+            dialect: String::new(),
         })
         .await
         .unwrap_err();
@@ -72,6 +74,7 @@ async fn refinements_are_returned_and_written_as_e() {
     let sel = c
         .get_refined_program(pb::RefinedProgramRequest {
             text: String::new(),
+            dialect: String::new(),
         })
         .await
         .unwrap()

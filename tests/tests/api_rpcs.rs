@@ -85,12 +85,14 @@ async fn programs_validate_upload_select_list_start_and_status() {
     let e = c
         .select_program(pb::SelectProgramRequest {
             name: "nope.nc".into(),
+            dialect: String::new(),
         })
         .await
         .unwrap_err();
     assert_eq!(e.code(), Code::NotFound);
     c.select_program(pb::SelectProgramRequest {
         name: "part.nc".into(),
+        dialect: String::new(),
     })
     .await
     .unwrap();
@@ -315,7 +317,10 @@ async fn status_stream_rate_limits_and_deadline() {
     let big: String = (0..200_000)
         .map(|i| format!("G1 X{} F1000\n", i % 100))
         .collect();
-    let mut r = tonic::Request::new(pb::ValidateProgramRequest { text: big });
+    let mut r = tonic::Request::new(pb::ValidateProgramRequest {
+        text: big,
+        dialect: String::new(),
+    });
     r.set_timeout(Duration::from_micros(1));
     let e = c.validate_program(r).await.unwrap_err();
     // tonic reports its own expired deadline as CANCELLED ("Timeout expired"); other gRPC
@@ -796,6 +801,7 @@ async fn preview_picture_svg_png_velocity_and_refusals() {
             velocity,
             width_px: 0,
             height_px: 0,
+            dialect: String::new(),
         };
     let svg = p
         .get_preview(req(pb::ImageFormat::Svg, "", 0, false))

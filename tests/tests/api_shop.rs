@@ -139,7 +139,10 @@ async fn a_unary_message_over_the_limit_is_resource_exhausted() {
     let mut m = MachineClient::new(d.channel().await);
     let text = "G1 X1 F100\n".repeat(500_000); // 5.5 MB
     let e = m
-        .validate_program(pb::ValidateProgramRequest { text })
+        .validate_program(pb::ValidateProgramRequest {
+            text,
+            dialect: String::new(),
+        })
         .await
         .unwrap_err();
     assert_eq!(e.code(), Code::ResourceExhausted, "{e:?}");

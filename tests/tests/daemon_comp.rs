@@ -107,8 +107,8 @@ fn absolute_ij_gives_the_same_tool_path_as_relative() {
         ("arc contour", arc_contour),
     ] {
         let (t_rel, t_abs) = (make(false), make(true));
-        let p_rel = preview_data(&rel, &t_rel, false).unwrap();
-        let p_abs = preview_data(&abs, &t_abs, false).unwrap();
+        let p_rel = preview_data(&rel, &t_rel, "", false).unwrap();
+        let p_abs = preview_data(&abs, &t_abs, "", false).unwrap();
         assert!(
             p_rel.compensated.len() >= 10,
             "{name}: {} {:?}",
@@ -181,7 +181,7 @@ fn the_step_of_the_issue_loads_trimmed_and_silent() {
     ctl.set_constants(&[(339, 10005.0)]).unwrap();
     let loaded = ctl.load_program("step.nc", step_program()).unwrap();
     assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
-    let pd = preview_data(&ctl, step_program(), false).unwrap();
+    let pd = preview_data(&ctl, step_program(), "", false).unwrap();
     let ends: Vec<(f64, f64)> = pd
         .compensated
         .iter()
@@ -207,7 +207,9 @@ fn the_step_of_the_issue_loads_trimmed_and_silent() {
 #[test]
 fn gouges_are_reported_by_validate_and_refused_on_request() {
     let ctl = controller(IjSetting::Relative);
-    let v = ctl.validate_text(loop_program()).unwrap();
+    let v = ctl
+        .validate_text(loop_program(), ctl.default_dialect())
+        .unwrap();
     let g = gouges(&v.diagnostics);
     assert!(!v.has_errors(), "{:?}", v.diagnostics);
     assert!(g.iter().all(|d| d.severity == Severity::Warning));
@@ -221,7 +223,7 @@ fn gouges_are_reported_by_validate_and_refused_on_request() {
     let loaded = ctl.load_program("loop.nc", loop_program()).unwrap();
     assert!(!gouges(&loaded.warnings).is_empty());
     // The preview reports it too.
-    let pd = preview_data(&ctl, loop_program(), false).unwrap();
+    let pd = preview_data(&ctl, loop_program(), "", false).unwrap();
     assert!(pd.diagnostics.iter().any(|d| d.code == "gouge"));
     ctl.set_constants(&[(765, 100.0)]).unwrap(); // 6.R765 = 1
     assert_eq!(ctl.constants().decade(765, 6), 1);

@@ -390,7 +390,13 @@ async fn fault_stops_every_axis_on_its_own_and_reports_the_path_deviation() {
     wait_state(&ctl, MachineState::Idle).await;
     let here = ctl.snapshot().axes.commanded;
     let job = ctl
-        .start_text("mdi", "G91 G1 X-10 F1000", false, true)
+        .start_text(
+            "mdi",
+            "G91 G1 X-10 F1000",
+            ctl.default_dialect(),
+            false,
+            true,
+        )
         .unwrap()
         .0;
     wait_job_finished(&ctl, job).await;

@@ -73,6 +73,7 @@ async fn the_selected_programs_outline_is_bounded_true_and_refined_on_zoom() {
             pb::LoadProgramRequest {
                 name: "cam.nc".into(),
                 text,
+                dialect: String::new(),
             },
             OPERATOR_TOKEN,
         ))
@@ -182,6 +183,7 @@ async fn a_changed_setup_is_outlined_once_and_a_running_job_shows_what_it_runs()
             pb::LoadProgramRequest {
                 name: "square.nc".into(),
                 text: text.into(),
+                dialect: String::new(),
             },
             OPERATOR_TOKEN,
         ))

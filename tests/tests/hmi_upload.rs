@@ -22,6 +22,7 @@ async fn begin(p: &mut Programs, name: &str, select: bool, first: &[u8], total: 
         data: first.to_vec(),
         select,
         total_bytes: total as u64,
+        dialect: String::new(),
     };
     p.upload_begin(with_token(chunk, OPERATOR_TOKEN))
         .await

@@ -22,6 +22,7 @@ async fn load_and_start(m: &mut MachineClient<tonic::transport::Channel>, text: 
     m.load_program(pb::LoadProgramRequest {
         name: "part.nc".into(),
         text: text.into(),
+        dialect: String::new(),
     })
     .await
     .unwrap();
@@ -425,6 +426,7 @@ async fn m8_and_m9_switch_the_coolant() {
         let job = m
             .mdi(pb::MdiRequest {
                 block: block.into(),
+                dialect: String::new(),
             })
             .await
             .unwrap_or_else(|e| panic!("{block}: {e:?}"))

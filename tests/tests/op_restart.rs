@@ -50,6 +50,7 @@ async fn trajectory_of(
         .get_trajectory(pb::TrajectoryRequest {
             text: text.into(),
             from_block,
+            dialect: String::new(),
         })
         .await
         .unwrap()

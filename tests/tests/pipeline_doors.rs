@@ -591,6 +591,7 @@ async fn a_refused_load_selects_nothing() {
         m.upload_program(pb::LoadProgramRequest {
             name: format!("p{i}.nc"),
             text: "G1 X1 F100\n".into(),
+            dialect: String::new(),
         })
         .await
         .unwrap();
@@ -614,6 +615,7 @@ async fn a_refused_load_selects_nothing() {
     let mut req = tonic::Request::new(pb::LoadProgramRequest {
         name: "p0.nc".into(),
         text: long,
+        dialect: String::new(),
     });
     req.set_timeout(Duration::from_millis(1));
     let e = m.load_program(req).await.unwrap_err();

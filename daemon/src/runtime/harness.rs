@@ -107,6 +107,8 @@ struct Link {
 /// record with the offset table, and the next job id.
 struct Jobs {
     constants: (Constants, bool),
+    /// Work offsets G54..G59.3 as start-up read them.
+    work: kernel::offsets::WorkOffsets,
     /// Follows execution and applies `G92` writes when their block executes, as the
     /// controller's status thread does.
     pump: Pump,
@@ -142,7 +144,9 @@ impl Harness {
     ) -> Result<Self, StartError> {
         // Late wake-ups are late by whole ticks of the configured bus period.
         clock.period_ns = config.bus.cycle_ns();
-        let (constants, offsets, _) = load_storage(&config)?;
+        let stored = load_storage(&config)?;
+        let (constants, offsets) = (stored.constants, stored.offsets);
+        let work = stored.work.table();
         let axis_names = config.axis_names();
         let cfg = rt_core_config(&config, &constants, offsets.memory())?;
         let (commands, cmd_rx) = rtrb::RingBuffer::new(COMMAND_RING);
@@ -170,6 +174,7 @@ impl Harness {
             },
             jobs: Jobs {
                 constants,
+                work,
                 pump: Pump {
                     execution: Arc::default(),
                     offsets: Arc::new(Mutex::new(offsets)),
@@ -332,6 +337,7 @@ impl Harness {
             offsets.memory(),
             self.snapshot().axes.commanded,
         )
+        .map(|s| s.with_work_offsets(self.jobs.work))
     }
 
     /// Validates `text` as the controller does at loading, starts it as a job, plans it inline

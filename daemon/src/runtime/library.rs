@@ -21,6 +21,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use kernel::Diagnostic;
+use kernel::program::Dialect;
 use sha2::{Digest, Sha256};
 
 use super::storage::write_atomic;
@@ -39,6 +40,9 @@ pub struct Entry {
     /// says which text is stored, the status which one is selected). Empty for a program
     /// stored before revisions were kept.
     pub revision: String,
+    /// The language chosen for it over the API (upload or selection); `None`: by its name,
+    /// else the machine's `[program] dialect` (`runtime::dialect`).
+    pub dialect: Option<Dialect>,
 }
 
 /// The outcome of the last validation of a stored program (at upload, at each selection).
@@ -195,14 +199,16 @@ impl Library {
         })
     }
 
-    /// Stores an upload under `name` (replacing a program of that name) with its verdict.
-    /// Returns the entry and the stored file, opened.
+    /// Stores an upload under `name` (replacing a program of that name) with its verdict and
+    /// the dialect chosen for it (`None`: by its name). Returns the entry and the stored
+    /// file, opened.
     pub fn commit(
         &self,
         name: &str,
         mut up: Upload,
         blocks: u32,
         verdict: Verdict,
+        dialect: Option<Dialect>,
     ) -> Result<(Entry, Arc<File>), LibraryError> {
         let _w = self.writer.lock().unwrap();
         let file = up.file.take().expect("upload not committed twice");
@@ -223,6 +229,7 @@ impl Library {
             modified_unix_ms: now_ms(),
             verdict,
             revision: up.revision(),
+            dialect,
         };
         let path = self.program_path(name);
         fs::rename(&up.tmp, &path)?;
@@ -248,6 +255,20 @@ impl Library {
         }
         e.verdict = verdict;
         e.blocks = blocks;
+        write_meta(&self.meta_path(name), e)
+    }
+
+    /// Records the dialect chosen for a stored program at its selection.
+    pub fn set_dialect(&self, name: &str, dialect: Dialect) -> io::Result<()> {
+        let _w = self.writer.lock().unwrap();
+        let mut index = self.index.lock().unwrap();
+        let Some(e) = index.get_mut(name) else {
+            return Ok(());
+        };
+        if e.dialect == Some(dialect) {
+            return Ok(());
+        }
+        e.dialect = Some(dialect);
         write_meta(&self.meta_path(name), e)
     }
 
@@ -363,6 +384,7 @@ fn write_meta(path: &Path, e: &Entry) -> io::Result<()> {
         "warnings": e.verdict.warnings,
         "first_error": e.verdict.first_error,
         "revision": e.revision,
+        "dialect": e.dialect.map(Dialect::as_str),
     });
     write_atomic(path, v.to_string().as_bytes())
 }
@@ -383,5 +405,7 @@ fn read_meta(path: &Path) -> Option<Entry> {
             first_error: v["first_error"].as_str().unwrap_or("").to_owned(),
         },
         revision: v["revision"].as_str().unwrap_or("").to_owned(),
+        // A program stored before dialects were kept: by its name.
+        dialect: v["dialect"].as_str().and_then(Dialect::from_name),
     })
 }

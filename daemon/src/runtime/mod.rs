@@ -5,6 +5,7 @@ pub mod clock;
 pub mod config;
 pub mod controller;
 mod delegate;
+pub mod dialect;
 pub mod discovery;
 pub mod fault_inject;
 pub mod harness;

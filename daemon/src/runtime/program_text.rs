@@ -3,14 +3,14 @@
 //! from its open file).
 
 use std::fs::File;
-use std::io::{self, BufRead, BufReader, Read};
+use std::io::{self, BufRead, BufReader, Cursor, Read, Seek, SeekFrom};
 use std::os::unix::fs::FileExt;
 use std::sync::Arc;
 
 use kernel::machine::MachineSetup;
 use kernel::pipeline::{self, Observer, Options, Summary, Validation};
-use kernel::program::Lines;
 use kernel::program::encoding::TextEncoding;
+use kernel::program::{LineMark, Lines};
 use kernel::{DiagCode, Diagnostic};
 
 /// Read buffer of a program streamed from its file.
@@ -106,6 +106,53 @@ impl Read for PosReader {
     }
 }
 
+impl Seek for PosReader {
+    fn seek(&mut self, to: SeekFrom) -> io::Result<u64> {
+        let from_end = |d: i64| -> io::Result<u64> {
+            let len = self.file.metadata()?.len();
+            Ok(len.saturating_add_signed(d))
+        };
+        self.pos = match to {
+            SeekFrom::Start(p) => p,
+            SeekFrom::Current(d) => self.pos.checked_add_signed(d).ok_or_else(before_start)?,
+            SeekFrom::End(d) => from_end(d)?,
+        };
+        Ok(self.pos)
+    }
+}
+
+fn before_start() -> io::Error {
+    io::Error::new(io::ErrorKind::InvalidInput, "seek before the start")
+}
+
+/// A program's reader that can go back to a byte offset of its source: the ISO dialect's
+/// loops and subroutine calls read lines again (`kernel::program::Lines::seek`).
+pub trait Reposition: BufRead {
+    /// Whether [`Reposition::reposition`] works (a stream of chunks cannot go back).
+    fn can_reposition(&self) -> bool {
+        true
+    }
+
+    /// Continues reading at byte `offset` of the source.
+    fn reposition(&mut self, offset: u64) -> io::Result<()>;
+}
+
+impl<R: Read + Seek> Reposition for BufReader<R> {
+    fn reposition(&mut self, offset: u64) -> io::Result<()> {
+        // Relative to where the buffer stands: a loop's body usually still is in the buffer.
+        let now = self.stream_position()?;
+        let delta = i64::try_from(offset as i128 - now as i128).map_err(|_| before_start())?;
+        self.seek_relative(delta)
+    }
+}
+
+impl<T: AsRef<[u8]>> Reposition for Cursor<T> {
+    fn reposition(&mut self, offset: u64) -> io::Result<()> {
+        self.set_position(offset);
+        Ok(())
+    }
+}
+
 /// The lines of a program read from `R` for the kernel's stream (`kernel::program::Lines`):
 /// the same lines as from a string. A line that is not UTF-8 is an error located by line,
 /// column and byte offset; a read error ends the text with an error.
@@ -118,6 +165,8 @@ pub struct FileLines<R> {
     /// Byte offset of the next line in the file.
     offset: u64,
     done: bool,
+    /// Where the text ended (`offset` after its last line), once read to its end.
+    end: Option<u64>,
 }
 
 impl FileLines<BufReader<PosReader>> {
@@ -130,7 +179,7 @@ impl FileLines<BufReader<PosReader>> {
     }
 }
 
-impl<R: BufRead> FileLines<R> {
+impl<R: Reposition> FileLines<R> {
     pub fn new(reader: R) -> Self {
         FileLines {
             reader,
@@ -139,6 +188,7 @@ impl<R: BufRead> FileLines<R> {
             decoded: String::new(),
             offset: 0,
             done: false,
+            end: None,
         }
     }
 }
@@ -151,7 +201,7 @@ impl<R> FileLines<R> {
     }
 }
 
-impl<R: BufRead> Lines for FileLines<R> {
+impl<R: Reposition> Lines for FileLines<R> {
     fn next_line(&mut self, line_no: u32) -> Option<Result<&str, Diagnostic>> {
         if self.done {
             return None;
@@ -159,6 +209,7 @@ impl<R: BufRead> Lines for FileLines<R> {
         self.line.clear();
         if let Err(e) = self.reader.read_until(b'\n', &mut self.line) {
             self.done = true;
+            self.end = Some(self.offset);
             let msg = format!("cannot read the program file: {e}");
             return Some(Err(Diagnostic::error(
                 DiagCode::ProgramUnreadable,
@@ -168,13 +219,17 @@ impl<R: BufRead> Lines for FileLines<R> {
                 msg,
             )));
         }
+        let start = self.offset;
         if self.line.last() == Some(&b'\n') {
             self.line.pop();
+            self.offset += self.line.len() as u64 + 1;
         } else {
+            // The last line: the offset goes one past the text's end, as the kernel's
+            // string lines do (a mark taken here means "nothing left").
             self.done = true;
+            self.offset += self.line.len() as u64 + 1;
+            self.end = Some(self.offset);
         }
-        let start = self.offset;
-        self.offset += self.line.len() as u64 + 1;
         if self.encoding != TextEncoding::Utf8 && !self.line.is_ascii() {
             // (A single-byte page decodes every byte.)
             self.decoded = self
@@ -202,12 +257,40 @@ impl<R: BufRead> Lines for FileLines<R> {
             }
         }
     }
+
+    fn mark(&self) -> Option<LineMark> {
+        self.reader
+            .can_reposition()
+            .then_some(LineMark(self.offset))
+    }
+
+    fn seek(&mut self, mark: LineMark) -> bool {
+        if !self.reader.can_reposition() {
+            return false;
+        }
+        // A mark at (or past) the end read so far: nothing left to read.
+        if self.end.is_some_and(|end| mark.0 >= end) {
+            self.offset = mark.0;
+            self.done = true;
+            return true;
+        }
+        if self.reader.reposition(mark.0).is_err() {
+            return false;
+        }
+        self.offset = mark.0;
+        self.done = false;
+        true
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use kernel::program::{self, Setup};
+    use kernel::program::{self, Dialect, Setup};
+
+    fn lines_of(text: &[u8]) -> FileLines<Cursor<&[u8]>> {
+        FileLines::new(Cursor::new(text))
+    }
 
     /// The file stream makes the same blocks and errors as the kernel's string stream.
     #[test]
@@ -222,7 +305,7 @@ mod tests {
             "G1 X1 F100\nM30\nG1 X5\n",
         ] {
             let mut a = program::stream(text, &setup);
-            let mut b = program::stream_lines(FileLines::new(text.as_bytes()), &setup);
+            let mut b = program::stream_lines(lines_of(text.as_bytes()), &setup);
             let xa: Vec<_> = a.by_ref().collect();
             let xb: Vec<_> = b.by_ref().collect();
             assert_eq!(format!("{xa:?}"), format!("{xb:?}"), "{text:?}");
@@ -235,7 +318,7 @@ mod tests {
     fn bad_utf8_is_located() {
         let setup = Setup::new(&['X', 'Y', 'Z']);
         let text: &[u8] = b"G1 X1 F100\nG1 (\xe8) Y2\n";
-        let errs: Vec<_> = program::stream_lines(FileLines::new(text), &setup)
+        let errs: Vec<_> = program::stream_lines(lines_of(text), &setup)
             .filter_map(Result::err)
             .collect();
         assert_eq!(errs.len(), 1);
@@ -244,5 +327,64 @@ mod tests {
         // The byte offset in the file (line 2 starts at 11, the bad byte is its 5th) is data
         // the machinist needs to find the byte in an editor.
         assert!(errs[0].message.contains("byte offset 15"), "{}", errs[0]);
+    }
+
+    /// The lines read from `l` until the end (at most 100), as text.
+    fn rest(l: &mut (impl Lines + ?Sized)) -> Vec<String> {
+        let mut out = Vec::new();
+        while let Some(line) = l.next_line(0) {
+            out.push(line.map(str::to_string).unwrap_or_else(|d| d.message));
+            if out.len() > 100 {
+                break;
+            }
+        }
+        out
+    }
+
+    /// An open file read through a buffer smaller than the text: a seek back lands outside
+    /// the buffer, one forward inside it.
+    fn small_buffer_file(text: &[u8]) -> FileLines<BufReader<PosReader>> {
+        let path = std::env::temp_dir().join(format!("cncd-seek-{}.ngc", std::process::id()));
+        std::fs::write(&path, text).unwrap();
+        let f = Arc::new(File::open(&path).unwrap());
+        std::fs::remove_file(&path).unwrap();
+        FileLines::new(BufReader::with_capacity(8, PosReader::new(f)))
+    }
+
+    #[test]
+    fn a_mark_reads_the_same_lines_again() {
+        let text = b"first line\nsecond\r\nthird one\n\nlast";
+        for (l, name) in [
+            (&mut lines_of(text) as &mut dyn Lines, "memory"),
+            (&mut small_buffer_file(text), "file"),
+        ] {
+            assert_eq!(l.next_line(1).unwrap().unwrap(), "first line", "{name}");
+            let m = l.mark().expect("a file can go back");
+            let after = rest(l);
+            assert_eq!(after, ["second\r", "third one", "", "last"], "{name}");
+            let end = l.mark().unwrap();
+            assert!(l.seek(m), "{name}");
+            assert_eq!(rest(l), after, "{name}: the same lines again");
+            // A mark at the end: nothing more, again and again.
+            assert!(l.seek(end), "{name}");
+            assert!(l.next_line(9).is_none(), "{name}");
+            assert!(l.seek(LineMark(0)), "{name}");
+            assert_eq!(l.next_line(1).unwrap().unwrap(), "first line", "{name}");
+        }
+    }
+
+    /// An ISO program with a loop and a subroutine reads from its file as from a string.
+    #[test]
+    fn iso_loops_and_calls_run_from_a_file() {
+        let mut setup = Setup::new(&['X', 'Y', 'Z']);
+        setup.dialect = Dialect::Iso;
+        let text = "G21 G90 G17\n#1 = 0\no100 while [#1 LT 3]\nG1 X[#1 * 10] F500\n\
+                    #1 = [#1 + 1]\no100 endwhile\no200 call\nM30\n\
+                    o200 sub\nG0 Y5\no200 endsub\n";
+        let a: Vec<_> = program::stream(text, &setup).collect();
+        let b: Vec<_> = program::stream_lines(small_buffer_file(text.as_bytes()), &setup).collect();
+        assert_eq!(format!("{a:?}"), format!("{b:?}"));
+        assert!(a.iter().all(Result::is_ok), "{a:?}");
+        assert!(a.len() >= 4, "{a:?}");
     }
 }

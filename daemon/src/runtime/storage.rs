@@ -1,5 +1,5 @@
-//! Durable file storage: atomic replacement of TAB0.KOR and the constants file, and the offset
-//! table's two copies, file and memory (SPEC §3).
+//! Durable file storage: atomic replacement of TAB0.KOR, the constants file and the work
+//! offsets file (`work.rs`), and the offset table's two copies, file and memory (SPEC §3).
 //!
 //! Every write goes through [`write_atomic`]: the new content is written to a temporary file in
 //! the same directory, flushed to disk (`fsync`), renamed over the old file, and the directory
@@ -26,6 +26,9 @@ use sha2::{Digest, Sha256};
 use kernel::Diagnostic;
 use kernel::constants::Constants;
 use kernel::offsets::{self, KorFile, OffsetTable, TableEdit};
+
+mod work;
+pub use work::WorkOffsetStore;
 
 /// Why a storage operation failed. Nothing was changed (neither file nor memory).
 #[derive(Debug, thiserror::Error)]

@@ -257,6 +257,7 @@ pub fn named_program(name: &str, text: &str) -> pb::LoadProgramRequest {
     pb::LoadProgramRequest {
         name: name.into(),
         text: text.into(),
+        dialect: String::new(),
     }
 }
 
@@ -287,10 +288,13 @@ pub async fn load_and_start(m: &mut MachineClient<Channel>, name: &str, text: &s
 
 /// `ValidateProgram` of `text`.
 pub async fn validate(m: &mut MachineClient<Channel>, text: &str) -> pb::ValidateProgramReply {
-    m.validate_program(pb::ValidateProgramRequest { text: text.into() })
-        .await
-        .unwrap()
-        .into_inner()
+    m.validate_program(pb::ValidateProgramRequest {
+        text: text.into(),
+        dialect: String::new(),
+    })
+    .await
+    .unwrap()
+    .into_inner()
 }
 
 /// `ListPrograms`: the library and the selected program.
@@ -311,6 +315,7 @@ pub async fn preview_data(
         text: text.into(),
         junctions,
         from_block: None,
+        dialect: String::new(),
     })
     .await
     .map(tonic::Response::into_inner)
@@ -377,6 +382,7 @@ pub async fn assert_g24_waits_at_the_end_of_n10(
 pub fn mdi_block(block: &str) -> pb::MdiRequest {
     pb::MdiRequest {
         block: block.into(),
+        dialect: String::new(),
     }
 }
 

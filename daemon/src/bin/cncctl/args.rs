@@ -43,22 +43,72 @@ pub enum Cmd {
         /// No progress bar (for scripts): print one line at the end.
         #[arg(long)]
         quiet: bool,
+        /// Program language: cnc836 or iso [default: by the file's name (*.ngc, *.tap,
+        /// *.gcode are ISO), else the machine's [program] dialect].
+        #[arg(long)]
+        dialect: Option<String>,
     },
     /// Upload, validate and select a program without starting it.
-    Load { file: PathBuf },
+    Load {
+        file: PathBuf,
+        /// Program language: cnc836 or iso [default: by the file's name (*.ngc, *.tap,
+        /// *.gcode are ISO), else the machine's [program] dialect].
+        #[arg(long)]
+        dialect: Option<String>,
+    },
     /// Validate a program only: every error and warning with block and line.
-    Validate { file: PathBuf },
+    Validate {
+        file: PathBuf,
+        /// Program language: cnc836 or iso [default: by the file's name (*.ngc, *.tap,
+        /// *.gcode are ISO), else the machine's [program] dialect].
+        #[arg(long)]
+        dialect: Option<String>,
+    },
     /// The R325 listing: the program with the circle refinements written as address E.
-    Refine { file: PathBuf },
+    Refine {
+        file: PathBuf,
+        /// Program language: cnc836 or iso [default: by the file's name (*.ngc, *.tap,
+        /// *.gcode are ISO), else the machine's [program] dialect].
+        #[arg(long)]
+        dialect: Option<String>,
+    },
     /// Store a program on the daemon without selecting it.
     Upload {
         file: PathBuf,
         /// Name to store it under (default: the file name).
         #[arg(long)]
         name: Option<String>,
+        /// Program language: cnc836 or iso [default: by the file's name (*.ngc, *.tap,
+        /// *.gcode are ISO), else the machine's [program] dialect].
+        #[arg(long)]
+        dialect: Option<String>,
     },
     /// Select a stored program.
-    Select { name: String },
+    Select {
+        name: String,
+        /// Program language, kept by the library from now on: cnc836 or iso [default: as
+        /// stored].
+        #[arg(long)]
+        dialect: Option<String>,
+    },
+    /// The dry run: the program's interpreted moves, with the machine's axes, constants,
+    /// offsets and work offsets, from machine zero, without moving anything (docs/language.md
+    /// "The dry run"). With --json one JSON object per move and line; the messages go to
+    /// standard error; exit 1 when the program has an error.
+    Interpret {
+        /// Program file [default: the selected program, or --stored NAME].
+        file: Option<PathBuf>,
+        /// A program of the daemon's library instead of a file.
+        #[arg(long, value_name = "NAME", conflicts_with = "file")]
+        stored: Option<String>,
+        /// Start where the axes are (as a start now would) instead of machine zero.
+        #[arg(long)]
+        from_position: bool,
+        /// Program language: cnc836 or iso [default: by the file's name (*.ngc, *.tap,
+        /// *.gcode are ISO), else the machine's [program] dialect].
+        #[arg(long)]
+        dialect: Option<String>,
+    },
     /// List the program library: size, blocks, time stored, verdict.
     Programs,
     /// Write a stored program to FILE (or standard output).
@@ -131,7 +181,12 @@ pub enum Cmd {
         axes: String,
     },
     /// Run one block (MDI), e.g. `cncctl mdi "G1 X10 F500"`.
-    Mdi { block: String },
+    Mdi {
+        block: String,
+        /// Its language: cnc836 or iso [default: the machine's [program] dialect].
+        #[arg(long)]
+        dialect: Option<String>,
+    },
     /// Show the machine status.
     Status {
         /// Follow the status until interrupted: refreshed in place on a terminal, one line per
@@ -182,6 +237,18 @@ pub enum Cmd {
     },
     /// Reload the offset table from its file (drops G92 changes).
     OffsetsReload,
+    /// The work offsets G54..G59.3 of ISO programs (the file in the daemon's storage dir).
+    WorkOffsets,
+    /// Set axes of one work offset system in its file: `work-offset-set G55 X10 Y-2.5`
+    /// (the other axes keep their value; in force from the next program start).
+    #[command(allow_negative_numbers = true)]
+    WorkOffsetSet {
+        /// G54 .. G59, G59.1 .. G59.3.
+        system: String,
+        /// Axis letter and value in mm: X10, Y-2.5 (or X=10).
+        #[arg(required = true, allow_hyphen_values = true)]
+        values: Vec<String>,
+    },
     /// The machine's inputs and outputs (docs/io.md): list them, watch them, force an
     /// output (admin), set a simulated input (admin, simulated machine only).
     Io {
@@ -207,6 +274,10 @@ pub enum Cmd {
         /// Classify junctions (plans the program).
         #[arg(long)]
         junctions: bool,
+        /// Program language: cnc836 or iso [default: by the file's name (*.ngc, *.tap,
+        /// *.gcode are ISO), else the machine's [program] dialect].
+        #[arg(long)]
+        dialect: Option<String>,
     },
     /// Render a program preview to FILE.svg or FILE.png: paths, junction dots, red blocks
     /// (local rendering with default machine settings, no daemon; --remote renders on the
@@ -228,6 +299,10 @@ pub enum Cmd {
         /// Render on the daemon (GetPreview) instead of locally.
         #[arg(long)]
         remote: bool,
+        /// Program language: cnc836 or iso [default: by the file's name (*.ngc, *.tap,
+        /// *.gcode are ISO), else the machine's [program] dialect].
+        #[arg(long)]
+        dialect: Option<String>,
     },
     /// The planned per-tick trajectory of a program file (or of the selected program) on the
     /// daemon, without moving the machine: total time, and with -o a CSV of every tick
@@ -240,6 +315,10 @@ pub enum Cmd {
         /// CSV output file.
         #[arg(short = 'o', long)]
         out: Option<PathBuf>,
+        /// Program language: cnc836 or iso [default: by the file's name, else the machine's
+        /// [program] dialect; the selected program: its own].
+        #[arg(long)]
+        dialect: Option<String>,
     },
     /// grpc.health.v1 status of the daemon.
     Health,

@@ -71,6 +71,10 @@ pub enum CliError {
     Png(String),
     #[error("not started: confirm the approach with --yes (or y at the prompt)")]
     NotConfirmed,
+    #[error("--dialect: {0}")]
+    Dialect(#[from] daemon::runtime::dialect::UnknownDialect),
+    #[error("{0:?}: give an axis letter and a value in mm, e.g. X10 or Y-2.5")]
+    AxisValue(String),
 }
 
 impl CliError {
@@ -103,6 +107,8 @@ impl CliError {
             CliError::PreviewRejected { .. } => "cli_preview_rejected",
             CliError::Png(_) => "cli_png",
             CliError::NotConfirmed => "cli_not_confirmed",
+            CliError::Dialect(_) => "cli_dialect",
+            CliError::AxisValue(_) => "cli_axis_value",
         }
     }
 

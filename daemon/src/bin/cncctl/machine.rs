@@ -13,6 +13,7 @@ use serde_json::{Value, json};
 use crate::args::Cmd;
 use crate::call::{Reply, call, call_as, call_done};
 use crate::connect::Svc;
+use crate::dialect;
 use crate::error::CliError;
 use crate::render::{
     Render, block_name, diags_json, emit, local_time, print_line, read_text, show,
@@ -22,9 +23,17 @@ use crate::status::{alarm_json, dro, status_json, status_line};
 /// Runs one Machine command (main routes only these here).
 pub async fn command(m: &mut MachineClient<Svc>, cmd: Cmd, j: bool) -> Reply {
     match cmd {
-        Cmd::Refine { file } => refine(m, &file, j).await,
-        Cmd::Select { name } => {
-            let answer = m.select_program(pb::SelectProgramRequest { name: name.clone() });
+        Cmd::Refine { file, dialect } => {
+            let dialect = dialect::for_file(&file, dialect.as_deref())?;
+            refine(m, &file, dialect, j).await
+        }
+        Cmd::Select { name, dialect } => {
+            let dialect = dialect::flag(dialect.as_deref())?;
+            let req = pb::SelectProgramRequest {
+                name: name.clone(),
+                dialect,
+            };
+            let answer = m.select_program(req);
             call_as(j, answer, |r| Selected {
                 name,
                 blocks: r.blocks,
@@ -39,8 +48,9 @@ pub async fn command(m: &mut MachineClient<Svc>, cmd: Cmd, j: bool) -> Reply {
             })
             .await
         }
-        Cmd::Mdi { block } => {
-            let answer = m.mdi(pb::MdiRequest { block });
+        Cmd::Mdi { block, dialect } => {
+            let dialect = dialect::flag(dialect.as_deref())?;
+            let answer = m.mdi(pb::MdiRequest { block, dialect });
             call_as(j, answer, |r| Started {
                 job: r.job,
                 mdi: true,
@@ -147,9 +157,10 @@ impl Render for pb::RefinedProgramReply {
     }
 }
 
-async fn refine(m: &mut MachineClient<Svc>, file: &Path, j: bool) -> Reply {
+async fn refine(m: &mut MachineClient<Svc>, file: &Path, dialect: String, j: bool) -> Reply {
     let text = read_text(file)?;
-    call(j, m.get_refined_program(pb::RefinedProgramRequest { text })).await
+    let req = pb::RefinedProgramRequest { text, dialect };
+    call(j, m.get_refined_program(req)).await
 }
 
 /// One status (or, with `watch`, a refreshing status line until the stream ends).

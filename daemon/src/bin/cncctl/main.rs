@@ -9,7 +9,9 @@ mod args;
 mod call;
 mod connect;
 mod constants;
+mod dialect;
 mod error;
+mod interpret;
 mod io;
 mod machine;
 mod offsets;
@@ -59,6 +61,7 @@ async fn run(args: Args) -> Reply {
             page,
             velocity,
             remote,
+            dialect,
         } => {
             let a = preview::PreviewArgs {
                 file,
@@ -66,6 +69,7 @@ async fn run(args: Args) -> Reply {
                 plane,
                 page: *page,
                 velocity: *velocity,
+                dialect: dialect.as_deref(),
             };
             if !*remote {
                 return preview::local(&a, args.json);
@@ -95,19 +99,38 @@ async fn dispatch(c: &mut Clients, cmd: Cmd, j: bool) -> Reply {
         | Cmd::OffsetSet { .. }
         | Cmd::OffsetsFile
         | Cmd::OffsetsReplace { .. }
-        | Cmd::OffsetsReload => offsets::command(&mut c.offsets, cmd, j).await,
+        | Cmd::OffsetsReload
+        | Cmd::WorkOffsets
+        | Cmd::WorkOffsetSet { .. } => offsets::command(&mut c.offsets, cmd, j).await,
+        Cmd::Interpret {
+            file,
+            stored,
+            from_position,
+            dialect,
+        } => {
+            let what = interpret::What {
+                file,
+                stored,
+                from_position,
+                dialect,
+            };
+            interpret::command(&mut c.programs, what, j).await
+        }
         Cmd::Plc { cmd } => plc::command(&mut c.plc, cmd, j).await,
         Cmd::Io { cmd, watch } => io::command(&mut c.machine, cmd, watch, j).await,
         Cmd::Constants { cmd } => constants::command(&mut c.constants, cmd, j).await,
-        Cmd::PreviewData { file, junctions } => {
-            preview::data(&mut c.preview, &file, junctions, j).await
-        }
+        Cmd::PreviewData {
+            file,
+            junctions,
+            dialect,
+        } => preview::data(&mut c.preview, &file, junctions, dialect.as_deref(), j).await,
         Cmd::Trajectory {
             file,
             out,
             from_block,
+            dialect,
         } => {
-            let (f, o) = (file.as_deref(), out.as_deref());
+            let (f, o) = ((file.as_deref(), dialect.as_deref()), out.as_deref());
             trajectory::command(&mut c.trajectory, f, o, from_block, j).await
         }
         Cmd::Start {

@@ -9,7 +9,58 @@ use serde_json::{Value, json};
 use crate::args::Cmd;
 use crate::call::{Reply, call, call_as};
 use crate::connect::Svc;
+use crate::error::CliError;
 use crate::render::{Render, read_text};
+
+/// `X10`, `Y-2.5` or `X=10`: an axis letter and a value in mm.
+fn axis_value(arg: &str) -> Result<pb::AxisValue, CliError> {
+    let bad = || CliError::AxisValue(arg.to_string());
+    let mut chars = arg.chars();
+    let axis = chars
+        .next()
+        .filter(char::is_ascii_alphabetic)
+        .ok_or_else(bad)?;
+    let rest = chars.as_str();
+    let value_mm = rest
+        .strip_prefix('=')
+        .unwrap_or(rest)
+        .parse()
+        .map_err(|_| bad())?;
+    Ok(pb::AxisValue {
+        axis: axis.to_string(),
+        value_mm,
+    })
+}
+
+/// The work offsets as JSON: axes, and per system its name and offsets.
+fn work_json(w: &pb::WorkOffsetTable) -> Value {
+    json!({"axes": w.axes, "active_at_start": w.active_at_start, "revision": w.revision,
+        "systems": w.systems.iter().map(|s| json!({"name": s.name, "offset_mm": s.offset_mm}))
+        .collect::<Vec<_>>()})
+}
+
+/// The nine systems for people, the one in force at program start marked.
+impl Render for pb::WorkOffsetTable {
+    fn json(&self) -> Value {
+        work_json(self)
+    }
+    fn human(&self) -> String {
+        let mut s = format!("{:<6}", "");
+        for a in &self.axes {
+            s.push_str(&format!(" {a:>12}"));
+        }
+        for sys in &self.systems {
+            s.push_str(&format!("\n{:<6}", sys.name));
+            for v in &sys.offset_mm {
+                s.push_str(&format!(" {v:>12.4}"));
+            }
+            if sys.name == self.active_at_start {
+                s.push_str("  (in force at program start)");
+            }
+        }
+        s
+    }
+}
 
 /// Runs one Offsets command (main routes only these here).
 pub async fn command(o: &mut OffsetsClient<Svc>, cmd: Cmd, j: bool) -> Reply {
@@ -45,6 +96,15 @@ pub async fn command(o: &mut OffsetsClient<Svc>, cmd: Cmd, j: bool) -> Reply {
             let answer = o.reload_offsets(pb::ReloadOffsetsRequest {});
             call_as(j, answer, |r| Entries("reloaded", r.entries)).await
         }
+        Cmd::WorkOffsets => call(j, o.list_work_offsets(pb::ListWorkOffsetsRequest {})).await,
+        Cmd::WorkOffsetSet { system, values } => {
+            let values = values
+                .iter()
+                .map(|v| axis_value(v))
+                .collect::<Result<Vec<_>, _>>()?;
+            let req = pb::SetWorkOffsetRequest { system, values };
+            call(j, o.set_work_offset(req)).await
+        }
         _ => unreachable!("main routes only Offsets service commands here"),
     }
 }
@@ -74,7 +134,8 @@ async fn replace(
 /// The table as people read it: `D`, radius and lengths, G92 changes marked.
 impl Render for pb::GetOffsetsReply {
     fn json(&self) -> Value {
-        json!({"labels": self.labels, "entries": self.entries.iter().map(|e| json!({"entry": e.entry, "radius_mm": e.radius_mm, "length_mm": e.length_mm, "changed_by_program": e.changed_by_program})).collect::<Vec<_>>()})
+        json!({"labels": self.labels, "entries": self.entries.iter().map(|e| json!({"entry": e.entry, "radius_mm": e.radius_mm, "length_mm": e.length_mm, "changed_by_program": e.changed_by_program})).collect::<Vec<_>>(),
+            "work_offsets": self.work_offsets.as_ref().map(work_json)})
     }
     fn human(&self) -> String {
         let mut s = format!(
@@ -92,6 +153,19 @@ impl Render for pb::GetOffsetsReply {
             }
             if e.changed_by_program {
                 s.push_str("  (G92, not in file)");
+            }
+        }
+        // The work offsets that are set (`work-offsets` lists all nine).
+        if let Some(w) = &self.work_offsets {
+            for sys in w
+                .systems
+                .iter()
+                .filter(|s| s.offset_mm.iter().any(|v| *v != 0.0))
+            {
+                let vals: Vec<String> = (w.axes.iter().zip(&sys.offset_mm))
+                    .map(|(a, v)| format!("{a}{v:.4}"))
+                    .collect();
+                s.push_str(&format!("\n{} {}", sys.name, vals.join(" ")));
             }
         }
         s

@@ -19,6 +19,8 @@ pub struct PreviewArgs<'a> {
     pub plane: &'a str,
     pub page: u32,
     pub velocity: bool,
+    /// `--dialect` (default: by the file's name).
+    pub dialect: Option<&'a str>,
 }
 
 impl PreviewArgs<'_> {
@@ -30,7 +32,14 @@ impl PreviewArgs<'_> {
 }
 
 /// Paths and junctions of a program file, as a summary or JSON.
-pub async fn data(v: &mut PreviewClient<Svc>, file: &Path, junctions: bool, j: bool) -> Reply {
+pub async fn data(
+    v: &mut PreviewClient<Svc>,
+    file: &Path,
+    junctions: bool,
+    dialect: Option<&str>,
+    j: bool,
+) -> Reply {
+    let dialect = crate::dialect::for_file(file, dialect)?;
     let text = read_text(file)?;
     call(
         j,
@@ -38,6 +47,7 @@ pub async fn data(v: &mut PreviewClient<Svc>, file: &Path, junctions: bool, j: b
             text,
             junctions,
             from_block: None,
+            dialect,
         }),
     )
     .await
@@ -120,6 +130,7 @@ impl Render for Written<'_> {
 
 /// Renders on the daemon (its axes, limits, constants and offsets) and writes the image.
 pub async fn remote(v: &mut PreviewClient<Svc>, a: &PreviewArgs<'_>, j: bool) -> Reply {
+    let dialect = crate::dialect::for_file(a.file, a.dialect)?;
     let text = read_text(a.file)?;
     let format = if a.png() {
         pb::ImageFormat::Png
@@ -135,6 +146,7 @@ pub async fn remote(v: &mut PreviewClient<Svc>, a: &PreviewArgs<'_>, j: bool) ->
             velocity: a.velocity,
             width_px: 0,
             height_px: 0,
+            dialect,
         })
         .await?
         .into_inner();
@@ -165,11 +177,12 @@ pub fn local(a: &PreviewArgs<'_>, j: bool) -> Reply {
     let text = read_text(a.file)?;
     let plane =
         preview::ViewPlane::parse(a.plane).ok_or_else(|| CliError::Plane(a.plane.to_string()))?;
-    let opts = preview::PreviewOptions {
+    let mut opts = preview::PreviewOptions {
         plane,
         page: a.page.max(1),
         ..Default::default()
     };
+    opts.setup.dialect = crate::dialect::local(a.file, a.dialect)?;
     let rejected = |d: Vec<kernel::Diagnostic>| CliError::PreviewRejected {
         file: a.file.to_path_buf(),
         lines: d.iter().map(|x| x.to_string()).collect(),

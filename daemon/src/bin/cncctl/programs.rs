@@ -13,6 +13,7 @@ use serde_json::{Value, json};
 use crate::args::Cmd;
 use crate::call::{Reply, call, call_done};
 use crate::connect::{Clients, Svc};
+use crate::dialect;
 use crate::error::CliError;
 use crate::machine::follow;
 use crate::render::{
@@ -22,8 +23,15 @@ use crate::render::{
 /// Runs one Programs command (main routes only these here).
 pub async fn command(c: &mut Clients, cmd: Cmd, j: bool) -> Reply {
     match cmd {
-        Cmd::Run { file, quiet } => run(c, &file, quiet, j).await,
-        Cmd::Validate { file } => validate(&mut c.programs, &file, j).await,
+        Cmd::Run {
+            file,
+            quiet,
+            dialect,
+        } => run(c, &file, quiet, &dialect::flag(dialect.as_deref())?, j).await,
+        Cmd::Validate { file, dialect } => {
+            let d = dialect::flag(dialect.as_deref())?;
+            validate(&mut c.programs, &file, d, j).await
+        }
         other => library(&mut c.programs, other, j).await,
     }
 }
@@ -31,12 +39,18 @@ pub async fn command(c: &mut Clients, cmd: Cmd, j: bool) -> Reply {
 /// The commands on the library itself.
 async fn library(g: &mut ProgramsClient<Svc>, cmd: Cmd, j: bool) -> Reply {
     match cmd {
-        Cmd::Load { file } => {
-            let done = upload(g, &file, None, true, j).await?;
+        Cmd::Load { file, dialect } => {
+            let to = Target::new(&file, None, dialect.as_deref(), true)?;
+            let done = upload(g, &file, to, j).await?;
             show(j, &Loaded { file, done })
         }
-        Cmd::Upload { file, name } => {
-            let done = upload(g, &file, name, false, j).await?;
+        Cmd::Upload {
+            file,
+            name,
+            dialect,
+        } => {
+            let to = Target::new(&file, name, dialect.as_deref(), false)?;
+            let done = upload(g, &file, to, j).await?;
             show(j, &Stored(done.program.unwrap_or_default()))
         }
         Cmd::Programs => call(j, g.list(pb::LibraryListRequest {})).await,
@@ -50,8 +64,13 @@ async fn library(g: &mut ProgramsClient<Svc>, cmd: Cmd, j: bool) -> Reply {
 }
 
 /// `run`: upload and select, start, and follow the job to its end.
-async fn run(c: &mut Clients, file: &Path, quiet: bool, j: bool) -> Reply {
-    let done = upload(&mut c.programs, file, None, true, quiet || j).await?;
+async fn run(c: &mut Clients, file: &Path, quiet: bool, dialect: &str, j: bool) -> Reply {
+    let to = Target {
+        name: file_name(file),
+        dialect: dialect.into(),
+        select: true,
+    };
+    let done = upload(&mut c.programs, file, to, quiet || j).await?;
     for d in &done.diagnostics {
         eprintln!("{}", diag_line(d));
     }
@@ -111,7 +130,8 @@ impl Render for pb::LibraryList {
             "programs": self.programs.iter().map(|p| json!({"name": p.name, "blocks": p.blocks,
             "size_bytes": p.size_bytes, "modified_unix_ms": p.modified_unix_ms, "valid": p.valid,
             "errors": p.errors, "warnings": p.warnings, "first_error": p.first_error,
-            "revision": p.revision})).collect::<Vec<_>>(), "selected_revision": self.selected_revision})
+            "revision": p.revision, "dialect": p.dialect})).collect::<Vec<_>>(),
+            "selected_revision": self.selected_revision})
     }
     fn human(&self) -> String {
         let mut out = format!(
@@ -128,9 +148,10 @@ impl Render for pb::LibraryList {
                 format!("{} errors: {}", p.errors, p.first_error)
             };
             out.push_str(&format!(
-                "\n{} {:<30} {:>9} blocks {:>11} bytes  stored {when}  rev {}  {verdict}",
+                "\n{} {:<30} {:<6} {:>9} blocks {:>11} bytes  stored {when}  rev {}  {verdict}",
                 if p.name == self.selected { "*" } else { " " },
                 p.name,
+                p.dialect,
                 p.blocks,
                 p.size_bytes,
                 if p.revision.is_empty() {
@@ -178,15 +199,19 @@ impl Render for Validated<'_> {
     }
 }
 
-/// Validates a program file of any size (Programs.Validate, in chunks as an upload);
-/// fails when it has errors.
-async fn validate(g: &mut ProgramsClient<Svc>, file: &Path, j: bool) -> Reply {
+/// Validates a program file of any size (Programs.Validate, in chunks as an upload; the name
+/// and `dialect` say its language); fails when it has errors.
+async fn validate(g: &mut ProgramsClient<Svc>, file: &Path, dialect: String, j: bool) -> Reply {
     let f = std::fs::File::open(file).map_err(CliError::read(file))?;
     let (tx, rx) = tokio::sync::mpsc::channel::<pb::ProgramChunk>(4);
     let bar = ProgressBar::hidden();
     let b = bar.clone();
-    let reader =
-        tokio::task::spawn_blocking(move || send_chunks(f, pb::ProgramChunk::default(), &b, &tx));
+    let first = pb::ProgramChunk {
+        name: file_name(file),
+        dialect,
+        ..Default::default()
+    };
+    let reader = tokio::task::spawn_blocking(move || send_chunks(f, first, &b, &tx));
     let r = g
         .validate(tokio_stream::wrappers::ReceiverStream::new(rx))
         .await?
@@ -206,22 +231,45 @@ async fn validate(g: &mut ProgramsClient<Svc>, file: &Path, j: bool) -> Reply {
 /// Upload chunk size: well below the 4 MiB message limit.
 const UPLOAD_CHUNK_BYTES: usize = 1 << 20;
 
+/// The file name of `file` (what a program is stored as, and its dialect by extension).
+fn file_name(file: &Path) -> String {
+    file.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// Where an upload goes: the name, the dialect asked for ("" : by the name), selected or not.
+struct Target {
+    name: String,
+    dialect: String,
+    select: bool,
+}
+
+impl Target {
+    fn new(
+        file: &Path,
+        name: Option<String>,
+        dialect: Option<&str>,
+        select: bool,
+    ) -> Result<Target, CliError> {
+        Ok(Target {
+            name: name.unwrap_or_else(|| file_name(file)),
+            dialect: dialect::flag(dialect)?,
+            select,
+        })
+    }
+}
+
 /// Uploads `file` through Programs.Upload in chunks, read as it is sent (any size), with a
-/// progress bar for the upload and then the validation; selects it when `select`.
+/// progress bar for the upload and then the validation; selects it when `to.select`.
 async fn upload(
     g: &mut ProgramsClient<Svc>,
     file: &Path,
-    name: Option<String>,
-    select: bool,
+    to: Target,
     quiet: bool,
 ) -> Result<pb::UploadDone, CliError> {
     let f = std::fs::File::open(file).map_err(CliError::read(file))?;
     let total = f.metadata().map(|m| m.len()).unwrap_or(0);
-    let name = name.unwrap_or_else(|| {
-        file.file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default()
-    });
     let bar = if quiet {
         ProgressBar::hidden()
     } else {
@@ -234,9 +282,10 @@ async fn upload(
     bar.set_message("upload");
     let (tx, rx) = tokio::sync::mpsc::channel::<pb::ProgramChunk>(4);
     let first = pb::ProgramChunk {
-        name,
-        select,
+        name: to.name,
+        select: to.select,
         total_bytes: total,
+        dialect: to.dialect,
         ..Default::default()
     };
     let b = bar.clone();

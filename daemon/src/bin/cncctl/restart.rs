@@ -15,7 +15,7 @@ use crate::render::show;
 use crate::trajectory::trajectory;
 
 pub async fn command(c: &mut Clients, n: u32, yes: bool, j: bool) -> Result<ExitCode, CliError> {
-    let planned = trajectory(&mut c.trajectory, String::new(), Some(n), None).await?;
+    let planned = trajectory(&mut c.trajectory, Default::default(), Some(n), None).await?;
     let approach = planned.approach.map(|a| a.describe()).unwrap_or_default();
     if !j {
         println!("restart from block N{n}: {approach}");

@@ -16,16 +16,16 @@ use crate::render::{Render, read_text, show};
 /// The trajectory of `file` (or of the selected program), with the CSV to `out` when given.
 pub async fn command(
     t: &mut TrajectoryClient<Svc>,
-    file: Option<&Path>,
+    (file, dialect): (Option<&Path>, Option<&str>),
     out: Option<&Path>,
     from_block: Option<u32>,
     j: bool,
 ) -> Reply {
-    let text = match file {
-        Some(f) => read_text(f)?,
-        None => String::new(),
+    let (text, dialect) = match file {
+        Some(f) => (read_text(f)?, crate::dialect::for_file(f, dialect)?),
+        None => (String::new(), crate::dialect::flag(dialect)?),
     };
-    show(j, &trajectory(t, text, from_block, out).await?)
+    show(j, &trajectory(t, (text, dialect), from_block, out).await?)
 }
 
 /// Machining time and tick count; for a restart, the approach.
@@ -101,14 +101,16 @@ impl Render for Planned {
 /// `out` when given.
 pub async fn trajectory(
     t: &mut TrajectoryClient<Svc>,
-    text: String,
+    (text, dialect): (String, String),
     from_block: Option<u32>,
     out: Option<&Path>,
 ) -> Result<Planned, CliError> {
-    let mut stream = t
-        .get_trajectory(pb::TrajectoryRequest { text, from_block })
-        .await?
-        .into_inner();
+    let req = pb::TrajectoryRequest {
+        text,
+        from_block,
+        dialect,
+    };
+    let mut stream = t.get_trajectory(req).await?.into_inner();
     let mut csv = match out {
         Some(p) => Some(std::io::BufWriter::new(std::fs::File::create(p).map_err(
             |source| CliError::CsvCreate {

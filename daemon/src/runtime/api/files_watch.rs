@@ -1,5 +1,6 @@
 //! The watch on the data files (issue #31, SPEC §3: the memory copy is loaded from the file at
-//! power-on *and after every saved edit*): TAB0.KOR and the constants file are polled; a
+//! power-on *and after every saved edit*): TAB0.KOR, the constants file and the work offsets
+//! file are polled; a
 //! saved edit is loaded (`Controller::sync_files`), one that does not load raises an alarm
 //! naming the file, line and code, and the memory copy stays.
 //!
@@ -21,9 +22,10 @@ use crate::runtime::storage::{Fingerprint, StorageError, fingerprint};
 /// How often the files are looked at.
 pub const POLL_PERIOD: Duration = Duration::from_millis(250);
 
-/// Alarm sources of the two files (what `cncctl alarms` shows).
+/// Alarm sources of the files (what `cncctl alarms` shows).
 pub const OFFSETS_SOURCE: &str = "offsets_file";
 pub const CONSTANTS_SOURCE: &str = "constants_file";
+pub const WORK_OFFSETS_SOURCE: &str = "work_offsets_file";
 
 /// The bytes' fingerprint, `None` for a missing or unreadable file.
 fn look(path: &PathBuf) -> Option<Fingerprint> {
@@ -35,6 +37,7 @@ pub fn spawn(ctl: Arc<Controller>, log: Arc<AlarmLog>) {
     let paths = [
         ctl.config().storage.offsets_path(),
         ctl.config().storage.constants_path(),
+        ctl.config().storage.work_offsets_path(),
     ];
     tokio::spawn(async move {
         let mut previous = paths.clone().map(|p| look(&p));
@@ -63,6 +66,7 @@ pub fn spawn(ctl: Arc<Controller>, log: Arc<AlarmLog>) {
             };
             report(&log, OFFSETS_SOURCE, sync.offsets);
             report(&log, CONSTANTS_SOURCE, sync.constants);
+            report(&log, WORK_OFFSETS_SOURCE, sync.work_offsets);
         }
     });
 }

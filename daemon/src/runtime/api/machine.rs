@@ -19,10 +19,11 @@ use kernel::plan::Segment;
 use super::programs::{check_name, select_stored, store_text};
 use super::{
     ApiState, DEFAULT_STATUS_HZ, JUNCTION_CLASSIFY_MAX_BLOCKS, MAX_STATUS_HZ, RunInfo, RunMode,
-    blocking, counts_pb, diagnostic_to_pb, status_of,
+    blocking, counts_pb, diagnostic_to_pb, dialect_field, status_of,
 };
 use crate::runtime::config::Role::{Admin, Observer, Operator};
 use crate::runtime::controller::{ControlError, Controller};
+use kernel::program::Dialect;
 
 /// Largest program run in single-block mode (its blocks are kept in memory), bytes.
 const SINGLE_BLOCK_MAX_BYTES: u64 = 16 << 20;
@@ -33,10 +34,14 @@ pub struct MachineSvc(pub Arc<ApiState>);
 type Stream_<T> = Pin<Box<dyn Stream<Item = Result<T, Status>> + Send>>;
 
 impl MachineSvc {
-    /// The whole pipeline's verdict on `text` (validate).
-    async fn validate(&self, text: String) -> Result<kernel::pipeline::Validation, Status> {
+    /// The whole pipeline's verdict on `text` in `dialect` (validate).
+    async fn validate(
+        &self,
+        text: String,
+        dialect: Dialect,
+    ) -> Result<kernel::pipeline::Validation, Status> {
         let st = self.0.clone();
-        blocking(move || st.ctl.validate_text(&text).map_err(status_of)).await?
+        blocking(move || st.ctl.validate_text(&text, dialect).map_err(status_of)).await?
     }
 }
 
@@ -102,7 +107,8 @@ impl Machine for MachineSvc {
             r.name
         };
         check_name(&name)?;
-        let done = store_text(&self.0, name, r.text, true).await?;
+        let dialect = dialect_field(&r.dialect)?;
+        let done = store_text(&self.0, name, r.text, true, dialect).await?;
         Ok(Response::new(reply_of(done)))
     }
 
@@ -111,13 +117,15 @@ impl Machine for MachineSvc {
         req: Request<pb::ValidateProgramRequest>,
     ) -> Result<Response<pb::ValidateProgramReply>, Status> {
         require(&req, Observer, "ValidateProgram")?;
-        let text = req.into_inner().text;
-        let v = self.validate(text.clone()).await?;
+        let r = req.into_inner();
+        let dialect = dialect_field(&r.dialect)?.unwrap_or_else(|| self.0.ctl.default_dialect());
+        let text = r.text;
+        let v = self.validate(text.clone(), dialect).await?;
         let refined = if v.has_errors() {
             Vec::new()
         } else {
             let st = self.0.clone();
-            blocking(move || st.ctl.refinement_listing(&text).map_err(status_of))
+            blocking(move || st.ctl.refinement_listing(&text, dialect).map_err(status_of))
                 .await??
                 .1
         };
@@ -137,7 +145,8 @@ impl Machine for MachineSvc {
         require(&req, Operator, "UploadProgram")?;
         let r = req.into_inner();
         check_name(&r.name)?;
-        let done = store_text(&self.0, r.name, r.text, false).await?;
+        let dialect = dialect_field(&r.dialect)?;
+        let done = store_text(&self.0, r.name, r.text, false, dialect).await?;
         Ok(Response::new(reply_of(done)))
     }
 
@@ -146,9 +155,10 @@ impl Machine for MachineSvc {
         req: Request<pb::SelectProgramRequest>,
     ) -> Result<Response<pb::LoadProgramReply>, Status> {
         require(&req, Operator, "SelectProgram")?;
-        let name = req.into_inner().name;
+        let r = req.into_inner();
+        let dialect = dialect_field(&r.dialect)?;
         let st = self.0.clone();
-        let loaded = blocking(move || select_stored(&st, &name)).await??;
+        let loaded = blocking(move || select_stored(&st, &r.name, dialect)).await??;
         Ok(Response::new(pb::LoadProgramReply {
             blocks: loaded.block_count,
             diagnostics: loaded.warnings.iter().map(diagnostic_to_pb).collect(),
@@ -370,7 +380,9 @@ impl Machine for MachineSvc {
 
     async fn mdi(&self, req: Request<pb::MdiRequest>) -> Result<Response<pb::StartReply>, Status> {
         require(&req, Operator, "Mdi")?;
-        let block = req.into_inner().block;
+        let r = req.into_inner();
+        let dialect = dialect_field(&r.dialect)?.unwrap_or_else(|| self.0.ctl.default_dialect());
+        let block = r.block;
         if block.trim().is_empty() || block.lines().count() > 1 {
             return Err(Status::invalid_argument(
                 "MDI takes exactly one block (one line of program text)",
@@ -381,7 +393,7 @@ impl Machine for MachineSvc {
         let job = blocking(move || -> Result<u32, Status> {
             let (job, blocks) = st
                 .ctl
-                .start_text("MDI", &block, false, true)
+                .start_text("MDI", &block, dialect, false, true)
                 .map_err(status_of)?;
             *st.job.run.lock().unwrap() = Some(RunInfo {
                 job,
@@ -500,11 +512,12 @@ impl Machine for MachineSvc {
         req: Request<pb::RefinedProgramRequest>,
     ) -> Result<Response<pb::RefinedProgramReply>, Status> {
         require(&req, Observer, "GetRefinedProgram")?;
-        let text = req.into_inner().text;
+        let r = req.into_inner();
         let st = self.0.clone();
-        let text = super::text_or_selected(&st.ctl, text)?;
+        let (text, dialect) = super::text_or_selected(&st.ctl, r.text, &r.dialect)?;
         let (listing, refined, diags) =
-            blocking(move || st.ctl.refinement_listing(&text).map_err(status_of)).await??;
+            blocking(move || st.ctl.refinement_listing(&text, dialect).map_err(status_of))
+                .await??;
         Ok(Response::new(pb::RefinedProgramReply {
             text: listing,
             refinements: refined.iter().map(refinement_to_pb).collect(),

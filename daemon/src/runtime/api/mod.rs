@@ -9,6 +9,7 @@ pub mod alarms;
 pub mod auth;
 mod diagnostics;
 pub mod files_watch;
+mod interpret;
 pub mod io;
 pub mod job_journal;
 mod job_view;
@@ -30,6 +31,7 @@ use tonic::Status;
 
 use kernel::block::{ArcDir, Block, BlockKind, Comp, Continuity, Feed, Path, Plane};
 use kernel::plc::CellId;
+use kernel::program::Dialect;
 
 use super::controller::{Controller, LoadedProgram};
 use super::library::{Library, ProgramText};
@@ -443,13 +445,30 @@ fn state_to_pb(s: MachineState) -> pb::MachineState {
     }
 }
 
-/// The selected program's text: what a request with an empty text means (preview, trajectory,
-/// refined listing). FAILED_PRECONDITION when no program is selected.
-fn selected_text(ctl: &Controller) -> Result<ProgramText, Status> {
+/// A request's `dialect` field: `None` when empty; INVALID_ARGUMENT `dialect_unknown` for a
+/// language cncd does not read.
+pub(crate) fn dialect_field(field: &str) -> Result<Option<Dialect>, Status> {
+    crate::runtime::dialect::requested(field)
+        .map_err(|e| refused(tonic::Code::InvalidArgument, e.code(), e.to_string()))
+}
+
+/// The program a request with a `text` and a `dialect` field means: the text in the field's
+/// dialect (else the machine's), or for an empty text the selected program's file in its
+/// own dialect (the field overrides it). FAILED_PRECONDITION when no program is selected.
+fn requested_program(
+    ctl: &Controller,
+    text: &str,
+    dialect: &str,
+) -> Result<(ProgramText, Dialect), Status> {
+    let field = dialect_field(dialect)?;
+    if !text.is_empty() {
+        let d = field.unwrap_or_else(|| ctl.default_dialect());
+        return Ok((ProgramText::Memory(Arc::from(text)), d));
+    }
     let p = ctl.program().ok_or_else(|| {
         Status::failed_precondition("no program is selected and no text was given")
     })?;
-    Ok(p.text.clone())
+    Ok((p.text.clone(), field.unwrap_or(p.dialect)))
 }
 
 /// Where a restart from `from_block` of `text` interprets the blocks before it from: for the
@@ -466,15 +485,21 @@ fn restart_origin(
         .flatten()
 }
 
-/// `text`, or when it is empty the whole text of the selected program, read into memory.
-fn text_or_selected(ctl: &Controller, text: String) -> Result<String, Status> {
+/// `text`, or when it is empty the whole text of the selected program, read into memory,
+/// with its dialect (see [`requested_program`]).
+fn text_or_selected(
+    ctl: &Controller,
+    text: String,
+    dialect: &str,
+) -> Result<(String, Dialect), Status> {
+    let (source, d) = requested_program(ctl, &text, dialect)?;
     if !text.is_empty() {
-        return Ok(text);
+        return Ok((text, d));
     }
-    let all = selected_text(ctl)?
+    let all = source
         .read_all(ctl.program_encoding())
         .map_err(|e| Status::internal(format!("cannot read the selected program: {e}")))?;
-    Ok(all.to_string())
+    Ok((all.to_string(), d))
 }
 
 /// Runs blocking work off the async workers.

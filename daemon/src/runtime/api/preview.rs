@@ -19,7 +19,6 @@ use super::auth::require;
 use super::{ApiState, blocking, diagnostic_to_pb, invalid_with_diagnostics, plane_code};
 use crate::runtime::config::Role::Observer;
 use crate::runtime::controller::Controller;
-use crate::runtime::library::ProgramText;
 
 /// Most junctions listed by the preview service (larger programs: paths only after these).
 const PREVIEW_MAX_JUNCTIONS: usize = 1_000_000;
@@ -149,6 +148,16 @@ pub fn recorded_pass(st: &ApiState) -> Option<Arc<::preview::pipeline::Recording
     info.pass.clone()
 }
 
+/// Whether a request for the selected program with `dialect` asks for the language it was
+/// selected in (so the selection's recorded pass is the one asked for).
+fn own_dialect(st: &ApiState, dialect: &str) -> Result<bool, Status> {
+    let asked = super::dialect_field(dialect)?;
+    Ok(match (asked, st.ctl.program()) {
+        (Some(d), Some(p)) => d == p.dialect,
+        _ => true,
+    })
+}
+
 /// The preview data of the selected program from its load's pass (see [`recorded_pass`]).
 pub fn recorded_preview(st: &ApiState, with_junctions: bool) -> Option<pb::PreviewData> {
     let pass = recorded_pass(st)?;
@@ -157,22 +166,20 @@ pub fn recorded_preview(st: &ApiState, with_junctions: bool) -> Option<pb::Previ
     Some(c.finish(&outcome.notes))
 }
 
-/// Preview data of `text` (or of the selected program when `text` is empty): one pass of the
-/// pipeline, whose verdict and diagnostics are those of validate and load.
+/// Preview data of `text` (or of the selected program when `text` is empty) in the dialect
+/// `dialect` asks for (see `requested_program`): one pass of the pipeline, whose verdict and
+/// diagnostics are those of validate and load.
 pub fn preview_data(
     ctl: &Controller,
     text: &str,
+    dialect: &str,
     with_junctions: bool,
 ) -> Result<pb::PreviewData, Status> {
     // The selected program streams from its file (a library program of any size).
-    let text = if text.is_empty() {
-        super::selected_text(ctl)?
-    } else {
-        ProgramText::Memory(Arc::from(text))
-    };
+    let (text, dialect) = super::requested_program(ctl, text, dialect)?;
     let mut c = Collect::new(ctl, with_junctions);
     let (v, _, _) = ctl
-        .validate_program_with(&text, Options::default(), &mut c)
+        .validate_program_with(&text, dialect, Options::default(), &mut c)
         .map_err(super::status_of)?;
     if v.has_errors() {
         return Err(invalid_with_diagnostics("program", &v.diagnostics));
@@ -186,16 +193,13 @@ pub fn preview_data(
 pub(super) fn approach_legs(
     ctl: &Controller,
     text: &str,
+    dialect: &str,
     from_block: u32,
 ) -> Result<Vec<Block>, Status> {
     let origin = super::restart_origin(ctl, text, Some(from_block));
-    let text = if text.is_empty() {
-        super::selected_text(ctl)?
-    } else {
-        ProgramText::Memory(Arc::from(text))
-    };
+    let (text, dialect) = super::requested_program(ctl, text, dialect)?;
     let (v, legs) = ctl
-        .restart_approach(&text, from_block, origin)
+        .restart_approach(&text, dialect, from_block, origin)
         .map_err(super::status_of)?;
     if v.has_errors() {
         return Err(invalid_with_diagnostics("program", &v.diagnostics));
@@ -216,18 +220,16 @@ impl Preview for PreviewSvc {
             // The selected program: what its load's pass recorded, if that is still the
             // pass of the next start (no second pass of the same program with the same
             // setup).
-            let recorded = r
-                .text
-                .is_empty()
+            let recorded = (r.text.is_empty() && own_dialect(&st, &r.dialect)?)
                 .then(|| recorded_preview(&st, r.junctions))
                 .flatten();
             let mut data = match recorded {
                 Some(d) => d,
-                None => preview_data(&st.ctl, &r.text, r.junctions)?,
+                None => preview_data(&st.ctl, &r.text, &r.dialect, r.junctions)?,
             };
             if let Some(n) = r.from_block {
                 let axes = st.ctl.config().axes.len();
-                let legs = approach_legs(&st.ctl, &r.text, n)?;
+                let legs = approach_legs(&st.ctl, &r.text, &r.dialect, n)?;
                 data.approach = legs.iter().filter_map(|b| element(b, axes)).collect();
             }
             Ok::<_, Status>(data)
@@ -273,12 +275,12 @@ pub fn render_preview(
     r: &pb::GetPreviewRequest,
 ) -> Result<pb::GetPreviewReply, Status> {
     let ctl = &st.ctl;
-    let recorded = if r.text.is_empty() {
+    let recorded = if r.text.is_empty() && own_dialect(st, &r.dialect)? {
         recorded_pass(st)
     } else {
         None
     };
-    let text = super::text_or_selected(ctl, r.text.clone())?;
+    let (text, dialect) = super::text_or_selected(ctl, r.text.clone(), &r.dialect)?;
     let source = match &recorded {
         Some(pass) => ::preview::pipeline::Source::Recorded(pass),
         None => {
@@ -286,7 +288,7 @@ pub fn render_preview(
             ::preview::pipeline::Source::Text(&text)
         }
     };
-    let setup = ctl.machine_setup().map_err(super::status_of)?;
+    let setup = ctl.machine_setup_in(dialect).map_err(super::status_of)?;
     let opts = preview_options(&setup, r)?;
     let png = r.format == pb::ImageFormat::Png as i32;
     if r.velocity {

@@ -126,7 +126,7 @@ fn own_pass(
     let mut o = Outline::clipped(&st.ctl.config().axis_names(), clip, cell_mm);
     let (v, setup, generation) = st
         .ctl
-        .validate_program_with(&program.text, Options::default(), &mut o)
+        .validate_program_with(&program.text, program.dialect, Options::default(), &mut o)
         .map_err(super::status_of)?;
     if v.has_errors() {
         return Err(invalid_with_diagnostics("program", &v.diagnostics));
@@ -208,7 +208,7 @@ pub fn outline_reply(
 /// The approach of a restart of the selected program from block `n` on `plane`: one
 /// polyline from where the axes are through the end of each leg.
 fn approach(st: &ApiState, plane: Plane, n: u32) -> Result<pb::Polylines, Status> {
-    let legs = super::preview::approach_legs(&st.ctl, "", n)?;
+    let legs = super::preview::approach_legs(&st.ctl, "", "", n)?;
     let mut points: Vec<kernel::AxesMm> = Vec::new();
     for (start, end, _) in legs.iter().filter_map(|b| b.motion()) {
         if points.is_empty() {

@@ -14,12 +14,12 @@ use tonic::{Request, Response, Status, Streaming};
 use kernel::block::Block;
 use kernel::pipeline::{Flow, Observer};
 use kernel::plan::Segment;
-use kernel::program::Modal;
+use kernel::program::{Dialect, Modal};
 
 use super::auth::require;
 use super::machine::Junctions;
 use super::upload_session;
-use super::{ApiState, PlanInfo, blocking, counts_pb, diagnostic_to_pb, status_of};
+use super::{ApiState, PlanInfo, blocking, counts_pb, diagnostic_to_pb, dialect_field, status_of};
 use crate::runtime::config::Role;
 use crate::runtime::controller::{ControlError, LoadedProgram};
 use crate::runtime::library::{Entry, LibraryError, ProgramText, Upload, Verdict};
@@ -44,8 +44,12 @@ pub fn library_status(e: LibraryError) -> Status {
     }
 }
 
-pub fn entry_pb(e: &Entry) -> pb::LibraryProgram {
+/// A stored program for the API; `default`: the machine's dialect (for a program read in the
+/// dialect of its name).
+pub fn entry_pb(e: &Entry, default: Dialect) -> pb::LibraryProgram {
+    let dialect = crate::runtime::dialect::of_program(e.dialect, &e.name, default);
     pb::LibraryProgram {
+        dialect: dialect.as_str().into(),
         name: e.name.clone(),
         size_bytes: e.size_bytes,
         blocks: e.blocks,
@@ -109,12 +113,14 @@ impl<F: FnMut(u32)> Observer for Pass<F> {
     }
 }
 
-/// Validates `text` through the one pipeline (`Controller::prepare_program`, streaming a
-/// file line by line) into a program that may be selected, with its junction classes.
+/// Validates `text` in `dialect` through the one pipeline (`Controller::prepare_program`,
+/// streaming a file line by line) into a program that may be selected, with its junction
+/// classes.
 fn prepare(
     st: &ApiState,
     name: &str,
     text: ProgramText,
+    dialect: Dialect,
     progress: impl FnMut(u32),
 ) -> Result<Prepared, ControlError> {
     let pass = Pass {
@@ -128,7 +134,7 @@ fn prepare(
     // ... and the outline a screen draws a program of any size from (GetPreviewOutline).
     let outline = ::preview::outline::Outline::new(&st.ctl.config().axis_names());
     let mut obs = (pass, (record, outline));
-    let loaded = st.ctl.prepare_program(name, text, &mut obs)?;
+    let loaded = st.ctl.prepare_program(name, text, dialect, &mut obs)?;
     let (pass, (record, mut outline)) = obs;
     outline.freeze();
     let recording = record
@@ -155,23 +161,30 @@ pub struct Validated {
     name: String,
     up: Upload,
     prepared: Prepared,
+    /// The dialect the upload chose (`None`: by its name), kept by the library.
+    chosen: Option<Dialect>,
 }
 
-/// Validates a finished upload from its temporary file through the one pipeline. Blocking.
-/// `progress` sees the blocks validated so far.
+/// Validates a finished upload from its temporary file through the one pipeline, in the
+/// dialect `chosen` (`None`: by its name, else the machine's). Blocking. `progress` sees the
+/// blocks validated so far.
 pub fn validate_upload(
     st: &ApiState,
     name: &str,
     up: Upload,
+    chosen: Option<Dialect>,
     progress: impl FnMut(u32),
 ) -> Result<Validated, Status> {
     // The temporary file is renamed into place by the commit: this handle stays the program.
     let file = Arc::new(up.reopen().map_err(|e| Status::internal(e.to_string()))?);
-    let prepared = prepare(st, name, ProgramText::File(file), progress).map_err(status_of)?;
+    let dialect = st.ctl.dialect_of(name, chosen);
+    let prepared =
+        prepare(st, name, ProgramText::File(file), dialect, progress).map_err(status_of)?;
     Ok(Validated {
         name: name.to_owned(),
         up,
         prepared,
+        chosen,
     })
 }
 
@@ -179,7 +192,12 @@ pub fn validate_upload(
 /// the validation's, so a call cancelled by its deadline while validating stores and selects
 /// nothing, and a refusal (RESOURCE_EXHAUSTED, a running program) changes nothing.
 pub fn commit_upload(st: &ApiState, v: Validated, select: bool) -> Result<pb::UploadDone, Status> {
-    let Validated { name, up, prepared } = v;
+    let Validated {
+        name,
+        up,
+        prepared,
+        chosen,
+    } = v;
     let loaded = prepared.loaded.clone();
     let warnings: Vec<pb::Diagnostic> = loaded.warnings.iter().map(diagnostic_to_pb).collect();
     if select && running(st) {
@@ -195,16 +213,17 @@ pub fn commit_upload(st: &ApiState, v: Validated, select: bool) -> Result<pb::Up
              with select, `cncctl load`), which selects it, or select another program first"
         )));
     }
+    let verdict = Verdict::of(&loaded.warnings);
     let (entry, _) = st
         .library
-        .commit(&name, up, loaded.block_count, Verdict::of(&loaded.warnings))
+        .commit(&name, up, loaded.block_count, verdict, chosen)
         .map_err(library_status)?;
     if select {
         st.ctl.select(loaded.clone()).map_err(status_of)?;
         after_select(st, prepared);
     }
     Ok(pb::UploadDone {
-        program: Some(entry_pb(&entry)),
+        program: Some(entry_pb(&entry, st.ctl.default_dialect())),
         diagnostics: warnings,
         totals: Some(counts_pb(&loaded.warnings)),
         selected: select,
@@ -216,14 +235,14 @@ pub fn commit_upload(st: &ApiState, v: Validated, select: bool) -> Result<pb::Up
 /// selects it unless the client went away meanwhile (`cancelled`).
 pub async fn finish_upload(
     st: &Arc<ApiState>,
-    name: String,
+    (name, chosen): (String, Option<Dialect>),
     up: Upload,
     select: bool,
     progress: impl FnMut(u32) + Send + 'static,
     cancelled: impl FnOnce() -> bool,
 ) -> Result<pb::UploadDone, Status> {
     let s = st.clone();
-    let v = blocking(move || validate_upload(&s, &name, up, progress)).await??;
+    let v = blocking(move || validate_upload(&s, &name, up, chosen, progress)).await??;
     // The client left while it validated: nothing is stored or selected.
     if cancelled() {
         return Err(Status::cancelled("the client ended the upload"));
@@ -231,29 +250,42 @@ pub async fn finish_upload(
     commit_upload(st, v, select)
 }
 
-/// Stores `text` (a unary upload: LoadProgram, UploadProgram) and selects it when asked:
-/// written and validated on a blocking thread, stored and selected after that.
+/// Stores `text` (a unary upload: LoadProgram, UploadProgram) in the dialect `chosen`
+/// (`None`: by its name) and selects it when asked: written and validated on a blocking
+/// thread, stored and selected after that.
 pub async fn store_text(
     st: &Arc<ApiState>,
     name: String,
     text: String,
     select: bool,
+    chosen: Option<Dialect>,
 ) -> Result<pb::UploadDone, Status> {
     let s = st.clone();
     let v = blocking(move || {
         let mut up = s.library.begin_upload(&name).map_err(library_status)?;
         up.write(text.as_bytes()).map_err(library_status)?;
-        validate_upload(&s, &name, up, |_| {})
+        validate_upload(&s, &name, up, chosen, |_| {})
     })
     .await??;
     commit_upload(st, v, select)
 }
 
 /// Selects a stored program, validating it again (streaming its file) against the machine
-/// as it is now; the verdict is recorded. Blocking.
-pub fn select_stored(st: &ApiState, name: &str) -> Result<Arc<LoadedProgram>, Status> {
-    let (file, _) = st.library.open_program(name).map_err(library_status)?;
-    let r = prepare(st, name, ProgramText::File(file), |_| {});
+/// as it is now, in the dialect `chosen` (recorded from now on) or the one it was stored
+/// with; the verdict is recorded. Blocking.
+pub fn select_stored(
+    st: &ApiState,
+    name: &str,
+    chosen: Option<Dialect>,
+) -> Result<Arc<LoadedProgram>, Status> {
+    let (file, entry) = st.library.open_program(name).map_err(library_status)?;
+    if let Some(d) = chosen
+        && let Err(e) = st.library.set_dialect(name, d)
+    {
+        return Err(Status::internal(format!("cannot record the dialect: {e}")));
+    }
+    let dialect = st.ctl.dialect_of(name, chosen.or(entry.dialect));
+    let r = prepare(st, name, ProgramText::File(file), dialect, |_| {});
     let (blocks, verdict) = match &r {
         Ok(p) => (p.loaded.block_count, Verdict::of(&p.loaded.warnings)),
         Err(ControlError::InvalidProgram(d)) => (0, Verdict::of(d)),
@@ -291,7 +323,7 @@ pub fn restore_selection(st: &ApiState) {
     let Some(name) = st.library.saved_selected() else {
         return;
     };
-    match select_stored(st, &name) {
+    match select_stored(st, &name, None) {
         Ok(p) => tracing::info!(program = %name, blocks = p.block_count, "selected again"),
         Err(e) => tracing::warn!(program = %name, "not selected again: {}", e.message()),
     }
@@ -349,10 +381,11 @@ impl Programs for ProgramsSvc {
             .await
             .ok_or_else(|| Status::invalid_argument("an upload needs at least one message"))??;
         check_name(&first.name)?;
+        let chosen = dialect_field(&first.dialect)?;
         let (tx, rx) = tokio::sync::mpsc::channel(16);
         let st = self.0.clone();
         tokio::spawn(async move {
-            let (name, select) = (first.name.clone(), first.select);
+            let (name, select) = ((first.name.clone(), chosen), first.select);
             let up = match receive(&st, input, first, &tx).await {
                 Ok(up) => up,
                 Err(e) => {
@@ -422,6 +455,19 @@ impl Programs for ProgramsSvc {
         Ok(Response::new(done))
     }
 
+    type InterpretStream = Stream_<pb::InterpretChunk>;
+
+    async fn interpret(
+        &self,
+        req: Request<pb::InterpretRequest>,
+    ) -> Result<Response<Self::InterpretStream>, Status> {
+        require(&req, Role::Observer, "Interpret")?;
+        let chunks = super::interpret::chunks(&self.0, req.into_inner()).await?;
+        Ok(Response::new(Box::pin(tokio_stream::iter(
+            chunks.into_iter().map(Ok),
+        ))))
+    }
+
     async fn download(
         &self,
         req: Request<pb::ProgramName>,
@@ -443,7 +489,9 @@ impl Programs for ProgramsSvc {
         require(&req, Role::Observer, "List")?;
         let lib = &self.0.library;
         Ok(Response::new(pb::LibraryList {
-            programs: lib.list().iter().map(entry_pb).collect(),
+            programs: (lib.list().iter())
+                .map(|e| entry_pb(e, self.0.ctl.default_dialect()))
+                .collect(),
             selected: selected_name(&self.0).unwrap_or_default(),
             used_bytes: lib.used_bytes(),
             max_bytes: lib.max_bytes(),
@@ -480,7 +528,7 @@ impl Programs for ProgramsSvc {
         let e = blocking(move || lib.rename(&r.from, &r.to))
             .await?
             .map_err(library_status)?;
-        Ok(Response::new(entry_pb(&e)))
+        Ok(Response::new(entry_pb(&e, self.0.ctl.default_dialect())))
     }
 }
 

@@ -10,7 +10,9 @@ use tonic::{Request, Response, Status};
 
 use kernel::constants::{self, Constants, MAX_R};
 use kernel::machine::names;
-use kernel::offsets::{self, ENTRIES, OffsetTable, TableEdit};
+use kernel::offsets::work::{SYSTEM_NAMES, SYSTEMS};
+use kernel::offsets::work_file::WorkEdit;
+use kernel::offsets::{self, ENTRIES, OffsetTable, TableEdit, WorkOffsets};
 use kernel::plc::{self, Access, CellInfo, PlcWrite};
 
 use super::auth::require;
@@ -36,6 +38,16 @@ fn entry_pb(n: u8, memory: &OffsetTable, file: Option<&OffsetTable>) -> pb::Offs
 }
 
 impl OffsetsSvc {
+    /// The work offsets for the API.
+    fn work_table(&self) -> pb::WorkOffsetTable {
+        let names = self.0.ctl.config().axis_names();
+        work_table_pb(
+            &self.0.ctl.work_offsets(),
+            &names,
+            self.0.ctl.work_offsets_file().1,
+        )
+    }
+
     /// The file's table (parsed from the text the store would write).
     fn file_table(&self) -> Option<OffsetTable> {
         let names = self.0.ctl.config().axis_names();
@@ -69,7 +81,32 @@ impl Offsets for OffsetsSvc {
             labels: std::iter::once("R".to_string())
                 .chain((1..=4).map(|k| offsets::label(k, &names)))
                 .collect(),
+            work_offsets: Some(self.work_table()),
         }))
+    }
+
+    async fn list_work_offsets(
+        &self,
+        req: Request<pb::ListWorkOffsetsRequest>,
+    ) -> Result<Response<pb::WorkOffsetTable>, Status> {
+        require(&req, Observer, "ListWorkOffsets")?;
+        // A hand edit saved since the last look is shown (and loaded) at once.
+        let st = self.0.clone();
+        blocking(move || st.ctl.sync_files()).await?;
+        Ok(Response::new(self.work_table()))
+    }
+
+    async fn set_work_offset(
+        &self,
+        req: Request<pb::SetWorkOffsetRequest>,
+    ) -> Result<Response<pb::WorkOffsetTable>, Status> {
+        require(&req, Operator, "SetWorkOffset")?;
+        let edit = work_edit(&req.into_inner(), &self.0.ctl.config().axis_names())?;
+        let st = self.0.clone();
+        blocking(move || st.ctl.edit_work_offset(&edit))
+            .await?
+            .map_err(status_of)?;
+        Ok(Response::new(self.work_table()))
     }
 
     async fn set_offset(
@@ -170,6 +207,60 @@ impl Offsets for OffsetsSvc {
             entries: self.0.ctl.offsets_memory().iter_nonzero().count() as u32,
         }))
     }
+}
+
+/// The nine systems (G54 first), each with a value per axis of `names`.
+fn work_table_pb(w: &WorkOffsets, names: &[char], revision: String) -> pb::WorkOffsetTable {
+    let axes = names.len().min(kernel::MAX_AXES);
+    pb::WorkOffsetTable {
+        axes: names.iter().map(char::to_string).collect(),
+        systems: (0..SYSTEMS)
+            .map(|k| pb::WorkOffsetSystem {
+                name: SYSTEM_NAMES[k].into(),
+                offset_mm: w.systems[k].0[..axes].to_vec(),
+            })
+            .collect(),
+        active_at_start: SYSTEM_NAMES[w.active].into(),
+        revision,
+    }
+}
+
+/// A `SetWorkOffset` request as an edit: a known system, known axes once each, values the
+/// file keeps exactly (INVALID_ARGUMENT otherwise, naming the value).
+fn work_edit(r: &pb::SetWorkOffsetRequest, names: &[char]) -> Result<WorkEdit, Status> {
+    let system = WorkOffsets::index_of(&r.system).ok_or_else(|| {
+        Status::invalid_argument(format!(
+            "work offset system {:?} does not exist: G54 .. G59, G59.1 .. G59.3",
+            r.system
+        ))
+    })?;
+    if r.values.is_empty() {
+        return Err(Status::invalid_argument("give at least one axis value"));
+    }
+    let mut values = [None; kernel::MAX_AXES];
+    for v in &r.values {
+        let axis = names
+            .iter()
+            .position(|n| v.axis.trim().eq_ignore_ascii_case(&n.to_string()))
+            .ok_or_else(|| {
+                Status::invalid_argument(format!("this machine has no axis {:?}", v.axis))
+            })?;
+        if values[axis].is_some() {
+            return Err(Status::invalid_argument(format!(
+                "axis {} is given twice",
+                names[axis]
+            )));
+        }
+        let field = format!("{} {}", SYSTEM_NAMES[system], names[axis]);
+        check_value(
+            &field,
+            v.value_mm,
+            offsets::MAX_VALUE_MM,
+            offsets::MAX_DECIMALS as u32,
+        )?;
+        values[axis] = Some(v.value_mm);
+    }
+    Ok(WorkEdit { system, values })
 }
 
 fn cell_pb(info: &CellInfo, value: i32) -> pb::PlcCell {

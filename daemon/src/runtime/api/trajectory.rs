@@ -44,7 +44,7 @@ impl Trajectory for TrajectorySvc {
         require(&req, Observer, "GetTrajectory")?;
         let r = req.into_inner();
         let (text, opts) = (
-            r.text,
+            r.text.clone(),
             Options {
                 from_block: r.from_block,
                 ..Options::default()
@@ -52,11 +52,11 @@ impl Trajectory for TrajectorySvc {
         );
         let ctl = self.0.ctl.clone();
         let origin = super::restart_origin(&ctl, &text, opts.from_block);
-        let text = super::text_or_selected(&ctl, text)?;
+        let (text, dialect) = super::text_or_selected(&ctl, text, &r.dialect)?;
         // The job's machine setup and the one pipeline a run uses (issue #14): the verdict is
         // validation's, the segments are the run's.
         let setup = ctl
-            .machine_setup()
+            .machine_setup_in(dialect)
             .map_err(super::status_of)?
             .with_restart_origin(origin);
         let v = pipeline::validate(&text, &setup, opts);

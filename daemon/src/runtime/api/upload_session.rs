@@ -30,6 +30,8 @@ const SWEEP_EVERY: Duration = Duration::from_secs(5);
 /// One upload in progress.
 struct Session {
     name: String,
+    /// The dialect the first message chose (`None`: by the name).
+    dialect: Option<kernel::program::Dialect>,
     select: bool,
     /// Token name of the caller that opened it.
     owner: String,
@@ -94,7 +96,7 @@ impl UploadSessions {
         id: &str,
         caller: &Caller,
         remove: bool,
-    ) -> Result<(Upload, String, bool), Status> {
+    ) -> Result<(Upload, (String, Option<kernel::program::Dialect>), bool), Status> {
         let mut open = self.open.lock().unwrap();
         let s = match open.get_mut(id) {
             Some(s) if s.owner == caller.who => s,
@@ -113,7 +115,7 @@ impl UploadSessions {
             ));
         };
         s.last_used = Instant::now();
-        let (name, select) = (s.name.clone(), s.select);
+        let (name, select) = ((s.name.clone(), s.dialect), s.select);
         if remove {
             open.remove(id);
         }
@@ -170,6 +172,7 @@ pub async fn begin(
     first: pb::ProgramChunk,
 ) -> Result<pb::UploadSession, Status> {
     check_name(&first.name)?;
+    let dialect = super::dialect_field(&first.dialect)?;
     let lib = st.library.clone();
     let name = first.name.clone();
     let data = first.data;
@@ -182,6 +185,7 @@ pub async fn begin(
     .map_err(library_status)?;
     let id = st.uploads.insert(Session {
         name: first.name,
+        dialect,
         select: first.select,
         owner: caller.who,
         last_used: Instant::now(),
@@ -250,6 +254,7 @@ mod tests {
         let t0 = Instant::now();
         let session = |up| Session {
             name: "p.nc".into(),
+            dialect: None,
             select: false,
             owner: "hmi-op".into(),
             last_used: t0,

@@ -147,7 +147,8 @@ impl Config {
             bus: &self.bus,
             axes: &self.axes,
             gear_m: self.kr.gears.iter().filter_map(|g| g.m_code).collect(),
-        })
+        })?;
+        self.program.validate()
     }
 
     /// The machine's inputs and outputs: the `[io]` section, or without one the simulated
@@ -228,5 +229,23 @@ mod tests {
         let e =
             Config::parse("[program]\nij = \"incremental\"\n", Path::new("m.toml")).unwrap_err();
         assert!(e.to_string().contains("ij"), "{e}");
+    }
+
+    #[test]
+    fn program_dialect_setting() {
+        use kernel::program::Dialect;
+        let c = Config::parse("", Path::new("x.toml")).unwrap();
+        assert_eq!(c.program.dialect(), Dialect::Cnc836);
+        let c = Config::parse("[program]\ndialect = \"iso\"\n", Path::new("x.toml")).unwrap();
+        assert_eq!(c.program.dialect(), Dialect::Iso);
+        let e = Config::parse("[program]\ndialect = \"fanuc\"\n", Path::new("m.toml")).unwrap_err();
+        let ConfigError::Invalid { source, .. } = &e else {
+            panic!("{e}")
+        };
+        assert_eq!(
+            (source.code(), source.key()),
+            ("config_bad_value", "program.dialect")
+        );
+        assert!(e.to_string().contains("\"cnc836\" or \"iso\""), "{e}");
     }
 }

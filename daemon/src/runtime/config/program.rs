@@ -2,8 +2,10 @@
 
 use serde::Deserialize;
 
+use super::InvalidConfig;
+
 /// How part programs are read (SPEC §2 **decide** points that are settings).
-#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
 #[serde(deny_unknown_fields)]
 pub struct ProgramSection {
     /// Arc centre words I J: `"relative"` to the arc's start point (default) or `"absolute"`
@@ -15,6 +17,46 @@ pub struct ProgramSection {
     /// door that reads a program's bytes (upload, validate, load, run, the library).
     #[serde(default)]
     pub encoding: EncodingSetting,
+    /// The machine's program language (docs/language.md): `"cnc836"` (default) or `"iso"`
+    /// (RS274-NGC as LinuxCNC reads it). A program named `*.ngc`, `*.tap` or `*.gcode` is
+    /// ISO whatever this says; the API's `dialect` field chooses for one program.
+    #[serde(default = "default_dialect")]
+    pub dialect: String,
+}
+
+fn default_dialect() -> String {
+    "cnc836".into()
+}
+
+impl Default for ProgramSection {
+    fn default() -> Self {
+        ProgramSection {
+            ij: IjSetting::default(),
+            encoding: EncodingSetting::default(),
+            dialect: default_dialect(),
+        }
+    }
+}
+
+impl ProgramSection {
+    /// The default dialect (checked by [`ProgramSection::validate`]).
+    pub fn dialect(&self) -> kernel::program::Dialect {
+        kernel::program::Dialect::from_name(&self.dialect).unwrap_or_default()
+    }
+
+    /// `[program]`: a dialect cncd knows.
+    pub fn validate(&self) -> Result<(), InvalidConfig> {
+        if kernel::program::Dialect::from_name(&self.dialect).is_none() {
+            return Err(InvalidConfig::BadValue {
+                key: "program.dialect".into(),
+                detail: format!(
+                    "{:?} is not a program language cncd reads: \"cnc836\" or \"iso\"",
+                    self.dialect
+                ),
+            });
+        }
+        Ok(())
+    }
 }
 
 /// `[program] encoding`.

@@ -21,6 +21,10 @@ pub struct StorageConfig {
     /// missing file means every constant at its default.
     #[serde(default = "default_constants_file")]
     pub constants_file: PathBuf,
+    /// Work offsets G54..G59.3 of ISO programs (docs/files.md), relative to `dir`; created
+    /// on the first edit (missing: every offset 0).
+    #[serde(default = "default_work_offsets_file")]
+    pub work_offsets_file: PathBuf,
     /// Program library directory (stored programs, survive restarts), relative to `dir`.
     #[serde(default = "default_programs_dir")]
     pub programs_dir: PathBuf,
@@ -38,6 +42,9 @@ fn default_offsets_file() -> PathBuf {
 fn default_constants_file() -> PathBuf {
     PathBuf::from("TAB0.REK")
 }
+fn default_work_offsets_file() -> PathBuf {
+    PathBuf::from("WORK.OFS")
+}
 fn default_programs_dir() -> PathBuf {
     PathBuf::from("programs")
 }
@@ -51,6 +58,7 @@ impl Default for StorageConfig {
             dir: default_storage_dir(),
             offsets_file: default_offsets_file(),
             constants_file: default_constants_file(),
+            work_offsets_file: default_work_offsets_file(),
             programs_dir: default_programs_dir(),
             programs_max_bytes: default_programs_max_bytes(),
         }
@@ -64,11 +72,14 @@ impl StorageConfig {
     pub fn constants_path(&self) -> PathBuf {
         self.dir.join(&self.constants_file)
     }
+    pub fn work_offsets_path(&self) -> PathBuf {
+        self.dir.join(&self.work_offsets_file)
+    }
     pub fn programs_path(&self) -> PathBuf {
         self.dir.join(&self.programs_dir)
     }
 
-    /// `[storage]`: a directory and two different files.
+    /// `[storage]`: a directory and three different files.
     pub fn validate(&self) -> Result<(), InvalidConfig> {
         if self.dir.as_os_str().is_empty() {
             return Err(InvalidConfig::Missing {
@@ -76,10 +87,12 @@ impl StorageConfig {
                 detail: "must name a directory".into(),
             });
         }
-        for (key, f) in [
+        let files = [
             ("storage.offsets_file", &self.offsets_file),
             ("storage.constants_file", &self.constants_file),
-        ] {
+            ("storage.work_offsets_file", &self.work_offsets_file),
+        ];
+        for (key, f) in files {
             if f.file_name().is_none() {
                 return Err(InvalidConfig::Missing {
                     key: key.to_string(),
@@ -87,11 +100,16 @@ impl StorageConfig {
                 });
             }
         }
-        if self.offsets_path() == self.constants_path() {
-            return Err(InvalidConfig::Duplicate {
-                key: "storage.constants_file".into(),
-                detail: "the same file as storage.offsets_file".into(),
-            });
+        for (i, (key, f)) in files.iter().enumerate() {
+            if let Some((earlier, _)) = files[..i]
+                .iter()
+                .find(|(_, g)| self.dir.join(g) == self.dir.join(f))
+            {
+                return Err(InvalidConfig::Duplicate {
+                    key: key.to_string(),
+                    detail: format!("the same file as {earlier}"),
+                });
+            }
         }
         Ok(())
     }

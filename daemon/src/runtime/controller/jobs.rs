@@ -48,6 +48,8 @@ pub struct TextRun {
     pub mdi: bool,
     /// A restart from a block.
     pub restart: Option<TextRestart>,
+    /// The language of the text.
+    pub dialect: kernel::program::Dialect,
 }
 
 /// A text run as a restart from a block (the selected program's single-block run).
@@ -122,6 +124,7 @@ impl Jobs {
         // The job's snapshot of the machine, taken now: every stage of the run reads it.
         let setup = tables
             .machine_setup(rt.snapshot().axes.commanded)?
+            .with_dialect(program.dialect)
             .with_restart_origin(from_block.map(|_| program.restart_origin()));
         let start_mm = setup.program().start;
         let opts = Options {
@@ -170,6 +173,7 @@ impl Jobs {
             stop_at_blocks,
             mdi,
             restart,
+            dialect,
         } = how;
         self.require_homed(rt, "MDI")?;
         let mut run = self.run.lock().unwrap();
@@ -186,10 +190,12 @@ impl Jobs {
         };
         let mut pass = (Blocks::default(), obs);
         let origin = restart.map(|r| r.origin_mm);
-        let (v, setup, _) = self.selection.validate_by(rt, tables, modal, |setup| {
-            let setup = setup.clone().with_restart_origin(origin);
-            kernel::pipeline::validate_into(text, &setup, opts, &mut pass)
-        })?;
+        let (v, setup, _) = self
+            .selection
+            .validate_by(rt, tables, modal, dialect, |setup| {
+                let setup = setup.clone().with_restart_origin(origin);
+                kernel::pipeline::validate_into(text, &setup, opts, &mut pass)
+            })?;
         let setup = setup.with_restart_origin(origin);
         let (blocks, obs) = pass;
         if v.has_errors() {

@@ -37,8 +37,12 @@ use kernel::pipeline::{self, Observer, Options, Validation};
 use tokio::sync::watch;
 
 use kernel::constants::Constants;
-use kernel::offsets::{OffsetTable, TableEdit};
+use kernel::offsets::work_file::WorkEdit;
+use kernel::offsets::{OffsetTable, TableEdit, WorkOffsets};
 use kernel::plc::{PlcError, PlcWrite};
+use kernel::program::Dialect;
+use kernel::program::dry_run::Move;
+use kernel::units::AxesMm;
 
 use super::buses::{IoWiring, open_bus};
 use super::config::{BusConfig, Config};
@@ -121,9 +125,9 @@ impl Controller {
         let config = Arc::new(config);
         let can_home = bus.supports_homing();
         rt_link::warn_without_spindle(bus.as_ref());
-        let (constants, offsets, constants_file) = load_storage(&config)?;
-        let core = rt_core_config(&config, &constants, offsets.memory())?;
-        let tables = Tables::new(config.clone(), constants, offsets, constants_file);
+        let stored = load_storage(&config)?;
+        let core = rt_core_config(&config, &stored.constants, stored.offsets.memory())?;
+        let tables = Tables::new(config.clone(), stored);
         let execution: Arc<Mutex<Execution>> = Arc::default();
         let pump = Pump {
             execution: execution.clone(),
@@ -184,6 +188,22 @@ impl Controller {
         self.tables.machine_setup(self.rt.snapshot().axes.commanded)
     }
 
+    /// As [`Controller::machine_setup`], for a program in `dialect`.
+    pub fn machine_setup_in(&self, dialect: Dialect) -> Result<MachineSetup, ControlError> {
+        Ok(self.machine_setup()?.with_dialect(dialect))
+    }
+
+    /// The machine's default program language (`[program] dialect`).
+    pub fn default_dialect(&self) -> Dialect {
+        self.config.program.dialect()
+    }
+
+    /// The language of program `name`: `explicit` (the API's field, or the library's record),
+    /// else by its name, else the machine's default (`runtime::dialect`).
+    pub fn dialect_of(&self, name: &str, explicit: Option<Dialect>) -> Dialect {
+        super::dialect::of_program(explicit, name, self.default_dialect())
+    }
+
     /// The code page of program files (`[program] encoding`, issue #31).
     pub fn program_encoding(&self) -> kernel::program::encoding::TextEncoding {
         self.machine_setup()
@@ -196,9 +216,24 @@ impl Controller {
     pub fn refinement_listing(
         &self,
         text: &str,
+        dialect: Dialect,
     ) -> Result<(String, Vec<kernel::program::arc::Refined>, Vec<Diagnostic>), ControlError> {
-        let setup = self.machine_setup()?;
+        let setup = self.machine_setup_in(dialect)?;
         Ok(kernel::program::refinement_listing(text, setup.program()))
+    }
+
+    /// The dry run of `text` in `dialect` (`kernel::program::dry_run`): its moves and every
+    /// message, with the machine's setup (axes, constants, TAB0.KOR, work offsets) from
+    /// `start` (machine zero when `None`). Changes nothing: a `G10` acts within the run.
+    pub fn interpret(
+        &self,
+        text: &str,
+        dialect: Dialect,
+        start: Option<AxesMm>,
+    ) -> Result<(Vec<Move>, Vec<Diagnostic>), ControlError> {
+        let commanded = start.unwrap_or(AxesMm::ZERO);
+        let setup = self.tables.machine_setup(commanded)?.with_dialect(dialect);
+        Ok(kernel::program::dry_run::moves(text, setup.program()))
     }
 
     /// Validates `text` through the whole pipeline (interpretation, compensation, planning)
@@ -207,12 +242,13 @@ impl Controller {
     pub fn validate_with(
         &self,
         text: &str,
+        dialect: Dialect,
         opts: Options,
         modal: Option<kernel::program::Modal>,
         obs: &mut impl Observer,
     ) -> Result<(Validation, MachineSetup, u64), ControlError> {
         let selection = self.jobs.selection();
-        selection.validate_by(&self.rt, &self.tables, modal, |setup| {
+        selection.validate_by(&self.rt, &self.tables, modal, dialect, |setup| {
             pipeline::validate_into(text, setup, opts, obs)
         })
     }
@@ -222,11 +258,12 @@ impl Controller {
     pub fn validate_program_with(
         &self,
         text: &ProgramText,
+        dialect: Dialect,
         opts: Options,
         obs: &mut impl Observer,
     ) -> Result<(Validation, MachineSetup, u64), ControlError> {
         let selection = self.jobs.selection();
-        selection.validate_by(&self.rt, &self.tables, None, |setup| {
+        selection.validate_by(&self.rt, &self.tables, None, dialect, |setup| {
             text.validate_into(setup, opts, obs)
         })
     }
@@ -238,6 +275,7 @@ impl Controller {
     pub fn restart_approach(
         &self,
         text: &ProgramText,
+        dialect: Dialect,
         from_block: u32,
         origin: Option<kernel::units::AxesMm>,
     ) -> Result<(Validation, Vec<Block>), ControlError> {
@@ -247,31 +285,34 @@ impl Controller {
         };
         let mut legs = selection::ApproachLegs::default();
         let selection = self.jobs.selection();
-        let (v, _, _) = selection.validate_by(&self.rt, &self.tables, None, |setup| {
+        let (rt, tables) = (&self.rt, &self.tables);
+        let (v, _, _) = selection.validate_by(rt, tables, None, dialect, |setup| {
             let setup = setup.clone().with_restart_origin(origin);
             text.validate_into(&setup, opts, &mut legs)
         })?;
         Ok((v, legs.0))
     }
 
-    /// Validates `text` through the whole pipeline against the machine as it is now, without
-    /// selecting or running it.
-    pub fn validate_text(&self, text: &str) -> Result<Validation, ControlError> {
+    /// Validates `text` (in `dialect`) through the whole pipeline against the machine as it
+    /// is now, without selecting or running it.
+    pub fn validate_text(&self, text: &str, dialect: Dialect) -> Result<Validation, ControlError> {
+        let opts = Options::default();
         Ok(self
-            .validate_with(text, Options::default(), None, &mut NoObserver)?
+            .validate_with(text, dialect, opts, None, &mut NoObserver)?
             .0)
     }
 
-    /// Validates `text` (see [`Controller::validate_program_with`]) into a program that may
-    /// be selected; `obs` sees the pass. Errors: the program's diagnostics.
+    /// Validates `text` in `dialect` (see [`Controller::validate_program_with`]) into a
+    /// program that may be selected; `obs` sees the pass. Errors: the program's diagnostics.
     pub fn prepare_program(
         &self,
         name: &str,
         text: ProgramText,
+        dialect: Dialect,
         obs: &mut impl Observer,
     ) -> Result<Arc<LoadedProgram>, ControlError> {
         let selection = self.jobs.selection();
-        selection.prepare_program(&self.rt, &self.tables, name, text, obs)
+        selection.prepare_program(&self.rt, &self.tables, name, text, dialect, obs)
     }
 
     /// Makes a validated program the selected one. Refused while a program runs.
@@ -279,11 +320,13 @@ impl Controller {
         self.jobs.selection().select(&self.snapshot(), loaded)
     }
 
-    /// Validates `text` and makes it the selected program. Nothing moves; on error the
-    /// previously selected program stays selected.
+    /// Validates `text` (in the dialect its name says, else the machine's) and makes it the
+    /// selected program. Nothing moves; on error the previously selected program stays
+    /// selected.
     pub fn load_program(&self, name: &str, text: &str) -> Result<Arc<LoadedProgram>, ControlError> {
         let text = ProgramText::Memory(Arc::from(text));
-        let loaded = self.prepare_program(name, text, &mut NoObserver)?;
+        let dialect = self.dialect_of(name, None);
+        let loaded = self.prepare_program(name, text, dialect, &mut NoObserver)?;
         self.select(loaded.clone())?;
         Ok(loaded)
     }
@@ -349,14 +392,15 @@ impl Controller {
             .start_program(&self.rt, &self.tables, from_block, obs)
     }
 
-    /// Runs `text` as a job without changing the selected program (MDI, single-block runs).
-    /// With `stop_at_blocks` every block ends at rest (G98), so single-block holds land on
-    /// block ends. MDI (`mdi`) starts in the modal state the last program or MDI left.
-    /// Returns the job id and the blocks it runs.
+    /// Runs `text` (in `dialect`) as a job without changing the selected program (MDI,
+    /// single-block runs). With `stop_at_blocks` every block ends at rest (G98), so
+    /// single-block holds land on block ends. MDI (`mdi`) starts in the modal state the last
+    /// program or MDI left. Returns the job id and the blocks it runs.
     pub fn start_text(
         &self,
         name: &str,
         text: &str,
+        dialect: Dialect,
         stop_at_blocks: bool,
         mdi: bool,
     ) -> Result<(u32, Arc<Vec<Block>>), ControlError> {
@@ -364,6 +408,7 @@ impl Controller {
             stop_at_blocks,
             mdi,
             restart: None,
+            dialect,
         };
         let (job, blocks, _) =
             (self.jobs).start_text(&self.rt, &self.tables, name, text, how, NoObserver)?;
@@ -392,6 +437,7 @@ impl Controller {
             stop_at_blocks: true,
             mdi: false,
             restart,
+            dialect: program.dialect,
         };
         let r = self
             .jobs
@@ -622,10 +668,28 @@ impl Controller {
         self.tables.replace_offsets_file(text, base_revision)
     }
 
-    /// Looks at TAB0.KOR and the constants file on disk (the file watch of issue #31): a saved
-    /// edit is loaded into memory, one that does not load is reported and memory kept.
+    /// Looks at TAB0.KOR, the constants and the work offsets files on disk (the file watch of
+    /// issue #31): a saved edit is loaded into memory, one that does not load is reported and
+    /// memory kept.
     pub fn sync_files(&self) -> FilesSync {
         self.tables.sync_files()
+    }
+
+    /// The work offsets G54..G59.3 programs start with (the file's; G54 in force).
+    pub fn work_offsets(&self) -> WorkOffsets {
+        self.tables.work_offsets()
+    }
+
+    /// The work offsets file's text ("" without a file) and its revision, as last seen.
+    pub fn work_offsets_file(&self) -> (String, String) {
+        self.tables.work_offsets_file()
+    }
+
+    /// Operator edit of some axes of one work offset system: written to the file, on top of
+    /// the file as it is on disk (a hand edit saved since is loaded first and kept). A
+    /// running program keeps the offsets it started with.
+    pub fn edit_work_offset(&self, edit: &WorkEdit) -> Result<(), ControlError> {
+        self.tables.edit_work_offset(edit)
     }
 
     /// Reloads the table from its file (power-on semantics). Only on an idle machine.

@@ -9,6 +9,7 @@ use kernel::Diagnostic;
 use kernel::block::Block;
 use kernel::machine::MachineSetup;
 use kernel::pipeline::{self, Observer, Options, Validation};
+use kernel::program::Dialect;
 use kernel::units::AxesMm;
 
 use super::ControlError;
@@ -23,6 +24,8 @@ use crate::runtime::rt::{MachineState, Snapshot};
 pub struct LoadedProgram {
     pub name: String,
     pub text: ProgramText,
+    /// The language it was validated in (and runs in).
+    pub dialect: Dialect,
     /// Number of blocks.
     pub block_count: u32,
     pub warnings: Vec<Diagnostic>,
@@ -137,34 +140,38 @@ impl Selection {
         self.passes.fetch_add(1, Ordering::Relaxed);
     }
 
-    /// The setup in force (with `modal`) and its generation, and `pass`'s verdict with it.
+    /// The setup in force (with `modal`, for a program in `dialect`) and its generation, and
+    /// `pass`'s verdict with it.
     pub(super) fn validate_by(
         &self,
         rt: &RtLink,
         tables: &Tables,
         modal: Option<kernel::program::Modal>,
+        dialect: Dialect,
         pass: impl FnOnce(&MachineSetup) -> Validation,
     ) -> Result<(Validation, MachineSetup, u64), ControlError> {
         let generation = tables.generation();
         let setup = tables
             .machine_setup(rt.snapshot().axes.commanded)?
-            .with_modal(modal);
+            .with_modal(modal)
+            .with_dialect(dialect);
         self.count_pass();
         let v = pass(&setup);
         Ok((v, setup, generation))
     }
 
-    /// Validates `text` (in memory or a stored program's file) into a program that may be
-    /// selected; `obs` sees the pass. Errors: the program's diagnostics.
+    /// Validates `text` (in memory or a stored program's file) in `dialect` into a program
+    /// that may be selected; `obs` sees the pass. Errors: the program's diagnostics.
     pub(super) fn prepare_program(
         &self,
         rt: &RtLink,
         tables: &Tables,
         name: &str,
         text: ProgramText,
+        dialect: Dialect,
         obs: &mut impl Observer,
     ) -> Result<Arc<LoadedProgram>, ControlError> {
-        let (v, setup, generation) = self.validate_by(rt, tables, None, |setup| {
+        let (v, setup, generation) = self.validate_by(rt, tables, None, dialect, |setup| {
             text.validate_into(setup, Options::default(), obs)
         })?;
         if v.has_errors() {
@@ -173,6 +180,7 @@ impl Selection {
         Ok(Arc::new(LoadedProgram {
             name: name.to_owned(),
             text,
+            dialect,
             block_count: v.blocks,
             warnings: v.diagnostics,
             start: setup.program().start,

@@ -10,7 +10,7 @@ use kernel::units::{AxesMm, MAX_AXES};
 
 use crate::runtime::config::{Config, RadiusInputConfig};
 use crate::runtime::rt::RtCoreConfig;
-use crate::runtime::storage::{self, ConstantsFile, OffsetStore};
+use crate::runtime::storage::{self, ConstantsFile, OffsetStore, WorkOffsetStore};
 
 /// Why the controller did not start (the message names the key or file to fix).
 #[derive(Debug, thiserror::Error)]
@@ -130,17 +130,27 @@ pub(crate) fn machine_config(config: &Config) -> MachineConfig {
             .collect(),
         ij: config.program.ij.into(),
         encoding: config.program.encoding.into(),
+        dialect: config.program.dialect(),
         preprocessor: true,
         min_block_time_s: config.planner.min_block_time_ms / 1000.0,
         soft_limits: config.soft_limits(),
     }
 }
 
-/// Creates the data directory and loads the constants and the offset table. A file that exists
-/// but does not parse stops the start-up: running with wrong offsets scraps parts.
-pub(crate) fn load_storage(
-    config: &Config,
-) -> Result<((Constants, bool), OffsetStore, ConstantsFile), StartError> {
+/// The data files as start-up loaded them.
+pub(crate) struct LoadedStorage {
+    /// The constants, and whether they came from a file.
+    pub constants: (Constants, bool),
+    pub offsets: OffsetStore,
+    pub constants_file: ConstantsFile,
+    /// Work offsets G54..G59.3 (ISO programs).
+    pub work: WorkOffsetStore,
+}
+
+/// Creates the data directory and loads the constants, the offset table and the work offsets.
+/// A file that exists but does not parse stops the start-up: running with wrong offsets
+/// scraps parts.
+pub(crate) fn load_storage(config: &Config) -> Result<LoadedStorage, StartError> {
     let st = &config.storage;
     std::fs::create_dir_all(&st.dir).map_err(|source| StartError::StorageDir {
         dir: st.dir.clone(),
@@ -172,14 +182,21 @@ pub(crate) fn load_storage(
         }
         (c, false)
     };
-    let offsets = OffsetStore::load_or_empty(st.offsets_path(), &config.axis_names())?;
+    let offsets = OffsetStore::load_or_empty(st.offsets_path(), &names)?;
+    let work = WorkOffsetStore::load_or_empty(st.work_offsets_path(), &names)?;
     tracing::info!(
         constants = %cpath.display(),
         from_file = constants.1,
         offsets = %st.offsets_path().display(),
+        work_offsets = %st.work_offsets_path().display(),
         "data files loaded"
     );
-    Ok((constants, offsets, constants_file))
+    Ok(LoadedStorage {
+        constants,
+        offsets,
+        constants_file,
+        work,
+    })
 }
 
 #[cfg(test)]
@@ -204,6 +221,12 @@ mod tests {
         std::fs::write(config.storage.offsets_path(), "not an offset table\n").unwrap();
         let e = load_storage(&config).err().unwrap();
         assert_eq!(e.code(), "storage_invalid", "{e}");
+        // So does a work offsets file that does not parse.
+        std::fs::remove_file(config.storage.offsets_path()).unwrap();
+        std::fs::write(config.storage.work_offsets_path(), "G54 X1\nG54 Y2\n").unwrap();
+        let e = load_storage(&config).err().unwrap();
+        assert_eq!(e.code(), "storage_invalid", "{e}");
+        assert!(e.to_string().contains("G54 is listed twice"), "{e}");
         std::fs::remove_dir_all(&base).unwrap();
     }
 }

@@ -1,20 +1,21 @@
 //! The tables a job's machine setup is built from: the machine constants (SPEC §1: the file,
-//! the copy in force, the constants that wait for a restart) and the offset table TAB0.KOR
-//! (SPEC §3: its file and the memory copy programs use), with the setup generation that
-//! counts their changes.
+//! the copy in force, the constants that wait for a restart), the offset table TAB0.KOR
+//! (SPEC §3: its file and the memory copy programs use) and the work offsets G54..G59.3 of
+//! ISO programs (their file), with the setup generation that counts their changes.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use kernel::constants::Constants;
 use kernel::machine::{MachineConfig, MachineSetup};
-use kernel::offsets::{OffsetTable, TableEdit};
+use kernel::offsets::work_file::WorkEdit;
+use kernel::offsets::{OffsetTable, TableEdit, WorkOffsets};
 use kernel::units::AxesMm;
 
 use super::ControlError;
-use super::startup::machine_config;
+use super::startup::{LoadedStorage, machine_config};
 use crate::runtime::config::{Config, RadiusInputConfig};
-use crate::runtime::storage::{ConstantsFile, DiskChange, OffsetStore, StorageError};
+use crate::runtime::storage::{DiskChange, OffsetStore, StorageError, WorkOffsetStore};
 
 /// Constants read only at daemon start: axis codes R0..R5 (checked against the configured
 /// axes). Changing them is saved, listed in `restart_required` and not used before.
@@ -31,6 +32,8 @@ pub(super) struct Tables {
     /// TAB0.KOR: file and memory table (SPEC §3). Shared with the status thread, which applies
     /// the `G92` writes of executed blocks.
     offsets: Arc<Mutex<OffsetStore>>,
+    /// Work offsets G54..G59.3: the file (no memory copy: programs change the run's copy).
+    work: Mutex<WorkOffsetStore>,
     /// Increases whenever something a job's setup is built from changes (constants, offset
     /// table, also by `G92` writes): a program validated under another generation is
     /// validated again at start.
@@ -46,7 +49,7 @@ struct ConstantsState {
     in_force: Constants,
     from_file: bool,
     /// The file's text as a person wrote it (issue #31: edits go into it in place).
-    file: ConstantsFile,
+    file: crate::runtime::storage::ConstantsFile,
 }
 
 impl ConstantsState {
@@ -73,16 +76,13 @@ impl ConstantsState {
 pub struct FilesSync {
     pub offsets: Result<bool, StorageError>,
     pub constants: Result<bool, StorageError>,
+    pub work_offsets: Result<bool, StorageError>,
 }
 
 impl Tables {
     /// The tables as loaded at start-up (see [`super::startup::load_storage`]).
-    pub(super) fn new(
-        config: Arc<Config>,
-        constants: (Constants, bool),
-        offsets: OffsetStore,
-        constants_file: ConstantsFile,
-    ) -> Tables {
+    pub(super) fn new(config: Arc<Config>, stored: LoadedStorage) -> Tables {
+        let constants = stored.constants;
         Tables {
             machine: machine_config(&config),
             config,
@@ -90,9 +90,10 @@ impl Tables {
                 saved: constants.0.clone(),
                 in_force: constants.0,
                 from_file: constants.1,
-                file: constants_file,
+                file: stored.constants_file,
             }),
-            offsets: Arc::new(Mutex::new(offsets)),
+            offsets: Arc::new(Mutex::new(stored.offsets)),
+            work: Mutex::new(stored.work),
             generation: Arc::new(AtomicU64::new(0)),
             block_delete: AtomicBool::new(false),
         }
@@ -129,9 +130,11 @@ impl Tables {
         self.generation.fetch_add(1, Ordering::AcqRel);
     }
 
-    /// The machine setup of a job started at `commanded`: the configuration, the constants in
-    /// force and the memory offset table, decoded once (issue #14).
+    /// The machine setup of a job started at `commanded`: the configuration (its default
+    /// dialect), the constants in force, the memory offset table and the work offsets,
+    /// decoded once (issue #14).
     pub(super) fn machine_setup(&self, commanded: AxesMm) -> Result<MachineSetup, ControlError> {
+        let work = self.work_offsets();
         let c = self.constants.lock().unwrap();
         let offsets = self.offsets.lock().unwrap();
         MachineSetup::new(
@@ -141,8 +144,31 @@ impl Tables {
             offsets.memory(),
             commanded,
         )
-        .map(|s| s.with_block_delete(self.block_delete()))
+        .map(|s| {
+            s.with_block_delete(self.block_delete())
+                .with_work_offsets(work)
+        })
         .map_err(|e| ControlError::Invalid(format!("constant cutting speed: {e}")))
+    }
+
+    /// The work offsets programs start with (the file's, G54 in force).
+    pub(super) fn work_offsets(&self) -> WorkOffsets {
+        self.work.lock().unwrap().table()
+    }
+
+    /// The work offsets file's text and revision, as last seen on disk.
+    pub(super) fn work_offsets_file(&self) -> (String, String) {
+        let w = self.work.lock().unwrap();
+        (w.file_text().to_string(), w.revision())
+    }
+
+    /// Operator edit of some axes of one work offset system, made on top of the file as it is
+    /// on disk (a hand edit is loaded first and kept).
+    pub(super) fn edit_work_offset(&self, edit: &WorkEdit) -> Result<(), ControlError> {
+        let r = self.work.lock().unwrap().edit(edit);
+        // A hand edit may have been loaded even when the edit itself was refused.
+        self.changed();
+        Ok(r?)
     }
 
     /// The memory offset table (what programs use).
@@ -185,7 +211,8 @@ impl Tables {
         Ok(r?)
     }
 
-    /// Looks at TAB0.KOR and the constants file on disk: a saved edit is loaded into memory
+    /// Looks at TAB0.KOR, the constants and the work offsets files on disk: a saved edit is
+    /// loaded into memory
     /// (SPEC §3: after every saved edit of the file), one that does not load is reported and
     /// memory kept. Blocks on disk IO.
     pub(super) fn sync_files(&self) -> FilesSync {
@@ -196,10 +223,23 @@ impl Tables {
             .sync_with_disk()
             .map(|c| c == DiskChange::Loaded);
         let constants = self.constants.lock().unwrap().sync_with_disk();
-        if matches!(offsets, Ok(true)) || matches!(constants, Ok(true)) {
+        let work_offsets = self
+            .work
+            .lock()
+            .unwrap()
+            .sync_with_disk()
+            .map(|c| c == DiskChange::Loaded);
+        if [&offsets, &constants, &work_offsets]
+            .iter()
+            .any(|r| matches!(r, Ok(true)))
+        {
             self.changed();
         }
-        FilesSync { offsets, constants }
+        FilesSync {
+            offsets,
+            constants,
+            work_offsets,
+        }
     }
 
     /// Reloads the table from its file (power-on semantics).
