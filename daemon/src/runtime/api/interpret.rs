@@ -38,6 +38,8 @@ pub async fn chunks(
     let start = r.from_position.then(|| st.ctl.snapshot().axes.commanded);
     let s = st.clone();
     blocking(move || -> Result<_, Status> {
+        // A hand edit of the offsets files saved a moment ago is what the dry run reads.
+        s.ctl.sync_files();
         let (text, dialect) = source(&s, r.text, &r.name, field)?;
         let (moves, diags) = s.ctl.interpret(&text, dialect, start).map_err(status_of)?;
         Ok(into_chunks(&s, dialect, &moves, &diags))
