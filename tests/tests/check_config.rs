@@ -197,6 +197,12 @@ fn out_of_range_value_is_named() {
         "config_bad_value",
         &["axes[0].name"],
     );
+    assert_refused(
+        "program-dialect",
+        "[program]\ndialect = \"fanuc\"\n",
+        "config_bad_value",
+        &["program.dialect: \"fanuc\" is not a program language cncd reads: \"cnc836\" or \"iso\""],
+    );
 }
 
 #[test]

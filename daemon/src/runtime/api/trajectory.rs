@@ -1,7 +1,8 @@
 //! Service `cnc.v1.Trajectory`: the planned per-tick trajectory of a program without moving
 //! the machine (issue #16). The program goes through the stages a run uses (interpret →
 //! compensate → plan with the machine's settings → the 4 ms interpolator), in virtual time
-//! at 100 % override; every tick's setpoints and path speed are streamed in chunks.
+//! at 100 % override, program stops (M0, M6 of ISO programs) resumed at once; every tick's
+//! setpoints and path speed are streamed in chunks.
 
 use std::sync::Arc;
 
@@ -137,6 +138,11 @@ struct Ticker<F> {
 impl<F: FnMut(Result<pb::TrajectoryChunk, Status>) -> bool> Ticker<F> {
     /// One interpolator tick into the chunk. False when the client has gone.
     fn tick(&mut self) -> Result<bool, Status> {
+        // A program stop (M0, the ISO dialect's M6) is resumed at once: the trajectory is the
+        // machining, not the operator's time (the tick at rest is still counted).
+        if self.ip.at_program_stop() {
+            self.ip.resume();
+        }
         let out = self.ip.tick();
         self.tick += 1;
         self.chunk.ticks.push(pb::TrajectoryTick {
