@@ -115,7 +115,9 @@ fn expect(cmd: &str) -> Expect {
         | "cncctl block-delete off"
         | "cncctl single-block on"
         | "cncctl single-block off"
-        | "cncctl validate programs/sample.nc" => Ok,
+        | "cncctl validate programs/sample.nc"
+        | "cncctl work-offset-set G55 X10 Y-2.5"
+        | "cncctl work-offsets" => Ok,
         other => {
             panic!("docs/operator.md documents `{other}`: add it to tests/tests/operator_docs.rs")
         }
