@@ -1,4 +1,5 @@
-//! Parse + interpret a generated 1,000,000-block program (issue #3 goals: ≥ 1,000,000 blocks/s
+//! Parse + interpret a generated 1,000,000-block program, in the CNC836 dialect and the same
+//! program in the ISO dialect (issue #3 goals: ≥ 1,000,000 blocks/s
 //! on one core, < 100 bytes of memory per block).
 //!
 //! Memory is measured with a counting global allocator: peak bytes allocated while a pass
@@ -122,6 +123,26 @@ fn main() {
         peak,
         text.len(),
     );
+
+    // 2b. the same program in the ISO dialect (RS274-NGC): G64 for G23, #7 for R7.
+    let iso_text = text
+        .replace("G23 I1", "G64")
+        .replace("R7=", "#7=")
+        .replace("XR7", "X#7")
+        .replace("N1 G17", "N1 G1 G17");
+    let iso = Setup {
+        dialect: kernel::program::Dialect::Iso,
+        ..setup.clone()
+    };
+    let (best, peak) = best_of_3(|| {
+        let d = validate(black_box(&iso_text), &iso);
+        assert!(
+            !d.iter().any(|d| d.is_error()),
+            "{:?}",
+            &d[..d.len().min(3)]
+        );
+    });
+    row("validate, ISO dialect", best, blocks, peak, iso_text.len());
 
     // 3. compile: all blocks held (for comparison only; not how the daemon runs a program).
     let base = mark();

@@ -67,8 +67,6 @@ diag_codes! {
     TooManyMFunctions = "too_many_m_functions",
     /// A G function this controller does not have.
     UnknownGFunction = "unknown_g_function",
-    /// G4 (dwell): not a function of this dialect.
-    DwellNotSupported = "dwell_not_supported",
     /// G18/G19 on a machine without the third axis.
     PlaneNeedsAxis = "plane_needs_axis",
     // ---- the ISO / RS274-NGC dialect (docs/language.md) ----
@@ -108,6 +106,20 @@ diag_codes! {
     ParamUnassigned = "param_unassigned",
     /// More than 16 parameter assignments in one block.
     TooManyAssignments = "too_many_assignments",
+    // ---- dwell, subprograms and repeats of the CNC836 dialect (docs/language.md) ----
+    /// G4 without its time F<seconds>.
+    DwellWithoutTime = "dwell_without_time",
+    /// G4 in a block with other words than N and F.
+    DwellNotAlone = "dwell_not_alone",
+    /// A subprogram form written wrong: `%L` without a number 1..9999, a call L or an end M17
+    /// with other words, P without L, M17 written with a parameter.
+    SubprogramSyntax = "subprogram_syntax",
+    /// A subprogram number defined twice (`%L<n>`) in one program.
+    SubprogramTwice = "subprogram_twice",
+    /// A subprogram without its end M17 before the next `%L` or the end of the program.
+    SubprogramWithoutReturn = "subprogram_without_return",
+    /// M17 in the main program: no subprogram to end.
+    ReturnWithoutCall = "return_without_call",
     // ---- feed and spindle (SPEC §5, §6) ----
     /// F out of its range (negative, above the per-minute or per-revolution maximum).
     FeedOutOfRange = "feed_out_of_range",

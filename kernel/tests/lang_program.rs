@@ -510,11 +510,6 @@ fn columns_count_characters_not_bytes() {
 }
 
 #[test]
-fn dwell_is_not_in_the_dialect() {
-    assert_refused("G4 F2", DiagCode::DwellNotSupported);
-}
-
-#[test]
 fn remarks_comments_and_crlf() {
     let b = ok(
         "; program header\r\nN10 G0 X10 ; rapid\r\nN20 G1 X20 F100 \"cut\r\n\r\n",
@@ -601,7 +596,10 @@ fn setup_from_machine_constants_and_bom() {
 #[test]
 fn the_interpreter_paths_of_callers_stay() {
     // Callers name these paths; the dialect's code lives in program::cnc836.
-    assert_eq!(kernel::program::interpreter::RESERVED_LETTERS, "NGIJEFSMDR");
+    assert_eq!(
+        kernel::program::interpreter::RESERVED_LETTERS,
+        "NGIJEFSMDRLP"
+    );
     let _: Option<kernel::program::interpreter::Interpreter> = None;
     let _: Option<kernel::program::interpreter::Modal> = None;
     let t: Vec<_> = kernel::program::words::Lexer::new("X1").collect();

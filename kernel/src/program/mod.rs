@@ -396,6 +396,7 @@ pub fn stream_lines<L: Lines>(lines: L, setup: &Setup) -> Stream<L> {
         pending_setup_error: interp.setup_error(),
         interp,
         iso,
+        flow: cnc836::flow::Flow::default(),
         lines,
         line_no: 0,
         done: false,
@@ -409,6 +410,8 @@ pub struct Stream<L> {
     interp: Interpreter,
     /// The ISO front-end, when the program is ISO.
     iso: Option<Box<iso::Interpreter>>,
+    /// Subprogram calls and repeats of a CNC836 program.
+    flow: cnc836::flow::Flow,
     lines: L,
     line_no: u32,
     pending_setup_error: Option<Diagnostic>,
@@ -457,19 +460,7 @@ impl<L: Lines> Stream<L> {
             // ISO programs keep subroutines after M2 (LinuxCNC reads them): no note.
             return;
         }
-        let mut rest = false;
-        let mut n = self.line_no;
-        while let Some(l) = self.lines.next_line(n + 1) {
-            n += 1;
-            if let Ok(l) = l {
-                let code = l.split(';').next().unwrap_or("").trim();
-                if !code.is_empty() && code != "%" {
-                    rest = true;
-                    break;
-                }
-            }
-        }
-        if rest {
+        if self.flow.code_after_end(&mut self.lines, self.line_no) {
             self.interp.note(Diagnostic::info(
                 DiagCode::LinesAfterEnd,
                 b.n,
@@ -484,39 +475,16 @@ impl<L: Lines> Stream<L> {
     }
 
     fn next_cnc836(&mut self) -> Option<Result<Block, Diagnostic>> {
-        while !self.done {
-            self.line_no += 1;
-            let line = match self.lines.next_line(self.line_no) {
-                Some(Ok(l)) => l,
-                Some(Err(d)) => return Some(Err(d)),
-                None => {
-                    self.done = true;
-                    break;
-                }
-            };
-            // A UTF-8 byte order mark (some PC editors write one) is not part of the program.
-            let line = if self.line_no == 1 {
-                line.strip_prefix('\u{FEFF}').unwrap_or(line)
-            } else {
-                line
-            };
-            let unslashed;
-            let line = match block_delete_slash(line) {
-                Some(_) if self.block_delete => continue,
-                // Switch off: the block runs; the `/` becomes a space (columns stay).
-                Some(k) => {
-                    unslashed = format!("{} {}", &line[..k], &line[k + 1..]);
-                    unslashed.as_str()
-                }
-                None => line,
-            };
-            match self.interp.line(self.line_no, line) {
-                Ok(Some(b)) => return Some(Ok(b)),
-                Ok(None) => {}
-                Err(d) => return Some(Err(d)),
-            }
+        let item = self.flow.next(
+            &mut self.interp,
+            &mut self.lines,
+            &mut self.line_no,
+            self.block_delete,
+        );
+        if item.is_none() {
+            self.done = true;
         }
-        None
+        item
     }
 }
 

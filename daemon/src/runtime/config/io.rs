@@ -182,9 +182,9 @@ pub struct ModuleConfig {
     pub output_bits: u8,
 }
 
-/// M functions the controller itself gives a meaning (program stops and end, spindle, feed
-/// scale): no output may take them.
-pub const RESERVED_M: [u16; 9] = [0, 1, 2, 3, 4, 5, 30, 36, 37];
+/// M functions the controller itself gives a meaning (program stops and end, spindle, end of
+/// a subprogram, feed scale): no output may take them.
+pub const RESERVED_M: [u16; 10] = [0, 1, 2, 3, 4, 5, 17, 30, 36, 37];
 
 /// Where a point is, as the configuration says it (before it is checked against the bus).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -9,6 +9,11 @@ use crate::diag::DiagCode;
 use crate::program::feed::FeedMode;
 use crate::units::MAX_AXES;
 
+/// Highest subprogram number (`%L1`..`%L9999`).
+pub(super) const MAX_LABEL: u32 = 9999;
+/// Most passes of one call (`L<n> P9999`).
+pub(super) const MAX_COUNT: u32 = 9999;
+
 /// The words of one block, collected before anything is interpreted.
 #[derive(Default)]
 pub(super) struct Words {
@@ -31,6 +36,15 @@ pub(super) struct Words {
     pub(super) amp: Option<(u8, usize)>,
     pub(super) m: [Option<(u16, usize)>; 4],
     pub(super) assigns: [Option<(u8, Num)>; 16],
+    /// G4: a dwell (its time is F).
+    pub(super) g4: Option<usize>,
+    /// `L<n>`: call of subprogram n; `P<count>`: how many times.
+    pub(super) call: Option<(u16, usize)>,
+    pub(super) count: Option<(u16, usize)>,
+    /// M17 written as a number: the end of a subprogram.
+    pub(super) ret: Option<usize>,
+    /// Words and assignments in the block (saturating): what must stand alone checks it.
+    pub(super) words: u8,
     pub(super) first: usize,
     pub(super) any: bool,
 }
@@ -45,6 +59,7 @@ impl Interpreter {
                 w.first = at;
             }
             w.any = true;
+            w.words = w.words.saturating_add(1);
             match lexed.token {
                 Token::Assign { index, value } => {
                     let num = self.resolve(w, value, at)?;
@@ -59,7 +74,7 @@ impl Interpreter {
                 }
                 Token::Word { letter, value } => {
                     let num = self.resolve(w, value, at)?;
-                    self.word(w, letter, num, at, k == 0)?;
+                    self.word(w, (letter, value), num, at, k == 0)?;
                 }
             }
         }
@@ -104,17 +119,11 @@ impl Interpreter {
     pub(super) fn word(
         &self,
         w: &mut Words,
-        letter: u8,
+        (letter, value): (u8, Value),
         num: Num,
         at: usize,
         first: bool,
     ) -> Result<(), Fail> {
-        fn once<T>(slot: &mut Option<(T, usize)>, v: T, at: usize, what: &str) -> Result<(), Fail> {
-            put_once(slot, v, at, || {
-                let message = format!("{what} is written twice in this block");
-                (DiagCode::WordTwice, message)
-            })
-        }
         if let Some(ax) = self.axis_letters[..self.n_axes]
             .iter()
             .position(|&a| a == letter)
@@ -151,16 +160,15 @@ impl Interpreter {
                 let d = int(num, "&", 0, 99).map_err(|e| Fail::new(at, e.code(), e))?;
                 once(&mut w.amp, d as u8, at, "&")?
             }
-            b'M' => {
-                let m = int(num, "M", 0, 999).map_err(|e| Fail::new(at, e.code(), e))? as u16;
-                let Some(slot) = w.m.iter_mut().find(|s| s.is_none()) else {
-                    return fail(
-                        at,
-                        DiagCode::TooManyMFunctions,
-                        "more than 4 M functions in one block",
-                    );
-                };
-                *slot = Some((m, at));
+            b'M' if num.value == 17.0 && !num.point => subprogram_end(w, value, at)?,
+            b'M' => m_word(w, num, at)?,
+            b'L' => {
+                let l = int(num, "L", 1, MAX_LABEL).map_err(|e| Fail::new(at, e.code(), e))?;
+                once(&mut w.call, l as u16, at, "L")?
+            }
+            b'P' => {
+                let p = int(num, "P", 1, MAX_COUNT).map_err(|e| Fail::new(at, e.code(), e))?;
+                once(&mut w.count, p as u16, at, "P")?
             }
             _ => {
                 return fail(
@@ -233,11 +241,13 @@ impl Interpreter {
                 w.g92 = Some(at);
                 Ok(())
             }
-            4 => fail(
-                at,
-                DiagCode::DwellNotSupported,
-                "G4 (dwell) is not a function of this controller's dialect",
-            ),
+            4 => {
+                if w.g4.is_some() {
+                    return fail(at, DiagCode::WordTwice, "G4 is written twice in this block");
+                }
+                w.g4 = Some(at);
+                Ok(())
+            }
             _ => fail(
                 at,
                 DiagCode::UnknownGFunction,
@@ -245,6 +255,49 @@ impl Interpreter {
             ),
         }
     }
+}
+
+/// An M function (M17 aside, see [`subprogram_end`]): up to four per block.
+fn m_word(w: &mut Words, num: Num, at: usize) -> Result<(), Fail> {
+    let m = int(num, "M", 0, 999).map_err(|e| Fail::new(at, e.code(), e))? as u16;
+    let Some(slot) = w.m.iter_mut().find(|s| s.is_none()) else {
+        return fail(
+            at,
+            DiagCode::TooManyMFunctions,
+            "more than 4 M functions in one block",
+        );
+    };
+    *slot = Some((m, at));
+    Ok(())
+}
+
+/// M17 ends a subprogram. The end of a subprogram is found in the text before it runs (a
+/// definition passed over, the end of a program), so it must be written as a number.
+fn subprogram_end(w: &mut Words, value: Value, at: usize) -> Result<(), Fail> {
+    if matches!(value, Value::Param { .. }) {
+        return fail(
+            at,
+            DiagCode::SubprogramSyntax,
+            "M17 ends a subprogram: write it as M17, not with a parameter",
+        );
+    }
+    if w.ret.is_some() {
+        return fail(
+            at,
+            DiagCode::WordTwice,
+            "M17 is written twice in this block",
+        );
+    }
+    w.ret = Some(at);
+    Ok(())
+}
+
+/// Puts word `v` (written at `at`) in its slot: once per block.
+fn once<T>(slot: &mut Option<(T, usize)>, v: T, at: usize, what: &str) -> Result<(), Fail> {
+    put_once(slot, v, at, || {
+        let message = format!("{what} is written twice in this block");
+        (DiagCode::WordTwice, message)
+    })
 }
 
 /// Puts G function `v` of modal group `what` (written at `at`) in its slot: one per block.

@@ -25,23 +25,7 @@ impl Interpreter {
             st.comp = c;
         }
         let comp_at = w.comp.map(|c| c.1).unwrap_or(w.first);
-        let comp = match st.comp {
-            CompMode::Off => Comp::Off,
-            side => {
-                let Some(radius_mm) = self.radius_of(st.d, edit) else {
-                    return fail(
-                        comp_at,
-                        DiagCode::CompWithoutTool,
-                        "radius compensation needs a tool: select an offset entry with D before G41/G42",
-                    );
-                };
-                if side == CompMode::Left {
-                    Comp::Left { d: st.d, radius_mm }
-                } else {
-                    Comp::Right { d: st.d, radius_mm }
-                }
-            }
-        };
+        let comp = self.comp_in_force(st, edit, comp_at)?;
         if st.comp == old.comp {
             return Ok(comp);
         }
@@ -72,5 +56,32 @@ impl Interpreter {
             );
         }
         Ok(comp)
+    }
+
+    /// The side and radius of the compensation in force in `st` (`at`: where an error points).
+    #[inline]
+    pub(super) fn comp_in_force(
+        &self,
+        st: &State,
+        edit: Option<&TableEdit>,
+        at: usize,
+    ) -> Result<Comp, Fail> {
+        Ok(match st.comp {
+            CompMode::Off => Comp::Off,
+            side => {
+                let Some(radius_mm) = self.radius_of(st.d, edit) else {
+                    return fail(
+                        at,
+                        DiagCode::CompWithoutTool,
+                        "radius compensation needs a tool: select an offset entry with D before G41/G42",
+                    );
+                };
+                if side == CompMode::Left {
+                    Comp::Left { d: st.d, radius_mm }
+                } else {
+                    Comp::Right { d: st.d, radius_mm }
+                }
+            }
+        })
     }
 }

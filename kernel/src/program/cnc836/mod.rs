@@ -8,14 +8,19 @@
 //! Parts, one concept each: [`words`] (the lexer), `collect` (the words of a block, the G
 //! word table), `modal` (modal state, the rules read from the constants), `spindle` (M
 //! functions, feed and speed), `table` (G92 table writes, D, &), `comp` (compensation checks),
-//! `motion` (positions and the motion of a block), `circle` (arcs: centre, R55, R325).
+//! `motion` (positions and the motion of a block), `circle` (arcs: centre, R55, R325),
+//! `dwell` (G4), `subprogram` (the forms `%L<n>`, `L<n> P<count>`, M17) and [`flow`] (running
+//! them: calls, repeats and returns over the program's lines).
 
 mod circle;
 mod collect;
 mod comp;
+mod dwell;
+pub(crate) mod flow;
 mod modal;
 mod motion;
 mod spindle;
+mod subprogram;
 mod table;
 pub mod words;
 
@@ -34,7 +39,23 @@ use crate::offsets::{OffsetTable, TableEdit};
 use crate::units::MAX_AXES;
 
 /// Letters the language uses for other things; an axis may not be named by one of them.
-pub const RESERVED_LETTERS: &str = "NGIJEFSMDR";
+pub const RESERVED_LETTERS: &str = "NGIJEFSMDRLP";
+
+/// A subprogram form of a line, for [`flow`] to act on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Control {
+    /// `%L<n>`: subprogram n starts on the next line.
+    Label(u16),
+    /// `L<label> P<count>` in block N `n`: run subprogram `label` `count` times, then go on
+    /// after this line.
+    Call {
+        label: u16,
+        count: u16,
+        n: Option<u32>,
+    },
+    /// M17: the end of a subprogram.
+    Return,
+}
 
 /// An error inside a block: byte offset in the line, code and message.
 struct Fail {
@@ -95,6 +116,8 @@ pub struct Interpreter {
     rotary_kppr: [f64; MAX_AXES],
     /// Fastest path feed of the machine, mm/min (0 = unknown), for the βmax warning (SPEC §5).
     max_feed_mm_min: f64,
+    /// The subprogram form of the last line read ([`Self::take_control`]).
+    control: Option<Control>,
 }
 
 impl Interpreter {
@@ -132,6 +155,7 @@ impl Interpreter {
             notes: Vec::new(),
             refinements: None,
             setup_error,
+            control: None,
         };
         if let Some(m) = &setup.modal {
             interp.state.inherit(m);
@@ -193,8 +217,38 @@ impl Interpreter {
     }
 
     /// Interprets one source line. Returns the canonical block it makes, if any (empty and
-    /// remark-only lines make none). On error the modal state is unchanged.
+    /// remark-only lines make none). On error the modal state is unchanged. The subprogram
+    /// forms (`%L<n>`, `L<n>`, M17) need the program's lines: they are run by [`super::stream`]
+    /// and refused here.
     pub fn line(&mut self, line_no: u32, text: &str) -> Result<Option<Block>, Diagnostic> {
+        let block = self.read_line(line_no, text)?;
+        if self.control.take().is_some() {
+            return Err(Diagnostic::error(
+                DiagCode::SourceCannotSeek,
+                None,
+                line_no,
+                1,
+                "subprograms (%L, L, M17) run only in a whole program, not line by line",
+            ));
+        }
+        Ok(block)
+    }
+
+    /// As [`Self::line`]; a subprogram form makes no block and is left for
+    /// [`Self::take_control`]. (A block is returned as before, not wrapped with the forms:
+    /// this is the path of every block.)
+    pub(crate) fn read_line(
+        &mut self,
+        line_no: u32,
+        text: &str,
+    ) -> Result<Option<Block>, Diagnostic> {
+        if let Some(label) = subprogram::label_line(text) {
+            let label = label.map_err(|f| {
+                Diagnostic::error(f.code, None, line_no, column(text, f.at), f.message)
+            })?;
+            self.control = Some(Control::Label(label));
+            return Ok(None);
+        }
         let mut w = Words::default();
         let located = |n: Option<u32>, f: Fail| {
             Diagnostic::error(f.code, n, line_no, column(text, f.at), f.message)
@@ -205,10 +259,29 @@ impl Interpreter {
         if !w.any {
             return Ok(None);
         }
+        match subprogram::form(&w, text) {
+            Ok(None) => {}
+            Ok(Some(c)) => {
+                self.control = Some(c);
+                return Ok(None);
+            }
+            Err(f) => return Err(located(w.n, f)),
+        }
+        if w.g4.is_some() {
+            return self
+                .dwell(&w, line_no, text)
+                .map(Some)
+                .map_err(|f| located(w.n, f));
+        }
         match self.interpret(&w, line_no, text) {
             Ok(b) => Ok(Some(b)),
             Err(f) => Err(located(w.n, f)),
         }
+    }
+
+    /// The subprogram form of the last line read, if it was one.
+    pub(crate) fn take_control(&mut self) -> Option<Control> {
+        self.control.take()
     }
 
     /// One block, in the order the modal groups depend on each other: the simple modal words,

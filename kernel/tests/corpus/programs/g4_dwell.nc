@@ -1,2 +1,2 @@
-; EXPECT 2:1 dwell
+; EXPECT 2:4 dwell
 G4 X1
