@@ -230,12 +230,15 @@ pub fn commit_upload(st: &ApiState, v: Validated, select: bool) -> Result<pb::Up
     })
 }
 
+/// An upload's name and the dialect its first message chose (`None`: by the name).
+pub type UploadName = (String, Option<Dialect>);
+
 /// The end of every chunked upload (the streaming `Upload` and `UploadFinish`): validates the
 /// received file on a blocking thread (`progress` sees the blocks validated), then stores and
 /// selects it unless the client went away meanwhile (`cancelled`).
 pub async fn finish_upload(
     st: &Arc<ApiState>,
-    (name, chosen): (String, Option<Dialect>),
+    (name, chosen): UploadName,
     up: Upload,
     select: bool,
     progress: impl FnMut(u32) + Send + 'static,

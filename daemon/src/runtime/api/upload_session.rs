@@ -16,7 +16,7 @@ use proto::v1 as pb;
 use tonic::Status;
 
 use super::auth::Caller;
-use super::programs::{check_name, library_status};
+use super::programs::{UploadName, check_name, library_status};
 use super::{ApiState, blocking};
 use crate::runtime::library::Upload;
 
@@ -96,7 +96,7 @@ impl UploadSessions {
         id: &str,
         caller: &Caller,
         remove: bool,
-    ) -> Result<(Upload, (String, Option<kernel::program::Dialect>), bool), Status> {
+    ) -> Result<(Upload, UploadName, bool), Status> {
         let mut open = self.open.lock().unwrap();
         let s = match open.get_mut(id) {
             Some(s) if s.owner == caller.who => s,
