@@ -3,26 +3,32 @@
 //! validated from the stored file through the whole pipeline (interpret, compensate, plan),
 //! selected, and started; the bench waits until the axes move, then stops.
 //!
-//! The daemon is the one `cncd` builds (`Controller::start` on the simulated machine, the API
-//! served on its Unix socket, where `cncctl` reaches it), in this process with its client. Prints the upload,
-//! validation and start times, throughput in blocks/s, and the process's peak RSS (VmHWM;
-//! client and daemon together, so an upper bound for the daemon).
+//! The daemon is the `cncd` binary as it runs on a controller: its default configuration (the
+//! simulated machine, the HMI and the MTConnect agent served, memory locked when the process
+//! may lock it) with its listeners on ephemeral ports, in a process of its own; this client
+//! reaches it on its Unix socket, as `cncctl` does. So the memory figures are the daemon's
+//! alone, read from `/proc/<pid>/status`: RSS idle (drives enabled, before the upload), RSS
+//! after the load (the moment the upload is stored and selected), the peak up to then (VmHWM),
+//! RSS while the program runs and the peak of the whole bench.
 //!
-//! Run: `cargo bench -p daemon --bench program_upload`.
+//! Run: `cargo bench -p daemon --bench program_upload` (`BENCH_BLOCKS=1000000` for the
+//! figures of docs/api.md; `BENCH_CNCD=path/to/cncd` measures another build of cncd).
 
 mod bench_common;
 
 use std::io::Write;
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use daemon::runtime::config::Config;
-use daemon::runtime::controller::{ClockKind, Controller};
 use proto::v1 as pb;
 use proto::v1::machine_client::MachineClient;
 use proto::v1::programs_client::ProgramsClient;
+use tonic::transport::Channel;
 
-fn rss_kib(key: &str) -> u64 {
-    let s = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+/// `VmRSS:`, `VmHWM:` ... of process `pid`, KiB.
+fn status_kib(pid: u32, key: &str) -> u64 {
+    let s = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap_or_default();
     s.lines()
         .find(|l| l.starts_with(key))
         .and_then(|l| l.split_whitespace().nth(1))
@@ -30,8 +36,29 @@ fn rss_kib(key: &str) -> u64 {
         .unwrap_or(0)
 }
 
+/// CPU time process `pid` has used (user and system, all its threads), s.
+fn cpu_s(pid: u32) -> f64 {
+    let s = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
+    // The fields after the command name (which is in parentheses): utime and stime are the
+    // 12th and 13th of them, in clock ticks.
+    let rest = s.rsplit_once(')').map_or("", |(_, r)| r);
+    let f: Vec<f64> = rest
+        .split_whitespace()
+        .skip(11)
+        .take(2)
+        .filter_map(|v| v.parse().ok())
+        .collect();
+    // SAFETY: sysconf has no preconditions.
+    let hz = unsafe { libc::sysconf(libc::_SC_CLK_TCK) } as f64;
+    f.iter().sum::<f64>() / hz
+}
+
+fn mb(kib: u64) -> f64 {
+    kib as f64 / 1024.0
+}
+
 /// A finishing-like program: short moves on a small grid, feed once.
-fn write_program(path: &std::path::Path, blocks: u64) -> u64 {
+fn write_program(path: &Path, blocks: u64) -> u64 {
     let f = std::fs::File::create(path).expect("program file");
     let mut w = std::io::BufWriter::with_capacity(1 << 20, f);
     writeln!(w, "N1 G1 X0 Y0 Z0 F3000").unwrap();
@@ -44,6 +71,93 @@ fn write_program(path: &std::path::Path, blocks: u64) -> u64 {
     std::fs::metadata(path).unwrap().len()
 }
 
+/// `cncd` in a process of its own; SIGTERM (a clean stop) when the bench ends.
+struct Cncd(Child);
+
+impl Cncd {
+    /// Starts the binary with the default configuration, its listeners on ephemeral ports and
+    /// its data (and the socket it publishes for cncctl) under `dir`.
+    fn start(dir: &Path) -> Cncd {
+        let config = dir.join("cncd.toml");
+        std::fs::write(
+            &config,
+            format!(
+                "[storage]\ndir = {:?}\n\n[api]\nlisten = \"127.0.0.1:0\"\n\n\
+                 [hmi]\nlisten = \"127.0.0.1:0\"\n\n[mtconnect]\nlisten = \"127.0.0.1:0\"\n",
+                dir.join("data")
+            ),
+        )
+        .unwrap();
+        let log = std::fs::File::create(dir.join("cncd.log")).unwrap();
+        // BENCH_CNCD: another build to measure (a commit to compare with).
+        let bin = std::env::var_os("BENCH_CNCD").unwrap_or(env!("CARGO_BIN_EXE_cncd").into());
+        let child = Command::new(bin)
+            .arg("--config")
+            .arg(&config)
+            .args(["--log", "stderr"])
+            .env("CNCD_RUNTIME_DIR", dir)
+            .env_remove("NOTIFY_SOCKET")
+            .env_remove("WATCHDOG_USEC")
+            .current_dir(dir)
+            .stdout(Stdio::null())
+            .stderr(log)
+            .spawn()
+            .expect("cncd");
+        Cncd(child)
+    }
+
+    fn pid(&self) -> u32 {
+        self.0.id()
+    }
+}
+
+impl Drop for Cncd {
+    fn drop(&mut self) {
+        // SAFETY: kill(2) on the child's own pid.
+        unsafe { libc::kill(self.0.id() as i32, libc::SIGTERM) };
+        let t0 = Instant::now();
+        while t0.elapsed() < Duration::from_secs(20) {
+            if let Ok(Some(_)) = self.0.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// The channel to cncd's Unix socket once the drives are enabled (a hang bound of 30 s).
+async fn connect(cncd: &mut Cncd, sock: &Path) -> Channel {
+    let t0 = Instant::now();
+    loop {
+        if let Ok(Some(status)) = cncd.0.try_wait() {
+            panic!("cncd exited with {status} (see its log in the bench's directory)");
+        }
+        assert!(t0.elapsed() < Duration::from_secs(30), "cncd not ready");
+        if sock.exists()
+            && let Ok(ch) =
+                tonic::transport::Endpoint::from_shared(format!("unix:{}", sock.display()))
+                    .unwrap()
+                    .connect()
+                    .await
+        {
+            let mut m = MachineClient::new(ch.clone());
+            let mut s = m
+                .stream_status(pb::StatusRequest { rate_hz: 50 })
+                .await
+                .unwrap()
+                .into_inner();
+            while let Some(st) = s.message().await.unwrap() {
+                if st.state() == pb::MachineState::Idle {
+                    return ch;
+                }
+            }
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
 fn main() {
     bench_common::run(bench(bench_common::env_number("BENCH_BLOCKS", 5_000_000)));
 }
@@ -54,17 +168,16 @@ async fn bench(blocks: u64) {
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("cam.nc");
     let bytes = write_program(&file, blocks);
-    let mut cfg = Config::default();
-    cfg.storage.dir = dir.join("data");
-    cfg.rt.lock_memory = false;
-    let ctl = Controller::start(cfg, ClockKind::Monotonic).expect("controller");
-    // The Unix socket, as `cncctl` reaches cncd by default (loopback TCP is observer-only).
-    let addr = bench_common::serve_unix(&ctl).await;
-    let rss0 = rss_kib("VmRSS:");
-    let mut g = ProgramsClient::connect(addr.clone()).await.unwrap();
-    let mut m = MachineClient::connect(addr).await.unwrap();
+    let mut cncd = Cncd::start(&dir);
+    let pid = cncd.pid();
+    let ch = connect(&mut cncd, &dir.join("data/cncd.sock")).await;
+    // Idle: the daemon as it stands after its start, before any program.
+    tokio::time::sleep(Duration::from_secs(2)).await;
+    let rss_idle = status_kib(pid, "VmRSS:");
+    let mut g = ProgramsClient::new(ch.clone());
+    let mut m = MachineClient::new(ch);
 
-    let t0 = Instant::now();
+    let (t0, cpu0) = (Instant::now(), cpu_s(pid));
     let (tx, rx) = tokio::sync::mpsc::channel(4);
     let f = file.clone();
     let sender = tokio::task::spawn_blocking(move || {
@@ -110,8 +223,10 @@ async fn bench(blocks: u64) {
             break d;
         }
     };
-    sender.await.unwrap();
     let stored = t0.elapsed();
+    let cpu_load = cpu_s(pid) - cpu0;
+    let (rss_loaded, hwm_loaded) = (status_kib(pid, "VmRSS:"), status_kib(pid, "VmHWM:"));
+    sender.await.unwrap();
     let upload = uploaded_at.unwrap_or(stored);
     let prog = done.program.expect("program");
     assert_eq!(u64::from(prog.blocks), blocks, "blocks validated");
@@ -121,21 +236,29 @@ async fn bench(blocks: u64) {
         .expect("start")
         .into_inner()
         .job;
-    while !(ctl.snapshot().progress.job == job && ctl.snapshot().progress.block_seq > 0) {
-        tokio::time::sleep(Duration::from_millis(1)).await;
+    let mut status = m
+        .stream_status(pb::StatusRequest { rate_hz: 250 })
+        .await
+        .expect("status")
+        .into_inner();
+    while let Some(s) = status.message().await.expect("status") {
+        if s.job == job && s.path_velocity_mm_s > 0.0 {
+            break;
+        }
     }
+    drop(status);
     let moving = t0.elapsed();
     // Let it run a little: the run streams from the file.
     tokio::time::sleep(Duration::from_secs(2)).await;
-    let rss_run = rss_kib("VmRSS:");
+    let rss_run = status_kib(pid, "VmRSS:");
     m.stop(pb::StopRequest {}).await.unwrap();
-    let hwm = rss_kib("VmHWM:");
-    let mb = bytes as f64 / 1e6;
-    println!("program: {blocks} blocks, {mb:.1} MB");
+    let hwm = status_kib(pid, "VmHWM:");
+    let size = bytes as f64 / 1e6;
+    println!("program: {blocks} blocks, {size:.1} MB");
     println!(
         "upload (to the temporary file):        {:>7.2} s  {:>7.1} MB/s",
         upload.as_secs_f64(),
-        mb / upload.as_secs_f64()
+        size / upload.as_secs_f64()
     );
     println!(
         "validation (interpret+comp+plan):      {:>7.2} s  {:>7.0} blocks/s",
@@ -147,16 +270,21 @@ async fn bench(blocks: u64) {
         stored.as_secs_f64(),
         blocks as f64 / stored.as_secs_f64()
     );
+    println!("cncd's CPU time for it (all threads):  {cpu_load:>7.2} s");
     println!(
         "start → axes moving:                   {:>7.3} s (total {:.2} s)",
         (moving - stored).as_secs_f64(),
         moving.as_secs_f64()
     );
     println!(
-        "RSS: {:.1} MB idle, {:.1} MB while running, peak {:.1} MB (client and daemon)",
-        rss0 as f64 / 1024.0,
-        rss_run as f64 / 1024.0,
-        hwm as f64 / 1024.0
+        "cncd RSS: {:.1} MB idle, {:.1} MB after the load (peak {:.1} MB), {:.1} MB while \
+         running, peak {:.1} MB",
+        mb(rss_idle),
+        mb(rss_loaded),
+        mb(hwm_loaded),
+        mb(rss_run),
+        mb(hwm)
     );
+    drop(cncd);
     let _ = std::fs::remove_dir_all(&dir);
 }

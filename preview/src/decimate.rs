@@ -21,8 +21,20 @@ pub const START_CELL: f64 = 1e-4;
 type Cell<const N: usize> = [i32; N];
 
 fn cell_of<const N: usize>(p: [f64; N], cell: f64) -> Cell<N> {
-    // `as` saturates: coordinates beyond the grid's range share the border cells.
-    p.map(|v| (v / cell).floor() as i32)
+    p.map(|v| floor_i32(v / cell))
+}
+
+/// `q.floor() as i32` without a call to `floor` (the baseline x86-64 has no instruction for
+/// it; every point and dot of a picture comes here): `as` rounds towards zero, so one less
+/// where that rounded a negative number up. `as` saturates (coordinates beyond the grid's
+/// range share the border cells) and takes NaN to 0, as `floor` then `as` do.
+fn floor_i32(q: f64) -> i32 {
+    let t = q as i32;
+    if f64::from(t) > q {
+        t.saturating_sub(1)
+    } else {
+        t
+    }
 }
 
 fn edge_key<const N: usize>(a: Cell<N>, b: Cell<N>) -> (Cell<N>, Cell<N>) {
@@ -178,19 +190,72 @@ impl<const N: usize> Track<N> {
     fn coarsen(&mut self) {
         let pen = self.pen;
         let last = self.pts.last().copied();
-        while self.pts.len() > self.budget / 2 {
-            let big = usize::MAX;
-            let t = self.redrawn(self.cell * 2.0, big);
-            self.pts = t.pts;
-            self.starts = t.starts;
-            self.edges = t.edges;
-            self.cell = t.cell;
+        let target = self.budget / 2;
+        let first = self.redrawn(self.cell * 2.0, usize::MAX);
+        let mut t = if first.pts.len() <= target {
+            first
+        } else {
+            // (Dropped first: the search's redraws are the peak of a large pass.)
+            drop(first);
+            self.redrawn_to_fit(target)
+        };
+        while t.pts.len() > target {
+            t = t.redrawn(t.cell * 2.0, usize::MAX);
         }
+        self.pts = t.pts;
+        self.starts = t.starts;
+        self.edges = t.edges;
+        self.cell = t.cell;
         self.pen = pen.map(|p| Pen {
             at: p.at,
             cell: cell_of(p.at, self.cell),
             drawn: p.drawn && self.pts.last().copied() == last && last == Some(p.at),
         });
+    }
+
+    /// The track redrawn at the first doubling of the cell (from two on: one did not fit)
+    /// that keeps at most `target` points, found without a redraw at every doubling on the
+    /// way (a dozen from the start grid to what a large program needs): the grids nest (cell
+    /// index `i` at one doubling is `i >> 1`), so an upper bound of the points at every
+    /// doubling comes from one pass without hashing (a redraw keeps at most two points per
+    /// step into another cell), and redraws halve the range between the doubling known not
+    /// to fit and the one the bound says fits.
+    fn redrawn_to_fit(&self, target: usize) -> Track<N> {
+        let at = |k: usize| (0..k).fold(self.cell, |c, _| c * 2.0);
+        // apart[k]: steps between consecutive points whose cells differ up to k - 1
+        // doublings and coincide from k on.
+        let mut apart = [0usize; 34];
+        for (n, &s) in self.starts.iter().enumerate() {
+            let e = self.starts.get(n + 1).copied().unwrap_or(self.pts.len());
+            let mut prev: Option<Cell<N>> = None;
+            for &p in &self.pts[s..e] {
+                let c = cell_of(p, self.cell);
+                if let Some(q) = prev {
+                    let level = (0..N)
+                        .map(|i| 32 - (c[i] ^ q[i]).leading_zeros() as usize)
+                        .max()
+                        .unwrap_or(0);
+                    apart[level] += 1;
+                }
+                prev = Some(c);
+            }
+        }
+        let bound = |k: usize| 2 * apart[k + 1..].iter().sum::<usize>();
+        // (Beyond 30 doublings the cell is kilometres: the caller doubles on.)
+        let mut hi = (2..=30).find(|&k| bound(k) <= target).unwrap_or(30);
+        let mut lo = 1;
+        let mut fit = None;
+        while hi - lo > 1 {
+            let mid = (lo + hi) / 2;
+            let t = self.redrawn(at(mid), usize::MAX);
+            if t.pts.len() <= target {
+                hi = mid;
+                fit = Some(t);
+            } else {
+                lo = mid;
+            }
+        }
+        fit.unwrap_or_else(|| self.redrawn(at(hi), usize::MAX))
     }
 
     /// The polylines decimated to `cell` (at least the track's own cell).
@@ -228,6 +293,9 @@ pub struct DotSet<const N: usize = 2> {
     dots: Vec<JunctionDot<N>>,
     cell: f64,
     budget: usize,
+    /// The cell of the last dot of `dots` when it is the one added last (`None` after a
+    /// merge).
+    last_cell: Option<Cell<N>>,
 }
 
 impl<const N: usize> DotSet<N> {
@@ -236,6 +304,7 @@ impl<const N: usize> DotSet<N> {
             dots: Vec::new(),
             cell: START_CELL,
             budget: budget.max(16),
+            last_cell: None,
         }
     }
 
@@ -248,16 +317,93 @@ impl<const N: usize> DotSet<N> {
     }
 
     pub fn add(&mut self, dot: JunctionDot<N>) {
+        // In the cell and colour of the dot added before: merged into it at once, as the
+        // next merge would (the first one's position and label, the counts summed).
+        // Consecutive junctions of a dense path mostly are, and a merge costs more.
+        let cell = cell_of(dot.at, self.cell);
+        if let Some(last) = self.dots.last_mut()
+            && self.last_cell == Some(cell)
+            && last.red == dot.red
+        {
+            last.count += dot.count;
+            return;
+        }
         self.dots.push(dot);
+        self.last_cell = Some(cell);
         if self.dots.len() > self.budget {
+            self.last_cell = None;
             // Dots added since the last merge may share cells with earlier ones: merge at
             // the current cell first, coarsen only if that is not enough.
             self.dots = merge(std::mem::take(&mut self.dots), self.cell);
-            while self.dots.len() > self.budget / 2 {
-                self.cell *= 2.0;
-                self.dots = merge(std::mem::take(&mut self.dots), self.cell);
+            if self.dots.len() > self.budget / 2 {
+                self.coarsen();
             }
         }
+    }
+
+    /// Doubles the cell until the dots fit half the budget, merging them at the first
+    /// doubling that fits. The grids nest (cell index `i` at one doubling is `i >> 1`), so a
+    /// merge at a coarser cell is the same as merges at every doubling on the way; and the
+    /// number of dots only falls as the cell grows. So the doubling is searched for: an upper
+    /// bound (a dot per change of cell or colour between consecutive dots, no hashing) gives
+    /// one that fits, then counting halves the range, and one merge is made, instead of a
+    /// merge at every doubling (a dozen from the start grid to what a large program needs).
+    fn coarsen(&mut self) {
+        let target = self.budget / 2;
+        let base: Vec<(Cell<N>, bool)> = self
+            .dots
+            .iter()
+            .map(|d| (cell_of(d.at, self.cell), d.red))
+            .collect();
+        // apart[k]: consecutive dots whose cells (or colours) differ up to k - 1 doublings
+        // and coincide from k on (33: never).
+        let mut apart = [0usize; 34];
+        for w in base.windows(2) {
+            let ((a, ra), (b, rb)) = (w[0], w[1]);
+            let level = if ra != rb {
+                33
+            } else {
+                (0..N)
+                    .map(|i| 32 - (a[i] ^ b[i]).leading_zeros() as usize)
+                    .max()
+                    .unwrap_or(0)
+            };
+            apart[level] += 1;
+        }
+        // Dots apart after k doublings: pairs whose level is above k.
+        let bound = |k: usize| 1 + apart[k + 1..].iter().sum::<usize>();
+        // (Beyond 30 doublings the cell is kilometres: the loop below takes over.)
+        let mut hi = (1..=30).find(|&k| bound(k) <= target).unwrap_or(30);
+        let mut lo = 0;
+        while hi - lo > 1 {
+            let mid = (lo + hi) / 2;
+            let mut seen = HashSet::default();
+            seen.reserve(base.len());
+            let n = base
+                .iter()
+                .filter(|(c, red)| seen.insert((c.map(|i| i >> mid), *red)))
+                .count();
+            if n <= target {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        for _ in 0..hi {
+            self.cell *= 2.0;
+        }
+        self.dots = merge(std::mem::take(&mut self.dots), self.cell);
+        // The indices saturate at the edge of the grid's range: should the bound be wrong
+        // there, the doubling goes on as before.
+        while self.dots.len() > target {
+            self.cell *= 2.0;
+            self.dots = merge(std::mem::take(&mut self.dots), self.cell);
+        }
+    }
+
+    /// Frees the spare capacity (a set kept to be read).
+    pub fn shrink_to_fit(&mut self) {
+        self.dots.shrink_to_fit();
     }
 
     /// The dots merged at `cell` (at least the set's own cell), smooth ones first so red ones
@@ -333,6 +479,107 @@ mod tests {
             r.pen_up();
         }
         assert_eq!(r.points(), 3);
+    }
+
+    /// A small deterministic generator (no dependency).
+    fn next(state: &mut u64) -> f64 {
+        *state ^= *state << 13;
+        *state ^= *state >> 7;
+        *state ^= *state << 17;
+        (*state >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    #[test]
+    fn coarsening_finds_the_doubling_a_merge_at_every_doubling_finds() {
+        let mut state = 0x2545_f491_4f6c_dd1d;
+        for round in 0..40 {
+            // Dots on a random walk of a random step (some of them red), some far apart.
+            let step = [1e-4, 1e-3, 0.05, 3.0][round % 4];
+            let mut at = [0.0, 0.0, 0.0];
+            let dots: Vec<JunctionDot<3>> = (0..300)
+                .map(|i| {
+                    for v in &mut at {
+                        *v += (next(&mut state) - 0.5) * step * if i % 97 == 0 { 1e4 } else { 1.0 };
+                    }
+                    JunctionDot {
+                        at,
+                        red: next(&mut state) < 0.2,
+                        count: 1,
+                        label: None,
+                    }
+                })
+                .collect();
+            let mut fast = DotSet::new(64);
+            fast.dots = merge(dots.clone(), fast.cell);
+            let mut slow = fast.clone();
+            if fast.dots.len() <= 32 {
+                continue;
+            }
+            fast.coarsen();
+            while slow.dots.len() > 32 {
+                slow.cell *= 2.0;
+                slow.dots = merge(std::mem::take(&mut slow.dots), slow.cell);
+            }
+            assert_eq!(fast.cell, slow.cell, "round {round}");
+            assert_eq!(fast.dots, slow.dots, "round {round}");
+        }
+    }
+
+    #[test]
+    fn a_track_coarsens_to_the_first_doubling_a_redraw_of_it_fits() {
+        let mut state = 0x9e37_79b9_7f4a_7c15;
+        for round in 0..40 {
+            let step = [1e-4, 1e-3, 0.05, 3.0][round % 4];
+            let mut t = Track::<2>::new(usize::MAX);
+            let mut at = [0.0, 0.0];
+            for i in 0..400 {
+                let from = at;
+                for v in &mut at {
+                    *v += (next(&mut state) - 0.5) * step;
+                }
+                if i % 50 == 0 {
+                    t.pen_up();
+                }
+                t.segment(from, &[at]);
+            }
+            let target = t.points() / 8;
+            let slow = (1..)
+                .map(|k| t.redrawn(t.cell * f64::from(1u32 << k), usize::MAX))
+                .find(|r| r.points() <= target)
+                .unwrap();
+            let fast = t.redrawn_to_fit(target);
+            assert!(fast.points() <= target, "round {round}");
+            assert_eq!(fast.cell, slow.cell, "round {round}");
+            assert_eq!(fast.pts, slow.pts, "round {round}");
+        }
+    }
+
+    #[test]
+    fn floor_without_floor() {
+        let cases = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            2.999,
+            -2.999,
+            1e9,
+            -1e9,
+            2147483647.5,
+            -2147483648.5,
+            3e9,
+            -3e9,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            1e-300,
+            -1e-300,
+        ];
+        for q in cases {
+            assert_eq!(floor_i32(q), q.floor() as i32, "{q}");
+        }
     }
 
     #[test]

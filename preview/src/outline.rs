@@ -131,6 +131,7 @@ impl Outline {
         for t in [&mut self.feed, &mut self.rapid, &mut self.comp] {
             t.freeze();
         }
+        self.dots.shrink_to_fit();
         self.scratch = Vec::new();
     }
 

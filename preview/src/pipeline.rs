@@ -96,7 +96,7 @@ impl Recording {
     }
 }
 
-/// Records a pass's outputs, up to `limit` of them (a larger program is not recorded).
+/// Records a pass's outputs, up to a budget of bytes (a larger program is not recorded).
 #[derive(Debug)]
 pub struct Recorder {
     events: Vec<Event>,
@@ -105,27 +105,42 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    pub fn new(limit: usize) -> Self {
+    /// A recorder that keeps at most `max_bytes` of outputs (an output takes
+    /// [`Recorder::OUTPUT_BYTES`]): the recording of a larger pass is dropped at once, and
+    /// the buffer never grows past the budget.
+    pub fn new(max_bytes: usize) -> Self {
         Recorder {
             events: Vec::new(),
-            limit,
+            limit: max_bytes / Self::OUTPUT_BYTES,
             overflow: false,
         }
     }
+
+    /// Bytes one recorded output takes.
+    pub const OUTPUT_BYTES: usize = std::mem::size_of::<Event>();
 
     fn push(&mut self, e: Event) {
         if self.events.len() >= self.limit {
             self.overflow = true;
             self.events = Vec::new();
+            return;
         }
-        if !self.overflow {
-            self.events.push(e);
+        if self.events.len() == self.events.capacity() {
+            // Doubling, but not past the budget.
+            let more = self
+                .events
+                .capacity()
+                .max(64)
+                .min(self.limit - self.events.len());
+            self.events.reserve_exact(more);
         }
+        self.events.push(e);
     }
 
     /// The recording of a valid pass of `blocks` blocks with diagnostics `notes`; `None` when
-    /// it had more outputs than the limit.
-    pub fn finish(self, blocks: u32, notes: Vec<Diagnostic>) -> Option<Recording> {
+    /// it had more outputs than the budget.
+    pub fn finish(mut self, blocks: u32, notes: Vec<Diagnostic>) -> Option<Recording> {
+        self.events.shrink_to_fit();
         (!self.overflow).then_some(Recording {
             events: self.events,
             outcome: Outcome { blocks, notes },
@@ -133,15 +148,22 @@ impl Recorder {
     }
 }
 
+// Past the budget nothing is copied any more (a pass goes on for every block).
 impl Observer for Recorder {
     fn programmed(&mut self, b: &Block, _modal: &Modal) {
-        self.push(Event::Programmed(*b));
+        if !self.overflow {
+            self.push(Event::Programmed(*b));
+        }
     }
     fn compensated(&mut self, c: &CompBlock) {
-        self.push(Event::Compensated(*c));
+        if !self.overflow {
+            self.push(Event::Compensated(*c));
+        }
     }
     fn segment(&mut self, s: Segment) -> Flow {
-        self.push(Event::Segment(s));
+        if !self.overflow {
+            self.push(Event::Segment(s));
+        }
         Flow::Go
     }
 }

@@ -30,7 +30,9 @@ pub fn run<F: Future>(bench: F) -> F::Output {
 
 /// Serves the API of `ctl` on its Unix socket, as `cncctl` and the shop's HMI reach cncd
 /// (loopback TCP is observer-only), and waits until the drives are enabled (a hang bound of
-/// 10 s). Returns the address for tonic, `unix:/path`.
+/// 10 s). Returns the address for tonic, `unix:/path`. (`program_upload` runs the `cncd`
+/// binary instead.)
+#[allow(dead_code)]
 pub async fn serve_unix(ctl: &std::sync::Arc<Controller>) -> String {
     let sock = ctl.config().storage.dir.join("cncd.sock");
     let listeners = server::Listeners {

@@ -77,6 +77,8 @@ struct Args {
 }
 
 fn main() -> ExitCode {
+    // Before any other thread: the allocator's arenas are set up once.
+    daemon::runtime::rt::tune_allocator();
     let args = Args::parse();
     if args.check_config {
         return check_config(args.config.as_deref());
@@ -99,6 +101,7 @@ fn main() -> ExitCode {
     };
     let rt = match tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
+        .thread_stack_size(daemon::runtime::rt::THREAD_STACK_BYTES)
         .enable_all()
         .build()
     {

@@ -41,7 +41,9 @@ pub enum Value {
     Number(f64),
     Vector([f64; 3]),
     Text(String),
-    Condition(Cond),
+    /// Boxed: conditions are rare, and the ring holds `buffer_size` observations (56 bytes
+    /// each with the box, 96 without).
+    Condition(Box<Cond>),
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -105,7 +107,8 @@ pub struct OutOfRange {
     pub last: u64,
 }
 
-/// The ring buffer of observations.
+/// The ring buffer of observations. It grows as observations come, up to `capacity` (a ring
+/// of the default 131,072 holds 7 MiB once full; an agent that has seen few holds little).
 #[derive(Clone, Debug)]
 pub struct Buffer {
     ring: VecDeque<Observation>,
@@ -120,7 +123,7 @@ impl Buffer {
     /// An empty buffer for `items` data items holding at most `capacity` observations.
     pub fn new(items: usize, capacity: usize) -> Buffer {
         Buffer {
-            ring: VecDeque::with_capacity(capacity.max(1)),
+            ring: VecDeque::new(),
             capacity: capacity.max(1),
             next: 1,
             base: vec![ItemState::default(); items],
@@ -138,6 +141,11 @@ impl Buffer {
             && let Some(old) = self.ring.pop_front()
         {
             self.base[old.item].apply(&old);
+        }
+        if self.ring.len() == self.ring.capacity() {
+            // Doubling, but not past the configured size.
+            let more = self.ring.len().max(16).min(self.capacity - self.ring.len());
+            self.ring.reserve_exact(more);
         }
         let o = Observation {
             sequence: self.next,
@@ -229,12 +237,12 @@ mod tests {
     use super::*;
 
     fn fault(code: &str) -> Value {
-        Value::Condition(Cond {
+        Value::Condition(Box::new(Cond {
             level: Level::Fault,
             native_code: Some(code.into()),
             qualifier: None,
             message: "m".into(),
-        })
+        }))
     }
 
     #[test]
@@ -252,6 +260,26 @@ mod tests {
         assert_eq!(b.sample(11, 5, |_| true).unwrap().0, vec![]);
         assert_eq!(b.sample(6, 5, |_| true).unwrap_err().param, "from");
         assert!(b.sample(12, 5, |_| true).is_err());
+    }
+
+    #[test]
+    fn the_ring_grows_as_observations_come_up_to_its_size() {
+        // What the documented memory of a full ring rests on (docs/mtconnect.md).
+        assert!(std::mem::size_of::<Observation>() <= 56);
+        let mut b = Buffer::new(1, 100);
+        assert_eq!(b.ring.capacity(), 0);
+        for i in 0..30 {
+            b.push(i, 0, Value::Number(0.0));
+        }
+        assert!(
+            (30..100).contains(&b.ring.capacity()),
+            "{}",
+            b.ring.capacity()
+        );
+        for i in 30..250 {
+            b.push(i, 0, Value::Number(0.0));
+        }
+        assert_eq!((b.ring.len(), b.ring.capacity()), (100, 100));
     }
 
     #[test]
@@ -275,24 +303,24 @@ mod tests {
         b.push(
             3,
             0,
-            Value::Condition(Cond {
+            Value::Condition(Box::new(Cond {
                 level: Level::Normal,
                 native_code: Some("a".into()),
                 qualifier: None,
                 message: String::new(),
-            }),
+            })),
         );
         let shown: Vec<_> = b.latest(0).shown().map(|o| o.sequence).collect();
         assert_eq!(shown, vec![2]);
         b.push(
             4,
             0,
-            Value::Condition(Cond {
+            Value::Condition(Box::new(Cond {
                 level: Level::Normal,
                 native_code: None,
                 qualifier: None,
                 message: String::new(),
-            }),
+            })),
         );
         let shown: Vec<_> = b.latest(0).shown().map(|o| o.sequence).collect();
         assert_eq!(shown, vec![4]);

@@ -360,13 +360,13 @@ fn update_condition<'a>(
         .active
         .iter()
         .filter_map(|o| match &o.value {
-            Value::Condition(c) => Some(c.clone()),
+            Value::Condition(c) => Some(Cond::clone(c)),
             _ => None,
         })
         .collect();
     for c in &want {
         if !active.iter().any(|a| a == *c) {
-            buf.push(now_ns, item, Value::Condition((*c).clone()));
+            buf.push(now_ns, item, Value::Condition(Box::new((*c).clone())));
         }
     }
     for a in &active {
@@ -374,12 +374,12 @@ fn update_condition<'a>(
             buf.push(
                 now_ns,
                 item,
-                Value::Condition(Cond {
+                Value::Condition(Box::new(Cond {
                     level: Level::Normal,
                     native_code: a.native_code.clone(),
                     qualifier: None,
                     message: String::new(),
-                }),
+                })),
             );
         }
     }
@@ -392,12 +392,12 @@ fn update_condition<'a>(
         buf.push(
             now_ns,
             item,
-            Value::Condition(Cond {
+            Value::Condition(Box::new(Cond {
                 level: Level::Normal,
                 native_code: None,
                 qualifier: None,
                 message: String::new(),
-            }),
+            })),
         );
     }
 }

@@ -63,10 +63,13 @@ pub fn junction_class(j: Junction) -> pb::JunctionClass {
     }
 }
 
-/// Most stage outputs (programmed and compensated blocks, segments) `LoadProgram` keeps of
-/// its pass for the previews of the selected program; a larger program's previews make their
-/// own pass (with the same setup).
-pub(super) const RECORD_MAX_OUTPUTS: usize = 100_000;
+/// Most bytes of stage outputs (programmed and compensated blocks, segments: 544 bytes each,
+/// about 1.6 KiB a block) `LoadProgram` keeps of its pass for the previews of the selected
+/// program, so programs up to about 2,500 blocks; a larger program's previews make their own
+/// pass (with the same setup). The recording is held as long as the program is selected, and
+/// while it grows within the pass: 100,000 outputs were 54 MB held and a 71 MB buffer at the
+/// peak of every large load.
+pub(super) const RECORD_MAX_BYTES: usize = 4 << 20;
 
 /// What the preview data collects from the pipeline's pass (or from a recorded one).
 struct Collect {

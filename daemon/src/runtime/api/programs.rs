@@ -130,7 +130,7 @@ fn prepare(
     };
     // The same pass records what the previews of the selected program read (instead of
     // making a pass of their own).
-    let record = ::preview::pipeline::Recorder::new(super::preview::RECORD_MAX_OUTPUTS);
+    let record = ::preview::pipeline::Recorder::new(super::preview::RECORD_MAX_BYTES);
     // ... and the outline a screen draws a program of any size from (GetPreviewOutline).
     let outline = ::preview::outline::Outline::new(&st.ctl.config().axis_names());
     let mut obs = (pass, (record, outline));

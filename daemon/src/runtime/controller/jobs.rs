@@ -241,6 +241,7 @@ impl Jobs {
         let alarm_slot = self.alarm.clone();
         let thread = std::thread::Builder::new()
             .name(format!("cnc-plan-{job}"))
+            .stack_size(crate::runtime::rt::THREAD_STACK_BYTES)
             .spawn(move || {
                 if let Err(d) = job::run(spec, &link, &c) {
                     tracing::error!(job, block = %BlockNo(d.block), line = d.line, "planning failed: {}", d.message);

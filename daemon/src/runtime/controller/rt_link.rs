@@ -64,6 +64,7 @@ impl RtLink {
         let stop = pump_stop.clone();
         std::thread::Builder::new()
             .name("cnc-status".into())
+            .stack_size(rt::THREAD_STACK_BYTES)
             .spawn(move || pump.run(&mut snap_out, &status_tx, &stop))
             .map_err(StartError::StatusThread)?;
         let link = RtLink {
@@ -173,6 +174,7 @@ fn spawn_rt_thread(
 ) -> Result<JoinHandle<()>, StartError> {
     std::thread::Builder::new()
         .name("cnc-rt".into())
+        .stack_size(rt::THREAD_STACK_BYTES)
         .spawn(move || {
             prepare_rt_thread(priority, lock_memory);
             rt::run(parts);

@@ -128,12 +128,12 @@ impl Interpreter {
             .iter()
             .position(|&a| a == letter)
         {
-            return once(
-                &mut w.axes[ax],
-                num.value,
-                at,
-                &format!("axis {}", letter as char),
-            );
+            // The name is formatted only for the error: every axis word of every block
+            // passes here.
+            return put_once(&mut w.axes[ax], num.value, at, || {
+                let message = format!("axis {} is written twice in this block", letter as char);
+                (DiagCode::WordTwice, message)
+            });
         }
         match letter {
             b'N' => {
