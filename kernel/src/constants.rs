@@ -266,8 +266,16 @@ impl Constants {
         if self.milli_of(55) < 0 {
             bad(55, "arc tolerance cannot be negative".into());
         }
-        if self.milli_of(52) <= 0 {
-            bad(52, "acceleration must be positive".into());
+        // R52/R237 = 0: the axes' own limits, no path-level bound (docs/planner.md, decided:
+        // the manual gives 0 a meaning for R236 only, "take R52"; for these two it is the
+        // value that leaves every move to the axes it moves, which stay bounded).
+        for r in [52, 237] {
+            if self.milli_of(r) < 0 {
+                bad(
+                    r,
+                    "acceleration cannot be negative (0 = the axes' limits)".into(),
+                );
+            }
         }
         if self.decade(97, 1) > 2 {
             bad(

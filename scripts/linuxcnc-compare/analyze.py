@@ -9,7 +9,6 @@ Axis acceleration = second differences of the commanded positions at 1 ms, and a
 commanded position from the programmed polyline.
 """
 
-import datetime
 import os
 import sys
 
@@ -79,13 +78,17 @@ def ours_table(bench_out):
 
 
 def write_tsv(rows):
-    """LinuxCNC's figures beside this script (linuxcnc.tsv, committed): the planner's test
-    plan_reference holds the planner to be faster on every path."""
+    """LinuxCNC's figures beside this script (linuxcnc.tsv, or linuxcnc-a<A>.tsv with
+    PATH_ACCEL; committed): the planner's test plan_reference holds the planner to be faster
+    on every path."""
     here = os.path.dirname(os.path.abspath(__file__))
-    with open(os.path.join(here, "linuxcnc.tsv"), "w") as f:
+    accel = os.environ.get("PATH_ACCEL")
+    name = f"linuxcnc-a{accel}.tsv" if accel else "linuxcnc.tsv"
+    traj = f", [TRAJ] MAX_LINEAR_ACCELERATION and every axis's MAX_ACCELERATION = {accel}" if accel else ""
+    with open(os.path.join(here, name), "w") as f:
         f.write(
             "# LinuxCNC 2.9 on the reference paths (run.sh: headless simulated machine, 1 ms servo, "
-            f"G64 P0.008); analyze.py writes this file. Measured {datetime.date.today().isoformat()}.\n"
+            f"G64 P0.008{traj}); analyze.py writes this file.\n"
         )
         f.write("# name\ttime_s\tmax_axis_a_1ms\tmax_axis_a_4ms\tmax_deviation_um\n")
         for name, t, a1, a4, dev in rows:
@@ -99,16 +102,19 @@ def main():
     print("| path | blocks | limit s | planner s | planner / limit | planner max axis a / limit | planner off path mm | LinuxCNC 2.9 s | LinuxCNC / limit | LinuxCNC max axis a / limit (1 ms; 4 ms) | LinuxCNC max deviation µm | LinuxCNC / planner |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for name in names:
-        o = ours[name]
         pts = polyline(f"{paths_dir}/{name}.nc")
         t, a1, a4, dev = linuxcnc_figures(f"{samples_dir}/{name}.samples", pts)
         rows.append((name, t, a1, a4, dev))
+        o = ours.get(name)
+        if o is None:
+            print(f"| {name} | | | | | | | {t:.3f} | | {a1:.2f}; {a4:.2f} | {dev * 1000:.1f} | |", flush=True)
+            continue
         print(
             f"| {name} | {o['blocks']} | {o['limit']:.3f} | {o['time']:.3f} | {o['time'] / o['limit']:.3f} | {o['acc']:.3f} | {o['off']:.0e} "
             f"| {t:.3f} | {t / o['limit']:.3f} | {a1:.2f}; {a4:.2f} | {dev * 1000:.1f} | {t / o['time']:.3f} |",
             flush=True,
         )
-    if sorted(names) == sorted(ours):
+    if sorted(names) == sorted(ours) or (os.environ.get("PATH_ACCEL") and not ours):
         write_tsv(rows)
 
 

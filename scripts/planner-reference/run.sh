@@ -1,7 +1,7 @@
 #!/bin/sh
 # Regenerates the independent reference of the planner (issue #32): the paths
 # (paths/*.nc) and their limit times (reference.tsv), with TOPP-RA from PyPI in a venv under
-# target/; then what 4 ms setpoints on the polyline allow (ticks.tsv, plain Python). Minutes;
+# target/; then what 4 ms setpoints on the polyline allow (ticks*.tsv, plain Python). Minutes;
 # the results are committed. Usage: scripts/planner-reference/run.sh
 set -eu
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
@@ -14,3 +14,6 @@ fi
 cd "$ROOT/scripts/planner-reference"
 "$VENV/bin/python" reference.py "$@"
 "$VENV/bin/python" ticks.py "$@"
+# The same under the path accelerations of machine-default.rek and machine-above.rek.
+"$VENV/bin/python" ticks.py --path-accel 500 "$@"
+"$VENV/bin/python" ticks.py --path-accel 5000 "$@"

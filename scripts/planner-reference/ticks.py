@@ -4,8 +4,10 @@
 The limit of reference.py is continuous in time. A controller that keeps its setpoints on the
 programmed polyline, one every Ts, is held instead by the setpoints themselves: per axis the
 second difference |x_k(s_i+1) - 2·x_k(s_i) + x_k(s_i-1)| <= a_k·Ts², the step |Δx_k| <= v_k·Ts,
-the path step s_i+1 - s_i <= F·Ts, and at each junction the step that crosses it within the
-junction's R384/R385 speeds (the same criteria as reference.py's exact bound).
+the path step s_i+1 - s_i <= F·Ts, with a path acceleration A (R52, R236, R237 of a constants
+file) the second difference of the arc length |s_i+1 - 2·s_i + s_i-1| <= A·Ts², and at each
+junction the step that crosses it within the junction's R384/R385 speeds (the same criteria as
+reference.py's exact bound).
 
 This script finds such a sequence, from rest to rest, greedily: each tick takes the farthest
 next setpoint that keeps every constraint and from which braking as hard as the constraints
@@ -17,7 +19,9 @@ can do, independent of the planner's model. The sequence is checked again at the
 its setpoints alone.
 
 Nothing here uses the planner's code. Input: paths/<name>.nc (reference.py). Output
-(committed): ticks.tsv. Run: python3 ticks.py [name ...] (plain Python, about a minute).
+(committed): ticks.tsv without a path acceleration (the axes' limits alone: R52 = R236 = R237
+= 0), ticks-a<A>.tsv with one. Run: python3 ticks.py [--path-accel A] [name ...] (plain
+Python, about a minute a table).
 """
 
 import math
@@ -30,6 +34,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 STEP_A = A_AXIS * TS * TS  # per axis, mm per tick²
 STEP_V = V_AXIS * TS  # per axis, mm per tick
 STEP_F = FEED * TS  # path, mm per tick
+STEP_P = math.inf  # path acceleration, mm per tick² (--path-accel)
 
 
 def read_polyline(path):
@@ -86,14 +91,19 @@ class Polyline:
         """The feasible next setpoints c >= b after setpoints a, b: a list of intervals in s."""
         xa, xb = self.at(a), self.at(b)
         aim = [2 * xb[k] - xa[k] for k in range(3)]
-        top = min(b + STEP_F, self.length)
+        top = min(b + STEP_F, self.length, 2 * b - a + STEP_P)
+        low = 2 * b - a - STEP_P
         out = []
         j = self.segment(b)
         while True:
             if j > 0 and self.s[j] > b:
                 top = min(top, b + self.cap[j] * TS)
-            lo, hi = max(self.s[j], b), min(self.s[j + 1], top)
+            lo, hi = max(self.s[j], b, low), min(self.s[j + 1], top)
             if lo > hi:
+                if low <= top and self.s[j + 1] < low and j + 1 < len(self.u):
+                    # (Wholly behind the path acceleration's nearest setpoint: crossed.)
+                    j += 1
+                    continue
                 break
             for k in range(3):
                 uk = self.u[j][k]
@@ -159,17 +169,27 @@ def greedy_ticks(line):
 
 
 def check(line, seq):
-    """From the setpoints alone: the largest axis acceleration / a_k, axis speed / v_k and path
-    speed / F over the sequence held at rest at both ends."""
+    """From the setpoints alone: the largest axis acceleration / a_k, axis speed / v_k, path
+    speed / F and path acceleration / A over the sequence held at rest at both ends."""
     xs = [line.at(s) for s in [seq[0]] + seq + [seq[-1]]]
     acc = max(abs(p[k] - 2 * q[k] + r[k]) for p, q, r in zip(xs, xs[1:], xs[2:]) for k in range(3))
     vel = max(abs(q[k] - p[k]) for p, q in zip(xs, xs[1:]) for k in range(3))
     path = max(q - p for p, q in zip(seq, seq[1:]))
-    return acc / STEP_A, vel / STEP_V, path / STEP_F
+    ss = [seq[0]] + seq + [seq[-1]]
+    path_a = max(abs(r - 2 * q + p) for p, q, r in zip(ss, ss[1:], ss[2:]))
+    return acc / STEP_A, vel / STEP_V, path / STEP_F, path_a / STEP_P
 
 
 def main():
-    only = set(sys.argv[1:])
+    global STEP_P
+    args = sys.argv[1:]
+    table = "ticks.tsv"
+    if args[:1] == ["--path-accel"]:
+        accel = float(args[1])
+        STEP_P = accel * TS * TS
+        table = f"ticks-a{accel:g}.tsv"
+        args = args[2:]
+    only = set(args)
     rows = []
     with open(os.path.join(HERE, "reference.tsv")) as f:
         names = [l.split("\t")[0] for l in f if not l.startswith("#")]
@@ -179,15 +199,15 @@ def main():
         line = Polyline(read_polyline(os.path.join(HERE, "paths", f"{name}.nc")))
         seq = greedy_ticks(line)
         ticks = len(seq) - 2
-        acc, vel, path = check(line, seq)
-        rows.append((name, ticks, ticks * TS, acc, vel, path))
-        print(f"{name:10s} {ticks:6d} ticks {ticks * TS:8.3f} s  axis a {acc:.6f}  axis v {vel:.6f}  F {path:.6f}", flush=True)
+        acc, vel, path, path_a = check(line, seq)
+        rows.append((name, ticks, ticks * TS, acc, vel, path, path_a))
+        print(f"{name:10s} {ticks:6d} ticks {ticks * TS:8.3f} s  axis a {acc:.6f}  axis v {vel:.6f}  F {path:.6f}  A {path_a:.6f}", flush=True)
     if only:
         return
-    with open(os.path.join(HERE, "ticks.tsv"), "w") as f:
-        f.write("# name\tticks\tticks_s\tmax_axis_a\tmax_axis_v\tmax_path_v\n")
+    with open(os.path.join(HERE, table), "w") as f:
+        f.write("# name\tticks\tticks_s\tmax_axis_a\tmax_axis_v\tmax_path_v\tmax_path_a\n")
         for r in rows:
-            f.write(f"{r[0]}\t{r[1]}\t{r[2]:.3f}\t{r[3]:.6f}\t{r[4]:.6f}\t{r[5]:.6f}\n")
+            f.write(f"{r[0]}\t{r[1]}\t{r[2]:.3f}\t{r[3]:.6f}\t{r[4]:.6f}\t{r[5]:.6f}\t{r[6]:.6f}\n")
 
 
 if __name__ == "__main__":

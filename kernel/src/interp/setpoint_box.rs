@@ -105,6 +105,9 @@ pub(super) struct Choice {
 #[derive(Clone, Copy, Debug)]
 struct Tick {
     prev: AxesMm,
+    /// The arc length from the setpoint a tick ago to this one, mm (the speed along the path
+    /// × Ts).
+    ds_prev: f64,
     s: f64,
     k: usize,
     /// The setpoint at `s`.
@@ -123,6 +126,9 @@ pub(super) struct BoxSlot {
     pub plain_feed: bool,
     /// `SegmentBox::v_max_mm_s`.
     pub v_max_mm_s: f64,
+    /// Room for the second difference of the arc length at a setpoint on it, mm: the path
+    /// acceleration over a tick (∞: none).
+    pub path_room_mm: f64,
     /// The end junction (`SegmentBox::criteria_end_mm_s`, `end_half_tan`, `lm_mm`).
     pub end: OnJunction,
 }
@@ -135,6 +141,7 @@ impl BoxSlot {
             stop_end: seg.v_end_mm_s == 0.0,
             plain_feed: !seg.rapid && seg.per_rev_nominal_rpm <= 0.0,
             v_max_mm_s: b.v_max_mm_s,
+            path_room_mm: b.accel_mm_s2.path() * TS_S * TS_S * (1.0 - 1e-9),
             end: OnJunction {
                 crit_mm_s: b.criteria_end_mm_s,
                 half_tan: b.end_half_tan,
@@ -274,8 +281,12 @@ impl Interpolator {
         // Every allowed setpoint lies within |room| of the aim, which lies the last step's
         // chord ahead: at least that chord less |room| along the path (no shorter than its
         // chord). Segments before that are not looked at.
-        let first_s = t.s + (step2.sqrt() - self.box_room_norm).max(0.0);
-        let mut top = up_to.min(t.s + t.on.crit_mm_s * TS_S);
+        // The path acceleration bounds the step from the last one's arc length.
+        let path_room = self.box_path_room(t);
+        let first_s =
+            (t.s + (step2.sqrt() - self.box_room_norm).max(0.0)).max(t.s + t.ds_prev - path_room);
+        let path_top = t.s + t.ds_prev + path_room;
+        let mut top = up_to.min(t.s + t.on.crit_mm_s * TS_S).min(path_top);
         let mut accuracy = Accuracy::NONE;
         let Some(j) = self.box_skip(t, first_s, feed, &mut top, &mut accuracy) else {
             return Reach::Unknown;
@@ -451,7 +462,7 @@ impl Interpolator {
     /// the setpoints after `c` into `path` (the last one where it rests). Returns how it ends
     /// and how many setpoints it wrote.
     fn box_proof(&self, from: &Tick, c: f64, path: &mut [f64]) -> (Proof, usize) {
-        let mut t = self.box_tick(from.at, from.k, c);
+        let mut t = self.box_tick(from, c);
         for (n, slot) in path.iter_mut().take(PROOF_TICKS).enumerate() {
             match self.box_near(&t) {
                 Reach::Within { near, .. } if near <= t.s + 1e-12 => return (Proof::Rest(t.s), n),
@@ -459,6 +470,7 @@ impl Interpolator {
                     *slot = near;
                     t = Tick {
                         prev: t.at,
+                        ds_prev: near - t.s,
                         s: near,
                         k: near_k,
                         at: self.box_point(near_k, near),
@@ -476,6 +488,7 @@ impl Interpolator {
     fn box_here(&self) -> Tick {
         Tick {
             prev: self.box_prev_point,
+            ds_prev: self.raw_v_mm_s * TS_S,
             s: self.raw_s(),
             k: self.raw_seg,
             at: self.box_point(self.raw_seg, self.raw_s()),
@@ -483,11 +496,12 @@ impl Interpolator {
         }
     }
 
-    /// The tick at arc length `s` (on segment `k` or later) after the setpoint `prev`.
-    fn box_tick(&self, prev: AxesMm, k: usize, s: f64) -> Tick {
-        let k = self.box_seg_at(k, s);
+    /// The tick at arc length `s` after tick `from`.
+    fn box_tick(&self, from: &Tick, s: f64) -> Tick {
+        let k = self.box_seg_at(from.k, s);
         Tick {
-            prev,
+            prev: from.at,
+            ds_prev: s - from.s,
             s,
             k,
             at: self.box_point(k, s),
@@ -501,7 +515,22 @@ impl Interpolator {
         let x = &t.at;
         let k = self.box_seg_at(t.k, s);
         let y = self.box_point(k, s.min(self.start_of(k) + self.seg(k).length_mm));
-        (0..self.axes).all(|ax| (y[ax] - (2.0 * x[ax] - t.prev[ax])).abs() <= self.box_room[ax])
+        (s - t.s - t.ds_prev).abs() <= self.box_path_room(t)
+            && (0..self.axes)
+                .all(|ax| (y[ax] - (2.0 * x[ax] - t.prev[ax])).abs() <= self.box_room[ax])
+    }
+
+    /// The room for the second difference of the arc length at tick `t`: the path
+    /// acceleration of the segment it lies on (of both, on a junction), over a tick.
+    fn box_path_room(&self, t: &Tick) -> f64 {
+        let room = |k: usize| self.box_slots[self.idx(k)].path_room_mm;
+        let here = room(t.k);
+        let local = t.s - self.start_of(t.k);
+        if k_ends_at(local, self.ahead[self.idx(t.k)].length_mm) && t.k + 1 < self.len {
+            here.min(room(t.k + 1))
+        } else {
+            here
+        }
     }
 
     /// Each axis's room for the second difference of its setpoints, mm (its acceleration
@@ -721,6 +750,11 @@ impl Interpolator {
         self.box_take(&choice);
         Some(c - here.s)
     }
+}
+
+/// Whether arc length `local` on a segment of length `length_mm` is its end, as sent.
+fn k_ends_at(local: f64, length_mm: f64) -> bool {
+    local >= length_mm - ARRIVE_EPS_MM
 }
 
 /// The part of `[lo, hi]` (arc length on line `seg`, which starts at `s0`) where every axis is

@@ -227,7 +227,16 @@ pub fn min_duration_mm_s(len_mm: f64, t_min_s: f64) -> f64 {
     }
 }
 
-/// R395 time criterion: whether rising inside a block of length `len_mm` from and back to
+/// R395 time criterion of the linear profile (SPEC §7.2, seed 004 A6.3): a block that would
+/// take less than `limit_s` at the junction speeds `v_flat` keeps them through the block;
+/// a longer one may rise towards F and fall again inside it (**decided**: the block's time
+/// at the speeds it would keep, the manual's "longer blocks would run unnecessarily
+/// slowly"). A flat speed of zero is never kept.
+pub fn rise_allowed_linear(len_mm: f64, v_flat: f64, limit_s: f64) -> bool {
+    v_flat <= 1e-9 || len_mm / v_flat >= limit_s
+}
+
+/// R395 time criterion of the parabolic profile (SPEC §7.3): whether rising inside a block of length `len_mm` from and back to
 /// `v_flat` towards `v_top` (acceleration `a`) saves more than `limit_s` over keeping
 /// `v_flat` through the block. A flat speed of zero is never kept.
 pub fn rise_pays_off(len_mm: f64, v_flat: f64, v_top: f64, a: f64, limit_s: f64) -> bool {
@@ -336,5 +345,9 @@ mod tests {
         // 100 mm at 1 mm/s takes 100 s; rising saves almost all of it.
         assert!(rise_pays_off(100.0, 1.0, 100.0, 1000.0, 0.5));
         assert!(rise_pays_off(100.0, 0.0, 100.0, 1000.0, 0.5));
+        // Linear profile: 1.03 mm at 2 mm/s takes 0.515 s, over R395's 0.5 s: it rises.
+        assert!(rise_allowed_linear(1.03, 2.0, 0.5));
+        assert!(!rise_allowed_linear(0.9, 2.0, 0.5));
+        assert!(rise_allowed_linear(0.1, 0.0, 0.5));
     }
 }

@@ -475,8 +475,8 @@ impl Planner {
         };
         let linear_line = self.cfg.envelope.profile == Profile::Linear
             && matches!(self.win[i].seg.path, SegPath::Line { .. });
-        let box_accel = if linear_line && a_axes.is_finite() && base.is_infinite() {
-            BoxAccel::of_axes(&self.cfg.axis_a_max_mm_s2)
+        let box_accel = if linear_line && a_axes.is_finite() {
+            BoxAccel::of_axes(&self.cfg.axis_a_max_mm_s2, base)
         } else {
             BoxAccel::NONE
         };
@@ -937,12 +937,13 @@ impl Planner {
         dir
     }
 
-    /// R395: keep the junction speeds through a short block unless rising pays off. Only
-    /// between two smooth junctions (**decided**): at a stop there is no criterion speed to
-    /// keep, and a block between stops is a plain point-to-point move.
+    /// R395: keep the junction speeds through a short block (linear profile: one that takes
+    /// less than R395 at them; parabolic: unless rising saves more than R395). Only between
+    /// two smooth junctions (**decided**): at a stop there is no criterion speed to keep, and
+    /// a block between stops is a plain point-to-point move.
     ///
     /// The per-axis box search (`SegmentBox::v_max_mm_s`) keeps the manual's criteria
-    /// speeds at the junctions, and rises at the full path acceleration of the axes.
+    /// speeds at the junctions.
     fn apply_rise_limit(&mut self, i: usize) {
         let prev = (i > 0 && self.win[i - 1].smooth).then(|| {
             (
@@ -951,6 +952,7 @@ impl Planner {
             )
         });
         let rise_limit = self.cfg.envelope.rise_time_s;
+        let linear = self.cfg.envelope.profile == Profile::Linear;
         let boxed = self.win[i].box_candidate;
         let p = &mut self.win[i];
         let Some((prev_crit, prev_criteria)) = prev else {
@@ -959,20 +961,26 @@ impl Planner {
         if p.seg.rapid || !p.smooth {
             return;
         }
-        let a_axes = p.a_axes;
         let seg: &mut Segment = &mut p.seg;
         if boxed {
             let box_flat = prev_criteria
                 .max(seg.axis_box.criteria_end_mm_s)
                 .min(seg.axis_box.v_max_mm_s);
             let box_top = seg.axis_box.v_max_mm_s.min(seg.feed_mm_s);
-            if !criteria::rise_pays_off(seg.length_mm, box_flat, box_top, a_axes, rise_limit) {
+            let rises = box_top <= box_flat
+                || criteria::rise_allowed_linear(seg.length_mm, box_flat, rise_limit);
+            if !rises {
                 seg.axis_box.v_max_mm_s = box_flat.max(1e-9);
             }
         }
         let v_flat = prev_crit.max(p.crit).min(seg.v_max_mm_s);
         let v_top = seg.v_max_mm_s.min(seg.feed_mm_s);
-        if !criteria::rise_pays_off(seg.length_mm, v_flat, v_top, seg.accel_mm_s2, rise_limit) {
+        let rises = if linear {
+            v_top <= v_flat || criteria::rise_allowed_linear(seg.length_mm, v_flat, rise_limit)
+        } else {
+            criteria::rise_pays_off(seg.length_mm, v_flat, v_top, seg.accel_mm_s2, rise_limit)
+        };
+        if !rises {
             seg.v_max_mm_s = seg.v_max_mm_s.min(v_flat.max(1e-9).max(p.cap));
         }
     }

@@ -163,9 +163,9 @@ pub struct Segment {
     pub per_rev_nominal_rpm: f64,
 }
 
-/// What the per-axis box on the setpoints reads of a segment (`interp::setpoint_box`, issue
-/// #32): the box judges lines of the linear profile that only their axes limit (no path-level
-/// acceleration), choosing each setpoint by the axes' accelerations directly.
+/// What the per-axis box on the setpoints reads of a segment (`interp::setpoint_box`, issues
+/// #32 and #49): the box judges lines of the linear profile, choosing each setpoint by the
+/// axes' accelerations and the path acceleration (R52, R236, R237, the set's A) directly.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SegmentBox {
     /// The axes' accelerations; unset where the box does not judge the segment.
@@ -184,29 +184,48 @@ pub struct SegmentBox {
     pub lm_mm: f64,
 }
 
-/// The axes' accelerations a segment carries for the per-axis box (`SegmentBox::accel_mm_s2`),
-/// mm/s², in single precision rounded down (every segment carries them: half the bytes).
+/// The axes' accelerations and the path acceleration a segment carries for the per-axis box
+/// (`SegmentBox::accel_mm_s2`), mm/s², in single precision rounded down (every segment
+/// carries them: half the bytes). The path acceleration bounds the second difference of the
+/// arc length (the speed along the path); ∞ where the constants leave it to the axes.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct BoxAccel([f32; MAX_AXES]);
+pub struct BoxAccel {
+    axes: [f32; MAX_AXES],
+    path: f32,
+}
+
+/// `a` in single precision, never above it.
+fn f32_down(a: f64) -> f32 {
+    let f = a as f32;
+    if f as f64 > a { f.next_down() } else { f }
+}
 
 impl BoxAccel {
     /// Not judged by the box.
-    pub const NONE: BoxAccel = BoxAccel([0.0; MAX_AXES]);
+    pub const NONE: BoxAccel = BoxAccel {
+        axes: [0.0; MAX_AXES],
+        path: 0.0,
+    };
 
-    pub fn of_axes(a_mm_s2: &[f64; MAX_AXES]) -> Self {
-        BoxAccel(a_mm_s2.map(|a| {
-            let f = a as f32;
-            if f as f64 > a { f.next_down() } else { f }
-        }))
+    pub fn of_axes(a_mm_s2: &[f64; MAX_AXES], path_mm_s2: f64) -> Self {
+        BoxAccel {
+            axes: a_mm_s2.map(f32_down),
+            path: f32_down(path_mm_s2),
+        }
     }
 
     pub fn is_set(&self) -> bool {
-        self.0[0] > 0.0
+        self.axes[0] > 0.0
     }
 
     /// Axis `k`'s acceleration, mm/s² (at most the configured one).
     pub fn axis(&self, k: usize) -> f64 {
-        f64::from(self.0[k])
+        f64::from(self.axes[k])
+    }
+
+    /// The path acceleration, mm/s² (at most the configured one; ∞: none).
+    pub fn path(&self) -> f64 {
+        f64::from(self.path)
     }
 }
 
@@ -252,8 +271,8 @@ struct Pending {
     /// Hard cap at the end junction (0 when not smooth).
     cap: f64,
     /// The per-axis box on the setpoints may judge this block (`interp::setpoint_box`): a
-    /// line of the linear profile without a path-level acceleration (`set_accelerations`
-    /// decides, with the continuity of its junctions).
+    /// line of the linear profile (`set_accelerations` decides, with the continuity of its
+    /// junctions).
     box_candidate: bool,
     /// A line between turning junctions: its acceleration as a function of its speed.
     budget: Option<budget::LineBudget>,
@@ -697,16 +716,8 @@ impl Planner {
     }
 
     /// Whether the per-axis box on the setpoints may judge a block (`Pending::box_candidate`).
-    fn box_candidate(&self, path: &SegPath, rapid: bool, set: usize) -> bool {
-        let env = &self.cfg.envelope;
-        let path_a = if rapid {
-            env.accel_rapid_mm_s2.min(env.rapid_accel_mm_s2)
-        } else {
-            env.sets[set].accel_mm_s2
-        };
-        env.profile == Profile::Linear
-            && matches!(path, SegPath::Line { .. })
-            && path_a.is_infinite()
+    fn box_candidate(&self, path: &SegPath) -> bool {
+        self.cfg.envelope.profile == Profile::Linear && matches!(path, SegPath::Line { .. })
     }
 
     /// Appends a motion block to the window: its limits from the axes, the arc criteria and
@@ -764,7 +775,7 @@ impl Planner {
             turn: criteria::Turn::STRAIGHT,
             crit: 0.0,
             cap: 0.0,
-            box_candidate: self.box_candidate(&path, rapid, set),
+            box_candidate: self.box_candidate(&path),
             budget: None,
             turns: None,
         };
@@ -834,7 +845,10 @@ impl Planner {
     /// below one tick's acceleration step of both blocks, where `Planner::pass_gain_s`
     /// stops every turning junction (issue #32: a raster's 90° corner, 2 mm/s by R384,
     /// turned the junction before it, 0.05 mm away, into a stop too, its cap held by the
-    /// corner's turn within its tick window).
+    /// corner's turn within its tick window). At one tick's step itself too (issue #49: the
+    /// same corner under a path acceleration of 500 mm/s² is exactly 2 mm/s, and passed,
+    /// held the 1 mm step-over beside it at that speed by R395): a stop leaves the corner
+    /// at that speed within a tick.
     fn passes_below_a_tick_step(cfg: &PlannerConfig, prev: &Pending, next: &Pending) -> bool {
         let is_arc = |q: &Pending| matches!(q.seg.path, SegPath::Arc { .. });
         if prev.turn.chord <= 1e-9 && !is_arc(prev) && !is_arc(next) {
@@ -848,7 +862,7 @@ impl Planner {
             .turn
             .dynamic_len_mm_s(set.overload_mm_s2, set.overload_ref_len_mm, len)
             .min(prev.turn.accuracy_mm_s(set.accuracy_um));
-        ub < a(prev).min(a(next)) * TS_S
+        ub <= a(prev).min(a(next)) * TS_S * (1.0 + 1e-9)
     }
 
     /// Junction rule of SPEC §7.1 between `prev` and `next`.

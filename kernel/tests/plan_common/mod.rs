@@ -463,18 +463,18 @@ fn measure_dynamics(cfg: &PlannerConfig, r: &Run, w: &mut Worst) {
     let axes = cfg.axes;
     let by_seq: std::collections::HashMap<u32, Segment> =
         r.segments.iter().map(|s| (s.seq, *s)).collect();
-    // A segment the per-axis box judges (`Segment::axis_box`) has no path-level
-    // acceleration: only its axes' limits, and the box's ceiling `SegmentBox::v_max_mm_s`.
+    // A segment the per-axis box judges (`Segment::axis_box`) has its axes' limits, its path
+    // acceleration (`BoxAccel::path`, ∞: none) and the box's ceiling `SegmentBox::v_max_mm_s`.
     let boxed = |s: &Segment| s.axis_box.accel_mm_s2.is_set();
-    let a_path = r
-        .segments
-        .iter()
-        .filter(|s| !boxed(s))
-        .fold(0.0f64, |m, s| {
+    let a_path = r.segments.iter().fold(0.0f64, |m, s| {
+        if boxed(s) {
+            m.max(s.axis_box.accel_mm_s2.path())
+        } else {
             m.max(s.accel_mm_s2)
                 .max(s.stop_accel_mm_s2)
                 .max(s.free_accel_mm_s2)
-        });
+        }
+    });
     let j_path = r.segments.iter().fold(0.0f64, |m, s| m.max(s.jerk_mm_s3));
     // The reported path speed is the difference of two arc lengths of up to the program's
     // length over a tick, so it rounds by a few ulp of that length per tick: 4.3e-11 mm/s
@@ -511,7 +511,11 @@ fn measure_dynamics(cfg: &PlannerConfig, r: &Run, w: &mut Worst) {
         // block from the tick two before to this one counts.)
         let on_box = |k: usize| {
             let (lo, hi) = (t[k.saturating_sub(2)].seq, t[k].seq);
-            (lo.min(hi)..=hi.max(lo)).any(|q| by_seq.get(&q).is_some_and(boxed))
+            (lo.min(hi)..=hi.max(lo)).any(|q| {
+                by_seq
+                    .get(&q)
+                    .is_some_and(|s| boxed(s) && s.axis_box.accel_mm_s2.path().is_infinite())
+            })
         };
         let lim = if k == 1 {
             ceil(t[k].seq)
@@ -765,16 +769,40 @@ pub fn reference_dir() -> std::path::PathBuf {
 }
 
 /// The machine of issue #32: per axis 20000 mm/min and 1000 mm/s², constants
-/// `scripts/planner-reference/machine.rek` (R384 Lm = 8 µm, R385 am = 1000), default
-/// `[planner] min_block_time_ms` 0: the configuration `cncd` builds for it.
+/// `scripts/planner-reference/machine.rek` (R384 Lm = 8 µm, R385 am = 1000, R52 = R237 = 0:
+/// the axes' limits), default `[planner] min_block_time_ms` 0: the configuration `cncd`
+/// builds for it.
 pub fn reference_config() -> PlannerConfig {
-    let text = std::fs::read_to_string(reference_dir().join("machine.rek")).unwrap();
+    reference_config_with("machine.rek")
+}
+
+/// The machine of issue #32 with the constants file `name` of `scripts/planner-reference/`,
+/// which `cncd` must accept as it is (issue #49: `machine-default.rek` leaves R52/R236/R237
+/// at their defaults, 500 mm/s²; `machine-above.rek` sets them to 5000, above what the axes
+/// allow along any direction).
+pub fn reference_config_with(name: &str) -> PlannerConfig {
+    let text = std::fs::read_to_string(reference_dir().join(name)).unwrap();
     let c = Constants::parse(&text).unwrap();
+    assert!(c.validate().is_empty(), "{name}: {:?}", c.validate());
     let axis = kernel::plan::AxisLimits {
         v_max_mm_s: 20000.0 / 60.0,
         a_max_mm_s2: 1000.0,
     };
     PlannerConfig::for_machine(&[axis; 3], 0.0, Some(&c))
+}
+
+/// The time of the greedy 4 ms setpoint sequence of `ticks.py` on path `name`, s, from its
+/// table `table` (`ticks.tsv`: the axes' limits alone; `ticks-a500.tsv`: a path
+/// acceleration of 500 mm/s²).
+pub fn ticks_s(table: &str, name: &str) -> f64 {
+    let text = std::fs::read_to_string(reference_dir().join(table)).unwrap();
+    text.lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split('\t').collect::<Vec<_>>())
+        .find(|f| f[0] == name)
+        .unwrap_or_else(|| panic!("no {name} in {table}"))[2]
+        .parse()
+        .unwrap()
 }
 
 /// The reference paths with their limits (`reference.tsv`).

@@ -367,7 +367,24 @@ impl Daemon {
         node_ids: [u8; 3],
         axis_keys: [&str; 3],
     ) -> Daemon {
+        Self::start_with_files(test, bus_section, node_ids, axis_keys, &[])
+    }
+
+    /// As [`Daemon::start_with`], with files (name, text) in the storage dir before cncd
+    /// starts (a TAB0.REK, a TAB0.KOR).
+    pub fn start_with_files(
+        test: &str,
+        bus_section: &str,
+        node_ids: [u8; 3],
+        axis_keys: [&str; 3],
+        files: &[(&str, &str)],
+    ) -> Daemon {
         let dir = temp_dir(test);
+        let data = dir.join("data");
+        std::fs::create_dir_all(&data).unwrap();
+        for (name, text) in files {
+            std::fs::write(data.join(name), text).unwrap();
+        }
         let port = std::net::TcpListener::bind("127.0.0.1:0")
             .unwrap()
             .local_addr()

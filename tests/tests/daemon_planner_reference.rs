@@ -1,0 +1,170 @@
+//! Issue #49: the planner at the limit through the door a user has. `cncd` on its simulated
+//! machine with the reference machine's axes (20000 mm/min, 1000 mm/s²) and a TAB0.REK in
+//! its storage dir, `cncctl trajectory` on every reference path
+//! (`scripts/planner-reference/paths`), for three constants files cncd loads as they are:
+//! R52 = R237 = 0 (the axes' limits), the defaults (R52 = R236 = R237 = 500 mm/s², binding)
+//! and 5000 mm/s² (above what the axes allow along any direction). Each path within 1.03 of
+//! what `ticks.py` (independent of the planner) finds feasible with 4 ms setpoints under the
+//! same limits, faster than LinuxCNC 2.9 with the same trajectory acceleration, every axis
+//! within its acceleration and the path within its own.
+
+mod vcan_support;
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use vcan_support::Daemon;
+
+const TS_S: f64 = 0.004;
+/// The CSV gives positions to 1 nm: a second difference of three is off by up to 4 × 0.5 nm.
+const CSV_AXIS_MM_S2: f64 = 4.0 * 0.5e-6 / (TS_S * TS_S);
+/// The axes' acceleration (the configuration's `max_accel_mm_s2`).
+const AXIS_A_MM_S2: f64 = 1000.0;
+
+fn reference_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/planner-reference")
+}
+
+/// Column `col` of row `name` of a tab-separated table beside the reference.
+fn table_s(file: &Path, name: &str, col: usize) -> f64 {
+    let text = std::fs::read_to_string(file).unwrap();
+    text.lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| l.split('\t').collect::<Vec<_>>())
+        .find(|f| f[0] == name)
+        .unwrap_or_else(|| panic!("no {name} in {}", file.display()))[col]
+        .parse()
+        .unwrap()
+}
+
+fn path_names() -> Vec<String> {
+    let text = std::fs::read_to_string(reference_dir().join("reference.tsv")).unwrap();
+    text.lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| l.split('\t').next().unwrap().to_string())
+        .collect()
+}
+
+/// Rows of a trajectory CSV (t, X, Y, Z, path v, seq, block).
+fn csv_rows(path: &Path) -> Vec<Vec<f64>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    text.lines()
+        .skip(1)
+        .map(|l| {
+            l.split(',')
+                .map(|x| x.parse::<f64>().unwrap_or(f64::NAN))
+                .collect()
+        })
+        .collect()
+}
+
+/// Largest second difference over a tick² of column `col`, mm/s².
+fn max_accel(rows: &[Vec<f64>], col: usize) -> f64 {
+    rows.windows(3)
+        .map(|w| ((w[2][col] - 2.0 * w[1][col] + w[0][col]) / (TS_S * TS_S)).abs())
+        .fold(0.0, f64::max)
+}
+
+/// Largest change of the path speed (column 4) over a tick, mm/s².
+fn max_path_accel(rows: &[Vec<f64>]) -> f64 {
+    rows.windows(2)
+        .map(|w| ((w[1][4] - w[0][4]) / TS_S).abs())
+        .fold(0.0, f64::max)
+}
+
+fn total_s(out: &str) -> f64 {
+    let line = out.lines().find(|l| l.contains("total_s")).expect(out);
+    let at = line.find("\"total_s\"").unwrap() + "\"total_s\"".len();
+    let rest = line[at..].trim_start_matches([':', ' ']);
+    let end = rest.find([',', '}']).unwrap();
+    rest[..end].trim().parse().unwrap()
+}
+
+/// One constants file: its name, the path acceleration it sets (∞: none), the `ticks.py`
+/// table and the LinuxCNC table it is held to.
+struct Case {
+    rek: &'static str,
+    path_a_mm_s2: f64,
+    ticks: &'static str,
+    linuxcnc: &'static str,
+}
+
+const CASES: [Case; 3] = [
+    Case {
+        rek: "machine.rek",
+        path_a_mm_s2: f64::INFINITY,
+        ticks: "ticks.tsv",
+        linuxcnc: "linuxcnc.tsv",
+    },
+    Case {
+        rek: "machine-default.rek",
+        path_a_mm_s2: 500.0,
+        ticks: "ticks-a500.tsv",
+        linuxcnc: "linuxcnc-a500.tsv",
+    },
+    Case {
+        rek: "machine-above.rek",
+        path_a_mm_s2: 5000.0,
+        ticks: "ticks-a5000.tsv",
+        linuxcnc: "linuxcnc.tsv",
+    },
+];
+
+fn run_case(case: &Case, failures: &mut Vec<String>) {
+    let rek = std::fs::read_to_string(reference_dir().join(case.rek)).unwrap();
+    let axis = "max_velocity_mm_min = 20000\nmax_accel_mm_s2 = 1000\n";
+    let d = Daemon::start_with_files(
+        &format!("planner-ref-{}", case.rek.trim_end_matches(".rek")),
+        "[bus]\nkind = 'sim'\n",
+        [1, 2, 3],
+        [axis; 3],
+        &[("TAB0.REK", &rek)],
+    );
+    let lcnc = reference_dir()
+        .join("../linuxcnc-compare")
+        .join(case.linuxcnc);
+    for name in path_names() {
+        let nc = std::fs::read_to_string(reference_dir().join(format!("paths/{name}.nc"))).unwrap();
+        let prog = d.program(&format!("{name}.nc"), &nc);
+        let csv = d.dir.join(format!("{name}.csv"));
+        let (ok, out) = d.cncctl(
+            &["--json", "trajectory", &prog, "-o", csv.to_str().unwrap()],
+            Duration::from_secs(300),
+        );
+        assert!(ok, "{} {name}: cncctl trajectory failed: {out}", case.rek);
+        let t = total_s(&out);
+        let reference = table_s(&reference_dir().join(case.ticks), &name, 2);
+        let linuxcnc = table_s(&lcnc, &name, 1);
+        let rows = csv_rows(&csv);
+        let axis_a = (1..4).map(|c| max_accel(&rows, c)).fold(0.0, f64::max);
+        let path_a = max_path_accel(&rows);
+        println!(
+            "{:20} {name:10} {t:.3} s, ticks.py {reference:.3} s, ratio {:.3}, LinuxCNC {linuxcnc:.3} s, axis a {axis_a:.3}, path a {path_a:.3}",
+            case.rek,
+            t / reference
+        );
+        let within = axis_a <= AXIS_A_MM_S2 + CSV_AXIS_MM_S2
+            && path_a <= case.path_a_mm_s2 + path_a_rounding();
+        if t / reference > 1.03 || t >= linuxcnc || !within {
+            failures.push(format!(
+                "{} {name}: {t:.3} s, reference {reference:.3} s, LinuxCNC {linuxcnc:.3} s, axis a {axis_a:.3}, path a {path_a:.3}",
+                case.rek
+            ));
+        }
+    }
+}
+
+/// The path speed in the CSV rounds to 0.5e-6 mm/s (`{:.6}`): its difference over a tick by
+/// twice that.
+fn path_a_rounding() -> f64 {
+    2.0 * 0.5e-6 / TS_S
+}
+
+#[test]
+fn reference_paths_run_at_the_limit_with_the_constants_files_machines_have() {
+    let mut failures = vec![];
+    for case in &CASES {
+        run_case(case, &mut failures);
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
