@@ -17,6 +17,8 @@ import numpy as np
 A_AXIS = 1000.0
 SERVO_S = 0.001
 IDLE_GAP_S = 0.3
+# A nearest distance beyond this in the search window is looked for on the whole path.
+LOST_MM = 0.05
 
 
 def polyline(nc_path):
@@ -44,6 +46,11 @@ def deviation_mm(samples, pts):
         t = np.clip(((p - a[lo:hi]) * d[lo:hi]).sum(axis=1) / l2[lo:hi], 0.0, 1.0)
         dist = np.linalg.norm(a[lo:hi] + d[lo:hi] * t[:, None] - p, axis=1)
         j = int(np.argmin(dist))
+        if dist[j] > LOST_MM:
+            # Lost in the window (a slow run's samples lag the search): the whole path.
+            t = np.clip(((p - a) * d).sum(axis=1) / l2, 0.0, 1.0)
+            dist = np.linalg.norm(a + d * t[:, None] - p, axis=1)
+            lo, j = 0, int(np.argmin(dist))
         k = lo + j
         worst = max(worst, float(dist[j]))
     return worst

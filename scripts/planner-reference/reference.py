@@ -15,8 +15,13 @@ machine's limits:
   F, from rest to rest between the corners the generator mixed in;
 - limit = max(exact, smooth).
 
-Nothing here uses the planner's code. Output (committed): paths/<name>.nc and reference.tsv.
-Run: scripts/planner-reference/run.sh (makes a venv under target/ and installs toppra).
+With `--path-accel A` (a constants file's R52/R236/R237) the speed along the path changes by at
+most A as well: each chord's acceleration is at most A in the exact bound, and TOPP-RA bounds
+the second derivative of its arc-length coordinate by A.
+
+Nothing here uses the planner's code. Output (committed): paths/<name>.nc and reference.tsv;
+with --path-accel, reference-a<A>.tsv only. Run: scripts/planner-reference/run.sh (makes a venv
+under target/ and installs toppra).
 """
 
 import math
@@ -35,6 +40,8 @@ ta.setup_logging("WARNING")
 from machine import A_AXIS, AM, FEED, LM_MM, TS, V_AXIS  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+# Path acceleration, mm/s² (--path-accel; ∞: the axes' limits alone).
+A_PATH = math.inf
 
 
 # ---------------------------------------------------------------- path generation
@@ -290,6 +297,7 @@ def exact_polyline_s(pts):
     with np.errstate(divide="ignore"):
         vseg = np.minimum(FEED, np.min(np.where(np.abs(u) > 1e-12, V_AXIS / np.abs(u), np.inf), axis=1))
         aseg = np.min(np.where(np.abs(u) > 1e-12, A_AXIS / np.abs(u), np.inf), axis=1)
+    aseg = np.minimum(aseg, A_PATH)
     cap = np.zeros(n)  # speed at the end of chord i
     for i in range(n - 1):
         du = u[i + 1] - u[i]
@@ -329,7 +337,7 @@ def toppra_piece_s(pts):
         # A straight chord: exact trapezoid.
         u = np.abs(pts[1] - pts[0]) / ss[-1]
         v = min(FEED, np.min(V_AXIS / u[u > 1e-12]))
-        a = np.min(A_AXIS / u[u > 1e-12])
+        a = min(np.min(A_AXIS / u[u > 1e-12]), A_PATH)
         l = ss[-1]
         if v * v / a >= l:
             return 2 * math.sqrt(l / a)
@@ -363,7 +371,9 @@ def toppra_piece_s(pts):
 def toppra_grid_s(path, grid):
     cons = [
         constraint.JointVelocityConstraint(np.array([[-V_AXIS, V_AXIS]] * 3 + [[-FEED, FEED]])),
-        constraint.JointAccelerationConstraint(np.array([[-A_AXIS, A_AXIS]] * 3 + [[-1e6, 1e6]])),
+        constraint.JointAccelerationConstraint(
+            np.array([[-A_AXIS, A_AXIS]] * 3 + [[-min(A_PATH, 1e6), min(A_PATH, 1e6)]])
+        ),
     ]
     inst = algo.TOPPRA(cons, path, gridpoints=grid, solver_wrapper="seidel")
     res = inst.compute_parameterization(0, 0)
@@ -389,16 +399,24 @@ def smooth_s(pts, flags):
 
 
 def main():
+    global A_PATH
+    args = sys.argv[1:]
+    table = "reference.tsv"
+    if args[:1] == ["--path-accel"]:
+        A_PATH = float(args[1])
+        table = f"reference-a{A_PATH:g}.tsv"
+        args = args[2:]
     out_dir = os.path.join(HERE, "paths")
     os.makedirs(out_dir, exist_ok=True)
-    only = set(sys.argv[1:])
+    only = set(args)
     rows = []
     for key, title, gen in PATHS:
         if only and key not in only:
             continue
         pts, flags, text = to_program(gen())
-        with open(os.path.join(out_dir, f"{key}.nc"), "w") as f:
-            f.write(text)
+        if table == "reference.tsv":
+            with open(os.path.join(out_dir, f"{key}.nc"), "w") as f:
+                f.write(text)
         ex = exact_polyline_s(pts)
         sm = smooth_s(pts, flags)
         length = float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
@@ -406,7 +424,7 @@ def main():
         print(f"{key:10s} {len(pts) - 1:6d} blocks {length:9.2f} mm  exact {ex:8.4f} s  smooth {sm:8.4f} s", flush=True)
     if only:
         return
-    with open(os.path.join(HERE, "reference.tsv"), "w") as f:
+    with open(os.path.join(HERE, table), "w") as f:
         f.write("# name\tblocks\tlength_mm\texact_s\tsmooth_s\tlimit_s\ttitle\n")
         for r in rows:
             f.write(f"{r[0]}\t{r[1]}\t{r[2]:.4f}\t{r[3]:.5f}\t{r[4]:.5f}\t{r[5]:.5f}\t{r[6]}\n")

@@ -13,6 +13,7 @@ fi
     "$VENV/bin/pip" install -q toppra numpy scipy
 cd "$ROOT/scripts/planner-reference"
 "$VENV/bin/python" reference.py "$@"
+"$VENV/bin/python" reference.py --path-accel 500 "$@"
 "$VENV/bin/python" ticks.py "$@"
 # The same under the path accelerations of machine-default.rek and machine-above.rek.
 "$VENV/bin/python" ticks.py --path-accel 500 "$@"

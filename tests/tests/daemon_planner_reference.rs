@@ -7,6 +7,10 @@
 //! what `ticks.py` (independent of the planner) finds feasible with 4 ms setpoints under the
 //! same limits, faster than LinuxCNC 2.9 with the same trajectory acceleration, every axis
 //! within its acceleration and the path within its own.
+//!
+//! And the parabolic profile: with the constants files of `scripts/jerk-reference/`, every
+//! move of its suite (short moves that never reach F included) within 1.03 of Ruckig's
+//! time-optimal jerk-limited move under the same limits, the path's jerk within J.
 
 mod vcan_support;
 
@@ -165,6 +169,81 @@ fn reference_paths_run_at_the_limit_with_the_constants_files_machines_have() {
     let mut failures = vec![];
     for case in &CASES {
         run_case(case, &mut failures);
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
+
+fn jerk_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/jerk-reference")
+}
+
+/// Rows of a tab-separated table of `scripts/jerk-reference/`, comments left out.
+fn jerk_rows(file: &str) -> Vec<Vec<String>> {
+    let text = std::fs::read_to_string(jerk_dir().join(file)).unwrap();
+    text.lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| l.split('\t').map(str::to_owned).collect())
+        .collect()
+}
+
+/// Largest third difference over a tick³ of the arc length from the start (a line from the
+/// origin), mm/s³.
+fn max_path_jerk(rows: &[Vec<f64>]) -> f64 {
+    let s: Vec<f64> = rows
+        .iter()
+        .map(|r| (r[1] * r[1] + r[2] * r[2] + r[3] * r[3]).sqrt())
+        .collect();
+    s.windows(4)
+        .map(|w| ((w[3] - 3.0 * w[2] + 3.0 * w[1] - w[0]) / TS_S.powi(3)).abs())
+        .fold(0.0, f64::max)
+}
+
+fn run_jerk_case(rek: &str, failures: &mut Vec<String>) {
+    let text = std::fs::read_to_string(jerk_dir().join(format!("{rek}.rek"))).unwrap();
+    let axis = "max_velocity_mm_min = 20000\nmax_accel_mm_s2 = 1000\n";
+    let d = Daemon::start_with_files(
+        &format!("jerk-ref-{rek}"),
+        "[bus]\nkind = 'sim'\n",
+        [1, 2, 3],
+        [axis; 3],
+        &[("TAB0.REK", &text)],
+    );
+    let moves = jerk_rows("moves.tsv");
+    for r in jerk_rows(&format!("ruckig-{rek}.tsv")) {
+        let m = moves.iter().find(|m| m[0] == r[0]).unwrap();
+        let program = format!("G1 X{} Y{} Z{} F{}\n", m[1], m[2], m[3], m[4]);
+        let prog = d.program(&format!("{}.nc", r[0]), &program);
+        let csv = d.dir.join(format!("{}.csv", r[0]));
+        let (ok, out) = d.cncctl(
+            &["--json", "trajectory", &prog, "-o", csv.to_str().unwrap()],
+            Duration::from_secs(120),
+        );
+        assert!(ok, "{rek} {}: cncctl trajectory failed: {out}", r[0]);
+        let t = total_s(&out);
+        let (j_mm_s3, ruckig_s): (f64, f64) = (r[4].parse().unwrap(), r[5].parse().unwrap());
+        // Positions to 1 nm: a third difference is off by up to 8 × 0.5 nm.
+        let rounding = 8.0 * 0.5e-6 / TS_S.powi(3);
+        let jerk = max_path_jerk(&csv_rows(&csv));
+        println!(
+            "{rek:18} {:9} {t:.3} s, Ruckig {ruckig_s:.4} s, ratio {:.3}, path jerk / J {:.4}",
+            r[0],
+            t / ruckig_s,
+            jerk / j_mm_s3
+        );
+        if t / ruckig_s > 1.03 || jerk > j_mm_s3 + rounding {
+            failures.push(format!(
+                "{rek} {}: {t:.3} s, Ruckig {ruckig_s:.4} s, jerk {jerk:.1} of {j_mm_s3:.1}",
+                r[0]
+            ));
+        }
+    }
+}
+
+#[test]
+fn parabolic_moves_take_ruckigs_time_within_their_jerk() {
+    let mut failures = vec![];
+    for rek in ["parabolic-set", "parabolic-default"] {
+        run_jerk_case(rek, &mut failures);
     }
     assert!(failures.is_empty(), "{failures:#?}");
 }

@@ -1,14 +1,15 @@
-//! The per-axis box on the setpoints themselves (linear profile, issue #32; docs/planner.md,
-//! *The per-axis box on the setpoints*).
+//! The per-axis box on the setpoints themselves (linear profile, issues #32 and #49;
+//! docs/planner.md, *The per-axis box on the setpoints*).
 //!
 //! What the drives see is the setpoints: per axis, the second difference of three consecutive
 //! ones is the axis's velocity change over a tick and must stay within a_k·Ts². The planner's
 //! envelope bounds it from the geometry ahead for every speed (junction caps, line budgets),
-//! which on a dense curve leaves 4-12 % of the time on the table. Where a segment is limited by
-//! its axes alone (`Segment::axis_box`: a line, the linear profile, no path-level
-//! acceleration), the raw stage chooses each setpoint from the box directly:
+//! which on a dense curve leaves 4-12 % of the time on the table. On a line of the linear
+//! profile (`Segment::axis_box`) the raw stage chooses each setpoint from the box directly:
 //! - the setpoints the box allows next lie in intervals of arc length, exact on lines, where
-//!   each axis's position is linear in the arc length (`box_scan`); the step also keeps every
+//!   each axis's position is linear in the arc length (`box_scan`); the path acceleration of
+//!   the constants (R52, R236, R237, a set's A: `BoxAccel::path`) bounds the second difference
+//!   of the arc length at the setpoint, the speed's change over a tick; the step also keeps every
 //!   segment's ceiling it runs on, the manual's criteria (R385, R384) of every junction it
 //!   crosses or starts on, R384 over all the junctions of the step together (`Accuracy`),
 //!   and never passes a stop point;
@@ -19,8 +20,9 @@
 //!   tried at most (`box_search`). The braking of the last accepted proof is kept (`Plan`):
 //!   its next setpoint is proven whatever the search finds, so every tick stays within the box.
 //!
-//! The envelope takes over where the box cannot look (an arc, a path-level acceleration, the
-//! jerk filters) once it allows the current speed and its next setpoint is inside the box.
+//! The envelope takes over where the box cannot look (an arc, the jerk filters, a braking
+//! longer than `PROOF_TICKS`) once it allows the current speed and its next setpoint is
+//! inside the box.
 
 use super::{ARRIVE_EPS_MM, InterpState, Interpolator};
 use crate::plan::{SegPath, Segment};

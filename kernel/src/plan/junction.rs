@@ -201,6 +201,7 @@ impl Planner {
         if planned_stop {
             self.rebudget_before(i);
         }
+        self.unfilter_isolated_line(i, last);
         self.set_accelerations(i, last);
         self.apply_rise_limit(i);
         let p = &mut self.win[i];
@@ -447,6 +448,19 @@ impl Planner {
             lower(4.0 * l.lm_um * 1e-3 / (TS_S * chord));
         }
         bound
+    }
+
+    /// A line from a stop to a stop runs without the axis smoothing filter (parabolic
+    /// profile): the filter smooths the turns of a continuous path, and along one line each
+    /// axis follows the path's own jerk, so it would only add 2(n − 1) ticks to the move
+    /// (issue #49). The interpolator changes the filter at the stop, at rest.
+    fn unfilter_isolated_line(&mut self, i: usize, last: bool) {
+        let starts_at_stop = !(i > 0 && self.win[i - 1].smooth);
+        let p = &mut self.win[i];
+        let ends_at_stop = last || !p.smooth;
+        if starts_at_stop && ends_at_stop && matches!(p.seg.path, SegPath::Line { .. }) {
+            p.seg.axis_filter_ticks = 1;
+        }
     }
 
     /// Acceleration of block `i` (feed, and stop/hold): R52 without continuity, R236 (or the

@@ -830,7 +830,7 @@ pub fn reference_paths() -> Vec<ReferencePath> {
 
 /// Blocks of a program of `G1 X Y Z` lines from the origin (the reference's programs; the
 /// first line also carries G23 and F).
-fn program_of_g1(text: &str) -> Vec<Block> {
+pub fn program_of_g1(text: &str) -> Vec<Block> {
     let mut p = Prog::new(p3(0.0, 0.0, 0.0), 6000.0, Continuity::G23);
     for line in text.lines() {
         let mut q = p.pos;
