@@ -15,7 +15,7 @@ export class Listing {
   constructor(testid?: string) {
     this.body = h("div", { class: "listing-body" });
     this.spacer = h("div", { class: "listing-spacer" }, this.body);
-    this.el = h("div", { class: "listing", testid }, this.spacer);
+    this.el = h("div", { class: "listing", testid, translate: "no" }, this.spacer);
     this.el.addEventListener("scroll", () => this.draw());
     new ResizeObserver(() => this.draw()).observe(this.el);
   }
