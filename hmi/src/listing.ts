@@ -21,7 +21,7 @@ export class Listing {
   }
 
   setText(text: string): void {
-    this.lines = text.split(/\r?\n/);
+    this.lines = text ? text.split(/\r?\n/) : [];
     if (this.lines.length > 1 && this.lines[this.lines.length - 1] === "") this.lines.pop();
     this.spacer.style.height = `${this.lines.length * LINE_PX}px`;
     this.draw();
