@@ -4,6 +4,7 @@
 import type { AxisStatus, Status } from "./gen/cnc/v1/cnc_pb";
 import { h, setText } from "./dom";
 import { mm } from "./format";
+import { t } from "./i18n";
 import { onConnection, subscribe } from "./status";
 
 interface Row {
@@ -18,13 +19,13 @@ export function droPanel(): HTMLElement {
   const rows = new Map<string, Row>();
   const list = h("div", { class: "dro-rows" });
   const speed = h("span", {}, "—");
-  const stale = h("div", { class: "stale-banner" }, "NOT LIVE — connection lost");
+  const stale = h("div", { class: "stale-banner" }, t("dro.notLive"));
   const panel = h(
     "aside",
     { class: "dro stale" },
     stale,
     list,
-    h("div", { class: "dro-foot" }, "path speed ", speed, " mm/min"),
+    h("div", { class: "dro-foot" }, `${t("dro.pathSpeed")} `, speed, ` ${t("unit.mmMin")}`),
   );
 
   function row(a: AxisStatus): Row {
@@ -38,7 +39,7 @@ export function droPanel(): HTMLElement {
       "div",
       { class: "dro-row" },
       h("div", { class: "dro-main" }, label, cmd),
-      h("div", { class: "dro-sub" }, h("span", {}, "actual "), act, h("span", {}, "  to go "), dtg),
+      h("div", { class: "dro-sub" }, h("span", {}, `${t("dro.actual")} `), act, h("span", {}, `  ${t("dro.toGo")} `), dtg),
     );
     list.append(el);
     r = { cmd, act, dtg, label, row: el };

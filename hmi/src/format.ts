@@ -1,6 +1,8 @@
 // How numbers and states read on the screen.
-import { Code, ConnectError } from "@connectrpc/connect";
 import { MachineState } from "./gen/cnc/v1/cnc_pb";
+import { lang, t } from "./i18n";
+
+export { errorText } from "./server_text";
 
 export function mm(v: number): string {
   return v.toFixed(3);
@@ -31,13 +33,14 @@ export function stateName(s: MachineState): string {
   }
 }
 
-/** A refusal as the operator reads it: the status code name and the server's message. */
-export function errorText(e: unknown): string {
-  if (e instanceof ConnectError) return `${Code[e.code]}: ${e.rawMessage}`;
-  return String(e);
+/** The machine state as the operator reads it (stateName stays the stable English code:
+ * `data-state` and the tests match it). */
+export function stateLabel(s: MachineState): string {
+  const n = stateName(s);
+  return n === "—" ? n : t(`state.${n}` as Parameters<typeof t>[0]);
 }
 
 export function time(unixMs: bigint | number): string {
   const d = new Date(Number(unixMs));
-  return d.toLocaleString();
+  return d.toLocaleString(lang() === "cs" ? "cs-CZ" : "en-GB");
 }

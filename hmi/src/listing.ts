@@ -15,13 +15,13 @@ export class Listing {
   constructor(testid?: string) {
     this.body = h("div", { class: "listing-body" });
     this.spacer = h("div", { class: "listing-spacer" }, this.body);
-    this.el = h("div", { class: "listing", testid }, this.spacer);
+    this.el = h("div", { class: "listing", testid, translate: "no" }, this.spacer);
     this.el.addEventListener("scroll", () => this.draw());
     new ResizeObserver(() => this.draw()).observe(this.el);
   }
 
   setText(text: string): void {
-    this.lines = text.split(/\r?\n/);
+    this.lines = text ? text.split(/\r?\n/) : [];
     if (this.lines.length > 1 && this.lines[this.lines.length - 1] === "") this.lines.pop();
     this.spacer.style.height = `${this.lines.length * LINE_PX}px`;
     this.draw();

@@ -4,7 +4,11 @@ import { ConnectError, Code } from "@connectrpc/connect";
 import { machine } from "./api";
 import { button, h, setText } from "./dom";
 import { droPanel } from "./dro";
-import { errorText, stateName } from "./format";
+import { cycleBar } from "./cycle";
+import { errorText, stateLabel, stateName } from "./format";
+import { catalogues, lang, setLang, t } from "./i18n";
+import type { Key } from "./lang/en";
+import { alarmText } from "./server_text";
 import { adoptFragmentToken, may, onRole, role, setRole, setToken, token, type Role } from "./session";
 import { jogEnd } from "./jog";
 import { drawn, onConnection, startStatus, subscribe } from "./status";
@@ -49,11 +53,11 @@ async function whoAmI(msg?: HTMLElement): Promise<void> {
   try {
     const me = await machine.whoAmI({});
     setRole(me.role);
-    if (msg) msg.textContent = me.who === "local" ? "" : `signed in as ${me.who}`;
+    if (msg) msg.textContent = me.who === "local" ? "" : t("login.as", { who: me.who });
   } catch (e) {
     if (e instanceof ConnectError && e.code === Code.Unauthenticated) {
       setToken("");
-      if (msg) msg.textContent = "token refused";
+      if (msg) msg.textContent = t("login.refused");
       return whoAmI();
     }
     setRole("observer");
@@ -62,19 +66,19 @@ async function whoAmI(msg?: HTMLElement): Promise<void> {
 }
 
 function header(): HTMLElement {
-  const conn = h("span", { class: "conn connecting", testid: "connection-state" }, "connecting");
+  const conn = h("span", { class: "conn connecting", testid: "connection-state", "data-state": "connecting" }, t("conn.connecting"));
   const state = h("span", { class: "state", testid: "machine-state" }, "—");
-  const roleEl = h("span", { class: "role", testid: "role" }, "observer");
+  const roleEl = h("span", { class: "role", testid: "role", "data-role": "observer" }, t("role.observer"));
   const who = h("span", { class: "who" });
   const tokenIn = h("input", {
     type: "password",
     testid: "login-token",
-    placeholder: "token",
+    placeholder: t("login.placeholder"),
     autocomplete: "off",
     class: "token",
   });
   const submit = button(
-    "Sign in",
+    t("login.submit"),
     "login-submit",
     () => {
       setToken(tokenIn.value.trim());
@@ -87,26 +91,30 @@ function header(): HTMLElement {
   tokenIn.addEventListener("keydown", (e) => {
     if (e.key === "Enter") submit.click();
   });
-  const signOut = button("Sign out", "logout", () => {
+  const signOut = button(t("login.out"), "logout", () => {
     setToken("");
     void whoAmI(who);
   }, "", "observer");
   const alarm = h("span", { class: "alarm-banner", testid: "alarm-banner" });
-  const stopBtn = button("STOP", "stop", () => void stop(), "stop");
+  const stopBtn = button(t("stop"), "stop", () => void stop(), "stop");
+  // The other language, one tap away (the page loads again in it).
+  const langBtn = button(t("lang.other"), "lang-switch", () => setLang(lang() === "cs" ? "en" : "cs"), "lang", "observer");
+  langBtn.title = t("lang.otherName");
 
   onConnection((c) => {
     conn.className = `conn ${c}`;
-    setText(conn, c === "live" ? "connected" : c === "lost" ? "CONNECTION LOST" : "connecting");
+    conn.dataset.state = c;
+    setText(conn, t(c === "live" ? "conn.live" : c === "lost" ? "conn.lost" : "conn.connecting"));
     state.classList.toggle("stale", c !== "live");
   });
   subscribe((s) => {
-    setText(state, stateName(s.state));
+    setText(state, stateLabel(s.state));
     state.dataset.state = stateName(s.state);
-    setText(alarm, s.activeAlarms.length ? `⚠ ${s.activeAlarms[0].message}` : "");
+    setText(alarm, s.activeAlarms.length ? `⚠ ${alarmText(s.activeAlarms[0].message)}` : "");
   });
   const signin = h("span", { class: "signin" }, tokenIn, submit, signOut, who, roleEl);
   onRole((r: Role) => {
-    setText(roleEl, r);
+    setText(roleEl, t(`role.${r}`));
     roleEl.dataset.role = r;
     // Signed in with a token: the field gives way to "Sign out" (the header stays one line).
     signin.classList.toggle("signed", token() !== "");
@@ -120,6 +128,7 @@ function header(): HTMLElement {
     alarm,
     h("span", { class: "grow" }),
     signin,
+    langBtn,
     stopBtn,
   );
 }
@@ -165,6 +174,7 @@ function shortcuts(): void {
 }
 
 function boot(): void {
+  document.documentElement.lang = lang();
   adoptFragmentToken();
   const screens: Screen[] = [
     runScreen(),
@@ -181,24 +191,32 @@ function boot(): void {
   ];
   const nav = h("nav", {});
   const view = h("section", { class: "view" });
+  const app = h("div", { class: "app" });
   const tabs = new Map<string, HTMLButtonElement>();
   function show(id: string): void {
     for (const s of screens) {
       const on = s.id === id;
       s.el.hidden = !on;
       tabs.get(s.id)!.classList.toggle("on", on);
+      if (on) app.dataset.screen = id;
       if (on) s.onShow?.();
     }
     history.replaceState(null, "", `#${id}`);
   }
   for (const s of screens) {
-    const t = h("button", { class: "tab", testid: `tab-${s.id}`, type: "button" }, s.title);
-    t.addEventListener("click", () => show(s.id));
-    tabs.set(s.id, t);
-    nav.append(t);
+    // A full and a short label: CSS shows the one that fits the panel's width.
+    const long = t(`tab.${s.id}` as Key), short = t(`tab.${s.id}.short` as Key);
+    const tab = h("button", { class: "tab", testid: `tab-${s.id}`, type: "button", title: long },
+      h("span", { class: "long" }, long), h("span", { class: "short" }, short));
+    tab.addEventListener("click", () => show(s.id));
+    tabs.set(s.id, tab);
+    nav.append(tab);
     view.append(s.el);
   }
-  const app = h("div", { class: "app" }, header(), nav, h("main", {}, droPanel(), view), flash);
+  // The cycle bar under the screen, shown on the screens that run the machine (CSS by
+  // data-screen), never scrolled away with the screen's content.
+  const work = h("div", { class: "work" }, view, cycleBar(say));
+  app.append(header(), nav, h("main", {}, droPanel(), work), flash);
   document.body.append(app);
   new MutationObserver((records) => {
     for (const r of records) r.addedNodes.forEach((n) => n instanceof Element && gate(n));
@@ -218,7 +236,7 @@ function boot(): void {
     }
   });
   // For integrators' tests and the benchmark: role, and when snapshots reached the screen.
-  (window as unknown as { cncHmi: object }).cncHmi = { drawn, role, jogEnd };
+  (window as unknown as { cncHmi: object }).cncHmi = { drawn, role, jogEnd, lang, catalogues };
 }
 
 boot();

@@ -2,7 +2,7 @@
 export interface Screen {
   /** Short id (the tab's test id is `tab-<id>`). */
   id: string;
-  title: string;
+  /** The tab's label: catalogue keys `tab.<id>` and `tab.<id>.short`. */
   el: HTMLElement;
   /** Called when the screen comes into view (refresh lists). */
   onShow?(): void;

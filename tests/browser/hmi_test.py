@@ -6,6 +6,7 @@ the 800 x 480 ones of the I/O and Constants screens). Every wait is on a conditi
 slow), never a sleep and an assert. Prints one line per test and "N passed, M failed"."""
 
 import os
+import re
 import sys
 import tempfile
 import time
@@ -19,7 +20,7 @@ from selenium.webdriver.common.by import By
 from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.support.ui import Select
 
-from chromium import browser
+from chromium import browser, viewport
 from proxy import CuttableProxy
 
 PATIENCE_S = 60.0
@@ -83,14 +84,15 @@ class Page:
         return float(self.text("dro-X"))
 
     def state(self) -> str:
-        return self.text("machine-state")
+        # data-state: the state's stable name whatever the screen's language.
+        return self.el("machine-state").get_attribute("data-state") or ""
 
     def wait_state(self, *states: str, timeout=PATIENCE_S) -> str:
         return wait(lambda: f"machine state in {states} (now {self.state()})",
                     lambda: self.state() in states and self.state(), timeout)
 
     def wait_live(self) -> None:
-        wait("connection-state connected", lambda: self.text("connection-state") == "connected")
+        wait("connection-state live", lambda: self.el("connection-state").get_attribute("data-state") == "live")
 
     def wait_x_at_rest(self) -> float:
         """X once the machine is idle and two reads half a second apart agree."""
@@ -112,6 +114,8 @@ class Page:
 
 
 results = []
+# Run a subset while working on one: CNC_TESTS=word,word runs the tests whose names hold one.
+ONLY = [x for x in os.environ.get("CNC_TESTS", "").split(",") if x]
 
 
 def test(fn):
@@ -516,10 +520,10 @@ def the_constants_screen_names_each_constant_with_its_unit():
 
 @test
 def io_constants_and_run_fit_800_by_480():
-    small = Page(browser(800, 480))
+    # The admin's page of the test above, its viewport set to the panel (no second browser).
+    small = obs
+    viewport(small.d, 800, 480)
     try:
-        small.d.get(URL + "#token=" + ADMIN_TOKEN)
-        small.wait_live()
         wait("role admin", lambda: small.text("role") == "admin")
         grpc_web("SimSetInput", name_value("door", False), ADMIN_TOKEN)
         for screen in ("io", "constants", "run"):
@@ -542,10 +546,198 @@ def io_constants_and_run_fit_800_by_480():
             small.shot(f"hmi_{screen}_800x480.png", os.environ.get("CNC_FAIL_SHOTS", ""))
     finally:
         grpc_web("SimSetInput", name_value("door", None), ADMIN_TOKEN)
-        small.d.quit()
+        viewport(small.d, 1280, 800)
+
+
+# ---- panels and language (issue #51) ---------------------------------------------------------
+
+# The panels machines have: 7" 800 x 480, 10" 1024 x 600, 1280 x 800, a tablet standing up.
+PANELS = ((800, 480), (1024, 600), (1280, 800), (800, 1280))
+
+# From the elements' boxes: the controls an operator must always reach are inside the viewport,
+# at least 48 px (about 9 mm) each way, and none overlaps another; no tab label is cut; the
+# page itself does not scroll.
+LAYOUT_JS = """
+const vw = innerWidth, vh = innerHeight, out = [];
+const tid = (id) => document.querySelector(`[data-testid="${id}"]`);
+const box = (el) => el.getBoundingClientRect();
+const inside = (n, r) => {
+  if (r.width === 0 || r.height === 0) out.push(`${n} not shown`);
+  else if (r.left < -0.5 || r.top < -0.5 || r.right > vw + 0.5 || r.bottom > vh + 0.5)
+    out.push(`${n} outside ${vw}x${vh}: ${r.left|0},${r.top|0} ${r.width|0}x${r.height|0}`);
+};
+const touch = (n, r) => { if (r.width < 48 || r.height < 48) out.push(`${n} ${r.width|0}x${r.height|0} under 48 px`); };
+const controls = ['cycle-start', 'feed-hold', 'resume', 'reset', 'stop'].map((id) => [id, tid(id)]);
+// The header's other buttons, as far as the role shows them (Sign in or Sign out).
+for (const id of ['login-submit', 'logout', 'lang-switch']) if (tid(id)?.getClientRects().length) controls.push([id, tid(id)]);
+const tabs = [...document.querySelectorAll('nav .tab')].map((t) => [t.dataset.testid, t]);
+const dro = [...document.querySelectorAll('aside.dro [data-testid^="dro-"]')].map((e) => [e.dataset.testid, e]);
+if (!dro.length) out.push('no DRO axis shown');
+const all = [...controls, ...tabs, ...dro, ['dro', document.querySelector('aside.dro')]];
+for (const [n, el] of all) if (!el) out.push(`${n} missing`); else inside(n, box(el));
+for (const [n, el] of [...controls, ...tabs]) {
+  if (!el) continue;
+  touch(n, box(el));
+  // A label cut (tabs: one line, clipped) or spilling out of its button.
+  if (el.scrollWidth > el.clientWidth + 0.5 || el.scrollHeight > el.clientHeight + 0.5)
+    out.push(`${n} label cut: ${el.scrollWidth}x${el.scrollHeight} in ${el.clientWidth}x${el.clientHeight}`);
+}
+for (const [n, el] of dro) if (el.scrollWidth > el.clientWidth + 0.5) out.push(`${n} cut`);
+const solid = [...controls, ...tabs, ...dro].filter(([, el]) => el);
+for (let i = 0; i < solid.length; i++) for (let j = i + 1; j < solid.length; j++) {
+  const a = box(solid[i][1]), b = box(solid[j][1]);
+  const w = Math.min(a.right, b.right) - Math.max(a.left, b.left), h = Math.min(a.bottom, b.bottom) - Math.max(a.top, b.top);
+  if (w > 0.5 && h > 0.5) out.push(`${solid[i][0]} overlaps ${solid[j][0]}`);
+}
+const shown = [...document.querySelectorAll('.screen')].filter((e) => e.getClientRects().length);
+if (shown.length !== 1) out.push(`${shown.length} screens shown`);
+const de = document.documentElement;
+if (de.scrollWidth > vw || de.scrollHeight > vh) out.push(`the page scrolls: ${de.scrollWidth}x${de.scrollHeight}`);
+return out;
+"""
+
+
+def layout_problems(page: Page) -> list:
+    return page.d.execute_script(LAYOUT_JS)
+
+
+def check_panels(page: Page, shots: str = "", sizes=PANELS) -> None:
+    """Run and Jog at every panel size: the layout holds (LAYOUT_JS); a Run screenshot each."""
+    problems = []
+    try:
+        for w, h in sizes:
+            viewport(page.d, w, h)
+            for screen in ("jog", "run"):
+                page.tab(screen)
+                # Laid out again at the new size (two frames), then measured.
+                page.d.execute_script("return new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)))")
+                problems += [f"{w}x{h} {screen}: {p}" for p in layout_problems(page)]
+            if shots:
+                page.shot(f"hmi_run_{w}x{h}.png", shots)
+    finally:
+        viewport(page.d, 1280, 800)
+    assert not problems, "\n".join(problems)
+
+
+@test
+def run_and_jog_hold_at_every_panel_size_in_english():
+    # The admin's page (signed in: the header shows Sign out); a full-HD screen too.
+    if not obs.d.current_url.startswith(URL):  # run alone (CNC_TESTS)
+        obs.d.get(URL + "#token=" + ADMIN_TOKEN)
+    obs.wait_live()
+    check_panels(obs, sizes=PANELS + ((1920, 1080),))
+
+
+def catalogue_vocabulary(page: Page) -> set:
+    """Words of the English catalogue that are not Czech: seen on a Czech screen, they are
+    English left over. Codes, numbers, units and names (in both catalogues) drop out."""
+    cats = page.d.execute_script("return cncHmi.catalogues")
+    words = lambda s: {w.lower() for w in re.findall(r"[A-Za-z]{3,}", s)}
+    english = set().union(*(words(v) for k, v in cats["en"].items() if cats["cs"][k] != v))
+    czech = set().union(*(words(v) for v in cats["cs"].values()))
+    return english - czech
+
+
+# Every visible text of the page (selects: the chosen option) but what is data, not labels:
+# elements marked translate="no" (program text and names, I/O names, MDI blocks).
+VISIBLE_TEXT_JS = """
+const out = [];
+const walk = document.createTreeWalker(document.body, NodeFilter.SHOW_TEXT);
+for (let n = walk.nextNode(); n; n = walk.nextNode()) {
+  const el = n.parentElement, s = n.textContent.trim();
+  if (!s || !el || el.closest('[translate=no], option, script, style')) continue;
+  if (!el.getClientRects().length || getComputedStyle(el).visibility === 'hidden') continue;
+  out.push(s);
+}
+for (const sel of document.querySelectorAll('select')) if (sel.getClientRects().length) out.push(sel.selectedOptions[0]?.text ?? '');
+return out;
+"""
+
+
+# Words the Czech manuals use as they are (strojní konstanta R234: "limit pro test spojitosti").
+SHARED_WORDS = {"limit"}
+
+
+def english_left(page: Page, vocabulary: set) -> list:
+    left = []
+    for text in page.d.execute_script(VISIBLE_TEXT_JS):
+        for token in text.split():
+            # Identifiers, codes and numbers (hmi_test.nc, [unknown_address], 0x1A, N30) are not words.
+            if re.search(r"[_0-9@#/\\.]", token) or token.startswith("["):
+                continue
+            w = token.strip("()[]{}:;,.!?…—-–\"'«»").lower()
+            # Czech words (with their own letters) never match: only plain Latin words can.
+            if re.fullmatch(r"[a-z]+", w) and w in vocabulary and w not in SHARED_WORDS:
+                left.append(f"{w!r} in {text!r}")
+    return left
+
+
+@test
+def a_czech_browser_gets_a_czech_screen_that_holds_at_every_panel_size():
+    cz = Page(browser(lang="cs-CZ"))
+    try:
+        cz.d.get(URL)
+        cz.wait_live()
+        assert cz.d.execute_script("return document.documentElement.lang") == "cs"
+        # Observer (no token): the header holds the token field and Sign in, its widest form.
+        check_panels(cz, SHOTS)
+        vocabulary = catalogue_vocabulary(cz)
+        assert {"feed", "hold", "spindle"} <= vocabulary, sorted(vocabulary)[:20]
+        # The check bites: the English page of the same machine is full of such words.
+        assert len(english_left(obs, vocabulary)) > 20, english_left(obs, vocabulary)
+        left = []
+        for screen in ("run", "preview", "programs", "mdi", "jog", "homing", "offsets", "constants",
+                       "plc", "io", "alarms"):
+            cz.tab(screen)
+            if screen == "constants":
+                wait("constants listed", lambda: cz.d.find_elements(
+                    By.CSS_SELECTOR, '[data-testid="constants-table"] tr[data-number="384"]'))
+                name = cz.d.find_element(By.CSS_SELECTOR, 'tr[data-number="236"] .c-name').text
+                assert name == "zrychlení pro plynulou návaznost", name
+            if screen == "programs":
+                # The header row comes with the rows (one fill): the list is there.
+                wait("programs listed", lambda: cz.d.find_elements(By.CSS_SELECTOR, '[data-testid="program-list"] tr'))
+            if screen == "preview" and cz.text("program-name") != "—":
+                wait("preview drawn", lambda: cz.el("preview").get_attribute("data-state") == "drawn")
+            if screen == "io":
+                wait("inputs listed", lambda: cz.el("io-in-estop"))
+            if screen == "alarms":
+                # After the suite's alarm tests there is a history to read (alone, none comes).
+                if not ONLY:
+                    wait("alarm history", lambda: cz.d.find_elements(By.CSS_SELECTOR, '[data-testid="alarm-history"] .alarm'))
+            left += [f"{screen}: {x}" for x in english_left(cz, vocabulary)]
+            if screen in ("preview", "constants", "alarms"):
+                cz.shot(f"hmi_{screen}_cs.png", os.environ.get("CNC_FAIL_SHOTS", ""))
+        # A refusal with a diagnostic code reads in Czech too (a program that does not check).
+        path = os.path.join(tempfile.mkdtemp(), "hmi_cs_bad.nc")
+        with open(path, "w") as f:
+            f.write("N10 G1 X10 F500\nN30 G1 X0 Y0 Q7\n")
+        cz.d.get(URL + "#token=" + TOKEN)
+        wait("role operator", lambda: cz.el("role").get_attribute("data-role") == "operator")
+        cz.tab("programs")
+        cz.el("program-upload").send_keys(path)
+        link = wait("a diagnostic", lambda: cz.d.find_element(By.CSS_SELECTOR, '[data-testid="diagnostics"] a[data-line="2"]'))
+        assert "[unknown_address] řádek 2:" in link.text and "Adresa, kterou jazyk nemá." in link.text, link.text
+        left += [f"programs: {x}" for x in english_left(cz, vocabulary)]
+        cz.shot("hmi_programs_cs.png", os.environ.get("CNC_FAIL_SHOTS", ""))
+        assert not left, "English left on the Czech screen:\n" + "\n".join(left)
+        # The switch on the screen: English, then Czech again (remembered across loads).
+        cz.el("lang-switch").click()
+        wait("English", lambda: cz.d.execute_script("return document.documentElement.lang") == "en"
+             and cz.el("tab-run").text == "Run")
+        cz.d.refresh()
+        wait("still English", lambda: cz.d.execute_script("return document.documentElement.lang") == "en")
+        cz.el("lang-switch").click()
+        wait("Czech again", lambda: cz.d.execute_script("return document.documentElement.lang") == "cs"
+             and cz.el("tab-run").text == "Automat")
+    finally:
+        cz.d.quit()
+
 
 passed = failed = 0
 for fn in results:
+    if ONLY and not any(x in fn.__name__ for x in ONLY):
+        continue
     t0 = time.monotonic()
     try:
         fn()

@@ -3,7 +3,8 @@
 # installed with apt when missing) driven by Selenium (pip, in a venv under target/) against
 # a cargo-built cncd on the simulated machine, through its HMI origin (tests/browser/lib.sh:
 # temporary data directory, free loopback ports, an operator token, a 5 mm following window).
-# Saves the Run and Preview screenshots to docs/images/hmi_run.png and hmi_preview.png.
+# Saves the Run and Preview screenshots to docs/images/hmi_run.png and hmi_preview.png, and the
+# Czech Run screen at each panel size to docs/images/hmi_run_WxH.png (issue #51).
 # Exits non-zero on failure; the last line is "N passed, M failed".
 set -euo pipefail
 cd "$(dirname "$0")/../.."

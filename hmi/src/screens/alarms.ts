@@ -3,6 +3,8 @@
 import { machine } from "../api";
 import { button, fill, h } from "../dom";
 import { errorText, time } from "../format";
+import { t } from "../i18n";
+import { alarmSource, alarmText } from "../server_text";
 import { type Screen, messageLine } from "../screen";
 import { onConnection, subscribe } from "../status";
 import type { AlarmEvent } from "../gen/cnc/v1/cnc_pb";
@@ -22,13 +24,13 @@ export function alarmsScreen(): Screen {
     key = k;
     fill(active, ...s.activeAlarms.map((a) =>
       h("li", { class: "alarm active", "data-id": String(a.id), "data-source": a.source },
-        h("span", { class: "when" }, time(a.raisedUnixMs)), ` ${a.source}: ${a.message}`)));
+        h("span", { class: "when" }, time(a.raisedUnixMs)), ` ${alarmSource(a.source)}: ${alarmText(a.message)}`)));
   });
 
   function drawHistory(): void {
     fill(history, ...events.slice().reverse().map((e) =>
       h("li", { class: e.active ? "alarm raised" : "alarm cleared" },
-        h("span", { class: "when" }, time(e.eventUnixMs)), ` ${e.active ? "raised" : "cleared"} #${e.alarm?.id}: ${e.alarm?.message ?? ""}`)));
+        h("span", { class: "when" }, time(e.eventUnixMs)), ` ${t(e.active ? "alarms.raised" : "alarms.cleared")} #${e.alarm?.id}: ${alarmText(e.alarm?.message ?? "")}`)));
   }
 
   let open = false;
@@ -50,8 +52,8 @@ export function alarmsScreen(): Screen {
   onConnection((c) => c === "live" && void follow());
 
   const el = h("div", { class: "screen alarms-screen" },
-    h("div", { class: "row" }, h("h3", {}, "Active"), button("Reset", "alarm-reset", () =>
-      machine.reset({}).then(() => msg.ok("reset"), (e) => msg.err(errorText(e))), "reset")),
-    active, msg.el, h("h3", {}, "History"), history);
-  return { id: "alarms", title: "Alarms", el };
+    h("div", { class: "row" }, h("h3", {}, t("alarms.active")), button(t("alarms.reset"), "alarm-reset", () =>
+      machine.reset({}).then(() => msg.ok(t("alarms.resetDone")), (e) => msg.err(errorText(e))), "reset")),
+    active, msg.el, h("h3", {}, t("alarms.history")), history);
+  return { id: "alarms", el };
 }

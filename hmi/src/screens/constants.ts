@@ -4,6 +4,9 @@
 import { constants } from "../api";
 import { button, fill, h } from "../dom";
 import { errorText } from "../format";
+import { lang, t } from "../i18n";
+import { constantsCs, unitCs } from "../lang/constants_cs";
+import { diagText } from "../server_text";
 import { type Screen, messageLine } from "../screen";
 
 export function constantsScreen(): Screen {
@@ -17,16 +20,19 @@ export function constantsScreen(): Screen {
   async function refresh(): Promise<void> {
     try {
       const r = await constants.getConstants({});
-      fill(table, h("tr", {}, h("th", {}, "R"), h("th", {}, "constant"), h("th", {}, "value"), h("th", { class: "dec" }, "decades 8…1")),
+      const cs = lang() === "cs";
+      fill(table, h("tr", {}, h("th", {}, t("const.number")), h("th", {}, t("const.name")), h("th", {}, t("const.value")), h("th", { class: "dec" }, t("const.decades"))),
         ...r.constants.map((c) => {
           // A constant the controller reads has a name, a unit and a meaning (the kernel's
           // table); the others are only numbers in the file.
+          // In Czech the manuals' names (lang/constants_cs.ts), keyed by the constant's number.
+          const [name, meaning] = (cs && constantsCs.get(c.number)) || [c.name, c.meaning];
           const what = c.name
-            ? h("td", { class: "c-what" }, h("span", { class: "c-name" }, c.name), h("span", { class: "c-meaning" }, c.meaning))
-            : h("td", { class: "c-what unread" }, "not read by this controller");
+            ? h("td", { class: "c-what" }, h("span", { class: "c-name" }, name), h("span", { class: "c-meaning" }, meaning))
+            : h("td", { class: "c-what unread" }, t("const.unread"));
           const tr = h("tr", { "data-number": String(c.number) }, h("td", {}, `R${c.number}`), what,
-            h("td", { class: "c-value" }, h("span", {}, c.text), h("span", { class: "c-unit" }, c.unit),
-              c.isDefault ? h("span", { class: "c-default" }, "default") : null),
+            h("td", { class: "c-value" }, h("span", {}, c.text), h("span", { class: "c-unit" }, cs ? unitCs(c.unit) : c.unit),
+              c.isDefault ? h("span", { class: "c-default" }, t("const.default")) : null),
             h("td", { class: "dec" }, [...c.decades].reverse().join(" ")));
           tr.addEventListener("click", () => { number.value = String(c.number); value.value = String(c.value); });
           return tr;
@@ -38,16 +44,16 @@ export function constantsScreen(): Screen {
 
   function save(): void {
     constants.setConstants({ values: [{ number: Number(number.value), value: Number(value.value) }] }).then((r) => {
-      const restart = r.restartRequired.length ? `; restart cncd for ${r.restartRequired.map((n) => `R${n}`).join(", ")}` : "";
-      const warn = r.diagnostics.map((d) => d.message).join("; ");
-      msg.ok(`R${number.value} saved${restart}${warn ? `; ${warn}` : ""}`);
+      const restart = r.restartRequired.length ? t("const.restart", { list: r.restartRequired.map((n) => `R${n}`).join(", ") }) : "";
+      const warn = r.diagnostics.map((d) => diagText(d.code, d.message)).join("; ");
+      msg.ok(`${t("const.saved", { n: number.value })}${restart}${warn ? `; ${warn}` : ""}`);
       return refresh();
     }, (e) => msg.err(errorText(e)));
   }
   const el = h("div", { class: "screen constants" },
-    h("div", { class: "row" }, h("label", {}, "R ", number), h("label", {}, "value ", value),
-      button("Save (admin)", "constant-save", save, "", "admin")),
+    h("div", { class: "row" }, h("label", {}, "R ", number), h("label", {}, `${t("const.value")} `, value),
+      button(t("const.save"), "constant-save", save, "", "admin")),
     msg.el,
     h("div", { class: "scroll" }, table));
-  return { id: "constants", title: "Constants", el, onShow: () => void refresh() };
+  return { id: "constants", el, onShow: () => void refresh() };
 }

@@ -6,6 +6,7 @@
 import { machine } from "../api";
 import { button, fill, h, setText } from "../dom";
 import { errorText } from "../format";
+import { t } from "../i18n";
 import { ioWarnings, warningsKey } from "../io";
 import { type Screen, messageLine } from "../screen";
 import { onRole } from "../session";
@@ -15,7 +16,7 @@ import type { IoList, IoPoint } from "../gen/cnc/v1/cnc_pb";
 type Row = { el: HTMLElement; value: HTMLElement; tags: HTMLElement };
 
 /** A value as the confirmation and the buttons name it. */
-const valueName = (v: boolean | undefined) => (v === undefined ? "release" : v ? "1 (on)" : "0 (off)");
+const valueName = (v: boolean | undefined) => t(v === undefined ? "io.valueRelease" : v ? "io.valueOn" : "io.valueOff");
 
 export function ioScreen(): Screen {
   const msg = messageLine();
@@ -31,22 +32,22 @@ export function ioScreen(): Screen {
   let pending: (() => void) | undefined;
   const dialog = h("dialog", { class: "confirm", testid: "io-confirm" }, question,
     h("div", { class: "row" },
-      button("Force", "io-confirm-yes", () => {
+      button(t("io.force"), "io-confirm-yes", () => {
         dialog.close();
         pending?.();
       }, "danger", "observer"),
-      button("Cancel", "io-confirm-no", () => dialog.close(), "", "observer")));
+      button(t("io.cancel"), "io-confirm-no", () => dialog.close(), "", "observer")));
   dialog.addEventListener("close", () => (pending = undefined));
 
   function force(name: string, value: boolean | undefined): void {
     setText(question, value === undefined
-      ? `Release output ${name}? It goes back to what the controller sets.`
-      : `Force output ${name} to ${valueName(value)}? It stays so until released, Reset or a restart.`);
+      ? t("io.askRelease", { name })
+      : t("io.askForce", { name, value: valueName(value) }));
     dialog.dataset.name = name;
     dialog.dataset.value = value === undefined ? "release" : value ? "1" : "0";
     pending = () => {
       machine.forceOutput({ name, value }).then(
-        () => msg.ok(value === undefined ? `${name} released` : `${name} forced to ${value ? 1 : 0}`),
+        () => msg.ok(value === undefined ? t("io.released", { name }) : t("io.forcedTo", { name, value: value ? 1 : 0 })),
         (e) => msg.err(errorText(e)));
     };
     dialog.showModal();
@@ -54,28 +55,30 @@ export function ioScreen(): Screen {
 
   function simSet(name: string, value: boolean | undefined): void {
     machine.simSetInput({ name, value }).then(
-      () => msg.ok(value === undefined ? `${name}: simulated value again` : `${name} set to ${value ? 1 : 0}`),
+      () => msg.ok(value === undefined ? t("io.simAgain", { name }) : t("io.setTo", { name, value: value ? 1 : 0 })),
       (e) => msg.err(errorText(e)));
   }
 
   function row(p: IoPoint, output: boolean): HTMLElement {
     const value = h("span", { class: "io-value" });
     const tags = h("span", { class: "io-tags" });
-    const m = [...p.on.map((x) => (output ? `on ${x}` : `confirms ${x}`)), ...p.off.map((x) => `off ${x}`)];
-    const about = [p.function, p.wiring, ...m].filter(Boolean).join(" · ");
+    const m = [...p.on.map((x) => t(output ? "io.switchesOn" : "io.confirms", { m: x })), ...p.off.map((x) => t("io.switchesOff", { m: x }))];
+    // The function and the wiring are the configuration's own names (docs/io.md): not translated.
+    const ids = [p.function, p.wiring].filter(Boolean).join(" · ");
+    const about = h("div", { class: "io-about" }, h("span", { translate: "no" }, ids), ids && m.length ? " · " : "", m.join(" · "));
     const kind = output ? "out" : "in";
     const act = output
       ? h("div", { class: "io-act admin-only" },
-        button("On", `io-force-${p.name}-on`, () => force(p.name, true), "", "admin"),
-        button("Off", `io-force-${p.name}-off`, () => force(p.name, false), "", "admin"),
-        button("Release", `io-force-${p.name}-release`, () => force(p.name, undefined), "", "admin"))
+        button(t("io.on"), `io-force-${p.name}-on`, () => force(p.name, true), "", "admin"),
+        button(t("io.off"), `io-force-${p.name}-off`, () => force(p.name, false), "", "admin"),
+        button(t("io.release"), `io-force-${p.name}-release`, () => force(p.name, undefined), "", "admin"))
       : h("div", { class: "io-act admin-only sim-only" },
         button("0", `io-sim-${p.name}-0`, () => simSet(p.name, false), "", "admin"),
         button("1", `io-sim-${p.name}-1`, () => simSet(p.name, true), "", "admin"),
-        button("Sim", `io-sim-${p.name}-release`, () => simSet(p.name, undefined), "", "admin"));
+        button(t("io.sim"), `io-sim-${p.name}-release`, () => simSet(p.name, undefined), "", "admin"));
     const el = h("div", { class: "io-point", testid: `io-${kind}-${p.name}`, "data-name": p.name },
-      h("div", { class: "io-main" }, h("span", { class: "lamp" }), h("span", { class: "io-name" }, p.name), value, tags),
-      h("div", { class: "io-about" }, about),
+      h("div", { class: "io-main" }, h("span", { class: "lamp" }), h("span", { class: "io-name", translate: "no" }, p.name), value, tags),
+      about,
       act);
     rows.set(`${kind}:${p.name}`, { el, value, tags });
     return el;
@@ -92,7 +95,7 @@ export function ioScreen(): Screen {
     r.el.classList.toggle("timed-out", p.waitTimedOut);
     r.el.dataset.forced = p.forced ? "1" : "0";
     setText(r.value, v);
-    const tags = [p.forced ? "FORCED" : "", p.waitedFor ? "WAITED FOR" : "", p.waitTimedOut ? "WAIT TIMED OUT" : ""];
+    const tags = [p.forced ? t("io.tagForced") : "", p.waitedFor ? t("io.tagWaited") : "", p.waitTimedOut ? t("io.tagTimedOut") : ""];
     setText(r.tags, tags.filter(Boolean).join(" "));
   }
 
@@ -117,11 +120,11 @@ export function ioScreen(): Screen {
   }
 
   const el = h("div", { class: "screen io" }, banner,
-    h("h3", {}, "Inputs"), inputs, h("h3", {}, "Outputs"), outputs, msg.el, dialog);
+    h("h3", {}, t("io.inputs")), inputs, h("h3", {}, t("io.outputs")), outputs, msg.el, dialog);
   // Hidden: nothing to draw (the Run screen's strip shows the warnings meanwhile).
   subscribe((s) => {
     if (!el.hidden && s.io) draw(s.io);
   });
   onRole((r) => el.classList.toggle("admin", r === "admin"));
-  return { id: "io", title: "I/O", el };
+  return { id: "io", el };
 }

@@ -3,6 +3,7 @@
 import { machine } from "../api";
 import { h } from "../dom";
 import { errorText } from "../format";
+import { t } from "../i18n";
 import { holdToJog, onJogError, press, release } from "../jog";
 import { may } from "../session";
 import { type Screen, messageLine } from "../screen";
@@ -16,7 +17,7 @@ export function jogScreen(): Screen {
   onJogError((t) => msg.err(t));
   const step = h("select", { testid: "jog-step" },
     ...STEPS_MM.map((s) => h("option", { value: s }, `${s} mm`)),
-    h("option", { value: "continuous" }, "continuous"));
+    h("option", { value: "continuous" }, t("jog.continuous")));
   step.value = "1";
   const speed = h("select", { testid: "jog-speed" },
     ...SPEEDS_MM_MIN.map((s) => h("option", { value: s }, `${s} mm/min`)));
@@ -75,10 +76,10 @@ export function jogScreen(): Screen {
   screenEl = h(
     "div",
     { class: "screen jog-screen" },
-    h("div", { class: "row" }, h("label", {}, "Step ", step), h("label", {}, "Speed ", speed)),
+    h("div", { class: "row" }, h("label", {}, `${t("jog.step")} `, step), h("label", {}, `${t("jog.speed")} `, speed)),
     axes,
-    h("p", { class: "hint" }, "Continuous: the axis moves only while the button is held. Keys: ← → X, ↑ ↓ Y, PgUp PgDn Z."),
+    h("p", { class: "hint" }, t("jog.hint")),
     msg.el,
   );
-  return { id: "jog", title: "Jog", el: screenEl };
+  return { id: "jog", el: screenEl };
 }

@@ -3,6 +3,7 @@
 import { machine } from "../api";
 import { button, fill, h } from "../dom";
 import { errorText } from "../format";
+import { t } from "../i18n";
 import { type Screen, messageLine } from "../screen";
 
 const KEY = "cnc.mdi.history";
@@ -12,7 +13,7 @@ export function mdiScreen(): Screen {
   const msg = messageLine();
   const input = h("input", { type: "text", testid: "mdi-input", placeholder: "G1 X10 F500", autocomplete: "off", class: "mdi" });
   input.dataset.least = "operator";
-  const list = h("ul", { class: "history", testid: "mdi-history" });
+  const list = h("ul", { class: "history", testid: "mdi-history", translate: "no" });
   const history: string[] = JSON.parse(localStorage.getItem(KEY) ?? "[]");
   let cursor = -1;
 
@@ -29,7 +30,7 @@ export function mdiScreen(): Screen {
     if (!block) return;
     machine.mdi({ block }).then(
       () => {
-        msg.ok(`sent: ${block}`);
+        msg.ok(t("mdi.sent", { block }));
         const i = history.indexOf(block);
         if (i >= 0) history.splice(i, 1);
         history.unshift(block);
@@ -55,10 +56,10 @@ export function mdiScreen(): Screen {
   const el = h(
     "div",
     { class: "screen mdi" },
-    h("div", { class: "row" }, input, button("Send", "mdi-send", send, "start")),
+    h("div", { class: "row" }, input, button(t("mdi.send"), "mdi-send", send, "start")),
     msg.el,
-    h("h3", {}, "History"),
+    h("h3", {}, t("mdi.history")),
     list,
   );
-  return { id: "mdi", title: "MDI", el, onShow: () => input.focus() };
+  return { id: "mdi", el, onShow: () => input.focus() };
 }

@@ -3,6 +3,7 @@
 import { offsets } from "../api";
 import { button, fill, h } from "../dom";
 import { errorText } from "../format";
+import { t } from "../i18n";
 import { type Screen, messageLine } from "../screen";
 import type { OffsetEntry } from "../gen/cnc/v1/cnc_pb";
 
@@ -41,14 +42,14 @@ export function offsetsScreen(): Screen {
   function save(): void {
     const v = fields.map((f) => (f.value.trim() === "" ? undefined : Number(f.value)));
     offsets.setOffset({ entry: Number(entry.value), radiusMm: v[0], length1Mm: v[1], length2Mm: v[2], length3Mm: v[3], length4Mm: v[4] })
-      .then(() => { msg.ok(`D${entry.value} saved`); return refresh(); }, (e) => msg.err(errorText(e)));
+      .then(() => { msg.ok(t("offsets.saved", { entry: entry.value })); return refresh(); }, (e) => msg.err(errorText(e)));
   }
   all.addEventListener("change", () => void refresh());
   const el = h("div", { class: "screen offsets" },
-    h("label", { class: "check" }, all, " all 99 entries"),
+    h("label", { class: "check" }, all, ` ${t("offsets.all")}`),
     h("div", { class: "scroll" }, table),
     h("div", { class: "row" }, h("label", {}, "D ", entry), ...fields.map((f, i) => h("label", {}, `${labels[i] ?? ""} `, f)),
-      button("Save entry", "offset-save", save)),
+      button(t("offsets.save"), "offset-save", save)),
     msg.el);
-  return { id: "offsets", title: "Offsets", el, onShow: () => void refresh() };
+  return { id: "offsets", el, onShow: () => void refresh() };
 }

@@ -9,11 +9,19 @@
 import { preview } from "../api";
 import { button, h, setText } from "../dom";
 import { errorText } from "../format";
+import { t } from "../i18n";
+import { darkPlot } from "../plot_theme";
 import { type Screen, messageLine } from "../screen";
 import { subscribe } from "../status";
 import { ImageFormat, type Polylines, type PreviewOutline, type Status } from "../gen/cnc/v1/cnc_pb";
 
-const COLORS = { path: "#c8c8c8", rapid: "#e08a3c", comp: "#3d8bff", smooth: "#ffd400", red: "#ff3030", tool: "#39ff88", approach: "#ff4fd8" };
+/** The drawing's colours are the screen's own (style.css, --pv-*), read once. */
+function palette(): Record<"path" | "rapid" | "comp" | "smooth" | "red" | "tool" | "approach", string> {
+  const css = getComputedStyle(document.documentElement);
+  const v = (name: string, dflt: string) => css.getPropertyValue(`--pv-${name}`).trim() || dflt;
+  return { path: v("path", "#c8c8c8"), rapid: v("rapid", "#e08a3c"), comp: v("comp", "#3d8bff"), smooth: v("smooth", "#ffd400"),
+    red: v("red", "#ff3030"), tool: v("tool", "#39ff88"), approach: v("approach", "#ff4fd8") };
+}
 /** Quiet time after a zoom or pan before the finer outline of the extent is asked for. */
 const REFINE_AFTER_MS = 250;
 
@@ -22,13 +30,14 @@ interface View { scale: number; ox: number; oy: number }
 interface Drawing { o: PreviewOutline; extent?: [number, number, number, number] }
 
 export function previewScreen(): Screen {
+  const COLORS = palette();
   const msg = messageLine();
   const base = h("canvas", { class: "layer" });
   const overlay = h("canvas", { class: "layer" });
   const stage = h("div", { class: "stage", testid: "preview", "data-state": "empty" }, base, overlay);
-  const velocity = h("img", { class: "velocity", testid: "velocity-plot", alt: "velocity plot", hidden: true });
+  const velocity = h("img", { class: "velocity", testid: "velocity-plot", alt: t("preview.velocity"), hidden: true });
   const plane = h("select", { testid: "preview-plane" },
-    h("option", { value: "xy" }, "XY"), h("option", { value: "xz" }, "XZ"), h("option", { value: "yz" }, "YZ"), h("option", { value: "zx" }, "ZX (lathe)"));
+    h("option", { value: "xy" }, "XY"), h("option", { value: "xz" }, "XZ"), h("option", { value: "yz" }, "YZ"), h("option", { value: "zx" }, t("preview.lathe")));
   const info = h("span", { class: "lbl", testid: "preview-info" });
 
   let whole: Drawing | undefined;
@@ -198,7 +207,7 @@ export function previewScreen(): Screen {
       stage.dataset.mode = "outline";
       stage.dataset.state = "drawn";
       stage.dataset.ms = (performance.now() - t0).toFixed(0);
-      setText(info, `${o.program}: ${o.blocks} blocks, ${o.smoothJunctions} smooth and ${o.redJunctions} red junctions`);
+      setText(info, t("preview.info", { program: o.program, blocks: o.blocks, smooth: String(o.smoothJunctions), red: String(o.redJunctions) }));
       msg.ok("");
       if (!keep) void loadVelocity().catch(() => {});
     } catch (e) {
@@ -209,7 +218,10 @@ export function previewScreen(): Screen {
 
   async function loadVelocity(): Promise<void> {
     const r = await preview.getPreview({ velocity: true, format: ImageFormat.SVG, widthPx: 1200, heightPx: 300 });
-    velocity.src = URL.createObjectURL(new Blob([r.image as BlobPart], { type: "image/svg+xml" }));
+    // The server draws for paper (white); the screen shows it in its own dark colours.
+    const svg = darkPlot(new TextDecoder().decode(r.image));
+    if (velocity.src) URL.revokeObjectURL(velocity.src);
+    velocity.src = URL.createObjectURL(new Blob([svg], { type: "image/svg+xml" }));
     velocity.hidden = false;
   }
 
@@ -297,18 +309,18 @@ export function previewScreen(): Screen {
   new ResizeObserver(() => { if (whole) { redraw(); refineLater(); } }).observe(stage);
 
   const el = h("div", { class: "screen preview" },
-    h("div", { class: "row" }, h("label", {}, "Plane ", plane),
+    h("div", { class: "row" }, h("label", {}, `${t("preview.plane")} `, plane),
       button("−", "preview-zoom-out", () => zoom(0.8), "", "observer"),
       button("+", "preview-zoom-in", () => zoom(1.25), "", "observer"),
-      button("Fit", "preview-fit", () => { clearTimeout(refineTimer); refineSeq++; fit(); detail = undefined; redraw(); }, "", "observer"),
+      button(t("preview.fit"), "preview-fit", () => { clearTimeout(refineTimer); refineSeq++; fit(); detail = undefined; redraw(); }, "", "observer"),
       info),
     stage,
     h("div", { class: "legend" },
-      h("span", { style: `color:${COLORS.path}` }, "— programmed"), h("span", { style: `color:${COLORS.rapid}` }, "- - rapid"),
-      h("span", { style: `color:${COLORS.comp}` }, "— tool centre"), h("span", { style: `color:${COLORS.smooth}` }, "● smooth"),
-      h("span", { style: `color:${COLORS.red}` }, "● stop / speed drop"), h("span", { style: `color:${COLORS.tool}` }, "⊕ tool"),
-      h("span", { style: `color:${COLORS.approach}` }, "- - restart approach")),
+      h("span", { style: `color:${COLORS.path}` }, t("preview.programmed")), h("span", { style: `color:${COLORS.rapid}` }, t("preview.rapid")),
+      h("span", { style: `color:${COLORS.comp}` }, t("preview.toolCentre")), h("span", { style: `color:${COLORS.smooth}` }, t("preview.smooth")),
+      h("span", { style: `color:${COLORS.red}` }, t("preview.red")), h("span", { style: `color:${COLORS.tool}` }, t("preview.tool")),
+      h("span", { style: `color:${COLORS.approach}` }, t("preview.approach"))),
     velocity,
     msg.el);
-  return { id: "preview", title: "Preview", el, onShow: () => requestAnimationFrame(reload) };
+  return { id: "preview", el, onShow: () => requestAnimationFrame(reload) };
 }

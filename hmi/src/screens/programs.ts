@@ -1,12 +1,13 @@
 // Programs: the library (upload in parts, select, download, rename, delete) and the
 // validation results, each a link to its line in a read-only listing.
-import { ConnectError, decodeBinaryHeader } from "@connectrpc/connect";
-import { DIAGNOSTICS_HEADER, machine, programs } from "../api";
+import { machine, programs } from "../api";
 import { button, fill, h } from "../dom";
 import { errorText, time } from "../format";
+import { t } from "../i18n";
+import { diagnosticsOf, diagText, serverText } from "../server_text";
 import { Listing } from "../listing";
 import { type Screen, messageLine } from "../screen";
-import { type Diagnostic, DiagnosticsSchema, Severity } from "../gen/cnc/v1/cnc_pb";
+import { type Diagnostic, Severity } from "../gen/cnc/v1/cnc_pb";
 
 /** Bytes per UploadPart (below the 4 MiB message limit). */
 const PART_BYTES = 1 << 20;
@@ -36,17 +37,6 @@ export async function upload(name: string, data: Blob, select: boolean, progress
   return await programs.uploadFinish(session);
 }
 
-/** The coded diagnostics of a refusal (INVALID_ARGUMENT carries every error with its line). */
-export function diagnosticsOf(e: unknown): Diagnostic[] {
-  const v = e instanceof ConnectError ? e.metadata.get(DIAGNOSTICS_HEADER) : null;
-  if (!v) return [];
-  try {
-    return decodeBinaryHeader(v, DiagnosticsSchema).items;
-  } catch {
-    return [];
-  }
-}
-
 export function programsScreen(): Screen {
   const msg = messageLine();
   const list = h("table", { class: "list", testid: "program-list" });
@@ -66,7 +56,8 @@ export function programsScreen(): Screen {
       ...items.map((d) => {
         const sev = d.severity === Severity.ERROR ? "error" : d.severity === Severity.WARNING ? "warning" : "note";
         const a = h("a", { href: "#", class: `diag ${sev}`, "data-line": d.line },
-          `${sev} [${d.code}] line ${d.line}:${d.column}${d.block !== undefined ? ` N${d.block}` : ""}: ${d.message}`);
+          t("diag.line", { sev: t(`diag.${sev}`), code: d.code, line: d.line, column: d.column,
+            block: d.block !== undefined ? ` N${d.block}` : "", message: diagText(d.code, d.message) }));
         a.addEventListener("click", (ev) => {
           ev.preventDefault();
           listing.goto(d.line);
@@ -79,17 +70,17 @@ export function programsScreen(): Screen {
   async function refresh(): Promise<void> {
     try {
       const lib = await programs.list({});
-      usage.textContent = `${(Number(lib.usedBytes) / 1e6).toFixed(1)} of ${(Number(lib.maxBytes) / 1e6).toFixed(0)} MB`;
+      usage.textContent = t("prog.usage", { used: (Number(lib.usedBytes) / 1e6).toFixed(1), max: (Number(lib.maxBytes) / 1e6).toFixed(0) });
       fill(
         list,
-        h("tr", {}, h("th", {}, "name"), h("th", {}, "blocks"), h("th", {}, "KiB"), h("th", {}, "verdict")),
+        h("tr", {}, h("th", {}, t("prog.name")), h("th", {}, t("prog.blocks")), h("th", {}, t("prog.kib")), h("th", {}, t("prog.verdict"))),
         ...lib.programs.map((p) => {
-          const tr = h("tr", { "data-name": p.name, title: `stored ${time(p.modifiedUnixMs)}`,
+          const tr = h("tr", { "data-name": p.name, title: t("prog.stored", { time: time(p.modifiedUnixMs) }),
             class: [p.name === chosen ? "chosen" : "", p.name === lib.selected ? "selected" : ""].join(" ") },
-            h("td", {}, p.name === lib.selected ? `▶ ${p.name}` : p.name),
+            h("td", { translate: "no" }, p.name === lib.selected ? `▶ ${p.name}` : p.name),
             h("td", {}, String(p.blocks)),
             h("td", {}, (Number(p.sizeBytes) / 1024).toFixed(1)),
-            h("td", { class: p.valid ? "ok" : "err" }, p.valid ? `valid${p.warnings ? `, ${p.warnings} warnings` : ""}` : p.firstError),
+            h("td", { class: p.valid ? "ok" : "err" }, p.valid ? (p.warnings ? t("prog.validWarnings", { n: p.warnings }) : t("prog.valid")) : serverText(p.firstError)),
           );
           tr.addEventListener("click", () => void choose(p.name, Number(p.sizeBytes)));
           return tr;
@@ -105,7 +96,7 @@ export function programsScreen(): Screen {
     list.querySelectorAll("tr[data-name]").forEach((r) =>
       r.classList.toggle("chosen", (r as HTMLElement).dataset.name === name));
     if (size > VALIDATE_MAX_BYTES) {
-      listing.setText(`(${name}: ${(size / 1e6).toFixed(1)} MB, too large to list here)`);
+      listing.setText(t("prog.tooLarge", { name, mb: (size / 1e6).toFixed(1) }));
       return fill(diags);
     }
     const text = await downloadText(name);
@@ -115,17 +106,17 @@ export function programsScreen(): Screen {
   }
 
   const act = (f: () => Promise<unknown>, done?: string) => () => {
-    if (!chosen) return msg.err("choose a program in the list first");
+    if (!chosen) return msg.err(t("prog.chooseFirst"));
     f().then(() => { if (done) msg.ok(done); return refresh(); }, (e) => { msg.err(errorText(e)); showDiagnostics(diagnosticsOf(e)); });
   };
 
   file.addEventListener("change", () => {
     const f = file.files?.[0];
     if (!f) return;
-    msg.ok(`uploading ${f.name} …`);
-    upload(f.name, f, selectAfter.checked, (x) => msg.ok(`uploading ${f.name} … ${(x * 100).toFixed(0)} %`))
+    msg.ok(t("prog.uploading", { name: f.name }));
+    upload(f.name, f, selectAfter.checked, (x) => msg.ok(t("prog.uploadingPct", { name: f.name, pct: (x * 100).toFixed(0) })))
       .then((done) => {
-        msg.ok(`${f.name}: stored, ${done.program?.blocks ?? 0} blocks${done.selected ? ", selected" : ""}`);
+        msg.ok(`${t("prog.storedBlocks", { name: f.name, blocks: done.program?.blocks ?? 0 })}${done.selected ? t("prog.andSelected") : ""}`);
         showDiagnostics(done.diagnostics);
         chosen = f.name;
         return refresh();
@@ -138,7 +129,7 @@ export function programsScreen(): Screen {
       .finally(() => (file.value = ""));
   });
 
-  const rename = h("input", { type: "text", placeholder: "new name", testid: "program-rename-to" });
+  const rename = h("input", { type: "text", placeholder: t("prog.newName"), testid: "program-rename-to" });
   rename.dataset.least = "operator";
   const el = h(
     "div",
@@ -146,31 +137,31 @@ export function programsScreen(): Screen {
     h(
       "div",
       { class: "row" },
-      h("label", { class: "file" }, "Upload ", file),
-      h("label", { class: "check" }, selectAfter, " select after upload"),
+      h("label", { class: "file" }, `${t("prog.upload")} `, file),
+      h("label", { class: "check" }, selectAfter, ` ${t("prog.selectAfter")}`),
       usage,
     ),
     h("div", { class: "two" }, h("div", { class: "scroll" }, list), listing.el),
     h(
       "div",
       { class: "row" },
-      button("Select", "program-select", act(() => machine.selectProgram({ name: chosen }), "selected")),
-      button("Download", "program-download", act(async () => {
+      button(t("prog.select"), "program-select", act(() => machine.selectProgram({ name: chosen }), t("prog.selected"))),
+      button(t("prog.download"), "program-download", act(async () => {
         const a = h("a", { href: URL.createObjectURL(new Blob([await downloadText(chosen)])), download: chosen });
         a.click();
       }), "", "observer"),
       rename,
-      button("Rename", "program-rename", act(async () => {
+      button(t("prog.rename"), "program-rename", act(async () => {
         await programs.rename({ from: chosen, to: rename.value.trim() });
         chosen = rename.value.trim();
         rename.value = "";
-      }, "renamed")),
-      button("Delete", "program-delete", act(async () => {
-        if (confirm(`Delete ${chosen}?`)) await programs.delete({ name: chosen });
-      }, "deleted"), "danger"),
+      }, t("prog.renamed"))),
+      button(t("prog.delete"), "program-delete", act(async () => {
+        if (confirm(t("prog.askDelete", { name: chosen }))) await programs.delete({ name: chosen });
+      }, t("prog.deleted")), "danger"),
     ),
     msg.el,
     diags,
   );
-  return { id: "programs", title: "Programs", el, onShow: () => void refresh() };
+  return { id: "programs", el, onShow: () => void refresh() };
 }

@@ -1,12 +1,11 @@
 // Run: program, block and line with the listing scrolled to it, progress, overrides, spindle,
-// KŘR, and the cycle controls (start, hold, resume, reset, single block, optional stop).
+// KŘR (the cycle controls are the shell's bar under the screen: cycle.ts).
 import { machine, programs } from "../api";
-import { button, fill, h, setText } from "../dom";
-import { errorText } from "../format";
+import { fill, h, setText } from "../dom";
+import { t } from "../i18n";
 import { ioWarnings, warningsKey } from "../io";
 import { Listing } from "../listing";
 import type { Screen } from "../screen";
-import { messageLine } from "../screen";
 import { subscribe } from "../status";
 import { MachineState, type Status } from "../gen/cnc/v1/cnc_pb";
 import { downloadText } from "./programs";
@@ -42,17 +41,14 @@ function override(
 }
 
 export function runScreen(): Screen {
-  const msg = messageLine();
-  const call = (f: () => Promise<unknown>) => () =>
-    f().then(() => msg.ok(""), (e) => msg.err(errorText(e)));
-  const program = h("span", { class: "big", testid: "program-name" }, "—");
+  const program = h("span", { class: "big", testid: "program-name", translate: "no" }, "—");
   const block = h("span", { testid: "block" }, "—");
   const line = h("span", { testid: "line" }, "—");
   const bar = h("div", { class: "bar-fill" });
   const pct = h("span", { testid: "progress" }, "0 %");
   const spindle = h("span", {}, "0");
   const feed = h("span", {}, "—");
-  const modal = h("span", { class: "modal" }, "");
+  const modal = h("span", { class: "modal", translate: "no" }, "");
   const kr = h("div", { class: "kr", hidden: true });
   const listing = new Listing("run-listing");
   // E-stop, door, limit and forced outputs without opening the I/O screen (one line, shown
@@ -60,29 +56,12 @@ export function runScreen(): Screen {
   const io = h("div", { class: "io-banner compact", testid: "run-io", hidden: true });
   let ioKey = "";
 
-  const feedOv = override("Feed", "feed-override", 0, 150, (p) => machine.setOverride({ percent: p }));
-  const spinOv = override("Spindle", "spindle-override", 50, 120, (p) =>
+  const feedOv = override(t("ov.feed"), "feed-override", 0, 150, (p) => machine.setOverride({ percent: p }));
+  const spinOv = override(t("ov.spindle"), "spindle-override", 50, 120, (p) =>
     machine.setSpindleOverride({ percent: p }),
   );
-  const rapidOv = override("Rapid", "rapid-override", 0, 100, (p) =>
+  const rapidOv = override(t("ov.rapid"), "rapid-override", 0, 100, (p) =>
     machine.setRapidOverride({ percent: p }),
-  );
-  const single = button("Single block", "single-block", () =>
-    call(() => machine.setSingleBlock({ enabled: !single.classList.contains("active") }))(),
-  "toggle");
-  const optStop = button("Optional stop", "optional-stop", () =>
-    call(() => machine.setOptionalStop({ on: !optStop.classList.contains("active") }))(),
-  "toggle");
-
-  const controls = h(
-    "div",
-    { class: "cycle" },
-    button("Cycle start", "cycle-start", call(() => machine.start({})), "start"),
-    button("Feed hold", "feed-hold", call(() => machine.hold({})), "hold"),
-    button("Resume", "resume", call(() => machine.resume({})), "resume"),
-    button("Reset", "reset", call(() => machine.reset({})), "reset"),
-    single,
-    optStop,
   );
 
   const el = h(
@@ -91,20 +70,18 @@ export function runScreen(): Screen {
     h(
       "div",
       { class: "run-head" },
-      h("div", {}, h("span", { class: "lbl" }, "Program "), program),
-      h("div", {}, h("span", { class: "lbl" }, "Block "), block, h("span", { class: "lbl" }, "  Line "), line),
+      h("div", { class: "run-prog" }, h("span", { class: "lbl" }, `${t("run.program")} `), program),
+      h("div", {}, h("span", { class: "lbl" }, `${t("run.block")} `), block, h("span", { class: "lbl" }, `  ${t("run.line")} `), line),
       h("div", { class: "bar" }, bar, pct),
       io,
     ),
     h("div", { class: "run-body" }, listing.el, h("div", { class: "run-side" },
       feedOv.el, spinOv.el, rapidOv.el,
-      h("div", { class: "kv" }, h("span", { class: "lbl" }, "Spindle "), spindle, " rpm"),
-      h("div", { class: "kv" }, h("span", { class: "lbl" }, "Feed "), feed),
+      h("div", { class: "kv" }, h("span", { class: "lbl" }, `${t("run.spindle")} `), spindle, ` ${t("unit.rpm")}`),
+      h("div", { class: "kv" }, h("span", { class: "lbl" }, `${t("run.feed")} `), feed),
       kr,
       modal,
     )),
-    controls,
-    msg.el,
   );
 
   let shown = "";
@@ -117,7 +94,9 @@ export function runScreen(): Screen {
     const lib = await programs.list({});
     const p = lib.programs.find((q) => q.name === name);
     sizeOk = !!p && Number(p.sizeBytes) <= LISTING_MAX_BYTES;
-    listing.setText(sizeOk ? await downloadText(name) : `(${name}: too large to list here)`);
+    // Not in the library (MDI blocks): nothing to list.
+    if (!p) return listing.setText("");
+    listing.setText(sizeOk ? await downloadText(name) : t("run.tooLarge", { name }));
   }
 
   subscribe((s: Status) => {
@@ -137,13 +116,11 @@ export function runScreen(): Screen {
       listing.goto(s.line);
     }
     setText(spindle, s.spindleRpm.toFixed(0));
-    setText(feed, s.feedProgrammed ? `${s.feedProgrammed} ${s.feedMode === "G95" ? "mm/rev" : "mm/min"}` : "—");
+    setText(feed, s.feedProgrammed ? `${s.feedProgrammed} ${t(s.feedMode === "G95" ? "unit.mmRev" : "unit.mmMin")}` : "—");
     setText(modal, [...s.modalGCodes, s.compensation?.code && s.compensation.entry ? `D${s.compensation.entry}` : ""].join(" "));
     feedOv.show(s.overridePercent);
     spinOv.show(s.spindleOverridePercent);
     rapidOv.show(s.rapidOverridePercent);
-    single.classList.toggle("active", s.singleBlock);
-    optStop.classList.toggle("active", s.optionalStop);
     const w = ioWarnings(s.io);
     const wk = warningsKey(w);
     if (wk !== ioKey) {
@@ -154,8 +131,8 @@ export function runScreen(): Screen {
     const k = s.kr;
     kr.hidden = !k || k.cuttingSpeedMMin <= 0;
     if (k && !kr.hidden) {
-      setText(kr, `KŘR  v ${k.cuttingSpeedMMin.toFixed(1)} m/min  r ${k.radiusMm.toFixed(3)} mm  S ${k.spindleRpm.toFixed(0)} rpm`);
+      setText(kr, t("run.kr", { v: k.cuttingSpeedMMin.toFixed(1), r: k.radiusMm.toFixed(3), s: k.spindleRpm.toFixed(0) }));
     }
   });
-  return { id: "run", title: "Run", el };
+  return { id: "run", el };
 }
