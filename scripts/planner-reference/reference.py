@@ -17,7 +17,7 @@ machine's limits:
 
 With `--path-accel A` (a constants file's R52/R236/R237) the speed along the path changes by at
 most A as well: each chord's acceleration is at most A in the exact bound, and TOPP-RA bounds
-the second derivative of its arc-length coordinate by A.
+the second derivative of a coordinate linear in its chord-length parameter by A.
 
 Nothing here uses the planner's code. Output (committed): paths/<name>.nc and reference.tsv;
 with --path-accel, reference-a<A>.tsv only. Run: scripts/planner-reference/run.sh (makes a venv
@@ -349,7 +349,11 @@ def toppra_piece_s(pts):
     speed = np.linalg.norm(spline.derivative()(fine), axis=1)
     arc = np.concatenate([[0.0], np.cumsum((speed[1:] + speed[:-1]) / 2 * np.diff(fine))])
     arc_at = np.interp(ss, fine, arc)
-    path = ta.SplineInterpolator(ss, np.column_stack([pts, arc_at]))
+    # With a path acceleration, a fifth coordinate linear in the (chord-length) parameter
+    # carries it: its second derivative is s̈ alone (the spline's arc length, interpolated,
+    # is too noisy in its second derivative for the solver).
+    cols = [pts, arc_at] + ([ss] if math.isfinite(A_PATH) else [])
+    path = ta.SplineInterpolator(ss, np.column_stack(cols))
     for spacing in (0.02, 0.017, 0.023, 0.013, 0.029):
         n_grid = int(min(max(ss[-1] / spacing, 200), 60000))
         t = toppra_grid_s(path, np.linspace(0.0, ss[-1], n_grid + 1))
@@ -369,11 +373,14 @@ def toppra_piece_s(pts):
 
 
 def toppra_grid_s(path, grid):
+    v_lim = [[-V_AXIS, V_AXIS]] * 3 + [[-FEED, FEED]]
+    a_lim = [[-A_AXIS, A_AXIS]] * 3 + [[-1e6, 1e6]]
+    if math.isfinite(A_PATH):
+        v_lim.append([-1e6, 1e6])
+        a_lim.append([-A_PATH, A_PATH])
     cons = [
-        constraint.JointVelocityConstraint(np.array([[-V_AXIS, V_AXIS]] * 3 + [[-FEED, FEED]])),
-        constraint.JointAccelerationConstraint(
-            np.array([[-A_AXIS, A_AXIS]] * 3 + [[-min(A_PATH, 1e6), min(A_PATH, 1e6)]])
-        ),
+        constraint.JointVelocityConstraint(np.array(v_lim)),
+        constraint.JointAccelerationConstraint(np.array(a_lim)),
     ]
     inst = algo.TOPPRA(cons, path, gridpoints=grid, solver_wrapper="seidel")
     res = inst.compute_parameterization(0, 0)
