@@ -17,15 +17,11 @@ fn linuxcnc_s(name: &str) -> f64 {
 
 /// LinuxCNC 2.9's time on a reference path from its table `table`, s.
 fn linuxcnc_in(table: &str, name: &str) -> f64 {
-    let file = reference_dir().join("../linuxcnc-compare").join(table);
-    let table = std::fs::read_to_string(file).unwrap();
-    let row = table
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .map(|l| l.split('\t').collect::<Vec<_>>())
-        .find(|f| f[0] == name)
-        .unwrap_or_else(|| panic!("no LinuxCNC time for {name}"));
-    row[1].parse().unwrap()
+    table_value(
+        &reference_dir().join("../linuxcnc-compare").join(table),
+        name,
+        1,
+    )
 }
 
 #[test]
@@ -113,12 +109,5 @@ fn dense_paths_run_near_the_reference_with_path_accelerations_of_a_constants_fil
 /// The continuous-time limit (max of the exact bound and TOPP-RA) of path `name` in table
 /// `table` of `scripts/planner-reference/`, s.
 fn limit_s(table: &str, name: &str) -> f64 {
-    let text = std::fs::read_to_string(reference_dir().join(table)).unwrap();
-    text.lines()
-        .filter(|l| !l.starts_with('#'))
-        .map(|l| l.split('\t').collect::<Vec<_>>())
-        .find(|f| f[0] == name)
-        .unwrap_or_else(|| panic!("no {name} in {table}"))[5]
-        .parse()
-        .unwrap()
+    table_value(&reference_dir().join(table), name, 5)
 }

@@ -49,19 +49,6 @@ fn path_names() -> Vec<String> {
         .collect()
 }
 
-/// Rows of a trajectory CSV (t, X, Y, Z, path v, seq, block).
-fn csv_rows(path: &Path) -> Vec<Vec<f64>> {
-    let text = std::fs::read_to_string(path).unwrap();
-    text.lines()
-        .skip(1)
-        .map(|l| {
-            l.split(',')
-                .map(|x| x.parse::<f64>().unwrap_or(f64::NAN))
-                .collect()
-        })
-        .collect()
-}
-
 /// Largest second difference over a tick² of column `col`, mm/s².
 fn max_accel(rows: &[Vec<f64>], col: usize) -> f64 {
     rows.windows(3)
@@ -135,7 +122,7 @@ fn run_case(case: &Case, failures: &mut Vec<String>) {
         let t = total_s(&out);
         let reference = table_s(&reference_dir().join(case.ticks), &name, 2);
         let linuxcnc = table_s(&lcnc, &name, 1);
-        let rows = csv_rows(&csv);
+        let rows = vcan_support::trajectory_csv_rows(&csv);
         let axis_a = (1..4).map(|c| max_accel(&rows, c)).fold(0.0, f64::max);
         let path_a = max_path_accel(&rows);
         println!(
@@ -233,7 +220,7 @@ fn run_jerk_case(rek: &str, failures: &mut Vec<String>) {
         assert!(ok, "{rek} {}: cncctl trajectory failed: {out}", r[0]);
         assert!(total_s(&out) > 0.0, "{out}");
         let (j_mm_s3, ruckig_s): (f64, f64) = (r[4].parse().unwrap(), r[5].parse().unwrap());
-        let rows = csv_rows(&csv);
+        let rows = vcan_support::trajectory_csv_rows(&csv);
         let t = motion_s(&rows);
         // Positions to 1 nm: the arc length from up to three of them is off by up to
         // √3 × 0.5 nm, a third difference by 8 times that.

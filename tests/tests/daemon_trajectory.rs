@@ -73,19 +73,6 @@ fn cncctl_trajectory_gives_the_planned_ticks_without_moving() {
 /// (issue #32) uses the whole limit, so the rounding shows.
 const CSV_ROUNDING_MM_S2: f64 = 4.0 * 0.5e-6 / (TS_S * TS_S);
 
-/// Rows of a trajectory CSV (t, X, Y, Z, path v, seq, block).
-fn csv_rows(path: &std::path::Path) -> Vec<Vec<f64>> {
-    let text = std::fs::read_to_string(path).unwrap();
-    text.lines()
-        .skip(1)
-        .map(|l| {
-            l.split(',')
-                .map(|x| x.parse::<f64>().unwrap_or(f64::NAN))
-                .collect()
-        })
-        .collect()
-}
-
 /// Largest per-axis acceleration of the setpoints (finite differences of 4 ms ticks).
 fn max_axis_accel(rows: &[Vec<f64>], axis: usize) -> f64 {
     let vel: Vec<f64> = rows
@@ -123,7 +110,7 @@ fn dense_circle_uses_the_axis_acceleration_within_its_limits() {
         Duration::from_secs(300),
     );
     assert!(ok, "cncctl trajectory failed: {out}");
-    let rows = csv_rows(&csv);
+    let rows = vcan_support::trajectory_csv_rows(&csv);
     // Start at the first point (the move from X0 Y0 to X20 is a line of its own).
     let from = rows
         .iter()

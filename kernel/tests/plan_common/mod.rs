@@ -795,12 +795,17 @@ pub fn reference_config_with(name: &str) -> PlannerConfig {
 /// table `table` (`ticks.tsv`: the axes' limits alone; `ticks-a500.tsv`: a path
 /// acceleration of 500 mm/s²).
 pub fn ticks_s(table: &str, name: &str) -> f64 {
-    let text = std::fs::read_to_string(reference_dir().join(table)).unwrap();
+    table_value(&reference_dir().join(table), name, 2)
+}
+
+/// Column `col` of row `name` of a tab-separated table (`#` lines are comments).
+pub fn table_value(file: &std::path::Path, name: &str, col: usize) -> f64 {
+    let text = std::fs::read_to_string(file).unwrap();
     text.lines()
         .filter(|l| !l.starts_with('#'))
         .map(|l| l.split('\t').collect::<Vec<_>>())
         .find(|f| f[0] == name)
-        .unwrap_or_else(|| panic!("no {name} in {table}"))[2]
+        .unwrap_or_else(|| panic!("no {name} in {}", file.display()))[col]
         .parse()
         .unwrap()
 }

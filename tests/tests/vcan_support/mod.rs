@@ -499,3 +499,16 @@ pub fn wait_spindle_rpm(addr: &str, rpm: f64, timeout: Duration) {
 pub fn actual_positions_mm(addr: &str) -> Vec<f64> {
     status_once(addr).axes.iter().map(|a| a.actual_mm).collect()
 }
+
+/// Rows of a `cncctl trajectory` CSV (t, the axes, path v, seq, block).
+pub fn trajectory_csv_rows(path: &std::path::Path) -> Vec<Vec<f64>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    text.lines()
+        .skip(1)
+        .map(|l| {
+            l.split(',')
+                .map(|x| x.parse::<f64>().unwrap_or(f64::NAN))
+                .collect()
+        })
+        .collect()
+}
