@@ -271,9 +271,10 @@ impl Interpolator {
         self.box_scan(t, f64::INFINITY, true, true)
     }
 
-    fn box_scan(&self, t: &Tick, up_to: f64, feed: bool, near_only: bool) -> Reach {
+    /// Where the scan after tick `t` looks: each axis's aim (the setpoint that keeps its
+    /// velocity), and the arc lengths no allowed setpoint lies below or above (up to `up_to`).
+    fn box_scan_range(&self, t: &Tick, up_to: f64) -> ([f64; MAX_AXES], f64, f64) {
         let x = &t.at;
-        let room = &self.box_room;
         let mut aim = [0.0; MAX_AXES];
         let mut step2 = 0.0;
         for ax in 0..self.axes {
@@ -282,13 +283,19 @@ impl Interpolator {
         }
         // Every allowed setpoint lies within |room| of the aim, which lies the last step's
         // chord ahead: at least that chord less |room| along the path (no shorter than its
-        // chord). Segments before that are not looked at.
-        // The path acceleration bounds the step from the last one's arc length.
+        // chord). Segments before that are not looked at. The path acceleration bounds the
+        // step from the last one's arc length both ways.
         let path_room = self.box_path_room(t);
         let first_s =
             (t.s + (step2.sqrt() - self.box_room_norm).max(0.0)).max(t.s + t.ds_prev - path_room);
         let path_top = t.s + t.ds_prev + path_room;
-        let mut top = up_to.min(t.s + t.on.crit_mm_s * TS_S).min(path_top);
+        let top = up_to.min(t.s + t.on.crit_mm_s * TS_S).min(path_top);
+        (aim, first_s, top)
+    }
+
+    fn box_scan(&self, t: &Tick, up_to: f64, feed: bool, near_only: bool) -> Reach {
+        let room = &self.box_room;
+        let (aim, first_s, mut top) = self.box_scan_range(t, up_to);
         let mut accuracy = Accuracy::NONE;
         let Some(j) = self.box_skip(t, first_s, feed, &mut top, &mut accuracy) else {
             return Reach::Unknown;

@@ -178,14 +178,7 @@ impl Planner {
         let planned_stop = !last
             && (certain_stop
                 || (!boxed_both && self.corner_is_a_stop(i, criteria_cap, turns.as_ref(), net)));
-        let criteria_end = if last || planned_stop {
-            None
-        } else if self.win[i].box_candidate || self.win[i + 1].box_candidate {
-            Some(self.criteria_alone(i))
-        } else {
-            // (Read only by the per-axis box.)
-            Some((f64::INFINITY, 0.0, f64::INFINITY))
-        };
+        let criteria_end = (!last && !planned_stop).then(|| self.box_criteria_end(i));
         let p = &mut self.win[i];
         if planned_stop {
             p.smooth = false;
@@ -207,6 +200,16 @@ impl Planner {
         let p = &mut self.win[i];
         let drop = self.cfg.envelope.sets[p.set].drop_percent / 100.0;
         p.seg.junction = junction_of(planned_stop, p.smooth && !last, p.cap, drop, &p.seg);
+    }
+
+    /// What the per-axis box reads of the passed junction after block `i` (`criteria_alone`
+    /// where a line beside it is boxed; nothing to bound otherwise).
+    fn box_criteria_end(&self, i: usize) -> (f64, f64, f64) {
+        if self.win[i].box_candidate || self.win[i + 1].box_candidate {
+            self.criteria_alone(i)
+        } else {
+            (f64::INFINITY, 0.0, f64::INFINITY)
+        }
     }
 
     /// The manual's criteria alone at the junction after block `i`, without the axes
