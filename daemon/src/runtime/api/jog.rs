@@ -95,7 +95,7 @@ pub(super) fn step(st: &ApiState, r: pb::JogStepRequest) -> Result<f64, Status> 
         refused(
             tonic::Code::InvalidArgument,
             kernel::DiagCode::JogBeyondTravel,
-            m,
+            m.to_string(),
         )
     })?;
     st.ctl

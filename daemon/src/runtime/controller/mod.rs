@@ -22,6 +22,7 @@
 
 mod jobs;
 mod motion;
+pub use motion::JogRefusal;
 mod pump;
 mod rt_link;
 mod selection;
@@ -527,7 +528,7 @@ impl Controller {
     }
 
     /// Whether a jog step may run: `Err` says why not (beyond a soft limit or any travel).
-    pub fn jog_step_check(&self, axis: &str, step_mm: f64) -> Result<(), String> {
+    pub fn jog_step_check(&self, axis: &str, step_mm: f64) -> Result<(), JogRefusal> {
         self.motion.jog_step_check(&self.rt, axis, step_mm)
     }
 

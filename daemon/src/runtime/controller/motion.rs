@@ -157,7 +157,7 @@ impl Motion {
             )));
         }
         if let Some(why) = self.jog_toward_reached_limit(&snap, i, f64::from(dir)) {
-            return Err(ControlError::WrongState(why));
+            return Err(ControlError::WrongState(why.to_string()));
         }
         let a = &self.config.axes[i];
         let (lo, hi) = (
@@ -178,21 +178,23 @@ impl Motion {
 
     /// Why a jog of axis `i` in direction `dir` would move into a hardware limit switch that
     /// is still reached (docs/io.md: only a jog away from it moves).
-    fn jog_toward_reached_limit(&self, snap: &Snapshot, i: usize, dir: f64) -> Option<String> {
+    fn jog_toward_reached_limit(&self, snap: &Snapshot, i: usize, dir: f64) -> Option<JogRefusal> {
         let f = crate::runtime::io_setup::functions(&self.config);
         let reached = snap.io.limits.0;
-        let name = self.config.axes[i].name;
-        let side = if dir > 0.0 && reached & f.limit_pos[i] != 0 {
-            ("positive", '-')
+        let axis = self.config.axes[i].name;
+        if dir > 0.0 && reached & f.limit_pos[i] != 0 {
+            Some(JogRefusal::OnLimitSwitch {
+                axis,
+                positive: true,
+            })
         } else if dir < 0.0 && reached & f.limit_neg[i] != 0 {
-            ("negative", '+')
+            Some(JogRefusal::OnLimitSwitch {
+                axis,
+                positive: false,
+            })
         } else {
-            return None;
-        };
-        Some(format!(
-            "axis {name} stands on its {} limit switch: only a jog away from it ({name}{}) moves",
-            side.0, side.1
-        ))
+            None
+        }
     }
 
     /// Whether a jog step of `step_mm` on `axis` may run (issue #31): refused before motion
@@ -203,7 +205,7 @@ impl Motion {
         rt: &RtLink,
         axis: &str,
         step_mm: f64,
-    ) -> Result<(), String> {
+    ) -> Result<(), JogRefusal> {
         let Ok(i) = self.axis_index(axis) else {
             return Ok(()); // jog_step names the axis error
         };
@@ -218,17 +220,18 @@ impl Motion {
             None => false,
         };
         if beyond(a.soft_max_mm, true) || beyond(a.soft_min_mm, false) {
-            return Err(format!(
-                "a step of {step_mm} mm on {} would end at {target:.3}, beyond its soft limits \
-                 {:?}..{:?}",
-                a.name, a.soft_min_mm, a.soft_max_mm
-            ));
+            return Err(JogRefusal::BeyondSoftLimits {
+                axis: a.name,
+                step_mm,
+                target_mm: target,
+                soft_mm: (a.soft_min_mm, a.soft_max_mm),
+            });
         }
         if step_mm.abs() > MAX_JOG_STEP_MM {
-            return Err(format!(
-                "a step of {step_mm} mm on {} is longer than any travel ({MAX_JOG_STEP_MM} mm)",
-                a.name
-            ));
+            return Err(JogRefusal::LongerThanTravel {
+                axis: a.name,
+                step_mm,
+            });
         }
         Ok(())
     }
@@ -343,5 +346,55 @@ impl Motion {
     /// Single-block mode on the RT thread: hold when the path enters a new block.
     pub(super) fn set_single_block(&self, rt: &RtLink, on: bool) -> Result<(), ControlError> {
         rt.send(RtCommand::SingleBlock(on))
+    }
+}
+
+/// Why a jog may not run (`Motion::jog_step_check`, and a continuous jog onto a reached
+/// limit switch).
+#[derive(Clone, Debug, PartialEq)]
+pub enum JogRefusal {
+    /// The axis stands on its limit switch of that side: only a jog away from it moves.
+    OnLimitSwitch { axis: char, positive: bool },
+    /// The step would end beyond the soft limits (min, max).
+    BeyondSoftLimits {
+        axis: char,
+        step_mm: f64,
+        target_mm: f64,
+        soft_mm: (Option<f64>, Option<f64>),
+    },
+    /// A step on an axis without soft limits longer than any travel (`MAX_JOG_STEP_MM`).
+    LongerThanTravel { axis: char, step_mm: f64 },
+}
+
+impl std::fmt::Display for JogRefusal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            JogRefusal::OnLimitSwitch { axis, positive } => {
+                let (side, away) = if positive {
+                    ("positive", '-')
+                } else {
+                    ("negative", '+')
+                };
+                write!(
+                    f,
+                    "axis {axis} stands on its {side} limit switch: only a jog away from it \
+                     ({axis}{away}) moves"
+                )
+            }
+            JogRefusal::BeyondSoftLimits {
+                axis,
+                step_mm,
+                target_mm,
+                soft_mm: (lo, hi),
+            } => write!(
+                f,
+                "a step of {step_mm} mm on {axis} would end at {target_mm:.3}, beyond its soft \
+                 limits {lo:?}..{hi:?}"
+            ),
+            JogRefusal::LongerThanTravel { axis, step_mm } => write!(
+                f,
+                "a step of {step_mm} mm on {axis} is longer than any travel ({MAX_JOG_STEP_MM} mm)"
+            ),
+        }
     }
 }
