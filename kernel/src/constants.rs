@@ -556,6 +556,21 @@ mod tests {
     }
 
     #[test]
+    fn zero_path_accelerations_are_the_axes_limits_and_negative_ones_refused() {
+        let mut c = Constants::new();
+        c.set(52, 0.0);
+        c.set(237, 0.0);
+        assert!(c.validate().is_empty(), "{:?}", c.validate());
+        for r in [52, 237] {
+            let mut c = Constants::new();
+            c.set(r, -100.0);
+            let d = c.validate();
+            assert_eq!(d.len(), 1, "{d:?}");
+            assert_eq!(d[0].code, DiagCode::ConstantOutOfRange);
+        }
+    }
+
+    #[test]
     fn field_digits_reads_percent() {
         let mut c = Constants::new();
         c.set(384, 200.010);
