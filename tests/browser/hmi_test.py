@@ -325,6 +325,27 @@ def step_jog_moves_x_by_the_step():
     wait("X back", lambda: abs(op.x() - x0) < 1e-6 and op.state() == "IDLE")
 
 
+@test
+def touch_off_on_the_jog_screen_writes_the_entry():
+    op.tab("jog")
+    x = op.wait_x_at_rest()
+    entry = op.el("touch-off-jog-entry")
+    entry.clear()
+    entry.send_keys("7")
+    Select(op.el("touch-off-jog-axis")).select_by_value("X")
+    value = op.el("touch-off-jog-value")
+    value.clear()
+    value.send_keys("2")
+    op.el("touch-off-jog-submit").click()
+    msg = op.d.find_element(By.CSS_SELECTOR, '.jog-screen [data-testid="message"]')
+    wait("touch-off done", lambda: "D7 X" in (msg.get_attribute("textContent") or ""))
+    op.tab("offsets")
+    row = '[data-testid="offset-table"] tr[data-entry="7"] td'
+    cells = wait("entry 7 listed", lambda: op.d.find_elements(By.CSS_SELECTOR, row))
+    assert abs(float(cells[2].text) - (x - 2.0)) < 1e-3, (cells[2].text, x)
+    op.tab("jog")
+
+
 def hold_jog_plus() -> float:
     """Presses X+ in continuous mode and waits until X moved; returns X at the press."""
     op.tab("jog")
