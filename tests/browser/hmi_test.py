@@ -315,6 +315,27 @@ def mdi_moves_to_the_block_and_keeps_history():
 
 
 @test
+def a_tool_change_shows_its_dialog_and_confirm_goes_on():
+    path = os.path.join(tempfile.mkdtemp(), "hmi_tool.nc")
+    with open(path, "w") as f:
+        f.write("N10 T3 M6\nN20 G1 X1 F3000\nN30 M30\n")
+    op.tab("programs")
+    op.el("program-upload").send_keys(path)
+    wait("uploaded", lambda: op.d.find_element(
+        By.CSS_SELECTOR, '[data-testid="program-list"] tr[data-name="hmi_tool.nc"]')).click()
+    op.el("program-select").click()
+    wait("program selected", lambda: op.d.execute_script(
+        "return document.querySelector('[data-testid=program-name]').textContent") == "hmi_tool.nc")
+    op.tab("run")
+    op.el("cycle-start").click()
+    dialog = op.el("tool-change-dialog")
+    wait("tool change dialog", lambda: dialog.is_displayed() and dialog.get_attribute("data-tool") == "3")
+    assert "T3" in op.text("tool-change-text"), op.text("tool-change-text")
+    op.el("tool-change-confirm").click()
+    wait("dialog gone, idle", lambda: not dialog.is_displayed() and op.state() == "IDLE")
+
+
+@test
 def step_jog_moves_x_by_the_step():
     op.tab("jog")
     Select(op.el("jog-step")).select_by_value("1")

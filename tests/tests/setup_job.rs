@@ -86,3 +86,122 @@ fn touch_off_then_the_program_goes_to_the_touched_point() {
     ok(&d, &["stop"]);
     d.wait_idle();
 }
+
+/// Waits for the next hold at a program stop; returns its status.
+fn held(d: &Cncd) -> Value {
+    let mut s = Value::Null;
+    wait_for("a program stop", || {
+        s = status(d);
+        s["program_stop"] == true
+    });
+    s
+}
+
+fn at(s: &Value) -> [f64; 3] {
+    let a = |i: usize| s["axes"][i]["commanded_mm"].as_f64().unwrap();
+    [a(0), a(1), a(2)]
+}
+
+fn near(a: [f64; 3], b: [f64; 3]) -> bool {
+    (0..3).all(|k| (a[k] - b[k]).abs() < 1e-3)
+}
+
+#[test]
+fn two_tool_changes_hold_name_the_tool_and_go_on_with_its_entries() {
+    let cwd = temp_dir("tool_change");
+    let d = Cncd::start(
+        &cwd,
+        &format!("{MILL_TOML}\n[tool_change]\nmode = \"manual\"\n"),
+    );
+    ok(&d, &["offset-set", "1", "--radius", "3", "--l3", "10"]);
+    ok(&d, &["offset-set", "2", "--radius", "5", "--l3", "25.5"]);
+    // Each M0 stands at the end of a compensated cut: Y is the radius, Z the length.
+    let program = "N10 G0 X0 Y0 Z50\nN20 T1 M6\nN30 G0 Z0\nN40 G41 G1 X20 Y0 F3000\n\
+                   N50 G1 X30 M0\nN60 G40 G1 X40\nN70 T2 M6\nN80 G0 Z0\nN90 G41 G1 X60 Y0\n\
+                   N100 G1 X70 M0\nN110 G40 G1 X80\nN120 M30\n";
+    std::fs::write(cwd.join("tools.nc"), program).unwrap();
+    ok(&d, &["load", "tools.nc"]);
+    ok(&d, &["start"]);
+    let s = held(&d);
+    assert_eq!(s["tool_change"]["tool"], 1, "{s}");
+    assert_eq!(s["tool_change"]["radius_mm"], 3.0, "{s}");
+    assert_eq!(s["tool_change"]["length_mm"][2], 10.0, "{s}");
+    assert!(near(at(&s), [0.0, 0.0, 50.0]), "{s}");
+    let line = ok(&d, &["status"]);
+    assert!(line.contains("tool change: put in tool T1"), "{line}");
+    // Cycle Start confirms as Resume does.
+    ok(&d, &["start"]);
+    let s = held(&d);
+    assert!(s["tool_change"].is_null(), "{s}");
+    assert!(near(at(&s), [30.0, 3.0, 10.0]), "tool 1 cut: {s}");
+    ok(&d, &["resume"]);
+    let s = held(&d);
+    assert_eq!(s["tool_change"]["tool"], 2, "{s}");
+    assert_eq!(s["tool_change"]["radius_mm"], 5.0, "{s}");
+    assert!(near(at(&s), [40.0, 0.0, 10.0]), "{s}");
+    ok(&d, &["resume"]);
+    let s = held(&d);
+    assert!(near(at(&s), [70.0, 5.0, 25.5]), "tool 2 cut: {s}");
+    ok(&d, &["resume"]);
+    d.wait_idle();
+    assert!(near(commanded(&d), [80.0, 0.0, 25.5]));
+}
+
+/// The lines of the ```sh blocks of a markdown text, in order.
+fn sh_lines(md: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut in_sh = false;
+    for line in md.lines() {
+        let t = line.trim();
+        if t.starts_with("```") {
+            in_sh = !in_sh && t == "```sh";
+            continue;
+        }
+        if in_sh && !t.is_empty() {
+            out.push(t.to_string());
+        }
+    }
+    out
+}
+
+#[test]
+fn docs_setup_md_runs_as_written() {
+    const REPO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+    let md = std::fs::read_to_string(format!("{REPO}/docs/setup.md")).unwrap();
+    let cwd = temp_dir("setup_docs");
+    let programs = cwd.join("programs/setup");
+    std::fs::create_dir_all(&programs).unwrap();
+    for f in ["touched.nc", "tools.nc"] {
+        std::fs::copy(format!("{REPO}/programs/setup/{f}"), programs.join(f)).unwrap();
+    }
+    let d = Cncd::start(&cwd, MILL_TOML);
+    let (mut touched, mut prompts) = (None, 0);
+    for line in sh_lines(&md) {
+        let args: Vec<&str> = line.split_whitespace().collect();
+        assert_eq!(args[0], "cncctl", "{line}");
+        if line.starts_with("cncctl touch-off 1 X") {
+            touched = Some(commanded(&d));
+        }
+        let out = ok(&d, &args[1..]);
+        prompts += usize::from(out.contains("tool change: put in tool T"));
+        // At rest before the next command: idle, or held at a program stop.
+        wait_for(&line, || {
+            let s = status(&d);
+            s["state"] == "idle" || s["program_stop"] == true
+        });
+        if line == "cncctl run programs/setup/touched.nc" {
+            let (here, at) = (touched.unwrap(), commanded(&d));
+            assert!(
+                (0..2).all(|k| (here[k] - at[k]).abs() < 1e-3),
+                "{here:?} {at:?}"
+            );
+        }
+    }
+    assert_eq!(prompts, 2, "each status names its tool");
+    d.wait_idle();
+    assert!(
+        near(commanded(&d), [80.0, 0.0, 25.5]),
+        "{:?}",
+        commanded(&d)
+    );
+}
