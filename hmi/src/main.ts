@@ -5,6 +5,7 @@ import { machine } from "./api";
 import { button, h, setText } from "./dom";
 import { droPanel } from "./dro";
 import { cycleBar } from "./cycle";
+import { toolChangeDialog } from "./tool_change";
 import { errorText, stateLabel, stateName } from "./format";
 import { catalogues, lang, setLang, t } from "./i18n";
 import type { Key } from "./lang/en";
@@ -216,7 +217,7 @@ function boot(): void {
   // The cycle bar under the screen, shown on the screens that run the machine (CSS by
   // data-screen), never scrolled away with the screen's content.
   const work = h("div", { class: "work" }, view, cycleBar(say));
-  app.append(header(), nav, h("main", {}, droPanel(), work), flash);
+  app.append(header(), nav, h("main", {}, droPanel(), work), flash, toolChangeDialog(say));
   document.body.append(app);
   new MutationObserver((records) => {
     for (const r of records) r.addedNodes.forEach((n) => n instanceof Element && gate(n));

@@ -181,6 +181,11 @@ pub enum BlockKind {
     /// executes; the file TAB0.KOR is not touched. The interpreter has already applied it to its
     /// own copy of the table, so later blocks' `D`/`&` lookups see the new values.
     TableWrite { entry: u8, values: [Option<f64>; 5] },
+    /// `M6` (with `T<n>`): a manual tool change to tool `tool` (entry n of TAB0.KOR, 0 = no
+    /// tool). No motion: the machine comes to rest and holds as at M0 until Resume (or
+    /// Start); the interpreter has already put the tool's entries in force for the blocks
+    /// after it (docs/language.md, "Tool change").
+    ToolChange { tool: u8 },
 }
 
 /// Up to four M functions per block, in the order written.
@@ -196,9 +201,35 @@ pub enum ProgramStop {
     Always,
     /// M1: stops only while "optional stop" is switched on.
     Optional,
+    /// M6: always stops, for the operator to put tool `tool` in the spindle.
+    ToolChange { tool: u8 },
 }
 
 impl ProgramStop {
+    /// The stop a block asks for: a tool change, else what its M functions ask for.
+    pub fn of_block(b: &Block) -> Self {
+        match b.kind {
+            BlockKind::ToolChange { tool } => ProgramStop::ToolChange { tool },
+            _ => Self::of(&b.m),
+        }
+    }
+
+    /// Of two stops due at one place, the one that holds: a tool change (it names the
+    /// tool), then M0, then M1.
+    pub fn stronger(self, other: Self) -> Self {
+        let rank = |s: Self| match s {
+            ProgramStop::None => 0,
+            ProgramStop::Optional => 1,
+            ProgramStop::Always => 2,
+            ProgramStop::ToolChange { .. } => 3,
+        };
+        if rank(other) > rank(self) {
+            other
+        } else {
+            self
+        }
+    }
+
     /// The stop the M functions of a block ask for (M0 wins over M1).
     pub fn of(m: &MCodes) -> Self {
         let has = |code: u16| m.iter().flatten().any(|&c| c == code);

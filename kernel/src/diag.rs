@@ -238,6 +238,17 @@ diag_codes! {
     JogBusy = "jog_busy",
     /// A jog step that would end beyond a soft limit, or longer than any travel.
     JogBeyondTravel = "jog_beyond_travel",
+    /// M6 in a block that moves or fills the table (G92): the tool changes at rest.
+    ToolChangeNotAlone = "tool_change_not_alone",
+    /// M6 while radius compensation is on.
+    ToolChangeUnderComp = "tool_change_under_comp",
+    /// A touch-off while a program, MDI, a jog or a reference run moves or holds the machine.
+    TouchOffBusy = "touch_off_busy",
+    /// A touch-off before the axes are homed (the position it reads means nothing yet).
+    TouchOffNotHomed = "touch_off_not_homed",
+    /// A touch-off on an axis the offset table has no length for (axes 5 and 6), or a value
+    /// the table cannot hold.
+    TouchOffInvalid = "touch_off_invalid",
     /// A restart from a block the program does not have (issue #31).
     RestartBlockNotFound = "restart_block_not_found",
     /// Too many errors: checking stopped.

@@ -8,6 +8,7 @@
 use crate::diag::{DiagCode, Diagnostic};
 
 mod text_edit;
+pub mod touch_off;
 pub mod work;
 pub mod work_file;
 pub use text_edit::edit_text;

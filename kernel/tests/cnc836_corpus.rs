@@ -145,6 +145,7 @@ fn block_line(b: &Block, n_axes: usize) -> String {
         BlockKind::Dwell { seconds } => format!("dwell {seconds}"),
         BlockKind::Technology => "technology".to_string(),
         BlockKind::TableWrite { entry, values } => format!("table D{entry} {values:?}"),
+        BlockKind::ToolChange { tool } => format!("tool change T{tool}"),
     };
     let sp = &b.spindle;
     let n = b.n.map_or("-".to_string(), |n| format!("N{n}"));

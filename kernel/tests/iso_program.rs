@@ -4,7 +4,7 @@
 //! is kernel/tests/iso_rs274.rs.
 
 use kernel::DiagCode;
-use kernel::block::{BlockKind, Feed, Path};
+use kernel::block::{BlockKind, Feed, Path, ProgramStop, SpindleDir};
 use kernel::offsets::{OffsetEntry, WorkOffsets};
 use kernel::program::dry_run::{Move, MoveKind, moves};
 use kernel::program::{Dialect, Setup, compile};
@@ -91,8 +91,14 @@ fn work_offset_and_tool_length_make_machine_positions() {
 fn m6_is_a_program_stop_before_the_motion_of_its_line() {
     let c = compile("T2 M6 G0 X1\n", &setup());
     assert!(!c.has_errors(), "{:?}", c.diagnostics);
-    assert_eq!(c.blocks[0].kind, BlockKind::Technology);
-    assert_eq!(c.blocks[0].m, [Some(6), Some(0), None, None]);
+    // The stop names the tool (issue #47) and the spindle stops for the change.
+    assert_eq!(c.blocks[0].kind, BlockKind::ToolChange { tool: 2 });
+    assert_eq!(c.blocks[0].m, [Some(6), None, None, None]);
+    assert_eq!(
+        ProgramStop::of_block(&c.blocks[0]),
+        ProgramStop::ToolChange { tool: 2 }
+    );
+    assert_eq!(c.blocks[0].spindle.dir, SpindleDir::Stopped);
     assert!(matches!(c.blocks[1].kind, BlockKind::Motion { .. }));
 }
 

@@ -315,6 +315,28 @@ def mdi_moves_to_the_block_and_keeps_history():
 
 
 @test
+def a_tool_change_shows_its_dialog_and_confirm_goes_on():
+    path = os.path.join(tempfile.mkdtemp(), "hmi_tool.nc")
+    with open(path, "w") as f:
+        f.write("N10 T3 M6\nN20 G1 X1 F3000\nN30 M30\n")
+    op.tab("programs")
+    op.el("program-upload").send_keys(path)
+    wait("uploaded", lambda: op.d.find_element(
+        By.CSS_SELECTOR, '[data-testid="program-list"] tr[data-name="hmi_tool.nc"]')).click()
+    op.el("program-select").click()
+    # (The Run screen names "MDI" until the next start: the list marks the selection.)
+    wait("program selected", lambda: "▶" in op.d.find_element(
+        By.CSS_SELECTOR, '[data-testid="program-list"] tr[data-name="hmi_tool.nc"]').text)
+    op.tab("run")
+    op.el("cycle-start").click()
+    dialog = op.el("tool-change-dialog")
+    wait("tool change dialog", lambda: dialog.is_displayed() and dialog.get_attribute("data-tool") == "3")
+    assert "T3" in op.text("tool-change-text"), op.text("tool-change-text")
+    op.el("tool-change-confirm").click()
+    wait("dialog gone, idle", lambda: not dialog.is_displayed() and op.state() == "IDLE")
+
+
+@test
 def step_jog_moves_x_by_the_step():
     op.tab("jog")
     Select(op.el("jog-step")).select_by_value("1")
@@ -323,6 +345,27 @@ def step_jog_moves_x_by_the_step():
     wait("X one step further", lambda: abs(op.x() - (x0 + 1.0)) < 1e-6 and op.state() == "IDLE")
     op.el("jog-X-minus").click()
     wait("X back", lambda: abs(op.x() - x0) < 1e-6 and op.state() == "IDLE")
+
+
+@test
+def touch_off_on_the_jog_screen_writes_the_entry():
+    op.tab("jog")
+    x = op.wait_x_at_rest()
+    entry = op.el("touch-off-jog-entry")
+    entry.clear()
+    entry.send_keys("7")
+    Select(op.el("touch-off-jog-axis")).select_by_value("X")
+    value = op.el("touch-off-jog-value")
+    value.clear()
+    value.send_keys("2")
+    op.el("touch-off-jog-submit").click()
+    msg = op.d.find_element(By.CSS_SELECTOR, '.jog-screen [data-testid="message"]')
+    wait("touch-off done", lambda: "D7 X" in (msg.get_attribute("textContent") or ""))
+    op.tab("offsets")
+    row = '[data-testid="offset-table"] tr[data-entry="7"] td'
+    cells = wait("entry 7 listed", lambda: op.d.find_elements(By.CSS_SELECTOR, row))
+    assert abs(float(cells[2].text) - (x - 2.0)) < 1e-3, (cells[2].text, x)
+    op.tab("jog")
 
 
 def hold_jog_plus() -> float:

@@ -105,6 +105,7 @@ fn expect(cmd: &str) -> Expect {
         | "cncctl offsets"
         | "cncctl constants get R39"
         | "cncctl offset-set 3 --radius 2"
+        | "cncctl touch-off 1 X 0"
         | "cncctl constants set R52=600"
         | "cncctl --json offsets-file"
         | "cncctl programs"

@@ -128,6 +128,10 @@ pub struct ItemIds {
     pub program: usize,
     pub block: usize,
     pub line_number: usize,
+    /// `TOOL_NUMBER` and `MESSAGE` of the Path: the tool a manual tool change (M6) holds for
+    /// and its prompt (UNAVAILABLE otherwise).
+    pub tool_number: usize,
+    pub message: usize,
     pub path_feedrate: usize,
     pub feedrate_override: usize,
     pub rapid_override: usize,
@@ -390,6 +394,8 @@ impl DeviceModel {
             p,
             event("line", "LINE_NUMBER", "LineNumber").sub("ABSOLUTE"),
         );
+        self.ids.tool_number = self.item(p, event("tool", "TOOL_NUMBER", "ToolNumber"));
+        self.ids.message = self.item(p, event("message", "MESSAGE", "Message"));
         self.ids.path_feedrate = self.item(
             p,
             sample("feed", "PATH_FEEDRATE", "PathFeedrate", "MILLIMETER/SECOND").sub("ACTUAL"),

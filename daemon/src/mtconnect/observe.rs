@@ -282,6 +282,18 @@ pub fn values(m: &DeviceModel, v: &MachineView) -> Vec<(usize, Value)> {
                 Value::Unavailable
             },
         ),
+        (
+            ids.tool_number,
+            s.progress
+                .tool_change
+                .map_or(Value::Unavailable, |t| text(&t.to_string())),
+        ),
+        (
+            ids.message,
+            s.progress.tool_change.map_or(Value::Unavailable, |t| {
+                text(&format!("tool change: put in tool T{t}, then Cycle Start"))
+            }),
+        ),
         (ids.path_feedrate, num(s.axes.path_v_mm_s)),
         (ids.feedrate_override, num(s.operator.feed_override_pct)),
         (ids.rapid_override, num(s.operator.rapid_override_pct)),

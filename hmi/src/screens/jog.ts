@@ -8,6 +8,7 @@ import { holdToJog, onJogError, press, release } from "../jog";
 import { may } from "../session";
 import { type Screen, messageLine } from "../screen";
 import { subscribe } from "../status";
+import { touchOffControl } from "../touch_off";
 
 const STEPS_MM = ["0.001", "0.01", "0.1", "1", "10"];
 const SPEEDS_MM_MIN = [100, 500, 1000, 3000];
@@ -79,6 +80,7 @@ export function jogScreen(): Screen {
     h("div", { class: "row" }, h("label", {}, `${t("jog.step")} `, step), h("label", {}, `${t("jog.speed")} `, speed)),
     axes,
     h("p", { class: "hint" }, t("jog.hint")),
+    touchOffControl("jog", msg),
     msg.el,
   );
   return { id: "jog", el: screenEl };

@@ -40,7 +40,7 @@ pub(super) fn all_finite(b: &Block) -> bool {
             }
             BlockKind::Dwell { seconds } => seconds.is_finite(),
             BlockKind::TableWrite { values, .. } => values.iter().flatten().all(|v| v.is_finite()),
-            BlockKind::Technology => true,
+            BlockKind::Technology | BlockKind::ToolChange { .. } => true,
         }
 }
 

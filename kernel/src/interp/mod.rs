@@ -203,6 +203,8 @@ pub struct Interpolator {
     optional_stop: bool,
     /// Held at a program stop (M0/M1) rather than by a feed hold.
     at_program_stop: bool,
+    /// The tool of the tool change (M6) held at, while `at_program_stop`.
+    tool_change: Option<u8>,
     /// Single-block mode (`single_block`): the path stops at rest at the end of every block.
     single_block: bool,
     /// Held at the end of a block in single-block mode.
@@ -314,6 +316,7 @@ impl Interpolator {
             last_line: 0,
             optional_stop: false,
             at_program_stop: false,
+            tool_change: None,
             single_block: false,
             at_block_stop: false,
             block_stop_done: false,
@@ -352,6 +355,11 @@ impl Interpolator {
     /// Held at rest at a program stop (M0, or M1 with optional stop on); `resume` continues.
     pub fn at_program_stop(&self) -> bool {
         self.at_program_stop
+    }
+
+    /// Held at a tool change (M6): the tool to put in the spindle (0 = none).
+    pub fn tool_change(&self) -> Option<u8> {
+        self.tool_change.filter(|_| self.at_program_stop)
     }
 
     /// Single-block mode: the path stops at rest exactly at the end of every block (the
@@ -516,6 +524,7 @@ impl Interpolator {
 
     pub fn resume(&mut self) {
         self.at_program_stop = false;
+        self.tool_change = None;
         self.at_block_stop = false;
         if matches!(self.state, InterpState::Holding | InterpState::Held) {
             self.state = if self.len > 0 {
@@ -558,6 +567,7 @@ impl Interpolator {
 
     fn clear(&mut self) {
         self.at_program_stop = false;
+        self.tool_change = None;
         self.at_block_stop = false;
         self.block_stop_done = false;
         self.block_stop_armed = false;

@@ -82,9 +82,19 @@ impl Interpolator {
     pub(super) fn stops_here(&self, stop: ProgramStop) -> bool {
         match stop {
             ProgramStop::None => false,
-            ProgramStop::Always => true,
+            ProgramStop::Always | ProgramStop::ToolChange { .. } => true,
             ProgramStop::Optional => self.optional_stop,
         }
+    }
+
+    /// Holds at the program stop `stop` (due here): the tool it names, if a tool change.
+    fn hold_at_stop(&mut self, stop: ProgramStop) {
+        self.state = InterpState::Holding;
+        self.at_program_stop = true;
+        self.tool_change = match stop {
+            ProgramStop::ToolChange { tool } => Some(tool),
+            _ => None,
+        };
     }
 
     /// At rest between segment `raw_seg` and the next: holds if a program stop (M0/M1) is due
@@ -94,13 +104,15 @@ impl Interpolator {
             return false;
         }
         let here = self.idx(self.raw_seg);
-        let due_after = before_next && self.stops_here(self.buf[here].program_stop);
+        let after = self.buf[here].program_stop;
+        let due_after = before_next && self.stops_here(after);
         let next = if before_next {
             self.idx(self.raw_seg + 1)
         } else {
             here
         };
-        let due_before = self.stops_here(self.buf[next].program_stop_before);
+        let before = self.buf[next].program_stop_before;
+        let due_before = self.stops_here(before);
         if !(due_after || due_before) {
             return false;
         }
@@ -108,8 +120,8 @@ impl Interpolator {
             self.buf[here].program_stop = ProgramStop::None;
         }
         self.buf[next].program_stop_before = ProgramStop::None;
-        self.state = InterpState::Holding;
-        self.at_program_stop = true;
+        let due = |due: bool, s: ProgramStop| if due { s } else { ProgramStop::None };
+        self.hold_at_stop(due(due_after, after).stronger(due(due_before, before)));
         true
     }
 
@@ -117,12 +129,12 @@ impl Interpolator {
     /// it. The segment stays buffered until Resume, so the job does not end at the stop.
     fn program_stop_after_last(&mut self) {
         let here = self.idx(self.raw_seg);
-        if self.state != InterpState::Running || !self.stops_here(self.buf[here].program_stop) {
+        let stop = self.buf[here].program_stop;
+        if self.state != InterpState::Running || !self.stops_here(stop) {
             return;
         }
         self.buf[here].program_stop = ProgramStop::None;
-        self.state = InterpState::Holding;
-        self.at_program_stop = true;
+        self.hold_at_stop(stop);
     }
 
     /// The last buffered segment may be dropped once the raw position rests at its end: not

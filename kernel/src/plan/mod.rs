@@ -481,7 +481,7 @@ impl Planner {
         let set = self.dyn_set_of(block);
         self.pending_wait = 0;
         self.append(block, seg_path, length_mm, rapid, feed_mm_min, set);
-        let stop = ProgramStop::of(&block.m);
+        let stop = ProgramStop::of_block(block);
         if stop != ProgramStop::None {
             // M0/M1 in a motion block act at its end, at rest.
             self.force_stop(0.0);
@@ -502,7 +502,7 @@ impl Planner {
         if has_m {
             self.flush_carry();
             self.force_stop(0.0);
-            self.program_stop(ProgramStop::of(&block.m));
+            self.program_stop(ProgramStop::of_block(block));
         }
         // M3/M4/M5 count even when the state looks unchanged: each run starts from the
         // power-on state, while the spindle may still turn from an earlier run.
@@ -539,9 +539,7 @@ impl Planner {
             Some(p) if open => &mut p.seg.program_stop,
             _ => &mut self.leading_stop,
         };
-        if *slot != ProgramStop::Always {
-            *slot = stop;
-        }
+        *slot = slot.stronger(stop);
     }
 
     /// No more blocks will come.

@@ -224,6 +224,22 @@ pub enum Cmd {
         #[arg(long)]
         l4: Option<f64>,
     },
+    /// Touch-off (docs/setup.md): set entry ENTRY's length of AXIS so that where the axis
+    /// stands reads VALUE in program coordinates (file and memory): `touch-off 1 X 0`.
+    #[command(allow_negative_numbers = true)]
+    TouchOff {
+        entry: u32,
+        /// The axis letter (axes 1..4).
+        axis: String,
+        /// What the present position shall read, mm.
+        value: f64,
+        /// Also set the entry's radius, mm.
+        #[arg(long)]
+        radius: Option<f64>,
+        /// Take this work offset system's offset of the axis off too (ISO programs): G54 ...
+        #[arg(long)]
+        work: Option<String>,
+    },
     /// Print the TAB0.KOR file.
     OffsetsFile,
     /// Replace TAB0.KOR with a file (validated; a refused file changes nothing). Only if the

@@ -97,6 +97,7 @@ async fn dispatch(c: &mut Clients, cmd: Cmd, j: bool) -> Reply {
         | Cmd::Validate { .. } => programs::command(c, cmd, j).await,
         Cmd::Offsets { .. }
         | Cmd::OffsetSet { .. }
+        | Cmd::TouchOff { .. }
         | Cmd::OffsetsFile
         | Cmd::OffsetsReplace { .. }
         | Cmd::OffsetsReload

@@ -90,6 +90,22 @@ pub async fn command(o: &mut OffsetsClient<Svc>, cmd: Cmd, j: bool) -> Reply {
             };
             call(j, o.set_offset(req)).await
         }
+        Cmd::TouchOff {
+            entry,
+            axis,
+            value,
+            radius,
+            work,
+        } => {
+            let req = pb::TouchOffRequest {
+                entry,
+                axis,
+                value_mm: value,
+                radius_mm: radius,
+                work_offset: work.unwrap_or_default(),
+            };
+            call(j, o.touch_off(req)).await
+        }
         Cmd::OffsetsFile => call(j, o.get_offsets_file(pb::GetOffsetsFileRequest {})).await,
         Cmd::OffsetsReplace { file, revision } => replace(o, &file, revision, j).await,
         Cmd::OffsetsReload => {
@@ -203,5 +219,26 @@ impl Render for Entries {
     }
     fn human(&self) -> String {
         format!("{}: {} non-zero entries", self.0, self.1)
+    }
+}
+
+/// A touch-off: the length written, from where, and the entry now.
+impl Render for pb::TouchOffReply {
+    fn json(&self) -> Value {
+        let e = self.entry.clone().unwrap_or_default();
+        json!({"entry": e.entry, "radius_mm": e.radius_mm, "length_mm": e.length_mm,
+            "written_length_mm": self.length_mm, "machine_mm": self.machine_mm})
+    }
+    fn human(&self) -> String {
+        let e = self.entry.clone().unwrap_or_default();
+        let lengths: Vec<String> = e.length_mm.iter().map(|v| format!("{v:.4}")).collect();
+        format!(
+            "D{:02}: length {:.6} mm written (machine at {:.6} mm); R {:.4}, lengths {}",
+            e.entry,
+            self.length_mm,
+            self.machine_mm,
+            e.radius_mm,
+            lengths.join(" ")
+        )
     }
 }

@@ -82,7 +82,9 @@ pub fn status_line(s: &pb::Status) -> String {
     if s.optional_stop {
         line.push_str("  [M1 stops]");
     }
-    if s.program_stop {
+    if let Some(tc) = &s.tool_change {
+        line.push_str(&tool_change_text(tc));
+    } else if s.program_stop {
         line.push_str("  program stop (M0/M1): resume to continue");
     }
     match &s.block_finished {
@@ -147,6 +149,8 @@ pub fn status_json(s: &pb::Status) -> Value {
         "dynamic_set": s.dynamic_set,
         "waiting_for_spindle": s.waiting_for_spindle,
         "optional_stop": s.optional_stop, "program_stop": s.program_stop,
+        "tool_change": s.tool_change.as_ref().map(|t| json!({"tool": t.tool,
+            "radius_mm": t.radius_mm, "length_mm": t.length_mm})),
         "fault_path_deviation_mm": s.fault_path_deviation_mm,
         "block_delete": s.block_delete, "restart_block": s.restart_block,
         "ticks": {"ticks": t.ticks, "overruns": t.overruns, "lateness_p50_us": t.lateness_p50_us,
@@ -160,4 +164,19 @@ pub fn status_json(s: &pb::Status) -> Value {
 
 pub fn alarm_json(a: &pb::Alarm) -> Value {
     json!({"id": a.id, "message": a.message, "source": a.source, "raised_unix_ms": a.raised_unix_ms})
+}
+
+/// The prompt of a manual tool change (M6) the program holds at.
+fn tool_change_text(tc: &pb::ToolChange) -> String {
+    if tc.tool == 0 {
+        return "  tool change: take the tool out (T0), then resume".into();
+    }
+    let lengths: Vec<String> = tc.length_mm.iter().map(|v| format!("{v:.3}")).collect();
+    format!(
+        "  tool change: put in tool T{} (D{:02}: R {:.3}, lengths {}), then resume",
+        tc.tool,
+        tc.tool,
+        tc.radius_mm,
+        lengths.join(" ")
+    )
 }

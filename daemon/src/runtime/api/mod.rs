@@ -20,6 +20,7 @@ mod preview_outline;
 mod programs;
 mod stream_budget;
 mod tables;
+mod touch_off;
 mod trajectory;
 pub mod upload_session;
 mod validate_stream;
@@ -229,6 +230,18 @@ impl ApiState {
                 block_index: s.progress.block_seq,
             }),
             io: Some(self.io.list(s, ctl.simulated())),
+            tool_change: s.progress.tool_change.map(|tool| {
+                let e = ctl
+                    .offsets_memory()
+                    .entry(tool)
+                    .copied()
+                    .unwrap_or_default();
+                pb::ToolChange {
+                    tool: tool.into(),
+                    radius_mm: e.radius_mm,
+                    length_mm: e.length_mm.to_vec(),
+                }
+            }),
         }
     }
 

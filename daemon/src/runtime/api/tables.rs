@@ -109,6 +109,15 @@ impl Offsets for OffsetsSvc {
         Ok(Response::new(self.work_table()))
     }
 
+    async fn touch_off(
+        &self,
+        req: Request<pb::TouchOffRequest>,
+    ) -> Result<Response<pb::TouchOffReply>, Status> {
+        require(&req, Operator, "TouchOff")?;
+        let reply = super::touch_off::touch_off(self.0.clone(), req.into_inner()).await?;
+        Ok(Response::new(reply))
+    }
+
     async fn set_offset(
         &self,
         req: Request<pb::SetOffsetRequest>,

@@ -30,6 +30,7 @@ mod program;
 mod rt;
 mod sim;
 mod storage;
+mod tool_change;
 
 use std::path::Path;
 
@@ -52,6 +53,7 @@ pub use program::{IjSetting, ProgramSection};
 pub use rt::RtConfig;
 pub use sim::SimConfig;
 pub use storage::StorageConfig;
+pub use tool_change::{ToolChangeMode, ToolChangeSection};
 
 /// The whole file: one field per TOML section, each section its own type and file.
 #[derive(Clone, Debug, Deserialize, PartialEq)]
@@ -85,6 +87,9 @@ pub struct Config {
     /// `[bus] kind = "sim"`, none on a real bus ([`Config::io`]).
     #[serde(default)]
     pub io: Option<IoSection>,
+    /// `[tool_change]`: what M6 does (docs/setup.md).
+    #[serde(default)]
+    pub tool_change: ToolChangeSection,
 }
 
 impl Default for Config {
@@ -102,6 +107,7 @@ impl Default for Config {
             hmi: HmiSection::default(),
             mtconnect: MtconnectConfig::default(),
             io: None,
+            tool_change: ToolChangeSection::default(),
         }
     }
 }

@@ -89,6 +89,8 @@ pub struct Progress {
     pub line: u32,
     /// Held at a program stop (M0, or M1 with optional stop on).
     pub program_stop: bool,
+    /// Held at a tool change (M6): the tool to put in the spindle.
+    pub tool_change: Option<u8>,
     /// Held at the end of a block in single-block mode: `block_seq`, `block_n` and `line`
     /// name the block just finished.
     pub block_stop: bool,
@@ -183,6 +185,7 @@ impl RtCore {
         s.spindle.rpm = self.io.fb.spindle_rpm;
         s.spindle.waiting = self.motion.interp.waiting_for_spindle();
         s.progress.program_stop = self.motion.interp.at_program_stop();
+        s.progress.tool_change = self.motion.interp.tool_change();
         s.progress.block_stop = self.motion.interp.at_block_stop();
         s.plc = self.logic.plc;
         &self.snap

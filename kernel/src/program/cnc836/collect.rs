@@ -34,6 +34,8 @@ pub(super) struct Words {
     pub(super) s: Option<(Num, usize)>,
     pub(super) d: Option<(u8, usize)>,
     pub(super) amp: Option<(u8, usize)>,
+    /// `T<n>`: the tool for the next M6 (docs/language.md, "Tool change").
+    pub(super) t: Option<(u8, usize)>,
     pub(super) m: [Option<(u16, usize)>; 4],
     pub(super) assigns: [Option<(u8, Num)>; 16],
     /// G4: a dwell (its time is F).
@@ -159,6 +161,10 @@ impl Interpreter {
             b'&' => {
                 let d = int(num, "&", 0, 99).map_err(|e| Fail::new(at, e.code(), e))?;
                 once(&mut w.amp, d as u8, at, "&")?
+            }
+            b'T' => {
+                let t = int(num, "T", 0, 99).map_err(|e| Fail::new(at, e.code(), e))?;
+                once(&mut w.t, t as u8, at, "T")?
             }
             b'M' if num.value == 17.0 && !num.point => subprogram_end(w, value, at)?,
             b'M' => m_word(w, num, at)?,

@@ -22,6 +22,7 @@ mod motion;
 mod spindle;
 mod subprogram;
 mod table;
+mod tool;
 pub mod words;
 
 pub use modal::{Modal, ModalParts, Motion};
@@ -302,6 +303,7 @@ impl Interpreter {
         if let Some((a, _)) = w.amp {
             st.amp = a;
         }
+        let tool_change = tool::tool_change(w, &old, &mut st, motion_words)?;
         let comp = self.compensation(w, &old, &mut st, edit.as_ref(), arc_block, motion_words)?;
         let offset = self.positions(w, &old, &mut st, edit.as_ref());
         let start = old.machine;
@@ -319,6 +321,8 @@ impl Interpreter {
                 entry: ed.entry,
                 values: ed.values,
             };
+        } else if let Some(tool) = tool_change {
+            out.kind = BlockKind::ToolChange { tool };
         } else if moves {
             out = self.motion(w, &st, &old, (start, end, offset), arc_block, per_rev)?;
         }

@@ -59,6 +59,8 @@ pub(super) struct State {
     pub(super) d: u8,
     /// Length offset entry selected by & (0 = none).
     pub(super) amp: u8,
+    /// The tool `T` named for the next M6 (0 = none).
+    pub(super) next_tool: u8,
 }
 
 /// The modal state a program or MDI leaves for the next MDI (docs/language.md, "What MDI
@@ -206,6 +208,7 @@ impl State {
             comp: CompMode::Off,
             d: 0,
             amp: 0,
+            next_tool: 0,
         }
     }
 

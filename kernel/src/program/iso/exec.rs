@@ -131,14 +131,16 @@ impl Exec<'_> {
         Ok(())
     }
 
-    /// M6: the selected tool goes into the spindle. The program stops for the change (M0)
-    /// in a block of its own, before the line's motion (docs/language.md).
+    /// M6: the selected tool goes into the spindle. The program stops for the change (as at
+    /// M0, the spindle stopped as LinuxCNC's M6 stops it) in a block of its own, before the
+    /// line's motion (docs/language.md, "Tool change").
     fn tool_change(&mut self, _at: usize) -> Result<(), Fail> {
         self.st.tool = self.st.next_tool;
+        self.st.spindle.dir = SpindleDir::Stopped;
         self.emit(
-            BlockKind::Technology,
+            BlockKind::ToolChange { tool: self.st.tool },
             Feed::default(),
-            [Some(6), Some(0), None, None],
+            [Some(6), None, None, None],
         );
         Ok(())
     }

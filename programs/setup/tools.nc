@@ -1,0 +1,16 @@
+; docs/setup.md: two manual tool changes; each cut runs with its tool's radius and lengths.
+N10 G0 X0 Y0 Z50
+N20 T1 M6
+N30 M3 S1000
+N40 G0 Z0
+N50 G41 G1 X20 Y0 F3000
+N60 G1 X30
+N70 G40 G1 X40 M5
+N80 G0 Z50
+N90 T2 M6
+N100 M3 S800
+N110 G0 Z0
+N120 G41 G1 X60 Y0
+N130 G1 X70
+N140 G40 G1 X80
+N150 M30
