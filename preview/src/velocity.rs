@@ -69,6 +69,11 @@ impl Recorder {
     }
 
     fn step(&mut self) {
+        // A program stop (M0, M1, a tool change) is resumed at once: the plot is the
+        // machining, not the operator's time (and a held interpolator would never end).
+        if self.interp.at_program_stop() {
+            self.interp.resume();
+        }
         let out = self.interp.tick();
         self.tick += 1;
         let mut acc = [0.0; MAX_AXES];

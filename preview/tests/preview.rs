@@ -443,6 +443,17 @@ fn velocity_plot_follows_the_interpolator() {
     assert!(v.to_png().expect("png").starts_with(b"\x89PNG"));
 }
 
+/// A program stop (M0, a CNC836 tool change) does not hold the plot's run: it ends, and the
+/// plot spans the motion after the stop too.
+#[test]
+fn velocity_plot_runs_through_program_stops() {
+    let o = opts();
+    let text = "N10 G1 X20 F3000\nN20 M0\nN30 G1 Y20\nN40 T2 M6\nN50 G1 X0\n";
+    let v = preview::velocity_plot(text, &o, false).expect("plot");
+    // Three moves of 20 mm at 50 mm/s, each at least 0.4 s.
+    assert!(v.end_s >= 1.2, "{}", v.end_s);
+}
+
 #[test]
 fn velocity_pages_split_the_run() {
     let mut o = opts();
