@@ -212,7 +212,7 @@ impl Interpolator {
     fn box_point(&self, k: usize, s: f64) -> AxesMm {
         let seg = self.seg(k);
         let local = s - self.start_of(k);
-        if local >= seg.length_mm - ARRIVE_EPS_MM {
+        if at_end(local, seg.length_mm) {
             seg.path.end()
         } else {
             seg.path.point_at((local / seg.length_mm).max(0.0))
@@ -240,7 +240,7 @@ impl Interpolator {
             }
         };
         let local = s - self.start_of(k);
-        if local >= self.ahead[self.idx(k)].length_mm - ARRIVE_EPS_MM && k + 1 < self.len {
+        if at_end(local, self.ahead[self.idx(k)].length_mm) && k + 1 < self.len {
             at(k)
         } else if local <= ARRIVE_EPS_MM && k > 0 {
             at(k - 1)
@@ -535,7 +535,7 @@ impl Interpolator {
         let room = |k: usize| self.box_slots[self.idx(k)].path_room_mm;
         let here = room(t.k);
         let local = t.s - self.start_of(t.k);
-        if k_ends_at(local, self.ahead[self.idx(t.k)].length_mm) && t.k + 1 < self.len {
+        if at_end(local, self.ahead[self.idx(t.k)].length_mm) && t.k + 1 < self.len {
             here.min(room(t.k + 1))
         } else {
             here
@@ -761,8 +761,9 @@ impl Interpolator {
     }
 }
 
-/// Whether arc length `local` on a segment of length `length_mm` is its end, as sent.
-fn k_ends_at(local: f64, length_mm: f64) -> bool {
+/// Whether arc length `local` on a segment of length `length_mm` is its end, as sent (a
+/// setpoint this close snaps to the end point).
+fn at_end(local: f64, length_mm: f64) -> bool {
     local >= length_mm - ARRIVE_EPS_MM
 }
 
