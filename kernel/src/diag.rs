@@ -249,6 +249,21 @@ diag_codes! {
     /// A touch-off on an axis the offset table has no length for (axes 5 and 6), or a value
     /// the table cannot hold.
     TouchOffInvalid = "touch_off_invalid",
+    /// A probing move or workflow while the machine is not idle (a program, a jog, a
+    /// reference run, a fault).
+    ProbeBusy = "probe_busy",
+    /// A probing move or workflow before the axes are homed.
+    ProbeNotHomed = "probe_not_homed",
+    /// The machine has no probe input (`function = "probe"`, docs/io.md).
+    ProbeUnavailable = "probe_unavailable",
+    /// A probing move asked with an unknown axis, a distance or feed that is not usable.
+    ProbeInvalid = "probe_invalid",
+    /// The probing move ended without the probe changing (no contact within its travel).
+    ProbeNoContact = "probe_no_contact",
+    /// The probe was already in contact (or already clear, probing away) when the move started.
+    ProbeAlreadyTriggered = "probe_already_triggered",
+    /// The probing move was stopped (Stop, a fault, the e-stop) before it ended.
+    ProbeAborted = "probe_aborted",
     /// A restart from a block the program does not have (issue #31).
     RestartBlockNotFound = "restart_block_not_found",
     /// Too many errors: checking stopped.

@@ -73,3 +73,51 @@ fn m6_where_it_cannot_be_is_refused() {
     // T alone changes nothing yet; T0 M6 empties the spindle (D0, &0).
     assert_eq!(code("T2\nT0 M6\nG1 X1 F100\n"), None);
 }
+
+/// Plans `text` and runs it in the interpolator until the first program stop; the tool it
+/// names and the block it holds in, or `None` when the program ran to its end.
+fn first_stop(text: &str) -> Option<(Option<u8>, Option<u32>)> {
+    use kernel::interp::{InterpState, Interpolator};
+    use kernel::plan::{Planner, PlannerConfig};
+    let c = compile(text, &setup());
+    assert!(!c.has_errors(), "{:?}", c.diagnostics);
+    let mut pl = Planner::new(PlannerConfig::uniform(3, 200.0, 1500.0), 1);
+    let mut segs = vec![];
+    for b in &c.blocks {
+        pl.push(b).unwrap();
+        segs.extend(std::iter::from_fn(|| pl.poll()));
+    }
+    pl.finish();
+    segs.extend(std::iter::from_fn(|| pl.poll()));
+    let mut ip = Interpolator::new(3, kernel::units::AxesMm::default());
+    for seg in segs {
+        ip.push(seg).unwrap();
+    }
+    for _ in 0..100_000 {
+        ip.set_in_position(true);
+        let out = ip.tick();
+        if ip.at_program_stop() {
+            return Some((ip.tool_change(), out.n));
+        }
+        if out.state == InterpState::Idle {
+            return None;
+        }
+    }
+    panic!("neither a stop nor the end");
+}
+
+#[test]
+fn a_stop_with_no_motion_after_it_holds() {
+    // `T3 M6` alone (MDI), M0 before M30 after the last motion (held at the end of that
+    // motion), M0 on a move of length 0.
+    assert_eq!(first_stop("N10 T3 M6\n"), Some((Some(3), Some(10))));
+    assert_eq!(
+        first_stop("N10 G1 X10 F1000\nN20 M0\nN30 M30\n"),
+        Some((None, Some(10)))
+    );
+    assert_eq!(
+        first_stop("N10 G1 X0 F1000 M0\nN20 M30\n"),
+        Some((None, Some(10)))
+    );
+    assert_eq!(first_stop("N10 G1 X10 F1000\nN20 M30\n"), None);
+}

@@ -75,6 +75,12 @@ impl SimBus {
         self
     }
 
+    /// What the probe inputs touch (docs/setup.md, "Probing").
+    pub fn with_probe(mut self, probe: Option<crate::probe::SimProbe>) -> Self {
+        self.io.probe = probe;
+        self
+    }
+
     /// Uses `handle` to set simulated inputs from outside (the daemon keeps one for
     /// `cncctl io sim-set`).
     pub fn with_input_handle(mut self, handle: SimInputs) -> Self {

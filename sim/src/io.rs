@@ -7,12 +7,17 @@ use std::sync::atomic::{AtomicU8, Ordering};
 
 use hal::io::{IoBits, MAX_IO};
 
+use crate::probe::SimProbe;
+
 /// One simulated input: its wire value at rest, and the switch it models on an axis (reached
 /// at and beyond `at_mm` of `axis`, on the side `side`: -1 at and below, +1 at and above).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SimInput {
     pub rest: bool,
     pub switch: Option<(usize, f64, f64)>,
+    /// The probe: reads 1 while it touches the simulated workpiece or tool setter
+    /// ([`crate::probe`]).
+    pub probe: bool,
 }
 
 /// Inputs set from outside: per input, unset (the model's value), or 0 / 1.
@@ -50,6 +55,8 @@ pub struct SimIo {
     pub set: SimInputs,
     /// The outputs as last written.
     pub outputs: IoBits,
+    /// What the probe inputs touch.
+    pub probe: Option<SimProbe>,
 }
 
 /// Where the default machine's limit switches sit on an axis without soft limits, mm (the
@@ -64,6 +71,7 @@ impl SimIo {
         let closed = SimInput {
             rest: true,
             switch: None,
+            probe: false,
         };
         let mut inputs = vec![closed];
         for a in 0..axes.min(3) {
@@ -71,6 +79,7 @@ impl SimIo {
                 inputs.push(SimInput {
                     rest: false,
                     switch: Some((a, side * DEFAULT_LIMIT_MM, side)),
+                    probe: false,
                 });
             }
         }
@@ -84,6 +93,10 @@ impl SimIo {
         let mut bits = IoBits::NONE;
         for (k, inp) in self.inputs.iter().enumerate().take(MAX_IO) {
             let modelled = match inp.switch {
+                _ if inp.probe => {
+                    let touches = self.probe.as_ref().is_some_and(|p| p.touches(positions_mm));
+                    touches != inp.rest
+                }
                 Some((axis, at, side)) => {
                     let reached = positions_mm
                         .get(axis)

@@ -12,6 +12,7 @@ pub mod drive_io;
 pub mod homing;
 pub mod io;
 pub mod pdo_objects;
+pub mod probe;
 pub mod serial_drive;
 
 pub use bus::{SimBus, SpindleLoad};

@@ -117,6 +117,8 @@ pub struct IoWiring {
     /// The simulated machine's inputs, and the handle `cncctl io sim-set` flips them with.
     pub sim: Vec<sim::io::SimInput>,
     pub sim_handle: Option<sim::io::SimInputs>,
+    /// What the simulated probe touches.
+    pub sim_probe: Option<sim::probe::SimProbe>,
     /// Heartbeat consumer time of the CiA 401 modules, ms.
     pub module_consumer_ms: u16,
 }
@@ -130,9 +132,11 @@ impl IoWiring {
                 .map(|p| sim::io::SimInput {
                     rest: p.rest,
                     switch: p.switch,
+                    probe: p.probe,
                 })
                 .collect(),
             sim_handle: None,
+            sim_probe: Some(super::io_setup::sim_probe(config)),
             module_consumer_ms: config.io().module_consumer_timeout_ms,
         }
     }
@@ -178,7 +182,8 @@ pub fn open_bus(
             let mut bus = sim::SimBus::new(params, &start)
                 .with_spindle_ramp(sim.spindle_ramp_rpm_s)
                 .with_cycle_s(cycle_ms * 1e-3)
-                .with_inputs(io.sim.clone());
+                .with_inputs(io.sim.clone())
+                .with_probe(io.sim_probe.clone());
             if let Some(h) = &io.sim_handle {
                 bus = bus.with_input_handle(h.clone());
             }

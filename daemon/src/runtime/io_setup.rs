@@ -116,6 +116,7 @@ fn input_function(config: &Config, f: &mut IoFunctions, k: usize, inp: &InputCon
             AlarmSeverity::Warning => f.alarm_warning |= bit,
             AlarmSeverity::Fault => f.alarm_fault |= bit,
         },
+        InputFunction::Probe => f.probe |= bit,
     }
 }
 
@@ -183,6 +184,8 @@ fn section_m_functions(io: &IoSection) -> MFunctions {
 pub struct SimInputPlan {
     pub rest: bool,
     pub switch: Option<(usize, f64, f64)>,
+    /// The probe: touches the simulated workpiece and tool setter.
+    pub probe: bool,
 }
 
 /// The simulated machine's inputs: the e-stop chain and the door closed, every other input
@@ -210,9 +213,35 @@ pub fn sim_inputs(config: &Config) -> Vec<SimInputPlan> {
             SimInputPlan {
                 rest: closed != inp.invert,
                 switch,
+                probe: inp.function == InputFunction::Probe,
             }
         })
         .collect()
+}
+
+/// What the simulated probe touches: the `[sim]` workpiece, its bores and tool setter, with
+/// the `[probe]` ball at the simulated tool's tip (docs/setup.md).
+pub fn sim_probe(config: &Config) -> sim::probe::SimProbe {
+    use sim::probe::{SimBox, SimCylinder, SimProbe};
+    let s = &config.sim;
+    let axis = |l: char| config.axes.iter().position(|a| a.name == l);
+    let cylinder = |c: &super::config::SimCylinderConfig| SimCylinder {
+        x_mm: c.x_mm,
+        y_mm: c.y_mm,
+        radius_mm: c.diameter_mm / 2.0,
+        top_mm: c.top_mm,
+    };
+    SimProbe {
+        axes: [axis('X'), axis('Y'), axis('Z')],
+        tool_length_mm: s.tool_length_mm,
+        ball_radius_mm: config.probe.ball_radius_mm,
+        workpiece: Some(SimBox {
+            min_mm: s.workpiece_min_mm,
+            max_mm: s.workpiece_max_mm,
+        }),
+        bores: s.bores.iter().map(cylinder).collect(),
+        setter: Some(cylinder(&s.tool_setter)),
+    }
 }
 
 fn axis_homing_direction(config: &Config, inp: &InputConfig) -> i8 {

@@ -17,7 +17,8 @@ use kernel::plan::Segment;
 
 use super::clock::Clock;
 pub use super::rt_core::{
-    JobMachine, MachineState, RtCommand, RtCore, RtCoreConfig, RtRings, Snapshot,
+    JobMachine, MachineState, ProbeOutcome, ProbeRequest, RtCommand, RtCore, RtCoreConfig, RtRings,
+    Snapshot,
 };
 
 /// Everything the RT thread owns.

@@ -415,12 +415,7 @@ impl Interpolator {
             return Err(seg);
         }
         if empty {
-            if self.len == 0 {
-                self.last_spindle = seg.spindle;
-            } else {
-                let i = (self.head + self.len - 1) % BUFFER_SEGMENTS;
-                self.buf[i].spindle_after = Some(seg.spindle);
-            }
+            self.push_empty(&seg);
             return Ok(());
         }
         let i = (self.head + self.len) % BUFFER_SEGMENTS;
@@ -443,6 +438,30 @@ impl Interpolator {
             self.state = InterpState::Running;
         }
         Ok(())
+    }
+
+    /// A segment of zero length: its spindle state, and a program stop with no motion after
+    /// it (held at once at rest, or at the end of the buffered path).
+    fn push_empty(&mut self, seg: &Segment) {
+        let stop = seg.program_stop.stronger(seg.program_stop_before);
+        if self.len == 0 {
+            self.last_spindle = seg.spindle;
+            if matches!(self.state, InterpState::Idle | InterpState::Running)
+                && self.stops_here(stop)
+            {
+                self.last_seq = seg.seq;
+                self.last_n = seg.n;
+                self.last_line = seg.line;
+                self.hold_at_stop(stop);
+                self.state = InterpState::Held;
+            }
+        } else {
+            let i = (self.head + self.len - 1) % BUFFER_SEGMENTS;
+            if seg.spindle != self.buf[i].spindle {
+                self.buf[i].spindle_after = Some(seg.spindle);
+            }
+            self.buf[i].program_stop = self.buf[i].program_stop.stronger(stop);
+        }
     }
 
     /// A new job starts: the block the last one ended in is no longer the one in progress,

@@ -88,7 +88,7 @@ impl Interpolator {
     }
 
     /// Holds at the program stop `stop` (due here): the tool it names, if a tool change.
-    fn hold_at_stop(&mut self, stop: ProgramStop) {
+    pub(super) fn hold_at_stop(&mut self, stop: ProgramStop) {
         self.state = InterpState::Holding;
         self.at_program_stop = true;
         self.tool_change = match stop {

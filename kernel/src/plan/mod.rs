@@ -332,6 +332,9 @@ pub struct Planner {
     /// M0/M1 that could not ride on the last segment (none yet, or already committed): held
     /// at the start of the next segment, which starts from rest anyway.
     leading_stop: ProgramStop,
+    /// The block that set `leading_stop` last (seq, N, line): a stop with no motion after it
+    /// is handed out in its name ([`Planner::finish`]).
+    leading_stop_block: (u32, Option<u32>, u32),
     /// Inputs a technology block's M functions wait for (docs/io.md): the next motion starts
     /// once they read 1.
     pending_wait: u64,
@@ -379,6 +382,7 @@ impl Planner {
             last_block_set: 1,
             leading_dwell_s: 0.0,
             leading_stop: ProgramStop::None,
+            leading_stop_block: (0, None, 0),
             pending_wait: 0,
             spindle_state: Spindle::default(),
             near: None,
@@ -443,7 +447,7 @@ impl Planner {
         let mut own = *block;
         own.spindle.outputs.wait |= self.pending_wait;
         let block = &own;
-        self.spindle_state = block.spindle;
+        let spindle_before = std::mem::replace(&mut self.spindle_state, block.spindle);
         if block.spindle.outputs.wait != 0 || block.spindle.outputs.touched {
             // M functions on outputs act before the motion, at rest (and one that waits for
             // an input waits there): the block starts from a stop (docs/io.md).
@@ -470,6 +474,10 @@ impl Planner {
         };
         let length_mm = seg_path.length(axes);
         if length_mm.is_nan() || length_mm <= 1e-9 {
+            // No motion: its M functions (M0, outputs, the spindle) still act, as in a
+            // block without axis words.
+            self.spindle_state = spindle_before;
+            self.push_technology(block);
             return Ok(());
         }
         // (A block that waits for inputs keeps its own start: it is not merged away.)
@@ -502,7 +510,11 @@ impl Planner {
         if has_m {
             self.flush_carry();
             self.force_stop(0.0);
-            self.program_stop(ProgramStop::of_block(block));
+            let stop = ProgramStop::of_block(block);
+            if stop != ProgramStop::None {
+                self.leading_stop_block = (block.seq, block.n, block.line);
+            }
+            self.program_stop(stop);
         }
         // M3/M4/M5 count even when the state looks unchanged: each run starts from the
         // power-on state, while the spindle may still turn from an earlier run.
@@ -554,7 +566,35 @@ impl Planner {
         } else {
             self.tech_out = self.leading_spindle.take();
         }
+        self.trailing_stop();
         self.advance();
+    }
+
+    /// A program stop (M0, M1, a tool change) with no motion after it: on the last segment
+    /// not yet handed out, else on a segment of zero length of its own (the interpolator
+    /// holds at rest where the path ended: `T3 M6` by MDI, `M0` before `M30`).
+    fn trailing_stop(&mut self) {
+        let stop = std::mem::take(&mut self.leading_stop);
+        if stop == ProgramStop::None {
+            return;
+        }
+        if self.emitted < self.win.len()
+            && let Some(last) = self.win.back_mut()
+        {
+            last.seg.program_stop = last.seg.program_stop.stronger(stop);
+            return;
+        }
+        let (seq, n, line) = self.leading_stop_block;
+        let mut seg = self.tech_out.take().unwrap_or(Segment {
+            job: self.job,
+            seq,
+            n,
+            line,
+            spindle: self.spindle_state,
+            ..Segment::default()
+        });
+        seg.program_stop = stop;
+        self.tech_out = Some(seg);
     }
 
     /// Next committed segment, if any.

@@ -274,6 +274,11 @@ pub enum Cmd {
         #[arg(long)]
         watch: bool,
     },
+    /// Probing (docs/setup.md): a probing move, or a workflow writing an entry of TAB0.KOR.
+    Probe {
+        #[command(subcommand)]
+        cmd: ProbeCmd,
+    },
     /// PLC memory area 1.
     Plc {
         #[command(subcommand)]
@@ -340,6 +345,59 @@ pub enum Cmd {
     Health,
     /// Print the SHA-256 of a token, for `[[api.tokens]] sha256 = ...`.
     HashToken { token: String },
+}
+
+#[derive(Subcommand)]
+pub enum ProbeCmd {
+    /// A probing move: AXIS moves DISTANCE (signed, mm) until the probe touches; prints the
+    /// positions taken at the contact.
+    #[command(allow_negative_numbers = true)]
+    Move {
+        axis: String,
+        distance: f64,
+        /// mm/min (default `[probe] search_feed_mm_min`).
+        #[arg(long, default_value_t = 0.0)]
+        feed: f64,
+        /// Move away from a contact until the probe releases.
+        #[arg(long)]
+        away: bool,
+    },
+    /// The tool on the tool setter: writes entry ENTRY's Z length (the tool's length unless
+    /// `--value` says what the setter's top reads).
+    #[command(allow_negative_numbers = true)]
+    ToolSetter {
+        entry: u32,
+        #[arg(long)]
+        value: Option<f64>,
+        /// As touch-off's `--work`.
+        #[arg(long)]
+        work: Option<String>,
+    },
+    /// An edge: touches along AXIS in DIRECTION (+ or -) and writes entry ENTRY's length of
+    /// AXIS so that the edge reads `--value` (default 0).
+    #[command(allow_negative_numbers = true)]
+    Edge {
+        entry: u32,
+        axis: String,
+        #[arg(allow_hyphen_values = true)]
+        direction: String,
+        #[arg(long)]
+        value: Option<f64>,
+        #[arg(long)]
+        work: Option<String>,
+    },
+    /// A bore's centre, from inside it: writes entry ENTRY's X and Y lengths so that the
+    /// centre reads `--x`, `--y` (default 0).
+    #[command(allow_negative_numbers = true)]
+    Bore {
+        entry: u32,
+        #[arg(long)]
+        x: Option<f64>,
+        #[arg(long)]
+        y: Option<f64>,
+        #[arg(long)]
+        work: Option<String>,
+    },
 }
 
 #[derive(Subcommand)]

@@ -75,6 +75,8 @@ pub enum CliError {
     Dialect(#[from] daemon::runtime::dialect::UnknownDialect),
     #[error("{0:?}: give an axis letter and a value in mm, e.g. X10 or Y-2.5")]
     AxisValue(String),
+    #[error("{0:?}: give the direction of the touch, + or -")]
+    ProbeDirection(String),
 }
 
 impl CliError {
@@ -109,6 +111,7 @@ impl CliError {
             CliError::NotConfirmed => "cli_not_confirmed",
             CliError::Dialect(_) => "cli_dialect",
             CliError::AxisValue(_) => "cli_axis_value",
+            CliError::ProbeDirection(_) => "cli_probe_direction",
         }
     }
 

@@ -17,6 +17,7 @@ mod machine;
 mod offsets;
 mod plc;
 mod preview;
+mod probe;
 mod programs;
 mod render;
 mod restart;
@@ -118,6 +119,7 @@ async fn dispatch(c: &mut Clients, cmd: Cmd, j: bool) -> Reply {
             interpret::command(&mut c.programs, what, j).await
         }
         Cmd::Plc { cmd } => plc::command(&mut c.plc, cmd, j).await,
+        Cmd::Probe { cmd } => probe::command(c, cmd, j).await,
         Cmd::Io { cmd, watch } => io::command(&mut c.machine, cmd, watch, j).await,
         Cmd::Constants { cmd } => constants::command(&mut c.constants, cmd, j).await,
         Cmd::PreviewData {

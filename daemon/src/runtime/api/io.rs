@@ -94,6 +94,7 @@ pub fn input_function_name(f: InputFunction) -> &'static str {
         InputFunction::CycleStart => "cycle_start",
         InputFunction::Door => "door",
         InputFunction::Alarm => "alarm",
+        InputFunction::Probe => "probe",
     }
 }
 

@@ -369,6 +369,15 @@ impl Machine for MachineSvc {
         Ok(Response::new(pb::HomeReply { homed }))
     }
 
+    async fn probe(
+        &self,
+        req: Request<pb::ProbeRequest>,
+    ) -> Result<Response<pb::ProbeReply>, Status> {
+        require(&req, Operator, "Probe")?;
+        let reply = super::probe::probe(&self.0, req.into_inner()).await?;
+        Ok(Response::new(reply))
+    }
+
     async fn jog_step(
         &self,
         req: Request<pb::JogStepRequest>,

@@ -17,6 +17,7 @@ mod jog;
 mod machine;
 pub mod preview;
 mod preview_outline;
+mod probe;
 mod programs;
 mod stream_budget;
 mod tables;

@@ -118,6 +118,15 @@ impl Offsets for OffsetsSvc {
         Ok(Response::new(reply))
     }
 
+    async fn probe_workflow(
+        &self,
+        req: Request<pb::ProbeWorkflowRequest>,
+    ) -> Result<Response<pb::ProbeWorkflowReply>, Status> {
+        require(&req, Operator, "ProbeWorkflow")?;
+        let reply = super::probe::workflow(self.0.clone(), req.into_inner()).await?;
+        Ok(Response::new(reply))
+    }
+
     async fn set_offset(
         &self,
         req: Request<pb::SetOffsetRequest>,

@@ -19,7 +19,7 @@ fn invalid(msg: String) -> Status {
 }
 
 /// What the request asks for, checked against the machine (nothing is read from the axes).
-fn request(st: &ApiState, r: &pb::TouchOffRequest) -> Result<TouchOff, Status> {
+pub(super) fn request(st: &ApiState, r: &pb::TouchOffRequest) -> Result<TouchOff, Status> {
     let entry = u8::try_from(r.entry)
         .ok()
         .filter(|n| (1..=ENTRIES).contains(n))
@@ -84,23 +84,39 @@ pub(super) async fn touch_off(
 ) -> Result<pb::TouchOffReply, Status> {
     let t = request(&st, &r)?;
     let machine_mm = ready(&st, t.axis)?;
-    let edit =
-        touch_off::edit_for(&t, machine_mm, r.radius_mm).map_err(|e| invalid(e.to_string()))?;
+    let length_mm = write(&st, &t, machine_mm, r.radius_mm).await?;
+    Ok(pb::TouchOffReply {
+        entry: Some(entry_now(&st, t.entry)),
+        length_mm,
+        machine_mm,
+    })
+}
+
+/// Writes the length that makes `machine_mm` read `t.value_mm` (and a radius, if any) as
+/// every table edit is written; the length written.
+pub(super) async fn write(
+    st: &std::sync::Arc<ApiState>,
+    t: &TouchOff,
+    machine_mm: f64,
+    radius_mm: Option<f64>,
+) -> Result<f64, Status> {
+    let edit = touch_off::edit_for(t, machine_mm, radius_mm).map_err(|e| invalid(e.to_string()))?;
     let length_mm = edit.values[t.axis + 1].unwrap_or_default();
     let ctl = st.clone();
     blocking(move || ctl.ctl.edit_offset(&edit))
         .await?
         .map_err(status_of)?;
+    Ok(length_mm)
+}
+
+/// Entry `entry` as it is in memory now.
+pub(super) fn entry_now(st: &ApiState, entry: u8) -> pb::OffsetEntry {
     let memory = st.ctl.offsets_memory();
-    let e = memory.entry(t.entry).copied().unwrap_or_default();
-    Ok(pb::TouchOffReply {
-        entry: Some(pb::OffsetEntry {
-            entry: t.entry.into(),
-            radius_mm: e.radius_mm,
-            length_mm: e.length_mm.to_vec(),
-            changed_by_program: false,
-        }),
-        length_mm,
-        machine_mm,
-    })
+    let e = memory.entry(entry).copied().unwrap_or_default();
+    pb::OffsetEntry {
+        entry: entry.into(),
+        radius_mm: e.radius_mm,
+        length_mm: e.length_mm.to_vec(),
+        changed_by_program: false,
+    }
 }

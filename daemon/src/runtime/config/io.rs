@@ -74,6 +74,9 @@ pub enum InputFunction {
     Door,
     /// An alarm of the machine (lubrication low, air pressure): 1 while active.
     Alarm,
+    /// The probe (a touch probe or a tool setter, wired in series): 1 while touching. Read
+    /// by probing moves only (docs/setup.md).
+    Probe,
 }
 
 /// Severity of an alarm input.
@@ -213,7 +216,7 @@ pub const SIM_LIMIT_UNBOUNDED_MM: f64 = sim::io::DEFAULT_LIMIT_MM;
 impl IoSection {
     /// The simulated machine's own inputs and outputs (no `[io]` section): the e-stop chain,
     /// a limit switch on each side of the first three axes a few mm outside the travel, the
-    /// door, the coolant (M8/M9) and the spindle enable (M3/M4/M5).
+    /// door, the probe, the coolant (M8/M9) and the spindle enable (M3/M4/M5).
     pub fn sim_default(axes: &[super::AxisConfig]) -> IoSection {
         let input = |name: String, function: InputFunction| InputConfig {
             name,
@@ -250,6 +253,7 @@ impl IoSection {
             }
         }
         inputs.push(input("door".into(), InputFunction::Door));
+        inputs.push(input("probe".into(), InputFunction::Probe));
         let output =
             |name: &str, function: OutputFunction, on: &[&str], off: &[&str]| OutputConfig {
                 name: name.into(),

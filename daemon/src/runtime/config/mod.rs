@@ -26,6 +26,7 @@ mod io_check;
 mod kr;
 mod mtconnect;
 mod planner;
+mod probe;
 mod program;
 mod rt;
 mod sim;
@@ -49,9 +50,10 @@ pub use io_check::IoContext;
 pub use kr::{GearConfig, KrSection, RadiusInputConfig};
 pub use mtconnect::MtconnectConfig;
 pub use planner::PlannerSection;
+pub use probe::{ProbeSection, SetterConfig};
 pub use program::{IjSetting, ProgramSection};
 pub use rt::RtConfig;
-pub use sim::SimConfig;
+pub use sim::{SimConfig, SimCylinderConfig};
 pub use storage::StorageConfig;
 pub use tool_change::{ToolChangeMode, ToolChangeSection};
 
@@ -90,6 +92,9 @@ pub struct Config {
     /// `[tool_change]`: what M6 does (docs/setup.md).
     #[serde(default)]
     pub tool_change: ToolChangeSection,
+    /// `[probe]`: probing feeds and the tool setter (docs/setup.md); [`Config::probe`].
+    #[serde(default)]
+    pub probe: ProbeSection,
 }
 
 impl Default for Config {
@@ -108,6 +113,7 @@ impl Default for Config {
             mtconnect: MtconnectConfig::default(),
             io: None,
             tool_change: ToolChangeSection::default(),
+            probe: ProbeSection::default(),
         }
     }
 }
@@ -142,6 +148,7 @@ impl Config {
         self.storage.validate()?;
         axes::validate_positions(&self.axes)?;
         self.sim.validate()?;
+        self.probe.validate()?;
         self.planner.validate()?;
         self.rt.validate()?;
         self.api.validate()?;
@@ -165,6 +172,22 @@ impl Config {
             (None, BusConfig::Sim { .. }) => IoSection::sim_default(&self.axes),
             (None, _) => IoSection::default(),
         }
+    }
+
+    /// The probing settings; on the simulated machine the setter defaults to its simulated
+    /// one.
+    pub fn probe(&self) -> ProbeSection {
+        let mut p = self.probe.clone();
+        if let (None, BusConfig::Sim { .. }) = (&p.setter, &self.bus) {
+            let s = sim::default_setter();
+            p.setter = Some(SetterConfig {
+                x_mm: s.x_mm,
+                y_mm: s.y_mm,
+                z_mm: s.top_mm,
+                clearance_z_mm: 0.0,
+            });
+        }
+        p
     }
 
     pub fn axis_names(&self) -> Vec<char> {

@@ -23,6 +23,8 @@
 mod jobs;
 mod motion;
 pub use motion::JogRefusal;
+pub use probing::{BoreCentre, ProbeError, ProbeMove};
+mod probing;
 mod pump;
 mod rt_link;
 mod selection;

@@ -42,6 +42,8 @@ pub enum RtCommand {
     JogStop,
     /// Reference run of one axis (idle machine only; issue #15).
     Home(HomeRequest),
+    /// A probing move of one axis (idle machine only; docs/setup.md).
+    Probe(super::ProbeRequest),
     /// Forces output `output` to a value (`None`: releases it), for commissioning; every
     /// forcing ends with Reset (docs/io.md).
     ForceOutput { output: u8, value: Option<bool> },
@@ -101,12 +103,17 @@ impl RtCore {
                     }
                 }
                 RtCommand::Stop => {
+                    self.probe_stop();
                     self.motion.jog.stop();
                     self.stop_drive_homing(bus);
                     self.abort();
                 }
                 RtCommand::Jog(r) => self.jog_request(r),
-                RtCommand::JogStop => self.motion.jog.stop(),
+                RtCommand::JogStop => {
+                    self.probe_stop();
+                    self.motion.jog.stop();
+                }
+                RtCommand::Probe(r) => self.probe_request(r),
                 RtCommand::Home(r) => self.home_request(r, bus),
                 // Only a job is held (the controller's check may have read an older
                 // snapshot: the job may have ended since).
@@ -151,6 +158,7 @@ impl RtCore {
                     self.snap.operator.optional_stop = on;
                 }
                 RtCommand::Shutdown => {
+                    self.probe_stop();
                     self.motion.jog.stop();
                     self.stop_drive_homing(bus);
                     self.lifecycle.shutting_down = true;

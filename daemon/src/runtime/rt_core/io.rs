@@ -34,6 +34,8 @@ pub struct IoFunctions {
     /// Alarm inputs (1: active), shown only, or stopping the machine.
     pub alarm_warning: u64,
     pub alarm_fault: u64,
+    /// Probe inputs (1: touching), read by probing moves.
+    pub probe: u64,
     /// How long a block waits for input k to confirm its M function, 4 ms steps.
     pub wait_steps: [u32; MAX_IO],
     /// Outputs' safe values (bit set: 1).
@@ -62,6 +64,7 @@ impl Default for IoFunctions {
             door: 0,
             alarm_warning: 0,
             alarm_fault: 0,
+            probe: 0,
             wait_steps: [0; MAX_IO],
             safe: 0,
             program: 0,

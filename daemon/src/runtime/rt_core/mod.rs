@@ -25,6 +25,7 @@ mod fault;
 mod homing;
 mod io;
 mod motion;
+mod probe;
 mod snapshot;
 mod state;
 #[cfg(test)]
@@ -47,6 +48,7 @@ use super::stats::TickStats;
 
 pub use commands::{HomeRequest, JobMachine, RtCommand};
 pub use io::{IoFunctions, IoStatus, bus_fault};
+pub use probe::{ProbeOutcome, ProbeRequest, ProbeStatus};
 pub use snapshot::{
     Alarms, AxesStatus, OperatorSettings, Progress, Snapshot, SpindleStatus, TickInfo,
 };
@@ -137,6 +139,7 @@ impl RtCore {
                 out: TickOut::default(),
                 jog: Jog::default(),
                 homing: None,
+                probe: probe::ProbeRun::default(),
             },
             job: JobRun {
                 active: 0,
@@ -211,6 +214,7 @@ impl RtCore {
     fn after_feedback(&mut self, rings: &RtRings, bus: &mut dyn DriveBus) {
         self.fault_reaction(bus);
         self.homing_step(bus);
+        self.probe_step();
         let planned = rings.planned_job.load(Ordering::Acquire);
         self.update_state(planned, rings.segments.is_empty());
     }

@@ -23,6 +23,8 @@ pub(super) struct MotionSources {
     pub(super) jog: Jog,
     /// Reference run under way.
     pub(super) homing: Option<HomingRun>,
+    /// Probing move under way (it moves the axis with `jog`).
+    pub(super) probe: super::probe::ProbeRun,
 }
 
 /// The job the core runs and what it took with its start.

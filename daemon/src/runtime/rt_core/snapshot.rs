@@ -30,6 +30,8 @@ pub struct Snapshot {
     pub plc: PlcArea,
     /// The machine's inputs and outputs (docs/io.md).
     pub io: super::IoStatus,
+    /// The last probing move and the probe (docs/setup.md).
+    pub probe: super::ProbeStatus,
 }
 
 /// The tick: its count and time, and the lateness statistics of the deadline grid.

@@ -1,0 +1,147 @@
+//! Issue #47 (probing), through `cncd` and `cncctl` on the simulated mill: its probe touches
+//! the simulated workpiece (X 0..100, Y 0..100, top Z -10, a 20 mm bore at X50 Y50) and tool
+//! setter (X-40 Y50, top Z -20) with a 42.5 mm tool. Every position taken is checked
+//! against that geometry, the sim's, not against what the controller computes; the bound
+//! is the documented accuracy: the probe input is sampled once per bus period (4 ms), so
+//! the position taken lies within feed × period past the surface.
+
+mod operator_support;
+
+use operator_support::*;
+use serde_json::Value;
+
+const TOOL_MM: f64 = 42.5;
+/// One bus period at the latch feed (60 mm/min here) and at the search feed (600).
+const LATCH_STEP_MM: f64 = 60.0 / 60.0 * 0.004;
+const SEARCH_STEP_MM: f64 = 600.0 / 60.0 * 0.004;
+/// The table keeps 6 decimals.
+const TABLE_MM: f64 = 1e-6;
+
+fn config() -> String {
+    format!(
+        "{MILL_TOML}\n[sim]\ntool_length_mm = {TOOL_MM}\n\n[probe]\nsearch_feed_mm_min = 600\n\
+         latch_feed_mm_min = 60\nbackoff_mm = 0.5\n\n[probe.setter]\nx_mm = -40\ny_mm = 50\n\
+         z_mm = -20\nclearance_z_mm = 40\n"
+    )
+}
+
+fn json(d: &Cncd, args: &[&str]) -> Value {
+    let mut all = vec!["--json"];
+    all.extend_from_slice(args);
+    let (ok, out) = d.cncctl(&all);
+    assert!(ok, "cncctl {args:?}: {out}\n{}", d.log());
+    serde_json::from_str(out.trim()).expect("one JSON object")
+}
+
+fn commanded(d: &Cncd, axis: usize) -> f64 {
+    json(d, &["status"])["axes"][axis]["commanded_mm"]
+        .as_f64()
+        .unwrap()
+}
+
+/// Moves one axis to `target` (machine coordinates) by a jog step, and waits.
+fn go(d: &Cncd, axis: usize, target: f64) {
+    let step = target - commanded(d, axis);
+    if step.abs() > 1e-9 {
+        let letter = ["X", "Y", "Z"][axis];
+        json(d, &["jog", letter, "--step", &format!("{step}")]);
+        d.wait_idle();
+    }
+}
+
+fn refused(d: &Cncd, args: &[&str], code: &str) {
+    let (ok, out) = d.cncctl(args);
+    assert!(!ok && out.contains(code), "cncctl {args:?}: {out}");
+}
+
+/// `value` lies in `[truth - step, truth]` (taken at most one period past the surface),
+/// give or take the table's rounding.
+fn within(what: &str, value: f64, truth: f64, step: f64) {
+    let past = truth - value;
+    assert!(
+        (-TABLE_MM..=step + TABLE_MM).contains(&past),
+        "{what}: {value} against {truth} (one period {step} mm)"
+    );
+}
+
+fn written(reply: &Value, axis: &str) -> f64 {
+    reply["written"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|w| w["axis"] == axis)
+        .unwrap_or_else(|| panic!("{reply}"))["length_mm"]
+        .as_f64()
+        .unwrap()
+}
+
+#[test]
+fn probing_finds_the_simulated_workpiece_and_writes_the_entries() {
+    let cwd = temp_dir("probing");
+    let d = Cncd::start(&cwd, &config());
+    // The tool setter writes the tool's length: its tip touches the top at -20.
+    let r = json(&d, &["probe", "tool-setter", "3"]);
+    within("tool length", written(&r, "Z"), TOOL_MM, LATCH_STEP_MM);
+    let z = commanded(&d, 2);
+    assert!((z - 40.0).abs() < 1e-6, "back at the clearance: {z}");
+    // A probing move onto the top (-10 at the tip) reports the contact.
+    go(&d, 0, 20.0);
+    go(&d, 1, 20.0);
+    let r = json(&d, &["probe", "move", "Z", "-20"]);
+    let z = r["machine_mm"][2].as_f64().unwrap();
+    within("top face", z, -10.0 + TOOL_MM, SEARCH_STEP_MM);
+    // It stands in contact now: the next move toward the part is refused, nothing moves.
+    let here = commanded(&d, 2);
+    refused(&d, &["probe", "move", "Z", "-1"], "probe_already_triggered");
+    assert_eq!(commanded(&d, 2), here);
+    // Away until it releases, then a move that misses.
+    json(&d, &["probe", "move", "Z", "5", "--away"]);
+    d.wait_idle();
+    go(&d, 2, 60.0);
+    refused(&d, &["probe", "move", "Z", "-5"], "probe_no_contact");
+    assert!((commanded(&d, 2) - 55.0).abs() < 1e-6, "the whole distance");
+    // The left edge (X 0), from outside below the top: the ball's radius is taken.
+    go(&d, 0, -10.0);
+    go(&d, 1, 50.0);
+    go(&d, 2, -20.0 + TOOL_MM);
+    let r = json(&d, &["probe", "edge", "4", "X", "+"]);
+    within("edge", -written(&r, "X"), 0.0, LATCH_STEP_MM);
+    // The bore's centre from off-centre inside it: the lengths make it read X0 Y0.
+    go(&d, 2, 20.0 + TOOL_MM);
+    go(&d, 0, 47.0);
+    go(&d, 1, 52.5);
+    go(&d, 2, -20.0 + TOOL_MM);
+    let r = json(&d, &["probe", "bore", "5"]);
+    for axis in ["X", "Y"] {
+        let c = written(&r, axis);
+        assert!((c - 50.0).abs() <= LATCH_STEP_MM + TABLE_MM, "{axis}: {r}");
+    }
+    let across = r["diameter_mm"].as_f64().unwrap();
+    assert!((across - 20.0).abs() <= 2.0 * LATCH_STEP_MM, "{r}");
+    // The entries are in the table on file, as every edit.
+    let file = json(&d, &["offsets-file"]);
+    let text = file["text"].as_str().unwrap();
+    for n in ["03:", "04:", "05:"] {
+        assert!(text.contains(n), "{n} in {text}");
+    }
+    // Not while a program runs.
+    std::fs::write(cwd.join("hold.nc"), "N10 G1 X50 F3000 M0\nN20 M30\n").unwrap();
+    json(&d, &["load", "hold.nc"]);
+    json(&d, &["start"]);
+    wait_for("the program stop", || {
+        json(&d, &["status"])["program_stop"] == true
+    });
+    refused(&d, &["probe", "move", "Z", "-1"], "probe_busy");
+    refused(&d, &["probe", "bore", "5"], "probe_busy");
+    json(&d, &["stop"]);
+    d.wait_idle();
+}
+
+#[test]
+fn a_machine_without_a_probe_input_refuses_probing() {
+    let cwd = temp_dir("probing_none");
+    let io = "[[io.inputs]]\nname = \"estop\"\nfunction = \"estop\"\n";
+    let d = Cncd::start(&cwd, &format!("{MILL_TOML}\n{io}"));
+    refused(&d, &["probe", "move", "Z", "-1"], "probe_unavailable");
+    refused(&d, &["probe", "edge", "1", "X", "up"], "give the direction");
+}
