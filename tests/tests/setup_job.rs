@@ -157,6 +157,8 @@ fn sh_lines(md: &str) -> Vec<String> {
             in_sh = !in_sh && t == "```sh";
             continue;
         }
+        // A comment after `#` says where the machine stands.
+        let t = t.split('#').next().unwrap_or_default().trim();
         if in_sh && !t.is_empty() {
             out.push(t.to_string());
         }
@@ -175,7 +177,7 @@ fn docs_setup_md_runs_as_written() {
         std::fs::copy(format!("{REPO}/programs/setup/{f}"), programs.join(f)).unwrap();
     }
     let d = Cncd::start(&cwd, MILL_TOML);
-    let (mut touched, mut prompts) = (None, 0);
+    let (mut touched, mut prompts, mut probed) = (None, 0, 0);
     for line in sh_lines(&md) {
         let args: Vec<&str> = line.split_whitespace().collect();
         assert_eq!(args[0], "cncctl", "{line}");
@@ -184,6 +186,9 @@ fn docs_setup_md_runs_as_written() {
         }
         let out = ok(&d, &args[1..]);
         prompts += usize::from(out.contains("tool change: put in tool T"));
+        if line.starts_with("cncctl probe") {
+            probed += usize::from(out.contains("written") || out.contains("contact at"));
+        }
         // At rest before the next command: idle, or held at a program stop.
         wait_for(&line, || {
             let s = status(&d);
@@ -198,9 +203,64 @@ fn docs_setup_md_runs_as_written() {
         }
     }
     assert_eq!(prompts, 2, "each status names its tool");
+    assert_eq!(probed, 4, "each probing command reports what it found");
+    // The bore's centre reads X0 Y0 through entry 5 (the simulated bore is at X50 Y50).
+    let e: Value = serde_json::from_str(ok(&d, &["--json", "offsets"]).trim()).unwrap();
+    let five = e["entries"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|x| x["entry"] == 5)
+        .unwrap_or_else(|| panic!("{e}"));
+    for k in 0..2 {
+        let l = five["length_mm"][k].as_f64().unwrap();
+        assert!((l - 50.0).abs() < 0.005, "{five}");
+    }
+}
+
+#[test]
+fn before_homing_touch_off_and_probing_are_refused() {
+    let cwd = temp_dir("not_homed");
+    let axes = "[[axes]]\nname = \"X\"\nhoming = \"required\"\nhoming_direction = -1\n\
+        reference_mm = 0\n[[axes]]\nname = \"Y\"\n[[axes]]\nname = \"Z\"\n";
+    let io = "[[io.inputs]]\nname = \"estop\"\nfunction = \"estop\"\n\
+        [[io.inputs]]\nname = \"x_home\"\nfunction = \"home\"\naxis = \"X\"\nsim_at_mm = -5\n\
+        [[io.inputs]]\nname = \"probe\"\nfunction = \"probe\"\n";
+    let d = Cncd::start(&cwd, &format!("{MILL_TOML}\n{axes}\n{io}"));
+    let before = ok(&d, &["offsets-file"]);
+    for (args, code) in [
+        (&["touch-off", "1", "X", "0"][..], "touch_off_not_homed"),
+        (&["probe", "move", "Z", "-5"][..], "probe_not_homed"),
+        (&["probe", "tool-setter", "1"][..], "probe_not_homed"),
+    ] {
+        let (done, why) = d.cncctl(args);
+        assert!(!done && why.contains(code), "{args:?}: {why}");
+    }
+    assert_eq!(ok(&d, &["offsets-file"]), before, "nothing written");
+    ok(&d, &["home"]);
     d.wait_idle();
+    ok(&d, &["touch-off", "1", "X", "0"]);
+    let (done, why) = d.cncctl(&["probe", "move", "Z", "5"]);
+    assert!(!done && why.contains("probe_no_contact"), "{why}");
+}
+
+#[test]
+fn an_iso_tool_change_holds_and_goes_on_with_the_tools_length() {
+    let cwd = temp_dir("iso_tool_change");
+    let d = Cncd::start(&cwd, MILL_TOML);
+    ok(&d, &["offset-set", "2", "--radius", "4", "--l3", "12.5"]);
+    let program = "G21 G90 G0 X10 Y0 Z50\nT2 M6\nG43\nG0 Z0\nG1 X20 F3000\nM30\n";
+    std::fs::write(cwd.join("iso.ngc"), program).unwrap();
+    ok(&d, &["load", "iso.ngc"]);
+    ok(&d, &["start"]);
+    let s = held(&d);
+    assert_eq!(s["tool_change"]["tool"], 2, "{s}");
+    assert!(near(at(&s), [10.0, 0.0, 50.0]), "{s}");
+    ok(&d, &["resume"]);
+    d.wait_idle();
+    // G43 takes the tool's length: Z0 is at machine 12.5.
     assert!(
-        near(commanded(&d), [80.0, 0.0, 25.5]),
+        near(commanded(&d), [20.0, 0.0, 12.5]),
         "{:?}",
         commanded(&d)
     );

@@ -8,6 +8,7 @@ import { holdToJog, onJogError, press, release } from "../jog";
 import { may } from "../session";
 import { type Screen, messageLine } from "../screen";
 import { subscribe } from "../status";
+import { probeControl } from "../probe";
 import { touchOffControl } from "../touch_off";
 
 const STEPS_MM = ["0.001", "0.01", "0.1", "1", "10"];
@@ -82,6 +83,7 @@ export function jogScreen(): Screen {
     h("p", { class: "hint" }, t("jog.hint")),
     touchOffControl("jog", msg),
     msg.el,
+    probeControl("jog"),
   );
   return { id: "jog", el: screenEl };
 }

@@ -4,6 +4,7 @@ import { offsets } from "../api";
 import { button, fill, h } from "../dom";
 import { errorText } from "../format";
 import { t } from "../i18n";
+import { probeControl } from "../probe";
 import { touchOffControl } from "../touch_off";
 import { type Screen, messageLine } from "../screen";
 import type { OffsetEntry } from "../gen/cnc/v1/cnc_pb";
@@ -52,6 +53,7 @@ export function offsetsScreen(): Screen {
     h("div", { class: "row" }, h("label", {}, "D ", entry), ...fields.map((f, i) => h("label", {}, `${labels[i] ?? ""} `, f)),
       button(t("offsets.save"), "offset-save", save)),
     touchOffControl("offsets", msg, () => void refresh()),
-    msg.el);
+    msg.el,
+    probeControl("offsets", () => void refresh()));
   return { id: "offsets", el, onShow: () => void refresh() };
 }
