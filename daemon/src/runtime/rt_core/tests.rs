@@ -102,3 +102,152 @@ fn feed_per_revolution_follows_the_actual_spindle_speed() {
     assert_eq!(spindle_feed_rpm(-1000.0, -500.0), 500.0);
     assert_eq!(spindle_feed_rpm(1000.0, 800.0), 800.0);
 }
+
+/// A core whose input 0 is the e-stop chain and input 1 the probe, over a simulated
+/// workpiece whose top is at Z -10; the command ring's producer and the sim's input handle.
+fn probing_core() -> (
+    RtCore,
+    RtRings,
+    sim::SimBus,
+    rtrb::Producer<RtCommand>,
+    sim::io::SimInputs,
+) {
+    let io = IoFunctions {
+        inputs: 2,
+        estop: 0b01,
+        probe: 0b10,
+        ..IoFunctions::default()
+    };
+    let kr = KrConfig::from_constants(
+        &Constants::new(),
+        RadiusInput::Radius,
+        vec![Gear {
+            max_rpm: 6000.0,
+            output_range: 0x7FFF,
+            m_code: None,
+        }],
+    )
+    .unwrap();
+    let cfg = RtCoreConfig {
+        axes: AXES,
+        start: AxesMm::ZERO,
+        kr: Kr::new(kr),
+        in_position_mm: AxesMm::ZERO,
+        stop_decel_mm_s2: [1000.0; MAX_AXES],
+        cycle_ns: TS_NS,
+        io,
+    };
+    let input = |probe: bool| sim::io::SimInput {
+        rest: !probe,
+        switch: None,
+        probe,
+    };
+    let workpiece = sim::probe::SimProbe {
+        axes: [Some(0), Some(1), Some(2)],
+        tool_length_mm: 0.0,
+        ball_radius_mm: 0.0,
+        workpiece: Some(sim::probe::SimBox {
+            min_mm: [-100.0, -100.0, -60.0],
+            max_mm: [100.0, 100.0, -10.0],
+        }),
+        bores: vec![],
+        setter: None,
+    };
+    let handle = sim::io::SimInputs::default();
+    let mut bus = sim::SimBus::new(sim::SimDriveParams::default(), &[0.0; AXES])
+        .with_inputs(vec![input(false), input(true)])
+        .with_probe(Some(workpiece))
+        .with_input_handle(handle.clone());
+    let mut core = RtCore::new(cfg, &mut bus, 0);
+    let (producer, commands) = rtrb::RingBuffer::new(8);
+    let (_, segments) = rtrb::RingBuffer::new(4);
+    let mut rings = RtRings {
+        commands,
+        segments,
+        planned_job: Arc::new(AtomicU32::new(0)),
+    };
+    for _ in 0..100 {
+        let due = core.next_deadline_ns();
+        core.tick(due, &mut rings, &mut bus);
+    }
+    assert_eq!(core.snapshot().state, MachineState::Idle);
+    (core, rings, bus, producer, handle)
+}
+
+fn probe_down(feed_mm_min: f64) -> RtCommand {
+    RtCommand::Probe(ProbeRequest {
+        axis: 2,
+        target_mm: -20.0,
+        speed_mm_s: feed_mm_min / 60.0,
+        accel_mm_s2: 1000.0,
+        toward: true,
+    })
+}
+
+/// Ticks until the probing move has ended (at most `n` ticks); the last snapshot.
+fn until_probed(core: &mut RtCore, rings: &mut RtRings, bus: &mut sim::SimBus) -> Snapshot {
+    for _ in 0..20_000 {
+        let due = core.next_deadline_ns();
+        let s = *core.tick(due, rings, bus);
+        if s.probe.outcome != ProbeOutcome::Moving && s.state != MachineState::Jog {
+            return s;
+        }
+    }
+    panic!("the probing move did not end");
+}
+
+#[test]
+fn a_probing_move_takes_the_position_within_one_period_and_brakes() {
+    let (mut core, mut rings, mut bus, mut cmd, _) = probing_core();
+    cmd.push(probe_down(300.0)).unwrap();
+    let s = until_probed(&mut core, &mut rings, &mut bus);
+    assert_eq!(s.probe.outcome, ProbeOutcome::Contact);
+    let z = s.probe.position[2];
+    let step = 300.0 / 60.0 * 0.004;
+    assert!((-10.0 - step..=-10.0).contains(&z), "{z}");
+    // Braked within the stop distance (with the drive's lag), at rest, idle.
+    assert!(s.axes.commanded[2] > -10.5, "{:?}", s.axes.commanded);
+    assert_eq!(s.state, MachineState::Idle);
+    // It touches now: a second move toward the part does not start.
+    cmd.push(probe_down(300.0)).unwrap();
+    let s = until_probed(&mut core, &mut rings, &mut bus);
+    assert_eq!(s.probe.outcome, ProbeOutcome::AlreadyTriggered);
+}
+
+#[test]
+fn the_e_stop_during_a_probing_move_aborts_it_and_stops_the_axis() {
+    let (mut core, mut rings, mut bus, mut cmd, inputs) = probing_core();
+    cmd.push(probe_down(300.0)).unwrap();
+    for _ in 0..100 {
+        let due = core.next_deadline_ns();
+        core.tick(due, &mut rings, &mut bus);
+    }
+    inputs.set(0, Some(false));
+    let s = until_probed(&mut core, &mut rings, &mut bus);
+    assert_eq!(s.probe.outcome, ProbeOutcome::Aborted);
+    assert_eq!(s.state, MachineState::Fault);
+    // The axis brakes at once (5 mm/s at 1000 mm/s²: 12.5 µm) and stays above the part.
+    let z = s.axes.commanded[2];
+    for _ in 0..500 {
+        let due = core.next_deadline_ns();
+        core.tick(due, &mut rings, &mut bus);
+    }
+    let rest = core.snapshot().axes.commanded[2];
+    assert!(rest > -10.0 && (rest - z).abs() < 0.02, "{z} {rest}");
+}
+
+#[test]
+fn a_probing_move_that_misses_ends_at_its_target() {
+    let (mut core, mut rings, mut bus, mut cmd, _) = probing_core();
+    cmd.push(RtCommand::Probe(ProbeRequest {
+        target_mm: -5.0,
+        ..match probe_down(600.0) {
+            RtCommand::Probe(r) => r,
+            _ => unreachable!(),
+        }
+    }))
+    .unwrap();
+    let s = until_probed(&mut core, &mut rings, &mut bus);
+    assert_eq!(s.probe.outcome, ProbeOutcome::NoContact);
+    assert!((s.axes.commanded[2] + 5.0).abs() < 1e-9);
+}
