@@ -238,6 +238,9 @@ diag_codes! {
     JogBusy = "jog_busy",
     /// A jog step that would end beyond a soft limit, or longer than any travel.
     JogBeyondTravel = "jog_beyond_travel",
+    /// A command that moves the machine while its drives are being enabled (start-up, after
+    /// Reset): UNAVAILABLE, try again once the machine is idle.
+    MachineNotReady = "machine_not_ready",
     /// M6 in a block that moves or fills the table (G92): the tool changes at rest.
     ToolChangeNotAlone = "tool_change_not_alone",
     /// M6 while radius compensation is on.

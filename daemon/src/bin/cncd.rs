@@ -181,15 +181,20 @@ async fn run(config: Config) -> Result<(), CncdError> {
     let mut signals = Signals::install()?;
     // Every API listener is bound before READY=1 (sent once the drives are operational), so
     // ready means reachable; a listener that cannot be bound ends the start with an error.
-    let (listener, local) = bind_listen(&config).await?;
-    let hmi = bind_hmi(&config).await?;
+    // The TCP ports are taken now and listen once the Unix socket exists.
+    let listener = server::Reserved::bind("api.listen", config.api.listen)?;
+    let local = listener.addr;
+    let hmi = match config.hmi.enabled {
+        true => Some(server::Reserved::bind("hmi.listen", config.hmi.listen)?),
+        false => None,
+    };
     let summary = summary(&config, local);
     let axis_names = config.axis_names();
     // The controller creates the storage directory, where the Unix socket may live.
     let ctl = start_controller(config)?;
     tracing::info!("cncd started: {summary}; enabling drives");
+    let (listeners, hmi) = listeners_beside(&ctl, listener, hmi).await?;
     log_hmi(&ctl, hmi.as_ref());
-    let listeners = listeners_beside(&ctl, listener, local).await?;
     // Bound: cncctl may find it now, whatever the data directory (issue #31).
     let socket = discovery::socket_of(ctl.config());
     if let Some(s) = &socket {
@@ -316,40 +321,6 @@ impl Services {
     }
 }
 
-/// Binds `api.listen` (before the controller starts: a taken port ends the start at once).
-async fn bind_listen(
-    config: &Config,
-) -> Result<(tokio::net::TcpListener, std::net::SocketAddr), CncdError> {
-    let listen = config.api.listen;
-    let listener = tokio::net::TcpListener::bind(listen)
-        .await
-        .map_err(|source| server::ServerError::Listen {
-            key: "api.listen",
-            addr: listen,
-            source,
-        })?;
-    let local = listener
-        .local_addr()
-        .map_err(server::ServerError::LocalAddr)?;
-    Ok((listener, local))
-}
-
-/// Binds `hmi.listen` when the HMI is enabled (before the controller starts, as the API's).
-async fn bind_hmi(config: &Config) -> Result<Option<tokio::net::TcpListener>, CncdError> {
-    if !config.hmi.enabled {
-        return Ok(None);
-    }
-    let listen = config.hmi.listen;
-    let l = tokio::net::TcpListener::bind(listen)
-        .await
-        .map_err(|source| server::ServerError::Listen {
-            key: "hmi.listen",
-            addr: listen,
-            source,
-        })?;
-    Ok(Some(l))
-}
-
 /// Where the HMI is, or why it is not there (docs/hmi.md).
 fn log_hmi(ctl: &Controller, hmi: Option<&tokio::net::TcpListener>) {
     let Some(addr) = hmi.and_then(|l| l.local_addr().ok()) else {
@@ -368,16 +339,22 @@ fn log_hmi(ctl: &Controller, hmi: Option<&tokio::net::TcpListener>) {
     }
 }
 
-/// The other listeners (extra addresses, the Unix socket) with `listener` first; when one
-/// cannot be bound the controller is shut down before the error returns.
+/// The other listeners (the Unix socket, extra addresses) with `listener` first, then the
+/// reserved ports opened (the API's, the HMI's): no TCP listener answers before the Unix
+/// socket exists. When one cannot be bound the controller is shut down before the error
+/// returns.
 async fn listeners_beside(
     ctl: &Arc<Controller>,
-    listener: tokio::net::TcpListener,
-    local: std::net::SocketAddr,
-) -> Result<server::Listeners, CncdError> {
+    listener: server::Reserved,
+    hmi: Option<server::Reserved>,
+) -> Result<(server::Listeners, Option<tokio::net::TcpListener>), CncdError> {
     let cfg = ctl.config();
-    let mut listeners = match server::bind_extra(&cfg.api, &cfg.storage.dir).await {
-        Ok(l) => l,
+    let local = listener.addr;
+    let bound = server::bind_extra(&cfg.api, &cfg.storage.dir)
+        .await
+        .and_then(|l| Ok((l, listener.listen()?, hmi.map(|h| h.listen()).transpose()?)));
+    let (mut listeners, listener, hmi) = match bound {
+        Ok(b) => b,
         Err(e) => {
             let c = ctl.clone();
             let _ = tokio::task::spawn_blocking(move || c.shutdown()).await;
@@ -389,7 +366,7 @@ async fn listeners_beside(
     } else {
         listeners.remote_tcp.insert(0, listener);
     }
-    Ok(listeners)
+    Ok((listeners, hmi))
 }
 
 /// Brakes the axes to rest and stops the real-time thread (systemd hears STOPPING; the

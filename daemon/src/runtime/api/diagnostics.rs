@@ -130,6 +130,20 @@ fn cut(s: &str, max: usize) -> String {
     }
 }
 
+/// Refused while the drives are being enabled (start-up, after Reset): UNAVAILABLE with
+/// `machine_not_ready`, so a client retries instead of taking the machine for busy.
+pub fn ready_for_motion(state: crate::runtime::rt::MachineState) -> Result<(), Status> {
+    if state != crate::runtime::rt::MachineState::Enabling {
+        return Ok(());
+    }
+    Err(refused(
+        Code::Unavailable,
+        kernel::DiagCode::MachineNotReady,
+        "the drives are being enabled (start-up or Reset): try again once the machine is idle"
+            .into(),
+    ))
+}
+
 /// Maps controller errors to gRPC statuses.
 pub fn status_of(e: ControlError) -> Status {
     match e {
@@ -157,5 +171,25 @@ pub fn status_of(e: ControlError) -> Status {
         ControlError::Plc(e) => Status::invalid_argument(e.to_string()),
         ControlError::Invalid(m) => Status::invalid_argument(m),
         ControlError::Aborted(m) => Status::aborted(m),
+    }
+}
+
+#[cfg(test)]
+mod ready_tests {
+    use super::*;
+    use crate::runtime::rt::MachineState;
+
+    #[test]
+    fn motion_while_enabling_is_unavailable_with_its_code() {
+        let e = ready_for_motion(MachineState::Enabling).unwrap_err();
+        assert_eq!(e.code(), Code::Unavailable);
+        assert!(
+            e.message().starts_with("machine_not_ready"),
+            "{}",
+            e.message()
+        );
+        assert!(ready_for_motion(MachineState::Idle).is_ok());
+        // Busy is the command's own business (jog_busy, probe_busy, …).
+        assert!(ready_for_motion(MachineState::Running).is_ok());
     }
 }

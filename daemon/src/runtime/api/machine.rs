@@ -198,6 +198,7 @@ impl Machine for MachineSvc {
         req: Request<pb::StartRequest>,
     ) -> Result<Response<pb::StartReply>, Status> {
         require(&req, Operator, "Start")?;
+        super::diagnostics::ready_for_motion(self.0.ctl.snapshot().state)?;
         let from_block = req.into_inner().from_block;
         let job = start_job(&self.0, from_block).await?;
         Ok(Response::new(pb::StartReply { job }))
@@ -292,6 +293,7 @@ impl Machine for MachineSvc {
         req: Request<tonic::Streaming<pb::JogRequest>>,
     ) -> Result<Response<pb::JogReply>, Status> {
         require(&req, Operator, "Jog")?;
+        super::diagnostics::ready_for_motion(self.0.ctl.snapshot().state)?;
         let target_mm = jog::streamed(&self.0, req.into_inner()).await?;
         Ok(Response::new(pb::JogReply { target_mm }))
     }
@@ -312,6 +314,7 @@ impl Machine for MachineSvc {
         req: Request<pb::JogLeaseRequest>,
     ) -> Result<Response<pb::JogReply>, Status> {
         require(&req, Operator, "JogLease")?;
+        super::diagnostics::ready_for_motion(self.0.ctl.snapshot().state)?;
         let target_mm = jog::lease(&self.0, req.into_inner())?;
         Ok(Response::new(pb::JogReply { target_mm }))
     }
@@ -364,6 +367,7 @@ impl Machine for MachineSvc {
 
     async fn home(&self, req: Request<pb::HomeRequest>) -> Result<Response<pb::HomeReply>, Status> {
         require(&req, Operator, "Home")?;
+        super::diagnostics::ready_for_motion(self.0.ctl.snapshot().state)?;
         let axes = req.into_inner().axes;
         let homed = self.0.ctl.home(&axes).await.map_err(status_of)?;
         Ok(Response::new(pb::HomeReply { homed }))
@@ -374,6 +378,7 @@ impl Machine for MachineSvc {
         req: Request<pb::ProbeRequest>,
     ) -> Result<Response<pb::ProbeReply>, Status> {
         require(&req, Operator, "Probe")?;
+        super::diagnostics::ready_for_motion(self.0.ctl.snapshot().state)?;
         let reply = super::probe::probe(&self.0, req.into_inner()).await?;
         Ok(Response::new(reply))
     }
@@ -383,12 +388,14 @@ impl Machine for MachineSvc {
         req: Request<pb::JogStepRequest>,
     ) -> Result<Response<pb::JogReply>, Status> {
         require(&req, Operator, "JogStep")?;
+        super::diagnostics::ready_for_motion(self.0.ctl.snapshot().state)?;
         let target_mm = jog::step(&self.0, req.into_inner())?;
         Ok(Response::new(pb::JogReply { target_mm }))
     }
 
     async fn mdi(&self, req: Request<pb::MdiRequest>) -> Result<Response<pb::StartReply>, Status> {
         require(&req, Operator, "Mdi")?;
+        super::diagnostics::ready_for_motion(self.0.ctl.snapshot().state)?;
         let r = req.into_inner();
         let dialect = dialect_field(&r.dialect)?.unwrap_or_else(|| self.0.ctl.default_dialect());
         let block = r.block;

@@ -114,6 +114,7 @@ impl Offsets for OffsetsSvc {
         req: Request<pb::TouchOffRequest>,
     ) -> Result<Response<pb::TouchOffReply>, Status> {
         require(&req, Operator, "TouchOff")?;
+        super::diagnostics::ready_for_motion(self.0.ctl.snapshot().state)?;
         let reply = super::touch_off::touch_off(self.0.clone(), req.into_inner()).await?;
         Ok(Response::new(reply))
     }
@@ -123,6 +124,7 @@ impl Offsets for OffsetsSvc {
         req: Request<pb::ProbeWorkflowRequest>,
     ) -> Result<Response<pb::ProbeWorkflowReply>, Status> {
         require(&req, Operator, "ProbeWorkflow")?;
+        super::diagnostics::ready_for_motion(self.0.ctl.snapshot().state)?;
         let reply = super::probe::workflow(self.0.clone(), req.into_inner()).await?;
         Ok(Response::new(reply))
     }

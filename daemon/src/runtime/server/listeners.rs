@@ -26,6 +26,15 @@ pub struct Listeners {
 /// Binds `api.extra_listen` and the Unix socket.
 pub async fn bind_extra(api: &ApiConfig, storage_dir: &Path) -> Result<Listeners, ServerError> {
     let mut l = Listeners::default();
+    // The Unix socket first: no TCP listener of this daemon answers before it exists (a
+    // client that finds no socket falls back to TCP, where it would be a mere observer).
+    if let Some(path) = api.unix_socket_path(storage_dir) {
+        l.unix = Some(bind_unix(
+            &path,
+            api.socket_mode,
+            api.socket_group.as_deref(),
+        )?);
+    }
     for a in &api.extra_listen {
         let t = TcpListener::bind(a)
             .await
@@ -40,14 +49,44 @@ pub async fn bind_extra(api: &ApiConfig, storage_dir: &Path) -> Result<Listeners
             l.remote_tcp.push(t);
         }
     }
-    if let Some(path) = api.unix_socket_path(storage_dir) {
-        l.unix = Some(bind_unix(
-            &path,
-            api.socket_mode,
-            api.socket_group.as_deref(),
-        )?);
-    }
     Ok(l)
+}
+
+/// A TCP port bound but not yet listening: taken (a second daemon cannot bind it), while a
+/// client's connection is refused at once instead of waiting in the backlog for a daemon
+/// still starting. [`Reserved::listen`] opens it.
+pub struct Reserved {
+    socket: tokio::net::TcpSocket,
+    pub addr: std::net::SocketAddr,
+    key: &'static str,
+}
+
+/// How many connections wait to be accepted.
+const BACKLOG: u32 = 1024;
+
+impl Reserved {
+    /// Binds `addr` for configuration key `key` (its name in the error).
+    pub fn bind(key: &'static str, addr: std::net::SocketAddr) -> Result<Reserved, ServerError> {
+        let err = |source| ServerError::Listen { key, addr, source };
+        let socket = if addr.is_ipv4() {
+            tokio::net::TcpSocket::new_v4()
+        } else {
+            tokio::net::TcpSocket::new_v6()
+        }
+        .map_err(err)?;
+        // As TcpListener::bind: a restart binds again despite connections in TIME_WAIT.
+        socket.set_reuseaddr(true).map_err(err)?;
+        socket.bind(addr).map_err(err)?;
+        let addr = socket.local_addr().map_err(ServerError::LocalAddr)?;
+        Ok(Reserved { socket, addr, key })
+    }
+
+    pub fn listen(self) -> Result<TcpListener, ServerError> {
+        let (key, addr) = (self.key, self.addr);
+        self.socket
+            .listen(BACKLOG)
+            .map_err(|source| ServerError::Listen { key, addr, source })
+    }
 }
 
 /// Binds the Unix socket: a stale socket file is replaced; mode and group are set before the

@@ -35,7 +35,7 @@ use health::health_watch;
 use listeners::hmi_trust;
 use tasks::Tasks;
 
-pub use listeners::{HmiListener, Listeners, bind_extra, bind_unix};
+pub use listeners::{HmiListener, Listeners, Reserved, bind_extra, bind_unix};
 pub use routes::{MAX_MESSAGE_BYTES, size_refusal};
 pub use tls::{check_hmi_tls, check_tls, hmi_tls_config, tls_config, tls_from_files};
 
