@@ -7,6 +7,7 @@ slow), never a sleep and an assert. Prints one line per test and "N passed, M fa
 
 import os
 import re
+import struct
 import sys
 import tempfile
 import time
@@ -133,7 +134,8 @@ def observer_by_default_sees_everything_but_cannot_press():
     obs.wait_live()
     wait("role observer", lambda: obs.text("role") == "observer")
     for tid in ("cycle-start", "feed-hold", "resume", "stop", "reset", "mdi-send", "program-select",
-                "home-all", "jog-X-plus", "feed-override", "mdi-input", "program-upload"):
+                "home-all", "jog-X-plus", "feed-override", "mdi-input", "program-upload",
+                "probe-jog-start", "probe-offsets-start", "probe-offsets-kind", "probe-offsets-entry"):
         el = wait(f"{tid} present", lambda: obs.el(tid))
         assert not el.is_enabled(), f"{tid} is enabled for an observer"
     state = obs.state()
@@ -366,6 +368,141 @@ def touch_off_on_the_jog_screen_writes_the_entry():
     cells = wait("entry 7 listed", lambda: op.d.find_elements(By.CSS_SELECTOR, row))
     assert abs(float(cells[2].text) - (x - 2.0)) < 1e-3, (cells[2].text, x)
     op.tab("jog")
+
+
+# ---- probing (issue #47): the simulated workpiece (a box X 0..100, Y 0..100, Z -60..-10 with a
+# 20 mm bore at X50 Y50) and tool setter (at X-40 Y50, top Z-20); probe ball radius 2 mm ----
+
+def jog_step(axis: str, step_mm: float, speed_mm_min: float) -> bytes:
+    """JogStepRequest: axis = 1, step_mm = 2, speed_mm_min = 3 (doubles)."""
+    return (b"\x0a\x01" + axis.encode() + b"\x11" + struct.pack("<d", step_mm)
+            + b"\x19" + struct.pack("<d", speed_mm_min))
+
+
+def jog_to(*moves) -> None:
+    """Moves axes one after the other to machine positions, e.g. ("Z", 0), ("X", -10), by jog
+    steps over the API at 3000 mm/min (well inside the suite's 5 mm following window)."""
+    for axis, target in moves:
+        op.wait_state("IDLE")
+        here = float(op.text(f"dro-{axis}"))
+        if abs(target - here) > 1e-4:
+            grpc_web("JogStep", jog_step(axis, target - here, 3000), TOKEN)
+        wait(f"{axis} at {target}", lambda: op.state() == "IDLE" and abs(float(op.text(f"dro-{axis}")) - target) < 1e-3)
+
+
+def probe(where: str, kind: str, entry: int, axis: str = "", direction: str = "1") -> str:
+    """Starts a workflow on the probe panel of `where`; while it runs Start is disabled; returns
+    the panel's final state (`done` or `error`)."""
+    pid = lambda part: f"probe-{where}-{part}"
+    Select(op.el(pid("kind"))).select_by_value(kind)
+    op.el(pid("entry")).clear()
+    op.el(pid("entry")).send_keys(str(entry))
+    if axis:
+        Select(op.el(pid("axis"))).select_by_value(axis)
+        Select(op.el(pid("dir"))).select_by_value(direction)
+    panel = op.el(pid("panel"))
+    op.el(pid("start")).click()
+    wait("probing", lambda: panel.get_attribute("data-state") == "running")
+    assert not op.el(pid("start")).is_enabled(), "Start enabled while probing"
+    assert op.text(pid("result")) == "probing …", op.text(pid("result"))
+    state = wait("probing ended", lambda: panel.get_attribute("data-state") in ("done", "error")
+                 and panel.get_attribute("data-state"))
+    assert op.el(pid("start")).is_enabled(), "Start disabled after probing"
+    return state
+
+
+def written(where: str, entry: int, axis: str) -> float:
+    """The length the result line says was written for entry and axis."""
+    m = re.search(rf"D{entry} {axis}: length (-?[0-9.]+) mm written", op.text(f"probe-{where}-result"))
+    assert m, op.text(f"probe-{where}-result")
+    return float(m.group(1))
+
+
+def table_length(entry: int, axis: str) -> float:
+    """Entry's length of axis as the Offsets table shows it (columns D, R, X, Y, Z)."""
+    col = 2 + "XYZ".index(axis)
+    cells = wait(f"entry {entry} listed", lambda: op.d.find_elements(
+        By.CSS_SELECTOR, f'[data-testid="offset-table"] tr[data-entry="{entry}"] td'))
+    return float(cells[col].text)
+
+
+@test
+def probe_the_tool_setter_writes_the_tool_length():
+    op.tab("offsets")
+    # The tool's way to the setter is at the axes' rapid speed: from Y10, not Y0 (a 50 mm rapid
+    # runs over the suite's 5 mm following window; see docs/hmi.md).
+    jog_to(("Z", 0), ("X", 0), ("Y", 10))
+    assert probe("offsets", "tool-setter", 21) == "done", op.text("probe-offsets-result")
+    length = written("offsets", 21, "Z")
+    assert abs(length) < 0.005, length
+    assert "found at machine -20.0" in op.text("probe-offsets-result"), op.text("probe-offsets-result")
+    # The table refreshed by itself (no tab switch).
+    wait("D21 Z in the table", lambda: abs(table_length(21, "Z") - length) < 1e-3)
+
+
+@test
+def probe_an_edge_from_the_jog_screen():
+    op.tab("jog")
+    jog_to(("Z", 0), ("X", -10), ("Y", 50), ("Z", -20))
+    assert probe("jog", "edge", 22, "X", "1") == "done", op.text("probe-jog-result")
+    length = written("jog", 22, "X")
+    assert abs(length) < 0.005, length
+    op.tab("offsets")
+    wait("D22 X in the table", lambda: abs(table_length(22, "X") - length) < 1e-3)
+
+
+@test
+def probe_an_edge_that_misses_shows_no_contact():
+    op.tab("jog")
+    jog_to(("Z", 0), ("X", -10), ("Y", 50), ("Z", -20))
+    # Away from the box: 50 mm of search (about 10 s at 300 mm/min) find nothing.
+    assert probe("jog", "edge", 23, "X", "-1") == "error"
+    text = op.text("probe-jog-result")
+    assert "probe_no_contact" in text and text.startswith("Aborted"), text
+    assert "err" in op.el("probe-jog-result").get_attribute("class")
+
+
+@test
+def probe_a_bore_writes_its_centre_and_shows_the_diameter():
+    op.tab("offsets")
+    jog_to(("Z", 0), ("X", 48), ("Y", 51), ("Z", -20))
+    try:
+        assert probe("offsets", "bore", 24) == "done", op.text("probe-offsets-result")
+        x, y = written("offsets", 24, "X"), written("offsets", 24, "Y")
+        assert abs(x - 50) < 0.005 and abs(y - 50) < 0.005, (x, y)
+        m = re.search(r"bore diameter ([0-9.]+) mm", op.text("probe-offsets-result"))
+        assert m and abs(float(m.group(1)) - 20) < 0.01, op.text("probe-offsets-result")
+        wait("D24 X and Y in the table", lambda: abs(table_length(24, "X") - x) < 1e-3
+             and abs(table_length(24, "Y") - y) < 1e-3)
+    finally:
+        jog_to(("Z", 0))  # out of the bore for the tests after this one
+
+
+@test
+def probe_labels_and_a_refusal_in_czech():
+    cz = Page(browser(lang="cs-CZ"))
+    try:
+        cz.d.get(URL + "#token=" + TOKEN)
+        wait("role operator", lambda: cz.el("role").get_attribute("data-role") == "operator")
+        cz.tab("offsets")
+        panel = cz.el("probe-offsets-panel")
+        kinds = [o.text for o in Select(cz.el("probe-offsets-kind")).options]
+        assert kinds == ["snímač nástroje", "hrana", "střed otvoru"], kinds
+        assert cz.el("probe-offsets-start").text == "Spustit měření"
+        assert "Sonda:" in panel.text and "horní plocha snímače platí" in panel.text, panel.text
+        Select(cz.el("probe-offsets-kind")).select_by_value("edge")
+        wait("edge labels", lambda: "osa" in panel.text and "směr" in panel.text and "hrana platí" in panel.text)
+        Select(cz.el("probe-offsets-kind")).select_by_value("bore")
+        wait("bore labels", lambda: "střed X platí" in panel.text and "střed Y platí" in panel.text)
+        # A refusal (entry 0: nothing moves) in Czech words, by its code.
+        cz.el("probe-offsets-entry").clear()
+        cz.el("probe-offsets-entry").send_keys("0")
+        cz.el("probe-offsets-start").click()
+        wait("refused", lambda: panel.get_attribute("data-state") == "error")
+        text = cz.text("probe-offsets-result")
+        assert text.startswith("Chybné zadání: [touch_off_invalid] Nastavení korekce odmítnuto"), text
+    finally:
+        cz.d.quit()
 
 
 def hold_jog_plus() -> float:
