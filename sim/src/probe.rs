@@ -70,11 +70,9 @@ impl SimProbe {
 }
 
 fn distance_to_box(b: &SimBox, c: [f64; 3]) -> f64 {
-    let mut d2 = 0.0;
-    for k in 0..3 {
-        let q = c[k].clamp(b.min_mm[k], b.max_mm[k]);
-        d2 += (c[k] - q) * (c[k] - q);
-    }
+    let d2: f64 = (0..3)
+        .map(|k| (c[k] - c[k].clamp(b.min_mm[k], b.max_mm[k])).powi(2))
+        .sum();
     d2.sqrt()
 }
 

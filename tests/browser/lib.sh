@@ -66,6 +66,9 @@ listen = "127.0.0.1:$HMI_PORT"
 [sim]
 following_window_mm = 5
 
+[probe]
+search_feed_mm_min = 1200
+
 [storage]
 dir = "$WORK/data"
 TOML

@@ -11,9 +11,10 @@ use operator_support::*;
 use serde_json::Value;
 
 const TOOL_MM: f64 = 42.5;
-/// One bus period at the latch feed (60 mm/min here) and at the search feed (600).
-const LATCH_STEP_MM: f64 = 60.0 / 60.0 * 0.004;
-const SEARCH_STEP_MM: f64 = 600.0 / 60.0 * 0.004;
+/// One bus period (4 ms) at the latch feed (60 mm/min here: 1 mm/s) and at the search feed
+/// (600 mm/min: 10 mm/s).
+const LATCH_STEP_MM: f64 = 1.0 * 0.004;
+const SEARCH_STEP_MM: f64 = 10.0 * 0.004;
 /// The table keeps 6 decimals.
 const TABLE_MM: f64 = 1e-6;
 
@@ -144,4 +145,19 @@ fn a_machine_without_a_probe_input_refuses_probing() {
     let d = Cncd::start(&cwd, &format!("{MILL_TOML}\n{io}"));
     refused(&d, &["probe", "move", "Z", "-1"], "probe_unavailable");
     refused(&d, &["probe", "edge", "1", "X", "up"], "give the direction");
+}
+
+#[test]
+fn the_settings_in_docs_setup_md_are_a_valid_configuration() {
+    let md =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/setup.md")).unwrap();
+    let block = md
+        .split("```toml\n")
+        .nth(1)
+        .and_then(|b| b.split("```").next())
+        .expect("a toml block");
+    let path = std::path::Path::new("docs/setup.md");
+    let c = daemon::runtime::config::Config::parse(block, path).unwrap();
+    assert_eq!(c.probe().latch_feed_mm_min, 50.0);
+    assert_eq!(c.sim.bores.len(), 1);
 }

@@ -145,7 +145,7 @@ impl SimConfig {
             .chain([("tool_setter", &self.tool_setter)])
         {
             let finite = [c.x_mm, c.y_mm, c.top_mm].iter().all(|v| v.is_finite());
-            if !finite || !(c.diameter_mm.is_finite() && c.diameter_mm > 0.0) {
+            if !(finite && c.diameter_mm.is_finite() && c.diameter_mm > 0.0) {
                 return bad(key, format!("{c:?} needs numbers and a positive diameter"));
             }
         }

@@ -80,6 +80,21 @@ impl Controller {
             .ok_or_else(|| ProbeError::Invalid(format!("this machine has no {letter} axis")))
     }
 
+    /// Refused when `target_mm` of `axis` lies beyond its soft limits: neither a probing
+    /// move nor a workflow's positioning goes where a jog may not.
+    fn probe_within_travel(&self, axis: usize, target_mm: f64) -> Result<(), ProbeError> {
+        let a = &self.config.axes[axis];
+        let below = a.soft_min_mm.is_some_and(|lo| target_mm < lo - 1e-9);
+        let above = a.soft_max_mm.is_some_and(|hi| target_mm > hi + 1e-9);
+        if below || above {
+            return Err(ProbeError::Invalid(format!(
+                "{} would go to {target_mm:.3} mm, beyond its soft limits",
+                a.name
+            )));
+        }
+        Ok(())
+    }
+
     /// Refused unless there is a probe, the machine is idle and every axis homed.
     pub fn probe_ready(&self) -> Result<(), ProbeError> {
         if !self
@@ -109,7 +124,7 @@ impl Controller {
             .get(m.axis)
             .ok_or_else(|| ProbeError::Invalid(format!("axis {} does not exist", m.axis)))?;
         let usable = |v: f64| v.is_finite() && v != 0.0;
-        if !usable(m.distance_mm) || !(usable(m.feed_mm_min) && m.feed_mm_min > 0.0) {
+        if !(usable(m.distance_mm) && usable(m.feed_mm_min) && m.feed_mm_min > 0.0) {
             return Err(ProbeError::Invalid(format!(
                 "a probing move needs a distance and a positive feed (got {} mm at {} mm/min)",
                 m.distance_mm, m.feed_mm_min
@@ -117,9 +132,23 @@ impl Controller {
         }
         self.probe_ready()?;
         let here = self.snapshot().axes.commanded[m.axis];
+        // As a jog step: the move looks no further than the soft limit.
+        let mut target_mm = here + m.distance_mm;
+        if let Some(hi) = a.soft_max_mm {
+            target_mm = target_mm.min(hi.max(here));
+        }
+        if let Some(lo) = a.soft_min_mm {
+            target_mm = target_mm.max(lo.min(here));
+        }
+        if (target_mm - here).abs() < 1e-6 {
+            return Err(ProbeError::Invalid(format!(
+                "{} stands at its soft limit in that direction",
+                a.name
+            )));
+        }
         let r = ProbeRequest {
             axis: m.axis,
-            target_mm: here + m.distance_mm,
+            target_mm,
             speed_mm_s: m.feed_mm_min.min(a.max_velocity_mm_min) / 60.0,
             accel_mm_s2: a.max_accel_mm_s2,
             toward: m.toward,
@@ -164,6 +193,7 @@ impl Controller {
     /// (a machinist's probing cycle moves so between touches), as a jog step; fails when it
     /// did not arrive (Stop, a fault, a limit).
     async fn probe_position(&self, axis: usize, target_mm: f64) -> Result<(), ProbeError> {
+        self.probe_within_travel(axis, target_mm)?;
         let a = &self.config.axes[axis];
         let r = kernel::jog::JogRequest {
             axis,

@@ -83,25 +83,7 @@ impl RtCore {
         while let Ok(c) = commands.pop() {
             self.snap.tick.commands_taken += 1;
             match c {
-                RtCommand::Start { job, machine } => {
-                    // (Never with the e-stop chain or the door open, or a limit switch reached.)
-                    let io = &self.snap.io;
-                    let blocked = io.estop_open || io.door_open || self.any_limit();
-                    if self.snap.state == MachineState::Idle
-                        && !self.lifecycle.shutting_down
-                        && !blocked
-                    {
-                        self.logic.kr.set_constants(machine.kr);
-                        self.job.in_position_mm = machine.in_position_mm;
-                        self.job.active = job;
-                        self.snap.progress.job = job;
-                        // Until its first segment arrives the job is in no block (not in
-                        // the last job's).
-                        self.motion.interp.forget_block();
-                        self.job.spindle_off = false;
-                        self.snap.state = MachineState::Running;
-                    }
-                }
+                RtCommand::Start { job, machine } => self.start_job(job, machine),
                 RtCommand::Stop => {
                     self.probe_stop();
                     self.motion.jog.stop();
@@ -134,20 +116,7 @@ impl RtCore {
                 // Forcing ends and reached limits are acknowledged; nothing while the e-stop
                 // chain is open (docs/io.md).
                 RtCommand::Reset if !self.io_reset() => {}
-                RtCommand::Reset => {
-                    if self.snap.state == MachineState::Fault
-                        && self.motion.interp.state() == InterpState::Idle
-                    {
-                        self.snap.alarm.fault = None;
-                        self.snap.alarm.kr_fault = None;
-                        self.fault_stop.brake.clear();
-                        self.fault_stop.safe_state_sent = false;
-                        self.logic.kr.reset();
-                        bus.reset();
-                        self.lifecycle.enable_ticks = 0;
-                        self.snap.state = MachineState::Enabling;
-                    }
-                }
+                RtCommand::Reset => self.reset_fault(bus),
                 RtCommand::Plc(w) => self.logic.plc.stage(w),
                 RtCommand::SingleBlock(on) => {
                     self.snap.operator.single_block = on;
@@ -166,6 +135,40 @@ impl RtCore {
                 }
             }
         }
+    }
+
+    /// Starts `job` on an idle machine (never with the e-stop chain or the door open, or a
+    /// limit switch reached).
+    fn start_job(&mut self, job: u32, machine: JobMachine) {
+        let io = &self.snap.io;
+        let blocked = io.estop_open || io.door_open || self.any_limit();
+        if self.snap.state != MachineState::Idle || self.lifecycle.shutting_down || blocked {
+            return;
+        }
+        self.logic.kr.set_constants(machine.kr);
+        self.job.in_position_mm = machine.in_position_mm;
+        self.job.active = job;
+        self.snap.progress.job = job;
+        // Until its first segment arrives the job is in no block (not in the last job's).
+        self.motion.interp.forget_block();
+        self.job.spindle_off = false;
+        self.snap.state = MachineState::Running;
+    }
+
+    /// Reset of a fault once the path stands: the drives are enabled again.
+    fn reset_fault(&mut self, bus: &mut dyn DriveBus) {
+        if self.snap.state != MachineState::Fault || self.motion.interp.state() != InterpState::Idle
+        {
+            return;
+        }
+        self.snap.alarm.fault = None;
+        self.snap.alarm.kr_fault = None;
+        self.fault_stop.brake.clear();
+        self.fault_stop.safe_state_sent = false;
+        self.logic.kr.reset();
+        bus.reset();
+        self.lifecycle.enable_ticks = 0;
+        self.snap.state = MachineState::Enabling;
     }
 
     /// Spindle override: KŘR scales the commanded speed from the next tick, within the gear
