@@ -16,7 +16,8 @@ use super::*;
 const AXES: usize = 3;
 
 /// A 3-axis core on the simulated bus at a 4 ms bus period, built at time `now_ns`.
-fn core_at(now_ns: u64) -> (RtCore, RtRings, sim::SimBus) {
+/// The core's configuration: 3 axes at 0, default constants, a 4 ms bus, I/O `io`.
+fn config_with(io: IoFunctions) -> RtCoreConfig {
     let kr = KrConfig::from_constants(
         &Constants::new(),
         RadiusInput::Radius,
@@ -27,15 +28,19 @@ fn core_at(now_ns: u64) -> (RtCore, RtRings, sim::SimBus) {
         }],
     )
     .expect("the default constants are valid");
-    let cfg = RtCoreConfig {
+    RtCoreConfig {
         axes: AXES,
         start: AxesMm::ZERO,
         kr: Kr::new(kr),
         in_position_mm: AxesMm::ZERO,
         stop_decel_mm_s2: [1000.0; MAX_AXES],
         cycle_ns: TS_NS,
-        io: Default::default(),
-    };
+        io,
+    }
+}
+
+fn core_at(now_ns: u64) -> (RtCore, RtRings, sim::SimBus) {
+    let cfg = config_with(IoFunctions::default());
     let mut bus = sim::SimBus::new(sim::SimDriveParams::default(), &[0.0; AXES]);
     let core = RtCore::new(cfg, &mut bus, now_ns);
     let (_, commands) = rtrb::RingBuffer::new(4);
@@ -118,25 +123,7 @@ fn probing_core() -> (
         probe: 0b10,
         ..IoFunctions::default()
     };
-    let kr = KrConfig::from_constants(
-        &Constants::new(),
-        RadiusInput::Radius,
-        vec![Gear {
-            max_rpm: 6000.0,
-            output_range: 0x7FFF,
-            m_code: None,
-        }],
-    )
-    .unwrap();
-    let cfg = RtCoreConfig {
-        axes: AXES,
-        start: AxesMm::ZERO,
-        kr: Kr::new(kr),
-        in_position_mm: AxesMm::ZERO,
-        stop_decel_mm_s2: [1000.0; MAX_AXES],
-        cycle_ns: TS_NS,
-        io,
-    };
+    let cfg = config_with(io);
     let input = |probe: bool| sim::io::SimInput {
         rest: !probe,
         switch: None,
