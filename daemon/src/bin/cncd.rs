@@ -184,10 +184,11 @@ async fn run(config: Config) -> Result<(), CncdError> {
     // The TCP ports are taken now and listen once the Unix socket exists.
     let listener = server::Reserved::bind("api.listen", config.api.listen)?;
     let local = listener.addr;
-    let hmi = match config.hmi.enabled {
-        true => Some(server::Reserved::bind("hmi.listen", config.hmi.listen)?),
-        false => None,
-    };
+    let hmi = config
+        .hmi
+        .enabled
+        .then(|| server::Reserved::bind("hmi.listen", config.hmi.listen))
+        .transpose()?;
     let summary = summary(&config, local);
     let axis_names = config.axis_names();
     // The controller creates the storage directory, where the Unix socket may live.

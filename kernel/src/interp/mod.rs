@@ -457,9 +457,7 @@ impl Interpolator {
             }
         } else {
             let i = (self.head + self.len - 1) % BUFFER_SEGMENTS;
-            if seg.spindle != self.buf[i].spindle {
-                self.buf[i].spindle_after = Some(seg.spindle);
-            }
+            self.buf[i].spindle_after = Some(seg.spindle);
             self.buf[i].program_stop = self.buf[i].program_stop.stronger(stop);
         }
     }

@@ -106,6 +106,19 @@ fn default_increments() -> f64 {
 }
 
 impl AxisConfig {
+    /// Where a step from `here_mm` toward `target_mm` ends: at the soft limit it would pass
+    /// (an axis standing beyond one stays where it is on that side).
+    pub fn step_within_soft_limits(&self, here_mm: f64, target_mm: f64) -> f64 {
+        let mut t = target_mm;
+        if let Some(hi) = self.soft_max_mm {
+            t = t.min(hi.max(here_mm));
+        }
+        if let Some(lo) = self.soft_min_mm {
+            t = t.max(lo.min(here_mm));
+        }
+        t
+    }
+
     /// Emergency-stop deceleration, mm/s².
     pub fn stop_decel(&self) -> f64 {
         self.stop_decel_mm_s2.unwrap_or(self.max_accel_mm_s2)

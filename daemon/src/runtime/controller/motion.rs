@@ -258,13 +258,7 @@ impl Motion {
         }
         let a = &self.config.axes[i];
         let here = snap.axes.commanded[i];
-        let mut target = here + step_mm;
-        if let Some(hi) = a.soft_max_mm {
-            target = target.min(hi.max(here));
-        }
-        if let Some(lo) = a.soft_min_mm {
-            target = target.max(lo.min(here));
-        }
+        let target = a.step_within_soft_limits(here, here + step_mm);
         rt.send(RtCommand::Jog(JogRequest {
             axis: i,
             target_mm: target,

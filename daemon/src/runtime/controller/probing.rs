@@ -133,13 +133,7 @@ impl Controller {
         self.probe_ready()?;
         let here = self.snapshot().axes.commanded[m.axis];
         // As a jog step: the move looks no further than the soft limit.
-        let mut target_mm = here + m.distance_mm;
-        if let Some(hi) = a.soft_max_mm {
-            target_mm = target_mm.min(hi.max(here));
-        }
-        if let Some(lo) = a.soft_min_mm {
-            target_mm = target_mm.max(lo.min(here));
-        }
+        let target_mm = a.step_within_soft_limits(here, here + m.distance_mm);
         if (target_mm - here).abs() < 1e-6 {
             return Err(ProbeError::Invalid(format!(
                 "{} stands at its soft limit in that direction",
