@@ -53,6 +53,9 @@ pub enum Path {
         center: AxesMm,
         plane: Plane,
     },
+    /// G38.2..G38.5 (CNC836: G31): a straight line at the feed that ends where the probe
+    /// changes; the path is at rest before and after it (`crate::probe`).
+    Probe(crate::probe::ProbeMove),
 }
 
 /// Feed as programmed, already converted to one unit per mode (SPEC §5).

@@ -267,6 +267,13 @@ diag_codes! {
     ProbeAlreadyTriggered = "probe_already_triggered",
     /// The probing move was stopped (Stop, a fault, the e-stop) before it ended.
     ProbeAborted = "probe_aborted",
+    /// A probing move in a program (G38.2..G38.5, CNC836 G31) under radius compensation.
+    ProbeUnderComp = "probe_under_comp",
+    /// A probing move in a program that cannot run: one that must find its change but ends
+    /// where it starts, in inverse time (G93), or with a word it does not take.
+    ProbeMoveInvalid = "probe_move_invalid",
+    /// A restart whose scanned blocks pass a probing move (its result is not known).
+    RestartPastProbe = "restart_past_probe",
     /// A restart from a block the program does not have (issue #31).
     RestartBlockNotFound = "restart_block_not_found",
     /// Too many errors: checking stopped.

@@ -24,6 +24,7 @@ pub mod outputs;
 pub mod pipeline;
 pub mod plan;
 pub mod plc;
+pub mod probe;
 pub mod program;
 pub mod restart;
 pub mod units;

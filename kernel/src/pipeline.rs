@@ -20,6 +20,7 @@ use crate::diag::{DiagCode, DiagCounts, Diagnostic};
 use crate::machine::MachineSetup;
 use crate::offsets::TableEdit;
 use crate::plan::{Planner, Segment};
+use crate::probe::ProbeResult;
 use crate::program::{self, Modal};
 use crate::restart::Restart;
 
@@ -57,6 +58,15 @@ pub trait Observer {
     /// previews draw it apart from the program's path. It also comes to
     /// [`Observer::compensated`] (a pass-through block) like any block that runs.
     fn approach(&mut self, _leg: &Block) {}
+    /// A probing move (`crate::probe`) has been planned and every segment up to its end
+    /// handed to [`Observer::segment`]: where did it end? The interpreter goes on from the
+    /// answer. A pass without a machine keeps this default: the target reached without a
+    /// change, as LinuxCNC's `rs274` assumes. An observer that runs the program waits for
+    /// the machine and answers `None` to end the pass (no contact, the run stopped: it
+    /// keeps its own error).
+    fn probe(&mut self, b: &Block) -> Option<ProbeResult> {
+        Some(ProbeResult::without_machine_for(b))
+    }
 }
 
 /// Two observers of one pass (e.g. `LoadProgram` keeps the junction classes for status and
@@ -92,6 +102,11 @@ impl<A: Observer, B: Observer> Observer for (A, B) {
     fn approach(&mut self, leg: &Block) {
         self.0.approach(leg);
         self.1.approach(leg);
+    }
+    fn probe(&mut self, b: &Block) -> Option<ProbeResult> {
+        let r = self.0.probe(b);
+        let _ = self.1.probe(b);
+        r
     }
 }
 
@@ -140,6 +155,8 @@ pub struct Pipeline {
     axis_names: Vec<char>,
     summary: Summary,
     restart: Option<Restart>,
+    /// A probing move was handed out and waits for its result (`Observer::probe`).
+    probing: bool,
 }
 
 impl Pipeline {
@@ -152,6 +169,7 @@ impl Pipeline {
             limits: setup.program().soft_limits,
             axis_names: setup.program().axis_names.clone(),
             summary: Summary::default(),
+            probing: false,
             restart: opts.from_block.map(|n| {
                 let p = setup.program();
                 let origin = setup.restart_origin().unwrap_or(p.start);
@@ -279,11 +297,47 @@ impl Pipeline {
                 }
                 continue;
             }
+            self.probing |= s.probe.is_some();
             if self.flow(obs.segment(s)) == Flow::Stop {
                 return Flow::Stop;
             }
         }
         Flow::Go
+    }
+
+    /// After block `b`: when it was a probing move, the interpreter goes on from where it
+    /// ended. One that did not run (the blocks a restart scans) has no result: a restart
+    /// may not pass it, as what follows may depend on it (docs/language.md, "Probing").
+    fn probe_result<L: program::Lines>(
+        &mut self,
+        b: &Block,
+        stream: &mut program::Stream<L>,
+        obs: &mut impl Observer,
+    ) -> Flow {
+        if !matches!(b.motion(), Some((_, _, crate::block::Path::Probe(_)))) {
+            return Flow::Go;
+        }
+        if !std::mem::take(&mut self.probing) {
+            stream.probe_result(&ProbeResult::without_machine_for(b));
+            if self.restart.as_ref().is_some_and(|r| !r.reached()) {
+                let d = Diagnostic::error(
+                    DiagCode::RestartPastProbe,
+                    b.n,
+                    b.line,
+                    0,
+                    "the restart passes a probing move, whose result the blocks after it may use: restart at the probing block or before it",
+                );
+                return self.report(d, obs);
+            }
+            return Flow::Go;
+        }
+        match obs.probe(b) {
+            Some(r) => {
+                stream.probe_result(&r);
+                Flow::Go
+            }
+            None => self.flow(Flow::Stop),
+        }
     }
 
     /// The program ended: the compensator's and the planner's windows empty out.
@@ -342,7 +396,10 @@ pub fn run_lines<L: program::Lines>(
         let f = match item {
             Ok(b) => {
                 let modal = stream.modal();
-                p.push(b, &modal, obs)
+                match p.push(b, &modal, obs) {
+                    Flow::Go => p.probe_result(&b, &mut stream, obs),
+                    stop => stop,
+                }
             }
             Err(d) => p.report(d, obs),
         };

@@ -76,6 +76,11 @@ impl Restart {
         }
     }
 
+    /// The restart block has come: blocks run from here on.
+    pub fn reached(&self) -> bool {
+        self.approached
+    }
+
     /// At the end of the program: an error when block `N` never came.
     pub fn finish(&self) -> Option<Diagnostic> {
         (!self.approached).then(|| {

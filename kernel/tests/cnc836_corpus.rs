@@ -132,6 +132,7 @@ fn block_line(b: &Block, n_axes: usize) -> String {
             let path = match path {
                 MovePath::Rapid => "rapid".to_string(),
                 MovePath::Line => "line".to_string(),
+                MovePath::Probe(mv) => format!("probe {mv:?}"),
                 MovePath::Arc { dir, center, plane } => {
                     format!("arc {dir:?} {plane:?} c=({})", axes(&center, n_axes))
                 }

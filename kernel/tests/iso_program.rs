@@ -275,7 +275,7 @@ fn flow_errors_have_codes() {
 #[test]
 fn what_is_not_run_is_refused_naming_the_word() {
     assert!(refused("G0 X1\nG28\n", DiagCode::IsoUnsupported, 2).contains("G28"));
-    assert!(refused("G38.2 Z-10 F100\n", DiagCode::IsoUnsupported, 1).contains("G38.2"));
+    assert!(refused("G38.1 Z-10 F100\n", DiagCode::IsoUnsupported, 1).contains("G38.1"));
     assert!(refused("M66 P0 L3\n", DiagCode::IsoUnsupported, 1).contains("M66"));
     assert!(refused("G0 A10\n", DiagCode::IsoUnsupported, 1).contains('A'));
     refused("G0 X1 G1 Y1\n", DiagCode::IsoModalConflict, 1);

@@ -120,7 +120,7 @@ pub fn block_path(b: &Block) -> Option<(SegPath, bool)> {
     let (start, end, path) = b.motion()?;
     Some(match path {
         Path::Rapid => (SegPath::Line { start, end }, true),
-        Path::Line => (SegPath::Line { start, end }, false),
+        Path::Line | Path::Probe(_) => (SegPath::Line { start, end }, false),
         Path::Arc { dir, center, plane } => (SegPath::arc(start, end, center, plane, dir), false),
     })
 }

@@ -108,11 +108,11 @@ def numbers(args):
 
 
 NUMERIC = {
-    "STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "ARC_FEED", "DWELL", "SET_FEED_RATE",
+    "STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "STRAIGHT_PROBE", "ARC_FEED", "DWELL", "SET_FEED_RATE",
     "SET_FEED_MODE", "SET_G5X_OFFSET", "SET_G92_OFFSET", "USE_TOOL_LENGTH_OFFSET",
     "SET_XY_ROTATION",
 }
-UNSUPPORTED = {"STRAIGHT_PROBE", "RIGID_TAP", "NURBS_G5_FEED", "NURBS_G6_FEED",
+UNSUPPORTED = {"RIGID_TAP", "NURBS_G5_FEED", "NURBS_G6_FEED",
                "SPINDLE_RETRACT_TRAVERSE"}
 
 
@@ -182,12 +182,14 @@ def convert(full_path, plain_path):
             per_rev = v[1] == 1
         elif name == "SET_FEED_RATE":
             feed = v[0] * unit
-        elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED"):
+        elif name in ("STRAIGHT_TRAVERSE", "STRAIGHT_FEED", "STRAIGHT_PROBE"):
             if any(v[3:6]):
                 sys.exit(f"{name}: rotary axis moves")
             move = {"kind": "rapid" if name == "STRAIGHT_TRAVERSE" else "feed",
                     "end": xyz(machine(v[0:3]))}
-            if name == "STRAIGHT_FEED":
+            # A probing move is a feed move to its target (rs274 has no probe: it reports
+            # the target, untripped, as cncd's pass without a machine does).
+            if name != "STRAIGHT_TRAVERSE":
                 feed_field(move)
         elif name == "ARC_FEED":
             fe, se, fc, sc, rot, ae = v[0:6]

@@ -138,6 +138,87 @@ fn probing_finds_the_simulated_workpiece_and_writes_the_entries() {
     d.wait_idle();
 }
 
+/// Runs program `name` (written with `text`) to its end: the status of the idle machine.
+fn run(d: &Cncd, name: &str, text: &str) -> Value {
+    std::fs::write(d.cwd.join(name), text).unwrap();
+    json(d, &["load", name]);
+    let before = json(d, &["status"])["job"].as_u64().unwrap_or(0);
+    json(d, &["start"]);
+    wait_for("the program's end", || {
+        let s = json(d, &["status"]);
+        s["state"] == "idle" && s["job"].as_u64().unwrap_or(0) > before
+    });
+    json(d, &["status"])
+}
+
+fn commanded_of(s: &Value, axis: usize) -> f64 {
+    s["axes"][axis]["commanded_mm"].as_f64().unwrap()
+}
+
+#[test]
+fn programs_probe_with_g38_and_g31() {
+    let cwd = temp_dir("probing_programs");
+    std::fs::create_dir_all(cwd.join("data")).unwrap();
+    std::fs::write(
+        cwd.join("data/TAB0.REK"),
+        "; mill\nR052=500\nR055=0.010\nR237=500\n",
+    )
+    .unwrap();
+    let d = Cncd::start(&cwd, &config());
+    // The top face reads -10 + 42.5 at the spindle: a fast touch, back 5, a slow one, then
+    // 2 mm above what the slow one found.
+    let text = "G21 G90\nG0 X20 Y20 Z50\nG38.2 Z0 F600\n#1 = #5063\nG0 Z[#1 + 5]\n\
+                G38.2 Z[#1 - 5] F60\nG0 Z[#5063 + 2 + #5070 - 1]\nG1 X30 F1000\nM2\n";
+    let s = run(&d, "touch.ngc", text);
+    assert_eq!(s["alarm"], "", "{s}");
+    within(
+        "G38.2 top face",
+        commanded_of(&s, 2) - 2.0,
+        -10.0 + TOOL_MM,
+        LATCH_STEP_MM,
+    );
+    assert!((commanded_of(&s, 0) - 30.0).abs() < 1e-6, "{s}");
+    // G38.3 may miss: the program goes on (#5070 = 0 moves X to 40).
+    let text = "G21 G90\nG0 Z50\nG38.3 Z45 F600\nG0 X[40 + #5070]\nM2\n";
+    let s = run(&d, "maybe.ngc", text);
+    assert!((commanded_of(&s, 0) - 40.0).abs() < 1e-6, "{s}");
+    // G38.2 must touch: a miss ends the run at that block with its code.
+    let text = "G21 G90\nG38.2 Z40 F600\nG0 X50\nM2\n";
+    let s = run(&d, "miss.ngc", text);
+    assert!(
+        s["alarm"].as_str().unwrap().contains("probe_no_contact"),
+        "{s}"
+    );
+    assert!(
+        (commanded_of(&s, 0) - 40.0).abs() < 1e-6,
+        "nothing after it ran: {s}"
+    );
+    assert!(
+        (commanded_of(&s, 2) - 40.0).abs() < 1e-6,
+        "the whole move: {s}"
+    );
+    // Away from a contact that is not there: refused before anything moves.
+    let text = "G21 G90\nG0 X20 Y20 Z35\nG38.4 Z50 F600\nM2\n";
+    let s = run(&d, "clear.ngc", text);
+    assert!(
+        s["alarm"]
+            .as_str()
+            .unwrap()
+            .contains("probe_already_triggered"),
+        "{s}"
+    );
+    assert_eq!(commanded_of(&s, 2), 35.0, "nothing moved: {s}");
+    // CNC836: G31, the contact in R92.
+    let text = "N10 G0 X20 Y20 Z50\nN20 G31 Z0 F600\nN30 G0 ZR92\nN40 M30\n";
+    let s = run(&d, "touch.nc", text);
+    within(
+        "G31 top face",
+        commanded_of(&s, 2),
+        -10.0 + TOOL_MM,
+        SEARCH_STEP_MM,
+    );
+}
+
 #[test]
 fn a_machine_without_a_probe_input_refuses_probing() {
     let cwd = temp_dir("probing_none");
@@ -145,6 +226,13 @@ fn a_machine_without_a_probe_input_refuses_probing() {
     let d = Cncd::start(&cwd, &format!("{MILL_TOML}\n{io}"));
     refused(&d, &["probe", "move", "Z", "-1"], "probe_unavailable");
     refused(&d, &["probe", "edge", "1", "X", "up"], "give the direction");
+    // A program's probing move too, before anything moves.
+    let s = run(&d, "probe.ngc", "G21 G90\nG0 Z5\nG38.2 Z-20 F300\nM2\n");
+    assert!(
+        s["alarm"].as_str().unwrap().contains("probe_unavailable"),
+        "{s}"
+    );
+    assert_eq!(commanded_of(&s, 2), 5.0, "nothing moved: {s}");
 }
 
 #[test]

@@ -377,7 +377,7 @@ impl Harness {
             execution: self.jobs.pump.execution.clone(),
             status: self.link.status.1.clone(),
         };
-        let result = plan_into(&spec, |seg| self.push_segment(seg));
+        let result = plan_into(&spec, HarnessLink(self));
         self.rt.rings.planned_job.store(job, Ordering::Release);
         result.map_err(HarnessError::Planning)?;
         Ok(job)
@@ -451,5 +451,19 @@ impl Fnv {
 
     fn write(&mut self, word: u64) {
         self.0 = (self.0 ^ word).wrapping_mul(0x0100_0000_01b3);
+    }
+}
+
+/// The harness as a run's link: segments onto the ring (ticking while it is full), and a
+/// tick for each wait (the planner thread sleeps instead).
+struct HarnessLink<'a>(&'a mut Harness);
+
+impl super::job::RunLink for HarnessLink<'_> {
+    fn segment(&mut self, s: Segment) -> bool {
+        self.0.push_segment(s)
+    }
+
+    fn wait(&mut self) -> Option<Snapshot> {
+        (!self.0.link.cancel).then(|| self.0.step())
     }
 }

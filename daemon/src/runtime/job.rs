@@ -15,8 +15,12 @@ use kernel::pipeline::{Flow, Observer, Options};
 use kernel::plan::Segment;
 use kernel::program::Modal;
 
+use kernel::probe::ProbeResult;
+
 use super::library::ProgramText;
 use super::pipeline::{Execution, PendingWrite};
+use super::program_probe;
+use super::rt::Snapshot;
 
 /// What a run needs.
 pub struct JobSpec {
@@ -40,22 +44,51 @@ pub struct JobLink {
     pub planned_job: Arc<AtomicU32>,
 }
 
-/// A run's observer: segments to `sink` (false: cancel the run), blocks and table writes to
-/// the execution record.
-struct Runner<'a, S> {
+/// Where a run's segments go and how it sees the machine: the planner thread's ring and the
+/// RT thread's snapshots, or the single-threaded harness stepping the core itself.
+pub(crate) trait RunLink {
+    /// Hands over one segment, waiting while the ring is full; false: the run was cancelled.
+    fn segment(&mut self, s: Segment) -> bool;
+    /// Lets the machine run a little (the planner thread sleeps, the harness ticks) and
+    /// gives the latest snapshot; `None`: the run was cancelled.
+    fn wait(&mut self) -> Option<Snapshot>;
+}
+
+/// A run's observer: segments to `link`, blocks and table writes to the execution record.
+struct Runner<'a, L> {
     spec: &'a JobSpec,
-    sink: S,
+    link: L,
     error: Option<Diagnostic>,
 }
 
-impl<S: FnMut(Segment) -> bool> Observer for Runner<'_, S> {
+impl<L: RunLink> Observer for Runner<'_, L> {
     fn programmed(&mut self, b: &Block, modal: &Modal) {
         let job = self.spec.opts.job;
         lock(&self.spec.execution).record(job, b, modal);
     }
 
     fn segment(&mut self, s: Segment) -> Flow {
-        if (self.sink)(s) { Flow::Go } else { Flow::Stop }
+        if self.link.segment(s) {
+            Flow::Go
+        } else {
+            Flow::Stop
+        }
+    }
+
+    fn probe(&mut self, b: &Block) -> Option<ProbeResult> {
+        let job = self.spec.opts.job;
+        loop {
+            let s = self.link.wait()?;
+            if s.progress.aborted_job == job {
+                return None;
+            }
+            let p = s.program_probe;
+            if p.job == job && p.seq == b.seq && p.done {
+                return program_probe::result(b, &p)
+                    .map_err(|d| self.error = Some(d))
+                    .ok();
+            }
+        }
     }
 
     fn diagnostic(&mut self, d: Diagnostic) -> Flow {
@@ -91,21 +124,41 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
 /// whether it finished, was cancelled or failed, so the RT thread never waits for it forever.
 pub fn run(spec: JobSpec, link: &JobLink, cancel: &AtomicBool) -> Result<(), Diagnostic> {
     let mut ring = link.segments.lock().unwrap_or_else(|e| e.into_inner());
-    let result = plan_into(&spec, |s| push_waiting(&mut ring, s, cancel));
+    let thread = ThreadLink {
+        ring: &mut ring,
+        cancel,
+        status: spec.status.clone(),
+    };
+    let result = plan_into(&spec, thread);
     link.planned_job.store(spec.opts.job, Ordering::Release);
     result
 }
 
-/// Plans `spec` through the pipeline, handing its segments in order to `sink` (false: cancel)
+/// The planner thread's side of the RT thread: the segment ring and the snapshots.
+struct ThreadLink<'a> {
+    ring: &'a mut rtrb::Producer<Segment>,
+    cancel: &'a AtomicBool,
+    status: tokio::sync::watch::Receiver<Snapshot>,
+}
+
+impl RunLink for ThreadLink<'_> {
+    fn segment(&mut self, s: Segment) -> bool {
+        push_waiting(self.ring, s, self.cancel)
+    }
+
+    fn wait(&mut self) -> Option<Snapshot> {
+        std::thread::sleep(Duration::from_millis(1));
+        (!self.cancel.load(Ordering::Relaxed)).then(|| *self.status.borrow())
+    }
+}
+
+/// Plans `spec` through the pipeline, handing its segments in order to `link` (false: cancel)
 /// and recording blocks and `G92` writes for execution. The first error ends it. Shared by the
 /// planner thread and the single-threaded harness.
-pub(crate) fn plan_into(
-    spec: &JobSpec,
-    sink: impl FnMut(Segment) -> bool,
-) -> Result<(), Diagnostic> {
+pub(crate) fn plan_into(spec: &JobSpec, link: impl RunLink) -> Result<(), Diagnostic> {
     let mut runner = Runner {
         spec,
-        sink,
+        link,
         error: None,
     };
     spec.text.run(&spec.setup, spec.opts, &mut runner);

@@ -17,6 +17,7 @@ pub mod library;
 pub mod logging;
 pub mod mtconnect;
 pub mod pipeline;
+pub mod program_probe;
 pub mod program_text;
 pub mod resample;
 pub mod rt;

@@ -116,6 +116,9 @@ export const diagnosticsCs: Record<string, string> = {
   probe_no_contact: "Sonda se nedotkla: pohyb skončil na konci dráhy bez dotyku.",
   probe_already_triggered: "Sonda je sepnutá už na začátku pohybu: nic se nepohnulo.",
   probe_aborted: "Měření přerušeno (stop, porucha, nouzový stop nebo najetí, které nedojelo).",
+  probe_under_comp: "Měření sondou v programu (G38.2..G38.5, G31) nelze při korekci poloměru G41/G42: nejdřív G40.",
+  probe_move_invalid: "Měřicí pohyb programu nelze provést: G38.2, G38.4 nebo G31 končí tam, kde začíná, běží v G93, nebo G31 obsahuje jiná slova než N, osy a F.",
+  restart_past_probe: "Restart za měřicím pohybem není možný: další bloky mohou použít jeho výsledek. Restartujte z bloku měření nebo dříve.",
   restart_block_not_found: "Blok pro restart programu v programu není.",
   internal: "Vnitřní chyba řídicího systému, ne programu.",
   // Machine setup and constants

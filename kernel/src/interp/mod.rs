@@ -347,6 +347,23 @@ impl Interpolator {
         (self.len > 0).then(|| self.seg(0).path)
     }
 
+    /// The probing segment (`Segment::probe`) the raw position is on, or rests at the stop
+    /// point before: the caller watches the probe while it runs and calls [`Self::stop`] at
+    /// the change (it is the last segment buffered: the path after it is planned only once
+    /// its result is known).
+    pub fn probing_segment(&self) -> Option<&Segment> {
+        if self.len == 0 {
+            return None;
+        }
+        let here = self.seg(self.raw_seg);
+        if here.probe.is_some() {
+            return Some(here);
+        }
+        let next =
+            (self.raw_at_stop && self.raw_seg + 1 < self.len).then(|| self.seg(self.raw_seg + 1));
+        next.filter(|s| s.probe.is_some())
+    }
+
     /// Operator switch "optional stop": M1 stops the program only while it is on.
     pub fn set_optional_stop(&mut self, on: bool) {
         self.optional_stop = on;

@@ -389,7 +389,7 @@ impl Planner {
         }
         match self.win.get(i + 2) {
             Some(q) => !n.smooth || is_line(q),
-            None => self.finished,
+            None => self.closed(),
         }
     }
 

@@ -161,6 +161,9 @@ pub struct Segment {
     /// Feed per revolution: the spindle speed (rpm) `feed_mm_s` was planned at; the
     /// interpolator scales the feed by actual/nominal each tick (0 = feed per minute).
     pub per_rev_nominal_rpm: f64,
+    /// A probing move (`crate::probe`): the RT thread watches the probe input while it
+    /// runs and brakes at the change; it starts and ends at rest.
+    pub probe: Option<crate::probe::ProbeMove>,
 }
 
 /// What the per-axis box on the setpoints reads of a segment (`interp::setpoint_box`, issues
@@ -322,6 +325,8 @@ pub struct Planner {
     /// capped one cannot), so the end speeds before it can no longer change.
     settled: usize,
     finished: bool,
+    /// A probing move ends the window until the next block (`Planner::probing_move`).
+    barrier: bool,
     carry: Option<merge::Carry>,
     /// Dynamic set chosen by the PLC cell DYNAM_SET, until the program selects one again.
     plc_set: Option<usize>,
@@ -376,6 +381,7 @@ impl Planner {
             finalized: 0,
             settled: 0,
             finished: false,
+            barrier: false,
             carry: None,
             plc_set: None,
             last_plc_cell: None,
@@ -421,6 +427,7 @@ impl Planner {
 
     /// Takes the next block. On error nothing is changed.
     pub fn push(&mut self, block: &Block) -> Result<(), Diagnostic> {
+        self.barrier = false;
         if self.finished {
             return Err(Diagnostic::error(
                 DiagCode::Internal,
@@ -448,7 +455,11 @@ impl Planner {
         own.spindle.outputs.wait |= self.pending_wait;
         let block = &own;
         let spindle_before = std::mem::replace(&mut self.spindle_state, block.spindle);
-        if block.spindle.outputs.wait != 0 || block.spindle.outputs.touched {
+        let probe = match path {
+            Path::Probe(mv) => Some(mv),
+            _ => None,
+        };
+        if block.spindle.outputs.wait != 0 || block.spindle.outputs.touched || probe.is_some() {
             // M functions on outputs act before the motion, at rest (and one that waits for
             // an input waits there): the block starts from a stop (docs/io.md).
             self.flush_carry();
@@ -469,7 +480,7 @@ impl Planner {
         // R383: a short line with nothing else in it merges into the next block (SPEC §7.2).
         let start = self.merged_start(block, path, start, feed_mm_min);
         let seg_path = match path {
-            Path::Rapid | Path::Line => SegPath::Line { start, end },
+            Path::Rapid | Path::Line | Path::Probe(_) => SegPath::Line { start, end },
             Path::Arc { dir, center, plane } => SegPath::arc(start, end, center, plane, dir),
         };
         let length_mm = seg_path.length(axes);
@@ -489,6 +500,9 @@ impl Planner {
         let set = self.dyn_set_of(block);
         self.pending_wait = 0;
         self.append(block, seg_path, length_mm, rapid, feed_mm_min, set);
+        if let Some(mv) = probe {
+            self.probing_move(mv);
+        }
         let stop = ProgramStop::of_block(block);
         if stop != ProgramStop::None {
             // M0/M1 in a motion block act at its end, at rest.
@@ -554,6 +568,22 @@ impl Planner {
         *slot = slot.stronger(stop);
     }
 
+    /// A probing move was appended: it ends at rest, and everything up to its end is
+    /// committed now (the next block's start is known only once it has run).
+    fn probing_move(&mut self, mv: crate::probe::ProbeMove) {
+        if let Some(p) = self.win.back_mut() {
+            p.seg.probe = Some(mv);
+        }
+        self.force_stop(0.0);
+        self.barrier = true;
+    }
+
+    /// The window is closed at its end: every pushed block is final (the program ended,
+    /// or a probing move waits for its result).
+    pub(super) fn closed(&self) -> bool {
+        self.finished || self.barrier
+    }
+
     /// No more blocks will come.
     pub fn finish(&mut self) {
         if self.finished {
@@ -612,7 +642,7 @@ impl Planner {
         if i >= self.finalized - self.pending_backward {
             return None;
         }
-        if !(i < self.settled || full || self.finished) {
+        if !(i < self.settled || full || self.closed()) {
             return None;
         }
         self.commit_budget(i);
@@ -874,6 +904,7 @@ impl Planner {
             program_stop_before: ProgramStop::None,
             axis_filter_ticks: self.cfg.axis_filter_ticks as u16,
             per_rev_nominal_rpm: per_rev_nominal_rpm(block, rapid),
+            probe: None,
         }
     }
 
@@ -936,13 +967,13 @@ impl Planner {
         while self.finalized < self.win.len() {
             let i = self.finalized;
             let last = i + 1 == self.win.len();
-            if last && !self.finished {
+            if last && !self.closed() {
                 break;
             }
             // A full window finalizes without the look-ahead only a junction that holds up
             // every commit (blocks shorter than the tick window throughout the window).
             let forced = full && i == self.emitted;
-            if !last && self.win[i].smooth && !self.finished && !forced && !self.ahead_known(i) {
+            if !last && self.win[i].smooth && !self.closed() && !forced && !self.ahead_known(i) {
                 break;
             }
             self.finalize(i, last);
@@ -959,7 +990,7 @@ impl Planner {
         // braking distance, so running it per block would cost that many steps per block);
         // commits wait at most that many blocks, far less than the window.
         if self.pending_backward > 0
-            && (self.pending_backward >= BACKWARD_BATCH || self.finished || full)
+            && (self.pending_backward >= BACKWARD_BATCH || self.closed() || full)
         {
             let first_new = self.finalized - self.pending_backward;
             self.pending_backward = 0;

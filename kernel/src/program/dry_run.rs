@@ -58,7 +58,7 @@ pub fn moves(text: &str, setup: &Setup) -> (Vec<Move>, Vec<Diagnostic>) {
                     BlockKind::Motion { end, path, .. } => {
                         let kind = match path {
                             Path::Rapid => MoveKind::Rapid,
-                            Path::Line => MoveKind::Feed,
+                            Path::Line | Path::Probe(_) => MoveKind::Feed,
                             Path::Arc { dir, center, plane } => MoveKind::Arc {
                                 centre: center,
                                 plane,

@@ -442,6 +442,15 @@ impl<L> Stream<L> {
         self.iso.is_none().then_some(&self.interp)
     }
 
+    /// The probing move of the last block returned ended as `r` reports: the interpreter
+    /// sets its result parameters and goes on from where the axes came to rest.
+    pub fn probe_result(&mut self, r: &crate::probe::ProbeResult) {
+        match self.iso.as_mut() {
+            Some(iso) => iso.probe_result(r),
+            None => self.interp.probe_result(r),
+        }
+    }
+
     /// The modal state after the last block returned (what an MDI after it inherits).
     pub fn modal(&self) -> Modal {
         match self.iso.as_ref() {

@@ -362,6 +362,8 @@ fn modal_codes(b: &Block) -> Vec<String> {
             match path {
                 Path::Rapid => "G0",
                 Path::Line => "G1",
+                // (What the block probes with is the dialect's: G38.x or G31.)
+                Path::Probe(_) => "G38",
                 Path::Arc {
                     dir: ArcDir::Cw, ..
                 } => "G2",

@@ -32,7 +32,7 @@ fn element(b: &Block, axes: usize) -> Option<pb::PathElement> {
     };
     let (kind, center, plane) = match path {
         Path::Rapid => (pb::PathKind::Rapid, Vec::new(), String::new()),
-        Path::Line => (pb::PathKind::Line, Vec::new(), String::new()),
+        Path::Line | Path::Probe(_) => (pb::PathKind::Line, Vec::new(), String::new()),
         Path::Arc { dir, center, plane } => (
             match dir {
                 ArcDir::Cw => pb::PathKind::ArcCw,

@@ -362,9 +362,11 @@ impl Controller {
 
     // ---- jobs ----
 
-    /// The planning failure in force, as text.
+    /// The planning failure in force, as text ending with its stable code.
     pub fn alarm(&self) -> Option<String> {
-        self.jobs.alarm().map(|(_, text)| text)
+        self.jobs
+            .alarm()
+            .map(|(code, text)| format!("{text} ({code})"))
     }
 
     /// The planning failure in force: its diagnostic's stable code and its text.

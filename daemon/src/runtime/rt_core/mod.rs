@@ -26,6 +26,7 @@ mod homing;
 mod io;
 mod motion;
 mod probe;
+mod program_probe;
 mod snapshot;
 mod state;
 #[cfg(test)]
@@ -49,6 +50,7 @@ use super::stats::TickStats;
 pub use commands::{HomeRequest, JobMachine, RtCommand};
 pub use io::{IoFunctions, IoStatus, bus_fault};
 pub use probe::{ProbeOutcome, ProbeRequest, ProbeStatus};
+pub use program_probe::ProgramProbe;
 pub use snapshot::{
     Alarms, AxesStatus, OperatorSettings, Progress, Snapshot, SpindleStatus, TickInfo,
 };
@@ -140,6 +142,7 @@ impl RtCore {
                 jog: Jog::default(),
                 homing: None,
                 probe: probe::ProbeRun::default(),
+                program_probe: program_probe::ProgramProbeRun::default(),
             },
             job: JobRun {
                 active: 0,

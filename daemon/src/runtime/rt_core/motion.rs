@@ -25,6 +25,8 @@ pub(super) struct MotionSources {
     pub(super) homing: Option<HomingRun>,
     /// Probing move under way (it moves the axis with `jog`).
     pub(super) probe: super::probe::ProbeRun,
+    /// A program's probing move braking at its change.
+    pub(super) program_probe: super::program_probe::ProgramProbeRun,
 }
 
 /// The job the core runs and what it took with its start.
@@ -74,6 +76,7 @@ impl RtCore {
     /// resampler.
     pub(super) fn interpolator_step(&mut self, segments: &mut rtrb::Consumer<Segment>) {
         self.feed_segments(segments);
+        self.program_probe_step();
         self.input_waits();
         let out = self.interpolate();
         self.spindle(&out);

@@ -62,7 +62,7 @@ pub(super) struct ProbeRun {
 }
 
 impl RtCore {
-    fn probe_touching(&self) -> bool {
+    pub(super) fn probe_touching(&self) -> bool {
         let mask = self.io_logic.f.probe;
         mask != 0 && self.io_logic.last & mask != 0
     }

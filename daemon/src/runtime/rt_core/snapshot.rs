@@ -32,6 +32,8 @@ pub struct Snapshot {
     pub io: super::IoStatus,
     /// The last probing move and the probe (docs/setup.md).
     pub probe: super::ProbeStatus,
+    /// The last probing move of a program (G38.x, G31).
+    pub program_probe: super::ProgramProbe,
 }
 
 /// The tick: its count and time, and the lateness statistics of the deadline grid.

@@ -162,6 +162,8 @@ impl RtCore {
         }
         s.state = match is {
             _ if self.job.active == 0 && is == InterpState::Idle => MachineState::Idle,
+            // A program's probing move brakes at the contact as a stop does, and goes on.
+            InterpState::Stopping if self.motion.program_probe.braking => MachineState::Running,
             InterpState::Stopping => MachineState::Stopping,
             InterpState::Holding | InterpState::Held => MachineState::Hold,
             _ => MachineState::Running,

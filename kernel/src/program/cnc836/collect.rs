@@ -40,6 +40,8 @@ pub(super) struct Words {
     pub(super) assigns: [Option<(u8, Num)>; 16],
     /// G4: a dwell (its time is F).
     pub(super) g4: Option<usize>,
+    /// G31: a probing move (`probe`).
+    pub(super) g31: Option<usize>,
     /// `L<n>`: call of subprogram n; `P<count>`: how many times.
     pub(super) call: Option<(u16, usize)>,
     pub(super) count: Option<(u16, usize)>,
@@ -245,6 +247,17 @@ impl Interpreter {
                     );
                 }
                 w.g92 = Some(at);
+                Ok(())
+            }
+            31 => {
+                if w.g31.is_some() {
+                    return fail(
+                        at,
+                        DiagCode::WordTwice,
+                        "G31 is written twice in this block",
+                    );
+                }
+                w.g31 = Some(at);
                 Ok(())
             }
             4 => {

@@ -9,7 +9,7 @@
 //! word table), `modal` (modal state, the rules read from the constants), `spindle` (M
 //! functions, feed and speed), `table` (G92 table writes, D, &), `comp` (compensation checks),
 //! `motion` (positions and the motion of a block), `circle` (arcs: centre, R55, R325),
-//! `dwell` (G4), `subprogram` (the forms `%L<n>`, `L<n> P<count>`, M17) and [`flow`] (running
+//! `dwell` (G4), `probe` (G31), `subprogram` (the forms `%L<n>`, `L<n> P<count>`, M17) and [`flow`] (running
 //! them: calls, repeats and returns over the program's lines).
 
 mod circle;
@@ -19,6 +19,7 @@ mod dwell;
 pub(crate) mod flow;
 mod modal;
 mod motion;
+mod probe;
 mod spindle;
 mod subprogram;
 mod table;
@@ -267,6 +268,12 @@ impl Interpreter {
                 return Ok(None);
             }
             Err(f) => return Err(located(w.n, f)),
+        }
+        if w.g31.is_some() {
+            return self
+                .probe_block(&w, line_no, text)
+                .map(Some)
+                .map_err(|f| located(w.n, f));
         }
         if w.g4.is_some() {
             return self

@@ -421,6 +421,10 @@ impl Exec<'_> {
                 self.cycle(w, g)?;
                 Ok(true)
             }
+            MotionMode::Probe(mv) => {
+                self.probe(w, mv)?;
+                Ok(true)
+            }
             _ => {
                 self.straight_or_arc(w, mode)?;
                 Ok(true)

@@ -16,6 +16,7 @@ mod handover;
 mod motion;
 pub mod params;
 pub mod parse;
+mod probe;
 mod state;
 mod words;
 
@@ -284,8 +285,17 @@ impl Interpreter {
         self.modal = handover::modal_of(&self.state);
         self.seq = seq;
         let ends = out.iter().any(|b| crate::block::ends_program(&b.m));
+        let probe = out
+            .iter()
+            .rev()
+            .find(|b| matches!(b.motion(), Some((_, _, crate::block::Path::Probe(_)))))
+            .map(crate::probe::ProbeResult::without_machine_for);
         self.queue.extend(out);
         self.sync_params(w.non_modal.is_some());
+        if let Some(r) = probe {
+            // Until the machine reports (a pass without one keeps this): as LinuxCNC's rs274.
+            self.probe_result(&r);
+        }
         if ends {
             self.ended = true;
         }
@@ -321,6 +331,17 @@ impl Interpreter {
 
     /// LinuxCNC's system parameters a program may read: #5220 (system), #5221.. (work
     /// offsets), #5211.. (G92), #5400 (tool), #5420.. (position), in the program's units.
+    /// A probing move of the last line ended as `r` reports: #5061.., #5070 and the
+    /// position the next line starts from.
+    pub fn probe_result(&mut self, r: &crate::probe::ProbeResult) {
+        let letters = &self.machine.axis_letters[..self.machine.n_axes];
+        for (i, v) in probe::apply_result(&mut self.state, letters, r) {
+            self.params.set_numbered(i, v);
+        }
+        self.modal = handover::modal_of(&self.state);
+        self.sync_params(false);
+    }
+
     fn sync_params(&mut self, offsets: bool) {
         let st = &self.state;
         let n = self.machine.n_axes;

@@ -20,6 +20,8 @@ pub enum MotionMode {
     Cycle(u8),
     /// G80: no motion mode; axis words alone are an error.
     Off,
+    /// G38.2..G38.5: a probing move (`crate::probe`).
+    Probe(crate::probe::ProbeMove),
 }
 
 /// Feed mode (group 5).

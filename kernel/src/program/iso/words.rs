@@ -101,7 +101,7 @@ fn once<T>(slot: &mut At<T>, v: T, at: usize, what: &str) -> Result<(), Fail> {
 
 /// The G code `g` (tenths: G59.1 is 591) into its group.
 pub fn g_word(w: &mut Words, g10: u32, at: usize) -> Result<(), Fail> {
-    const MOTION: &str = "a motion code (G0..G3, G73, G80..G89)";
+    const MOTION: &str = "a motion code (G0..G3, G38.2..G38.5, G73, G80..G89)";
     let name = if g10.is_multiple_of(10) {
         format!("G{}", g10 / 10)
     } else {
@@ -119,6 +119,15 @@ pub fn g_word(w: &mut Words, g10: u32, at: usize) -> Result<(), Fail> {
             MOTION,
         ),
         800 => once(&mut w.motion, MotionMode::Off, at, MOTION),
+        382..=385 => once(
+            &mut w.motion,
+            MotionMode::Probe(crate::probe::ProbeMove {
+                toward: g10 <= 383,
+                must_trip: g10.is_multiple_of(2),
+            }),
+            at,
+            MOTION,
+        ),
         40 => once(&mut w.non_modal, NonModal::Dwell, at, "a non-modal code"),
         100 => once(
             &mut w.non_modal,
