@@ -9,6 +9,7 @@ pub mod assets;
 pub mod buffer;
 pub mod devices;
 pub mod error;
+pub mod fuzz;
 pub mod model;
 pub mod observe;
 pub mod request;

@@ -140,6 +140,22 @@ impl Config {
         Ok(cfg)
     }
 
+    /// Fuzzing entry of the configuration door (`fuzz/`, issue #50): arbitrary bytes as a
+    /// `cncd.toml`, through the path `--check-config` and start-up take (parse, validate),
+    /// then what start-up derives from a valid file. Must never panic; an error has a code
+    /// and a message.
+    pub fn fuzz_entry(data: &[u8]) {
+        let text = String::from_utf8_lossy(data);
+        match Config::parse(&text, Path::new("fuzz.toml")) {
+            Ok(c) => {
+                let _ = c.axis_names();
+                let _ = c.probe();
+                let _ = crate::runtime::buses::IoWiring::of(&c);
+            }
+            Err(e) => assert!(!e.code().is_empty() && !e.to_string().is_empty()),
+        }
+    }
+
     /// Checks what serde cannot: counts, ranges, duplicates. The message names the key. The
     /// order is the order mistakes are reported in (the first one found).
     pub fn validate(&self) -> Result<(), InvalidConfig> {

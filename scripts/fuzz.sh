@@ -1,0 +1,47 @@
+#!/bin/sh
+# Runs the cargo-fuzz targets of fuzz/ (the kernel's parsers and the daemon's doors, issues #3
+# and #50) for a number of runs each and prints a table: target, runs, seconds, executions per
+# second, result. A crash, a hang (-timeout) or a memory blow-up (-rss_limit_mb) fails the
+# target; libFuzzer leaves the input in fuzz/artifacts/<target>/.
+# Usage: scripts/fuzz.sh [RUNS] [TARGET...]   (RUNS default 10000000; the compensator gets a
+# fifth of it, as each of its inputs is a whole contour). Needs a nightly toolchain; installs
+# cargo-fuzz when missing. Corpora grow in fuzz/corpus/<target>/ (not committed); the seeds
+# committed in fuzz/seeds/<target>/ and kernel/tests/corpus/ start them.
+# Built without a sanitizer (-s none; the code is safe Rust) and with debug assertions (-a),
+# so overflow and the entries' own checks still fail a run.
+set -eu
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+cd "$ROOT/fuzz"
+RUNS=${1:-10000000}
+[ $# -gt 0 ] && shift
+TARGETS=${*:-program offsets constants comp mtconnect config code_pages}
+command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked
+FUZZ="cargo +nightly fuzz"
+LOGS="$ROOT/target/fuzz-logs"
+mkdir -p "$LOGS"
+for t in $TARGETS; do
+    $FUZZ build -O -a -s none "$t" >"$LOGS/$t.build.log" 2>&1
+done
+printf '| target | runs | seconds | runs/s | result |\n|---|---|---|---|---|\n'
+status=0
+for t in $TARGETS; do
+    n=$RUNS
+    [ "$t" = comp ] && n=$((RUNS / 5))
+    mkdir -p "corpus/$t"
+    dirs="corpus/$t"
+    [ -d "seeds/$t" ] && dirs="$dirs seeds/$t"
+    [ "$t" = program ] && dirs="$dirs $ROOT/kernel/tests/corpus"
+    start=$(date +%s)
+    if $FUZZ run -O -a -s none "$t" $dirs -- -runs="$n" -timeout=10 -rss_limit_mb=2048 \
+        -print_final_stats=1 >"$LOGS/$t.log" 2>&1; then
+        result=ok
+    else
+        result=FAILED
+        status=1
+    fi
+    secs=$(($(date +%s) - start))
+    done_runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$LOGS/$t.log" | tail -1)
+    printf '| %s | %s | %s | %s | %s |\n' "$t" "${done_runs:-?}" "$secs" \
+        "$(( ${done_runs:-0} / (secs > 0 ? secs : 1) ))" "$result"
+done
+exit $status
