@@ -20,6 +20,7 @@ pub mod dry_run;
 pub mod encoding;
 pub mod feed;
 pub mod iso;
+pub mod tool_changer;
 
 pub use cnc836::words;
 
@@ -107,6 +108,9 @@ pub struct Setup {
     /// Travel limits of the machine: the daemon's validation refuses a program whose planned
     /// path leaves them (the interpreter itself does not look at them).
     pub soft_limits: crate::limits::SoftLimits,
+    /// The automatic tool changer (`[tool_change] mode = "automatic"`); `None`: M6 holds
+    /// for a manual change.
+    pub tool_changer: Option<tool_changer::ToolChanger>,
 }
 
 impl Setup {
@@ -129,6 +133,7 @@ impl Setup {
             modal: None,
             soft_limits: crate::limits::SoftLimits::NONE,
             block_delete: false,
+            tool_changer: None,
         }
     }
 
@@ -401,6 +406,12 @@ pub fn stream_lines<L: Lines>(lines: L, setup: &Setup) -> Stream<L> {
         line_no: 0,
         done: false,
         block_delete: setup.block_delete,
+        changer: setup
+            .tool_changer
+            .clone()
+            .map(|c| (c, setup.m_outputs.clone())),
+        expanded: std::collections::VecDeque::new(),
+        seq_shift: 0,
     }
 }
 
@@ -418,6 +429,12 @@ pub struct Stream<L> {
     done: bool,
     /// The block-delete switch of the setup.
     block_delete: bool,
+    /// The automatic tool changer and the M functions its steps apply.
+    changer: Option<(tool_changer::ToolChanger, crate::outputs::MFunctions)>,
+    /// Steps of an expanded M6 not yet handed out.
+    expanded: std::collections::VecDeque<Block>,
+    /// Blocks the changer added so far: later blocks' `seq` move up by it (dense, increasing).
+    seq_shift: u32,
 }
 
 impl<L> Stream<L> {
@@ -474,6 +491,30 @@ impl<L: Lines> Stream<L> {
         }
     }
 
+    /// A block as the stream hands it out: its `seq` after the changer's steps so far, and an
+    /// M6 expanded into the changer's steps (the first returned, the rest queued); the
+    /// interpreter takes the outputs the last step left as its modal state.
+    fn changed_tool(&mut self, mut b: Block) -> Result<Block, Diagnostic> {
+        b.seq += self.seq_shift;
+        let Some((changer, m_outputs)) = &self.changer else {
+            return Ok(b);
+        };
+        if !matches!(b.kind, crate::block::BlockKind::ToolChange { .. }) {
+            return Ok(b);
+        }
+        let steps = changer.expand(&b, m_outputs)?;
+        let last = steps
+            .last()
+            .map_or(b.spindle.outputs, |s| s.spindle.outputs);
+        self.seq_shift += steps.len() as u32 - 1;
+        match self.iso.as_mut() {
+            Some(iso) => iso.set_program_outputs(last),
+            None => self.interp.set_program_outputs(last),
+        }
+        self.expanded.extend(steps);
+        Ok(self.expanded.pop_front().unwrap_or(b))
+    }
+
     fn next_cnc836(&mut self) -> Option<Result<Block, Diagnostic>> {
         let item = self.flow.next(
             &mut self.interp,
@@ -496,6 +537,9 @@ impl<L: Lines> Iterator for Stream<L> {
             self.done = true;
             return Some(Err(e));
         }
+        if let Some(b) = self.expanded.pop_front() {
+            return Some(Ok(b));
+        }
         if self.done {
             return None;
         }
@@ -509,6 +553,7 @@ impl<L: Lines> Iterator for Stream<L> {
             }
             None => self.next_cnc836(),
         };
+        let item = item.map(|r| r.and_then(|b| self.changed_tool(b)));
         if let Some(Ok(b)) = &item
             && crate::block::ends_program(&b.m)
         {
