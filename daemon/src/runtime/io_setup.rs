@@ -5,11 +5,12 @@
 
 use hal::io::{IoBits, IoMap, IoPoint};
 use kernel::outputs::{MFunction, MFunctions};
+use kernel::program::tool_changer::ToolChanger;
 use kernel::units::TS_S;
 
 use super::config::{
     AlarmSeverity, Config, InputConfig, InputFunction, IoSection, OutputConfig, OutputFunction,
-    parse_m,
+    ToolChangeMode, parse_m,
 };
 use super::rt_core::IoFunctions;
 
@@ -93,7 +94,20 @@ pub fn functions(config: &Config) -> IoFunctions {
     for (k, out) in io.outputs.iter().enumerate() {
         output_function(&mut f, k, out);
     }
+    // The changer's tool number outputs are the program's too (switched at M6).
+    for k in config.tool_change.number_output_indices(&io) {
+        f.program |= 1u64 << k;
+    }
     f
+}
+
+/// The automatic tool changer of `[tool_change]`, `None` in manual mode.
+pub fn tool_changer(config: &Config) -> Option<ToolChanger> {
+    let tc = &config.tool_change;
+    (tc.mode == ToolChangeMode::Automatic).then(|| ToolChanger {
+        sequence: tc.sequence.clone(),
+        tool_number_outputs: tc.number_output_indices(&config.io()),
+    })
 }
 
 fn input_function(config: &Config, f: &mut IoFunctions, k: usize, inp: &InputConfig) {

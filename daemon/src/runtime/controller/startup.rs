@@ -112,6 +112,7 @@ pub(crate) fn machine_config(config: &Config) -> MachineConfig {
             })
             .collect(),
         m_outputs: crate::runtime::io_setup::m_functions(config),
+        tool_changer: crate::runtime::io_setup::tool_changer(config),
         gears: config
             .kr
             .gears
