@@ -20,7 +20,6 @@ pub mod dry_run;
 pub mod encoding;
 pub mod feed;
 pub mod iso;
-pub mod tool_changer;
 
 pub use cnc836::words;
 
@@ -108,9 +107,9 @@ pub struct Setup {
     /// Travel limits of the machine: the daemon's validation refuses a program whose planned
     /// path leaves them (the interpreter itself does not look at them).
     pub soft_limits: crate::limits::SoftLimits,
-    /// The automatic tool changer (`[tool_change] mode = "automatic"`); `None`: M6 holds
-    /// for a manual change.
-    pub tool_changer: Option<tool_changer::ToolChanger>,
+    /// Automatic tool changer: the tool of an M6 must fit in this many binary outputs
+    /// (`None`: no limit).
+    pub tool_number_bits: Option<u8>,
 }
 
 impl Setup {
@@ -133,7 +132,7 @@ impl Setup {
             modal: None,
             soft_limits: crate::limits::SoftLimits::NONE,
             block_delete: false,
-            tool_changer: None,
+            tool_number_bits: None,
         }
     }
 
@@ -406,12 +405,7 @@ pub fn stream_lines<L: Lines>(lines: L, setup: &Setup) -> Stream<L> {
         line_no: 0,
         done: false,
         block_delete: setup.block_delete,
-        changer: setup
-            .tool_changer
-            .clone()
-            .map(|c| (c, setup.m_outputs.clone())),
-        expanded: std::collections::VecDeque::new(),
-        seq_shift: 0,
+        tool_number_bits: setup.tool_number_bits,
     }
 }
 
@@ -429,12 +423,8 @@ pub struct Stream<L> {
     done: bool,
     /// The block-delete switch of the setup.
     block_delete: bool,
-    /// The automatic tool changer and the M functions its steps apply.
-    changer: Option<(tool_changer::ToolChanger, crate::outputs::MFunctions)>,
-    /// Steps of an expanded M6 not yet handed out.
-    expanded: std::collections::VecDeque<Block>,
-    /// Blocks the changer added so far: later blocks' `seq` move up by it (dense, increasing).
-    seq_shift: u32,
+    /// See [`Setup::tool_number_bits`].
+    tool_number_bits: Option<u8>,
 }
 
 impl<L> Stream<L> {
@@ -491,28 +481,25 @@ impl<L: Lines> Stream<L> {
         }
     }
 
-    /// A block as the stream hands it out: its `seq` after the changer's steps so far, and an
-    /// M6 expanded into the changer's steps (the first returned, the rest queued); the
-    /// interpreter takes the outputs the last step left as its modal state.
-    fn changed_tool(&mut self, mut b: Block) -> Result<Block, Diagnostic> {
-        b.seq += self.seq_shift;
-        let Some((changer, m_outputs)) = &self.changer else {
-            return Ok(b);
+    /// An M6 whose tool the changer's tool number outputs cannot carry (the daemon's RT core
+    /// puts the number on them in binary, docs/setup.md "Automatic tool changer").
+    fn tool_beyond_outputs(&self, b: &Block) -> Option<Diagnostic> {
+        let bits = u32::from(self.tool_number_bits?);
+        let crate::block::BlockKind::ToolChange { tool } = b.kind else {
+            return None;
         };
-        if !matches!(b.kind, crate::block::BlockKind::ToolChange { .. }) {
-            return Ok(b);
-        }
-        let steps = changer.expand(&b, m_outputs)?;
-        let last = steps
-            .last()
-            .map_or(b.spindle.outputs, |s| s.spindle.outputs);
-        self.seq_shift += steps.len() as u32 - 1;
-        match self.iso.as_mut() {
-            Some(iso) => iso.set_program_outputs(last),
-            None => self.interp.set_program_outputs(last),
-        }
-        self.expanded.extend(steps);
-        Ok(self.expanded.pop_front().unwrap_or(b))
+        (bits < 8 && u32::from(tool) >> bits != 0).then(|| {
+            Diagnostic::error(
+                DiagCode::ToolNumberBeyondOutputs,
+                b.n,
+                b.line,
+                0,
+                format!(
+                    "T{tool}: the tool changer's {bits} tool number outputs carry tools up to {}",
+                    (1u32 << bits) - 1
+                ),
+            )
+        })
     }
 
     fn next_cnc836(&mut self) -> Option<Result<Block, Diagnostic>> {
@@ -537,9 +524,6 @@ impl<L: Lines> Iterator for Stream<L> {
             self.done = true;
             return Some(Err(e));
         }
-        if let Some(b) = self.expanded.pop_front() {
-            return Some(Ok(b));
-        }
         if self.done {
             return None;
         }
@@ -553,12 +537,17 @@ impl<L: Lines> Iterator for Stream<L> {
             }
             None => self.next_cnc836(),
         };
-        let item = item.map(|r| r.and_then(|b| self.changed_tool(b)));
         if let Some(Ok(b)) = &item
             && crate::block::ends_program(&b.m)
         {
             let b = *b;
             self.end_program(&b);
+        }
+        if let Some(Ok(b)) = &item
+            && let Some(e) = self.tool_beyond_outputs(b)
+        {
+            self.done = true;
+            return Some(Err(e));
         }
         item
     }

@@ -10,8 +10,8 @@ use super::io::{IoSection, parse_m};
 #[serde(deny_unknown_fields)]
 pub struct ToolChangeSection {
     /// `"manual"` (the default): M6 holds the program with a prompt naming the tool and its
-    /// entry until the operator confirms with Cycle Start or Resume. `"automatic"`: M6 runs
-    /// `sequence` without holding.
+    /// entry until the operator confirms with Cycle Start or Resume. `"automatic"`: at M6 the
+    /// RT core runs `sequence` at rest, then the program goes on by itself.
     #[serde(default)]
     pub mode: ToolChangeMode,
     /// Automatic mode: the M codes run in order at each M6 (numbers, `61` for M61); each must
@@ -57,6 +57,15 @@ impl ToolChangeSection {
                          [61, 62, 63]"
                     .into(),
             });
+        }
+        if self.sequence.len() > crate::runtime::rt_core::MAX_STEPS {
+            return Err(bad(
+                "tool_change.sequence",
+                format!(
+                    "at most {} steps (the RT core's fixed table)",
+                    crate::runtime::rt_core::MAX_STEPS
+                ),
+            ));
         }
         for (i, &code) in self.sequence.iter().enumerate() {
             if code == 6 || !bound(io, code) {
@@ -146,8 +155,16 @@ mod tests {
                   tool_number_outputs = ['tool_bit0']\n";
         assert_eq!(refusal(ok), None);
         let c = Config::parse(&format!("{IO}[tool_change]\n{ok}"), Path::new("t")).unwrap();
-        let changer = crate::runtime::io_setup::tool_changer(&c).unwrap();
-        assert_eq!(changer.tool_number_outputs, [1]);
+        let changer = crate::runtime::io_setup::tool_changer(&c);
+        assert_eq!((changer.len, changer.number_len), (3, 1));
+        assert_eq!(changer.number_outputs[0], 1);
+        assert_eq!(changer.steps[0].on, 0b1, "M61 switches output 0 on");
+        assert_eq!(changer.steps[1].wait, 0b1, "M62 waits for input 0");
+        assert_eq!(changer.steps[2].off, 0b1, "M63 switches output 0 off");
+        assert_eq!(
+            refusal("mode = 'automatic'\nsequence = [61, 62, 63, 61, 62, 63, 61, 62, 63]\n"),
+            Some(("config_bad_value", "tool_change.sequence".into()))
+        );
         assert_eq!(
             refusal("mode = 'automatic'\nsequence = [61, 64]\n"),
             Some(("config_bad_value", "tool_change.sequence[1]".into()))

@@ -76,6 +76,7 @@ impl RtCore {
         self.feed_segments(segments);
         self.input_waits();
         let out = self.interpolate();
+        self.tool_changer_step();
         self.spindle(&out);
         self.setpoint(&out);
         self.motion.out = out;

@@ -163,6 +163,12 @@ impl RtCore {
         s.state = match is {
             _ if self.job.active == 0 && is == InterpState::Idle => MachineState::Idle,
             InterpState::Stopping => MachineState::Stopping,
+            // An automatic tool change runs unless its wait timed out.
+            InterpState::Holding | InterpState::Held
+                if self.changer.running() && !self.changer.timed_out() =>
+            {
+                MachineState::Running
+            }
             InterpState::Holding | InterpState::Held => MachineState::Hold,
             _ => MachineState::Running,
         };

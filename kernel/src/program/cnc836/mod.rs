@@ -203,12 +203,6 @@ impl Interpreter {
         self.state.modal
     }
 
-    /// The outputs an automatic tool change left ([`super::tool_changer`]) become the modal
-    /// state the next blocks start from.
-    pub(crate) fn set_program_outputs(&mut self, o: crate::outputs::ProgramOutputs) {
-        self.state.modal.spindle.outputs = o.carried();
-    }
-
     /// The interpreter's copy of the offset table (including `G92` writes so far).
     pub fn table(&self) -> &OffsetTable {
         &self.table

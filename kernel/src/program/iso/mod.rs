@@ -22,7 +22,6 @@ mod words;
 use super::{Lines, Modal, Setup};
 use crate::block::Block;
 use crate::diag::{DiagCode, Diagnostic};
-use crate::outputs::ProgramOutputs;
 use crate::units::MAX_AXES;
 use std::collections::VecDeque;
 
@@ -129,23 +128,6 @@ impl Interpreter {
     /// The modal state after the last block (what an MDI after it inherits).
     pub fn modal(&self) -> Modal {
         self.modal
-    }
-
-    /// The outputs an automatic tool change left ([`super::tool_changer`]) become the modal
-    /// state: of the next lines, and of the blocks of the M6's own line still queued (its
-    /// motion after the change).
-    pub(crate) fn set_program_outputs(&mut self, o: crate::outputs::ProgramOutputs) {
-        let kept = o.carried();
-        self.state.spindle.outputs = kept;
-        for b in &mut self.queue {
-            let own = b.spindle.outputs;
-            b.spindle.outputs = ProgramOutputs {
-                wait: own.wait,
-                touched: own.touched,
-                ..kept
-            };
-        }
-        self.modal = handover::modal_of(&self.state);
     }
 
     /// The next block of the program, reading (and for loops and calls, seeking) `lines`;
