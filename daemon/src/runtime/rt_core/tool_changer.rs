@@ -59,13 +59,17 @@ impl ToolChanger {
         &self.number_outputs[..usize::from(self.number_len).min(8)]
     }
 
+    /// The tool number outputs.
+    fn number_mask(&self) -> u64 {
+        self.number_outputs()
+            .iter()
+            .fold(0u64, |m, &k| m | 1u64 << (k % 64))
+    }
+
     /// The outputs the changer drives: the tool number and every step's on/off. The program's
     /// M functions no longer switch them (the changer's state must not be undone by them).
     pub fn owned(&self) -> u64 {
-        let number = self
-            .number_outputs()
-            .iter()
-            .fold(0u64, |m, &k| m | 1u64 << (k % 64));
+        let number = self.number_mask();
         self.steps().iter().fold(number, |m, s| m | s.on | s.off)
     }
 
@@ -147,8 +151,7 @@ impl RtCore {
         let Some(step) = self.changer.step else {
             if let Some(tool) = self.motion.interp.tool_change() {
                 let c = &mut self.changer;
-                let number = c.cfg.number_outputs().iter().fold(0u64, |m, &k| m | 1 << k);
-                c.on = (c.on & !number) | c.cfg.number_bits(tool);
+                c.on = (c.on & !c.cfg.number_mask()) | c.cfg.number_bits(tool);
                 self.enter_step(0);
             }
             return;
@@ -192,5 +195,36 @@ impl RtCore {
         c.wait_steps = 0;
         c.timed_out = false;
         self.start_pulses(s.pulse);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_tool_number_goes_on_its_outputs_bit_0_first_and_the_changer_owns_its_outputs() {
+        let mut c = ToolChanger {
+            len: 2,
+            number_outputs: [5, 3, 0, 0, 0, 0, 0, 0],
+            number_len: 2,
+            ..ToolChanger::default()
+        };
+        c.steps[0] = ChangerStep {
+            on: 0b1,
+            ..ChangerStep::default()
+        };
+        c.steps[1] = ChangerStep {
+            off: 0b10,
+            wait: 0b100,
+            ..ChangerStep::default()
+        };
+        // A step beyond `len` is not the changer's.
+        c.steps[2].on = 1 << 40;
+        assert_eq!(c.number_bits(1), 1 << 5);
+        assert_eq!(c.number_bits(2), 1 << 3);
+        assert_eq!(c.number_bits(3), 1 << 5 | 1 << 3);
+        assert_eq!(c.owned(), 0b1 | 0b10 | 1 << 5 | 1 << 3);
+        assert!(c.automatic() && !ToolChanger::default().automatic());
     }
 }
