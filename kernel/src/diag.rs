@@ -245,6 +245,9 @@ diag_codes! {
     ToolChangeNotAlone = "tool_change_not_alone",
     /// M6 while radius compensation is on.
     ToolChangeUnderComp = "tool_change_under_comp",
+    /// Automatic tool changer: the tool of an M6 does not fit in the changer's tool number
+    /// outputs (`[tool_change] tool_number_outputs`).
+    ToolNumberBeyondOutputs = "tool_number_beyond_outputs",
     /// A touch-off while a program, MDI, a jog or a reference run moves or holds the machine.
     TouchOffBusy = "touch_off_busy",
     /// A touch-off before the axes are homed (the position it reads means nothing yet).

@@ -36,6 +36,8 @@ pub struct MachineConfig {
     pub gears: Vec<Gear>,
     /// M functions on the machine's outputs (`[io]`, docs/io.md).
     pub m_outputs: crate::outputs::MFunctions,
+    /// Automatic tool changer: how many outputs carry the tool number (`None`: any tool).
+    pub tool_number_bits: Option<u8>,
     pub radius_input: RadiusInput,
     /// Encoder pulses per revolution of each rotary axis, in machine order (`None`: linear).
     pub rotary_pulses_per_rev: Vec<Option<f64>>,
@@ -98,6 +100,7 @@ impl MachineSetup {
         // Gears select by M code; the fastest axis is Vmax of the βmax warning (SPEC §5, §6).
         program.gears = machine.gears.clone();
         program.m_outputs = machine.m_outputs.clone();
+        program.tool_number_bits = machine.tool_number_bits;
         program.max_feed_mm_min = machine
             .axes
             .iter()
@@ -363,6 +366,7 @@ mod tests {
         MachineConfig {
             axes: vec![axis('X'), axis('Y'), axis('Z')],
             m_outputs: Default::default(),
+            tool_number_bits: None,
             gears: vec![Gear {
                 max_rpm: 6000.0,
                 output_range: 0x7FFF,

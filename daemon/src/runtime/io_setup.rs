@@ -9,9 +9,9 @@ use kernel::units::TS_S;
 
 use super::config::{
     AlarmSeverity, Config, InputConfig, InputFunction, IoSection, OutputConfig, OutputFunction,
-    parse_m,
+    ToolChangeMode, parse_m,
 };
-use super::rt_core::IoFunctions;
+use super::rt_core::{ChangerStep, IoFunctions, MAX_STEPS, ToolChanger};
 
 /// Where each point is wired, in the configuration's order (validated already).
 pub fn io_map(config: &Config) -> IoMap {
@@ -94,6 +94,35 @@ pub fn functions(config: &Config) -> IoFunctions {
         output_function(&mut f, k, out);
     }
     f
+}
+
+/// The automatic tool changer of `[tool_change]` for the RT core (manual: no steps). Each
+/// step is the M function the program's M codes use (`m_functions`), so bit k is output
+/// (input) k there as here.
+pub fn tool_changer(config: &Config) -> ToolChanger {
+    let tc = &config.tool_change;
+    let mut c = ToolChanger::default();
+    if tc.mode != ToolChangeMode::Automatic {
+        return c;
+    }
+    let m = m_functions(config);
+    for (slot, &code) in c.steps.iter_mut().zip(tc.sequence.iter().take(MAX_STEPS)) {
+        *slot = m.get(code).map(ChangerStep::from).unwrap_or_default();
+    }
+    c.len = tc.sequence.len().min(MAX_STEPS) as u8;
+    let number = tc.number_output_indices(&config.io());
+    for (slot, &k) in c.number_outputs.iter_mut().zip(&number) {
+        *slot = k;
+    }
+    c.number_len = number.len().min(c.number_outputs.len()) as u8;
+    c
+}
+
+/// Automatic mode with tool number outputs: how many (a program's M6 must fit in them).
+pub fn tool_number_bits(config: &Config) -> Option<u8> {
+    let tc = &config.tool_change;
+    (tc.mode == ToolChangeMode::Automatic && !tc.tool_number_outputs.is_empty())
+        .then(|| tc.tool_number_outputs.len().min(8) as u8)
 }
 
 fn input_function(config: &Config, f: &mut IoFunctions, k: usize, inp: &InputConfig) {

@@ -107,6 +107,9 @@ pub struct Setup {
     /// Travel limits of the machine: the daemon's validation refuses a program whose planned
     /// path leaves them (the interpreter itself does not look at them).
     pub soft_limits: crate::limits::SoftLimits,
+    /// Automatic tool changer: the tool of an M6 must fit in this many binary outputs
+    /// (`None`: no limit).
+    pub tool_number_bits: Option<u8>,
 }
 
 impl Setup {
@@ -129,6 +132,7 @@ impl Setup {
             modal: None,
             soft_limits: crate::limits::SoftLimits::NONE,
             block_delete: false,
+            tool_number_bits: None,
         }
     }
 
@@ -401,6 +405,7 @@ pub fn stream_lines<L: Lines>(lines: L, setup: &Setup) -> Stream<L> {
         line_no: 0,
         done: false,
         block_delete: setup.block_delete,
+        tool_number_bits: setup.tool_number_bits,
     }
 }
 
@@ -418,6 +423,8 @@ pub struct Stream<L> {
     done: bool,
     /// The block-delete switch of the setup.
     block_delete: bool,
+    /// See [`Setup::tool_number_bits`].
+    tool_number_bits: Option<u8>,
 }
 
 impl<L> Stream<L> {
@@ -483,6 +490,27 @@ impl<L: Lines> Stream<L> {
         }
     }
 
+    /// An M6 whose tool the changer's tool number outputs cannot carry (the daemon's RT core
+    /// puts the number on them in binary, docs/setup.md "Automatic tool changer").
+    fn tool_beyond_outputs(&self, b: &Block) -> Option<Diagnostic> {
+        let bits = u32::from(self.tool_number_bits?);
+        let crate::block::BlockKind::ToolChange { tool } = b.kind else {
+            return None;
+        };
+        (bits < 8 && u32::from(tool) >> bits != 0).then(|| {
+            Diagnostic::error(
+                DiagCode::ToolNumberBeyondOutputs,
+                b.n,
+                b.line,
+                0,
+                format!(
+                    "T{tool}: the tool changer's {bits} tool number outputs carry tools up to {}",
+                    (1u32 << bits) - 1
+                ),
+            )
+        })
+    }
+
     fn next_cnc836(&mut self) -> Option<Result<Block, Diagnostic>> {
         let item = self.flow.next(
             &mut self.interp,
@@ -523,6 +551,12 @@ impl<L: Lines> Iterator for Stream<L> {
         {
             let b = *b;
             self.end_program(&b);
+        }
+        if let Some(Ok(b)) = &item
+            && let Some(e) = self.tool_beyond_outputs(b)
+        {
+            self.done = true;
+            return Some(Err(e));
         }
         item
     }

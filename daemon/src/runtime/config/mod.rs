@@ -177,6 +177,7 @@ impl Config {
             axes: &self.axes,
             gear_m: self.kr.gears.iter().filter_map(|g| g.m_code).collect(),
         })?;
+        self.tool_change.validate(&self.io())?;
         self.program.validate()
     }
 

@@ -92,6 +92,7 @@ pub(crate) fn rt_core_config(
         stop_decel_mm_s2: stop_decel(config),
         cycle_ns: config.bus.cycle_ns(),
         io: crate::runtime::io_setup::functions(config),
+        tool_changer: crate::runtime::io_setup::tool_changer(config),
     })
 }
 
@@ -112,6 +113,7 @@ pub(crate) fn machine_config(config: &Config) -> MachineConfig {
             })
             .collect(),
         m_outputs: crate::runtime::io_setup::m_functions(config),
+        tool_number_bits: crate::runtime::io_setup::tool_number_bits(config),
         gears: config
             .kr
             .gears

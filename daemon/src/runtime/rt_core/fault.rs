@@ -23,6 +23,7 @@ impl RtCore {
     /// Ends the active job: brake on the path and drop what remains.
     pub(super) fn abort(&mut self) {
         self.job.spindle_off = true;
+        self.changer.abort();
         if self.job.active != 0 {
             self.snap.progress.aborted_job = self.job.active;
             self.job.active = 0;

@@ -240,6 +240,10 @@ impl RtCore {
     pub(super) fn resume_job(&mut self) {
         self.snap.io.wait_timed_out = IoBits::NONE;
         self.io_logic.wait_steps = 0;
+        // During an automatic tool change only the changer resumes the program.
+        if self.changer.retry() {
+            return;
+        }
         self.motion.interp.resume();
     }
 
@@ -276,7 +280,13 @@ impl RtCore {
         let f = self.io_logic.f;
         let prog = self.motion.out.spindle.outputs;
         let stopped = self.job.spindle_off && self.motion.interp.state() == InterpState::Idle;
-        let mut out = if stopped { 0 } else { prog.on & f.program };
+        // The changer's outputs are its own, not the program's M functions'.
+        let ch = &self.changer;
+        let mut out = if stopped {
+            0
+        } else {
+            (prog.on & f.program & !ch.owned) | ch.on
+        };
         let rpm = self.io.cmd.spindle_rpm;
         if rpm != 0.0 {
             out |= f.spindle_enable
@@ -311,15 +321,11 @@ impl RtCore {
 
     /// Outputs pulsing now: a new pulse count starts the pulses of the block's outputs.
     fn pulses(&mut self, pulse: u64, seq: u16) -> u64 {
-        let l = &mut self.io_logic;
-        if seq != l.pulse_seq {
-            l.pulse_seq = seq;
-            for k in 0..MAX_IO {
-                if pulse & (1 << k) != 0 {
-                    l.pulse_left[k] = l.f.pulse_steps[k].max(1);
-                }
-            }
+        if seq != self.io_logic.pulse_seq {
+            self.io_logic.pulse_seq = seq;
+            self.start_pulses(pulse);
         }
+        let l = &mut self.io_logic;
         let mut on = 0;
         for (k, left) in l.pulse_left.iter_mut().enumerate() {
             if *left > 0 {
@@ -328,6 +334,16 @@ impl RtCore {
             }
         }
         on
+    }
+
+    /// The outputs of `pulse` start a pulse of their configured length.
+    pub(super) fn start_pulses(&mut self, pulse: u64) {
+        let l = &mut self.io_logic;
+        for k in 0..MAX_IO {
+            if pulse & (1 << k) != 0 {
+                l.pulse_left[k] = l.f.pulse_steps[k].max(1);
+            }
+        }
     }
 
     /// Forcing an output (commissioning): `Some(value)` forces it, `None` releases it.

@@ -9,14 +9,16 @@
 //! keeps its 4 ms period and steps as bus time advances ([`super::resample`]).
 //!
 //! One bus tick, in phases (one method each): timing → commands → PLC → the 4 ms steps due
-//! (segments → motion (interpolator, in-position, spindle ready, single block) → KŘR/spindle
+//! (segments → motion (interpolator, in-position, spindle ready, single block) → automatic
+//! tool change → KŘR/spindle
 //! → setpoint) → bus exchange of the resampled setpoint → fault reaction, homing, state
 //! machine → snapshot. After [`RtCore::new`] no phase allocates, locks or logs.
 //!
 //! One file per phase, each with the part of the core's state it owns: `commands` (the command
 //! ring, jog requests), `motion` (segments and interpolation, KŘR and the PLC cells, single
 //! block, setpoints), `exchange` (bus exchange), `fault` (fault reaction), `homing` (reference
-//! runs), `state` (the state machine), `snapshot` (deadline grid, statistics and snapshot).
+//! runs), `state` (the state machine), `snapshot` (deadline grid, statistics and snapshot),
+//! `tool_changer` (the automatic tool change at M6).
 //! This file builds the core and runs the phases in order ([`RtCore::tick`]).
 
 mod commands;
@@ -31,6 +33,7 @@ mod snapshot;
 mod state;
 #[cfg(test)]
 mod tests;
+mod tool_changer;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -55,6 +58,7 @@ pub use snapshot::{
     Alarms, AxesStatus, OperatorSettings, Progress, Snapshot, SpindleStatus, TickInfo,
 };
 pub use state::MachineState;
+pub use tool_changer::{ChangerStep, MAX_STEPS, ToolChanger};
 
 use exchange::BusIo;
 use fault::FaultStop;
@@ -87,6 +91,8 @@ pub struct RtCoreConfig {
     pub cycle_ns: u64,
     /// What the machine's inputs and outputs do (docs/io.md).
     pub io: IoFunctions,
+    /// The automatic tool changer (default: manual tool change).
+    pub tool_changer: ToolChanger,
 }
 
 /// The real-time core. Everything the tick owns, by part (each in the file of the phase that
@@ -101,6 +107,7 @@ pub struct RtCore {
     fault_stop: FaultStop,
     lifecycle: Lifecycle,
     io_logic: IoLogic,
+    changer: tool_changer::ChangerRun,
 }
 
 impl RtCore {
@@ -160,6 +167,7 @@ impl RtCore {
                 safe_state_sent: false,
             },
             io_logic: IoLogic::new(cfg.io),
+            changer: tool_changer::ChangerRun::new(cfg.tool_changer),
             lifecycle: Lifecycle {
                 enable_ticks: 0,
                 enable_window_ticks,

@@ -79,6 +79,7 @@ impl RtCore {
         self.program_probe_step();
         self.input_waits();
         let out = self.interpolate();
+        self.tool_changer_step();
         self.spindle(&out);
         self.setpoint(&out);
         self.motion.out = out;

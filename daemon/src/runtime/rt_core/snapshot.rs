@@ -188,8 +188,10 @@ impl RtCore {
         s.tick.stats = self.timing.stats.summary();
         s.spindle.rpm = self.io.fb.spindle_rpm;
         s.spindle.waiting = self.motion.interp.waiting_for_spindle();
-        s.progress.program_stop = self.motion.interp.at_program_stop();
-        s.progress.tool_change = self.motion.interp.tool_change();
+        // An automatic change is no program stop and prompts nobody.
+        let auto = self.changer.cfg.automatic() && self.motion.interp.tool_change().is_some();
+        s.progress.program_stop = self.motion.interp.at_program_stop() && !auto;
+        s.progress.tool_change = self.motion.interp.tool_change().filter(|_| !auto);
         s.progress.block_stop = self.motion.interp.at_block_stop();
         s.plc = self.logic.plc;
         &self.snap

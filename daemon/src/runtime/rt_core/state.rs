@@ -165,6 +165,12 @@ impl RtCore {
             // A program's probing move brakes at the contact as a stop does, and goes on.
             InterpState::Stopping if self.motion.program_probe.braking => MachineState::Running,
             InterpState::Stopping => MachineState::Stopping,
+            // An automatic tool change runs unless its wait timed out.
+            InterpState::Holding | InterpState::Held
+                if self.changer.running() && !self.changer.timed_out() =>
+            {
+                MachineState::Running
+            }
             InterpState::Holding | InterpState::Held => MachineState::Hold,
             _ => MachineState::Running,
         };

@@ -36,6 +36,7 @@ fn config_with(io: IoFunctions) -> RtCoreConfig {
         stop_decel_mm_s2: [1000.0; MAX_AXES],
         cycle_ns: TS_NS,
         io,
+        tool_changer: ToolChanger::default(),
     }
 }
 
