@@ -119,6 +119,7 @@ export const diagnosticsCs: Record<string, string> = {
   probe_under_comp: "Měření sondou v programu (G38.2..G38.5, G31) nelze při korekci poloměru G41/G42: nejdřív G40.",
   probe_move_invalid: "Měřicí pohyb programu nelze provést: G38.2, G38.4 nebo G31 končí tam, kde začíná, běží v G93, nebo G31 obsahuje jiná slova než N, osy a F.",
   restart_past_probe: "Restart za měřicím pohybem není možný: další bloky mohou použít jeho výsledek. Restartujte z bloku měření nebo dříve.",
+  tool_number_beyond_outputs: "Automatická výměna nástroje: číslo nástroje v M6 je větší, než mohou přenést výstupy čísla nástroje (tool_number_outputs).",
   restart_block_not_found: "Blok pro restart programu v programu není.",
   internal: "Vnitřní chyba řídicího systému, ne programu.",
   // Machine setup and constants

@@ -77,6 +77,21 @@ fn by_table(bytes: &[u8], upper: &[char; 128]) -> String {
         .collect()
 }
 
+/// Fuzzing entry of the legacy code pages (`fuzz/`, issue #50): arbitrary bytes decoded in
+/// every encoding a program may be stored in. Must never panic; a DOS code page or
+/// windows-1250 gives one character per byte, UTF-8 only valid text.
+pub fn fuzz_entry(data: &[u8]) {
+    for (enc, _) in TextEncoding::ALL {
+        match (enc, enc.decode(data)) {
+            (TextEncoding::Utf8, text) => {
+                assert_eq!(text.is_some(), std::str::from_utf8(data).is_ok());
+            }
+            (_, Some(text)) => assert_eq!(text.chars().count(), data.len()),
+            (_, None) => panic!("{} refused bytes", enc.name()),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -139,20 +154,5 @@ mod tests {
             assert_eq!(e.name(), n);
         }
         assert_eq!(TextEncoding::from_name("latin2"), None);
-    }
-}
-
-/// Fuzzing entry of the legacy code pages (`fuzz/`, issue #50): arbitrary bytes decoded in
-/// every encoding a program may be stored in. Must never panic; a DOS code page or
-/// windows-1250 gives one character per byte, UTF-8 only valid text.
-pub fn fuzz_entry(data: &[u8]) {
-    for (enc, _) in TextEncoding::ALL {
-        match (enc, enc.decode(data)) {
-            (TextEncoding::Utf8, text) => {
-                assert_eq!(text.is_some(), std::str::from_utf8(data).is_ok());
-            }
-            (_, Some(text)) => assert_eq!(text.chars().count(), data.len()),
-            (_, None) => panic!("{} refused bytes", enc.name()),
-        }
     }
 }
