@@ -239,13 +239,21 @@ fn a_machine_without_a_probe_input_refuses_probing() {
 fn the_settings_in_docs_setup_md_are_a_valid_configuration() {
     let md =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/setup.md")).unwrap();
-    let block = md
+    let blocks: Vec<&str> = md
         .split("```toml\n")
-        .nth(1)
-        .and_then(|b| b.split("```").next())
-        .expect("a toml block");
+        .skip(1)
+        .filter_map(|b| b.split("```").next())
+        .collect();
     let path = std::path::Path::new("docs/setup.md");
-    let c = daemon::runtime::config::Config::parse(block, path).unwrap();
+    let parse = |key: &str| {
+        let block = blocks.iter().find(|b| b.contains(key)).expect(key);
+        daemon::runtime::config::Config::parse(block, path).unwrap()
+    };
+    let c = parse("[probe]");
     assert_eq!(c.probe().latch_feed_mm_min, 50.0);
+    assert_eq!(c.probe().setter.map(|s| s.x_mm), Some(-40.0));
     assert_eq!(c.sim.bores.len(), 1);
+    // The automatic tool changer's example too.
+    let c = parse("[tool_change]");
+    assert_eq!(c.tool_change.sequence, [61, 62, 63]);
 }
