@@ -27,11 +27,7 @@ fn config() -> String {
 }
 
 fn json(d: &Cncd, args: &[&str]) -> Value {
-    let mut all = vec!["--json"];
-    all.extend_from_slice(args);
-    let (ok, out) = d.cncctl(&all);
-    assert!(ok, "cncctl {args:?}: {out}\n{}", d.log());
-    serde_json::from_str(out.trim()).expect("one JSON object")
+    d.json(args)
 }
 
 fn commanded(d: &Cncd, axis: usize) -> f64 {

@@ -22,11 +22,7 @@ const CHANGER: &str = "[[io.inputs]]\nname = \"estop\"\nfunction = \"estop\"\n\
 const PROGRAM: &str = "G21 G90\nT2 M6\nG1 X5 F3000\nT3 M6\nG1 X10\nM2\n";
 
 fn json(d: &Cncd, args: &[&str]) -> Value {
-    let mut all = vec!["--json"];
-    all.extend_from_slice(args);
-    let (ok, out) = d.cncctl(&all);
-    assert!(ok, "cncctl {args:?}: {out}\n{}", d.log());
-    serde_json::from_str(out.trim()).expect("one JSON object")
+    d.json(args)
 }
 
 fn ok(d: &Cncd, args: &[&str]) -> String {

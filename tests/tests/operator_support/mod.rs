@@ -94,6 +94,15 @@ impl Cncd {
         cncctl_at(&self.cwd, &all)
     }
 
+    /// `cncctl --json ARGS`, which must succeed: its one JSON object.
+    pub fn json(&self, args: &[&str]) -> serde_json::Value {
+        let mut all = vec!["--json"];
+        all.extend_from_slice(args);
+        let (ok, out) = self.cncctl(&all);
+        assert!(ok, "cncctl {args:?}: {out}\n{}", self.log());
+        serde_json::from_str(out.trim()).expect("one JSON object")
+    }
+
     /// SIGKILL, as a power cut or the OOM killer would.
     pub fn kill9(&mut self) {
         let _ = self.child.kill();

@@ -263,15 +263,20 @@ impl RtCore {
         let missing = wait & !now;
         self.snap.io.waiting = IoBits(missing);
         self.io_logic.wait_steps += 1;
-        let limit = (0..MAX_IO)
-            .filter(|&k| missing & (1 << k) != 0)
-            .map(|k| self.io_logic.f.wait_steps[k])
-            .max()
-            .unwrap_or(0);
-        if missing != 0 && self.io_logic.wait_steps > limit {
+        if missing != 0 && self.io_logic.wait_steps > self.wait_limit_steps(missing) {
             self.snap.io.wait_timed_out = IoBits(missing);
             self.motion.interp.hold();
         }
+    }
+
+    /// How long a wait for the inputs `missing` may last: the longest `timeout_ms` among
+    /// them, in 4 ms steps.
+    pub(super) fn wait_limit_steps(&self, missing: u64) -> u32 {
+        (0..MAX_IO)
+            .filter(|&k| missing & (1 << k) != 0)
+            .map(|k| self.io_logic.f.wait_steps[k])
+            .max()
+            .unwrap_or(0)
     }
 
     /// This tick's outputs: the program's M functions, the spindle, pulses, forcing; the

@@ -5,7 +5,7 @@
 //! the planner merges consecutive technology blocks: only the RT tick can run the steps in
 //! order and wait for each confirmation.
 
-use hal::io::{IoBits, MAX_IO};
+use hal::io::IoBits;
 use kernel::outputs::MFunction;
 
 use super::RtCore;
@@ -174,12 +174,7 @@ impl RtCore {
             return;
         }
         self.changer.wait_steps += 1;
-        let limit = (0..MAX_IO)
-            .filter(|&k| missing & (1 << k) != 0)
-            .map(|k| self.io_logic.f.wait_steps[k])
-            .max()
-            .unwrap_or(0);
-        if self.changer.wait_steps > limit {
+        if self.changer.wait_steps > self.wait_limit_steps(missing) {
             self.changer.timed_out = true;
             self.snap.io.wait_timed_out = IoBits(missing);
         }
