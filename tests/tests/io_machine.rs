@@ -10,44 +10,13 @@ use daemon::runtime::clock::SimClock;
 use daemon::runtime::config::Config;
 use daemon::runtime::harness::{Harness, JobEnd};
 use daemon::runtime::rt::{MachineState, RtCommand, Snapshot};
-use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus, FaultReason};
+use hal::FaultReason;
+use io_support::OutputsBus;
 use kernel::jog::JogRequest;
 
+mod io_support;
+
 const MAX_TICKS: u64 = 200_000;
-
-/// The simulated machine, recording what each cycle sent: outputs and X.
-struct OutputsBus {
-    inner: sim::SimBus,
-    sent: Arc<Mutex<Vec<(u64, f64)>>>,
-}
-
-impl DriveBus for OutputsBus {
-    fn name(&self) -> &str {
-        "sim"
-    }
-    fn axes(&self) -> usize {
-        self.inner.axes()
-    }
-    fn has_spindle(&self) -> bool {
-        true
-    }
-    fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
-        self.sent
-            .lock()
-            .unwrap()
-            .push((cmd.outputs.0, cmd.positions_mm[0]));
-        self.inner.cycle(cmd, fb)
-    }
-    fn enable(&mut self) {
-        self.inner.enable()
-    }
-    fn reset(&mut self) {
-        self.inner.reset()
-    }
-    fn safe_state(&mut self) {
-        self.inner.safe_state()
-    }
-}
 
 struct Machine {
     h: Harness,

@@ -9,7 +9,9 @@ use daemon::runtime::clock::SimClock;
 use daemon::runtime::config::Config;
 use daemon::runtime::harness::Harness;
 use daemon::runtime::rt::{MachineState, RtCommand, Snapshot};
-use hal::{BusFault, CycleCommand, CycleFeedback, DriveBus};
+use io_support::OutputsBus;
+
+mod io_support;
 
 const MAX_TICKS: u64 = 20_000;
 
@@ -29,41 +31,10 @@ const UNCLAMP: u64 = 1;
 const ARM: u64 = 2;
 const BITS: u64 = 0b1100;
 
-/// The simulated machine, recording the outputs each cycle sent.
-struct OutputsBus {
-    inner: sim::SimBus,
-    sent: Arc<Mutex<Vec<u64>>>,
-}
-
-impl DriveBus for OutputsBus {
-    fn name(&self) -> &str {
-        "sim"
-    }
-    fn axes(&self) -> usize {
-        self.inner.axes()
-    }
-    fn has_spindle(&self) -> bool {
-        true
-    }
-    fn cycle(&mut self, cmd: &CycleCommand, fb: &mut CycleFeedback) -> Result<(), BusFault> {
-        self.sent.lock().unwrap().push(cmd.outputs.0);
-        self.inner.cycle(cmd, fb)
-    }
-    fn enable(&mut self) {
-        self.inner.enable()
-    }
-    fn reset(&mut self) {
-        self.inner.reset()
-    }
-    fn safe_state(&mut self) {
-        self.inner.safe_state()
-    }
-}
-
 struct Machine {
     h: Harness,
     inputs: sim::io::SimInputs,
-    sent: Arc<Mutex<Vec<u64>>>,
+    sent: io_support::Sent,
 }
 
 fn machine() -> Machine {
@@ -94,7 +65,7 @@ impl Machine {
     /// One tick of the machine; the changer's mechanics answer the outputs sent (unclamped
     /// while the unclamp valve is on, clamped otherwise) unless `clamp_sensor` is false.
     fn step(&mut self, clamp_sensor: bool) -> Snapshot {
-        let out = self.sent.lock().unwrap().last().copied().unwrap_or(0);
+        let out = self.sent.lock().unwrap().last().map_or(0, |s| s.0);
         let unclamped = out & UNCLAMP != 0;
         self.inputs.set(1, Some(unclamped));
         self.inputs.set(2, Some(!unclamped && clamp_sensor));
@@ -105,7 +76,7 @@ impl Machine {
     fn changes(&self, from: usize) -> Vec<u64> {
         let sent = self.sent.lock().unwrap();
         let mut v: Vec<u64> = Vec::new();
-        for &o in &sent[from..] {
+        for &(o, _) in &sent[from..] {
             if v.last() != Some(&o) {
                 v.push(o);
             }
