@@ -161,10 +161,14 @@ fn programs_probe_with_g38_and_g31() {
     )
     .unwrap();
     let d = Cncd::start(&cwd, &config());
-    // The top face reads -10 + 42.5 at the spindle: a fast touch, back 5, a slow one, then
-    // 2 mm above what the slow one found.
-    let text = "G21 G90\nG0 X20 Y20 Z50\nG38.2 Z0 F600\n#1 = #5063\nG0 Z[#1 + 5]\n\
-                G38.2 Z[#1 - 5] F60\nG0 Z[#5063 + 2 + #5070 - 1]\nG1 X30 F1000\nM2\n";
+    // docs/setup.md's program. The top face reads -10 + 42.5 at the spindle: a fast touch,
+    // back 5, a slow one, then 2 mm above what the slow one found.
+    let md = include_str!("../../docs/setup.md");
+    let text = md
+        .split("```ngc\n")
+        .nth(1)
+        .and_then(|b| b.split("```").next())
+        .expect("the program in docs/setup.md");
     let s = run(&d, "touch.ngc", text);
     assert_eq!(s["alarm"], "", "{s}");
     within(
