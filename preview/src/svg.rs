@@ -4,7 +4,7 @@
 
 use std::fmt::Write;
 
-use crate::scene::{Anchor, Item, Map, Plot, Rgb, Scene, Stroke, WorldItem};
+use crate::scene::{Anchor, Dot, Item, Map, Plot, Rgb, Scene, Stroke, WorldItem};
 
 fn color(c: Rgb) -> String {
     format!("#{:02x}{:02x}{:02x}", c.0, c.1, c.2)
@@ -199,71 +199,85 @@ fn plot_svg(o: &mut String, p: &Plot) {
         "<g clip-path=\"url(#clip-{id})\"><g id=\"{id}\" {frame}{attrs}>",
         id = p.id
     );
-    let (px_per_unit, dx, dy) = if uniform {
-        (sx.abs(), decimals_for(sx), decimals_for(sy))
-    } else {
-        (1.0, 2, 2)
+    let style = Style {
+        at: &|q: [f64; 2]| if uniform { q } else { p.map.apply(q) },
+        px_per_unit: if uniform { sx.abs() } else { 1.0 },
+        dx: if uniform { decimals_for(sx) } else { 2 },
+        dy: if uniform { decimals_for(sy) } else { 2 },
     };
-    let at = |q: [f64; 2]| if uniform { q } else { p.map.apply(q) };
     for item in &p.items {
         match item {
             WorldItem::Path {
                 class,
                 stroke,
                 runs,
-            } => {
-                if runs.is_empty() {
-                    continue;
-                }
-                let _ = write!(
-                    o,
-                    "<path class=\"{class}\" stroke-linejoin=\"round\" {} d=\"",
-                    stroke_attrs_scaled(stroke, px_per_unit)
-                );
-                for run in runs {
-                    for (k, q) in run.iter().enumerate() {
-                        let q = at(*q);
-                        let _ = write!(
-                            o,
-                            "{}{} {} ",
-                            if k == 0 { 'M' } else { 'L' },
-                            num(q[0], dx),
-                            num(q[1], dy)
-                        );
-                    }
-                }
-                o.pop();
-                o.push_str("\"/>\n");
-            }
-            WorldItem::Dots { class, dots } => {
-                let _ = writeln!(o, "<g class=\"{class}\">");
-                for d in dots {
-                    // Radius and outline in user units so they are r_px and 1 px on the picture.
-                    let r = f64::from(d.r_px) / px_per_unit;
-                    let c = at(d.at);
-                    let label = d
-                        .label
-                        .as_ref()
-                        .map(|l| format!(" data-block=\"{}\"", escape(l)))
-                        .unwrap_or_default();
-                    let _ = writeln!(
-                        o,
-                        "<circle class=\"{}\" cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{}\" stroke=\"{}\" stroke-width=\"{}\" data-count=\"{}\"{label}/>",
-                        d.class,
-                        num(c[0], dx),
-                        num(c[1], dy),
-                        num(r, dx + 1),
-                        color(d.fill),
-                        color(d.outline),
-                        num(1.0 / px_per_unit, dx + 1),
-                        d.count
-                    );
-                }
-                o.push_str("</g>\n");
-            }
+            } => path_svg(o, &style, class, stroke, runs),
+            WorldItem::Dots { class, dots } => dots_svg(o, &style, class, dots),
         }
     }
     o.push_str("</g></g>\n");
+}
+
+/// How a plot's world points are written: the map to the file's coordinates, pixels per
+/// unit there, and decimals per coordinate.
+struct Style<'a> {
+    at: &'a dyn Fn([f64; 2]) -> [f64; 2],
+    px_per_unit: f64,
+    dx: usize,
+    dy: usize,
+}
+
+fn path_svg(o: &mut String, st: &Style, class: &str, stroke: &Stroke, runs: &[Vec<[f64; 2]>]) {
+    if runs.is_empty() {
+        return;
+    }
+    let _ = write!(
+        o,
+        "<path class=\"{class}\" stroke-linejoin=\"round\" {} d=\"",
+        stroke_attrs_scaled(stroke, st.px_per_unit)
+    );
+    for run in runs {
+        for (k, q) in run.iter().enumerate() {
+            let q = (st.at)(*q);
+            let _ = write!(
+                o,
+                "{}{} {} ",
+                if k == 0 { 'M' } else { 'L' },
+                num(q[0], st.dx),
+                num(q[1], st.dy)
+            );
+        }
+    }
+    o.pop();
+    o.push_str("\"/>\n");
+}
+
+fn dots_svg(o: &mut String, st: &Style, class: &str, dots: &[Dot]) {
+    let _ = writeln!(o, "<g class=\"{class}\">");
+    let (dx, px_per_unit) = (st.dx, st.px_per_unit);
+    for d in dots {
+        // Radius and outline in user units so they are r_px and 1 px on the picture.
+        let r = f64::from(d.r_px) / px_per_unit;
+        let c = (st.at)(d.at);
+        let label = d
+            .label
+            .as_ref()
+            .map(|l| format!(" data-block=\"{}\"", escape(l)))
+            .unwrap_or_default();
+        let _ = writeln!(
+            o,
+            "<circle class=\"{}\" cx=\"{}\" cy=\"{}\" r=\"{}\" fill=\"{}\" stroke=\"{}\" stroke-width=\"{}\" data-count=\"{}\"{label}/>",
+            d.class,
+            num(c[0], dx),
+            num(c[1], st.dy),
+            num(r, dx + 1),
+            color(d.fill),
+            color(d.outline),
+            num(1.0 / px_per_unit, dx + 1),
+            d.count
+        );
+    }
+    o.push_str("</g>\n");
 }
 
 #[cfg(test)]

@@ -194,7 +194,37 @@ pub fn layout(
         max: [t1, v_top],
     };
     layout::axes(&mut scene, rect, &map, &vis, ("time s", "speed mm/min"));
-    // Block boundaries first (under the curves); red after a red junction.
+    scene.items.push(Item::Plot(Plot {
+        id: "speed",
+        rect_px: rect,
+        map,
+        attrs: vec![("data-ticks-per-bucket", s.ticks_per_bucket.to_string())],
+        items: speed_items(s, &t_of, v_top),
+    }));
+    legend(&mut scene, left);
+    if with_accel {
+        accel_panel(
+            &mut scene,
+            r,
+            axis_names,
+            [
+                left,
+                top + rect[3] + 56.0,
+                pw,
+                h - (top + rect[3] + 56.0) - 44.0,
+            ],
+            t0,
+            t1,
+        );
+    }
+    scene
+}
+
+/// The speed panel's curves: block boundaries first (under the curves; red after a red
+/// junction), then the programmed feed and the path speed, each as the min..max of its
+/// buckets, a run broken where no tick fell.
+fn speed_items(s: &Series, t_of: &dyn Fn(usize) -> f64, v_top: f64) -> Vec<WorldItem> {
+    let tpb = s.ticks_per_bucket as f64;
     let mut grey = Vec::new();
     let mut red = Vec::new();
     let mut speed = Vec::new();
@@ -228,7 +258,7 @@ pub fn layout(
     }
     speed.push(run_v);
     feed.push(run_f);
-    let items = vec![
+    vec![
         WorldItem::Path {
             class: "boundary",
             stroke: Stroke::solid(BOUNDARY, 1.0),
@@ -241,11 +271,7 @@ pub fn layout(
         },
         WorldItem::Path {
             class: "feed",
-            stroke: Stroke {
-                color: FEED,
-                width_px: 1.5,
-                dash_px: Some([6.0, 4.0]),
-            },
+            stroke: FEED_STROKE,
             runs: feed,
         },
         WorldItem::Path {
@@ -253,27 +279,23 @@ pub fn layout(
             stroke: Stroke::solid(SPEED, 1.6),
             runs: speed,
         },
-    ];
-    scene.items.push(Item::Plot(Plot {
-        id: "speed",
-        rect_px: rect,
-        map,
-        attrs: vec![("data-ticks-per-bucket", s.ticks_per_bucket.to_string())],
-        items,
-    }));
-    // Legend in a row under the title (8 px per character: the bitmap font's advance).
+    ]
+}
+
+/// The programmed feed's dashed line.
+const FEED_STROKE: Stroke = Stroke {
+    color: FEED,
+    width_px: 1.5,
+    dash_px: Some([6.0, 4.0]),
+};
+
+/// The legend in a row under the title (8 px per character: the bitmap font's advance).
+fn legend(scene: &mut Scene, left: f64) {
     let mut x = left;
     let y = 44.0;
     for (stroke, text) in [
         (Stroke::solid(SPEED, 1.6), "path speed"),
-        (
-            Stroke {
-                color: FEED,
-                width_px: 1.5,
-                dash_px: Some([6.0, 4.0]),
-            },
-            "programmed feed (G0: rapid speed)",
-        ),
+        (FEED_STROKE, "programmed feed (G0: rapid speed)"),
         (Stroke::solid(BOUNDARY, 2.0), "block boundary"),
         (
             Stroke::solid(RED_BOUNDARY, 2.0),
@@ -284,22 +306,6 @@ pub fn layout(
         scene.text([x + 30.0, y], 12.0, Anchor::Start, "legend", text);
         x += 30.0 + 8.0 * text.len() as f64 + 24.0;
     }
-    if with_accel {
-        accel_panel(
-            &mut scene,
-            r,
-            axis_names,
-            [
-                left,
-                top + rect[3] + 56.0,
-                pw,
-                h - (top + rect[3] + 56.0) - 44.0,
-            ],
-            t0,
-            t1,
-        );
-    }
-    scene
 }
 
 fn accel_panel(scene: &mut Scene, r: &Recorder, names: &[char], rect: [f64; 4], t0: f64, t1: f64) {

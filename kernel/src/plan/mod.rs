@@ -455,26 +455,16 @@ impl Planner {
         own.spindle.outputs.wait |= self.pending_wait;
         let block = &own;
         let spindle_before = std::mem::replace(&mut self.spindle_state, block.spindle);
-        let probe = match path {
-            Path::Probe(mv) => Some(mv),
-            _ => None,
-        };
-        if block.spindle.outputs.wait != 0 || block.spindle.outputs.touched || probe.is_some() {
+        let probing = matches!(path, Path::Probe(_));
+        if block.spindle.outputs.wait != 0 || block.spindle.outputs.touched || probing {
             // M functions on outputs act before the motion, at rest (and one that waits for
-            // an input waits there): the block starts from a stop (docs/io.md).
+            // an input waits there), and so does a probing move: the block starts from a
+            // stop (docs/io.md).
             self.flush_carry();
             self.force_stop(0.0);
         }
         let axes = self.cfg.axes;
-        if (0..axes).any(|i| !start[i].is_finite() || !end[i].is_finite()) {
-            return Err(Diagnostic::error(
-                DiagCode::NonFiniteCoordinate,
-                block.n,
-                block.line,
-                0,
-                "motion block with an invalid coordinate",
-            ));
-        }
+        check_finite(block, &start, &end, axes)?;
         let rapid = path == Path::Rapid;
         let feed_mm_min = if rapid { 0.0 } else { feed_mm_min(block)? };
         // R383: a short line with nothing else in it merges into the next block (SPEC §7.2).
@@ -500,17 +490,22 @@ impl Planner {
         let set = self.dyn_set_of(block);
         self.pending_wait = 0;
         self.append(block, seg_path, length_mm, rapid, feed_mm_min, set);
-        if let Some(mv) = probe {
+        self.after_motion(block, path);
+        Ok(())
+    }
+
+    /// The end of a motion block's segment: a probing move closes the window there, M0/M1
+    /// stop there at rest.
+    fn after_motion(&mut self, block: &Block, path: Path) {
+        if let Path::Probe(mv) = path {
             self.probing_move(mv);
         }
         let stop = ProgramStop::of_block(block);
         if stop != ProgramStop::None {
-            // M0/M1 in a motion block act at its end, at rest.
             self.force_stop(0.0);
             self.program_stop(stop);
         }
         self.advance();
-        Ok(())
     }
 
     /// A block without motion. Technology functions (M codes) run at standstill: stop before
@@ -1284,4 +1279,23 @@ fn angle_first3(a: &AxesMm, b: &AxesMm) -> f64 {
 fn angle_between(a: &AxesMm, b: &AxesMm) -> f64 {
     let dot: f64 = a.0.iter().zip(b.0.iter()).map(|(x, y)| x * y).sum();
     dot.clamp(-1.0, 1.0).acos()
+}
+
+/// A motion block's ends must be numbers on every axis.
+fn check_finite(
+    block: &Block,
+    start: &AxesMm,
+    end: &AxesMm,
+    axes: usize,
+) -> Result<(), Diagnostic> {
+    if (0..axes).any(|i| !start[i].is_finite() || !end[i].is_finite()) {
+        return Err(Diagnostic::error(
+            DiagCode::NonFiniteCoordinate,
+            block.n,
+            block.line,
+            0,
+            "motion block with an invalid coordinate",
+        ));
+    }
+    Ok(())
 }
