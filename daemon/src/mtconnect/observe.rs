@@ -108,45 +108,16 @@ fn input_fault_message(m: &DeviceModel, reason: FaultReason) -> Option<String> {
 /// The alarms in force per condition data item: (item, alarm).
 pub fn conditions(m: &DeviceModel, v: &MachineView) -> Vec<(usize, Cond)> {
     let ids = &m.ids;
-    let io = &v.snap.io;
     let mut out = Vec::new();
-    let fault = |code: &str, message: String| Cond {
-        level: Level::Fault,
-        native_code: Some(code.into()),
-        qualifier: None,
-        message,
-    };
-    let travel_of = |axis: Option<u8>| {
-        axis.and_then(|a| ids.axes.get(usize::from(a)))
-            .and_then(|a| a.travel)
-    };
-    if let Some(f) = v.snap.alarm.fault {
-        let label = hal::fault_axis_label(f.axis, v.axis_names);
-        let node = f.node.map(|n| format!("node {n}, ")).unwrap_or_default();
-        let limit = matches!(f.reason, FaultReason::LimitSwitch { .. });
-        let target = match f.axis {
-            // A limit switch is the axis's travel condition's (below).
-            _ if limit && travel_of(f.axis).is_some() => None,
-            Some(SPINDLE_AXIS) => Some(ids.spindle.condition),
-            Some(a) if usize::from(a) < ids.axes.len() => Some(ids.axes[usize::from(a)].condition),
-            _ if f.reason.is_communication() => Some(ids.communications),
-            _ => Some(ids.system),
-        };
-        let who = match (f.axis, label) {
-            (Some(SPINDLE_AXIS), Some(l)) => format!("{l}, "),
-            (_, Some(l)) => format!("axis {l}, "),
-            _ => String::new(),
-        };
-        let text = input_fault_message(m, f.reason).unwrap_or_else(|| f.reason.to_string());
-        if let Some(target) = target {
-            out.push((target, fault(f.reason.code(), format!("{who}{node}{text}"))));
-        }
+    if let Some(c) = drive_fault(m, v) {
+        out.push(c);
     }
     // The e-stop chain open is the emergency stop even while another fault is in force.
     let estop_fault = matches!(
         v.snap.alarm.fault,
         Some(f) if matches!(f.reason, FaultReason::EmergencyStop { .. })
     );
+    let io = &v.snap.io;
     let open = m.io.estop & !io.inputs.0;
     if io.estop_open && !estop_fault {
         let code = FaultReason::EmergencyStop { input: 0 }.code();
@@ -162,7 +133,70 @@ pub fn conditions(m: &DeviceModel, v: &MachineView) -> Vec<(usize, Cond)> {
     if let Some((code, msg)) = v.planner_alarm {
         out.push((ids.motion, fault(code, msg.to_string())));
     }
-    for (i, a) in ids.axes.iter().enumerate() {
+    axis_conditions(m, v, &mut out);
+    if let Some(item) = ids.machine_alarms {
+        for a in m.io.alarms.iter().filter(|a| io.alarms.get(a.input)) {
+            let level = if a.fault {
+                Level::Fault
+            } else {
+                Level::Warning
+            };
+            out.push((
+                item,
+                Cond {
+                    level,
+                    native_code: Some(a.name.clone()),
+                    qualifier: None,
+                    message: a.message.clone(),
+                },
+            ));
+        }
+    }
+    out
+}
+
+/// A Fault condition with its code.
+fn fault(code: &str, message: String) -> Cond {
+    Cond {
+        level: Level::Fault,
+        native_code: Some(code.into()),
+        qualifier: None,
+        message,
+    }
+}
+
+/// The drive or bus fault in force, on the condition of what it names: the spindle, an axis
+/// (a limit switch goes to the axis's travel condition instead), the communications or the
+/// system.
+fn drive_fault(m: &DeviceModel, v: &MachineView) -> Option<(usize, Cond)> {
+    let ids = &m.ids;
+    let f = v.snap.alarm.fault?;
+    let travel_of = |axis: Option<u8>| {
+        axis.and_then(|a| ids.axes.get(usize::from(a)))
+            .and_then(|a| a.travel)
+    };
+    let label = hal::fault_axis_label(f.axis, v.axis_names);
+    let node = f.node.map(|n| format!("node {n}, ")).unwrap_or_default();
+    let limit = matches!(f.reason, FaultReason::LimitSwitch { .. });
+    let target = match f.axis {
+        _ if limit && travel_of(f.axis).is_some() => return None,
+        Some(SPINDLE_AXIS) => ids.spindle.condition,
+        Some(a) if usize::from(a) < ids.axes.len() => ids.axes[usize::from(a)].condition,
+        _ if f.reason.is_communication() => ids.communications,
+        _ => ids.system,
+    };
+    let who = match (f.axis, label) {
+        (Some(SPINDLE_AXIS), Some(l)) => format!("{l}, "),
+        (_, Some(l)) => format!("axis {l}, "),
+        _ => String::new(),
+    };
+    let text = input_fault_message(m, f.reason).unwrap_or_else(|| f.reason.to_string());
+    Some((target, fault(f.reason.code(), format!("{who}{node}{text}"))))
+}
+
+/// Per axis: a failed reference run (Warning) and its travel condition.
+fn axis_conditions(m: &DeviceModel, v: &MachineView, out: &mut Vec<(usize, Cond)>) {
+    for (i, a) in m.ids.axes.iter().enumerate() {
         let name = v.axis_names.get(i).copied().unwrap_or('?');
         if v.snap.axes.homing_failed & (1 << i) != 0 {
             out.push((
@@ -183,24 +217,6 @@ pub fn conditions(m: &DeviceModel, v: &MachineView) -> Vec<(usize, Cond)> {
             out.push((t, c));
         }
     }
-    if let Some(item) = ids.machine_alarms {
-        for a in m.io.alarms.iter().filter(|a| io.alarms.get(a.input)) {
-            out.push((
-                item,
-                Cond {
-                    level: if a.fault {
-                        Level::Fault
-                    } else {
-                        Level::Warning
-                    },
-                    native_code: Some(a.name.clone()),
-                    qualifier: None,
-                    message: a.message.clone(),
-                },
-            ));
-        }
-    }
-    out
 }
 
 /// The travel condition of axis `i` (its limit switches): Fault while its limit fault is in
@@ -305,15 +321,7 @@ pub fn values(m: &DeviceModel, v: &MachineView) -> Vec<(usize, Value)> {
         ),
         (ids.spindle.mode, text(SPINDLE_MODE)),
     ];
-    let mut p = [0.0; 3];
-    for (i, a) in ids.axes.iter().enumerate() {
-        out.push((a.actual, num(s.axes.actual[i])));
-        out.push((a.commanded, num(s.axes.commanded[i])));
-        if i < 3 {
-            p[i] = round6(s.axes.actual[i]);
-        }
-    }
-    out.push((ids.path_position, Value::Vector(p)));
+    axis_values(m, v, &mut out);
     if let Some(id) = ids.door_state {
         out.push((id, text(if s.io.door_open { "OPEN" } else { "CLOSED" })));
     }
@@ -327,6 +335,20 @@ pub fn values(m: &DeviceModel, v: &MachineView) -> Vec<(usize, Value)> {
         out.push((id, num(mm_s)));
     }
     out
+}
+
+/// Per axis its actual and commanded position, and the path position (X Y Z).
+fn axis_values(m: &DeviceModel, v: &MachineView, out: &mut Vec<(usize, Value)>) {
+    let s = v.snap;
+    let mut p = [0.0; 3];
+    for (i, a) in m.ids.axes.iter().enumerate() {
+        out.push((a.actual, Value::Number(round6(s.axes.actual[i]))));
+        out.push((a.commanded, Value::Number(round6(s.axes.commanded[i]))));
+        if i < 3 {
+            p[i] = round6(s.axes.actual[i]);
+        }
+    }
+    out.push((m.ids.path_position, Value::Vector(p)));
 }
 
 /// Writes what changed since the buffer's latest state. Returns how many observations were

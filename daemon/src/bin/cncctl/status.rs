@@ -36,19 +36,7 @@ pub fn dro(a: &pb::AxisStatus) -> String {
 
 /// The status line of `cncctl status` (and of the `run` summary).
 pub fn status_line(s: &pb::Status) -> String {
-    let pos: Vec<String> = s
-        .axes
-        .iter()
-        .map(|a| {
-            let unhomed = if a.homed { "" } else { "(not homed)" };
-            let limit = match a.at_soft_limit {
-                -1 => "(at soft min)",
-                1 => "(at soft max)",
-                _ => "",
-            };
-            format!("{}{unhomed}{limit}", dro(a))
-        })
-        .collect();
+    let pos: Vec<String> = s.axes.iter().map(axis_text).collect();
     let block = block_name(s.block);
     let t = s.ticks.unwrap_or_default();
     let mut line = format!(
@@ -115,6 +103,17 @@ pub fn status_line(s: &pb::Status) -> String {
         line.push_str(&format!("  ALARM: {}", s.alarm));
     }
     line
+}
+
+/// An axis's display position, marked when it is not homed or stands at a soft limit.
+fn axis_text(a: &pb::AxisStatus) -> String {
+    let unhomed = if a.homed { "" } else { "(not homed)" };
+    let limit = match a.at_soft_limit {
+        -1 => "(at soft min)",
+        1 => "(at soft max)",
+        _ => "",
+    };
+    format!("{}{unhomed}{limit}", dro(a))
 }
 
 /// Every status field, for `--json`.

@@ -169,12 +169,9 @@ impl ApiState {
             s.state,
             MachineState::Running | MachineState::Hold | MachineState::Stopping
         );
-        let block: Option<Block> = match (&run_blocks, &program) {
-            (Some(b), _) => b.get(s.progress.block_seq as usize).copied(),
-            (None, Some(_)) if s.progress.job != 0 => {
-                ctl.block_at(s.progress.job, s.progress.block_seq)
-            }
-            _ => None,
+        let block = match &run_blocks {
+            Some(b) => b.get(s.progress.block_seq as usize).copied(),
+            None => self.program_block(s, program.is_some()),
         };
         // Distance to go: only while a block moves (its end point is where the path goes).
         let target = block
@@ -231,18 +228,34 @@ impl ApiState {
                 block_index: s.progress.block_seq,
             }),
             io: Some(self.io.list(s, ctl.simulated())),
-            tool_change: s.progress.tool_change.map(|tool| {
-                let e = ctl
-                    .offsets_memory()
-                    .entry(tool)
-                    .copied()
-                    .unwrap_or_default();
-                pb::ToolChange {
-                    tool: tool.into(),
-                    radius_mm: e.radius_mm,
-                    length_mm: e.length_mm.to_vec(),
-                }
-            }),
+            tool_change: s
+                .progress
+                .tool_change
+                .map(|tool| self.tool_change_prompt(tool)),
+        }
+    }
+
+    /// The block a job of the selected program executes (`selected`: a program is selected).
+    fn program_block(&self, s: &Snapshot, selected: bool) -> Option<Block> {
+        if selected && s.progress.job != 0 {
+            self.ctl.block_at(s.progress.job, s.progress.block_seq)
+        } else {
+            None
+        }
+    }
+
+    /// The manual tool change's prompt: the tool and its entry of the offset table.
+    fn tool_change_prompt(&self, tool: u8) -> pb::ToolChange {
+        let e = self
+            .ctl
+            .offsets_memory()
+            .entry(tool)
+            .copied()
+            .unwrap_or_default();
+        pb::ToolChange {
+            tool: tool.into(),
+            radius_mm: e.radius_mm,
+            length_mm: e.length_mm.to_vec(),
         }
     }
 

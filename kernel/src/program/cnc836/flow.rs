@@ -125,34 +125,46 @@ impl Flow {
                     return Some(Err(d));
                 }
             };
-            if slash.is_some() && matches!(control, Control::Label(_) | Control::Return) {
-                return Some(Err(error(
-                    DiagCode::SubprogramSyntax,
-                    None,
-                    n,
-                    "the start %L and the end M17 of a subprogram cannot be block-deleted",
-                )));
-            }
-            let problem = match control {
-                Control::Label(label) => self.label(label, n, lines, line_no),
-                Control::Call {
-                    label,
-                    count,
-                    n: block,
-                } => self.call((label, count, block), lines, line_no),
-                Control::Return if self.depth == 0 => Some(error(
-                    DiagCode::ReturnWithoutCall,
-                    None,
-                    n,
-                    "M17 ends a subprogram, but this is the main program: no call to return from",
-                )),
-                Control::Return => self.end_pass(lines, line_no),
-            };
-            if let Some(e) = problem {
+            if let Some(e) = self.control(control, slash.is_some(), n, lines, line_no) {
                 return Some(Err(e));
             }
         }
         None
+    }
+
+    /// A subprogram form read at line `n` (`slashed`: after a block-delete `/`): a
+    /// definition, a call or a return.
+    fn control<L: Lines>(
+        &mut self,
+        control: Control,
+        slashed: bool,
+        n: u32,
+        lines: &mut L,
+        line_no: &mut u32,
+    ) -> Option<Diagnostic> {
+        if slashed && matches!(control, Control::Label(_) | Control::Return) {
+            return Some(error(
+                DiagCode::SubprogramSyntax,
+                None,
+                n,
+                "the start %L and the end M17 of a subprogram cannot be block-deleted",
+            ));
+        }
+        match control {
+            Control::Label(label) => self.label(label, n, lines, line_no),
+            Control::Call {
+                label,
+                count,
+                n: block,
+            } => self.call((label, count, block), lines, line_no),
+            Control::Return if self.depth == 0 => Some(error(
+                DiagCode::ReturnWithoutCall,
+                None,
+                n,
+                "M17 ends a subprogram, but this is the main program: no call to return from",
+            )),
+            Control::Return => self.end_pass(lines, line_no),
+        }
     }
 
     /// After the last line: a definition passed over or a subprogram running has no end.
