@@ -11,7 +11,7 @@ use super::config::{
     AlarmSeverity, Config, InputConfig, InputFunction, IoSection, OutputConfig, OutputFunction,
     ToolChangeMode, parse_m,
 };
-use super::rt_core::{ChangerStep, IoFunctions, MAX_STEPS, ToolChanger};
+use super::rt_core::{IoFunctions, MAX_STEPS, ToolChanger};
 
 /// Where each point is wired, in the configuration's order (validated already).
 pub fn io_map(config: &Config) -> IoMap {
@@ -107,7 +107,7 @@ pub fn tool_changer(config: &Config) -> ToolChanger {
     }
     let m = m_functions(config);
     for (slot, &code) in c.steps.iter_mut().zip(tc.sequence.iter().take(MAX_STEPS)) {
-        *slot = m.get(code).map(ChangerStep::from).unwrap_or_default();
+        *slot = m.get(code).copied().unwrap_or_default();
     }
     c.len = tc.sequence.len().min(MAX_STEPS) as u8;
     let number = tc.number_output_indices(&config.io());

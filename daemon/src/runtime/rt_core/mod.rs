@@ -58,7 +58,7 @@ pub use snapshot::{
     Alarms, AxesStatus, OperatorSettings, Progress, Snapshot, SpindleStatus, TickInfo,
 };
 pub use state::MachineState;
-pub use tool_changer::{ChangerStep, MAX_STEPS, ToolChanger};
+pub use tool_changer::{MAX_STEPS, ToolChanger};
 
 use exchange::BusIo;
 use fault::FaultStop;

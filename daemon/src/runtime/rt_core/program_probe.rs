@@ -8,7 +8,6 @@
 //! input, stops it before it moves.
 
 use kernel::interp::InterpState;
-use kernel::plan::SegPath;
 use kernel::units::AxesMm;
 
 use super::{ProbeOutcome, RtCore};
@@ -56,7 +55,7 @@ impl RtCore {
                     job,
                     seq: seg.seq,
                     outcome: ProbeOutcome::Moving,
-                    trip_mm: seg_end(&seg.path),
+                    trip_mm: seg.path.end(),
                     ..ProgramProbe::default()
                 };
                 if self.io_logic.f.probe == 0 {
@@ -89,12 +88,5 @@ impl RtCore {
     fn program_probe_brake(&mut self) {
         self.motion.interp.stop();
         self.motion.program_probe.braking = true;
-    }
-}
-
-fn seg_end(path: &SegPath) -> AxesMm {
-    match *path {
-        SegPath::Line { end, .. } => end,
-        SegPath::Arc { end, .. } => end,
     }
 }

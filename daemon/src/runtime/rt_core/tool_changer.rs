@@ -13,32 +13,12 @@ use super::RtCore;
 /// Most steps a sequence may have (the configuration refuses more).
 pub const MAX_STEPS: usize = 8;
 
-/// One step of the sequence: the masks of its M function (bit k: output or input k, as the
-/// program's M functions).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct ChangerStep {
-    pub on: u64,
-    pub off: u64,
-    pub pulse: u64,
-    pub wait: u64,
-}
-
-impl From<&MFunction> for ChangerStep {
-    fn from(f: &MFunction) -> Self {
-        ChangerStep {
-            on: f.on,
-            off: f.off,
-            pulse: f.pulse,
-            wait: f.wait,
-        }
-    }
-}
-
 /// The changer as the core takes it at construction: fixed size, `Copy` (no allocation in the
 /// tick). `len == 0`: manual tool change (M6 holds for the operator).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ToolChanger {
-    pub steps: [ChangerStep; MAX_STEPS],
+    /// The steps: each the M function the program's M code uses (bit k: output or input k).
+    pub steps: [MFunction; MAX_STEPS],
     pub len: u8,
     /// Outputs carrying the tool number in binary: entry i is the output of bit i.
     pub number_outputs: [u8; 8],
@@ -51,7 +31,7 @@ impl ToolChanger {
         self.len > 0
     }
 
-    fn steps(&self) -> &[ChangerStep] {
+    fn steps(&self) -> &[MFunction] {
         &self.steps[..usize::from(self.len).min(MAX_STEPS)]
     }
 
@@ -205,14 +185,14 @@ mod tests {
             number_len: 2,
             ..ToolChanger::default()
         };
-        c.steps[0] = ChangerStep {
+        c.steps[0] = MFunction {
             on: 0b1,
-            ..ChangerStep::default()
+            ..MFunction::default()
         };
-        c.steps[1] = ChangerStep {
+        c.steps[1] = MFunction {
             off: 0b10,
             wait: 0b100,
-            ..ChangerStep::default()
+            ..MFunction::default()
         };
         // A step beyond `len` is not the changer's.
         c.steps[2].on = 1 << 40;

@@ -329,8 +329,6 @@ impl Interpreter {
         Ok(w)
     }
 
-    /// LinuxCNC's system parameters a program may read: #5220 (system), #5221.. (work
-    /// offsets), #5211.. (G92), #5400 (tool), #5420.. (position), in the program's units.
     /// A probing move of the last line ended as `r` reports: #5061.., #5070 and the
     /// position the next line starts from.
     pub fn probe_result(&mut self, r: &crate::probe::ProbeResult) {
@@ -342,6 +340,8 @@ impl Interpreter {
         self.sync_params(false);
     }
 
+    /// LinuxCNC's system parameters a program may read: #5220 (system), #5221.. (work
+    /// offsets), #5211.. (G92), #5400 (tool), #5420.. (position), in the program's units.
     fn sync_params(&mut self, offsets: bool) {
         let st = &self.state;
         let n = self.machine.n_axes;
