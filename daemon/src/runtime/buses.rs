@@ -188,9 +188,8 @@ pub fn open_bus(
                 bus = bus.with_input_handle(h.clone());
             }
             for (i, a) in axes.iter().enumerate() {
-                if let Some(at) = a.sim_home_switch_mm {
-                    bus = bus.with_home_switch(i, at, f64::from(a.homing_direction));
-                }
+                let at = a.sim_home_switch_at_mm();
+                bus = bus.with_home_switch(i, at, f64::from(a.homing_direction));
             }
             Ok(Box::new(bus))
         }

@@ -57,7 +57,9 @@ pub struct AxisConfig {
     #[serde(default)]
     pub home_order: Option<u8>,
     /// Simulated machine only: where the home switch of this axis is, in the drive's power-on
-    /// coordinates (pressed from there on in `homing_direction`). Unset: no switch.
+    /// coordinates (pressed from there on in `homing_direction`). Unset: 5 mm from the
+    /// power-on position in `homing_direction` ([`DEFAULT_SIM_HOME_SWITCH_MM`]), so a reference
+    /// run on the simulated machine finds its switch at once, as on a real one.
     #[serde(default)]
     pub sim_home_switch_mm: Option<f64>,
     /// Rotary axis (SPEC §5, docs/lathe.md): encoder pulses per revolution. The axis is then
@@ -89,6 +91,19 @@ pub enum HomingMode {
     None,
     /// The axis must be homed after power-on before it runs programs.
     Required,
+}
+
+/// Where the simulated machine's home switch is when `sim_home_switch_mm` is unset: this far
+/// from the power-on position (`home_mm`) in `homing_direction`.
+pub const DEFAULT_SIM_HOME_SWITCH_MM: f64 = 5.0;
+
+impl AxisConfig {
+    /// The simulated home switch of this axis (see `sim_home_switch_mm`).
+    pub fn sim_home_switch_at_mm(&self) -> f64 {
+        self.sim_home_switch_mm.unwrap_or(
+            self.home_mm + DEFAULT_SIM_HOME_SWITCH_MM * f64::from(self.homing_direction),
+        )
+    }
 }
 
 fn default_homing_direction() -> i8 {
