@@ -15,6 +15,13 @@ export PROPTEST_RNG_SEED="${PROPTEST_RNG_SEED:-20261124}"
 if [ -n "${CI:-}" ]; then export CARGO_INCREMENTAL=0; fi
 
 echo "== cargo test --workspace"
+# One build for every suite: the tests and the programs they start (cncd, cncctl, sim-can,
+# sim-serial: daemon and sim have integration tests, so they are built here with the tests'
+# features). The suites then take those binaries as they are (tests/src/bins.rs) and the
+# scripts below build nothing more in debug: each other cargo invocation (another package
+# set, other features) would compile the daemon and half its dependencies again.
+cargo test --workspace --locked --no-run
+export CNC_PREBUILT_BINS=1
 cargo test --workspace --locked
 
 if [ -x tests/vcan/run.sh ]; then

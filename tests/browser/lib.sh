@@ -30,7 +30,7 @@ start_cncd() {
   if [ "$profile" = release ]; then
     cargo build --quiet --release -p daemon --bin cncd
     dir=release
-  else
+  elif [ "${CNC_PREBUILT_BINS:-}" != 1 ]; then
     cargo build --quiet -p daemon --bin cncd
   fi
   WORK=$(mktemp -d -t cnc-browser-XXXXXX)

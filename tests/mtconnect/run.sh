@@ -39,7 +39,8 @@ DOCS="$ROOT/target/mtconnect-docs"
 rm -rf "$DOCS"
 export CNC_MTCONNECT_DOCS="$DOCS"
 echo "running the MTConnect tests (documents saved in $DOCS)"
-cargo test --quiet -p tests --test mtconnect_agent
-cargo test --quiet -p daemon --lib mtconnect
+# --workspace: the package set of scripts/test-all.sh's build, so nothing compiles again.
+cargo test --quiet --locked --workspace --test mtconnect_agent
+cargo test --quiet --locked --workspace --lib mtconnect
 echo "validating against the schemas in $SCHEMAS"
 "$VENV/bin/python" tests/mtconnect/validate.py "$SCHEMAS" "$DOCS"

@@ -29,7 +29,8 @@ mkdir -p "$WORK/stubs"
   --grpc_python_out="$WORK/stubs" proto/proto/cnc/v1/cnc.proto
 
 echo "building cncd"
-cargo build --quiet -p daemon --bin cncd
+# scripts/test-all.sh built it already (CNC_PREBUILT_BINS=1): no second debug build.
+[ "${CNC_PREBUILT_BINS:-}" = 1 ] || cargo build --quiet -p daemon --bin cncd
 TARGET_DIR=$(cargo metadata --format-version 1 --no-deps |
   "$PY" -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])')
 CNCD="$TARGET_DIR/debug/cncd"

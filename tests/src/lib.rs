@@ -3,7 +3,10 @@
 //! [`RecordingBus`] wraps the simulated bus and records every setpoint the real-time thread
 //! sends, so tests can check the whole setpoint stream, tick by tick.
 
+pub mod bins;
 pub mod can_sim;
+
+pub use bins::workspace_bin;
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};

@@ -147,7 +147,7 @@ fi
 T1=$(date +%s)
 log "building the Debian package (${CNC_DEB_PROFILE:-release}) and sim-can"
 DEB=$(deploy/build-deb.sh | tail -n 1)
-cargo build --locked -q -p sim -p daemon --bins
+[ "${CNC_PREBUILT_BINS:-}" = 1 ] || cargo build --locked -q -p sim -p daemon --bins
 T_BUILD=$(($(date +%s) - T1))
 IMAGE_BUILT=${IMAGE_PID:+built}
 wait_image

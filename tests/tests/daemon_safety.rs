@@ -540,17 +540,9 @@ async fn jog_stops_when_the_client_goes_away() {
     assert_eq!(s.axes.commanded[0], last, "at rest");
 }
 
-/// Path of a workspace binary of this build (built once per test process if needed).
+/// Path of a workspace binary of this build.
 fn bin(name: &str) -> std::path::PathBuf {
-    let exe = std::env::current_exe().unwrap();
-    let dir = exe.parent().and_then(|d| d.parent()).unwrap().to_path_buf();
-    let ok = std::process::Command::new(env!("CARGO"))
-        .args(["build", "--quiet", "-p", "daemon", "--bin", name])
-        .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
-        .status()
-        .is_ok_and(|s| s.success());
-    assert!(ok, "cargo build of {name} failed");
-    dir.join(name)
+    tests::workspace_bin(name)
 }
 
 /// `cncctl jog X+ --speed 1000` killed (SIGKILL) mid-jog: the axis comes to rest on its own.

@@ -112,3 +112,47 @@ fn daemon_runs_the_spindle_over_serial() {
     let s = d.wait_state("fault", Duration::from_secs(30));
     assert!(s.contains("spindle, node 4"), "{s}");
 }
+
+/// The start-up seam (issue #50): while the drives are still being enabled, a jog, an MDI or a
+/// start typed at once is refused as `machine_not_ready` (UNAVAILABLE: try again), never as
+/// `jog_busy` on a machine that is about to be idle; once idle, the same jog works. The drive
+/// unit is frozen (SIGSTOP) so that the enabling lasts as long as the test needs.
+#[test]
+fn commands_while_the_drives_enable_are_refused_as_not_ready_then_work() {
+    let dir = vcan_support::temp_dir("serial-daemon-start-up-link");
+    let link = dir.join("drive.tty");
+    let link_s = link.to_str().unwrap();
+    let mut sim = Proc::spawn(
+        "sim-serial",
+        &["--link", link_s, "--axes", "3", "--watchdog-ms", "5000"],
+    );
+    sim.expect_line(" -> /dev/pts", Duration::from_secs(10));
+    sim.signal(libc::SIGSTOP);
+    // 20 s to enable: the window stays open while the unit is frozen.
+    let bus = format!(
+        "[bus]\nkind = 'serial'\nport = '{link_s}'\nreply_timeout_ticks = 5000\n\
+         enable_timeout_ticks = 5000\n"
+    );
+    let d = Daemon::spawn("serial-daemon-start-up", &bus, [1, 2, 3], ["", "", ""], &[]);
+    let s = d.wait_state("enabling", Duration::from_secs(60));
+    for cmd in [
+        &["jog", "X", "--step", "1"][..],
+        &["mdi", "G1 X1 F100"][..],
+        &["start"][..],
+    ] {
+        let (ok, out) = d.cncctl(cmd, Duration::from_secs(60));
+        assert!(!ok, "{cmd:?} during start-up was taken: {out}\n{s}");
+        assert!(
+            out.contains("machine_not_ready") && !out.contains("jog_busy"),
+            "{cmd:?}: {out}"
+        );
+    }
+    assert!(d.status().starts_with("enabling"), "{}", d.status());
+
+    sim.signal(libc::SIGCONT);
+    d.wait_state("idle", Duration::from_secs(60));
+    let (ok, out) = d.cncctl(&["jog", "X", "--step", "1"], Duration::from_secs(60));
+    assert!(ok, "jog once idle: {out}");
+    let s = d.wait_state("idle", Duration::from_secs(30));
+    assert!(s.contains("X1.000"), "{s}");
+}

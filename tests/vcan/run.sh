@@ -46,9 +46,10 @@ install_missing
 
 # --- build on the host ---------------------------------------------------------------------
 log "building simulator, daemon and test binaries"
-cargo build --locked -q -p sim -p daemon --bins
+# scripts/test-all.sh built them (CNC_PREBUILT_BINS=1) with the workspace's test features.
+[ "${CNC_PREBUILT_BINS:-}" = 1 ] || cargo build --locked -q -p sim -p daemon --bins
 mapfile -t TESTS < <(
-    cargo test --locked -q -p tests --no-run --message-format=json |
+    cargo test --locked -q --workspace --no-run --message-format=json |
         python3 -c '
 import json, sys, os
 for line in sys.stdin:

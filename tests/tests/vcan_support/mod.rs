@@ -34,36 +34,10 @@ pub fn vcan_ready(test: &str) -> bool {
     false
 }
 
-/// Path of a workspace binary (`sim-can`, `sim-serial`, `cncd`, `cncctl`) of this build,
-/// found from the test executable (`target/<profile>/deps/<test>`). It is built (or brought up
-/// to date) with cargo once per test process, as the tests package cannot name another
-/// package's binary; `CNC_PREBUILT_BINS=1` (set by tests/vcan/run.sh, whose VM has no cargo
-/// and a read-only tree) uses what is there.
+/// Path of a workspace binary (`sim-can`, `sim-serial`, `cncd`, `cncctl`) of this build
+/// ([`tests::workspace_bin`]).
 pub fn bin(name: &str) -> PathBuf {
-    static BUILT: Mutex<Vec<String>> = Mutex::new(Vec::new());
-    let exe = std::env::current_exe().expect("test executable path");
-    let dir = exe.parent().and_then(|d| d.parent()).expect("target dir");
-    let p = dir.join(name);
-    let prebuilt = std::env::var("CNC_PREBUILT_BINS").is_ok_and(|v| v == "1");
-    let mut built = BUILT.lock().unwrap_or_else(|e| e.into_inner());
-    if !prebuilt && !built.iter().any(|b| b == name) {
-        let package = if name.starts_with("sim-") {
-            "sim"
-        } else {
-            "daemon"
-        };
-        let mut cmd = Command::new(env!("CARGO"));
-        cmd.args(["build", "--quiet", "-p", package, "--bin", name])
-            .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
-        if dir.file_name().is_some_and(|n| n == "release") {
-            cmd.arg("--release");
-        }
-        let ok = cmd.status().is_ok_and(|s| s.success());
-        assert!(ok, "cargo build of {name} failed");
-        built.push(name.to_owned());
-    }
-    assert!(p.exists(), "{} is not built", p.display());
-    p
+    tests::workspace_bin(name)
 }
 
 /// A child process killed when dropped; its stdout lines arrive on a channel.
@@ -136,6 +110,13 @@ impl Proc {
             );
             std::thread::sleep(Duration::from_millis(20));
         }
+    }
+
+    /// Sends `signal` (SIGSTOP to freeze the process, SIGCONT to thaw it).
+    pub fn signal(&self, signal: libc::c_int) {
+        let pid = libc::pid_t::try_from(self.child.id()).unwrap();
+        // SAFETY: plain syscall on our own child's pid (not yet reaped, so not reused).
+        unsafe { libc::kill(pid, signal) };
     }
 
     /// Kills the process (SIGKILL) and reaps it.
@@ -379,6 +360,20 @@ impl Daemon {
         axis_keys: [&str; 3],
         files: &[(&str, &str)],
     ) -> Daemon {
+        let d = Self::spawn(test, bus_section, node_ids, axis_keys, files);
+        d.wait_state("idle", Duration::from_secs(90));
+        d
+    }
+
+    /// As [`Daemon::start_with_files`], returning as soon as cncd is started (its API may not
+    /// answer yet, its drives may not be enabled).
+    pub fn spawn(
+        test: &str,
+        bus_section: &str,
+        node_ids: [u8; 3],
+        axis_keys: [&str; 3],
+        files: &[(&str, &str)],
+    ) -> Daemon {
         let dir = temp_dir(test);
         let data = dir.join("data");
         std::fs::create_dir_all(&data).unwrap();
@@ -408,13 +403,11 @@ impl Daemon {
         let path = dir.join("cncd.toml");
         std::fs::write(&path, cfg).unwrap();
         let proc = Proc::spawn("cncd", &["--config", path.to_str().unwrap()]);
-        let d = Daemon {
+        Daemon {
             proc,
             addr: format!("unix:{}", socket.display()),
             dir,
-        };
-        d.wait_state("idle", Duration::from_secs(90));
-        d
+        }
     }
 
     pub fn cncctl(&self, args: &[&str], timeout: Duration) -> (bool, String) {

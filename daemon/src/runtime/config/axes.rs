@@ -100,9 +100,8 @@ pub const DEFAULT_SIM_HOME_SWITCH_MM: f64 = 5.0;
 impl AxisConfig {
     /// The simulated home switch of this axis (see `sim_home_switch_mm`).
     pub fn sim_home_switch_at_mm(&self) -> f64 {
-        self.sim_home_switch_mm.unwrap_or(
-            self.home_mm + DEFAULT_SIM_HOME_SWITCH_MM * f64::from(self.homing_direction),
-        )
+        self.sim_home_switch_mm
+            .unwrap_or(self.home_mm + DEFAULT_SIM_HOME_SWITCH_MM * f64::from(self.homing_direction))
     }
 }
 
