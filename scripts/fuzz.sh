@@ -14,7 +14,7 @@ ROOT=$(cd "$(dirname "$0")/.." && pwd)
 cd "$ROOT/fuzz"
 RUNS=${1:-10000000}
 [ $# -gt 0 ] && shift
-TARGETS=${*:-program offsets constants comp mtconnect config code_pages}
+TARGETS=${*:-program offsets constants comp mtconnect config code_pages grpc_web upload}
 command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked
 FUZZ="cargo +nightly fuzz"
 LOGS="$ROOT/target/fuzz-logs"

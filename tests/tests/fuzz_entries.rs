@@ -68,3 +68,17 @@ fn code_pages() {
         kernel::program::encoding::fuzz_entry(&d);
     }
 }
+
+#[test]
+fn grpc_web_requests() {
+    for d in inputs("grpc_web", 20_000) {
+        daemon::runtime::hmi::fuzz::fuzz_entry(&d);
+    }
+}
+
+#[test]
+fn upload_sessions() {
+    for d in inputs("upload", 10_000) {
+        daemon::runtime::api::upload_fuzz::fuzz_entry(&d);
+    }
+}

@@ -9,6 +9,7 @@ pub mod alarms;
 pub mod auth;
 mod diagnostics;
 pub mod files_watch;
+pub(crate) mod fuzz_rig;
 mod interpret;
 pub mod io;
 pub mod job_journal;
@@ -23,6 +24,7 @@ mod stream_budget;
 mod tables;
 mod touch_off;
 mod trajectory;
+pub mod upload_fuzz;
 pub mod upload_session;
 mod validate_stream;
 

@@ -5,6 +5,7 @@
 //! HTTP/1.1 and HTTP/2 are both accepted (browsers speak HTTP/1.1 to a plain-text port).
 
 pub mod assets;
+pub mod fuzz;
 
 use std::sync::Arc;
 

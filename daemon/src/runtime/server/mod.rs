@@ -36,6 +36,7 @@ use listeners::hmi_trust;
 use tasks::Tasks;
 
 pub use listeners::{HmiListener, Listeners, Reserved, bind_extra, bind_unix};
+pub(crate) use routes::hmi_routes;
 pub use routes::{MAX_MESSAGE_BYTES, size_refusal};
 pub use tls::{check_hmi_tls, check_tls, hmi_tls_config, tls_config, tls_from_files};
 

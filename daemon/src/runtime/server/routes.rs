@@ -54,7 +54,7 @@ type SizeLayer = tower::util::MapResponseLayer<
 >;
 type ApiRouter = Router<tower::layer::util::Stack<SizeLayer, tower::layer::util::Identity>>;
 
-pub(super) type Health<H> = tonic_health::pb::health_server::HealthServer<H>;
+pub(crate) type Health<H> = tonic_health::pb::health_server::HealthServer<H>;
 
 pub(super) fn router<H: tonic_health::pb::health_server::Health>(
     st: &Arc<ApiState>,
@@ -71,6 +71,23 @@ pub(super) fn router<H: tonic_health::pb::health_server::Health>(
     }
     let layer: SizeLayer = tower::util::MapResponseLayer::new(size_refusal);
     Ok(b.layer(layer).add_routes(routes(st, auth, trust, health)?))
+}
+
+/// What the HMI's listener serves: every service behind the interceptor of kind `trust` over
+/// grpc-web with the message-size refusal, and `assets` for everything else (also the
+/// grpc-web fuzz target's service, so it fuzzes exactly this stack).
+pub(crate) fn hmi_routes<H: tonic_health::pb::health_server::Health>(
+    st: &Arc<ApiState>,
+    auth: &Arc<Auth>,
+    trust: Trust,
+    health: &Health<H>,
+    assets: Arc<crate::runtime::hmi::Assets>,
+) -> Result<Routes, ServerError> {
+    Ok(crate::runtime::hmi::app(
+        routes(st, auth, trust, health)?,
+        tower::util::MapResponseLayer::new(size_refusal::<axum::body::Body>),
+        assets,
+    ))
 }
 
 /// Every service of the API behind the interceptor of a listener of kind `trust`.

@@ -12,7 +12,7 @@ use tonic::transport::server::TcpIncoming;
 use tonic::transport::{Server, ServerTlsConfig};
 
 use super::listeners::HmiListener;
-use super::routes::{Health, router, routes, size_refusal};
+use super::routes::{Health, hmi_routes, router};
 use super::{SHUTDOWN_DRAIN, ServerError};
 use crate::runtime::api::ApiState;
 use crate::runtime::api::auth::{Auth, Trust};
@@ -73,11 +73,7 @@ impl<'a, H: tonic_health::pb::health_server::Health> Tasks<'a, H> {
 
     /// Serves the browser HMI: its files and every service over grpc-web (HTTP/1.1 too).
     pub(super) fn spawn_hmi(&mut self, h: HmiListener, trust: Trust) -> Result<(), ServerError> {
-        let app = crate::runtime::hmi::app(
-            routes(self.st, self.auth, trust, self.health)?,
-            tower::util::MapResponseLayer::new(size_refusal::<axum::body::Body>),
-            h.assets,
-        );
+        let app = hmi_routes(self.st, self.auth, trust, self.health, h.assets)?;
         let mut b = Server::builder().accept_http1(true);
         if let Some(t) = h.tls {
             b = b
