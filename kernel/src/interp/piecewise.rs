@@ -285,43 +285,7 @@ impl Interpolator {
                 }
             }
             let a_j = self.window_accel(&mut win, walk.w, start_j, end_j, walked, braking)?;
-            let record = start_j <= walk.w;
-            match self.free_stretch(j, start_j, end_j, walk.w, braking) {
-                Some(st) => {
-                    let (a_lo, a_hi) = match st.ends_top_mm_s2 {
-                        Some(top) => {
-                            let (a_lo, a_hi) =
-                                self.end_stretch_accels(j, start_j, end_j, walk.w, walked, a_j);
-                            let top = top.max(a_j);
-                            (a_lo.min(top), a_hi.min(top))
-                        }
-                        None => (a_j, a_j),
-                    };
-                    let parts = [(st.lo, a_lo), (st.hi, st.middle(a_j)), (end_j, a_hi)];
-                    let mut from = start_j;
-                    for (to, a) in parts {
-                        walk.e += a * (to - from.max(0.0)).max(0.0);
-                        if record && to > 0.0 {
-                            if walk.points == PIECEWISE_SLOTS {
-                                return None;
-                            }
-                            self.pw_points[walk.points] = (to, walk.e, a);
-                            walk.points += 1;
-                        }
-                        from = to;
-                    }
-                }
-                None => {
-                    walk.e += a_j * (end_j - start_j.max(0.0));
-                    if record {
-                        if walk.points == PIECEWISE_SLOTS {
-                            return None;
-                        }
-                        self.pw_points[walk.points] = (end_j, walk.e, a_j);
-                        walk.points += 1;
-                    }
-                }
-            }
+            self.walk_energy(walk, j, (start_j, end_j), walked, braking, a_j)?;
             if start_j > walk.w && walk.g_up.is_infinite() {
                 // G at this tick's speed: a cap with R above it allows that speed.
                 let v_now = self.raw_v_mm_s;
@@ -365,6 +329,58 @@ impl Interpolator {
             start_j = end_j;
             j += 1;
         }
+    }
+
+    /// Adds segment `j`'s (from `span.0` to `span.1`) share of E to the walk: its free stretch
+    /// in up to three parts, else at `a_j` throughout; points within W are recorded. `None`
+    /// when the points do not fit.
+    fn walk_energy(
+        &mut self,
+        walk: &mut Walk,
+        j: usize,
+        span: (f64, f64),
+        walked: usize,
+        braking: bool,
+        a_j: f64,
+    ) -> Option<()> {
+        let (start_j, end_j) = span;
+        let record = start_j <= walk.w;
+        let Some(st) = self.free_stretch(j, start_j, end_j, walk.w, braking) else {
+            walk.e += a_j * (end_j - start_j.max(0.0));
+            return if record {
+                self.walk_point(walk, end_j, a_j)
+            } else {
+                Some(())
+            };
+        };
+        let (a_lo, a_hi) = match st.ends_top_mm_s2 {
+            Some(top) => {
+                let (a_lo, a_hi) = self.end_stretch_accels(j, start_j, end_j, walk.w, walked, a_j);
+                let top = top.max(a_j);
+                (a_lo.min(top), a_hi.min(top))
+            }
+            None => (a_j, a_j),
+        };
+        let parts = [(st.lo, a_lo), (st.hi, st.middle(a_j)), (end_j, a_hi)];
+        let mut from = start_j;
+        for (to, a) in parts {
+            walk.e += a * (to - from.max(0.0)).max(0.0);
+            if record && to > 0.0 {
+                self.walk_point(walk, to, a)?;
+            }
+            from = to;
+        }
+        Some(())
+    }
+
+    /// Records the walk's point (distance `to`, E so far, acceleration `a`); `None` when full.
+    fn walk_point(&mut self, walk: &mut Walk, to: f64, a: f64) -> Option<()> {
+        if walk.points == PIECEWISE_SLOTS {
+            return None;
+        }
+        self.pw_points[walk.points] = (to, walk.e, a);
+        walk.points += 1;
+        Some(())
     }
 
     /// ã of the segment from `start_j` to `end_j`: the smallest acceleration of the segments

@@ -554,7 +554,23 @@ impl Interpolator {
             k += 1;
         }
         let linear = lag_s == 0.0 && walk.coast == 0.0 && walk.coast_accel == 0.0;
-        let mut limits = walk.finish(stop_dist_mm);
+        let limits = walk.finish(stop_dist_mm);
+        if linear {
+            self.with_piecewise(limits, accel_mm_s2, braking, here)
+        } else {
+            limits
+        }
+    }
+
+    /// The linear profile's `limits` raised to the piecewise curve where the exact one brakes
+    /// (issue #32; `here`: the limits before any cap ahead).
+    fn with_piecewise(
+        &mut self,
+        mut limits: SpeedLimits,
+        accel_mm_s2: f64,
+        braking: bool,
+        here: (f64, f64),
+    ) -> SpeedLimits {
         let keep = self.raw_v_mm_s;
         let exact = (limits.hard_mm_s, limits.soft_mm_s);
         // (Where the exact limit is within 0.1 % of this tick's speed the piecewise one can
@@ -562,10 +578,7 @@ impl Interpolator {
         // dense circle walks it on far fewer ticks, p50 54 k → 25 k instructions.)
         let slack = keep * (1.0 - 1e-3);
         let brakes = exact.0 < slack || exact.1 < slack;
-        if linear
-            && brakes
-            && let Some(pw) = self.piecewise_limits(accel_mm_s2, braking, here, exact)
-        {
+        if brakes && let Some(pw) = self.piecewise_limits(accel_mm_s2, braking, here, exact) {
             // The piecewise curve (issue #32) lets the speed fall later and by each tick's
             // own acceleration, but never rise above the exact curve: a tick accelerates only
             // where the smallest acceleration on the way allows it, as before (the lines'
