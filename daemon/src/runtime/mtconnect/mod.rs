@@ -136,15 +136,30 @@ pub async fn serve(
     Ok(())
 }
 
+/// How long a client has to send a request's head (and, on the idle keep-alive connection,
+/// to begin the next one) before the agent closes the connection: the HMI's listener has the
+/// same (tonic's, hyper's default).
+const HEADER_READ: Duration = Duration::from_secs(30);
+
 async fn connection(shared: Arc<Shared>, sock: tokio::net::TcpStream, tls: Option<TlsAcceptor>) {
     let svc = hyper::service::service_fn(move |req| http::handle(shared.clone(), req));
-    let b = hyper::server::conn::http1::Builder::new();
+    let mut b = hyper::server::conn::http1::Builder::new();
+    // hyper enforces the header read timeout only with a timer: without one, a client that
+    // sends half a request and waits holds its socket and buffers for ever, and a few thousand
+    // of them exhaust the daemon's file descriptors (benches/flood.rs).
+    b.timer(hyper_util::rt::TokioTimer::new())
+        .header_read_timeout(HEADER_READ);
     let r = match tls {
         None => b.serve_connection(TokioIo::new(sock), svc).await,
-        Some(t) => match t.accept(sock).await {
-            Ok(s) => b.serve_connection(TokioIo::new(s), svc).await,
-            Err(e) => {
+        // The handshake is bounded the same way (a client that never sends its hello).
+        Some(t) => match tokio::time::timeout(HEADER_READ, t.accept(sock)).await {
+            Ok(Ok(s)) => b.serve_connection(TokioIo::new(s), svc).await,
+            Ok(Err(e)) => {
                 tracing::debug!("MTConnect: TLS handshake failed: {e}");
+                return;
+            }
+            Err(_) => {
+                tracing::debug!("MTConnect: TLS handshake not finished in time");
                 return;
             }
         },
