@@ -224,6 +224,11 @@ fn unit_settings_agree_with_the_daemon() {
     // cncd exits 2 on a configuration mistake (tests/tests/check_config.rs checks that side).
     assert_eq!(one(&s, "RestartPreventExitStatus"), "2");
     assert_eq!(one(&s, "LimitMEMLOCK"), "infinity");
+    // The descriptors cncd raises its soft limit to (daemon::runtime::open_files).
+    assert_eq!(
+        one(&s, "LimitNOFILE"),
+        daemon::runtime::open_files::WANTED.to_string()
+    );
     assert_eq!(one(&s, "StateDirectory"), "cncd");
     assert_eq!(one(&s, "RuntimeDirectory"), "cncd");
     assert_eq!(one(&s, "ConfigurationDirectory"), "cncd");

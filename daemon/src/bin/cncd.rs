@@ -84,6 +84,7 @@ fn main() -> ExitCode {
         return check_config(args.config.as_deref());
     }
     let target = logging::init(args.log);
+    open_files_limit();
     let config = match &args.config {
         Some(p) => match Config::load(p) {
             Ok(c) => c,
@@ -117,6 +118,22 @@ fn main() -> ExitCode {
             tracing::error!(code = e.code(), "{e}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Raises the open-file limit (daemon::runtime::open_files); warns where it stays low enough
+/// for a flood of idle connections to take every descriptor.
+fn open_files_limit() {
+    use daemon::runtime::open_files;
+    match open_files::raise() {
+        Some((before, after)) if after < open_files::LOW => tracing::warn!(
+            before,
+            after,
+            "open-file limit stays low (hard limit): a flood of idle connections may use the \
+             descriptors up until they time out (raise LimitNOFILE= in the unit)"
+        ),
+        Some((before, after)) => tracing::debug!(before, after, "open-file limit"),
+        None => tracing::warn!("cannot read the open-file limit"),
     }
 }
 

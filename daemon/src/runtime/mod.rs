@@ -16,6 +16,7 @@ pub mod job;
 pub mod library;
 pub mod logging;
 pub mod mtconnect;
+pub mod open_files;
 pub mod pipeline;
 pub mod program_probe;
 pub mod program_text;

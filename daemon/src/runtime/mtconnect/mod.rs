@@ -123,7 +123,12 @@ pub async fn serve(
             _ = &mut shutdown => break,
             Some(_) = conns.join_next(), if !conns.is_empty() => {}
             r = listener.accept() => {
-                let Ok((sock, _)) = r else { continue };
+                let Ok((sock, _)) = r else {
+                    // Out of descriptors (EMFILE): the listener stays readable, so pause
+                    // rather than spin until connections end.
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                    continue;
+                };
                 let _ = sock.set_nodelay(true);
                 conns.spawn(connection(shared.clone(), sock, tls.clone()));
             }
