@@ -47,23 +47,9 @@ async fn bench(secs: u64) {
         .connect()
         .await
         .unwrap();
-    let mut m = MachineClient::new(ch.clone());
 
     // A program that keeps the machine moving for the whole run (100 mm strokes at 50 mm/s).
-    let strokes = (secs / 2 + 10) as usize;
-    let mut text = String::from("N1 G1 F3000 X0 Y0\n");
-    for i in 0..strokes {
-        let x = if i % 2 == 0 { 100 } else { 0 };
-        text.push_str(&format!("N{} X{x} Y{}\n", i + 2, i % 7));
-    }
-    m.load_program(pb::LoadProgramRequest {
-        name: "bench.nc".into(),
-        text,
-        dialect: String::new(),
-    })
-    .await
-    .unwrap();
-    m.start(pb::StartRequest::default()).await.unwrap();
+    bench_common::start_strokes(ch.clone(), (secs / 2 + 10) as usize, false).await;
     let before = ctl.snapshot().tick.stats;
 
     // cyclictest alongside.

@@ -180,20 +180,7 @@ impl Daemon {
     /// Starts a program that keeps the machine moving for `secs` and a minute more (100 mm
     /// strokes at 50 mm/s): the RT thread interpolates through the whole phase.
     async fn run_program(&self, secs: u64) {
-        let mut text = String::from("N1 G1 F3000 X0 Y0\n");
-        for i in 0..(secs / 2 + 30) as usize {
-            let x = if i % 2 == 0 { 100 } else { 0 };
-            text.push_str(&format!("N{} X{x} Y{}\n", i + 2, i % 7));
-        }
-        let mut m = MachineClient::new(self.admin.clone());
-        m.load_program(pb::LoadProgramRequest {
-            name: "flood.nc".into(),
-            text,
-            dialect: String::new(),
-        })
-        .await
-        .unwrap();
-        m.start(pb::StartRequest::default()).await.unwrap();
+        bench_common::start_strokes(self.admin.clone(), (secs / 2 + 30) as usize, false).await;
     }
 
     async fn shutdown(self) {

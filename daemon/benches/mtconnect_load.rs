@@ -23,8 +23,6 @@ use daemon::runtime::controller::{ClockKind, Controller};
 use daemon::runtime::mtconnect::{self, MtconnectConfig};
 use daemon::runtime::rt::MachineState;
 use http_body_util::{BodyExt, Empty};
-use proto::v1 as pb;
-use proto::v1::machine_client::MachineClient;
 
 const POLLERS: usize = 100;
 const POLL_HZ: f64 = 10.0;
@@ -178,20 +176,7 @@ async fn bench(secs: u64) {
     ));
 
     // A program that keeps the machine moving for the whole run (100 mm strokes at 50 mm/s).
-    let mut m = MachineClient::new(ch);
-    let mut text = String::from("N1 G1 F3000 X0 Y0\n");
-    for i in 0..(secs / 2 + 10) as usize {
-        let x = if i % 2 == 0 { 100 } else { 0 };
-        text.push_str(&format!("N{} X{x} Y{} Z{}\n", i + 2, i % 7, i % 3));
-    }
-    m.load_program(pb::LoadProgramRequest {
-        name: "bench.nc".into(),
-        text,
-        dialect: String::new(),
-    })
-    .await
-    .unwrap();
-    m.start(pb::StartRequest::default()).await.unwrap();
+    bench_common::start_strokes(ch, (secs / 2 + 10) as usize, true).await;
     let before = ctl.snapshot().tick.stats;
     let cyclic = spawn_cyclictest(secs);
 

@@ -8,18 +8,23 @@ use std::time::Duration;
 
 use vcan_support::{Daemon, Proc};
 
-#[test]
-fn daemon_runs_a_program_over_serial_and_recovers_after_replug() {
-    let dir = vcan_support::temp_dir("serial-daemon-link");
-    let link = dir.join("drive.tty");
-    let link_s = link.to_str().unwrap();
-    // A long watchdog: on a loaded machine the daemon's ticks may come late (the watchdog
-    // itself is tested in serial_link.rs).
+/// A three-axis `sim-serial` unit on a pseudo-terminal link in a directory of `test`'s own,
+/// once it serves; the link's path. A long watchdog: on a loaded machine the daemon's ticks
+/// may come late (the watchdog itself is tested in serial_link.rs).
+fn drive_unit(test: &str) -> (Proc, String) {
+    let link = vcan_support::temp_dir(test).join("drive.tty");
+    let link_s = link.to_str().unwrap().to_owned();
     let mut sim = Proc::spawn(
         "sim-serial",
-        &["--link", link_s, "--axes", "3", "--watchdog-ms", "5000"],
+        &["--link", &link_s, "--axes", "3", "--watchdog-ms", "5000"],
     );
     sim.expect_line(" -> /dev/pts", Duration::from_secs(10));
+    (sim, link_s)
+}
+
+#[test]
+fn daemon_runs_a_program_over_serial_and_recovers_after_replug() {
+    let (mut sim, link_s) = drive_unit("serial-daemon-link");
     // 2 s without a reply is a fault: a loaded test machine can stall the simulator's process
     // for hundreds of ms (400 ms failed a CI-like run); an unplug is "link lost" at once.
     let bus = format!("[bus]\nkind = 'serial'\nport = '{link_s}'\nreply_timeout_ticks = 500\n");
@@ -119,14 +124,7 @@ fn daemon_runs_the_spindle_over_serial() {
 /// unit is frozen (SIGSTOP) so that the enabling lasts as long as the test needs.
 #[test]
 fn commands_while_the_drives_enable_are_refused_as_not_ready_then_work() {
-    let dir = vcan_support::temp_dir("serial-daemon-start-up-link");
-    let link = dir.join("drive.tty");
-    let link_s = link.to_str().unwrap();
-    let mut sim = Proc::spawn(
-        "sim-serial",
-        &["--link", link_s, "--axes", "3", "--watchdog-ms", "5000"],
-    );
-    sim.expect_line(" -> /dev/pts", Duration::from_secs(10));
+    let (sim, link_s) = drive_unit("serial-daemon-start-up-link");
     sim.signal(libc::SIGSTOP);
     // 20 s to enable: the window stays open while the unit is frozen.
     let bus = format!(

@@ -51,3 +51,32 @@ pub async fn serve_unix(ctl: &std::sync::Arc<Controller>) -> String {
     }
     format!("unix:{}", sock.display())
 }
+
+/// Loads and starts, over `ch` (an operator's channel), a program of `strokes` 100 mm strokes
+/// in X at 50 mm/s (Y stepping, and Z with `with_z`) that keeps the machine moving through a
+/// bench: the RT thread interpolates all along.
+#[allow(dead_code)]
+pub async fn start_strokes(ch: tonic::transport::Channel, strokes: usize, with_z: bool) {
+    use proto::v1 as pb;
+    let mut text = String::from("N1 G1 F3000 X0 Y0\n");
+    for i in 0..strokes {
+        let x = if i % 2 == 0 { 100 } else { 0 };
+        let z = if with_z {
+            format!(" Z{}", i % 3)
+        } else {
+            String::new()
+        };
+        text.push_str(&format!("N{} X{x} Y{}{z}\n", i + 2, i % 7));
+    }
+    let mut m = proto::v1::machine_client::MachineClient::new(ch);
+    m.load_program(pb::LoadProgramRequest {
+        name: "bench.nc".into(),
+        text,
+        dialect: String::new(),
+    })
+    .await
+    .expect("bench program loads");
+    m.start(pb::StartRequest::default())
+        .await
+        .expect("bench program starts");
+}
