@@ -27,11 +27,27 @@ pub fn workspace_bin(name: &str) -> PathBuf {
         };
         let mut cmd = Command::new(env!("CARGO"));
         cmd.args(["build", "--quiet", "-p", package, "--bin", name])
-            .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
-            // A build script (ring's) watches CARGO_MANIFEST_DIR: inherited from this test
-            // process it rebuilt half the dependency tree at every switch between `cargo test`
-            // and a plain `cargo build`.
-            .env_remove("CARGO_MANIFEST_DIR");
+            .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."));
+        // What cargo sets for this test process only: a build script (ring's) watches some
+        // of it (CARGO_MANIFEST_DIR, CARGO_PKG_NAME…), and inherited here it rebuilt half the
+        // dependency tree at every switch between `cargo test` and a plain `cargo build`.
+        for (key, _) in std::env::vars_os() {
+            let k = key.to_string_lossy();
+            if ["CARGO_PKG_", "CARGO_MANIFEST_", "CARGO_BIN_"]
+                .iter()
+                .any(|p| k.starts_with(p))
+                || [
+                    "CARGO_CRATE_NAME",
+                    "CARGO_PRIMARY_PACKAGE",
+                    "CARGO_TARGET_TMPDIR",
+                    "CARGO_RUSTC_CURRENT_DIR",
+                    "OUT_DIR",
+                ]
+                .contains(&k.as_ref())
+            {
+                cmd.env_remove(&key);
+            }
+        }
         if let Some(target) = profile_dir.parent() {
             cmd.arg("--target-dir").arg(target);
         }
