@@ -91,11 +91,14 @@ const METHODS: &[&str] = &[
     "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo",
 ];
 
-/// Server-streaming methods that do not end on their own: only their headers are checked.
+/// Server-streaming methods that do not end on their own, or only after as long as the
+/// program's motion (GetTrajectory: a few bytes of `G0 X74029` are minutes of ticks, up to its
+/// 24 h bound; the stream goes at the client's pace): only their headers are checked.
 const ENDLESS: &[&str] = &[
     "/cnc.v1.Machine/StreamStatus",
     "/cnc.v1.Machine/StreamAlarms",
     "/grpc.health.v1.Health/Watch",
+    "/cnc.v1.Trajectory/GetTrajectory",
 ];
 
 const CONTENT_TYPES: &[&str] = &[
