@@ -24,8 +24,6 @@ use daemon::runtime::controller::{ClockKind, Controller};
 use daemon::runtime::rt::MachineState;
 use proto::v1 as pb;
 use proto::v1::machine_client::MachineClient;
-use proto::v1::offsets_client::OffsetsClient;
-use proto::v1::plc_client::PlcClient;
 
 const STREAMS: usize = 32;
 const STREAM_HZ: u32 = 250;
@@ -98,18 +96,7 @@ async fn bench(secs: u64) {
                 tokio::spawn(async move {
                     let t = Instant::now();
                     let ok = match i % 4 {
-                        0 => PlcClient::new(ch)
-                            .list_cells(pb::ListCellsRequest {})
-                            .await
-                            .is_ok(),
-                        1 => OffsetsClient::new(ch)
-                            .get_offsets(pb::GetOffsetsRequest::default())
-                            .await
-                            .is_ok(),
-                        2 => MachineClient::new(ch)
-                            .list_programs(pb::ListProgramsRequest {})
-                            .await
-                            .is_ok(),
+                        k @ 0..=2 => bench_common::unary_read(ch, k).await,
                         _ => MachineClient::new(ch)
                             .set_override(pb::SetOverrideRequest {
                                 percent: 100.0 - (i % 3) as f64,

@@ -39,9 +39,6 @@ use daemon::runtime::stats::TickSummary;
 use http_body_util::{BodyExt, Full};
 use prost::Message;
 use proto::v1 as pb;
-use proto::v1::machine_client::MachineClient;
-use proto::v1::offsets_client::OffsetsClient;
-use proto::v1::plc_client::PlcClient;
 use tokio::sync::watch;
 use tonic::transport::Channel;
 
@@ -249,20 +246,7 @@ where
 
 /// One unary read of the API (observer calls, as loopback TCP allows), rotating services.
 async fn unary(ch: Channel, i: u64) -> bool {
-    match i % 3 {
-        0 => PlcClient::new(ch)
-            .list_cells(pb::ListCellsRequest {})
-            .await
-            .is_ok(),
-        1 => OffsetsClient::new(ch)
-            .get_offsets(pb::GetOffsetsRequest::default())
-            .await
-            .is_ok(),
-        _ => MachineClient::new(ch)
-            .list_programs(pb::ListProgramsRequest {})
-            .await
-            .is_ok(),
-    }
+    bench_common::unary_read(ch, i).await
 }
 
 type Http1 = hyper::client::conn::http1::SendRequest<Full<Bytes>>;

@@ -80,3 +80,24 @@ pub async fn start_strokes(ch: tonic::transport::Channel, strokes: usize, with_z
         .await
         .expect("bench program starts");
 }
+
+/// One unary read of the API, the service by `i` (three in turn): PLC cells, the offset
+/// table, the program list.
+#[allow(dead_code)]
+pub async fn unary_read(ch: tonic::transport::Channel, i: u64) -> bool {
+    use proto::v1 as pb;
+    match i % 3 {
+        0 => proto::v1::plc_client::PlcClient::new(ch)
+            .list_cells(pb::ListCellsRequest {})
+            .await
+            .is_ok(),
+        1 => proto::v1::offsets_client::OffsetsClient::new(ch)
+            .get_offsets(pb::GetOffsetsRequest::default())
+            .await
+            .is_ok(),
+        _ => proto::v1::machine_client::MachineClient::new(ch)
+            .list_programs(pb::ListProgramsRequest {})
+            .await
+            .is_ok(),
+    }
+}
