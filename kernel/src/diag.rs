@@ -315,6 +315,8 @@ diag_codes! {
     PreviewNoSuchPage = "preview_no_such_page",
     /// A preview plane naming an axis the machine does not have.
     PreviewAxisMissing = "preview_axis_missing",
+    /// The velocity plot stops at its bound of machining time; the program goes on.
+    PreviewPlotCut = "preview_plot_cut",
     /// A program language (`dialect`) given over the API that cncd does not know.
     DialectUnknown = "dialect_unknown",
 }

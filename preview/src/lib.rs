@@ -69,6 +69,11 @@ pub use raster::RenderError;
 pub const DEFAULT_V_MAX_MM_S: f64 = 200.0;
 pub const DEFAULT_A_MAX_MM_S2: f64 = 800.0;
 
+/// Machining time the velocity plot covers at most, in 4 ms ticks: 8 h (a shift). Its work
+/// grows with the motion's duration (every tick is interpolated from the program's start), so
+/// a few bytes of text (`G0 Y8888888`) could otherwise keep a core busy for minutes.
+pub const DEFAULT_PLOT_MAX_TICKS: u64 = 8 * 3600 * 250;
+
 /// What to preview and with which machine settings.
 #[derive(Clone, Debug)]
 pub struct PreviewOptions {
@@ -87,6 +92,9 @@ pub struct PreviewOptions {
     pub height_px: u32,
     /// Most red junctions listed in [`Preview::red`] (all are counted).
     pub max_listed: usize,
+    /// Ticks the velocity plot interpolates at most ([`DEFAULT_PLOT_MAX_TICKS`]); past them
+    /// it stops with a `preview_plot_cut` note.
+    pub plot_max_ticks: u64,
     /// The machine's whole setup when there is one ([`PreviewOptions::from_machine`]): the
     /// pass then reads it (not `setup`, `planner`, `comp`, which are its copies) and checks
     /// what only the machine knows (its gear ranges) as validation does.
@@ -112,6 +120,7 @@ impl PreviewOptions {
             width_px: 1200,
             height_px: 800,
             max_listed: 10_000,
+            plot_max_ticks: DEFAULT_PLOT_MAX_TICKS,
             machine: None,
         }
     }
@@ -278,6 +287,21 @@ pub fn render_source(
     })
 }
 
+/// The note of a velocity plot stopped at its bound in block `(seq, n, line)`.
+fn plot_cut((_, n, line): (u32, Option<u32>, u32), max_ticks: u64) -> Diagnostic {
+    let hours = max_ticks as f64 * kernel::TS_S / 3600.0;
+    Diagnostic::info(
+        DiagCode::PreviewPlotCut,
+        n,
+        line,
+        0,
+        format!(
+            "the velocity plot stops after {hours:.1} h of machining (its bound); the program \
+             goes on"
+        ),
+    )
+}
+
 /// A rendered velocity-over-time plot.
 #[derive(Clone, Debug)]
 pub struct VelocityPlot {
@@ -322,8 +346,11 @@ pub fn velocity_plot_source(
 ) -> Result<VelocityPlot, Vec<Diagnostic>> {
     let (page, per) = opts.page();
     let axes = opts.planner.axes;
-    let mut r = velocity::Recorder::new(axes, opts.setup.start, page);
-    let outcome = pipeline::run_source(source, opts, &mut r)?;
+    let mut r = velocity::Recorder::new(axes, opts.setup.start, page, opts.plot_max_ticks);
+    let mut outcome = pipeline::run_source(source, opts, &mut r)?;
+    if let Some(cut) = r.cut {
+        outcome.notes.push(plot_cut(cut, opts.plot_max_ticks));
+    }
     let pages = Page::count(outcome.blocks, per);
     if page.number > pages {
         return Err(page_error(page.number, pages));

@@ -51,10 +51,16 @@ pub struct Recorder {
     prev: [AxesMm; 2],
     axes: usize,
     done: bool,
+    /// Ticks the plot runs at most ([`crate::PreviewOptions::plot_max_ticks`]).
+    max_ticks: u64,
+    /// Where the plot stopped at `max_ticks`: the block (index, `N`, line) then running.
+    pub cut: Option<(u32, Option<u32>, u32)>,
+    /// The block of the last tick (index, `N`, line).
+    at: (u32, Option<u32>, u32),
 }
 
 impl Recorder {
-    pub fn new(axes: usize, start: AxesMm, page: Page) -> Self {
+    pub fn new(axes: usize, start: AxesMm, page: Page, max_ticks: u64) -> Self {
         Recorder {
             interp: Interpolator::new(axes, start),
             page,
@@ -65,10 +71,20 @@ impl Recorder {
             prev: [start; 2],
             axes,
             done: false,
+            max_ticks,
+            cut: None,
+            at: (0, None, 0),
         }
     }
 
     fn step(&mut self) {
+        if self.tick >= self.max_ticks {
+            // The plot's work grows with the motion's duration, not with the text (a short
+            // program can travel for days): it stops at its bound and says so.
+            self.cut = Some(self.at);
+            self.done = true;
+            return;
+        }
         // A program stop (M0, M1, a tool change) is resumed at once: the plot is the
         // machining, not the operator's time (and a held interpolator would never end).
         if self.interp.at_program_stop() {
@@ -76,6 +92,7 @@ impl Recorder {
         }
         let out = self.interp.tick();
         self.tick += 1;
+        self.at = (out.seq, out.n, out.line);
         let mut acc = [0.0; MAX_AXES];
         for (i, a) in acc.iter_mut().enumerate().take(self.axes) {
             *a = (out.position[i] - 2.0 * self.prev[1][i] + self.prev[0][i]) / (TS_S * TS_S);
@@ -121,7 +138,7 @@ impl Sink for Recorder {
         let mut seg = *s;
         // Tick only when the buffer is full, so the interpolator always sees its whole
         // look-ahead (the end of what it has is a stop point for it).
-        loop {
+        while !self.done {
             if !self.interp.has_room() {
                 self.step();
                 continue;
@@ -143,11 +160,9 @@ impl Sink for Recorder {
     }
 
     fn finish(&mut self) {
-        // Run out what is buffered (bounded: the program's own run time, plus a margin).
-        let mut guard = 0u64;
-        while self.interp.state() != InterpState::Idle && !self.done && guard < 1 << 34 {
+        // Run out what is buffered (bounded by `max_ticks`).
+        while self.interp.state() != InterpState::Idle && !self.done {
             self.step();
-            guard += 1;
         }
     }
 }

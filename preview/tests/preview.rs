@@ -2,6 +2,7 @@
 //! position of red and yellow dots, the red block list, the compensated path when G41/G42 is
 //! used, paging, planes, PNG rendering, and the velocity plot against the interpolator.
 
+use kernel::DiagCode;
 use kernel::comp::compensate_all;
 use kernel::interp::{InterpState, Interpolator};
 use kernel::plan::{Planner, Segment};
@@ -452,6 +453,33 @@ fn velocity_plot_runs_through_program_stops() {
     let v = preview::velocity_plot(text, &o, false).expect("plot");
     // Three moves of 20 mm at 50 mm/s, each at least 0.4 s.
     assert!(v.end_s >= 1.2, "{}", v.end_s);
+}
+
+/// The plot stops at `plot_max_ticks` with a `preview_plot_cut` note on the block then
+/// running, and counts the pages after it (the rest is parsed); a plot within the bound has
+/// no note. `G0 Y8888888` would otherwise interpolate for hours of machining.
+#[test]
+fn velocity_plot_stops_at_its_bound() {
+    let mut o = opts();
+    o.plot_max_ticks = 2500;
+    let text = "N10 G0 Y8888888\nN20 G1 X1 F100\n";
+    let v = preview::velocity_plot(text, &o, false).expect("plot");
+    assert!((v.end_s - 10.0).abs() < 0.01, "{}", v.end_s);
+    let cut: Vec<_> = v
+        .warnings
+        .iter()
+        .filter(|d| d.code == DiagCode::PreviewPlotCut)
+        .collect();
+    assert_eq!(cut.len(), 1, "{:?}", v.warnings);
+    assert_eq!((cut[0].block, cut[0].line), (Some(10), 1));
+    assert_eq!(v.pages, 1);
+    let short = preview::velocity_plot("N10 G1 X10 F600\n", &o, false).expect("plot");
+    assert!(
+        short
+            .warnings
+            .iter()
+            .all(|d| d.code != DiagCode::PreviewPlotCut)
+    );
 }
 
 #[test]

@@ -787,6 +787,50 @@ async fn preview_data_paths_and_junctions() {
     assert!(data.junctions.is_empty());
 }
 
+/// A velocity plot's work grows with the motion's duration, not with its text: it stops at
+/// `[api] velocity_plot_max_h` with a `preview_plot_cut` note (here 10 s of a rapid that
+/// would run for hours), two asked at once both answer (one after the other), and a plot
+/// within the bound has no note.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn velocity_plot_stops_at_its_bound_of_machining_time() {
+    let mut cfg = config(Role::Admin);
+    cfg.api.velocity_plot_max_h = 10.0 / 3600.0;
+    let d = start(cfg).await;
+    let p = PreviewClient::new(d.channel().await);
+    let req = |text: &str| pb::GetPreviewRequest {
+        text: text.into(),
+        format: pb::ImageFormat::Svg as i32,
+        velocity: true,
+        ..Default::default()
+    };
+    let far = req("N10 G0 X0 Y0\nN20 G0 Y8888888\n");
+    let (mut p1, mut p2) = (p.clone(), p.clone());
+    let (a, b) = tokio::join!(p1.get_preview(far.clone()), p2.get_preview(far.clone()));
+    for r in [a, b] {
+        let r = r.expect("a cut plot is an answer").into_inner();
+        let cut: Vec<_> = r
+            .diagnostics
+            .iter()
+            .filter(|d| d.code == "preview_plot_cut")
+            .collect();
+        assert_eq!(cut.len(), 1, "{:?}", r.diagnostics);
+        assert_eq!(cut[0].block, Some(20));
+        assert_eq!(cut[0].severity, pb::Severity::Info as i32);
+        let svg = String::from_utf8(r.image).unwrap();
+        assert!(svg.contains(".. 10.00 s"), "the plot ends at the bound");
+    }
+    let near = p1
+        .get_preview(req("N10 G0 X0 Y0\nN20 G1 Y10 F600\n"))
+        .await
+        .unwrap()
+        .into_inner();
+    assert!(
+        near.diagnostics
+            .iter()
+            .all(|d| d.code != "preview_plot_cut")
+    );
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn preview_picture_svg_png_velocity_and_refusals() {
     let d = start(config(Role::Admin)).await;

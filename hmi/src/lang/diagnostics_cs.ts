@@ -138,5 +138,6 @@ export const diagnosticsCs: Record<string, string> = {
   text_not_utf8: "Text (program, soubor) není v kódování UTF-8.",
   preview_no_such_page: "Strana náhledu neexistuje.",
   preview_axis_missing: "Rovina náhledu obsahuje souřadnici, kterou stroj nemá.",
+  preview_plot_cut: "Graf rychlosti končí po své mezi strojního času; program pokračuje dál.",
   dialect_unknown: "Jazyk programu, který cncd nezná (cnc836 nebo iso).",
 };

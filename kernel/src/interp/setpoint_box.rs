@@ -518,15 +518,21 @@ impl Interpolator {
         }
     }
 
-    /// Whether the setpoint at arc length `s` (on any segment: an arc too) keeps every axis
-    /// within the box after tick `t`.
+    /// Whether the envelope's setpoint at arc length `s` (on any segment: an arc too) keeps
+    /// every axis within its acceleration after tick `t`. The bound is the axes' own (the
+    /// box's room plus its slack, to rounding): the envelope accelerates at the very limit,
+    /// and the box's narrower room would keep it from ever taking over a speed the box
+    /// cannot prove (a braking longer than `PROOF_TICKS`: long lines at high speed).
     fn box_holds_at(&self, t: &Tick, s: f64) -> bool {
         let x = &t.at;
         let k = self.box_seg_at(t.k, s);
         let y = self.box_point(k, s.min(self.start_of(k) + self.seg(k).length_mm));
-        (s - t.s - t.ds_prev).abs() <= self.box_path_room(t)
-            && (0..self.axes)
-                .all(|ax| (y[ax] - (2.0 * x[ax] - t.prev[ax])).abs() <= self.box_room[ax])
+        let rounding = 1e-9 * self.box_room_norm;
+        (s - t.s - t.ds_prev).abs() <= self.box_path_room(t) + rounding
+            && (0..self.axes).all(|ax| {
+                (y[ax] - (2.0 * x[ax] - t.prev[ax])).abs()
+                    <= self.box_room[ax] + BOX_SLACK_MM + rounding
+            })
     }
 
     /// The room for the second difference of the arc length at tick `t`: the path
@@ -553,6 +559,37 @@ impl Interpolator {
             norm2 += room * room;
         }
         self.box_room_norm = norm2.sqrt();
+    }
+
+    /// Whether a proof from tick `t` moving on to setpoint `c` can come to rest within
+    /// `PROOF_TICKS`: each braking tick shortens the step (a chord) by at most the box's
+    /// diagonal `box_room_norm`, and on a line that the braking cannot leave by at most what
+    /// the axes along it and the path acceleration allow. Where it cannot, the proof would
+    /// end `Unknown` or `Fails`, which leave the envelope alike: not running it keeps a cruise
+    /// at high speed at one scan a tick instead of `PROOF_TICKS`.
+    fn box_may_rest(&self, t: &Tick, c: f64) -> bool {
+        let step = c - t.s;
+        let i = self.idx(t.k);
+        let seg = &self.buf[i];
+        let line_end = self.start_of(t.k) + seg.length_mm;
+        let (chord, brake) = match seg.path {
+            SegPath::Line { start, end } if line_end >= t.s + step * (PROOF_TICKS as f64 + 2.0) => {
+                let mut brake = self.box_slots[i].path_room_mm;
+                for ax in 0..self.axes {
+                    let per_mm = (end[ax] - start[ax]).abs() / seg.length_mm;
+                    if per_mm > 0.0 {
+                        brake = brake.min(self.box_room[ax] / per_mm);
+                    }
+                }
+                (step, brake)
+            }
+            _ => {
+                let y = self.box_point(self.box_seg_at(t.k, c), c);
+                let step2: f64 = (0..self.axes).map(|ax| (y[ax] - t.at[ax]).powi(2)).sum();
+                (step2.sqrt(), self.box_room_norm)
+            }
+        };
+        chord <= PROOF_TICKS as f64 * brake * (1.0 + 1e-6) + 1e-9
     }
 
     /// The farthest allowed setpoint at most `s` after tick `t`.
@@ -708,7 +745,7 @@ impl Interpolator {
             far
         };
         if !self.box_mode {
-            if want <= here.s + SEARCH_TOL_MM {
+            if want <= here.s + SEARCH_TOL_MM || !self.box_may_rest(&here, want) {
                 return None;
             }
             let region = (self.box_plan.region + 1) % 3;

@@ -159,14 +159,24 @@ pub async fn remote(v: &mut PreviewClient<Svc>, a: &PreviewArgs<'_>, j: bool) ->
                 .map_or(format!("line {}", b.line), |n| format!("N{n}"))
         })
         .collect();
+    // (The notes: a velocity plot cut at its bound says so.)
+    let notes: Vec<String> = r
+        .diagnostics
+        .iter()
+        .map(|d| format!("{}: {}", d.code, d.message))
+        .collect();
+    let mut summary = format!(
+        "page {} of {}, {} red junctions",
+        r.page, r.pages, r.red_junctions
+    );
+    for n in &notes {
+        summary += &format!("; {n}");
+    }
     let written = Written {
         out: a.out,
-        summary: format!(
-            "page {} of {}, {} red junctions",
-            r.page, r.pages, r.red_junctions
-        ),
+        summary,
         red,
-        extra: json!({"page": r.page, "pages": r.pages,
+        extra: json!({"page": r.page, "pages": r.pages, "notes": notes,
             "red_junctions": r.red_junctions, "smooth_junctions": r.smooth_junctions}),
     };
     show(j, &written)

@@ -29,6 +29,9 @@ impl Rig {
         let _ = std::fs::remove_dir_all(&cfg.storage.dir);
         // Locking memory needs a privilege the fuzz machine need not have.
         cfg.rt.lock_memory = false;
+        // Every input must answer within the rig's seconds: a minute of machining exercises
+        // the velocity plot's door and its bound.
+        cfg.api.velocity_plot_max_h = 1.0 / 60.0;
         // The grpc-web target relies on it: a request without a token must not move the
         // machine or write files.
         assert_eq!(cfg.api.loopback_role, Role::Observer);
@@ -67,4 +70,21 @@ fn remove_dead_rigs(scratch: &std::path::Path) {
             let _ = std::fs::remove_dir_all(e.path());
         }
     }
+}
+
+thread_local! {
+    static INLINE_BLOCKING: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// In fuzz builds, a target whose calls never block on the runtime (the upload target: its
+/// closures write files and validate) runs `api::blocking`'s work on its own thread: the
+/// hand-over to tokio's blocking pool and back, two thread wake-ups a call, was most of its
+/// time. The stable entry (`tests/tests/fuzz_entries.rs`) still runs the pool.
+#[cfg(fuzzing)]
+pub(crate) fn inline_blocking() -> bool {
+    INLINE_BLOCKING.with(|c| c.get())
+}
+
+pub(crate) fn set_inline_blocking(on: bool) {
+    INLINE_BLOCKING.with(|c| c.set(on));
 }

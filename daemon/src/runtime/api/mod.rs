@@ -27,6 +27,7 @@ mod trajectory;
 pub mod upload_fuzz;
 pub mod upload_session;
 mod validate_stream;
+pub mod velocity_plots;
 
 use std::sync::Arc;
 
@@ -96,6 +97,8 @@ pub struct ApiState {
     job: JobView,
     /// The inputs and outputs as the configuration names them (docs/io.md).
     pub io: io::IoCatalogue,
+    /// `GetPreview`'s velocity plots: one at a time, bounded in machining time.
+    pub velocity_plots: velocity_plots::VelocityPlots,
 }
 
 impl ApiState {
@@ -116,6 +119,7 @@ impl ApiState {
         ));
         let streams = StreamBudget::new(api.max_streams as usize, api.reserved_streams as usize);
         let io = io::IoCatalogue::of(ctl.config());
+        let api_plot_ticks = api.velocity_plot_max_ticks();
         let state = Arc::new(ApiState {
             ctl,
             library: Arc::new(library),
@@ -125,6 +129,7 @@ impl ApiState {
             jog: jog::JogSources::default(),
             job: JobView::new(),
             io,
+            velocity_plots: velocity_plots::VelocityPlots::new(api_plot_ticks),
         });
         alarms::spawn_watcher(state.ctl.clone(), state.alarms.clone());
         files_watch::spawn(state.ctl.clone(), state.alarms.clone());
@@ -535,6 +540,10 @@ fn text_or_selected(
 
 /// Runs blocking work off the async workers.
 async fn blocking<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> Result<T, Status> {
+    #[cfg(fuzzing)]
+    if fuzz_rig::inline_blocking() {
+        return Ok(f());
+    }
     tokio::task::spawn_blocking(f)
         .await
         .map_err(|e| Status::internal(e.to_string()))

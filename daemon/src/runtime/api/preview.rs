@@ -259,7 +259,15 @@ impl Preview for PreviewSvc {
         require(&req, Observer, "GetPreview")?;
         let r = req.into_inner();
         let st = self.0.clone();
-        let reply = blocking(move || render_preview(&st, &r)).await??;
+        let turn = match r.velocity {
+            true => Some(self.0.velocity_plots.turn().await?),
+            false => None,
+        };
+        let reply = blocking(move || {
+            let _turn = turn;
+            render_preview(&st, &r)
+        })
+        .await??;
         Ok(Response::new(reply))
     }
 }
@@ -292,7 +300,8 @@ pub fn render_preview(
         }
     };
     let setup = ctl.machine_setup_in(dialect).map_err(super::status_of)?;
-    let opts = preview_options(&setup, r)?;
+    let mut opts = preview_options(&setup, r)?;
+    opts.plot_max_ticks = st.velocity_plots.max_ticks();
     let png = r.format == pb::ImageFormat::Png as i32;
     if r.velocity {
         velocity_reply(source, &opts, png)

@@ -82,6 +82,7 @@ fn callers() -> [Caller; 2] {
 
 pub fn fuzz_entry(data: &[u8]) {
     let rig = rig();
+    super::fuzz_rig::set_inline_blocking(true);
     rig.rt.block_on(run(&rig.st, Input(data)));
 }
 

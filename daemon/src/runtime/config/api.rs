@@ -62,6 +62,10 @@ pub struct ApiConfig {
     /// Alarms kept for `StreamAlarms` history.
     #[serde(default = "default_alarm_history")]
     pub alarm_history: u32,
+    /// Machining time `GetPreview`'s velocity plot covers at most, hours (default 8, at most
+    /// 24): its work grows with that time, not with the text, and plots run one at a time.
+    #[serde(default = "default_velocity_plot_max_h")]
+    pub velocity_plot_max_h: f64,
 }
 
 /// Access roles, ordered: each includes the ones before it.
@@ -121,6 +125,9 @@ fn default_reserved_streams() -> u32 {
 fn default_alarm_history() -> u32 {
     256
 }
+fn default_velocity_plot_max_h() -> f64 {
+    8.0
+}
 
 impl Default for ApiConfig {
     fn default() -> Self {
@@ -138,6 +145,7 @@ impl Default for ApiConfig {
             max_streams: default_max_streams(),
             reserved_streams: default_reserved_streams(),
             alarm_history: default_alarm_history(),
+            velocity_plot_max_h: default_velocity_plot_max_h(),
         }
     }
 }
@@ -159,8 +167,22 @@ impl ApiConfig {
         }
     }
 
-    /// Checks listeners, TLS and tokens; the message names the key.
+    /// Ticks (4 ms) of [`ApiConfig::velocity_plot_max_h`].
+    pub fn velocity_plot_max_ticks(&self) -> u64 {
+        (self.velocity_plot_max_h * 3600.0 / kernel::TS_S)
+            .round()
+            .max(1.0) as u64
+    }
+
+    /// Checks listeners, TLS, tokens and the plot's bound; the message names the key.
     pub fn validate(&self) -> Result<(), InvalidConfig> {
+        let h = self.velocity_plot_max_h;
+        if !(h > 0.0 && h <= 24.0) {
+            return Err(InvalidConfig::BadValue {
+                key: "api.velocity_plot_max_h".into(),
+                detail: format!("{h} is not a number of hours in (0, 24]"),
+            });
+        }
         let remote = self
             .tcp_addresses()
             .into_iter()
