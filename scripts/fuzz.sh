@@ -3,8 +3,9 @@
 # and #50) for a number of runs each and prints a table: target, runs, seconds, executions per
 # second, result. A crash, a hang (-timeout) or a memory blow-up (-rss_limit_mb) fails the
 # target; libFuzzer leaves the input in fuzz/artifacts/<target>/.
-# Usage: scripts/fuzz.sh [RUNS] [TARGET...]   (RUNS default 10000000; the compensator gets a
-# fifth of it, as each of its inputs is a whole contour). Needs a nightly toolchain; installs
+# Usage: scripts/fuzz.sh [RUNS|SECONDSs] [TARGET...]   (RUNS default 10000000; the compensator
+# gets a fifth of it, as each of its inputs is a whole contour; `600s` runs each target for 600
+# seconds instead). Needs a nightly toolchain; installs
 # cargo-fuzz when missing. Corpora grow in fuzz/corpus/<target>/ (not committed); the seeds
 # committed in fuzz/seeds/<target>/ and kernel/tests/corpus/ start them.
 # Built without a sanitizer (-s none; the code is safe Rust) and with debug assertions (-a),
@@ -14,6 +15,11 @@ ROOT=$(cd "$(dirname "$0")/.." && pwd)
 cd "$ROOT/fuzz"
 RUNS=${1:-10000000}
 [ $# -gt 0 ] && shift
+# A time per target ("600s") or a number of runs.
+case $RUNS in
+*s) SECONDS_EACH=${RUNS%s} ;;
+*) SECONDS_EACH= ;;
+esac
 TARGETS=${*:-program offsets constants comp mtconnect config code_pages grpc_web upload}
 command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked
 FUZZ="cargo +nightly fuzz"
@@ -25,14 +31,19 @@ done
 printf '| target | runs | seconds | runs/s | result |\n|---|---|---|---|---|\n'
 status=0
 for t in $TARGETS; do
-    n=$RUNS
-    [ "$t" = comp ] && n=$((RUNS / 5))
+    if [ -n "$SECONDS_EACH" ]; then
+        limit="-max_total_time=$SECONDS_EACH"
+    else
+        n=$RUNS
+        [ "$t" = comp ] && n=$((RUNS / 5))
+        limit="-runs=$n"
+    fi
     mkdir -p "corpus/$t"
     dirs="corpus/$t"
     [ -d "seeds/$t" ] && dirs="$dirs seeds/$t"
     [ "$t" = program ] && dirs="$dirs $ROOT/kernel/tests/corpus"
     start=$(date +%s)
-    if $FUZZ run -O -a -s none "$t" $dirs -- -runs="$n" -timeout=10 -rss_limit_mb=2048 \
+    if $FUZZ run -O -a -s none "$t" $dirs -- "$limit" -timeout=10 -rss_limit_mb=2048 \
         -print_final_stats=1 >"$LOGS/$t.log" 2>&1; then
         result=ok
     else
