@@ -25,3 +25,18 @@ fn compensator_fuzz_entry_on_fixed_inputs() {
         kernel::comp::fuzz::fuzz_entry(&d);
     }
 }
+
+/// A cargo-fuzz finding: a closed polygon of arcs, tool radius 14.85 mm inside a concave arc
+/// of R 15.49 (N40). Its tool-centre arc, joined to N30's within the arc-end tolerance, runs
+/// 8 µm closer than the radius to N40 itself, and the gouge check did not measure a piece
+/// against its own element: the gouges of N30 and N50 were reported, N40's was not. The entry
+/// asserts that a gouge message names N40.
+#[test]
+fn a_tool_centre_arc_off_its_own_equidistant_is_named() {
+    let data = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/comp_fuzz_own_arc_gouge.bin"
+    ))
+    .unwrap();
+    kernel::comp::fuzz::fuzz_entry(&data);
+}

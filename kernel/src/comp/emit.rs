@@ -67,10 +67,8 @@ impl Compensator {
 
     fn put(&mut self, block: Block, role: Role, offset_mm: f64) {
         match role {
-            Role::Equidistant => self.gouge.tool(&block, true),
-            // A chord's equidistant is not at the radius from the programmed arc.
-            Role::EquidistantChord | Role::CornerArc | Role::Collapsed => {
-                self.gouge.tool(&block, false)
+            Role::Equidistant | Role::EquidistantChord | Role::CornerArc | Role::Collapsed => {
+                self.gouge.tool(&block)
             }
             _ => {}
         }

@@ -319,14 +319,13 @@ impl Source {
     }
 }
 
-/// A tool-centre piece. `own`: it lies on the equidistant of its own contour element, so it
-/// is at least the radius from that element (the offset of a line or circle) and that pair is
-/// not measured.
+/// A tool-centre piece. It is measured against its own contour element too: an arc's
+/// equidistant joined within the arc-end tolerance (`arc_end_tolerance_mm`) is a circle of
+/// another radius, up to that tolerance closer to its own element (a fuzz finding: 8 µm).
 #[derive(Clone, Copy, Debug)]
 struct Piece {
     shape: Shape,
     src: Source,
-    own: bool,
 }
 
 /// A gouge: the tool centre of `tool` comes `depth_mm` closer than the radius to `contour`.
@@ -377,9 +376,8 @@ impl Check {
         }
     }
 
-    /// A tool-centre motion on (or collapsed onto) the equidistant; `own`: on the
-    /// equidistant of its own source block (see [`Piece`]).
-    pub fn tool(&mut self, out: &Block, own: bool) {
+    /// A tool-centre motion on (or collapsed onto) the equidistant.
+    pub fn tool(&mut self, out: &Block) {
         if self.active
             && self.room(out)
             && let Some(shape) = Shape::of_block(out, self.plane)
@@ -387,7 +385,6 @@ impl Check {
             self.tool.push(Piece {
                 shape,
                 src: Source::of(out),
-                own,
             });
         }
     }
@@ -559,10 +556,7 @@ fn find(contour: &Chunked<(Shape, Source)>, tool: &Chunked<Piece>, min_mm: f64) 
                 if ea.x > b.x || ea.y > b.y || eb.x < a.x || eb.y < a.y {
                     continue;
                 }
-                let (other, osrc) = contour.get(i);
-                if piece.own && osrc.seq == src.seq {
-                    continue;
-                }
+                let (other, _) = contour.get(i);
                 let d = shape.dist(other);
                 if d < min_mm && worst.is_none_or(|(w, _)| d < w) {
                     worst = Some((d, i));
@@ -649,7 +643,6 @@ mod tests {
             .map(|k| Piece {
                 shape: seg(k as f64, 1.0, k as f64 + 1.0, 1.0),
                 src: src(200 + k),
-                own: false,
             })
             .collect();
         tool[70].shape = seg(70.0, 1.0, 70.5, 0.25);
