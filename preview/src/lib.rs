@@ -287,8 +287,8 @@ pub fn render_source(
     })
 }
 
-/// The note of a velocity plot stopped at its bound in block `(seq, n, line)`.
-fn plot_cut((_, n, line): (u32, Option<u32>, u32), max_ticks: u64) -> Diagnostic {
+/// The note of a velocity plot stopped at its bound in block `(n, line)`.
+fn plot_cut((n, line): (Option<u32>, u32), max_ticks: u64) -> Diagnostic {
     let hours = max_ticks as f64 * kernel::TS_S / 3600.0;
     Diagnostic::info(
         DiagCode::PreviewPlotCut,

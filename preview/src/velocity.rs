@@ -53,10 +53,10 @@ pub struct Recorder {
     done: bool,
     /// Ticks the plot runs at most ([`crate::PreviewOptions::plot_max_ticks`]).
     max_ticks: u64,
-    /// Where the plot stopped at `max_ticks`: the block (index, `N`, line) then running.
-    pub cut: Option<(u32, Option<u32>, u32)>,
-    /// The block of the last tick (index, `N`, line).
-    at: (u32, Option<u32>, u32),
+    /// Where the plot stopped at `max_ticks`: the block (`N`, line) then running.
+    pub cut: Option<(Option<u32>, u32)>,
+    /// The block of the last tick (`N`, line).
+    at: (Option<u32>, u32),
 }
 
 impl Recorder {
@@ -73,7 +73,7 @@ impl Recorder {
             done: false,
             max_ticks,
             cut: None,
-            at: (0, None, 0),
+            at: (None, 0),
         }
     }
 
@@ -92,7 +92,7 @@ impl Recorder {
         }
         let out = self.interp.tick();
         self.tick += 1;
-        self.at = (out.seq, out.n, out.line);
+        self.at = (out.n, out.line);
         let mut acc = [0.0; MAX_AXES];
         for (i, a) in acc.iter_mut().enumerate().take(self.axes) {
             *a = (out.position[i] - 2.0 * self.prev[1][i] + self.prev[0][i]) / (TS_S * TS_S);

@@ -126,7 +126,7 @@ fn default_alarm_history() -> u32 {
     256
 }
 fn default_velocity_plot_max_h() -> f64 {
-    8.0
+    ::preview::DEFAULT_PLOT_MAX_TICKS as f64 * kernel::TS_S / 3600.0
 }
 
 impl Default for ApiConfig {
