@@ -259,6 +259,22 @@ fn a_subroutine_may_follow_its_call() {
     );
 }
 
+/// Loops in loops are bounded by the lines they read again (`Setup::max_lines_again`), not
+/// only each by its iterations: three nested repeats of 1000 would read 10^9 lines.
+#[test]
+fn nested_loops_are_bounded_in_lines() {
+    let mut s = setup();
+    s.max_lines_again = 20_000;
+    let text = "o1 repeat [1000]\no2 repeat [1000]\no3 repeat [1000]\nG0 X1\n\
+                o3 endrepeat\no2 endrepeat\no1 endrepeat\nM2\n";
+    let (_, d) = moves(text, &s);
+    let e: Vec<_> = d.iter().filter(|d| d.is_error()).collect();
+    assert_eq!(e.len(), 1, "{e:?}");
+    assert_eq!(e[0].code, DiagCode::LoopLimit);
+    let (_, d) = moves(&text.replace("[1000]", "[10]"), &s);
+    assert!(!d.iter().any(|d| d.is_error()), "{d:?}");
+}
+
 #[test]
 fn flow_errors_have_codes() {
     refused(

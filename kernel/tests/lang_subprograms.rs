@@ -206,6 +206,31 @@ fn passes_are_bounded() {
     assert_eq!(d[0].code, DiagCode::LoopLimit);
 }
 
+/// Passes times the lines of each are bounded too (`Setup::max_lines_again`): a few lines of
+/// calls in calls (a fuzz finding: 253 bytes, 1,000,000 passes, 12 M lines checked) stop
+/// with one `loop_limit` once the program has read that many lines again.
+#[test]
+fn lines_read_again_are_bounded() {
+    let mut setup = mill();
+    setup.max_lines_again = 10_000;
+    let text = "L1 P9999\nM30\n%L1\nG91 G0 X1\nL2 P3\nM17\n%L2\nG0 X-1\nG0 Y1\nM17\n";
+    let d = validate(text, &setup);
+    assert_eq!(d.len(), 1, "{d:?}");
+    assert_eq!(d[0].code, DiagCode::LoopLimit);
+    assert!(d[0].message.contains("10000 lines again"), "{}", d[0].message);
+    // Within the bound, the same program runs.
+    let few = text.replace("P9999", "P100");
+    assert!(validate(&few, &setup).is_empty());
+    // Reading the whole source once more (the search for labels) is not counted.
+    let mut long = String::from("L1\n");
+    for k in 0..20_000 {
+        long.push_str(&format!("G0 X{}\n", k % 10));
+    }
+    long.push_str("M30\n%L1\nG0 Y1\nM17\n");
+    setup.max_lines_again = 10;
+    assert!(validate(&long, &setup).is_empty());
+}
+
 #[test]
 fn subprogram_errors_have_codes() {
     assert_eq!(

@@ -20,6 +20,7 @@ pub mod dry_run;
 pub mod encoding;
 pub mod feed;
 pub mod iso;
+pub mod lines_again;
 
 pub use cnc836::words;
 
@@ -110,6 +111,8 @@ pub struct Setup {
     /// Automatic tool changer: the tool of an M6 must fit in this many binary outputs
     /// (`None`: no limit).
     pub tool_number_bits: Option<u8>,
+    /// Lines a program may read again beyond its own length ([`lines_again`]).
+    pub max_lines_again: u64,
 }
 
 impl Setup {
@@ -131,6 +134,7 @@ impl Setup {
             max_feed_mm_min: 0.0,
             modal: None,
             soft_limits: crate::limits::SoftLimits::NONE,
+            max_lines_again: lines_again::MAX_LINES_AGAIN,
             block_delete: false,
             tool_number_bits: None,
         }
@@ -401,9 +405,10 @@ pub fn stream_lines<L: Lines>(lines: L, setup: &Setup) -> Stream<L> {
         interp,
         iso,
         flow: cnc836::flow::Flow::default(),
-        lines,
+        lines: lines_again::CountedLines::new(lines, setup.max_lines_again),
         line_no: 0,
         done: false,
+        spent_reported: false,
         block_delete: setup.block_delete,
         tool_number_bits: setup.tool_number_bits,
     }
@@ -417,10 +422,12 @@ pub struct Stream<L> {
     iso: Option<Box<iso::Interpreter>>,
     /// Subprogram calls and repeats of a CNC836 program.
     flow: cnc836::flow::Flow,
-    lines: L,
+    lines: lines_again::CountedLines<L>,
     line_no: u32,
     pending_setup_error: Option<Diagnostic>,
     done: bool,
+    /// The error of [`lines_again`] was given.
+    spent_reported: bool,
     /// The block-delete switch of the setup.
     block_delete: bool,
     /// See [`Setup::tool_number_bits`].
@@ -511,6 +518,27 @@ impl<L: Lines> Stream<L> {
         })
     }
 
+    /// The program read more lines again than [`lines_again::MAX_LINES_AGAIN`]: it ends with
+    /// one error, whatever the dialect made of the source seeming to end.
+    fn lines_spent(&mut self) -> Option<Result<Block, Diagnostic>> {
+        if self.done && self.spent_reported {
+            return None;
+        }
+        self.done = true;
+        self.spent_reported = true;
+        Some(Err(Diagnostic::error(
+            DiagCode::LoopLimit,
+            None,
+            self.line_no,
+            0,
+            format!(
+                "the program reads more than {} lines again (loops, repeats, calls): \
+                 checking stopped here",
+                self.lines.bound()
+            ),
+        )))
+    }
+
     fn next_cnc836(&mut self) -> Option<Result<Block, Diagnostic>> {
         let item = self.flow.next(
             &mut self.interp,
@@ -546,6 +574,9 @@ impl<L: Lines> Iterator for Stream<L> {
             }
             None => self.next_cnc836(),
         };
+        if self.lines.spent() {
+            return self.lines_spent();
+        }
         if let Some(Ok(b)) = &item
             && crate::block::ends_program(&b.m)
         {
