@@ -217,7 +217,11 @@ fn lines_read_again_are_bounded() {
     let d = validate(text, &setup);
     assert_eq!(d.len(), 1, "{d:?}");
     assert_eq!(d[0].code, DiagCode::LoopLimit);
-    assert!(d[0].message.contains("10000 lines again"), "{}", d[0].message);
+    assert!(
+        d[0].message.contains("10000 lines again"),
+        "{}",
+        d[0].message
+    );
     // Within the bound, the same program runs.
     let few = text.replace("P9999", "P100");
     assert!(validate(&few, &setup).is_empty());
