@@ -5,9 +5,11 @@
 # target; libFuzzer leaves the input in fuzz/artifacts/<target>/.
 # Usage: scripts/fuzz.sh [RUNS|SECONDSs] [TARGET...]   (RUNS default 10000000; the compensator
 # gets a fifth of it, as each of its inputs is a whole contour; `600s` runs each target for 600
-# seconds instead). Needs a nightly toolchain; installs
-# cargo-fuzz when missing. Corpora grow in fuzz/corpus/<target>/ (not committed); the seeds
-# committed in fuzz/seeds/<target>/ and kernel/tests/corpus/ start them.
+# seconds instead). Needs a nightly toolchain; installs cargo-fuzz when missing.
+# Corpora are committed in fuzz/corpus/<target>/ and grow there; with the seeds of
+# fuzz/seeds/<target>/ and kernel/tests/corpus/ they start each run.
+# `scripts/fuzz.sh merge [TARGET...]` minimizes the corpora in place (libFuzzer's -merge=1:
+# the fewest inputs with the same coverage), before they are committed.
 # Built without a sanitizer (-s none; the code is safe Rust) and with debug assertions (-a),
 # so overflow and the entries' own checks still fail a run.
 set -eu
@@ -15,14 +17,26 @@ ROOT=$(cd "$(dirname "$0")/.." && pwd)
 cd "$ROOT/fuzz"
 RUNS=${1:-10000000}
 [ $# -gt 0 ] && shift
+TARGETS=${*:-program offsets constants comp mtconnect config code_pages grpc_web upload}
+command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked
+FUZZ="cargo +nightly fuzz"
+if [ "$RUNS" = merge ]; then
+    mkdir -p "$ROOT/target"
+    for t in $TARGETS; do
+        [ -d "corpus/$t" ] || continue
+        rm -rf "corpus/$t.merged" && mkdir "corpus/$t.merged"
+        $FUZZ run -O -a -s none "$t" "corpus/$t.merged" "corpus/$t" -- -merge=1 \
+            >"$ROOT/target/fuzz-merge-$t.log" 2>&1
+        rm -rf "corpus/$t" && mv "corpus/$t.merged" "corpus/$t"
+        echo "$t: $(ls "corpus/$t" | wc -l) inputs"
+    done
+    exit 0
+fi
 # A time per target ("600s") or a number of runs.
 case $RUNS in
 *s) SECONDS_EACH=${RUNS%s} ;;
 *) SECONDS_EACH= ;;
 esac
-TARGETS=${*:-program offsets constants comp mtconnect config code_pages grpc_web upload}
-command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --locked
-FUZZ="cargo +nightly fuzz"
 LOGS="$ROOT/target/fuzz-logs"
 mkdir -p "$LOGS"
 for t in $TARGETS; do
