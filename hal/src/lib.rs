@@ -174,36 +174,57 @@ impl FaultReason {
     }
 }
 
+impl FaultReason {
+    /// The machinist's message of a fault that carries no value (a table, issue #22's
+    /// exception); `None` for the faults whose message shows their value.
+    fn fixed_text(&self) -> Option<&'static str> {
+        Some(match self {
+            FaultReason::FollowingError => {
+                "following error too large (axis blocked, too fast, or drive too weak)"
+            }
+            FaultReason::Timeout => {
+                "no feedback from the drive in time (drive off, cable, or drive not answering)"
+            }
+            FaultReason::HeartbeatLost => {
+                "drive heartbeat lost (drive switched off, reset, or cable disconnected)"
+            }
+            FaultReason::BusError => "bus error (interface down or not writable)",
+            FaultReason::BusOff => "CAN bus-off (check the wiring, termination and baud rate)",
+            FaultReason::ErrorFrames => {
+                "too many CAN error frames (check the wiring, termination and baud rate)"
+            }
+            FaultReason::NoBootUp => {
+                "drive did not start after reset (powered? node id set right?)"
+            }
+            FaultReason::LinkDown => "serial link lost (port closed or unplugged)",
+            FaultReason::CorruptFrames => {
+                "serial replies corrupt (check the cable, shielding and baud rate)"
+            }
+            FaultReason::HomingTimeout => {
+                "reference run did not end in time (home switch not reached, or the drive did not confirm the reference position; see homing_timeout_ms)"
+            }
+            FaultReason::HomingRefused => {
+                "drive refused the reference position of the reference run (home again)"
+            }
+            FaultReason::EmergencyStop { .. } => {
+                "emergency stop: the e-stop chain is open (release the button, then Reset)"
+            }
+            _ => return None,
+        })
+    }
+}
+
 impl fmt::Display for FaultReason {
-    // One arm per fault, each the machinist's message: a match over the variants that reads
-    // better whole than split (issue #22's exception for tables and matches).
+    // The faults with a value: one arm each, the machinist's message.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            FaultReason::DriveFault { code } => match canopen::emcy::describe(*code) {
+        if let Some(text) = self.fixed_text() {
+            return f.write_str(text);
+        }
+        match *self {
+            FaultReason::DriveFault { code } => match canopen::emcy::describe(code) {
                 Some(text) => write!(f, "drive fault: {text} (code {code:04X}h)"),
                 None => write!(f, "drive fault (code {code:04X}h, see the drive manual)"),
             },
-            FaultReason::FollowingError => write!(
-                f,
-                "following error too large (axis blocked, too fast, or drive too weak)"
-            ),
-            FaultReason::Timeout => write!(
-                f,
-                "no feedback from the drive in time (drive off, cable, or drive not answering)"
-            ),
-            FaultReason::HeartbeatLost => write!(
-                f,
-                "drive heartbeat lost (drive switched off, reset, or cable disconnected)"
-            ),
-            FaultReason::BusError => write!(f, "bus error (interface down or not writable)"),
-            FaultReason::BusOff => write!(
-                f,
-                "CAN bus-off (check the wiring, termination and baud rate)"
-            ),
-            FaultReason::ErrorFrames => write!(
-                f,
-                "too many CAN error frames (check the wiring, termination and baud rate)"
-            ),
             FaultReason::SdoTimeout { index, subindex } => write!(
                 f,
                 "drive did not answer its configuration (object {index:04X}h:{subindex})"
@@ -215,7 +236,7 @@ impl fmt::Display for FaultReason {
             } => write!(
                 f,
                 "drive refused its configuration (object {index:04X}h:{subindex}: {}, abort code {abort_code:08X}h)",
-                canopen::sdo::abort_text(*abort_code)
+                canopen::sdo::abort_text(abort_code)
             ),
             FaultReason::PdoLength {
                 cob_id,
@@ -224,10 +245,6 @@ impl fmt::Display for FaultReason {
             } => write!(
                 f,
                 "process data of wrong length (COB-ID {cob_id:03X}h: {len} bytes, the mapping gives {expected}; check the drive's PDO mapping)"
-            ),
-            FaultReason::NoBootUp => write!(
-                f,
-                "drive did not start after reset (powered? node id set right?)"
             ),
             FaultReason::EnableTimeout { statusword } => write!(
                 f,
@@ -240,48 +257,42 @@ impl fmt::Display for FaultReason {
             FaultReason::NmtStateChanged { state } => write!(
                 f,
                 "drive left operation ({}; it was restarted or stopped)",
-                canopen::nmt::state_name(*state)
-            ),
-            FaultReason::LinkDown => write!(f, "serial link lost (port closed or unplugged)"),
-            FaultReason::CorruptFrames => write!(
-                f,
-                "serial replies corrupt (check the cable, shielding and baud rate)"
+                canopen::nmt::state_name(state)
             ),
             FaultReason::HomingError { statusword } => write!(
                 f,
                 "reference run failed in the drive (statusword {statusword:04X}h: home switch not found, limit switch, or homing method not supported)"
             ),
-            FaultReason::HomingTimeout => write!(
-                f,
-                "reference run did not end in time (home switch not reached, or the drive did not confirm the reference position; see homing_timeout_ms)"
-            ),
-            FaultReason::HomingRefused => write!(
-                f,
-                "drive refused the reference position of the reference run (home again)"
-            ),
-            FaultReason::ProtocolVersion { drive, needed } if *needed >= 4 => write!(
-                f,
-                "drive unit speaks serial protocol version {drive}, digital I/O on the link \
-                 needs version {needed} (update the unit, or wire the I/O elsewhere)"
-            ),
-            FaultReason::ProtocolVersion { drive, needed } => write!(
-                f,
-                "drive unit speaks serial protocol version {drive}, homing needs version \
-                 {needed} (update the unit, or set homing = \"none\")"
-            ),
-            FaultReason::EmergencyStop { .. } => write!(
-                f,
-                "emergency stop: the e-stop chain is open (release the button, then Reset)"
-            ),
+            FaultReason::ProtocolVersion { drive, needed } => fmt_protocol(f, drive, needed),
             FaultReason::LimitSwitch { positive, .. } => write!(
                 f,
                 "hardware limit switch reached on the {} side (after Reset jog away from it)",
-                if *positive { "positive" } else { "negative" }
+                if positive { "positive" } else { "negative" }
             ),
             FaultReason::InputAlarm { input } => {
                 write!(f, "alarm input {input} active (see the machine's I/O list)")
             }
+            // Every fault without a value has its fixed text.
+            _ => Ok(()),
         }
+    }
+}
+
+/// The serial drive unit's protocol is older than a feature needs: version 3 for homing, 4
+/// for digital I/O on the link.
+fn fmt_protocol(f: &mut fmt::Formatter<'_>, drive: u8, needed: u8) -> fmt::Result {
+    if needed >= 4 {
+        write!(
+            f,
+            "drive unit speaks serial protocol version {drive}, digital I/O on the link \
+             needs version {needed} (update the unit, or wire the I/O elsewhere)"
+        )
+    } else {
+        write!(
+            f,
+            "drive unit speaks serial protocol version {drive}, homing needs version \
+             {needed} (update the unit, or set homing = \"none\")"
+        )
     }
 }
 
