@@ -408,7 +408,6 @@ pub fn stream_lines<L: Lines>(lines: L, setup: &Setup) -> Stream<L> {
         lines: lines_again::CountedLines::new(lines, setup.max_lines_again),
         line_no: 0,
         done: false,
-        spent_reported: false,
         block_delete: setup.block_delete,
         tool_number_bits: setup.tool_number_bits,
     }
@@ -426,8 +425,6 @@ pub struct Stream<L> {
     line_no: u32,
     pending_setup_error: Option<Diagnostic>,
     done: bool,
-    /// The error of [`lines_again`] was given.
-    spent_reported: bool,
     /// The block-delete switch of the setup.
     block_delete: bool,
     /// See [`Setup::tool_number_bits`].
@@ -521,11 +518,7 @@ impl<L: Lines> Stream<L> {
     /// The program read more lines again than [`lines_again::MAX_LINES_AGAIN`]: it ends with
     /// one error, whatever the dialect made of the source seeming to end.
     fn lines_spent(&mut self) -> Option<Result<Block, Diagnostic>> {
-        if self.done && self.spent_reported {
-            return None;
-        }
         self.done = true;
-        self.spent_reported = true;
         Some(Err(Diagnostic::error(
             DiagCode::LoopLimit,
             None,
