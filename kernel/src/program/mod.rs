@@ -515,8 +515,8 @@ impl<L: Lines> Stream<L> {
         })
     }
 
-    /// The program read more lines again than [`lines_again::MAX_LINES_AGAIN`]: it ends with
-    /// one error, whatever the dialect made of the source seeming to end.
+    /// The program read more lines again than its bound (`Setup::max_lines_again`): it ends
+    /// with one error, whatever the dialect made of the source seeming to end.
     fn lines_spent(&mut self) -> Option<Result<Block, Diagnostic>> {
         self.done = true;
         Some(Err(Diagnostic::error(
