@@ -39,7 +39,7 @@ pub trait Observer {
     /// A tool-centre block from the compensator, with the programmed block it comes from.
     fn compensated(&mut self, _c: &CompBlock) {}
     /// A planned segment, in order, with its final junction class.
-    fn segment(&mut self, s: Segment) -> Flow;
+    fn segment(&mut self, s: &Segment) -> Flow;
     /// An error, warning or information from any stage, in the order found.
     fn diagnostic(&mut self, _d: Diagnostic) -> Flow {
         Flow::Go
@@ -81,7 +81,7 @@ impl<A: Observer, B: Observer> Observer for (A, B) {
         self.0.compensated(c);
         self.1.compensated(c);
     }
-    fn segment(&mut self, s: Segment) -> Flow {
+    fn segment(&mut self, s: &Segment) -> Flow {
         let a = self.0.segment(s);
         let b = self.1.segment(s);
         both(a, b)
@@ -298,7 +298,7 @@ impl Pipeline {
                 continue;
             }
             self.probing |= s.probe.is_some();
-            if self.flow(obs.segment(s)) == Flow::Stop {
+            if self.flow(obs.segment(&s)) == Flow::Stop {
                 return Flow::Stop;
             }
         }
@@ -482,7 +482,7 @@ impl Validation {
 }
 
 impl Observer for Validation {
-    fn segment(&mut self, _s: Segment) -> Flow {
+    fn segment(&mut self, _s: &Segment) -> Flow {
         Flow::Go
     }
 
@@ -527,7 +527,7 @@ impl<O: Observer> Observer for Validating<'_, O> {
         self.inner.approach(leg);
     }
     /// The pass goes on whatever `inner` says: the verdict covers the whole program.
-    fn segment(&mut self, s: Segment) -> Flow {
+    fn segment(&mut self, s: &Segment) -> Flow {
         self.inner.segment(s);
         Flow::Go
     }
@@ -591,8 +591,8 @@ mod tests {
     }
 
     impl Observer for Count {
-        fn segment(&mut self, s: Segment) -> Flow {
-            self.segments.push(s);
+        fn segment(&mut self, s: &Segment) -> Flow {
+            self.segments.push(*s);
             match self.stop_after {
                 Some(n) if self.segments.len() >= n => Flow::Stop,
                 _ => Flow::Go,
@@ -653,8 +653,8 @@ mod tests {
         fn approach(&mut self, leg: &Block) {
             self.0.push(*leg);
         }
-        fn segment(&mut self, s: Segment) -> Flow {
-            self.1.push(s);
+        fn segment(&mut self, s: &Segment) -> Flow {
+            self.1.push(*s);
             Flow::Go
         }
     }

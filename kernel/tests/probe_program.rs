@@ -42,8 +42,8 @@ struct Machine {
 }
 
 impl Observer for Machine {
-    fn segment(&mut self, s: Segment) -> Flow {
-        self.segments.push(s);
+    fn segment(&mut self, s: &Segment) -> Flow {
+        self.segments.push(*s);
         Flow::Go
     }
     fn programmed(&mut self, b: &Block, _: &kernel::program::Modal) {

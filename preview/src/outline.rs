@@ -385,8 +385,8 @@ impl Observer for Outline {
     fn compensated(&mut self, c: &CompBlock) {
         Sink::compensated(self, c);
     }
-    fn segment(&mut self, s: Segment) -> Flow {
-        Sink::segment(self, &s);
+    fn segment(&mut self, s: &Segment) -> Flow {
+        Sink::segment(self, s);
         Flow::Go
     }
 }

@@ -52,9 +52,9 @@ impl<S: Sink> Observer for Feed<'_, S> {
             self.0.compensated(c);
         }
     }
-    fn segment(&mut self, s: Segment) -> Flow {
+    fn segment(&mut self, s: &Segment) -> Flow {
         if !self.0.done() {
-            self.0.segment(&s);
+            self.0.segment(s);
         }
         Flow::Go
     }
@@ -160,9 +160,9 @@ impl Observer for Recorder {
             self.push(Event::Compensated(*c));
         }
     }
-    fn segment(&mut self, s: Segment) -> Flow {
+    fn segment(&mut self, s: &Segment) -> Flow {
         if !self.overflow {
-            self.push(Event::Segment(s));
+            self.push(Event::Segment(*s));
         }
         Flow::Go
     }

@@ -94,7 +94,7 @@ impl Observer for Stages {
             self.compensated.push(c.block);
         }
     }
-    fn segment(&mut self, _: Segment) -> Flow {
+    fn segment(&mut self, _: &Segment) -> Flow {
         Flow::Go
     }
     fn diagnostic(&mut self, d: kernel::diag::Diagnostic) -> Flow {

@@ -67,8 +67,8 @@ impl<L: RunLink> Observer for Runner<'_, L> {
         lock(&self.spec.execution).record(job, b, modal);
     }
 
-    fn segment(&mut self, s: Segment) -> Flow {
-        if self.link.segment(s) {
+    fn segment(&mut self, s: &Segment) -> Flow {
+        if self.link.segment(*s) {
             Flow::Go
         } else {
             Flow::Stop

@@ -24,6 +24,7 @@ use kernel::Diagnostic;
 use kernel::program::Dialect;
 use sha2::{Digest, Sha256};
 
+use super::arrival::{Arrival, End};
 use super::storage::write_atomic;
 
 pub use super::program_text::{FileLines, PosReader, ProgramText};
@@ -196,6 +197,7 @@ impl Library {
                 .saturating_sub(self.used_bytes().saturating_sub(replaced)),
             max: self.max_bytes,
             hash: Sha256::new(),
+            arrival: Arrival::new(),
         })
     }
 
@@ -326,6 +328,8 @@ pub struct Upload {
     max: u64,
     /// SHA-256 of the bytes written so far.
     hash: Sha256,
+    /// What its readers may read of it ([`Upload::arrival`]).
+    arrival: Arc<Arrival>,
 }
 
 impl Upload {
@@ -344,7 +348,19 @@ impl Upload {
             .write_all(chunk)?;
         self.hash.update(chunk);
         self.written = would;
+        self.arrival.wrote(would);
         Ok(())
+    }
+
+    /// Every byte is written: a reader of the upload reads to its end and stops there.
+    pub fn complete(&self) {
+        self.arrival.end(End::Complete);
+    }
+
+    /// What has arrived of the upload, for reading it while it is written
+    /// ([`crate::runtime::arrival::ArrivingReader`] over [`Upload::reopen`]).
+    pub fn arrival(&self) -> Arc<Arrival> {
+        self.arrival.clone()
     }
 
     pub fn written(&self) -> u64 {
@@ -366,7 +382,9 @@ impl Upload {
 }
 
 impl Drop for Upload {
+    /// An upload dropped before it was complete is abandoned: its readers stop.
     fn drop(&mut self) {
+        self.arrival.end(End::Abandoned);
         if self.file.is_some() {
             let _ = fs::remove_file(&self.tmp);
         }

@@ -1,5 +1,6 @@
 //! Everything around the kernel that touches clocks, threads, sockets and files.
 pub mod api;
+pub mod arrival;
 pub mod buses;
 pub mod clock;
 pub mod config;

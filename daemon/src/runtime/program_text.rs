@@ -14,7 +14,7 @@ use kernel::program::{LineMark, Lines};
 use kernel::{DiagCode, Diagnostic};
 
 /// Read buffer of a program streamed from its file.
-const READ_BUFFER_BYTES: usize = 256 * 1024;
+pub(crate) const READ_BUFFER_BYTES: usize = 256 * 1024;
 
 /// The text of a program: in memory (MDI, small texts) or an open file (library programs).
 #[derive(Clone)]

@@ -40,8 +40,8 @@ pub(super) struct PlanInfo {
     /// The outputs of the same pass, read by the previews of the selected program (`None`:
     /// too large to keep).
     pub(super) pass: Option<Arc<::preview::pipeline::Recording>>,
-    /// The outline the same pass collected (`GetPreviewOutline`).
-    pub(super) outline: Arc<::preview::outline::Outline>,
+    /// The outline of the same pass (`GetPreviewOutline`), made beside the load.
+    pub(super) outline: Arc<super::preview_outline::SelectionOutline>,
 }
 
 /// The selection's pass and the started job, as the API saw them.

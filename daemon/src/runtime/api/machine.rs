@@ -61,7 +61,7 @@ pub(super) struct Junctions {
 }
 
 impl pipeline::Observer for Junctions {
-    fn segment(&mut self, s: Segment) -> Flow {
+    fn segment(&mut self, s: &Segment) -> Flow {
         let i = s.seq as usize;
         if i < JUNCTION_CLASSIFY_MAX_BLOCKS {
             if self.classes.len() <= i {

@@ -129,8 +129,8 @@ impl pipeline::Observer for Collect {
     fn compensated(&mut self, c: &CompBlock) {
         ::preview::pipeline::Sink::compensated(self, c);
     }
-    fn segment(&mut self, s: Segment) -> Flow {
-        ::preview::pipeline::Sink::segment(self, &s);
+    fn segment(&mut self, s: &Segment) -> Flow {
+        ::preview::pipeline::Sink::segment(self, s);
         Flow::Go
     }
 }

@@ -8,17 +8,23 @@
 //! runs: that pass would start from wherever the tool is). Passes run on a blocking thread
 //! like every validation pass (never the RT thread).
 
-use std::sync::{Arc, Mutex, Weak};
+use std::sync::{Arc, Condvar, Mutex, Weak};
 
 use proto::v1 as pb;
 use tonic::Status;
 
 use ::preview::collect::Bounds;
 use ::preview::outline::{Clip, Outline, Plane, Runs, START_CELL_MM, View};
-use kernel::pipeline::Options;
+use kernel::block::Block;
+use kernel::comp::CompBlock;
+use kernel::machine::MachineSetup;
+use kernel::pipeline::{Flow, Observer, Options};
+use kernel::plan::Segment;
+use kernel::program::Modal;
 
 use super::{ApiState, invalid_with_diagnostics};
 use crate::runtime::controller::{LoadedProgram, SetupStamp};
+use crate::runtime::library::ProgramText;
 use crate::runtime::rt::MachineState;
 
 /// Picture size when the request gives none.
@@ -57,11 +63,107 @@ pub(super) fn job_started(st: &ApiState, job: u32, pass: Option<Outline>) {
     *st.job.outlines.job.lock().unwrap() = Some(JobOutline { job, outline });
 }
 
-/// The outline the selection's pass collected, if `program` is the selection it belongs to.
-fn selection_outline(st: &ApiState, program: &Arc<LoadedProgram>) -> Option<Arc<Outline>> {
-    let info = st.job.plan_info.lock().unwrap();
-    let info = info.as_ref()?;
-    (info.program == Arc::as_ptr(program) as *const () as usize).then(|| info.outline.clone())
+/// The selection's outline, if `program` is the selection it belongs to: waits for its pass
+/// (`SelectionOutline`) when that has not ended yet.
+fn selection_outline(
+    st: &ApiState,
+    program: &Arc<LoadedProgram>,
+) -> Result<Option<Arc<Outline>>, Status> {
+    let slot = {
+        let info = st.job.plan_info.lock().unwrap();
+        match info.as_ref() {
+            Some(i) if i.program == Arc::as_ptr(program) as *const () as usize => i.outline.clone(),
+            _ => return Ok(None),
+        }
+    };
+    slot.wait().map(Some)
+}
+
+/// The outline of a selected program, from a pass of its own made beside the load with the
+/// setup the load validated with: the same pass, so the outline is the selection's, and a
+/// load does not wait for it (the outline of a million blocks takes about as long again as
+/// their validation, issue #49). A request for it waits until it is there.
+pub(super) struct SelectionOutline {
+    outline: Mutex<Option<Result<Arc<Outline>, String>>>,
+    done: Condvar,
+}
+
+impl SelectionOutline {
+    /// Starts the pass over `text` with `setup` on a thread of its own (at a lower priority
+    /// than the API's threads: a start right after the load comes first). The pass ends early
+    /// when the outline is no longer wanted (another program selected).
+    pub(super) fn start(text: ProgramText, setup: MachineSetup) -> Arc<SelectionOutline> {
+        let slot = Arc::new(SelectionOutline {
+            outline: Mutex::new(None),
+            done: Condvar::new(),
+        });
+        let wanted = Arc::downgrade(&slot);
+        let spawned = std::thread::Builder::new()
+            .name("cnc-outline".into())
+            .stack_size(crate::runtime::rt::THREAD_STACK_BYTES)
+            .spawn(move || {
+                crate::runtime::rt::lower_own_priority();
+                let mut o = Outline::new(&setup.program().axis_names);
+                let mut pass = WhileWanted {
+                    outline: &mut o,
+                    wanted: &wanted,
+                };
+                let sum = text.run(&setup, Options::default(), &mut pass);
+                o.freeze();
+                if let Some(slot) = wanted.upgrade() {
+                    slot.fill(match sum.errors {
+                        0 => Ok(Arc::new(o)),
+                        n => Err(format!(
+                            "the outline's pass found {n} errors the load did not"
+                        )),
+                    });
+                }
+            });
+        if let Err(e) = spawned {
+            slot.fill(Err(format!("no thread for the outline's pass: {e}")));
+        }
+        slot
+    }
+
+    fn fill(&self, outline: Result<Arc<Outline>, String>) {
+        *self.outline.lock().unwrap() = Some(outline);
+        self.done.notify_all();
+    }
+
+    /// The outline, once its pass has ended. Blocking.
+    fn wait(&self) -> Result<Arc<Outline>, Status> {
+        let mut g = self.outline.lock().unwrap();
+        loop {
+            match &*g {
+                Some(Ok(o)) => return Ok(o.clone()),
+                Some(Err(e)) => return Err(Status::internal(e.clone())),
+                None => g = self.done.wait(g).unwrap(),
+            }
+        }
+    }
+}
+
+/// The selection outline's pass, stopped once nobody wants the outline.
+struct WhileWanted<'a> {
+    outline: &'a mut Outline,
+    wanted: &'a Weak<SelectionOutline>,
+}
+
+impl Observer for WhileWanted<'_> {
+    fn programmed(&mut self, b: &Block, modal: &Modal) {
+        self.outline.programmed(b, modal);
+    }
+    fn compensated(&mut self, c: &CompBlock) {
+        self.outline.compensated(c);
+    }
+    fn segment(&mut self, s: &Segment) -> Flow {
+        self.outline.segment(s);
+        if self.wanted.strong_count() == 0 {
+            Flow::Stop
+        } else {
+            Flow::Go
+        }
+    }
 }
 
 /// The outline of what runs while the machine runs: the job's when the selected program was
@@ -76,12 +178,15 @@ fn running_outline(
         Some(j) if j.job == job => j.outline.clone(),
         _ => None,
     };
-    own.or_else(|| selection_outline(st, program))
-        .ok_or_else(|| {
-            Status::failed_precondition(
-                "the outline of the running job is not kept: ask again once it has ended",
-            )
-        })
+    let own = match own {
+        Some(o) => Some(o),
+        None => selection_outline(st, program)?,
+    };
+    own.ok_or_else(|| {
+        Status::failed_precondition(
+            "the outline of the running job is not kept: ask again once it has ended",
+        )
+    })
 }
 
 /// The selected program with the setup in force: its selection's pass while that is the next
@@ -92,7 +197,7 @@ fn idle_outline(
     program: &Arc<LoadedProgram>,
 ) -> Result<(Arc<Outline>, bool), Status> {
     if st.ctl.validated_as_now(program, &st.ctl.snapshot())
-        && let Some(o) = selection_outline(st, program)
+        && let Some(o) = selection_outline(st, program)?
     {
         return Ok((o, false));
     }

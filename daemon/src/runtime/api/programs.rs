@@ -11,18 +11,25 @@ use proto::v1::programs_server::Programs;
 use tokio_stream::{Stream, StreamExt};
 use tonic::{Request, Response, Status, Streaming};
 
+use std::io::BufReader;
+
 use kernel::block::Block;
+use kernel::machine::MachineSetup;
+use kernel::pipeline::{self, Options, Validation};
 use kernel::pipeline::{Flow, Observer};
 use kernel::plan::Segment;
 use kernel::program::{Dialect, Modal};
 
 use super::auth::require;
 use super::machine::Junctions;
+use super::preview_outline::SelectionOutline;
 use super::upload_session;
 use super::{ApiState, PlanInfo, blocking, counts_pb, diagnostic_to_pb, dialect_field, status_of};
+use crate::runtime::arrival::ArrivingReader;
 use crate::runtime::config::Role;
 use crate::runtime::controller::{ControlError, LoadedProgram};
-use crate::runtime::library::{Entry, LibraryError, ProgramText, Upload, Verdict};
+use crate::runtime::library::{Entry, FileLines, LibraryError, ProgramText, Upload, Verdict};
+use crate::runtime::program_text::READ_BUFFER_BYTES;
 
 /// Download chunk size, bytes.
 const CHUNK_BYTES: usize = 1 << 20;
@@ -108,7 +115,7 @@ impl<F: FnMut(u32)> Observer for Pass<F> {
         }
     }
 
-    fn segment(&mut self, s: Segment) -> Flow {
+    fn segment(&mut self, s: &Segment) -> Flow {
         self.junctions.segment(s)
     }
 }
@@ -123,37 +130,58 @@ fn prepare(
     dialect: Dialect,
     progress: impl FnMut(u32),
 ) -> Result<Prepared, ControlError> {
-    let pass = Pass {
-        junctions: Junctions::default(),
-        blocks: 0,
-        progress,
-    };
-    // The same pass records what the previews of the selected program read (instead of
-    // making a pass of their own).
-    let record = ::preview::pipeline::Recorder::new(super::preview::RECORD_MAX_BYTES);
-    // ... and the outline a screen draws a program of any size from (GetPreviewOutline).
-    let outline = ::preview::outline::Outline::new(&st.ctl.config().axis_names());
-    let mut obs = (pass, (record, outline));
-    let loaded = st.ctl.prepare_program(name, text, dialect, &mut obs)?;
-    let (pass, (record, mut outline)) = obs;
-    outline.freeze();
+    let read = text.clone();
+    prepare_by(st, name, text, dialect, progress, |setup, obs| {
+        read.validate_into(setup, Options::default(), obs)
+    })
+}
+
+/// As [`prepare`], the text read by `pass` (an upload as it arrives).
+fn prepare_by<F: FnMut(u32)>(
+    st: &ApiState,
+    name: &str,
+    text: ProgramText,
+    dialect: Dialect,
+    progress: F,
+    pass: impl FnOnce(&MachineSetup, &mut LoadObserver<F>) -> Validation,
+) -> Result<Prepared, ControlError> {
+    let mut obs = (
+        Pass {
+            junctions: Junctions::default(),
+            blocks: 0,
+            progress,
+        },
+        // The same pass records what the previews of the selected program read (instead of
+        // making a pass of their own; a large program's stops being recorded at the budget).
+        ::preview::pipeline::Recorder::new(super::preview::RECORD_MAX_BYTES),
+    );
+    let (loaded, setup) = st
+        .ctl
+        .prepare_program_by(name, text, dialect, |setup| pass(setup, &mut obs))?;
+    let (pass, record) = obs;
     let recording = record
         .finish(loaded.block_count, loaded.warnings.clone())
         .map(Arc::new);
+    // The outline a screen draws a program of any size from (GetPreviewOutline): the same
+    // pass again with the same setup, beside what follows the load.
+    let outline = SelectionOutline::start(loaded.text.clone(), setup);
     Ok(Prepared {
         loaded,
         junctions: pass.junctions.classes,
         recording,
-        outline: Arc::new(outline),
+        outline,
     })
 }
+
+/// What a load's pass feeds: the junction classes and progress, and the previews' recording.
+type LoadObserver<F> = (Pass<F>, ::preview::pipeline::Recorder);
 
 /// A program validated by one pass, with what that pass left for status and the previews.
 pub struct Prepared {
     loaded: Arc<LoadedProgram>,
     junctions: Vec<pb::JunctionClass>,
     recording: Option<Arc<::preview::pipeline::Recording>>,
-    outline: Arc<::preview::outline::Outline>,
+    outline: Arc<SelectionOutline>,
 }
 
 /// An upload validated and not yet stored.
@@ -186,6 +214,64 @@ pub fn validate_upload(
         prepared,
         chosen,
     })
+}
+
+/// An upload being received and validated as it arrives (`runtime::arrival`): the
+/// validation reads the temporary file as the chunks are written and ends soon after the last.
+pub struct Receiving {
+    pub up: Upload,
+    name: UploadName,
+    verdict: tokio::sync::oneshot::Receiver<Result<Prepared, ControlError>>,
+}
+
+#[cfg(test)]
+impl Receiving {
+    /// An upload whose validation never comes (tests of what holds it).
+    pub fn without_validation(up: Upload) -> Receiving {
+        let (_, verdict) = tokio::sync::oneshot::channel();
+        Receiving {
+            up,
+            name: (String::new(), None),
+            verdict,
+        }
+    }
+}
+
+/// Starts receiving `up` (`name` and the dialect chosen): its validation runs on a thread of
+/// its own, waiting for the bytes as they come (a thread of the blocking pool would be held
+/// for the whole upload). `progress` sees the blocks validated so far.
+pub fn receiving(
+    st: &Arc<ApiState>,
+    name: UploadName,
+    up: Upload,
+    progress: impl FnMut(u32) + Send + 'static,
+) -> Result<Receiving, Status> {
+    // The temporary file is renamed into place by the commit: this handle stays the program.
+    let file = Arc::new(up.reopen().map_err(|e| Status::internal(e.to_string()))?);
+    let reader = ArrivingReader::new(file.clone(), up.arrival());
+    let dialect = st.ctl.dialect_of(&name.0, name.1);
+    let (tx, verdict) = tokio::sync::oneshot::channel();
+    let (s, n) = (st.clone(), name.0.clone());
+    std::thread::Builder::new()
+        .name("cnc-upload".into())
+        .stack_size(crate::runtime::rt::THREAD_STACK_BYTES)
+        .spawn(move || {
+            let r = prepare_by(
+                &s,
+                &n,
+                ProgramText::File(file),
+                dialect,
+                progress,
+                |setup, obs| {
+                    let buffered = BufReader::with_capacity(READ_BUFFER_BYTES, reader);
+                    let lines = FileLines::new(buffered).with_encoding(setup.program().encoding);
+                    pipeline::validate_lines_into(lines, setup, Options::default(), obs)
+                },
+            );
+            let _ = tx.send(r);
+        })
+        .map_err(|e| Status::internal(format!("no thread for the upload's validation: {e}")))?;
+    Ok(Receiving { up, name, verdict })
 }
 
 /// Stores a validated upload and selects it when asked. No await point: callers run it after
@@ -233,23 +319,31 @@ pub fn commit_upload(st: &ApiState, v: Validated, select: bool) -> Result<pb::Up
 /// An upload's name and the dialect its first message chose (`None`: by the name).
 pub type UploadName = (String, Option<Dialect>);
 
-/// The end of every chunked upload (the streaming `Upload` and `UploadFinish`): validates the
-/// received file on a blocking thread (`progress` sees the blocks validated), then stores and
-/// selects it unless the client went away meanwhile (`cancelled`).
+/// The end of every chunked upload (the streaming `Upload` and `UploadFinish`): every byte
+/// has arrived, so its validation reads to the end; then it is stored and selected unless the
+/// client went away meanwhile (`cancelled`).
 pub async fn finish_upload(
     st: &Arc<ApiState>,
-    (name, chosen): UploadName,
-    up: Upload,
+    r: Receiving,
     select: bool,
-    progress: impl FnMut(u32) + Send + 'static,
     cancelled: impl FnOnce() -> bool,
 ) -> Result<pb::UploadDone, Status> {
-    let s = st.clone();
-    let v = blocking(move || validate_upload(&s, &name, up, chosen, progress)).await??;
+    let Receiving { up, name, verdict } = r;
+    up.complete();
+    let prepared = verdict
+        .await
+        .map_err(|_| Status::internal("the upload's validation ended without a verdict"))?
+        .map_err(status_of)?;
     // The client left while it validated: nothing is stored or selected.
     if cancelled() {
         return Err(Status::cancelled("the client ended the upload"));
     }
+    let v = Validated {
+        name: name.0,
+        up,
+        prepared,
+        chosen: name.1,
+    };
     commit_upload(st, v, select)
 }
 
@@ -332,31 +426,45 @@ pub fn restore_selection(st: &ApiState) {
     }
 }
 
-/// Receives an upload into its temporary file, sending progress; returns the upload.
+/// Receives an upload into its temporary file, validating it as it arrives (progress of both
+/// is sent); returns the upload once its last chunk is written.
 async fn receive(
     st: &Arc<ApiState>,
     mut input: Streaming<pb::ProgramChunk>,
     first: pb::ProgramChunk,
+    name: UploadName,
     tx: &tokio::sync::mpsc::Sender<Result<pb::UploadProgress, Status>>,
-) -> Result<Upload, Status> {
+) -> Result<Receiving, Status> {
     let lib = st.library.clone();
-    let name = first.name.clone();
-    let mut up = blocking(move || lib.begin_upload(&name))
+    let file_name = first.name.clone();
+    let up = blocking(move || lib.begin_upload(&file_name))
         .await?
         .map_err(library_status)?;
+    let (t, arrival) = (tx.clone(), up.arrival());
+    // Progress is news, not a promise: a client that reads slowly misses some rather than
+    // holding the validation up.
+    let progress = move |n| {
+        let _ = t.try_send(Ok(pb::UploadProgress {
+            bytes_stored: arrival.bytes(),
+            blocks_validated: n,
+            done: None,
+        }));
+    };
+    let mut r = receiving(st, name, up, progress)?;
     let mut chunk = first.data;
     let mut last_report = 0u64;
     loop {
         if !chunk.is_empty() {
             let data = std::mem::take(&mut chunk);
-            up = blocking(move || up.write(&data).map(|()| up))
+            r = blocking(move || r.up.write(&data).map(|()| r))
                 .await?
                 .map_err(library_status)?;
-            if up.written() - last_report >= 8 << 20 {
-                last_report = up.written();
+            let written = r.up.written();
+            if written - last_report >= 8 << 20 {
+                last_report = written;
                 let _ = tx
                     .send(Ok(pb::UploadProgress {
-                        bytes_stored: up.written(),
+                        bytes_stored: written,
                         ..Default::default()
                     }))
                     .await;
@@ -364,7 +472,7 @@ async fn receive(
         }
         match input.next().await {
             Some(m) => chunk = m?.data,
-            None => return Ok(up),
+            None => return Ok(r),
         }
     }
 }
@@ -389,23 +497,15 @@ impl Programs for ProgramsSvc {
         let st = self.0.clone();
         tokio::spawn(async move {
             let (name, select) = ((first.name.clone(), chosen), first.select);
-            let up = match receive(&st, input, first, &tx).await {
-                Ok(up) => up,
+            let r = match receive(&st, input, first, name, &tx).await {
+                Ok(r) => r,
                 Err(e) => {
                     let _ = tx.send(Err(e)).await;
                     return;
                 }
             };
-            let bytes = up.written();
-            let t = tx.clone();
-            let progress = move |n| {
-                let _ = t.blocking_send(Ok(pb::UploadProgress {
-                    bytes_stored: bytes,
-                    blocks_validated: n,
-                    done: None,
-                }));
-            };
-            let r = finish_upload(&st, name, up, select, progress, || tx.is_closed()).await;
+            let bytes = r.up.written();
+            let r = finish_upload(&st, r, select, || tx.is_closed()).await;
             let _ = tx
                 .send(r.map(|done| pb::UploadProgress {
                     bytes_stored: bytes,

@@ -167,8 +167,8 @@ impl<F: FnMut(Result<pb::TrajectoryChunk, Status>) -> bool> Ticker<F> {
 }
 
 impl<F: FnMut(Result<pb::TrajectoryChunk, Status>) -> bool> pipeline::Observer for Ticker<F> {
-    fn segment(&mut self, s: Segment) -> Flow {
-        let mut seg = s;
+    fn segment(&mut self, s: &Segment) -> Flow {
+        let mut seg = *s;
         loop {
             match self.ip.push(seg) {
                 Ok(()) => return Flow::Go,

@@ -16,9 +16,8 @@ use proto::v1 as pb;
 use tonic::Status;
 
 use super::auth::Caller;
-use super::programs::{UploadName, check_name, library_status};
+use super::programs::{Receiving, UploadName, check_name, library_status, receiving};
 use super::{ApiState, blocking};
-use crate::runtime::library::Upload;
 
 /// Open sessions at most (a screen uploads one program at a time; a few spare for retries).
 pub const MAX_SESSIONS: usize = 8;
@@ -37,7 +36,7 @@ struct Session {
     owner: String,
     last_used: Instant,
     /// `None` while a part is being written on a blocking thread.
-    up: Option<Upload>,
+    up: Option<Receiving>,
 }
 
 /// The open sessions by id.
@@ -96,7 +95,7 @@ impl UploadSessions {
         id: &str,
         caller: &Caller,
         remove: bool,
-    ) -> Result<(Upload, UploadName, bool), Status> {
+    ) -> Result<(Receiving, UploadName, bool), Status> {
         let mut open = self.open.lock().unwrap();
         let s = match open.get_mut(id) {
             Some(s) if s.owner == caller.who => s,
@@ -123,7 +122,7 @@ impl UploadSessions {
     }
 
     /// Puts the upload back after a part was written.
-    fn put_back(&self, id: &str, up: Upload) {
+    fn put_back(&self, id: &str, up: Receiving) {
         if let Some(s) = self.open.lock().unwrap().get_mut(id) {
             s.up = Some(up);
             s.last_used = Instant::now();
@@ -183,6 +182,8 @@ pub async fn begin(
     })
     .await?
     .map_err(library_status)?;
+    // Validated as its parts arrive (`programs::receiving`).
+    let up = receiving(st, (first.name.clone(), dialect), up, |_| {})?;
     let id = st.uploads.insert(Session {
         name: first.name,
         dialect,
@@ -201,8 +202,8 @@ pub async fn part(
     r: pb::UploadPartRequest,
 ) -> Result<pb::UploadProgress, Status> {
     let (mut up, _, _) = st.uploads.take(&r.id, caller, false)?;
-    if r.offset != up.written() {
-        let have = up.written();
+    if r.offset != up.up.written() {
+        let have = up.up.written();
         st.uploads.put_back(&r.id, up);
         return Err(Status::failed_precondition(format!(
             "upload part at offset {} but {have} bytes were received: send the part at {have}",
@@ -210,10 +211,10 @@ pub async fn part(
         )));
     }
     let data = r.data;
-    let written = blocking(move || up.write(&data).map(|()| up)).await?;
+    let written = blocking(move || up.up.write(&data).map(|()| up)).await?;
     match written {
         Ok(up) => {
-            let bytes_stored = up.written();
+            let bytes_stored = up.up.written();
             st.uploads.put_back(&r.id, up);
             Ok(pb::UploadProgress {
                 bytes_stored,
@@ -234,8 +235,8 @@ pub async fn finish(
     caller: &Caller,
     id: &str,
 ) -> Result<pb::UploadDone, Status> {
-    let (up, name, select) = st.uploads.take(id, caller, true)?;
-    super::programs::finish_upload(st, name, up, select, |_| {}, || false).await
+    let (up, _, select) = st.uploads.take(id, caller, true)?;
+    super::programs::finish_upload(st, up, select, || false).await
 }
 
 #[cfg(test)]
@@ -260,7 +261,9 @@ mod tests {
             last_used: t0,
             up: Some(up),
         };
-        sessions.insert(session(up)).unwrap();
+        sessions
+            .insert(session(Receiving::without_validation(up)))
+            .unwrap();
         let temporary = || {
             std::fs::read_dir(&dir)
                 .unwrap()

@@ -67,7 +67,7 @@ impl Reposition for BufReader<ChunkReader> {
 struct Nothing;
 
 impl pipeline::Observer for Nothing {
-    fn segment(&mut self, _s: Segment) -> Flow {
+    fn segment(&mut self, _s: &Segment) -> Flow {
         Flow::Go
     }
 }

@@ -306,16 +306,33 @@ impl Controller {
     }
 
     /// Validates `text` in `dialect` (see [`Controller::validate_program_with`]) into a
-    /// program that may be selected; `obs` sees the pass. Errors: the program's diagnostics.
+    /// program that may be selected, with the setup it was validated with (a later pass that
+    /// must be the same pass takes it); `obs` sees the pass. Errors: the program's
+    /// diagnostics.
     pub fn prepare_program(
         &self,
         name: &str,
         text: ProgramText,
         dialect: Dialect,
         obs: &mut impl Observer,
-    ) -> Result<Arc<LoadedProgram>, ControlError> {
+    ) -> Result<(Arc<LoadedProgram>, MachineSetup), ControlError> {
+        let read = text.clone();
+        self.prepare_program_by(name, text, dialect, |setup| {
+            read.validate_into(setup, Options::default(), obs)
+        })
+    }
+
+    /// As [`Controller::prepare_program`], the text read by `pass` (an upload validated as it
+    /// arrives reads it as it is written).
+    pub fn prepare_program_by(
+        &self,
+        name: &str,
+        text: ProgramText,
+        dialect: Dialect,
+        pass: impl FnOnce(&MachineSetup) -> Validation,
+    ) -> Result<(Arc<LoadedProgram>, MachineSetup), ControlError> {
         let selection = self.jobs.selection();
-        selection.prepare_program(&self.rt, &self.tables, name, text, dialect, obs)
+        selection.prepare_program(&self.rt, &self.tables, name, text, dialect, pass)
     }
 
     /// Makes a validated program the selected one. Refused while a program runs.
@@ -329,7 +346,7 @@ impl Controller {
     pub fn load_program(&self, name: &str, text: &str) -> Result<Arc<LoadedProgram>, ControlError> {
         let text = ProgramText::Memory(Arc::from(text));
         let dialect = self.dialect_of(name, None);
-        let loaded = self.prepare_program(name, text, dialect, &mut NoObserver)?;
+        let (loaded, _) = self.prepare_program(name, text, dialect, &mut NoObserver)?;
         self.select(loaded.clone())?;
         Ok(loaded)
     }

@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 use kernel::Diagnostic;
 use kernel::block::Block;
 use kernel::machine::MachineSetup;
-use kernel::pipeline::{self, Observer, Options, Validation};
+use kernel::pipeline::{self, Observer, Validation};
 use kernel::program::Dialect;
 use kernel::units::AxesMm;
 
@@ -160,8 +160,9 @@ impl Selection {
         Ok((v, setup, generation))
     }
 
-    /// Validates `text` (in memory or a stored program's file) in `dialect` into a program
-    /// that may be selected; `obs` sees the pass. Errors: the program's diagnostics.
+    /// Validates `text` (in memory or a stored program's file) in `dialect` by `pass` (which
+    /// reads it) into a program that may be selected, with the setup it was validated with.
+    /// Errors: the program's diagnostics.
     pub(super) fn prepare_program(
         &self,
         rt: &RtLink,
@@ -169,15 +170,13 @@ impl Selection {
         name: &str,
         text: ProgramText,
         dialect: Dialect,
-        obs: &mut impl Observer,
-    ) -> Result<Arc<LoadedProgram>, ControlError> {
-        let (v, setup, generation) = self.validate_by(rt, tables, None, dialect, |setup| {
-            text.validate_into(setup, Options::default(), obs)
-        })?;
+        pass: impl FnOnce(&MachineSetup) -> Validation,
+    ) -> Result<(Arc<LoadedProgram>, MachineSetup), ControlError> {
+        let (v, setup, generation) = self.validate_by(rt, tables, None, dialect, pass)?;
         if v.has_errors() {
             return Err(ControlError::InvalidProgram(v.diagnostics));
         }
-        Ok(Arc::new(LoadedProgram {
+        let loaded = Arc::new(LoadedProgram {
             name: name.to_owned(),
             text,
             dialect,
@@ -186,7 +185,8 @@ impl Selection {
             start: setup.program().start,
             generation,
             run_start: Mutex::new(None),
-        }))
+        });
+        Ok((loaded, setup))
     }
 }
 
@@ -194,7 +194,7 @@ impl Selection {
 pub(super) struct NoObserver;
 
 impl Observer for NoObserver {
-    fn segment(&mut self, _s: kernel::plan::Segment) -> pipeline::Flow {
+    fn segment(&mut self, _s: &kernel::plan::Segment) -> pipeline::Flow {
         pipeline::Flow::Go
     }
 }
@@ -207,7 +207,7 @@ impl Observer for Blocks {
     fn programmed(&mut self, b: &Block, _modal: &kernel::program::Modal) {
         self.0.push(*b);
     }
-    fn segment(&mut self, _s: kernel::plan::Segment) -> pipeline::Flow {
+    fn segment(&mut self, _s: &kernel::plan::Segment) -> pipeline::Flow {
         pipeline::Flow::Go
     }
 }
@@ -220,7 +220,7 @@ impl Observer for ApproachLegs {
     fn approach(&mut self, leg: &Block) {
         self.0.push(*leg);
     }
-    fn segment(&mut self, _s: kernel::plan::Segment) -> pipeline::Flow {
+    fn segment(&mut self, _s: &kernel::plan::Segment) -> pipeline::Flow {
         pipeline::Flow::Go
     }
 }
