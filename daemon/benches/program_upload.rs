@@ -23,6 +23,7 @@ use std::time::{Duration, Instant};
 
 use proto::v1 as pb;
 use proto::v1::machine_client::MachineClient;
+use proto::v1::preview_client::PreviewClient;
 use proto::v1::programs_client::ProgramsClient;
 use tonic::transport::Channel;
 
@@ -175,6 +176,7 @@ async fn bench(blocks: u64) {
     tokio::time::sleep(Duration::from_secs(2)).await;
     let rss_idle = status_kib(pid, "VmRSS:");
     let mut g = ProgramsClient::new(ch.clone());
+    let mut preview = PreviewClient::new(ch.clone());
     let mut m = MachineClient::new(ch);
 
     let (t0, cpu0) = (Instant::now(), cpu_s(pid));
@@ -227,6 +229,17 @@ async fn bench(blocks: u64) {
     let stored = t0.elapsed();
     let cpu_load = cpu_s(pid) - cpu0;
     let (rss_loaded, hwm_loaded) = (status_kib(pid, "VmRSS:"), status_kib(pid, "VmHWM:"));
+    // A screen asks for the selection's outline at once (made beside the load, it answers
+    // when its pass has ended), while the operator starts the program.
+    let outline = tokio::spawn(async move {
+        let r = preview
+            .get_preview_outline(pb::PreviewOutlineRequest::default())
+            .await
+            .expect("outline")
+            .into_inner();
+        assert_eq!(u64::from(r.blocks), blocks);
+        t0.elapsed()
+    });
     sender.await.unwrap();
     let upload = uploaded_at.unwrap_or(stored);
     let prog = done.program.expect("program");
@@ -249,6 +262,7 @@ async fn bench(blocks: u64) {
     }
     drop(status);
     let moving = t0.elapsed();
+    let outline = outline.await.unwrap();
     // Let it run a little: the run streams from the file.
     tokio::time::sleep(Duration::from_secs(2)).await;
     let rss_run = status_kib(pid, "VmRSS:");
@@ -275,6 +289,10 @@ async fn bench(blocks: u64) {
         "start → axes moving:                   {:>7.3} s (total {:.2} s)",
         (moving - stored).as_secs_f64(),
         moving.as_secs_f64()
+    );
+    println!(
+        "outline for the screen (asked at the load): {:>5.2} s (total)",
+        outline.as_secs_f64()
     );
     println!(
         "cncd RSS: {:.1} MB idle, {:.1} MB after the load (peak {:.1} MB), {:.1} MB while \

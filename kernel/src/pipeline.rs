@@ -14,6 +14,8 @@
 //! stage's state is unchanged), so one pass finds every error; an observer that runs the
 //! program answers [`Flow::Stop`] to the first error.
 
+pub mod split;
+
 use crate::block::{Block, BlockKind, Continuity};
 use crate::comp::{CompBlock, Compensator};
 use crate::diag::{DiagCode, DiagCounts, Diagnostic};

@@ -25,6 +25,7 @@ pub mod resample;
 pub mod rt;
 pub mod rt_core;
 pub mod server;
+pub mod split_pass;
 pub mod stats;
 pub mod storage;
 pub mod systemd;

@@ -10,7 +10,9 @@ use std::sync::Arc;
 use kernel::machine::MachineSetup;
 use kernel::pipeline::{self, Observer, Options, Summary, Validation};
 use kernel::program::encoding::TextEncoding;
-use kernel::program::{LineMark, Lines};
+use kernel::program::{LineMark, Lines, StrLines};
+
+use super::split_pass::{self, SPLIT_MIN_BYTES};
 use kernel::{DiagCode, Diagnostic};
 
 /// Read buffer of a program streamed from its file.
@@ -46,11 +48,20 @@ impl ProgramText {
         opts: Options,
         inner: &mut impl Observer,
     ) -> Validation {
+        // A large text: the interpreter on a thread of its own (`split_pass`).
+        let split = self.len() >= SPLIT_MIN_BYTES;
         match self {
+            ProgramText::Memory(t) if split => {
+                split_pass::validate_lines(StrLines::new(t), setup, opts, inner)
+            }
             ProgramText::Memory(t) => pipeline::validate_into(t, setup, opts, inner),
             ProgramText::File(f) => {
                 let lines = FileLines::open(f).with_encoding(setup.program().encoding);
-                pipeline::validate_lines_into(lines, setup, opts, inner)
+                if split {
+                    split_pass::validate_lines(lines, setup, opts, inner)
+                } else {
+                    pipeline::validate_lines_into(lines, setup, opts, inner)
+                }
             }
         }
     }

@@ -20,6 +20,7 @@ pub mod preview;
 mod preview_outline;
 mod probe;
 mod programs;
+mod receiving;
 mod stream_budget;
 mod tables;
 mod touch_off;

@@ -11,25 +11,22 @@ use proto::v1::programs_server::Programs;
 use tokio_stream::{Stream, StreamExt};
 use tonic::{Request, Response, Status, Streaming};
 
-use std::io::BufReader;
-
 use kernel::block::Block;
 use kernel::machine::MachineSetup;
-use kernel::pipeline::{self, Options, Validation};
 use kernel::pipeline::{Flow, Observer};
+use kernel::pipeline::{Options, Validation};
 use kernel::plan::Segment;
 use kernel::program::{Dialect, Modal};
 
 use super::auth::require;
 use super::machine::Junctions;
 use super::preview_outline::SelectionOutline;
+use super::receiving::{Receiving, receiving};
 use super::upload_session;
 use super::{ApiState, PlanInfo, blocking, counts_pb, diagnostic_to_pb, dialect_field, status_of};
-use crate::runtime::arrival::ArrivingReader;
 use crate::runtime::config::Role;
 use crate::runtime::controller::{ControlError, LoadedProgram};
-use crate::runtime::library::{Entry, FileLines, LibraryError, ProgramText, Upload, Verdict};
-use crate::runtime::program_text::READ_BUFFER_BYTES;
+use crate::runtime::library::{Entry, LibraryError, ProgramText, Upload, Verdict};
 
 /// Download chunk size, bytes.
 const CHUNK_BYTES: usize = 1 << 20;
@@ -101,7 +98,7 @@ fn refuse_if_selected(st: &ApiState, name: &str, what: &str) -> Result<(), Statu
 
 /// What an upload's or a selection's validation pass keeps: the junction classes for status
 /// and a progress count of the blocks.
-struct Pass<F> {
+pub(super) struct Pass<F> {
     junctions: Junctions,
     blocks: u32,
     progress: F,
@@ -137,7 +134,7 @@ fn prepare(
 }
 
 /// As [`prepare`], the text read by `pass` (an upload as it arrives).
-fn prepare_by<F: FnMut(u32)>(
+pub(super) fn prepare_by<F: FnMut(u32)>(
     st: &ApiState,
     name: &str,
     text: ProgramText,
@@ -174,7 +171,7 @@ fn prepare_by<F: FnMut(u32)>(
 }
 
 /// What a load's pass feeds: the junction classes and progress, and the previews' recording.
-type LoadObserver<F> = (Pass<F>, ::preview::pipeline::Recorder);
+pub(super) type LoadObserver<F> = (Pass<F>, ::preview::pipeline::Recorder);
 
 /// A program validated by one pass, with what that pass left for status and the previews.
 pub struct Prepared {
@@ -214,64 +211,6 @@ pub fn validate_upload(
         prepared,
         chosen,
     })
-}
-
-/// An upload being received and validated as it arrives (`runtime::arrival`): the
-/// validation reads the temporary file as the chunks are written and ends soon after the last.
-pub struct Receiving {
-    pub up: Upload,
-    name: UploadName,
-    verdict: tokio::sync::oneshot::Receiver<Result<Prepared, ControlError>>,
-}
-
-#[cfg(test)]
-impl Receiving {
-    /// An upload whose validation never comes (tests of what holds it).
-    pub fn without_validation(up: Upload) -> Receiving {
-        let (_, verdict) = tokio::sync::oneshot::channel();
-        Receiving {
-            up,
-            name: (String::new(), None),
-            verdict,
-        }
-    }
-}
-
-/// Starts receiving `up` (`name` and the dialect chosen): its validation runs on a thread of
-/// its own, waiting for the bytes as they come (a thread of the blocking pool would be held
-/// for the whole upload). `progress` sees the blocks validated so far.
-pub fn receiving(
-    st: &Arc<ApiState>,
-    name: UploadName,
-    up: Upload,
-    progress: impl FnMut(u32) + Send + 'static,
-) -> Result<Receiving, Status> {
-    // The temporary file is renamed into place by the commit: this handle stays the program.
-    let file = Arc::new(up.reopen().map_err(|e| Status::internal(e.to_string()))?);
-    let reader = ArrivingReader::new(file.clone(), up.arrival());
-    let dialect = st.ctl.dialect_of(&name.0, name.1);
-    let (tx, verdict) = tokio::sync::oneshot::channel();
-    let (s, n) = (st.clone(), name.0.clone());
-    std::thread::Builder::new()
-        .name("cnc-upload".into())
-        .stack_size(crate::runtime::rt::THREAD_STACK_BYTES)
-        .spawn(move || {
-            let r = prepare_by(
-                &s,
-                &n,
-                ProgramText::File(file),
-                dialect,
-                progress,
-                |setup, obs| {
-                    let buffered = BufReader::with_capacity(READ_BUFFER_BYTES, reader);
-                    let lines = FileLines::new(buffered).with_encoding(setup.program().encoding);
-                    pipeline::validate_lines_into(lines, setup, Options::default(), obs)
-                },
-            );
-            let _ = tx.send(r);
-        })
-        .map_err(|e| Status::internal(format!("no thread for the upload's validation: {e}")))?;
-    Ok(Receiving { up, name, verdict })
 }
 
 /// Stores a validated upload and selects it when asked. No await point: callers run it after
@@ -328,21 +267,17 @@ pub async fn finish_upload(
     select: bool,
     cancelled: impl FnOnce() -> bool,
 ) -> Result<pb::UploadDone, Status> {
-    let Receiving { up, name, verdict } = r;
-    up.complete();
-    let prepared = verdict
-        .await
-        .map_err(|_| Status::internal("the upload's validation ended without a verdict"))?
-        .map_err(status_of)?;
+    let (up, (name, chosen), prepared) = r.verdict(st).await?;
+    let prepared = prepared.map_err(status_of)?;
     // The client left while it validated: nothing is stored or selected.
     if cancelled() {
         return Err(Status::cancelled("the client ended the upload"));
     }
     let v = Validated {
-        name: name.0,
+        name,
         up,
         prepared,
-        chosen: name.1,
+        chosen,
     };
     commit_upload(st, v, select)
 }
@@ -470,9 +405,17 @@ async fn receive(
                     .await;
             }
         }
-        match input.next().await {
-            Some(m) => chunk = m?.data,
-            None => return Ok(r),
+        // A client silent for as long as an idle session is dropped has gone (a stalled
+        // stream would hold its upload, and its validation, forever).
+        match tokio::time::timeout(upload_session::IDLE, input.next()).await {
+            Ok(Some(m)) => chunk = m?.data,
+            Ok(None) => return Ok(r),
+            Err(_) => {
+                return Err(Status::deadline_exceeded(format!(
+                    "no chunk of the upload for {} s: abandoned",
+                    upload_session::IDLE.as_secs()
+                )));
+            }
         }
     }
 }

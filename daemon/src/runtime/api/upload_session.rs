@@ -16,7 +16,8 @@ use proto::v1 as pb;
 use tonic::Status;
 
 use super::auth::Caller;
-use super::programs::{Receiving, UploadName, check_name, library_status, receiving};
+use super::programs::{UploadName, check_name, library_status};
+use super::receiving::{Receiving, receiving};
 use super::{ApiState, blocking};
 
 /// Open sessions at most (a screen uploads one program at a time; a few spare for retries).
