@@ -570,7 +570,7 @@ mod tests {
     use crate::plan::{Junction, PlannerConfig};
     use crate::program::Setup;
 
-    fn setup(c: Constants) -> MachineSetup {
+    pub(super) fn setup(c: Constants) -> MachineSetup {
         let mut s = Setup::new(&['X', 'Y', 'Z']);
         s.offsets
             .set_entry(

@@ -120,10 +120,9 @@ impl<'a, O: Observer> Checking<'a, O> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::comp::CompConfig;
     use crate::constants::Constants;
-    use crate::plan::{PlannerConfig, Segment};
-    use crate::program::{Dialect, Setup, StrLines};
+    use crate::plan::Segment;
+    use crate::program::{Dialect, StrLines};
 
     /// Everything an observer is given, to compare passes.
     #[derive(Default)]
@@ -160,20 +159,7 @@ mod tests {
     }
 
     fn setup(dialect: Dialect) -> MachineSetup {
-        let mut s = Setup::new(&['X', 'Y', 'Z']);
-        s.dialect = dialect;
-        s.offsets
-            .set_entry(
-                1,
-                crate::offsets::OffsetEntry {
-                    radius_mm: 2.0,
-                    length_mm: [0.0; 4],
-                },
-            )
-            .unwrap();
-        let c = Constants::new();
-        let comp = CompConfig::from_constants(&c);
-        MachineSetup::from_stages(s, comp, PlannerConfig::uniform(3, 200.0, 800.0))
+        super::super::tests::setup(Constants::new()).with_dialect(dialect)
     }
 
     #[test]
