@@ -85,6 +85,16 @@ pub(crate) fn inline_blocking() -> bool {
     INLINE_BLOCKING.with(|c| c.get())
 }
 
+/// Whether work that would go to a thread of its own runs on the caller's instead (the
+/// upload target in fuzz builds, see [`inline_blocking`]: an upload's validation and the
+/// selection's outline, a thread and its wake-ups per input, took three quarters of a run).
+pub(crate) fn inline_threads() -> bool {
+    #[cfg(fuzzing)]
+    return inline_blocking();
+    #[cfg(not(fuzzing))]
+    false
+}
+
 pub(crate) fn set_inline_blocking(on: bool) {
     INLINE_BLOCKING.with(|c| c.set(on));
 }

@@ -98,26 +98,33 @@ impl SelectionOutline {
             done: Condvar::new(),
         });
         let wanted = Arc::downgrade(&slot);
+        let pass = move || {
+            let mut o = Outline::new(&setup.program().axis_names);
+            let mut pass = WhileWanted {
+                outline: &mut o,
+                wanted: &wanted,
+            };
+            let sum = text.run(&setup, Options::default(), &mut pass);
+            o.freeze();
+            if let Some(slot) = wanted.upgrade() {
+                slot.fill(match sum.errors {
+                    0 => Ok(Arc::new(o)),
+                    n => Err(format!(
+                        "the outline's pass found {n} errors the load did not"
+                    )),
+                });
+            }
+        };
+        if super::fuzz_rig::inline_threads() {
+            pass();
+            return slot;
+        }
         let spawned = std::thread::Builder::new()
             .name("cnc-outline".into())
             .stack_size(crate::runtime::rt::THREAD_STACK_BYTES)
             .spawn(move || {
                 crate::runtime::rt::lower_own_priority();
-                let mut o = Outline::new(&setup.program().axis_names);
-                let mut pass = WhileWanted {
-                    outline: &mut o,
-                    wanted: &wanted,
-                };
-                let sum = text.run(&setup, Options::default(), &mut pass);
-                o.freeze();
-                if let Some(slot) = wanted.upgrade() {
-                    slot.fill(match sum.errors {
-                        0 => Ok(Arc::new(o)),
-                        n => Err(format!(
-                            "the outline's pass found {n} errors the load did not"
-                        )),
-                    });
-                }
+                pass();
             });
         if let Err(e) = spawned {
             slot.fill(Err(format!("no thread for the outline's pass: {e}")));

@@ -59,12 +59,17 @@ pub fn receiving(
     progress: impl FnMut(u32) + Send + 'static,
 ) -> Result<Receiving, Status> {
     let progress: Progress = Box::new(progress);
-    let taken = ARRIVING.fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| {
-        (n < ARRIVING_AT_ONCE).then_some(n + 1)
-    });
-    let validation = match taken {
-        Ok(_) => Validation::Arriving(start(st, &name, &up, progress, Some(ArrivingSlot))?),
-        Err(_) => Validation::AtTheEnd(progress),
+    // (The fuzz rig validates at the end, on its own thread: `fuzz_rig::inline_threads`.)
+    let taken = !super::fuzz_rig::inline_threads()
+        && ARRIVING
+            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| {
+                (n < ARRIVING_AT_ONCE).then_some(n + 1)
+            })
+            .is_ok();
+    let validation = if taken {
+        Validation::Arriving(start(st, &name, &up, progress, Some(ArrivingSlot))?)
+    } else {
+        Validation::AtTheEnd(progress)
     };
     Ok(Receiving {
         up,
@@ -129,19 +134,24 @@ fn start(
     let dialect = st.ctl.dialect_of(&name.0, name.1);
     let (tx, verdict) = oneshot::channel();
     let (s, n) = (st.clone(), name.0.clone());
+    let validate = move || {
+        let _slot = slot;
+        let text = ProgramText::File(file);
+        let r = prepare_by(&s, &n, text, dialect, progress, |setup, obs| {
+            let buffered = BufReader::with_capacity(READ_BUFFER_BYTES, reader);
+            let lines = FileLines::new(buffered).with_encoding(setup.program().encoding);
+            split_pass::validate_lines(lines, setup, Options::default(), obs)
+        });
+        let _ = tx.send(r);
+    };
+    if super::fuzz_rig::inline_threads() {
+        validate();
+        return Ok(verdict);
+    }
     std::thread::Builder::new()
         .name("cnc-upload".into())
         .stack_size(crate::runtime::rt::THREAD_STACK_BYTES)
-        .spawn(move || {
-            let _slot = slot;
-            let text = ProgramText::File(file);
-            let r = prepare_by(&s, &n, text, dialect, progress, |setup, obs| {
-                let buffered = BufReader::with_capacity(READ_BUFFER_BYTES, reader);
-                let lines = FileLines::new(buffered).with_encoding(setup.program().encoding);
-                split_pass::validate_lines(lines, setup, Options::default(), obs)
-            });
-            let _ = tx.send(r);
-        })
+        .spawn(validate)
         .map_err(|e| Status::internal(format!("no thread for the upload's validation: {e}")))?;
     Ok(verdict)
 }
