@@ -1,11 +1,12 @@
 //! A CAM-size program through the API (issue #19): `BENCH_BLOCKS` blocks (default 5,000,000,
 //! about 100 MB) are uploaded in 1 MiB chunks through `Programs.Upload` with `select`,
-//! validated from the stored file through the whole pipeline (interpret, compensate, plan),
+//! validated as it arrives through the whole pipeline (interpret, compensate, plan),
 //! selected, and started; the bench waits until the axes move, then stops.
 //!
 //! The daemon is the `cncd` binary as it runs on a controller: its default configuration (the
 //! simulated machine, the HMI and the MTConnect agent served, memory locked when the process
-//! may lock it) with its listeners on ephemeral ports, in a process of its own; this client
+//! may lock it) and a constants file of defaults (TAB0.REK) in its storage directory, with its
+//! listeners on ephemeral ports, in a process of its own; this client
 //! reaches it on its Unix socket, as `cncctl` does. So the memory figures are the daemon's
 //! alone, read from `/proc/<pid>/status`: RSS idle (drives enabled, before the upload), RSS
 //! after the load (the moment the upload is stored and selected), the peak up to then (VmHWM),
@@ -72,6 +73,9 @@ fn write_program(path: &Path, blocks: u64) -> u64 {
     std::fs::metadata(path).unwrap().len()
 }
 
+/// The reference machine's constants file with the defaults (`scripts/planner-reference`).
+const MACHINE_REK: &str = include_str!("../../scripts/planner-reference/machine-default.rek");
+
 /// `cncd` in a process of its own; SIGTERM (a clean stop) when the bench ends.
 struct Cncd(Child);
 
@@ -79,6 +83,11 @@ impl Cncd {
     /// Starts the binary with the default configuration, its listeners on ephemeral ports and
     /// its data (and the socket it publishes for cncctl) under `dir`.
     fn start(dir: &Path) -> Cncd {
+        // The constants file a machine has: the defaults, with the path accelerations
+        // (R52 = R236 = R237 = 500 mm/s²) binding (issue #49).
+        let data = dir.join("data");
+        std::fs::create_dir_all(&data).unwrap();
+        std::fs::write(data.join("TAB0.REK"), MACHINE_REK).unwrap();
         let config = dir.join("cncd.toml");
         std::fs::write(
             &config,
