@@ -1,12 +1,13 @@
 //! `Preview.GetPreviewOutline`: the selected program's outline reduced to what a screen shows
 //! (issue #30: the browser HMI draws a program of any size). The outline comes from the pass
-//! that validated the selection (`programs::prepare`), so it is the program a start runs.
+//! that validated the selection (`programs::prepare`), made again beside the load with its
+//! setup ([`SelectionOutline`]), so it is the program a start runs.
 //! While a job runs it is the job's: the pass the job validated with when it made one (a
 //! setup changed since the selection, a restart, single block). A machine setup changed since
 //! the selection gets a pass of its own, kept for the next request with the same program and
 //! setup; a zoom finer than the outline gets a pass clipped to the extent (never while a job
 //! runs: that pass would start from wherever the tool is). Passes run on a blocking thread
-//! like every validation pass (never the RT thread).
+//! like every validation pass, the selection's on a thread of its own (never the RT thread).
 
 use std::sync::{Arc, Condvar, Mutex, Weak};
 

@@ -13,8 +13,7 @@ use tonic::{Request, Response, Status, Streaming};
 
 use kernel::block::Block;
 use kernel::machine::MachineSetup;
-use kernel::pipeline::{Flow, Observer};
-use kernel::pipeline::{Options, Validation};
+use kernel::pipeline::{Flow, Observer, Options, Validation};
 use kernel::plan::Segment;
 use kernel::program::{Dialect, Modal};
 
