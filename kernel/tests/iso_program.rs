@@ -275,6 +275,22 @@ fn nested_loops_are_bounded_in_lines() {
     assert!(!d.iter().any(|d| d.is_error()), "{d:?}");
 }
 
+/// A cycle block's pecks are bounded (`MAX_PECKS`): a micrometre's peck down a metre is
+/// refused naming Q, and a peck below the depth's rounding ends (it never would in the
+/// loop's own subtraction).
+#[test]
+fn pecks_are_bounded() {
+    let text = "G0 X0 Y0 Z10\nG83 X1 Y1 Z-1000 R1 Q0.0001 F100\nM2\n";
+    assert!(refused(text, DiagCode::CycleWord, 2).contains("pecks"));
+    let text = "G91 G0 X0 Y0 Z10\nG83 X1 Y1 Z-10 R1 Q0.001 L11 F100\nM2\n";
+    assert!(refused(text, DiagCode::CycleWord, 2).contains("at most 100000"));
+    let text =
+        "G0 X0 Y0 Z1000000000010\nG83 X1 Y1 Z999999999999 R1000000000000 Q0.00002 F100\nM2\n";
+    let (m, d) = moves(text, &setup());
+    assert!(!d.iter().any(|d| d.is_error()), "{d:?}");
+    assert!(m.len() <= 3 * 100_000 + 10, "{}", m.len());
+}
+
 #[test]
 fn flow_errors_have_codes() {
     refused(

@@ -17,6 +17,10 @@ pub const PECK_CLEARANCE_MM: f64 = 0.254;
 
 /// Most holes one cycle line may make (L).
 pub const MAX_REPEATS: f64 = 10_000.0;
+/// Pecks (G73, G83) of one block at most, over all its holes: a block's moves are made at
+/// once, and a micrometre's peck down a metre would be a million of them (or never end, when
+/// the peck is below the depth's rounding).
+pub const MAX_PECKS: f64 = 100_000.0;
 
 /// The cycle's words resolved for this line (program coordinates of the plane's axes and
 /// of the third axis, mm).
@@ -108,7 +112,10 @@ impl Exec<'_> {
             }
             _ => {
                 let mut depth = h.r - h.q_mm;
-                while depth > h.bottom {
+                // (Bounded also where the peck is below the depth's rounding.)
+                let mut left = MAX_PECKS as u32;
+                while depth > h.bottom && left > 0 {
+                    left -= 1;
                     self.cut(aa, bb, depth)?;
                     if g == 83 {
                         self.traverse(aa, bb, h.r);
@@ -174,6 +181,15 @@ impl Exec<'_> {
                 l as u32
             }
         };
+        let pecks = ((r - bottom) / q_mm).ceil() * f64::from(repeats);
+        if matches!(g, 73 | 83) && (pecks.is_nan() || pecks > MAX_PECKS) {
+            return cycle_fail(
+                w.q.map_or(w.first, |x| x.1),
+                format!(
+                    "G{g}: {pecks} pecks of {q_mm} mm in one block, at most {MAX_PECKS}: a larger Q"
+                ),
+            );
+        }
         let clear = if self.st.retract_to_r {
             r
         } else {
