@@ -409,11 +409,20 @@ fn tick_cost() {
             .map(move |(kind, c)| (*name, blocks, *kind, c))
     });
     let reference = reference_config();
-    let runs = runs.chain(
-        splines
-            .iter()
-            .map(|(name, blocks)| (*name, blocks, "linear, axes only", &reference)),
-    );
+    // Arcs judged by the box (issue #49), with the constants file of defaults.
+    let default_rek = reference_config_with("machine-default.rek");
+    let arcs = arc_paths().into_iter().find(|(n, _)| n == "arcfit-small");
+    let arcs = arcs.map(|(_, b)| ("arc-fitted, 0.5-5 mm (#49)", b));
+    let runs = runs
+        .chain(
+            splines
+                .iter()
+                .map(|(name, blocks)| (*name, blocks, "linear, axes only", &reference)),
+        )
+        .chain(
+            arcs.iter()
+                .map(|(name, blocks)| (*name, blocks, "linear, TAB0.REK defaults", &default_rek)),
+        );
     for (name, blocks, kind, cfg) in runs {
         {
             // Plan everything first so only the interpolator is timed.

@@ -21,7 +21,8 @@ its setpoints alone.
 Nothing here uses the planner's code. Input: paths/<name>.nc (reference.py). Output
 (committed): ticks.tsv without a path acceleration (the axes' limits alone: R52 = R236 = R237
 = 0), ticks-a<A>.tsv with one. Run: python3 ticks.py [--path-accel A] [name ...] (plain
-Python, about a minute a table).
+Python, about a minute a table); python3 ticks.py --dir arcs [--path-accel A] for the
+arc-fitted programs of arcs.py (G2/G3, drawn in 5 µm chords here).
 """
 
 import math
@@ -37,19 +38,56 @@ STEP_F = FEED * TS  # path, mm per tick
 STEP_P = math.inf  # path acceleration, mm per tick² (--path-accel)
 
 
+ARC_CHORD_MM = 0.005  # arcs are drawn in chords this long (5 µm: off the circle by < 7 nm at R0.5)
+
+
 def read_polyline(path):
-    """The points of a program of G1 X Y Z lines from the origin (repeated points dropped)."""
+    """The points of a program of G1 X Y Z lines and G2/G3 arcs in the XY plane (centre I J
+    relative to the arc's start) from the origin (repeated points dropped)."""
     pts = [(0.0, 0.0, 0.0)]
     cur = [0.0, 0.0, 0.0]
+    motion = "G1"
     with open(path) as f:
         for line in f:
+            start = list(cur)
+            centre = [0.0, 0.0]
             for word in line.split():
+                if word in ("G1", "G2", "G3"):
+                    motion = word
                 axis = "XYZ".find(word[0])
                 if axis >= 0:
                     cur[axis] = float(word[1:])
-            if tuple(cur) != pts[-1]:
-                pts.append(tuple(cur))
+                if word[0] in "IJ":
+                    centre["IJ".find(word[0])] = float(word[1:])
+            if motion == "G1":
+                new = [tuple(cur)]
+            else:
+                new = arc_points(start, cur, centre, motion == "G3")
+            for p in new:
+                if p != pts[-1]:
+                    pts.append(p)
     return pts
+
+
+def arc_points(start, end, centre, ccw):
+    """The points of an arc from `start` to `end` about `start` + `centre` (XY), every
+    ARC_CHORD_MM of its length, the end exactly; Z linear in the angle."""
+    cx, cy = start[0] + centre[0], start[1] + centre[1]
+    r = math.hypot(start[0] - cx, start[1] - cy)
+    a0 = math.atan2(start[1] - cy, start[0] - cx)
+    sweep = math.atan2(end[1] - cy, end[0] - cx) - a0
+    if ccw and sweep <= 0:
+        sweep += 2 * math.pi
+    if not ccw and sweep >= 0:
+        sweep -= 2 * math.pi
+    n = max(1, math.ceil(abs(sweep) * r / ARC_CHORD_MM))
+    out = []
+    for i in range(1, n):
+        a = a0 + sweep * i / n
+        z = start[2] + (end[2] - start[2]) * i / n
+        out.append((cx + r * math.cos(a), cy + r * math.sin(a), z))
+    out.append(tuple(end))
+    return out
 
 
 class Polyline:
@@ -184,6 +222,11 @@ def main():
     global STEP_P
     args = sys.argv[1:]
     table = "ticks.tsv"
+    # --dir D: the programs D/*.nc (arcs.py's), the table written into D.
+    paths, out_dir = os.path.join(HERE, "paths"), HERE
+    if args[:1] == ["--dir"]:
+        paths = out_dir = os.path.join(HERE, args[1])
+        args = args[2:]
     if args[:1] == ["--path-accel"]:
         accel = float(args[1])
         STEP_P = accel * TS * TS
@@ -191,12 +234,15 @@ def main():
         args = args[2:]
     only = set(args)
     rows = []
-    with open(os.path.join(HERE, "reference.tsv")) as f:
-        names = [l.split("\t")[0] for l in f if not l.startswith("#")]
+    if out_dir == HERE:
+        with open(os.path.join(HERE, "reference.tsv")) as f:
+            names = [l.split("\t")[0] for l in f if not l.startswith("#")]
+    else:
+        names = sorted(n[:-3] for n in os.listdir(paths) if n.endswith(".nc"))
     for name in names:
         if only and name not in only:
             continue
-        line = Polyline(read_polyline(os.path.join(HERE, "paths", f"{name}.nc")))
+        line = Polyline(read_polyline(os.path.join(paths, f"{name}.nc")))
         seq = greedy_ticks(line)
         ticks = len(seq) - 2
         acc, vel, path, path_a = check(line, seq)
@@ -204,7 +250,7 @@ def main():
         print(f"{name:10s} {ticks:6d} ticks {ticks * TS:8.3f} s  axis a {acc:.6f}  axis v {vel:.6f}  F {path:.6f}  A {path_a:.6f}", flush=True)
     if only:
         return
-    with open(os.path.join(HERE, table), "w") as f:
+    with open(os.path.join(out_dir, table), "w") as f:
         f.write("# name\tticks\tticks_s\tmax_axis_a\tmax_axis_v\tmax_path_v\tmax_path_a\n")
         for r in rows:
             f.write(f"{r[0]}\t{r[1]}\t{r[2]:.3f}\t{r[3]:.6f}\t{r[4]:.6f}\t{r[5]:.6f}\t{r[6]:.6f}\n")

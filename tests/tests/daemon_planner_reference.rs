@@ -6,7 +6,8 @@
 //! allow along any direction). Each path within 1.03 of
 //! what `ticks.py` (independent of the planner) finds feasible with 4 ms setpoints under the
 //! same limits, faster than LinuxCNC 2.9 with the same trajectory acceleration, every axis
-//! within its acceleration and the path within its own.
+//! within its acceleration and the path within its own. The same for the arc-fitted programs
+//! (`scripts/planner-reference/arcs`, tangent G2/G3 arcs), against `ticks.py` on those arcs.
 //!
 //! And the parabolic profile: with the constants files of `scripts/jerk-reference/`, every
 //! move of its suite (short moves that never reach F included) within 1.03 of Ruckig's
@@ -111,33 +112,74 @@ fn run_case(case: &Case, failures: &mut Vec<String>) {
         .join("../linuxcnc-compare")
         .join(case.linuxcnc);
     for name in path_names() {
-        let nc = std::fs::read_to_string(reference_dir().join(format!("paths/{name}.nc"))).unwrap();
-        let prog = d.program(&format!("{name}.nc"), &nc);
-        let csv = d.dir.join(format!("{name}.csv"));
-        let (ok, out) = d.cncctl(
-            &["--json", "trajectory", &prog, "-o", csv.to_str().unwrap()],
-            Duration::from_secs(300),
-        );
-        assert!(ok, "{} {name}: cncctl trajectory failed: {out}", case.rek);
-        let t = total_s(&out);
-        let reference = table_s(&reference_dir().join(case.ticks), &name, 2);
         let linuxcnc = table_s(&lcnc, &name, 1);
-        let rows = vcan_support::trajectory_csv_rows(&csv);
-        let axis_a = (1..4).map(|c| max_accel(&rows, c)).fold(0.0, f64::max);
-        let path_a = max_path_accel(&rows);
-        println!(
-            "{:20} {name:10} {t:.3} s, ticks.py {reference:.3} s, ratio {:.3}, LinuxCNC {linuxcnc:.3} s, axis a {axis_a:.3}, path a {path_a:.3}",
-            case.rek,
-            t / reference
+        let place = (reference_dir().join("paths"), reference_dir());
+        run_path(&d, case, &place, &name, Some(linuxcnc), failures);
+    }
+    // The arc-fitted programs (G2/G3, `arcs.py`): the box judges arcs too.
+    let arcs = reference_dir().join("arcs");
+    for name in arc_names() {
+        run_path(
+            &d,
+            case,
+            &(arcs.clone(), arcs.clone()),
+            &name,
+            None,
+            failures,
         );
-        let within = axis_a <= AXIS_A_MM_S2 + CSV_AXIS_MM_S2
-            && path_a <= case.path_a_mm_s2 + path_a_rounding();
-        if t / reference > 1.03 || t >= linuxcnc || !within {
-            failures.push(format!(
-                "{} {name}: {t:.3} s, reference {reference:.3} s, LinuxCNC {linuxcnc:.3} s, axis a {axis_a:.3}, path a {path_a:.3}",
-                case.rek
-            ));
-        }
+    }
+}
+
+/// The arc-fitted programs of `scripts/planner-reference/arcs`.
+fn arc_names() -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(reference_dir().join("arcs"))
+        .unwrap()
+        .filter_map(|e| {
+            let name = e.unwrap().file_name().into_string().unwrap();
+            name.strip_suffix(".nc").map(str::to_string)
+        })
+        .collect();
+    names.sort();
+    names
+}
+
+/// Program `name` of directory `programs` through `cncctl trajectory`: within 1.03 of
+/// `ticks.py`'s table in directory `tables` (and faster than LinuxCNC where its time is
+/// known), every axis within its acceleration and the path within its own.
+fn run_path(
+    d: &Daemon,
+    case: &Case,
+    (programs, tables): &(PathBuf, PathBuf),
+    name: &str,
+    linuxcnc: Option<f64>,
+    failures: &mut Vec<String>,
+) {
+    let nc = std::fs::read_to_string(programs.join(format!("{name}.nc"))).unwrap();
+    let prog = d.program(&format!("{name}.nc"), &nc);
+    let csv = d.dir.join(format!("{name}.csv"));
+    let (ok, out) = d.cncctl(
+        &["--json", "trajectory", &prog, "-o", csv.to_str().unwrap()],
+        Duration::from_secs(300),
+    );
+    assert!(ok, "{} {name}: cncctl trajectory failed: {out}", case.rek);
+    let t = total_s(&out);
+    let reference = table_s(&tables.join(case.ticks), name, 2);
+    let linuxcnc = linuxcnc.unwrap_or(f64::INFINITY);
+    let rows = vcan_support::trajectory_csv_rows(&csv);
+    let axis_a = (1..4).map(|c| max_accel(&rows, c)).fold(0.0, f64::max);
+    let path_a = max_path_accel(&rows);
+    println!(
+        "{:20} {name:12} {t:.3} s, ticks.py {reference:.3} s, ratio {:.3}, LinuxCNC {linuxcnc:.3} s, axis a {axis_a:.3}, path a {path_a:.3}",
+        case.rek,
+        t / reference
+    );
+    let within =
+        axis_a <= AXIS_A_MM_S2 + CSV_AXIS_MM_S2 && path_a <= case.path_a_mm_s2 + path_a_rounding();
+    if t / reference > 1.03 || t >= linuxcnc || !within {
+        failures.push(format!(
+            "{} {name}: {t:.3} s, reference {reference:.3} s, LinuxCNC {linuxcnc:.3} s, axis a {axis_a:.3}, path a {path_a:.3}",
+            case.rek
+        ));
     }
 }
 

@@ -139,7 +139,8 @@ impl BoxSlot {
     pub(super) fn of(seg: &Segment) -> Self {
         let b = &seg.axis_box;
         BoxSlot {
-            boxed: b.accel_mm_s2.is_set() && matches!(seg.path, SegPath::Line { .. }),
+            // (The planner sets the accelerations on the lines and arcs the box may judge.)
+            boxed: b.accel_mm_s2.is_set(),
             stop_end: seg.v_end_mm_s == 0.0,
             plain_feed: !seg.rapid && seg.per_rev_nominal_rpm <= 0.0,
             v_max_mm_s: b.v_max_mm_s,
@@ -340,10 +341,14 @@ impl Interpolator {
                 s1
             };
             let (lo, hi) = (s0.max(t.s).max(first_s), end.min(top));
-            if lo <= hi
-                && let Some((lo, hi)) =
-                    line_within(&self.buf[i], s0, (lo, hi), &aim[..self.axes], room)
-            {
+            let within = match path_within(&self.buf[i], s0, (lo, hi), &aim[..self.axes], room) {
+                Within::Span(lo, hi) => Some((lo, hi)),
+                Within::Empty => None,
+                // (An arc turned more than the planner allows within a step: never met.)
+                Within::Unknown if near.is_nan() => return Reach::Unknown,
+                Within::Unknown => return Reach::Within { near, near_k, far },
+            };
+            if let Some((lo, hi)) = within {
                 if near.is_nan() {
                     (near, near_k) = (lo, j);
                     if near_only {
@@ -804,17 +809,57 @@ fn at_end(local: f64, length_mm: f64) -> bool {
     local >= length_mm - ARRIVE_EPS_MM
 }
 
-/// The part of `[lo, hi]` (arc length on line `seg`, which starts at `s0`) where every axis is
-/// within `room` of `aim`.
+/// Where on a segment every axis is within its room of its aim.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Within {
+    /// From the nearest such arc length to the farthest (an arc may have gaps between).
+    Span(f64, f64),
+    Empty,
+    /// An arc the scan would meet in more than `ARC_PIECES` monotone pieces.
+    Unknown,
+}
+
+/// Monotone pieces (quarter turns) of an arc one scan looks at, at most: the planner boxes
+/// an arc only where a step stays within a turn (`Planner::box_candidate`), five quarters.
+const ARC_PIECES: usize = 8;
+
+/// The part of `[lo, hi]` (arc length on segment `seg`, which starts at `s0`) where every
+/// axis is within `room` of `aim`: exact on a line and on an arc.
+fn path_within(
+    seg: &Segment,
+    s0: f64,
+    (lo, hi): (f64, f64),
+    aim: &[f64],
+    room: &[f64; MAX_AXES],
+) -> Within {
+    if lo > hi {
+        return Within::Empty;
+    }
+    match seg.path {
+        SegPath::Line { .. } => match line_within(seg, s0, (lo, hi), aim, room, None) {
+            Some((lo, hi)) => Within::Span(lo, hi),
+            None => Within::Empty,
+        },
+        SegPath::Arc { .. } => arc_within(seg, s0, (lo, hi), aim, room),
+    }
+}
+
+/// The part of `[lo, hi]` (arc length on `seg`, which starts at `s0`) where every axis that
+/// moves linearly with the arc length (all on a line; on an arc those outside its plane,
+/// `skip`) is within `room` of `aim`.
 fn line_within(
     seg: &Segment,
     s0: f64,
     (mut lo, mut hi): (f64, f64),
     aim: &[f64],
     room: &[f64; MAX_AXES],
+    skip: Option<(usize, usize)>,
 ) -> Option<(f64, f64)> {
     let (start, end) = (seg.path.start(), seg.path.end());
     for (ax, &aim) in aim.iter().enumerate() {
+        if skip.is_some_and(|(a, b)| ax == a || ax == b) {
+            continue;
+        }
         let d = end[ax] - start[ax];
         let off = aim - start[ax];
         if d == 0.0 {
@@ -834,4 +879,100 @@ fn line_within(
         }
     }
     Some((lo, hi))
+}
+
+/// `path_within` on an arc: the axes outside its plane as on a line, then the two in it,
+/// x_a = c_a + r·cos φ and x_b = c_b + r·sin φ with φ linear in the arc length, piece by
+/// piece between the multiples of π/2, where both are monotone and each axis's room is one
+/// interval of φ (`cos_within`). The nearest and the farthest of those intervals are kept.
+fn arc_within(
+    seg: &Segment,
+    s0: f64,
+    (lo, hi): (f64, f64),
+    aim: &[f64],
+    room: &[f64; MAX_AXES],
+) -> Within {
+    let SegPath::Arc {
+        center,
+        plane,
+        radius_mm: r,
+        start_angle_rad: a0,
+        sweep_rad,
+        ..
+    } = seg.path
+    else {
+        unreachable!("arc_within on a line");
+    };
+    let (a, b) = plane.axes();
+    let Some((lo, hi)) = line_within(seg, s0, (lo, hi), aim, room, Some((a, b))) else {
+        return Within::Empty;
+    };
+    if sweep_rad == 0.0 || seg.length_mm <= 0.0 {
+        return Within::Unknown;
+    }
+    // φ(s) = a0 + rate·(s − s0); pieces are walked in φ, increasing.
+    let rate = sweep_rad / seg.length_mm;
+    let phi = |s: f64| a0 + rate * (s - s0);
+    let s_of = |p: f64| s0 + (p - a0) / rate;
+    let (p_lo, p_hi) = if rate > 0.0 {
+        (phi(lo), phi(hi))
+    } else {
+        (phi(hi), phi(lo))
+    };
+    let quarter = std::f64::consts::FRAC_PI_2;
+    let mut from = p_lo;
+    let mut spans = 0;
+    let (mut near, mut far) = (f64::INFINITY, f64::NEG_INFINITY);
+    while from <= p_hi {
+        if spans == ARC_PIECES {
+            return Within::Unknown;
+        }
+        spans += 1;
+        let to = (((from / quarter).floor() + 1.0) * quarter).min(p_hi);
+        let mut piece = Some((from, to));
+        for (ax, shift) in [(a, 0.0), (b, quarter)] {
+            piece = piece.and_then(|p| cos_within(p, shift, center[ax], r, aim[ax], room[ax]));
+        }
+        if let Some((p0, p1)) = piece {
+            let (s_a, s_b) = (s_of(p0).clamp(lo, hi), s_of(p1).clamp(lo, hi));
+            near = near.min(s_a.min(s_b));
+            far = far.max(s_a.max(s_b));
+        }
+        if to >= p_hi {
+            break;
+        }
+        from = to;
+    }
+    if near <= far {
+        Within::Span(near, far)
+    } else {
+        Within::Empty
+    }
+}
+
+/// The part of `[p0, p1]` (angles within one quarter turn, where cos(φ − shift) is
+/// monotone) where c + r·cos(φ − shift) lies within `room` of `aim`.
+fn cos_within(
+    (p0, p1): (f64, f64),
+    shift: f64,
+    c: f64,
+    r: f64,
+    aim: f64,
+    room: f64,
+) -> Option<(f64, f64)> {
+    let u_lo = ((aim - room - c) / r).max(-1.0);
+    let u_hi = ((aim + room - c) / r).min(1.0);
+    if u_lo > u_hi {
+        return None;
+    }
+    // θ = φ − shift lies in [2πk, 2πk + π] (cos falling) or [2πk − π, 2πk] (rising).
+    let mid = 0.5 * (p0 + p1) - shift;
+    let k = (mid / std::f64::consts::TAU).round() * std::f64::consts::TAU;
+    let (t0, t1) = if mid - k >= 0.0 {
+        (k + u_hi.acos(), k + u_lo.acos())
+    } else {
+        (k - u_lo.acos(), k - u_hi.acos())
+    };
+    let (lo, hi) = (p0.max(t0 + shift), p1.min(t1 + shift));
+    (lo <= hi).then_some((lo, hi))
 }

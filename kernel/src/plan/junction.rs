@@ -492,7 +492,7 @@ impl Planner {
         };
         let linear_line = self.cfg.envelope.profile == Profile::Linear
             && matches!(self.win[i].seg.path, SegPath::Line { .. });
-        let box_accel = if linear_line && a_axes.is_finite() {
+        let box_accel = if self.win[i].box_candidate && a_axes.is_finite() {
             BoxAccel::of_axes(&self.cfg.axis_a_max_mm_s2, base)
         } else {
             BoxAccel::NONE

@@ -235,6 +235,8 @@ impl BoxAccel {
 /// Limits of a new segment from the axes and the criteria of its block alone.
 struct SegLimits {
     v_max_mm_s: f64,
+    /// The ceiling the per-axis box keeps (`SegmentBox::v_max_mm_s`).
+    box_v_max_mm_s: f64,
     feed_mm_s: f64,
     jerk_mm_s3: f64,
     a_axes_mm_s2: f64,
@@ -718,6 +720,20 @@ impl Planner {
         ))
     }
 
+    /// The ceiling of an arc the per-axis box keeps (∞ for lines): the manual's criteria
+    /// alone, the centripetal acceleration of the set (R232 d5..8, R411) and the chord
+    /// criterion R232. The axes' accelerations are not in it: the box holds them on every
+    /// setpoint itself, tangential and normal together, where the envelope splits them
+    /// (`NORMAL_SHARE`).
+    fn arc_box_ceiling(&self, path: &SegPath, set: usize) -> f64 {
+        let SegPath::Arc { radius_mm, .. } = *path else {
+            return f64::INFINITY;
+        };
+        let env = &self.cfg.envelope;
+        criteria::curvature_mm_s(env.sets[set].centripetal_mm_s2, 1.0 / radius_mm)
+            .min(criteria::arc_chord_mm_s(radius_mm, env.arc_chord_um))
+    }
+
     /// Judges the junction between the last block of the window and `p` (SPEC §7.1), and `p`
     /// takes over the M0/M1 and dwell waiting before the first motion.
     fn link_previous(&mut self, p: &mut Pending) {
@@ -778,9 +794,20 @@ impl Planner {
         dir
     }
 
-    /// Whether the per-axis box on the setpoints may judge a block (`Pending::box_candidate`).
-    fn box_candidate(&self, path: &SegPath) -> bool {
-        self.cfg.envelope.profile == Profile::Linear && matches!(path, SegPath::Line { .. })
+    /// Whether the per-axis box on the setpoints may judge a block (`Pending::box_candidate`):
+    /// lines and arcs of the linear profile. An arc only where a step at its box ceiling
+    /// `box_v_max_mm_s` stays within a turn, so that a scan meets at most five quarter turns
+    /// of it (`interp::setpoint_box::arc_within`); smaller arcs are left to the envelope.
+    fn box_candidate(&self, path: &SegPath, box_v_max_mm_s: f64) -> bool {
+        if self.cfg.envelope.profile != Profile::Linear {
+            return false;
+        }
+        match *path {
+            SegPath::Line { .. } => true,
+            SegPath::Arc { radius_mm, .. } => {
+                box_v_max_mm_s * TS_S <= radius_mm * std::f64::consts::TAU
+            }
+        }
     }
 
     /// Appends a motion block to the window: its limits from the axes, the arc criteria and
@@ -803,12 +830,13 @@ impl Planner {
         let (v_axes, a_axes) = self.cfg.path_limits(&dir);
         let j_axes = self.cfg.path_jerk(&dir);
         let mut v_max = self.arc_ceiling(&path, &dir, set, a_axes, j_axes);
+        let mut box_v_max = self.arc_box_ceiling(&path, set);
         v_max = v_max.min(v_axes);
+        box_v_max = box_v_max.min(v_axes);
         if !rapid {
-            v_max = v_max.min(criteria::min_duration_mm_s(
-                length_mm,
-                self.cfg.min_block_time_s,
-            ));
+            let v_duration = criteria::min_duration_mm_s(length_mm, self.cfg.min_block_time_s);
+            v_max = v_max.min(v_duration);
+            box_v_max = box_v_max.min(v_duration);
         }
         let feed_mm_s = if rapid {
             v_axes
@@ -817,6 +845,7 @@ impl Planner {
         };
         let limits = SegLimits {
             v_max_mm_s: v_max,
+            box_v_max_mm_s: box_v_max,
             feed_mm_s,
             jerk_mm_s3: self.path_jerk_of(rapid, set, j_axes),
             a_axes_mm_s2: a_axes,
@@ -838,7 +867,7 @@ impl Planner {
             turn: criteria::Turn::STRAIGHT,
             crit: 0.0,
             cap: 0.0,
-            box_candidate: self.box_candidate(&path),
+            box_candidate: self.box_candidate(&path, box_v_max),
             budget: None,
             turns: None,
         };
@@ -876,7 +905,7 @@ impl Planner {
             v_end_mm_s: 0.0,
             junction_cap_mm_s: 0.0,
             axis_box: SegmentBox {
-                v_max_mm_s: l.v_max_mm_s,
+                v_max_mm_s: l.box_v_max_mm_s,
                 ..SegmentBox::default()
             },
             accel_mm_s2: a_plan,

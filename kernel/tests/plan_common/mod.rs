@@ -853,3 +853,48 @@ pub fn program_of_g1(text: &str) -> Vec<Block> {
     }
     p.blocks
 }
+
+/// Blocks of an arc-fitted program of `scripts/planner-reference/arcs` (`arcs.py`): `G2`/`G3
+/// X Y I J` arcs in G17, centre relative to the arc's start, from the origin (the first
+/// line also carries G23 and F).
+pub fn program_of_arcs(text: &str) -> Vec<Block> {
+    let mut p = Prog::new(p3(0.0, 0.0, 0.0), 6000.0, Continuity::G23);
+    for line in text.lines() {
+        let (mut q, mut c, mut dir) = (p.pos, p.pos, ArcDir::Ccw);
+        for w in line.split_whitespace() {
+            let (k, v) = w.split_at(1);
+            match (k, v) {
+                ("G", "2") => dir = ArcDir::Cw,
+                ("G", "3") => dir = ArcDir::Ccw,
+                ("X", v) => q[0] = v.parse().unwrap(),
+                ("Y", v) => q[1] = v.parse().unwrap(),
+                ("I", v) => c[0] = p.pos[0] + v.parse::<f64>().unwrap(),
+                ("J", v) => c[1] = p.pos[1] + v.parse::<f64>().unwrap(),
+                ("F", v) => p.feed_mm_min = v.parse().unwrap(),
+                _ => {}
+            }
+        }
+        p.arc(q, c, dir);
+    }
+    p.blocks
+}
+
+/// The arc-fitted programs (`scripts/planner-reference/arcs/*.nc`), by name.
+pub fn arc_paths() -> Vec<(String, Vec<Block>)> {
+    let dir = reference_dir().join("arcs");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| {
+            let name = e.unwrap().file_name().into_string().unwrap();
+            name.strip_suffix(".nc").map(str::to_string)
+        })
+        .collect();
+    names.sort();
+    names
+        .into_iter()
+        .map(|n| {
+            let text = std::fs::read_to_string(dir.join(format!("{n}.nc"))).unwrap();
+            (n, program_of_arcs(&text))
+        })
+        .collect()
+}
