@@ -8,7 +8,7 @@ use kernel::block::Block;
 use kernel::comp::{CompBlock, CompConfig};
 use kernel::constants::Constants;
 use kernel::machine::MachineSetup;
-use kernel::pipeline::split::{Checking, Interpreting};
+use kernel::pipeline::split::{Checking, Interpreting, run_here};
 use kernel::pipeline::{Flow, Observer, Options, Validation, validate_lines_into};
 use kernel::plan::{PlannerConfig, Segment};
 use kernel::program::{Dialect, Modal, Setup, StrLines};
@@ -45,21 +45,12 @@ fn setup(dialect: Dialect) -> MachineSetup {
 fn split(text: &str, s: &MachineSetup, batch: usize) -> (Validation, Seen) {
     let mut seen = Seen::default();
     let opts = Options::default();
-    let mut front = Interpreting::new(StrLines::new(text), s, opts).expect("not a restart");
-    let mut back = Checking::new(s, opts, &mut seen);
-    let mut out = Vec::new();
-    loop {
-        let more = front.next_into(&mut out);
-        if out.len() >= batch || !more {
-            for item in out.drain(..) {
-                back.take(item);
-            }
-        }
-        if !more {
-            break;
-        }
-    }
-    (back.finish(), seen)
+    let Ok(front) = Interpreting::new(StrLines::new(text), s, opts) else {
+        panic!("not a restart");
+    };
+    let back = Checking::new(s, opts, &mut seen);
+    let v = run_here(front, back, batch);
+    (v, seen)
 }
 
 fn programs(dir: &Path, ext: &str, into: &mut Vec<std::path::PathBuf>) {

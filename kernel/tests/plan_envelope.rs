@@ -1206,3 +1206,27 @@ fn arc_chains_run_within_the_limits() {
         }
     }
 }
+
+/// A feed hold on an arc the box judges brakes to rest on the arc within every axis's
+/// limit; resumed, the program ends where it should.
+#[test]
+fn a_hold_on_an_arc_brakes_within_the_axis_limits() {
+    let cfg = reference_config_with("machine-default.rek");
+    let mut p = Prog::new(p3(4.0, 0.0, 0.0), 9000.0, Continuity::G23);
+    p.arc(p3(4.0, 0.0, 0.0), p3(0.0, 0.0, 0.0), ArcDir::Ccw);
+    let r = run_with(cfg.clone(), &p.blocks, 100_000, |t, ip| match t {
+        60 => ip.hold(),
+        200 => ip.resume(),
+        _ => {}
+    });
+    assert!(r.segments.iter().all(|s| s.axis_box.accel_mm_s2.is_set()));
+    let w = measure(&cfg, &r, LM_UM);
+    assert!(
+        w.axis_a <= A_TOL && w.axis_v <= V_TOL && w.path_v <= V_TOL && w.path_a <= A_TOL,
+        "{w:?}"
+    );
+    assert!(w.off_path_mm <= 1e-9, "{w:?}");
+    assert!(r.ticks[59].path_v_mm_s > 10.0, "moving at the hold");
+    assert_eq!(r.ticks[150].state, kernel::interp::InterpState::Held);
+    assert_eq!(r.ticks.last().unwrap().position.0[..3], p.pos.0[..3]);
+}

@@ -106,24 +106,31 @@ fn dense_paths_run_near_the_reference_with_path_accelerations_of_a_constants_fil
 /// Issue #49: the box judges arcs. The arc-fitted programs (`scripts/planner-reference/arcs`,
 /// tangent G2/G3 arcs of 0.5-30 mm radius) with both constants files: within 1.03 of what
 /// `ticks.py` finds feasible with 4 ms setpoints on those arcs (it draws them in 5 µm chords
-/// itself), every axis and the path acceleration within its limit from the setpoints
-/// themselves, on the arcs. (The envelope alone took 1.24× and 1.42× there: its fixed normal
-/// share of the axes on an arc.)
+/// itself), faster than LinuxCNC 2.9 with the same trajectory acceleration
+/// (`arcs/linuxcnc*.tsv`), every axis and the path acceleration within its limit from the
+/// setpoints themselves, on the arcs. (The envelope alone took 1.24× and 1.42× there, its
+/// fixed normal share of the axes on an arc: slower than LinuxCNC above the axes.)
 #[test]
 fn arc_fitted_paths_run_near_the_reference() {
     let mut failures = vec![];
-    for (file, ticks_table) in [
-        ("machine-default.rek", "arcs/ticks-a500.tsv"),
-        ("machine-above.rek", "arcs/ticks-a5000.tsv"),
+    for (file, ticks_table, linuxcnc_table) in [
+        (
+            "machine-default.rek",
+            "arcs/ticks-a500.tsv",
+            "linuxcnc-a500.tsv",
+        ),
+        ("machine-above.rek", "arcs/ticks-a5000.tsv", "linuxcnc.tsv"),
     ] {
         let cfg = reference_config_with(file);
         for (name, blocks) in arc_paths() {
             let r = run(cfg.clone(), &blocks);
             let w = measure(&cfg, &r, 8.0);
             let reference = ticks_s(ticks_table, &name);
+            let linuxcnc =
+                table_value(&reference_dir().join("arcs").join(linuxcnc_table), &name, 1);
             let ratio = r.time_s() / reference;
             println!(
-                "{file:20} {name:12}: {:.3} s, ticks.py {reference:.3} s, ratio {ratio:.4}, axis a {:.6}, path a {:.6}",
+                "{file:20} {name:12}: {:.3} s, ticks.py {reference:.3} s, ratio {ratio:.4}, LinuxCNC {linuxcnc:.3} s, axis a {:.6}, path a {:.6}",
                 r.time_s(),
                 w.axis_a,
                 w.path_a,
@@ -132,7 +139,8 @@ fn arc_fitted_paths_run_near_the_reference() {
             let boxed = r.segments.iter().all(|s| s.axis_box.accel_mm_s2.is_set());
             // (Off the path: the programs' end points lie on their circles to their 1 µm
             // digits, and the setpoint at an end is that end.)
-            if ratio > 1.03 || !within || !boxed || w.off_path_mm > 1e-6 || w.missed_stops > 0 {
+            let fast = ratio <= 1.03 && r.time_s() < linuxcnc;
+            if !fast || !within || !boxed || w.off_path_mm > 1e-6 || w.missed_stops > 0 {
                 failures.push(format!(
                     "{file} {name}: ratio {ratio:.4}, boxed {boxed}, {w:?}"
                 ));

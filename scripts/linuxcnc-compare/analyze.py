@@ -22,14 +22,12 @@ LOST_MM = 0.05
 
 
 def polyline(nc_path):
-    pts = [np.zeros(3)]
-    for line in open(nc_path):
-        q = pts[-1].copy()
-        for w in line.split():
-            if w[0] in "XYZ":
-                q["XYZ".index(w[0])] = float(w[1:])
-        pts.append(q)
-    return np.array(pts)
+    """The programmed path as a polyline: its G1 points, its G2/G3 arcs drawn in 5 µm chords
+    (ticks.py's reading, plain geometry)."""
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "../planner-reference"))
+    from ticks import read_polyline
+
+    return np.array(read_polyline(nc_path))
 
 
 def deviation_mm(samples, pts):
@@ -89,6 +87,8 @@ def write_tsv(rows):
     PATH_ACCEL; committed): the planner's test plan_reference holds the planner to be faster
     on every path."""
     here = os.path.dirname(os.path.abspath(__file__))
+    if os.environ.get("ARCS"):
+        here = os.path.join(here, "../planner-reference/arcs")
     accel = os.environ.get("PATH_ACCEL")
     name = f"linuxcnc-a{accel}.tsv" if accel else "linuxcnc.tsv"
     traj = f", [TRAJ] MAX_LINEAR_ACCELERATION and every axis's MAX_ACCELERATION = {accel}" if accel else ""
@@ -121,7 +121,7 @@ def main():
             f"| {t:.3f} | {t / o['limit']:.3f} | {a1:.2f}; {a4:.2f} | {dev * 1000:.1f} | {t / o['time']:.3f} |",
             flush=True,
         )
-    if sorted(names) == sorted(ours) or (os.environ.get("PATH_ACCEL") and not ours):
+    if sorted(names) == sorted(ours) or ((os.environ.get("PATH_ACCEL") or os.environ.get("ARCS")) and not ours):
         write_tsv(rows)
 
 

@@ -10,10 +10,13 @@
 # acceleration ([TRAJ] MAX_LINEAR_ACCELERATION, which alone left every time unchanged to the
 # millisecond) and every axis's MAX_ACCELERATION at 500; writes linuxcnc-a500.tsv, without
 # the bench. (Per axis 500 lets a diagonal accelerate at up to 707 mm/s² along the path.)
+# ARCS=1 scripts/linuxcnc-compare/run.sh: the arc-fitted programs (planner-reference/arcs,
+# G2/G3) instead, without the bench; the table goes into that directory.
 set -eu
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 HERE=$ROOT/scripts/linuxcnc-compare
 PATHS=$ROOT/scripts/planner-reference/paths
+if [ -n "${ARCS:-}" ]; then PATHS=$ROOT/scripts/planner-reference/arcs; fi
 WORK=$ROOT/target/linuxcnc-compare
 NAMES=${*:-$(cd "$PATHS" && ls *.nc | sed 's/\.nc$//' | tr '\n' ' ')}
 
@@ -41,7 +44,7 @@ fi
 # The same paths as LinuxCNC programs: G64 P0.008 (the planner's Lm), no N words.
 for n in $NAMES; do
     {
-        echo "G21 G90 G17 G94 G64 P0.008"
+        echo "G21 G90 G91.1 G17 G94 G64 P0.008"
         sed 's/^G23 //' "$PATHS/$n.nc"
         echo "M2"
     } > "$WORK/programs/$n.ngc"
@@ -62,7 +65,7 @@ echo "running LinuxCNC on: $NAMES"
 }
 cat "$WORK/out/driver.log"
 
-if [ -n "${PATH_ACCEL:-}" ]; then
+if [ -n "${PATH_ACCEL:-}${ARCS:-}" ]; then
     : > "$WORK/ours.md"
 else
     echo "running the planner bench (reference table)"

@@ -7,7 +7,8 @@
 //! what `ticks.py` (independent of the planner) finds feasible with 4 ms setpoints under the
 //! same limits, faster than LinuxCNC 2.9 with the same trajectory acceleration, every axis
 //! within its acceleration and the path within its own. The same for the arc-fitted programs
-//! (`scripts/planner-reference/arcs`, tangent G2/G3 arcs), against `ticks.py` on those arcs.
+//! (`scripts/planner-reference/arcs`, tangent G2/G3 arcs), against `ticks.py` and LinuxCNC on
+//! those arcs.
 //!
 //! And the parabolic profile: with the constants files of `scripts/jerk-reference/`, every
 //! move of its suite (short moves that never reach F included) within 1.03 of Ruckig's
@@ -114,19 +115,14 @@ fn run_case(case: &Case, failures: &mut Vec<String>) {
     for name in path_names() {
         let linuxcnc = table_s(&lcnc, &name, 1);
         let place = (reference_dir().join("paths"), reference_dir());
-        run_path(&d, case, &place, &name, Some(linuxcnc), failures);
+        run_path(&d, case, &place, &name, linuxcnc, failures);
     }
     // The arc-fitted programs (G2/G3, `arcs.py`): the box judges arcs too.
     let arcs = reference_dir().join("arcs");
+    let place = (arcs.clone(), arcs.clone());
     for name in arc_names() {
-        run_path(
-            &d,
-            case,
-            &(arcs.clone(), arcs.clone()),
-            &name,
-            None,
-            failures,
-        );
+        let linuxcnc = table_s(&arcs.join(case.linuxcnc), &name, 1);
+        run_path(&d, case, &place, &name, linuxcnc, failures);
     }
 }
 
@@ -144,14 +140,14 @@ fn arc_names() -> Vec<String> {
 }
 
 /// Program `name` of directory `programs` through `cncctl trajectory`: within 1.03 of
-/// `ticks.py`'s table in directory `tables` (and faster than LinuxCNC where its time is
-/// known), every axis within its acceleration and the path within its own.
+/// `ticks.py`'s table in directory `tables`, faster than LinuxCNC's `linuxcnc` s, every axis
+/// within its acceleration and the path within its own.
 fn run_path(
     d: &Daemon,
     case: &Case,
     (programs, tables): &(PathBuf, PathBuf),
     name: &str,
-    linuxcnc: Option<f64>,
+    linuxcnc: f64,
     failures: &mut Vec<String>,
 ) {
     let nc = std::fs::read_to_string(programs.join(format!("{name}.nc"))).unwrap();
@@ -164,7 +160,6 @@ fn run_path(
     assert!(ok, "{} {name}: cncctl trajectory failed: {out}", case.rek);
     let t = total_s(&out);
     let reference = table_s(&tables.join(case.ticks), name, 2);
-    let linuxcnc = linuxcnc.unwrap_or(f64::INFINITY);
     let rows = vcan_support::trajectory_csv_rows(&csv);
     let axis_a = (1..4).map(|c| max_accel(&rows, c)).fold(0.0, f64::max);
     let path_a = max_path_accel(&rows);

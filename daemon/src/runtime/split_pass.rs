@@ -9,7 +9,7 @@
 use std::sync::mpsc::sync_channel;
 
 use kernel::machine::MachineSetup;
-use kernel::pipeline::split::{Checking, Interpreted, Interpreting};
+use kernel::pipeline::split::{self, Checking, Interpreted, Interpreting};
 use kernel::pipeline::{self, Observer, Options, Validation};
 use kernel::program::Lines;
 
@@ -31,12 +31,12 @@ pub fn validate_lines<L: Lines + Send>(
     opts: Options,
     inner: &mut impl Observer,
 ) -> Validation {
-    if opts.from_block.is_some() {
-        return pipeline::validate_lines_into(lines, setup, opts, inner);
-    }
-    let front = Interpreting::new(lines, setup, opts).expect("not a restart");
+    let front = match Interpreting::new(lines, setup, opts) {
+        Ok(front) => front,
+        Err(lines) => return pipeline::validate_lines_into(lines, setup, opts, inner),
+    };
     let mut back = Checking::new(setup, opts, inner);
-    std::thread::scope(|scope| {
+    let unstarted = std::thread::scope(|scope| {
         // The interpreter is handed over once its thread runs, so that it is still here to
         // run serially when the thread cannot be started.
         let (hand_over, take_over) = sync_channel::<Interpreting<L>>(1);
@@ -51,13 +51,7 @@ pub fn validate_lines<L: Lines + Send>(
                 }
             });
         if spawned.is_err() {
-            let mut front = front;
-            let mut out = Vec::new();
-            while front.next_into(&mut out) {
-                out.drain(..).for_each(|item| back.take(item));
-            }
-            out.drain(..).for_each(|item| back.take(item));
-            return;
+            return Some(front);
         }
         let _ = hand_over.send(front);
         for mut batch in from_front {
@@ -66,8 +60,12 @@ pub fn validate_lines<L: Lines + Send>(
         }
         // (A panic of the interpreter's thread ends the queue early, and the scope panics
         // with it when it ends: a verdict on part of a program is never given.)
+        None
     });
-    back.finish()
+    match unstarted {
+        Some(front) => split::run_here(front, back, BATCH),
+        None => back.finish(),
+    }
 }
 
 /// The interpreter's thread: batches until the program ends (or the pass is gone).

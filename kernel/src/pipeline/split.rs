@@ -45,9 +45,13 @@ pub struct Interpreting<L> {
 }
 
 impl<L: Lines> Interpreting<L> {
-    /// `None` for a restart's pass (`opts.from_block`), which is not split.
-    pub fn new(lines: L, setup: &MachineSetup, opts: Options) -> Option<Self> {
-        opts.from_block.is_none().then(|| Interpreting {
+    /// A restart's pass (`opts.from_block`) is not split: its lines come back (`Err`) for
+    /// the serial pass.
+    pub fn new(lines: L, setup: &MachineSetup, opts: Options) -> Result<Self, L> {
+        if opts.from_block.is_some() {
+            return Err(lines);
+        }
+        Ok(Interpreting {
             stream: program::stream_lines(lines, setup.program()),
             ended: false,
         })
@@ -117,6 +121,27 @@ impl<'a, O: Observer> Checking<'a, O> {
     }
 }
 
+/// Both halves on the caller's thread, the interpreter's outputs handed over once at least
+/// `batch` of them wait (as a caller's queue carries them between threads), and the verdict:
+/// for a caller whose second thread cannot start, and to hold the split pass to the serial
+/// one at any batch size.
+pub fn run_here<L: Lines, O: Observer>(
+    mut front: Interpreting<L>,
+    mut back: Checking<'_, O>,
+    batch: usize,
+) -> Validation {
+    let mut out = Vec::with_capacity(batch);
+    loop {
+        let more = front.next_into(&mut out);
+        if out.len() >= batch || !more {
+            out.drain(..).for_each(|item| back.take(item));
+        }
+        if !more {
+            return back.finish();
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -143,18 +168,11 @@ mod tests {
 
     fn split(text: &str, setup: &MachineSetup) -> (Validation, Vec<String>) {
         let mut seen = Seen::default();
-        let mut front = Interpreting::new(StrLines::new(text), setup, Options::default()).unwrap();
-        let mut back = Checking::new(setup, Options::default(), &mut seen);
-        let mut batch = Vec::new();
-        while front.next_into(&mut batch) {
-            for item in batch.drain(..) {
-                back.take(item);
-            }
-        }
-        for item in batch.drain(..) {
-            back.take(item);
-        }
-        let v = back.finish();
+        let Ok(front) = Interpreting::new(StrLines::new(text), setup, Options::default()) else {
+            panic!("not a restart");
+        };
+        let back = Checking::new(setup, Options::default(), &mut seen);
+        let v = run_here(front, back, 1);
         (v, seen.0)
     }
 
@@ -191,6 +209,6 @@ mod tests {
             ..Options::default()
         };
         let s = setup(Dialect::Cnc836);
-        assert!(Interpreting::new(StrLines::new("N10 X1\nN20 X2\n"), &s, opts).is_none());
+        assert!(Interpreting::new(StrLines::new("N10 X1\nN20 X2\n"), &s, opts).is_err());
     }
 }
