@@ -4,10 +4,12 @@
 //! What the drives see is the setpoints: per axis, the second difference of three consecutive
 //! ones is the axis's velocity change over a tick and must stay within a_k·Ts². The planner's
 //! envelope bounds it from the geometry ahead for every speed (junction caps, line budgets),
-//! which on a dense curve leaves 4-12 % of the time on the table. On a line of the linear
-//! profile (`Segment::axis_box`) the raw stage chooses each setpoint from the box directly:
+//! which on a dense curve leaves 4-12 % of the time on the table, on arcs 24-42 %. On a line
+//! or an arc of the linear profile (`Segment::axis_box`) the raw stage chooses each setpoint
+//! from the box directly:
 //! - the setpoints the box allows next lie in intervals of arc length, exact on lines, where
-//!   each axis's position is linear in the arc length (`box_scan`); the path acceleration of
+//!   each axis's position is linear in the arc length, and on arcs, a quarter turn at a time
+//!   (`box_scan`, `path_within`); the path acceleration of
 //!   the constants (R52, R236, R237, a set's A: `BoxAccel::path`) bounds the second difference
 //!   of the arc length at the setpoint, the speed's change over a tick; the step also keeps every
 //!   segment's ceiling it runs on, the manual's criteria (R385, R384) of every junction it
@@ -20,7 +22,8 @@
 //!   tried at most (`box_search`). The braking of the last accepted proof is kept (`Plan`):
 //!   its next setpoint is proven whatever the search finds, so every tick stays within the box.
 //!
-//! The envelope takes over where the box cannot look (an arc, the jerk filters, a braking
+//! The envelope takes over where the box cannot look (an arc a step could turn more than
+//! once, the jerk filters, a braking
 //! longer than `PROOF_TICKS`) once it allows the current speed and its next setpoint is
 //! inside the box.
 

@@ -167,7 +167,7 @@ pub struct Segment {
 }
 
 /// What the per-axis box on the setpoints reads of a segment (`interp::setpoint_box`, issues
-/// #32 and #49): the box judges lines of the linear profile, choosing each setpoint by the
+/// #32 and #49): the box judges lines and arcs of the linear profile, choosing each setpoint by the
 /// axes' accelerations and the path acceleration (R52, R236, R237, the set's A) directly.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SegmentBox {
