@@ -167,16 +167,19 @@ pub struct Segment {
 }
 
 /// What the per-axis box on the setpoints reads of a segment (`interp::setpoint_box`, issues
-/// #32 and #49): the box judges lines and arcs of the linear profile, choosing each setpoint by the
-/// axes' accelerations and the path acceleration (R52, R236, R237, the set's A) directly.
+/// #32 and #49): the box judges lines and arcs of the linear profile, choosing each setpoint
+/// by the axes' accelerations and the path acceleration (R52, R236, R237, the set's A)
+/// directly.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SegmentBox {
     /// The axes' accelerations; unset where the box does not judge the segment.
     pub accel_mm_s2: BoxAccel,
-    /// Its ceiling, mm/s: the geometric and axis ceiling, lowered by R395 to the faster of
-    /// the manual's criteria speeds at its junctions (`criteria_end_mm_s`) where rising inside
-    /// the block would not pay off. The envelope's own junction speeds and line budgets,
-    /// which lower `Segment::v_max_mm_s`, are not its limits.
+    /// Its ceiling, mm/s: the axes' speeds and the minimum block duration (on an arc also
+    /// the manual's arc criteria, `Planner::arc_box_ceiling`), lowered by R395 to the faster
+    /// of the manual's criteria speeds at its junctions (`criteria_end_mm_s`) where rising
+    /// inside the block would not pay off. The envelope's own junction speeds, line budgets
+    /// and share of the axes on an arc, which lower `Segment::v_max_mm_s`, are not its
+    /// limits.
     pub v_max_mm_s: f64,
     /// The end junction: the speed the manual's criteria alone (R385, R384; SPEC §7.2) allow
     /// there, mm/s (∞ where the path goes straight on; 0 at a stop); and for the accuracy
@@ -805,7 +808,7 @@ impl Planner {
         match *path {
             SegPath::Line { .. } => true,
             SegPath::Arc { radius_mm, .. } => {
-                box_v_max_mm_s * TS_S <= radius_mm * std::f64::consts::TAU
+                radius_mm > 0.0 && box_v_max_mm_s * TS_S <= radius_mm * std::f64::consts::TAU
             }
         }
     }
