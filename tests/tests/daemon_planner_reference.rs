@@ -120,15 +120,15 @@ fn run_case(case: &Case, failures: &mut Vec<String>) {
     // The arc-fitted programs (G2/G3, `arcs.py`): the box judges arcs too.
     let arcs = reference_dir().join("arcs");
     let place = (arcs.clone(), arcs.clone());
-    for name in arc_names() {
+    for name in arc_names(&arcs) {
         let linuxcnc = table_s(&arcs.join(case.linuxcnc), &name, 1);
         run_path(&d, case, &place, &name, linuxcnc, failures);
     }
 }
 
-/// The arc-fitted programs of `scripts/planner-reference/arcs`.
-fn arc_names() -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(reference_dir().join("arcs"))
+/// The programs of directory `dir` (`scripts/planner-reference/arcs`), by name.
+fn arc_names(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
         .unwrap()
         .filter_map(|e| {
             let name = e.unwrap().file_name().into_string().unwrap();

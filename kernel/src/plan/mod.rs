@@ -684,17 +684,18 @@ impl Planner {
         }
     }
 
-    /// Ceiling of an arc (∞ for lines): centripetal acceleration within the normal share,
-    /// the chord criterion R232, and in the parabolic profile the axis jerk of the circular
+    /// The envelope's ceiling of an arc (∞ for lines): the manual's arc criteria
+    /// (`criteria_mm_s`, [`Planner::arc_box_ceiling`]), the axes' centripetal acceleration
+    /// within the normal share, and in the parabolic profile the axis jerk of the circular
     /// motion (with the axis filter: within the corner share, and its pull towards the centre
     /// within Lm/2).
     fn arc_ceiling(
         &self,
         path: &SegPath,
+        criteria_mm_s: f64,
         dir: &AxesMm,
         set: usize,
-        a_axes: f64,
-        j_axes: f64,
+        (a_axes, j_axes): (f64, f64),
     ) -> f64 {
         let SegPath::Arc { radius_mm, .. } = *path else {
             return f64::INFINITY;
@@ -702,9 +703,7 @@ impl Planner {
         let env = &self.cfg.envelope;
         let set_ = &env.sets[set];
         let a_iso = self.cfg.iso_accel(dir, dir) * NORMAL_SHARE;
-        let a_c = set_.centripetal_mm_s2.min(a_iso);
-        let v_max = criteria::curvature_mm_s(a_c, 1.0 / radius_mm)
-            .min(criteria::arc_chord_mm_s(radius_mm, env.arc_chord_um));
+        let v_max = criteria::curvature_mm_s(a_iso, 1.0 / radius_mm).min(criteria_mm_s);
         if env.profile != Profile::Parabolic {
             return v_max;
         }
@@ -832,8 +831,8 @@ impl Planner {
         let dir = Self::limit_direction(&path, t_start, length_mm);
         let (v_axes, a_axes) = self.cfg.path_limits(&dir);
         let j_axes = self.cfg.path_jerk(&dir);
-        let mut v_max = self.arc_ceiling(&path, &dir, set, a_axes, j_axes);
         let mut box_v_max = self.arc_box_ceiling(&path, set);
+        let mut v_max = self.arc_ceiling(&path, box_v_max, &dir, set, (a_axes, j_axes));
         v_max = v_max.min(v_axes);
         box_v_max = box_v_max.min(v_axes);
         if !rapid {
