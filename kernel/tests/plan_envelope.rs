@@ -1144,8 +1144,8 @@ fn a_circle_runs_at_the_speed_the_axes_allow_on_it() {
     );
 }
 
-/// Arcs in every plane, helical, tangent and not, of 0.05-30 mm radius (the smallest left to
-/// the envelope: a step could turn them more than once), between lines, with and without
+/// Arcs in every plane, helical, tangent and not, of 0.05-30 mm radius (the box judges them
+/// all, a half turn a step at most), between lines, with and without
 /// the path accelerations of a constants file: every axis within its limits and the
 /// setpoints on the path.
 #[test]
@@ -1229,4 +1229,32 @@ fn a_hold_on_an_arc_brakes_within_the_axis_limits() {
     assert!(r.ticks[59].path_v_mm_s > 10.0, "moving at the hold");
     assert_eq!(r.ticks[150].state, kernel::interp::InterpState::Held);
     assert_eq!(r.ticks.last().unwrap().position.0[..3], p.pos.0[..3]);
+}
+
+/// A small loop between two lines in line with each other (a full circle, or two half
+/// circles, whose ends are tangent) is run, not skipped: the axes would not see a loop that
+/// one step crosses whole, so a step turns the arcs it runs on by at most a half turn. Every
+/// axis within its limits, on both machines, at feeds that could cross the loop in a step.
+#[test]
+fn a_small_loop_between_lines_is_run_not_skipped() {
+    for cfg in [cfg(3), reference_config_with("machine-default.rek")] {
+        for r_mm in [0.01, 0.05, 0.2] {
+            for halves in [false, true] {
+                let mut p = Prog::new(p3(0.0, 0.0, 0.0), 12000.0, Continuity::G23);
+                p.g1(p3(5.0, 0.0, 0.0));
+                let center = p3(5.0, r_mm, 0.0);
+                if halves {
+                    p.arc(p3(5.0, 2.0 * r_mm, 0.0), center, ArcDir::Ccw);
+                }
+                p.arc(p3(5.0, 0.0, 0.0), center, ArcDir::Ccw);
+                p.g1(p3(10.0, 0.0, 0.0));
+                let name = format!("loop R{r_mm} halves {halves}");
+                let r = assert_within(&name, &cfg, &p.blocks);
+                assert!(r.segments.iter().all(|s| s.axis_box.accel_mm_s2.is_set()));
+                // Within a half turn a step, some setpoint lies on the loop's upper half.
+                let top = r.ticks.iter().map(|t| t.position[1]).fold(0.0, f64::max);
+                assert!(top >= r_mm * (1.0 - 1e-9), "{name}: top {top}");
+            }
+        }
+    }
 }

@@ -103,8 +103,9 @@ fn dense_paths_run_near_the_reference_with_path_accelerations_of_a_constants_fil
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
-/// Issue #49: the box judges arcs. The arc-fitted programs (`scripts/planner-reference/arcs`,
-/// tangent G2/G3 arcs of 0.5-30 mm radius) with both constants files: within 1.03 of what
+/// Issue #49: the box judges arcs. The arc-fitted programs (`scripts/planner-reference/arcs`:
+/// tangent G2/G3 arcs of 0.5-30 mm radius, and lines rounded by tangent fillets of 0.01-0.2
+/// mm, which a step may cross whole) with both constants files: within 1.03 of what
 /// `ticks.py` finds feasible with 4 ms setpoints on those arcs (it draws them in 5 µm chords
 /// itself), faster than LinuxCNC 2.9 with the same trajectory acceleration
 /// (`arcs/linuxcnc*.tsv`), every axis and the path acceleration within its limit from the

@@ -7,8 +7,8 @@
 //! what `ticks.py` (independent of the planner) finds feasible with 4 ms setpoints under the
 //! same limits, faster than LinuxCNC 2.9 with the same trajectory acceleration, every axis
 //! within its acceleration and the path within its own. The same for the arc-fitted programs
-//! (`scripts/planner-reference/arcs`, tangent G2/G3 arcs), against `ticks.py` and LinuxCNC on
-//! those arcs.
+//! (`scripts/planner-reference/arcs`, tangent G2/G3 arcs, and lines rounded by small fillets),
+//! against `ticks.py` and LinuxCNC on those arcs.
 //!
 //! And the parabolic profile: with the constants files of `scripts/jerk-reference/`, every
 //! move of its suite (short moves that never reach F included) within 1.03 of Ruckig's

@@ -22,10 +22,10 @@
 //!   tried at most (`box_search`). The braking of the last accepted proof is kept (`Plan`):
 //!   its next setpoint is proven whatever the search finds, so every tick stays within the box.
 //!
-//! The envelope takes over where the box cannot look (an arc a step could turn more than
-//! once, the jerk filters, a braking
-//! longer than `PROOF_TICKS`) once it allows the current speed and its next setpoint is
-//! inside the box.
+//! - a step turns the arcs it runs on by at most a half turn (`StepTurn`).
+//!
+//! The envelope takes over where the box cannot look (the jerk filters, a braking longer than
+//! `PROOF_TICKS`) once it allows the current speed and its next setpoint is inside the box.
 
 use super::{ARRIVE_EPS_MM, InterpState, Interpolator};
 use crate::plan::{SegPath, Segment};
@@ -207,6 +207,47 @@ impl Accuracy {
     }
 }
 
+/// The turn of the arcs within one step, at most a half turn (`HALF_TURN_RAD`): within it the
+/// chord of a step grows with the turn, so the setpoints cannot alias an arc (a step turning
+/// a small circle almost once looks like a short step back), nor skip a loop of small arcs,
+/// whose ends are tangent and whose turns the axes would not see across it. A fillet of up to
+/// a half turn may still be crossed in one step, where the axes see its turn as a corner's.
+#[derive(Clone, Copy, Debug)]
+struct StepTurn {
+    turned_rad: f64,
+}
+
+/// The most the arcs within one step may turn, radians.
+const HALF_TURN_RAD: f64 = std::f64::consts::PI;
+
+impl StepTurn {
+    const NONE: StepTurn = StepTurn { turned_rad: 0.0 };
+
+    /// The step from arc length `from` reaches segment `seg` (from `s0` to `s1`): lowers `top`
+    /// to where its arcs have turned a half turn.
+    fn limit(&self, seg: &Segment, (s0, s1): (f64, f64), from: f64, top: &mut f64) {
+        let rate = turn_per_mm(seg);
+        if rate > 0.0 {
+            let start = s0.max(from);
+            *top = top.min(start + (HALF_TURN_RAD - self.turned_rad).max(0.0) / rate);
+            debug_assert!(s1 >= start);
+        }
+    }
+
+    /// The step passes the end `s1` of segment `seg` (from `s0`).
+    fn pass(&mut self, seg: &Segment, (s0, s1): (f64, f64), from: f64) {
+        self.turned_rad += turn_per_mm(seg) * (s1 - s0.max(from)).max(0.0);
+    }
+}
+
+/// The turn of segment `seg` per mm of its arc length, radians (0 on a line).
+fn turn_per_mm(seg: &Segment) -> f64 {
+    match seg.path {
+        SegPath::Arc { sweep_rad, .. } if seg.length_mm > 0.0 => sweep_rad.abs() / seg.length_mm,
+        _ => 0.0,
+    }
+}
+
 impl Interpolator {
     fn start_of(&self, k: usize) -> f64 {
         self.seg_start_s_mm[self.idx(k)]
@@ -301,7 +342,8 @@ impl Interpolator {
         let room = &self.box_room;
         let (aim, first_s, mut top) = self.box_scan_range(t, up_to);
         let mut accuracy = Accuracy::NONE;
-        let Some(j) = self.box_skip(t, first_s, feed, &mut top, &mut accuracy) else {
+        let mut turn = StepTurn::NONE;
+        let Some(j) = self.box_skip(t, first_s, feed, &mut top, (&mut accuracy, &mut turn)) else {
             return Reach::Unknown;
         };
         let (mut near, mut near_k, mut far) = (f64::NAN, 0, f64::NAN);
@@ -343,6 +385,7 @@ impl Interpolator {
             } else {
                 s1
             };
+            turn.limit(&self.buf[i], (s0, s1), t.s, &mut top);
             let (lo, hi) = (s0.max(t.s).max(first_s), end.min(top));
             let within = match path_within(&self.buf[i], s0, (lo, hi), &aim[..self.axes], room) {
                 Within::Span(lo, hi) => Some((lo, hi)),
@@ -368,6 +411,7 @@ impl Interpolator {
                 break;
             }
             // Crossing the junction at the end of this segment.
+            turn.pass(&self.buf[i], (s0, s1), t.s);
             accuracy.cross(j, &slot.end);
             top = top.min(t.s + slot.end.crit_mm_s * TS_S);
             top = top.min(t.s + self.box_accuracy_reach(t, &accuracy, top - t.s));
@@ -382,17 +426,17 @@ impl Interpolator {
     }
 
     /// The segments of tick `t` on that end before `first_s` hold no allowed setpoint: a step
-    /// that reaches one crosses them whole, so only their ceilings and the criteria of their
-    /// end junctions count (`accuracy` adds their turns), which lower `top`. Returns the first
-    /// segment left to look at (`None`: one of them is not judged by the box), or the one
-    /// that ends at a stop point.
+    /// that reaches one crosses them whole, so only their ceilings, the criteria of their
+    /// end junctions (`accuracy` adds their turns) and the turn of their arcs (`turn`) count,
+    /// which lower `top`. Returns the first segment left to look at (`None`: one of them is
+    /// not judged by the box), or the one that ends at a stop point.
     fn box_skip(
         &self,
         t: &Tick,
         first_s: f64,
         feed: bool,
         top: &mut f64,
-        accuracy: &mut Accuracy,
+        (accuracy, turn): (&mut Accuracy, &mut StepTurn),
     ) -> Option<usize> {
         let mut k = t.k;
         let (mut fixed, mut feeds) = (f64::INFINITY, f64::INFINITY);
@@ -407,6 +451,9 @@ impl Interpolator {
                 break;
             }
             accuracy.cross(k, &slot.end);
+            let span = (self.start_of(k), self.start_of(k + 1));
+            turn.limit(&self.buf[i], span, t.s, top);
+            turn.pass(&self.buf[i], span, t.s);
             fixed = fixed.min(slot.v_max_mm_s).min(slot.end.crit_mm_s);
             if feed {
                 let f = if slot.plain_feed {
@@ -822,8 +869,8 @@ enum Within {
     Unknown,
 }
 
-/// Monotone pieces (quarter turns) of an arc one scan looks at, at most: the planner boxes
-/// an arc only where a step stays within a turn (`Planner::box_candidate`), five quarters.
+/// Monotone pieces (quarter turns) of an arc one scan looks at, at most: a step turns at most
+/// a half turn (`StepTurn`), three quarters.
 const ARC_PIECES: usize = 8;
 
 /// The part of `[lo, hi]` (arc length on segment `seg`, which starts at `s0`) where every

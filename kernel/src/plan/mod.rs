@@ -797,18 +797,21 @@ impl Planner {
     }
 
     /// Whether the per-axis box on the setpoints may judge a block (`Pending::box_candidate`):
-    /// lines and arcs of the linear profile. An arc only where a step at its box ceiling
-    /// `box_v_max_mm_s` stays within a turn, so that a scan meets at most five quarter turns
-    /// of it (`interp::setpoint_box::arc_within`); smaller arcs are left to the envelope.
-    fn box_candidate(&self, path: &SegPath, box_v_max_mm_s: f64) -> bool {
+    /// lines and arcs of the linear profile, an arc of any radius. A step turns the arcs it
+    /// runs on by at most a half turn (`interp::setpoint_box::StepTurn`), so a scan meets at
+    /// most three quarter turns of an arc (`arc_within`), and an arc turns at most once
+    /// (`SegPath::arc`; a longer one, were there any, would be left to the envelope).
+    fn box_candidate(&self, path: &SegPath) -> bool {
         if self.cfg.envelope.profile != Profile::Linear {
             return false;
         }
         match *path {
             SegPath::Line { .. } => true,
-            SegPath::Arc { radius_mm, .. } => {
-                radius_mm > 0.0 && box_v_max_mm_s * TS_S <= radius_mm * std::f64::consts::TAU
-            }
+            SegPath::Arc {
+                radius_mm,
+                sweep_rad,
+                ..
+            } => radius_mm > 0.0 && sweep_rad.abs() <= std::f64::consts::TAU + 1e-9,
         }
     }
 
@@ -869,7 +872,7 @@ impl Planner {
             turn: criteria::Turn::STRAIGHT,
             crit: 0.0,
             cap: 0.0,
-            box_candidate: self.box_candidate(&path, box_v_max),
+            box_candidate: self.box_candidate(&path),
             budget: None,
             turns: None,
         };

@@ -855,17 +855,18 @@ pub fn program_of_g1(text: &str) -> Vec<Block> {
 }
 
 /// Blocks of an arc-fitted program of `scripts/planner-reference/arcs` (`arcs.py`): `G2`/`G3
-/// X Y I J` arcs in G17, centre relative to the arc's start, from the origin (the first
-/// line also carries G23 and F).
+/// X Y I J` arcs in G17, centre relative to the arc's start, and `G1 X Y` lines, from the
+/// origin (the first line also carries G23 and F).
 pub fn program_of_arcs(text: &str) -> Vec<Block> {
     let mut p = Prog::new(p3(0.0, 0.0, 0.0), 6000.0, Continuity::G23);
     for line in text.lines() {
-        let (mut q, mut c, mut dir) = (p.pos, p.pos, ArcDir::Ccw);
+        let (mut q, mut c, mut dir) = (p.pos, p.pos, Some(ArcDir::Ccw));
         for w in line.split_whitespace() {
             let (k, v) = w.split_at(1);
             match (k, v) {
-                ("G", "2") => dir = ArcDir::Cw,
-                ("G", "3") => dir = ArcDir::Ccw,
+                ("G", "1") => dir = None,
+                ("G", "2") => dir = Some(ArcDir::Cw),
+                ("G", "3") => dir = Some(ArcDir::Ccw),
                 ("X", v) => q[0] = v.parse().unwrap(),
                 ("Y", v) => q[1] = v.parse().unwrap(),
                 ("I", v) => c[0] = p.pos[0] + v.parse::<f64>().unwrap(),
@@ -874,7 +875,10 @@ pub fn program_of_arcs(text: &str) -> Vec<Block> {
                 _ => {}
             }
         }
-        p.arc(q, c, dir);
+        match dir {
+            Some(dir) => p.arc(q, c, dir),
+            None => p.g1(q),
+        };
     }
     p.blocks
 }
