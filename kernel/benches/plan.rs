@@ -411,8 +411,14 @@ fn tick_cost() {
     let reference = reference_config();
     // Arcs judged by the box (issue #49), with the constants file of defaults.
     let default_rek = reference_config_with("machine-default.rek");
-    let arcs = arc_paths().into_iter().find(|(n, _)| n == "arcfit-small");
-    let arcs = arcs.map(|(_, b)| ("arc-fitted, 0.5-5 mm (#49)", b));
+    let arcs: Vec<_> = arc_paths()
+        .into_iter()
+        .filter_map(|(n, b)| match n.as_str() {
+            "arcfit-small" => Some(("arc-fitted, 0.5-5 mm (#49)", b)),
+            "fillet-tiny" => Some(("fillets of 0.01-0.05 mm (#49)", b)),
+            _ => None,
+        })
+        .collect();
     let runs = runs
         .chain(
             splines
