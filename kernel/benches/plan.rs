@@ -411,7 +411,7 @@ fn tick_cost() {
     let reference = reference_config();
     // Arcs judged by the box (issue #49), with the constants file of defaults.
     let default_rek = reference_config_with("machine-default.rek");
-    let arcs: Vec<_> = arc_paths()
+    let arcs: Vec<_> = programs_in("arcs")
         .into_iter()
         .filter_map(|(n, b)| match n.as_str() {
             "arcfit-small" => Some(("arc-fitted, 0.5-5 mm (#49)", b)),

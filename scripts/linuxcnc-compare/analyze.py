@@ -87,8 +87,8 @@ def write_tsv(rows):
     PATH_ACCEL; committed): the planner's test plan_reference holds the planner to be faster
     on every path."""
     here = os.path.dirname(os.path.abspath(__file__))
-    if os.environ.get("ARCS"):
-        here = os.path.join(here, "../planner-reference/arcs")
+    if os.environ.get("DIR"):
+        here = os.path.join(here, "../planner-reference", os.environ["DIR"])
     accel = os.environ.get("PATH_ACCEL")
     name = f"linuxcnc-a{accel}.tsv" if accel else "linuxcnc.tsv"
     traj = f", [TRAJ] MAX_LINEAR_ACCELERATION and every axis's MAX_ACCELERATION = {accel}" if accel else ""
@@ -121,7 +121,7 @@ def main():
             f"| {t:.3f} | {t / o['limit']:.3f} | {a1:.2f}; {a4:.2f} | {dev * 1000:.1f} | {t / o['time']:.3f} |",
             flush=True,
         )
-    if sorted(names) == sorted(ours) or ((os.environ.get("PATH_ACCEL") or os.environ.get("ARCS")) and not ours):
+    if sorted(names) == sorted(ours) or ((os.environ.get("PATH_ACCEL") or os.environ.get("DIR")) and not ours):
         write_tsv(rows)
 
 

@@ -11,12 +11,15 @@
 # millisecond) and every axis's MAX_ACCELERATION at 500; writes linuxcnc-a500.tsv, without
 # the bench. (Per axis 500 lets a diagonal accelerate at up to 707 mm/s² along the path.)
 # ARCS=1 scripts/linuxcnc-compare/run.sh: the arc-fitted programs (planner-reference/arcs,
-# G2/G3) instead, without the bench; the table goes into that directory.
+# G2/G3) instead, without the bench; the table goes into that directory. DIR=fast: the programs
+# of planner-reference/fast (fast.py) likewise (ARCS=1 is DIR=arcs).
 set -eu
 ROOT=$(cd "$(dirname "$0")/../.." && pwd)
 HERE=$ROOT/scripts/linuxcnc-compare
 PATHS=$ROOT/scripts/planner-reference/paths
-if [ -n "${ARCS:-}" ]; then PATHS=$ROOT/scripts/planner-reference/arcs; fi
+if [ -n "${ARCS:-}" ]; then DIR=arcs; fi
+if [ -n "${DIR:-}" ]; then PATHS=$ROOT/scripts/planner-reference/$DIR; fi
+export DIR
 WORK=$ROOT/target/linuxcnc-compare
 NAMES=${*:-$(cd "$PATHS" && ls *.nc | sed 's/\.nc$//' | tr '\n' ' ')}
 
@@ -65,7 +68,7 @@ echo "running LinuxCNC on: $NAMES"
 }
 cat "$WORK/out/driver.log"
 
-if [ -n "${PATH_ACCEL:-}${ARCS:-}" ]; then
+if [ -n "${PATH_ACCEL:-}${DIR:-}" ]; then
     : > "$WORK/ours.md"
 else
     echo "running the planner bench (reference table)"

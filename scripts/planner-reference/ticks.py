@@ -4,8 +4,8 @@
 The limit of reference.py is continuous in time. A controller that keeps its setpoints on the
 programmed polyline, one every Ts, is held instead by the setpoints themselves: per axis the
 second difference |x_k(s_i+1) - 2·x_k(s_i) + x_k(s_i-1)| <= a_k·Ts², the step |Δx_k| <= v_k·Ts,
-the path step s_i+1 - s_i <= F·Ts, with a path acceleration A (R52, R236, R237 of a constants
-file) the second difference of the arc length |s_i+1 - 2·s_i + s_i-1| <= A·Ts², and at each
+the path step s_i+1 - s_i <= F·Ts (F the program's), with a path acceleration A (R52, R236, R237
+of a constants file) the second difference of the arc length |s_i+1 - 2·s_i + s_i-1| <= A·Ts², and at each
 junction the step that crosses it within the junction's R384/R385 speeds (the same criteria as
 reference.py's exact bound).
 
@@ -22,7 +22,8 @@ Nothing here uses the planner's code. Input: paths/<name>.nc (reference.py). Out
 (committed): ticks.tsv without a path acceleration (the axes' limits alone: R52 = R236 = R237
 = 0), ticks-a<A>.tsv with one. Run: python3 ticks.py [--path-accel A] [name ...] (plain
 Python, about a minute a table); python3 ticks.py --dir arcs [--path-accel A] for the
-arc-fitted programs of arcs.py (G2/G3, drawn in 5 µm chords here).
+arc-fitted programs of arcs.py (G2/G3, drawn in 5 µm chords here), --dir fast for fast.py's. The
+feed is the program's F.
 """
 
 import math
@@ -67,6 +68,16 @@ def read_polyline(path):
                 if p != pts[-1]:
                     pts.append(p)
     return pts
+
+
+def read_feed(path):
+    """The feed a program sets (its first F word), mm/min; machine.FEED where it sets none."""
+    with open(path) as f:
+        for line in f:
+            for word in line.split():
+                if word[0] == "F":
+                    return float(word[1:])
+    return FEED
 
 
 def arc_points(start, end, centre, ccw):
@@ -219,7 +230,7 @@ def check(line, seq):
 
 
 def main():
-    global STEP_P
+    global STEP_P, STEP_F
     args = sys.argv[1:]
     table = "ticks.tsv"
     # --dir D: the programs D/*.nc (arcs.py's), the table written into D.
@@ -242,7 +253,9 @@ def main():
     for name in names:
         if only and name not in only:
             continue
-        line = Polyline(read_polyline(os.path.join(paths, f"{name}.nc")))
+        program = os.path.join(paths, f"{name}.nc")
+        STEP_F = read_feed(program) / 60.0 * TS
+        line = Polyline(read_polyline(program))
         seq = greedy_ticks(line)
         ticks = len(seq) - 2
         acc, vel, path, path_a = check(line, seq)

@@ -8,7 +8,8 @@
 //! same limits, faster than LinuxCNC 2.9 with the same trajectory acceleration, every axis
 //! within its acceleration and the path within its own. The same for the arc-fitted programs
 //! (`scripts/planner-reference/arcs`, tangent G2/G3 arcs, and lines rounded by small fillets),
-//! against `ticks.py` and LinuxCNC on those arcs.
+//! against `ticks.py` and LinuxCNC on those arcs, and for long lines at the axes' speed
+//! (`fast`), where the box hands the motion to the envelope and back.
 //!
 //! And the parabolic profile: with the constants files of `scripts/jerk-reference/`, every
 //! move of its suite (short moves that never reach F included) within 1.03 of Ruckig's
@@ -117,17 +118,20 @@ fn run_case(case: &Case, failures: &mut Vec<String>) {
         let place = (reference_dir().join("paths"), reference_dir());
         run_path(&d, case, &place, &name, linuxcnc, failures);
     }
-    // The arc-fitted programs (G2/G3, `arcs.py`): the box judges arcs too.
-    let arcs = reference_dir().join("arcs");
-    let place = (arcs.clone(), arcs.clone());
-    for name in arc_names(&arcs) {
-        let linuxcnc = table_s(&arcs.join(case.linuxcnc), &name, 1);
-        run_path(&d, case, &place, &name, linuxcnc, failures);
+    // The arc-fitted programs (G2/G3, `arcs.py`): the box judges arcs too. The fast ones
+    // (`fast.py`): the box hands them to the envelope and back.
+    for sub in ["arcs", "fast"] {
+        let dir = reference_dir().join(sub);
+        let place = (dir.clone(), dir.clone());
+        for name in program_names(&dir) {
+            let linuxcnc = table_s(&dir.join(case.linuxcnc), &name, 1);
+            run_path(&d, case, &place, &name, linuxcnc, failures);
+        }
     }
 }
 
-/// The programs of directory `dir` (`scripts/planner-reference/arcs`), by name.
-fn arc_names(dir: &Path) -> Vec<String> {
+/// The programs of directory `dir` (`scripts/planner-reference/arcs`, `fast`), by name.
+fn program_names(dir: &Path) -> Vec<String> {
     let mut names: Vec<String> = std::fs::read_dir(dir)
         .unwrap()
         .filter_map(|e| {

@@ -855,7 +855,7 @@ pub fn program_of_g1(text: &str) -> Vec<Block> {
 }
 
 /// Blocks of an arc-fitted program of `scripts/planner-reference/arcs` (`arcs.py`): `G2`/`G3
-/// X Y I J` arcs in G17, centre relative to the arc's start, and `G1 X Y` lines, from the
+/// X Y I J` arcs in G17, centre relative to the arc's start, and `G1 X Y Z` lines, from the
 /// origin (the first line also carries G23 and F).
 pub fn program_of_arcs(text: &str) -> Vec<Block> {
     let mut p = Prog::new(p3(0.0, 0.0, 0.0), 6000.0, Continuity::G23);
@@ -869,6 +869,7 @@ pub fn program_of_arcs(text: &str) -> Vec<Block> {
                 ("G", "3") => dir = Some(ArcDir::Ccw),
                 ("X", v) => q[0] = v.parse().unwrap(),
                 ("Y", v) => q[1] = v.parse().unwrap(),
+                ("Z", v) => q[2] = v.parse().unwrap(),
                 ("I", v) => c[0] = p.pos[0] + v.parse::<f64>().unwrap(),
                 ("J", v) => c[1] = p.pos[1] + v.parse::<f64>().unwrap(),
                 ("F", v) => p.feed_mm_min = v.parse().unwrap(),
@@ -883,9 +884,10 @@ pub fn program_of_arcs(text: &str) -> Vec<Block> {
     p.blocks
 }
 
-/// The arc-fitted programs (`scripts/planner-reference/arcs/*.nc`), by name.
-pub fn arc_paths() -> Vec<(String, Vec<Block>)> {
-    let dir = reference_dir().join("arcs");
+/// The programs of directory `sub` of `scripts/planner-reference` (`arcs`: the arc-fitted
+/// ones, `fast`: long lines at the axes' speed), by name.
+pub fn programs_in(sub: &str) -> Vec<(String, Vec<Block>)> {
+    let dir = reference_dir().join(sub);
     let mut names: Vec<String> = std::fs::read_dir(&dir)
         .unwrap()
         .filter_map(|e| {
