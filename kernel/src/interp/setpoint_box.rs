@@ -136,6 +136,8 @@ pub(super) struct BoxSlot {
     pub path_room_mm: f64,
     /// The end junction (`SegmentBox::criteria_end_mm_s`, `end_half_tan`, `lm_mm`).
     pub end: OnJunction,
+    /// Its turn per mm of arc length, radians (0 on a line; `StepTurn`).
+    pub turn_per_mm: f64,
 }
 
 impl BoxSlot {
@@ -153,6 +155,7 @@ impl BoxSlot {
                 half_tan: b.end_half_tan,
                 lm_mm: b.lm_mm,
             },
+            turn_per_mm: turn_per_mm(seg),
         }
     }
 }
@@ -182,6 +185,11 @@ impl OnJunction {
 /// add up: F(L) = Σ w_j·min(d_j, L − d_j) ≤ Lm. The scan keeps the sum of the weights: F is
 /// at most that sum times L/2, and only where that bound reaches Lm is F followed exactly
 /// (`Interpolator::box_accuracy_reach`).
+///
+/// F counts the junctions' turns, not the bend of the arcs between them, which moves a corner
+/// (a junction that turns) off the chord too: by at most min(d, L − d)·Φ, Φ the arcs' turn
+/// within the step. So where arcs bend within a step, each corner it crosses also keeps
+/// min(d, L − d)·(Σw + Φ) ≤ Lm (`Interpolator::box_corner_cap`).
 #[derive(Clone, Copy, Debug)]
 struct Accuracy {
     lm_mm: f64,
@@ -189,6 +197,10 @@ struct Accuracy {
     /// The last segment whose end junction the step crosses (with a turn).
     last: Option<usize>,
 }
+
+/// Below this tan(α/2) a junction is tangent for the arcs' bend (α < 0.001 rad: a program's
+/// digits, not a corner; its own R384 speed is above 8000 mm/s at Lm 8 µm).
+const CORNER_MIN_HALF_TAN: f64 = 5e-4;
 
 impl Accuracy {
     const NONE: Accuracy = Accuracy {
@@ -223,21 +235,40 @@ const HALF_TURN_RAD: f64 = std::f64::consts::PI;
 impl StepTurn {
     const NONE: StepTurn = StepTurn { turned_rad: 0.0 };
 
-    /// The step from arc length `from` reaches segment `seg` (from `s0` to `s1`): lowers `top`
-    /// to where its arcs have turned a half turn.
-    fn limit(&self, seg: &Segment, (s0, s1): (f64, f64), from: f64, top: &mut f64) {
-        let rate = turn_per_mm(seg);
+    /// The step from arc length `from` reaches a segment from `s0` that turns `rate` radians
+    /// per mm: lowers `top` to where its arcs have turned a half turn.
+    fn limit(&self, rate: f64, s0: f64, from: f64, top: &mut f64) {
         if rate > 0.0 {
             let start = s0.max(from);
             *top = top.min(start + (HALF_TURN_RAD - self.turned_rad).max(0.0) / rate);
-            debug_assert!(s1 >= start);
         }
     }
 
-    /// The step passes the end `s1` of segment `seg` (from `s0`).
-    fn pass(&mut self, seg: &Segment, (s0, s1): (f64, f64), from: f64) {
-        self.turned_rad += turn_per_mm(seg) * (s1 - s0.max(from)).max(0.0);
+    /// The turn of the step's arcs up to arc length `s` on a segment from `s0` that turns
+    /// `rate` radians per mm.
+    fn at(&self, rate: f64, s0: f64, from: f64, s: f64) -> f64 {
+        self.turned_rad + rate * (s - s0.max(from)).max(0.0)
     }
+
+    /// The step passes the end `s1` of a segment from `s0` that turns `rate` radians per mm.
+    fn pass(&mut self, rate: f64, (s0, s1): (f64, f64), from: f64) {
+        self.turned_rad += rate * (s1 - s0.max(from)).max(0.0);
+    }
+}
+
+/// What `Interpolator::box_corner_cap` reads of a walk: the junctions the step crosses, and
+/// the arcs' turn Φ up to the farthest setpoint found (radians).
+#[derive(Clone, Copy, Debug)]
+struct Bend {
+    accuracy: Accuracy,
+    phi_rad: f64,
+}
+
+impl Bend {
+    const NONE: Bend = Bend {
+        accuracy: Accuracy::NONE,
+        phi_rad: 0.0,
+    };
 }
 
 /// The turn of segment `seg` per mm of its arc length, radians (0 on a line).
@@ -339,28 +370,79 @@ impl Interpolator {
     }
 
     fn box_scan(&self, t: &Tick, up_to: f64, feed: bool, near_only: bool) -> Reach {
+        let mut bend = Bend::NONE;
+        let reach = self.box_walk(t, (up_to, feed, near_only), &mut bend);
+        let Reach::Within { near, near_k, far } = reach else {
+            return reach;
+        };
+        let cap = self.box_corner_cap(t, &bend, far);
+        if near > cap {
+            Reach::Empty
+        } else if far <= cap || near_only {
+            Reach::Within {
+                near,
+                near_k,
+                far: far.min(cap),
+            }
+        } else {
+            // The allowed setpoints up to the cap: a walk over less, with a turn and corners
+            // no larger, whose own cap is no lower.
+            let mut again = Bend::NONE;
+            self.box_walk(t, (up_to.min(cap), feed, false), &mut again)
+        }
+    }
+
+    /// Where arcs bend within the step up to `far` (`bend`), the corners it crosses bound its
+    /// length (`Accuracy`): at most ε = Lm/(Σw + Φ) past the first corner farther than ε from
+    /// the start (∞: no bound). Read only then, from the segments' end junctions.
+    fn box_corner_cap(&self, t: &Tick, bend: &Bend, far: f64) -> f64 {
+        let a = &bend.accuracy;
+        if bend.phi_rad <= 0.0 || a.last.is_none() {
+            return f64::INFINITY;
+        }
+        let eps = a.lm_mm / (a.w_sum + bend.phi_rad);
+        let mut k = t.k;
+        while k + 1 < self.len && self.start_of(k + 1) < far {
+            let s = self.start_of(k + 1);
+            if self.box_slots[self.idx(k)].end.half_tan > CORNER_MIN_HALF_TAN && s - t.s > eps {
+                return s + eps;
+            }
+            k += 1;
+        }
+        f64::INFINITY
+    }
+
+    /// `box_scan` without the corners' bound: the reach, and into `bend` what the bound needs.
+    fn box_walk(
+        &self,
+        t: &Tick,
+        (up_to, feed, near_only): (f64, bool, bool),
+        bend: &mut Bend,
+    ) -> Reach {
         let room = &self.box_room;
         let (aim, first_s, mut top) = self.box_scan_range(t, up_to);
-        let mut accuracy = Accuracy::NONE;
         let mut turn = StepTurn::NONE;
-        let Some(j) = self.box_skip(t, first_s, feed, &mut top, (&mut accuracy, &mut turn)) else {
+        let skipped = self.box_skip(t, first_s, feed, &mut top, (&mut bend.accuracy, &mut turn));
+        let Some(mut j) = skipped else {
             return Reach::Unknown;
         };
         let (mut near, mut near_k, mut far) = (f64::NAN, 0, f64::NAN);
-        let mut j = j;
+        let found = |near: f64, near_k: usize, far: f64| {
+            if near.is_nan() {
+                Reach::Unknown
+            } else {
+                Reach::Within { near, near_k, far }
+            }
+        };
         // (The compact tables `ahead` and `box_slots`.)
         let mut slot = self.box_slots[self.idx(j)];
         while j < self.len {
             let i = self.idx(j);
             let ahead = &self.ahead[i];
             if !slot.boxed {
-                return if near.is_nan() {
-                    Reach::Unknown
-                } else {
-                    Reach::Within { near, near_k, far }
-                };
+                return found(near, near_k, far);
             }
-            let s0 = self.seg_start_s_mm[i];
+            let (s0, seg) = (self.seg_start_s_mm[i], &self.buf[i]);
             let s1 = s0 + ahead.length_mm;
             let ceiling = if feed {
                 (self.feed_of_ahead(ahead) * self.override_factor).min(slot.v_max_mm_s)
@@ -385,24 +467,20 @@ impl Interpolator {
             } else {
                 s1
             };
-            turn.limit(&self.buf[i], (s0, s1), t.s, &mut top);
+            turn.limit(slot.turn_per_mm, s0, t.s, &mut top);
             let (lo, hi) = (s0.max(t.s).max(first_s), end.min(top));
-            let within = match path_within(&self.buf[i], s0, (lo, hi), &aim[..self.axes], room) {
+            let within = match path_within(seg, s0, (lo, hi), &aim[..self.axes], room) {
                 Within::Span(lo, hi) => Some((lo, hi)),
                 Within::Empty => None,
                 // (An arc turned more than the planner allows within a step: never met.)
-                Within::Unknown if near.is_nan() => return Reach::Unknown,
-                Within::Unknown => return Reach::Within { near, near_k, far },
+                Within::Unknown => return found(near, near_k, far),
             };
             if let Some((lo, hi)) = within {
+                bend.phi_rad = turn.at(slot.turn_per_mm, s0, t.s, hi);
                 if near.is_nan() {
                     (near, near_k) = (lo, j);
                     if near_only {
-                        return Reach::Within {
-                            near,
-                            near_k,
-                            far: hi,
-                        };
+                        return found(near, near_k, hi);
                     }
                 }
                 far = hi;
@@ -411,10 +489,10 @@ impl Interpolator {
                 break;
             }
             // Crossing the junction at the end of this segment.
-            turn.pass(&self.buf[i], (s0, s1), t.s);
-            accuracy.cross(j, &slot.end);
+            turn.pass(slot.turn_per_mm, (s0, s1), t.s);
+            bend.accuracy.cross(j, &slot.end);
             top = top.min(t.s + slot.end.crit_mm_s * TS_S);
-            top = top.min(t.s + self.box_accuracy_reach(t, &accuracy, top - t.s));
+            top = top.min(t.s + self.box_accuracy_reach(t, &bend.accuracy, top - t.s));
             slot = next;
             j += 1;
         }
@@ -452,8 +530,8 @@ impl Interpolator {
             }
             accuracy.cross(k, &slot.end);
             let span = (self.start_of(k), self.start_of(k + 1));
-            turn.limit(&self.buf[i], span, t.s, top);
-            turn.pass(&self.buf[i], span, t.s);
+            turn.limit(slot.turn_per_mm, span.0, t.s, top);
+            turn.pass(slot.turn_per_mm, span, t.s);
             fixed = fixed.min(slot.v_max_mm_s).min(slot.end.crit_mm_s);
             if feed {
                 let f = if slot.plain_feed {
