@@ -27,6 +27,7 @@
 //! The envelope takes over where the box cannot look (the jerk filters, a braking longer than
 //! `PROOF_TICKS`) once it allows the current speed and its next setpoint is inside the box.
 
+use super::ahead::Ahead;
 use super::{ARRIVE_EPS_MM, InterpState, Interpolator};
 use crate::plan::{SegPath, Segment};
 use crate::units::{AxesMm, MAX_AXES, TS_S};
@@ -60,6 +61,17 @@ enum Reach {
     Empty,
     /// None before the scan met a segment the box cannot judge.
     Unknown,
+}
+
+impl Reach {
+    /// What a scan found before it met a segment the box cannot judge (`near` NaN: none).
+    fn met(near: f64, near_k: usize, far: f64) -> Reach {
+        if near.is_nan() {
+            Reach::Unknown
+        } else {
+            Reach::Within { near, near_k, far }
+        }
+    }
 }
 
 /// How braking as hard as the box allows ends.
@@ -427,29 +439,17 @@ impl Interpolator {
             return Reach::Unknown;
         };
         let (mut near, mut near_k, mut far) = (f64::NAN, 0, f64::NAN);
-        let found = |near: f64, near_k: usize, far: f64| {
-            if near.is_nan() {
-                Reach::Unknown
-            } else {
-                Reach::Within { near, near_k, far }
-            }
-        };
         // (The compact tables `ahead` and `box_slots`.)
         let mut slot = self.box_slots[self.idx(j)];
         while j < self.len {
             let i = self.idx(j);
             let ahead = &self.ahead[i];
             if !slot.boxed {
-                return found(near, near_k, far);
+                return Reach::met(near, near_k, far);
             }
             let (s0, seg) = (self.seg_start_s_mm[i], &self.buf[i]);
             let s1 = s0 + ahead.length_mm;
-            let ceiling = if feed {
-                (self.feed_of_ahead(ahead) * self.override_factor).min(slot.v_max_mm_s)
-            } else {
-                slot.v_max_mm_s
-            };
-            top = top.min(t.s + ceiling * TS_S);
+            top = top.min(t.s + self.box_ceiling(ahead, &slot, feed) * TS_S);
             if s0 > top {
                 break;
             }
@@ -473,14 +473,14 @@ impl Interpolator {
                 Within::Span(lo, hi) => Some((lo, hi)),
                 Within::Empty => None,
                 // (An arc turned more than the planner allows within a step: never met.)
-                Within::Unknown => return found(near, near_k, far),
+                Within::Unknown => return Reach::met(near, near_k, far),
             };
             if let Some((lo, hi)) = within {
                 bend.phi_rad = turn.at(slot.turn_per_mm, s0, t.s, hi);
                 if near.is_nan() {
                     (near, near_k) = (lo, j);
                     if near_only {
-                        return found(near, near_k, hi);
+                        return Reach::met(near, near_k, hi);
                     }
                 }
                 far = hi;
@@ -500,6 +500,16 @@ impl Interpolator {
             Reach::Empty
         } else {
             Reach::Within { near, near_k, far }
+        }
+    }
+
+    /// The speed a step on a segment may reach: its box ceiling, with `feed` within its feed
+    /// × override too.
+    fn box_ceiling(&self, ahead: &Ahead, slot: &BoxSlot, feed: bool) -> f64 {
+        if feed {
+            (self.feed_of_ahead(ahead) * self.override_factor).min(slot.v_max_mm_s)
+        } else {
+            slot.v_max_mm_s
         }
     }
 
