@@ -1144,6 +1144,16 @@ fn a_circle_runs_at_the_speed_the_axes_allow_on_it() {
     );
 }
 
+/// Uniform numbers in [0, 1) from `seed` (xorshift: the same runs on every machine).
+fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
 /// Arcs in every plane, helical, tangent and not, of 0.05-30 mm radius (the box judges them
 /// all, a half turn a step at most), between lines, with and without
 /// the path accelerations of a constants file: every axis within its limits and the
@@ -1151,13 +1161,7 @@ fn a_circle_runs_at_the_speed_the_axes_allow_on_it() {
 #[test]
 fn arc_chains_run_within_the_limits() {
     let planes = [Plane::G17, Plane::G18, Plane::G19];
-    let mut rng = 0x2545_f491_4f6c_dd1d_u64;
-    let mut next = move || {
-        rng ^= rng << 13;
-        rng ^= rng >> 7;
-        rng ^= rng << 17;
-        (rng >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut next = uniform(0x2545_f491_4f6c_dd1d);
     for cfg in [cfg(3), reference_config_with("machine-default.rek")] {
         for case in 0..6 {
             let mut p = Prog::new(
@@ -1214,13 +1218,7 @@ fn arc_chains_run_within_the_limits() {
 /// most over 800 such programs, 1.67 × before the bend was counted).
 #[test]
 fn tiny_arcs_of_any_sweep_run_within_the_limits() {
-    let mut rng = 0x9e37_79b9_7f4a_7c15_u64;
-    let mut next = move || {
-        rng ^= rng << 13;
-        rng ^= rng >> 7;
-        rng ^= rng << 17;
-        (rng >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut next = uniform(0x9e37_79b9_7f4a_7c15);
     for cfg in [cfg(3), reference_config_with("machine-default.rek")] {
         for case in 0..4 {
             let feed = 6000.0 + 4000.0 * case as f64;
