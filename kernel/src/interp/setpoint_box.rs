@@ -13,15 +13,15 @@
 //!   the constants (R52, R236, R237, a set's A: `BoxAccel::path`) bounds the second difference
 //!   of the arc length at the setpoint, the speed's change over a tick; the step also keeps every
 //!   segment's ceiling it runs on, the manual's criteria (R385, R384) of every junction it
-//!   crosses or starts on, R384 over all the junctions of the step together (`Accuracy`),
+//!   crosses or starts on, R384 over all the junctions of the step together and the arcs'
+//!   bend at its corners (`Accuracy`),
 //!   and never passes a stop point;
 //! - a setpoint is taken only with a proof that the motion can still come to rest from it:
 //!   braking as hard as the box allows (each tick the nearest allowed setpoint) comes to rest
 //!   within the buffered path (`box_proof`);
 //! - each tick takes the farthest setpoint within the feed that a proof passes, out of three
 //!   tried at most (`box_search`). The braking of the last accepted proof is kept (`Plan`):
-//!   its next setpoint is proven whatever the search finds, so every tick stays within the box.
-//!
+//!   its next setpoint is proven whatever the search finds, so every tick stays within the box;
 //! - a step turns the arcs it runs on by at most a half turn (`StepTurn`).
 //!
 //! The envelope takes over where the box cannot look (the jerk filters, a braking longer than
