@@ -1,8 +1,8 @@
 //! Issue #49: an upload is validated while its chunks arrive (`runtime::arrival`), through
 //! `Programs.Upload` on the daemon's socket: progress of the validation comes before the last
 //! chunk is sent, the verdict is the whole program's, an upload abandoned mid-way ends its
-//! validation (no thread or temporary file is left behind), and uploads beyond those
-//! validated as they arrive are validated at their end.
+//! validation (no thread or temporary file is left behind), uploads beyond those validated
+//! as they arrive are validated at their end, and a stream silent for a minute is abandoned.
 
 mod api_common;
 
@@ -176,4 +176,40 @@ async fn uploads_are_validated_as_they_arrive_and_an_abandoned_one_ends() {
     }
     assert_eq!(d.ctl.program().unwrap().name, "p2.nc");
     assert_eq!(threads_named("cnc-upload"), 0);
+}
+
+/// A streamed upload whose client goes silent is abandoned after a minute without a chunk
+/// (`DEADLINE_EXCEEDED`, as an idle upload session is dropped): its validation ends, its
+/// temporary file goes and the selection stays. The runtime's clock is paused once the first
+/// chunk is in, so the minute passes at once.
+#[tokio::test(flavor = "current_thread")]
+async fn a_silent_upload_stream_is_abandoned_after_a_minute() {
+    let d = start(config(Role::Operator)).await;
+    let mut g = ProgramsClient::new(d.channel().await);
+    let (tx, rx) = mpsc::channel(4);
+    tx.send(chunk("silent.nc", blocks(0, 70_000)))
+        .await
+        .unwrap();
+    let mut replies = g
+        .upload(ReceiverStream::new(rx))
+        .await
+        .unwrap()
+        .into_inner();
+    validated(&mut replies, 65_536).await;
+    tokio::time::pause();
+    let silent_from = tokio::time::Instant::now();
+    let status = loop {
+        match replies.message().await {
+            Ok(Some(p)) => assert!(p.done.is_none(), "no verdict on a silent upload"),
+            Ok(None) => panic!("the stream ended without an answer"),
+            Err(status) => break status,
+        }
+    };
+    assert_eq!(status.code(), tonic::Code::DeadlineExceeded, "{status:?}");
+    // (The server's minute began with the chunk, a moment before the clock was paused.)
+    assert!(silent_from.elapsed() >= Duration::from_secs(59));
+    tokio::time::resume();
+    wait_until("its temporary file goes", || upload_files(&d) == 0).await;
+    assert!(d.ctl.program().is_none(), "nothing selected");
+    drop(tx);
 }
