@@ -218,6 +218,33 @@ fn drive_fault_stops_and_reset_resumes_from_where_the_drives_are() {
     assert_eq!(&h.snapshot().axes.commanded.0[..2], &[0.0, 0.0]);
 }
 
+/// A Reset pressed right after a fault, while the axes still brake, is not lost: the machine
+/// stays faulted until they are at rest, then enables again on its own, and nothing moves.
+#[test]
+fn a_reset_while_the_axes_brake_takes_effect_at_rest() {
+    let cfg = tests::test_config();
+    let (bus, fault_axis) = FaultableBus::new(sim_bus(&cfg));
+    let mut h = Harness::new(cfg, Box::new(bus), SimClock::seeded(9, 500_000, 100)).unwrap();
+    h.wait_state(MachineState::Idle, 10_000).unwrap();
+    h.start_program("N10 G1 X200 Y100 F6000").unwrap();
+    h.run_until(100_000, |s| s.axes.path_v_mm_s > 50.0).unwrap();
+    fault_axis.store(1, Ordering::Relaxed);
+    h.wait_state(MachineState::Fault, 10).unwrap();
+    h.send(RtCommand::Reset).unwrap();
+    let s = h.step();
+    assert_eq!(s.state, MachineState::Fault, "still braking: {s:?}");
+    assert!(
+        s.axes.path_v_mm_s > 0.0 || s.axes.commanded[0] != s.axes.actual[0],
+        "{s:?}"
+    );
+    let s = h.wait_state(MachineState::Idle, 10_000).unwrap();
+    assert!(s.alarm.fault.is_none(), "{s:?}");
+    let rest = h.step().axes.commanded;
+    for _ in 0..250 {
+        assert_eq!(h.step().axes.commanded, rest, "moved after the reset");
+    }
+}
+
 /// Override, feed hold at rest (no motion while held), resume, stop: the RT logic behind the
 /// Hold/Resume/Stop/SetOverride RPCs (their door is tested in api_rpcs), tick by tick.
 #[test]

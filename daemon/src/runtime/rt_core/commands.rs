@@ -155,12 +155,19 @@ impl RtCore {
         self.snap.state = MachineState::Running;
     }
 
-    /// Reset of a fault once the path stands: the drives are enabled again.
-    fn reset_fault(&mut self, bus: &mut dyn DriveBus) {
-        if self.snap.state != MachineState::Fault || self.motion.interp.state() != InterpState::Idle
-        {
+    /// Reset of a fault: the drives are enabled again once the path stands (asked for while
+    /// the axes still brake, it waits for them: `FaultStop::reset_pending`).
+    pub(super) fn reset_fault(&mut self, bus: &mut dyn DriveBus) {
+        if self.snap.state != MachineState::Fault {
             return;
         }
+        if self.motion.interp.state() != InterpState::Idle {
+            // Pressed while the axes still brake from the fault: it takes effect once they
+            // are at rest (`fault_reaction`), not lost.
+            self.fault_stop.reset_pending = true;
+            return;
+        }
+        self.fault_stop.reset_pending = false;
         self.snap.alarm.fault = None;
         self.snap.alarm.kr_fault = None;
         self.fault_stop.brake.clear();

@@ -3,6 +3,7 @@
 
 use hal::{BusFault, DriveBus};
 use kernel::estop::AxisBrake;
+use kernel::interp::InterpState;
 use kernel::units::AxesMm;
 
 use super::RtCore;
@@ -17,6 +18,8 @@ pub(super) struct FaultStop {
     /// Ticks since the brake came to rest; the drives go to their safe state once settled.
     pub(super) rest_ticks: u32,
     pub(super) safe_state_sent: bool,
+    /// Reset was asked for while the axes still braked: it is done once they are at rest.
+    pub(super) reset_pending: bool,
 }
 
 impl RtCore {
@@ -79,6 +82,14 @@ impl RtCore {
     /// rest (setpoints still, drives caught up, or a settle timeout), bring the drives to
     /// their safe state (CiA 402 quick stop / disable).
     pub(super) fn fault_reaction(&mut self, bus: &mut dyn DriveBus) {
+        if self.fault_stop.reset_pending && self.motion.interp.state() == InterpState::Idle {
+            // (As the command itself: not while the emergency-stop chain is open.)
+            self.fault_stop.reset_pending = false;
+            if self.io_reset() {
+                self.reset_fault(bus);
+            }
+            return;
+        }
         if !self.fault_stop.brake.active() {
             return;
         }

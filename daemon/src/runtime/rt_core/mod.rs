@@ -165,6 +165,7 @@ impl RtCore {
                 prev_setpoint: cfg.start,
                 rest_ticks: 0,
                 safe_state_sent: false,
+                reset_pending: false,
             },
             io_logic: IoLogic::new(cfg.io),
             changer: tool_changer::ChangerRun::new(cfg.tool_changer),
