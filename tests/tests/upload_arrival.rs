@@ -56,6 +56,25 @@ fn upload_files(d: &Daemon) -> usize {
         .unwrap_or(0)
 }
 
+/// A streamed upload of `name` whose first chunk of 70,000 blocks is sent, the stream kept
+/// open: its sender and its replies.
+async fn open_upload(
+    g: &mut ProgramsClient<Channel>,
+    name: &str,
+) -> (
+    mpsc::Sender<pb::ProgramChunk>,
+    tonic::Streaming<pb::UploadProgress>,
+) {
+    let (tx, rx) = mpsc::channel(4);
+    tx.send(chunk(name, blocks(0, 70_000))).await.unwrap();
+    let replies = g
+        .upload(ReceiverStream::new(rx))
+        .await
+        .unwrap()
+        .into_inner();
+    (tx, replies)
+}
+
 /// `UploadBegin` with `data`: the session and the bytes sent.
 async fn begin(g: &mut ProgramsClient<Channel>, name: &str, data: String) -> (String, u64) {
     let bytes = data.len() as u64;
@@ -108,15 +127,7 @@ async fn uploads_are_validated_as_they_arrive_and_an_abandoned_one_ends() {
     let mut g = ProgramsClient::new(d.channel().await);
 
     // 70,000 blocks sent, the stream still open: the validation is past 65,536 of them.
-    let (tx, rx) = mpsc::channel(4);
-    tx.send(chunk("arriving.nc", blocks(0, 70_000)))
-        .await
-        .unwrap();
-    let mut replies = g
-        .upload(ReceiverStream::new(rx))
-        .await
-        .unwrap()
-        .into_inner();
+    let (tx, mut replies) = open_upload(&mut g, "arriving.nc").await;
     let first_bytes = blocks(0, 70_000).len() as u64;
     assert_eq!(validated(&mut replies, 65_536).await, first_bytes);
     tx.send(chunk("", blocks(70_000, 10))).await.unwrap();
@@ -186,15 +197,7 @@ async fn uploads_are_validated_as_they_arrive_and_an_abandoned_one_ends() {
 async fn a_silent_upload_stream_is_abandoned_after_a_minute() {
     let d = start(config(Role::Operator)).await;
     let mut g = ProgramsClient::new(d.channel().await);
-    let (tx, rx) = mpsc::channel(4);
-    tx.send(chunk("silent.nc", blocks(0, 70_000)))
-        .await
-        .unwrap();
-    let mut replies = g
-        .upload(ReceiverStream::new(rx))
-        .await
-        .unwrap()
-        .into_inner();
+    let (tx, mut replies) = open_upload(&mut g, "silent.nc").await;
     validated(&mut replies, 65_536).await;
     tokio::time::pause();
     let silent_from = tokio::time::Instant::now();
