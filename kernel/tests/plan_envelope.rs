@@ -119,6 +119,99 @@ fn parabolic_axis_jerk_on_lines_with_stops() {
     assert!(r.segments.iter().all(|s| s.junction == Junction::Stop));
 }
 
+/// Stops reached through the axis filter of a run of smooth junctions and left along a line
+/// from stop to stop, which runs without it, or in another direction: the setpoints rest two
+/// ticks before they leave. The filters settled on the point with their last step still
+/// moving, and the departure's first step added to it: an axis at 1.17 × its jerk (the
+/// filter re-sized) and at 1.04 × (the direction changed). The blocks are those of the
+/// reference splines; `machine-parabolic.rek`.
+#[test]
+fn a_stop_is_left_only_once_the_setpoints_rest() {
+    let c = reference_config_with("machine-parabolic.rek");
+    let runs: [&[(f64, f64)]; 2] = [
+        &[
+            (31.272332, 14.365604),
+            (31.04263, 14.730557),
+            (30.771728, 15.044539),
+            (30.58433, 15.196241),
+            (30.334913, 15.323684),
+            (30.074125, 15.374438),
+            (30.054191, 15.375082),
+            (29.567639, 15.260691),
+        ],
+        &[
+            (61.554685, 5.008795),
+            (61.788783, 4.839512),
+            (62.020412, 4.685063),
+            (62.408609, 4.464408),
+            (62.769408, 4.323672),
+            (63.166964, 4.316386),
+            (63.436712, 4.720791),
+            (63.435097, 5.116451),
+        ],
+    ];
+    for points in runs {
+        let mut p = Prog::new(p3(0.0, 0.0, 0.0), 6000.0, Continuity::G23);
+        for &(x, y) in points {
+            p.g1(p3(x, y, 0.0));
+        }
+        let r = assert_within("stops", &c, &p.blocks);
+        assert!(r.segments.iter().any(|s| s.axis_filter_ticks > 1));
+        assert!(
+            r.segments
+                .iter()
+                .any(|s| s.axis_filter_ticks == 1 && s.v_end_mm_s == 0.0)
+        );
+    }
+}
+
+/// The reference paths (`scripts/planner-reference/paths`) in the parabolic profile with a
+/// constants file that sets only the profile and the criteria: within every limit, the axis
+/// jerk included (through cncd and against `jerk_ticks.py`: `daemon_planner_reference`).
+#[test]
+fn reference_paths_run_parabolic_within_every_limit() {
+    let c = reference_config_with("machine-parabolic.rek");
+    for p in reference_paths() {
+        assert_within(&p.name, &c, &p.blocks);
+    }
+}
+
+/// A hold, and single block stops, resumed in the tick the interpolator comes to rest, on the
+/// reference paths in the parabolic profile: every axis within its jerk (the departure from
+/// rest adds to the setpoints' last steps only where they are 0).
+#[test]
+fn parabolic_holds_and_block_stops_resumed_at_once_keep_the_jerk() {
+    let c = reference_config_with("machine-parabolic.rek");
+    for p in reference_paths() {
+        for at in [30, 111, 257] {
+            let mut held = false;
+            let r = run_with(c.clone(), &p.blocks, 200_000, |t, ip| {
+                if t == at {
+                    ip.hold();
+                }
+                if !held && ip.state() == kernel::interp::InterpState::Held {
+                    held = true;
+                    ip.resume();
+                }
+                if t > at && t % 97 == 0 {
+                    ip.set_single_block(true);
+                }
+                if ip.at_block_stop() {
+                    ip.set_single_block(false);
+                    ip.resume();
+                }
+            });
+            let w = measure(&c, &r, LM_UM);
+            let ctx = format!("{} hold at {at}: {w:?}", p.name);
+            assert!(held, "{ctx}");
+            assert!(
+                w.axis_j <= A_TOL && w.axis_a <= A_TOL && w.path_j <= A_TOL,
+                "{ctx}"
+            );
+        }
+    }
+}
+
 #[test]
 fn parabolic_is_smoother_than_linear() {
     let blocks = zigzag(4, 30.0, 2.0, 3000.0);

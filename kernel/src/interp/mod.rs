@@ -35,7 +35,7 @@
 //!    shares (`plan::criteria::FilterWindow`). On straight lines the average of points on the
 //!    line is on the line; at rest the filter settles exactly on the stop point (the average is
 //!    taken as offsets from the newest input, which are all zero there), and a stop point is
-//!    left only after it has settled.
+//!    left only after it has settled and, jerk-limited, the setpoints' last two steps are 0.
 //!
 //! A late tick of the real-time thread never makes a setpoint jump: one call is one Ts of
 //! trajectory, however late it comes.
@@ -173,6 +173,9 @@ pub struct Interpolator {
     axis_hist_in: Box<[AxesMm]>,
     axis_hist_mid: Box<[AxesMm]>,
     axis_newest: usize,
+    /// The setpoints' last two steps (newest first): a jerk-limited departure from a stop
+    /// waits until they are 0 on every axis it moves (`departure_adds_no_jerk`).
+    sent_steps: [AxesMm; 2],
     /// Setpoints sent to the drives (output of the axis filter).
     position: AxesMm,
     state: InterpState,
@@ -298,6 +301,7 @@ impl Interpolator {
             axis_hist_in: vec![position; AXIS_FILTER_MAX_TICKS].into_boxed_slice(),
             axis_hist_mid: vec![position; AXIS_FILTER_MAX_TICKS].into_boxed_slice(),
             axis_newest: 0,
+            sent_steps: [AxesMm::ZERO; 2],
             position,
             state: InterpState::Idle,
             override_factor: 1.0,
@@ -678,6 +682,7 @@ impl Interpolator {
         self.spindle_wait = false;
         self.inputs_wait = false;
         let sent_before = self.path_pos;
+        let setpoint_before = self.position;
         if self.len > 0 {
             let (cap, feed) = if matches!(self.state, InterpState::Held | InterpState::Idle) {
                 (f64::INFINITY, f64::INFINITY)
@@ -696,6 +701,7 @@ impl Interpolator {
             self.smooth_axes();
         }
         self.box_prev_point = sent_before;
+        self.sent_steps = [self.position - setpoint_before, self.sent_steps[0]];
         self.reported_spindle = self.last_spindle;
         TickOut {
             position: self.position,

@@ -7,7 +7,7 @@ use super::{
 };
 use crate::block::ProgramStop;
 use crate::plan::{SegPath, Segment};
-use crate::units::TS_S;
+use crate::units::{AxesMm, TS_S};
 
 /// Speed limits of one tick, mm/s, and the distance to the next stop point (∞: none in reach).
 /// `soft_mm_s`/`hard_mm_s` hold when this tick does not accelerate; `*_accel_mm_s` when it
@@ -337,6 +337,10 @@ impl Interpolator {
         if !self.settled() || (self.still_ticks == 0 && !departs) {
             return false;
         }
+        let next = *self.seg(self.raw_seg + 1);
+        if !self.departure_adds_no_jerk(&next) {
+            return false;
+        }
         if self.dwell_ticks > 0 {
             self.dwell_ticks -= 1;
             return false;
@@ -454,16 +458,41 @@ impl Interpolator {
         false
     }
 
+    /// Jerk-limited, whether a departure along `next` now keeps every axis's jerk: the filters
+    /// settle on a stop point while their last step still moves, and the departure's first
+    /// steps add to those of every axis it moves (an axis at 1.04 × its jerk on the reference
+    /// splines, 1.17 × where the axis filter was re-sized too). So the setpoints' last two
+    /// steps must be 0 on those axes; an axis the departure does not move only rests (a
+    /// zig-zag's right-angled stops, from one axis to another, cost no tick). An arc may move
+    /// every axis soon after its start: all of them rest first.
+    fn departure_adds_no_jerk(&self, next: &Segment) -> bool {
+        if !next.jerk_mm_s3.is_finite() {
+            return true;
+        }
+        let dir = match next.path {
+            SegPath::Line { start, end } => end - start,
+            SegPath::Arc { .. } => AxesMm([1.0; crate::MAX_AXES]),
+        };
+        (0..self.axes).all(|i| {
+            dir.0[i] == 0.0 || (self.sent_steps[0].0[i] == 0.0 && self.sent_steps[1].0[i] == 0.0)
+        })
+    }
+
     /// At rest (the commanded position equals the raw one): both filters may be re-sized for
     /// the dynamics of what comes next; their history is all this one point. Returns whether
     /// the raw position may move this tick: a re-sized jerk filter forgets the speeds it gave
     /// out, so it waits until the old one's last two were 0 (`still_ticks` > m). Its jerk is
     /// (a(n) − a(n−m))/(m·Ts) only over one m, and a departure one tick early took the
     /// path jerk to 1.0000017 × J after a braking tail of 8 nm (F600, 0.42 mm then 0.01 mm).
+    /// The axis filter forgets the steps it gave out too: it is re-sized once a departure
+    /// adds no jerk to them (`departure_adds_no_jerk`).
     fn resize_filters_at_rest(&mut self) -> bool {
         let n =
             usize::from(self.seg(self.raw_seg).axis_filter_ticks).clamp(1, AXIS_FILTER_MAX_TICKS);
         if n != self.axis_window_ticks {
+            if !self.departure_adds_no_jerk(self.seg(self.raw_seg)) {
+                return false;
+            }
             self.axis_hist_in.fill(self.path_pos);
             self.axis_hist_mid.fill(self.path_pos);
             self.axis_window_ticks = n;
