@@ -354,6 +354,10 @@ impl Planner {
                 after: self.tangent_near(i, h),
             };
             let lm_half_mm = l.lm_um * 1e-3 / 2.0;
+            // The offset the turns within reach give the setpoints, where no arc is there;
+            // the window's own bound otherwise.
+            let offset_mm = self.filter_offset_mm(i, v, l.t_f);
+            let window_lm_mm = if offset_mm.is_some() { 0.0 } else { lm_half_mm };
             if !w.allows(
                 v,
                 l.a_corner,
@@ -361,12 +365,56 @@ impl Planner {
                 axes,
                 &l.jerk_budget,
                 &l.accel_budget,
-                lm_half_mm,
-            ) {
+                window_lm_mm,
+            ) || (lm_half_mm > 0.0 && offset_mm.is_some_and(|o| o > lm_half_mm))
+            {
                 return 0.0;
             }
         }
         turn.dynamic_mm_s(l.a_iso).min(turn.accuracy_mm_s(l.lm_um))
+    }
+
+    /// Largest distance of the axis filter's setpoints from the path around junction `i` at
+    /// speed `v`, mm; None where an arc lies within the filter's reach (the window's own
+    /// bound, `FilterWindow::allows`, holds there). The setpoints average the path positions
+    /// of ±T with triangular weights (no wider in the 4 ms ticks); centred at the junction, a
+    /// turn Δ_j at distance d_j moves the average off the path by at most |Δ_j|·v·w(d_j/v),
+    /// w(τ) = (T − τ)³/(6·T²) the weights' mean excess beyond τ. So the sum bounds it: v·|Δ|·T/6
+    /// for a corner alone, v²T²/(12R) on a curve of radius R, half of what the window's
+    /// largest turn taken as one corner gave there. w is convex, so between two junctions the
+    /// distance is largest at one of them, and each junction checks its own.
+    fn filter_offset_mm(&self, i: usize, v: f64, t_f: f64) -> Option<f64> {
+        let h = v * t_f;
+        let w = |d: f64| (t_f - (d / v).min(t_f)).powi(3) / (6.0 * t_f * t_f);
+        let is_arc = |k: usize| matches!(self.win[k].seg.path, SegPath::Arc { .. });
+        let mut sum = self.win[i].turn.chord * w(0.0);
+        // Behind: junction k − 1 lies at the start of block k.
+        let (mut k, mut d) = (i, 0.0);
+        loop {
+            if is_arc(k) {
+                return None;
+            }
+            d += self.win[k].seg.length_mm;
+            if d >= h || k == 0 || !self.win[k - 1].smooth {
+                break;
+            }
+            k -= 1;
+            sum += self.win[k].turn.chord * w(d);
+        }
+        // Ahead: junction k lies at the end of block k.
+        let (mut k, mut d) = (i + 1, 0.0);
+        loop {
+            if is_arc(k) {
+                return None;
+            }
+            d += self.win[k].seg.length_mm;
+            if d >= h || k + 1 >= self.win.len() || !self.win[k].smooth {
+                break;
+            }
+            sum += self.win[k].turn.chord * w(d);
+            k += 1;
+        }
+        Some(v * sum)
     }
 
     /// Whether junction `i` takes its normal acceleration from the per-axis box (issue #32):
