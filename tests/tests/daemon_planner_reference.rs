@@ -157,16 +157,9 @@ fn run_path(
     failures: &mut Vec<String>,
 ) {
     let nc = std::fs::read_to_string(programs.join(format!("{name}.nc"))).unwrap();
-    let prog = d.program(&format!("{name}.nc"), &nc);
-    let csv = d.dir.join(format!("{name}.csv"));
-    let (ok, out) = d.cncctl(
-        &["--json", "trajectory", &prog, "-o", csv.to_str().unwrap()],
-        Duration::from_secs(300),
-    );
-    assert!(ok, "{} {name}: cncctl trajectory failed: {out}", case.rek);
+    let (rows, out) = trajectory(d, name, &nc, case.rek);
     let t = total_s(&out);
     let reference = table_s(&tables.join(case.ticks), name, 2);
-    let rows = vcan_support::trajectory_csv_rows(&csv);
     let axis_a = (1..4).map(|c| max_accel(&rows, c)).fold(0.0, f64::max);
     let path_a = max_path_accel(&rows);
     println!(
@@ -222,7 +215,7 @@ fn long_fast_moves_reach_their_feed_on_the_box() {
             ("line", "N10 G1 Y2000 F20000\n", 2000.0),
             ("rapid", "N10 G0 X1500\n", 1500.0),
         ] {
-            let rows = trajectory_rows(&d, name, nc, rek);
+            let (rows, _) = trajectory(&d, name, nc, rek);
             let t = motion_s(&rows);
             let ideal = length_mm / v + v / a;
             let axis_a = (1..4).map(|c| max_accel(&rows, c)).fold(0.0, f64::max);
@@ -331,8 +324,9 @@ fn parabolic_moves_take_ruckigs_time_within_their_jerk() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
-/// Program `nc` stored as `name`.nc and run through `cncctl trajectory`: the CSV's rows.
-fn trajectory_rows(d: &Daemon, name: &str, nc: &str, what: &str) -> Vec<Vec<f64>> {
+/// Program `nc` stored as `name`.nc and run through `cncctl trajectory`: the CSV's rows and
+/// what cncctl printed.
+fn trajectory(d: &Daemon, name: &str, nc: &str, what: &str) -> (Vec<Vec<f64>>, String) {
     let prog = d.program(&format!("{name}.nc"), nc);
     let csv = d.dir.join(format!("{name}.csv"));
     let (ok, out) = d.cncctl(
@@ -340,7 +334,7 @@ fn trajectory_rows(d: &Daemon, name: &str, nc: &str, what: &str) -> Vec<Vec<f64>
         Duration::from_secs(300),
     );
     assert!(ok, "{what} {name}: cncctl trajectory failed: {out}");
-    vcan_support::trajectory_csv_rows(&csv)
+    (vcan_support::trajectory_csv_rows(&csv), out)
 }
 
 /// Largest third difference over a tick³ of column `col`, mm/s³.
@@ -386,7 +380,7 @@ fn parabolic_dense_paths_against_the_jerk_limited_reference() {
     let mut failures = vec![];
     for name in names.map(|l| l.split('\t').next().unwrap()) {
         let nc = std::fs::read_to_string(reference_dir().join(format!("paths/{name}.nc"))).unwrap();
-        let rows = trajectory_rows(&d, name, &nc, "machine-parabolic.rek");
+        let (rows, _) = trajectory(&d, name, &nc, "machine-parabolic.rek");
         let t = span_s(&rows);
         let reference = table_s(&table, name, 2);
         let axis_a = (1..4).map(|c| max_accel(&rows, c)).fold(0.0, f64::max);

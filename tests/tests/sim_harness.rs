@@ -179,10 +179,9 @@ fn shutdown_ramps_axes_down_before_exit() {
     assert!((s.axes.actual[0] - s.axes.commanded[0]).abs() < 1e-3);
 }
 
-/// A drive fault mid-motion aborts the job; the faulted drive stops following; Reset
-/// re-enables where the drives are (no jump back to the old setpoint) and the next job runs.
-#[test]
-fn drive_fault_stops_and_reset_resumes_from_where_the_drives_are() {
+/// The simulated machine with Y's drive faulted while a job moves at over 50 mm/s: the
+/// harness in FAULT, and the job that was running.
+fn faulted_while_moving() -> (Harness, u32) {
     let cfg = tests::test_config();
     let (bus, fault_axis) = FaultableBus::new(sim_bus(&cfg));
     let mut h = Harness::new(cfg, Box::new(bus), SimClock::seeded(9, 500_000, 100)).unwrap();
@@ -190,7 +189,16 @@ fn drive_fault_stops_and_reset_resumes_from_where_the_drives_are() {
     let job = h.start_program("N10 G1 X200 Y100 F6000").unwrap();
     h.run_until(100_000, |s| s.axes.path_v_mm_s > 50.0).unwrap();
     fault_axis.store(1, Ordering::Relaxed);
-    let s = h.wait_state(MachineState::Fault, 10).unwrap();
+    h.wait_state(MachineState::Fault, 10).unwrap();
+    (h, job)
+}
+
+/// A drive fault mid-motion aborts the job; the faulted drive stops following; Reset
+/// re-enables where the drives are (no jump back to the old setpoint) and the next job runs.
+#[test]
+fn drive_fault_stops_and_reset_resumes_from_where_the_drives_are() {
+    let (mut h, job) = faulted_while_moving();
+    let s = h.snapshot();
     assert_eq!(s.progress.aborted_job, job);
     let f = s.alarm.fault.unwrap();
     assert_eq!((f.axis, f.node), (Some(1), Some(2)));
@@ -222,14 +230,7 @@ fn drive_fault_stops_and_reset_resumes_from_where_the_drives_are() {
 /// stays faulted until they are at rest, then enables again on its own, and nothing moves.
 #[test]
 fn a_reset_while_the_axes_brake_takes_effect_at_rest() {
-    let cfg = tests::test_config();
-    let (bus, fault_axis) = FaultableBus::new(sim_bus(&cfg));
-    let mut h = Harness::new(cfg, Box::new(bus), SimClock::seeded(9, 500_000, 100)).unwrap();
-    h.wait_state(MachineState::Idle, 10_000).unwrap();
-    h.start_program("N10 G1 X200 Y100 F6000").unwrap();
-    h.run_until(100_000, |s| s.axes.path_v_mm_s > 50.0).unwrap();
-    fault_axis.store(1, Ordering::Relaxed);
-    h.wait_state(MachineState::Fault, 10).unwrap();
+    let (mut h, _) = faulted_while_moving();
     h.send(RtCommand::Reset).unwrap();
     let s = h.step();
     assert_eq!(s.state, MachineState::Fault, "still braking: {s:?}");
