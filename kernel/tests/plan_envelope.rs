@@ -165,20 +165,21 @@ fn a_stop_is_left_only_once_the_setpoints_rest() {
     }
 }
 
-/// The reference paths (`scripts/planner-reference/paths`) in the parabolic profile with a
-/// constants file that sets only the profile and the criteria: within every limit, the axis
-/// jerk included, the setpoints within the filter's half of Lm (through cncd and against
-/// `jerk_ticks.py`: `daemon_planner_reference`). The dense circle within 1.10 of
-/// `jerk_ticks.py`: the filter's offset on a curve is its pull-in v²T²/(12R), not the
-/// window's turn taken as one corner (1.20 with that).
+/// The reference paths (`scripts/planner-reference/paths`) and the arc-fitted programs
+/// (`arcs`) in the parabolic profile with a constants file that sets only the profile and the
+/// criteria: within every limit, the axis jerk included, the setpoints within the filter's
+/// half of Lm (through cncd and against `jerk_ticks.py`: `daemon_planner_reference`). The dense
+/// circle within 1.10 of `jerk_ticks.py`: the filter's offset on a curve is its pull-in
+/// v²T²/(12R), not the window's turn taken as one corner (1.20 with that).
 #[test]
 fn reference_paths_run_parabolic_within_every_limit() {
     let c = reference_config_with("machine-parabolic.rek");
-    for p in reference_paths() {
-        let r = assert_within(&p.name, &c, &p.blocks);
+    let paths = reference_paths().into_iter().map(|p| (p.name, p.blocks));
+    for (name, blocks) in paths.chain(programs_in("arcs")) {
+        let r = assert_within(&name, &c, &blocks);
         let w = measure(&c, &r, LM_UM);
-        assert!(w.off_path_mm <= LM_UM * 1e-3 / 2.0, "{}: {w:?}", p.name);
-        if p.name == "circle" {
+        assert!(w.off_path_mm <= LM_UM * 1e-3 / 2.0, "{name}: {w:?}");
+        if name == "circle" {
             let jerk_ticks = reference_dir().join("jerk-ticks.tsv");
             let reference_s = table_value(&jerk_ticks, "circle", 2);
             assert!(r.time_s() <= 1.10 * reference_s, "{} s", r.time_s());

@@ -24,9 +24,15 @@ Being a receding horizon, the sequence is feasible, not proven optimal: an upper
 jerk-limited 4 ms setpoints within Lm/2 of the path need. It is checked again at the end from
 its setpoints alone. Nothing here uses the planner's code.
 
+Arcs (G2/G3, the arc-fitted programs of arcs.py) are drawn in chords within ARC_SAG_MM (0.2 µm)
+of the arc; on a chord the corridor is narrowed by its distance from the arc, so the setpoints stay
+within Lm/2 of the arc itself. The points inside an arc are not junctions: no R384/R385 speed there
+(the axes' limits hold the arc).
+
 Run: scripts/planner-reference/run.sh (a venv with scipy), or in that venv
-python3 jerk_ticks.py [name ...]; writes jerk-ticks.tsv (machine-parabolic.rek: R338 = 2, R384 =
-8 µm, the default path acceleration 500 mm/s²). Minutes a path.
+python3 jerk_ticks.py [name ...] for paths/ (writes jerk-ticks.tsv) and python3 jerk_ticks.py
+--dir arcs [name ...] for arcs/ (writes arcs/jerk-ticks.tsv); machine-parabolic.rek: R338 = 2,
+R384 = 8 µm, the default path acceleration 500 mm/s². About a minute a path.
 """
 
 import math
@@ -38,7 +44,7 @@ from scipy.optimize import linprog
 from scipy.sparse import csr_matrix
 
 from machine import A_AXIS, AM, LM_MM, TS, V_AXIS
-from ticks import read_feed, read_polyline
+from ticks import arc_geometry, arc_points, read_feed, read_moves
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 J_AXIS = 50.0 * A_AXIS  # mm/s³, the daemon's axis jerk (50·a)
@@ -51,12 +57,37 @@ MARGIN = 1.0 - 1e-4  # of every limit and the corridor: HiGHS keeps rows to ~1e-
 PUSHES = 400  # most re-solves a window
 GUIDES = 12  # most guided solves a window
 GUIDE_MM = 0.4  # how far a guided foot point may run past its segment (a tick at F6000)
+ARC_SAG_MM = 0.0002  # arcs are drawn in chords off the arc by at most this (0.2 µm)
+
+
+def read_path(program):
+    """The polyline of a program, arcs drawn in chords off them by at most ARC_SAG_MM: its
+    points, each segment's distance from the arc it stands for (0 on lines) and whether each
+    point lies inside an arc (not a junction of the program)."""
+    pts, sag, inside = [(0.0, 0.0, 0.0)], [], [False]
+    for motion, start, end, centre in read_moves(program):
+        if motion == "G1":
+            new, off = [tuple(end)], 0.0
+        else:
+            ccw = motion == "G3"
+            _, _, r, _, sweep = arc_geometry(start, end, centre, ccw)
+            n = max(1, math.ceil(abs(sweep) / (2.0 * math.acos(1.0 - ARC_SAG_MM / r))))
+            chord = abs(sweep) * r / n
+            new = arc_points(start, end, centre, ccw, chord * (1.0 + 1e-9))
+            off = r * (1.0 - math.cos(sweep / (2 * len(new))))
+        for k, q in enumerate(new):
+            if q != pts[-1]:
+                pts.append(q)
+                sag.append(off)
+                inside.append(k < len(new) - 1)
+    inside[-1] = False
+    return pts, sag, inside
 
 
 class Path:
     """The polyline with each segment's start, tangent and normals, and the corridor."""
 
-    def __init__(self, pts):
+    def __init__(self, pts, sag=None, inside=None):
         p = np.array(pts, dtype=float)
         d = p[1:] - p[:-1]
         ln = np.linalg.norm(d, axis=1)
@@ -66,6 +97,8 @@ class Path:
         # Speed cap of the step crossing vertex j (R384, R385), as ticks.py's.
         self.cap = np.full(len(p), np.inf)
         for j in range(1, len(p) - 1):
+            if inside is not None and inside[j]:
+                continue  # inside an arc: no junction
             chord = np.linalg.norm(self.t[j] - self.t[j - 1])
             if chord > 1e-12:
                 half = math.asin(min(chord / 2, 1.0))
@@ -83,12 +116,19 @@ class Path:
                 n = np.cross(m, t) if m is not None else np.cross(t, least_axis(t))
                 self.n1[k] = n / np.linalg.norm(n)
             self.c1, self.c2 = CORRIDOR_MM * MARGIN, 0.0
+            split = 1.0
         else:
             for k, t in enumerate(self.t):
                 n = np.cross(t, least_axis(t))
                 self.n1[k] = n / np.linalg.norm(n)
                 self.n2[k] = np.cross(t, self.n1[k])
             self.c1 = self.c2 = CORRIDOR_MM * MARGIN / math.sqrt(2.0)
+            split = 1.0 / math.sqrt(2.0)
+        # An arc's chords: the corridor less their distance from the arc, per segment.
+        self.sag = np.zeros(len(self.len)) if sag is None else np.array(sag)
+        width = (CORRIDOR_MM - self.sag) * MARGIN * split
+        self.c1 = np.where(self.c1 > 0.0, width, 0.0)
+        self.c2 = np.where(self.c2 > 0.0, width, 0.0)
 
     def at(self, j, s):
         return self.pts[j] + self.t[j] * (s - self.s0[j])
@@ -171,7 +211,7 @@ class Window:
     def narrow(self, k):
         """The corridor narrows to 0 along the first and the last segment."""
         p, j = self.path, self.seg[k]
-        for col, c in ((3 * k + 1, p.c1), (3 * k + 2, p.c2)):
+        for col, c in ((3 * k + 1, p.c1[j]), (3 * k + 2, p.c2[j])):
             if c == 0.0:
                 continue
             if j == 0:
@@ -194,7 +234,7 @@ class Window:
         bounds = []
         for j in self.seg:
             s_lo, s_hi = max(p.s0[j] - self.past_mm, 0.0), min(p.s0[j + 1] + self.past_mm, p.length)
-            bounds += [(s_lo, s_hi), (-p.c1, p.c1), (-p.c2, p.c2)]
+            bounds += [(s_lo, s_hi), (-p.c1[j], p.c1[j]), (-p.c2[j], p.c2[j])]
         cost = np.zeros(n)
         cost[0::3] = -1.0
         res = linprog(cost, A_ub=a_ub, b_ub=self.rhs, A_eq=a_eq, b_eq=np.zeros(len(self.eq)),
@@ -268,7 +308,8 @@ def run(path, feed):
 
 def check(path, qs, ss):
     """The largest ratios to each limit, from the setpoints alone, and the largest distance of a
-    setpoint from the polyline (its nearest point)."""
+    setpoint from the programmed path (at most its distance from a chord and the chord's from
+    the arc)."""
     q = np.vstack([qs[:1]] * 3 + [qs] + [qs[-1:]] * 3)
     out = {}
     for order, limit in ((1, V_AXIS * TS), (2, A_AXIS * TS**2), (3, J_AXIS * TS**3)):
@@ -283,15 +324,24 @@ def check(path, qs, ss):
 def distance(path, x):
     a, t = path.pts[:-1], path.t
     along = np.clip(np.einsum("ij,ij->i", x - a, t), 0.0, path.len)
-    return np.linalg.norm(a + t * along[:, None] - x, axis=1).min()
+    return (np.linalg.norm(a + t * along[:, None] - x, axis=1) + path.sag).min()
 
 
-NAMES = ["line", "pentagram", "pocket", "circle", "lissajous", "splines", "surface", "zigzag"]
+NAMES = ["line", "pentagram", "pocket", "circle", "lissajous", "splines", "surface", "zigzag",
+         "arcs", "helix"]
 
 
 def main():
-    names = sys.argv[1:] or NAMES
-    table = os.path.join(HERE, "jerk-ticks.tsv")
+    args = sys.argv[1:]
+    folder = "paths"
+    if args[:1] == ["--dir"]:
+        folder, args = args[1], args[2:]
+    programs = os.path.join(HERE, folder)
+    every = NAMES if folder == "paths" else sorted(
+        f[:-3] for f in os.listdir(programs) if f.endswith(".nc"))
+    names = args or every
+    # The paths' table beside the script (as ticks.py's), another folder's in it.
+    table = os.path.join(HERE if folder == "paths" else programs, "jerk-ticks.tsv")
     rows = {}
     if os.path.exists(table):
         with open(table) as f:
@@ -299,8 +349,8 @@ def main():
                 if not line.startswith("#"):
                     rows[line.split("\t")[0]] = line
     for name in names:
-        program = os.path.join(HERE, "paths", f"{name}.nc")
-        path = Path(read_polyline(program))
+        program = os.path.join(programs, f"{name}.nc")
+        path = Path(*read_path(program))
         qs, ss = run(path, read_feed(program) / 60.0)
         ticks = len(qs) - 3
         c = check(path, qs, ss)
@@ -313,7 +363,7 @@ def main():
     with open(table, "w") as f:
         f.write("# name\tticks\tticks_s\tmax_axis_v\tmax_axis_a\tmax_axis_j\tmax_path_a"
                 "\tmax_path_j\tmax_off_um\n")
-        for name in NAMES:
+        for name in every:
             if name in rows:
                 f.write(rows[name])
 

@@ -21,3 +21,4 @@ cd "$ROOT/scripts/planner-reference"
 "$VENV/bin/python" ticks.py --path-accel 5000 "$@"
 # Jerk-limited setpoints within Lm/2 of the path, under machine-parabolic.rek (jerk-ticks.tsv).
 "$VENV/bin/python" jerk_ticks.py "$@"
+"$VENV/bin/python" jerk_ticks.py --dir arcs "$@"

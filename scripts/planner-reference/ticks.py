@@ -42,10 +42,9 @@ STEP_P = math.inf  # path acceleration, mm per tick² (--path-accel)
 ARC_CHORD_MM = 0.005  # arcs are drawn in chords this long (5 µm: off the circle by < 7 nm at R0.5)
 
 
-def read_polyline(path):
-    """The points of a program of G1 X Y Z lines and G2/G3 arcs in the XY plane (centre I J
-    relative to the arc's start) from the origin (repeated points dropped)."""
-    pts = [(0.0, 0.0, 0.0)]
+def read_moves(path):
+    """The moves of a program of G1 X Y Z lines and G2/G3 arcs in the XY plane from the origin:
+    (motion, start, end, centre), centre (I J) relative to the start."""
     cur = [0.0, 0.0, 0.0]
     motion = "G1"
     with open(path) as f:
@@ -60,13 +59,21 @@ def read_polyline(path):
                     cur[axis] = float(word[1:])
                 if word[0] in "IJ":
                     centre["IJ".find(word[0])] = float(word[1:])
-            if motion == "G1":
-                new = [tuple(cur)]
-            else:
-                new = arc_points(start, cur, centre, motion == "G3")
-            for p in new:
-                if p != pts[-1]:
-                    pts.append(p)
+            yield motion, start, list(cur), centre
+
+
+def read_polyline(path):
+    """The points of a program (`read_moves`), arcs in ARC_CHORD_MM chords (repeated points
+    dropped)."""
+    pts = [(0.0, 0.0, 0.0)]
+    for motion, start, end, centre in read_moves(path):
+        if motion == "G1":
+            new = [tuple(end)]
+        else:
+            new = arc_points(start, end, centre, motion == "G3")
+        for p in new:
+            if p != pts[-1]:
+                pts.append(p)
     return pts
 
 
@@ -80,9 +87,8 @@ def read_feed(path):
     return FEED
 
 
-def arc_points(start, end, centre, ccw):
-    """The points of an arc from `start` to `end` about `start` + `centre` (XY), every
-    ARC_CHORD_MM of its length, the end exactly; Z linear in the angle."""
+def arc_geometry(start, end, centre, ccw):
+    """An arc's centre (XY), radius, start angle and signed sweep."""
     cx, cy = start[0] + centre[0], start[1] + centre[1]
     r = math.hypot(start[0] - cx, start[1] - cy)
     a0 = math.atan2(start[1] - cy, start[0] - cx)
@@ -91,7 +97,14 @@ def arc_points(start, end, centre, ccw):
         sweep += 2 * math.pi
     if not ccw and sweep >= 0:
         sweep -= 2 * math.pi
-    n = max(1, math.ceil(abs(sweep) * r / ARC_CHORD_MM))
+    return cx, cy, r, a0, sweep
+
+
+def arc_points(start, end, centre, ccw, chord_mm=ARC_CHORD_MM):
+    """The points of an arc from `start` to `end` about `start` + `centre` (XY), every
+    `chord_mm` of its length, the end exactly; Z linear in the angle."""
+    cx, cy, r, a0, sweep = arc_geometry(start, end, centre, ccw)
+    n = max(1, math.ceil(abs(sweep) * r / chord_mm))
     out = []
     for i in range(1, n):
         a = a0 + sweep * i / n

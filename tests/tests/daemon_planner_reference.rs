@@ -14,8 +14,9 @@
 //! And the parabolic profile: with the constants files of `scripts/jerk-reference/`, every
 //! move of its suite (short moves that never reach F included) within 1.03 of Ruckig's
 //! time-optimal jerk-limited move under the same limits, the path's jerk within J; and the
-//! dense paths with a constants file that sets only the profile (`machine-parabolic.rek`),
-//! every axis within its jerk, against what `jerk_ticks.py` finds for jerk-limited setpoints.
+//! dense paths and the arc-fitted programs with a constants file that sets only the profile
+//! (`machine-parabolic.rek`), every axis within its jerk, against what `jerk_ticks.py` finds for
+//! jerk-limited setpoints.
 
 mod vcan_support;
 
@@ -355,12 +356,13 @@ fn span_s(rows: &[Vec<f64>]) -> f64 {
     rows[arrive][0] - rows[leave - 1][0]
 }
 
-/// The parabolic profile on the dense paths, with a constants file that sets only the profile
-/// and the criteria (`machine-parabolic.rek`: A = R236 → R52 = 500 mm/s², J the axes' jerk,
-/// Lm 8 µm): every axis within its acceleration and its jerk (50·a), and the time against
-/// what `jerk_ticks.py` (independent of the planner) finds feasible with jerk-limited 4 ms
-/// setpoints within Lm/2 of the path. The envelope runs this profile: within 1.03 on lines
-/// and long blocks, up to 1.7 × on dense paths (docs/planner.md, *Known limits*).
+/// The parabolic profile on the dense paths and the arc-fitted programs, with a constants file
+/// that sets only the profile and the criteria (`machine-parabolic.rek`: A = R236 → R52 = 500
+/// mm/s², J the axes' jerk, Lm 8 µm): every axis within its acceleration and its jerk (50·a),
+/// and the time against what `jerk_ticks.py` (independent of the planner) finds feasible with
+/// jerk-limited 4 ms setpoints within Lm/2 of the path. The envelope runs this profile: within
+/// 1.03 on lines and long blocks, 1.1-2.4 × on dense paths and small arcs (docs/planner.md,
+/// *Parabolic profile on the dense paths*); `PARABOLIC_GUARD` keeps it from getting worse.
 #[test]
 fn parabolic_dense_paths_against_the_jerk_limited_reference() {
     let rek = std::fs::read_to_string(reference_dir().join("machine-parabolic.rek")).unwrap();
@@ -372,30 +374,46 @@ fn parabolic_dense_paths_against_the_jerk_limited_reference() {
         [axis; 3],
         &[("TAB0.REK", &rek)],
     );
-    let table = reference_dir().join("jerk-ticks.tsv");
-    let text = std::fs::read_to_string(&table).unwrap();
-    let names = text.lines().filter(|l| !l.starts_with('#'));
-    // Positions to 1 nm: a third difference of four is off by up to 8 × 0.5 nm.
-    let jerk_rounding = 8.0 * 0.5e-6 / TS_S.powi(3);
     let mut failures = vec![];
-    for name in names.map(|l| l.split('\t').next().unwrap()) {
-        let nc = std::fs::read_to_string(reference_dir().join(format!("paths/{name}.nc"))).unwrap();
-        let (rows, _) = trajectory(&d, name, &nc, "machine-parabolic.rek");
-        let t = span_s(&rows);
-        let reference = table_s(&table, name, 2);
-        let axis_a = (1..4).map(|c| max_accel(&rows, c)).fold(0.0, f64::max);
-        let axis_j = (1..4).map(|c| max_jerk(&rows, c)).fold(0.0, f64::max);
-        println!(
-            "parabolic {name:10} {t:.3} s, jerk_ticks.py {reference:.3} s, ratio {:.3}, axis a {axis_a:.3}, axis j {axis_j:.1}",
-            t / reference
-        );
-        let within = axis_a <= AXIS_A_MM_S2 + CSV_AXIS_MM_S2
-            && axis_j <= 50.0 * AXIS_A_MM_S2 + jerk_rounding;
-        if !within || t / reference > 1.8 {
-            failures.push(format!(
-                "{name}: {t:.3} s, reference {reference:.3} s, axis a {axis_a:.3}, j {axis_j:.1}"
-            ));
+    let places = [
+        (reference_dir().join("paths"), reference_dir()),
+        (reference_dir().join("arcs"), reference_dir().join("arcs")),
+    ];
+    for (programs, tables) in &places {
+        let table = tables.join("jerk-ticks.tsv");
+        let text = std::fs::read_to_string(&table).unwrap();
+        for line in text.lines().filter(|l| !l.starts_with('#')) {
+            let name = line.split('\t').next().unwrap();
+            let nc = std::fs::read_to_string(programs.join(format!("{name}.nc"))).unwrap();
+            let reference = table_s(&table, name, 2);
+            run_parabolic(&d, name, &nc, reference, &mut failures);
         }
     }
     assert!(failures.is_empty(), "{failures:#?}");
+}
+
+/// The largest ratio of a parabolic path's time to `jerk_ticks.py`'s the test lets pass (the
+/// highest today: 2.36, the small tangent arcs).
+const PARABOLIC_GUARD: f64 = 2.5;
+
+/// Program `nc` through `cncctl trajectory` on the parabolic machine: every axis within its
+/// acceleration and jerk, the time within `PARABOLIC_GUARD` × `reference` s.
+fn run_parabolic(d: &Daemon, name: &str, nc: &str, reference: f64, failures: &mut Vec<String>) {
+    // Positions to 1 nm: a third difference of four is off by up to 8 × 0.5 nm.
+    let jerk_rounding = 8.0 * 0.5e-6 / TS_S.powi(3);
+    let (rows, _) = trajectory(d, name, nc, "machine-parabolic.rek");
+    let t = span_s(&rows);
+    let axis_a = (1..4).map(|c| max_accel(&rows, c)).fold(0.0, f64::max);
+    let axis_j = (1..4).map(|c| max_jerk(&rows, c)).fold(0.0, f64::max);
+    println!(
+        "parabolic {name:12} {t:.3} s, jerk_ticks.py {reference:.3} s, ratio {:.3}, axis a {axis_a:.3}, axis j {axis_j:.1}",
+        t / reference
+    );
+    let within =
+        axis_a <= AXIS_A_MM_S2 + CSV_AXIS_MM_S2 && axis_j <= 50.0 * AXIS_A_MM_S2 + jerk_rounding;
+    if !within || t / reference > PARABOLIC_GUARD {
+        failures.push(format!(
+            "{name}: {t:.3} s, reference {reference:.3} s, axis a {axis_a:.3}, j {axis_j:.1}"
+        ));
+    }
 }
