@@ -1,0 +1,221 @@
+#!/usr/bin/env python3
+"""A sketch of a jerk-limited box for the parabolic profile (issue #49), not a reference: what a
+controller that chooses its raw setpoints on the polyline each tick, as the linear profile's box
+does, and sends them through the axis filter it has today (q = B2·B2·p: the mean of the last two
+ticks, twice, T = 8 ms), would reach on the reference paths. It tells whether that shape of a box
+can close the gap to jerk_ticks.py before it is built in the interpolator.
+
+Each tick takes the farthest next raw setpoint (arc length s on the polyline) such that
+- the filtered setpoints keep, per axis, |Δq| <= v_k·Ts, |Δ²q| <= a_k·Ts², |Δ³q| <= j_k·Ts³ (j_k =
+  50·a_k) and stay within Lm/2 of the polyline;
+- the raw arc length keeps 0 <= Δs <= F·Ts, |Δ²s| <= A·Ts², |Δ³s| <= J·Ts³ and the R384/R385 speeds
+  of the junctions a step crosses (as ticks.py);
+- a braking from there proves it can come to rest on the path within all of the above: the raw
+  acceleration falls at J to at most -A and rises back to 0 as the speed reaches 0 (the
+  time-optimal stop of a jerk-limited axis, along the path); the braking of the last accepted
+  proof is kept and its next setpoint taken when no farther one passes.
+The search tries the farthest setpoint the path limits allow, then bisects towards the kept
+braking's next one. Plain Python, no planner code; the setpoints are checked again at the end.
+Run: python3 jerk_box_sketch.py [--dir arcs] [name ...] (paths/ by default; a minute or two a
+path, the zig-zag and the pocket more).
+"""
+
+import math
+import os
+import sys
+
+from machine import A_AXIS, LM_MM, TS, V_AXIS
+from ticks import Polyline, read_feed, read_polyline
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+J_AXIS = 50.0 * A_AXIS
+A_PATH = 500.0
+J_PATH = J_AXIS
+LIMITS = (V_AXIS * TS, A_AXIS * TS**2, J_AXIS * TS**3)
+ROUNDING = 1e-9  # relative, of each limit: a limit met exactly is not passed by rounding
+OFF_MM = LM_MM / 2
+BISECT = 8  # bisections a tick
+REST_MM_S = 1e-6  # a braking this slow is at rest
+
+
+class Sketch:
+    def __init__(self, poly, feed_mm_s):
+        self.poly = poly
+        self.step_f = feed_mm_s * TS
+
+    def off_path(self, q, s_from, s_to):
+        """Distance of q from the segments between arc lengths s_from and s_to."""
+        p = self.poly
+        best = math.inf
+        for j in range(p.segment(s_from), p.segment(s_to) + 1):
+            a, u = p.pts[j], p.u[j]
+            d = [q[k] - a[k] for k in range(3)]
+            t = min(max(sum(d[k] * u[k] for k in range(3)), 0.0), p.s[j + 1] - p.s[j])
+            best = min(best, math.sqrt(sum((d[k] - u[k] * t) ** 2 for k in range(3))))
+        return best
+
+    def step(self, hist, s_new):
+        """The new (s, p, q) after history `hist` (the last four), or None beyond a limit."""
+        (s3, p3, q3), (s2, p2, q2), (s1, p1, q1), (s0, p0, q0) = hist
+        ds = s_new - s0
+        if ds < -1e-12 or ds > self.step_f * (1 + 1e-12) or s_new > self.poly.length + 1e-12:
+            return None
+        if abs(s_new - 2 * s0 + s1) > A_PATH * TS**2 * (1 + ROUNDING):
+            return None
+        if abs(s_new - 3 * s0 + 3 * s1 - s2) > J_PATH * TS**3 * (1 + ROUNDING):
+            return None
+        p = self.poly
+        j = p.segment(s0)
+        while j + 1 < len(p.u) and p.s[j + 1] <= s_new:
+            j += 1
+            if p.s[j] > s0 and ds > p.cap[j] * TS:
+                return None
+        pn = p.at(s_new)
+        qn = [(pn[k] + 2 * p0[k] + p1[k]) / 4 for k in range(3)]
+        v_lim, a_lim, j_lim = (x * (1 + ROUNDING) for x in LIMITS)
+        for k in range(3):
+            if abs(qn[k] - q0[k]) > v_lim:
+                return None
+            if abs(qn[k] - 2 * q0[k] + q1[k]) > a_lim:
+                return None
+            if abs(qn[k] - 3 * q0[k] + 3 * q1[k] - q2[k]) > j_lim:
+                return None
+        if self.off_path(qn, s1, s_new) > OFF_MM:
+            return None
+        return (s_new, pn, qn)
+
+    def brake(self, hist):
+        """The raw arc lengths of the braking from `hist` to rest (q settled), or None."""
+        hist = list(hist)
+        plan = []
+        while True:
+            s0, s1, s2 = hist[-1][0], hist[-2][0], hist[-3][0]
+            v = (s0 - s1) / TS
+            a = (s0 - 2 * s1 + s2) / TS**2
+            if v <= REST_MM_S and abs(a) <= REST_MM_S / TS:
+                # At rest: two more ticks settle the filter.
+                for _ in range(3):
+                    nxt = self.step(hist[-4:], s0)
+                    if nxt is None:
+                        return None
+                    hist.append(nxt)
+                    plan.append(s0)
+                return plan
+            a_next = stop_accel(v, a)
+            v_next = v + a_next * TS
+            if v_next <= REST_MM_S:
+                v_next = 0.0
+            nxt = self.step(hist[-4:], s0 + v_next * TS)
+            if nxt is None or len(plan) > 400:
+                return None
+            hist.append(nxt)
+            plan.append(nxt[0])
+
+    def run(self):
+        p0 = self.poly.at(0.0)
+        hist = [(0.0, p0, p0)] * 4
+        plan = []
+        out = [p0]
+        length = self.poly.length
+        while True:
+            s0, s1, s2 = hist[-1][0], hist[-2][0], hist[-3][0]
+            if s0 >= length - 1e-12 and out[-1] == out[-2] == out[-3] and s0 == s1 == s2:
+                break
+            hi = min(s0 + self.step_f, length, 2 * s0 - s1 + A_PATH * TS**2,
+                     3 * s0 - 3 * s1 + s2 + J_PATH * TS**3)
+            good = plan[0] if plan else s0
+            chosen = self.search(hist, good, hi)
+            if chosen is None:
+                nxt = self.step(hist[-4:], good)
+                assert nxt is not None, "the kept braking is proven"
+                plan = plan[1:]
+            else:
+                nxt, plan = chosen
+            hist = hist[-3:] + [nxt]
+            out.append(nxt[2])
+        return out
+
+    def proven(self, hist, s_try):
+        """The step to `s_try` and its braking, or None."""
+        nxt = self.step(hist[-4:], s_try)
+        if nxt is None:
+            return None
+        rest = self.brake(hist[-3:] + [nxt])
+        return None if rest is None else (nxt, rest)
+
+    def search(self, hist, good, hi):
+        """The farthest proven step up to `hi`: `hi` itself, else bisecting between `good`
+        (proven before) and it."""
+        if hi <= good:
+            return None
+        found = self.proven(hist, hi)
+        if found is not None:
+            return found
+        lo, top = good, hi
+        for _ in range(BISECT):
+            mid = 0.5 * (lo + top)
+            x = self.proven(hist, mid)
+            if x is None:
+                top = mid
+            else:
+                found, lo = x, mid
+        return found
+
+
+def stop_accel(v, a):
+    """The raw acceleration of the next tick of the time-optimal jerk-limited stop from speed
+    v and acceleration a: as low as J and A allow while a rise back to 0 at J still ends at a
+    speed >= 0."""
+    lo = max(a - J_PATH * TS, -A_PATH)
+    hi = min(a + J_PATH * TS, A_PATH)
+    if end_speed(v, hi) < 0:
+        return hi
+    if end_speed(v, lo) >= 0:
+        return lo
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        if end_speed(v, mid) >= 0:
+            hi = mid
+        else:
+            lo = mid
+    return hi
+
+
+def end_speed(v, a):
+    """The speed once the acceleration, a in the next tick, has risen back to 0 at J."""
+    v += a * TS
+    while a < 0:
+        a = min(a + J_PATH * TS, 0.0)
+        v += a * TS
+    return v
+
+
+def check(qs):
+    worst = [0.0, 0.0, 0.0]
+    for order in (1, 2, 3):
+        w = {1: (1, -1), 2: (1, -2, 1), 3: (1, -3, 3, -1)}[order]
+        for i in range(order, len(qs)):
+            for k in range(3):
+                d = sum(c * qs[i - r][k] for r, c in enumerate(w))
+                worst[order - 1] = max(worst[order - 1], abs(d) / LIMITS[order - 1])
+    return worst
+
+
+def main():
+    args = sys.argv[1:]
+    folder = "paths"
+    if args[:1] == ["--dir"]:
+        folder, args = args[1], args[2:]
+    programs = os.path.join(HERE, folder)
+    names = args or sorted(f[:-3] for f in os.listdir(programs) if f.endswith(".nc"))
+    for name in names:
+        program = os.path.join(programs, f"{name}.nc")
+        sketch = Sketch(Polyline(read_polyline(program)), read_feed(program) / 60.0)
+        qs = sketch.run()
+        ticks = len(qs) - 1
+        print(f"{name:12s} {ticks:6d} ticks {ticks * TS:8.3f} s  worst v/a/j " +
+              " ".join(f"{w:.4f}" for w in check(qs)), flush=True)
+
+
+if __name__ == "__main__":
+    main()
