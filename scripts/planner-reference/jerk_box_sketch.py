@@ -25,7 +25,7 @@ import os
 import sys
 
 from machine import A_AXIS, LM_MM, TS, V_AXIS
-from ticks import Polyline, read_feed, read_polyline
+from ticks import Polyline, program_folder, program_names, read_feed, read_polyline
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 J_AXIS = 50.0 * A_AXIS
@@ -202,12 +202,9 @@ def check(qs):
 
 
 def main():
-    args = sys.argv[1:]
-    folder = "paths"
-    if args[:1] == ["--dir"]:
-        folder, args = args[1], args[2:]
+    folder, args = program_folder(sys.argv[1:])
     programs = os.path.join(HERE, folder)
-    names = args or sorted(f[:-3] for f in os.listdir(programs) if f.endswith(".nc"))
+    names = args or program_names(programs)
     for name in names:
         program = os.path.join(programs, f"{name}.nc")
         sketch = Sketch(Polyline(read_polyline(program)), read_feed(program) / 60.0)

@@ -44,7 +44,8 @@ from scipy.optimize import linprog
 from scipy.sparse import csr_matrix
 
 from machine import A_AXIS, AM, LM_MM, TS, V_AXIS
-from ticks import arc_geometry, arc_points, read_feed, read_moves
+from ticks import (arc_geometry, arc_points, program_folder, program_names, read_feed,
+                   read_moves)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 J_AXIS = 50.0 * A_AXIS  # mm/s³, the daemon's axis jerk (50·a)
@@ -332,13 +333,9 @@ NAMES = ["line", "pentagram", "pocket", "circle", "lissajous", "splines", "surfa
 
 
 def main():
-    args = sys.argv[1:]
-    folder = "paths"
-    if args[:1] == ["--dir"]:
-        folder, args = args[1], args[2:]
+    folder, args = program_folder(sys.argv[1:])
     programs = os.path.join(HERE, folder)
-    every = NAMES if folder == "paths" else sorted(
-        f[:-3] for f in os.listdir(programs) if f.endswith(".nc"))
+    every = NAMES if folder == "paths" else program_names(programs)
     names = args or every
     # The paths' table beside the script (as ticks.py's), another folder's in it.
     table = os.path.join(HERE if folder == "paths" else programs, "jerk-ticks.tsv")

@@ -242,15 +242,26 @@ def check(line, seq):
     return acc / STEP_A, vel / STEP_V, path / STEP_F, path_a / STEP_P
 
 
+def program_folder(args):
+    """`--dir D` at the head of the arguments: the programs D/*.nc (arcs.py's, fast.py's)
+    instead of paths/. Returns the folder and the other arguments."""
+    if args[:1] == ["--dir"]:
+        return args[1], args[2:]
+    return "paths", args
+
+
+def program_names(folder):
+    """The names of the programs in `folder` (a path), sorted."""
+    return sorted(n[:-3] for n in os.listdir(folder) if n.endswith(".nc"))
+
+
 def main():
     global STEP_P, STEP_F
-    args = sys.argv[1:]
     table = "ticks.tsv"
-    # --dir D: the programs D/*.nc (arcs.py's), the table written into D.
-    paths, out_dir = os.path.join(HERE, "paths"), HERE
-    if args[:1] == ["--dir"]:
-        paths = out_dir = os.path.join(HERE, args[1])
-        args = args[2:]
+    # --dir D: the programs D/*.nc, the table written into D.
+    folder, args = program_folder(sys.argv[1:])
+    paths = os.path.join(HERE, folder)
+    out_dir = HERE if folder == "paths" else paths
     if args[:1] == ["--path-accel"]:
         accel = float(args[1])
         STEP_P = accel * TS * TS
@@ -262,7 +273,7 @@ def main():
         with open(os.path.join(HERE, "reference.tsv")) as f:
             names = [l.split("\t")[0] for l in f if not l.startswith("#")]
     else:
-        names = sorted(n[:-3] for n in os.listdir(paths) if n.endswith(".nc"))
+        names = program_names(paths)
     for name in names:
         if only and name not in only:
             continue
