@@ -43,7 +43,7 @@ import numpy as np
 from scipy.optimize import linprog
 from scipy.sparse import csr_matrix
 
-from machine import A_AXIS, AM, LM_MM, TS, V_AXIS
+from machine import A_AXIS, LM_MM, TS, V_AXIS, criteria_cap_mm_s
 from ticks import (arc_geometry, arc_points, program_folder, program_names, read_feed,
                    read_moves)
 
@@ -102,9 +102,7 @@ class Path:
                 continue  # inside an arc: no junction
             chord = np.linalg.norm(self.t[j] - self.t[j - 1])
             if chord > 1e-12:
-                half = math.asin(min(chord / 2, 1.0))
-                tan = math.tan(half) if chord < 2 - 1e-12 else math.inf
-                self.cap[j] = min(AM * TS / chord, LM_MM / (TS * tan))
+                self.cap[j] = criteria_cap_mm_s(chord)
         centred = p - p.mean(axis=0)
         _, sv, vt = np.linalg.svd(centred, full_matrices=False)
         planar = len(p) < 3 or sv[-1] < 1e-9 * max(sv[0], 1.0)

@@ -30,7 +30,7 @@ import math
 import os
 import sys
 
-from machine import A_AXIS, AM, FEED, LM_MM, TS, V_AXIS
+from machine import A_AXIS, FEED, TS, V_AXIS, criteria_cap_mm_s
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 STEP_A = A_AXIS * TS * TS  # per axis, mm per tick²
@@ -130,9 +130,7 @@ class Polyline:
         for j in range(1, len(pts) - 1):
             chord = math.sqrt(sum((self.u[j][k] - self.u[j - 1][k]) ** 2 for k in range(3)))
             if chord > 1e-12:
-                half = math.asin(min(chord / 2, 1.0))
-                tan = math.tan(half) if chord < 2 - 1e-12 else math.inf
-                self.cap[j] = min(AM * TS / chord, LM_MM / (TS * tan))
+                self.cap[j] = criteria_cap_mm_s(chord)
 
     def segment(self, s):
         lo, hi = 0, len(self.u) - 1
