@@ -212,13 +212,9 @@ async fn a_following_error_is_a_fault_condition_on_its_axis_until_reset() {
     assert!(conds.obs.iter().all(|o| o.id().ends_with("_cond")
         || o.id().ends_with("_travel")
         || ["ctrl_system", "ctrl_comms", "motion", "logic"].contains(&o.id())));
-    // Reset takes once the healthy axes are at rest and the drives in their safe state.
-    let t0 = std::time::Instant::now();
-    while d.ctl.snapshot().state != MachineState::Idle {
-        assert!(t0.elapsed() < tests::PATIENCE, "reset never took");
-        m.reset(pb::ResetRequest {}).await.unwrap();
-        tokio::time::sleep(std::time::Duration::from_millis(200)).await;
-    }
+    // Reset takes once the healthy axes are at rest and the drives in their safe state; a
+    // Reset that lands while the drives are still enabling is refused (no fault left).
+    reset_to_idle(&d.ctl, &mut m).await;
     let n = wait_current(&c, "/current", "Normal after reset", |d| {
         d.one("x_cond").element == "Normal"
     })
