@@ -45,6 +45,8 @@ fn estop_force_and_m8_through_cncd_and_cncctl() {
     wait_for("coolant on", || {
         value(&io_json(&d), "outputs", "coolant") == 1
     });
+    // (The M8 job ends once its block has run: idle before the next MDI.)
+    d.wait_idle();
     let (ok, out) = d.cncctl(&["mdi", "M9"]);
     assert!(ok, "{out}");
     wait_for("coolant off", || {

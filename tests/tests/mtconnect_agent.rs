@@ -51,7 +51,10 @@ async fn probe_describes_the_machine_and_current_follows_a_program() {
             probe.body
         );
     }
-    let cur = parse(&c.get("/current").await.body);
+    let cur = wait_current(&c, "/current", "the first values", |d| {
+        known(d, &["exec", "avail", "x_cond"])
+    })
+    .await;
     assert_eq!(cur.one("exec").text, "READY");
     assert_eq!(cur.one("avail").text, "AVAILABLE");
     assert_eq!(cur.one("x_cond").element, "Normal");

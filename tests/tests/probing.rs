@@ -41,8 +41,7 @@ fn go(d: &Cncd, axis: usize, target: f64) {
     let step = target - commanded(d, axis);
     if step.abs() > 1e-9 {
         let letter = ["X", "Y", "Z"][axis];
-        json(d, &["jog", letter, "--step", &format!("{step}")]);
-        d.wait_idle();
+        d.jog_step(letter, step);
     }
 }
 

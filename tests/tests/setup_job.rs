@@ -29,10 +29,8 @@ fn ok(d: &Cncd, args: &[&str]) -> String {
 fn touch_off_then_the_program_goes_to_the_touched_point() {
     let cwd = temp_dir("touch_off");
     let d = Cncd::start(&cwd, MILL_TOML);
-    ok(&d, &["jog", "X", "--step", "12.3456"]);
-    d.wait_idle();
-    ok(&d, &["jog", "Y", "--step", "-7.5"]);
-    d.wait_idle();
+    d.jog_step("X", 12.3456);
+    d.jog_step("Y", -7.5);
     let here = commanded(&d);
     let out = ok(&d, &["touch-off", "1", "X", "0", "--radius", "2"]);
     assert!(out.contains("D01"), "{out}");
@@ -46,8 +44,7 @@ fn touch_off_then_the_program_goes_to_the_touched_point() {
     let (refused, why) = d.cncctl(&["touch-off", "100", "X", "0"]);
     assert!(!refused && why.contains("touch_off_invalid"), "{why}");
     // Away, then the CNC836 program selects entry 1 and goes to X0 Y0.
-    ok(&d, &["jog", "X", "--step", "-30"]);
-    d.wait_idle();
+    d.jog_step("X", -30.0);
     std::fs::write(cwd.join("part.nc"), "N10 &1 G1 X0 Y0 F3000\nN20 M30\n").unwrap();
     ok(&d, &["run", "part.nc"]);
     let at = commanded(&d);
@@ -59,12 +56,10 @@ fn touch_off_then_the_program_goes_to_the_touched_point() {
     }
     // ISO: G54 X10 in the file; a touch-off relative to G54 and `G43 H1` reach it too.
     ok(&d, &["work-offset-set", "G54", "X10"]);
-    ok(&d, &["jog", "X", "--step", "5"]);
-    d.wait_idle();
+    d.jog_step("X", 5.0);
     let here = commanded(&d);
     ok(&d, &["touch-off", "1", "X", "0", "--work", "G54"]);
-    ok(&d, &["jog", "X", "--step", "-30"]);
-    d.wait_idle();
+    d.jog_step("X", -30.0);
     std::fs::write(cwd.join("part.ngc"), "G43 H1\nG1 X0 Y0 F3000\nM30\n").unwrap();
     ok(&d, &["run", "part.ngc"]);
     let at = commanded(&d);

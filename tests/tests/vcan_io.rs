@@ -56,6 +56,8 @@ fn estop_limit_coolant_and_a_killed_cncd_on_vcan() {
     let (ok, out) = d.cncctl(&["mdi", "M8"], t);
     assert!(ok, "{out}");
     wait_outputs(&mut sim, "M8", t, |o| o & 1 == 1);
+    // (The M8 job ends once its block has run: idle before the next MDI.)
+    d.wait_state("idle", t);
     let (ok, out) = d.cncctl(&["mdi", "M9"], t);
     assert!(ok, "{out}");
     wait_outputs(&mut sim, "M9", t, |o| o & 1 == 0);
@@ -63,6 +65,7 @@ fn estop_limit_coolant_and_a_killed_cncd_on_vcan() {
     let (ok, out) = d.cncctl(&["mdi", "M8"], t);
     assert!(ok, "{out}");
     wait_outputs(&mut sim, "M8", t, |o| o & 1 == 1);
+    d.wait_state("idle", t);
     let (ok, out) = d.cncctl(&["mdi", "G1 X300 F1200"], t);
     assert!(ok, "{out}");
     d.wait_state("running", t);
@@ -74,9 +77,17 @@ fn estop_limit_coolant_and_a_killed_cncd_on_vcan() {
     let (ok, out) = d.cncctl(&["reset"], t);
     assert!(!ok && out.contains("emergency-stop chain is open"), "{out}");
     sim.send("input 10 0 1");
-    std::thread::sleep(Duration::from_millis(200));
-    let (ok, out) = d.cncctl(&["reset"], t);
-    assert!(ok, "{out}");
+    // Refused until the closed chain has come over the bus.
+    let t0 = std::time::Instant::now();
+    loop {
+        let (ok, out) = d.cncctl(&["reset"], t);
+        if ok {
+            break;
+        }
+        assert!(out.contains("emergency-stop chain is open"), "{out}");
+        assert!(t0.elapsed() < t, "the closed chain never arrived");
+        std::thread::sleep(Duration::from_millis(100));
+    }
     d.wait_state("idle", t);
     // The X drive's own positive limit (0x60FD bit 1): fault naming X.
     sim.send("input 61 1 1");

@@ -103,6 +103,25 @@ impl Cncd {
         serde_json::from_str(out.trim()).expect("one JSON object")
     }
 
+    /// `cncctl jog AXIS --step STEP`, then waits until the step is done: idle with the axis at
+    /// the jog's target (the reply comes once the step is queued, so a status right after it
+    /// may still show the idle machine from before). Returns the target, mm.
+    pub fn jog_step(&self, axis: &str, step_mm: f64) -> f64 {
+        let r = self.json(&["jog", axis, "--step", &format!("{step_mm}")]);
+        let target = r["target_mm"].as_f64().expect("the jog's target");
+        wait_for("the jog step done", || {
+            let s = self.json(&["status"]);
+            let at = s["axes"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|a| a["name"] == axis)
+                .and_then(|a| a["commanded_mm"].as_f64());
+            s["state"] == "idle" && at.is_some_and(|mm| (mm - target).abs() < 1e-9)
+        });
+        target
+    }
+
     /// SIGKILL, as a power cut or the OOM killer would.
     pub fn kill9(&mut self) {
         let _ = self.child.kill();

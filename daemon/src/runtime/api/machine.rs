@@ -75,7 +75,7 @@ impl pipeline::Observer for Junctions {
 
 /// A machine command of the operator: the caller's role is checked, the request goes to the
 /// controller, and the reply is empty (the controller's refusal is the call's status).
-fn command<Req, Rep: Default>(
+async fn command<Req, Rep: Default>(
     st: &ApiState,
     req: Request<Req>,
     method: &str,
@@ -83,6 +83,8 @@ fn command<Req, Rep: Default>(
 ) -> Result<Response<Rep>, Status> {
     require(&req, Operator, method)?;
     run(&st.ctl, req.into_inner()).map_err(status_of)?;
+    // The reply says the command is in force: a status read after it shows it.
+    st.ctl.wait_commands_taken().await;
     Ok(Response::new(Rep::default()))
 }
 
@@ -205,18 +207,18 @@ impl Machine for MachineSvc {
     }
 
     async fn stop(&self, req: Request<pb::StopRequest>) -> Result<Response<pb::StopReply>, Status> {
-        command(&self.0, req, "Stop", |c, _| c.stop())
+        command(&self.0, req, "Stop", |c, _| c.stop()).await
     }
 
     async fn hold(&self, req: Request<pb::HoldRequest>) -> Result<Response<pb::HoldReply>, Status> {
-        command(&self.0, req, "Hold", |c, _| c.hold())
+        command(&self.0, req, "Hold", |c, _| c.hold()).await
     }
 
     async fn resume(
         &self,
         req: Request<pb::ResumeRequest>,
     ) -> Result<Response<pb::ResumeReply>, Status> {
-        command(&self.0, req, "Resume", |c, _| c.resume())
+        command(&self.0, req, "Resume", |c, _| c.resume()).await
     }
 
     async fn set_override(
@@ -241,6 +243,7 @@ impl Machine for MachineSvc {
         command(&self.0, req, "SetSpindleOverride", |c, r| {
             c.set_spindle_override(r.percent)
         })
+        .await
     }
 
     async fn set_rapid_override(
@@ -250,13 +253,14 @@ impl Machine for MachineSvc {
         command(&self.0, req, "SetRapidOverride", |c, r| {
             c.set_rapid_override(r.percent)
         })
+        .await
     }
 
     async fn reset(
         &self,
         req: Request<pb::ResetRequest>,
     ) -> Result<Response<pb::ResetReply>, Status> {
-        command(&self.0, req, "Reset", |c, _| c.reset())
+        command(&self.0, req, "Reset", |c, _| c.reset()).await
     }
 
     async fn set_single_block(
@@ -286,6 +290,7 @@ impl Machine for MachineSvc {
         command(&self.0, req, "SetOptionalStop", |c, r| {
             c.set_optional_stop(r.on)
         })
+        .await
     }
 
     async fn jog(
@@ -390,6 +395,7 @@ impl Machine for MachineSvc {
         require(&req, Operator, "JogStep")?;
         super::diagnostics::ready_for_motion(self.0.ctl.snapshot().state)?;
         let target_mm = jog::step(&self.0, req.into_inner())?;
+        self.0.ctl.wait_commands_taken().await;
         Ok(Response::new(pb::JogReply { target_mm }))
     }
 
@@ -574,6 +580,7 @@ pub(super) async fn start_job(
     if from_block.is_none()
         && let Some(job) = state.ctl.start_resumes().map_err(status_of)?
     {
+        state.ctl.wait_commands_taken().await;
         return Ok(job);
     }
     let st = state.clone();
