@@ -25,8 +25,10 @@ fn start_daemon(test: &str, link: &str, axes: &[(&str, &str)]) -> Daemon {
             i + 1
         ));
     }
+    // 2 s without a reply is a fault: a loaded machine can stall the simulator's process for
+    // hundreds of ms (400 ms failed a run under load).
     cfg.push_str(&format!(
-        "[bus]\nkind = 'serial'\nport = '{link}'\nreply_timeout_ticks = 100\n\n\
+        "[bus]\nkind = 'serial'\nport = '{link}'\nreply_timeout_ticks = 500\n\n\
          [api]\nlisten = '127.0.0.1:{port}'\nunix_socket = ''\nloopback_role = 'admin'\n\n[hmi]\nlisten = '127.0.0.1:0'\n\n[rt]\nlock_memory = false\n\n\
          [storage]\ndir = '{}'\n",
         dir.join("data").display()
