@@ -39,7 +39,7 @@ fn daemon_runs_a_program_over_serial_and_recovers_after_replug() {
     let s = d.wait_state("idle", Duration::from_secs(30));
     assert!(s.contains("X5.000 Y-4.000 Z-5.000"), "{s}");
     // The drive itself is there (actual position, from its replies), not only the setpoint.
-    let end = std::time::Instant::now() + Duration::from_secs(3);
+    let end = std::time::Instant::now() + tests::PATIENCE;
     loop {
         let actual = vcan_support::actual_positions_mm(&d.addr);
         let want = [5.0, -4.0, -5.0];
