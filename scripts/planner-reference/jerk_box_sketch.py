@@ -16,8 +16,11 @@ Each tick takes the farthest next raw setpoint (arc length s on the polyline) su
   proof is kept and its next setpoint taken when no farther one passes.
 The search tries the farthest setpoint the path limits allow, then bisects towards the kept
 braking's next one. Plain Python, no planner code; the setpoints are checked again at the end.
-Run: python3 jerk_box_sketch.py [--dir arcs] [name ...] (paths/ by default; a minute or two a
-path, the zig-zag and the pocket more).
+Run: python3 jerk_box_sketch.py [--dir arcs] [options] [name ...] (paths/ by default; a minute or
+two a path, the zig-zag and the pocket more). Options: --runs N (N proofs a tick, searched as the
+linear box's `box_search`), --proof-ticks N (a longer braking fails its proof), --bisect N,
+--filter b2b2|b2b3|b4|b2b4|b3b3 (the axis filter). Each line prints the setpoint checks a tick
+(p99, max): the tick cost of a box built this way.
 """
 
 import math
@@ -34,7 +37,18 @@ J_PATH = J_AXIS
 LIMITS = (V_AXIS * TS, A_AXIS * TS**2, J_AXIS * TS**3)
 ROUNDING = 1e-9  # relative, of each limit: a limit met exactly is not passed by rounding
 OFF_MM = LM_MM / 2
-BISECT = 8  # bisections a tick
+BISECT = 8  # bisections a tick (--bisect N)
+PROOF_TICKS = 400  # longest braking a proof simulates (--proof-ticks N): longer fails
+# The axis filter's weights on the raw setpoints, newest first (--filter NAME): today's B2·B2.
+FILTERS = {
+    "b2b2": (1, 2, 1),
+    "b2b3": (1, 2, 2, 1),
+    "b4": (1, 1, 1, 1),
+    "b2b4": (1, 2, 2, 2, 1),
+    "b3b3": (1, 2, 3, 2, 1),
+}
+KERNEL = FILTERS["b2b2"]
+RUNS = 0  # --runs N: N proofs a tick at most, searched as the linear box does (0: bisect)
 REST_MM_S = 1e-6  # a braking this slow is at rest
 
 
@@ -42,6 +56,9 @@ class Sketch:
     def __init__(self, poly, feed_mm_s):
         self.poly = poly
         self.step_f = feed_mm_s * TS
+        self.steps = 0  # step checks this tick (the tick cost of a box built this way)
+        self.tick_steps = []
+        self.guess = 0.5  # the linear box's adaptive guess (`box_search`), for --runs
 
     def off_path(self, q, s_from, s_to):
         """Distance of q from the segments between arc lengths s_from and s_to."""
@@ -56,6 +73,7 @@ class Sketch:
 
     def step(self, hist, s_new):
         """The new (s, p, q) after history `hist` (the last four), or None beyond a limit."""
+        self.steps += 1
         (s3, p3, q3), (s2, p2, q2), (s1, p1, q1), (s0, p0, q0) = hist
         ds = s_new - s0
         if ds < -1e-12 or ds > self.step_f * (1 + 1e-12) or s_new > self.poly.length + 1e-12:
@@ -71,7 +89,9 @@ class Sketch:
             if p.s[j] > s0 and ds > p.cap[j] * TS:
                 return None
         pn = p.at(s_new)
-        qn = [(pn[k] + 2 * p0[k] + p1[k]) / 4 for k in range(3)]
+        raw = (pn, p0, p1, p2, p3)
+        total = sum(KERNEL)
+        qn = [sum(w * raw[i][k] for i, w in enumerate(KERNEL)) / total for k in range(3)]
         v_lim, a_lim, j_lim = (x * (1 + ROUNDING) for x in LIMITS)
         for k in range(3):
             if abs(qn[k] - q0[k]) > v_lim:
@@ -80,7 +100,7 @@ class Sketch:
                 return None
             if abs(qn[k] - 3 * q0[k] + 3 * q1[k] - q2[k]) > j_lim:
                 return None
-        if self.off_path(qn, s1, s_new) > OFF_MM:
+        if self.off_path(qn, (s_new, s0, s1, s2, s3)[len(KERNEL) - 1], s_new) > OFF_MM:
             return None
         return (s_new, pn, qn)
 
@@ -94,7 +114,7 @@ class Sketch:
             a = (s0 - 2 * s1 + s2) / TS**2
             if v <= REST_MM_S and abs(a) <= REST_MM_S / TS:
                 # At rest: two more ticks settle the filter.
-                for _ in range(3):
+                for _ in range(len(KERNEL)):
                     nxt = self.step(hist[-4:], s0)
                     if nxt is None:
                         return None
@@ -106,7 +126,7 @@ class Sketch:
             if v_next <= REST_MM_S:
                 v_next = 0.0
             nxt = self.step(hist[-4:], s0 + v_next * TS)
-            if nxt is None or len(plan) > 400:
+            if nxt is None or len(plan) > PROOF_TICKS:
                 return None
             hist.append(nxt)
             plan.append(nxt[0])
@@ -119,12 +139,15 @@ class Sketch:
         length = self.poly.length
         while True:
             s0, s1, s2 = hist[-1][0], hist[-2][0], hist[-3][0]
-            if s0 >= length - 1e-12 and out[-1] == out[-2] == out[-3] and s0 == s1 == s2:
+            settled = all(q == out[-1] for q in out[-len(KERNEL):])
+            if s0 >= length - 1e-12 and settled and s0 == s1 == s2:
                 break
             hi = min(s0 + self.step_f, length, 2 * s0 - s1 + A_PATH * TS**2,
                      3 * s0 - 3 * s1 + s2 + J_PATH * TS**3)
             good = plan[0] if plan else s0
+            self.steps = 0
             chosen = self.search(hist, good, hi)
+            self.tick_steps.append(self.steps)
             if chosen is None:
                 nxt = self.step(hist[-4:], good)
                 assert nxt is not None, "the kept braking is proven"
@@ -148,6 +171,8 @@ class Sketch:
         (proven before) and it."""
         if hi <= good:
             return None
+        if RUNS:
+            return self.search_guess(hist, good, hi)
         found = self.proven(hist, hi)
         if found is not None:
             return found
@@ -159,6 +184,28 @@ class Sketch:
                 top = mid
             else:
                 found, lo = x, mid
+        return found
+
+
+    def search_guess(self, hist, good, hi):
+        """As the linear box's `box_search`: `hi`, then a guess that follows what was found
+        the tick before, then halving; RUNS proofs at most."""
+        found, at, top = None, good, hi
+        for run in range(RUNS):
+            if run == 0:
+                m = hi
+            elif run == 1:
+                m = good + min(max(self.guess, 1 / 16), 15 / 16) * (hi - good)
+            else:
+                m = 0.5 * (at + top)
+            x = self.proven(hist, m)
+            if x is None:
+                top = m
+                continue
+            found, at = x, m
+            if run == 0:
+                break
+        self.guess = min((at - good) / (hi - good) + 1 / 16, 1.0)
         return found
 
 
@@ -201,8 +248,27 @@ def check(qs):
     return worst
 
 
+def options(args):
+    """Reads --bisect N, --proof-ticks N, --runs N and --filter NAME; returns the rest."""
+    global BISECT, PROOF_TICKS, RUNS, KERNEL
+    rest = []
+    it = iter(args)
+    for a in it:
+        if a == "--bisect":
+            BISECT = int(next(it))
+        elif a == "--proof-ticks":
+            PROOF_TICKS = int(next(it))
+        elif a == "--filter":
+            KERNEL = FILTERS[next(it)]
+        elif a == "--runs":
+            RUNS = int(next(it))
+        else:
+            rest.append(a)
+    return rest
+
+
 def main():
-    folder, args = program_folder(sys.argv[1:])
+    folder, args = program_folder(options(sys.argv[1:]))
     programs = os.path.join(HERE, folder)
     names = args or program_names(programs)
     for name in names:
@@ -210,8 +276,11 @@ def main():
         sketch = Sketch(Polyline(read_polyline(program)), read_feed(program) / 60.0)
         qs = sketch.run()
         ticks = len(qs) - 1
+        cost = sorted(sketch.tick_steps)
+        p99 = cost[int(0.99 * (len(cost) - 1))]
         print(f"{name:12s} {ticks:6d} ticks {ticks * TS:8.3f} s  worst v/a/j " +
-              " ".join(f"{w:.4f}" for w in check(qs)), flush=True)
+              " ".join(f"{w:.4f}" for w in check(qs)) +
+              f"  step checks a tick p99 {p99} max {cost[-1]}", flush=True)
 
 
 if __name__ == "__main__":
