@@ -19,8 +19,9 @@ braking's next one. Plain Python, no planner code; the setpoints are checked aga
 Run: python3 jerk_box_sketch.py [--dir arcs] [options] [name ...] (paths/ by default; a minute or
 two a path, the zig-zag and the pocket more). Options: --runs N (N proofs a tick, searched as the
 linear box's `box_search`), --proof-ticks N (a longer braking fails its proof), --bisect N,
---filter b2b2|b2b3|b4|b2b4|b3b3 (the axis filter). Each line prints the setpoint checks a tick
-(p99, max): the tick cost of a box built this way.
+--filter b2b2|b2b3|b4|b2b4|b3b3 (the axis filter), --line-steps (the axes checked only where
+the filter's window spans a vertex). Each line prints the setpoint checks a tick (p99, max): the
+tick cost of a box built this way.
 """
 
 import math
@@ -48,6 +49,7 @@ FILTERS = {
     "b3b3": (1, 2, 3, 2, 1),
 }
 KERNEL = FILTERS["b2b2"]
+LINE_STEPS = False  # --line-steps: no check of the axes where the filter's window is on one line
 RUNS = 0  # --runs N: N proofs a tick at most, searched as the linear box does (0: bisect)
 REST_MM_S = 1e-6  # a braking this slow is at rest
 
@@ -72,9 +74,11 @@ class Sketch:
         return best
 
     def step(self, hist, s_new):
-        """The new (s, p, q) after history `hist` (the last four), or None beyond a limit."""
-        self.steps += 1
-        (s3, p3, q3), (s2, p2, q2), (s1, p1, q1), (s0, p0, q0) = hist
+        """The new (s, p, q) after history `hist` (the last four at least), or None beyond a
+        limit."""
+        trivial = self.on_one_line(hist, s_new)
+        self.steps += 0 if trivial else 1
+        (s3, p3, q3), (s2, p2, q2), (s1, p1, q1), (s0, p0, q0) = hist[-4:]
         ds = s_new - s0
         if ds < -1e-12 or ds > self.step_f * (1 + 1e-12) or s_new > self.poly.length + 1e-12:
             return None
@@ -89,6 +93,16 @@ class Sketch:
             if p.s[j] > s0 and ds > p.cap[j] * TS:
                 return None
         pn = p.at(s_new)
+        if trivial:
+            # Each axis moves as the arc length times its direction cosine, and the filter's
+            # averages keep the raw arc length's bounds: within every limit checked above.
+            u = p.u[p.segment(s_new)]
+            total = sum(KERNEL)
+            ss = (s_new, s0, s1, s2, s3)
+            sq = sum(w * ss[i] for i, w in enumerate(KERNEL)) / total
+            a = p.pts[p.segment(s_new)]
+            j0 = p.s[p.segment(s_new)]
+            return (s_new, pn, [a[k] + u[k] * (sq - j0) for k in range(3)])
         raw = (pn, p0, p1, p2, p3)
         total = sum(KERNEL)
         qn = [sum(w * raw[i][k] for i, w in enumerate(KERNEL)) / total for k in range(3)]
@@ -104,10 +118,21 @@ class Sketch:
             return None
         return (s_new, pn, qn)
 
+    def on_one_line(self, hist, s_new):
+        """Whether every raw setpoint the newest four filtered ones depend on, and `s_new`,
+        lie on one segment (with LINE_STEPS: the box needs no check of the axes there)."""
+        window = len(KERNEL) + 2
+        if not LINE_STEPS or len(hist) < window:
+            return False
+        p = self.poly
+        j = p.segment(s_new)
+        return hist[-window][0] >= p.s[j] and p.s[j] <= s_new <= p.s[j + 1]
+
     def brake(self, hist):
         """The raw arc lengths of the braking from `hist` to rest (q settled), or None."""
         hist = list(hist)
         plan = []
+        checks = self.steps
         while True:
             s0, s1, s2 = hist[-1][0], hist[-2][0], hist[-3][0]
             v = (s0 - s1) / TS
@@ -115,7 +140,7 @@ class Sketch:
             if v <= REST_MM_S and abs(a) <= REST_MM_S / TS:
                 # At rest: two more ticks settle the filter.
                 for _ in range(len(KERNEL)):
-                    nxt = self.step(hist[-4:], s0)
+                    nxt = self.step(hist, s0)
                     if nxt is None:
                         return None
                     hist.append(nxt)
@@ -125,15 +150,15 @@ class Sketch:
             v_next = v + a_next * TS
             if v_next <= REST_MM_S:
                 v_next = 0.0
-            nxt = self.step(hist[-4:], s0 + v_next * TS)
-            if nxt is None or len(plan) > PROOF_TICKS:
+            nxt = self.step(hist, s0 + v_next * TS)
+            if nxt is None or self.steps - checks > PROOF_TICKS or len(plan) > 400:
                 return None
             hist.append(nxt)
             plan.append(nxt[0])
 
     def run(self):
         p0 = self.poly.at(0.0)
-        hist = [(0.0, p0, p0)] * 4
+        hist = [(0.0, p0, p0)] * 6
         plan = []
         out = [p0]
         length = self.poly.length
@@ -149,21 +174,21 @@ class Sketch:
             chosen = self.search(hist, good, hi)
             self.tick_steps.append(self.steps)
             if chosen is None:
-                nxt = self.step(hist[-4:], good)
+                nxt = self.step(hist, good)
                 assert nxt is not None, "the kept braking is proven"
                 plan = plan[1:]
             else:
                 nxt, plan = chosen
-            hist = hist[-3:] + [nxt]
+            hist = hist[-5:] + [nxt]
             out.append(nxt[2])
         return out
 
     def proven(self, hist, s_try):
         """The step to `s_try` and its braking, or None."""
-        nxt = self.step(hist[-4:], s_try)
+        nxt = self.step(hist, s_try)
         if nxt is None:
             return None
-        rest = self.brake(hist[-3:] + [nxt])
+        rest = self.brake(hist[-5:] + [nxt])
         return None if rest is None else (nxt, rest)
 
     def search(self, hist, good, hi):
@@ -250,7 +275,7 @@ def check(qs):
 
 def options(args):
     """Reads --bisect N, --proof-ticks N, --runs N and --filter NAME; returns the rest."""
-    global BISECT, PROOF_TICKS, RUNS, KERNEL
+    global BISECT, PROOF_TICKS, RUNS, KERNEL, LINE_STEPS
     rest = []
     it = iter(args)
     for a in it:
@@ -260,6 +285,8 @@ def options(args):
             PROOF_TICKS = int(next(it))
         elif a == "--filter":
             KERNEL = FILTERS[next(it)]
+        elif a == "--line-steps":
+            LINE_STEPS = True
         elif a == "--runs":
             RUNS = int(next(it))
         else:
