@@ -20,7 +20,8 @@ Run: python3 jerk_box_sketch.py [--dir arcs] [options] [name ...] (paths/ by def
 two a path, the zig-zag and the pocket more). Options: --runs N (N proofs a tick, searched as the
 linear box's `box_search`), --proof-ticks N (a longer braking fails its proof), --bisect N,
 --filter b2b2|b2b3|b4|b2b4|b3b3 (the axis filter), --line-steps (the axes checked only where
-the filter's window spans a vertex). Each line prints the setpoint checks a tick (p99, max): the
+the filter's window spans a vertex), --override FROM PCT TO (the feed override PCT % from tick
+FROM to tick TO; 0 is a hold). Each line prints the setpoint checks a tick (p99, max): the
 tick cost of a box built this way.
 """
 
@@ -49,6 +50,7 @@ FILTERS = {
     "b3b3": (1, 2, 3, 2, 1),
 }
 KERNEL = FILTERS["b2b2"]
+OVERRIDE = None  # --override FROM PCT TO: the feed override PCT % from tick FROM to tick TO
 LINE_STEPS = False  # --line-steps: no check of the axes where the filter's window is on one line
 RUNS = 0  # --runs N: N proofs a tick at most, searched as the linear box does (0: bisect)
 REST_MM_S = 1e-6  # a braking this slow is at rest
@@ -57,7 +59,9 @@ REST_MM_S = 1e-6  # a braking this slow is at rest
 class Sketch:
     def __init__(self, poly, feed_mm_s):
         self.poly = poly
-        self.step_f = feed_mm_s * TS
+        self.feed_step = feed_mm_s * TS  # the programmed feed's step
+        self.step_f = self.feed_step  # with the override in force
+        self.kept = 0  # ticks that took the kept braking (no search found a setpoint)
         self.steps = 0  # step checks this tick (the tick cost of a box built this way)
         self.tick_steps = []
         self.guess = 0.5  # the linear box's adaptive guess (`box_search`), for --runs
@@ -80,7 +84,8 @@ class Sketch:
         self.steps += 0 if trivial else 1
         (s3, p3, q3), (s2, p2, q2), (s1, p1, q1), (s0, p0, q0) = hist[-4:]
         ds = s_new - s0
-        if ds < -1e-12 or ds > self.step_f * (1 + 1e-12) or s_new > self.poly.length + 1e-12:
+        top = max(self.step_f, s0 - s1)  # above the feed (an override lowered): not faster
+        if ds < -1e-12 or ds > top * (1 + 1e-12) or s_new > self.poly.length + 1e-12:
             return None
         if abs(s_new - 2 * s0 + s1) > A_PATH * TS**2 * (1 + ROUNDING):
             return None
@@ -167,13 +172,15 @@ class Sketch:
             settled = all(q == out[-1] for q in out[-len(KERNEL):])
             if s0 >= length - 1e-12 and settled and s0 == s1 == s2:
                 break
-            hi = min(s0 + self.step_f, length, 2 * s0 - s1 + A_PATH * TS**2,
+            self.step_f = self.feed_step * override_at(len(out) - 1)
+            hi = min(s0 + self.feed_reach(s0, s1, s2), length, 2 * s0 - s1 + A_PATH * TS**2,
                      3 * s0 - 3 * s1 + s2 + J_PATH * TS**3)
             good = plan[0] if plan else s0
             self.steps = 0
             chosen = self.search(hist, good, hi)
             self.tick_steps.append(self.steps)
             if chosen is None:
+                self.kept += 1
                 nxt = self.step(hist, good)
                 assert nxt is not None, "the kept braking is proven"
                 plan = plan[1:]
@@ -182,6 +189,16 @@ class Sketch:
             hist = hist[-5:] + [nxt]
             out.append(nxt[2])
         return out
+
+    def feed_reach(self, s0, s1, s2):
+        """The step the feed allows: F·Ts, or above F (an override lowered it) the step of the
+        time-optimal jerk-limited approach to F (the stop's, relative to F)."""
+        v = (s0 - s1) / TS
+        f = self.step_f / TS
+        if v <= f * (1 + 1e-12):
+            return self.step_f
+        a = (s0 - 2 * s1 + s2) / TS**2
+        return max(v + stop_accel(v - f, a) * TS, f) * TS
 
     def proven(self, hist, s_try):
         """The step to `s_try` and its braking, or None."""
@@ -234,6 +251,14 @@ class Sketch:
         return found
 
 
+def override_at(tick):
+    """The override's share of the feed at `tick` (--override FROM PCT TO)."""
+    if OVERRIDE is None:
+        return 1.0
+    t_from, pct, t_to = OVERRIDE
+    return pct / 100.0 if t_from <= tick < t_to else 1.0
+
+
 def stop_accel(v, a):
     """The raw acceleration of the next tick of the time-optimal jerk-limited stop from speed
     v and acceleration a: as low as J and A allow while a rise back to 0 at J still ends at a
@@ -275,7 +300,7 @@ def check(qs):
 
 def options(args):
     """Reads --bisect N, --proof-ticks N, --runs N and --filter NAME; returns the rest."""
-    global BISECT, PROOF_TICKS, RUNS, KERNEL, LINE_STEPS
+    global BISECT, PROOF_TICKS, RUNS, KERNEL, LINE_STEPS, OVERRIDE
     rest = []
     it = iter(args)
     for a in it:
@@ -285,6 +310,8 @@ def options(args):
             PROOF_TICKS = int(next(it))
         elif a == "--filter":
             KERNEL = FILTERS[next(it)]
+        elif a == "--override":
+            OVERRIDE = (int(next(it)), float(next(it)), int(next(it)))
         elif a == "--line-steps":
             LINE_STEPS = True
         elif a == "--runs":
@@ -307,7 +334,8 @@ def main():
         p99 = cost[int(0.99 * (len(cost) - 1))]
         print(f"{name:12s} {ticks:6d} ticks {ticks * TS:8.3f} s  worst v/a/j " +
               " ".join(f"{w:.4f}" for w in check(qs)) +
-              f"  step checks a tick p99 {p99} max {cost[-1]}", flush=True)
+              f"  step checks a tick p99 {p99} max {cost[-1]}  kept braking {sketch.kept} ticks",
+              flush=True)
 
 
 if __name__ == "__main__":
