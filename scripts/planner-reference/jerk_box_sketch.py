@@ -16,8 +16,8 @@ Each tick takes the farthest next raw setpoint (arc length s on the polyline) su
   proof is kept and its next setpoint taken when no farther one passes.
 The search tries the farthest setpoint the path limits allow, then bisects towards the kept
 braking's next one. Plain Python, no planner code; the setpoints are checked again at the end.
-Run: python3 jerk_box_sketch.py [--dir arcs] [options] [name ...] (paths/ by default; a minute or
-two a path, the zig-zag and the pocket more). Options: --runs N (N proofs a tick, searched as the
+Run: python3 jerk_box_sketch.py [--dir arcs] [options] [name ...] (paths/ by default; a few
+seconds a path, the zig-zag 20). Options: --runs N (N proofs a tick, searched as the
 linear box's `box_search`), --proof-ticks N (a longer braking fails its proof), --bisect N,
 --filter b2b2|b2b3|b4|b2b4|b3b3 (the axis filter), --line-steps (the axes checked only where
 the filter's window spans a vertex), --override FROM PCT TO (the feed override PCT % from tick
@@ -262,29 +262,29 @@ def override_at(tick):
 def stop_accel(v, a):
     """The raw acceleration of the next tick of the time-optimal jerk-limited stop from speed
     v and acceleration a: as low as J and A allow while a rise back to 0 at J still ends at a
-    speed >= 0."""
+    speed >= 0. Closed form (a box in the tick needs it so): with the next acceleration -x·J·Ts,
+    m = floor(x), the rise back ends at v - J·Ts²·(m + 1)·(x - m + m/2)."""
     lo = max(a - J_PATH * TS, -A_PATH)
     hi = min(a + J_PATH * TS, A_PATH)
     if end_speed(v, hi) < 0:
         return hi
-    if end_speed(v, lo) >= 0:
-        return lo
-    for _ in range(40):
-        mid = 0.5 * (lo + hi)
-        if end_speed(v, mid) >= 0:
-            hi = mid
-        else:
-            lo = mid
-    return hi
+    w = v / (J_PATH * TS * TS)  # the speed in units of one tick's rise
+    m = math.floor((math.sqrt(1 + 8 * w) - 1) / 2)  # the largest m with m(m+1)/2 <= w
+    while (m + 1) * (m + 2) / 2 <= w:
+        m += 1
+    while m > 0 and m * (m + 1) / 2 > w:
+        m -= 1
+    x = m + min(w / (m + 1) - m / 2, 1.0)
+    return min(max(-x * J_PATH * TS, lo), hi)
 
 
 def end_speed(v, a):
     """The speed once the acceleration, a in the next tick, has risen back to 0 at J."""
-    v += a * TS
-    while a < 0:
-        a = min(a + J_PATH * TS, 0.0)
-        v += a * TS
-    return v
+    if a >= 0:
+        return v + a * TS
+    x = -a / (J_PATH * TS)
+    m = math.floor(x)
+    return v - J_PATH * TS * TS * (m + 1) * (x - m + m / 2)
 
 
 def check(qs):
