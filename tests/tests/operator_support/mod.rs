@@ -104,8 +104,8 @@ impl Cncd {
     }
 
     /// `cncctl jog AXIS --step STEP`, then waits until the step is done: idle with the axis at
-    /// the jog's target (the reply comes once the step is queued, so a status right after it
-    /// may still show the idle machine from before). Returns the target, mm.
+    /// the jog's target (not only idle, which the machine was before the step too). Returns the
+    /// target, mm.
     pub fn jog_step(&self, axis: &str, step_mm: f64) -> f64 {
         let r = self.json(&["jog", axis, "--step", &format!("{step_mm}")]);
         let target = r["target_mm"].as_f64().expect("the jog's target");
