@@ -98,19 +98,13 @@ class Sketch:
             if p.s[j] > s0 and ds > p.cap[j] * TS:
                 return None
         pn = p.at(s_new)
-        if trivial:
-            # Each axis moves as the arc length times its direction cosine, and the filter's
-            # averages keep the raw arc length's bounds: within every limit checked above.
-            u = p.u[p.segment(s_new)]
-            total = sum(KERNEL)
-            ss = (s_new, s0, s1, s2, s3)
-            sq = sum(w * ss[i] for i, w in enumerate(KERNEL)) / total
-            a = p.pts[p.segment(s_new)]
-            j0 = p.s[p.segment(s_new)]
-            return (s_new, pn, [a[k] + u[k] * (sq - j0) for k in range(3)])
         raw = (pn, p0, p1, p2, p3)
         total = sum(KERNEL)
         qn = [sum(w * raw[i][k] for i, w in enumerate(KERNEL)) / total for k in range(3)]
+        if trivial:
+            # Each axis moves as the arc length times its direction cosine, and the filter's
+            # averages keep the raw arc length's bounds: within every limit checked above.
+            return (s_new, pn, qn)
         v_lim, a_lim, j_lim = (x * (1 + ROUNDING) for x in LIMITS)
         for k in range(3):
             if abs(qn[k] - q0[k]) > v_lim:
