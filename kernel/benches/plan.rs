@@ -419,12 +419,32 @@ fn tick_cost() {
             _ => None,
         })
         .collect();
+    // The jerk-limited box (issue #49): the parabolic profile of `machine-parabolic.rek`.
+    let parabolic_rek = reference_config_with("machine-parabolic.rek");
+    let jerk_paths: Vec<_> = reference_paths()
+        .into_iter()
+        .filter(|p| ["splines", "lissajous", "surface", "zigzag"].contains(&p.name.as_str()))
+        .map(|p| (p.name.clone(), p.blocks))
+        .chain(
+            programs_in("arcs")
+                .into_iter()
+                .filter(|(n, _)| n == "arcfit-small" || n == "fillet-tiny"),
+        )
+        .collect();
     let runs = runs
         .chain(
             splines
                 .iter()
                 .map(|(name, blocks)| (*name, blocks, "linear, axes only", &reference)),
         )
+        .chain(jerk_paths.iter().map(|(name, blocks)| {
+            (
+                name.as_str(),
+                blocks,
+                "parabolic, machine-parabolic.rek",
+                &parabolic_rek,
+            )
+        }))
         .chain(
             arcs.iter()
                 .map(|(name, blocks)| (*name, blocks, "linear, TAB0.REK defaults", &default_rek)),
@@ -646,6 +666,10 @@ fn main() {
     }
     if std::env::args().any(|a| a == "speed") {
         throughput();
+        tick_cost();
+        return;
+    }
+    if std::env::args().any(|a| a == "ticks") {
         tick_cost();
         return;
     }

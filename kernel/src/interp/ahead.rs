@@ -71,6 +71,9 @@ pub(super) struct AheadGroup {
     /// Smallest of the feed and stop accelerations, and smallest jerk.
     pub accel_mm_s2: f64,
     pub jerk_mm_s3: f64,
+    /// A slot the jerk-limited box does not judge (`jerk_box`: its walk to the stop point
+    /// ahead crosses a group only without one).
+    pub jerk_unboxed: bool,
 }
 
 impl AheadGroup {
@@ -81,6 +84,7 @@ impl AheadGroup {
         feed_mm_s: f64::INFINITY,
         accel_mm_s2: f64::INFINITY,
         jerk_mm_s3: f64::INFINITY,
+        jerk_unboxed: false,
     };
 
     /// Lowers the bounds by one slot's fields.
@@ -148,6 +152,7 @@ impl Interpolator {
             *g = AheadGroup::NONE;
         }
         g.add(&self.ahead[i]);
+        g.jerk_unboxed |= !self.buf[i].axis_box.jerk.is_set();
     }
 
     /// Segment in slot `i` now ends at rest (single block).

@@ -19,6 +19,7 @@ impl Interpolator {
         self.hist_raw_s_mm[self.hist_newest] = s;
         self.hist_cap_mm_s[self.hist_newest] = cap;
         self.hist_feed_mm_s[self.hist_newest] = feed;
+        self.hist_raw_slot[self.hist_newest] = self.idx(self.raw_seg);
         if s == prev {
             self.still_ticks = (self.still_ticks + 1).min(FILTER_MAX_TICKS);
         } else {
@@ -122,7 +123,9 @@ impl Interpolator {
         self.filtered_v_mm_s = (s_f - self.filtered_s_mm) / TS_S;
         self.filtered_s_mm = s_f;
         let mut program_end = false;
-        // Drop segments the commanded position has left (never the raw one).
+        let keep_from = self.jbox_keep_from_s();
+        // Drop segments the commanded position has left (never the raw one, nor one the
+        // jerk-limited box still reads).
         while self.len > 0 {
             let i = self.idx(0);
             let seg = self.buf[i];
@@ -132,7 +135,7 @@ impl Interpolator {
                     && self.len == 1
                     && self.settled()
                     && self.last_may_leave(&seg));
-            if s_f >= end - ARRIVE_EPS_MM && raw_done {
+            if s_f >= end - ARRIVE_EPS_MM && raw_done && end <= keep_from {
                 self.path_pos = seg.path.end();
                 self.last_seq = seg.seq;
                 self.last_n = seg.n;
@@ -151,6 +154,15 @@ impl Interpolator {
                 }
                 continue;
             }
+            // (The segment the commanded position lies on: the first one left, with
+            // segments the box reads kept behind it.)
+            let mut j = 0;
+            while j < self.raw_seg
+                && s_f >= self.seg_start_s_mm[self.idx(j)] + self.seg(j).length_mm - ARRIVE_EPS_MM
+            {
+                j += 1;
+            }
+            let (i, seg) = (self.idx(j), *self.seg(j));
             let local = s_f - self.seg_start_s_mm[i];
             self.path_pos = if local >= seg.length_mm - ARRIVE_EPS_MM {
                 seg.path.end()
@@ -164,12 +176,12 @@ impl Interpolator {
             // what comes next is in force, so the spindle runs up (or stops) before the next
             // move, not with it.
             let at_stop = self.raw_at_stop
-                && self.raw_seg == 0
+                && self.raw_seg == j
                 && self.filtered_v_mm_s == 0.0
                 && local >= seg.length_mm - ARRIVE_EPS_MM;
             self.last_spindle = match (at_stop, seg.spindle_after) {
                 (false, _) => seg.spindle,
-                (true, _) if self.len > 1 => self.buf[self.idx(1)].spindle,
+                (true, _) if self.len > j + 1 => self.buf[self.idx(j + 1)].spindle,
                 (true, after) => after.unwrap_or(seg.spindle),
             };
             self.last_rapid = seg.rapid;

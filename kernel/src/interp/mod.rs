@@ -46,6 +46,7 @@ use crate::units::{AxesMm, TS_S};
 
 mod ahead;
 mod axis_filter;
+mod jerk_box;
 mod jerk_filter;
 mod piecewise;
 mod raw;
@@ -153,6 +154,8 @@ pub struct Interpolator {
     hist_raw_s_mm: Box<[f64]>,
     hist_cap_mm_s: Box<[f64]>,
     hist_feed_mm_s: Box<[f64]>,
+    /// The ring slot of the segment each raw arc length lay on (`jerk_box`).
+    hist_raw_slot: Box<[usize]>,
     hist_newest: usize,
     /// Consecutive ticks without raw motion.
     still_ticks: usize,
@@ -176,6 +179,8 @@ pub struct Interpolator {
     /// The setpoints' last two steps (newest first): a jerk-limited departure from a stop
     /// waits until they are 0 on every axis it moves (`departure_adds_no_jerk`).
     sent_steps: [AxesMm; 2],
+    /// The last three setpoints sent, newest first (the jerk-limited box's track).
+    sent_points: [AxesMm; 3],
     /// Setpoints sent to the drives (output of the axis filter).
     position: AxesMm,
     state: InterpState,
@@ -251,6 +256,24 @@ pub struct Interpolator {
     /// Where the box's search guesses, as a fraction of the way from the nearest setpoint to
     /// the farthest (`setpoint_box::box_search`).
     box_guess: f64,
+    // The jerk-limited box (`jerk_box`, parabolic profile).
+    /// The box handed the motion to the envelope at rest at arc length `jbox_refused_s`
+    /// (until the envelope comes to rest elsewhere).
+    jbox_refused: bool,
+    jbox_refused_s: f64,
+    /// Ticks at rest with a step wanted and none proven.
+    jbox_idle_ticks: u32,
+    /// Where the box's search guesses (`jerk_box::jbox_search`).
+    jbox_guess: f64,
+    /// Where the braking of the last accepted proof rests, mm of arc length.
+    jbox_rest_s: f64,
+    /// Each axis's room for the second and third differences of its setpoints, mm (with
+    /// the rounding slack).
+    jbox_axis_room: [(f64, f64); crate::units::MAX_AXES],
+    /// The stop point ahead of the raw position this tick, mm of arc length.
+    jbox_stop_mm: f64,
+    /// The limits of the box's brakings, from the segment the motion left rest on.
+    jbox_brake: jerk_box::PathLimits,
     /// The bounds that leave the piecewise walk early are used (tests turn them off to
     /// compare: the trajectory must be the same).
     pw_bounds: bool,
@@ -289,6 +312,7 @@ impl Interpolator {
             hist_raw_s_mm: vec![0.0; FILTER_MAX_TICKS].into_boxed_slice(),
             hist_cap_mm_s: vec![f64::INFINITY; FILTER_MAX_TICKS].into_boxed_slice(),
             hist_feed_mm_s: vec![f64::INFINITY; FILTER_MAX_TICKS].into_boxed_slice(),
+            hist_raw_slot: vec![0; FILTER_MAX_TICKS].into_boxed_slice(),
             hist_newest: 0,
             still_ticks: FILTER_MAX_TICKS,
             ticks_since_accel: FILTER_MAX_TICKS,
@@ -302,6 +326,7 @@ impl Interpolator {
             axis_hist_mid: vec![position; AXIS_FILTER_MAX_TICKS].into_boxed_slice(),
             axis_newest: 0,
             sent_steps: [AxesMm::ZERO; 2],
+            sent_points: [position; 3],
             position,
             state: InterpState::Idle,
             override_factor: 1.0,
@@ -340,6 +365,14 @@ impl Interpolator {
             box_pending: None,
             box_departs: false,
             box_guess: 0.5,
+            jbox_refused: false,
+            jbox_refused_s: 0.0,
+            jbox_idle_ticks: 0,
+            jbox_guess: 0.5,
+            jbox_rest_s: 0.0,
+            jbox_stop_mm: 0.0,
+            jbox_axis_room: [(0.0, 0.0); crate::units::MAX_AXES],
+            jbox_brake: jerk_box::PathLimits::default(),
             #[cfg(test)]
             pw_stats: (0, 0),
         }
@@ -593,6 +626,7 @@ impl Interpolator {
         self.position = position;
         self.path_pos = position;
         self.box_prev_point = position;
+        self.sent_points = [position; 3];
         self.axis_hist_in.fill(position);
         self.axis_hist_mid.fill(position);
         true
@@ -634,6 +668,8 @@ impl Interpolator {
         self.filtered_v_mm_s = 0.0;
         self.box_mode = false;
         self.box_on = setpoint_box::OnJunction::NONE;
+        self.jbox_refused = false;
+        self.jbox_idle_ticks = 0;
     }
 
     fn idx(&self, k: usize) -> usize {
@@ -702,6 +738,7 @@ impl Interpolator {
         }
         self.box_prev_point = sent_before;
         self.sent_steps = [self.position - setpoint_before, self.sent_steps[0]];
+        self.sent_points = [self.position, self.sent_points[0], self.sent_points[1]];
         self.reported_spindle = self.last_spindle;
         TickOut {
             position: self.position,

@@ -304,6 +304,9 @@ impl Interpolator {
         }
         self.arm_block_stop(&head, accel_mm_s2);
         let head = *self.seg(self.raw_seg);
+        if self.jbox_applies() {
+            return self.jbox_step(accel_mm_s2);
+        }
         if let Some(ds) = self.box_step(braking) {
             return self.advance_raw_by(&head, accel_mm_s2, ds);
         }
@@ -412,7 +415,9 @@ impl Interpolator {
             let next = self.seg(k + 1);
             // (While the box chooses the setpoints, its last proof brakes to rest before
             // any stop point beyond where that proof rests.)
-            let far_enough = if self.box_mode {
+            let far_enough = if self.jbox_applies() {
+                self.raw_s() + d >= self.jbox_rest_s
+            } else if self.box_mode {
                 self.raw_s() + d >= self.box_plan.rest_s(&self.box_paths, self.raw_s())
             } else {
                 d >= reach_mm
@@ -497,7 +502,15 @@ impl Interpolator {
             self.axis_hist_mid.fill(self.path_pos);
             self.axis_window_ticks = n;
         }
-        let m = self.filter_for();
+        if self.jbox_refused && self.raw_s() != self.jbox_refused_s {
+            self.jbox_refused = false;
+        }
+        // (The jerk-limited box runs with the jerk filter out: `jerk_box`.)
+        let m = if self.jbox_wanted() {
+            1
+        } else {
+            self.filter_for()
+        };
         if m != self.jerk_filter_ticks {
             if self.still_ticks <= self.jerk_filter_ticks {
                 return false;
@@ -776,7 +789,12 @@ impl Interpolator {
 
     /// Moves the raw position by the step `ds` the per-axis box chose (`setpoint_box`), as
     /// `advance_raw` does with its own: a step of 0 rests where the box's proof came to rest.
-    fn advance_raw_by(&mut self, head: &Segment, accel_mm_s2: f64, ds: f64) -> (f64, f64) {
+    pub(super) fn advance_raw_by(
+        &mut self,
+        head: &Segment,
+        accel_mm_s2: f64,
+        ds: f64,
+    ) -> (f64, f64) {
         self.raw_step_inside = false;
         if ds <= 0.0 {
             self.raw_v_mm_s = 0.0;

@@ -150,6 +150,8 @@ pub(super) struct BoxSlot {
     pub end: OnJunction,
     /// Its turn per mm of arc length, radians (0 on a line; `StepTurn`).
     pub turn_per_mm: f64,
+    /// What the jerk-limited box reads of it (parabolic profile).
+    pub jerk: super::jerk_box::JerkSlot,
 }
 
 impl BoxSlot {
@@ -168,6 +170,7 @@ impl BoxSlot {
                 lm_mm: b.lm_mm,
             },
             turn_per_mm: turn_per_mm(seg),
+            jerk: super::jerk_box::JerkSlot::of(seg),
         }
     }
 }
@@ -297,7 +300,7 @@ impl Interpolator {
     }
 
     /// The setpoint at arc length `s` on segment `k`, as `follow` sends it.
-    fn box_point(&self, k: usize, s: f64) -> AxesMm {
+    pub(super) fn box_point(&self, k: usize, s: f64) -> AxesMm {
         let seg = self.seg(k);
         let local = s - self.start_of(k);
         if at_end(local, seg.length_mm) {
@@ -308,7 +311,7 @@ impl Interpolator {
     }
 
     /// The segment from `k` on that holds arc length `s` (its end counts as on it).
-    fn box_seg_at(&self, mut k: usize, s: f64) -> usize {
+    pub(super) fn box_seg_at(&self, mut k: usize, s: f64) -> usize {
         // (The start of the next segment is this one's end: the walk reads one array.)
         while k + 1 < self.len && s > self.start_of(k + 1) {
             k += 1;
@@ -838,6 +841,7 @@ impl Interpolator {
         let departs = std::mem::take(&mut self.box_departs);
         let applies = !self.filtered()
             && self.len > 0
+            && !self.seg(self.raw_seg).jerk_mm_s3.is_finite()
             && matches!(
                 self.state,
                 InterpState::Running | InterpState::Holding | InterpState::Stopping

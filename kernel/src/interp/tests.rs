@@ -832,3 +832,114 @@ fn a_new_job_names_no_block_before_its_first_segment() {
     ip.push(next).unwrap();
     assert_eq!(ip.tick().n, Some(10));
 }
+
+/// The segments of a dense polygon (a circle of radius 10 mm in 0.1 mm chords, F6000, G23) on
+/// the reference machine of issue #49 with a parabolic constants file: the jerk-limited box
+/// judges them.
+fn parabolic_circle_segments() -> (crate::plan::PlannerConfig, Vec<Segment>) {
+    use crate::block::{Block, BlockKind, Comp, Continuity, Feed, Path, Plane, Spindle};
+    use crate::plan::{AxisLimits, Planner, PlannerConfig};
+    let c = crate::constants::Constants::parse("R338=0.020\nR384=0.008\nR385=1.000\n").unwrap();
+    let axis = AxisLimits {
+        v_max_mm_s: 20000.0 / 60.0,
+        a_max_mm_s2: 1000.0,
+    };
+    let cfg = PlannerConfig::for_machine(&[axis; 3], 0.0, Some(&c));
+    let point = |i: usize| {
+        let phi = i as f64 * 0.01;
+        AxesMm([
+            10.0 * phi.cos() - 10.0,
+            10.0 * phi.sin(),
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+        ])
+    };
+    let mut pl = Planner::new(cfg.clone(), 1);
+    let mut segs = vec![];
+    for i in 0..600 {
+        let block = Block {
+            seq: i as u32,
+            n: None,
+            line: i as u32 + 1,
+            kind: BlockKind::Motion {
+                start: point(i),
+                end: point(i + 1),
+                path: Path::Line,
+            },
+            feed: Feed::MmPerMin(6000.0),
+            plane: Plane::G17,
+            comp: Comp::Off,
+            continuity: Continuity::G23,
+            dyn_set: 1,
+            spindle: Spindle::default(),
+            m: [None; 4],
+        };
+        while !pl.wants_input() {
+            segs.extend(pl.poll());
+        }
+        pl.push(&block).unwrap();
+        while let Some(s) = pl.poll() {
+            segs.push(s);
+        }
+    }
+    pl.finish();
+    while let Some(s) = pl.poll() {
+        segs.push(s);
+    }
+    (cfg, segs)
+}
+
+/// Largest |third difference| of each axis's setpoints over its jerk limit × Ts³.
+fn worst_axis_jerk(trace: &[TickOut], j_mm_s3: f64) -> f64 {
+    let mut worst = 0.0f64;
+    for w in trace.windows(4) {
+        for ax in 0..3 {
+            let d3 = w[3].position[ax] - 3.0 * w[2].position[ax] + 3.0 * w[1].position[ax]
+                - w[0].position[ax];
+            worst = worst.max(d3.abs() / (j_mm_s3 * TS_S.powi(3)));
+        }
+    }
+    worst
+}
+
+/// The jerk-limited box hands the motion to the envelope at rest where it finds no step
+/// (`jerk_box::REFUSE_TICKS`): here forced at a hold. The envelope sizes its jerk filter and
+/// runs on to the end within the axes' jerk; at the next rest the box may take over again.
+#[test]
+fn the_jerk_box_hands_a_refused_departure_to_the_envelope() {
+    let (cfg, segs) = parabolic_circle_segments();
+    assert!(segs.iter().all(|s| s.axis_box.jerk.is_set()));
+    let mut ip = Interpolator::new(3, segs[0].path.start());
+    let (mut next, mut trace, mut held) = (0, vec![], false);
+    let mut envelope_ran = false;
+    for tick in 0..20_000 {
+        while next < segs.len() && ip.has_room() {
+            ip.push(segs[next]).unwrap();
+            next += 1;
+        }
+        if tick == 100 {
+            assert_eq!(ip.filter_ticks(), 1, "the box runs the circle");
+            ip.hold();
+        }
+        if !held && ip.state() == InterpState::Held {
+            held = true;
+            (ip.jbox_refused, ip.jbox_refused_s) = (true, ip.raw_s());
+            ip.resume();
+        }
+        envelope_ran |= held && ip.filter_ticks() > 1;
+        let out = ip.tick();
+        trace.push(out);
+        if out.state == InterpState::Idle && next == segs.len() {
+            break;
+        }
+    }
+    assert!(held && envelope_ran);
+    assert_eq!(trace.last().unwrap().state, InterpState::Idle);
+    let end = segs.last().unwrap().path.end();
+    assert!((trace.last().unwrap().position - end).norm(3) < 1e-9);
+    let j_axis = cfg.axis_j_max_mm_s3[0];
+    let worst = worst_axis_jerk(&trace, j_axis);
+    assert!(worst <= 1.0 + 1e-6, "axis jerk {worst}");
+}

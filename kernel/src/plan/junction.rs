@@ -5,8 +5,8 @@
 use super::budget::{JunctionTurns, LineBudget};
 use super::near::{AbsTurns, NearJunction};
 use super::{
-    BoxAccel, NORMAL_SHARE, OVERRIDE_MAX, Pending, Planner, Profile, SegPath, Segment, criteria,
-    junction_of,
+    BoxAccel, BoxJerk, NORMAL_SHARE, OVERRIDE_MAX, Pending, Planner, Profile, SegPath, Segment,
+    criteria, junction_of,
 };
 use crate::units::{AxesMm, MAX_AXES, TS_S};
 
@@ -514,6 +514,33 @@ impl Planner {
         }
     }
 
+    /// What the jerk-limited box reads of block `i` (parabolic profile, where the box may
+    /// judge it): the axes' jerks; the path acceleration `accel_mm_s2` and the path jerk,
+    /// each within the lowest axis's (so within the axes along any line: the box need not
+    /// compute the axes where its setpoints run on one line, and a braking is the same
+    /// whichever way the path turns); and half R384's Lm.
+    fn box_jerk_of(&self, i: usize, accel_mm_s2: f64) -> BoxJerk {
+        let env = &self.cfg.envelope;
+        let axes = self.cfg.axes.max(1);
+        let lowest = |v: &[f64]| v[..axes].iter().fold(f64::INFINITY, |m, x| m.min(*x));
+        let accel_mm_s2 = accel_mm_s2.min(lowest(&self.cfg.axis_a_max_mm_s2));
+        let boxed = self.win[i].box_candidate && accel_mm_s2 > 0.0 && accel_mm_s2.is_finite();
+        if env.profile != Profile::Parabolic || !boxed {
+            return BoxJerk::default();
+        }
+        let p = &self.win[i];
+        let path_j = self
+            .path_jerk_of(p.seg.rapid, p.set, p.j_axes)
+            .min(lowest(&self.cfg.axis_j_max_mm_s3));
+        let lm_um = env.sets[p.set].accuracy_um;
+        let off_mm = if lm_um > 0.0 {
+            0.5 * lm_um * 1e-3
+        } else {
+            f64::INFINITY
+        };
+        BoxJerk::of_axes(&self.cfg.axis_j_max_mm_s3, (accel_mm_s2, path_j), off_mm)
+    }
+
     /// Acceleration of block `i` (feed, and stop/hold): R52 without continuity, R236 (or the
     /// set's A) during continuity, R237 for rapids, capped by the axes it moves. Where the
     /// path turns, part of every axis's acceleration is taken by the normal acceleration;
@@ -545,8 +572,10 @@ impl Planner {
         } else {
             BoxAccel::NONE
         };
+        let box_jerk = self.box_jerk_of(i, box_accel.path());
         let p = &mut self.win[i];
         p.seg.axis_box.accel_mm_s2 = box_accel;
+        p.seg.axis_box.jerk = box_jerk;
         p.budget = budget;
         // Ticks inside a line see no turn (`Segment::free_accel_mm_s2`).
         (p.seg.free_accel_mm_s2, p.seg.free_accel_v_max_mm_s) = if linear_line && a_axes.is_finite()

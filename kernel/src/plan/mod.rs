@@ -188,6 +188,9 @@ pub struct SegmentBox {
     pub criteria_end_mm_s: f64,
     pub end_half_tan: f64,
     pub lm_mm: f64,
+    /// The jerks and the corridor of the jerk-limited box (parabolic profile); unset in the
+    /// linear profile.
+    pub jerk: BoxJerk,
 }
 
 /// The axes' accelerations and the path acceleration a segment carries for the per-axis box
@@ -235,6 +238,57 @@ impl BoxAccel {
     }
 }
 
+/// What the jerk-limited box (`interp::jerk_box`, parabolic profile) reads of a segment
+/// besides `BoxAccel`, in single precision rounded down: each axis's jerk, the path
+/// acceleration and jerk within the axes along the segment (the constants' A and P; on an
+/// arc with both plane axes at full speed), and how far the filtered setpoints may lie from
+/// the path, mm (half R384's Lm; ∞ where R384 is off).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BoxJerk {
+    axes: [f32; MAX_AXES],
+    path: f32,
+    accel: f32,
+    off: f32,
+}
+
+impl BoxJerk {
+    /// From each axis's jerk, the path's acceleration and jerk (mm/s², mm/s³) and the
+    /// corridor (mm).
+    pub fn of_axes(j_mm_s3: &[f64; MAX_AXES], path: (f64, f64), off_mm: f64) -> Self {
+        BoxJerk {
+            axes: j_mm_s3.map(f32_down),
+            accel: f32_down(path.0),
+            path: f32_down(path.1),
+            off: f32_down(off_mm),
+        }
+    }
+
+    /// The path acceleration, mm/s².
+    pub fn accel(&self) -> f64 {
+        f64::from(self.accel)
+    }
+
+    /// Set on the segments of the parabolic profile the box may judge.
+    pub fn is_set(&self) -> bool {
+        self.axes[0] > 0.0 && self.path > 0.0 && self.accel > 0.0
+    }
+
+    /// Axis `k`'s jerk, mm/s³ (at most the configured one).
+    pub fn axis(&self, k: usize) -> f64 {
+        f64::from(self.axes[k])
+    }
+
+    /// The path jerk, mm/s³.
+    pub fn path(&self) -> f64 {
+        f64::from(self.path)
+    }
+
+    /// How far the filtered setpoints may lie from the path, mm (∞: no bound).
+    pub fn off_mm(&self) -> f64 {
+        f64::from(self.off)
+    }
+}
+
 /// Limits of a new segment from the axes and the criteria of its block alone.
 struct SegLimits {
     v_max_mm_s: f64,
@@ -278,9 +332,9 @@ struct Pending {
     crit: f64,
     /// Hard cap at the end junction (0 when not smooth).
     cap: f64,
-    /// The per-axis box on the setpoints may judge this block (`interp::setpoint_box`): a
-    /// line of the linear profile (`set_accelerations` decides, with the continuity of its
-    /// junctions).
+    /// The per-axis box on the setpoints may judge this block (`interp::setpoint_box`, and
+    /// `interp::jerk_box` in the parabolic profile): a line or an arc (`set_accelerations`
+    /// decides, with the continuity of its junctions).
     box_candidate: bool,
     /// A line between turning junctions: its acceleration as a function of its speed.
     budget: Option<budget::LineBudget>,
@@ -797,14 +851,12 @@ impl Planner {
     }
 
     /// Whether the per-axis box on the setpoints may judge a block (`Pending::box_candidate`):
-    /// lines and arcs of the linear profile, an arc of any radius. A step turns the arcs it
+    /// lines and arcs, an arc of any radius (the linear profile's box, and the jerk-limited
+    /// box of the parabolic profile, `interp::jerk_box`). A step turns the arcs it
     /// runs on by at most a half turn (`interp::setpoint_box::StepTurn`), so a scan meets at
     /// most three quarter turns of an arc (`arc_within`), and an arc turns at most once
     /// (`SegPath::arc`; a longer one, were there any, would be left to the envelope).
     fn box_candidate(&self, path: &SegPath) -> bool {
-        if self.cfg.envelope.profile != Profile::Linear {
-            return false;
-        }
         match *path {
             SegPath::Line { .. } => true,
             SegPath::Arc {

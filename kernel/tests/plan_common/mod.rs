@@ -475,7 +475,15 @@ fn measure_dynamics(cfg: &PlannerConfig, r: &Run, w: &mut Worst) {
                 .max(s.free_accel_mm_s2)
         }
     });
-    let j_path = r.segments.iter().fold(0.0f64, |m, s| m.max(s.jerk_mm_s3));
+    // (The jerk-limited box keeps the constants' path jerk within the axes, `BoxJerk::path`;
+    // the envelope a share of it where the axis filter turns.)
+    let j_path = r.segments.iter().fold(0.0f64, |m, s| {
+        if s.axis_box.jerk.is_set() {
+            m.max(s.axis_box.jerk.path()).max(s.jerk_mm_s3)
+        } else {
+            m.max(s.jerk_mm_s3)
+        }
+    });
     // The reported path speed is the difference of two arc lengths of up to the program's
     // length over a tick, so it rounds by a few ulp of that length per tick: 4.3e-11 mm/s
     // (1.6e-9 of a 0.027 mm/s ceiling) after 1250 mm in a random run.
