@@ -555,8 +555,8 @@ fn count_only() {
 /// the number of ticks.
 fn count_ticks_only() {
     // `count-ticks <reference path>`: that path on the issue #32 machine (the per-axis box
-    // chooses the setpoints); `count-ticks box`: the dense circle on it; `count-ticks axes`:
-    // the dense circle on the daemon's defaults without constants.
+    // chooses the setpoints; with `parabolic`, see below); `count-ticks box`: the dense circle
+    // on it; `count-ticks axes`: the dense circle on the daemon's defaults without constants.
     let path = reference_paths()
         .into_iter()
         .find(|p| std::env::args().any(|a| a == p.name));
@@ -568,7 +568,11 @@ fn count_ticks_only() {
         1
     };
     // `count-ticks axes`: the dense circle on the daemon's defaults without constants.
-    let cfg = if boxed {
+    // `count-ticks <reference path> parabolic`: that path on `machine-parabolic.rek` (the
+    // jerk-limited box chooses the setpoints).
+    let cfg = if boxed && profile == 2 {
+        reference_config_with("machine-parabolic.rek")
+    } else if boxed {
         reference_config()
     } else if std::env::args().any(|a| a == "axes") {
         daemon_config(&default_axes(), None)

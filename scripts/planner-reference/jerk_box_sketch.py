@@ -2,8 +2,9 @@
 """A sketch of a jerk-limited box for the parabolic profile (issue #49), not a reference: what a
 controller that chooses its raw setpoints on the polyline each tick, as the linear profile's box
 does, and sends them through the axis filter it has today (q = B2·B2·p: the mean of the last two
-ticks, twice, T = 8 ms), would reach on the reference paths. It tells whether that shape of a box
-can close the gap to jerk_ticks.py before it is built in the interpolator.
+ticks, twice, T = 8 ms), would reach on the reference paths: the design of the interpolator's
+jerk-limited box (kernel/src/interp/jerk_box.rs), which takes the same times to a few ticks, in
+plain Python, to try changes to it (other filters, searches, brakings) in seconds.
 
 Each tick takes the farthest next raw setpoint (arc length s on the polyline) such that
 - the filtered setpoints keep, per axis, |Δq| <= v_k·Ts, |Δ²q| <= a_k·Ts², |Δ³q| <= j_k·Ts³ (j_k =

@@ -186,7 +186,11 @@ async fn uploads_are_validated_as_they_arrive_and_an_abandoned_one_ends() {
         assert_eq!(done.program.unwrap().blocks as usize, 1010 + k);
     }
     assert_eq!(d.ctl.program().unwrap().name, "p2.nc");
-    assert_eq!(threads_named("cnc-upload"), 0);
+    // (A validation thread ends just after it has handed its result over.)
+    wait_until("every validation thread ends", || {
+        threads_named("cnc-upload") == 0
+    })
+    .await;
 }
 
 /// A streamed upload whose client goes silent is abandoned after a minute without a chunk

@@ -147,18 +147,21 @@ impl Interpolator {
     pub(super) fn note_pushed(&mut self, i: usize) {
         self.ahead[i] = Ahead::of(&self.buf[i]);
         self.box_slots[i] = super::setpoint_box::BoxSlot::of(&self.buf[i]);
+        self.jbox_slots[i] = super::jerk_box::JerkSlot::of(&self.buf[i]);
         let g = &mut self.groups[i / GROUP];
         if i.is_multiple_of(GROUP) {
             *g = AheadGroup::NONE;
         }
         g.add(&self.ahead[i]);
-        g.jerk_unboxed |= !self.buf[i].axis_box.jerk.is_set();
+        g.jerk_unboxed |= !self.jbox_slots[i].set;
     }
 
     /// Segment in slot `i` now ends at rest (single block).
     pub(super) fn note_stop_at(&mut self, i: usize) {
         self.ahead[i].v_end_mm_s = 0.0;
+        self.jbox_stop.valid = false;
         self.box_slots[i].stop_end = true;
+        self.jbox_slots[i].stop_end = true;
         self.groups[i / GROUP].v_end_mm_s = 0.0;
     }
 

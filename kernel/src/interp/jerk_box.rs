@@ -16,16 +16,19 @@
 //!   settles (`jbox_brake`).
 //!
 //! The braking is a function of the last raw setpoints only (its limits are those of the
-//! segment the motion left rest on, `Interpolator::jbox_brake`), so the braking of the last
+//! segment the motion left rest on, `Interpolator::jbox_brake`, times the share its proof
+//! passed with: on a curve the normal acceleration takes part of the axes, so a proof tries
+//! the full limits, then half, then a quarter, `BRAKE_SHARES`), so the braking of the last
 //! accepted proof is its next step from here (`jbox_brake_next`): it is taken where no search
 //! finds a farther setpoint, which keeps every tick within the limits. Each tick tries the
 //! farthest setpoint the path limits allow, a guess that follows the last tick's find, then
-//! halving (`RUNS` proofs, as the linear box's `box_search`); a proof fails after
-//! `PROOF_CHECKS` checks of the axes. On one line each axis moves as the arc length times its
-//! direction cosine, so where every raw setpoint the check reads lies on one line the path's
-//! own limits hold for the axes (A and P are within the lowest axis's, `plan::BoxJerk`) and
-//! the axes are not computed (the rapids' long brakings cost arithmetic only). The speed of each axis is
-//! within its limit because every raw step keeps the ceiling of each segment it runs on.
+//! halving (`RUNS` proofs, as the linear box's `box_search`); the proofs of a tick fail after
+//! `TICK_CHECKS` checks of the axes together. On one line each axis moves as the arc length
+//! times its direction cosine, so where every raw setpoint the check reads lies on one line
+//! the path's own limits hold for the axes (A and P are within the lowest axis's,
+//! `plan::BoxJerk`) and the axes are not computed (the rapids' long brakings cost arithmetic
+//! only). The speed of each axis is within its limit because every raw step keeps the ceiling
+//! of each segment it runs on.
 //!
 //! The box starts from rest with the jerk filter at one tick (`Interpolator::jbox_wanted`;
 //! a line from a stop to a stop is the envelope's) and hands the motion to the envelope at
@@ -43,8 +46,10 @@ use crate::units::{AxesMm, TS_S};
 
 /// Proofs one tick may run while it searches (the first tries the farthest setpoint).
 const RUNS: usize = 3;
-/// Checks of the axes one proof may make (a braking on one line needs none).
-const PROOF_CHECKS: usize = 64;
+/// Checks of the axes the proofs of one tick may make together (a braking on one line needs
+/// none): the tick's cost is bounded by it. A braking from F6000 on the dense reference paths
+/// needs about 60; 128 instead changes their times by less than 1 %.
+const TICK_CHECKS: usize = 72;
 /// Braking ticks one proof may simulate (333 mm/s to rest at 500 mm/s² and 25 000 mm/s³
 /// takes about 180).
 const PROOF_TICKS: usize = 1024;
@@ -52,6 +57,8 @@ const PROOF_TICKS: usize = 1024;
 const REST_MM_S: f64 = 1e-9;
 /// The share of the path's acceleration and jerk a braking uses (the rest of the rounding).
 const BRAKE_SHARE: f64 = 1.0 - 1e-6;
+/// The shares of them a proof's braking tries, in turn.
+const BRAKE_SHARES: [f64; 3] = [1.0, 0.5, 0.25];
 /// Relative slack of each limit: a limit met exactly is not passed by rounding.
 const ROUNDING: f64 = 1e-9;
 /// Guesses of the search, as fractions of the way from the kept braking's setpoint to the
@@ -77,8 +84,10 @@ pub(super) struct Track {
     inp: [AxesMm; AXIS_FILTER_MAX_TICKS],
     mid: [AxesMm; AXIS_FILTER_MAX_TICKS],
     newest: usize,
-    /// The last four setpoints, newest first (a third difference reads them).
+    /// The last four setpoints, a ring whose newest is at `q_newest` (a third difference
+    /// reads them).
     q: [AxesMm; 4],
+    q_newest: usize,
     /// The segment of the newest raw arc length.
     k: usize,
     /// Ticks per stage of the axis filter.
@@ -123,7 +132,7 @@ impl Track {
             let (old_in, old_mid) = (self.inp[leaving], self.mid[leaving]);
             self.inp[self.newest] = p;
             let mut mid = self.mid[last];
-            let mut q = self.q[0];
+            let mut q = self.q[self.q_newest];
             for ax in 0..axes {
                 mid.0[ax] += (p.0[ax] - old_in.0[ax]) * inv;
                 q.0[ax] += (mid.0[ax] - old_mid.0[ax]) * inv;
@@ -131,31 +140,60 @@ impl Track {
             self.mid[self.newest] = mid;
             q
         };
-        self.q = [q, self.q[0], self.q[1], self.q[2]];
+        self.q_newest = (self.q_newest + 1) % 4;
+        self.q[self.q_newest] = q;
     }
 }
 
-/// What the box reads of a buffered segment, kept at push time (`BoxSlot::jerk`): the
-/// `Segment` itself is read only for its path.
+/// What the box reads of a buffered segment, kept at push time in a compact table
+/// (`Interpolator::jbox_slots`; a step on a dense path crosses several segments, each read
+/// once): the `Segment` itself is read only for its path.
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct JerkSlot {
-    /// The box judges it (`BoxJerk::is_set`).
+    /// The box judges it (`BoxJerk::is_set` and `BoxAccel::is_set`).
     pub set: bool,
     pub line: bool,
+    /// It ends at a stop point (`Segment::v_end_mm_s` 0; single block may make it one).
+    pub stop_end: bool,
+    /// Its feed is `feed_mm_s` as programmed (not a rapid, not per revolution).
+    pub plain_feed: bool,
     pub limits: PathLimits,
     /// `BoxJerk::off_mm`.
     pub off_mm: f64,
+    pub length_mm: f64,
+    pub feed_mm_s: f64,
+    /// The longest step on it, and the longest that crosses or ends on its end junction (its
+    /// criteria speed), mm (with the rounding slack).
+    pub v_max_step_mm: f64,
+    pub crit_step_mm: f64,
 }
 
 impl JerkSlot {
     pub(super) fn of(seg: &Segment) -> Self {
+        let b = &seg.axis_box;
+        let step = |v_mm_s: f64| v_mm_s * TS_S * (1.0 + ROUNDING);
         JerkSlot {
-            set: seg.axis_box.jerk.is_set(),
+            set: b.jerk.is_set() && b.accel_mm_s2.is_set(),
             line: matches!(seg.path, SegPath::Line { .. }),
+            stop_end: seg.v_end_mm_s == 0.0,
+            plain_feed: !seg.rapid && seg.per_rev_nominal_rpm <= 0.0,
             limits: PathLimits::of(seg),
-            off_mm: seg.axis_box.jerk.off_mm(),
+            off_mm: b.jerk.off_mm(),
+            length_mm: seg.length_mm,
+            feed_mm_s: seg.feed_mm_s,
+            v_max_step_mm: step(b.v_max_mm_s),
+            crit_step_mm: step(b.criteria_end_mm_s),
         }
     }
+}
+
+/// The stop point ahead of the raw position as last found (`Interpolator::jbox_stop_ahead`):
+/// `fixed` where it is a stop, not the end of the buffer (which pushes move on).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct StopAhead {
+    pub valid: bool,
+    pub fixed: bool,
+    pub s_mm: f64,
 }
 
 /// The path's limits on the raw arc length over one tick on a segment: its acceleration and
@@ -209,10 +247,18 @@ impl Feed {
     }
 }
 
-/// What one search found: the raw setpoint and where its braking rests.
+/// What one search found: the raw setpoint, where its braking rests and the share of the
+/// braking's limits it was proven with.
 struct Found {
     s: f64,
     rest_s: f64,
+    share: f64,
+}
+
+/// Why a braking is not proven: it meets a limit, or the checks or ticks run out.
+enum Unproven {
+    Limit,
+    Budget,
 }
 
 /// The raw acceleration of the next tick of the time-optimal stop of a path with jerk `j`
@@ -223,12 +269,18 @@ struct Found {
 pub(super) fn stop_accel(v: f64, a: f64, a_max: f64, j: f64) -> f64 {
     let lo = (a - j * TS_S).max(-a_max);
     let hi = (a + j * TS_S).min(a_max);
+    if hi < lo {
+        // (An acceleration beyond ±a_max by more than a tick's jerk, left by a step or a
+        // braking with more of the limits: back toward the range as fast as j allows.)
+        return if a < 0.0 { a + j * TS_S } else { a - j * TS_S };
+    }
     if end_speed(v, hi, j) < 0.0 {
         return hi;
     }
     // The speed in units of one tick's rise; the largest m with m(m + 1)/2 <= w.
     let w = v / (j * TS_S * TS_S);
-    let mut m = (((1.0 + 8.0 * w).sqrt() - 1.0) / 2.0).floor().max(0.0);
+    // (`as u64` truncates, the floor of a value ≥ 0, without a call to `floor`.)
+    let mut m = ((((1.0 + 8.0 * w).sqrt() - 1.0) / 2.0).max(0.0) as u64) as f64;
     while (m + 1.0) * (m + 2.0) / 2.0 <= w {
         m += 1.0;
     }
@@ -236,7 +288,7 @@ pub(super) fn stop_accel(v: f64, a: f64, a_max: f64, j: f64) -> f64 {
         m -= 1.0;
     }
     let x = m + (w / (m + 1.0) - m / 2.0).min(1.0);
-    (-x * j * TS_S).clamp(lo, hi)
+    (-x * j * TS_S).max(lo).min(hi)
 }
 
 /// The speed once the acceleration, `a` in the next tick, has risen back to 0 at `j`.
@@ -245,7 +297,7 @@ fn end_speed(v: f64, a: f64, j: f64) -> f64 {
         return v + a * TS_S;
     }
     let x = -a / (j * TS_S);
-    let m = x.floor();
+    let m = (x as u64) as f64;
     v - j * TS_S * TS_S * (m + 1.0) * (x - m + m / 2.0)
 }
 
@@ -261,7 +313,7 @@ impl Interpolator {
         }
         let seg = self.seg(self.raw_seg);
         let isolated_line = seg.axis_filter_ticks <= 1 && matches!(seg.path, SegPath::Line { .. });
-        !isolated_line && seg.axis_box.jerk.is_set() && self.box_slots[self.idx(self.raw_seg)].boxed
+        !isolated_line && self.jbox_slots[self.idx(self.raw_seg)].set
     }
 
     /// The box chooses this tick's raw step: wanted, with the jerk filter out.
@@ -283,7 +335,8 @@ impl Interpolator {
     fn jbox_track(&self) -> Track {
         let mut s = [0.0; S_RING];
         let mut ks = [0; S_RING];
-        for j in 0..S_RING {
+        // (A check reads `2n` back at most; older entries are overwritten before they are.)
+        for j in 0..(2 * self.axis_window_ticks + 3).min(S_RING) {
             let i = (self.hist_newest + FILTER_MAX_TICKS - j) % FILTER_MAX_TICKS;
             // (The newest at the ring's end, `s_newest`.) A segment dropped since is behind
             // the first buffered one: the walks start there.
@@ -303,9 +356,47 @@ impl Interpolator {
             inp,
             mid,
             newest: self.axis_newest,
-            q: [p0, p1, p2, p2],
+            q: [p2, p2, p1, p0],
+            q_newest: 3,
             k: self.raw_seg,
             n: self.axis_window_ticks,
+        }
+    }
+
+    /// The stop point ahead of the raw position (`jbox_stop_s`), kept across ticks: found
+    /// again where it is not known or the raw position has reached it, else as it was (a
+    /// step never passes it; segments pushed since extend it at push time,
+    /// `jbox_note_pushed`).
+    fn jbox_stop_ahead(&mut self, k: usize, s0: f64) -> f64 {
+        let known = &self.jbox_stop;
+        if !known.valid || known.s_mm <= s0 {
+            let s_mm = self.jbox_stop_s(k);
+            let fixed = s_mm < self.buffered_end_s_mm;
+            self.jbox_stop = StopAhead {
+                valid: true,
+                fixed,
+                s_mm,
+            };
+        }
+        self.jbox_stop.s_mm
+    }
+
+    /// A segment was pushed: where the stop point ahead was the end of the buffer, it moves
+    /// on to the new segment's end, or stays where a stop comes first.
+    pub(super) fn jbox_note_pushed(&mut self) {
+        let known = self.jbox_stop;
+        if !known.valid || known.fixed {
+            return;
+        }
+        if self.len < 2 {
+            self.jbox_stop.valid = false;
+            return;
+        }
+        let (before, new) = (self.idx(self.len - 2), self.idx(self.len - 1));
+        if self.jbox_slots[before].stop_end || !self.jbox_slots[new].set {
+            self.jbox_stop.fixed = true;
+        } else {
+            self.jbox_stop.s_mm = self.seg_start_s_mm[new] + self.ahead[new].length_mm;
         }
     }
 
@@ -324,7 +415,7 @@ impl Interpolator {
                     continue;
                 }
             }
-            if j > k && !self.box_slots[i].jerk.set {
+            if j > k && !self.jbox_slots[i].set {
                 return self.seg_start_s_mm[i];
             }
             if self.ahead[i].v_end_mm_s == 0.0 || j + 1 >= self.len {
@@ -338,8 +429,9 @@ impl Interpolator {
     /// Feed × override of a segment now, mm/s.
     fn jbox_soft(&self, k: usize) -> f64 {
         let i = self.idx(k);
-        let feed = if self.box_slots[i].plain_feed {
-            self.ahead[i].feed_mm_s
+        let slot = &self.jbox_slots[i];
+        let feed = if slot.plain_feed {
+            slot.feed_mm_s
         } else {
             self.feed_of_ahead(&self.ahead[i])
         };
@@ -368,45 +460,38 @@ impl Interpolator {
             return None;
         }
         // The segments the step runs on: ceilings, feeds, junction criteria, stop points.
-        let mut k = t.k;
-        let mut lim = self.box_slots[self.idx(k)].jerk.limits;
         let ds_prev = s0 - s1;
-        let step_ok = |j: usize| {
-            let i = self.idx(j);
-            let slot = &self.box_slots[i];
-            let top = slot.v_max_mm_s * TS_S * (1.0 + ROUNDING);
-            slot.boxed
-                && ds <= top
+        let fits = |j: usize, slot: &JerkSlot| {
+            slot.set
+                && ds <= slot.v_max_step_mm
                 && ds <= feed.room(self.jbox_soft(j) * TS_S, ds_prev) * (1.0 + ROUNDING) + 1e-12
         };
-        if !step_ok(k) {
+        let mut k = t.k;
+        let mut slot = &self.jbox_slots[self.idx(k)];
+        if !fits(k, slot) {
             return None;
         }
-        while k + 1 < self.len && self.start_of_seg(k + 1) < s_new {
-            let i = self.idx(k);
-            let junction = self.seg_start_s_mm[i] + self.ahead[i].length_mm;
-            if self.ahead[i].v_end_mm_s == 0.0 {
-                return None;
-            }
-            if junction > s0 && ds > self.box_slots[i].end.crit_mm_s * TS_S * (1.0 + ROUNDING) {
+        let mut lim = slot.limits;
+        let mut end_k = self.start_of_seg(k) + slot.length_mm;
+        while k + 1 < self.len && end_k < s_new {
+            // (Crossing the end junction of segment `k`.)
+            if slot.stop_end || (end_k > s0 && ds > slot.crit_step_mm) {
                 return None;
             }
             k += 1;
-            let slot = &self.box_slots[self.idx(k)];
-            if !step_ok(k) || !slot.jerk.set {
+            slot = &self.jbox_slots[self.idx(k)];
+            if !fits(k, slot) {
                 return None;
             }
-            lim = lim.min(slot.jerk.limits);
+            lim = lim.min(slot.limits);
+            end_k = self.start_of_seg(k) + slot.length_mm;
         }
-        let end_k = self.start_of_seg(k) + self.ahead[self.idx(k)].length_mm;
         if s_new > end_k + 1e-12 {
             return None;
         }
         // (A step that ends on a junction meets its criteria speed as one that crosses it.)
-        let i = self.idx(k);
-        let passes = k + 1 < self.len && self.ahead[i].v_end_mm_s > 0.0;
-        let crit_step = self.box_slots[i].end.crit_mm_s * TS_S * (1.0 + ROUNDING);
-        if passes && s_new >= end_k && end_k > s0 && ds > crit_step {
+        let passes = k + 1 < self.len && !slot.stop_end;
+        if passes && s_new >= end_k && end_k > s0 && ds > slot.crit_step_mm {
             return None;
         }
         if (s_new - 2.0 * s0 + s1).abs() > lim.a_mm_s2 * TS_S * TS_S * (1.0 + ROUNDING) {
@@ -444,7 +529,7 @@ impl Interpolator {
     /// back from the new one at `s_new`) lies on line `k`: the axes move as the arc length
     /// there, within the path's limits.
     fn jbox_on_one_line(&self, t: &Track, k: usize, s_new: f64) -> bool {
-        self.box_slots[self.idx(k)].jerk.line
+        self.jbox_slots[self.idx(k)].line
             && t.back(2 * t.n) >= self.start_of_seg(k)
             && s_new >= self.start_of_seg(k)
     }
@@ -452,7 +537,8 @@ impl Interpolator {
     /// Every axis within its acceleration and jerk at the newest setpoint of `t`, and the
     /// setpoint within the corridor of the path the raw setpoints it averages lie on.
     fn jbox_axes_hold(&self, t: &Track) -> bool {
-        let [q0, q1, q2, q3] = t.q;
+        let q = |j: usize| &t.q[(t.q_newest + 4 - j) % 4];
+        let (q0, q1, q2, q3) = (q(0), q(1), q(2), q(3));
         for ax in 0..self.axes {
             let (a_room, j_room) = self.jbox_axis_room[ax];
             let d2 = q0[ax] - 2.0 * q1[ax] + q2[ax];
@@ -464,11 +550,11 @@ impl Interpolator {
                 return false;
             }
         }
-        let off = self.box_slots[self.idx(t.k)].jerk.off_mm;
+        let off = self.jbox_slots[self.idx(t.k)].off_mm;
         if t.n <= 1 || !off.is_finite() {
             return true;
         }
-        self.jbox_near_path(t, &q0, off)
+        self.jbox_near_path(t, q0, off)
     }
 
     /// Whether setpoint `q` lies within `off` of the segments the raw setpoints it averages
@@ -531,6 +617,10 @@ fn distance2_to(path: &SegPath, q: &AxesMm, axes: usize) -> f64 {
             ..
         } => {
             let (a, b) = plane.axes();
+            let helix = (0..axes).any(|ax| ax != a && ax != b && start[ax] != end[ax]);
+            if !helix {
+                return planar_arc_distance2(path, q, axes);
+            }
             let phi = (q[b] - center[b]).atan2(q[a] - center[a]);
             let tau = std::f64::consts::TAU;
             let mut d = (phi - start_angle_rad) * sweep_rad.signum();
@@ -544,17 +634,59 @@ fn distance2_to(path: &SegPath, q: &AxesMm, axes: usize) -> f64 {
     }
 }
 
+/// `distance2_to` on an arc in its plane (the other axes fixed), without an angle: whether
+/// `q` lies within the sweep is read from the cross products with the radii to its ends.
+fn planar_arc_distance2(path: &SegPath, q: &AxesMm, axes: usize) -> f64 {
+    let SegPath::Arc {
+        start,
+        end,
+        center,
+        plane,
+        radius_mm,
+        sweep_rad,
+        ..
+    } = *path
+    else {
+        unreachable!("planar_arc_distance2 on a line");
+    };
+    let (a, b) = plane.axes();
+    let sign = sweep_rad.signum();
+    let radius = |p: &AxesMm| (p[a] - center[a], p[b] - center[b]);
+    let (u, v, w) = (radius(&start), radius(&end), radius(q));
+    // Positive where `y` lies ahead of `x` in the sweep's direction, within a half turn.
+    let ahead = |x: (f64, f64), y: (f64, f64)| (x.0 * y.1 - x.1 * y.0) * sign;
+    let turn = sweep_rad.abs();
+    let within = if turn >= std::f64::consts::TAU - 1e-9 {
+        true
+    } else if turn <= std::f64::consts::PI {
+        ahead(u, w) >= 0.0 && ahead(w, v) >= 0.0
+    } else {
+        // (Outside only in the rest of the circle, less than a half turn.)
+        !(ahead(v, w) > 0.0 && ahead(w, u) > 0.0)
+    };
+    let dist = |p: &AxesMm| (0..axes).map(|ax| (q[ax] - p[ax]).powi(2)).sum::<f64>();
+    if !within {
+        return dist(&start).min(dist(&end));
+    }
+    let off_plane: f64 = (0..axes)
+        .filter(|&ax| ax != a && ax != b)
+        .map(|ax| (q[ax] - start[ax]).powi(2))
+        .sum();
+    (w.0.hypot(w.1) - radius_mm).powi(2) + off_plane
+}
+
 impl Interpolator {
     /// The next raw arc length of the time-optimal braking from track `t` (its own setpoint
     /// once at rest), with the path limits of the segment it lies on.
-    fn jbox_brake_next(&self, t: &Track) -> f64 {
+    fn jbox_brake_next(&self, t: &Track, share: f64) -> f64 {
         let (s0, v, a) = (t.back(0), t.speed_mm_s(), t.accel_mm_s2());
         if v <= REST_MM_S && a.abs() <= REST_MM_S / TS_S {
             return s0;
         }
         // (A hair inside the limits: the last tick's speed, rounded to 0, then keeps them.)
         let lim = &self.jbox_brake;
-        let (a_max, j) = (lim.a_mm_s2 * BRAKE_SHARE, lim.j_mm_s3 * BRAKE_SHARE);
+        let share = share * BRAKE_SHARE;
+        let (a_max, j) = (lim.a_mm_s2 * share, lim.j_mm_s3 * share);
         let v_next = v + stop_accel(v, a, a_max, j) * TS_S;
         if v_next <= REST_MM_S {
             s0
@@ -563,30 +695,35 @@ impl Interpolator {
         }
     }
 
-    /// Brakes from track `t` as `jbox_brake_next` does until the raw position rests and the
-    /// axis filter has settled (`2n − 1` ticks at rest), checking every tick: where it rests,
-    /// or `None` (a limit, or more than `PROOF_CHECKS` checks or `PROOF_TICKS` ticks).
-    fn jbox_brake(&self, mut t: Track, feed: &Feed, checks: &mut usize) -> Option<f64> {
-        let start = *checks;
+    /// Brakes from track `t` as `jbox_brake_next` does with `share` of the limits until the
+    /// raw position rests and the axis filter has settled (`2n + 1` ticks at rest), checking
+    /// every tick: where it rests, or why not (a limit; the tick's `TICK_CHECKS` checks or
+    /// `PROOF_TICKS` ticks run out).
+    fn jbox_brake(
+        &self,
+        mut t: Track,
+        (feed, share): (&Feed, f64),
+        checks: &mut usize,
+    ) -> Result<f64, Unproven> {
         let mut settle = 0;
         for _ in 0..PROOF_TICKS {
             let s0 = t.back(0);
-            let s = self.jbox_brake_next(&t);
+            let s = self.jbox_brake_next(&t, share);
             let resting = s == s0 && t.speed_mm_s() == 0.0;
             if resting {
                 settle += 1;
                 if settle > 2 * t.n {
-                    return Some(s0);
+                    return Ok(s0);
                 }
             }
             if !self.jbox_advance(&mut t, s, feed, checks) {
-                return None;
+                return Err(Unproven::Limit);
             }
-            if *checks - start > PROOF_CHECKS {
-                return None;
+            if *checks > TICK_CHECKS {
+                return Err(Unproven::Budget);
             }
         }
-        None
+        Err(Unproven::Budget)
     }
 
     /// A step to `s_try` from track `t` and a braking after it to rest: where that rests.
@@ -596,8 +733,16 @@ impl Interpolator {
             return None;
         }
         let s = next.back(0);
-        let rest_s = self.jbox_brake(next, feed, checks)?;
-        Some(Found { s, rest_s })
+        // (A braking at the path's full A and P meets the axes' limits on a curve, where the
+        // normal acceleration takes part of them: the gentler ones then.)
+        for share in BRAKE_SHARES {
+            match self.jbox_brake(next, (feed, share), checks) {
+                Ok(rest_s) => return Some(Found { s, rest_s, share }),
+                Err(Unproven::Budget) => return None,
+                Err(Unproven::Limit) => {}
+            }
+        }
+        None
     }
 
     /// The farthest raw arc length the path's limits allow next from track `t`: the feed's
@@ -605,7 +750,7 @@ impl Interpolator {
     /// time-optimal approach to it), the path's acceleration and jerk, and the stop point.
     fn jbox_top(&self, t: &Track, feed: &Feed) -> f64 {
         let (s0, v, a) = (t.back(0), t.speed_mm_s(), t.accel_mm_s2());
-        let lim = self.box_slots[self.idx(t.k)].jerk.limits;
+        let lim = self.jbox_slots[self.idx(t.k)].limits;
         let brake = &self.jbox_brake;
         let f = if feed.braking {
             0.0
@@ -632,13 +777,14 @@ impl Interpolator {
             return None;
         }
         let (mut found, mut at, mut top) = (None, lo, hi);
+        // (One count for the tick: the proofs share `TICK_CHECKS`.)
+        let mut checks = 0;
         for run in 0..RUNS {
             let m = match run {
                 0 => hi,
                 1 => lo + self.jbox_guess.clamp(GUESS_MIN, GUESS_MAX) * (hi - lo),
                 _ => 0.5 * (at + top),
             };
-            let mut checks = 0;
             match self.jbox_proven(t, m, feed, &mut checks) {
                 Some(f) => {
                     found = Some(f);
@@ -672,12 +818,13 @@ impl Interpolator {
         let t = self.jbox_track();
         // (Steps never pass a stop point: the one ahead of the raw position holds for every
         // proof of this tick.)
-        self.jbox_stop_mm = self.jbox_stop_s(t.k);
+        self.jbox_stop_mm = self.jbox_stop_ahead(t.k, t.back(0));
         let v = t.speed_mm_s();
         if v == 0.0 && t.accel_mm_s2() == 0.0 {
             // (The braking's limits hold from rest to rest: the braking of a proof is the
             // kept one only if it is computed alike in every tick after.)
             self.jbox_brake = PathLimits::of(&head);
+            self.jbox_brake_share = 1.0;
         }
         let soft_here = self.jbox_soft(t.k);
         let feed = Feed {
@@ -688,12 +835,13 @@ impl Interpolator {
             },
             braking,
         };
-        let lo = self.jbox_snap(&t, self.jbox_brake_next(&t));
+        let lo = self.jbox_snap(&t, self.jbox_brake_next(&t, self.jbox_brake_share));
         let hi = self.jbox_top(&t, &feed);
         let s0 = t.back(0);
         let s = match self.jbox_search(&t, (lo, hi), &feed) {
             Some(found) => {
                 self.jbox_rest_s = found.rest_s;
+                self.jbox_brake_share = found.share;
                 found.s
             }
             None => lo,
@@ -709,5 +857,75 @@ impl Interpolator {
             self.jbox_idle_ticks = 0;
         }
         self.advance_raw_by(&head, accel_mm_s2, (s - s0).max(0.0))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::block::{ArcDir, Plane};
+
+    /// The distance to a plane arc without an angle is the one through its angle
+    /// (`distance2_to` on a helix whose other axes do not move), on arcs of every sweep.
+    #[test]
+    fn a_plane_arc_s_distance_needs_no_angle() {
+        let mut seed = 7u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..20_000 {
+            let c = AxesMm([next() * 10.0, next() * 10.0, 3.0, 0.0, 0.0, 0.0]);
+            let r = 0.01 + next() * 5.0;
+            let (a0, a1) = (next() * 6.3, next() * 6.3);
+            let at = |phi: f64| {
+                AxesMm([
+                    c[0] + r * phi.cos(),
+                    c[1] + r * phi.sin(),
+                    3.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                ])
+            };
+            let dir = if next() < 0.5 {
+                ArcDir::Ccw
+            } else {
+                ArcDir::Cw
+            };
+            let arc = SegPath::arc(at(a0), at(a1), c, Plane::G17, dir);
+            let q = AxesMm([
+                c[0] + (next() - 0.5) * 4.0 * r,
+                c[1] + (next() - 0.5) * 4.0 * r,
+                3.0 + (next() - 0.5) * 0.1,
+                0.0,
+                0.0,
+                0.0,
+            ]);
+            let fast = planar_arc_distance2(&arc, &q, 3);
+            let SegPath::Arc {
+                start_angle_rad,
+                sweep_rad,
+                ..
+            } = arc
+            else {
+                unreachable!()
+            };
+            let phi = (q[1] - c[1]).atan2(q[0] - c[0]);
+            let d =
+                ((phi - start_angle_rad) * sweep_rad.signum()).rem_euclid(std::f64::consts::TAU);
+            let dist = |p: &AxesMm| (0..3).map(|ax| (q[ax] - p[ax]).powi(2)).sum::<f64>();
+            let slow = if d <= sweep_rad.abs() {
+                dist(&arc.point_at(d / sweep_rad.abs()))
+            } else {
+                dist(&arc.start()).min(dist(&arc.end()))
+            };
+            assert!(
+                (fast.sqrt() - slow.sqrt()).abs() <= 1e-9 * (1.0 + r),
+                "{fast} {slow}"
+            );
+        }
     }
 }

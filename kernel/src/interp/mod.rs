@@ -119,6 +119,8 @@ pub struct Interpolator {
     ahead: Box<[Ahead; BUFFER_SEGMENTS]>,
     /// What the per-axis box reads of each buffered segment besides that (`setpoint_box`).
     box_slots: Box<[setpoint_box::BoxSlot; BUFFER_SEGMENTS]>,
+    /// What the jerk-limited box reads of each buffered segment (`jerk_box`).
+    jbox_slots: Box<[jerk_box::JerkSlot; BUFFER_SEGMENTS]>,
     groups: Box<[AheadGroup]>,
     /// Arc length (from the first buffered segment after the last reset) at each segment start.
     seg_start_s_mm: Box<[f64]>,
@@ -270,10 +272,14 @@ pub struct Interpolator {
     /// Each axis's room for the second and third differences of its setpoints, mm (with
     /// the rounding slack).
     jbox_axis_room: [(f64, f64); crate::units::MAX_AXES],
+    /// The stop point ahead as last found (`jerk_box::StopAhead`).
+    jbox_stop: jerk_box::StopAhead,
     /// The stop point ahead of the raw position this tick, mm of arc length.
     jbox_stop_mm: f64,
     /// The limits of the box's brakings, from the segment the motion left rest on.
     jbox_brake: jerk_box::PathLimits,
+    /// The share of those the last accepted proof's braking was proven with.
+    jbox_brake_share: f64,
     /// The bounds that leave the piecewise walk early are used (tests turn them off to
     /// compare: the trajectory must be the same).
     pw_bounds: bool,
@@ -293,6 +299,10 @@ impl Interpolator {
                 .try_into()
                 .expect("BUFFER_SEGMENTS slots"),
             box_slots: vec![setpoint_box::BoxSlot::default(); BUFFER_SEGMENTS]
+                .into_boxed_slice()
+                .try_into()
+                .expect("BUFFER_SEGMENTS slots"),
+            jbox_slots: vec![jerk_box::JerkSlot::default(); BUFFER_SEGMENTS]
                 .into_boxed_slice()
                 .try_into()
                 .expect("BUFFER_SEGMENTS slots"),
@@ -371,8 +381,10 @@ impl Interpolator {
             jbox_guess: 0.5,
             jbox_rest_s: 0.0,
             jbox_stop_mm: 0.0,
+            jbox_stop: jerk_box::StopAhead::default(),
             jbox_axis_room: [(0.0, 0.0); crate::units::MAX_AXES],
             jbox_brake: jerk_box::PathLimits::default(),
+            jbox_brake_share: 1.0,
             #[cfg(test)]
             pw_stats: (0, 0),
         }
@@ -488,6 +500,7 @@ impl Interpolator {
         self.buffered_end_s_mm += seg.length_mm;
         self.len += 1;
         self.note_pushed(i);
+        self.jbox_note_pushed();
         if self.state == InterpState::Idle {
             self.state = InterpState::Running;
         }
@@ -670,6 +683,7 @@ impl Interpolator {
         self.box_on = setpoint_box::OnJunction::NONE;
         self.jbox_refused = false;
         self.jbox_idle_ticks = 0;
+        self.jbox_stop.valid = false;
     }
 
     fn idx(&self, k: usize) -> usize {

@@ -150,8 +150,6 @@ pub(super) struct BoxSlot {
     pub end: OnJunction,
     /// Its turn per mm of arc length, radians (0 on a line; `StepTurn`).
     pub turn_per_mm: f64,
-    /// What the jerk-limited box reads of it (parabolic profile).
-    pub jerk: super::jerk_box::JerkSlot,
 }
 
 impl BoxSlot {
@@ -170,7 +168,6 @@ impl BoxSlot {
                 lm_mm: b.lm_mm,
             },
             turn_per_mm: turn_per_mm(seg),
-            jerk: super::jerk_box::JerkSlot::of(seg),
         }
     }
 }
