@@ -74,7 +74,7 @@ const _: () = assert!(S_RING > 2 * AXIS_FILTER_MAX_TICKS + 1 && S_RING <= FILTER
 const _: () = assert!(BUFFER_SEGMENTS <= u16::MAX as usize);
 
 /// The state a step of the box depends on: the last raw arc lengths, the axis filter's rings
-/// (as `axis_filter` keeps them) and the last three setpoints. A proof advances a copy.
+/// (as `axis_filter` keeps them) and the last four setpoints. A proof advances a copy.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Track {
     s: [f64; S_RING],

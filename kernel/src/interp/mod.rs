@@ -263,6 +263,9 @@ pub struct Interpolator {
     /// (until the envelope comes to rest elsewhere).
     jbox_refused: bool,
     jbox_refused_s: f64,
+    /// The jerk filter was set to one tick for the box (`resize_filters_at_rest`): the
+    /// envelope may not run with it.
+    jbox_filter_out: bool,
     /// Ticks at rest with a step wanted and none proven.
     jbox_idle_ticks: u32,
     /// Where the box's search guesses (`jerk_box::jbox_search`).
@@ -377,6 +380,7 @@ impl Interpolator {
             box_guess: 0.5,
             jbox_refused: false,
             jbox_refused_s: 0.0,
+            jbox_filter_out: false,
             jbox_idle_ticks: 0,
             jbox_guess: 0.5,
             jbox_rest_s: 0.0,

@@ -307,6 +307,12 @@ impl Interpolator {
         if self.jbox_applies() {
             return self.jbox_step(accel_mm_s2);
         }
+        if self.jbox_filter_out {
+            // The jerk filter is out for the box, which hands this motion over: the raw
+            // position rests until the filters settle and the envelope's is sized.
+            self.raw_v_mm_s = 0.0;
+            return IDLE;
+        }
         if let Some(ds) = self.box_step(braking) {
             return self.advance_raw_by(&head, accel_mm_s2, ds);
         }
@@ -506,23 +512,22 @@ impl Interpolator {
             self.jbox_refused = false;
         }
         // (The jerk-limited box runs with the jerk filter out: `jerk_box`.)
-        let m = if self.jbox_wanted() {
-            1
-        } else {
-            self.filter_for()
-        };
+        let for_box = self.jbox_wanted();
+        let m = if for_box { 1 } else { self.filter_for() };
         if m != self.jerk_filter_ticks {
             if self.still_ticks <= self.jerk_filter_ticks {
                 return false;
             }
             let s = self.raw_s();
             self.hist_raw_s_mm.fill(s);
+            self.hist_raw_slot.fill(self.idx(self.raw_seg));
             self.hist_cap_mm_s.fill(f64::INFINITY);
             self.hist_feed_mm_s.fill(f64::INFINITY);
             self.still_ticks = FILTER_MAX_TICKS;
             self.ticks_since_accel = FILTER_MAX_TICKS;
             self.jerk_filter_ticks = m;
         }
+        self.jbox_filter_out = for_box;
         true
     }
 

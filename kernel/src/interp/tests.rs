@@ -943,3 +943,42 @@ fn the_jerk_box_hands_a_refused_departure_to_the_envelope() {
     let worst = worst_axis_jerk(&trace, j_axis);
     assert!(worst <= 1.0 + 1e-6, "axis jerk {worst}");
 }
+
+/// A refusal while the raw position rests but the axis filter has not settled yet (forced as
+/// the hold's braking comes to rest, resumed at once): the raw position waits for the filters
+/// to settle and the envelope's jerk filter to be sized, and the envelope never runs with the
+/// jerk filter out (it would, at an acceleration of J·Ts: within the jerk, but crawling).
+#[test]
+fn a_refusal_before_the_filters_settle_waits_for_them() {
+    let (cfg, segs) = parabolic_circle_segments();
+    let mut ip = Interpolator::new(3, segs[0].path.start());
+    let (mut next, mut trace, mut forced) = (0, vec![], false);
+    let mut unfiltered_envelope = 0;
+    for tick in 0..20_000 {
+        while next < segs.len() && ip.has_room() {
+            ip.push(segs[next]).unwrap();
+            next += 1;
+        }
+        if tick == 100 {
+            ip.hold();
+        }
+        if !forced && tick > 100 && ip.raw_v_mm_s == 0.0 && !ip.settled() {
+            forced = true;
+            (ip.jbox_refused, ip.jbox_refused_s) = (true, ip.raw_s());
+            ip.resume();
+        }
+        let out = ip.tick();
+        if forced && ip.raw_v_mm_s > 0.0 && ip.filter_ticks() == 1 && !ip.jbox_applies() {
+            unfiltered_envelope += 1;
+        }
+        trace.push(out);
+        if out.state == InterpState::Idle && next == segs.len() {
+            break;
+        }
+    }
+    assert!(forced);
+    assert_eq!(unfiltered_envelope, 0);
+    assert_eq!(trace.last().unwrap().state, InterpState::Idle);
+    let worst = worst_axis_jerk(&trace, cfg.axis_j_max_mm_s3[0]);
+    assert!(worst <= 1.0 + 1e-6, "axis jerk {worst}");
+}
