@@ -308,7 +308,7 @@ impl Interpolator {
     }
 
     /// The segment from `k` on that holds arc length `s` (its end counts as on it).
-    pub(super) fn box_seg_at(&self, mut k: usize, s: f64) -> usize {
+    fn box_seg_at(&self, mut k: usize, s: f64) -> usize {
         // (The start of the next segment is this one's end: the walk reads one array.)
         while k + 1 < self.len && s > self.start_of(k + 1) {
             k += 1;

@@ -240,9 +240,9 @@ impl BoxAccel {
 
 /// What the jerk-limited box (`interp::jerk_box`, parabolic profile) reads of a segment
 /// besides `BoxAccel`, in single precision rounded down: each axis's jerk, the path
-/// acceleration and jerk within the axes along the segment (the constants' A and P; on an
-/// arc with both plane axes at full speed), and how far the filtered setpoints may lie from
-/// the path, mm (half R384's Lm; ∞ where R384 is off).
+/// acceleration and jerk (the constants' A and P, each within the lowest axis's:
+/// `Planner::box_jerk_of`), and how far the filtered setpoints may lie from the path, mm
+/// (half R384's Lm; ∞ where R384 is off).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct BoxJerk {
     axes: [f32; MAX_AXES],
